@@ -1,0 +1,2 @@
+"""Robot-independent stages of the pipeline: kernel description → CSE + C printing →
+Jinja rendering."""

@@ -1,0 +1,70 @@
+"""A kernel is one batched C function: its ports, its staged SymPy assignments and its
+per-point status. Derivation modules build kernels; lowering turns them into C statements."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+
+@dataclass(frozen=True)
+class Port:
+    """One array argument of a kernel.
+
+    ``symbols`` are the per-point scalars it carries, in column order. ``width`` is
+    ``"axes"`` for arrays whose row length is the caller's axis count (3, or 4 with the
+    fourth axis in the last column), otherwise the fixed row length.
+    """
+
+    name: str
+    symbols: tuple
+    doc: str
+    unit: str
+    width: object = "axes"
+    fourth_axis_from: str | None = None  # input port whose 4th column this one copies, eq. (43)
+
+    @property
+    def shape(self) -> str:
+        return "n x axes" if self.width == "axes" else f"n x {self.width}"
+
+
+@dataclass(frozen=True)
+class Angle:
+    """An input angle whose cos and sin the kernel needs; evaluated in separate loops."""
+
+    angle: sp.Symbol
+    cos: sp.Symbol
+    sin: sp.Symbol
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A geometry value the kernel reads from the parameter struct (``index`` for arrays)."""
+
+    symbol: sp.Symbol
+    field: str
+    index: int | None = None
+
+
+@dataclass(frozen=True)
+class Stage:
+    """Assignments that depend only on inputs, parameters and earlier stages."""
+
+    comment: str
+    assignments: tuple  # ((Symbol, Expr), ...)
+
+
+@dataclass(frozen=True)
+class Kernel:
+    name: str
+    doc: str
+    inputs: tuple  # (Port, ...)
+    outputs: tuple  # (Port, ...); output symbols are assigned in the stages
+    stages: tuple  # (Stage, ...)
+    status: sp.Expr  # integer-valued expression (Piecewise) of earlier symbols
+    parameters: tuple = ()  # (Parameter, ...)
+    setup: tuple = ()  # (Stage, ...) evaluated once per call from the parameters
+    angles: tuple = ()  # (Angle, ...)
+    status_doc: str = ""
+    notes: tuple = field(default=())

@@ -1,0 +1,59 @@
+"""Kernel → C statements: common-subexpression elimination per stage (sympy.cse) and
+printing (SymPy's C99 printer). The result is plain data for the Jinja templates."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+from sympy.core.relational import Relational
+from sympy.logic.boolalg import BooleanFunction
+
+from .kernel import Kernel
+from .printer import to_c
+
+
+@dataclass(frozen=True)
+class Statement:
+    name: str
+    expr: str
+    ctype: str = "double"
+
+
+def _statement(sym, expr) -> Statement:
+    ctype = "int" if isinstance(expr, (Relational, BooleanFunction)) else "double"
+    return Statement(str(sym), to_c(expr), ctype)
+
+
+@dataclass(frozen=True)
+class LoweredStage:
+    comment: str
+    statements: tuple  # (Statement, ...): temporaries first, then the stage's own symbols
+
+
+@dataclass(frozen=True)
+class LoweredKernel:
+    kernel: Kernel
+    stages: tuple
+    status: str
+    operation_count: int
+
+
+def lower_stage(index: int, stage, prefix: str) -> tuple[LoweredStage, int]:
+    names = [sym for sym, _ in stage.assignments]
+    exprs = [sp.sympify(e) for _, e in stage.assignments]
+    temporaries = sp.numbered_symbols(f"{prefix}{index}_")
+    replacements, reduced = sp.cse(exprs, symbols=temporaries, order="canonical")
+    statements = [_statement(s, e) for s, e in replacements]
+    statements += [_statement(s, e) for s, e in zip(names, reduced)]
+    ops = sum(sp.count_ops(e) for _, e in replacements) + sum(sp.count_ops(e) for e in reduced)
+    return LoweredStage(stage.comment, tuple(statements)), int(ops)
+
+
+def lower(kernel: Kernel) -> LoweredKernel:
+    stages, total = [], 0
+    for index, stage in enumerate(kernel.stages):
+        lowered, ops = lower_stage(index, stage, prefix="t")
+        stages.append(lowered)
+        total += ops
+    return LoweredKernel(kernel, tuple(stages), to_c(kernel.status), total)

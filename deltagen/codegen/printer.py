@@ -1,0 +1,68 @@
+"""SymPy's C99 printer, extended with the few constructs the kernels need.
+
+* ``AllFinite(a, b, ...)`` prints ``(isfinite(a) && isfinite(b) ...)``: SymPy would
+  rewrite ``Not(Abs(a) <= big)`` to ``Abs(a) > big``, which is false for NaN.
+* ``CopySign(a, b)`` prints C99 ``copysign(a, b)``.
+* Piecewise prints as one-line nested ternaries (the stock printer spreads them over lines).
+* Small integer powers are expanded to products (``pow(x, 3)`` is not folded by gcc
+  without -ffast-math).
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+from sympy.codegen.rewriting import create_expand_pow_optimization
+from sympy.logic.boolalg import BooleanFunction
+from sympy.printing.c import C99CodePrinter
+
+
+class AllFinite(BooleanFunction):
+    """True when every argument is finite (neither NaN nor infinite)."""
+
+    @classmethod
+    def eval(cls, *args):
+        return None
+
+
+class CopySign(sp.Function):
+    """C99 copysign(magnitude, sign)."""
+
+    nargs = 2
+
+
+expand_small_powers = create_expand_pow_optimization(4)
+
+
+class KernelPrinter(C99CodePrinter):
+    def _print_AllFinite(self, expr):
+        return "(" + " && ".join(f"isfinite({self._print(a)})" for a in expr.args) + ")"
+
+    def _print_CopySign(self, expr):
+        return f"copysign({self._print(expr.args[0])}, {self._print(expr.args[1])})"
+
+    def _print_Not(self, expr):
+        return f"!{self.parenthesize(expr.args[0], 100)}"
+
+    def _print_Piecewise(self, expr):
+        if expr.args[-1].cond != sp.true:
+            raise ValueError("kernel Piecewise needs a final (value, True) branch")
+        text = self._print(expr.args[-1].expr)
+        for value, cond in reversed(expr.args[:-1]):
+            text = f"(({self._print(cond)}) ? {self._print(value)} : {text})"
+        return text
+
+    def _print_Relational(self, expr):
+        # Relationals inside ternaries: always parenthesised, IEEE-faithful operators.
+        return f"({self._print(expr.lhs)} {expr.rel_op} {self._print(expr.rhs)})"
+
+    def _print_Pi(self, expr):
+        # M_PI is POSIX, not C99: print the double nearest to pi.
+        return "3.141592653589793"
+
+    def _print_Integer(self, expr):
+        return str(int(expr))
+
+
+def to_c(expr) -> str:
+    """C99 text of one SymPy expression (small powers expanded first)."""
+    return KernelPrinter().doprint(expand_small_powers(sp.sympify(expr)))

@@ -1,0 +1,134 @@
+"""Lowered kernels → C source, header and cffi declarations through the Jinja templates.
+
+Python decides what goes where (which parameters a function reads, which columns it loads
+and stores); the templates only lay it out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import jinja2
+import sympy as sp
+
+from .. import status as st
+from ..paths import template_dir
+from .lowering import LoweredKernel, lower_stage
+
+
+def environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(template_dir())),
+        undefined=jinja2.StrictUndefined,
+        keep_trailing_newline=True,
+        trim_blocks=False,
+        autoescape=False,
+    )
+
+
+@dataclass(frozen=True)
+class StructField:
+    name: str
+    ctype: str
+    suffix: str
+    doc: str
+
+
+@dataclass(frozen=True)
+class Unit:
+    """What one generated C module needs besides its kernels."""
+
+    prefix: str  # C prefix of functions and constants, e.g. "delta"
+    base_name: str  # file stem, e.g. "delta_kinematics"
+    title: str
+    source: str  # where the equations come from
+    struct_name: str
+    struct_fields: tuple  # (StructField, ...)
+    block: int = 64
+
+
+def _used(symbols_in, assignments):
+    """Keep assignments needed (transitively) by ``symbols_in``."""
+    needed = set(symbols_in)
+    kept = []
+    for sym, expr in reversed(assignments):
+        if sym in needed:
+            kept.append((sym, expr))
+            needed |= sp.sympify(expr).free_symbols
+    return list(reversed(kept)), needed
+
+
+def function_context(lk: LoweredKernel) -> dict:
+    k = lk.kernel
+    body_symbols = set(sp.sympify(k.status).free_symbols)
+    for stage in k.stages:
+        for _, expr in stage.assignments:
+            body_symbols |= sp.sympify(expr).free_symbols
+    setup_assignments = [a for stage in k.setup for a in stage.assignments]
+    kept, needed = _used(body_symbols, setup_assignments)
+    setup = []
+    if kept:
+        from ..codegen.kernel import Stage
+
+        lowered, _ = lower_stage(0, Stage(k.setup[0].comment, tuple(kept)), prefix="g")
+        setup = [lowered]
+    parameters = [
+        dict(name=str(p.symbol), field=p.field, index="" if p.index is None else f"[{p.index}]")
+        for p in k.parameters
+        if p.symbol in needed
+    ]
+    angle_symbols = {a.angle for a in k.angles}
+    angles = []
+    for a in k.angles:
+        port, column = next((p.name, p.symbols.index(a.angle)) for p in k.inputs if a.angle in p.symbols)
+        angles.append(dict(angle=str(a.angle), cos=str(a.cos), sin=str(a.sin), port=port, column=column))
+    loads = [
+        dict(name=str(sym), port=port.name, column=col)
+        for port in k.inputs
+        for col, sym in enumerate(port.symbols)
+        if sym not in angle_symbols and sym in body_symbols
+    ]
+    stores = [
+        dict(name=str(sym), port=port.name, column=col, width=port.width)
+        for port in k.outputs
+        for col, sym in enumerate(port.symbols)
+    ]
+    passthrough = [(p.name, p.fourth_axis_from) for p in k.outputs if p.fourth_axis_from]
+    return dict(
+        name=k.name,
+        doc=k.doc,
+        inputs=k.inputs,
+        outputs=k.outputs,
+        status_doc=k.status_doc,
+        parameters=parameters,
+        setup=setup,
+        angles=angles,
+        loads=loads,
+        stages=lk.stages,
+        stores=stores,
+        status=lk.status,
+        passthrough=passthrough,
+    )
+
+
+def render(unit: Unit, lowered: list) -> dict[str, str]:
+    """Return {file name: text} for the C source, the header and the cffi declarations."""
+    env = environment()
+    header_name = f"{unit.base_name}.h"
+    context = dict(
+        prefix=unit.prefix,
+        title=unit.title,
+        source=unit.source,
+        header_name=header_name,
+        source_name=f"{unit.base_name}.c",
+        guard=f"DELTAGEN_{unit.base_name.upper()}_H",
+        struct_name=unit.struct_name,
+        struct_fields=unit.struct_fields,
+        status_codes=sorted(st.STATUS_NAMES.items()),
+        functions=[function_context(lk) for lk in lowered],
+        block=unit.block,
+    )
+    return {
+        header_name: env.get_template("header.h.j2").render(restrict="restrict ", **context),
+        f"{unit.base_name}.c": env.get_template("source.c.j2").render(restrict="restrict ", **context),
+        f"{unit.base_name}.cdef.h": env.get_template("cdef.h.j2").render(restrict="", **context),
+    }

@@ -1,0 +1,58 @@
+"""The compiled backend: the generated C core (generated/delta_kinematics.c) via cffi."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..build import load
+
+
+class CompiledDelta:
+    """Batched calls into the C core; arrays are (N, 3|4) C-contiguous float64."""
+
+    def __init__(self, geometry):
+        module = load("delta_kinematics", "delta")
+        self._ffi, self._lib = module.ffi, module.lib
+        g = geometry
+        self._geometry = self._ffi.new(
+            "delta_geometry *",
+            {
+                "r_a": g.r_a, "r_b": g.r_b, "l_a": g.l_a, "l_b": g.l_b,
+                "cos_theta": [math.cos(t) for t in g.theta],
+                "sin_theta": [math.sin(t) for t in g.theta],
+                "singular_tol": g.singular_tol,
+            },
+        )
+
+    def _run(self, fn, inputs, n_out, out_width=None):
+        n, axes = inputs[0].shape
+        fb = self._ffi.from_buffer
+        outs = [np.empty((n, out_width or axes)) for _ in range(n_out)]
+        status = np.empty(n, dtype=np.int8)
+        rc = fn(
+            self._geometry, n, axes,
+            *(fb("double[]", a) for a in inputs),
+            *(fb("double[]", o, require_writable=True) for o in outs),
+            fb("int8_t[]", status, require_writable=True),
+        )
+        if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return (*outs, status)
+
+    def fk(self, q):
+        return self._run(self._lib.delta_fk, [q], 1)
+
+    def fk_vel(self, q, qd):
+        return self._run(self._lib.delta_fk_vel, [q, qd], 2)
+
+    def fk_acc(self, q, qd, qdd):
+        return self._run(self._lib.delta_fk_acc, [q, qd, qdd], 3)
+
+    def jacobian(self, q):
+        J, status = self._run(self._lib.delta_jacobian, [q], 1, out_width=9)
+        return J.reshape(-1, 3, 3), status
+
+    def ik(self, p):
+        return self._run(self._lib.delta_ik, [p], 1)

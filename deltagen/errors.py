@@ -1,0 +1,29 @@
+"""Exceptions raised by deltagen. Both kinematic errors are ``ValueError`` subclasses."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class DeltagenError(Exception):
+    """Base class of deltagen's own errors."""
+
+
+class GeometryError(DeltagenError, ValueError):
+    """A robot description that cannot describe a real robot (or a malformed file)."""
+
+
+class KinematicsError(DeltagenError, ValueError):
+    """A pose the kinematics cannot evaluate; ``rows`` lists the failing batch indices."""
+
+    def __init__(self, message: str, rows=()):
+        self.rows = np.asarray(rows, dtype=np.intp)
+        super().__init__(message)
+
+
+class UnreachableError(KinematicsError):
+    """The spheres do not meet (direct kinematics) or a crank cannot reach (inverse)."""
+
+
+class SingularityError(KinematicsError):
+    """The pose is singular: det J_p ~ 0, a J_q diagonal entry ~ 0, or collinear centres."""

@@ -1,0 +1,32 @@
+"""Where the templates and the checked-in generated C live (checkout or installed wheel)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+_PACKAGE = Path(__file__).resolve().parent
+
+
+def _find(name: str, marker: str) -> Path:
+    for candidate in (_PACKAGE.parent / name, _PACKAGE / name):
+        if (candidate / marker).is_file():
+            return candidate
+    return _PACKAGE.parent / name
+
+
+def generated_dir() -> Path:
+    """generated/ of the checkout, or the copy installed inside the package."""
+    return _find("generated", "delta_kinematics.h")
+
+
+def template_dir() -> Path:
+    return _find("templates", "source.c.j2")
+
+
+def cache_dir() -> Path:
+    """Build cache of compiled cores: $DELTAGEN_CACHE, else $XDG_CACHE_HOME/deltagen."""
+    if os.environ.get("DELTAGEN_CACHE"):
+        return Path(os.environ["DELTAGEN_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "deltagen"
