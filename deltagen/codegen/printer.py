@@ -1,9 +1,10 @@
 """SymPy's C99 printer, extended with the few constructs the kernels need.
 
-* ``AllFinite(a, b, ...)`` prints ``(isfinite(a) && isfinite(b) ...)``: SymPy would
+* ``AllFinite(a, b, ...)`` prints ``(isfinite(a) & isfinite(b) ...)``: SymPy would
   rewrite ``Not(Abs(a) <= big)`` to ``Abs(a) > big``, which is false for NaN.
 * ``CopySign(a, b)`` prints C99 ``copysign(a, b)``.
-* Piecewise prints as one-line nested ternaries (the stock printer spreads them over lines).
+* Piecewise prints as one-line nested ternaries (the stock printer spreads them over lines),
+  or, when every branch is an integer constant, as branch-free 0/1 arithmetic.
 * Small integer powers are expanded to products (``pow(x, 3)`` is not folded by gcc
   without -ffast-math).
 """
@@ -35,7 +36,15 @@ expand_small_powers = create_expand_pow_optimization(4)
 
 class KernelPrinter(C99CodePrinter):
     def _print_AllFinite(self, expr):
-        return "(" + " && ".join(f"isfinite({self._print(a)})" for a in expr.args) + ")"
+        return "(" + " & ".join(f"isfinite({self._print(a)})" for a in expr.args) + ")"
+
+    # Conditions combine 0/1 ints with bitwise operators: no short-circuit branches, so
+    # the per-point loop stays free of control flow and vectorises.
+    def _print_Or(self, expr):
+        return "(" + " | ".join(f"({self._print(a)})" for a in expr.args) + ")"
+
+    def _print_And(self, expr):
+        return "(" + " & ".join(f"({self._print(a)})" for a in expr.args) + ")"
 
     def _print_CopySign(self, expr):
         return f"copysign({self._print(expr.args[0])}, {self._print(expr.args[1])})"
@@ -47,6 +56,15 @@ class KernelPrinter(C99CodePrinter):
         if expr.args[-1].cond != sp.true:
             raise ValueError("kernel Piecewise needs a final (value, True) branch")
         text = self._print(expr.args[-1].expr)
+        if all(arg.expr.is_Integer for arg in expr.args):
+            # Integer codes (statuses): first matching condition wins, written with 0/1
+            # arithmetic instead of nested ternaries, which gcc turns into branches.
+            for value, cond in reversed(expr.args[:-1]):
+                c = self._print(cond)
+                v = "" if value == 1 else f"{self._print(value)}*"
+                rest = "" if text == "0" else f" + (1 - {c})*({text})"
+                text = f"{v}{c}{rest}"
+            return f"({text})"
         for value, cond in reversed(expr.args[:-1]):
             text = f"(({self._print(cond)}) ? {self._print(value)} : {text})"
         return text

@@ -82,10 +82,10 @@ def function_context(lk: LoweredKernel) -> dict:
         port, column = next((p.name, p.symbols.index(a.angle)) for p in k.inputs if a.angle in p.symbols)
         angles.append(dict(angle=str(a.angle), cos=str(a.cos), sin=str(a.sin), port=port, column=column))
     loads = [
-        dict(name=str(sym), port=port.name, column=col)
+        dict(name=str(sym), port=port.name, column=col, used=sym in body_symbols)
         for port in k.inputs
         for col, sym in enumerate(port.symbols)
-        if sym not in angle_symbols and sym in body_symbols
+        if sym in angle_symbols or sym in body_symbols
     ]
     stores = [
         dict(name=str(sym), port=port.name, column=col, width=port.width)

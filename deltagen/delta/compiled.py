@@ -3,10 +3,23 @@
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
+from .. import status as st
 from ..build import load
+
+
+class _Scratch(threading.local):
+    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
+
+    def __init__(self, ffi):
+        self.inp = ffi.new("double[4]")
+        self.out = ffi.new("double[4]")
+        self.status = ffi.new("int8_t[1]")
+        self.inp_np = np.frombuffer(ffi.buffer(self.inp), dtype=np.float64)
+        self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
 
 
 class CompiledDelta:
@@ -25,6 +38,28 @@ class CompiledDelta:
                 "singular_tol": g.singular_tol,
             },
         )
+
+        self._scratch = _Scratch(self._ffi)
+
+    def single(self, name, pose):
+        """Fast path for one (3,) float64 array or a list/tuple of 3 numbers: the result,
+        or None when the general path must handle it (other shapes, errors to report)."""
+        if type(pose) is np.ndarray:
+            if pose.shape != (3,) or pose.dtype.char != "d":
+                return None
+        elif type(pose) not in (list, tuple) or len(pose) != 3:
+            return None
+        sc = self._scratch
+        try:
+            sc.inp_np[:3] = pose
+        except (TypeError, ValueError):
+            return None
+        fn = self._lib.delta_fk if name == "fk" else self._lib.delta_ik
+        fn(self._geometry, 1, 3, sc.inp, sc.out, sc.status)
+        code = sc.status[0]
+        if code != st.OK and not (code == st.SINGULAR and sc.out_np[0] == sc.out_np[0]):
+            return None
+        return sc.out_np[:3].copy()
 
     def _run(self, fn, inputs, n_out, out_width=None):
         n, axes = inputs[0].shape

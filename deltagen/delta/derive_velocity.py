@@ -80,9 +80,9 @@ def jacobian_stage() -> Stage:
 
 
 def velocity_stage() -> Stage:
-    """pdot = J qdot."""
-    qdot = sp.Matrix(s.qd)
+    """pdot = adj(D) (J_q / 2 qdot) / det D, without forming J."""
+    rhs = sp.Matrix([jq[i] * s.qd[i] for i in range(3)])
     return Stage(
-        "platform velocity pdot = J qdot, eq. (30)",
-        tuple((v, (J * qdot)[k]) for k, v in enumerate((s.xd, s.yd, s.zd))),
+        "platform velocity pdot = J_p^-1 J_q qdot, eq. (30)",
+        tuple((v, (adjD * rhs)[k] * inv_det) for k, v in enumerate((s.xd, s.yd, s.zd))),
     )

@@ -63,21 +63,30 @@ def _q_port():
                 "column 4: fourth-axis angle q_4 [rad]", "rad")
 
 
+invalid, collinear, unreachable, singular = sp.symbols("invalid collinear unreachable singular")
+
+
 def _fk_level(inputs_finite):
-    """Status and masks shared by the fk-level kernels."""
-    collinear = fkd.e_sq <= collinear_limit
-    unreachable = fkd.h_sq < 0
-    singular = sp.Abs(fkd.det_D) <= det_limit
+    """Status flags, status and masks shared by the fk-level kernels."""
+    flags = Stage(
+        "status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0",
+        (
+            (invalid, sp.Not(inputs_finite)),
+            (collinear, fkd.e_sq <= collinear_limit),
+            (unreachable, fkd.h_sq < 0),
+            (singular, sp.Abs(fkd.det_D) <= det_limit),
+        ),
+    )
     status = sp.Piecewise(
-        (st.INVALID, sp.Not(inputs_finite)),
+        (st.INVALID, invalid),
         (st.SINGULAR, collinear),
         (st.UNREACHABLE, unreachable),
         (st.SINGULAR, singular),
         (st.OK, True),
     )
-    no_position = sp.Or(sp.Not(inputs_finite), collinear, unreachable)
+    no_position = sp.Or(invalid, collinear, unreachable)
     no_rates = sp.Or(no_position, singular)
-    return status, no_position, no_rates
+    return flags, status, no_position, no_rates
 
 
 def _position_port(symbols):
@@ -92,28 +101,29 @@ _FK_STATUS_DOC = ("OK; INVALID (non-finite input); UNREACHABLE (spheres do not m
 @lru_cache(maxsize=None)
 def fk_kernel() -> Kernel:
     finite = AllFinite(*s.q)
-    status, no_p, _ = _fk_level(finite)
+    flags, status, no_p, _ = _fk_level(finite)
     p_out, p_stage = _masked(("x", "y", "z"), (s.x, s.y, s.z), no_p)
     return Kernel(
         name="fk",
         doc="Direct kinematics: crank angles q -> platform position p, eqs. (2)-(27).",
         inputs=(_q_port(),),
         outputs=(_position_port(p_out),),
-        stages=tuple(fkd.fk_stages()) + (Stage("outputs", p_stage),),
+        stages=tuple(fkd.fk_stages()) + (flags, Stage("outputs", p_stage)),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; p is still given where only det J_p is small",
     )
 
 
-def _rate_stages():
-    return (vel.rows_stage(), vel.jq_stage(), vel.inverse_stage(), vel.jacobian_stage())
+def _rate_stages(with_jacobian=False):
+    stages = (vel.rows_stage(), vel.jq_stage(), vel.inverse_stage())
+    return stages + ((vel.jacobian_stage(),) if with_jacobian else ())
 
 
 @lru_cache(maxsize=None)
 def jacobian_kernel() -> Kernel:
     finite = AllFinite(*s.q)
-    status, _, no_rates = _fk_level(finite)
+    flags, status, _, no_rates = _fk_level(finite)
     names = [f"J{i + 1}{j + 1}" for i in range(3) for j in range(3)]
     J_out, J_stage = _masked(names, list(vel.J), no_rates)
     return Kernel(
@@ -121,7 +131,8 @@ def jacobian_kernel() -> Kernel:
         doc="Jacobian J = J_p^-1 J_q of eq. (30), row-major 3x3 per point: pdot = J qdot.",
         inputs=(_q_port(),),
         outputs=(Port("J", J_out, "Jacobian d p / d q, row-major 3x3 [m/rad]", "m/rad", width=9),),
-        stages=tuple(fkd.fk_stages()) + _rate_stages() + (Stage("outputs", J_stage),),
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages(with_jacobian=True)
+        + (Stage("outputs", J_stage),),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; J is NaN unless OK",
@@ -131,7 +142,7 @@ def jacobian_kernel() -> Kernel:
 @lru_cache(maxsize=None)
 def fk_vel_kernel() -> Kernel:
     finite = AllFinite(*s.q, *s.qd)
-    status, no_p, no_rates = _fk_level(finite)
+    flags, status, no_p, no_rates = _fk_level(finite)
     p_out, p_stage = _masked(("x", "y", "z"), (s.x, s.y, s.z), no_p)
     pd_out, pd_stage = _masked(("xd", "yd", "zd"), (s.xd, s.yd, s.zd), no_rates)
     return Kernel(
@@ -143,7 +154,8 @@ def fk_vel_kernel() -> Kernel:
             Port("pd", pd_out, "platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]",
                  "m/s", fourth_axis_from="qd"),
         ),
-        stages=tuple(fkd.fk_stages()) + _rate_stages() + (vel.velocity_stage(), Stage("outputs", p_stage + pd_stage)),
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages()
+        + (vel.velocity_stage(), Stage("outputs", p_stage + pd_stage)),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; pd is NaN unless OK",
@@ -153,7 +165,7 @@ def fk_vel_kernel() -> Kernel:
 @lru_cache(maxsize=None)
 def fk_acc_kernel() -> Kernel:
     finite = AllFinite(*s.q, *s.qd, *s.qdd)
-    status, no_p, no_rates = _fk_level(finite)
+    flags, status, no_p, no_rates = _fk_level(finite)
     p_out, p_stage = _masked(("x", "y", "z"), (s.x, s.y, s.z), no_p)
     pd_out, pd_stage = _masked(("xd", "yd", "zd"), (s.xd, s.yd, s.zd), no_rates)
     pdd_out, pdd_stage = _masked(("xdd", "ydd", "zdd"), (s.xdd, s.ydd, s.zdd), no_rates)
@@ -173,7 +185,7 @@ def fk_acc_kernel() -> Kernel:
             Port("pdd", pdd_out, "platform acceleration [m/s^2]; column 4: phiddot [rad/s^2]",
                  "m/s^2", fourth_axis_from="qdd"),
         ),
-        stages=tuple(fkd.fk_stages()) + _rate_stages()
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages()
         + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(),
            Stage("outputs", p_stage + pd_stage + pdd_stage)),
         status=status,
@@ -185,22 +197,28 @@ def fk_acc_kernel() -> Kernel:
 @lru_cache(maxsize=None)
 def ik_kernel() -> Kernel:
     finite = AllFinite(s.x, s.y, s.z)
-    unreachable = sp.Or(*(ikd.disc[i] < 0 for i in range(3)))
-    singular = sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))
+    flags = Stage(
+        "status flags: non-finite input, a crank cannot reach, a crank at its reach limit",
+        (
+            (invalid, sp.Not(finite)),
+            (unreachable, sp.Or(*(ikd.disc[i] < 0 for i in range(3)))),
+            (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
+        ),
+    )
     status = sp.Piecewise(
-        (st.INVALID, sp.Not(finite)),
+        (st.INVALID, invalid),
         (st.UNREACHABLE, unreachable),
         (st.SINGULAR, singular),
         (st.OK, True),
     )
-    q_out, q_stage = _masked(("q1", "q2", "q3"), s.q, sp.Or(sp.Not(finite), unreachable))
+    q_out, q_stage = _masked(("q1", "q2", "q3"), s.q, sp.Or(invalid, unreachable))
     return Kernel(
         name="ik",
         doc="Inverse kinematics (elbow-out): platform position p -> crank angles q in (-pi, pi].",
         inputs=(Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m"),),
         outputs=(Port("q", q_out, "crank angles [rad]; column 4: q_4 = phi, eq. (43)", "rad",
                       fourth_axis_from="p"),),
-        stages=tuple(ikd.ik_stages()) + (Stage("outputs", q_stage),),
+        stages=tuple(ikd.ik_stages()) + (flags, Stage("outputs", q_stage)),
         status=status,
         parameters=PARAMETERS, setup=SETUP,
         status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "

@@ -53,10 +53,12 @@ class DeltaRobot:
             from .compiled import CompiledDelta
 
             self._core = CompiledDelta(self.geometry)
+            self._single = self._core.single  # fast path for one pose, same results
         else:
             from . import reference
 
             self._core = _ReferenceCore(reference, self.geometry)
+            self._single = None
 
     @classmethod
     def from_geometry(cls, geometry: DeltaGeometry, backend="compiled") -> "DeltaRobot":
@@ -87,6 +89,10 @@ class DeltaRobot:
 
     def fk(self, q, errors="raise"):
         """Platform position p (..., 3|4) of crank angles q (..., 3|4), eqs. (2)-(27), (43)."""
+        if errors == "raise" and self._single is not None:
+            p = self._single("fk", q)
+            if p is not None:
+                return p
         lead, _, (qf,) = self._prepare(errors, q=q)
         p, status = self._core.fk(qf)
         return self._finish(errors, lead, status, [p], ("q",), allow_singular=True)
@@ -111,6 +117,10 @@ class DeltaRobot:
 
     def ik(self, p, errors="raise"):
         """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
+        if errors == "raise" and self._single is not None:
+            q = self._single("ik", p)
+            if q is not None:
+                return q
         lead, _, (pf,) = self._prepare(errors, p=p)
         q, status = self._core.ik(pf)
         return self._finish(errors, lead, status, [q], ("p",), allow_singular=True)
@@ -150,7 +160,8 @@ class DeltaRobot:
         invalid = bad[status[bad] == st.INVALID]
         if invalid.size:
             raise InputError(
-                f"{'/'.join(names)} contain NaN or infinite values in rows {_rows_text(invalid)}"
+                f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN or "
+                f"infinite values in rows {_rows_text(invalid)}"
             )
         unreachable = bad[status[bad] == st.UNREACHABLE]
         if unreachable.size:

@@ -1,0 +1,460 @@
+"""`deltagen bench`: throughput (ns per point) and single-pose latency of the delta
+kinematics, compiled C core vs the numpy reference, measured in one run.
+
+Throughput. N random reachable poses of ``DeltaRobot.default()`` (crank angles uniform in
+[-0.3, 0.9] rad, velocities and accelerations uniform, platform positions from fk for ik;
+every row checked OK so no call raises). Each quantity is timed at three levels:
+
+* ``C kernel``: the generated C function called directly with preallocated outputs
+  (the core's own loop, no numpy allocation); a diagnostic column.
+* ``_core``: the raw batched backend ``robot._core.<fn>`` ((N, 3) float64 C-contiguous in,
+  fresh output arrays out); the issue's targets are checked against this column.
+* ``API``: the public method ``robot.<fn>`` with argument validation and status checks.
+
+The reference runs on the first ``min(N, 200 000)`` of the same poses (it is ~100x slower)
+and is reported per point as well. Every cell is the median over ``--repeats`` timed calls
+after one warm-up call, with [min, max] of those repeats; time.perf_counter_ns, garbage
+collector off while timing. Speedups are ratios of medians measured in this run.
+
+Latency. One single-pose call from Python (``robot.fk(q)`` with a (3,) ndarray and with a
+list, ``robot.ik(p)`` likewise, and the raw ``robot._core`` call on a (1, 3) array), looped
+so that one repeat lasts ~25 ms; median of the repeats in microseconds per call.
+
+Everything is single-threaded: the C core is a plain loop (``-fopenmp-simd`` only
+vectorises, it starts no threads) and the reference uses numpy ufuncs and batched 3x3
+solves, so OPENBLAS_NUM_THREADS / OMP_NUM_THREADS make no difference.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import sysconfig
+import time
+
+import numpy as np
+
+from . import status as st
+
+QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
+#: The issue's throughput targets for the compiled core [ns per point].
+TARGETS_NS = {"fk": 12.0, "fk_vel": 18.0, "fk_acc": 25.0, "ik": 20.0}
+#: The issue's target for one single-pose call from Python [ns].
+SINGLE_TARGET_NS = 1500.0
+REFERENCE_N = 200_000
+Q_RANGE = (-0.3, 0.9)  # rad; well inside the default robot's workspace
+QD_RANGE = (-2.0, 2.0)  # rad/s
+QDD_RANGE = (-20.0, 20.0)  # rad/s^2
+SEED = 2008
+LATENCY_REPEAT_NS = 25_000_000  # target duration of one latency repeat
+AGREEMENT_TOL = 1e-9  # max abs difference compiled vs reference before a warning
+
+# name -> (inputs, number of outputs, output width or None for the input width)
+_SIGNATURES = {
+    "fk": (("q",), 1, None),
+    "fk_vel": (("q", "qd"), 2, None),
+    "fk_acc": (("q", "qd", "qdd"), 3, None),
+    "jacobian": (("q",), 1, 9),
+    "ik": (("p",), 1, None),
+}
+_UNITS = {"fk": "m", "fk_vel": "m/s", "fk_acc": "m/s^2", "jacobian": "m/rad", "ik": "rad"}
+
+
+# ------------------------------------------------------------------------- timing
+
+
+def _time_batch(fn, args, repeats: int):
+    """(result of the warm-up call, [ns of each timed call])."""
+    result = fn(*args)
+    times = []
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for _ in range(repeats):
+            t0 = time.perf_counter_ns()
+            fn(*args)
+            times.append(time.perf_counter_ns() - t0)
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+    return result, times
+
+
+def _time_calls(fn, repeats: int) -> list[float]:
+    """ns per call of ``fn()`` for each repeat; loops calibrated to ~LATENCY_REPEAT_NS."""
+    fn()
+    loops, elapsed = 1, 0
+    while True:  # calibrate
+        t0 = time.perf_counter_ns()
+        for _ in range(loops):
+            fn()
+        elapsed = time.perf_counter_ns() - t0
+        if elapsed >= LATENCY_REPEAT_NS // 10 or loops >= 1 << 20:
+            break
+        loops *= 4
+    loops = max(1, round(loops * LATENCY_REPEAT_NS / max(elapsed, 1)))
+    out = []
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for _ in range(repeats):
+            t0 = time.perf_counter_ns()
+            for _ in range(loops):
+                fn()
+            out.append((time.perf_counter_ns() - t0) / loops)
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+    return out
+
+
+class Stat:
+    """Median and spread of one measurement, in ns (per point or per call)."""
+
+    def __init__(self, values):
+        self.values = list(values)
+        self.median = statistics.median(self.values)
+        self.min = min(self.values)
+        self.max = max(self.values)
+
+
+# ------------------------------------------------------------------------- inputs
+
+
+def _valid_rows(core, q, qd, qdd):
+    """Rows that are OK for every quantity (fk_acc covers fk, fk_vel and jacobian) and
+    whose fk position gives an OK ik; also returns that position."""
+    _, _, _, s_acc = core.fk_acc(q, qd, qdd)
+    p, s_fk = core.fk(q)
+    _, s_jac = core.jacobian(q)
+    p_safe = np.ascontiguousarray(np.where(np.isfinite(p), p, 0.0))
+    _, s_ik = core.ik(p_safe)
+    ok = (s_acc == st.OK) & (s_fk == st.OK) & (s_jac == st.OK) & (s_ik == st.OK)
+    return ok, p
+
+
+def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
+    """n rows of q, qd, qdd and p = fk(q), all OK for every core in ``cores``."""
+    parts = {k: [] for k in ("q", "qd", "qdd", "p")}
+    have, tries = 0, 0
+    while have < n:
+        tries += 1
+        if tries > 50:
+            raise RuntimeError("could not sample valid poses (is the C core broken?)")
+        m = int((n - have) * 1.05) + 64
+        q = rng.uniform(*Q_RANGE, (m, 3))
+        qd = rng.uniform(*QD_RANGE, (m, 3))
+        qdd = rng.uniform(*QDD_RANGE, (m, 3))
+        ok = np.ones(m, dtype=bool)
+        p = None
+        for core in cores:
+            ok_c, p_c = _valid_rows(core, q, qd, qdd)
+            ok &= ok_c
+            p = p_c if p is None else p  # positions from the first core (compiled)
+        take = np.flatnonzero(ok)[: n - have]
+        for key, arr in (("q", q), ("qd", qd), ("qdd", qdd), ("p", p)):
+            parts[key].append(arr[take])
+        have += take.size
+    return {k: np.ascontiguousarray(np.concatenate(v)) for k, v in parts.items()}
+
+
+def _prefix(poses: dict, n: int) -> dict:
+    return {k: np.ascontiguousarray(v[:n]) for k, v in poses.items()}
+
+
+# ------------------------------------------------------------------------- measurements
+
+
+def _kernel_callable(core, name: str, inputs: list[np.ndarray]):
+    """A no-argument call of the generated C function with preallocated outputs, or None
+    if the core is not the cffi one or its ABI is not the expected one."""
+    try:
+        ffi, lib, geometry = core._ffi, core._lib, core._geometry
+        _, n_out, width = _SIGNATURES[name]
+        n, axes = inputs[0].shape
+        outs = [np.empty((n, width or axes)) for _ in range(n_out)]
+        status = np.empty(n, dtype=np.int8)
+        fb = ffi.from_buffer
+        cargs = (
+            geometry, n, axes,
+            *(fb("double[]", a) for a in inputs),
+            *(fb("double[]", o, require_writable=True) for o in outs),
+            fb("int8_t[]", status, require_writable=True),
+        )
+        fn = getattr(lib, f"delta_{name}")
+        if fn(*cargs) != 0:
+            return None
+        keep = (inputs, outs, status)  # the buffers must outlive the call object
+        return lambda: (fn(*cargs), keep)[0]
+    except Exception:  # noqa: BLE001 - a diagnostic column; the others still run
+        return None
+
+
+def _first_output(result):
+    return np.asarray(result[0] if isinstance(result, tuple) else result)
+
+
+def _measure_throughput(robot, poses, repeats, with_kernel):
+    """{quantity: {level: Stat in ns/point}} and {quantity: first output of _core}."""
+    n = poses["q"].shape[0]
+    stats, outputs = {}, {}
+    for name in QUANTITIES:
+        inputs = [poses[k] for k in _SIGNATURES[name][0]]
+        row = {}
+        if with_kernel:
+            kernel = _kernel_callable(robot._core, name, inputs)
+            if kernel is not None:
+                _, times = _time_batch(kernel, (), repeats)
+                row["kernel"] = Stat(t / n for t in times)
+        result, times = _time_batch(getattr(robot._core, name), inputs, repeats)
+        row["core"] = Stat(t / n for t in times)
+        outputs[name] = _first_output(result)
+        del result
+        _, times = _time_batch(getattr(robot, name), inputs, repeats)
+        row["api"] = Stat(t / n for t in times)
+        stats[name] = row
+    return stats, outputs
+
+
+def _latency_calls(robot, q1, p1):
+    ql, pl = [float(v) for v in q1], [float(v) for v in p1]
+    q2, p2 = np.ascontiguousarray(q1[None, :]), np.ascontiguousarray(p1[None, :])
+    return [
+        ("robot.fk(q), q ndarray (3,)", lambda: robot.fk(q1), True),
+        ("robot.fk(q), q list of 3 floats", lambda: robot.fk(ql), True),
+        ("robot.ik(p), p ndarray (3,)", lambda: robot.ik(p1), True),
+        ("robot.ik(p), p list of 3 floats", lambda: robot.ik(pl), True),
+        ("robot._core.fk(q), q (1, 3)", lambda: robot._core.fk(q2), False),
+        ("robot._core.ik(p), p (1, 3)", lambda: robot._core.ik(p2), False),
+    ]
+
+
+def _measure_latency(compiled, reference, q1, p1, repeats):
+    rows = []
+    ref_calls = _latency_calls(reference, q1, p1)
+    for (label, fn, has_target), (_, ref_fn, _) in zip(_latency_calls(compiled, q1, p1), ref_calls):
+        rows.append((label, Stat(_time_calls(fn, repeats)), Stat(_time_calls(ref_fn, repeats)),
+                     has_target))
+    return rows
+
+
+# ------------------------------------------------------------------------- machine
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine() or "unknown"
+
+
+def _compiler() -> str:
+    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
+    try:
+        out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=10)
+        first = out.stdout.splitlines()[0].strip() if out.stdout else ""
+        return f"{cc}: {first}" if first else cc
+    except (OSError, subprocess.SubprocessError, IndexError):
+        return cc
+
+
+def _build_name(robot) -> str:
+    lib = getattr(robot._core, "_lib", None)
+    name = getattr(lib, "__name__", "") or ""
+    return name.removesuffix(".lib") or "?"
+
+
+def _load() -> str:
+    try:
+        return f"{os.getloadavg()[0]:.2f}"
+    except (OSError, AttributeError):
+        return "?"
+
+
+def machine_info(compiled_robot) -> list[tuple[str, str]]:
+    from .build import compile_flags
+
+    args, libraries = compile_flags("delta")
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except AttributeError:
+        usable = os.cpu_count()
+    import cffi
+
+    return [
+        ("CPU", _cpu_model()),
+        ("cores", f"{os.cpu_count()} logical ({usable} usable by this process); "
+                  "all measurements single-threaded"),
+        ("OS", f"{platform.system()} {platform.release()} {platform.machine()}"),
+        ("Python", f"{platform.python_implementation()} {platform.python_version()}"),
+        ("numpy / cffi", f"{np.__version__} / {cffi.__version__}"),
+        ("compiler", _compiler()),
+        ("C flags", " ".join(args) + "  (libraries: " + " ".join(f"-l{x}" for x in libraries) + ")"),
+        ("C build", _build_name(compiled_robot)),
+    ]
+
+
+# ------------------------------------------------------------------------- formatting
+
+
+def _num(v: float) -> str:
+    if not np.isfinite(v):
+        return "?"
+    if v >= 1000:
+        return f"{v:,.0f}"
+    if v >= 100:
+        return f"{v:.0f}"
+    if v >= 10:
+        return f"{v:.1f}"
+    return f"{v:.2f}"
+
+
+def _cell(s: Stat | None, scale: float = 1.0) -> str:
+    if s is None:
+        return "n/a"
+    return f"{_num(s.median / scale)} [{_num(s.min / scale)}, {_num(s.max / scale)}]"
+
+
+def _ratio(ref: Stat | None, comp: Stat | None) -> str:
+    if ref is None or comp is None or comp.median <= 0:
+        return "n/a"
+    r = ref.median / comp.median
+    return f"{r:.0f}x" if r >= 10 else f"{r:.1f}x"
+
+
+def _verdict(value: float, target: float) -> str:
+    return "met" if value <= target else "MISSED"
+
+
+def _table(header, rows, markdown: bool) -> list[str]:
+    if markdown:
+        lines = ["| " + " | ".join(header) + " |",
+                 "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        return lines
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
+    fmt = lambda r: "  ".join(  # noqa: E731
+        (c.ljust(w) if i == 0 else c.rjust(w)) for i, (c, w) in enumerate(zip(r, widths))
+    )
+    return [fmt(header), fmt(["-" * w for w in widths])] + [fmt(r) for r in rows]
+
+
+def render(result: dict, markdown: bool) -> str:
+    n, ref_n, repeats = result["n"], result["ref_n"], result["repeats"]
+    out: list[str] = []
+    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
+    bullet = "- " if markdown else "  "
+
+    out.append(h("deltagen bench"))
+    out.append("")
+    for key, value in result["machine"]:
+        v = f"`{value}`" if markdown and key in ("C flags", "C build") else value
+        out.append(f"{bullet}{key}: {v}")
+    out.append(f"{bullet}load average (1 min): {result['load_before']} before, "
+               f"{result['load_after']} after")
+    out.append(f"{bullet}workload: DeltaRobot.default(), q uniform in [{Q_RANGE[0]}, {Q_RANGE[1]}]"
+               f" rad, qd in [{QD_RANGE[0]}, {QD_RANGE[1]}] rad/s, qdd in "
+               f"[{QDD_RANGE[0]}, {QDD_RANGE[1]}] rad/s^2, p = fk(q); every row OK; seed {SEED}")
+    out.append(f"{bullet}N = {n:,} points (compiled), {ref_n:,} points (reference, scaled per "
+               f"point); median [min, max] of {repeats} repeats after a warm-up call")
+    out.append("")
+
+    out.append(h("Throughput, ns per point"))
+    out.append("")
+    header = ["quantity", "C kernel", "compiled _core", "compiled API", "reference _core",
+              "reference API", "speedup _core", "speedup API", "target (_core)"]
+    rows = []
+    for name in QUANTITIES:
+        c, r = result["compiled"][name], result["reference"][name]
+        target = TARGETS_NS.get(name)
+        tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
+        rows.append([name, _cell(c.get("kernel")), _cell(c["core"]), _cell(c["api"]),
+                     _cell(r["core"]), _cell(r["api"]), _ratio(r["core"], c["core"]),
+                     _ratio(r["api"], c["api"]), tcell])
+    out += _table(header, rows, markdown)
+    out.append("")
+
+    out.append(h("Single-pose latency, us per call"))
+    out.append("")
+    header = ["call", "compiled", "reference", "speedup", "target (compiled)"]
+    rows = []
+    for label, comp, ref, has_target in result["latency"]:
+        tcell = (f"<= {SINGLE_TARGET_NS / 1000:g} {_verdict(comp.median, SINGLE_TARGET_NS)}"
+                 if has_target else "-")
+        lab = f"`{label}`" if markdown else label
+        rows.append([lab, _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp), tcell])
+    out += _table(header, rows, markdown)
+    out.append("")
+
+    agree = ", ".join(f"{k} {v:.1e} {_UNITS[k]}" for k, v in result["agreement"].items())
+    out.append(f"{bullet}agreement, max |compiled - reference| over the reference points: {agree}")
+    bad = [k for k, v in result["agreement"].items() if not v <= AGREEMENT_TOL]
+    if bad:
+        out.append(f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
+                   f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core")
+    out.append(f"{bullet}C kernel = generated C function with preallocated outputs; _core = "
+               "robot._core.<fn> (fresh numpy outputs); API = robot.<fn> with validation. "
+               "Targets are checked against the compiled _core median.")
+    out.append(f"{bullet}single-threaded: the C loop starts no threads and the reference uses "
+               "numpy ufuncs, so OPENBLAS/OMP thread settings are irrelevant")
+    out.append(f"{bullet}total bench time {result['elapsed_s']:.1f} s")
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------------- entry point
+
+
+def run(n: int = 1_000_000, repeats: int = 7) -> dict:
+    """Measure everything; returns the raw result (see :func:`render`)."""
+    from .delta.robot import DeltaRobot
+
+    if n < 1:
+        raise ValueError(f"--n must be at least 1, got {n}")
+    if repeats < 1:
+        raise ValueError(f"--repeats must be at least 1, got {repeats}")
+    t_start = time.perf_counter()
+    load_before = _load()
+    compiled = DeltaRobot.default(backend="compiled")  # builds the C core if needed
+    reference = DeltaRobot.default(backend="reference")
+    ref_n = min(n, REFERENCE_N)
+
+    rng = np.random.default_rng(SEED)
+    head = sample_poses(ref_n, [compiled._core, reference._core], rng)  # OK for both
+    tail = sample_poses(n - ref_n, [compiled._core], rng) if n > ref_n else None
+    poses = head if tail is None else {k: np.concatenate([head[k], tail[k]]) for k in head}
+    poses = {k: np.ascontiguousarray(v) for k, v in poses.items()}
+    del head, tail
+
+    comp_stats, comp_out = _measure_throughput(compiled, poses, repeats, with_kernel=True)
+    ref_poses = _prefix(poses, ref_n)
+    ref_stats, ref_out = _measure_throughput(reference, ref_poses, repeats, with_kernel=False)
+    agreement = {
+        name: float(np.max(np.abs(comp_out[name][:ref_n] - ref_out[name]))) for name in QUANTITIES
+    }
+    del comp_out, ref_out
+
+    latency = _measure_latency(compiled, reference, poses["q"][0].copy(), poses["p"][0].copy(),
+                               repeats)
+    return {
+        "n": n, "ref_n": ref_n, "repeats": repeats,
+        "machine": machine_info(compiled),
+        "compiled": comp_stats, "reference": ref_stats, "latency": latency,
+        "agreement": agreement,
+        "load_before": load_before, "load_after": _load(),
+        "elapsed_s": time.perf_counter() - t_start,
+    }
+
+
+def main(args) -> int:
+    result = run(n=args.n, repeats=args.repeats)
+    print(render(result, markdown=bool(getattr(args, "markdown", False))))
+    sys.stdout.flush()
+    return 0
