@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import math
+import os
 import sys
 from pathlib import Path
 
@@ -128,6 +128,12 @@ def main(argv=None) -> int:
 
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:  # e.g. `deltagen validate | head`: the reader left, not an error
+        try:
+            sys.stdout = open(os.devnull, "w")
+        except OSError:
+            pass
+        return 0
     except (DeltagenError, ValueError, OSError) as exc:
         print(f"deltagen {args.command}: error: {exc}", file=sys.stderr)
         return 2
