@@ -11,10 +11,12 @@ every row checked OK so no call raises). Each quantity is timed at three levels:
   fresh output arrays out); the issue's targets are checked against this column.
 * ``API``: the public method ``robot.<fn>`` with argument validation and status checks.
 
-The reference runs on the first ``min(N, 200 000)`` of the same poses (it is ~100x slower)
+The reference runs on the first ``min(N, 200 000)`` of the same poses (it is tens of times slower)
 and is reported per point as well. Every cell is the median over ``--repeats`` timed calls
 after one warm-up call, with [min, max] of those repeats; time.perf_counter_ns, garbage
-collector off while timing. Speedups are ratios of medians measured in this run.
+collector off while timing, and the columns of a row timed round-robin (repeat 1 of every
+column, then repeat 2, ...) so that load from other processes on a shared machine hits
+them alike. Speedups are ratios of medians measured in this run.
 
 Latency. One single-pose call from Python (``robot.fk(q)`` with a (3,) ndarray and with a
 list, ``robot.ik(p)`` likewise, and the raw ``robot._core`` call on a (1, 3) array), looped
@@ -67,28 +69,22 @@ _UNITS = {"fk": "m", "fk_vel": "m/s", "fk_acc": "m/s^2", "jacobian": "m/rad", "i
 # ------------------------------------------------------------------------- timing
 
 
-def _time_batch(fn, args, repeats: int):
-    """(result of the warm-up call, [ns of each timed call])."""
-    result = fn(*args)
-    times = []
-    gc_was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        for _ in range(repeats):
-            t0 = time.perf_counter_ns()
-            fn(*args)
-            times.append(time.perf_counter_ns() - t0)
-    finally:
-        if gc_was_enabled:
-            gc.enable()
-    return result, times
+def _batch_timer(fn, args, points: int):
+    """A timer: one call of ``fn(*args)`` -> ns per point (the result is dropped)."""
+
+    def timer():
+        t0 = time.perf_counter_ns()
+        fn(*args)
+        return (time.perf_counter_ns() - t0) / points
+
+    return timer
 
 
-def _time_calls(fn, repeats: int) -> list[float]:
-    """ns per call of ``fn()`` for each repeat; loops calibrated to ~LATENCY_REPEAT_NS."""
+def _loop_timer(fn):
+    """A timer: ``fn()`` looped for ~LATENCY_REPEAT_NS -> ns per call (calibrated here)."""
     fn()
-    loops, elapsed = 1, 0
-    while True:  # calibrate
+    loops = 1
+    while True:
         t0 = time.perf_counter_ns()
         for _ in range(loops):
             fn()
@@ -97,19 +93,30 @@ def _time_calls(fn, repeats: int) -> list[float]:
             break
         loops *= 4
     loops = max(1, round(loops * LATENCY_REPEAT_NS / max(elapsed, 1)))
-    out = []
+
+    def timer():
+        t0 = time.perf_counter_ns()
+        for _ in range(loops):
+            fn()
+        return (time.perf_counter_ns() - t0) / loops
+
+    return timer
+
+
+def _interleaved(timers: list, repeats: int) -> list["Stat"]:
+    """Run the timers round-robin ``repeats`` times (so a load change on a shared machine
+    hits every column alike), garbage collector off; one Stat per timer."""
+    samples = [[] for _ in timers]
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
         for _ in range(repeats):
-            t0 = time.perf_counter_ns()
-            for _ in range(loops):
-                fn()
-            out.append((time.perf_counter_ns() - t0) / loops)
+            for i, timer in enumerate(timers):
+                samples[i].append(timer())
     finally:
         if gc_was_enabled:
             gc.enable()
-    return out
+    return [Stat(v) for v in samples]
 
 
 class Stat:
@@ -198,26 +205,37 @@ def _first_output(result):
     return np.asarray(result[0] if isinstance(result, tuple) else result)
 
 
-def _measure_throughput(robot, poses, repeats, with_kernel):
-    """{quantity: {level: Stat in ns/point}} and {quantity: first output of _core}."""
-    n = poses["q"].shape[0]
-    stats, outputs = {}, {}
+def _measure_throughput(compiled, reference, poses, ref_poses, repeats):
+    """({quantity: {column: Stat in ns/point}}, {quantity: max |compiled - reference|}).
+
+    Per quantity, one warm-up call of each column (whose first outputs give the
+    agreement), then the timed calls round-robin over the columns."""
+    n, ref_n = poses["q"].shape[0], ref_poses["q"].shape[0]
+    stats, agreement = {}, {}
     for name in QUANTITIES:
         inputs = [poses[k] for k in _SIGNATURES[name][0]]
-        row = {}
-        if with_kernel:
-            kernel = _kernel_callable(robot._core, name, inputs)
-            if kernel is not None:
-                _, times = _time_batch(kernel, (), repeats)
-                row["kernel"] = Stat(t / n for t in times)
-        result, times = _time_batch(getattr(robot._core, name), inputs, repeats)
-        row["core"] = Stat(t / n for t in times)
-        outputs[name] = _first_output(result)
-        del result
-        _, times = _time_batch(getattr(robot, name), inputs, repeats)
-        row["api"] = Stat(t / n for t in times)
-        stats[name] = row
-    return stats, outputs
+        ref_inputs = [ref_poses[k] for k in _SIGNATURES[name][0]]
+        columns = {}
+        kernel = _kernel_callable(compiled._core, name, inputs)
+        if kernel is not None:
+            kernel()
+            columns["kernel"] = _batch_timer(kernel, (), n)
+        comp_out = _first_output(getattr(compiled._core, name)(*inputs))[:ref_n].copy()
+        ref_out = _first_output(getattr(reference._core, name)(*ref_inputs))
+        agreement[name] = float(np.max(np.abs(comp_out - ref_out)))
+        del comp_out, ref_out
+        for label, robot, args, points in (
+            ("core", compiled._core, inputs, n),
+            ("api", compiled, inputs, n),
+            ("ref_core", reference._core, ref_inputs, ref_n),
+            ("ref_api", reference, ref_inputs, ref_n),
+        ):
+            fn = getattr(robot, name)
+            if label.endswith("api"):
+                fn(*args)  # warm-up (the _core ones ran above)
+            columns[label] = _batch_timer(fn, args, points)
+        stats[name] = dict(zip(columns, _interleaved(list(columns.values()), repeats)))
+    return stats, agreement
 
 
 def _latency_calls(robot, q1, p1):
@@ -234,11 +252,12 @@ def _latency_calls(robot, q1, p1):
 
 
 def _measure_latency(compiled, reference, q1, p1, repeats):
+    """[(label, compiled Stat, reference Stat, has target)] in ns per call."""
     rows = []
-    ref_calls = _latency_calls(reference, q1, p1)
-    for (label, fn, has_target), (_, ref_fn, _) in zip(_latency_calls(compiled, q1, p1), ref_calls):
-        rows.append((label, Stat(_time_calls(fn, repeats)), Stat(_time_calls(ref_fn, repeats)),
-                     has_target))
+    for (label, fn, has_target), (_, ref_fn, _) in zip(_latency_calls(compiled, q1, p1),
+                                                       _latency_calls(reference, q1, p1)):
+        comp, ref = _interleaved([_loop_timer(fn), _loop_timer(ref_fn)], repeats)
+        rows.append((label, comp, ref, has_target))
     return rows
 
 
@@ -364,7 +383,8 @@ def render(result: dict, markdown: bool) -> str:
                f" rad, qd in [{QD_RANGE[0]}, {QD_RANGE[1]}] rad/s, qdd in "
                f"[{QDD_RANGE[0]}, {QDD_RANGE[1]}] rad/s^2, p = fk(q); every row OK; seed {SEED}")
     out.append(f"{bullet}N = {n:,} points (compiled), {ref_n:,} points (reference, scaled per "
-               f"point); median [min, max] of {repeats} repeats after a warm-up call")
+               f"point); median [min, max] of {repeats} repeats after a warm-up call, the columns "
+               "of a row timed round-robin")
     out.append("")
 
     out.append(h("Throughput, ns per point"))
@@ -373,12 +393,12 @@ def render(result: dict, markdown: bool) -> str:
               "reference API", "speedup _core", "speedup API", "target (_core)"]
     rows = []
     for name in QUANTITIES:
-        c, r = result["compiled"][name], result["reference"][name]
+        c = result["throughput"][name]
         target = TARGETS_NS.get(name)
         tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
         rows.append([name, _cell(c.get("kernel")), _cell(c["core"]), _cell(c["api"]),
-                     _cell(r["core"]), _cell(r["api"]), _ratio(r["core"], c["core"]),
-                     _ratio(r["api"], c["api"]), tcell])
+                     _cell(c["ref_core"]), _cell(c["ref_api"]), _ratio(c["ref_core"], c["core"]),
+                     _ratio(c["ref_api"], c["api"]), tcell])
     out += _table(header, rows, markdown)
     out.append("")
 
@@ -433,20 +453,16 @@ def run(n: int = 1_000_000, repeats: int = 7) -> dict:
     poses = {k: np.ascontiguousarray(v) for k, v in poses.items()}
     del head, tail
 
-    comp_stats, comp_out = _measure_throughput(compiled, poses, repeats, with_kernel=True)
     ref_poses = _prefix(poses, ref_n)
-    ref_stats, ref_out = _measure_throughput(reference, ref_poses, repeats, with_kernel=False)
-    agreement = {
-        name: float(np.max(np.abs(comp_out[name][:ref_n] - ref_out[name]))) for name in QUANTITIES
-    }
-    del comp_out, ref_out
+    throughput, agreement = _measure_throughput(compiled, reference, poses, ref_poses, repeats)
+    del ref_poses
 
     latency = _measure_latency(compiled, reference, poses["q"][0].copy(), poses["p"][0].copy(),
                                repeats)
     return {
         "n": n, "ref_n": ref_n, "repeats": repeats,
         "machine": machine_info(compiled),
-        "compiled": comp_stats, "reference": ref_stats, "latency": latency,
+        "throughput": throughput, "latency": latency,
         "agreement": agreement,
         "load_before": load_before, "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,

@@ -96,8 +96,9 @@ def main(argv=None) -> int:
     g.add_argument("--check", action="store_true", help="fail and show a diff if generated/ is stale")
     g.set_defaults(func=cmd_generate)
 
+    evaluators = {}
     for name, forward in (("fk", True), ("ik", False)):
-        e = sub.add_parser(name, help=("direct" if forward else "inverse") + " kinematics of one pose or a CSV/NPY batch")
+        e = evaluators[name] = sub.add_parser(name, help=("direct" if forward else "inverse") + " kinematics of one pose or a CSV/NPY batch")
         e.add_argument("robot", nargs="?", default="default", help="'default' or a robot TOML file")
         e.add_argument("values", nargs="*", type=float,
                        help="q1 q2 q3 [q4] in rad" if forward else "x y z [phi] in m (rad)")
@@ -123,7 +124,14 @@ def main(argv=None) -> int:
     b.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     b.set_defaults(func=lambda a: _lazy("deltagen.bench", a))
 
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in evaluators:
+        # options may come between the values (`fk default --degrees 20 20 20`); argparse
+        # cannot intermix with subparsers, so the evaluating subcommands parse themselves
+        args = evaluators[argv[0]].parse_intermixed_args(argv[1:])
+        args.command = argv[0]
+    else:
+        args = parser.parse_args(argv)
     from .errors import DeltagenError
 
     try:

@@ -3,6 +3,8 @@ C-contiguous float64 out; clear errors for everything else."""
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from .errors import DeltagenError
@@ -18,12 +20,19 @@ def as_float_array(value, name: str) -> np.ndarray:
     except Exception as exc:  # ragged lists, exotic objects
         raise InputError(f"{name} is not an array of numbers: {exc}") from None
     if arr.dtype == object:
-        try:
-            arr = arr.astype(np.float64)
-        except (TypeError, ValueError):
-            raise InputError(f"{name} must be numeric, got non-numeric elements") from None
+        # Lists mixing ints and floats land here: accept real numbers only (no strings,
+        # None or bools, which a float conversion would silently turn into numbers).
+        for element in arr.flat:
+            if isinstance(element, (bool, np.bool_)) or not isinstance(element, (numbers.Real, np.number)):
+                raise InputError(
+                    f"{name} must be numeric, got a non-numeric element {element!r} of type "
+                    f"{type(element).__name__}"
+                )
+        arr = arr.astype(np.float64)
     if arr.dtype.kind == "b" or arr.dtype.kind not in "iuf":
         raise InputError(f"{name} must have a real numeric dtype, got {arr.dtype}")
+    if arr.ndim == 0:
+        raise InputError(f"{name} must be an array of shape (..., 3 or 4), got () (a scalar)")
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 

@@ -22,7 +22,11 @@ extern double sin(double);
 extern double atan2(double, double);
 #endif
 
+/* Points per block: the block's columns live on the stack (about 24 arrays of this
+ * length in the largest function), so small stacks can ask for less. */
+#ifndef DELTA_BLOCK
 #define DELTA_BLOCK 64
+#endif
 
 int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, double *restrict p, int8_t *restrict status)
 {
@@ -57,17 +61,20 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
         double q1_b[DELTA_BLOCK];
         double q2_b[DELTA_BLOCK];
         double q3_b[DELTA_BLOCK];
+        double q4_b[DELTA_BLOCK];
         if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
                 q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
         double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
@@ -95,10 +102,12 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
         double out_x_b[DELTA_BLOCK];
         double out_y_b[DELTA_BLOCK];
         double out_z_b[DELTA_BLOCK];
+        double out_phi_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
             const double cos_q1 = cos_q1_b[k];
             const double sin_q1 = sin_q1_b[k];
             const double cos_q2 = cos_q2_b[k];
@@ -149,18 +158,20 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
             const double z = S_z1 + e_z*lambda_ + x0_z;
             const double det_D = e_sq*lambda_;
             /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3));
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
-            /* outputs */
+            /* outputs (NaN where the status says they do not exist) */
             const int t7_0 = ((collinear) | (invalid) | (unreachable));
             const double out_x = ((t7_0) ? NAN : x);
             const double out_y = ((t7_0) ? NAN : y);
             const double out_z = ((t7_0) ? NAN : z);
+            const double out_phi = ((t7_0) ? NAN : q4);
             out_x_b[k] = out_x;
             out_y_b[k] = out_y;
             out_z_b[k] = out_z;
+            out_phi_b[k] = out_phi;
             status[start + k] = (int8_t)(3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* scatter: results of this block into the caller's rows */
@@ -175,12 +186,7 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 p[(start + k) * 4 + 0] = out_x_b[k];
                 p[(start + k) * 4 + 1] = out_y_b[k];
                 p[(start + k) * 4 + 2] = out_z_b[k];
-            }
-        }
-        if (axes == 4) {
-            /* fourth axis, eq. (43): phi = q_4 and its derivatives pass through */
-            for (size_t k = start; k < start + m; ++k) {
-                p[k * 4 + 3] = q[k * 4 + 3];
+                p[(start + k) * 4 + 3] = out_phi_b[k];
             }
         }
     }
@@ -220,26 +226,32 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
         double q1_b[DELTA_BLOCK];
         double q2_b[DELTA_BLOCK];
         double q3_b[DELTA_BLOCK];
+        double q4_b[DELTA_BLOCK];
         double qd1_b[DELTA_BLOCK];
         double qd2_b[DELTA_BLOCK];
         double qd3_b[DELTA_BLOCK];
+        double qd4_b[DELTA_BLOCK];
         if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
                 qd1_b[k] = qd[(start + k) * 3 + 0];
                 qd2_b[k] = qd[(start + k) * 3 + 1];
                 qd3_b[k] = qd[(start + k) * 3 + 2];
+                qd4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
                 q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
                 qd1_b[k] = qd[(start + k) * 4 + 0];
                 qd2_b[k] = qd[(start + k) * 4 + 1];
                 qd3_b[k] = qd[(start + k) * 4 + 2];
+                qd4_b[k] = qd[(start + k) * 4 + 3];
             }
         }
         double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
@@ -267,16 +279,20 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
         double out_x_b[DELTA_BLOCK];
         double out_y_b[DELTA_BLOCK];
         double out_z_b[DELTA_BLOCK];
+        double out_phi_b[DELTA_BLOCK];
         double out_xd_b[DELTA_BLOCK];
         double out_yd_b[DELTA_BLOCK];
         double out_zd_b[DELTA_BLOCK];
+        double out_phid_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
             const double qd3 = qd3_b[k];
+            const double qd4 = qd4_b[k];
             const double cos_q1 = cos_q1_b[k];
             const double sin_q1 = sin_q1_b[k];
             const double cos_q2 = cos_q2_b[k];
@@ -327,7 +343,7 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
             const double z = S_z1 + e_z*lambda_ + x0_z;
             const double det_D = e_sq*lambda_;
             /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3));
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qd4));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
@@ -370,21 +386,25 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
             const double xd = inv_det_D*(adjD11*t10_0 + adjD12*t10_1 + adjD13*t10_2);
             const double yd = inv_det_D*(adjD21*t10_0 + adjD22*t10_1 + adjD23*t10_2);
             const double zd = inv_det_D*(adjD31*t10_0 + adjD32*t10_1 + adjD33*t10_2);
-            /* outputs */
+            /* outputs (NaN where the status says they do not exist) */
             const int t11_0 = ((collinear) | (invalid) | (unreachable));
             const int t11_1 = ((collinear) | (invalid) | (singular) | (unreachable));
             const double out_x = ((t11_0) ? NAN : x);
             const double out_y = ((t11_0) ? NAN : y);
             const double out_z = ((t11_0) ? NAN : z);
+            const double out_phi = ((t11_0) ? NAN : q4);
             const double out_xd = ((t11_1) ? NAN : xd);
             const double out_yd = ((t11_1) ? NAN : yd);
             const double out_zd = ((t11_1) ? NAN : zd);
+            const double out_phid = ((t11_1) ? NAN : qd4);
             out_x_b[k] = out_x;
             out_y_b[k] = out_y;
             out_z_b[k] = out_z;
+            out_phi_b[k] = out_phi;
             out_xd_b[k] = out_xd;
             out_yd_b[k] = out_yd;
             out_zd_b[k] = out_zd;
+            out_phid_b[k] = out_phid;
             status[start + k] = (int8_t)(3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* scatter: results of this block into the caller's rows */
@@ -402,16 +422,11 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 p[(start + k) * 4 + 0] = out_x_b[k];
                 p[(start + k) * 4 + 1] = out_y_b[k];
                 p[(start + k) * 4 + 2] = out_z_b[k];
+                p[(start + k) * 4 + 3] = out_phi_b[k];
                 pd[(start + k) * 4 + 0] = out_xd_b[k];
                 pd[(start + k) * 4 + 1] = out_yd_b[k];
                 pd[(start + k) * 4 + 2] = out_zd_b[k];
-            }
-        }
-        if (axes == 4) {
-            /* fourth axis, eq. (43): phi = q_4 and its derivatives pass through */
-            for (size_t k = start; k < start + m; ++k) {
-                p[k * 4 + 3] = q[k * 4 + 3];
-                pd[k * 4 + 3] = qd[k * 4 + 3];
+                pd[(start + k) * 4 + 3] = out_phid_b[k];
             }
         }
     }
@@ -451,35 +466,44 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
         double q1_b[DELTA_BLOCK];
         double q2_b[DELTA_BLOCK];
         double q3_b[DELTA_BLOCK];
+        double q4_b[DELTA_BLOCK];
         double qd1_b[DELTA_BLOCK];
         double qd2_b[DELTA_BLOCK];
         double qd3_b[DELTA_BLOCK];
+        double qd4_b[DELTA_BLOCK];
         double qdd1_b[DELTA_BLOCK];
         double qdd2_b[DELTA_BLOCK];
         double qdd3_b[DELTA_BLOCK];
+        double qdd4_b[DELTA_BLOCK];
         if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
                 qd1_b[k] = qd[(start + k) * 3 + 0];
                 qd2_b[k] = qd[(start + k) * 3 + 1];
                 qd3_b[k] = qd[(start + k) * 3 + 2];
+                qd4_b[k] = 0.0;  /* no fourth axis */
                 qdd1_b[k] = qdd[(start + k) * 3 + 0];
                 qdd2_b[k] = qdd[(start + k) * 3 + 1];
                 qdd3_b[k] = qdd[(start + k) * 3 + 2];
+                qdd4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
                 q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
                 qd1_b[k] = qd[(start + k) * 4 + 0];
                 qd2_b[k] = qd[(start + k) * 4 + 1];
                 qd3_b[k] = qd[(start + k) * 4 + 2];
+                qd4_b[k] = qd[(start + k) * 4 + 3];
                 qdd1_b[k] = qdd[(start + k) * 4 + 0];
                 qdd2_b[k] = qdd[(start + k) * 4 + 1];
                 qdd3_b[k] = qdd[(start + k) * 4 + 2];
+                qdd4_b[k] = qdd[(start + k) * 4 + 3];
             }
         }
         double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
@@ -507,22 +531,28 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
         double out_x_b[DELTA_BLOCK];
         double out_y_b[DELTA_BLOCK];
         double out_z_b[DELTA_BLOCK];
+        double out_phi_b[DELTA_BLOCK];
         double out_xd_b[DELTA_BLOCK];
         double out_yd_b[DELTA_BLOCK];
         double out_zd_b[DELTA_BLOCK];
+        double out_phid_b[DELTA_BLOCK];
         double out_xdd_b[DELTA_BLOCK];
         double out_ydd_b[DELTA_BLOCK];
         double out_zdd_b[DELTA_BLOCK];
+        double out_phidd_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
             const double qd3 = qd3_b[k];
+            const double qd4 = qd4_b[k];
             const double qdd1 = qdd1_b[k];
             const double qdd2 = qdd2_b[k];
             const double qdd3 = qdd3_b[k];
+            const double qdd4 = qdd4_b[k];
             const double cos_q1 = cos_q1_b[k];
             const double sin_q1 = sin_q1_b[k];
             const double cos_q2 = cos_q2_b[k];
@@ -573,7 +603,7 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
             const double z = S_z1 + e_z*lambda_ + x0_z;
             const double det_D = e_sq*lambda_;
             /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3));
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) & isfinite(qdd4));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
@@ -648,27 +678,33 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
             const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
             const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
             const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
-            /* outputs */
+            /* outputs (NaN where the status says they do not exist) */
             const int t13_0 = ((collinear) | (invalid) | (unreachable));
             const int t13_1 = ((collinear) | (invalid) | (singular) | (unreachable));
             const double out_x = ((t13_0) ? NAN : x);
             const double out_y = ((t13_0) ? NAN : y);
             const double out_z = ((t13_0) ? NAN : z);
+            const double out_phi = ((t13_0) ? NAN : q4);
             const double out_xd = ((t13_1) ? NAN : xd);
             const double out_yd = ((t13_1) ? NAN : yd);
             const double out_zd = ((t13_1) ? NAN : zd);
+            const double out_phid = ((t13_1) ? NAN : qd4);
             const double out_xdd = ((t13_1) ? NAN : xdd);
             const double out_ydd = ((t13_1) ? NAN : ydd);
             const double out_zdd = ((t13_1) ? NAN : zdd);
+            const double out_phidd = ((t13_1) ? NAN : qdd4);
             out_x_b[k] = out_x;
             out_y_b[k] = out_y;
             out_z_b[k] = out_z;
+            out_phi_b[k] = out_phi;
             out_xd_b[k] = out_xd;
             out_yd_b[k] = out_yd;
             out_zd_b[k] = out_zd;
+            out_phid_b[k] = out_phid;
             out_xdd_b[k] = out_xdd;
             out_ydd_b[k] = out_ydd;
             out_zdd_b[k] = out_zdd;
+            out_phidd_b[k] = out_phidd;
             status[start + k] = (int8_t)(3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* scatter: results of this block into the caller's rows */
@@ -689,20 +725,15 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 p[(start + k) * 4 + 0] = out_x_b[k];
                 p[(start + k) * 4 + 1] = out_y_b[k];
                 p[(start + k) * 4 + 2] = out_z_b[k];
+                p[(start + k) * 4 + 3] = out_phi_b[k];
                 pd[(start + k) * 4 + 0] = out_xd_b[k];
                 pd[(start + k) * 4 + 1] = out_yd_b[k];
                 pd[(start + k) * 4 + 2] = out_zd_b[k];
+                pd[(start + k) * 4 + 3] = out_phid_b[k];
                 pdd[(start + k) * 4 + 0] = out_xdd_b[k];
                 pdd[(start + k) * 4 + 1] = out_ydd_b[k];
                 pdd[(start + k) * 4 + 2] = out_zdd_b[k];
-            }
-        }
-        if (axes == 4) {
-            /* fourth axis, eq. (43): phi = q_4 and its derivatives pass through */
-            for (size_t k = start; k < start + m; ++k) {
-                p[k * 4 + 3] = q[k * 4 + 3];
-                pd[k * 4 + 3] = qd[k * 4 + 3];
-                pdd[k * 4 + 3] = qdd[k * 4 + 3];
+                pdd[(start + k) * 4 + 3] = out_phidd_b[k];
             }
         }
     }
@@ -742,17 +773,20 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
         double q1_b[DELTA_BLOCK];
         double q2_b[DELTA_BLOCK];
         double q3_b[DELTA_BLOCK];
+        double q4_b[DELTA_BLOCK];
         if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
                 q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
         double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
@@ -790,6 +824,7 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
             const double cos_q1 = cos_q1_b[k];
             const double sin_q1 = sin_q1_b[k];
             const double cos_q2 = cos_q2_b[k];
@@ -840,7 +875,7 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
             const double z = S_z1 + e_z*lambda_ + x0_z;
             const double det_D = e_sq*lambda_;
             /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3));
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
@@ -889,7 +924,7 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
             const double J31 = adjD31*t10_0;
             const double J32 = adjD32*t10_1;
             const double J33 = adjD33*t10_2;
-            /* outputs */
+            /* outputs (NaN unless OK) */
             const int t11_0 = ((collinear) | (invalid) | (singular) | (unreachable));
             const double out_J11 = ((t11_0) ? NAN : J11);
             const double out_J12 = ((t11_0) ? NAN : J12);
@@ -973,27 +1008,32 @@ int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, con
         double x_b[DELTA_BLOCK];
         double y_b[DELTA_BLOCK];
         double z_b[DELTA_BLOCK];
+        double phi_b[DELTA_BLOCK];
         if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
             for (size_t k = 0; k < m; ++k) {
                 x_b[k] = p[(start + k) * 3 + 0];
                 y_b[k] = p[(start + k) * 3 + 1];
                 z_b[k] = p[(start + k) * 3 + 2];
+                phi_b[k] = 0.0;  /* no fourth axis */
             }
         } else {
             for (size_t k = 0; k < m; ++k) {
                 x_b[k] = p[(start + k) * 4 + 0];
                 y_b[k] = p[(start + k) * 4 + 1];
                 z_b[k] = p[(start + k) * 4 + 2];
+                phi_b[k] = p[(start + k) * 4 + 3];
             }
         }
         /* kinematics, one point per iteration */
         double out_q1_b[DELTA_BLOCK];
         double out_q2_b[DELTA_BLOCK];
         double out_q3_b[DELTA_BLOCK];
+        double out_q4_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double x = x_b[k];
             const double y = y_b[k];
             const double z = z_b[k];
+            const double phi = phi_b[k];
             /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
             const double t0_0 = -r;
             const double t0_1 = cos_theta1*x;
@@ -1019,29 +1059,27 @@ int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, con
             const double disc1 = E1*E1 + F1*F1 - (G1*G1);
             const double disc2 = E2*E2 + F2*F2 - (G2*G2);
             const double disc3 = E3*E3 + F3*F3 - (G3*G3);
-            /* elbow-out crank angles */
-            const double q_raw1 = atan2(F1, E1) + atan2(sqrt(disc1), -G1);
-            const double q_raw2 = atan2(F2, E2) + atan2(sqrt(disc2), -G2);
-            const double q_raw3 = atan2(F3, E3) + atan2(sqrt(disc3), -G3);
-            /* crank angles wrapped to (-pi, pi] */
-            const double t3_0 = 2*3.141592653589793;
-            const double t3_1 = -t3_0;
-            const double t3_2 = -3.141592653589793;
-            const double q1 = (((q_raw1 > 3.141592653589793)) ? q_raw1 + t3_1 : (((q_raw1 <= t3_2)) ? q_raw1 + t3_0 : q_raw1));
-            const double q2 = (((q_raw2 > 3.141592653589793)) ? q_raw2 + t3_1 : (((q_raw2 <= t3_2)) ? q_raw2 + t3_0 : q_raw2));
-            const double q3 = (((q_raw3 > 3.141592653589793)) ? q_raw3 + t3_1 : (((q_raw3 <= t3_2)) ? q_raw3 + t3_0 : q_raw3));
+            /* elbow-out crank angles atan2(F) + atan2(sqrt(disc), -G) as one atan2 */
+            const double t2_0 = sqrt(disc1);
+            const double t2_1 = sqrt(disc2);
+            const double t2_2 = sqrt(disc3);
+            const double q1 = atan2(E1*t2_0 - F1*G1, -E1*G1 - F1*t2_0);
+            const double q2 = atan2(E2*t2_1 - F2*G2, -E2*G2 - F2*t2_1);
+            const double q3 = atan2(E3*t2_2 - F3*G3, -E3*G3 - F3*t2_2);
             /* status flags: non-finite input, a crank cannot reach, a crank at its reach limit */
-            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z));
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
             const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
-            /* outputs */
-            const int t5_0 = ((invalid) | (unreachable));
-            const double out_q1 = ((t5_0) ? NAN : q1);
-            const double out_q2 = ((t5_0) ? NAN : q2);
-            const double out_q3 = ((t5_0) ? NAN : q3);
+            /* outputs (NaN where unreachable) */
+            const int t4_0 = ((invalid) | (unreachable));
+            const double out_q1 = ((t4_0) ? NAN : q1);
+            const double out_q2 = ((t4_0) ? NAN : q2);
+            const double out_q3 = ((t4_0) ? NAN : q3);
+            const double out_q4 = ((t4_0) ? NAN : phi);
             out_q1_b[k] = out_q1;
             out_q2_b[k] = out_q2;
             out_q3_b[k] = out_q3;
+            out_q4_b[k] = out_q4;
             status[start + k] = (int8_t)(3*invalid + (1 - invalid)*(unreachable + (1 - unreachable)*(2*singular)));
         }
         /* scatter: results of this block into the caller's rows */
@@ -1056,12 +1094,7 @@ int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 q[(start + k) * 4 + 0] = out_q1_b[k];
                 q[(start + k) * 4 + 1] = out_q2_b[k];
                 q[(start + k) * 4 + 2] = out_q3_b[k];
-            }
-        }
-        if (axes == 4) {
-            /* fourth axis, eq. (43): phi = q_4 and its derivatives pass through */
-            for (size_t k = start; k < start + m; ++k) {
-                q[k * 4 + 3] = p[k * 4 + 3];
+                q[(start + k) * 4 + 3] = out_q4_b[k];
             }
         }
     }

@@ -50,7 +50,7 @@ typedef struct delta_geometry {
  * axes      3, or 4 with the fourth axis in the last column
  * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) < singular_tol or collinear sphere centres); p is still given where only det J_p is small
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); p is still given where only det J_p is small
  */
 int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, double *restrict p, int8_t *restrict status);
 
@@ -60,10 +60,10 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
  * n         number of points
  * axes      3, or 4 with the fourth axis in the last column
  * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
- * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4
+ * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
  * pd        out, n x axes: platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) < singular_tol or collinear sphere centres); pd is NaN unless OK
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd is NaN unless OK
  */
 int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, double *restrict p, double *restrict pd, int8_t *restrict status);
 
@@ -73,12 +73,12 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
  * n         number of points
  * axes      3, or 4 with the fourth axis in the last column
  * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
- * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4
- * qdd       in,  n x axes: crank accelerations qddot [rad/s^2]; column 4: qddot_4
+ * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]
+ * qdd       in,  n x axes: crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
- * pd        out, n x axes: platform velocity [m/s]; column 4: phidot [rad/s]
- * pdd       out, n x axes: platform acceleration [m/s^2]; column 4: phiddot [rad/s^2]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) < singular_tol or collinear sphere centres); pd and pdd are NaN unless OK
+ * pd        out, n x axes: platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]
+ * pdd       out, n x axes: platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd and pdd are NaN unless OK
  */
 int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, double *restrict p, double *restrict pd, double *restrict pdd, int8_t *restrict status);
 
@@ -89,7 +89,7 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
  * axes      3, or 4 with the fourth axis in the last column
  * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
  * J         out, n x 9: Jacobian d p / d q, row-major 3x3 [m/rad]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) < singular_tol or collinear sphere centres); J is NaN unless OK
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); J is NaN unless OK
  */
 int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -99,8 +99,8 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
  * n         number of points
  * axes      3, or 4 with the fourth axis in the last column
  * p         in,  n x axes: platform position [m]; column 4: phi [rad]
- * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43)
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) < singular_tol; q is still given)
+ * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)
  */
 int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, double *restrict q, int8_t *restrict status);
 

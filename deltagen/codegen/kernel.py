@@ -22,7 +22,7 @@ class Port:
     doc: str
     unit: str
     width: object = "axes"
-    fourth_axis_from: str | None = None  # input port whose 4th column this one copies, eq. (43)
+    fourth: sp.Symbol | None = None  # column 4 when axes == 4 (the fourth axis, eq. (43))
 
     @property
     def shape(self) -> str:

@@ -57,6 +57,14 @@ def _used(symbols_in, assignments):
     return list(reversed(kept)), needed
 
 
+def _columns(port):
+    """(column, symbol) pairs of a port, the fourth-axis column 3 included."""
+    cols = list(enumerate(port.symbols))
+    if port.fourth is not None:
+        cols.append((len(port.symbols), port.fourth))
+    return cols
+
+
 def function_context(lk: LoweredKernel) -> dict:
     k = lk.kernel
     body_symbols = set(sp.sympify(k.status).free_symbols)
@@ -84,15 +92,13 @@ def function_context(lk: LoweredKernel) -> dict:
     loads = [
         dict(name=str(sym), port=port.name, column=col, used=sym in body_symbols)
         for port in k.inputs
-        for col, sym in enumerate(port.symbols)
-        if sym in angle_symbols or sym in body_symbols
+        for col, sym in _columns(port)
     ]
     stores = [
         dict(name=str(sym), port=port.name, column=col, width=port.width)
         for port in k.outputs
-        for col, sym in enumerate(port.symbols)
+        for col, sym in _columns(port)
     ]
-    passthrough = [(p.name, p.fourth_axis_from) for p in k.outputs if p.fourth_axis_from]
     return dict(
         name=k.name,
         doc=k.doc,
@@ -106,7 +112,6 @@ def function_context(lk: LoweredKernel) -> dict:
         stages=lk.stages,
         stores=stores,
         status=lk.status,
-        passthrough=passthrough,
     )
 
 

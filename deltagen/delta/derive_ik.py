@@ -5,8 +5,11 @@ Constraint (1), expanded with cos^2 + sin^2 = 1, is linear in cos q_i and sin q_
     E_i cos q_i + F_i sin q_i + G_i = 0.
 
 With rho^2 = E^2 + F^2 and E = rho cos(phi), F = rho sin(phi) this reads
-rho cos(q - phi) = -G, so q = phi +- atan2(sqrt(rho^2 - G^2), -G). The + sign is the
-elbow-out branch (the crank points away from the base axis, cos q > 0 near home).
+rho cos(q - phi) = -G, so q = phi +- beta with beta = atan2(sqrt(rho^2 - G^2), -G). The +
+sign is the elbow-out branch (the crank points away from the base axis, cos q > 0 near
+home). The angle sum is evaluated with one atan2 (addition theorems, both angles have
+radius rho): q = atan2(F (-G) + E s, E (-G) - F s), s = sqrt(rho^2 - G^2), which also
+lands in (-pi, pi] without wrapping.
 rho^2 - G^2 < 0: the sphere of the rod misses the crank circle (unreachable).
 At the solution |J_q,ii| / 2 = sqrt(rho^2 - G^2) / 2 (J_q,ii = -dF/dq), so a double root
 (rho^2 = G^2) is exactly the J_q singularity.
@@ -23,7 +26,6 @@ E = sp.symbols("E1:4", real=True)
 F = sp.symbols("F1:4", real=True)
 G = sp.symbols("G1:4", real=True)
 disc = sp.symbols("disc1:4", real=True)  # rho^2 - G^2
-q_raw = sp.symbols("q_raw1:4", real=True)
 
 
 def crank_equation(i: int):
@@ -44,17 +46,10 @@ def ik_stages():
         Ei, Fi, Gi = crank_equation(i)
         coeffs += [(E[i], Ei), (F[i], Fi), (G[i], Gi)]
         discs.append((disc[i], E[i] ** 2 + F[i] ** 2 - G[i] ** 2))
-        raw = sp.atan2(F[i], E[i]) + sp.atan2(sp.sqrt(disc[i]), -G[i])
-        angles.append((q_raw[i], raw))
-    wrapped = [
-        (s.q[i], sp.Piecewise((q_raw[i] - 2 * sp.pi, q_raw[i] > sp.pi),
-                              (q_raw[i] + 2 * sp.pi, q_raw[i] <= -sp.pi),
-                              (q_raw[i], True)))
-        for i in range(3)
-    ]
+        root = sp.sqrt(disc[i])
+        angles.append((s.q[i], sp.atan2(-F[i] * G[i] + E[i] * root, -E[i] * G[i] - F[i] * root)))
     return [
         Stage("crank equation E cos q + F sin q + G = 0 from eq. (1), per chain", tuple(coeffs)),
         Stage("discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular)", tuple(discs)),
-        Stage("elbow-out crank angles", tuple(angles)),
-        Stage("crank angles wrapped to (-pi, pi]", tuple(wrapped)),
+        Stage("elbow-out crank angles atan2(F) + atan2(sqrt(disc), -G) as one atan2", tuple(angles)),
     ]

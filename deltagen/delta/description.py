@@ -128,18 +128,17 @@ class DeltaGeometry:
             raise GeometryError(f"{source}: missing keys in [delta]: {missing}")
         if "theta" in delta and "theta_deg" in delta:
             raise GeometryError(f"{source}: give theta (rad) or theta_deg (deg), not both")
-        if "theta_deg" in delta:
-            raw = delta["theta_deg"]
-            if not isinstance(raw, list) or len(raw) != 3:
-                raise GeometryError(f"{source}: theta_deg must be a list of 3 numbers")
-            theta = tuple(math.radians(_real(t, f"theta_deg[{i}]")) for i, t in enumerate(raw))
-        elif "theta" in delta:
-            raw = delta["theta"]
-            if not isinstance(raw, list) or len(raw) != 3:
-                raise GeometryError(f"{source}: theta must be a list of 3 numbers")
-            theta = tuple(raw)
-        else:
+        key = "theta_deg" if "theta_deg" in delta else "theta"
+        if key not in delta:
             raise GeometryError(f"{source}: missing key theta (rad) or theta_deg (deg) in [delta]")
+        raw = delta[key]
+        if not isinstance(raw, list) or len(raw) != 3:
+            raise GeometryError(f"{source}: {key} must be a list of 3 numbers")
+        try:
+            values = [_real(t, f"{key}[{i}]") for i, t in enumerate(raw)]
+        except GeometryError as exc:
+            raise GeometryError(f"{source}: {exc}") from None
+        theta = tuple(math.radians(t) for t in values) if key == "theta_deg" else tuple(values)
         kwargs = {k: delta[k] for k in _LENGTHS}
         if "singular_tol" in delta:
             kwargs["singular_tol"] = delta["singular_tol"]

@@ -52,6 +52,11 @@ SETUP = (
 ANGLES = tuple(Angle(s.q[i], s.cos_q[i], s.sin_q[i]) for i in range(3))
 
 
+# fourth axis, eq. (43): its angle and rates ride along in column 4 (0 when axes == 3)
+q4, qd4, qdd4 = sp.symbols("q4 qd4 qdd4", real=True)
+phi = sp.Symbol("phi", real=True)
+
+
 def _masked(names, values, bad):
     """Output stage: each value, or NaN where ``bad`` holds."""
     outs = sp.symbols(" ".join(f"out_{n}" for n in names), real=True)
@@ -60,7 +65,16 @@ def _masked(names, values, bad):
 
 def _q_port():
     return Port("q", s.q, "crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; "
-                "column 4: fourth-axis angle q_4 [rad]", "rad")
+                "column 4: fourth-axis angle q_4 [rad]", "rad", fourth=q4)
+
+
+def _qd_port():
+    return Port("qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]", "rad/s", fourth=qd4)
+
+
+def _qdd_port():
+    return Port("qdd", s.qdd, "crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]",
+                "rad/s^2", fourth=qdd4)
 
 
 invalid, collinear, unreachable, singular = sp.symbols("invalid collinear unreachable singular")
@@ -89,26 +103,40 @@ def _fk_level(inputs_finite):
     return flags, status, no_position, no_rates
 
 
-def _position_port(symbols):
-    return Port("p", symbols, "platform position x, y, z of P in the base frame O [m]; "
-                "column 4: fourth-axis angle phi = q_4, eq. (43) [rad]", "m", fourth_axis_from="q")
-
-
 _FK_STATUS_DOC = ("OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); "
-                  "SINGULAR (|det J_p| / (8 l_b^3) < singular_tol or collinear sphere centres)")
+                  "SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres "
+                  "(no output))")
+
+
+def _outputs(no_p, no_rates, levels):
+    """Masked output symbols and their stage for p (and pdot, pddot), column 4 included."""
+    names = [("x", "y", "z", "phi"), ("xd", "yd", "zd", "phid"), ("xdd", "ydd", "zdd", "phidd")]
+    values = [(s.x, s.y, s.z, q4), (s.xd, s.yd, s.zd, qd4), (s.xdd, s.ydd, s.zdd, qdd4)]
+    ports, assignments = [], ()
+    docs = [
+        ("p", "platform position x, y, z of P in the base frame O [m]; column 4: "
+              "fourth-axis angle phi = q_4, eq. (43) [rad]", "m"),
+        ("pd", "platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]", "m/s"),
+        ("pdd", "platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]", "m/s^2"),
+    ]
+    for level in range(levels):
+        outs, stage = _masked(names[level], values[level], no_p if level == 0 else no_rates)
+        assignments += stage
+        name, doc, unit = docs[level]
+        ports.append(Port(name, outs[:3], doc, unit, fourth=outs[3]))
+    return tuple(ports), Stage("outputs (NaN where the status says they do not exist)", assignments)
 
 
 @lru_cache(maxsize=None)
 def fk_kernel() -> Kernel:
-    finite = AllFinite(*s.q)
-    flags, status, no_p, _ = _fk_level(finite)
-    p_out, p_stage = _masked(("x", "y", "z"), (s.x, s.y, s.z), no_p)
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
+    ports, outputs = _outputs(no_p, no_rates, 1)
     return Kernel(
         name="fk",
         doc="Direct kinematics: crank angles q -> platform position p, eqs. (2)-(27).",
         inputs=(_q_port(),),
-        outputs=(_position_port(p_out),),
-        stages=tuple(fkd.fk_stages()) + (flags, Stage("outputs", p_stage)),
+        outputs=ports,
+        stages=tuple(fkd.fk_stages()) + (flags, outputs),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; p is still given where only det J_p is small",
@@ -122,8 +150,7 @@ def _rate_stages(with_jacobian=False):
 
 @lru_cache(maxsize=None)
 def jacobian_kernel() -> Kernel:
-    finite = AllFinite(*s.q)
-    flags, status, _, no_rates = _fk_level(finite)
+    flags, status, _, no_rates = _fk_level(AllFinite(*s.q, q4))
     names = [f"J{i + 1}{j + 1}" for i in range(3) for j in range(3)]
     J_out, J_stage = _masked(names, list(vel.J), no_rates)
     return Kernel(
@@ -132,7 +159,7 @@ def jacobian_kernel() -> Kernel:
         inputs=(_q_port(),),
         outputs=(Port("J", J_out, "Jacobian d p / d q, row-major 3x3 [m/rad]", "m/rad", width=9),),
         stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages(with_jacobian=True)
-        + (Stage("outputs", J_stage),),
+        + (Stage("outputs (NaN unless OK)", J_stage),),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; J is NaN unless OK",
@@ -141,21 +168,14 @@ def jacobian_kernel() -> Kernel:
 
 @lru_cache(maxsize=None)
 def fk_vel_kernel() -> Kernel:
-    finite = AllFinite(*s.q, *s.qd)
-    flags, status, no_p, no_rates = _fk_level(finite)
-    p_out, p_stage = _masked(("x", "y", "z"), (s.x, s.y, s.z), no_p)
-    pd_out, pd_stage = _masked(("xd", "yd", "zd"), (s.xd, s.yd, s.zd), no_rates)
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4))
+    ports, outputs = _outputs(no_p, no_rates, 2)
     return Kernel(
         name="fk_vel",
         doc="Direct kinematics at velocity level: (q, qdot) -> (p, pdot), eqs. (2)-(35).",
-        inputs=(_q_port(), Port("qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4", "rad/s")),
-        outputs=(
-            _position_port(p_out),
-            Port("pd", pd_out, "platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]",
-                 "m/s", fourth_axis_from="qd"),
-        ),
-        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages()
-        + (vel.velocity_stage(), Stage("outputs", p_stage + pd_stage)),
+        inputs=(_q_port(), _qd_port()),
+        outputs=ports,
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages() + (vel.velocity_stage(), outputs),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; pd is NaN unless OK",
@@ -164,30 +184,16 @@ def fk_vel_kernel() -> Kernel:
 
 @lru_cache(maxsize=None)
 def fk_acc_kernel() -> Kernel:
-    finite = AllFinite(*s.q, *s.qd, *s.qdd)
-    flags, status, no_p, no_rates = _fk_level(finite)
-    p_out, p_stage = _masked(("x", "y", "z"), (s.x, s.y, s.z), no_p)
-    pd_out, pd_stage = _masked(("xd", "yd", "zd"), (s.xd, s.yd, s.zd), no_rates)
-    pdd_out, pdd_stage = _masked(("xdd", "ydd", "zdd"), (s.xdd, s.ydd, s.zdd), no_rates)
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4, *s.qdd, qdd4))
+    ports, outputs = _outputs(no_p, no_rates, 3)
     return Kernel(
         name="fk_acc",
         doc="Direct kinematics at acceleration level: (q, qdot, qddot) -> (p, pdot, pddot), "
             "eqs. (2)-(39).",
-        inputs=(
-            _q_port(),
-            Port("qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4", "rad/s"),
-            Port("qdd", s.qdd, "crank accelerations qddot [rad/s^2]; column 4: qddot_4", "rad/s^2"),
-        ),
-        outputs=(
-            _position_port(p_out),
-            Port("pd", pd_out, "platform velocity [m/s]; column 4: phidot [rad/s]", "m/s",
-                 fourth_axis_from="qd"),
-            Port("pdd", pdd_out, "platform acceleration [m/s^2]; column 4: phiddot [rad/s^2]",
-                 "m/s^2", fourth_axis_from="qdd"),
-        ),
+        inputs=(_q_port(), _qd_port(), _qdd_port()),
+        outputs=ports,
         stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages()
-        + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(),
-           Stage("outputs", p_stage + pd_stage + pdd_stage)),
+        + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(), outputs),
         status=status,
         parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; pd and pdd are NaN unless OK",
@@ -196,7 +202,7 @@ def fk_acc_kernel() -> Kernel:
 
 @lru_cache(maxsize=None)
 def ik_kernel() -> Kernel:
-    finite = AllFinite(s.x, s.y, s.z)
+    finite = AllFinite(s.x, s.y, s.z, phi)
     flags = Stage(
         "status flags: non-finite input, a crank cannot reach, a crank at its reach limit",
         (
@@ -211,18 +217,19 @@ def ik_kernel() -> Kernel:
         (st.SINGULAR, singular),
         (st.OK, True),
     )
-    q_out, q_stage = _masked(("q1", "q2", "q3"), s.q, sp.Or(invalid, unreachable))
+    q_out, q_stage = _masked(("q1", "q2", "q3", "q4"), (*s.q, phi), sp.Or(invalid, unreachable))
     return Kernel(
         name="ik",
         doc="Inverse kinematics (elbow-out): platform position p -> crank angles q in (-pi, pi].",
-        inputs=(Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m"),),
-        outputs=(Port("q", q_out, "crank angles [rad]; column 4: q_4 = phi, eq. (43)", "rad",
-                      fourth_axis_from="p"),),
-        stages=tuple(ikd.ik_stages()) + (flags, Stage("outputs", q_stage)),
+        inputs=(Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m",
+                     fourth=phi),),
+        outputs=(Port("q", q_out[:3], "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
+                      "rad", fourth=q_out[3]),),
+        stages=tuple(ikd.ik_stages()) + (flags, Stage("outputs (NaN where unreachable)", q_stage)),
         status=status,
         parameters=PARAMETERS, setup=SETUP,
         status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "
-                   "SINGULAR (|J_q,ii| / (2 l_a l_b) < singular_tol; q is still given)",
+                   "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)",
     )
 
 

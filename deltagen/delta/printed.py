@@ -18,8 +18,6 @@ Conventions of the transcription:
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import sympy as sp
 
@@ -299,4 +297,3 @@ eq43_identity = sp.eye(3)  # (43) [phi, phid, phidd]^T = I_3x3 [q4, q4d, q4dd]^T
 maxima_x = w[0] * s.z + w[1]
 maxima_y = w[1] * s.z + w[2]
 
-DEG = math.pi / 180.0

@@ -127,12 +127,12 @@ class DeltaRobot:
 
     def ik_vel(self, p, pd, errors="raise"):
         """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
-        return self._inverse_rates(errors, p, pd)
+        return self._inverse_rates(errors, dict(p=p, pd=pd))
 
     def ik_acc(self, p, pd, pdd, errors="raise"):
         """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
         Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
-        return self._inverse_rates(errors, p, pd, pdd)
+        return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
 
     # -- helpers ------------------------------------------------------------------------
 
@@ -143,14 +143,18 @@ class DeltaRobot:
     def _finish(self, errors, lead, status, outs, names, allow_singular=False, trailing=None):
         trailing = trailing or [o.shape[1:] for o in outs]
         ok = status == st.OK
-        if allow_singular:
-            ok |= (status == st.SINGULAR) & np.isfinite(outs[0]).all(axis=1)
-        if errors == "raise" and not ok.all():
-            self._raise(status, ok, names)
+        all_ok = bool(ok.all())
+        if not all_ok:
+            if allow_singular:
+                singular = np.flatnonzero(status == st.SINGULAR)
+                ok[singular] = np.isfinite(outs[0][singular]).all(axis=1)
+            if errors == "raise" and not ok.all():
+                self._raise(status, ok, names)
         shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
         if errors == "nan":
-            for o in outs:
-                o[~ok] = np.nan
+            if not all_ok:
+                for o in outs:
+                    o[~ok] = np.nan
             return (*shaped, ok.reshape(lead))
         return shaped[0] if len(shaped) == 1 else tuple(shaped)
 
@@ -170,16 +174,16 @@ class DeltaRobot:
                                    unreachable)
         raise SingularityError(f"singular pose in rows {_rows_text(bad)}", bad)
 
-    def _inverse_rates(self, errors, p, pd, pdd=None):
+    def _inverse_rates(self, errors, arrays):
         check_errors_mode(errors)
-        arrays = dict(p=p, pd=pd) if pdd is None else dict(p=p, pd=pd, pdd=pdd)
+        with_acceleration = "pdd" in arrays
         lead, width, flat = broadcast_rows(arrays)
         pf, pdf = flat[0], flat[1]
         q, status = self._core.ik(pf)
         bad_ik = status != st.OK  # here a J_q singularity is an error: qdot would be infinite
         J, jstatus = self._core.jacobian(q)
         finite_rates = np.isfinite(pdf).all(axis=1)
-        if pdd is not None:
+        if with_acceleration:
             finite_rates &= np.isfinite(flat[2]).all(axis=1)
         status = np.where(bad_ik, status, jstatus).astype(np.int8)
         status[(status == st.OK) & ~finite_rates] = st.INVALID
@@ -192,7 +196,7 @@ class DeltaRobot:
         if width == 4:
             qd[ok, 3] = pdf[ok, 3]
         outs = [q, qd]
-        if pdd is not None:
+        if with_acceleration:
             pddf = flat[2]
             qdd = np.full_like(pddf, np.nan)
             zero = np.zeros_like(pddf)

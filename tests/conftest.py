@@ -1,0 +1,59 @@
+"""Shared fixtures: the three test geometries and their robots on both backends."""
+
+from __future__ import annotations
+
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+TESTS = Path(__file__).resolve().parent
+if str(TESTS) not in sys.path:  # delta_oracles is importable under any --import-mode
+    sys.path.insert(0, str(TESTS))
+
+from delta_oracles import GEOMETRIES  # noqa: E402
+
+from deltagen import DeltaRobot  # noqa: E402
+
+REPO = TESTS.parent
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    return REPO
+
+
+@pytest.fixture(scope="session", params=list(GEOMETRIES), ids=list(GEOMETRIES))
+def geometry(request):
+    """Each test geometry in turn (default, Klipper-like, irregular)."""
+    return GEOMETRIES[request.param]
+
+
+@pytest.fixture(scope="session")
+def robot(geometry):
+    """The compiled robot of :func:`geometry`."""
+    return DeltaRobot.from_geometry(geometry, backend="compiled")
+
+
+@pytest.fixture(scope="session")
+def reference_robot(geometry):
+    return DeltaRobot.from_geometry(geometry, backend="reference")
+
+
+@pytest.fixture(scope="session")
+def default_robot():
+    return DeltaRobot.default()
+
+
+@pytest.fixture(scope="session")
+def default_reference_robot():
+    return DeltaRobot.default(backend="reference")
+
+
+@pytest.fixture
+def rng(request):
+    """A generator seeded by the test's name: reproducible, different per test."""
+    seed = zlib.crc32(request.node.nodeid.encode())
+    return np.random.default_rng(seed)

@@ -1,0 +1,407 @@
+"""The generated C on its own, as a motion-controller user would take it: strict C99
+compiles warning-free, needs only libm and has no global data, and a driver program
+(written here, linked with -fsanitize=address,undefined) evaluates batches with NaN and
+unreachable rows, sizes that are not a multiple of the block size, 3 and 4 axes, checks
+fk/ik round trips and the documented return codes, and runs clean."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from delta_oracles import DEFAULT, KLIPPER, random_q, well_conditioned
+
+from deltagen import paths
+from deltagen.build import compile_flags
+from deltagen.delta import reference as ref
+from deltagen.status import INVALID, OK, UNREACHABLE
+
+GCC = shutil.which("gcc")
+pytestmark = pytest.mark.skipif(GCC is None, reason="gcc not installed")
+
+STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
+LIBM = {"cos", "sin", "tan", "atan", "atan2", "acos", "asin", "sqrt", "cbrt", "hypot", "fabs",
+        "copysign", "fmin", "fmax", "fma", "pow", "exp", "log"}
+
+
+def _gcc(args, cwd):
+    proc = subprocess.run([GCC, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, f"gcc {' '.join(args)}\n{proc.stdout}\n{proc.stderr}"
+    assert proc.stderr.strip() == "", f"gcc printed diagnostics:\n{proc.stderr}"
+    return proc
+
+
+@pytest.fixture(scope="module")
+def source_dir(tmp_path_factory):
+    """A private copy of generated/, so concurrent regeneration cannot race the tests."""
+    copy = tmp_path_factory.mktemp("generated")
+    for name in ("delta_kinematics.c", "delta_kinematics.h"):
+        shutil.copy(paths.generated_dir() / name, copy / name)
+    return copy
+
+
+@pytest.mark.parametrize("opt", ["-O0", "-O2", "-O3"])
+def test_strict_c99_compiles_warning_free(source_dir, tmp_path, opt):
+    _gcc([*STRICT, opt, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "k.o")],
+         cwd=tmp_path)
+
+
+def test_compiles_warning_free_with_the_build_flags(source_dir, tmp_path):
+    """The flags deltagen.build uses for the cffi core (vector math included where
+    available), plus -pedantic -Werror."""
+    args, _ = compile_flags("delta")
+    _gcc([*args, "-pedantic", "-Werror", "-c", str(source_dir / "delta_kinematics.c"),
+          "-o", str(tmp_path / "k.o")], cwd=tmp_path)
+    if "-DDELTA_VECTOR_MATH" not in args:  # test the vector-math variant regardless
+        _gcc([*STRICT, "-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTA_VECTOR_MATH", "-c",
+              str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "v.o")], cwd=tmp_path)
+
+
+@pytest.mark.parametrize("flags", [["-O2"], ["-O3", "-fno-math-errno", "-fopenmp-simd",
+                                              "-DDELTA_VECTOR_MATH"]], ids=["O2", "vector-math"])
+def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, flags):
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("nm not installed")
+    obj = tmp_path / "k.o"
+    _gcc([*STRICT, *flags, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(obj)],
+         cwd=tmp_path)
+    table = subprocess.run([nm, str(obj)], capture_output=True, text=True, check=True).stdout
+    defined, undefined = {}, set()
+    for line in table.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[0] == "U":
+            undefined.add(parts[1])
+        elif len(parts) == 3:
+            defined[parts[2]] = parts[1]
+    functions = {name for name, kind in defined.items() if kind == "T"}
+    assert functions == {"delta_fk", "delta_fk_vel", "delta_fk_acc", "delta_jacobian",
+                         "delta_ik"}
+    data = {name: kind for name, kind in defined.items() if kind in "DdBbCGgSsVv"}
+    assert not data, f"writable global/static data: {data}"
+    external = {re.sub(r"^_ZGV\w+?_", "", name) for name in undefined}
+    assert external <= LIBM, f"needs more than libm: {sorted(external - LIBM)}"
+
+
+# ------------------------------------------------------------------------- the driver
+
+
+def _c_double(x: float) -> str:
+    if math.isnan(x):
+        return "NAN"
+    if math.isinf(x):
+        return "INFINITY" if x > 0 else "-INFINITY"
+    return float(x).hex()
+
+
+def _c_array(name, values, ctype="double"):
+    flat = np.asarray(values).ravel()
+    if ctype == "double":
+        body = ", ".join(_c_double(float(v)) for v in flat)
+    else:
+        body = ", ".join(str(int(v)) for v in flat)
+    return f"static const {ctype} {name}[{max(len(flat), 1)}] = {{{body or '0'}}};\n"
+
+
+def _batch(geom, n_rows, seed):
+    """n_rows crank angles (columns q1..q3, phi), expected fk statuses (numpy reference),
+    a round-trip flag, and positions for ik with expected statuses."""
+    rng = np.random.default_rng(seed)
+    q = np.column_stack([random_q(rng, n_rows), rng.uniform(-3, 3, n_rows)])
+    unreachable_pool = rng.uniform(-math.pi, math.pi, size=(5000, 3))
+    _, s_pool = ref.fk(geom, unreachable_pool)
+    unreachable = unreachable_pool[s_pool == UNREACHABLE]
+    rows_unreachable = [5, 64, n_rows - 1]
+    q[rows_unreachable, :3] = unreachable[:3]
+    q[[0, 70], 1] = np.nan
+    q[100, 2] = np.inf
+    p, status = ref.fk(geom, q[:, :3])
+    round_trip = (status == OK) & well_conditioned(geom, q, p)
+    targets = np.column_stack([p, rng.uniform(-3, 3, n_rows)])
+    targets[[3, 90], :3] = [[0.0, 0.0, -5.0], [2.0, 2.0, -0.5]]  # beyond l_a + l_b
+    targets[[7], 0] = -np.inf
+    _, s_ik = ref.ik(geom, targets[:, :3])
+    assert {OK, UNREACHABLE, INVALID} <= set(status.tolist())
+    assert {OK, UNREACHABLE, INVALID} <= set(s_ik.tolist())
+    return q, status, round_trip, targets, s_ik
+
+
+DRIVER = r"""
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "delta_kinematics.h"
+
+#define N %(n)d
+%(arrays)s
+static int failures = 0;
+#define CHECK(cond, ...) do { if (!(cond)) { ++failures; printf("FAIL line %%d: ", __LINE__); \
+    printf(__VA_ARGS__); printf("\n"); } } while (0)
+
+static double q_in[N * 4], qd_in[N * 4], qdd_in[N * 4], p_out[N * 4], pd_out[N * 4],
+    pdd_out[N * 4], q_back[N * 4], J_out[N * 9], ik_in[N * 4];
+static int8_t st[N], st2[N];
+
+static void load(double *dst, const double *src, size_t axes)
+{
+    for (size_t i = 0; i < N; ++i) {
+        for (size_t c = 0; c < axes; ++c) {
+            dst[i * axes + c] = src[i * 4 + c];
+        }
+    }
+}
+
+static void run_axes(const delta_geometry *g, size_t axes)
+{
+    load(q_in, Q, axes);
+    for (size_t i = 0; i < N * axes; ++i) {
+        qd_in[i] = 0.25 * (double)(i %% 7) - 0.5;
+        qdd_in[i] = 0.5 * (double)(i %% 5) - 1.0;
+    }
+    for (size_t i = 0; i < N; ++i) {  /* keep rate inputs finite except where q is not */
+        if (!(isfinite(q_in[i * axes]) && isfinite(q_in[i * axes + 1]) && isfinite(q_in[i * axes + 2]))) {
+            qd_in[i * axes] = 0.0;
+        }
+    }
+    CHECK(delta_fk(g, N, axes, q_in, p_out, st) == 0, "fk rc");
+    for (size_t i = 0; i < N; ++i) {
+        CHECK(st[i] == FK_STATUS[i], "fk status row %%zu axes %%zu: %%d != %%d", i, axes, st[i], FK_STATUS[i]);
+        if (FK_STATUS[i] == DELTA_OK) {
+            CHECK(isfinite(p_out[i * axes]) && isfinite(p_out[i * axes + 1]) && isfinite(p_out[i * axes + 2]),
+                  "fk row %%zu not finite", i);
+            if (axes == 4) {
+                CHECK(p_out[i * 4 + 3] == q_in[i * 4 + 3], "fourth axis row %%zu", i);
+            }
+        } else {
+            for (size_t c = 0; c < axes; ++c) {
+                CHECK(isnan(p_out[i * axes + c]), "failed fk row %%zu col %%zu not NaN", i, c);
+            }
+        }
+    }
+    /* ik of fk: the elbow-out rows come back */
+    CHECK(delta_ik(g, N, axes, p_out, q_back, st2) == 0, "ik rc");
+    for (size_t i = 0; i < N; ++i) {
+        if (ROUND_TRIP[i]) {
+            CHECK(st2[i] == DELTA_OK, "ik status row %%zu: %%d", i, st2[i]);
+            for (size_t c = 0; c < axes; ++c) {
+                CHECK(fabs(q_back[i * axes + c] - q_in[i * axes + c]) <= 1e-12,
+                      "round trip row %%zu col %%zu: %%.17g vs %%.17g", i, c, q_back[i * axes + c], q_in[i * axes + c]);
+            }
+        }
+        if (FK_STATUS[i] != DELTA_OK) {
+            CHECK(st2[i] == DELTA_INVALID, "ik of a NaN row %%zu: %%d", i, st2[i]);
+        }
+    }
+    /* velocity, acceleration, Jacobian: same statuses, J qd = pd, fk_acc's pd = fk_vel's */
+    CHECK(delta_fk_vel(g, N, axes, q_in, qd_in, p_out, pd_out, st2) == 0, "fk_vel rc");
+    CHECK(delta_jacobian(g, N, axes, q_in, J_out, st) == 0, "jacobian rc");
+    double pd_keep[N * 4];
+    memcpy(pd_keep, pd_out, sizeof pd_keep);
+    for (size_t i = 0; i < N; ++i) {
+        CHECK(st[i] == st2[i], "jacobian vs fk_vel status row %%zu", i);
+        if (st[i] == DELTA_OK) {
+            for (size_t r = 0; r < 3; ++r) {
+                double s = 0.0, scale = 0.0;
+                for (size_t c = 0; c < 3; ++c) {
+                    s += J_out[i * 9 + r * 3 + c] * qd_in[i * axes + c];
+                    scale += fabs(J_out[i * 9 + r * 3 + c] * qd_in[i * axes + c]);
+                }
+                CHECK(fabs(s - pd_out[i * axes + r]) <= 1e-13 * (scale + 1e-300), "J qd row %%zu", i);
+            }
+        } else {
+            for (size_t k = 0; k < 9; ++k) {
+                CHECK(isnan(J_out[i * 9 + k]), "failed J row %%zu not NaN", i);
+            }
+        }
+    }
+    CHECK(delta_fk_acc(g, N, axes, q_in, qd_in, qdd_in, p_out, pd_out, pdd_out, st2) == 0, "fk_acc rc");
+    for (size_t i = 0; i < N; ++i) {
+        CHECK(st[i] == st2[i], "fk_acc status row %%zu", i);
+        for (size_t c = 0; c < axes; ++c) {
+            if (st2[i] == DELTA_OK) {
+                CHECK(pd_out[i * axes + c] == pd_keep[i * axes + c] ||
+                      fabs(pd_out[i * axes + c] - pd_keep[i * axes + c]) <= 1e-15 * (1.0 + fabs(pd_keep[i * axes + c])),
+                      "fk_acc pd row %%zu", i);
+                CHECK(isfinite(pdd_out[i * axes + c]), "pdd row %%zu", i);
+            } else {
+                CHECK(isnan(pdd_out[i * axes + c]), "failed pdd row %%zu not NaN", i);
+            }
+        }
+    }
+    /* ik on positions with unreachable and non-finite rows */
+    load(ik_in, P, axes);
+    CHECK(delta_ik(g, N, axes, ik_in, q_back, st2) == 0, "ik rc");
+    for (size_t i = 0; i < N; ++i) {
+        CHECK(st2[i] == IK_STATUS[i], "ik status row %%zu axes %%zu: %%d != %%d", i, axes, st2[i], IK_STATUS[i]);
+        if (IK_STATUS[i] == DELTA_UNREACHABLE || IK_STATUS[i] == DELTA_INVALID) {
+            for (size_t c = 0; c < 3; ++c) {
+                CHECK(isnan(q_back[i * axes + c]), "failed ik row %%zu not NaN", i);
+            }
+        } else if (axes == 4) {
+            CHECK(q_back[i * 4 + 3] == ik_in[i * 4 + 3], "ik fourth axis row %%zu", i);
+        }
+    }
+    /* the n-point call equals point-by-point calls (block boundaries are invisible) */
+    load(q_in, Q, axes);
+    CHECK(delta_fk(g, N, axes, q_in, p_out, st) == 0, "fk rc");
+    for (size_t i = 0; i < N; ++i) {
+        double one[4];
+        int8_t s1;
+        CHECK(delta_fk(g, 1, axes, q_in + i * axes, one, &s1) == 0, "fk(1) rc");
+        CHECK(s1 == st[i], "single-point status row %%zu", i);
+        for (size_t c = 0; c < axes && s1 == DELTA_OK; ++c) {
+            CHECK(fabs(one[c] - p_out[i * axes + c]) <= 1e-15, "single-point fk row %%zu", i);
+        }
+    }
+}
+
+static void return_codes(const delta_geometry *g)
+{
+    double a[8] = {0.1, 0.2, 0.3, 0.4, 0.1, 0.2, 0.3, 0.4}, b[8] = {0}, c[8] = {0};
+    double o1[18], o2[8], o3[8];
+    int8_t s[2] = {42, 42};
+    const size_t bad_axes[] = {0, 1, 2, 5, 9};
+    for (size_t k = 0; k < sizeof bad_axes / sizeof bad_axes[0]; ++k) {
+        size_t ax = bad_axes[k];
+        for (size_t i = 0; i < 18; ++i) o1[i] = 7.0;
+        CHECK(delta_fk(g, 2, ax, a, o1, s) == -1, "fk axes %%zu", ax);
+        CHECK(delta_fk_vel(g, 2, ax, a, b, o1, o2, s) == -1, "fk_vel axes %%zu", ax);
+        CHECK(delta_fk_acc(g, 2, ax, a, b, c, o1, o2, o3, s) == -1, "fk_acc axes %%zu", ax);
+        CHECK(delta_jacobian(g, 2, ax, a, o1, s) == -1, "jacobian axes %%zu", ax);
+        CHECK(delta_ik(g, 2, ax, a, o1, s) == -1, "ik axes %%zu", ax);
+        CHECK(o1[0] == 7.0 && s[0] == 42, "something was written for axes %%zu", ax);
+    }
+    /* NULL pointers with n > 0: -1, nothing written */
+    CHECK(delta_fk(NULL, 2, 3, a, o1, s) == -1, "fk NULL geometry");
+    CHECK(delta_fk(g, 2, 3, NULL, o1, s) == -1, "fk NULL q");
+    CHECK(delta_fk(g, 2, 3, a, NULL, s) == -1, "fk NULL p");
+    CHECK(delta_fk(g, 2, 3, a, o1, NULL) == -1, "fk NULL status");
+    CHECK(delta_fk_vel(g, 2, 3, a, NULL, o1, o2, s) == -1, "fk_vel NULL qd");
+    CHECK(delta_fk_vel(g, 2, 3, a, b, o1, NULL, s) == -1, "fk_vel NULL pd");
+    CHECK(delta_fk_acc(g, 2, 3, a, b, NULL, o1, o2, o3, s) == -1, "fk_acc NULL qdd");
+    CHECK(delta_fk_acc(g, 2, 3, a, b, c, o1, o2, NULL, s) == -1, "fk_acc NULL pdd");
+    CHECK(delta_jacobian(g, 2, 3, a, NULL, s) == -1, "jacobian NULL J");
+    CHECK(delta_jacobian(NULL, 2, 3, a, o1, s) == -1, "jacobian NULL geometry");
+    CHECK(delta_ik(g, 2, 3, NULL, o1, s) == -1, "ik NULL p");
+    CHECK(delta_ik(g, 2, 4, a, o1, NULL) == -1, "ik NULL status");
+    CHECK(s[0] == 42 && s[1] == 42, "status written on error");
+    /* n = 0: nothing to do, success even with NULL arrays */
+    CHECK(delta_fk(g, 0, 3, NULL, NULL, NULL) == 0, "fk n=0");
+    CHECK(delta_fk_acc(g, 0, 4, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "fk_acc n=0");
+    CHECK(delta_ik(g, 0, 3, NULL, NULL, NULL) == 0, "ik n=0");
+}
+
+int main(void)
+{
+    delta_geometry g;
+    g.r_a = %(r_a)s;
+    g.r_b = %(r_b)s;
+    g.l_a = %(l_a)s;
+    g.l_b = %(l_b)s;
+    for (int i = 0; i < 3; ++i) {
+        g.cos_theta[i] = COS_THETA[i];
+        g.sin_theta[i] = SIN_THETA[i];
+    }
+    g.singular_tol = 1e-9;
+    run_axes(&g, 3);
+    run_axes(&g, 4);
+    return_codes(&g);
+    /* print fk of the batch (3 axes) for the Python side */
+    load(q_in, Q, 3);
+    delta_fk(&g, N, 3, q_in, p_out, st);
+    for (size_t i = 0; i < N; ++i) {
+        printf("%%d %%a %%a %%a\n", st[i], p_out[i * 3], p_out[i * 3 + 1], p_out[i * 3 + 2]);
+    }
+    if (failures) {
+        printf("%%d FAILURES\n", failures);
+        return 1;
+    }
+    return 0;
+}
+"""
+
+
+def _driver_source(geom, n_rows, seed):
+    q, status, round_trip, targets, s_ik = _batch(geom, n_rows, seed)
+    arrays = "".join([
+        _c_array("Q", q),
+        _c_array("FK_STATUS", status, "int8_t"),
+        _c_array("ROUND_TRIP", round_trip.astype(int), "int"),
+        _c_array("P", targets),
+        _c_array("IK_STATUS", s_ik, "int8_t"),
+        _c_array("COS_THETA", np.cos(geom.theta)),
+        _c_array("SIN_THETA", np.sin(geom.theta)),
+    ])
+    source = DRIVER % dict(n=n_rows, arrays=arrays, r_a=geom.r_a.hex(), r_b=geom.r_b.hex(),
+                           l_a=geom.l_a.hex(), l_b=geom.l_b.hex())
+    return source, q, status, round_trip
+
+
+SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g"]
+
+
+def _build_flags():
+    """The cffi build's compile flags and libraries (vector math where available)."""
+    args, libraries = compile_flags("delta")
+    return list(args), [f"-l{lib}" for lib in libraries]
+
+
+@pytest.fixture(scope="module")
+def sanitizers(tmp_path_factory):
+    """Skip (rather than fail) where the toolchain has no ASan/UBSan runtime."""
+    work = tmp_path_factory.mktemp("probe")
+    (work / "probe.c").write_text("int main(void) { return 0; }\n")
+    build = subprocess.run([GCC, *SANITIZE, str(work / "probe.c"), "-o", str(work / "probe")],
+                           capture_output=True, text=True, timeout=120)
+    if build.returncode != 0:
+        pytest.skip(f"no sanitizer runtime: {build.stderr[-300:]}")
+    run = subprocess.run([str(work / "probe")], capture_output=True, text=True, timeout=60)
+    if run.returncode != 0 or run.stderr:
+        pytest.skip(f"sanitized programs cannot run here: {run.stderr[-300:]}")
+    return SANITIZE
+
+
+@pytest.mark.parametrize("geom,n_rows,variant", [
+    (DEFAULT, 131, "plain"),
+    (KLIPPER, 200, "plain"),
+    (DEFAULT, 257, "build-flags"),
+], ids=["default-131-plain", "klipper-200-plain", "default-257-build-flags"])
+def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows, variant):
+    assert n_rows % 64 != 0
+    source, q, status, round_trip = _driver_source(geom, n_rows, seed=n_rows)
+    assert round_trip.sum() > n_rows // 2
+    driver = tmp_path / "driver.c"
+    driver.write_text(source)
+    exe = tmp_path / "driver"
+    if variant == "plain":
+        flags, libs = [*STRICT, "-O1"], ["-lm"]
+    else:
+        flags, libs = _build_flags()
+        flags = [*flags, "-pedantic", "-Werror"]
+    _gcc([*flags, *sanitizers, f"-I{source_dir}", str(driver), str(source_dir / "delta_kinematics.c"),
+          "-o", str(exe), *libs], cwd=tmp_path)
+    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:detect_stack_use_after_return=1",
+               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
+    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120, env=env,
+                          cwd=tmp_path)
+    failures = [line for line in proc.stdout.splitlines() if line.startswith("FAIL") or "FAILURES" in line]
+    assert proc.returncode == 0, "\n".join(failures[:30]) + proc.stderr[-3000:]
+    assert proc.stderr == "", f"sanitizer output:\n{proc.stderr[-3000:]}"
+    assert not failures
+
+    # the standalone build's numbers agree with the numpy reference
+    lines = proc.stdout.splitlines()
+    assert len(lines) == n_rows
+    got_status = np.array([int(line.split()[0]) for line in lines])
+    got_p = np.array([[float.fromhex(v) if v not in ("nan", "-nan") else math.nan
+                       for v in line.split()[1:]] for line in lines])
+    np.testing.assert_array_equal(got_status, status)
+    p_ref, _ = ref.fk(geom, q[:, :3])
+    ok = status == OK
+    np.testing.assert_allclose(got_p[ok], p_ref[ok], rtol=0, atol=1e-12 * geom.size)
+    assert np.all(np.isnan(got_p[~ok]))

@@ -1,0 +1,131 @@
+"""`deltagen generate`: the checked-in generated/ is current, --check catches a stale or
+missing file with a diff, and generation is deterministic (byte-identical across
+processes with different hash seeds). Only copies of generated/ are ever modified."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from deltagen import cli, generate, paths
+
+NAMES = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    return generate.generated_files()
+
+
+@pytest.fixture
+def generated_copy(tmp_path, monkeypatch):
+    """A copy of generated/ that `deltagen generate` will use instead of the real one."""
+    copy = tmp_path / "generated"
+    shutil.copytree(paths.generated_dir(), copy)
+    monkeypatch.setattr(generate, "generated_dir", lambda: copy)
+    monkeypatch.setattr(paths, "generated_dir", lambda: copy)
+    return copy
+
+
+def test_the_three_files_are_rendered(rendered):
+    assert set(rendered) == set(NAMES)
+    for name, text in rendered.items():
+        assert text.endswith("\n") and "\r" not in text, name
+        assert "do not edit" in text and "deltagen" in text, name
+
+
+def test_checkout_is_current(capsys):
+    assert cli.main(["generate", "--check"]) == 0
+    assert "up to date" in capsys.readouterr().out
+    assert generate.check() == []
+
+
+def test_checked_in_files_equal_a_fresh_render(rendered):
+    for name in NAMES:
+        on_disk = (paths.generated_dir() / name).read_text()
+        assert on_disk == rendered[name], f"{name} differs from a fresh render"
+
+
+def test_check_reports_a_modified_file_with_a_diff(generated_copy, capsys):
+    target = generated_copy / "delta_kinematics.c"
+    text = target.read_text()
+    marker = "#define DELTA_BLOCK"
+    assert marker in text
+    target.write_text(text.replace(marker, "/* hand edit */\n" + marker, 1))
+
+    problems = generate.check(generated_copy)
+    assert len(problems) == 1 and problems[0].startswith("delta_kinematics.c is stale")
+    assert "-/* hand edit */" in problems[0] and "+++" in problems[0]
+
+    assert cli.main(["generate", "--check"]) == 1
+    err = capsys.readouterr().err
+    assert "delta_kinematics.c is stale" in err and "-/* hand edit */" in err
+    assert "run `deltagen generate`" in err
+
+    # regenerating the copy repairs it, and a second run writes nothing
+    assert cli.main(["generate"]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {target}"
+    assert generate.check(generated_copy) == []
+    assert generate.write(generated_copy) == []
+
+
+def test_check_reports_missing_and_changed_files(generated_copy, capsys):
+    (generated_copy / "delta_kinematics.h").unlink()
+    cdef = generated_copy / "delta_kinematics.cdef.h"
+    cdef.write_text(cdef.read_text().replace("int8_t", "int16_t"))
+    problems = generate.check(generated_copy)
+    assert sorted(p.split(" ")[0] for p in problems) == ["delta_kinematics.cdef.h",
+                                                        "delta_kinematics.h"]
+    assert any("delta_kinematics.h is missing" in p for p in problems)
+    assert any("int16_t" in p for p in problems)
+    assert cli.main(["generate", "--check"]) == 1
+    capsys.readouterr()
+
+
+def test_write_into_an_empty_directory(tmp_path, rendered):
+    written = generate.write(tmp_path / "out")
+    assert sorted(p.name for p in written) == sorted(NAMES)
+    for name in NAMES:
+        assert (tmp_path / "out" / name).read_text() == rendered[name]
+
+
+def test_rendering_is_deterministic_across_processes(tmp_path):
+    """Two fresh interpreters with different hash seeds render byte-identical files."""
+    script = textwrap.dedent("""
+        import sys
+        from deltagen import generate
+        generate.write(sys.argv[1])
+    """)
+    procs = []
+    for seed in ("1", "4242"):
+        env = dict(os.environ, PYTHONHASHSEED=seed)
+        out = tmp_path / f"seed{seed}"
+        procs.append((out, subprocess.Popen(
+            [sys.executable, "-c", script, str(out)], env=env, cwd=str(paths.generated_dir().parent),
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE)))
+    for out, proc in procs:
+        stdout, stderr = proc.communicate(timeout=300)
+        assert proc.returncode == 0, stderr.decode()
+    (a, _), (b, _) = procs
+    for name in NAMES:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+        assert (a / name).read_bytes() == (paths.generated_dir() / name).read_bytes(), name
+
+
+def test_rendering_uses_the_templates(tmp_path, monkeypatch, rendered):
+    """The emitted C is laid out by templates/*.j2: a changed template changes the output."""
+    from deltagen.codegen import render
+
+    copy = tmp_path / "templates"
+    shutil.copytree(paths.template_dir(), copy)
+    header = copy / "header.h.j2"
+    header.write_text("/* template marker */\n" + header.read_text())
+    monkeypatch.setattr(render, "template_dir", lambda: copy)
+    again = generate.generated_files()
+    assert again["delta_kinematics.h"] == "/* template marker */\n" + rendered["delta_kinematics.h"]
+    assert again["delta_kinematics.c"] == rendered["delta_kinematics.c"]
