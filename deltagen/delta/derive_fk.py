@@ -75,7 +75,7 @@ a = sp.Matrix(sp.symbols("a_x a_y a_z", real=True))  # S_2 - S_1
 b = sp.Matrix(sp.symbols("b_x b_y b_z", real=True))  # S_3 - S_1
 e = sp.Matrix(sp.symbols("e_x e_y e_z", real=True))  # a x b, direction of the planes' line
 x0 = sp.Matrix(sp.symbols("x0_x x0_y x0_z", real=True))  # foot point of the line, from S_1
-e_sq, h_sq, lam = sp.symbols("e_sq h_sq lambda_", real=True)
+e_sq, inv_e_sq, h_sq, lam = sp.symbols("e_sq inv_e_sq h_sq lambda_", real=True)
 det_D = sp.Symbol("det_D", real=True)  # det of the rows p - S_i (= det J_p / 8)
 
 
@@ -101,17 +101,18 @@ def fk_stages():
     edges = list(zip(a, S[1] - S[0])) + list(zip(b, S[2] - S[0]))
     (n1, d1), (n2, d2) = _centred_planes()
     cross = list(zip(e, a.cross(b))) + [(e_sq, e.dot(e))]
+    reciprocal = [(inv_e_sq, 1 / e_sq)]  # one division, used twice
     # Rows: plane 1, plane 2, and e.xi = 0 (the foot point of the line nearest S_1).
     M = sp.Matrix.vstack(n1.T, n2.T, e.T)
     rhs = sp.Matrix([d1, d2, 0])
     # det M = 4 e.(a x b) = 4 |e|^2: Cramer's rule with the adjugate.
     det_M = sp.factor(M.det().subs({e[0]: a.cross(b)[0], e[1]: a.cross(b)[1], e[2]: a.cross(b)[2]}))
     assert sp.simplify(det_M - 4 * (a.cross(b)).dot(a.cross(b))) == 0
-    foot = M.adjugate() * rhs / (4 * e_sq)
+    foot = M.adjugate() * rhs * inv_e_sq / 4
     foot_point = list(zip(x0, foot)) + [(h_sq, s.l_b**2 - x0.dot(x0))]
     # xi = x0 + lambda e with |xi| = l_b and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
     # Lower intersection: lambda * e_z < 0 (eq. (26) takes the minimum z).
-    line = [(lam, -CopySign(sp.sqrt(h_sq / e_sq), e[2]))]
+    line = [(lam, -CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]
     position = [(sym, S[0][k] + x0[k] + lam * e[k]) for k, sym in enumerate((s.x, s.y, s.z))]
     # det of rows (p - S_i) = xi.(a x b) = lambda |e|^2 (rows xi, xi - a, xi - b).
     det_rows = [(det_D, lam * e_sq)]
@@ -119,6 +120,7 @@ def fk_stages():
         Stage("sphere centres S_i, eqs. (3)-(5)", tuple(centres)),
         Stage("edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle", tuple(edges)),
         Stage("e = a x b, normal of the centre plane; its squared length", tuple(cross)),
+        Stage("1 / |e|^2 (|e| = 0 only for collinear centres)", tuple(reciprocal)),
         Stage("foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule", tuple(foot_point)),
         Stage("lower intersection with sphere 1, eqs. (22)-(26)", tuple(line)),
         Stage("platform position p, eq. (27)", tuple(position) + tuple(det_rows)),
