@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
+
+# CI must be reproducible: the same examples on every run (explore locally with
+# HYPOTHESIS_PROFILE=explore).
+settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
+settings.register_profile("explore", deadline=None, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 TESTS = Path(__file__).resolve().parent
 if str(TESTS) not in sys.path:  # delta_oracles is importable under any --import-mode

@@ -41,25 +41,35 @@ class CompiledDelta:
 
         self._scratch = _Scratch(self._ffi)
 
-    def single(self, name, pose):
-        """Fast path for one (3,) float64 array or a list/tuple of 3 numbers: the result,
-        or None when the general path must handle it (other shapes, errors to report)."""
-        if type(pose) is np.ndarray:
-            if pose.shape != (3,) or pose.dtype.char != "d":
-                return None
-        elif type(pose) not in (list, tuple) or len(pose) != 3:
-            return None
-        sc = self._scratch
-        try:
-            sc.inp_np[:3] = pose
-        except (TypeError, ValueError):
-            return None
+    def single(self, name):
+        """A fast function for one pose: a (3,) float64 array or a list/tuple of 3 numbers
+        in, the (3,) result out, or None when the general path must handle the call
+        (other shapes or types, or a status to report). Same C function, same numbers."""
         fn = self._lib.delta_fk if name == "fk" else self._lib.delta_ik
-        fn(self._geometry, 1, 3, sc.inp, sc.out, sc.status)
-        code = sc.status[0]
-        if code != st.OK and not (code == st.SINGULAR and sc.out_np[0] == sc.out_np[0]):
-            return None
-        return sc.out_np[:3].copy()
+        geometry, scratch, memmove = self._geometry, self._scratch, self._ffi.memmove
+        ndarray, OK, SINGULAR = np.ndarray, st.OK, st.SINGULAR
+
+        def call(pose):
+            sc = scratch
+            kind = type(pose)
+            try:
+                if kind is ndarray:
+                    if pose.shape != (3,) or pose.dtype.char != "d":
+                        return None
+                    memmove(sc.inp, pose, 24)  # non-contiguous views raise: general path
+                elif (kind is list or kind is tuple) and len(pose) == 3:
+                    sc.inp[0:3] = pose  # cffi converts Python numbers, rejects others
+                else:
+                    return None
+            except (TypeError, ValueError, BufferError):
+                return None
+            fn(geometry, 1, 3, sc.inp, sc.out, sc.status)
+            code = sc.status[0]
+            if code != OK and not (code == SINGULAR and sc.out[0] == sc.out[0]):
+                return None
+            return sc.out_np[:3].copy()
+
+        return call
 
     def _run(self, fn, inputs, n_out, out_width=None):
         n, axes = inputs[0].shape

@@ -53,12 +53,14 @@ class DeltaRobot:
             from .compiled import CompiledDelta
 
             self._core = CompiledDelta(self.geometry)
-            self._single = self._core.single  # fast path for one pose, same results
+            # fast paths for one pose (same C function, same results)
+            self._fk_single = self._core.single("fk")
+            self._ik_single = self._core.single("ik")
         else:
             from . import reference
 
             self._core = _ReferenceCore(reference, self.geometry)
-            self._single = None
+            self._fk_single = self._ik_single = None
 
     @classmethod
     def from_geometry(cls, geometry: DeltaGeometry, backend="compiled") -> "DeltaRobot":
@@ -89,8 +91,8 @@ class DeltaRobot:
 
     def fk(self, q, errors="raise"):
         """Platform position p (..., 3|4) of crank angles q (..., 3|4), eqs. (2)-(27), (43)."""
-        if errors == "raise" and self._single is not None:
-            p = self._single("fk", q)
+        if self._fk_single is not None and errors == "raise":
+            p = self._fk_single(q)
             if p is not None:
                 return p
         lead, _, (qf,) = self._prepare(errors, q=q)
@@ -117,8 +119,8 @@ class DeltaRobot:
 
     def ik(self, p, errors="raise"):
         """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
-        if errors == "raise" and self._single is not None:
-            q = self._single("ik", p)
+        if self._ik_single is not None and errors == "raise":
+            q = self._ik_single(p)
             if q is not None:
                 return q
         lead, _, (pf,) = self._prepare(errors, p=p)
