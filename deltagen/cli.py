@@ -11,16 +11,32 @@ import numpy as np
 
 
 def _robot(args):
+    """'default' (the delta robot), a bundled serial arm's name, or a robot TOML file."""
     from .delta.robot import DeltaRobot
+    from .serial.robot import SerialRobot, bundled_robots
 
-    if args.robot in (None, "default"):
+    name = args.robot
+    if name in (None, "default"):
         return DeltaRobot.default(backend=args.backend)
-    return DeltaRobot.from_toml(args.robot, backend=args.backend)
+    if name in bundled_robots():
+        return SerialRobot.load(name, backend=args.backend)
+    path = Path(name)
+    if path.suffix != ".toml" and not path.exists():
+        raise ValueError(f"unknown robot {name!r}: use 'default', a bundled arm "
+                         f"({', '.join(bundled_robots())}) or a robot .toml file")
+    text = path.read_text() if path.is_file() else ""
+    if "convention" in text:
+        return SerialRobot.from_toml(path, backend=args.backend)
+    return DeltaRobot.from_toml(path, backend=args.backend)
 
 
 def cmd_generate(args) -> int:
     from . import generate
 
+    if args.robot_file:
+        folder = generate.generate_robot_file(args.robot_file)
+        print(f"generated and compiled {args.robot_file}: C sources in {folder}")
+        return 0
     if args.check:
         problems = generate.check()
         for text in problems:
@@ -51,8 +67,51 @@ def _write_batch(path: Path, data: np.ndarray, header: str) -> None:
         np.savetxt(path, data, delimiter=",", header=header, fmt="%.17g")
 
 
+def _evaluate_serial(args, arm, forward: bool) -> int:
+    from .serial.robot import euler_zyx
+
+    if not forward:
+        print("inverse kinematics of serial arms is not available yet (issue 4)", file=sys.stderr)
+        return 2
+    if args.input:
+        data = _read_batch(Path(args.input))
+        if args.degrees:
+            data = np.radians(data)
+        T, valid = arm.fk(data, errors="nan")
+        table = np.column_stack([T[..., :3, 3], euler_zyx(T[..., :3, :3]), T.reshape(-1, 16),
+                                 valid.astype(float)])
+        names = "x,y,z,psi,theta,phi," + ",".join(f"T{r}{c}" for r in range(1, 5)
+                                                  for c in range(1, 5)) + ",valid"
+        if args.output:
+            _write_batch(Path(args.output), table, names)
+        else:
+            np.savetxt(sys.stdout, table, delimiter=",", header=names, fmt="%.17g")
+        return 0
+    if not args.values and args.config:
+        values = arm.configuration(args.config)
+    else:
+        values = np.array(args.values, dtype=float)
+        if args.degrees:
+            values = np.radians(values)
+    if values.shape != (arm.n,):
+        print(f"{arm.name} has {arm.n} joints: give {arm.n} values (or --config NAME)", file=sys.stderr)
+        return 2
+    T = arm.fk(values)
+    psi, theta, phi = euler_zyx(T[:3, :3])
+    np.set_printoptions(precision=6, suppress=True)
+    print(f"{arm.name}: T =\n{T}")
+    print("position  x, y, z = [" + ", ".join(f"{v:.9g}" for v in T[:3, 3]) + "] m")
+    print(f"Euler (Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)): psi = {np.degrees(psi):.6g} deg, "
+          f"theta = {np.degrees(theta):.6g} deg, phi = {np.degrees(phi):.6g} deg")
+    return 0
+
+
 def _evaluate(args, forward: bool) -> int:
     robot = _robot(args)
+    from .serial.robot import SerialRobot
+
+    if isinstance(robot, SerialRobot):
+        return _evaluate_serial(args, robot, forward)
     fn = robot.fk if forward else robot.ik
     if args.input:
         data = _read_batch(Path(args.input))
@@ -93,18 +152,21 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="regenerate generated/ (deterministic)")
+    g.add_argument("robot_file", nargs="?", help="a serial-arm TOML: generate, compile and cache its module")
     g.add_argument("--check", action="store_true", help="fail and show a diff if generated/ is stale")
     g.set_defaults(func=cmd_generate)
 
     evaluators = {}
     for name, forward in (("fk", True), ("ik", False)):
         e = evaluators[name] = sub.add_parser(name, help=("direct" if forward else "inverse") + " kinematics of one pose or a CSV/NPY batch")
-        e.add_argument("robot", nargs="?", default="default", help="'default' or a robot TOML file")
+        e.add_argument("robot", nargs="?", default="default",
+                       help="'default' (delta), a bundled arm name, or a robot TOML file")
         e.add_argument("values", nargs="*", type=float,
                        help="q1 q2 q3 [q4] in rad" if forward else "x y z [phi] in m (rad)")
         e.add_argument("--input", help="CSV or NPY file with one pose per row")
         e.add_argument("--output", help="write the batch result here (CSV or NPY)")
-        e.add_argument("--degrees", action="store_true", help="crank angles in degrees")
+        e.add_argument("--degrees", action="store_true", help="joint angles in degrees")
+        e.add_argument("--config", help="a serial arm's named configuration (e.g. qr)")
         e.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
         e.set_defaults(func=lambda a, f=forward: _evaluate(a, f))
 

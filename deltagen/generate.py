@@ -9,10 +9,28 @@ from .paths import generated_dir
 
 
 def generated_files() -> dict[str, str]:
-    """Every checked-in generated file, by name."""
+    """Every checked-in generated file, by name: the delta core and each bundled arm."""
     from .delta.emit import delta_sources
+    from .paths import robots_dir
+    from .serial.description import SerialDescription
+    from .serial.emit import arm_sources
+    from .serial.robot import bundled_robots
 
-    return dict(delta_sources())
+    files = dict(delta_sources())
+    for name in bundled_robots():
+        files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
+    return files
+
+
+def generate_robot_file(path) -> Path:
+    """`deltagen generate my_arm.toml`: render, compile and cache a user's robot module;
+    returns the folder holding its C sources."""
+    from .serial.compiled import CompiledArm, _source_dir
+    from .serial.description import SerialDescription
+
+    desc = SerialDescription.from_toml(path)
+    CompiledArm(desc)  # builds (or finds) the cached module
+    return _source_dir(desc)
 
 
 def write(directory: Path | None = None) -> list[Path]:

@@ -30,3 +30,8 @@ def cache_dir() -> Path:
         return Path(os.environ["DELTAGEN_CACHE"])
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "deltagen"
+
+
+def robots_dir() -> Path:
+    """robots/ (bundled robot files) of the checkout, or the copy inside the package."""
+    return _find("robots", "default_delta.toml")

@@ -36,7 +36,7 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || q == NULL || p == NULL || status == NULL) {
+    if (geometry == NULL || status == NULL || q == NULL || p == NULL) {
         return -1;
     }
     const double r_a = geometry->r_a;
@@ -69,7 +69,7 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 q3_b[k] = q[(start + k) * 3 + 2];
                 q4_b[k] = 0.0;  /* no fourth axis */
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
@@ -77,24 +77,27 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
-        double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
+        double cos_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
+        double sin_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
-        double cos_q2_b[DELTA_BLOCK], sin_q2_b[DELTA_BLOCK];
+        double cos_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
+        double sin_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
-        double cos_q3_b[DELTA_BLOCK], sin_q3_b[DELTA_BLOCK];
+        double cos_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
+        double sin_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
@@ -189,7 +192,7 @@ int delta_fk(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 p[(start + k) * 3 + 1] = out_y_b[k];
                 p[(start + k) * 3 + 2] = out_z_b[k];
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 p[(start + k) * 4 + 0] = out_x_b[k];
                 p[(start + k) * 4 + 1] = out_y_b[k];
@@ -209,7 +212,7 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || q == NULL || qd == NULL || p == NULL || pd == NULL || status == NULL) {
+    if (geometry == NULL || status == NULL || q == NULL || qd == NULL || p == NULL || pd == NULL) {
         return -1;
     }
     const double r_a = geometry->r_a;
@@ -250,7 +253,7 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 qd3_b[k] = qd[(start + k) * 3 + 2];
                 qd4_b[k] = 0.0;  /* no fourth axis */
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
@@ -262,24 +265,27 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 qd4_b[k] = qd[(start + k) * 4 + 3];
             }
         }
-        double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
+        double cos_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
+        double sin_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
-        double cos_q2_b[DELTA_BLOCK], sin_q2_b[DELTA_BLOCK];
+        double cos_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
+        double sin_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
-        double cos_q3_b[DELTA_BLOCK], sin_q3_b[DELTA_BLOCK];
+        double cos_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
+        double sin_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
@@ -433,7 +439,7 @@ int delta_fk_vel(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 pd[(start + k) * 3 + 1] = out_yd_b[k];
                 pd[(start + k) * 3 + 2] = out_zd_b[k];
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 p[(start + k) * 4 + 0] = out_x_b[k];
                 p[(start + k) * 4 + 1] = out_y_b[k];
@@ -457,7 +463,7 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || q == NULL || qd == NULL || qdd == NULL || p == NULL || pd == NULL || pdd == NULL || status == NULL) {
+    if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || p == NULL || pd == NULL || pdd == NULL) {
         return -1;
     }
     const double r_a = geometry->r_a;
@@ -506,7 +512,7 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 qdd3_b[k] = qdd[(start + k) * 3 + 2];
                 qdd4_b[k] = 0.0;  /* no fourth axis */
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
@@ -522,24 +528,27 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 qdd4_b[k] = qdd[(start + k) * 4 + 3];
             }
         }
-        double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
+        double cos_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
+        double sin_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
-        double cos_q2_b[DELTA_BLOCK], sin_q2_b[DELTA_BLOCK];
+        double cos_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
+        double sin_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
-        double cos_q3_b[DELTA_BLOCK], sin_q3_b[DELTA_BLOCK];
+        double cos_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
+        double sin_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
@@ -744,7 +753,7 @@ int delta_fk_acc(const delta_geometry *restrict geometry, size_t n, size_t axes,
                 pdd[(start + k) * 3 + 1] = out_ydd_b[k];
                 pdd[(start + k) * 3 + 2] = out_zdd_b[k];
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 p[(start + k) * 4 + 0] = out_x_b[k];
                 p[(start + k) * 4 + 1] = out_y_b[k];
@@ -772,7 +781,7 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || q == NULL || J == NULL || status == NULL) {
+    if (geometry == NULL || status == NULL || q == NULL || J == NULL) {
         return -1;
     }
     const double r_a = geometry->r_a;
@@ -805,7 +814,7 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
                 q3_b[k] = q[(start + k) * 3 + 2];
                 q4_b[k] = 0.0;  /* no fourth axis */
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 q1_b[k] = q[(start + k) * 4 + 0];
                 q2_b[k] = q[(start + k) * 4 + 1];
@@ -813,24 +822,27 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
-        double cos_q1_b[DELTA_BLOCK], sin_q1_b[DELTA_BLOCK];
+        double cos_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
+        double sin_q1_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
-        double cos_q2_b[DELTA_BLOCK], sin_q2_b[DELTA_BLOCK];
+        double cos_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
+        double sin_q2_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
-        double cos_q3_b[DELTA_BLOCK], sin_q3_b[DELTA_BLOCK];
+        double cos_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
+        double sin_q3_b[DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
@@ -991,7 +1003,7 @@ int delta_jacobian(const delta_geometry *restrict geometry, size_t n, size_t axe
                 J[(start + k) * 9 + 7] = out_J32_b[k];
                 J[(start + k) * 9 + 8] = out_J33_b[k];
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 J[(start + k) * 9 + 0] = out_J11_b[k];
                 J[(start + k) * 9 + 1] = out_J12_b[k];
@@ -1016,7 +1028,7 @@ int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, con
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || p == NULL || q == NULL || status == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || q == NULL) {
         return -1;
     }
     const double r_a = geometry->r_a;
@@ -1048,7 +1060,7 @@ int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 z_b[k] = p[(start + k) * 3 + 2];
                 phi_b[k] = 0.0;  /* no fourth axis */
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 x_b[k] = p[(start + k) * 4 + 0];
                 y_b[k] = p[(start + k) * 4 + 1];
@@ -1127,7 +1139,7 @@ int delta_ik(const delta_geometry *restrict geometry, size_t n, size_t axes, con
                 q[(start + k) * 3 + 1] = out_q2_b[k];
                 q[(start + k) * 3 + 2] = out_q3_b[k];
             }
-        } else {
+        } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
                 q[(start + k) * 4 + 0] = out_q1_b[k];
                 q[(start + k) * 4 + 1] = out_q2_b[k];

@@ -13,8 +13,8 @@
  *   DELTA_SINGULAR = 2
  *   DELTA_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
- * Return value: 0, or -1 if axes is not 3 or 4 or a pointer is NULL while n > 0
- * (then nothing is written).
+ * Return value: 0, or -1 if axes is not 3 or 4 or a pointer is NULL
+ * while n > 0 (then nothing is written).
  */
 #ifndef DELTAGEN_DELTA_KINEMATICS_H
 #define DELTAGEN_DELTA_KINEMATICS_H

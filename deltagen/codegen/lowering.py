@@ -3,13 +3,13 @@ printing (SymPy's C99 printer). The result is plain data for the Jinja templates
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import sympy as sp
 from sympy.core.relational import Relational
 from sympy.logic.boolalg import BooleanFunction
 
-from .kernel import Kernel
+from .kernel import Kernel, Stage
 from .printer import to_c
 
 
@@ -50,7 +50,27 @@ def lower_stage(index: int, stage, prefix: str) -> tuple[LoweredStage, int]:
     return LoweredStage(stage.comment, tuple(statements)), int(ops)
 
 
+def prune(kernel: Kernel) -> Kernel:
+    """Drop assignments nothing needs (transitively from the outputs and the status)."""
+    needed = set(sp.sympify(kernel.status).free_symbols)
+    for port in kernel.outputs:
+        needed |= set(port.symbols)
+        if port.fourth is not None:
+            needed.add(port.fourth)
+    kept_stages = []
+    for stage in reversed(kernel.stages):
+        kept = []
+        for sym, expr in reversed(stage.assignments):
+            if sym in needed:
+                kept.append((sym, expr))
+                needed |= sp.sympify(expr).free_symbols
+        if kept:
+            kept_stages.append(Stage(stage.comment, tuple(reversed(kept))))
+    return replace(kernel, stages=tuple(reversed(kept_stages)))
+
+
 def lower(kernel: Kernel) -> LoweredKernel:
+    kernel = prune(kernel)
     stages, total = [], 0
     for index, stage in enumerate(kernel.stages):
         lowered, ops = lower_stage(index, stage, prefix="t")

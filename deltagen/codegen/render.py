@@ -41,8 +41,12 @@ class Unit:
     base_name: str  # file stem, e.g. "delta_kinematics"
     title: str
     source: str  # where the equations come from
-    struct_name: str
+    struct_name: str | None  # None: the geometry is compiled in, no parameter struct
     struct_fields: tuple  # (StructField, ...)
+    struct_doc: str = ""
+    conventions: tuple = ()  # lines of the header's conventions paragraph
+    axes_choices: tuple = ()  # e.g. (3, 4): a run-time row length; () for fixed widths
+    axes_doc: str = ""
     block: int = 64
 
 
@@ -84,13 +88,15 @@ def function_context(lk: LoweredKernel) -> dict:
         for p in k.parameters
         if p.symbol in needed
     ]
-    angle_symbols = {a.angle for a in k.angles}
-    angles = []
-    for a in k.angles:
-        port, column = next((p.name, p.symbols.index(a.angle)) for p in k.inputs if a.angle in p.symbols)
-        angles.append(dict(angle=str(a.angle), cos=str(a.cos), sin=str(a.sin), port=port, column=column))
+    angles = [
+        dict(angle=str(a.angle), cos=str(a.cos), sin=str(a.sin),
+             cos_used=a.cos in body_symbols, sin_used=a.sin in body_symbols)
+        for a in k.angles
+        if a.cos in body_symbols or a.sin in body_symbols
+    ]
+    angle_symbols = {a.angle for a in k.angles if a.cos in body_symbols or a.sin in body_symbols}
     loads = [
-        dict(name=str(sym), port=port.name, column=col, used=sym in body_symbols)
+        dict(name=str(sym), port=port.name, column=col, width=port.width, used=sym in body_symbols)
         for port in k.inputs
         for col, sym in _columns(port)
     ]
@@ -128,6 +134,10 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         guard=f"DELTAGEN_{unit.base_name.upper()}_H",
         struct_name=unit.struct_name,
         struct_fields=unit.struct_fields,
+        struct_doc=unit.struct_doc,
+        conventions=unit.conventions,
+        axes_choices=unit.axes_choices,
+        axes_doc=unit.axes_doc,
         status_codes=sorted(st.STATUS_NAMES.items()),
         functions=[function_context(lk) for lk in lowered],
         block=unit.block,

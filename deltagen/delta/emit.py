@@ -12,6 +12,14 @@ UNIT = Unit(
     title="kinematics of the rotary delta robot",
     source="the 2008 report on the direct kinematics of a delta robot (seed 000)",
     struct_name="delta_geometry",
+    struct_doc="Geometry of the robot (report, Figure 4).",
+    conventions=(
+        "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
+        "point. `axes` is 3, or 4 when the last column carries the independent fourth axis",
+        "(report eq. (43): phi = q_4 and its derivatives pass through unchanged).",
+    ),
+    axes_choices=(3, 4),
+    axes_doc="3, or 4 with the fourth axis in the last column",
     struct_fields=(
         StructField("r_a", "double", "", "base radius, O to a drive axis [m]"),
         StructField("r_b", "double", "", "platform radius, P to a joint C_i [m]"),

@@ -1,0 +1,112 @@
+"""The compiled backend of a serial arm: its generated C module via cffi. Bundled robots
+use the checked-in generated/serial_<name>.c; any other description is rendered into the
+build cache under a key of its content (a changed file never loads a stale module)."""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from .. import status as st
+from ..build import load
+from ..paths import cache_dir, generated_dir
+from .emit import arm_sources, base_name
+
+
+def _source_dir(desc) -> Path:
+    """generated/ when it holds this exact description's sources, else a cache folder."""
+    name = base_name(desc)
+    checked_in = generated_dir() / f"{name}.c"
+    sources = None
+    if checked_in.is_file():
+        sources = arm_sources(desc)
+        if checked_in.read_text() == sources[f"{name}.c"]:
+            return generated_dir()
+    key = hashlib.sha256(desc.key().encode()).hexdigest()[:16]
+    folder = cache_dir() / "sources" / f"{name}_{key}"
+    if not (folder / f"{name}.cdef.h").is_file():
+        sources = sources or arm_sources(desc)
+        folder.mkdir(parents=True, exist_ok=True)
+        for file_name, text in sources.items():
+            tmp = folder / f".{file_name}.{threading.get_ident()}.tmp"
+            tmp.write_text(text)
+            tmp.replace(folder / file_name)
+    return folder
+
+
+class _Scratch(threading.local):
+    def __init__(self, ffi, n):
+        self.q = ffi.new(f"double[{n}]")
+        self.T = ffi.new("double[16]")
+        self.status = ffi.new("int8_t[1]")
+        self.T_np = np.frombuffer(ffi.buffer(self.T), dtype=np.float64).reshape(4, 4)
+
+
+class CompiledArm:
+    """Batched calls into an arm's C module; q is (N, n) C-contiguous float64."""
+
+    def __init__(self, desc):
+        self.desc = desc
+        module = load(base_name(desc), desc.name, _source_dir(desc))
+        self._ffi, self._lib = module.ffi, module.lib
+        self._prefix = desc.name
+        self._scratch = _Scratch(self._ffi, desc.n)
+
+    def _run(self, name, inputs, width):
+        n = inputs[0].shape[0]
+        fb = self._ffi.from_buffer
+        out = np.empty((n, width))
+        status = np.empty(n, dtype=np.int8)
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
+        rc = fn(n, *(fb("double[]", a) for a in inputs), fb("double[]", out, require_writable=True),
+                fb("int8_t[]", status, require_writable=True))
+        if rc != 0:
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return out, status
+
+    def fk(self, q):
+        T, status = self._run("fk", [q], 16)
+        return T.reshape(-1, 4, 4), status
+
+    def frames(self, q):
+        count = self.desc.n + 2
+        F, status = self._run("frames", [q], 16 * count)
+        return F.reshape(-1, count, 4, 4), status
+
+    def jacobian(self, q):
+        J, status = self._run("jacobian", [q], 6 * self.desc.n)
+        return J.reshape(-1, 6, self.desc.n), status
+
+    def jacobian_dot(self, q, qd):
+        Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
+        return Jd.reshape(-1, 6, self.desc.n), status
+
+    def fk_single(self):
+        """Fast path for one pose (list/tuple or (n,) float64 array): T, or None."""
+        fn = getattr(self._lib, f"{self._prefix}_fk")
+        scratch, memmove, n = self._scratch, self._ffi.memmove, self.desc.n
+        ndarray, OK = np.ndarray, st.OK
+
+        def call(q):
+            sc = scratch
+            kind = type(q)
+            try:
+                if kind is ndarray:
+                    if q.shape != (n,) or q.dtype.char != "d":
+                        return None
+                    memmove(sc.q, q, 8 * n)
+                elif (kind is list or kind is tuple) and len(q) == n:
+                    sc.q[0:n] = q
+                else:
+                    return None
+            except (TypeError, ValueError, BufferError):
+                return None
+            fn(1, sc.q, sc.T, sc.status)
+            if sc.status[0] != OK:
+                return None
+            return sc.T_np.copy()
+
+        return call

@@ -1,0 +1,338 @@
+"""SerialRobot: the Python API of serial-arm kinematics (DESIGN.md, "Serial-arm details").
+
+Joint vectors are (..., n) arrays (any leading shape); poses are (..., 4, 4). Angles in
+radians, lengths in metres. ``errors="raise"`` raises on bad rows; ``errors="nan"`` returns
+NaN there plus a boolean ``valid`` mask as the last result.
+
+Orientation conventions (spelled out because they are the usual source of confusion):
+
+* ``euler(q)`` -> (psi, theta, phi), the angles after Vukobratovic (lecture slide 89):
+  R = Rot_z(psi) Rot_y(theta) Rot_x(phi), i.e. turn about the base z axis by psi, then about
+  the new y axis by theta, then about the newest x axis by phi.
+  psi = atan2(r21, r11), theta = atan2(-r31, r11 cos psi + r21 sin psi), phi = atan2(r32, r33).
+* ``rpy(q)`` -> (roll, pitch, yaw) of the same rotation read as fixed-axis angles: roll about
+  the base x axis, then pitch about the base y axis, then yaw about the base z axis:
+  R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll); so roll = phi, pitch = theta, yaw = psi.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import status as st
+from ..errors import SingularityError
+from ..inputs import InputError, as_float_array, check_errors_mode
+from ..paths import robots_dir
+from .description import SerialDescription
+
+_BACKENDS = ("compiled", "reference")
+
+
+def _rows_text(rows) -> str:
+    rows = list(rows)
+    shown = ", ".join(str(r) for r in rows[:10])
+    return f"[{shown}{', ...' if len(rows) > 10 else ''}] ({len(rows)} of the batch)"
+
+
+def bundled_robots() -> list[str]:
+    """Names of the bundled serial arms (robots/*.toml with a convention)."""
+    names = []
+    for path in sorted(robots_dir().glob("*.toml")):
+        if "convention" in path.read_text():
+            names.append(path.stem)
+    return names
+
+
+def euler_zyx(R: np.ndarray) -> np.ndarray:
+    """(psi, theta, phi) after Vukobratovic of rotation matrices (..., 3, 3)."""
+    psi = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    theta = np.arctan2(-R[..., 2, 0], R[..., 0, 0] * np.cos(psi) + R[..., 1, 0] * np.sin(psi))
+    phi = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    return np.stack([psi, theta, phi], axis=-1)
+
+
+class SerialRobot:
+    """A serial arm (standard DH, modified DH or universal coordinates)."""
+
+    def __init__(self, description: SerialDescription, backend="compiled"):
+        if not isinstance(description, SerialDescription):
+            raise InputError("SerialRobot needs a SerialDescription (see from_dh, from_toml, load)")
+        if backend not in _BACKENDS:
+            raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
+        self.description = description
+        self.backend = backend
+        self.n = description.n
+        if backend == "compiled":
+            from .compiled import CompiledArm
+
+            self._core = CompiledArm(description)
+            self._fk_single = self._core.fk_single()
+        else:
+            from . import reference
+
+            self._core = _ReferenceArm(reference, description)
+            self._fk_single = None
+
+    # -- construction ---------------------------------------------------------------
+
+    @classmethod
+    def load(cls, name: str, backend="compiled") -> "SerialRobot":
+        """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
+        path = robots_dir() / f"{name}.toml"
+        if not isinstance(name, str) or name not in bundled_robots():
+            raise InputError(f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}")
+        return cls(SerialDescription.from_toml(path), backend)
+
+    @classmethod
+    def from_toml(cls, path, backend="compiled") -> "SerialRobot":
+        return cls(SerialDescription.from_toml(Path(path)), backend)
+
+    @classmethod
+    def from_dh(cls, rows, convention=None, *, name="arm", base=None, tool=None,
+                configurations=None, backend="compiled") -> "SerialRobot":
+        """rows: dicts with a, alpha, d, offset, joint|type, qlim (and *_deg keys);
+        convention "standard" or "modified" must be given (no silent default)."""
+        if convention not in ("standard", "modified"):
+            raise InputError('from_dh needs convention="standard" or convention="modified"')
+        desc = SerialDescription.from_rows(rows, convention, name=name, base=base, tool=tool,
+                                           configurations=configurations)
+        return cls(desc, backend)
+
+    def with_backend(self, backend) -> "SerialRobot":
+        return type(self)(self.description, backend)
+
+    def __repr__(self):
+        d = self.description
+        return f"SerialRobot({d.name!r}, {d.n} joints, {d.convention}, backend={self.backend!r})"
+
+    @property
+    def name(self) -> str:
+        return self.description.name
+
+    @property
+    def qlim(self) -> np.ndarray:
+        return self.description.qlim
+
+    @property
+    def configurations(self) -> dict:
+        return {k: np.array(v) for k, v in self.description.configurations.items()}
+
+    def configuration(self, name: str) -> np.ndarray:
+        try:
+            return np.array(self.description.configurations[name])
+        except KeyError:
+            known = ", ".join(self.description.configurations) or "none"
+            raise InputError(f"{self.name} has no configuration {name!r} (known: {known})") from None
+
+    def within_limits(self, q) -> np.ndarray:
+        q = self._joints(q, "q")[1]
+        lim = self.qlim
+        return np.all((q >= lim[:, 0]) & (q <= lim[:, 1]), axis=-1)
+
+    # -- quantities -------------------------------------------------------------------
+
+    def fk(self, q, errors="raise"):
+        """Tool pose T (..., 4, 4) = base A_1(q_1) ... A_n(q_n) tool."""
+        if self._fk_single is not None and errors == "raise":
+            T = self._fk_single(q)
+            if T is not None:
+                return T
+        lead, qf = self._prepare(errors, q)
+        T, status = self._core.fk(qf)
+        return self._finish(errors, lead, status, [T], ("q",))
+
+    def frames(self, q, errors="raise"):
+        """All frames (..., n + 2, 4, 4): base, after each joint, tool (for drawing)."""
+        lead, qf = self._prepare(errors, q)
+        F, status = self._core.frames(qf)
+        return self._finish(errors, lead, status, [F], ("q",))
+
+    def jacobian(self, q, frame="base", errors="raise"):
+        """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
+        base frame (default) or the tool frame (frame="tool")."""
+        frame = self._check_frame(frame)
+        lead, qf = self._prepare(errors, q)
+        J, status = self._core.jacobian(qf)
+        if frame == "tool":
+            J = self._to_tool(qf, J)
+        return self._finish(errors, lead, status, [J], ("q",))
+
+    def jacobian_dot(self, q, qd, frame="base", errors="raise"):
+        """dJ/dt along qd (..., 6, n): tool acceleration = J qdd + Jdot qd (base frame).
+        frame="tool" gives d/dt of the tool-frame Jacobian."""
+        frame = self._check_frame(frame)
+        check_errors_mode(errors)
+        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
+        Jd, status = self._core.jacobian_dot(qf, qdf)
+        if frame == "tool":
+            # J_t = Rbar^T J with Rbar = diag(R, R): dJ_t/dt = Rbar^T (Jd - [w]x J) (w = tool
+            # angular velocity in the base frame)
+            J, _ = self._core.jacobian(qf)
+            w = np.einsum("nij,nj->ni", J[:, 3:], qdf)
+            W = _skew(w)
+            corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
+            Jd = self._to_tool(qf, Jd - corr)
+        return self._finish(errors, lead, status, [Jd], ("q", "qd"))
+
+    def euler(self, q, errors="raise"):
+        """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
+        T = self.fk(q, errors=errors) if errors == "raise" else self.fk(q, errors=errors)[0]
+        out = euler_zyx(T[..., :3, :3])
+        return out if errors == "raise" else (out, np.all(np.isfinite(out), axis=-1))
+
+    def rpy(self, q, errors="raise"):
+        """(..., 3): (roll, pitch, yaw) = (phi, theta, psi); see the module docstring."""
+        res = self.euler(q, errors=errors)
+        if errors == "raise":
+            return res[..., ::-1].copy()
+        return res[0][..., ::-1].copy(), res[1]
+
+    def pose(self, q, errors="raise"):
+        """(..., 6): x, y, z [m], psi, theta, phi [rad] (Vukobratovic angles)."""
+        T = self.fk(q, errors="nan")
+        T, valid = T
+        out = np.concatenate([T[..., :3, 3], euler_zyx(T[..., :3, :3])], axis=-1)
+        if errors == "raise":
+            if not np.all(valid):
+                self.fk(q)  # raises with the rows named
+            return out
+        return out, valid
+
+    def analytic_jacobian(self, q, errors="raise"):
+        """(..., 6, n): d(x, y, z, psi, theta, phi)/dq = diag(I, E^-1) J, where the angular
+        velocity is w = E (psi_dot, theta_dot, phi_dot) for R = Rz(psi) Ry(theta) Rx(phi).
+        Singular where cos(theta) = 0 (the Euler angles' own singularity)."""
+        check_errors_mode(errors)
+        J, valid = self.jacobian(q, errors="nan")
+        eta, _ = self.euler(q, errors="nan")
+        psi, theta = eta[..., 0], eta[..., 1]
+        c_th = np.cos(theta)
+        singular = np.abs(c_th) < 1e-12
+        valid = valid & ~singular
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # E^-1 for E = [[0, -s psi, c psi c th], [0, c psi, s psi c th], [1, 0, -s th]]
+            cp, sp_, st_ = np.cos(psi), np.sin(psi), np.sin(theta)
+            Einv = np.zeros(eta.shape[:-1] + (3, 3))
+            Einv[..., 0, 0] = cp * st_ / c_th
+            Einv[..., 0, 1] = sp_ * st_ / c_th
+            Einv[..., 0, 2] = 1.0
+            Einv[..., 1, 0] = -sp_
+            Einv[..., 1, 1] = cp
+            Einv[..., 2, 0] = cp / c_th
+            Einv[..., 2, 1] = sp_ / c_th
+            Ja = J.copy()
+            Ja[..., 3:, :] = Einv @ J[..., 3:, :]
+        Ja[~valid] = np.nan
+        if errors == "raise":
+            if not np.all(valid):
+                self.jacobian(q)  # non-finite input rows raise there
+                bad = np.flatnonzero(~valid.reshape(-1))
+                raise SingularityError(
+                    f"Euler-angle singularity (cos theta = 0) in rows {_rows_text(bad)}", bad)
+            return Ja
+        return Ja, valid
+
+    def manipulability(self, q, errors="raise"):
+        """Yoshikawa's measure: the product of J's singular values (= sqrt(det(J J^T)) for
+        n >= 6, sqrt(det(J^T J)) for n < 6)."""
+        J, valid = self.jacobian(q, errors="nan")
+        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
+        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
+        out = np.prod(sv, axis=-1)
+        return self._plain(errors, q, out, valid)
+
+    def condition_number(self, q, errors="raise"):
+        """sigma_max / sigma_min of the geometric Jacobian (inf at a singularity)."""
+        J, valid = self.jacobian(q, errors="nan")
+        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
+        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
+        with np.errstate(divide="ignore"):
+            out = sv[..., 0] / sv[..., -1]
+        return self._plain(errors, q, out, valid)
+
+    # -- helpers ----------------------------------------------------------------------
+
+    def _plain(self, errors, q, out, valid):
+        if errors == "raise":
+            if not np.all(valid):
+                self.jacobian(q)
+            return out
+        return out, valid
+
+    @staticmethod
+    def _check_frame(frame):
+        if frame not in ("base", "tool"):
+            raise InputError(f'frame must be "base" or "tool", got {frame!r}')
+        return frame
+
+    def _to_tool(self, qf, J):
+        T, _ = self._core.fk(qf)
+        Rt = np.swapaxes(T[:, :3, :3], -1, -2)
+        return np.concatenate([Rt @ J[:, :3], Rt @ J[:, 3:]], axis=1)
+
+    def _joints(self, q, name):
+        arr = as_float_array(q, name)
+        if arr.ndim == 0 or arr.shape[-1] != self.n:
+            raise InputError(f"{name} must have shape (..., {self.n}) for {self.name}, got {arr.shape}")
+        return arr.shape[:-1], arr
+
+    def _prepare(self, errors, q):
+        check_errors_mode(errors)
+        lead, arr = self._joints(q, "q")
+        return lead, np.ascontiguousarray(arr.reshape(-1, self.n))
+
+    def _broadcast(self, **arrays):
+        checked = {k: self._joints(v, k)[1] for k, v in arrays.items()}
+        try:
+            lead = np.broadcast_shapes(*(a.shape[:-1] for a in checked.values()))
+        except ValueError:
+            shapes = {k: a.shape for k, a in checked.items()}
+            raise InputError(f"argument shapes do not broadcast: {shapes}") from None
+        flat = [np.ascontiguousarray(np.broadcast_to(a, lead + (self.n,)).reshape(-1, self.n))
+                for a in checked.values()]
+        return lead, flat
+
+    def _finish(self, errors, lead, status, outs, names):
+        ok = status == st.OK
+        if not ok.all():
+            if errors == "raise":
+                bad = np.flatnonzero(~ok)
+                raise InputError(
+                    f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN "
+                    f"or infinite values in rows {_rows_text(bad)}"
+                )
+            for o in outs:
+                o[~ok] = np.nan
+        shaped = [o.reshape(lead + o.shape[1:]) for o in outs]
+        if errors == "nan":
+            return (*shaped, ok.reshape(lead))
+        return shaped[0] if len(shaped) == 1 else tuple(shaped)
+
+
+def _skew(w):
+    W = np.zeros(w.shape[:-1] + (3, 3))
+    W[..., 0, 1], W[..., 0, 2] = -w[..., 2], w[..., 1]
+    W[..., 1, 0], W[..., 1, 2] = w[..., 2], -w[..., 0]
+    W[..., 2, 0], W[..., 2, 1] = -w[..., 1], w[..., 0]
+    return W
+
+
+class _ReferenceArm:
+    """The numpy reference with the compiled backend's call signatures."""
+
+    def __init__(self, module, desc):
+        self._m, self._d = module, desc
+
+    def fk(self, q):
+        return self._m.fk(self._d, q)
+
+    def frames(self, q):
+        return self._m.frames(self._d, q)
+
+    def jacobian(self, q):
+        return self._m.jacobian(self._d, q)
+
+    def jacobian_dot(self, q, qd):
+        return self._m.jacobian_dot(self._d, q, qd)
