@@ -14,7 +14,12 @@ import pytest
 
 from deltagen import cli, generate, paths
 
-NAMES = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
+from deltagen.serial.robot import bundled_robots
+
+DELTA = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
+# the delta core plus one C module per bundled serial arm
+NAMES = DELTA + tuple(f"serial_{name}{ext}" for name in bundled_robots()
+                      for ext in (".c", ".h", ".cdef.h"))
 
 
 @pytest.fixture(scope="module")
@@ -32,11 +37,12 @@ def generated_copy(tmp_path, monkeypatch):
     return copy
 
 
-def test_the_three_files_are_rendered(rendered):
+def test_every_module_is_rendered(rendered):
     assert set(rendered) == set(NAMES)
     for name, text in rendered.items():
         assert text.endswith("\n") and "\r" not in text, name
         assert "do not edit" in text and "deltagen" in text, name
+    assert set(DELTA) <= set(rendered)
 
 
 def test_checkout_is_current(capsys):

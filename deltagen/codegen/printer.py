@@ -77,10 +77,14 @@ class KernelPrinter(C99CodePrinter):
         # M_PI is POSIX, not C99: print the double nearest to pi.
         return "3.141592653589793"
 
+    def _print_Exp1(self, expr):
+        return "2.718281828459045"
+
     def _print_Integer(self, expr):
         return str(int(expr))
 
 
 def to_c(expr) -> str:
-    """C99 text of one SymPy expression (small powers expanded first)."""
-    return KernelPrinter().doprint(expand_small_powers(sp.sympify(expr)))
+    """C99 text of one SymPy expression (small powers expanded first). No math macros
+    (M_SQRT2 and friends are POSIX, not C99): constants print as expressions gcc folds."""
+    return KernelPrinter({"math_macros": {}}).doprint(expand_small_powers(sp.sympify(expr)))

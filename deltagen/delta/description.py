@@ -20,12 +20,11 @@ Robot files are TOML::
 from __future__ import annotations
 
 import math
-import numbers
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import GeometryError
+from ..robot_file import read_toml, real
 from ..naming import check_identifier
 from ..status import SINGULAR_TOL
 
@@ -36,13 +35,7 @@ _TOP_KEYS = {"name", "delta"}
 MIN_DRIVE_SEPARATION = 1e-6
 
 
-def _real(value, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise GeometryError(f"{key} must be a real number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise GeometryError(f"{key} must be finite, got {value!r}")
-    return value
+_real = real
 
 
 @dataclass(frozen=True)
@@ -149,15 +142,4 @@ class DeltaGeometry:
 
     @classmethod
     def from_toml(cls, path) -> "DeltaGeometry":
-        path = Path(path)
-        try:
-            text = path.read_bytes().decode("utf-8")
-        except OSError as exc:
-            raise GeometryError(f"cannot read robot file {path}: {exc.strerror}") from None
-        except UnicodeDecodeError:
-            raise GeometryError(f"{path}: not UTF-8 text") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise GeometryError(f"{path}: malformed TOML: {exc}") from None
-        return cls.from_mapping(data, source=str(path))
+        return cls.from_mapping(read_toml(path), source=str(path))

@@ -13,26 +13,27 @@ import numpy as np
 from .. import status as st
 from ..build import load
 from ..paths import cache_dir, generated_dir
-from .emit import arm_sources, base_name
+from .emit import arm_sources, base_name, description_fingerprint, generator_fingerprint
 
 
 def _source_dir(desc) -> Path:
-    """generated/ when it holds this exact description's sources, else a cache folder."""
+    """generated/ when it holds this description's checked-in module (bundled robots; kept
+    current by `deltagen generate --check`), else a cache folder keyed by the description
+    and the generator, rendered on first use."""
     name = base_name(desc)
-    checked_in = generated_dir() / f"{name}.c"
-    sources = None
-    if checked_in.is_file():
-        sources = arm_sources(desc)
-        if checked_in.read_text() == sources[f"{name}.c"]:
-            return generated_dir()
-    key = hashlib.sha256(desc.key().encode()).hexdigest()[:16]
+    header = generated_dir() / f"{name}.h"
+    stamp = f"Description fingerprint: {description_fingerprint(desc)}"
+    if header.is_file() and stamp in header.read_text():
+        return generated_dir()
+    key = hashlib.sha256((desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
     folder = cache_dir() / "sources" / f"{name}_{key}"
     if not (folder / f"{name}.cdef.h").is_file():
-        sources = sources or arm_sources(desc)
         folder.mkdir(parents=True, exist_ok=True)
-        for file_name, text in sources.items():
+        sources = arm_sources(desc)
+        # the .cdef.h marks a complete folder, so it is written last
+        for file_name in sorted(sources, key=lambda f: f.endswith(".cdef.h")):
             tmp = folder / f".{file_name}.{threading.get_ident()}.tmp"
-            tmp.write_text(text)
+            tmp.write_text(sources[file_name])
             tmp.replace(folder / file_name)
     return folder
 

@@ -36,14 +36,13 @@ Universal-coordinate joints use tx, ty, tz [m], rx|rx_deg, ry|ry_deg, rz|rz_deg,
 from __future__ import annotations
 
 import math
-import numbers
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import GeometryError
+from ..robot_file import read_toml, real
 from ..naming import check_identifier
 
 CONVENTIONS = ("standard", "modified", "universal")
@@ -54,13 +53,7 @@ _UC_LENGTHS = ("tx", "ty", "tz")
 _UC_ANGLES = ("rx", "ry", "rz", "offset")
 
 
-def _real(value, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise GeometryError(f"{where} must be a real number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise GeometryError(f"{where} must be finite, got {value!r}")
-    return value
+_real = real
 
 
 @dataclass(frozen=True)
@@ -215,18 +208,7 @@ class SerialDescription:
 
     @classmethod
     def from_toml(cls, path) -> "SerialDescription":
-        path = Path(path)
-        try:
-            text = path.read_bytes().decode("utf-8")
-        except OSError as exc:
-            raise GeometryError(f"cannot read robot file {path}: {exc.strerror}") from None
-        except UnicodeDecodeError:
-            raise GeometryError(f"{path}: not UTF-8 text") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise GeometryError(f"{path}: malformed TOML: {exc}") from None
-        return cls.from_mapping(data, source=str(path))
+        return cls.from_mapping(read_toml(path), source=str(path))
 
 
 def _angle(row, key, where, required=False):

@@ -2,13 +2,35 @@
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 from ..codegen.lowering import lower
 from ..codegen.render import Unit, render
+from ..paths import template_dir
 from .kernels import ArmKernels
 
 
 def base_name(desc) -> str:
     return f"serial_{desc.name}"
+
+
+def description_fingerprint(desc) -> str:
+    """Hash of everything in the description that shapes the generated code."""
+    return hashlib.sha256(desc.key().encode()).hexdigest()[:16]
+
+
+def generator_fingerprint() -> str:
+    """Hash of the code and templates that turn a description into C: a user robot's cached
+    sources are keyed by it, so a changed generator never reuses stale sources."""
+    here = Path(__file__).resolve().parent
+    files = sorted((here.parent / "codegen").glob("*.py")) + [
+        here / "derive.py", here / "kernels.py", here / "emit.py"]
+    files += sorted(template_dir().glob("*.j2"))
+    digest = hashlib.sha256()
+    for path in files:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def arm_unit(desc) -> Unit:
@@ -25,6 +47,7 @@ def arm_unit(desc) -> Unit:
             "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
             f"point: q and qd hold {desc.n} values per point; matrices are stored row-major.",
             "The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).",
+            f"Description fingerprint: {description_fingerprint(desc)}",
         ),
     )
 

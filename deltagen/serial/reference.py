@@ -131,11 +131,13 @@ def _link(desc, i: int, qi: np.ndarray) -> np.ndarray:
     if desc.convention == "standard":
         theta = var if j.revolute else const + j.theta
         d = const + j.d if j.revolute else var
-        return _product(_rot(2, theta), _trans(2, d), _trans(0, const + j.a), _rot(0, const + j.alpha))
+        return _product(_rot(2, theta), _trans(2, d),
+                        _trans(0, const + j.a), _rot(0, const + j.alpha))
     if desc.convention == "modified":
         theta = var if j.revolute else const + j.theta
         d = const + j.d if j.revolute else var
-        return _product(_rot(0, const + j.alpha), _trans(0, const + j.a), _rot(2, theta), _trans(2, d))
+        return _product(_rot(0, const + j.alpha), _trans(0, const + j.a),
+                        _rot(2, theta), _trans(2, d))
     if desc.convention == "universal":
         ax = _AXIS[j.axis]
         motion = _rot(ax, var) if j.revolute else _trans(ax, var)
