@@ -22,6 +22,17 @@ Latency. One single-pose call from Python (``robot.fk(q)`` with a (3,) ndarray a
 list, ``robot.ik(p)`` likewise, and the raw ``robot._core`` call on a (1, 3) array), looped
 so that one repeat lasts ~25 ms; median of the repeats in microseconds per call.
 
+Serial arm. The same measurements for the Puma560 (``SerialRobot.load("puma560")``, six
+revolute joints, q uniform within its joint limits, qd uniform): fk, frames, jacobian and
+jacobian_dot per configuration (frames and jacobian_dot on the first ``min(N, 250 000)``
+configurations: frames writes 1 KiB per configuration), the numpy reference on the first
+``min(N, 100 000)``, and single-pose latency. When importable, the same run then times
+roboticstoolbox-python's Puma560 (``rtb.models.DH.Puma560()``: the Python ``DHRobot`` calls and
+the C++ ``ETS`` fast path) and pinocchio (a model built here from the Puma560's DH table),
+each library call interleaved with the matching deltagen call, and prints the ratio
+library / deltagen and their agreement. ``pip install deltagen[bench]`` brings both; they are
+skipped (and named as absent) otherwise, or on request (``DELTAGEN_BENCH_ORACLES=0``).
+
 Everything is single-threaded: the C core is a plain loop (``-fopenmp-simd`` only
 vectorises, it starts no threads) and the reference uses numpy ufuncs and batched 3x3
 solves, so OPENBLAS_NUM_THREADS / OMP_NUM_THREADS make no difference.

@@ -39,7 +39,7 @@ SERIAL_FILES = _serial_files()
 # stem -> (convention, joint types R/P base to tool)
 EXPECTED = {
     "lecture_scara": ("standard", "RR"),      # slides 91-95: two revolute joints
-    "lecture_rpr": ("standard", "PRP"),       # slide 96: Translation, Rotation, Translation
+    "lecture_prp": ("standard", "PRP"),       # slide 96: Translation, Rotation, Translation
     "manutec_h5": ("standard", "PRRR"),       # slide 97: d1 = Z, W2, W3, W4
     "bosch_sr800": ("standard", "RRPR"),      # slide 98: W1, W2, d3 = Z, W4
     "manutec_r15": ("standard", "RRRRRR"),    # slides 99/100: 3 main + 3 wrist axes
@@ -266,8 +266,8 @@ def test_lecture_scara_slide111_start_point():
     assert np.linalg.det(J) == pytest.approx(4 * 3 * math.sin(q[1]), rel=1e-6)
 
 
-def test_lecture_rpr_reproduces_printed_0T3():
-    desc = _load("lecture_rpr")
+def test_lecture_prp_reproduces_printed_0T3():
+    desc = _load("lecture_prp")
     # The tool rotation, built here independently: Rot_x(-90) Rot_z(-90) (= rpy [0, -90, -90]).
     assert np.allclose(desc.tool, _rot("x", -math.pi / 2) @ _rot("z", -math.pi / 2), atol=1e-12)
     rng = np.random.default_rng(96)
