@@ -272,6 +272,329 @@ def _measure_latency(compiled, reference, q1, p1, repeats):
     return rows
 
 
+# ------------------------------------------------------------------------- serial arm
+
+SERIAL_ROBOT = "puma560"
+SERIAL_QUANTITIES = ("fk", "frames", "jacobian", "jacobian_dot")
+#: The issue's serial-arm targets for the compiled core [ns per configuration].
+SERIAL_TARGETS_NS = {"fk": 30.0, "jacobian": 50.0}
+#: The issue's target for one single-pose serial fk call from Python [ns].
+SERIAL_SINGLE_TARGET_NS = 1000.0
+SERIAL_REFERENCE_N = 100_000
+#: frames (n + 2 matrices, 1 KiB per configuration) and jacobian_dot run on fewer points
+SERIAL_SMALL_N = 250_000
+SERIAL_QD_RANGE = (-2.0, 2.0)  # rad/s
+RTB_PY_BATCH_N = 2_000  # DHRobot.fkine on a batch is a Python loop (~50 us per configuration)
+RTB_C_BATCH_N = 100_000  # ETS.eval (C++) on a batch, ~1 us per configuration
+RTB_SE3_BATCH_N = 20_000  # ETS.fkine on a batch: C++ then one SE3 per configuration
+ORACLE_AGREEMENT_N = 200  # configurations compared with each library
+ORACLE_TOL = 1e-12
+
+_SERIAL_INPUTS = {"fk": ("q",), "frames": ("q",), "jacobian": ("q",),
+                  "jacobian_dot": ("q", "qd")}
+_SERIAL_UNITS = {"fk": "m", "frames": "m", "jacobian": "m/rad", "jacobian_dot": "m/(rad s)"}
+
+
+def _serial_width(name: str, n: int) -> int:
+    return {"fk": 16, "frames": 16 * (n + 2), "jacobian": 6 * n, "jacobian_dot": 6 * n}[name]
+
+
+def _serial_points(name: str, n: int) -> int:
+    return n if name in ("fk", "jacobian") else min(n, SERIAL_SMALL_N)
+
+
+def sample_serial(n: int, robot, rng) -> dict[str, np.ndarray]:
+    """n configurations q uniform within the arm's joint limits and rates qd (C-contiguous)."""
+    lim = robot.qlim
+    q = rng.uniform(lim[:, 0], lim[:, 1], (n, robot.n))
+    qd = rng.uniform(*SERIAL_QD_RANGE, (n, robot.n))
+    return {"q": np.ascontiguousarray(q), "qd": np.ascontiguousarray(qd)}
+
+
+def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
+    """A no-argument call of the arm's generated C function ``<robot>_<name>`` with
+    preallocated outputs, or None if the core is not the cffi one."""
+    try:
+        ffi, lib = core._ffi, core._lib
+        points, axes = inputs[0].shape
+        out = np.empty((points, _serial_width(name, axes)))
+        status = np.empty(points, dtype=np.int8)
+        fb = ffi.from_buffer
+        cargs = (points, *(fb("double[]", a) for a in inputs),
+                 fb("double[]", out, require_writable=True),
+                 fb("int8_t[]", status, require_writable=True))
+        fn = getattr(lib, f"{core._prefix}_{name}")
+        if fn(*cargs) != 0 or not (status == st.OK).all():
+            return None
+        keep = (inputs, out, status)  # the buffers must outlive the call object
+        return lambda: (fn(*cargs), keep)[0]
+    except Exception:  # noqa: BLE001 - a diagnostic column; the others still run
+        return None
+
+
+def _measure_serial_throughput(compiled, reference, data, repeats):
+    """({quantity: {column: Stat}}, {quantity: (points, reference points)},
+    {quantity: max |compiled - reference|}); columns kernel, core, api, ref_core."""
+    n = data["q"].shape[0]
+    stats, sizes, agreement = {}, {}, {}
+    for name in SERIAL_QUANTITIES:
+        points = _serial_points(name, n)
+        ref_n = min(points, SERIAL_REFERENCE_N)
+        inputs = [np.ascontiguousarray(data[k][:points]) for k in _SERIAL_INPUTS[name]]
+        ref_inputs = [np.ascontiguousarray(a[:ref_n]) for a in inputs]
+        columns = {}
+        kernel = _serial_kernel_callable(compiled._core, name, inputs)
+        if kernel is not None:
+            columns["kernel"] = _batch_timer(kernel, (), points)
+        comp_out = getattr(compiled._core, name)(*inputs)[0][:ref_n].copy()
+        ref_out = getattr(reference._core, name)(*ref_inputs)[0]
+        agreement[name] = float(np.max(np.abs(comp_out - ref_out)))
+        del comp_out, ref_out
+        api = getattr(compiled, name)
+        api(*inputs)  # warm-up (the _core ones ran above)
+        columns["core"] = _batch_timer(getattr(compiled._core, name), inputs, points)
+        columns["api"] = _batch_timer(api, inputs, points)
+        columns["ref_core"] = _batch_timer(getattr(reference._core, name), ref_inputs, ref_n)
+        stats[name] = dict(zip(columns, _interleaved(list(columns.values()), repeats)))
+        sizes[name] = (points, ref_n)
+    return stats, sizes, agreement
+
+
+def _serial_latency_calls(robot, q1):
+    n = q1.shape[0]
+    ql = [float(v) for v in q1]
+    q2 = np.ascontiguousarray(q1[None, :])
+    return [
+        (f"robot.fk(q), q ndarray ({n},)", lambda: robot.fk(q1), True),
+        (f"robot.fk(q), q list of {n} floats", lambda: robot.fk(ql), True),
+        (f"robot.jacobian(q), q ndarray ({n},)", lambda: robot.jacobian(q1), False),
+        (f"robot._core.fk(q), q (1, {n})", lambda: robot._core.fk(q2), False),
+        (f"robot._core.jacobian(q), q (1, {n})", lambda: robot._core.jacobian(q2), False),
+    ]
+
+
+def _measure_serial_latency(compiled, reference, q1, repeats):
+    """[(label, compiled Stat, reference Stat, has target)] in ns per call."""
+    rows = []
+    for (label, fn, has_target), (_, ref_fn, _) in zip(_serial_latency_calls(compiled, q1),
+                                                       _serial_latency_calls(reference, q1)):
+        comp, ref = _interleaved([_loop_timer(fn), _loop_timer(ref_fn)], repeats)
+        rows.append((label, comp, ref, has_target))
+    return rows
+
+
+# ------------------------------------------------------------------------- other libraries
+
+
+def _tz(dz: float) -> np.ndarray:
+    T = np.eye(4)
+    T[2, 3] = dz
+    return T
+
+
+def _pair(library, call, lib_fn, dg_call, dg_fn, repeats, unit="us", points=1):
+    """One comparison row: the library call and the deltagen call timed round-robin."""
+    if unit == "us":
+        timers = [_loop_timer(lib_fn), _loop_timer(dg_fn)]
+    else:
+        lib_fn(), dg_fn()  # warm-up
+        timers = [_batch_timer(lib_fn, (), points), _batch_timer(dg_fn, (), points)]
+    lib, dg = _interleaved(timers, repeats)
+    return {"library": library, "call": call, "lib": lib, "dg_call": dg_call, "dg": dg,
+            "unit": unit, "points": points}
+
+
+def _rtb_oracle(compiled, q, repeats):
+    """roboticstoolbox-python's Puma560: rows, agreement notes (raises ImportError)."""
+    import roboticstoolbox as rtb
+
+    puma = rtb.models.DH.Puma560()
+    ets = puma.ets()
+    n = compiled.n
+    q1 = np.ascontiguousarray(q[0])
+    # rtb puts the shoulder d1 = 26.45 in above the mount; deltagen's file may round it:
+    # both are standard DH, so T_rtb = Trans_z(d1_rtb - d1_deltagen) T_deltagen and the
+    # base-frame geometric Jacobians are equal.
+    d1_dg, d1_rtb = compiled.description.joints[0].d, float(puma.links[0].d)
+    shift = _tz(d1_rtb - d1_dg)
+    m = min(ORACLE_AGREEMENT_N, q.shape[0])
+    T_dg = compiled.fk(q[:m])
+    T_rtb = np.array([T.A for T in puma.fkine(q[:m])])
+    T_ets = ets.eval(q[:m])
+    J_dg = compiled.jacobian(q[:m])
+    J_rtb = np.array([puma.jacob0(row) for row in q[:m]])
+    J_ets = np.array([ets.jacob0(row) for row in q[:m]])
+    agree = {
+        "fk (DHRobot.fkine)": float(np.max(np.abs(shift @ T_dg - T_rtb))),
+        "fk (ETS.eval)": float(np.max(np.abs(shift @ T_dg - T_ets))),
+        "jacobian (DHRobot.jacob0)": float(np.max(np.abs(J_dg - J_rtb))),
+        "jacobian (ETS.jacob0)": float(np.max(np.abs(J_dg - J_ets))),
+    }
+    notes = []
+    if d1_dg != d1_rtb:
+        notes.append(f"d1: deltagen {d1_dg:.10g} m, rtb {d1_rtb:.10g} m (26.45 in); fk compared "
+                     f"as Trans_z({d1_rtb - d1_dg:+.3g} m) T_deltagen")
+
+    lib = f"rtb {rtb.__version__}"
+    fk1, jac1 = f"robot.fk(q), q ndarray ({n},)", f"robot.jacobian(q), q ndarray ({n},)"
+    rows = [
+        _pair(lib, "DHRobot.fkine(q) -> SE3 (Python)", lambda: puma.fkine(q1),
+              fk1, lambda: compiled.fk(q1), repeats),
+        _pair(lib, "ETS.fkine(q) -> SE3 (C++ fknm)", lambda: ets.fkine(q1),
+              fk1, lambda: compiled.fk(q1), repeats),
+        _pair(lib, "ETS.eval(q) -> ndarray (C++ fknm)", lambda: ets.eval(q1),
+              fk1, lambda: compiled.fk(q1), repeats),
+        _pair(lib, "DHRobot.jacob0(q) (Python)", lambda: puma.jacob0(q1),
+              jac1, lambda: compiled.jacobian(q1), repeats),
+        _pair(lib, "ETS.jacob0(q) (C++ fknm)", lambda: ets.jacob0(q1),
+              jac1, lambda: compiled.jacobian(q1), repeats),
+    ]
+    for call, fn, size in (
+        ("DHRobot.fkine(Q) -> SE3 of N values (Python loop)", puma.fkine, RTB_PY_BATCH_N),
+        ("ETS.fkine(Q) -> SE3 of N values (C++ + SE3s)", ets.fkine, RTB_SE3_BATCH_N),
+        ("ETS.eval(Q) -> ndarray (N, 4, 4) (C++ fknm)", ets.eval, RTB_C_BATCH_N),
+    ):
+        size = min(size, q.shape[0])
+        Q = np.ascontiguousarray(q[:size])
+        rows.append(_pair(lib, call, lambda f=fn, Q=Q: f(Q), f"robot.fk(Q), Q ({size:,}, {n})",
+                          lambda Q=Q: compiled.fk(Q), repeats, unit="ns", points=size))
+    return rows, agree, notes
+
+
+def pinocchio_model(description):
+    """A pinocchio Model of a standard-DH arm and the id of its tool frame: joint i is a
+    revolute (prismatic) joint about (along) z_{i-1}, placed at the fixed part
+    Trans_z(d) Trans_x(a) Rot_x(alpha) of the link before it; the tool frame sits on the
+    last joint at the last fixed part times the tool transform."""
+    import pinocchio as pin
+
+    if description.convention != "standard":
+        raise ValueError("pinocchio_model handles standard DH only")
+    model = pin.Model()
+    parent = 0
+    placement = pin.SE3(description.base[:3, :3].copy(), description.base[:3, 3].copy())
+    for i, joint in enumerate(description.joints):
+        offset = joint.offset
+        # theta (revolute) or d (prismatic) = q + offset + constant part: put the constant
+        # part into the placement before the joint (a rotation about / shift along its z)
+        turn = (joint.theta + offset) if joint.revolute else joint.theta
+        shift = joint.d + offset if not joint.revolute else 0.0
+        c, s = np.cos(turn), np.sin(turn)
+        pre = pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
+                      np.array([0.0, 0.0, shift]))
+        kind = pin.JointModelRZ() if joint.revolute else pin.JointModelPZ()
+        parent = model.addJoint(parent, kind, placement * pre, f"joint{i + 1}")
+        ca, sa = np.cos(joint.alpha), np.sin(joint.alpha)
+        placement = pin.SE3(np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]]),
+                            np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0]))
+    tool = placement * pin.SE3(description.tool[:3, :3].copy(), description.tool[:3, 3].copy())
+    fid = model.addFrame(pin.Frame("tool", parent, 0, tool, pin.FrameType.OP_FRAME))
+    return model, fid
+
+
+def _pinocchio_oracle(compiled, q, repeats):
+    """pinocchio on the same DH table: rows, agreement (raises ImportError)."""
+    import pinocchio as pin
+
+    model, fid = pinocchio_model(compiled.description)
+    data = model.createData()
+    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED  # base axes, tool point: deltagen's J
+    m = min(ORACLE_AGREEMENT_N, q.shape[0])
+    err_T = err_J = 0.0
+    T_dg, J_dg = compiled.fk(q[:m]), compiled.jacobian(q[:m])
+    for k in range(m):
+        pin.forwardKinematics(model, data, q[k])
+        pin.updateFramePlacements(model, data)
+        err_T = max(err_T, float(np.max(np.abs(data.oMf[fid].homogeneous - T_dg[k]))))
+        pin.computeJointJacobians(model, data, q[k])
+        J = pin.getFrameJacobian(model, data, fid, world)
+        err_J = max(err_J, float(np.max(np.abs(J - J_dg[k]))))
+    agree = {"fk (oMf[tool])": err_T, "jacobian (getFrameJacobian)": err_J}
+
+    n, q1 = compiled.n, np.ascontiguousarray(q[0])
+    fk1, jac1 = f"robot.fk(q), q ndarray ({n},)", f"robot.jacobian(q), q ndarray ({n},)"
+    lib = f"pinocchio {pin.__version__}"
+
+    def fk_update():
+        pin.forwardKinematics(model, data, q1)
+        pin.updateFramePlacements(model, data)
+
+    def fk_pose():
+        pin.framesForwardKinematics(model, data, q1)
+        return data.oMf[fid].homogeneous
+
+    def jac_get():
+        pin.computeJointJacobians(model, data, q1)
+        return pin.getFrameJacobian(model, data, fid, world)
+
+    rows = [
+        _pair(lib, "forwardKinematics + updateFramePlacements", fk_update,
+              fk1, lambda: compiled.fk(q1), repeats),
+        _pair(lib, "framesForwardKinematics + oMf[tool].homogeneous", fk_pose,
+              fk1, lambda: compiled.fk(q1), repeats),
+        _pair(lib, "computeJointJacobians + getFrameJacobian", jac_get,
+              jac1, lambda: compiled.jacobian(q1), repeats),
+        _pair(lib, "computeFrameJacobian(q, tool)",
+              lambda: pin.computeFrameJacobian(model, data, q1, fid, world),
+              jac1, lambda: compiled.jacobian(q1), repeats),
+    ]
+    return rows, agree, []
+
+
+def _library_versions() -> dict[str, str | None]:
+    from importlib import metadata
+
+    out = {}
+    for dist in ("roboticstoolbox-python", "pin"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+def _measure_oracles(compiled, q, repeats, enabled=True):
+    """{"rows": [...], "agreement": {library: {what: max abs diff}}, "notes": [...],
+    "absent": [text]} for roboticstoolbox-python and pinocchio, each when importable."""
+    result = {"rows": [], "agreement": {}, "notes": [], "absent": []}
+    if not enabled:
+        result["absent"].append("roboticstoolbox-python and pinocchio skipped "
+                                "(DELTAGEN_BENCH_ORACLES=0)")
+        return result
+    for label, module, measure in (
+        ("roboticstoolbox-python", "roboticstoolbox", _rtb_oracle),
+        ("pinocchio (pip: pin)", "pinocchio", _pinocchio_oracle),
+    ):
+        try:
+            __import__(module)
+        except Exception as exc:  # noqa: BLE001 - absent or broken: say so, go on
+            result["absent"].append(f"{label} not importable ({type(exc).__name__}); "
+                                    "`pip install deltagen[bench]`")
+            continue
+        rows, agree, notes = measure(compiled, q, repeats)
+        result["rows"] += rows
+        result["agreement"][label] = agree
+        result["notes"] += notes
+    return result
+
+
+def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
+    """The serial-arm section (see the module docstring)."""
+    from .serial.robot import SerialRobot
+
+    compiled = SerialRobot.load(SERIAL_ROBOT, backend="compiled")
+    reference = compiled.with_backend("reference")
+    data = sample_serial(n, compiled, np.random.default_rng(SEED))
+    throughput, sizes, agreement = _measure_serial_throughput(compiled, reference, data,
+                                                              repeats)
+    latency = _measure_serial_latency(compiled, reference, data["q"][0].copy(), repeats)
+    others = _measure_oracles(compiled, data["q"], repeats, enabled=oracles)
+    return {
+        "robot": compiled, "n": n, "sizes": sizes, "throughput": throughput,
+        "agreement": agreement, "latency": latency, "oracles": others,
+    }
+
+
 # ------------------------------------------------------------------------- machine
 
 

@@ -585,3 +585,18 @@ def test_empty_batch_and_shapes():
         ref.jacobian(desc, np.zeros((1, 3)), frame="world")
     with pytest.raises(InputError):
         ref.jacobian_dot(desc, np.zeros((2, 3)), np.zeros((3, 3)))
+
+
+def test_easyrob_eq9_is_not_the_law_of_cosines():
+    """EASY-ROB paper eq. (9): q3 = pi - beta, beta = arccos(r / (l2z + l3z)). For a
+    two-link arm l2 = 0.5, l3 = 0.3 bent by q3 = 60 deg, r = |shoulder-wrist| = 0.7: the
+    printed formula gives 151 deg; the law of cosines gives back 60 deg (docs/errata.md)."""
+    l2, l3, q3 = 0.5, 0.3, math.radians(60.0)
+    desc = SerialDescription.from_rows([dict(a=l2), dict(a=l3)], "standard")
+    T = ref.fk(desc, np.array([[0.0, q3]]))[0][0]
+    r = math.hypot(T[0, 3], T[1, 3])
+    assert r == pytest.approx(0.7, abs=1e-15)
+    printed = math.pi - math.acos(r / (l2 + l3))
+    assert math.degrees(printed) == pytest.approx(151.04, abs=0.01)
+    law_of_cosines = math.pi - math.acos((l2**2 + l3**2 - r**2) / (2 * l2 * l3))
+    assert law_of_cosines == pytest.approx(q3, abs=1e-12)
