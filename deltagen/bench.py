@@ -474,11 +474,11 @@ def pinocchio_model(description):
     parent = 0
     placement = pin.SE3(description.base[:3, :3].copy(), description.base[:3, 3].copy())
     for i, joint in enumerate(description.joints):
-        offset = joint.offset
-        # theta (revolute) or d (prismatic) = q + offset + constant part: put the constant
-        # part into the placement before the joint (a rotation about / shift along its z)
-        turn = (joint.theta + offset) if joint.revolute else joint.theta
-        shift = joint.d + offset if not joint.revolute else 0.0
+        # A_i = Rot_z(theta) Trans_z(d) Trans_x(a) Rot_x(alpha) with theta = q + offset
+        # (revolute) or d = q + offset (prismatic): the constant part before the joint's own
+        # motion, Rot_z(offset) or Rot_z(theta) Trans_z(offset), goes into its placement
+        turn = joint.offset if joint.revolute else joint.theta
+        shift = 0.0 if joint.revolute else joint.offset
         c, s = np.cos(turn), np.sin(turn)
         pre = pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
                       np.array([0.0, 0.0, shift]))
@@ -709,7 +709,7 @@ def render(result: dict, markdown: bool) -> str:
     out.append(h("deltagen bench"))
     out.append("")
     for key, value in result["machine"]:
-        v = f"`{value}`" if markdown and key in ("C flags", "C build") else value
+        v = f"`{value}`" if markdown and key.startswith("C ") else value
         out.append(f"{bullet}{key}: {v}")
     out.append(f"{bullet}load average (1 min): {result['load_before']} before, "
                f"{result['load_after']} after")
@@ -759,15 +759,108 @@ def render(result: dict, markdown: bool) -> str:
                "Targets are checked against the compiled _core median.")
     out.append(f"{bullet}single-threaded: the C loop starts no threads and the reference uses "
                "numpy ufuncs, so OPENBLAS/OMP thread settings are irrelevant")
+    if result.get("serial") is not None:
+        out.append("")
+        out += _render_serial(result["serial"], repeats, markdown)
     out.append(f"{bullet}total bench time {result['elapsed_s']:.1f} s")
     return "\n".join(out)
+
+
+def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
+    robot, n = serial["robot"], serial["n"]
+    out: list[str] = []
+    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
+    bullet = "- " if markdown else "  "
+    code = (lambda t: f"`{t}`") if markdown else (lambda t: t)
+    lim = ", ".join(f"[{lo:.3g}, {hi:.3g}]" for lo, hi in robot.qlim)
+    small = {name: pts for name, (pts, _) in serial["sizes"].items()}
+
+    out.append(h(f"Serial arm: {robot.name} ({robot.n} joints, {robot.description.convention} DH)"))
+    out.append("")
+    out.append(f"{bullet}workload: {code(f'SerialRobot.load({robot.name!r})')}, q uniform within "
+               f"the joint limits ({lim}) rad, qd uniform in [{SERIAL_QD_RANGE[0]}, "
+               f"{SERIAL_QD_RANGE[1]}] rad/s; seed {SEED}")
+    out.append(f"{bullet}N = {n:,} configurations for fk and jacobian, "
+               f"{small['frames']:,} for frames and jacobian_dot; reference on the first "
+               f"{min(n, SERIAL_REFERENCE_N):,} (scaled per configuration); median [min, max] "
+               f"of {repeats} repeats, columns round-robin")
+    out.append("")
+    out.append(h(f"{robot.name}: throughput, ns per configuration"))
+    out.append("")
+    header = ["quantity", "N", "C kernel", "compiled _core", "compiled API", "reference _core",
+              "speedup _core", "target (_core)"]
+    rows = []
+    for name in SERIAL_QUANTITIES:
+        c = serial["throughput"][name]
+        target = SERIAL_TARGETS_NS.get(name)
+        tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
+        rows.append([name, f"{serial['sizes'][name][0]:,}", _cell(c.get("kernel")),
+                     _cell(c["core"]), _cell(c["api"]), _cell(c["ref_core"]),
+                     _ratio(c["ref_core"], c["core"]), tcell])
+    out += _table(header, rows, markdown)
+    out.append("")
+
+    out.append(h(f"{robot.name}: single-pose latency, us per call"))
+    out.append("")
+    header = ["call", "compiled", "reference", "speedup", "target (compiled)"]
+    rows = []
+    for label, comp, ref, has_target in serial["latency"]:
+        tcell = (f"<= {SERIAL_SINGLE_TARGET_NS / 1000:g} "
+                 f"{_verdict(comp.median, SERIAL_SINGLE_TARGET_NS)}" if has_target else "-")
+        rows.append([code(label), _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp),
+                     tcell])
+    out += _table(header, rows, markdown)
+    out.append("")
+    agree = ", ".join(f"{k} {v:.1e} {_SERIAL_UNITS[k]}" for k, v in serial["agreement"].items())
+    out.append(f"{bullet}agreement, max |compiled - reference| over the reference points: {agree}")
+    bad = [k for k, v in serial["agreement"].items() if not v <= AGREEMENT_TOL]
+    if bad:
+        out.append(f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
+                   f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core")
+
+    others = serial["oracles"]
+    if others["rows"]:
+        out.append("")
+        for unit, title, scale in (("us", "single call, us per call", 1000.0),
+                                   ("ns", "batch, ns per configuration", 1.0)):
+            rows = []
+            for r in others["rows"]:
+                if r["unit"] != unit:
+                    continue
+                rows.append([r["library"], code(r["call"]), _cell(r["lib"], scale),
+                             code(r["dg_call"]), _cell(r["dg"], scale), _ratio(r["lib"], r["dg"])])
+            if not rows:
+                continue
+            out.append(h(f"{robot.name} vs other libraries: {title}"))
+            out.append("")
+            out += _table(["library", "call", "library", "deltagen call", "deltagen (compiled)",
+                           "library / deltagen"], rows, markdown)
+            out.append("")
+        for library, agree in others["agreement"].items():
+            text = ", ".join(f"{k} {v:.1e}" for k, v in agree.items())
+            out.append(f"{bullet}agreement with {library}, max |deltagen - library| over "
+                       f"{min(ORACLE_AGREEMENT_N, n)} configurations: {text}")
+            bad = [k for k, v in agree.items() if not v <= ORACLE_TOL]
+            if bad:
+                out.append(f"{bullet}WARNING: deltagen and {library} disagree on "
+                           f"{', '.join(bad)} (> {ORACLE_TOL:g})")
+        for note in others["notes"]:
+            out.append(f"{bullet}{note}")
+        out.append(f"{bullet}each library call is timed round-robin with the deltagen call beside "
+                   "it (single calls looped ~25 ms per repeat; batches on the same configurations)")
+    for text in others["absent"]:
+        out.append(f"{bullet}{text}")
+    out.append("")
+    return out
 
 
 # ------------------------------------------------------------------------- entry point
 
 
-def run(n: int = 1_000_000, repeats: int = 7) -> dict:
-    """Measure everything; returns the raw result (see :func:`render`)."""
+def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True,
+        oracles: bool = True) -> dict:
+    """Measure everything; returns the raw result (see :func:`render`). ``serial`` adds the
+    Puma560 section, ``oracles`` its comparison with roboticstoolbox-python / pinocchio."""
     from .delta.robot import DeltaRobot
 
     if n < 1:
@@ -793,18 +886,36 @@ def run(n: int = 1_000_000, repeats: int = 7) -> dict:
 
     latency = _measure_latency(compiled, reference, poses["q"][0].copy(), poses["p"][0].copy(),
                                repeats)
+    del poses
+    serial_result = run_serial(n, repeats, oracles) if serial else None
+    machine = machine_info(compiled)
+    if serial_result is not None:
+        machine.append(("C build (serial)", _build_name(serial_result["robot"])))
+        if oracles:
+            versions = _library_versions()
+            machine.append(("other libraries", ", ".join(
+                f"{k} {v or 'not installed'}" for k, v in versions.items())))
     return {
         "n": n, "ref_n": ref_n, "repeats": repeats,
-        "machine": machine_info(compiled),
+        "machine": machine,
         "throughput": throughput, "latency": latency,
-        "agreement": agreement,
+        "agreement": agreement, "serial": serial_result,
         "load_before": load_before, "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,
     }
 
 
+def _oracles_wanted(args) -> bool:
+    """roboticstoolbox-python / pinocchio are timed unless --no-oracles (where the command
+    line offers it) or DELTAGEN_BENCH_ORACLES=0."""
+    if getattr(args, "no_oracles", False):
+        return False
+    return os.environ.get("DELTAGEN_BENCH_ORACLES", "1").strip().lower() not in ("0", "no",
+                                                                                 "false", "off")
+
+
 def main(args) -> int:
-    result = run(n=args.n, repeats=args.repeats)
+    result = run(n=args.n, repeats=args.repeats, oracles=_oracles_wanted(args))
     print(render(result, markdown=bool(getattr(args, "markdown", False))))
     sys.stdout.flush()
     return 0

@@ -405,3 +405,31 @@ def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows,
     ok = status == OK
     np.testing.assert_allclose(got_p[ok], p_ref[ok], rtol=0, atol=1e-12 * geom.size)
     assert np.all(np.isnan(got_p[~ok]))
+
+
+# ------------------------------------------------------------- the serial-arm modules
+
+
+def _serial_sources():
+    return sorted(p.name for p in paths.generated_dir().glob("serial_*.c"))
+
+
+@pytest.mark.parametrize("name", _serial_sources())
+def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
+    """Every checked-in arm module: strict C99 at -O2 warning-free, the build flags too,
+    only libm symbols undefined, no global data."""
+    for ext in (".c", ".h"):
+        shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
+    prefix = name[len("serial_"):-2]
+    _gcc([*STRICT, "-O2", "-c", name, "-o", "s.o"], cwd=tmp_path)
+    args, _ = compile_flags(prefix)
+    _gcc([*args, "-pedantic", "-Werror", "-c", name, "-o", "v.o"], cwd=tmp_path)
+    nm = shutil.which("nm")
+    if nm is None:
+        return
+    table = subprocess.run([nm, "s.o"], cwd=tmp_path, capture_output=True, text=True,
+                           check=True).stdout
+    undefined = {line.split()[1] for line in table.splitlines() if line.split()[:1] == ["U"]}
+    assert undefined <= LIBM, sorted(undefined - LIBM)
+    kinds = {line.split()[1] for line in table.splitlines() if len(line.split()) == 3}
+    assert not kinds & set("DdBbCGgSsVv")
