@@ -680,7 +680,7 @@ def _ratio(ref: Stat | None, comp: Stat | None) -> str:
     if ref is None or comp is None or comp.median <= 0:
         return "n/a"
     r = ref.median / comp.median
-    return f"{r:.0f}x" if r >= 10 else f"{r:.1f}x"
+    return f"{r:.0f}x" if r >= 10 else f"{r:.1f}x" if r >= 1 else f"{r:.2f}x"
 
 
 def _verdict(value: float, target: float) -> str:
@@ -775,7 +775,8 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     lim = ", ".join(f"[{lo:.3g}, {hi:.3g}]" for lo, hi in robot.qlim)
     small = {name: pts for name, (pts, _) in serial["sizes"].items()}
 
-    out.append(h(f"Serial arm: {robot.name} ({robot.n} joints, {robot.description.convention} DH)"))
+    conv = robot.description.convention
+    out.append(h(f"Serial arm: {robot.name} ({robot.n} joints, {conv} DH)"))
     out.append("")
     out.append(f"{bullet}workload: {code(f'SerialRobot.load({robot.name!r})')}, q uniform within "
                f"the joint limits ({lim}) rad, qd uniform in [{SERIAL_QD_RANGE[0]}, "
@@ -833,8 +834,8 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
                 continue
             out.append(h(f"{robot.name} vs other libraries: {title}"))
             out.append("")
-            out += _table(["library", "call", "library", "deltagen call", "deltagen (compiled)",
-                           "library / deltagen"], rows, markdown)
+            out += _table(["library", "call", "library time", "deltagen call",
+                           "deltagen time (compiled)", "library / deltagen"], rows, markdown)
             out.append("")
         for library, agree in others["agreement"].items():
             text = ", ".join(f"{k} {v:.1e}" for k, v in agree.items())
@@ -847,7 +848,8 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
         for note in others["notes"]:
             out.append(f"{bullet}{note}")
         out.append(f"{bullet}each library call is timed round-robin with the deltagen call beside "
-                   "it (single calls looped ~25 ms per repeat; batches on the same configurations)")
+                   "it (single calls looped ~25 ms per repeat; batches on the same "
+                   "configurations)")
     for text in others["absent"]:
         out.append(f"{bullet}{text}")
     out.append("")

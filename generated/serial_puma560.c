@@ -148,7 +148,7 @@ int puma560_fk(size_t n, const double *restrict q, double *restrict T, int8_t *r
             const double F2_21 = t0_1;
             const double F2_22 = -sin_q1*sin_q2;
             const double F2_24 = 0.4318*t0_1;
-            const double F2_34 = 0.4318*sin_q2 + 0.6718;
+            const double F2_34 = 0.4318*sin_q2 + 0.67183;
             /* frame 3: F_3 = F_2 A_3 (standard convention) */
             const double t1_0 = F2_11*cos_q3;
             const double t1_1 = F2_12*sin_q3;
@@ -487,7 +487,7 @@ int puma560_frames(size_t n, const double *restrict q, double *restrict F, int8_
             const double F2_21 = t0_1;
             const double F2_22 = -sin_q1*sin_q2;
             const double F2_24 = 0.4318*t0_1;
-            const double F2_34 = 0.4318*sin_q2 + 0.6718;
+            const double F2_34 = 0.4318*sin_q2 + 0.67183;
             /* frame 3: F_3 = F_2 A_3 (standard convention) */
             const double t1_0 = F2_11*cos_q3;
             const double t1_1 = F2_12*sin_q3;
@@ -578,7 +578,7 @@ int puma560_frames(size_t n, const double *restrict q, double *restrict F, int8_
             const double out_F24 = t6_1;
             const double out_F25 = t6_0;
             const double out_F26 = t6_1;
-            const double out_F27 = ((invalid) ? NAN : 0.6718);
+            const double out_F27 = ((invalid) ? NAN : 0.67183);
             const double out_F28 = t6_1;
             const double out_F29 = t6_1;
             const double out_F30 = t6_1;
@@ -1079,7 +1079,7 @@ int puma560_jacobian(size_t n, const double *restrict q, double *restrict J, int
             const double F2_21 = t0_1;
             const double F2_22 = -sin_q1*sin_q2;
             const double F2_24 = 0.4318*t0_1;
-            const double F2_34 = 0.4318*sin_q2 + 0.6718;
+            const double F2_34 = 0.4318*sin_q2 + 0.67183;
             /* frame 3: F_3 = F_2 A_3 (standard convention) */
             const double t1_0 = F2_11*cos_q3;
             const double t1_1 = F2_12*sin_q3;
@@ -1112,7 +1112,7 @@ int puma560_jacobian(size_t n, const double *restrict q, double *restrict J, int
             const double F5_33 = F3_33*cos_q5 - F4_31*sin_q5;
             /* geometric Jacobian: revolute [w x (p - o); w], prismatic [w; 0] */
             const double t4_0 = -F4_24;
-            const double t4_1 = F4_34 - 0.6718;
+            const double t4_1 = F4_34 - 0.67183;
             const double t4_2 = -F4_34;
             const double t4_3 = -F2_34 - t4_2;
             const double t4_4 = -F3_34 - t4_2;
@@ -1429,7 +1429,7 @@ int puma560_jacobian_dot(size_t n, const double *restrict q, const double *restr
             const double F2_21 = t0_1;
             const double F2_22 = -sin_q1*sin_q2;
             const double F2_24 = 0.4318*t0_1;
-            const double F2_34 = 0.4318*sin_q2 + 0.6718;
+            const double F2_34 = 0.4318*sin_q2 + 0.67183;
             /* frame 3: F_3 = F_2 A_3 (standard convention) */
             const double t1_0 = F2_11*cos_q3;
             const double t1_1 = F2_12*sin_q3;
@@ -1462,7 +1462,7 @@ int puma560_jacobian_dot(size_t n, const double *restrict q, const double *restr
             const double F5_33 = F3_33*cos_q5 - F4_31*sin_q5;
             /* geometric Jacobian: revolute [w x (p - o); w], prismatic [w; 0] */
             const double t4_0 = -F4_24;
-            const double t4_1 = F4_34 - 0.6718;
+            const double t4_1 = F4_34 - 0.67183;
             const double t4_2 = -F4_34;
             const double t4_3 = -F2_34 - t4_2;
             const double t4_4 = -F3_34 - t4_2;
@@ -1489,7 +1489,7 @@ int puma560_jacobian_dot(size_t n, const double *restrict q, const double *restr
             const double J3_6 = 0;
             /* dJ/dt along qdot: axis rates Omega x w, point velocities */
             const double t5_0 = J2_1*qd1 + J2_2*qd2 + J2_3*qd3 + J2_4*qd4 + J2_5*qd5 + J2_6*qd6;
-            const double t5_1 = F4_34 - 0.6718;
+            const double t5_1 = F4_34 - 0.67183;
             const double t5_2 = J3_1*qd1 + J3_2*qd2 + J3_3*qd3 + J3_4*qd4 + J3_5*qd5 + J3_6*qd6;
             const double t5_3 = -F4_34;
             const double t5_4 = -F2_34 - t5_3;
@@ -1506,7 +1506,7 @@ int puma560_jacobian_dot(size_t n, const double *restrict q, const double *restr
             const double t5_15 = t5_13 + t5_14;
             const double t5_16 = -t5_15;
             const double t5_17 = -F3_13*t5_16 + F3_23*t5_9;
-            const double t5_18 = F3_34 - 0.6718;
+            const double t5_18 = F3_34 - 0.67183;
             const double t5_19 = -F2_34 + F3_34;
             const double t5_20 = -F3_14*qd1 + t5_0 + t5_18*t5_7 + t5_19*t5_8;
             const double t5_21 = -qd2*(F3_14*cos_q1 + F3_24*sin_q1) - qd3*(cos_q1*(-F2_14 + F3_14) + sin_q1*(-F2_24 + F3_24)) + t5_2;
@@ -1524,7 +1524,7 @@ int puma560_jacobian_dot(size_t n, const double *restrict q, const double *restr
             const double t5_33 = F4_24*qd1;
             const double t5_34 = -qd4*(F3_23*t5_6 - F3_33*t5_12) + t5_1*t5_13 + t5_14*t5_4 + t5_29 + t5_33;
             const double t5_35 = qd1*sin_q1;
-            const double t5_36 = F2_34 - 0.6718;
+            const double t5_36 = F2_34 - 0.67183;
             const double t5_37 = F3_33*qd4 + qd1;
             const double t5_38 = F3_23*qd4 - t5_15;
             const double t5_39 = F4_33*qd5 + t5_37;

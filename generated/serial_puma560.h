@@ -7,7 +7,7 @@
  * Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per
  * point: q and qd hold 6 values per point; matrices are stored row-major.
  * The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).
- * Description fingerprint: 57ca66bb949f37b2
+ * Description fingerprint: 0d3754f4ac3759dc
  * Every function evaluates n points and writes one status code per point:
  *   PUMA560_OK = 0
  *   PUMA560_UNREACHABLE = 1

@@ -1,7 +1,13 @@
 """Smoke test of `deltagen bench` at a tiny size: it runs, exits 0 and names every
-quantity it measures. No timing assertions (shared machines are noisy)."""
+quantity it measures. No timing assertions (shared machines are noisy).
+
+The comparison with roboticstoolbox-python / pinocchio (optional, `deltagen[bench]`) is
+switched off in the command-line runs (DELTAGEN_BENCH_ORACLES=0) and exercised on its own at a
+tiny size when a library is importable (CI installs neither)."""
 
 from __future__ import annotations
+
+import importlib.util
 
 import pytest
 
@@ -9,6 +15,9 @@ from deltagen import bench
 from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
+SERIAL_QUANTITIES = ("fk", "frames", "jacobian", "jacobian_dot")
+HAVE_ORACLE = any(importlib.util.find_spec(m) is not None
+                  for m in ("roboticstoolbox", "pinocchio"))
 
 
 def _rows(text: str) -> dict[str, str]:
@@ -23,11 +32,14 @@ def _rows(text: str) -> dict[str, str]:
 
 
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
-def test_bench_runs_and_names_every_quantity(capsys, markdown):
+def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
+    monkeypatch.setenv("DELTAGEN_BENCH_ORACLES", "0")
     argv = ["bench", "--n", "2000", "--repeats", "2"] + (["--markdown"] if markdown else [])
     assert main(argv) == 0
     out = capsys.readouterr().out
-    rows = _rows(out)
+    delta_part, _, serial_part = out.partition("Serial arm: puma560")
+    assert serial_part, "no serial-arm section"
+    rows = _rows(delta_part)
     for name in QUANTITIES:
         assert name in rows, f"no throughput row for {name}"
     for column in ("C kernel", "compiled _core", "compiled API", "reference _core",
@@ -46,6 +58,21 @@ def test_bench_runs_and_names_every_quantity(capsys, markdown):
     if markdown:
         assert "|---|" in out
         assert any(line.startswith("| fk_acc |") for line in out.splitlines())
+
+    # the serial arm (Puma560)
+    rows = _rows(serial_part)
+    for name in SERIAL_QUANTITIES:
+        assert name in rows, f"no serial throughput row for {name}"
+    for call in ("robot.fk(q), q ndarray (6,)", "robot.fk(q), q list of 6 floats",
+                 "robot.jacobian(q), q ndarray (6,)", "robot._core.fk(q), q (1, 6)",
+                 "robot._core.jacobian(q), q (1, 6)"):
+        assert call in serial_part
+    for target in ("<= 30", "<= 50", "<= 1 "):
+        assert target in serial_part
+    for fact in ("ns per configuration", "us per call", "N = 2,000", "C kernel",
+                 "reference _core", "agreement", "DELTAGEN_BENCH_ORACLES=0"):
+        assert fact in serial_part
+    assert "total bench time" in serial_part
 
 
 def test_sampled_poses_are_valid_for_both_backends():
@@ -67,3 +94,53 @@ def test_sampled_poses_are_valid_for_both_backends():
 def test_bad_sizes_are_rejected(capsys, argv):
     assert main(["bench", *argv]) == 2
     assert "must be at least 1" in capsys.readouterr().err
+
+
+def test_serial_poses_are_within_limits():
+    import numpy as np
+
+    from deltagen.serial.robot import SerialRobot
+
+    robot = SerialRobot.load(bench.SERIAL_ROBOT)
+    data = bench.sample_serial(300, robot, np.random.default_rng(0))
+    assert data["q"].shape == data["qd"].shape == (300, robot.n)
+    assert data["q"].flags.c_contiguous and robot.within_limits(data["q"]).all()
+
+
+@pytest.mark.skipif(not HAVE_ORACLE, reason="neither roboticstoolbox-python nor pinocchio")
+@pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
+def test_oracle_section_at_tiny_size(monkeypatch, markdown):
+    """The rtb / pinocchio comparison runs, pairs every library call with a deltagen call
+    and finds them in agreement (sizes shrunk: this checks the wiring, not the speed)."""
+    monkeypatch.setattr(bench, "LATENCY_REPEAT_NS", 1_000_000)
+    for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
+        monkeypatch.setattr(bench, name, 50)
+    serial = bench.run_serial(300, 1, oracles=True)
+    others = serial["oracles"]
+    if not others["rows"]:
+        pytest.skip("; ".join(others["absent"]))  # installed but not importable
+    assert others["agreement"]
+    for row in others["rows"]:
+        assert row["lib"].median > 0 and row["dg"].median > 0
+        assert row["dg_call"].startswith("robot.")
+    for library, agree in others["agreement"].items():
+        assert all(v <= bench.ORACLE_TOL for v in agree.values()), (library, agree)
+    text = "\n".join(bench._render_serial(serial, 1, markdown))
+    assert "vs other libraries" in text and "library / deltagen" in text
+    assert "WARNING" not in text
+    for library, label in (("roboticstoolbox-python", "rtb "), ("pinocchio", "pinocchio ")):
+        measured = any(key.startswith(library) for key in others["agreement"])
+        assert label in text if measured else any(
+            library in line and "not importable" in line for line in text.splitlines())
+
+
+def test_oracle_section_names_absent_libraries(monkeypatch):
+    """Without the libraries (as in CI) the section says so and measures nothing."""
+    import sys
+
+    for module in ("roboticstoolbox", "pinocchio"):
+        monkeypatch.setitem(sys.modules, module, None)  # import raises ImportError
+    others = bench._measure_oracles(None, None, 1)
+    assert others["rows"] == [] and others["agreement"] == {}
+    assert len(others["absent"]) == 2
+    assert all("not importable" in t and "deltagen[bench]" in t for t in others["absent"])

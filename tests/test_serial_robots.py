@@ -421,7 +421,7 @@ def test_puma560_table():
     desc = _load("puma560")
     r = math.pi / 2
     assert [j.a for j in desc.joints] == [0, 0.4318, 0.0203, 0, 0, 0]
-    assert [j.d for j in desc.joints] == [0.6718, 0, 0.15005, 0.4318, 0, 0]
+    assert [j.d for j in desc.joints] == [0.67183, 0, 0.15005, 0.4318, 0, 0]
     assert np.allclose([j.alpha for j in desc.joints], [r, 0, -r, r, -r, 0], atol=1e-15)
     assert np.allclose(desc.qlim / DEG, [[-160, 160], [-45, 225], [-225, 45], [-110, 170],
                                          [-100, 100], [-266, 266]])
@@ -436,12 +436,12 @@ def test_puma560_known_poses():
     # qz, by hand: A1 = Rot_x(90) maps x1 = x0, z1 = -y0; A2 = Trans_x(a2) -> (a2, 0, 0);
     # A3 = Trans_z(d3) Trans_x(a3) Rot_x(-90) -> + d3 along -y0 and a3 along x0, frame 3 back
     # to the base orientation; A4 = Trans_z(d4) Rot_x(90) -> + d4 along z0; A5, A6 rotate only.
-    # So p = (a2 + a3, -d3, d1 + d4) = (0.4521, -0.15005, 1.1036) m (d1 = 0.6718 m, the
+    # So p = (a2 + a3, -d3, d1 + d4) = (0.4521, -0.15005, 1.1036) m (d1 = 0.67183 m, the
     # Python toolbox's shoulder height), R = I.
     T = _fk(desc, desc.configurations["qz"])
-    assert np.allclose(T[:3, 3], [0.4521, -0.15005, 0.6718 + 0.4318], atol=1e-12)
+    assert np.allclose(T[:3, 3], [0.4521, -0.15005, 0.67183 + 0.4318], atol=1e-12)
     assert np.allclose(T[:3, :3], np.eye(3), atol=1e-12)
     # qr (arm straight up): upper arm a2 and forearm d4 both along z0:
     # p = (a3, -d3, d1 + a2 + d4) = (0.0203, -0.15005, 1.5354) m
     T = _fk(desc, desc.configurations["qr"])
-    assert np.allclose(T[:3, 3], [0.0203, -0.15005, 0.6718 + 0.8636], atol=1e-12)
+    assert np.allclose(T[:3, 3], [0.0203, -0.15005, 0.67183 + 0.8636], atol=1e-12)

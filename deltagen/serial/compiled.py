@@ -39,11 +39,15 @@ def _source_dir(desc) -> Path:
 
 
 class _Scratch(threading.local):
+    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
+
     def __init__(self, ffi, n):
         self.q = ffi.new(f"double[{n}]")
         self.T = ffi.new("double[16]")
+        self.J = ffi.new(f"double[{6 * n}]")
         self.status = ffi.new("int8_t[1]")
         self.T_np = np.frombuffer(ffi.buffer(self.T), dtype=np.float64).reshape(4, 4)
+        self.J_np = np.frombuffer(ffi.buffer(self.J), dtype=np.float64).reshape(6, n)
 
 
 class CompiledArm:
@@ -85,11 +89,13 @@ class CompiledArm:
         Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
         return Jd.reshape(-1, 6, self.desc.n), status
 
-    def fk_single(self):
-        """Fast path for one pose (list/tuple or (n,) float64 array): T, or None."""
-        fn = getattr(self._lib, f"{self._prefix}_fk")
+    def single(self, name):
+        """Fast path for one configuration (list/tuple or (n,) float64 array) of fk or
+        jacobian: the result, or None when the general path must handle the call."""
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
         scratch, memmove, n = self._scratch, self._ffi.memmove, self.desc.n
         ndarray, OK = np.ndarray, st.OK
+        out_name = "T" if name == "fk" else "J"
 
         def call(q):
             sc = scratch
@@ -105,9 +111,9 @@ class CompiledArm:
                     return None
             except (TypeError, ValueError, BufferError):
                 return None
-            fn(1, sc.q, sc.T, sc.status)
+            fn(1, sc.q, getattr(sc, out_name), sc.status)
             if sc.status[0] != OK:
                 return None
-            return sc.T_np.copy()
+            return getattr(sc, out_name + "_np").copy()
 
         return call

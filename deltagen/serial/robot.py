@@ -68,12 +68,13 @@ class SerialRobot:
             from .compiled import CompiledArm
 
             self._core = CompiledArm(description)
-            self._fk_single = self._core.fk_single()
+            self._fk_single = self._core.single("fk")
+            self._jacobian_single = self._core.single("jacobian")
         else:
             from . import reference
 
             self._core = _ReferenceArm(reference, description)
-            self._fk_single = None
+            self._fk_single = self._jacobian_single = None
 
     # -- construction ---------------------------------------------------------------
 
@@ -152,6 +153,10 @@ class SerialRobot:
     def jacobian(self, q, frame="base", errors="raise"):
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
         base frame (default) or the tool frame (frame="tool")."""
+        if self._jacobian_single is not None and frame == "base" and errors == "raise":
+            J = self._jacobian_single(q)
+            if J is not None:
+                return J
         frame = self._check_frame(frame)
         lead, qf = self._prepare(errors, q)
         J, status = self._core.jacobian(qf)

@@ -1,0 +1,526 @@
+"""Numerical inverse kinematics of serial arms: batched, damped Newton-Raphson.
+
+The method is the iteration of the EASY-ROB paper (seed 003, "Numerisches Loesungsverfahren
+zur inversen Transformation", steps 1-6) and of the lecture's Jacobian method (seed 002,
+slides 106-110), vectorised over N targets (no Python loop over targets):
+
+1. given the target pose T* (position p*, rotation R*), find q with fk(q) = T*;
+2. evaluate T = fk(q) and the Jacobian J(q);
+3. error dx = [p* - p; w] in the base frame, where w = theta * axis is the rotation vector
+   (axis-angle) of R* R^T, the rotation that still has to be applied to the tool (its
+   norm theta is the rotation error, exact also near theta = pi);
+4. solve J dq = dx on the selected rows ("mask"), limit dq;
+5. q <- q + dq (wrapped by 2 pi / clamped into the joint limits), T = fk(q);
+6. stop when |p* - p| <= tol_position [m] and |w| <= tol_rotation [rad], else go to 2.
+
+Jacobian sources (``jacobian=``), the seed's three methods:
+
+* ``"symbolic"``  -- the generated C geometric Jacobian (the SymPy derivation, i.e. the
+  "analytic derivative" route), ``arm._core.jacobian``;
+* ``"geometric"`` -- the cross-product method, computed HERE from the frames of the arm
+  (``arm._core.frames``): column i is [w_i x (p - o_i); w_i] for a revolute joint and
+  [w_i; 0] for a prismatic one, w_i / o_i the joint axis direction / a point on it
+  (standard DH: z and origin of frame i-1; modified DH: of frame i; universal: the joint's
+  ``axis`` column of base D_1 ... D_{i-1}). It does not use the C Jacobian;
+* ``"fd"``        -- central finite differences of fk alone (the seed's "general method",
+  for chains with couplings): v_i = (p(q + h e_i) - p(q - h e_i)) / 2h and
+  [w_i]x = skew((R(q + h e_i) - R(q - h e_i)) R^T) / 2h, h = 2^-17.
+
+Solving J dq = dx (per row, batched):
+
+* n == m (as many joints as matched components, e.g. 6-axis arms) and well-conditioned
+  (sigma_min >= ``SIGMA_WELL`` = 1e-2) and no damping active: Gauss elimination,
+  ``np.linalg.solve`` (the seed's choice for m = n = 6);
+* otherwise the singular value decomposition J = U S V^T and the damped pseudo-inverse
+  dq = V diag(s / (s^2 + lambda^2)) U^T dx. With lambda = 0 this is the Moore-Penrose
+  pseudo-inverse: the minimum-norm step for redundant arms (n > m, the seed's "SVD for
+  m > 6") and the least-squares step for n < m. For n > m an optional null-space term
+  ``null_space * (I - J^+ J) (q_mid - q)`` pulls towards the middle of the joint ranges.
+
+Damping (``damping="auto"``, singularity-robust / Levenberg-Marquardt):
+lambda^2 = (mu + K (1 - (sigma_min / SIGMA_WELL)^2)_+) * |dx|^2 with K = 1.
+The second term is the Nakamura-Hanafusa rule (damping grows as sigma_min falls below a
+threshold); mu is the Levenberg-Marquardt parameter of the row (0 at the start, raised
+x10 when a step does not lower |dx|, lowered /10 when it does). Both are scaled by the
+squared error (Yamashita-Fukushima): the damping vanishes at the solution, so the
+iteration stays quadratically convergent even at singular solutions (e.g. the Puma wrist
+at q5 = 0), where a constant damping would stall at ~lambda^2-relative accuracy. A step is
+accepted only if it lowers |dx| (|dx| = sqrt(|dp|^2 + |w|^2) over the matched components);
+so the returned q is always the best one found. ``damping=<float c>``: the same with
+K = c. ``damping=None``: plain Newton-Raphson as in the seed (every step taken, no
+damping, small singular values truncated at 1e-12 sigma_max).
+
+Step limiting: dq is scaled so that max_i |dq_i| <= ``step_limit`` (rad or m).
+
+Joint limits (``respect_limits=True``): the start is clamped into arm.qlim; after every
+step a revolute joint outside its range is first shifted by a multiple of 2 pi if that
+brings it inside (the same pose), otherwise clamped. A row that is stuck (at a limit or
+in a local minimum: mu above 1e12, or |dx| not halved over 8 steps) ends its attempt; with
+``restarts`` > 0 it starts again from a random in-limit q (uniform in qlim; unlimited
+revolute joints in [-pi, pi], unlimited prismatic ones in [-1, 1] m). Each attempt has at
+most ``max_iter`` steps; rows still unconverged after the last attempt return the best q
+found, with converged False.
+
+Mask ("tool fitting", seed 003, for arms with fewer than 6 axes): 6 booleans for the
+components (vx vy vz wx wy wz) to match; the others are ignored. Default: all six if
+n >= 6; for n < 6 the components the arm can move at all, i.e. the rows of the geometric
+Jacobian that are not identically zero (|J_row| <= 1e-9 max |J|) over 32 random in-limit
+configurations. A SCARA (manutec_h5, bosch_sr800) gets vx vy vz wz (position + rotation
+about z); the planar 2R lecture_scara gets vx vy wz (three components for two joints: a
+least-squares fit that converges for targets of the form fk(q); give mask=(1,1,0,0,0,0)
+for position only). For a rotation mask of wz only, the z component of the rotation vector
+of R* R^T is driven to zero: the tool's rotation about the base z axis is fitted.
+
+Invalid input rows (any non-finite value in T or q0) are not iterated: converged False,
+q, position_error and rotation_error NaN, iterations 0. Nothing warns: floating-point
+errors are suppressed inside and every array is finite on the rows that are iterated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..inputs import InputError, as_float_array
+
+__all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
+
+JACOBIANS = ("symbolic", "geometric", "fd")
+SIGMA_WELL = 1e-2       # sigma_min below this: damping grows (Nakamura-Hanafusa threshold)
+BASE_DAMPING = 0.0      # c0: lambda^2 >= c0 |dx|^2 always
+MU_START = 1e-2         # LM parameter after the first rejected step
+MU_MAX = 1e12           # LM parameter above which the attempt counts as stuck
+STALL_WINDOW = 8        # steps over which |dx| must at least halve (else stuck)
+FD_STEP = 2.0 ** -17    # central-difference step (~ eps^(1/3))
+_RCOND = 1e-12
+GAUSS_REL = 0.0
+ACTIVE_SET = True
+_AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass
+class IKResult:
+    """Result of :func:`solve`, shaped like the targets' leading dimensions.
+
+    q: (..., n) joint values (the solution, or the best q found for unconverged rows);
+    converged: (...) bool; iterations: (...) Newton steps used over all attempts;
+    position_error [m] and rotation_error [rad]: (...) norms of the matched (masked)
+    components of p* - p and of the rotation vector of R* R^T at q; mask: the (6,) bool
+    mask used (vx vy vz wx wy wz).
+    """
+
+    q: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    position_error: np.ndarray
+    rotation_error: np.ndarray
+    mask: np.ndarray
+
+    def __repr__(self):
+        conv = np.asarray(self.converged)
+        return (f"IKResult({int(conv.sum())} of {conv.size} converged, "
+                f"max iterations {int(np.max(self.iterations, initial=0))})")
+
+
+# ------------------------------------------------------------------------------ geometry
+
+
+def rotation_vector(R: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations -> (N, 3) rotation vectors theta * axis (the matrix logarithm).
+
+    theta = atan2(|v|, (tr R - 1) / 2) with v = vee(R - R^T) / 2 = sin(theta) axis. For
+    theta <= pi/2 the axis is v / |v| (v itself when |v| is tiny: exact to first order);
+    for theta > pi/2 it comes from the symmetric part, (R + R^T)/2 = c I + (1 - c) a a^T,
+    column of the largest diagonal entry, with the sign of v (accurate up to theta = pi).
+    """
+    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
+                        R[:, 1, 0] - R[:, 0, 1]], axis=-1)
+    c = np.clip(0.5 * (R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0), -1.0, 1.0)
+    s = np.linalg.norm(v, axis=-1)
+    theta = np.arctan2(s, c)
+    small = s < 1e-300
+    factor = np.where(small, 1.0, theta / np.where(small, 1.0, s))
+    out = v * factor[:, None]
+    big = c < 0.0
+    if np.any(big):
+        Rb, cb, vb, tb = R[big], c[big], v[big], theta[big]
+        S = 0.5 * (Rb + np.swapaxes(Rb, 1, 2)) - cb[:, None, None] * np.eye(3)
+        S = S / (1.0 - cb)[:, None, None]  # = a a^T
+        k = np.argmax(np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2]], axis=-1), axis=-1)
+        a = S[np.arange(len(k)), :, k]
+        a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+        sign = np.where(np.einsum("ij,ij->i", a, vb) < 0.0, -1.0, 1.0)
+        out[big] = a * (sign * tb)[:, None]
+    return out
+
+
+def pose_error(T_current: np.ndarray, T_target: np.ndarray, mask=None) -> np.ndarray:
+    """(N, 6): [p* - p; rotation vector of R* R^T] in the base frame; components outside
+    ``mask`` set to 0."""
+    e = np.empty(T_current.shape[:1] + (6,))
+    e[:, :3] = T_target[:, :3, 3] - T_current[:, :3, 3]
+    e[:, 3:] = rotation_vector(T_target[:, :3, :3] @ np.swapaxes(T_current[:, :3, :3], 1, 2))
+    if mask is not None:
+        e[:, ~np.asarray(mask, dtype=bool)] = 0.0
+    return e
+
+
+def _geometric_jacobian(arm, q: np.ndarray) -> np.ndarray:
+    """Cross-product Jacobian from the frames (see the module docstring)."""
+    desc = arm.description
+    F, _ = arm._core.frames(q)
+    N, n = q.shape
+    idx = np.arange(n)
+    if desc.convention == "modified":
+        M = F[:, idx + 1]
+        cols = np.full(n, 2)
+    elif desc.convention == "standard":
+        M = F[:, idx]
+        cols = np.full(n, 2)
+    else:
+        M = F[:, idx]
+        cols = np.array([_AXIS[j.axis] for j in desc.joints])
+    o = M[:, :, :3, 3]                          # (N, n, 3) points on the axes
+    w = np.einsum("nkij,kj->nki", M[:, :, :3, :], np.eye(4)[cols])  # (N, n, 3) directions
+    p = F[:, -1, :3, 3]
+    rev = np.array([j.revolute for j in desc.joints])
+    J = np.empty((N, 6, n))
+    J[:, :3] = np.where(rev[None, :, None], np.cross(w, p[:, None, :] - o), w).transpose(0, 2, 1)
+    J[:, 3:] = np.where(rev[None, :, None], w, 0.0).transpose(0, 2, 1)
+    return J
+
+
+def _fd_jacobian(arm, q: np.ndarray) -> np.ndarray:
+    N, n = q.shape
+    h = FD_STEP
+    Q = np.repeat(q[:, None, None, :], 2, axis=1).repeat(n, axis=2)  # (N, 2, n, n)
+    eye = np.eye(n) * h
+    Q[:, 0] += eye
+    Q[:, 1] -= eye
+    Tpm, _ = arm._core.fk(np.ascontiguousarray(Q.reshape(-1, n)))
+    Tpm = Tpm.reshape(N, 2, n, 4, 4)
+    T0, _ = arm._core.fk(q)
+    Tp, Tm = Tpm[:, 0], Tpm[:, 1]
+    J = np.empty((N, 6, n))
+    J[:, :3] = ((Tp[..., :3, 3] - Tm[..., :3, 3]) / (2 * h)).transpose(0, 2, 1)
+    D = (Tp[..., :3, :3] - Tm[..., :3, :3]) @ np.swapaxes(T0[:, None, :3, :3], -1, -2)
+    D = D / (2 * h)
+    wv = 0.5 * np.stack([D[..., 2, 1] - D[..., 1, 2], D[..., 0, 2] - D[..., 2, 0],
+                         D[..., 1, 0] - D[..., 0, 1]], axis=-1)  # (N, n, 3)
+    J[:, 3:] = wv.transpose(0, 2, 1)
+    return J
+
+
+def jacobian(arm, q, source: str = "symbolic") -> np.ndarray:
+    """Base-frame geometric Jacobian (N, 6, n) of finite q (N, n) from one of the sources
+    "symbolic" (generated C), "geometric" (cross products of the frames) or "fd"
+    (central differences of fk)."""
+    if source not in JACOBIANS:
+        raise InputError(f"jacobian must be one of {JACOBIANS}, got {source!r}")
+    q = np.ascontiguousarray(as_float_array(q, "q").reshape(-1, arm.n))
+    if source == "symbolic":
+        return arm._core.jacobian(q)[0]
+    if source == "geometric":
+        return _geometric_jacobian(arm, q)
+    return _fd_jacobian(arm, q)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _sample_box(arm):
+    """Finite (lo, hi) boxes for random starts."""
+    lim = arm.qlim
+    rev = np.array([j.revolute for j in arm.description.joints])
+    width = np.where(rev, 2 * np.pi, 2.0)
+    lo, hi = lim[:, 0].copy(), lim[:, 1].copy()
+    lo_f, hi_f = np.isfinite(lo), np.isfinite(hi)
+    lo = np.where(lo_f, lo, np.where(hi_f, hi - width, -width / 2))
+    hi = np.where(hi_f, hi, lo + width)
+    return lo, hi
+
+
+def default_mask(arm, source: str = "symbolic") -> np.ndarray:
+    """The default components to match (see the module docstring)."""
+    if arm.n >= 6:
+        return np.ones(6, dtype=bool)
+    lo, hi = _sample_box(arm)
+    rng = np.random.default_rng(20240601)
+    q = lo + (hi - lo) * rng.random((32, arm.n))
+    J = jacobian(arm, q, source)
+    size = np.max(np.abs(J), axis=(0, 2))
+    return size > 1e-9 * max(float(np.max(size)), 1e-300)
+
+
+def _check_mask(mask) -> np.ndarray:
+    m = np.asarray(mask)
+    if m.shape != (6,) or not (m.dtype.kind in "biu" and np.all((m == 0) | (m == 1))):
+        raise InputError("mask must be 6 booleans (vx vy vz wx wy wz)")
+    m = m.astype(bool)
+    if not m.any():
+        raise InputError("mask selects no pose component")
+    return m
+
+
+def _check_tol(tol):
+    t = np.broadcast_to(np.asarray(tol, dtype=float), (2,)) if np.ndim(tol) <= 1 else None
+    if t is None or t.shape != (2,) or not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise InputError("tol must be a finite value >= 0 or a pair (position [m], rotation [rad])")
+    return float(t[0]), float(t[1])
+
+
+class _Limits:
+    def __init__(self, arm, respect):
+        lim = arm.qlim
+        self.lo, self.hi = lim[:, 0], lim[:, 1]
+        self.respect = respect
+        rev = np.array([j.revolute for j in arm.description.joints])
+        self.wrap = rev & np.isfinite(self.lo) & np.isfinite(self.hi)
+        self.mid = np.where(np.isfinite(self.lo) & np.isfinite(self.hi),
+                            0.5 * (self.lo + self.hi), np.nan)
+
+    def wrap_only(self, q):
+        """q with out-of-range revolute joints shifted by 2 pi where that brings them in."""
+        if not self.respect:
+            return q
+        two_pi = 2 * np.pi
+        below, above = q < self.lo, q > self.hi
+        k = np.where(below, np.ceil((self.lo - q) / two_pi), 0.0)
+        k = np.where(above, -np.ceil((q - self.hi) / two_pi), k)
+        q2 = q + two_pi * k
+        use = (below | above) & self.wrap & (q2 >= self.lo) & (q2 <= self.hi)
+        return np.where(use, q2, q)
+
+    def apply(self, q):
+        if not self.respect:
+            return q
+        return np.clip(self.wrap_only(q), self.lo, self.hi)
+
+    def _old_apply(self, q):
+        two_pi = 2 * np.pi
+        below, above = q < self.lo, q > self.hi
+        k = np.where(below, np.ceil((self.lo - q) / two_pi), 0.0)
+        k = np.where(above, -np.ceil((q - self.hi) / two_pi), k)
+        q2 = q + two_pi * k
+        use = (below | above) & self.wrap & (q2 >= self.lo) & (q2 <= self.hi)
+        q = np.where(use, q2, q)
+        return np.clip(q, self.lo, self.hi)
+
+
+# ------------------------------------------------------------------------------- solve
+
+
+def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symbolic",
+          damping="auto", step_limit=0.5, respect_limits=True, restarts=0, seed=0,
+          null_space=0.0) -> IKResult:
+    """Joint values q with fk(q) = T for a batch of target poses (module docstring).
+
+    arm: a SerialRobot. T: (..., 4, 4) targets (only the rotation block and the position
+    column are used). q0: (n,) or (..., n) start, broadcast against T's leading shape;
+    None: the arm's "qz" configuration if it has one, else zeros (clamped into the
+    limits). tol: one value or (position [m], rotation [rad]). max_iter: Newton steps per
+    attempt. mask: 6 booleans vx vy vz wx wy wz (default: see module docstring).
+    jacobian: "symbolic" | "geometric" | "fd". damping: "auto" | float >= 0 | None.
+    step_limit: max |dq_i| per step (None: unlimited). respect_limits: keep q in qlim.
+    restarts: extra attempts from random in-limit starts for unconverged rows; seed: their
+    random generator's seed. null_space: gain of the pull towards mid-range (n > m only).
+    """
+    if jacobian not in JACOBIANS:
+        raise InputError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    tol_p, tol_r = _check_tol(tol)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
+        raise InputError(f"max_iter must be an integer >= 0, got {max_iter!r}")
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
+        raise InputError(f"restarts must be an integer >= 0, got {restarts!r}")
+    if damping == "auto":
+        k_nh, lm = 1.0, True
+    elif damping is None:
+        k_nh, lm = 0.0, False
+    elif isinstance(damping, (int, float, np.floating, np.integer)) and not isinstance(damping, bool) \
+            and np.isfinite(damping) and damping >= 0:
+        k_nh, lm = float(damping), True
+    else:
+        raise InputError(f'damping must be "auto", a number >= 0 or None, got {damping!r}')
+    if step_limit is not None and not (np.isfinite(step_limit) and step_limit > 0):
+        raise InputError(f"step_limit must be > 0 or None, got {step_limit!r}")
+    if not (np.isfinite(null_space) and null_space >= 0):
+        raise InputError(f"null_space must be a number >= 0, got {null_space!r}")
+    n = arm.n
+    T = as_float_array(T, "T")
+    if T.ndim < 2 or T.shape[-2:] != (4, 4):
+        raise InputError(f"T must have shape (..., 4, 4), got {T.shape}")
+    lead = T.shape[:-2]
+    if q0 is None:
+        q0 = arm.configurations.get("qz", np.zeros(n))
+    q0 = as_float_array(q0, "q0")
+    if q0.shape[-1] != n:
+        raise InputError(f"q0 must have shape (..., {n}) for {arm.name}, got {q0.shape}")
+    try:
+        q0 = np.broadcast_to(q0, lead + (n,))
+    except ValueError:
+        raise InputError(f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}") from None
+    mask = default_mask(arm, jacobian) if mask is None else _check_mask(mask)
+
+    Tt = np.ascontiguousarray(T.reshape(-1, 4, 4))
+    Q0 = np.array(q0.reshape(-1, n), dtype=float)
+    N = Tt.shape[0]
+    valid = np.all(np.isfinite(Tt), axis=(1, 2)) & np.all(np.isfinite(Q0), axis=1)
+    q_out = np.full((N, n), np.nan)
+    conv = np.zeros(N, dtype=bool)
+    iters = np.zeros(N, dtype=np.int64)
+    pos_err = np.full(N, np.nan)
+    rot_err = np.full(N, np.nan)
+    rows = np.flatnonzero(valid)
+    if rows.size:
+        with np.errstate(all="ignore"):
+            q, c, it, pe, re = _iterate(
+                arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), jacobian, k_nh, lm,
+                step_limit, bool(respect_limits), int(restarts), seed, float(null_space))
+        q_out[rows], conv[rows], iters[rows], pos_err[rows], rot_err[rows] = q, c, it, pe, re
+    return IKResult(q=q_out.reshape(lead + (n,)), converged=conv.reshape(lead),
+                    iterations=iters.reshape(lead), position_error=pos_err.reshape(lead),
+                    rotation_error=rot_err.reshape(lead), mask=mask)
+
+
+def _newton_step(A, r, weight, err, k_nh, q, mid, null_gain, step_limit):
+    """Damped least-squares / Gauss step (module docstring) for (k, m, n) A, (k, m) r."""
+    k, m, n = A.shape
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    smin = s[:, -1]
+    nh = k_nh * np.clip(1.0 - (smin / SIGMA_WELL) ** 2, 0.0, None)
+    lam2 = weight + (BASE_DAMPING + nh) * err ** 2
+    keep = s > _RCOND * s[:, :1]
+    f = np.where(keep, s / np.where(keep, s * s + lam2[:, None], 1.0), 0.0)
+    dq = np.einsum("kri,kr->ki", Vt, f * np.einsum("kmr,km->kr", U, r))
+    if m == n:
+        gauss = (lam2 <= (GAUSS_REL * smin) ** 2) & (smin >= SIGMA_WELL)
+        if np.any(gauss):
+            try:
+                dq[gauss] = np.linalg.solve(A[gauss], r[gauss][:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:  # pragma: no cover - excluded by the smin check
+                pass
+    if mid is not None and m < n:
+        pull = np.isfinite(mid)
+        z = np.where(pull, null_gain * (np.where(pull, mid, 0.0) - q), 0.0)
+        Vk = Vt * keep[:, :, None]
+        dq += z - np.einsum("kri,kr->ki", Vk, np.einsum("kri,ki->kr", Vk, z))
+    if step_limit is not None:
+        big = np.max(np.abs(dq), axis=1)
+        scale = np.where(big > step_limit, step_limit / np.where(big > 0, big, 1.0), 1.0)
+        dq *= scale[:, None]
+    return dq
+
+
+def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, lm, step_limit,
+             respect, restarts, seed, null_gain):
+    N, n = q.shape
+    m = int(mask.sum())
+    limits = _Limits(arm, respect)
+    rng = np.random.default_rng(seed)
+    box_lo, box_hi = _sample_box(arm)
+    if respect:
+        box_lo, box_hi = np.maximum(box_lo, limits.lo), np.minimum(box_hi, limits.hi)
+    q = limits.apply(q)
+
+    def errors(qa, ta):
+        Tc, _ = arm._core.fk(np.ascontiguousarray(qa))
+        e = pose_error(Tc, Tt[ta], mask)
+        ep = np.linalg.norm(e[:, :3], axis=1)
+        er = np.linalg.norm(e[:, 3:], axis=1)
+        return e, ep, er
+
+    e, ep, er = errors(q, np.arange(N))
+    err = np.hypot(ep, er)
+    mu = np.zeros(N)
+    it = np.zeros(N, dtype=np.int64)          # total steps
+    it_att = np.zeros(N, dtype=np.int64)      # steps in the current attempt
+    attempts = np.zeros(N, dtype=np.int64)
+    chk = err.copy()                          # |dx| at the last stall checkpoint
+    best_q, best_err, best_ep, best_er = q.copy(), err.copy(), ep.copy(), er.copy()
+    conv = np.zeros(N, dtype=bool)
+    active = np.ones(N, dtype=bool)
+    stuck = np.zeros(N, dtype=bool)
+    mid = limits.mid
+    pull = np.isfinite(mid)
+    mrows = np.flatnonzero(mask)
+
+    for _ in range((restarts + 1) * (max_iter + 2) + 2):
+        a = np.flatnonzero(active)
+        if a.size == 0:
+            break
+        # -- converged?
+        done = (ep[a] <= tol_p) & (er[a] <= tol_r)
+        conv[a[done]] = True
+        active[a[done]] = False
+        a = a[~done]
+        # -- attempt over (iteration cap or stuck)?
+        over = (it_att[a] >= max_iter) | stuck[a]
+        if np.any(over):
+            ended = a[over]
+            again = ended[attempts[ended] < restarts]
+            active[ended[attempts[ended] >= restarts]] = False
+            if again.size:
+                attempts[again] += 1
+                it_att[again] = 0
+                stuck[again] = False
+                mu[again] = 0.0
+                q[again] = box_lo + (box_hi - box_lo) * rng.random((again.size, n))
+                e[again], ep[again], er[again] = errors(q[again], again)
+                err[again] = np.hypot(ep[again], er[again])
+                chk[again] = err[again]
+                better = err[again] < best_err[again]
+                b = again[better]
+                best_q[b], best_err[b], best_ep[b], best_er[b] = q[b], err[b], ep[b], er[b]
+            a = a[~over]
+        if a.size == 0:
+            continue
+        # -- Newton step on the rows in a
+        qa = np.ascontiguousarray(q[a])
+        A = jacobian(arm, qa, source)[:, mrows, :]       # (k, m, n)
+        r = e[a][:, mrows]                               # (k, m)
+        weight = mu[a] * err[a] ** 2
+        dq = _newton_step(A, r, weight, err[a], k_nh, qa, mid if null_gain > 0 else None,
+                          null_gain, step_limit)
+        if respect and ACTIVE_SET:
+            # joints the step would push beyond a limit (no 2 pi shift helps): move them onto
+            # the limit and solve again for the others (one active-set pass)
+            target = qa + dq
+            viol = limits.apply(target) != limits.wrap_only(target)
+            fix = np.flatnonzero(np.any(viol, axis=1))
+            if fix.size:
+                Af, vf = A[fix], viol[fix]
+                moved = np.where(vf, limits.apply(target[fix]) - qa[fix], 0.0)
+                rf = r[fix] - np.einsum("kmi,ki->km", Af, moved)
+                Af = np.where(vf[:, None, :], 0.0, Af)
+                dq2 = _newton_step(Af, rf, weight[fix], err[a][fix], k_nh, qa[fix],
+                                   mid if null_gain > 0 else None, null_gain, step_limit)
+                dq[fix] = np.where(vf, moved, dq2)
+        q_new = limits.apply(qa + dq)
+        e_new, ep_new, er_new = errors(q_new, a)
+        err_new = np.hypot(ep_new, er_new)
+        it[a] += 1
+        it_att[a] += 1
+        ok = np.isfinite(err_new)
+        accept = ok & (err_new < err[a]) if lm else ok
+        acc, rej = a[accept], a[~accept]
+        q[acc], e[acc], ep[acc], er[acc], err[acc] = (q_new[accept], e_new[accept],
+                                                       ep_new[accept], er_new[accept],
+                                                       err_new[accept])
+        mu[acc] = np.where(mu[acc] / 10.0 < MU_START, 0.0, mu[acc] / 10.0)
+        mu[rej] = np.maximum(mu[rej] * 10.0, MU_START)
+        better = err[acc] < best_err[acc]
+        b = acc[better]
+        best_q[b], best_err[b], best_ep[b], best_er[b] = q[b], err[b], ep[b], er[b]
+        # -- stuck? (only ends the attempt early when a restart is left, or when the LM
+        # parameter has run away: then no step can lower the error any more)
+        stuck[a] = mu[a] > MU_MAX
+        window = a[it_att[a] % STALL_WINDOW == 0]
+        slow = err[window] > 0.5 * chk[window]
+        stuck[window[slow & (attempts[window] < restarts)]] = True
+        chk[window] = err[window]
+
+    q_res = np.where(conv[:, None], q, best_q)
+    ep_res = np.where(conv, ep, best_ep)
+    er_res = np.where(conv, er, best_er)
+    return q_res, conv, it, ep_res, er_res
