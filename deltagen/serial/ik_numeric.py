@@ -88,13 +88,13 @@ __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "de
 
 JACOBIANS = ("symbolic", "geometric", "fd")
 SIGMA_WELL = 1e-2       # sigma_min below this: damping grows (Nakamura-Hanafusa threshold)
-BASE_DAMPING = 0.0      # c0: lambda^2 >= c0 |dx|^2 always
+BASE_DAMPING = 0.1      # c0: lambda^2 >= c0 |dx|^2 always
 MU_START = 1e-2         # LM parameter after the first rejected step
 MU_MAX = 1e12           # LM parameter above which the attempt counts as stuck
 STALL_WINDOW = 8        # steps over which |dx| must at least halve (else stuck)
 FD_STEP = 2.0 ** -17    # central-difference step (~ eps^(1/3))
 _RCOND = 1e-12
-GAUSS_REL = 0.0
+GAUSS_REL = 1e-3
 ACTIVE_SET = True
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
