@@ -257,6 +257,119 @@ class SerialRobot:
             out = sv[..., 0] / sv[..., -1]
         return self._plain(errors, q, out, valid)
 
+    # -- inverse kinematics -------------------------------------------------------------
+
+    def _poses(self, T, name="T"):
+        arr = as_float_array(T, name)
+        if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
+            raise InputError(f"{name} must have shape (..., 4, 4), got {arr.shape}")
+        lead = arr.shape[:-2]
+        flat = np.ascontiguousarray(arr.reshape(-1, 4, 4))
+        finite = np.all(np.isfinite(flat), axis=(1, 2))
+        R = flat[:, :3, :3]
+        with np.errstate(invalid="ignore"):
+            rigid = np.all(np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)) < 1e-6, axis=(1, 2))
+            rigid &= np.all(np.abs(flat[:, 3] - [0, 0, 0, 1]) < 1e-12, axis=1)
+        return lead, flat, finite, rigid
+
+    def analytic_configs(self) -> tuple:
+        """Branch names of the closed-form solution ((), if the arm has none)."""
+        solver = self._analytic()
+        return () if solver is None else tuple(solver.configs)
+
+    def _analytic(self):
+        if not hasattr(self, "_analytic_solver"):
+            from .ik_analytic import analytic_solver
+
+            self._analytic_solver = analytic_solver(self.description)
+        return self._analytic_solver
+
+    def ik_all(self, T):
+        """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
+        within the joint limits). Branch names: analytic_configs()."""
+        solver = self._analytic()
+        if solver is None:
+            raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")
+        lead, flat, finite, rigid = self._poses(T)
+        bad = ~(finite & rigid)
+        safe = flat.copy()
+        safe[bad] = np.eye(4)
+        q, valid = solver.solve(safe)
+        q[bad], valid[bad] = np.nan, False
+        k = len(solver.configs)
+        return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
+
+    def ik(self, T, config=None, q0=None, method="auto", errors="raise", **options):
+        """Joint coordinates reaching the tool pose(s) T (..., 4, 4).
+
+        method "analytic" (closed form, where the structure allows), "numeric" (Newton /
+        damped least squares, deltagen.serial.ik_numeric.solve; ``options`` go there), or
+        "auto" (analytic if available). Analytic: ``config`` picks a branch by name
+        (analytic_configs()); ``q0`` picks the valid branch nearest q0; neither: the first
+        valid branch in the order of analytic_configs(). Numeric: starts at q0 (default the
+        middle of the joint ranges, or zeros)."""
+        check_errors_mode(errors)
+        if method not in ("auto", "analytic", "numeric"):
+            raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
+        lead, flat, finite, rigid = self._poses(T)
+        if errors == "raise" and not np.all(finite & rigid):
+            bad = np.flatnonzero(~(finite & rigid))
+            raise InputError(f"T is not a finite rigid transform in rows {_rows_text(bad)}")
+        use_analytic = method == "analytic" or (method == "auto" and self._analytic() is not None)
+        if use_analytic:
+            if self._analytic() is None:
+                raise InputError(f"{self.name} has no closed-form inverse; use method='numeric'")
+            q_all, valid_all = self.ik_all(flat)
+            q, ok = self._pick_branch(q_all, valid_all, config, q0)
+        else:
+            from . import ik_numeric
+
+            start = self._start(q0, flat.shape[0])
+            safe = flat.copy()
+            safe[~(finite & rigid)] = np.eye(4)
+            result = ik_numeric.solve(self, safe, start, **options)
+            q, ok = result.q, result.converged & finite & rigid
+        q = q.copy()
+        q[~ok] = np.nan
+        if errors == "raise":
+            if not np.all(ok):
+                from ..errors import UnreachableError
+
+                bad = np.flatnonzero(~ok)
+                raise UnreachableError(
+                    f"no solution within the joint limits for rows {_rows_text(bad)}"
+                    + (f" in configuration {config!r}" if config else ""), bad)
+            return q.reshape(lead + (self.n,))
+        return q.reshape(lead + (self.n,)), ok.reshape(lead)
+
+    def _start(self, q0, count):
+        if q0 is None:
+            lim = self.qlim
+            bounded = np.isfinite(lim).all(axis=1)
+            mid = np.where(bounded, np.where(bounded[:, None], lim, 0.0).mean(axis=1), 0.0)
+            return np.tile(mid, (count, 1))
+        _, arr = self._joints(q0, "q0")
+        return np.ascontiguousarray(np.broadcast_to(arr.reshape(-1, self.n), (count, self.n)))
+
+    def _pick_branch(self, q_all, valid_all, config, q0):
+        configs = self.analytic_configs()
+        rows = np.arange(q_all.shape[0])
+        if config is not None:
+            if config not in configs:
+                raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
+            k = configs.index(config)
+            return q_all[:, k], valid_all[:, k]
+        if q0 is not None:
+            start = self._start(q0, q_all.shape[0])
+            d = np.remainder(q_all - start[:, None, :] + np.pi, 2 * np.pi) - np.pi
+            revolute = np.array([j.revolute for j in self.description.joints])
+            d = np.where(revolute, d, q_all - start[:, None, :])
+            dist = np.where(valid_all, np.linalg.norm(np.nan_to_num(d, nan=np.inf), axis=-1), np.inf)
+            k = np.argmin(dist, axis=1)
+        else:
+            k = np.argmax(valid_all, axis=1)
+        return q_all[rows, k], valid_all[rows, k]
+
     # -- helpers ----------------------------------------------------------------------
 
     def _plain(self, errors, q, out, valid):
