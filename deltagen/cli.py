@@ -180,6 +180,13 @@ def main(argv=None) -> int:
     v.add_argument("--quiet", action="store_true", help="no progress output")
     v.set_defaults(func=lambda a: _lazy("deltagen.delta.validation", a))
 
+    d = sub.add_parser("demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place")
+    d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place"))
+    d.add_argument("--out", default=None,
+                   help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
+                        "lecture-scara writes its plot only when given)")
+    d.set_defaults(func=lambda a: _lazy("deltagen.demos", a))
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")

@@ -12,8 +12,8 @@ The pieces, bottom up:
   - :class:`Trapezoid` (linear segment with parabolic blends, LSPB): constant acceleration
     for the blend fraction ``b`` of the time at each end, constant velocity
     ``1 / (1 - b)`` in between; ``b = 1/2`` is the triangular (bang-bang) profile. The
-    velocity is continuous, the acceleration jumps at the four blend corners (so a
-    numerical second derivative is O(1) wrong at those samples).
+    velocity is continuous, the acceleration jumps at the four blend corners (so there a
+    numerical first derivative is only O(h) and a second derivative O(1) wrong).
 
 * **Paths** in space, parameterised by ``s`` in [0, 1]: :class:`Line` ``p0 -> p1`` and
   :class:`Arc` (a circular arc by centre, start point, axis and signed angle, or
@@ -730,10 +730,16 @@ def solve_ik(robot, task: Task, p, R=None, qj=None, q_init=None, tol=1e-13, max_
 
     The damping lam^2 = (damping)^2 * mean(eig(J J^T)) is tiny by default, so the steps are
     Newton steps away from singularities and stay bounded near them; a step that increases
-    the error is retried with ten times the damping. Raises TrajectoryError if |e| does not
-    fall below tol (or stagnates above sqrt(tol))."""
+    the error is retried with ten times the damping. Converged when |e| <= tol, or when the
+    iteration stalls (|e| no longer halves) below ``floor = max(tol, 1e-3 sqrt(tol))`` (the
+    rounding floor of a large arm); else TrajectoryError."""
     task.check(robot)
+    if q_init is None:
+        raise InputError("solve_ik needs a start guess q_init (it selects the configuration)")
     q = np.array(q_init, dtype=float)
+    if q.shape != (robot.n,):
+        raise InputError(f"q_init must have {robot.n} values")
+    floor = max(tol, 1e-3 * math.sqrt(tol))
     lam = damping
     T = robot.fk(q)
     e = task.error(T, q, p, R, qj)
@@ -756,9 +762,9 @@ def solve_ik(robot, task: Task, p, R=None, qj=None, q_init=None, tol=1e-13, max_
         stalled = err_new >= 0.5 * err
         q, e, err = q_new, e_new, err_new
         lam = max(lam * 0.1, damping)
-        if stalled and err <= math.sqrt(tol):  # rounding floor reached
+        if stalled and err <= floor:  # rounding floor reached
             break
-    if not (err <= math.sqrt(tol) * 1e-3 or err <= tol):
+    if not err <= floor:
         raise TrajectoryError(f"IK did not converge: |e| = {err:.3g} after {it} iterations")
     return q, err, it
 
@@ -783,7 +789,7 @@ def numerical_rates(t, q, breaks=()):
     if np.max(np.abs(np.diff(t) - h)) > 1e-9 * h:
         raise InputError("numerical_rates needs a uniform time grid")
     cuts = [0]
-    for b in np.atleast_1d(breaks):
+    for b in np.sort(np.atleast_1d(np.asarray(breaks, dtype=float))):
         i = int(round((b - t[0]) / h))
         if 0 < i < N - 1 and abs(t[i] - b) <= 1e-9 * max(1.0, abs(b)) + 1e-6 * h:
             if i - cuts[-1] >= 3 and N - 1 - i >= 3:
