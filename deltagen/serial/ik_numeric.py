@@ -69,20 +69,21 @@ Joint limits (``respect_limits=True``; the result is always within arm.qlim):
   brings it inside (the same pose);
 * each attempt (the first one from q0) first iterates with the limits unenforced (2 pi
   shifts only) -- Newton's basins are larger without clamping -- and checks the limits
-  when |dx| <= max(tol, 1e-9) (per component). If that solution is outside the limits, the attempt goes back to its
-  start point (clamped into the limits) and iterates again with the limits enforced:
-  after every step clamp, and joints that a step would push through a limit are set onto
-  it while the remaining joints solve for the rest of dx (one active-set pass, a second
-  SVD for those rows). (Restarting the limited phase from the start rather than from the
-  clamped out-of-range solution converged more often: 72 vs 68 % for the Puma from qz.)
+  once |dx| <= max(tol, 1e-9) per component. If that solution is outside the limits,
+  the attempt goes back to its start point (clamped into the limits) and iterates again
+  with the limits enforced: after every step clamp, and joints that a step would push
+  through a limit are set onto it while the remaining joints solve for the rest of dx
+  (one active-set pass, a second SVD for those rows). Restarting the limited phase from
+  the start rather than from the clamped out-of-range solution converged more often
+  (Puma 560 from qz, no restarts: 72 vs 68 %);
 * a row that is stuck ends its attempt: mu above 1e12 (no step is accepted any more),
   or, when a restart is left, |dx| not halved over 8 steps (24 in the attempt from the
-  caller's q0, which is usually the informed one: a slow but converging start near a
-  singularity is not given up early) -- at a limit or in a local minimum. With ``restarts`` > 0 it starts again from a random q, uniform in qlim
-  (unlimited revolute joints in [-pi, pi], unlimited prismatic ones in [-1, 1] m), drawn
-  from ``np.random.default_rng(seed)``. Each attempt has at most ``max_iter`` steps; rows
-  still unconverged after the last attempt return the best in-limit q found, converged
-  False.
+  caller's q0, usually the informed one: a slow but converging start near a singularity
+  is not given up early) -- at a limit or in a local minimum. With ``restarts`` > 0 it
+  starts again from a random q, uniform in qlim (unlimited revolute joints in
+  [-pi, pi], unlimited prismatic ones in [-1, 1] m), drawn from
+  ``np.random.default_rng(seed)``. Each attempt has at most ``max_iter`` steps; rows still
+  unconverged after the last attempt return the best in-limit q found, converged False.
 
 A 6-axis arm has up to 8 (16) isolated solutions and often only one or two lie inside the
 limits; a random start reaches one of them with probability ~0.1-0.9 depending on the
@@ -91,13 +92,16 @@ target, so global success from an arbitrary start needs restarts (tens for 100 %
 
 Mask ("tool fitting", seed 003, for arms with fewer than 6 axes): 6 booleans for the
 components (vx vy vz wx wy wz) to match; the others are ignored. Default: all six if
-n >= 6; for n < 6 the components the arm can move at all, i.e. the rows of the geometric
-Jacobian that are not identically zero (|J_row| <= 1e-9 max |J|) over 32 random in-limit
-configurations. A SCARA (manutec_h5, bosch_sr800) gets vx vy vz wz (position + rotation
-about z); the planar 2R lecture_scara gets vx vy wz (three components for two joints: a
-least-squares fit that converges for targets of the form fk(q); give mask=(1,1,0,0,0,0)
-for position only). For a rotation mask of wz only, the z component of the rotation vector
-of R* R^T is driven to zero: the tool's rotation about the base z axis is fitted.
+n >= 6; for n < 6 the components the arm can move at all, i.e. the rows of the Jacobian
+(of the chosen source) that are not identically zero (max |J_row| <= 1e-9 max |J|; 1e-6
+for "fd") over 32 random in-limit configurations. A SCARA (manutec_h5, bosch_sr800) gets
+vx vy vz wz (position + rotation about z); the planar 2R lecture_scara gets vx vy wz
+(three components for two joints: a least-squares fit that converges for targets of the
+form fk(q); give mask=(1,1,0,0,0,0) for position only). With wz the only rotation
+component, the z component of the rotation vector of R* R^T is driven to zero: the
+tool's rotation about the base z axis is fitted, a tilt of the target's tool axis (which
+such an arm cannot follow) is ignored. position_error / rotation_error measure the
+matched components only.
 
 Invalid input rows (any non-finite value in T or q0) are not iterated: converged False,
 q, position_error and rotation_error NaN, iterations 0. Nothing warns: floating-point
@@ -251,7 +255,10 @@ def jacobian(arm, q, source: str = "symbolic") -> np.ndarray:
     (central differences of fk)."""
     if source not in JACOBIANS:
         raise InputError(f"jacobian must be one of {JACOBIANS}, got {source!r}")
-    q = np.ascontiguousarray(as_float_array(q, "q").reshape(-1, arm.n))
+    q = as_float_array(q, "q")
+    if q.shape[-1] != arm.n:
+        raise InputError(f"q must have shape (..., {arm.n}) for {arm.name}, got {q.shape}")
+    q = np.ascontiguousarray(q.reshape(-1, arm.n))
     if source == "symbolic":
         return arm._core.jacobian(q)[0]
     if source == "geometric":
@@ -283,7 +290,8 @@ def default_mask(arm, source: str = "symbolic") -> np.ndarray:
     q = lo + (hi - lo) * rng.random((32, arm.n))
     J = jacobian(arm, q, source)
     size = np.max(np.abs(J), axis=(0, 2))
-    return size > 1e-9 * max(float(np.max(size)), 1e-300)
+    rel = 1e-6 if source == "fd" else 1e-9  # fd rows carry ~1e-11 relative noise
+    return size > rel * max(float(np.max(size)), 1e-300)
 
 
 def _check_mask(mask) -> np.ndarray:
@@ -297,7 +305,8 @@ def _check_mask(mask) -> np.ndarray:
 
 
 def _is_real(x) -> bool:
-    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+    return (isinstance(x, (int, float, np.integer, np.floating))
+            and not isinstance(x, (bool, np.bool_)))
 
 
 def _check_tol(tol):
@@ -349,15 +358,24 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
           null_space=0.0) -> IKResult:
     """Joint values q with fk(q) = T for a batch of target poses (module docstring).
 
-    arm: a SerialRobot. T: (..., 4, 4) targets (only the rotation block and the position
-    column are used). q0: (n,) or (..., n) start, broadcast against T's leading shape;
-    None: the arm's "qz" configuration if it has one, else zeros (clamped into the
-    limits). tol: one value or (position [m], rotation [rad]). max_iter: Newton steps per
-    attempt. mask: 6 booleans vx vy vz wx wy wz (default: see module docstring).
-    jacobian: "symbolic" | "geometric" | "fd". damping: "auto" | float >= 0 | None.
-    step_limit: max |dq_i| per step (None: unlimited). respect_limits: keep q in qlim.
+    arm: a SerialRobot (its raw batched backend ``arm._core`` is used).
+    T: (..., 4, 4) targets (only the rotation block and the position column are used).
+    q0: (n,) or (..., n) start, broadcast against T's leading shape; None: the arm's "qz"
+    configuration if it has one, else zeros.
+    tol: one value for both, or (position [m], rotation [rad]).
+    max_iter: Newton steps per attempt.
+    mask: 6 booleans vx vy vz wx wy wz (default: see the module docstring).
+    jacobian: "symbolic" | "geometric" | "fd".
+    damping: "auto" | float >= 0 (the Nakamura-Hanafusa weight K) | None (plain Newton).
+    step_limit: max |dq_i| per step [rad or m] (None: unlimited).
+    respect_limits: keep q in arm.qlim (always True for the returned q then).
     restarts: extra attempts from random in-limit starts for unconverged rows; seed: their
-    random generator's seed. null_space: gain of the pull towards mid-range (n > m only).
+    random generator's seed (results are reproducible).
+    null_space: gain of the pull towards mid-range (redundant case n > k only).
+
+    Returns an :class:`IKResult` shaped like T's leading dimensions; invalid rows (any
+    non-finite value in T or q0) come back NaN and unconverged, nothing raises or warns
+    for them.
     """
     if jacobian not in JACOBIANS:
         raise InputError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
@@ -391,7 +409,8 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
     try:
         q0 = np.broadcast_to(q0, lead + (n,))
     except ValueError:
-        raise InputError(f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}") from None
+        raise InputError(
+            f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}") from None
     mask = default_mask(arm, jacobian) if mask is None else _check_mask(mask)
 
     Tt = np.ascontiguousarray(T.reshape(-1, 4, 4))
@@ -436,8 +455,8 @@ def _newton_step(A, r, err, mu, damped, c0, k_nh, q, mid, null_gain, step_limit,
 
     fast = np.zeros(k, dtype=bool)
     if m == n:
-        everything = np.arange(k)
-        fast = (smin_prev >= 2 * SIGMA_WELL) & (lam2_of(smin_prev, everything) <= (GAUSS_REL * smin_prev) ** 2)
+        negligible = lam2_of(smin_prev, np.arange(k)) <= (GAUSS_REL * smin_prev) ** 2
+        fast = (smin_prev >= 2 * SIGMA_WELL) & negligible
         if np.any(fast):
             try:
                 dq[fast] = np.linalg.solve(A[fast], r[fast][:, :, None])[:, :, 0]
