@@ -257,6 +257,15 @@ class SerialRobot:
             out = sv[..., 0] / sv[..., -1]
         return self._plain(errors, q, out, valid)
 
+    def singularities(self, q, tol=1e-6) -> dict:
+        """Singularity report (lecture slides 112-114): condition number, manipulability,
+        sigma_min, ``singular``, and for 6R arms with a central wrist the classic ``wrist``,
+        ``shoulder`` and ``elbow`` flags; ``aligned_axes`` lists collinear joint axes.
+        deltagen.serial.singularity.describe(row) words one configuration's report."""
+        from .singularity import report
+
+        return report(self, q, tol=tol)
+
     # -- inverse kinematics -------------------------------------------------------------
 
     def _poses(self, T, name="T"):
