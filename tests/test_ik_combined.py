@@ -43,7 +43,8 @@ def test_robot_file_loads(arm):
 
 def test_analytic_only_for_nearest_central_wrist(arm):
     assert analytic_solver(arm.description) is None
-    assert arm.analytic_configs() == ()
+    # SerialRobot.ik_all falls back to the combined method, with the same branch names
+    assert arm.analytic_configs() == ik_combined.branch_names(arm)
     central = ik_combined.nearest_central_wrist(arm.description)
     assert central.joints[3].a == 0.0
     solver = analytic_solver(central)
@@ -107,3 +108,13 @@ def test_not_supported():
     scara = SerialRobot.load("manutec_h5", backend="reference")
     with pytest.raises(Exception):
         ik_combined.nearest_central_wrist(scara.description)
+
+
+def test_serial_robot_ik_all_uses_the_combined_method(arm):
+    rng = np.random.default_rng(77)
+    lim = arm.qlim
+    q = rng.uniform(lim[:, 0], lim[:, 1], size=(50, 6))
+    T = arm.fk(q)
+    q_all, valid = arm.ik_all(T)
+    assert q_all.shape == (50, 8, 6) and valid.any(axis=1).mean() > 0.9
+    np.testing.assert_allclose(arm.fk(q_all[valid]), np.repeat(T[:, None], 8, axis=1)[valid], atol=1e-10)

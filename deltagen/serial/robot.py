@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import status as st
-from ..errors import SingularityError
+from ..errors import GeometryError, SingularityError
 from ..inputs import InputError, as_float_array, check_errors_mode
 from ..paths import robots_dir
 from .description import SerialDescription
@@ -282,9 +282,25 @@ class SerialRobot:
         return lead, flat, finite, rigid
 
     def analytic_configs(self) -> tuple:
-        """Branch names of the closed-form solution ((), if the arm has none)."""
+        """Branch names of ik_all ((), if the arm has none): the closed form's, or for a
+        6R arm whose wrist axes nearly meet, those of its nearest central-wrist arm."""
         solver = self._analytic()
-        return () if solver is None else tuple(solver.configs)
+        if solver is not None:
+            return tuple(solver.configs)
+        combined = self._combined()
+        return () if combined is None else combined.branch_names(self)
+
+    def _combined(self):
+        """deltagen.serial.ik_combined when it applies to this arm, else None."""
+        if not hasattr(self, "_combined_module"):
+            from . import ik_combined
+
+            try:
+                ik_combined.nearest_central_wrist(self.description)
+                self._combined_module = ik_combined
+            except (InputError, GeometryError):
+                self._combined_module = None
+        return self._combined_module
 
     def _analytic(self):
         if not hasattr(self, "_analytic_solver"):
@@ -297,15 +313,19 @@ class SerialRobot:
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
         within the joint limits). Branch names: analytic_configs()."""
         solver = self._analytic()
-        if solver is None:
+        combined = self._combined() if solver is None else None
+        if solver is None and combined is None:
             raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")
         lead, flat, finite, rigid = self._poses(T)
         bad = ~(finite & rigid)
         safe = flat.copy()
         safe[bad] = np.eye(4)
-        q, valid = solver.solve(safe)
+        if solver is not None:
+            q, valid = solver.solve(safe)
+        else:  # explicit start from the nearest central-wrist arm, refined by Newton
+            q, valid = combined.solve_all(self, safe)
+        k = len(self.analytic_configs())
         q[bad], valid[bad] = np.nan, False
-        k = len(solver.configs)
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
 
     def ik(self, T, config=None, q0=None, method="auto", errors="raise", **options):
@@ -324,9 +344,10 @@ class SerialRobot:
         if errors == "raise" and not np.all(finite & rigid):
             bad = np.flatnonzero(~(finite & rigid))
             raise InputError(f"T is not a finite rigid transform in rows {_rows_text(bad)}")
-        use_analytic = method == "analytic" or (method == "auto" and self._analytic() is not None)
+        has_branches = bool(self.analytic_configs())
+        use_analytic = method == "analytic" or (method == "auto" and has_branches)
         if use_analytic:
-            if self._analytic() is None:
+            if not has_branches:
                 raise InputError(f"{self.name} has no closed-form inverse; use method='numeric'")
             q_all, valid_all = self.ik_all(flat)
             q, ok = self._pick_branch(q_all, valid_all, config, q0)
