@@ -5,6 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 
+def rows_text(rows) -> str:
+    """The failing rows of a batch for an error message: the first ten and the count."""
+    rows = list(rows)
+    shown = ", ".join(str(r) for r in rows[:10])
+    return f"[{shown}{', ...' if len(rows) > 10 else ''}] ({len(rows)} of the batch)"
+
+
 class DeltagenError(Exception):
     """Base class of deltagen's own errors."""
 

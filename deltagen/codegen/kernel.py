@@ -3,7 +3,7 @@ per-point status. Derivation modules build kernels; lowering turns them into C s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import sympy as sp
 
@@ -67,4 +67,3 @@ class Kernel:
     setup: tuple = ()  # (Stage, ...) evaluated once per call from the parameters
     angles: tuple = ()  # (Angle, ...)
     status_doc: str = ""
-    notes: tuple = field(default=())

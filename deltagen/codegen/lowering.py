@@ -50,6 +50,17 @@ def lower_stage(index: int, stage, prefix: str) -> tuple[LoweredStage, int]:
     return LoweredStage(stage.comment, tuple(statements)), int(ops)
 
 
+def keep_needed(needed: set, assignments) -> list:
+    """The assignments that ``needed`` depends on, transitively, in their order; ``needed``
+    grows by the symbols they use."""
+    kept = []
+    for sym, expr in reversed(assignments):
+        if sym in needed:
+            kept.append((sym, expr))
+            needed |= sp.sympify(expr).free_symbols
+    return list(reversed(kept))
+
+
 def prune(kernel: Kernel) -> Kernel:
     """Drop assignments nothing needs (transitively from the outputs and the status)."""
     needed = set(sp.sympify(kernel.status).free_symbols)
@@ -59,13 +70,9 @@ def prune(kernel: Kernel) -> Kernel:
             needed.add(port.fourth)
     kept_stages = []
     for stage in reversed(kernel.stages):
-        kept = []
-        for sym, expr in reversed(stage.assignments):
-            if sym in needed:
-                kept.append((sym, expr))
-                needed |= sp.sympify(expr).free_symbols
+        kept = keep_needed(needed, stage.assignments)
         if kept:
-            kept_stages.append(Stage(stage.comment, tuple(reversed(kept))))
+            kept_stages.append(Stage(stage.comment, tuple(kept)))
     return replace(kernel, stages=tuple(reversed(kept_stages)))
 
 

@@ -12,7 +12,8 @@ import sympy as sp
 
 from .. import status as st
 from ..paths import template_dir
-from .lowering import LoweredKernel, lower_stage
+from .kernel import Stage
+from .lowering import LoweredKernel, keep_needed, lower_stage
 
 
 def environment() -> jinja2.Environment:
@@ -50,17 +51,6 @@ class Unit:
     block: int = 64
 
 
-def _used(symbols_in, assignments):
-    """Keep assignments needed (transitively) by ``symbols_in``."""
-    needed = set(symbols_in)
-    kept = []
-    for sym, expr in reversed(assignments):
-        if sym in needed:
-            kept.append((sym, expr))
-            needed |= sp.sympify(expr).free_symbols
-    return list(reversed(kept)), needed
-
-
 def _columns(port):
     """(column, symbol) pairs of a port, the fourth-axis column 3 included."""
     cols = list(enumerate(port.symbols))
@@ -76,11 +66,10 @@ def function_context(lk: LoweredKernel) -> dict:
         for _, expr in stage.assignments:
             body_symbols |= sp.sympify(expr).free_symbols
     setup_assignments = [a for stage in k.setup for a in stage.assignments]
-    kept, needed = _used(body_symbols, setup_assignments)
+    needed = set(body_symbols)
+    kept = keep_needed(needed, setup_assignments)
     setup = []
     if kept:
-        from ..codegen.kernel import Stage
-
         lowered, _ = lower_stage(0, Stage(k.setup[0].comment, tuple(kept)), prefix="g")
         setup = [lowered]
     parameters = [
@@ -94,7 +83,6 @@ def function_context(lk: LoweredKernel) -> dict:
         for a in k.angles
         if a.cos in body_symbols or a.sin in body_symbols
     ]
-    angle_symbols = {a.angle for a in k.angles if a.cos in body_symbols or a.sin in body_symbols}
     loads = [
         dict(name=str(sym), port=port.name, column=col, width=port.width, used=sym in body_symbols)
         for port in k.inputs

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 from ..errors import GeometryError
 from ..robot_file import read_toml, real
@@ -35,7 +34,6 @@ _TOP_KEYS = {"name", "delta"}
 MIN_DRIVE_SEPARATION = 1e-6
 
 
-_real = real
 
 
 @dataclass(frozen=True)
@@ -50,7 +48,7 @@ class DeltaGeometry:
 
     def __post_init__(self):
         for key in _LENGTHS:
-            object.__setattr__(self, key, _real(getattr(self, key), key))
+            object.__setattr__(self, key, real(getattr(self, key), key))
         for key in ("r_a", "l_a", "l_b"):
             if getattr(self, key) <= 0.0:
                 raise GeometryError(f"{key} must be positive, got {getattr(self, key)!r}")
@@ -59,7 +57,7 @@ class DeltaGeometry:
         theta = self.theta
         if isinstance(theta, (str, bytes)) or not hasattr(theta, "__len__") or len(theta) != 3:
             raise GeometryError(f"theta must hold exactly 3 drive angles, got {theta!r}")
-        theta = tuple(_real(t, f"theta[{i}]") for i, t in enumerate(theta))
+        theta = tuple(real(t, f"theta[{i}]") for i, t in enumerate(theta))
         object.__setattr__(self, "theta", theta)
         for i in range(3):
             for j in range(i + 1, 3):
@@ -77,7 +75,7 @@ class DeltaGeometry:
                 f"{self.l_a + self.l_b:g} m, so the chains close nowhere"
             )
         check_identifier(self.name)
-        tol = _real(self.singular_tol, "singular_tol")
+        tol = real(self.singular_tol, "singular_tol")
         if not 0.0 <= tol < 1.0:
             raise GeometryError(f"singular_tol must lie in [0, 1), got {tol!r}")
         object.__setattr__(self, "singular_tol", tol)
@@ -128,7 +126,7 @@ class DeltaGeometry:
         if not isinstance(raw, list) or len(raw) != 3:
             raise GeometryError(f"{source}: {key} must be a list of 3 numbers")
         try:
-            values = [_real(t, f"{key}[{i}]") for i, t in enumerate(raw)]
+            values = [real(t, f"{key}[{i}]") for i, t in enumerate(raw)]
         except GeometryError as exc:
             raise GeometryError(f"{source}: {exc}") from None
         theta = tuple(math.radians(t) for t in values) if key == "theta_deg" else tuple(values)

@@ -17,17 +17,11 @@ import math
 import numpy as np
 
 from .. import status as st
-from ..errors import SingularityError, UnreachableError
+from ..errors import SingularityError, UnreachableError, rows_text
 from ..inputs import InputError, broadcast_rows, check_errors_mode
 from .description import DeltaGeometry
 
 _BACKENDS = ("compiled", "reference")
-
-
-def _rows_text(rows) -> str:
-    rows = list(rows)
-    shown = ", ".join(str(r) for r in rows[:10])
-    return f"[{shown}{', ...' if len(rows) > 10 else ''}] ({len(rows)} of the batch)"
 
 
 class DeltaRobot:
@@ -167,14 +161,14 @@ class DeltaRobot:
         if invalid.size:
             raise InputError(
                 f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN or "
-                f"infinite values in rows {_rows_text(invalid)}"
+                f"infinite values in rows {rows_text(invalid)}"
             )
         unreachable = bad[status[bad] == st.UNREACHABLE]
         if unreachable.size:
             what = "crank cannot reach the target" if names == ("p",) else "spheres do not meet"
-            raise UnreachableError(f"unreachable pose ({what}) in rows {_rows_text(unreachable)}",
+            raise UnreachableError(f"unreachable pose ({what}) in rows {rows_text(unreachable)}",
                                    unreachable)
-        raise SingularityError(f"singular pose in rows {_rows_text(bad)}", bad)
+        raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
 
     def _inverse_rates(self, errors, arrays):
         check_errors_mode(errors)

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -53,7 +52,6 @@ _UC_LENGTHS = ("tx", "ty", "tz")
 _UC_ANGLES = ("rx", "ry", "rz", "offset")
 
 
-_real = real
 
 
 @dataclass(frozen=True)
@@ -167,7 +165,7 @@ class SerialDescription:
             name=name, convention=convention, joints=joints,
             base=np.eye(4) if base is None else base,
             tool=np.eye(4) if tool is None else tool,
-            configurations={k: tuple(_real(v, f"configuration {k}") for v in q)
+            configurations={k: tuple(real(v, f"configuration {k}") for v in q)
                             for k, q in (configurations or {}).items()},
             doc=doc,
         )
@@ -217,9 +215,9 @@ def _angle(row, key, where, required=False):
     if has_rad and has_deg:
         raise GeometryError(f"{where}: give {key} (rad) or {key}_deg (deg), not both")
     if has_deg:
-        return math.radians(_real(row[f"{key}_deg"], f"{where}: {key}_deg"))
+        return math.radians(real(row[f"{key}_deg"], f"{where}: {key}_deg"))
     if has_rad:
-        return _real(row[key], f"{where}: {key}")
+        return real(row[key], f"{where}: {key}")
     if required:
         raise GeometryError(f"{where}: missing key {key} (or {key}_deg)")
     return 0.0
@@ -248,7 +246,7 @@ def _joint(row, convention, where) -> Joint:
         if unknown & {"tx", "ty", "tz", "rx", "ry", "rz", "axis", "a", "alpha", "d", "theta"}:
             hint = f" (keys of another convention; this file says {convention!r})"
         raise GeometryError(f"{where}: unknown keys {sorted(unknown)}{hint}")
-    values = {k: _real(row[k], f"{where}: {k}") for k in lengths if k in row}
+    values = {k: real(row[k], f"{where}: {k}") for k in lengths if k in row}
     for k in angles:
         values[k] = _angle(row, k, where)
     if convention != "universal":
@@ -268,7 +266,7 @@ def _joint(row, convention, where) -> Joint:
         raw = row.get("qlim", row.get("qlim_deg"))
         if not isinstance(raw, (list, tuple)) or len(raw) != 2:
             raise GeometryError(f"{where}: qlim must be [lower, upper]")
-        lo, hi = (_real(v, f"{where}: qlim") for v in raw)
+        lo, hi = (real(v, f"{where}: qlim") for v in raw)
         if "qlim_deg" in row:
             if prismatic:
                 raise GeometryError(f"{where}: qlim_deg on a prismatic joint (use qlim in m)")
@@ -293,13 +291,13 @@ def _frame(table, which):
     xyz = table.get("xyz", [0.0, 0.0, 0.0])
     if not isinstance(xyz, list) or len(xyz) != 3:
         raise GeometryError(f"[{which}] xyz must be 3 numbers")
-    xyz = [_real(v, f"[{which}] xyz") for v in xyz]
+    xyz = [real(v, f"[{which}] xyz") for v in xyz]
     if "rpy" in table and "rpy_deg" in table:
         raise GeometryError(f"[{which}]: give rpy or rpy_deg, not both")
     rpy = table.get("rpy", table.get("rpy_deg", [0.0, 0.0, 0.0]))
     if not isinstance(rpy, list) or len(rpy) != 3:
         raise GeometryError(f"[{which}] rpy must be 3 numbers [roll, pitch, yaw]")
-    rpy = [_real(v, f"[{which}] rpy") for v in rpy]
+    rpy = [real(v, f"[{which}] rpy") for v in rpy]
     if "rpy_deg" in table:
         rpy = [math.radians(v) for v in rpy]
     return transform(xyz, rpy)

@@ -498,7 +498,6 @@ def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, ste
              respect, restarts, seed, null_gain):
     """The batched iteration; every row carries its own state (see the module docstring)."""
     N, n = q.shape
-    m = int(mask.sum())
     limits = _Limits(arm, respect)
     rng = np.random.default_rng(seed)
     box_lo, box_hi = _sample_box(arm)

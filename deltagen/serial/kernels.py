@@ -42,7 +42,7 @@ class ArmKernels:
         self.qd_port = Port("qd", sym.qd, f"joint rates qdot_1..qdot_{n} [rad/s or m/s]",
                             "rad/s|m/s", width=n)
 
-    def _kernel(self, name, doc, inputs, outputs, stages, finite_symbols):
+    def _kernel(self, name, doc, inputs, outputs, stages):
         return Kernel(
             name=name, doc=doc, inputs=inputs, outputs=outputs,
             stages=tuple(stages), status=_status(), angles=self.angles,
@@ -58,8 +58,7 @@ class ArmKernels:
             "(4x4 homogeneous, row-major; position in m).",
             (self.q_port,),
             (Port("T", outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16),),
-            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)],
-            c.sym.q,
+            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)]
         )
 
     def frames(self) -> Kernel:
@@ -73,8 +72,7 @@ class ArmKernels:
             (self.q_port,),
             (Port("F", outs, f"{count} frames x 4x4 row-major, base to tool", "m",
                   width=16 * count),),
-            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)],
-            c.sym.q,
+            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)]
         )
 
     def _jacobian_stage(self):
@@ -98,8 +96,7 @@ class ArmKernels:
             (self.q_port,),
             (Port("J", outs, f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]", "-",
                   width=6 * n),),
-            [*c.stages, stage, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", out_stage)],
-            c.sym.q,
+            [*c.stages, stage, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", out_stage)]
         )
 
     def jacobian_dot(self) -> Kernel:
@@ -116,8 +113,7 @@ class ArmKernels:
             (self.q_port, self.qd_port),
             (Port("Jd", outs, f"6 x {n} row-major, per second", "-", width=6 * n),),
             [*c.stages, stage, jd_stage, _flags((*c.sym.q, *c.sym.qd)),
-             Stage("outputs (NaN on invalid rows)", out_stage)],
-            (*c.sym.q, *c.sym.qd),
+             Stage("outputs (NaN on invalid rows)", out_stage)]
         )
 
     def all(self):

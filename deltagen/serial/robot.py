@@ -22,27 +22,22 @@ from pathlib import Path
 import numpy as np
 
 from .. import status as st
-from ..errors import GeometryError, SingularityError
-from ..inputs import InputError, as_float_array, check_errors_mode
+from ..errors import GeometryError, SingularityError, rows_text
+from ..inputs import InputError, as_float_array, broadcast_rows, check_errors_mode
 from ..paths import robots_dir
 from .description import SerialDescription
 
 _BACKENDS = ("compiled", "reference")
 
 
-def _rows_text(rows) -> str:
-    rows = list(rows)
-    shown = ", ".join(str(r) for r in rows[:10])
-    return f"[{shown}{', ...' if len(rows) > 10 else ''}] ({len(rows)} of the batch)"
+def _is_arm_file(path: Path) -> bool:
+    """A robot file of a serial arm (serial files state a convention; delta files do not)."""
+    return path.is_file() and "convention" in path.read_text()
 
 
 def bundled_robots() -> list[str]:
     """Names of the bundled serial arms (robots/*.toml with a convention)."""
-    names = []
-    for path in sorted(robots_dir().glob("*.toml")):
-        if "convention" in path.read_text():
-            names.append(path.stem)
-    return names
+    return [path.stem for path in sorted(robots_dir().glob("*.toml")) if _is_arm_file(path)]
 
 
 def euler_zyx(R: np.ndarray) -> np.ndarray:
@@ -81,10 +76,10 @@ class SerialRobot:
     @classmethod
     def load(cls, name: str, backend="compiled") -> "SerialRobot":
         """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
-        path = robots_dir() / f"{name}.toml"
-        if not isinstance(name, str) or name not in bundled_robots():
+        if not isinstance(name, str) or not name.isidentifier() or not _is_arm_file(
+                robots_dir() / f"{name}.toml"):
             raise InputError(f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}")
-        return cls(SerialDescription.from_toml(path), backend)
+        return cls(SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend)
 
     @classmethod
     def from_toml(cls, path, backend="compiled") -> "SerialRobot":
@@ -183,9 +178,10 @@ class SerialRobot:
 
     def euler(self, q, errors="raise"):
         """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
-        T = self.fk(q, errors=errors) if errors == "raise" else self.fk(q, errors=errors)[0]
-        out = euler_zyx(T[..., :3, :3])
-        return out if errors == "raise" else (out, np.all(np.isfinite(out), axis=-1))
+        if errors == "raise":
+            return euler_zyx(self.fk(q)[..., :3, :3])
+        T, valid = self.fk(q, errors=errors)
+        return euler_zyx(T[..., :3, :3]), valid
 
     def rpy(self, q, errors="raise"):
         """(..., 3): (roll, pitch, yaw) = (phi, theta, psi); see the module docstring."""
@@ -235,7 +231,7 @@ class SerialRobot:
                 self.jacobian(q)  # non-finite input rows raise there
                 bad = np.flatnonzero(~valid.reshape(-1))
                 raise SingularityError(
-                    f"Euler-angle singularity (cos theta = 0) in rows {_rows_text(bad)}", bad)
+                    f"Euler-angle singularity (cos theta = 0) in rows {rows_text(bad)}", bad)
             return Ja
         return Ja, valid
 
@@ -343,7 +339,7 @@ class SerialRobot:
         lead, flat, finite, rigid = self._poses(T)
         if errors == "raise" and not np.all(finite & rigid):
             bad = np.flatnonzero(~(finite & rigid))
-            raise InputError(f"T is not a finite rigid transform in rows {_rows_text(bad)}")
+            raise InputError(f"T is not a finite rigid transform in rows {rows_text(bad)}")
         has_branches = bool(self.analytic_configs())
         use_analytic = method == "analytic" or (method == "auto" and has_branches)
         if use_analytic:
@@ -367,7 +363,7 @@ class SerialRobot:
 
                 bad = np.flatnonzero(~ok)
                 raise UnreachableError(
-                    f"no solution within the joint limits for rows {_rows_text(bad)}"
+                    f"no solution within the joint limits for rows {rows_text(bad)}"
                     + (f" in configuration {config!r}" if config else ""), bad)
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
@@ -432,14 +428,8 @@ class SerialRobot:
         return lead, np.ascontiguousarray(arr.reshape(-1, self.n))
 
     def _broadcast(self, **arrays):
-        checked = {k: self._joints(v, k)[1] for k, v in arrays.items()}
-        try:
-            lead = np.broadcast_shapes(*(a.shape[:-1] for a in checked.values()))
-        except ValueError:
-            shapes = {k: a.shape for k, a in checked.items()}
-            raise InputError(f"argument shapes do not broadcast: {shapes}") from None
-        flat = [np.ascontiguousarray(np.broadcast_to(a, lead + (self.n,)).reshape(-1, self.n))
-                for a in checked.values()]
+        checked = {k: self._joints(v, k)[1] for k, v in arrays.items()}  # names the arm on errors
+        lead, _, flat = broadcast_rows(checked, widths=(self.n,))
         return lead, flat
 
     def _finish(self, errors, lead, status, outs, names):
@@ -449,7 +439,7 @@ class SerialRobot:
                 bad = np.flatnonzero(~ok)
                 raise InputError(
                     f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN "
-                    f"or infinite values in rows {_rows_text(bad)}"
+                    f"or infinite values in rows {rows_text(bad)}"
                 )
             for o in outs:
                 o[~ok] = np.nan

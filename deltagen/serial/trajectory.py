@@ -900,7 +900,6 @@ def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, 
     if q0.shape != (robot.n,):
         raise InputError(f"q0 must have {robot.n} values")
     t = trajectory.sample_times(dt)
-    h = float(t[1] - t[0])
     cs = trajectory.evaluate(t)
     N = t.size
     Q = np.empty((N, robot.n))
