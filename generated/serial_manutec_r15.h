@@ -71,6 +71,16 @@ int manutec_r15_jacobian(size_t n, const double *restrict q, double *restrict J,
  */
 int manutec_r15_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd, int8_t *restrict status);
 
+/* Inverse kinematics in closed form, every branch: tool pose T -> q for the 8 configurations front_up_noflip, front_up_flip, front_down_noflip, front_down_flip, back_up_noflip, back_up_flip, back_down_noflip, back_down_flip (in this order).
+ *
+ * n         number of points
+ * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
+ * q         out, n x 48: 8 x 6 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
+ * valid     out, n x 8: 8 flags per pose: 1.0 where the branch reaches the pose within the joint limits, else 0.0
+ * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN)
+ */
+int manutec_r15_ik_all(size_t n, const double *restrict T, double *restrict q, double *restrict valid, int8_t *restrict status);
+
 #ifdef __cplusplus
 }
 #endif

@@ -9,3 +9,4 @@ int motoman_up6_fk(size_t n, const double *q, double *T, int8_t *status);
 int motoman_up6_frames(size_t n, const double *q, double *F, int8_t *status);
 int motoman_up6_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int motoman_up6_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
+int motoman_up6_ik_all(size_t n, const double *T, double *q, double *valid, int8_t *status);

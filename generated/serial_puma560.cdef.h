@@ -9,3 +9,4 @@ int puma560_fk(size_t n, const double *q, double *T, int8_t *status);
 int puma560_frames(size_t n, const double *q, double *F, int8_t *status);
 int puma560_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int puma560_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
+int puma560_ik_all(size_t n, const double *T, double *q, double *valid, int8_t *status);

@@ -39,13 +39,33 @@ class LoweredKernel:
     operation_count: int
 
 
+def _dependency_order(assignments) -> list:
+    """Temporaries first, then the stage's own symbols, except that a statement using a
+    symbol of the same stage waits until that symbol is assigned (stages built step by
+    step, like the closed-form IK, name intermediate values and use them at once)."""
+    own = {sym for sym, _ in assignments}
+    defined, ordered, pending = set(), [], list(assignments)
+    while pending:
+        waiting = []
+        for sym, expr in pending:
+            if (sp.sympify(expr).free_symbols & own) <= defined:
+                ordered.append((sym, expr))
+                defined.add(sym)
+            else:
+                waiting.append((sym, expr))
+        if len(waiting) == len(pending):
+            raise ValueError("circular assignments in a kernel stage")
+        pending = waiting
+    return ordered
+
+
 def lower_stage(index: int, stage, prefix: str) -> tuple[LoweredStage, int]:
     names = [sym for sym, _ in stage.assignments]
     exprs = [sp.sympify(e) for _, e in stage.assignments]
     temporaries = sp.numbered_symbols(f"{prefix}{index}_")
     replacements, reduced = sp.cse(exprs, symbols=temporaries, order="canonical")
-    statements = [_statement(s, e) for s, e in replacements]
-    statements += [_statement(s, e) for s, e in zip(names, reduced)]
+    ordered = _dependency_order(list(replacements) + list(zip(names, reduced)))
+    statements = [_statement(s, e) for s, e in ordered]
     ops = sum(sp.count_ops(e) for _, e in replacements) + sum(sp.count_ops(e) for e in reduced)
     return LoweredStage(stage.comment, tuple(statements)), int(ops)
 

@@ -89,6 +89,26 @@ class CompiledArm:
         Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
         return Jd.reshape(-1, 6, self.desc.n), status
 
+    @property
+    def has_ik_all(self) -> bool:
+        return hasattr(self._lib, f"{self._prefix}_ik_all")
+
+    def ik_all(self, T, k):
+        """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
+        q (N, k, n), valid (N, k) bool, status (N,)."""
+        n = T.shape[0]
+        fb = self._ffi.from_buffer
+        q = np.empty((n, k, self.desc.n))
+        valid = np.empty((n, k))
+        status = np.empty(n, dtype=np.int8)
+        rc = getattr(self._lib, f"{self._prefix}_ik_all")(
+            n, fb("double[]", T), fb("double[]", q, require_writable=True),
+            fb("double[]", valid, require_writable=True),
+            fb("int8_t[]", status, require_writable=True))
+        if rc != 0:
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return q, valid != 0.0, status
+
     def single(self, name):
         """Fast path for one configuration (list/tuple or (n,) float64 array) of fk or
         jacobian: the result, or None when the general path must handle the call."""

@@ -25,7 +25,8 @@ def generator_fingerprint() -> str:
     sources are keyed by it, so a changed generator never reuses stale sources."""
     here = Path(__file__).resolve().parent
     files = sorted((here.parent / "codegen").glob("*.py")) + [
-        here / "derive.py", here / "kernels.py", here / "emit.py"]
+        here / "derive.py", here / "kernels.py", here / "emit.py", here / "ik_kernel.py",
+        here / "ik_analytic.py"]
     files += sorted(template_dir().glob("*.j2"))
     digest = hashlib.sha256()
     for path in files:

@@ -9,6 +9,7 @@ from .. import status as st
 from ..codegen.kernel import Angle, Kernel, Port, Stage
 from ..codegen.printer import AllFinite
 from .derive import Chain
+from .ik_kernel import ik_kernel
 
 invalid = sp.Symbol("invalid")
 
@@ -116,5 +117,11 @@ class ArmKernels:
              Stage("outputs (NaN on invalid rows)", out_stage)]
         )
 
+    def ik_all(self) -> Kernel | None:
+        """Every closed-form IK branch in C, for the structures ik_kernel supports."""
+        return ik_kernel(self.desc, self.chain)
+
     def all(self):
-        return (self.fk(), self.frames(), self.jacobian(), self.jacobian_dot())
+        kernels = [self.fk(), self.frames(), self.jacobian(), self.jacobian_dot()]
+        ik = self.ik_all()
+        return tuple(kernels + ([ik] if ik is not None else []))

@@ -1,0 +1,424 @@
+"""The closed-form inverse kinematics as a C kernel: ``ik_all``.
+
+The solvers of :mod:`deltagen.serial.ik_analytic` read the arm's structure from its joint
+axes and solve in numpy. This module writes the same closed forms as SymPy statements with
+the arm's constants compiled in, so the C core returns every branch of a batch of poses in
+one call, like the forward kinematics. The steps and their names follow ik_analytic (its
+module docstring has the derivation); here the point is how they become straight-line code:
+
+* every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
+  ``y / h`` (h = hypot(x, y)) instead of calling cos and sin on the result, and sums and
+  differences of angles use the addition theorems. The rotations that undo q1 and q2 + q3,
+  and the forward-kinematics check of every branch, then need no trigonometric calls;
+* the check evaluates the symbolic forward kinematics of the description (derive.Chain,
+  not the product-of-exponentials model the solver is built on) with those cosines and
+  sines, and compares it with the target: rotation entries and position / arm size within
+  ``TOL`` (ik_analytic's default);
+* the joint-limit fit is ik_analytic's: wrap into [-pi, pi), shift by +-2 pi, +-4 pi where
+  that fits the range, clip a value within 1e-12 of a limit onto it.
+
+Constants (joint axes, the wrist centre, the arm frame) come from the solver's numpy set-up
+and are rounded to 13 significant digits, values below 1e-13 of the arm's size to zero, so
+that the generated file does not depend on the last bit of a BLAS call (and exact zeros
+and ones simplify the expressions).
+
+Per pose: ``q`` (k x n, k branches in the order of the solver's ``configs``; NaN where the
+branch has no real solution or misses the pose) and ``valid`` (k values, 1.0 where the
+branch is a solution inside the joint limits, else 0.0); status OK when some branch is
+valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVALID for a
+non-finite input (all outputs NaN / 0).
+
+Supported here: the 6R arms with a central wrist (``spherical_wrist_6r``). The other
+structures are solved by ik_analytic in numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from .. import status as st
+from ..codegen.kernel import Kernel, Port, Stage
+from ..codegen.printer import AllFinite
+from .ik_analytic import analytic_solver
+
+TOL = 1e-8  # accepted forward-kinematics residual (ik_analytic.AnalyticSolver.solve's tol)
+LIMIT_TOL = 1e-12  # ik_analytic._LIMIT_TOL
+WRIST_SINGULAR = 1e-12  # ik_analytic._SING
+SUPPORTED = ("spherical_wrist_6r",)
+_DIGITS = 13
+_TINY = sp.Float("1e-300")
+
+
+def compiled_solver(desc):
+    """ik_analytic's solver for ``desc`` when its structure has a C kernel, else None."""
+    solver = analytic_solver(desc)
+    if solver is None or solver.structure not in SUPPORTED:
+        return None
+    return solver
+
+
+# ------------------------------------------------------------------ building blocks
+
+
+class _Tape:
+    """Assignments recorded in stages; each ``let`` names a value (one C statement)."""
+
+    def __init__(self):
+        self.stages = []
+
+    def stage(self, comment):
+        self.stages.append((comment, []))
+
+    def let(self, name, expr):
+        sym = sp.Symbol(name, real=True)
+        self.stages[-1][1].append((sym, sp.sympify(expr)))
+        return sym
+
+    def vec(self, name, v):
+        return tuple(self.let(f"{name}_{axis}", e) for axis, e in zip("xyz", v))
+
+    def as_stages(self):
+        return [Stage(comment, tuple(a)) for comment, a in self.stages if a]
+
+
+@dataclass(frozen=True)
+class _Angle:
+    """An angle with its cosine and sine (expressions or symbols)."""
+
+    theta: object
+    c: object
+    s: object
+
+    def __add__(self, other):
+        return _Angle(self.theta + other.theta, self.c * other.c - self.s * other.s,
+                      self.s * other.c + self.c * other.s)
+
+    def __sub__(self, other):
+        return _Angle(self.theta - other.theta, self.c * other.c + self.s * other.s,
+                      self.s * other.c - self.c * other.s)
+
+    def scaled(self, sign):
+        """sign * angle for sign = +-1."""
+        return _Angle(sign * self.theta, self.c, sign * self.s)
+
+
+def _direction(tape, name, y, x):
+    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0, as atan2)."""
+    h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
+    # the division is done whatever h is, so the selection below is a plain blend (a
+    # division inside a ternary would be a branch)
+    inv = tape.let(f"{name}_inv", 1 / sp.Max(h, _TINY))
+    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, h > 0), (1, True)))
+    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, h > 0), (0, True)))
+    return c, s
+
+
+def _atan2(tape, name, y, x) -> _Angle:
+    """atan2(y, x) with its cosine and sine (_direction)."""
+    c, s = _direction(tape, name, y, x)
+    return _Angle(tape.let(name, sp.atan2(y, x)), c, s)
+
+
+def _named(tape, name, a: _Angle) -> _Angle:
+    return _Angle(tape.let(name, a.theta), tape.let(f"{name}_c", a.c), tape.let(f"{name}_s", a.s))
+
+
+def _dot(a, b):
+    return sum(x * y for x, y in zip(a, b))
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _add(a, b):
+    return tuple(x + y for x, y in zip(a, b))
+
+
+def _scale(k, a):
+    return tuple(k * x for x in a)
+
+
+def _rotate(w, c, s, v):
+    """Rodrigues: v turned about the unit axis w by the angle with cosine c and sine s."""
+    wv = _dot(w, v)
+    wxv = _cross(w, v)
+    return tuple(v[i] * c + wxv[i] * s + w[i] * wv * (1 - c) for i in range(3))
+
+
+def _sp1(tape, name, w, a, b) -> _Angle:
+    """Paden-Kahan subproblem 1 (ik_analytic._sp1): the angle about w turning the part of
+    a normal to w into the direction of that of b."""
+    a = _add(a, _scale(-_dot(a, w), w))
+    b = _add(b, _scale(-_dot(b, w), w))
+    return _atan2(tape, name, _dot(_cross(a, b), w), _dot(a, b))
+
+
+class _Constants:
+    """Rounds the solver's numpy constants (module docstring)."""
+
+    def __init__(self, scale):
+        self.zero = 1e-13 * max(1.0, scale)
+
+    def __call__(self, value):
+        value = float(value)
+        if abs(value) < self.zero:
+            return sp.S.Zero
+        for exact in (1, -1):
+            if abs(value - exact) < 1e-13:
+                return sp.Integer(exact)
+        return sp.Float(f"{value:.{_DIGITS}g}", 17)
+
+    def vec(self, v):
+        return tuple(self(x) for x in v)
+
+
+# ------------------------------------------------------------------------ the kernel
+
+
+class IKKernelBuilder:
+    """Builds the ``ik_all`` kernel of an arm from its solver and its Chain derivation."""
+
+    def __init__(self, solver, chain):
+        self.solver = solver
+        self.chain = chain
+        self.n = solver.n
+        self.configs = tuple(solver.configs)
+        self.const = _Constants(solver._ch.scale)
+        self.tape = _Tape()
+        self.T = tuple(sp.Symbol(f"Tt{r + 1}{c + 1}", real=True)
+                       for r in range(4) for c in range(4))
+        self.invalid = sp.Symbol("invalid")
+
+    # -- shared steps --------------------------------------------------------------
+
+    def _target(self):
+        T = self.T
+        self.R_t = [[T[4 * r + c] for c in range(3)] for r in range(3)]
+        self.p_t = tuple(T[4 * r + 3] for r in range(3))
+
+    def _rotate_target(self, v):
+        """R_G v = R_t R0^T v for a constant vector v."""
+        u = self.const.vec(self.solver._ch.R0.T @ np.asarray(v, dtype=float))
+        return tuple(_dot(self.R_t[r], u) for r in range(3))
+
+    def _arm(self, W_t):
+        """ik_analytic._ElbowSolver._arm: joints 1-3 placing the wrist point at W_t for the
+        four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
+        s, tape, K = self.solver, self.tape, self.const
+        ch = s._ch
+        tape.stage("arm: the wrist point in the arm frame (ex, ey along axis 1's normal plane)")
+        d = _add(W_t, _scale(-1, K.vec(ch.o[0])))
+        px = tape.let("px", _dot(d, K.vec(s._ex)))
+        py = tape.let("py", _dot(d, K.vec(s._ey)))
+        pz = tape.let("pz", _dot(d, K.vec(s._ez)))
+        yV = tape.let("yV", (K(s._cw) - K(s._cb) * pz) / K(s._sb))
+        rad = tape.let("rad", px * px + py * py - yV * yV)
+        ok1 = tape.let("ok_reach", rad >= -1e-9 * ch.scale ** 2)
+        r = tape.let("xV", sp.sqrt(sp.Max(rad, 0)))
+        on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ch.scale) ** 2)
+        a = _Angle(0, *_direction(tape, "phi_p", py, px))
+        uu, vv = s._uu, s._vv
+        lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
+        A = math.atan2(uu[1], uu[0]) - math.atan2(vv[1], vv[0])
+        elbow0 = _Angle(K(A), K(math.cos(A)), K(math.sin(A)))
+        branches = []
+        shoulders = {}
+        for f in sorted(set(s._front.tolist()), reverse=True):
+            tag = "front" if f > 0 else "back"
+            tape.stage(f"shoulder q1, {tag} branches")
+            xV = f * r
+            # q1 = atan2(py, px) - atan2(yV, xV), one atan2 of the difference's cos and sin
+            q1 = a - _Angle(0, *_direction(tape, f"phi_{tag}", yV, xV))
+            home = 0.0 if f > 0 else -math.pi
+            c1 = tape.let(f"q1_{tag}_c", sp.Piecewise((K(math.cos(home)), on_axis), (q1.c, True)))
+            s1 = tape.let(f"q1_{tag}_s", sp.Piecewise((0, on_axis), (q1.s, True)))
+            q1 = _Angle(tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis),
+                                                            (sp.atan2(s1, c1), True))), c1, s1)
+            V = _add(_add(K.vec(ch.o[0]), _scale(xV, K.vec(s._ex))),
+                     _add(_scale(yV, K.vec(s._ey)), _scale(pz, K.vec(s._ez))))
+            t = tuple(tape.let(f"t{j + 1}_{tag}", _dot(K.vec(s._P2[j]), V) - K(s._S[j]))
+                      for j in range(2))
+            kappa = tape.let(f"kappa_{tag}",
+                             (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv))
+            ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
+            kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
+            ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
+            bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
+            shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
+        for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
+            f, sigma = float(s._front[index]), float(s._bend[index])
+            q1, t, kc, ks, bend, ok1, ok2 = shoulders[f]
+            tag = config.rsplit("_", 1)[0] if self.n == 6 else config
+            tape.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
+            bend = _Angle(sigma * bend, kc, sigma * ks)
+            th3 = _named(tape, f"th3_{tag}", elbow0 + bend)
+            m = (K(uu[0]) + th3.c * K(vv[0]) - th3.s * K(vv[1]),
+                 K(uu[1]) + th3.s * K(vv[0]) + th3.c * K(vv[1]))
+            th2 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
+            ok = tape.let(f"ok_arm_{tag}", sp.And(ok1, ok2))
+            branches.append((tag, q1, th2, th3, ok))
+        return branches
+
+    def _undo(self, q1, tot, v):
+        """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
+        w = [self.const.vec(x) for x in self.solver._ch.w]
+        v = _rotate(w[0], q1.c, -q1.s, v)
+        return _rotate(w[1], tot.c, -tot.s, v)
+
+    def _wrist(self, tag, q1, th2, th3):
+        """ik_analytic._ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions."""
+        s, tape, K = self.solver, self.tape, self.const
+        w = [K.vec(x) for x in s._ch.w]
+        tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
+        tot = _named(tape, f"tot_{tag}", th2 + th3)
+        qv = tape.vec(f"qv_{tag}", self._undo(q1, tot, self._rotate_target(s._ch.w[5])))
+        qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s._x6)))
+        w4, w5, w6 = w[3], w[4], w[5]
+        c12 = float(s._ch.w[3] @ s._ch.w[4])
+        s2 = 1.0 - c12 * c12
+        b_p = float(s._ch.w[4] @ s._ch.w[5])
+        a_q = _dot(qv, w4)
+        alpha = tape.let(f"alpha_{tag}", (a_q - K(c12 * b_p)) / K(s2))
+        beta = tape.let(f"beta_{tag}", (K(b_p) - K(c12) * a_q) / K(s2))
+        perp = _cross(qv, w4)
+        perp2 = tape.let(f"perp2_{tag}", _dot(perp, perp))
+        gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
+        okw = tape.let(f"ok_wrist_{tag}", gam2 >= -1e-9)
+        gam = tape.let(f"gam_{tag}", sp.sqrt(sp.Max(gam2, 0)))
+        singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR ** 2)
+        n45 = K.vec(np.cross(s._ch.w[3], s._ch.w[4]))
+        out = []
+        for sig, flip in ((1, "noflip"), (-1, "flip")):
+            name = f"{tag}_{flip}"
+            tape.stage(f"wrist, branch {name}: q5, q4 (Paden-Kahan 2), q6")
+            cvec = tape.vec(f"cw_{name}", _add(_add(_scale(alpha, w4), _scale(beta, w5)),
+                                               _scale(sig * gam, n45)))
+            q5 = _sp1(tape, f"q5_{name}", w5, w6, cvec)
+            q4 = _sp1(tape, f"q4r_{name}", w4, cvec, qv)
+            q4 = _named(tape, f"q4_{name}", _Angle(
+                sp.Piecewise((0, singular), (q4.theta, True)),
+                sp.Piecewise((1, singular), (q4.c, True)),
+                sp.Piecewise((0, singular), (q4.s, True))))
+            y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
+            q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s._x6), y)
+            out.append((name, okw, q4, q5, q6))
+        return out
+
+    def _fit_limits(self, name, i, a: _Angle):
+        """ik_analytic.AnalyticSolver._fit_limits for one revolute joint: (value, inside)."""
+        tape = self.tape
+        lo, hi = (float(x) for x in self.solver._qlim[i])
+        two_pi = 2 * sp.pi
+        x = tape.let(f"{name}_w", a.theta - two_pi * sp.floor((a.theta + sp.pi) / two_pi))
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            if math.isfinite(lo) or math.isfinite(hi):
+                raise NotImplementedError("a joint limited on one side only")
+            return x, sp.true
+        lo_t, hi_t = sp.Float(repr(lo - LIMIT_TOL), 17), sp.Float(repr(hi + LIMIT_TOL), 17)
+
+        def inside(v):
+            return sp.And(v >= lo_t, v <= hi_t)
+
+        x0 = x
+        fits = tape.let(f"{name}_in0", inside(x))
+        for k, shift in enumerate((1, -1, 2, -2), start=1):
+            y = x0 + shift * two_pi
+            fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
+            x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
+            fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
+        lo_s, hi_s = sp.Float(repr(lo), 17), sp.Float(repr(hi), 17)
+        clipped = sp.Piecewise((sp.Min(sp.Max(x, lo_s), hi_s), fits), (x, True))
+        return tape.let(name, clipped), fits
+
+    def _reproduces(self, name, angles):
+        """Forward kinematics of the description at the branch's cosines and sines, compared
+        with the target (ik_analytic.AnalyticSolver._reproduces)."""
+        tape, chain = self.tape, self.chain
+        sym = chain.sym
+        mapping = {}
+        for i, a in enumerate(angles):
+            mapping[sym.cos[i]] = a.c
+            mapping[sym.sin[i]] = a.s
+        tape.stage(f"check, branch {name}: forward kinematics at the solution")
+        for stage in chain.stages:
+            for s, expr in stage.assignments:
+                mapping[s] = tape.let(f"{s}_{name}", sp.sympify(expr).xreplace(mapping))
+        T = chain.T.xreplace(mapping)
+        scale = self.solver._ch.scale
+        conds = []
+        for r in range(3):
+            for c in range(3):
+                conds.append(sp.Abs(T[r, c] - self.R_t[r][c]) <= TOL)
+            conds.append(sp.Abs(T[r, 3] - self.p_t[r]) <= TOL * scale)
+        return tape.let(f"hit_{name}", sp.And(*conds))
+
+    # -- the kernel ----------------------------------------------------------------
+
+    def build(self) -> Kernel:
+        s, tape, n = self.solver, self.tape, self.n
+        self._target()
+        tape.stage("status flag: a non-finite pose")
+        invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
+        tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
+        c_w = s._ch.R0.T @ (s._W - s._ch.p0)
+        W_t = tape.vec("W_t", _add(self._rotate_target_raw(c_w), self.p_t))
+        solutions = {}
+        for tag, q1, th2, th3, ok_arm in self._arm(W_t):
+            q3 = th3.scaled(s._s3)
+            for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
+                solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
+        q_out, valid_out, valid_flags = [], [], []
+        for name in self.configs:
+            angles, ok = solutions[name]
+            hit = self._reproduces(name, angles)
+            tape.stage(f"joint limits and outputs, branch {name}")
+            values, inside = [], []
+            for i, a in enumerate(angles):
+                value, fits = self._fit_limits(f"fit_q{i + 1}_{name}", i, a)
+                values.append(value)
+                inside.append(fits)
+            good = tape.let(f"ok_{name}", sp.And(ok, hit, AllFinite(*values), sp.Not(invalid)))
+            valid = tape.let(f"valid_{name}", sp.And(good, *inside))
+            valid_flags.append(valid)
+            for i, v in enumerate(values):
+                q_out.append(tape.let(f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True))))
+            valid_out.append(tape.let(f"out_valid_{name}",
+                                      sp.Piecewise((sp.Float(1.0), valid), (sp.Float(0.0), True))))
+        tape.stage("status")
+        any_valid = tape.let("any_valid", sp.Or(*valid_flags))
+        k = len(self.configs)
+        return Kernel(
+            name="ik_all",
+            doc=(f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
+                 "configurations " + ", ".join(self.configs) + " (in this order)."),
+            inputs=(Port("T", self.T, "tool pose, 4x4 row-major (rotation | position m)", "m",
+                         width=16),),
+            outputs=(
+                Port("q", tuple(q_out), f"{k} x {n} joint values per pose, branch after branch "
+                     "[rad]; NaN where the branch has no real solution", "rad", width=k * n),
+                Port("valid", tuple(valid_out), f"{k} flags per pose: 1.0 where the branch "
+                     "reaches the pose within the joint limits, else 0.0", "-", width=k),
+            ),
+            stages=tuple(tape.as_stages()),
+            status=sp.Piecewise((st.INVALID, invalid), (st.OK, any_valid),
+                                (st.UNREACHABLE, True)),
+            status_doc=("OK (some branch is valid); UNREACHABLE (no branch reaches the pose "
+                        "within the joint limits); INVALID (a non-finite input; q NaN)"),
+        )
+
+    def _rotate_target_raw(self, v):
+        u = self.const.vec(v)
+        return tuple(_dot(self.R_t[r], u) for r in range(3))
+
+
+def ik_kernel(desc, chain) -> Kernel | None:
+    """The ``ik_all`` kernel of ``desc``, or None when its structure has none in C."""
+    solver = compiled_solver(desc)
+    if solver is None:
+        return None
+    return IKKernelBuilder(solver, chain).build()
