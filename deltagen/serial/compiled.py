@@ -48,6 +48,15 @@ class _Scratch(threading.local):
         self.status = ffi.new("int8_t[1]")
         self.T_np = np.frombuffer(ffi.buffer(self.T), dtype=np.float64).reshape(4, 4)
         self.J_np = np.frombuffer(ffi.buffer(self.J), dtype=np.float64).reshape(6, n)
+        self.ik_q = self.ik_valid = None  # ik_all buffers, made on first use
+
+    def ik_buffers(self, ffi, k, n):
+        if self.ik_q is None:
+            self.ik_q = ffi.new(f"double[{k * n}]")
+            self.ik_valid = ffi.new(f"double[{k}]")
+            self.ik_q_np = np.frombuffer(ffi.buffer(self.ik_q), dtype=np.float64).reshape(k, n)
+            self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.float64)
+        return self
 
 
 class CompiledArm:
@@ -108,6 +117,31 @@ class CompiledArm:
         if rc != 0:
             raise RuntimeError(f"C core rejected its arguments (rc={rc})")
         return q, valid != 0.0, status
+
+    def single_ik_all(self, k):
+        """Fast path of ik_all for one pose ((4, 4) C-contiguous float64 array with the
+        bottom row 0 0 0 1): (q (k, n), valid (k,)), or None when the general path must
+        handle the call (other input types, non-finite values)."""
+        if not self.has_ik_all:
+            return None
+        fn = getattr(self._lib, f"{self._prefix}_ik_all")
+        scratch, memmove, ffi, n = self._scratch, self._ffi.memmove, self._ffi, self.desc.n
+        ndarray, INVALID, bottom = np.ndarray, st.INVALID, [0.0, 0.0, 0.0, 1.0]
+
+        def call(T):
+            if (type(T) is not ndarray or T.shape != (4, 4) or T.dtype.char != "d"
+                    or not T.flags.c_contiguous or T[3].tolist() != bottom):
+                return None
+            sc = scratch
+            if sc.ik_q is None:
+                sc.ik_buffers(ffi, k, n)
+            memmove(sc.T, T, 128)
+            fn(1, sc.T, sc.ik_q, sc.ik_valid, sc.status)
+            if sc.status[0] == INVALID:
+                return None
+            return sc.ik_q_np.copy(), sc.ik_valid_np.astype(bool)  # valid is 1.0 or 0.0
+
+        return call
 
     def single(self, name):
         """Fast path for one configuration (list/tuple or (n,) float64 array) of fk or

@@ -65,11 +65,12 @@ class SerialRobot:
             self._core = CompiledArm(description)
             self._fk_single = self._core.single("fk")
             self._jacobian_single = self._core.single("jacobian")
+            self._ik_all_single = None  # made by ik_all when the arm has a C closed form
         else:
             from . import reference
 
             self._core = _ReferenceArm(reference, description)
-            self._fk_single = self._jacobian_single = None
+            self._fk_single = self._jacobian_single = self._ik_all_single = None
 
     # -- construction ---------------------------------------------------------------
 
@@ -308,6 +309,10 @@ class SerialRobot:
     def ik_all(self, T):
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
         within the joint limits). Branch names: analytic_configs()."""
+        if self._ik_all_single is not None:
+            result = self._ik_all_single(T)
+            if result is not None:
+                return result
         solver = self._analytic()
         combined = self._combined() if solver is None else None
         if solver is None and combined is None:
@@ -316,11 +321,15 @@ class SerialRobot:
         bad = ~(finite & rigid)
         safe = flat.copy()
         safe[bad] = np.eye(4)
-        if solver is not None:
+        k = len(self.analytic_configs())
+        if solver is not None and self.backend == "compiled" and self._core.has_ik_all:
+            q, valid, _ = self._core.ik_all(safe, k)  # the generated C (ik_kernel.py)
+            if self._ik_all_single is None:
+                self._ik_all_single = self._core.single_ik_all(k)
+        elif solver is not None:
             q, valid = solver.solve(safe)
         else:  # explicit start from the nearest central-wrist arm, refined by Newton
             q, valid = combined.solve_all(self, safe)
-        k = len(self.analytic_configs())
         q[bad], valid[bad] = np.nan, False
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
 
@@ -333,6 +342,11 @@ class SerialRobot:
         (analytic_configs()); ``q0`` picks the valid branch nearest q0; neither: the first
         valid branch in the order of analytic_configs(). Numeric: starts at q0 (default the
         middle of the joint ranges, or zeros)."""
+        if (self._ik_all_single is not None and errors == "raise" and q0 is None
+                and method != "numeric" and not options):
+            q = self._ik_single(T, config)
+            if q is not None:
+                return q
         check_errors_mode(errors)
         if method not in ("auto", "analytic", "numeric"):
             raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
@@ -367,6 +381,22 @@ class SerialRobot:
                     + (f" in configuration {config!r}" if config else ""), bad)
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
+
+    def _ik_single(self, T, config):
+        """Fast path of ik for one pose with a C closed form: q, or None when the general
+        path must answer (it also raises the errors)."""
+        result = self._ik_all_single(T)
+        if result is None:
+            return None
+        q_all, valid = result
+        if config is None:
+            k = int(valid.argmax())
+        else:
+            configs = self._analytic().configs
+            if config not in configs:
+                return None
+            k = configs.index(config)
+        return q_all[k] if valid[k] else None
 
     def _start(self, q0, count):
         if q0 is None:
