@@ -263,3 +263,38 @@ def test_ik_all_alone_under_sanitizers(tmp_path):
     np.testing.assert_array_equal(valid[rows_ok], v_n[rows_ok])
     both = np.isfinite(q_c) & np.isfinite(q_n)
     assert np.max(np.abs(_angle_diff(q_c, q_n)[both])) < 1e-6
+
+
+# ------------------------------------------------------------ exact singular targets
+
+
+@pytest.mark.parametrize("backend", ["compiled", "reference"])
+def test_exactly_singular_target_raises_or_masks(backend):
+    """q5 = 0 (axes 4 and 6 in line): the branch that reaches the pose there has no unique
+    q4, q6. Raise mode: SingularityError naming the row; nan mode: NaN and False;
+    singular='allow': a solution that reaches the pose."""
+    from deltagen import SingularityError
+    from deltagen.inputs import InputError
+
+    arm = SerialRobot.load("puma560", backend=backend)
+    regular = np.array([0.3, 0.5, -0.4, 0.2, 0.6, -0.3])
+    wrist = np.array([0.3, 0.5, -0.4, 0.2, 0.0, -0.3])
+    T = arm.fk(np.stack([regular, wrist]))
+    k_wrist = int(np.flatnonzero(
+        np.all(np.abs(_angle_diff(arm.ik_all(T[1])[0][:, [0, 1, 2]], wrist[:3])) < 1e-9, -1)
+        & (np.abs(arm.ik_all(T[1])[0][:, 4]) < 1e-9))[0])
+    config = arm.analytic_configs()[k_wrist]
+    for target in (T[1], T[1].copy(order="F")):  # fast path and general path
+        with pytest.raises(SingularityError, match="singularity") as info:
+            arm.ik(target, config=config)
+        assert info.value.rows.tolist() == [0]
+    q, ok = arm.ik(T, config=config, errors="nan")
+    assert not ok[1] and np.all(np.isnan(q[1]))
+    q1 = arm.ik(T[1], config=config, singular="allow")
+    np.testing.assert_allclose(arm.fk(q1), T[1], atol=1e-12)
+    # numerical IK converging onto the singular target is reported the same way
+    with pytest.raises(SingularityError):
+        arm.ik(T[1], q0=wrist + 0.01, method="numeric")
+    assert arm.condition_number(wrist) > 1e12
+    with pytest.raises(InputError, match="singular"):
+        arm.ik(T[0], singular="maybe")

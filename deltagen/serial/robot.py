@@ -25,6 +25,7 @@ from .. import status as st
 from ..errors import GeometryError, SingularityError, rows_text
 from ..inputs import InputError, as_float_array, broadcast_rows, check_errors_mode
 from ..paths import robots_dir
+from ..status import SINGULAR_TOL
 from .description import SerialDescription
 
 _BACKENDS = ("compiled", "reference")
@@ -333,7 +334,8 @@ class SerialRobot:
         q[bad], valid[bad] = np.nan, False
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
 
-    def ik(self, T, config=None, q0=None, method="auto", errors="raise", **options):
+    def ik(self, T, config=None, q0=None, method="auto", errors="raise", singular="raise",
+           **options):
         """Joint coordinates reaching the tool pose(s) T (..., 4, 4).
 
         method "analytic" (closed form, where the structure allows), "numeric" (Newton /
@@ -341,11 +343,19 @@ class SerialRobot:
         "auto" (analytic if available). Analytic: ``config`` picks a branch by name
         (analytic_configs()); ``q0`` picks the valid branch nearest q0; neither: the first
         valid branch in the order of analytic_configs(). Numeric: starts at q0 (default the
-        middle of the joint ranges, or zeros)."""
+        middle of the joint ranges, or zeros).
+
+        A solution at an exact singularity of the arm (sigma_min / sigma_max of the geometric
+        Jacobian below status.SINGULAR_TOL = 1e-9: the Puma's wrist at q5 = 0, a stretched
+        elbow) is not unique: ``singular="raise"`` (default) raises SingularityError for such
+        rows (errors="raise") or gives NaN and False (errors="nan"); ``singular="allow"``
+        returns the solution found (e.g. q4 = 0 at a wrist singularity)."""
+        if singular not in ("raise", "allow"):
+            raise InputError(f'singular must be "raise" or "allow", got {singular!r}')
         if (self._ik_all_single is not None and errors == "raise" and q0 is None
                 and method != "numeric" and not options):
             q = self._ik_single(T, config)
-            if q is not None:
+            if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q
         check_errors_mode(errors)
         if method not in ("auto", "analytic", "numeric"):
@@ -371,6 +381,18 @@ class SerialRobot:
             q, ok = result.q, result.converged & finite & rigid
         q = q.copy()
         q[~ok] = np.nan
+        if singular == "raise" and np.any(ok):
+            at_singularity = np.zeros_like(ok)
+            at_singularity[ok] = self._singular_rows(q[ok])
+            if np.any(at_singularity):
+                if errors == "raise":
+                    bad = np.flatnonzero(at_singularity)
+                    raise SingularityError(
+                        f"the target is at a singularity of {self.name} (sigma_min/sigma_max "
+                        f"< {SINGULAR_TOL:g}; the solution is not unique) in rows "
+                        f"{rows_text(bad)}; singular='allow' returns one of its solutions", bad)
+                ok = ok & ~at_singularity
+                q[at_singularity] = np.nan
         if errors == "raise":
             if not np.all(ok):
                 from ..errors import UnreachableError
@@ -381,6 +403,32 @@ class SerialRobot:
                     + (f" in configuration {config!r}" if config else ""), bad)
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
+
+    def _singular_rows(self, q):
+        """Rows of finite q (M, n) whose Jacobian is singular: sigma_min / sigma_max <
+        SINGULAR_TOL. For square J, |det J| / |J|_F^n bounds the ratio from below (|J|_F >=
+        sigma_max), so only rows failing that cheap test need the SVD."""
+        J, _ = self._core.jacobian(np.ascontiguousarray(q, dtype=float))
+        check = np.ones(J.shape[0], dtype=bool)
+        if J.shape[-1] == J.shape[-2]:
+            norm = np.linalg.norm(J, axis=(-2, -1))
+            with np.errstate(all="ignore"):
+                check = ~(np.abs(np.linalg.det(J)) >= SINGULAR_TOL * norm ** J.shape[-1])
+        singular = np.zeros(J.shape[0], dtype=bool)
+        if np.any(check):
+            sv = np.linalg.svd(J[check], compute_uv=False)
+            singular[check] = ~(sv[:, -1] >= SINGULAR_TOL * sv[:, 0])
+        return singular
+
+    def _singular_one(self, q):
+        """_singular_rows for one configuration, lean (the single-pose fast path)."""
+        J = self._jacobian_single(q)
+        if J is None or J.shape[0] != J.shape[1]:
+            return bool(self._singular_rows(q[None])[0])
+        bound = SINGULAR_TOL * float(np.sqrt(np.vdot(J, J))) ** J.shape[0]
+        if abs(float(np.linalg.det(J))) >= bound:
+            return False
+        return bool(self._singular_rows(q[None])[0])
 
     def _ik_single(self, T, config):
         """Fast path of ik for one pose with a C closed form: q, or None when the general
