@@ -589,9 +589,14 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
                                                               repeats)
     latency = _measure_serial_latency(compiled, reference, data["q"][0].copy(), repeats)
     others = _measure_oracles(compiled, data["q"], repeats, enabled=oracles)
+    from . import bench_ik
+
+    # the full IK workload for real runs; a small one for quick (test) runs
+    ik = bench_ik.run(compiled, reference, repeats, analytic_n=min(n, bench_ik.IK_ANALYTIC_N),
+                      numeric_n=bench_ik.IK_NUMERIC_N if n >= 100_000 else 20)
     return {
         "robot": compiled, "n": n, "sizes": sizes, "throughput": throughput,
-        "agreement": agreement, "latency": latency, "oracles": others,
+        "agreement": agreement, "latency": latency, "oracles": others, "ik": ik,
     }
 
 
@@ -853,6 +858,10 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     for text in others["absent"]:
         out.append(f"{bullet}{text}")
     out.append("")
+    if serial.get("ik") is not None:
+        from . import bench_ik
+
+        out += bench_ik.render(serial["ik"], _table, markdown, robot.name)
     return out
 
 
