@@ -1184,22 +1184,22 @@ static int lecture_prp_ikn_cholesky(double *A, size_t s)
     return 0;
 }
 
-/* Solve L L^T x = b in place (L from ikn_cholesky). */
-static void lecture_prp_ikn_cholesky_solve(const double *L, size_t s, double *b)
+/* Solve L L^T x = b (L from ikn_cholesky); b and x may be the same array. */
+static void lecture_prp_ikn_cholesky_solve(const double *L, size_t s, const double *b, double *x)
 {
     for (size_t i = 0; i < s; ++i) {
-        double x = b[i];
+        double y = b[i];
         for (size_t k = 0; k < i; ++k) {
-            x -= L[i * s + k] * b[k];
+            y -= L[i * s + k] * x[k];
         }
-        b[i] = x / L[i * s + i];
+        x[i] = y / L[i * s + i];
     }
     for (size_t i = s; i-- > 0;) {
-        double x = b[i];
+        double y = x[i];
         for (size_t k = i + 1; k < s; ++k) {
-            x -= L[k * s + i] * b[k];
+            y -= L[k * s + i] * x[k];
         }
-        b[i] = x / L[i * s + i];
+        x[i] = y / L[i * s + i];
     }
 }
 
@@ -1315,7 +1315,7 @@ static double lecture_prp_ikn_sigma_min(const double *A, size_t k)
         for (size_t i = 0; i < s; ++i) {
             before += x[i] * x[i];
         }
-        lecture_prp_ikn_cholesky_solve(G, s, x);
+        lecture_prp_ikn_cholesky_solve(G, s, x, x);
         for (size_t i = 0; i < s; ++i) {
             after += x[i] * x[i];
         }
@@ -1339,11 +1339,13 @@ static int lecture_prp_ikn_solve(const double *A, size_t k, const double *r, con
     double G[LECTURE_PRP_IKN_N * LECTURE_PRP_IKN_N > 36 ? LECTURE_PRP_IKN_N * LECTURE_PRP_IKN_N : 36];
     double b[LECTURE_PRP_IKN_N > 6 ? LECTURE_PRP_IKN_N : 6];
     if (gauss) {
+        /* "+ 0.0" (not an identity in IEEE arithmetic, so not folded): keeps these loops
+         * from becoming memcpy calls, the module needs nothing but libm */
         for (size_t i = 0; i < N * N; ++i) {
-            G[i] = A[i];
+            G[i] = A[i] + 0.0;
         }
         for (size_t i = 0; i < N; ++i) {
-            b[i] = r[i];
+            b[i] = r[i] + 0.0;
         }
         if (lecture_prp_ikn_gauss(G, N, b) == 0) {
             for (size_t i = 0; i < N; ++i) {
@@ -1381,15 +1383,9 @@ static int lecture_prp_ikn_solve(const double *A, size_t k, const double *r, con
             }
             b[i] = fixed[i] ? 0.0 : x;
         }
-        lecture_prp_ikn_cholesky_solve(G, s, b);
-        for (size_t i = 0; i < N; ++i) {
-            dq[i] = b[i];
-        }
+        lecture_prp_ikn_cholesky_solve(G, s, b, dq);
     } else {  /* dq = A^T y, (A A^T + lambda^2 I) y = r */
-        for (size_t i = 0; i < k; ++i) {
-            b[i] = r[i];
-        }
-        lecture_prp_ikn_cholesky_solve(G, s, b);
+        lecture_prp_ikn_cholesky_solve(G, s, r, b);
         for (size_t i = 0; i < N; ++i) {
             double x = 0.0;
             for (size_t row = 0; row < k; ++row) {

@@ -2234,22 +2234,22 @@ static int puma560_ikn_cholesky(double *A, size_t s)
     return 0;
 }
 
-/* Solve L L^T x = b in place (L from ikn_cholesky). */
-static void puma560_ikn_cholesky_solve(const double *L, size_t s, double *b)
+/* Solve L L^T x = b (L from ikn_cholesky); b and x may be the same array. */
+static void puma560_ikn_cholesky_solve(const double *L, size_t s, const double *b, double *x)
 {
     for (size_t i = 0; i < s; ++i) {
-        double x = b[i];
+        double y = b[i];
         for (size_t k = 0; k < i; ++k) {
-            x -= L[i * s + k] * b[k];
+            y -= L[i * s + k] * x[k];
         }
-        b[i] = x / L[i * s + i];
+        x[i] = y / L[i * s + i];
     }
     for (size_t i = s; i-- > 0;) {
-        double x = b[i];
+        double y = x[i];
         for (size_t k = i + 1; k < s; ++k) {
-            x -= L[k * s + i] * b[k];
+            y -= L[k * s + i] * x[k];
         }
-        b[i] = x / L[i * s + i];
+        x[i] = y / L[i * s + i];
     }
 }
 
@@ -2365,7 +2365,7 @@ static double puma560_ikn_sigma_min(const double *A, size_t k)
         for (size_t i = 0; i < s; ++i) {
             before += x[i] * x[i];
         }
-        puma560_ikn_cholesky_solve(G, s, x);
+        puma560_ikn_cholesky_solve(G, s, x, x);
         for (size_t i = 0; i < s; ++i) {
             after += x[i] * x[i];
         }
@@ -2389,11 +2389,13 @@ static int puma560_ikn_solve(const double *A, size_t k, const double *r, const i
     double G[PUMA560_IKN_N * PUMA560_IKN_N > 36 ? PUMA560_IKN_N * PUMA560_IKN_N : 36];
     double b[PUMA560_IKN_N > 6 ? PUMA560_IKN_N : 6];
     if (gauss) {
+        /* "+ 0.0" (not an identity in IEEE arithmetic, so not folded): keeps these loops
+         * from becoming memcpy calls, the module needs nothing but libm */
         for (size_t i = 0; i < N * N; ++i) {
-            G[i] = A[i];
+            G[i] = A[i] + 0.0;
         }
         for (size_t i = 0; i < N; ++i) {
-            b[i] = r[i];
+            b[i] = r[i] + 0.0;
         }
         if (puma560_ikn_gauss(G, N, b) == 0) {
             for (size_t i = 0; i < N; ++i) {
@@ -2431,15 +2433,9 @@ static int puma560_ikn_solve(const double *A, size_t k, const double *r, const i
             }
             b[i] = fixed[i] ? 0.0 : x;
         }
-        puma560_ikn_cholesky_solve(G, s, b);
-        for (size_t i = 0; i < N; ++i) {
-            dq[i] = b[i];
-        }
+        puma560_ikn_cholesky_solve(G, s, b, dq);
     } else {  /* dq = A^T y, (A A^T + lambda^2 I) y = r */
-        for (size_t i = 0; i < k; ++i) {
-            b[i] = r[i];
-        }
-        puma560_ikn_cholesky_solve(G, s, b);
+        puma560_ikn_cholesky_solve(G, s, r, b);
         for (size_t i = 0; i < N; ++i) {
             double x = 0.0;
             for (size_t row = 0; row < k; ++row) {
