@@ -930,3 +930,83 @@ def main(args) -> int:
     print(render(result, markdown=bool(getattr(args, "markdown", False))))
     sys.stdout.flush()
     return 0
+
+
+# ------------------------------------------------------------------ numerical IK (serial)
+
+
+def ik_numeric_benchmark(arm_name: str = "puma560", N: int = 1000, restarts: int = 60,
+                         seed: int = 2024, repeats: int = 5, engine: str = "c",
+                         single: bool = True) -> dict:
+    """Numerical IK (deltagen.serial.ik_numeric.solve) on N random reachable in-limit targets
+    (q uniform within the joint limits, T = fk(q)), from two cold starts: a random in-limit
+    q0 per target (independent of the target) and the arm's "qz" configuration (zeros if it
+    has none); tolerance 1e-10 m and rad, ``restarts`` random restarts allowed.
+
+    success: converged, within the joint limits, and the numpy reference fk of the returned
+    q reproduces the target to 1e-10 (position [m] and rotation angle [rad]) -- checked here,
+    independently of the solver. batched_us: one call on all N targets, wall time / N
+    (median of ``repeats``). single_us: one call per target (T (4, 4), q0 (n,)), each
+    target timed ``repeats`` times (median per target); reported as the median and 95th
+    percentile over the targets (Python overhead of solve() included)."""
+    from .serial import reference
+    from .serial import ik_numeric as ikn
+    from .serial.robot import SerialRobot
+
+    arm = SerialRobot.load(arm_name)
+    rng = np.random.default_rng(seed)
+    lo, hi = arm.qlim.T
+    lo = np.where(np.isfinite(lo), lo, -np.pi)
+    hi = np.where(np.isfinite(hi), hi, np.pi)
+    q_true = lo + (hi - lo) * rng.random((N, arm.n))
+    T, _ = reference.fk(arm.description, q_true)
+    starts = {"random in-limit q0": lo + (hi - lo) * rng.random((N, arm.n)),
+              "qz": np.broadcast_to(arm.configurations.get("qz", np.zeros(arm.n)), (N, arm.n))}
+    out = {"arm": arm_name, "N": N, "restarts": restarts, "seed": seed, "repeats": repeats,
+           "engine": engine, "rows": []}
+    for label, q0 in starts.items():
+        q0 = np.ascontiguousarray(q0)
+        kw = dict(restarts=restarts, seed=seed, engine=engine)
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter_ns()
+            res = ikn.solve(arm, T, q0, **kw)
+            times.append((time.perf_counter_ns() - t0) / N / 1e3)
+        Tq, _ = reference.fk(arm.description, np.nan_to_num(res.q))
+        dp = np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1)
+        dR = np.linalg.norm(Tq[:, :3, :3] - T[:, :3, :3], axis=(1, 2))
+        dr = 2.0 * np.arcsin(np.clip(dR / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
+        ok = res.converged & arm.within_limits(res.q) & (dp <= 1e-10 + 1e-13) & (dr <= 1e-10 + 1e-13)
+        row = {"start": label, "success": float(ok.mean()),
+               "batched_us": statistics.median(times),
+               "iterations_median": float(np.median(res.iterations)),
+               "iterations_p95": float(np.percentile(res.iterations, 95))}
+        if single:
+            per = np.empty(N)
+            for i in range(N):
+                samples = []
+                for _ in range(repeats):
+                    t0 = time.perf_counter_ns()
+                    ikn.solve(arm, T[i], q0[i], **kw)
+                    samples.append(time.perf_counter_ns() - t0)
+                per[i] = statistics.median(samples) / 1e3
+            row["single_median_us"] = float(np.median(per))
+            row["single_p95_us"] = float(np.percentile(per, 95))
+        out["rows"].append(row)
+    return out
+
+
+def ik_numeric_report(result: dict) -> str:
+    """Plain-text table of :func:`ik_numeric_benchmark`."""
+    lines = [f"numerical IK, {result['arm']}: {result['N']} random reachable in-limit targets, "
+             f"tol 1e-10 m / rad, restarts {result['restarts']}, engine {result['engine']}, "
+             f"median of {result['repeats']} repeats"]
+    header = ["start", "success", "batched us/solve", "single median us", "single p95 us",
+              "iterations median / p95"]
+    rows = []
+    for r in result["rows"]:
+        rows.append([r["start"], f"{100 * r['success']:.1f} %", f"{r['batched_us']:.2f}",
+                     f"{r.get('single_median_us', float('nan')):.1f}",
+                     f"{r.get('single_p95_us', float('nan')):.1f}",
+                     f"{r['iterations_median']:.0f} / {r['iterations_p95']:.0f}"])
+    return "\n".join(lines + _table(header, rows, markdown=True))

@@ -641,6 +641,210 @@ int lecture_scara_jacobian(size_t n, const double *restrict q, double *restrict 
     return 0;
 }
 
+int lecture_scara_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (status == NULL || q == NULL || T == NULL || J == NULL) {
+        return -1;
+    }
+
+    for (size_t start = 0; start < n; start += LECTURE_SCARA_BLOCK) {
+        const size_t m = (n - start < LECTURE_SCARA_BLOCK) ? n - start : LECTURE_SCARA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double q1_b[LECTURE_SCARA_BLOCK];
+        double q2_b[LECTURE_SCARA_BLOCK];
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 2 + 0];
+                q2_b[k] = q[(start + k) * 2 + 1];
+            }
+        double cos_q1_b[LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q1_b[k] = cos(q1_b[k]);
+        }
+        double sin_q1_b[LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q1_b[k] = sin(q1_b[k]);
+        }
+        double cos_q2_b[LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q2_b[k] = cos(q2_b[k]);
+        }
+        double sin_q2_b[LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q2_b[k] = sin(q2_b[k]);
+        }
+        /* kinematics, one point per iteration */
+        int status_b[LECTURE_SCARA_BLOCK];
+        double out_T0_b[LECTURE_SCARA_BLOCK];
+        double out_T1_b[LECTURE_SCARA_BLOCK];
+        double out_T2_b[LECTURE_SCARA_BLOCK];
+        double out_T3_b[LECTURE_SCARA_BLOCK];
+        double out_T4_b[LECTURE_SCARA_BLOCK];
+        double out_T5_b[LECTURE_SCARA_BLOCK];
+        double out_T6_b[LECTURE_SCARA_BLOCK];
+        double out_T7_b[LECTURE_SCARA_BLOCK];
+        double out_T8_b[LECTURE_SCARA_BLOCK];
+        double out_T9_b[LECTURE_SCARA_BLOCK];
+        double out_T10_b[LECTURE_SCARA_BLOCK];
+        double out_T11_b[LECTURE_SCARA_BLOCK];
+        double out_T12_b[LECTURE_SCARA_BLOCK];
+        double out_T13_b[LECTURE_SCARA_BLOCK];
+        double out_T14_b[LECTURE_SCARA_BLOCK];
+        double out_T15_b[LECTURE_SCARA_BLOCK];
+        double out_J0_b[LECTURE_SCARA_BLOCK];
+        double out_J1_b[LECTURE_SCARA_BLOCK];
+        double out_J2_b[LECTURE_SCARA_BLOCK];
+        double out_J3_b[LECTURE_SCARA_BLOCK];
+        double out_J4_b[LECTURE_SCARA_BLOCK];
+        double out_J5_b[LECTURE_SCARA_BLOCK];
+        double out_J6_b[LECTURE_SCARA_BLOCK];
+        double out_J7_b[LECTURE_SCARA_BLOCK];
+        double out_J8_b[LECTURE_SCARA_BLOCK];
+        double out_J9_b[LECTURE_SCARA_BLOCK];
+        double out_J10_b[LECTURE_SCARA_BLOCK];
+        double out_J11_b[LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double q1 = q1_b[k];
+            const double q2 = q2_b[k];
+            const double cos_q1 = cos_q1_b[k];
+            const double sin_q1 = sin_q1_b[k];
+            const double cos_q2 = cos_q2_b[k];
+            const double sin_q2 = sin_q2_b[k];
+            /* frame 1: F_1 = F_0 A_1 (standard convention) */
+            const double F1_14 = 4.0*cos_q1;
+            const double F1_24 = 4.0*sin_q1;
+            /* frame 2: F_2 = F_1 A_2 (standard convention) */
+            const double t1_0 = cos_q1*cos_q2;
+            const double t1_1 = sin_q1*sin_q2;
+            const double t1_2 = t1_0 - t1_1;
+            const double t1_3 = cos_q1*sin_q2;
+            const double t1_4 = cos_q2*sin_q1;
+            const double t1_5 = t1_3 + t1_4;
+            const double F2_11 = t1_2;
+            const double F2_12 = -t1_5;
+            const double F2_14 = F1_14 + 3.0*t1_0 - 3.0*t1_1;
+            const double F2_21 = t1_5;
+            const double F2_22 = t1_2;
+            const double F2_24 = F1_24 + 3.0*t1_3 + 3.0*t1_4;
+            /* geometric Jacobian: revolute [w x (p - o); w], prismatic [w; 0] */
+            const double t2_0 = -F2_24;
+            const double J1_1 = t2_0;
+            const double J1_2 = F1_24 + t2_0;
+            const double J2_1 = F2_14;
+            const double J2_2 = -F1_14 + F2_14;
+            const double J3_1 = 0;
+            const double J3_2 = 0;
+            const double J4_1 = 0;
+            const double J4_2 = 0;
+            const double J5_1 = 0;
+            const double J5_2 = 0;
+            const double J6_1 = 1;
+            const double J6_2 = 1;
+            /* status flag: a non-finite input */
+            const int invalid = !(isfinite(q1) & isfinite(q2));
+            /* outputs (NaN on invalid rows) */
+            const double t4_0 = ((invalid) ? NAN : 0);
+            const double t4_1 = ((invalid) ? NAN : 1);
+            const double out_T0 = ((invalid) ? NAN : F2_11);
+            const double out_T1 = ((invalid) ? NAN : F2_12);
+            const double out_T2 = t4_0;
+            const double out_T3 = ((invalid) ? NAN : F2_14);
+            const double out_T4 = ((invalid) ? NAN : F2_21);
+            const double out_T5 = ((invalid) ? NAN : F2_22);
+            const double out_T6 = t4_0;
+            const double out_T7 = ((invalid) ? NAN : F2_24);
+            const double out_T8 = t4_0;
+            const double out_T9 = t4_0;
+            const double out_T10 = t4_1;
+            const double out_T11 = t4_0;
+            const double out_T12 = t4_0;
+            const double out_T13 = t4_0;
+            const double out_T14 = t4_0;
+            const double out_T15 = t4_1;
+            const double out_J0 = ((invalid) ? NAN : J1_1);
+            const double out_J1 = ((invalid) ? NAN : J1_2);
+            const double out_J2 = ((invalid) ? NAN : J2_1);
+            const double out_J3 = ((invalid) ? NAN : J2_2);
+            const double out_J4 = ((invalid) ? NAN : J3_1);
+            const double out_J5 = ((invalid) ? NAN : J3_2);
+            const double out_J6 = ((invalid) ? NAN : J4_1);
+            const double out_J7 = ((invalid) ? NAN : J4_2);
+            const double out_J8 = ((invalid) ? NAN : J5_1);
+            const double out_J9 = ((invalid) ? NAN : J5_2);
+            const double out_J10 = ((invalid) ? NAN : J6_1);
+            const double out_J11 = ((invalid) ? NAN : J6_2);
+            out_T0_b[k] = out_T0;
+            out_T1_b[k] = out_T1;
+            out_T2_b[k] = out_T2;
+            out_T3_b[k] = out_T3;
+            out_T4_b[k] = out_T4;
+            out_T5_b[k] = out_T5;
+            out_T6_b[k] = out_T6;
+            out_T7_b[k] = out_T7;
+            out_T8_b[k] = out_T8;
+            out_T9_b[k] = out_T9;
+            out_T10_b[k] = out_T10;
+            out_T11_b[k] = out_T11;
+            out_T12_b[k] = out_T12;
+            out_T13_b[k] = out_T13;
+            out_T14_b[k] = out_T14;
+            out_T15_b[k] = out_T15;
+            out_J0_b[k] = out_J0;
+            out_J1_b[k] = out_J1;
+            out_J2_b[k] = out_J2;
+            out_J3_b[k] = out_J3;
+            out_J4_b[k] = out_J4;
+            out_J5_b[k] = out_J5;
+            out_J6_b[k] = out_J6;
+            out_J7_b[k] = out_J7;
+            out_J8_b[k] = out_J8;
+            out_J9_b[k] = out_J9;
+            out_J10_b[k] = out_J10;
+            out_J11_b[k] = out_J11;
+            status_b[k] = (3*invalid);
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8 stores into the
+         * loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+            for (size_t k = 0; k < m; ++k) {
+                T[(start + k) * 16 + 0] = out_T0_b[k];
+                T[(start + k) * 16 + 1] = out_T1_b[k];
+                T[(start + k) * 16 + 2] = out_T2_b[k];
+                T[(start + k) * 16 + 3] = out_T3_b[k];
+                T[(start + k) * 16 + 4] = out_T4_b[k];
+                T[(start + k) * 16 + 5] = out_T5_b[k];
+                T[(start + k) * 16 + 6] = out_T6_b[k];
+                T[(start + k) * 16 + 7] = out_T7_b[k];
+                T[(start + k) * 16 + 8] = out_T8_b[k];
+                T[(start + k) * 16 + 9] = out_T9_b[k];
+                T[(start + k) * 16 + 10] = out_T10_b[k];
+                T[(start + k) * 16 + 11] = out_T11_b[k];
+                T[(start + k) * 16 + 12] = out_T12_b[k];
+                T[(start + k) * 16 + 13] = out_T13_b[k];
+                T[(start + k) * 16 + 14] = out_T14_b[k];
+                T[(start + k) * 16 + 15] = out_T15_b[k];
+                J[(start + k) * 12 + 0] = out_J0_b[k];
+                J[(start + k) * 12 + 1] = out_J1_b[k];
+                J[(start + k) * 12 + 2] = out_J2_b[k];
+                J[(start + k) * 12 + 3] = out_J3_b[k];
+                J[(start + k) * 12 + 4] = out_J4_b[k];
+                J[(start + k) * 12 + 5] = out_J5_b[k];
+                J[(start + k) * 12 + 6] = out_J6_b[k];
+                J[(start + k) * 12 + 7] = out_J7_b[k];
+                J[(start + k) * 12 + 8] = out_J8_b[k];
+                J[(start + k) * 12 + 9] = out_J9_b[k];
+                J[(start + k) * 12 + 10] = out_J10_b[k];
+                J[(start + k) * 12 + 11] = out_J11_b[k];
+            }
+    }
+    return 0;
+}
+
 int lecture_scara_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd, int8_t *restrict status)
 {
     if (n == 0) {
@@ -780,6 +984,626 @@ int lecture_scara_jacobian_dot(size_t n, const double *restrict q, const double 
                 Jd[(start + k) * 12 + 10] = out_Jd10_b[k];
                 Jd[(start + k) * 12 + 11] = out_Jd11_b[k];
             }
+    }
+    return 0;
+}
+
+
+/* ------------------------------------------------------------------------------------
+ * Numerical inverse kinematics: damped Newton-Raphson (Levenberg-Marquardt), one attempt
+ * per target. The same iteration as deltagen/serial/ik_numeric.py (its docstring is the
+ * full description; restarts from random starts are the caller's business):
+ *
+ *   error    dx = [p* - p; w], w the rotation vector of R* R^T (axis * angle, exact up to
+ *            pi), components outside the mask set to 0; |dx| = hypot(|dp|, |w|);
+ *   damping  lambda^2 = (mu + c0 + K (1 - (s / S_WELL)^2)_+) |dx|^2, mu the row's LM
+ *            parameter, s an estimate of the smallest singular value of the matched rows
+ *            of J: three steps of inverse iteration on the Gram matrix (J^T J or J J^T)
+ *            through its Cholesky factor. The estimate is an upper bound of sigma_min
+ *            that is accurate when sigma_min is small, i.e. where the term matters.
+ *            (The numpy solver takes sigma_min from an SVD.)
+ *   step     k = number of matched components. n == k with negligible damping
+ *            (lambda <= 1e-3 s, s >= S_WELL): Gauss elimination with partial pivoting
+ *            on J dq = dx. Otherwise the damped normal equations by Cholesky:
+ *            (J^T J + lambda^2 I) dq = J^T dx for n <= k, dq = J^T y with
+ *            (J J^T + lambda^2 I) y = dx for n > k (minimum norm for redundant arms);
+ *            then dq is scaled so that max |dq_i| <= step_limit;
+ *   limits   a revolute joint outside its (finite) range is shifted by 2 pi k where
+ *            that brings it inside; with free_first the attempt first iterates with only
+ *            these shifts, and once |dp|, |w| <= max(tol, 1e-9) at a q outside the limits
+ *            it starts again from its start point, clamped, with the limits enforced:
+ *            every step is clamped, and joints the step would push through a limit are
+ *            set onto it while the others solve for the rest of dx (one active-set pass,
+ *            same lambda, normal equations);
+ *   accept   non-monotone (Zhang-Hager, eta = 0.95): a step is taken if the new |dx| is
+ *            below the running average C of the accepted errors; mu -> mu / 10 (below
+ *            1e-2: 0) on acceptance, max(10 mu, 1e-2) on rejection;
+ *   stop     converged when |dp| <= tol_p and |w| <= tol_r within the limits; given up
+ *            after max_iter steps, when mu > 1e12, or (stall_window > 0) when |dx| did not
+ *            halve over stall_window steps. Unconverged targets return the best in-limit
+ *            q seen (the start clamped into the limits included).
+ * ------------------------------------------------------------------------------------ */
+
+enum { LECTURE_SCARA_IKN_N = 2 };
+
+/* Rotation vector (matrix logarithm) of the row-major rotation R: theta * axis, with
+ * theta = atan2(|v|, (tr R - 1) / 2), v = vee(R - R^T) / 2; for theta > pi/2 the axis comes
+ * from the symmetric part (accurate up to theta = pi), signed like v. */
+static void lecture_scara_ikn_rotvec(const double R[9], double w[3])
+{
+    const double v[3] = {0.5 * (R[7] - R[5]), 0.5 * (R[2] - R[6]), 0.5 * (R[3] - R[1])};
+    double c = 0.5 * (R[0] + R[4] + R[8] - 1.0);
+    c = c < -1.0 ? -1.0 : (c > 1.0 ? 1.0 : c);
+    const double s = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    const double theta = atan2(s, c);
+    const double factor = s < 1e-300 ? 1.0 : theta / s;
+    for (int i = 0; i < 3; ++i) {
+        w[i] = v[i] * factor;
+    }
+    if (c < 0.0) {
+        /* (R + R^T)/2 = c I + (1 - c) a a^T: the column of the largest diagonal entry */
+        double S[9];
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                S[3 * i + j] = (0.5 * (R[3 * i + j] + R[3 * j + i]) - (i == j ? c : 0.0)) / (1.0 - c);
+            }
+        }
+        int k = 0;
+        if (S[4] > S[0]) {
+            k = 1;
+        }
+        if (S[8] > S[4 * k]) {
+            k = 2;
+        }
+        double a[3] = {S[k], S[3 + k], S[6 + k]};
+        const double norm = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        const double dot = a[0] * v[0] + a[1] * v[1] + a[2] * v[2];
+        const double scale = (dot < 0.0 ? -theta : theta) / norm;
+        for (int i = 0; i < 3; ++i) {
+            w[i] = a[i] * scale;
+        }
+    }
+}
+
+/* fk and J at qv, the masked error e = [p* - p; w] and its norms; 0, or -1 if not finite. */
+static int lecture_scara_ikn_eval(const double *qv, const double *Tt, const int32_t *mask,
+                             double *T, double *J, double e[6], double *ep, double *er)
+{
+    int8_t st;
+    lecture_scara_fk_jacobian(1, qv, T, J, &st);
+    double M[9];  /* R* R^T */
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            M[3 * i + j] = Tt[4 * i] * T[4 * j] + Tt[4 * i + 1] * T[4 * j + 1] + Tt[4 * i + 2] * T[4 * j + 2];
+        }
+    }
+    for (int i = 0; i < 3; ++i) {
+        e[i] = Tt[4 * i + 3] - T[4 * i + 3];
+    }
+    lecture_scara_ikn_rotvec(M, e + 3);
+    for (int i = 0; i < 6; ++i) {
+        e[i] = mask[i] ? e[i] : 0.0;
+    }
+    *ep = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    *er = sqrt(e[3] * e[3] + e[4] * e[4] + e[5] * e[5]);
+    return (st == LECTURE_SCARA_OK && isfinite(*ep) && isfinite(*er)) ? 0 : -1;
+}
+
+/* In-place Cholesky factor (lower) of the s x s matrix A; 0, or -1 if not positive definite. */
+static int lecture_scara_ikn_cholesky(double *A, size_t s)
+{
+    for (size_t j = 0; j < s; ++j) {
+        double d = A[j * s + j];
+        for (size_t k = 0; k < j; ++k) {
+            d -= A[j * s + k] * A[j * s + k];
+        }
+        if (!(d > 0.0)) {
+            return -1;
+        }
+        d = sqrt(d);
+        A[j * s + j] = d;
+        for (size_t i = j + 1; i < s; ++i) {
+            double x = A[i * s + j];
+            for (size_t k = 0; k < j; ++k) {
+                x -= A[i * s + k] * A[j * s + k];
+            }
+            A[i * s + j] = x / d;
+        }
+    }
+    return 0;
+}
+
+/* Solve L L^T x = b (L from ikn_cholesky); b and x may be the same array. */
+static void lecture_scara_ikn_cholesky_solve(const double *L, size_t s, const double *b, double *x)
+{
+    for (size_t i = 0; i < s; ++i) {
+        double y = b[i];
+        for (size_t k = 0; k < i; ++k) {
+            y -= L[i * s + k] * x[k];
+        }
+        x[i] = y / L[i * s + i];
+    }
+    for (size_t i = s; i-- > 0;) {
+        double y = x[i];
+        for (size_t k = i + 1; k < s; ++k) {
+            y -= L[k * s + i] * x[k];
+        }
+        x[i] = y / L[i * s + i];
+    }
+}
+
+/* Gauss elimination with partial pivoting: A x = b for the s x s A (destroyed), x in b;
+ * 0, or -1 if a pivot is zero. */
+static int lecture_scara_ikn_gauss(double *A, size_t s, double *b)
+{
+    for (size_t j = 0; j < s; ++j) {
+        size_t p = j;
+        for (size_t i = j + 1; i < s; ++i) {
+            if (fabs(A[i * s + j]) > fabs(A[p * s + j])) {
+                p = i;
+            }
+        }
+        if (!(A[p * s + j] != 0.0)) {
+            return -1;
+        }
+        if (p != j) {
+            for (size_t k = 0; k < s; ++k) {
+                const double t = A[j * s + k];
+                A[j * s + k] = A[p * s + k];
+                A[p * s + k] = t;
+            }
+            const double t = b[j];
+            b[j] = b[p];
+            b[p] = t;
+        }
+        for (size_t i = j + 1; i < s; ++i) {
+            const double f = A[i * s + j] / A[j * s + j];
+            for (size_t k = j; k < s; ++k) {
+                A[i * s + k] -= f * A[j * s + k];
+            }
+            b[i] -= f * b[j];
+        }
+    }
+    for (size_t i = s; i-- > 0;) {
+        double x = b[i];
+        for (size_t k = i + 1; k < s; ++k) {
+            x -= A[i * s + k] * b[k];
+        }
+        b[i] = x / A[i * s + i];
+    }
+    return 0;
+}
+
+/* The Gram matrix of the k x N matrix A (row-major): A^T A (N x N) if N <= k, else A A^T
+ * (k x k); its size in *s. Columns with fixed[i] set are left out (their A^T A row and
+ * column are those of the identity). */
+static void lecture_scara_ikn_gram(const double *A, size_t k, const int *fixed, double *G, size_t *s)
+{
+    const size_t N = LECTURE_SCARA_IKN_N;
+    if (N <= k) {
+        for (size_t i = 0; i < N; ++i) {
+            for (size_t j = 0; j <= i; ++j) {
+                double x = 0.0;
+                if (!fixed[i] && !fixed[j]) {
+                    for (size_t r = 0; r < k; ++r) {
+                        x += A[r * N + i] * A[r * N + j];
+                    }
+                } else if (i == j) {
+                    x = 1.0;
+                }
+                G[i * N + j] = x;
+                G[j * N + i] = x;
+            }
+        }
+        *s = N;
+    } else {
+        for (size_t i = 0; i < k; ++i) {
+            for (size_t j = 0; j <= i; ++j) {
+                double x = 0.0;
+                for (size_t c = 0; c < N; ++c) {
+                    x += fixed[c] ? 0.0 : A[i * N + c] * A[j * N + c];
+                }
+                G[i * k + j] = x;
+                G[j * k + i] = x;
+            }
+        }
+        *s = k;
+    }
+}
+
+/* Estimate of the smallest singular value of the matched rows A (k x N): three steps of
+ * inverse iteration on the Gram matrix G = A^T A or A A^T, from a fixed start. The ratio
+ * |x| / |G^-1 x| is never below the smallest eigenvalue, so the estimate errs high, and
+ * it is accurate when the smallest eigenvalue is well separated (near a singularity). */
+static double lecture_scara_ikn_sigma_min(const double *A, size_t k)
+{
+    double G[LECTURE_SCARA_IKN_N * LECTURE_SCARA_IKN_N > 36 ? LECTURE_SCARA_IKN_N * LECTURE_SCARA_IKN_N : 36];
+    int fixed[LECTURE_SCARA_IKN_N] = {0};
+    size_t s;
+    lecture_scara_ikn_gram(A, k, fixed, G, &s);
+    double trace = 0.0;
+    for (size_t i = 0; i < s; ++i) {
+        trace += G[i * s + i];
+    }
+    /* a shift of a few ulps of the trace keeps the factorisation defined at an exact
+     * singularity; it is taken off again at the end */
+    const double shift = 1e-15 * trace + 1e-300;
+    for (size_t i = 0; i < s; ++i) {
+        G[i * s + i] += shift;
+    }
+    if (lecture_scara_ikn_cholesky(G, s) != 0) {
+        return 0.0;
+    }
+    double x[LECTURE_SCARA_IKN_N > 6 ? LECTURE_SCARA_IKN_N : 6];
+    for (size_t i = 0; i < s; ++i) {
+        x[i] = 1.0 / (double)(i + 1) * ((i & 1) ? -1.0 : 1.0);
+    }
+    double lambda = trace;
+    for (int it = 0; it < 3; ++it) {
+        double before = 0.0, after = 0.0;
+        for (size_t i = 0; i < s; ++i) {
+            before += x[i] * x[i];
+        }
+        lecture_scara_ikn_cholesky_solve(G, s, x, x);
+        for (size_t i = 0; i < s; ++i) {
+            after += x[i] * x[i];
+        }
+        after = sqrt(after);
+        lambda = sqrt(before) / after;
+        for (size_t i = 0; i < s; ++i) {
+            x[i] /= after;
+        }
+    }
+    lambda -= shift;
+    return lambda > 0.0 ? sqrt(lambda) : 0.0;
+}
+
+/* The step dq (N) for the k x N matched rows A and residual r (k): Gauss elimination if
+ * ``gauss`` (square, nothing fixed), else the damped normal equations with lambda^2 = lam2;
+ * fixed joints get dq_i = 0. 0, or -1 if the system is numerically singular (dq = 0). */
+static int lecture_scara_ikn_solve(const double *A, size_t k, const double *r, const int *fixed,
+                              double lam2, int gauss, double *dq)
+{
+    const size_t N = LECTURE_SCARA_IKN_N;
+    double G[LECTURE_SCARA_IKN_N * LECTURE_SCARA_IKN_N > 36 ? LECTURE_SCARA_IKN_N * LECTURE_SCARA_IKN_N : 36];
+    double b[LECTURE_SCARA_IKN_N > 6 ? LECTURE_SCARA_IKN_N : 6];
+    if (gauss) {
+        /* "+ 0.0" (not an identity in IEEE arithmetic, so not folded): keeps these loops
+         * from becoming memcpy calls, the module needs nothing but libm */
+        for (size_t i = 0; i < N * N; ++i) {
+            G[i] = A[i] + 0.0;
+        }
+        for (size_t i = 0; i < N; ++i) {
+            b[i] = r[i] + 0.0;
+        }
+        if (lecture_scara_ikn_gauss(G, N, b) == 0) {
+            for (size_t i = 0; i < N; ++i) {
+                dq[i] = b[i];
+            }
+            return 0;
+        }
+    }
+    size_t s;
+    lecture_scara_ikn_gram(A, k, fixed, G, &s);
+    double trace = 0.0;
+    for (size_t i = 0; i < s; ++i) {
+        trace += G[i * s + i];
+        G[i * s + i] += lam2;
+    }
+    int rc = lecture_scara_ikn_cholesky(G, s);
+    if (rc != 0) {  /* rank deficient and undamped: a shift of a few ulps of the trace */
+        lecture_scara_ikn_gram(A, k, fixed, G, &s);
+        for (size_t i = 0; i < s; ++i) {
+            G[i * s + i] += lam2 + 1e-14 * trace + 1e-300;
+        }
+        rc = lecture_scara_ikn_cholesky(G, s);
+    }
+    if (rc != 0) {
+        for (size_t i = 0; i < N; ++i) {
+            dq[i] = 0.0;
+        }
+        return -1;
+    }
+    if (s == N && N <= k) {  /* (A^T A + lambda^2 I) dq = A^T r */
+        for (size_t i = 0; i < N; ++i) {
+            double x = 0.0;
+            for (size_t row = 0; row < k; ++row) {
+                x += A[row * N + i] * r[row];
+            }
+            b[i] = fixed[i] ? 0.0 : x;
+        }
+        lecture_scara_ikn_cholesky_solve(G, s, b, dq);
+    } else {  /* dq = A^T y, (A A^T + lambda^2 I) y = r */
+        lecture_scara_ikn_cholesky_solve(G, s, r, b);
+        for (size_t i = 0; i < N; ++i) {
+            double x = 0.0;
+            for (size_t row = 0; row < k; ++row) {
+                x += A[row * N + i] * b[row];
+            }
+            dq[i] = fixed[i] ? 0.0 : x;
+        }
+    }
+    return 0;
+}
+
+/* q_i shifted by a multiple of 2 pi into [lo, hi] where that is possible (revolute joints
+ * with finite limits), else unchanged. */
+static double lecture_scara_ikn_wrap(double qi, double lo, double hi, int wraps)
+{
+    const double two_pi = 6.283185307179586;
+    if (!wraps || (qi >= lo && qi <= hi)) {
+        return qi;
+    }
+    const double k = qi < lo ? ceil((lo - qi) / two_pi) : -ceil((qi - hi) / two_pi);
+    const double q2 = qi + two_pi * k;
+    return (q2 >= lo && q2 <= hi) ? q2 : qi;
+}
+
+/* The limits applied to q (N): 2 pi shifts only (free), or shifts then clamping. */
+static void lecture_scara_ikn_limit(double *qv, const double *lo, const double *hi, const int *wraps, int clamp)
+{
+    for (size_t i = 0; i < LECTURE_SCARA_IKN_N; ++i) {
+        double x = lecture_scara_ikn_wrap(qv[i], lo[i], hi[i], wraps[i]);
+        if (clamp) {
+            x = x < lo[i] ? lo[i] : (x > hi[i] ? hi[i] : x);
+        }
+        qv[i] = x;
+    }
+}
+
+static int lecture_scara_ikn_inside(const double *qv, const double *lo, const double *hi)
+{
+    for (size_t i = 0; i < LECTURE_SCARA_IKN_N; ++i) {
+        if (!(qv[i] >= lo[i] && qv[i] <= hi[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+static void lecture_scara_ikn_limit_step(double *dq, double step_limit)
+{
+    double big = 0.0;
+    for (size_t i = 0; i < LECTURE_SCARA_IKN_N; ++i) {
+        big = fabs(dq[i]) > big ? fabs(dq[i]) : big;
+    }
+    if (big > step_limit) {
+        const double f = step_limit / big;
+        for (size_t i = 0; i < LECTURE_SCARA_IKN_N; ++i) {
+            dq[i] *= f;
+        }
+    }
+}
+
+/* The per-target state of the iteration: q with its pose, Jacobian and error. */
+typedef struct lecture_scara_ikn_point {
+    double q[LECTURE_SCARA_IKN_N];
+    double T[16];
+    double J[6 * LECTURE_SCARA_IKN_N];
+    double e[6];
+    double ep, er, err;
+} lecture_scara_ikn_point;
+
+static int lecture_scara_ikn_set(const double *qv, const double *Tt, const int32_t *mask, lecture_scara_ikn_point *pt)
+{
+    for (size_t i = 0; i < LECTURE_SCARA_IKN_N; ++i) {
+        pt->q[i] = qv[i];
+    }
+    const int rc = lecture_scara_ikn_eval(pt->q, Tt, mask, pt->T, pt->J, pt->e, &pt->ep, &pt->er);
+    pt->err = hypot(pt->ep, pt->er);
+    return rc;
+}
+
+int lecture_scara_ik_newton(size_t n, const lecture_scara_ik_options *restrict options,
+    const double *restrict T_target, const double *restrict q0, const double *restrict qlim,
+    double *restrict q, double *restrict err_p, double *restrict err_r,
+    int32_t *restrict iterations, int8_t *restrict status)
+{
+    enum { N = LECTURE_SCARA_IKN_N };
+    const double S_WELL = 1e-2;       /* sigma_min below this: the damping grows */
+    const double GAUSS_REL = 1e-3;    /* Gauss elimination when lambda <= this * sigma_min */
+    const double MU_START = 1e-2, MU_MAX = 1e12, ETA = 0.95, FREE_CHECK = 1e-9;
+    const int revolute[N] = {1, 1};
+    if (n == 0) {
+        return 0;
+    }
+    if (options == NULL || T_target == NULL || q0 == NULL || q == NULL || err_p == NULL
+        || err_r == NULL || iterations == NULL || status == NULL) {
+        return -1;
+    }
+    const lecture_scara_ik_options o = *options;
+    int k = 0;
+    for (int i = 0; i < 6; ++i) {
+        if (o.mask[i] != 0 && o.mask[i] != 1) {
+            return -1;
+        }
+        k += o.mask[i];
+    }
+    if (k == 0 || !(o.tol_p >= 0.0) || !(o.tol_r >= 0.0) || !(o.step_limit > 0.0)
+        || !(o.damping >= 0.0) || !isfinite(o.damping) || !(o.base_damping >= 0.0)
+        || !isfinite(o.base_damping) || o.max_iter < 0 || o.stall_window < 0) {
+        return -1;
+    }
+    const int respect = o.respect_limits != 0 && qlim != NULL;
+    double lo[N], hi[N];
+    int wraps[N];
+    for (size_t i = 0; i < N; ++i) {
+        lo[i] = respect ? qlim[2 * i] : -INFINITY;
+        hi[i] = respect ? qlim[2 * i + 1] : INFINITY;
+        wraps[i] = revolute[i] && isfinite(lo[i]) && isfinite(hi[i]);
+    }
+    const double check_p = o.tol_p > FREE_CHECK ? o.tol_p : FREE_CHECK;
+    const double check_r = o.tol_r > FREE_CHECK ? o.tol_r : FREE_CHECK;
+
+    for (size_t row = 0; row < n; ++row) {
+        const double *Tt = T_target + 16 * row;
+        double *q_out = q + N * row;
+        int finite = 1;
+        for (size_t i = 0; i < 16; ++i) {
+            finite &= isfinite(Tt[i]);
+        }
+        for (size_t i = 0; i < N; ++i) {
+            finite &= isfinite(q0[N * row + i]);
+        }
+        if (!finite) {
+            for (size_t i = 0; i < N; ++i) {
+                q_out[i] = NAN;
+            }
+            err_p[row] = err_r[row] = NAN;
+            iterations[row] = 0;
+            status[row] = LECTURE_SCARA_INVALID;
+            continue;
+        }
+        int free_phase = respect && o.free_first;
+        double start[N];
+        for (size_t i = 0; i < N; ++i) {
+            start[i] = q0[N * row + i];
+        }
+        lecture_scara_ikn_limit(start, lo, hi, wraps, !free_phase);
+        lecture_scara_ikn_point points[2];
+        lecture_scara_ikn_point *cur = &points[0], *trial = &points[1];
+        int stuck = lecture_scara_ikn_set(start, Tt, o.mask, cur) != 0;
+        /* the best in-limit q seen: at first the start clamped into the limits */
+        double best_q[N], best_ep = cur->ep, best_er = cur->er, best_err = cur->err;
+        for (size_t i = 0; i < N; ++i) {
+            best_q[i] = start[i];
+        }
+        lecture_scara_ikn_limit(best_q, lo, hi, wraps, 1);
+        if (!lecture_scara_ikn_inside(start, lo, hi)) {
+            stuck |= lecture_scara_ikn_set(best_q, Tt, o.mask, trial) != 0;
+            best_ep = trial->ep;
+            best_er = trial->er;
+            best_err = trial->err;
+        }
+        double mu = 0.0, cref = cur->err, qz = 1.0, chk = cur->err, s_prev = 0.0;
+        int32_t it = 0;
+        int converged = 0;
+        for (;;) {
+            const int inside = lecture_scara_ikn_inside(cur->q, lo, hi);
+            if (cur->ep <= o.tol_p && cur->er <= o.tol_r && inside) {
+                converged = 1;
+                break;
+            }
+            if (free_phase && !inside && cur->ep <= check_p && cur->er <= check_r) {
+                /* a solution outside the limits: again from the start, limits enforced */
+                free_phase = 0;
+                lecture_scara_ikn_limit(start, lo, hi, wraps, 1);
+                stuck = lecture_scara_ikn_set(start, Tt, o.mask, cur) != 0;
+                mu = 0.0;
+                cref = chk = cur->err;
+                qz = 1.0;
+                s_prev = 0.0;
+                continue;
+            }
+            if (it >= o.max_iter || stuck) {
+                break;
+            }
+            /* the matched rows of J and dx */
+            double A[6 * N], r[6];
+            size_t kk = 0;
+            for (size_t c = 0; c < 6; ++c) {
+                if (o.mask[c]) {
+                    for (size_t i = 0; i < N; ++i) {
+                        A[kk * N + i] = cur->J[c * N + i];
+                    }
+                    r[kk++] = cur->e[c];
+                }
+            }
+            const double err2 = cur->err * cur->err;
+            /* damping; a square, well-conditioned row whose damping is negligible keeps the
+             * previous sigma_min estimate (x2 safety) and goes straight to Gauss */
+            double s = s_prev, lam2 = 0.0;
+            int gauss = 0;
+            if ((size_t)k == N && s >= 2.0 * S_WELL) {
+                lam2 = (mu + o.base_damping) * err2;
+                gauss = lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s);
+            }
+            if (!gauss) {
+                s = lecture_scara_ikn_sigma_min(A, (size_t)k);
+                double nh = 1.0 - (s / S_WELL) * (s / S_WELL);
+                nh = nh > 0.0 ? nh : 0.0;
+                lam2 = (mu + o.base_damping + o.damping * nh) * err2;
+                gauss = (size_t)k == N && lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s) && s >= S_WELL;
+            }
+            s_prev = s;
+            int fixed[N];
+            double dq[N], target[N];
+            for (size_t i = 0; i < N; ++i) {
+                fixed[i] = 0;
+            }
+            lecture_scara_ikn_solve(A, (size_t)k, r, fixed, lam2, gauss, dq);
+            lecture_scara_ikn_limit_step(dq, o.step_limit);
+            for (size_t i = 0; i < N; ++i) {
+                target[i] = cur->q[i] + dq[i];
+            }
+            if (respect && !free_phase) {
+                /* active set: joints pushed beyond a limit go onto it, the others solve for
+                 * the rest of dx */
+                double moved[N];
+                int any = 0;
+                for (size_t i = 0; i < N; ++i) {
+                    const double w = lecture_scara_ikn_wrap(target[i], lo[i], hi[i], wraps[i]);
+                    const double c = w < lo[i] ? lo[i] : (w > hi[i] ? hi[i] : w);
+                    fixed[i] = c != w;
+                    moved[i] = fixed[i] ? c - cur->q[i] : 0.0;
+                    any |= fixed[i];
+                }
+                if (any) {
+                    double Af[6 * N], rf[6], dq2[N];
+                    for (size_t c = 0; c < (size_t)k; ++c) {
+                        rf[c] = r[c];
+                        for (size_t i = 0; i < N; ++i) {
+                            rf[c] -= A[c * N + i] * moved[i];
+                            Af[c * N + i] = fixed[i] ? 0.0 : A[c * N + i];
+                        }
+                    }
+                    const double sf = lecture_scara_ikn_sigma_min(Af, (size_t)k);
+                    double nh = 1.0 - (sf / S_WELL) * (sf / S_WELL);
+                    nh = nh > 0.0 ? nh : 0.0;
+                    const double lam2f = (mu + o.base_damping + o.damping * nh) * err2;
+                    lecture_scara_ikn_solve(Af, (size_t)k, rf, fixed, lam2f, 0, dq2);
+                    lecture_scara_ikn_limit_step(dq2, o.step_limit);
+                    for (size_t i = 0; i < N; ++i) {
+                        target[i] = cur->q[i] + (fixed[i] ? moved[i] : dq2[i]);
+                    }
+                }
+            }
+            lecture_scara_ikn_limit(target, lo, hi, wraps, !free_phase);
+            const int good = lecture_scara_ikn_set(target, Tt, o.mask, trial) == 0;
+            ++it;
+            if (good && trial->err < cref) {  /* non-monotone acceptance (Zhang-Hager) */
+                const double qz_new = ETA * qz + 1.0;
+                cref = (ETA * qz * cref + trial->err) / qz_new;
+                qz = qz_new;
+                lecture_scara_ikn_point *t = cur;
+                cur = trial;
+                trial = t;
+                mu = mu / 10.0 < MU_START ? 0.0 : mu / 10.0;
+                if (cur->err < best_err && lecture_scara_ikn_inside(cur->q, lo, hi)) {
+                    for (size_t i = 0; i < N; ++i) {
+                        best_q[i] = cur->q[i];
+                    }
+                    best_ep = cur->ep;
+                    best_er = cur->er;
+                    best_err = cur->err;
+                }
+            } else {
+                mu = mu * 10.0 > MU_START ? mu * 10.0 : MU_START;
+            }
+            stuck = mu > MU_MAX;
+            if (o.stall_window > 0 && it % o.stall_window == 0) {
+                stuck |= cur->err > 0.5 * chk;
+                chk = cur->err;
+            }
+        }
+        const double *q_res = converged ? cur->q : best_q;
+        for (size_t i = 0; i < N; ++i) {
+            q_out[i] = q_res[i];
+        }
+        err_p[row] = converged ? cur->ep : best_ep;
+        err_r[row] = converged ? cur->er : best_er;
+        iterations[row] = it;
+        status[row] = converged ? LECTURE_SCARA_OK : LECTURE_SCARA_UNREACHABLE;
     }
     return 0;
 }

@@ -61,6 +61,16 @@ int lecture_scara_frames(size_t n, const double *restrict q, double *restrict F,
  */
 int lecture_scara_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
+/* Tool pose and geometric Jacobian together (one shared evaluation): T as in fk, J as in jacobian (6 x 2 row-major, base frame).
+ *
+ * n         number of points
+ * q         in,  n x 2: joint coordinates q_1..q_2 [rad or m]
+ * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
+ * J         out, n x 12: 6 x 2 row-major [m/rad, 1 (prismatic) | rad/rad]
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ */
+int lecture_scara_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J, int8_t *restrict status);
+
 /* Time derivative of the geometric Jacobian along qdot, 6 x 2 row-major: tool acceleration = J qddot + Jdot qdot.
  *
  * n         number of points
@@ -70,6 +80,45 @@ int lecture_scara_jacobian(size_t n, const double *restrict q, double *restrict 
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
  */
 int lecture_scara_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd, int8_t *restrict status);
+
+/* Options of lecture_scara_ik_newton (numerical inverse kinematics, damped Newton). */
+typedef struct lecture_scara_ik_options {
+    double tol_p;            /* position tolerance [m], >= 0 */
+    double tol_r;            /* rotation tolerance [rad], >= 0 */
+    double step_limit;       /* max |dq_i| per step [rad or m], > 0 (INFINITY: unlimited) */
+    double damping;          /* K >= 0: weight of the singularity term of the damping */
+    double base_damping;     /* c0 >= 0: damping always present, times |dx|^2 */
+    int32_t max_iter;        /* Newton steps per target, >= 0 */
+    int32_t stall_window;    /* stop when |dx| did not halve over this many steps (0: never) */
+    int32_t respect_limits;  /* 1: the result stays within qlim; 0: qlim is ignored */
+    int32_t free_first;      /* 1: iterate without clamping first (see the source) */
+    int32_t mask[6];         /* pose components to match, vx vy vz wx wy wz: 0 or 1 */
+} lecture_scara_ik_options;
+
+/* Numerical inverse kinematics of n target poses, one damped Newton attempt per target
+ * (Levenberg-Marquardt with error-scaled damping, non-monotone acceptance, step limiting,
+ * 2 pi wrapping and clamping into the joint limits; the algorithm is described in
+ * deltagen/serial/ik_numeric.py and in the comments of lecture_scara_ik_newton's source).
+ *
+ * n           number of targets
+ * options     in: tolerances, damping, iteration cap, mask (see lecture_scara_ik_options)
+ * T_target    in,  n x 16: target poses, 4x4 row-major (the rotation block and the position)
+ * q0          in,  n x 2: start configurations
+ * qlim        in,  2 x 2: joint limits [lower, upper] (+-INFINITY: none), or NULL (no limits)
+ * q           out, n x 2: the solution, or the best in-limit q seen if not converged
+ * err_p       out, n: |p* - p| of q [m] (matched components)
+ * err_r       out, n: rotation error of q [rad] (matched components of the rotation vector)
+ * iterations  out, n: Newton steps taken
+ * status      out, n: LECTURE_SCARA_OK (converged), LECTURE_SCARA_UNREACHABLE (not converged within
+ *             max_iter or stuck), LECTURE_SCARA_INVALID (a non-finite value in the row's T_target
+ *             or q0; q, err_p, err_r NaN, iterations 0)
+ * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
+ * n > 0 (then nothing is written). Reentrant; about 2 KiB of stack besides fk_jacobian's.
+ */
+int lecture_scara_ik_newton(size_t n, const lecture_scara_ik_options *restrict options,
+    const double *restrict T_target, const double *restrict q0, const double *restrict qlim,
+    double *restrict q, double *restrict err_p, double *restrict err_r,
+    int32_t *restrict iterations, int8_t *restrict status);
 
 #ifdef __cplusplus
 }

@@ -26,7 +26,7 @@ pytestmark = pytest.mark.skipif(GCC is None, reason="gcc not installed")
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
 LIBM = {"cos", "sin", "tan", "atan", "atan2", "acos", "asin", "sqrt", "cbrt", "hypot", "fabs",
-        "copysign", "fmin", "fmax", "fma", "pow", "exp", "log"}
+        "copysign", "fmin", "fmax", "fma", "pow", "exp", "log", "ceil", "floor"}
 
 
 def _gcc(args, cwd):
@@ -433,3 +433,112 @@ def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
     assert undefined <= LIBM, sorted(undefined - LIBM)
     kinds = {line.split()[1] for line in table.splitlines() if len(line.split()) == 3}
     assert not kinds & set("DdBbCGgSsVv")
+
+
+IK_DRIVER = r"""
+#include <math.h>
+#include <stdio.h>
+#include "serial_%(name)s.h"
+
+#define N %(n)d
+#define NJ %(nj)d
+%(arrays)s
+static int failures = 0;
+#define CHECK(cond, ...) do { if (!(cond)) { ++failures; printf("FAIL line %%d: ", __LINE__); \
+    printf(__VA_ARGS__); printf("\n"); } } while (0)
+
+static double q[N * NJ], ep[N], er[N], T[N * 16];
+static int32_t it[N];
+static int8_t st[N], st2[N];
+
+int main(void)
+{
+    %(name)s_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
+    CHECK(%(name)s_ik_newton(N, &o, TT, Q0, QLIM, q, ep, er, it, st) == 0, "rc");
+    CHECK(%(name)s_fk(N, q, T, st2) == 0, "fk rc");
+    int ok = 0;
+    for (size_t i = 0; i < N; ++i) {
+        if (BAD[i]) {
+            CHECK(st[i] == %(upper)s_INVALID && isnan(q[i * NJ]) && isnan(ep[i]) && it[i] == 0,
+                  "row %%zu not INVALID", i);
+            continue;
+        }
+        CHECK(st[i] == %(upper)s_OK || st[i] == %(upper)s_UNREACHABLE, "row %%zu status %%d", i, st[i]);
+        for (size_t j = 0; j < NJ; ++j) {
+            CHECK(q[i * NJ + j] >= QLIM[2 * j] && q[i * NJ + j] <= QLIM[2 * j + 1], "row %%zu limits", i);
+        }
+        if (st[i] == %(upper)s_OK) {
+            ++ok;
+            CHECK(ep[i] <= 1e-10 && er[i] <= 1e-10, "row %%zu errors", i);
+            for (size_t c = 0; c < 3; ++c) {
+                CHECK(fabs(T[i * 16 + 4 * c + 3] - TT[i * 16 + 4 * c + 3]) <= 1e-10, "row %%zu p", i);
+            }
+        }
+    }
+    CHECK(ok >= N / 2, "only %%d converged", ok);
+    /* documented return codes: bad options, NULL pointers, n = 0 */
+    int8_t s1 = 42;
+    double q1[NJ] = {0}, e1 = 7.0, e2 = 7.0;
+    int32_t i1;
+    %(name)s_ik_options bad = o;
+    bad.tol_p = -1.0;
+    CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "tol_p");
+    bad = o;
+    bad.mask[0] = 2;
+    CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "mask");
+    bad = o;
+    bad.max_iter = -1;
+    CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "max_iter");
+    CHECK(%(name)s_ik_newton(1, NULL, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL options");
+    CHECK(%(name)s_ik_newton(1, &o, NULL, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL T");
+    CHECK(%(name)s_ik_newton(1, &o, TT, Q0, QLIM, q1, &e1, &e2, &i1, NULL) == -1, "NULL status");
+    CHECK(s1 == 42 && e1 == 7.0, "written on error");
+    CHECK(%(name)s_ik_newton(0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "n=0");
+    /* no limits (qlim NULL), a mask, no step limit: still runs clean */
+    o.step_limit = INFINITY;
+    o.mask[3] = o.mask[4] = 0;
+    CHECK(%(name)s_ik_newton(N, &o, TT, Q0, NULL, q, ep, er, it, st) == 0, "rc no limits");
+    if (failures) {
+        printf("%%d FAILURES\n", failures);
+        return 1;
+    }
+    return 0;
+}
+"""
+
+
+@pytest.mark.parametrize("name", ["puma560", "manutec_h5"])
+def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
+    """<arm>_ik_newton on its own, linked with ASan/UBSan: converged rows reproduce their
+    targets through the module's fk and stay within the limits, non-finite rows are
+    INVALID, bad options and NULL pointers give -1 and write nothing."""
+    from deltagen.serial import reference
+    from deltagen.serial.robot import SerialRobot
+
+    arm = SerialRobot.load(name, backend="reference")
+    n_rows, nj = 70, arm.n
+    rng = np.random.default_rng(7)
+    lo, hi = arm.qlim.T
+    q_true = lo + (hi - lo) * rng.random((n_rows, nj))
+    T, _ = reference.fk(arm.description, q_true)
+    q0 = np.clip(q_true + rng.normal(0, 0.1, q_true.shape), lo, hi)
+    bad = np.zeros(n_rows, dtype=int)
+    T[3, 0, 3] = np.nan
+    q0[10, 1] = np.inf
+    bad[[3, 10]] = 1
+    for ext in (".c", ".h"):
+        shutil.copy(paths.generated_dir() / f"serial_{name}{ext}", tmp_path)
+    arrays = "".join([_c_array("TT", T), _c_array("Q0", q0), _c_array("QLIM", arm.qlim),
+                      _c_array("BAD", bad, "int")])
+    source = IK_DRIVER % dict(name=name, upper=name.upper(), n=n_rows, nj=nj, arrays=arrays)
+    if nj < 6:
+        source = source.replace("{1, 1, 1, 1, 1, 1}}", "{1, 1, 1, 0, 0, 1}}")
+    (tmp_path / "driver.c").write_text(source)
+    _gcc([*STRICT, "-O1", *sanitizers, "driver.c", f"serial_{name}.c", "-o", "driver", "-lm"],
+         cwd=tmp_path)
+    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:detect_stack_use_after_return=1",
+               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
+    proc = subprocess.run([str(tmp_path / "driver")], capture_output=True, text=True,
+                          timeout=120, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert proc.stderr == "", proc.stderr[-3000:]

@@ -49,6 +49,7 @@ class Unit:
     axes_choices: tuple = ()  # e.g. (3, 4): a run-time row length; () for fixed widths
     axes_doc: str = ""
     block: int = 64
+    newton: dict | None = None  # {n, revolute}: emit <prefix>_ik_newton (templates/ik_newton.*)
 
 
 def _columns(port):
@@ -129,6 +130,7 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         status_codes=sorted(st.STATUS_NAMES.items()),
         functions=[function_context(lk) for lk in lowered],
         block=unit.block,
+        newton=unit.newton,
     )
     return {
         header_name: env.get_template("header.h.j2").render(restrict="restrict ", **context),

@@ -68,6 +68,7 @@ class CompiledArm:
         self._ffi, self._lib = module.ffi, module.lib
         self._prefix = desc.name
         self._scratch = _Scratch(self._ffi, desc.n)
+        self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
     def _run(self, name, inputs, width):
         n = inputs[0].shape[0]
@@ -93,6 +94,54 @@ class CompiledArm:
     def jacobian(self, q):
         J, status = self._run("jacobian", [q], 6 * self.desc.n)
         return J.reshape(-1, 6, self.desc.n), status
+
+    def fk_jacobian(self, q):
+        """T (N, 4, 4) and J (N, 6, n) from one evaluation, and the status."""
+        n = self.desc.n
+        fb = self._ffi.from_buffer
+        T = np.empty((q.shape[0], 16))
+        J = np.empty((q.shape[0], 6 * n))
+        status = np.empty(q.shape[0], dtype=np.int8)
+        rc = getattr(self._lib, f"{self._prefix}_fk_jacobian")(
+            q.shape[0], fb("double[]", q), fb("double[]", T, require_writable=True),
+            fb("double[]", J, require_writable=True), fb("int8_t[]", status, require_writable=True))
+        if rc != 0:
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return T.reshape(-1, 4, 4), J.reshape(-1, 6, n), status
+
+    def ik_options(self, *, tol_p, tol_r, step_limit, damping, base_damping, max_iter,
+                   stall_window, respect_limits, free_first, mask):
+        """A filled <prefix>_ik_options struct (cffi-owned) for :meth:`ik_newton`."""
+        o = self._ffi.new(f"{self._prefix}_ik_options *")
+        o.tol_p, o.tol_r, o.step_limit = tol_p, tol_r, step_limit
+        o.damping, o.base_damping = damping, base_damping
+        o.max_iter, o.stall_window = max_iter, stall_window
+        o.respect_limits, o.free_first = int(respect_limits), int(free_first)
+        o.mask = [int(bool(m)) for m in mask]
+        return o
+
+    def ik_newton(self, options, T, q0, qlim=None):
+        """One damped Newton attempt per target in C (<prefix>_ik_newton).
+
+        options: from :meth:`ik_options`; T (N, 4, 4) and q0 (N, n) float64 C-contiguous;
+        qlim (n, 2) or None. Returns q (N, n), err_p (N), err_r (N), iterations (N) int32,
+        status (N) int8 (OK converged, UNREACHABLE not converged, INVALID non-finite row)."""
+        N, n = q0.shape[0], self.desc.n
+        fb = self._ffi.from_buffer
+        q = np.empty((N, n))
+        err_p, err_r = np.empty(N), np.empty(N)
+        iterations = np.empty(N, dtype=np.int32)
+        status = np.empty(N, dtype=np.int8)
+        lim = self._ffi.NULL if qlim is None else fb("double[]", qlim)
+        rc = self._ik_newton(N, options, fb("double[]", T), fb("double[]", q0), lim,
+                             fb("double[]", q, require_writable=True),
+                             fb("double[]", err_p, require_writable=True),
+                             fb("double[]", err_r, require_writable=True),
+                             fb("int32_t[]", iterations, require_writable=True),
+                             fb("int8_t[]", status, require_writable=True))
+        if rc != 0:
+            raise RuntimeError(f"C core rejected the IK arguments (rc={rc})")
+        return q, err_p, err_r, iterations, status
 
     def jacobian_dot(self, q, qd):
         Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)

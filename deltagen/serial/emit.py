@@ -50,6 +50,7 @@ def arm_unit(desc) -> Unit:
             "The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).",
             f"Description fingerprint: {description_fingerprint(desc)}",
         ),
+        newton=dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints]),
     )
 
 

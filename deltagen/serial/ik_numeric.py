@@ -114,11 +114,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import status as st
 from ..inputs import InputError, as_float_array
 
 __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
 
 JACOBIANS = ("symbolic", "geometric", "fd")
+ENGINES = ("auto", "c", "numpy")
 SIGMA_WELL = 1e-2       # sigma_min below this: damping grows (Nakamura-Hanafusa threshold)
 BASE_DAMPING = 0.1      # c0: lambda^2 >= c0 |dx|^2 always
 GAUSS_REL = 1e-3        # Gauss elimination when lambda <= GAUSS_REL * sigma_min (and n == k)
@@ -355,7 +357,7 @@ class _Limits:
 
 def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symbolic",
           damping="auto", step_limit=0.5, respect_limits=True, restarts=0, seed=0,
-          null_space=0.0) -> IKResult:
+          null_space=0.0, engine="auto") -> IKResult:
     """Joint values q with fk(q) = T for a batch of target poses (module docstring).
 
     arm: a SerialRobot (its raw batched backend ``arm._core`` is used).
@@ -372,6 +374,9 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
     restarts: extra attempts from random in-limit starts for unconverged rows; seed: their
     random generator's seed (results are reproducible).
     null_space: gain of the pull towards mid-range (redundant case n > k only).
+    engine: "c" (the compiled Newton routine <arm>_ik_newton; restarts drawn here), "numpy"
+    (the batched numpy iteration), or "auto": "c" when it applies -- the compiled
+    backend, jacobian="symbolic", damping not None, null_space == 0 -- else "numpy".
 
     Returns an :class:`IKResult` shaped like T's leading dimensions; invalid rows (any
     non-finite value in T or q0) come back NaN and unconverged, nothing raises or warns
@@ -396,6 +401,14 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
         raise InputError(f"step_limit must be a number > 0 or None, got {step_limit!r}")
     if not (_is_real(null_space) and np.isfinite(null_space) and null_space >= 0):
         raise InputError(f"null_space must be a finite number >= 0, got {null_space!r}")
+    if engine not in ENGINES:
+        raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+    c_ok = (getattr(arm, "backend", None) == "compiled" and jacobian == "symbolic" and lm
+            and null_space == 0)
+    if engine == "c" and not c_ok:
+        raise InputError('engine="c" needs the compiled backend, jacobian="symbolic", '
+                         'damping "auto" or a number, and null_space=0')
+    use_c = engine == "c" or (engine == "auto" and c_ok)
     n = arm.n
     T = as_float_array(T, "T")
     if T.ndim < 2 or T.shape[-2:] != (4, 4):
@@ -424,10 +437,16 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
     rot_err = np.full(N, np.nan)
     rows = np.flatnonzero(valid)
     if rows.size:
-        with np.errstate(all="ignore"):
-            q, c, it, pe, re = _iterate(
-                arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), jacobian, k_nh, c0, lm,
-                step_limit, bool(respect_limits), int(restarts), seed, float(null_space))
+        if use_c:
+            q, c, it, pe, re = _iterate_c(
+                arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), k_nh, c0,
+                step_limit, bool(respect_limits), int(restarts), seed)
+        else:
+            with np.errstate(all="ignore"):
+                q, c, it, pe, re = _iterate(
+                    arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), jacobian, k_nh,
+                    c0, lm, step_limit, bool(respect_limits), int(restarts), seed,
+                    float(null_space))
         q_out[rows], conv[rows], iters[rows], pos_err[rows], rot_err[rows] = q, c, it, pe, re
     return IKResult(q=q_out.reshape(lead + (n,)), converged=conv.reshape(lead),
                     iterations=iters.reshape(lead), position_error=pos_err.reshape(lead),
@@ -492,6 +511,49 @@ def _newton_step(A, r, err, mu, damped, c0, k_nh, q, mid, null_gain, step_limit,
         big = np.max(np.abs(dq), axis=1)
         dq = dq * np.where(big > step_limit, step_limit / np.where(big > 0, big, 1.0), 1.0)[:, None]
     return dq, smin
+
+
+def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect,
+               restarts, seed):
+    """The compiled engine: one C call per attempt (<arm>_ik_newton, the iteration of the
+    module docstring for one attempt), restarts for the unconverged rows drawn here with
+    the numpy engine's rules (same box, same generator, same stall windows)."""
+    core = arm._core
+    N, n = q0.shape
+    rng = np.random.default_rng(seed)
+    box_lo, box_hi = _sample_box(arm)
+    qlim = np.ascontiguousarray(arm.qlim, dtype=float)
+    if respect:
+        box_lo, box_hi = np.maximum(box_lo, qlim[:, 0]), np.minimum(box_hi, qlim[:, 1])
+
+    def options(window):
+        return core.ik_options(
+            tol_p=tol_p, tol_r=tol_r, step_limit=np.inf if step_limit is None else step_limit,
+            damping=k_nh, base_damping=c0, max_iter=max_iter, stall_window=window,
+            respect_limits=respect, free_first=respect and FREE_FIRST, mask=mask)
+
+    # stall windows as in the numpy engine: only while a restart is left
+    first = options(FIRST_WINDOW_FACTOR * STALL_WINDOW if restarts else 0)
+    q, ep, er, it, status = core.ik_newton(first, Tt, np.ascontiguousarray(q0), qlim)
+    it = it.astype(np.int64)
+    conv = status == st.OK
+    best = np.hypot(ep, er)  # the unconverged rows' q is their best in-limit q
+    later = options(STALL_WINDOW)
+    for attempt in range(1, restarts + 1):
+        rows = np.flatnonzero(~conv)
+        if rows.size == 0:
+            break
+        start = box_lo + (box_hi - box_lo) * rng.random((rows.size, n))
+        opts = later if attempt < restarts else options(0)
+        qa, epa, era, ita, sa = core.ik_newton(opts, np.ascontiguousarray(Tt[rows]), start, qlim)
+        it[rows] += ita
+        ca = sa == st.OK
+        better = ca | (np.hypot(epa, era) < best[rows])
+        take = rows[better]
+        q[take], ep[take], er[take] = qa[better], epa[better], era[better]
+        best[take] = np.hypot(epa[better], era[better])
+        conv[rows[ca]] = True
+    return q, conv, it, ep, er
 
 
 def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, step_limit,

@@ -1,5 +1,7 @@
 """The batched kernels of one serial arm: fk (T, 4x4 row-major), frames (every link frame),
-jacobian (geometric, base frame, 6 x n row-major) and jacobian_dot (dJ/dt along qd)."""
+jacobian (geometric, base frame, 6 x n row-major), fk_jacobian (T and the Jacobian from one
+shared CSE: the evaluation of one Newton step of the compiled IK solver) and jacobian_dot
+(dJ/dt along qd)."""
 
 from __future__ import annotations
 
@@ -100,6 +102,25 @@ class ArmKernels:
             [*c.stages, stage, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", out_stage)]
         )
 
+    def fk_jacobian(self) -> Kernel:
+        """T and J of the same q in one pass: the chain's stages, and so their common
+        subexpressions, are shared (what a Newton step needs)."""
+        c, n = self.chain, self.desc.n
+        values = [c.T[r, k] for r in range(4) for k in range(4)]
+        t_outs, t_stage = _masked("T", values, invalid)
+        Js, stage = self._jacobian_stage()
+        j_outs, j_stage = _masked("J", list(Js), invalid)
+        return self._kernel(
+            "fk_jacobian", f"Tool pose and geometric Jacobian together (one shared evaluation): "
+            f"T as in fk, J as in jacobian (6 x {n} row-major, base frame).",
+            (self.q_port,),
+            (Port("T", t_outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16),
+             Port("J", j_outs, f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]", "-",
+                  width=6 * n)),
+            [*c.stages, stage, _flags(c.sym.q),
+             Stage("outputs (NaN on invalid rows)", t_stage + j_stage)]
+        )
+
     def jacobian_dot(self) -> Kernel:
         c, n = self.chain, self.desc.n
         Js, stage = self._jacobian_stage()
@@ -122,6 +143,7 @@ class ArmKernels:
         return ik_kernel(self.desc, self.chain)
 
     def all(self):
-        kernels = [self.fk(), self.frames(), self.jacobian(), self.jacobian_dot()]
+        kernels = [self.fk(), self.frames(), self.jacobian(), self.fk_jacobian(),
+                   self.jacobian_dot()]
         ik = self.ik_all()
         return tuple(kernels + ([ik] if ik is not None else []))
