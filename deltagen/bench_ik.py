@@ -82,7 +82,8 @@ def measure_numeric(compiled, n=IK_NUMERIC_N, restarts=IK_RESTARTS):
     q = _in_limit_q(compiled, n, rng)
     T = np.ascontiguousarray(compiled.fk(q))
     lim = compiled.qlim
-    options = dict(method="numeric", errors="nan", tol=IK_TOL, restarts=restarts, seed=0)
+    # solve()'s default tolerance is IK_TOL (1e-10 m and rad)
+    options = dict(method="numeric", errors="nan", restarts=restarts, seed=0)
     compiled.ik(T[0], **options)  # warm-up
 
     def success(qs, ok):

@@ -298,3 +298,57 @@ def test_exactly_singular_target_raises_or_masks(backend):
     assert arm.condition_number(wrist) > 1e12
     with pytest.raises(InputError, match="singular"):
         arm.ik(T[0], singular="maybe")
+
+
+# ------------------------------------------------- numerical ik: the single-target path
+
+
+def test_numeric_single_target_path_equals_general_path():
+    """arm.ik(T, method="numeric") for one (4, 4) array takes ik_numeric.single_solver;
+    its answer must be the general path's (which an explicit default option forces)."""
+    from deltagen.serial import ik_numeric
+
+    arm = SerialRobot.load("puma560")
+    q = _in_limit_q(arm, 60, seed=21)
+    T = arm.fk(q)
+    mid = arm._start(None, 1)[0]
+    for i in range(len(T)):
+        fast = arm.ik(T[i], method="numeric", errors="nan", restarts=30, seed=1)
+        general = arm.ik(T[i], method="numeric", errors="nan", restarts=30, seed=1, tol=1e-10)
+        np.testing.assert_array_equal(fast[0], general[0])
+        assert bool(fast[1]) == bool(general[1])
+        if fast[1]:
+            np.testing.assert_allclose(arm.fk(fast[0]), T[i], rtol=0, atol=1e-9)
+        q0 = q[i] + 0.05
+        np.testing.assert_array_equal(arm.ik(T[i], q0=q0, method="numeric"),
+                                      arm.ik(T[i], q0=q0.tolist(), method="numeric"))
+    # the fast path's first attempt is solve()'s first attempt
+    single = ik_numeric.single_solver(arm)
+    res = ik_numeric.solve(arm, T, np.tile(mid, (len(T), 1)))
+    for i in range(len(T)):
+        got = single(np.ascontiguousarray(T[i]), np.ascontiguousarray(mid), 0)
+        if res.converged[i]:
+            np.testing.assert_array_equal(got, res.q[i])
+        else:
+            assert got is None
+
+
+def test_numeric_single_target_errors_come_from_the_general_path():
+    from deltagen import UnreachableError
+    from deltagen.inputs import InputError
+
+    arm = SerialRobot.load("puma560")
+    T = arm.fk(np.array([0.1, 0.4, -0.3, 0.2, 0.5, 0.1]))
+    arm.ik(T, method="numeric")
+    far = T.copy()
+    far[0, 3] = 5.0
+    with pytest.raises(UnreachableError):
+        arm.ik(far, method="numeric")
+    q, ok = arm.ik(far, method="numeric", errors="nan")
+    assert not ok and np.all(np.isnan(q))
+    bad = T.copy()
+    bad[1, 1] = np.nan
+    with pytest.raises(InputError, match="rigid"):
+        arm.ik(bad, method="numeric")
+    with pytest.raises(InputError):
+        arm.ik(T, method="numeric", restarts=-1)

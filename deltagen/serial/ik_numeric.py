@@ -110,6 +110,7 @@ errors are suppressed inside and every array is finite on the rows that are iter
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -511,6 +512,51 @@ def _newton_step(A, r, err, mu, damped, c0, k_nh, q, mid, null_gain, step_limit,
         big = np.max(np.abs(dq), axis=1)
         dq = dq * np.where(big > step_limit, step_limit / np.where(big > 0, big, 1.0), 1.0)[:, None]
     return dq, smin
+
+
+class _SingleBuffers(threading.local):
+    """Per-thread cffi buffers of single_solver (cffi releases the GIL during calls)."""
+
+    def __init__(self, ffi, n):
+        self.T = ffi.new("double[16]")
+        self.q0 = ffi.new(f"double[{n}]")
+        self.q = ffi.new(f"double[{n}]")
+        self.ep, self.er = ffi.new("double[1]"), ffi.new("double[1]")
+        self.it = ffi.new("int32_t[1]")
+        self.status = ffi.new("int8_t[1]")
+        self.q_np = np.frombuffer(ffi.buffer(self.q), dtype=np.float64)
+
+
+def single_solver(arm):
+    """Fast path of :func:`solve` for one target with the default options on the compiled
+    backend: ``call(T, q0, restarts)`` with T a (4, 4) and q0 an (n,) C-contiguous float64
+    array returns the q of the first attempt if it converged, else None (the caller then
+    runs solve(), whose first attempt is exactly this one: same options, same start)."""
+    core = arm._core
+    ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
+    mask = default_mask(arm)
+
+    def options(window):  # solve()'s defaults: tol 1e-10, damping "auto", step_limit 0.5
+        return core.ik_options(
+            tol_p=1e-10, tol_r=1e-10, step_limit=0.5, damping=1.0, base_damping=BASE_DAMPING,
+            max_iter=100, stall_window=window, respect_limits=True, free_first=FREE_FIRST,
+            mask=mask)
+
+    # the first attempt's stall window depends on whether restarts follow (_iterate_c)
+    with_restarts, alone = options(FIRST_WINDOW_FACTOR * STALL_WINDOW), options(0)
+    qlim = ffi.new("double[]", [float(x) for x in np.asarray(arm.qlim).reshape(-1)])
+    scratch = _SingleBuffers(ffi, n)
+    fn, OK = core._ik_newton, st.OK
+
+    def call(T, q0, restarts):
+        b = scratch
+        memmove(b.T, T, 128)
+        memmove(b.q0, q0, 8 * n)
+        fn(1, with_restarts if restarts else alone, b.T, b.q0, qlim, b.q, b.ep, b.er, b.it,
+           b.status)
+        return b.q_np.copy() if b.status[0] == OK else None
+
+    return call
 
 
 def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect,

@@ -357,6 +357,11 @@ class SerialRobot:
             q = self._ik_single(T, config)
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q
+        if (method == "numeric" and self.backend == "compiled" and errors in ("raise", "nan")
+                and options.keys() <= {"restarts", "seed"}):
+            q = self._numeric_single(T, q0, options.get("restarts", 0))
+            if q is not None and (singular == "allow" or not self._singular_one(q)):
+                return q if errors == "raise" else (q, np.array(True))
         check_errors_mode(errors)
         if method not in ("auto", "analytic", "numeric"):
             raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
@@ -419,6 +424,27 @@ class SerialRobot:
             sv = np.linalg.svd(J[check], compute_uv=False)
             singular[check] = ~(sv[:, -1] >= SINGULAR_TOL * sv[:, 0])
         return singular
+
+    def _numeric_single(self, T, q0, restarts):
+        """Fast path of the numerical ik for one target (ik_numeric.single_solver): q, or
+        None when the general path must answer (other inputs, or the first attempt did not
+        converge: restarts and errors are the general path's)."""
+        n, ndarray = self.n, np.ndarray
+        if (type(T) is not ndarray or T.shape != (4, 4) or T.dtype.char != "d"
+                or not T.flags.c_contiguous or T[3].tolist() != [0.0, 0.0, 0.0, 1.0]):
+            return None
+        if q0 is not None and (type(q0) is not ndarray or q0.shape != (n,)
+                               or q0.dtype.char != "d" or not q0.flags.c_contiguous):
+            return None
+        if not isinstance(restarts, int) or isinstance(restarts, bool) or restarts < 0:
+            return None
+        solver = self.__dict__.get("_numeric_solver")
+        if solver is None:
+            from .ik_numeric import single_solver
+
+            solver = self._numeric_solver = single_solver(self)
+            self._mid_range = np.ascontiguousarray(self._start(None, 1)[0])
+        return solver(T, self._mid_range if q0 is None else q0, restarts)
 
     def _singular_one(self, q):
         """_singular_rows for one configuration, lean (the single-pose fast path)."""
