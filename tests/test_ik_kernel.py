@@ -23,9 +23,10 @@ from deltagen.serial.robot import bundled_robots
 from deltagen.status import INVALID, OK, UNREACHABLE
 
 CENTRAL_WRIST = ("puma560", "motoman_up6", "manutec_r15")
+C_ARMS = CENTRAL_WRIST + ("miskolc_rrrr",)  # elbow_4r
 
 
-@pytest.fixture(scope="module", params=CENTRAL_WRIST)
+@pytest.fixture(scope="module", params=C_ARMS)
 def arms(request):
     return (SerialRobot.load(request.param),
             SerialRobot.load(request.param, backend="reference"))
@@ -52,7 +53,7 @@ def test_kernel_exists_exactly_for_the_supported_structures():
         assert (f"{name}_ik_all(" in header) == has_c, name
     assert {n for n in bundled_robots()
             if compiled_solver(SerialRobot.load(n, backend="reference").description)} \
-        >= set(CENTRAL_WRIST)
+        >= set(C_ARMS)
 
 
 def test_c_matches_numpy_solver_on_random_poses(arms):

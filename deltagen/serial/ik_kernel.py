@@ -48,7 +48,7 @@ from .ik_analytic import analytic_solver
 TOL = 1e-8  # accepted forward-kinematics residual (ik_analytic.AnalyticSolver.solve's tol)
 LIMIT_TOL = 1e-12  # ik_analytic._LIMIT_TOL
 WRIST_SINGULAR = 1e-12  # ik_analytic._SING
-SUPPORTED = ("spherical_wrist_6r",)
+SUPPORTED = ("spherical_wrist_6r", "elbow_4r")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
 
@@ -69,11 +69,15 @@ class _Tape:
 
     def __init__(self):
         self.stages = []
+        self._names = set()
 
     def stage(self, comment):
         self.stages.append((comment, []))
 
     def let(self, name, expr):
+        if name in self._names:  # one C variable per name
+            raise ValueError(f"ik kernel: {name!r} assigned twice")
+        self._names.add(name)
         sym = sp.Symbol(name, real=True)
         self.stages[-1][1].append((sym, sp.sympify(expr)))
         return sym
@@ -261,8 +265,33 @@ class IKKernelBuilder:
                  K(uu[1]) + th3.s * K(vv[0]) + th3.c * K(vv[1]))
             th2 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
             ok = tape.let(f"ok_arm_{tag}", sp.And(ok1, ok2))
-            branches.append((tag, q1, th2, th3, ok))
+            branches.append((tag, q1, th2, th3, ok, t, ok1, sigma))
         return branches
+
+    def _paul_4r(self, tag, q1, t, ok1, sigma):
+        """ik_analytic._ElbowSolver._arm / _solve for the 4R arm with the pose given: q2 + q3
+        from the direction of axis 4 (Paul's method), which fixes the elbow of the shoulder
+        branch (the other elbow branch stays empty), then the roll q4."""
+        s, tape, K = self.solver, self.tape, self.const
+        w = [K.vec(x) for x in s._ch.w]
+        uu, vv = s._uu, s._vv
+        tape.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
+        d4 = _rotate(w[0], q1.c, -q1.s, self._rotate_target(s._ch.w[3]))
+        tot = _sp1(tape, f"tot_{tag}", w[1], w[3], d4)
+        z = (t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
+             t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])))
+        a_uu = math.atan2(uu[1], uu[0])
+        th2 = _named(tape, f"paul2_{tag}", _atan2(tape, f"phi2_{tag}", z[1], z[0])
+                     - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
+        th3 = _named(tape, f"paul3_{tag}", tot - th2)
+        c = math.atan2(vv[1], vv[0]) - a_uu
+        sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
+        mine = tape.let(f"mine_{tag}", sin_bend >= 0 if sigma > 0 else sin_bend < 0)
+        ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
+        tape.stage(f"roll, branch {tag}: q4 about axis 4")
+        y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s._x4)))
+        q4 = _sp1(tape, f"q4_{tag}", w[3], K.vec(s._x4), y)
+        return (q1, th2, th3.scaled(s._s3), q4), ok
 
     def _undo(self, q1, tot, v):
         """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
@@ -368,7 +397,10 @@ class IKKernelBuilder:
         c_w = s._ch.R0.T @ (s._W - s._ch.p0)
         W_t = tape.vec("W_t", _add(self._rotate_target_raw(c_w), self.p_t))
         solutions = {}
-        for tag, q1, th2, th3, ok_arm in self._arm(W_t):
+        for tag, q1, th2, th3, ok_arm, t, ok1, sigma in self._arm(W_t):
+            if s.structure == "elbow_4r":
+                solutions[tag] = self._paul_4r(tag, q1, t, ok1, sigma)
+                continue
             q3 = th3.scaled(s._s3)
             for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
                 solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
