@@ -1392,6 +1392,353 @@ int bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const double *r
     return 0;
 }
 
+int bosch_sr800_ik_all(size_t n, const double *restrict T, double *restrict q, double *restrict valid, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (status == NULL || T == NULL || q == NULL || valid == NULL) {
+        return -1;
+    }
+
+    for (size_t start = 0; start < n; start += BOSCH_SR800_BLOCK) {
+        const size_t m = (n - start < BOSCH_SR800_BLOCK) ? n - start : BOSCH_SR800_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double Tt11_b[BOSCH_SR800_BLOCK];
+        double Tt12_b[BOSCH_SR800_BLOCK];
+        double Tt13_b[BOSCH_SR800_BLOCK];
+        double Tt14_b[BOSCH_SR800_BLOCK];
+        double Tt21_b[BOSCH_SR800_BLOCK];
+        double Tt22_b[BOSCH_SR800_BLOCK];
+        double Tt23_b[BOSCH_SR800_BLOCK];
+        double Tt24_b[BOSCH_SR800_BLOCK];
+        double Tt31_b[BOSCH_SR800_BLOCK];
+        double Tt32_b[BOSCH_SR800_BLOCK];
+        double Tt33_b[BOSCH_SR800_BLOCK];
+        double Tt34_b[BOSCH_SR800_BLOCK];
+            for (size_t k = 0; k < m; ++k) {
+                Tt11_b[k] = T[(start + k) * 16 + 0];
+                Tt12_b[k] = T[(start + k) * 16 + 1];
+                Tt13_b[k] = T[(start + k) * 16 + 2];
+                Tt14_b[k] = T[(start + k) * 16 + 3];
+                Tt21_b[k] = T[(start + k) * 16 + 4];
+                Tt22_b[k] = T[(start + k) * 16 + 5];
+                Tt23_b[k] = T[(start + k) * 16 + 6];
+                Tt24_b[k] = T[(start + k) * 16 + 7];
+                Tt31_b[k] = T[(start + k) * 16 + 8];
+                Tt32_b[k] = T[(start + k) * 16 + 9];
+                Tt33_b[k] = T[(start + k) * 16 + 10];
+                Tt34_b[k] = T[(start + k) * 16 + 11];
+            }
+        /* kinematics, one point per iteration */
+        int status_b[BOSCH_SR800_BLOCK];
+        double out_q1_elbow_up_b[BOSCH_SR800_BLOCK];
+        double out_q2_elbow_up_b[BOSCH_SR800_BLOCK];
+        double out_q3_elbow_up_b[BOSCH_SR800_BLOCK];
+        double out_q4_elbow_up_b[BOSCH_SR800_BLOCK];
+        double out_q1_elbow_down_b[BOSCH_SR800_BLOCK];
+        double out_q2_elbow_down_b[BOSCH_SR800_BLOCK];
+        double out_q3_elbow_down_b[BOSCH_SR800_BLOCK];
+        double out_q4_elbow_down_b[BOSCH_SR800_BLOCK];
+        double out_valid_elbow_up_b[BOSCH_SR800_BLOCK];
+        double out_valid_elbow_down_b[BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double Tt11 = Tt11_b[k];
+            const double Tt12 = Tt12_b[k];
+            const double Tt13 = Tt13_b[k];
+            const double Tt14 = Tt14_b[k];
+            const double Tt21 = Tt21_b[k];
+            const double Tt22 = Tt22_b[k];
+            const double Tt23 = Tt23_b[k];
+            const double Tt24 = Tt24_b[k];
+            const double Tt31 = Tt31_b[k];
+            const double Tt32 = Tt32_b[k];
+            const double Tt33 = Tt33_b[k];
+            const double Tt34 = Tt34_b[k];
+            /* status flag: a non-finite pose */
+            const int invalid = !(isfinite(Tt11) & isfinite(Tt12) & isfinite(Tt13) & isfinite(Tt14) & isfinite(Tt21) & isfinite(Tt22) & isfinite(Tt23) & isfinite(Tt24) & isfinite(Tt31) & isfinite(Tt32) & isfinite(Tt33) & isfinite(Tt34));
+            /* planar arm: the point P, the travel along u and the yaw about u */
+            const double travel = Tt34 - 0.5;
+            const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
+            const double yaw_inv = 1.0/fmax(1.0e-300, yaw_h);
+            const double yaw = atan2(Tt21, Tt11);
+            const int t1_0 = (yaw_h > 0);
+            const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
+            const double yaw_s = ((t1_0) ? Tt21*yaw_inv : 0);
+            /* planar arm: law of cosines */
+            const double kappa_planar = -1.0317460317460317 + 3.1746031746031746*(Tt14*Tt14) + 3.1746031746031746*(Tt24*Tt24);
+            const int ok_elbow_planar = (fabs(kappa_planar) <= 1.0000000010000001);
+            const double kc_planar = fmin(1, fmax(-1, kappa_planar));
+            const double ks_planar = sqrt(1 - (kc_planar*kc_planar));
+            const double bend_planar = atan2(ks_planar, kc_planar);
+            /* planar arm, elbow_up */
+            const double t3_1 = 0.35*kc_planar + 0.45;
+            const double th3_elbow_up = -1.0*bend_planar;
+            const double th3_elbow_up_s = -1.0*ks_planar;
+            const double t3_0 = 0.35*th3_elbow_up_s;
+            const double t3_2 = -Tt14*t3_0 + Tt24*t3_1;
+            const double t3_3 = Tt14*t3_1 + Tt24*t3_0;
+            const double th2_elbow_up_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
+            const double th2_elbow_up_inv = 1.0/fmax(1.0e-300, th2_elbow_up_h);
+            const double th2_elbow_up = atan2(t3_2, t3_3);
+            const double roll_elbow_up = -th2_elbow_up - th3_elbow_up + yaw;
+            const int t3_4 = (th2_elbow_up_h > 0);
+            const double th2_elbow_up_c = ((t3_4) ? t3_3*th2_elbow_up_inv : 1);
+            const double th2_elbow_up_s = ((t3_4) ? t3_2*th2_elbow_up_inv : 0);
+            const double t3_5 = th2_elbow_up_c*yaw_c + th2_elbow_up_s*yaw_s;
+            const double t3_6 = th2_elbow_up_c*yaw_s - th2_elbow_up_s*yaw_c;
+            const double roll_elbow_up_c = kc_planar*t3_5 + t3_6*th3_elbow_up_s;
+            const double roll_elbow_up_s = kc_planar*t3_6 - t3_5*th3_elbow_up_s;
+            /* planar arm, elbow_down */
+            const double t4_1 = 0.35*kc_planar + 0.45;
+            const double th3_elbow_down = 1.0*bend_planar;
+            const double th3_elbow_down_s = 1.0*ks_planar;
+            const double t4_0 = 0.35*th3_elbow_down_s;
+            const double t4_2 = -Tt14*t4_0 + Tt24*t4_1;
+            const double t4_3 = Tt14*t4_1 + Tt24*t4_0;
+            const double th2_elbow_down_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
+            const double th2_elbow_down_inv = 1.0/fmax(1.0e-300, th2_elbow_down_h);
+            const double th2_elbow_down = atan2(t4_2, t4_3);
+            const double roll_elbow_down = -th2_elbow_down - th3_elbow_down + yaw;
+            const int t4_4 = (th2_elbow_down_h > 0);
+            const double th2_elbow_down_c = ((t4_4) ? t4_3*th2_elbow_down_inv : 1);
+            const double th2_elbow_down_s = ((t4_4) ? t4_2*th2_elbow_down_inv : 0);
+            const double t4_5 = th2_elbow_down_c*yaw_c + th2_elbow_down_s*yaw_s;
+            const double t4_6 = th2_elbow_down_c*yaw_s - th2_elbow_down_s*yaw_c;
+            const double roll_elbow_down_c = kc_planar*t4_5 + t4_6*th3_elbow_down_s;
+            const double roll_elbow_down_s = kc_planar*t4_6 - t4_5*th3_elbow_down_s;
+            /* check, branch elbow_up: forward kinematics at the solution */
+            const double t5_0 = kc_planar*th2_elbow_up_c;
+            const double t5_1 = 1.0*th2_elbow_up_s;
+            const double t5_2 = t5_0 - t5_1*th3_elbow_up_s;
+            const double t5_3 = th2_elbow_up_c*th3_elbow_up_s;
+            const double t5_4 = kc_planar*t5_1 + 1.0*t5_3;
+            const double t5_5 = 0.35*th2_elbow_up_s;
+            const double t5_6 = 1.0*roll_elbow_up_s;
+            const double F1_14_elbow_up = 0.45*th2_elbow_up_c;
+            const double F1_24_elbow_up = 0.45*th2_elbow_up_s;
+            const double F2_11_elbow_up = t5_2;
+            const double F2_12_elbow_up = t5_4;
+            const double F2_14_elbow_up = F1_14_elbow_up + 0.35*t5_0 - t5_5*th3_elbow_up_s;
+            const double F2_21_elbow_up = t5_4;
+            const double F2_22_elbow_up = -t5_2;
+            const double F2_24_elbow_up = F1_24_elbow_up + kc_planar*t5_5 + 0.35*t5_3;
+            const double F3_34_elbow_up = travel + 0.5;
+            const double F4_11_elbow_up = F2_11_elbow_up*roll_elbow_up_c - F2_12_elbow_up*t5_6;
+            const double F4_12_elbow_up = F2_11_elbow_up*t5_6 + F2_12_elbow_up*roll_elbow_up_c;
+            const double F4_21_elbow_up = F2_21_elbow_up*roll_elbow_up_c - F2_22_elbow_up*t5_6;
+            const double F4_22_elbow_up = F2_21_elbow_up*t5_6 + F2_22_elbow_up*roll_elbow_up_c;
+            const int hit_elbow_up = (((fabs(Tt13) <= 1.0e-8)) & ((fabs(Tt23) <= 1.0e-8)) & ((fabs(Tt31) <= 1.0e-8)) & ((fabs(Tt32) <= 1.0e-8)) & ((fabs(Tt33 + 1) <= 1.0e-8)) & ((fabs(F2_14_elbow_up - Tt14) <= 1.0e-8)) & ((fabs(F2_24_elbow_up - Tt24) <= 1.0e-8)) & ((fabs(F3_34_elbow_up - Tt34) <= 1.0e-8)) & ((fabs(F4_11_elbow_up - Tt11) <= 1.0e-8)) & ((fabs(F4_12_elbow_up - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_up - Tt21) <= 1.0e-8)) & ((fabs(F4_22_elbow_up - Tt22) <= 1.0e-8)));
+            /* joint limits and outputs, branch elbow_up */
+            const double t6_0 = 1.0*th2_elbow_up;
+            const double t6_1 = (1.0/2.0)/3.141592653589793;
+            const double t6_2 = 2*3.141592653589793;
+            const double t6_4 = -t6_2;
+            const double t6_6 = 4*3.141592653589793;
+            const double t6_8 = -t6_6;
+            const double t6_10 = 1.0*th3_elbow_up;
+            const double t6_15 = 1.0*roll_elbow_up;
+            const double fit_q1_elbow_up_w = t6_0 - t6_2*floor(t6_1*(t6_0 + 3.141592653589793));
+            const int fit_q1_elbow_up_in0 = (((fit_q1_elbow_up_w >= -2.2689280275936285)) & ((fit_q1_elbow_up_w <= 2.2689280275936285)));
+            const double fit_q2_elbow_up_w = t6_10 - t6_2*floor(t6_1*(t6_10 + 3.141592653589793));
+            const int fit_q2_elbow_up_in0 = (((fit_q2_elbow_up_w >= -2.530727415392778)) & ((fit_q2_elbow_up_w <= 2.530727415392778)));
+            const double fit_q3_elbow_up_d = -travel;
+            const int fit_q3_elbow_up_in0 = (((fit_q3_elbow_up_d >= -1.0e-12)) & ((fit_q3_elbow_up_d <= 0.30000000000099997)));
+            const double fit_q3_elbow_up = ((fit_q3_elbow_up_in0) ? fmin(0.3, fmax(0.0, fit_q3_elbow_up_d)) : fit_q3_elbow_up_d);
+            const double fit_q4_elbow_up_w = -t6_15 - t6_2*floor(t6_1*(3.141592653589793 - t6_15));
+            const int fit_q4_elbow_up_in0 = (((fit_q4_elbow_up_w >= -3.141592653590793)) & ((fit_q4_elbow_up_w <= 3.141592653590793)));
+            const double t6_3 = fit_q1_elbow_up_w + t6_2;
+            const double t6_5 = fit_q1_elbow_up_w + t6_4;
+            const double t6_7 = fit_q1_elbow_up_w + t6_6;
+            const double t6_9 = fit_q1_elbow_up_w + t6_8;
+            const double t6_11 = fit_q2_elbow_up_w + t6_2;
+            const double t6_12 = fit_q2_elbow_up_w + t6_4;
+            const double t6_13 = fit_q2_elbow_up_w + t6_6;
+            const double t6_14 = fit_q2_elbow_up_w + t6_8;
+            const double t6_16 = fit_q4_elbow_up_w + t6_2;
+            const double t6_17 = fit_q4_elbow_up_w + t6_4;
+            const double t6_18 = fit_q4_elbow_up_w + t6_6;
+            const double t6_19 = fit_q4_elbow_up_w + t6_8;
+            const int fit_q1_elbow_up_fy1 = ((!fit_q1_elbow_up_in0) & ((t6_3 >= -2.2689280275936285)) & ((t6_3 <= 2.2689280275936285)));
+            const double fit_q1_elbow_up_x1 = ((fit_q1_elbow_up_fy1) ? t6_3 : fit_q1_elbow_up_w);
+            const int fit_q1_elbow_up_in1 = ((fit_q1_elbow_up_fy1) | (fit_q1_elbow_up_in0));
+            const int fit_q1_elbow_up_fy2 = ((!fit_q1_elbow_up_in1) & ((t6_5 >= -2.2689280275936285)) & ((t6_5 <= 2.2689280275936285)));
+            const double fit_q1_elbow_up_x2 = ((fit_q1_elbow_up_fy2) ? t6_5 : fit_q1_elbow_up_x1);
+            const int fit_q1_elbow_up_in2 = ((fit_q1_elbow_up_fy2) | (fit_q1_elbow_up_in1));
+            const int fit_q1_elbow_up_fy3 = ((!fit_q1_elbow_up_in2) & ((t6_7 >= -2.2689280275936285)) & ((t6_7 <= 2.2689280275936285)));
+            const double fit_q1_elbow_up_x3 = ((fit_q1_elbow_up_fy3) ? t6_7 : fit_q1_elbow_up_x2);
+            const int fit_q1_elbow_up_in3 = ((fit_q1_elbow_up_fy3) | (fit_q1_elbow_up_in2));
+            const int fit_q1_elbow_up_fy4 = ((!fit_q1_elbow_up_in3) & ((t6_9 >= -2.2689280275936285)) & ((t6_9 <= 2.2689280275936285)));
+            const double fit_q1_elbow_up_x4 = ((fit_q1_elbow_up_fy4) ? t6_9 : fit_q1_elbow_up_x3);
+            const int fit_q1_elbow_up_in4 = ((fit_q1_elbow_up_fy4) | (fit_q1_elbow_up_in3));
+            const double fit_q1_elbow_up = ((fit_q1_elbow_up_in4) ? fmin(2.2689280275926285, fmax(-2.2689280275926285, fit_q1_elbow_up_x4)) : fit_q1_elbow_up_x4);
+            const int fit_q2_elbow_up_fy1 = ((!fit_q2_elbow_up_in0) & ((t6_11 >= -2.530727415392778)) & ((t6_11 <= 2.530727415392778)));
+            const double fit_q2_elbow_up_x1 = ((fit_q2_elbow_up_fy1) ? t6_11 : fit_q2_elbow_up_w);
+            const int fit_q2_elbow_up_in1 = ((fit_q2_elbow_up_fy1) | (fit_q2_elbow_up_in0));
+            const int fit_q2_elbow_up_fy2 = ((!fit_q2_elbow_up_in1) & ((t6_12 >= -2.530727415392778)) & ((t6_12 <= 2.530727415392778)));
+            const double fit_q2_elbow_up_x2 = ((fit_q2_elbow_up_fy2) ? t6_12 : fit_q2_elbow_up_x1);
+            const int fit_q2_elbow_up_in2 = ((fit_q2_elbow_up_fy2) | (fit_q2_elbow_up_in1));
+            const int fit_q2_elbow_up_fy3 = ((!fit_q2_elbow_up_in2) & ((t6_13 >= -2.530727415392778)) & ((t6_13 <= 2.530727415392778)));
+            const double fit_q2_elbow_up_x3 = ((fit_q2_elbow_up_fy3) ? t6_13 : fit_q2_elbow_up_x2);
+            const int fit_q2_elbow_up_in3 = ((fit_q2_elbow_up_fy3) | (fit_q2_elbow_up_in2));
+            const int fit_q2_elbow_up_fy4 = ((!fit_q2_elbow_up_in3) & ((t6_14 >= -2.530727415392778)) & ((t6_14 <= 2.530727415392778)));
+            const double fit_q2_elbow_up_x4 = ((fit_q2_elbow_up_fy4) ? t6_14 : fit_q2_elbow_up_x3);
+            const int fit_q2_elbow_up_in4 = ((fit_q2_elbow_up_fy4) | (fit_q2_elbow_up_in3));
+            const double fit_q2_elbow_up = ((fit_q2_elbow_up_in4) ? fmin(2.530727415391778, fmax(-2.530727415391778, fit_q2_elbow_up_x4)) : fit_q2_elbow_up_x4);
+            const int fit_q4_elbow_up_fy1 = ((!fit_q4_elbow_up_in0) & ((t6_16 >= -3.141592653590793)) & ((t6_16 <= 3.141592653590793)));
+            const double fit_q4_elbow_up_x1 = ((fit_q4_elbow_up_fy1) ? t6_16 : fit_q4_elbow_up_w);
+            const int fit_q4_elbow_up_in1 = ((fit_q4_elbow_up_fy1) | (fit_q4_elbow_up_in0));
+            const int fit_q4_elbow_up_fy2 = ((!fit_q4_elbow_up_in1) & ((t6_17 >= -3.141592653590793)) & ((t6_17 <= 3.141592653590793)));
+            const double fit_q4_elbow_up_x2 = ((fit_q4_elbow_up_fy2) ? t6_17 : fit_q4_elbow_up_x1);
+            const int fit_q4_elbow_up_in2 = ((fit_q4_elbow_up_fy2) | (fit_q4_elbow_up_in1));
+            const int fit_q4_elbow_up_fy3 = ((!fit_q4_elbow_up_in2) & ((t6_18 >= -3.141592653590793)) & ((t6_18 <= 3.141592653590793)));
+            const double fit_q4_elbow_up_x3 = ((fit_q4_elbow_up_fy3) ? t6_18 : fit_q4_elbow_up_x2);
+            const int fit_q4_elbow_up_in3 = ((fit_q4_elbow_up_fy3) | (fit_q4_elbow_up_in2));
+            const int fit_q4_elbow_up_fy4 = ((!fit_q4_elbow_up_in3) & ((t6_19 >= -3.141592653590793)) & ((t6_19 <= 3.141592653590793)));
+            const double fit_q4_elbow_up_x4 = ((fit_q4_elbow_up_fy4) ? t6_19 : fit_q4_elbow_up_x3);
+            const int fit_q4_elbow_up_in4 = ((fit_q4_elbow_up_fy4) | (fit_q4_elbow_up_in3));
+            const double fit_q4_elbow_up = ((fit_q4_elbow_up_in4) ? fmin(3.141592653589793, fmax(-3.141592653589793, fit_q4_elbow_up_x4)) : fit_q4_elbow_up_x4);
+            const int ok_elbow_up = ((hit_elbow_up) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_up) & isfinite(fit_q2_elbow_up) & isfinite(fit_q3_elbow_up) & isfinite(fit_q4_elbow_up))));
+            const int valid_elbow_up = ((fit_q1_elbow_up_in4) & (fit_q2_elbow_up_in4) & (fit_q3_elbow_up_in0) & (fit_q4_elbow_up_in4) & (ok_elbow_up));
+            const double out_q1_elbow_up = ((ok_elbow_up) ? fit_q1_elbow_up : NAN);
+            const double out_q2_elbow_up = ((ok_elbow_up) ? fit_q2_elbow_up : NAN);
+            const double out_q3_elbow_up = ((ok_elbow_up) ? fit_q3_elbow_up : NAN);
+            const double out_q4_elbow_up = ((ok_elbow_up) ? fit_q4_elbow_up : NAN);
+            const double out_valid_elbow_up = ((valid_elbow_up) ? 1.0 : 0.0);
+            /* check, branch elbow_down: forward kinematics at the solution */
+            const double t7_0 = kc_planar*th2_elbow_down_c;
+            const double t7_1 = 1.0*th2_elbow_down_s;
+            const double t7_2 = t7_0 - t7_1*th3_elbow_down_s;
+            const double t7_3 = th2_elbow_down_c*th3_elbow_down_s;
+            const double t7_4 = kc_planar*t7_1 + 1.0*t7_3;
+            const double t7_5 = 0.35*th2_elbow_down_s;
+            const double t7_6 = 1.0*roll_elbow_down_s;
+            const double F1_14_elbow_down = 0.45*th2_elbow_down_c;
+            const double F1_24_elbow_down = 0.45*th2_elbow_down_s;
+            const double F2_11_elbow_down = t7_2;
+            const double F2_12_elbow_down = t7_4;
+            const double F2_14_elbow_down = F1_14_elbow_down + 0.35*t7_0 - t7_5*th3_elbow_down_s;
+            const double F2_21_elbow_down = t7_4;
+            const double F2_22_elbow_down = -t7_2;
+            const double F2_24_elbow_down = F1_24_elbow_down + kc_planar*t7_5 + 0.35*t7_3;
+            const double F3_34_elbow_down = travel + 0.5;
+            const double F4_11_elbow_down = F2_11_elbow_down*roll_elbow_down_c - F2_12_elbow_down*t7_6;
+            const double F4_12_elbow_down = F2_11_elbow_down*t7_6 + F2_12_elbow_down*roll_elbow_down_c;
+            const double F4_21_elbow_down = F2_21_elbow_down*roll_elbow_down_c - F2_22_elbow_down*t7_6;
+            const double F4_22_elbow_down = F2_21_elbow_down*t7_6 + F2_22_elbow_down*roll_elbow_down_c;
+            const int hit_elbow_down = (((fabs(Tt13) <= 1.0e-8)) & ((fabs(Tt23) <= 1.0e-8)) & ((fabs(Tt31) <= 1.0e-8)) & ((fabs(Tt32) <= 1.0e-8)) & ((fabs(Tt33 + 1) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <= 1.0e-8)) & ((fabs(F3_34_elbow_down - Tt34) <= 1.0e-8)) & ((fabs(F4_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F4_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_elbow_down - Tt22) <= 1.0e-8)));
+            /* joint limits and outputs, branch elbow_down */
+            const double t8_0 = 1.0*th2_elbow_down;
+            const double t8_1 = (1.0/2.0)/3.141592653589793;
+            const double t8_2 = 2*3.141592653589793;
+            const double t8_4 = -t8_2;
+            const double t8_6 = 4*3.141592653589793;
+            const double t8_8 = -t8_6;
+            const double t8_10 = 1.0*th3_elbow_down;
+            const double t8_15 = 1.0*roll_elbow_down;
+            const double fit_q1_elbow_down_w = t8_0 - t8_2*floor(t8_1*(t8_0 + 3.141592653589793));
+            const int fit_q1_elbow_down_in0 = (((fit_q1_elbow_down_w >= -2.2689280275936285)) & ((fit_q1_elbow_down_w <= 2.2689280275936285)));
+            const double fit_q2_elbow_down_w = t8_10 - t8_2*floor(t8_1*(t8_10 + 3.141592653589793));
+            const int fit_q2_elbow_down_in0 = (((fit_q2_elbow_down_w >= -2.530727415392778)) & ((fit_q2_elbow_down_w <= 2.530727415392778)));
+            const double fit_q3_elbow_down_d = -travel;
+            const int fit_q3_elbow_down_in0 = (((fit_q3_elbow_down_d >= -1.0e-12)) & ((fit_q3_elbow_down_d <= 0.30000000000099997)));
+            const double fit_q3_elbow_down = ((fit_q3_elbow_down_in0) ? fmin(0.3, fmax(0.0, fit_q3_elbow_down_d)) : fit_q3_elbow_down_d);
+            const double fit_q4_elbow_down_w = -t8_15 - t8_2*floor(t8_1*(3.141592653589793 - t8_15));
+            const int fit_q4_elbow_down_in0 = (((fit_q4_elbow_down_w >= -3.141592653590793)) & ((fit_q4_elbow_down_w <= 3.141592653590793)));
+            const double t8_3 = fit_q1_elbow_down_w + t8_2;
+            const double t8_5 = fit_q1_elbow_down_w + t8_4;
+            const double t8_7 = fit_q1_elbow_down_w + t8_6;
+            const double t8_9 = fit_q1_elbow_down_w + t8_8;
+            const double t8_11 = fit_q2_elbow_down_w + t8_2;
+            const double t8_12 = fit_q2_elbow_down_w + t8_4;
+            const double t8_13 = fit_q2_elbow_down_w + t8_6;
+            const double t8_14 = fit_q2_elbow_down_w + t8_8;
+            const double t8_16 = fit_q4_elbow_down_w + t8_2;
+            const double t8_17 = fit_q4_elbow_down_w + t8_4;
+            const double t8_18 = fit_q4_elbow_down_w + t8_6;
+            const double t8_19 = fit_q4_elbow_down_w + t8_8;
+            const int fit_q1_elbow_down_fy1 = ((!fit_q1_elbow_down_in0) & ((t8_3 >= -2.2689280275936285)) & ((t8_3 <= 2.2689280275936285)));
+            const double fit_q1_elbow_down_x1 = ((fit_q1_elbow_down_fy1) ? t8_3 : fit_q1_elbow_down_w);
+            const int fit_q1_elbow_down_in1 = ((fit_q1_elbow_down_fy1) | (fit_q1_elbow_down_in0));
+            const int fit_q1_elbow_down_fy2 = ((!fit_q1_elbow_down_in1) & ((t8_5 >= -2.2689280275936285)) & ((t8_5 <= 2.2689280275936285)));
+            const double fit_q1_elbow_down_x2 = ((fit_q1_elbow_down_fy2) ? t8_5 : fit_q1_elbow_down_x1);
+            const int fit_q1_elbow_down_in2 = ((fit_q1_elbow_down_fy2) | (fit_q1_elbow_down_in1));
+            const int fit_q1_elbow_down_fy3 = ((!fit_q1_elbow_down_in2) & ((t8_7 >= -2.2689280275936285)) & ((t8_7 <= 2.2689280275936285)));
+            const double fit_q1_elbow_down_x3 = ((fit_q1_elbow_down_fy3) ? t8_7 : fit_q1_elbow_down_x2);
+            const int fit_q1_elbow_down_in3 = ((fit_q1_elbow_down_fy3) | (fit_q1_elbow_down_in2));
+            const int fit_q1_elbow_down_fy4 = ((!fit_q1_elbow_down_in3) & ((t8_9 >= -2.2689280275936285)) & ((t8_9 <= 2.2689280275936285)));
+            const double fit_q1_elbow_down_x4 = ((fit_q1_elbow_down_fy4) ? t8_9 : fit_q1_elbow_down_x3);
+            const int fit_q1_elbow_down_in4 = ((fit_q1_elbow_down_fy4) | (fit_q1_elbow_down_in3));
+            const double fit_q1_elbow_down = ((fit_q1_elbow_down_in4) ? fmin(2.2689280275926285, fmax(-2.2689280275926285, fit_q1_elbow_down_x4)) : fit_q1_elbow_down_x4);
+            const int fit_q2_elbow_down_fy1 = ((!fit_q2_elbow_down_in0) & ((t8_11 >= -2.530727415392778)) & ((t8_11 <= 2.530727415392778)));
+            const double fit_q2_elbow_down_x1 = ((fit_q2_elbow_down_fy1) ? t8_11 : fit_q2_elbow_down_w);
+            const int fit_q2_elbow_down_in1 = ((fit_q2_elbow_down_fy1) | (fit_q2_elbow_down_in0));
+            const int fit_q2_elbow_down_fy2 = ((!fit_q2_elbow_down_in1) & ((t8_12 >= -2.530727415392778)) & ((t8_12 <= 2.530727415392778)));
+            const double fit_q2_elbow_down_x2 = ((fit_q2_elbow_down_fy2) ? t8_12 : fit_q2_elbow_down_x1);
+            const int fit_q2_elbow_down_in2 = ((fit_q2_elbow_down_fy2) | (fit_q2_elbow_down_in1));
+            const int fit_q2_elbow_down_fy3 = ((!fit_q2_elbow_down_in2) & ((t8_13 >= -2.530727415392778)) & ((t8_13 <= 2.530727415392778)));
+            const double fit_q2_elbow_down_x3 = ((fit_q2_elbow_down_fy3) ? t8_13 : fit_q2_elbow_down_x2);
+            const int fit_q2_elbow_down_in3 = ((fit_q2_elbow_down_fy3) | (fit_q2_elbow_down_in2));
+            const int fit_q2_elbow_down_fy4 = ((!fit_q2_elbow_down_in3) & ((t8_14 >= -2.530727415392778)) & ((t8_14 <= 2.530727415392778)));
+            const double fit_q2_elbow_down_x4 = ((fit_q2_elbow_down_fy4) ? t8_14 : fit_q2_elbow_down_x3);
+            const int fit_q2_elbow_down_in4 = ((fit_q2_elbow_down_fy4) | (fit_q2_elbow_down_in3));
+            const double fit_q2_elbow_down = ((fit_q2_elbow_down_in4) ? fmin(2.530727415391778, fmax(-2.530727415391778, fit_q2_elbow_down_x4)) : fit_q2_elbow_down_x4);
+            const int fit_q4_elbow_down_fy1 = ((!fit_q4_elbow_down_in0) & ((t8_16 >= -3.141592653590793)) & ((t8_16 <= 3.141592653590793)));
+            const double fit_q4_elbow_down_x1 = ((fit_q4_elbow_down_fy1) ? t8_16 : fit_q4_elbow_down_w);
+            const int fit_q4_elbow_down_in1 = ((fit_q4_elbow_down_fy1) | (fit_q4_elbow_down_in0));
+            const int fit_q4_elbow_down_fy2 = ((!fit_q4_elbow_down_in1) & ((t8_17 >= -3.141592653590793)) & ((t8_17 <= 3.141592653590793)));
+            const double fit_q4_elbow_down_x2 = ((fit_q4_elbow_down_fy2) ? t8_17 : fit_q4_elbow_down_x1);
+            const int fit_q4_elbow_down_in2 = ((fit_q4_elbow_down_fy2) | (fit_q4_elbow_down_in1));
+            const int fit_q4_elbow_down_fy3 = ((!fit_q4_elbow_down_in2) & ((t8_18 >= -3.141592653590793)) & ((t8_18 <= 3.141592653590793)));
+            const double fit_q4_elbow_down_x3 = ((fit_q4_elbow_down_fy3) ? t8_18 : fit_q4_elbow_down_x2);
+            const int fit_q4_elbow_down_in3 = ((fit_q4_elbow_down_fy3) | (fit_q4_elbow_down_in2));
+            const int fit_q4_elbow_down_fy4 = ((!fit_q4_elbow_down_in3) & ((t8_19 >= -3.141592653590793)) & ((t8_19 <= 3.141592653590793)));
+            const double fit_q4_elbow_down_x4 = ((fit_q4_elbow_down_fy4) ? t8_19 : fit_q4_elbow_down_x3);
+            const int fit_q4_elbow_down_in4 = ((fit_q4_elbow_down_fy4) | (fit_q4_elbow_down_in3));
+            const double fit_q4_elbow_down = ((fit_q4_elbow_down_in4) ? fmin(3.141592653589793, fmax(-3.141592653589793, fit_q4_elbow_down_x4)) : fit_q4_elbow_down_x4);
+            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
+            const int valid_elbow_down = ((fit_q1_elbow_down_in4) & (fit_q2_elbow_down_in4) & (fit_q3_elbow_down_in0) & (fit_q4_elbow_down_in4) & (ok_elbow_down));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
+            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
+            const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_down : NAN);
+            const double out_q4_elbow_down = ((ok_elbow_down) ? fit_q4_elbow_down : NAN);
+            const double out_valid_elbow_down = ((valid_elbow_down) ? 1.0 : 0.0);
+            /* status */
+            const int any_valid = ((valid_elbow_down) | (valid_elbow_up));
+            out_q1_elbow_up_b[k] = out_q1_elbow_up;
+            out_q2_elbow_up_b[k] = out_q2_elbow_up;
+            out_q3_elbow_up_b[k] = out_q3_elbow_up;
+            out_q4_elbow_up_b[k] = out_q4_elbow_up;
+            out_q1_elbow_down_b[k] = out_q1_elbow_down;
+            out_q2_elbow_down_b[k] = out_q2_elbow_down;
+            out_q3_elbow_down_b[k] = out_q3_elbow_down;
+            out_q4_elbow_down_b[k] = out_q4_elbow_down;
+            out_valid_elbow_up_b[k] = out_valid_elbow_up;
+            out_valid_elbow_down_b[k] = out_valid_elbow_down;
+            status_b[k] = (3*invalid + (1 - invalid)*(0*any_valid + (1 - any_valid)*(1)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8 stores into the
+         * loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 8 + 0] = out_q1_elbow_up_b[k];
+                q[(start + k) * 8 + 1] = out_q2_elbow_up_b[k];
+                q[(start + k) * 8 + 2] = out_q3_elbow_up_b[k];
+                q[(start + k) * 8 + 3] = out_q4_elbow_up_b[k];
+                q[(start + k) * 8 + 4] = out_q1_elbow_down_b[k];
+                q[(start + k) * 8 + 5] = out_q2_elbow_down_b[k];
+                q[(start + k) * 8 + 6] = out_q3_elbow_down_b[k];
+                q[(start + k) * 8 + 7] = out_q4_elbow_down_b[k];
+                valid[(start + k) * 2 + 0] = out_valid_elbow_up_b[k];
+                valid[(start + k) * 2 + 1] = out_valid_elbow_down_b[k];
+            }
+    }
+    return 0;
+}
+
 
 /* ------------------------------------------------------------------------------------
  * Numerical inverse kinematics: damped Newton-Raphson (Levenberg-Marquardt), one attempt

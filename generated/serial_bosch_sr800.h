@@ -81,6 +81,16 @@ int bosch_sr800_fk_jacobian(size_t n, const double *restrict q, double *restrict
  */
 int bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd, int8_t *restrict status);
 
+/* Inverse kinematics in closed form, every branch: tool pose T -> q for the 2 configurations elbow_up, elbow_down (in this order).
+ *
+ * n         number of points
+ * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
+ * q         out, n x 8: 2 x 4 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
+ * valid     out, n x 2: 2 flags per pose: 1.0 where the branch reaches the pose within the joint limits, else 0.0
+ * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN)
+ */
+int bosch_sr800_ik_all(size_t n, const double *restrict T, double *restrict q, double *restrict valid, int8_t *restrict status);
+
 /* Options of bosch_sr800_ik_newton (numerical inverse kinematics, damped Newton). */
 typedef struct bosch_sr800_ik_options {
     double tol_p;            /* position tolerance [m], >= 0 */

@@ -988,6 +988,169 @@ int lecture_scara_jacobian_dot(size_t n, const double *restrict q, const double 
     return 0;
 }
 
+int lecture_scara_ik_all(size_t n, const double *restrict T, double *restrict q, double *restrict valid, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (status == NULL || T == NULL || q == NULL || valid == NULL) {
+        return -1;
+    }
+
+    for (size_t start = 0; start < n; start += LECTURE_SCARA_BLOCK) {
+        const size_t m = (n - start < LECTURE_SCARA_BLOCK) ? n - start : LECTURE_SCARA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double Tt11_b[LECTURE_SCARA_BLOCK];
+        double Tt12_b[LECTURE_SCARA_BLOCK];
+        double Tt13_b[LECTURE_SCARA_BLOCK];
+        double Tt14_b[LECTURE_SCARA_BLOCK];
+        double Tt21_b[LECTURE_SCARA_BLOCK];
+        double Tt22_b[LECTURE_SCARA_BLOCK];
+        double Tt23_b[LECTURE_SCARA_BLOCK];
+        double Tt24_b[LECTURE_SCARA_BLOCK];
+        double Tt31_b[LECTURE_SCARA_BLOCK];
+        double Tt32_b[LECTURE_SCARA_BLOCK];
+        double Tt33_b[LECTURE_SCARA_BLOCK];
+        double Tt34_b[LECTURE_SCARA_BLOCK];
+            for (size_t k = 0; k < m; ++k) {
+                Tt11_b[k] = T[(start + k) * 16 + 0];
+                Tt12_b[k] = T[(start + k) * 16 + 1];
+                Tt13_b[k] = T[(start + k) * 16 + 2];
+                Tt14_b[k] = T[(start + k) * 16 + 3];
+                Tt21_b[k] = T[(start + k) * 16 + 4];
+                Tt22_b[k] = T[(start + k) * 16 + 5];
+                Tt23_b[k] = T[(start + k) * 16 + 6];
+                Tt24_b[k] = T[(start + k) * 16 + 7];
+                Tt31_b[k] = T[(start + k) * 16 + 8];
+                Tt32_b[k] = T[(start + k) * 16 + 9];
+                Tt33_b[k] = T[(start + k) * 16 + 10];
+                Tt34_b[k] = T[(start + k) * 16 + 11];
+            }
+        /* kinematics, one point per iteration */
+        int status_b[LECTURE_SCARA_BLOCK];
+        double out_q1_elbow_up_b[LECTURE_SCARA_BLOCK];
+        double out_q2_elbow_up_b[LECTURE_SCARA_BLOCK];
+        double out_q1_elbow_down_b[LECTURE_SCARA_BLOCK];
+        double out_q2_elbow_down_b[LECTURE_SCARA_BLOCK];
+        double out_valid_elbow_up_b[LECTURE_SCARA_BLOCK];
+        double out_valid_elbow_down_b[LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double Tt11 = Tt11_b[k];
+            const double Tt12 = Tt12_b[k];
+            const double Tt13 = Tt13_b[k];
+            const double Tt14 = Tt14_b[k];
+            const double Tt21 = Tt21_b[k];
+            const double Tt22 = Tt22_b[k];
+            const double Tt23 = Tt23_b[k];
+            const double Tt24 = Tt24_b[k];
+            const double Tt31 = Tt31_b[k];
+            const double Tt32 = Tt32_b[k];
+            const double Tt33 = Tt33_b[k];
+            const double Tt34 = Tt34_b[k];
+            /* status flag: a non-finite pose */
+            const int invalid = !(isfinite(Tt11) & isfinite(Tt12) & isfinite(Tt13) & isfinite(Tt14) & isfinite(Tt21) & isfinite(Tt22) & isfinite(Tt23) & isfinite(Tt24) & isfinite(Tt31) & isfinite(Tt32) & isfinite(Tt33) & isfinite(Tt34));
+            /* planar arm: the point P, the travel along u and the yaw about u */
+            const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
+            const double yaw_inv = 1.0/fmax(1.0e-300, yaw_h);
+            const double yaw = atan2(Tt21, Tt11);
+            const int t1_0 = (yaw_h > 0);
+            const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
+            const double yaw_s = ((t1_0) ? Tt21*yaw_inv : 0);
+            /* Paul's method (slides 103-105): psi from the rotation, q1 from joint 2 */
+            const double t2_0 = -3.0*Tt11 + Tt14;
+            const double t2_1 = -3.0*Tt21 + Tt24;
+            const double phi_b_h = sqrt(t2_0*t2_0 + t2_1*t2_1);
+            const double phi_b_inv = 1.0/fmax(1.0e-300, phi_b_h);
+            const double phi_b = atan2(t2_1, t2_0);
+            const double paul2 = -phi_b + yaw;
+            const int t2_2 = (phi_b_h > 0);
+            const double phi_b_c = ((t2_2) ? phi_b_inv*t2_0 : 1);
+            const double phi_b_s = ((t2_2) ? phi_b_inv*t2_1 : 0);
+            const double paul2_c = phi_b_c*yaw_c + phi_b_s*yaw_s;
+            const double paul2_s = phi_b_c*yaw_s - phi_b_s*yaw_c;
+            const int elbow_down = (paul2_s >= 0);
+            /* check, branch elbow_up: forward kinematics at the solution */
+            const double t3_0 = paul2_c*phi_b_c;
+            const double t3_1 = 1.0*phi_b_s;
+            const double t3_2 = -paul2_s*t3_1 + t3_0;
+            const double t3_3 = paul2_s*phi_b_c;
+            const double t3_4 = paul2_c*t3_1 + 1.0*t3_3;
+            const double t3_5 = 3.0*phi_b_s;
+            const double F1_14_elbow_up = 4.0*phi_b_c;
+            const double F1_24_elbow_up = 4.0*phi_b_s;
+            const double F2_11_elbow_up = t3_2;
+            const double F2_12_elbow_up = -t3_4;
+            const double F2_14_elbow_up = F1_14_elbow_up - paul2_s*t3_5 + 3.0*t3_0;
+            const double F2_21_elbow_up = t3_4;
+            const double F2_22_elbow_up = t3_2;
+            const double F2_24_elbow_up = F1_24_elbow_up + paul2_c*t3_5 + 3.0*t3_3;
+            const int hit_elbow_up = (((fabs(Tt13) <= 1.0e-8)) & ((fabs(Tt23) <= 1.0e-8)) & ((fabs(Tt31) <= 1.0e-8)) & ((fabs(Tt32) <= 1.0e-8)) & ((fabs(Tt34) <= 7.0000000000000005e-8)) & ((fabs(Tt33 - 1) <= 1.0e-8)) & ((fabs(F2_11_elbow_up - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_up - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_up - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_up - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_up - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_up - Tt24) <= 7.0000000000000005e-8)));
+            /* joint limits and outputs, branch elbow_up */
+            const double t4_0 = 1.0*phi_b;
+            const double t4_1 = (1.0/2.0)/3.141592653589793;
+            const double t4_2 = 2*3.141592653589793;
+            const double t4_3 = 1.0*paul2;
+            const double fit_q1_elbow_up_w = t4_0 - t4_2*floor(t4_1*(t4_0 + 3.141592653589793));
+            const double fit_q2_elbow_up_w = -t4_2*floor(t4_1*(t4_3 + 3.141592653589793)) + t4_3;
+            const int ok_elbow_up = ((hit_elbow_up) & (!elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_up_w) & isfinite(fit_q2_elbow_up_w))));
+            const double out_q1_elbow_up = ((ok_elbow_up) ? fit_q1_elbow_up_w : NAN);
+            const double out_q2_elbow_up = ((ok_elbow_up) ? fit_q2_elbow_up_w : NAN);
+            const double out_valid_elbow_up = ((ok_elbow_up) ? 1.0 : 0.0);
+            /* check, branch elbow_down: forward kinematics at the solution */
+            const double t5_0 = paul2_c*phi_b_c;
+            const double t5_1 = 1.0*phi_b_s;
+            const double t5_2 = -paul2_s*t5_1 + t5_0;
+            const double t5_3 = paul2_s*phi_b_c;
+            const double t5_4 = paul2_c*t5_1 + 1.0*t5_3;
+            const double t5_5 = 3.0*phi_b_s;
+            const double F1_14_elbow_down = 4.0*phi_b_c;
+            const double F1_24_elbow_down = 4.0*phi_b_s;
+            const double F2_11_elbow_down = t5_2;
+            const double F2_12_elbow_down = -t5_4;
+            const double F2_14_elbow_down = F1_14_elbow_down - paul2_s*t5_5 + 3.0*t5_0;
+            const double F2_21_elbow_down = t5_4;
+            const double F2_22_elbow_down = t5_2;
+            const double F2_24_elbow_down = F1_24_elbow_down + paul2_c*t5_5 + 3.0*t5_3;
+            const int hit_elbow_down = (((fabs(Tt13) <= 1.0e-8)) & ((fabs(Tt23) <= 1.0e-8)) & ((fabs(Tt31) <= 1.0e-8)) & ((fabs(Tt32) <= 1.0e-8)) & ((fabs(Tt34) <= 7.0000000000000005e-8)) & ((fabs(Tt33 - 1) <= 1.0e-8)) & ((fabs(F2_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <= 7.0000000000000005e-8)));
+            /* joint limits and outputs, branch elbow_down */
+            const double t6_0 = 1.0*phi_b;
+            const double t6_1 = (1.0/2.0)/3.141592653589793;
+            const double t6_2 = 2*3.141592653589793;
+            const double t6_3 = 1.0*paul2;
+            const double fit_q1_elbow_down_w = t6_0 - t6_2*floor(t6_1*(t6_0 + 3.141592653589793));
+            const double fit_q2_elbow_down_w = -t6_2*floor(t6_1*(t6_3 + 3.141592653589793)) + t6_3;
+            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_down_w) & isfinite(fit_q2_elbow_down_w))));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down_w : NAN);
+            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down_w : NAN);
+            const double out_valid_elbow_down = ((ok_elbow_down) ? 1.0 : 0.0);
+            /* status */
+            const int any_valid = ((ok_elbow_down) | (ok_elbow_up));
+            out_q1_elbow_up_b[k] = out_q1_elbow_up;
+            out_q2_elbow_up_b[k] = out_q2_elbow_up;
+            out_q1_elbow_down_b[k] = out_q1_elbow_down;
+            out_q2_elbow_down_b[k] = out_q2_elbow_down;
+            out_valid_elbow_up_b[k] = out_valid_elbow_up;
+            out_valid_elbow_down_b[k] = out_valid_elbow_down;
+            status_b[k] = (3*invalid + (1 - invalid)*(0*any_valid + (1 - any_valid)*(1)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8 stores into the
+         * loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 4 + 0] = out_q1_elbow_up_b[k];
+                q[(start + k) * 4 + 1] = out_q2_elbow_up_b[k];
+                q[(start + k) * 4 + 2] = out_q1_elbow_down_b[k];
+                q[(start + k) * 4 + 3] = out_q2_elbow_down_b[k];
+                valid[(start + k) * 2 + 0] = out_valid_elbow_up_b[k];
+                valid[(start + k) * 2 + 1] = out_valid_elbow_down_b[k];
+            }
+    }
+    return 0;
+}
+
 
 /* ------------------------------------------------------------------------------------
  * Numerical inverse kinematics: damped Newton-Raphson (Levenberg-Marquardt), one attempt

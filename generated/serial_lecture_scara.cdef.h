@@ -10,6 +10,7 @@ int lecture_scara_frames(size_t n, const double *q, double *F, int8_t *status);
 int lecture_scara_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int lecture_scara_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int lecture_scara_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
+int lecture_scara_ik_all(size_t n, const double *T, double *q, double *valid, int8_t *status);
 
 typedef struct lecture_scara_ik_options {
     double tol_p;

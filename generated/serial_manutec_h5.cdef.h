@@ -10,6 +10,7 @@ int manutec_h5_frames(size_t n, const double *q, double *F, int8_t *status);
 int manutec_h5_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int manutec_h5_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int manutec_h5_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
+int manutec_h5_ik_all(size_t n, const double *T, double *q, double *valid, int8_t *status);
 
 typedef struct manutec_h5_ik_options {
     double tol_p;

@@ -23,7 +23,7 @@ from deltagen.serial.robot import bundled_robots
 from deltagen.status import INVALID, OK, UNREACHABLE
 
 CENTRAL_WRIST = ("puma560", "motoman_up6", "manutec_r15")
-C_ARMS = CENTRAL_WRIST + ("miskolc_rrrr",)  # elbow_4r
+C_ARMS = CENTRAL_WRIST + ("miskolc_rrrr", "lecture_scara", "manutec_h5", "bosch_sr800")
 
 
 @pytest.fixture(scope="module", params=C_ARMS)

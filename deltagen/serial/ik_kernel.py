@@ -28,8 +28,10 @@ branch is a solution inside the joint limits, else 0.0); status OK when some bra
 valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVALID for a
 non-finite input (all outputs NaN / 0).
 
-Supported here: the 6R arms with a central wrist (``spherical_wrist_6r``). The other
-structures are solved by ik_analytic in numpy.
+Supported: every structure of ik_analytic with the full pose given (its ``solve`` default):
+``spherical_wrist_6r`` (8 branches), ``elbow_4r`` (Paul's method for q2 + q3, 4 branches) and
+``planar`` (2 branches; Paul's method for the 2R arm). ``position_only`` and other
+tolerances stay with the numpy solver.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from .ik_analytic import analytic_solver
 TOL = 1e-8  # accepted forward-kinematics residual (ik_analytic.AnalyticSolver.solve's tol)
 LIMIT_TOL = 1e-12  # ik_analytic._LIMIT_TOL
 WRIST_SINGULAR = 1e-12  # ik_analytic._SING
-SUPPORTED = ("spherical_wrist_6r", "elbow_4r")
+SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
 
@@ -74,12 +76,17 @@ class _Tape:
     def stage(self, comment):
         self.stages.append((comment, []))
 
-    def let(self, name, expr):
+    def let(self, name, expr, alias=True):
+        """A symbol for expr (a new statement), or with ``alias`` expr itself when it is
+        already a symbol or true/false (a flag that simplified away needs no variable)."""
+        expr = sp.sympify(expr)
+        if alias and (isinstance(expr, sp.Symbol) or expr in (sp.true, sp.false)):
+            return expr
         if name in self._names:  # one C variable per name
             raise ValueError(f"ik kernel: {name!r} assigned twice")
         self._names.add(name)
         sym = sp.Symbol(name, real=True)
-        self.stages[-1][1].append((sym, sp.sympify(expr)))
+        self.stages[-1][1].append((sym, expr))
         return sym
 
     def vec(self, name, v):
@@ -227,9 +234,6 @@ class IKKernelBuilder:
         on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ch.scale) ** 2)
         a = _Angle(0, *_direction(tape, "phi_p", py, px))
         uu, vv = s._uu, s._vv
-        lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
-        A = math.atan2(uu[1], uu[0]) - math.atan2(vv[1], vv[0])
-        elbow0 = _Angle(K(A), K(math.cos(A)), K(math.sin(A)))
         branches = []
         shoulders = {}
         for f in sorted(set(s._front.tolist()), reverse=True):
@@ -247,23 +251,14 @@ class IKKernelBuilder:
                      _add(_scale(yV, K.vec(s._ey)), _scale(pz, K.vec(s._ez))))
             t = tuple(tape.let(f"t{j + 1}_{tag}", _dot(K.vec(s._P2[j]), V) - K(s._S[j]))
                       for j in range(2))
-            kappa = tape.let(f"kappa_{tag}",
-                             (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv))
-            ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
-            kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
-            ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
-            bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
+            kc, ks, bend, ok2 = self._cosine_law(tag, t, uu, vv)
             shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
         for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
             f, sigma = float(s._front[index]), float(s._bend[index])
             q1, t, kc, ks, bend, ok1, ok2 = shoulders[f]
             tag = config.rsplit("_", 1)[0] if self.n == 6 else config
             tape.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
-            bend = _Angle(sigma * bend, kc, sigma * ks)
-            th3 = _named(tape, f"th3_{tag}", elbow0 + bend)
-            m = (K(uu[0]) + th3.c * K(vv[0]) - th3.s * K(vv[1]),
-                 K(uu[1]) + th3.s * K(vv[0]) + th3.c * K(vv[1]))
-            th2 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
+            th2, th3 = self._elbow(tag, t, kc, ks, bend, sigma, uu, vv)
             ok = tape.let(f"ok_arm_{tag}", sp.And(ok1, ok2))
             branches.append((tag, q1, th2, th3, ok, t, ok1, sigma))
         return branches
@@ -292,6 +287,81 @@ class IKKernelBuilder:
         y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s._x4)))
         q4 = _sp1(tape, f"q4_{tag}", w[3], K.vec(s._x4), y)
         return (q1, th2, th3.scaled(s._s3), q4), ok
+
+    def _planar(self):
+        """ik_analytic._PlanarSolver._solve: a planar 2R arm for the point P in the plane
+        normal to u (law of cosines, both elbows), the roll of a third revolute joint from
+        the target yaw, a prismatic joint from the travel along u; with two revolute joints
+        and the pose given, Paul's method (the pose fixes the elbow)."""
+        s, tape, K = self.solver, self.tape, self.const
+        ch = s._ch
+        u, E = s._u, s._E
+        uu, vv = s._uu, s._vv
+        tape.stage("planar arm: the point P, the travel along u and the yaw about u")
+        # P_t = R_G P + p_G = R_t R0^T (P - p0) + p_t
+        P_t = tape.vec("P_t", _add(self._rotate_target_raw(ch.R0.T @ (s._P - ch.p0)), self.p_t))
+        h = tape.let("travel", _dot(_add(P_t, _scale(-1, K.vec(s._P))), K.vec(u)))
+        t = tuple(tape.let(f"t{j + 1}", _dot(K.vec(E[j]), P_t) - K(s._A[j])) for j in range(2))
+        g1 = self._rotate_target(E[0])
+        yaw = _atan2(tape, "yaw", _dot(g1, K.vec(E[1])), _dot(g1, K.vec(E[0])))
+        a_uu = math.atan2(uu[1], uu[0])
+        c_uv = math.atan2(vv[1], vv[0]) - a_uu
+        branches = {}
+        if s._ic is None:
+            tape.stage("Paul's method (slides 103-105): psi from the rotation, q1 from joint 2")
+            B_t = _add(self._rotate_target_raw(ch.R0.T @ (ch.o[s._ib] - ch.p0)), self.p_t)
+            tb = [_dot(K.vec(E[j]), B_t) - K(s._A[j]) for j in range(2)]
+            p1 = _named(tape, "paul1", _atan2(tape, "phi_b", tb[1], tb[0])
+                        - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
+            p2 = _named(tape, "paul2", yaw - p1)
+            down = tape.let("elbow_down", p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)) >= 0)
+            for config, sigma in zip(s.configs, s._SIGMA):
+                mine = down if sigma > 0 else sp.Not(down)
+                branches[config] = (p1, p2, None, mine)
+        else:
+            tape.stage("planar arm: law of cosines")
+            kc, ks, bend, ok2 = self._cosine_law("planar", t, uu, vv)
+            for config, sigma in zip(s.configs, s._SIGMA):
+                tape.stage(f"planar arm, {config}")
+                th1, th2 = self._elbow(config, t, kc, ks, bend, sigma, uu, vv)
+                roll = _named(tape, f"roll_{config}", yaw - th1 - th2)
+                branches[config] = (th1, th2, roll, ok2)
+        solutions = {}
+        sign = s._sign
+        for config, (th1, th2, roll, ok) in branches.items():
+            q = [None] * self.n
+            q[s._ia] = th1.scaled(float(sign[s._ia]))
+            q[s._ib] = th2.scaled(float(sign[s._ib]))
+            if s._ic is not None:
+                q[s._ic] = roll.scaled(float(sign[s._ic]))
+            if s._ip is not None:
+                q[s._ip] = K(float(sign[s._ip])) * h
+            solutions[config] = (tuple(q), ok)
+        return solutions
+
+    def _cosine_law(self, tag, t, uu, vv):
+        """The elbow of a planar 2R arm reaching t (ik_analytic._two_link): cos and sin of
+        the bend, its angle, and whether the law of cosines is met (to 1e-9)."""
+        tape, K = self.tape, self.const
+        lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
+        kappa = tape.let(f"kappa_{tag}",
+                         (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv))
+        ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
+        kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
+        ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
+        bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
+        return kc, ks, bend, ok2
+
+    def _elbow(self, tag, t, kc, ks, bend, sigma, uu, vv):
+        """First-axis and elbow angles of the planar 2R arm for the bend sign sigma."""
+        tape, K = self.tape, self.const
+        a = math.atan2(uu[1], uu[0]) - math.atan2(vv[1], vv[0])
+        elbow = _Angle(K(a), K(math.cos(a)), K(math.sin(a))) + _Angle(sigma * bend, kc, sigma * ks)
+        th2 = _named(tape, f"th3_{tag}", elbow)
+        m = (K(uu[0]) + th2.c * K(vv[0]) - th2.s * K(vv[1]),
+             K(uu[1]) + th2.s * K(vv[0]) + th2.c * K(vv[1]))
+        th1 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
+        return th1, th2
 
     def _undo(self, q1, tot, v):
         """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
@@ -338,31 +408,44 @@ class IKKernelBuilder:
             out.append((name, okw, q4, q5, q6))
         return out
 
-    def _fit_limits(self, name, i, a: _Angle):
-        """ik_analytic.AnalyticSolver._fit_limits for one revolute joint: (value, inside)."""
+    def _fit_limits(self, name, i, a):
+        """ik_analytic.AnalyticSolver._fit_limits for joint i: (value, inside). A revolute
+        joint (a an _Angle) is wrapped into [-pi, pi) and shifted by +-2 pi, +-4 pi where that
+        fits its range; a prismatic one (a its displacement) is only checked. Either is
+        clipped onto a limit it passes by at most LIMIT_TOL."""
         tape = self.tape
         lo, hi = (float(x) for x in self.solver._qlim[i])
-        two_pi = 2 * sp.pi
-        x = tape.let(f"{name}_w", a.theta - two_pi * sp.floor((a.theta + sp.pi) / two_pi))
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            if math.isfinite(lo) or math.isfinite(hi):
-                raise NotImplementedError("a joint limited on one side only")
+        revolute = isinstance(a, _Angle)
+        if revolute:
+            two_pi = 2 * sp.pi
+            x = tape.let(f"{name}_w", a.theta - two_pi * sp.floor((a.theta + sp.pi) / two_pi))
+        else:
+            x = tape.let(f"{name}_d", a)
+        if not (math.isfinite(lo) or math.isfinite(hi)):
             return x, sp.true
-        lo_t, hi_t = sp.Float(repr(lo - LIMIT_TOL), 17), sp.Float(repr(hi + LIMIT_TOL), 17)
 
         def inside(v):
-            return sp.And(v >= lo_t, v <= hi_t)
+            conds = []
+            if math.isfinite(lo):
+                conds.append(v >= sp.Float(repr(lo - LIMIT_TOL), 17))
+            if math.isfinite(hi):
+                conds.append(v <= sp.Float(repr(hi + LIMIT_TOL), 17))
+            return sp.And(*conds)
 
         x0 = x
         fits = tape.let(f"{name}_in0", inside(x))
-        for k, shift in enumerate((1, -1, 2, -2), start=1):
-            y = x0 + shift * two_pi
-            fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
-            x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
-            fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
-        lo_s, hi_s = sp.Float(repr(lo), 17), sp.Float(repr(hi), 17)
-        clipped = sp.Piecewise((sp.Min(sp.Max(x, lo_s), hi_s), fits), (x, True))
-        return tape.let(name, clipped), fits
+        if revolute:
+            for k, shift in enumerate((1, -1, 2, -2), start=1):
+                y = x0 + shift * two_pi
+                fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
+                x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
+                fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
+        clipped = x
+        if math.isfinite(lo):
+            clipped = sp.Max(clipped, sp.Float(repr(lo), 17))
+        if math.isfinite(hi):
+            clipped = sp.Min(clipped, sp.Float(repr(hi), 17))
+        return tape.let(name, sp.Piecewise((clipped, fits), (x, True))), fits
 
     def _reproduces(self, name, angles):
         """Forward kinematics of the description at the branch's cosines and sines, compared
@@ -371,8 +454,11 @@ class IKKernelBuilder:
         sym = chain.sym
         mapping = {}
         for i, a in enumerate(angles):
-            mapping[sym.cos[i]] = a.c
-            mapping[sym.sin[i]] = a.s
+            if isinstance(a, _Angle):
+                mapping[sym.cos[i]] = a.c
+                mapping[sym.sin[i]] = a.s
+            else:  # a prismatic joint's displacement
+                mapping[sym.q[i]] = a
         tape.stage(f"check, branch {name}: forward kinematics at the solution")
         for stage in chain.stages:
             for s, expr in stage.assignments:
@@ -388,11 +474,10 @@ class IKKernelBuilder:
 
     # -- the kernel ----------------------------------------------------------------
 
-    def build(self) -> Kernel:
-        s, tape, n = self.solver, self.tape, self.n
-        self._target()
-        tape.stage("status flag: a non-finite pose")
-        invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
+    def _elbow_arm(self):
+        """The 4R and 6R elbow arms: joints 1-3 from the wrist point, then the roll (4R) or
+        the central wrist (6R)."""
+        s, tape = self.solver, self.tape
         tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
         c_w = s._ch.R0.T @ (s._W - s._ch.p0)
         W_t = tape.vec("W_t", _add(self._rotate_target_raw(c_w), self.p_t))
@@ -404,6 +489,17 @@ class IKKernelBuilder:
             q3 = th3.scaled(s._s3)
             for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
                 solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
+        return solutions
+
+    def build(self) -> Kernel:
+        s, tape, n = self.solver, self.tape, self.n
+        self._target()
+        tape.stage("status flag: a non-finite pose")
+        invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
+        if s.structure == "planar":
+            solutions = self._planar()
+        else:
+            solutions = self._elbow_arm()
         q_out, valid_out, valid_flags = [], [], []
         for name in self.configs:
             angles, ok = solutions[name]
@@ -418,9 +514,11 @@ class IKKernelBuilder:
             valid = tape.let(f"valid_{name}", sp.And(good, *inside))
             valid_flags.append(valid)
             for i, v in enumerate(values):
-                q_out.append(tape.let(f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True))))
+                q_out.append(tape.let(f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True)),
+                                      alias=False))
             valid_out.append(tape.let(f"out_valid_{name}",
-                                      sp.Piecewise((sp.Float(1.0), valid), (sp.Float(0.0), True))))
+                                      sp.Piecewise((sp.Float(1.0), valid), (sp.Float(0.0), True)),
+                                      alias=False))
         tape.stage("status")
         any_valid = tape.let("any_valid", sp.Or(*valid_flags))
         k = len(self.configs)
