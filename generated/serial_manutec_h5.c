@@ -1832,8 +1832,11 @@ static int manutec_h5_ikn_eval(const double *qv, const double *Tt, const int32_t
     return (st == MANUTEC_H5_OK && isfinite(*ep) && isfinite(*er)) ? 0 : -1;
 }
 
-/* In-place Cholesky factor (lower) of the s x s matrix A; 0, or -1 if not positive definite. */
-static int manutec_h5_ikn_cholesky(double *A, size_t s)
+/* In-place Cholesky factor (lower) of the s x s matrix A, and the reciprocals of its
+ * diagonal in inv (the solves multiply by them: a division per step would make the
+ * dependent chain of a triangular solve several times longer); 0, or -1 if not positive
+ * definite. */
+static int manutec_h5_ikn_cholesky(double *A, size_t s, double *inv)
 {
     for (size_t j = 0; j < s; ++j) {
         double d = A[j * s + j];
@@ -1845,33 +1848,35 @@ static int manutec_h5_ikn_cholesky(double *A, size_t s)
         }
         d = sqrt(d);
         A[j * s + j] = d;
+        inv[j] = 1.0 / d;
         for (size_t i = j + 1; i < s; ++i) {
             double x = A[i * s + j];
             for (size_t k = 0; k < j; ++k) {
                 x -= A[i * s + k] * A[j * s + k];
             }
-            A[i * s + j] = x / d;
+            A[i * s + j] = x * inv[j];
         }
     }
     return 0;
 }
 
 /* Solve L L^T x = b (L from ikn_cholesky); b and x may be the same array. */
-static void manutec_h5_ikn_cholesky_solve(const double *L, size_t s, const double *b, double *x)
+static void manutec_h5_ikn_cholesky_solve(const double *L, const double *inv, size_t s,
+                                       const double *b, double *x)
 {
     for (size_t i = 0; i < s; ++i) {
         double y = b[i];
         for (size_t k = 0; k < i; ++k) {
             y -= L[i * s + k] * x[k];
         }
-        x[i] = y / L[i * s + i];
+        x[i] = y * inv[i];
     }
     for (size_t i = s; i-- > 0;) {
         double y = x[i];
         for (size_t k = i + 1; k < s; ++k) {
             y -= L[k * s + i] * x[k];
         }
-        x[i] = y / L[i * s + i];
+        x[i] = y * inv[i];
     }
 }
 
@@ -1899,8 +1904,9 @@ static int manutec_h5_ikn_gauss(double *A, size_t s, double *b)
             b[j] = b[p];
             b[p] = t;
         }
+        const double pivot_inv = 1.0 / A[j * s + j];
         for (size_t i = j + 1; i < s; ++i) {
-            const double f = A[i * s + j] / A[j * s + j];
+            const double f = A[i * s + j] * pivot_inv;
             for (size_t k = j; k < s; ++k) {
                 A[i * s + k] -= f * A[j * s + k];
             }
@@ -1923,6 +1929,24 @@ static int manutec_h5_ikn_gauss(double *A, size_t s, double *b)
 static void manutec_h5_ikn_gram(const double *A, size_t k, const int *fixed, double *G, size_t *s)
 {
     const size_t N = MANUTEC_H5_IKN_N;
+    int any_fixed = 0;
+    for (size_t i = 0; i < N; ++i) {
+        any_fixed |= fixed[i];
+    }
+    if (N <= k && !any_fixed) {  /* the usual case, without the tests per entry */
+        for (size_t i = 0; i < N; ++i) {
+            for (size_t j = 0; j <= i; ++j) {
+                double x = 0.0;
+                for (size_t r = 0; r < k; ++r) {
+                    x += A[r * N + i] * A[r * N + j];
+                }
+                G[i * N + j] = x;
+                G[j * N + i] = x;
+            }
+        }
+        *s = N;
+        return;
+    }
     if (N <= k) {
         for (size_t i = 0; i < N; ++i) {
             for (size_t j = 0; j <= i; ++j) {
@@ -1958,12 +1982,12 @@ static void manutec_h5_ikn_gram(const double *A, size_t k, const int *fixed, dou
  * inverse iteration on the Gram matrix G = A^T A or A A^T, from a fixed start. The ratio
  * |x| / |G^-1 x| is never below the smallest eigenvalue, so the estimate errs high, and
  * it is accurate when the smallest eigenvalue is well separated (near a singularity). */
-static double manutec_h5_ikn_sigma_min(const double *A, size_t k)
+static double manutec_h5_ikn_sigma_min_of(const double *G0, size_t s)
 {
     double G[MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N > 36 ? MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N : 36];
-    int fixed[MANUTEC_H5_IKN_N] = {0};
-    size_t s;
-    manutec_h5_ikn_gram(A, k, fixed, G, &s);
+    for (size_t i = 0; i < s * s; ++i) {
+        G[i] = G0[i] + 0.0;  /* "+ 0.0": a loop, not a memcpy call (libm only) */
+    }
     double trace = 0.0;
     for (size_t i = 0; i < s; ++i) {
         trace += G[i * s + i];
@@ -1974,7 +1998,8 @@ static double manutec_h5_ikn_sigma_min(const double *A, size_t k)
     for (size_t i = 0; i < s; ++i) {
         G[i * s + i] += shift;
     }
-    if (manutec_h5_ikn_cholesky(G, s) != 0) {
+    double inv[MANUTEC_H5_IKN_N > 6 ? MANUTEC_H5_IKN_N : 6];
+    if (manutec_h5_ikn_cholesky(G, s, inv) != 0) {
         return 0.0;
     }
     double x[MANUTEC_H5_IKN_N > 6 ? MANUTEC_H5_IKN_N : 6];
@@ -1987,25 +2012,36 @@ static double manutec_h5_ikn_sigma_min(const double *A, size_t k)
         for (size_t i = 0; i < s; ++i) {
             before += x[i] * x[i];
         }
-        manutec_h5_ikn_cholesky_solve(G, s, x, x);
+        manutec_h5_ikn_cholesky_solve(G, inv, s, x, x);
         for (size_t i = 0; i < s; ++i) {
             after += x[i] * x[i];
         }
         after = sqrt(after);
         lambda = sqrt(before) / after;
+        const double scale = 1.0 / after;
         for (size_t i = 0; i < s; ++i) {
-            x[i] /= after;
+            x[i] *= scale;
         }
     }
     lambda -= shift;
     return lambda > 0.0 ? sqrt(lambda) : 0.0;
 }
 
+/* ikn_sigma_min_of for the matched rows A (k x N) themselves. */
+static double manutec_h5_ikn_sigma_min(const double *A, size_t k)
+{
+    double G[MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N > 36 ? MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N : 36];
+    int fixed[MANUTEC_H5_IKN_N] = {0};
+    size_t s;
+    manutec_h5_ikn_gram(A, k, fixed, G, &s);
+    return manutec_h5_ikn_sigma_min_of(G, s);
+}
+
 /* The step dq (N) for the k x N matched rows A and residual r (k): Gauss elimination if
  * ``gauss`` (square, nothing fixed), else the damped normal equations with lambda^2 = lam2;
  * fixed joints get dq_i = 0. 0, or -1 if the system is numerically singular (dq = 0). */
 static int manutec_h5_ikn_solve(const double *A, size_t k, const double *r, const int *fixed,
-                              double lam2, int gauss, double *dq)
+                              double lam2, int gauss, const double *G0, size_t s0, double *dq)
 {
     const size_t N = MANUTEC_H5_IKN_N;
     double G[MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N > 36 ? MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N : 36];
@@ -2026,20 +2062,27 @@ static int manutec_h5_ikn_solve(const double *A, size_t k, const double *r, cons
             return 0;
         }
     }
-    size_t s;
-    manutec_h5_ikn_gram(A, k, fixed, G, &s);
+    size_t s = s0;
+    if (G0 != NULL) {  /* the caller's Gram matrix (nothing fixed) */
+        for (size_t i = 0; i < s * s; ++i) {
+            G[i] = G0[i] + 0.0;
+        }
+    } else {
+        manutec_h5_ikn_gram(A, k, fixed, G, &s);
+    }
     double trace = 0.0;
     for (size_t i = 0; i < s; ++i) {
         trace += G[i * s + i];
         G[i * s + i] += lam2;
     }
-    int rc = manutec_h5_ikn_cholesky(G, s);
+    double inv[MANUTEC_H5_IKN_N > 6 ? MANUTEC_H5_IKN_N : 6];
+    int rc = manutec_h5_ikn_cholesky(G, s, inv);
     if (rc != 0) {  /* rank deficient and undamped: a shift of a few ulps of the trace */
         manutec_h5_ikn_gram(A, k, fixed, G, &s);
         for (size_t i = 0; i < s; ++i) {
             G[i * s + i] += lam2 + 1e-14 * trace + 1e-300;
         }
-        rc = manutec_h5_ikn_cholesky(G, s);
+        rc = manutec_h5_ikn_cholesky(G, s, inv);
     }
     if (rc != 0) {
         for (size_t i = 0; i < N; ++i) {
@@ -2055,9 +2098,9 @@ static int manutec_h5_ikn_solve(const double *A, size_t k, const double *r, cons
             }
             b[i] = fixed[i] ? 0.0 : x;
         }
-        manutec_h5_ikn_cholesky_solve(G, s, b, dq);
+        manutec_h5_ikn_cholesky_solve(G, inv, s, b, dq);
     } else {  /* dq = A^T y, (A A^T + lambda^2 I) y = r */
-        manutec_h5_ikn_cholesky_solve(G, s, r, b);
+        manutec_h5_ikn_cholesky_solve(G, inv, s, r, b);
         for (size_t i = 0; i < N; ++i) {
             double x = 0.0;
             for (size_t row = 0; row < k; ++row) {
@@ -2256,13 +2299,18 @@ int manutec_h5_ik_newton(size_t n, const manutec_h5_ik_options *restrict options
             /* damping; a square, well-conditioned row whose damping is negligible keeps the
              * previous sigma_min estimate (x2 safety) and goes straight to Gauss */
             double s = s_prev, lam2 = 0.0;
-            int gauss = 0;
+            double G0[MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N > 36 ? MANUTEC_H5_IKN_N * MANUTEC_H5_IKN_N : 36];
+            size_t s0 = 0;
+            int gauss = 0, have_gram = 0;
             if ((size_t)k == N && s >= 2.0 * S_WELL) {
                 lam2 = (mu + o.base_damping) * err2;
                 gauss = lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s);
             }
-            if (!gauss) {
-                s = manutec_h5_ikn_sigma_min(A, (size_t)k);
+            if (!gauss) {  /* one Gram matrix serves the estimate and the damped step */
+                int none[MANUTEC_H5_IKN_N] = {0};
+                manutec_h5_ikn_gram(A, (size_t)k, none, G0, &s0);
+                have_gram = 1;
+                s = manutec_h5_ikn_sigma_min_of(G0, s0);
                 double nh = 1.0 - (s / S_WELL) * (s / S_WELL);
                 nh = nh > 0.0 ? nh : 0.0;
                 lam2 = (mu + o.base_damping + o.damping * nh) * err2;
@@ -2274,7 +2322,7 @@ int manutec_h5_ik_newton(size_t n, const manutec_h5_ik_options *restrict options
             for (size_t i = 0; i < N; ++i) {
                 fixed[i] = 0;
             }
-            manutec_h5_ikn_solve(A, (size_t)k, r, fixed, lam2, gauss, dq);
+            manutec_h5_ikn_solve(A, (size_t)k, r, fixed, lam2, gauss, have_gram ? G0 : NULL, s0, dq);
             manutec_h5_ikn_limit_step(dq, o.step_limit);
             for (size_t i = 0; i < N; ++i) {
                 target[i] = cur->q[i] + dq[i];
@@ -2304,7 +2352,7 @@ int manutec_h5_ik_newton(size_t n, const manutec_h5_ik_options *restrict options
                     double nh = 1.0 - (sf / S_WELL) * (sf / S_WELL);
                     nh = nh > 0.0 ? nh : 0.0;
                     const double lam2f = (mu + o.base_damping + o.damping * nh) * err2;
-                    manutec_h5_ikn_solve(Af, (size_t)k, rf, fixed, lam2f, 0, dq2);
+                    manutec_h5_ikn_solve(Af, (size_t)k, rf, fixed, lam2f, 0, NULL, 0, dq2);
                     manutec_h5_ikn_limit_step(dq2, o.step_limit);
                     for (size_t i = 0; i < N; ++i) {
                         target[i] = cur->q[i] + (fixed[i] ? moved[i] : dq2[i]);
