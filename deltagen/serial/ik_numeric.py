@@ -544,17 +544,33 @@ def single_solver(arm):
 
     # the first attempt's stall window depends on whether restarts follow (_iterate_c)
     with_restarts, alone = options(FIRST_WINDOW_FACTOR * STALL_WINDOW), options(0)
+    later = options(STALL_WINDOW)
     qlim = ffi.new("double[]", [float(x) for x in np.asarray(arm.qlim).reshape(-1)])
+    box_lo, box_hi = _sample_box(arm)
+    box_lo, box_hi = np.maximum(box_lo, arm.qlim[:, 0]), np.minimum(box_hi, arm.qlim[:, 1])
     scratch = _SingleBuffers(ffi, n)
     fn, OK = core._ik_newton, st.OK
 
-    def call(T, q0, restarts):
+    def attempt(b, opts):
+        fn(1, opts, b.T, b.q0, qlim, b.q, b.ep, b.er, b.it, b.status)
+        return b.status[0] == OK
+
+    def call(T, q0, restarts, seed=0):
         b = scratch
         memmove(b.T, T, 128)
         memmove(b.q0, q0, 8 * n)
-        fn(1, with_restarts if restarts else alone, b.T, b.q0, qlim, b.q, b.ep, b.er, b.it,
-           b.status)
-        return b.q_np.copy() if b.status[0] == OK else None
+        if attempt(b, with_restarts if restarts else alone):
+            return b.q_np.copy()
+        if type(seed) is not int:  # a Generator would be consumed twice: general path
+            return None
+        # the restarts of _iterate_c for one row: the same generator, draws and options
+        rng = np.random.default_rng(seed)
+        for k in range(1, restarts + 1):
+            start = box_lo + (box_hi - box_lo) * rng.random((1, n))[0]
+            memmove(b.q0, np.ascontiguousarray(start), 8 * n)
+            if attempt(b, later if k < restarts else alone):
+                return b.q_np.copy()
+        return None
 
     return call
 

@@ -359,7 +359,7 @@ class SerialRobot:
                 return q
         if (method == "numeric" and self.backend == "compiled" and errors in ("raise", "nan")
                 and options.keys() <= {"restarts", "seed"}):
-            q = self._numeric_single(T, q0, options.get("restarts", 0))
+            q = self._numeric_single(T, q0, options.get("restarts", 0), options.get("seed", 0))
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q if errors == "raise" else (q, np.array(True))
         check_errors_mode(errors)
@@ -425,7 +425,7 @@ class SerialRobot:
             singular[check] = ~(sv[:, -1] >= SINGULAR_TOL * sv[:, 0])
         return singular
 
-    def _numeric_single(self, T, q0, restarts):
+    def _numeric_single(self, T, q0, restarts, seed):
         """Fast path of the numerical ik for one target (ik_numeric.single_solver): q, or
         None when the general path must answer (other inputs, or the first attempt did not
         converge: restarts and errors are the general path's)."""
@@ -444,7 +444,7 @@ class SerialRobot:
 
             solver = self._numeric_solver = single_solver(self)
             self._mid_range = np.ascontiguousarray(self._start(None, 1)[0])
-        return solver(T, self._mid_range if q0 is None else q0, restarts)
+        return solver(T, self._mid_range if q0 is None else q0, restarts, seed)
 
     def _singular_one(self, q):
         """_singular_rows for one configuration, lean (the single-pose fast path)."""
