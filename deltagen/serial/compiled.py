@@ -12,6 +12,7 @@ import numpy as np
 
 from .. import status as st
 from ..build import load
+from ..inputs import plain_pose
 from ..paths import cache_dir, generated_dir
 from .emit import arm_sources, base_name, description_fingerprint, generator_fingerprint
 
@@ -50,13 +51,11 @@ class _Scratch(threading.local):
         self.J_np = np.frombuffer(ffi.buffer(self.J), dtype=np.float64).reshape(6, n)
         self.ik_q = self.ik_valid = None  # ik_all buffers, made on first use
 
-    def ik_buffers(self, ffi, k, n):
-        if self.ik_q is None:
-            self.ik_q = ffi.new(f"double[{k * n}]")
-            self.ik_valid = ffi.new(f"double[{k}]")
-            self.ik_q_np = np.frombuffer(ffi.buffer(self.ik_q), dtype=np.float64).reshape(k, n)
-            self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.float64)
-        return self
+    def make_ik_buffers(self, ffi, k, n):
+        self.ik_q = ffi.new(f"double[{k * n}]")
+        self.ik_valid = ffi.new(f"double[{k}]")
+        self.ik_q_np = np.frombuffer(ffi.buffer(self.ik_q), dtype=np.float64).reshape(k, n)
+        self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.float64)
 
 
 class CompiledArm:
@@ -70,17 +69,20 @@ class CompiledArm:
         self._scratch = _Scratch(self._ffi, desc.n)
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
-    def _run(self, name, inputs, width):
+    def _run(self, name, inputs, *widths):
+        """Call <prefix>_<name> on the input rows: one (N, width) output per width, then
+        the status."""
         n = inputs[0].shape[0]
         fb = self._ffi.from_buffer
-        out = np.empty((n, width))
+        outs = [np.empty((n, width)) for width in widths]
         status = np.empty(n, dtype=np.int8)
         fn = getattr(self._lib, f"{self._prefix}_{name}")
-        rc = fn(n, *(fb("double[]", a) for a in inputs), fb("double[]", out, require_writable=True),
+        rc = fn(n, *(fb("double[]", a) for a in inputs),
+                *(fb("double[]", out, require_writable=True) for out in outs),
                 fb("int8_t[]", status, require_writable=True))
         if rc != 0:
             raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return out, status
+        return (*outs, status)
 
     def fk(self, q):
         T, status = self._run("fk", [q], 16)
@@ -98,15 +100,7 @@ class CompiledArm:
     def fk_jacobian(self, q):
         """T (N, 4, 4) and J (N, 6, n) from one evaluation, and the status."""
         n = self.desc.n
-        fb = self._ffi.from_buffer
-        T = np.empty((q.shape[0], 16))
-        J = np.empty((q.shape[0], 6 * n))
-        status = np.empty(q.shape[0], dtype=np.int8)
-        rc = getattr(self._lib, f"{self._prefix}_fk_jacobian")(
-            q.shape[0], fb("double[]", q), fb("double[]", T, require_writable=True),
-            fb("double[]", J, require_writable=True), fb("int8_t[]", status, require_writable=True))
-        if rc != 0:
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        T, J, status = self._run("fk_jacobian", [q], 16, 6 * n)
         return T.reshape(-1, 4, 4), J.reshape(-1, 6, n), status
 
     def ik_options(self, *, tol_p, tol_r, step_limit, damping, base_damping, max_iter,
@@ -154,18 +148,8 @@ class CompiledArm:
     def ik_all(self, T, k):
         """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
         q (N, k, n), valid (N, k) bool, status (N,)."""
-        n = T.shape[0]
-        fb = self._ffi.from_buffer
-        q = np.empty((n, k, self.desc.n))
-        valid = np.empty((n, k))
-        status = np.empty(n, dtype=np.int8)
-        rc = getattr(self._lib, f"{self._prefix}_ik_all")(
-            n, fb("double[]", T), fb("double[]", q, require_writable=True),
-            fb("double[]", valid, require_writable=True),
-            fb("int8_t[]", status, require_writable=True))
-        if rc != 0:
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return q, valid != 0.0, status
+        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n, k)
+        return q.reshape(-1, k, self.desc.n), valid != 0.0, status
 
     def single_ik_all(self, k):
         """Fast path of ik_all for one pose ((4, 4) C-contiguous float64 array with the
@@ -175,15 +159,14 @@ class CompiledArm:
             return None
         fn = getattr(self._lib, f"{self._prefix}_ik_all")
         scratch, memmove, ffi, n = self._scratch, self._ffi.memmove, self._ffi, self.desc.n
-        ndarray, INVALID, bottom = np.ndarray, st.INVALID, [0.0, 0.0, 0.0, 1.0]
+        INVALID = st.INVALID
 
         def call(T):
-            if (type(T) is not ndarray or T.shape != (4, 4) or T.dtype.char != "d"
-                    or not T.flags.c_contiguous or T[3].tolist() != bottom):
+            if not plain_pose(T):
                 return None
             sc = scratch
             if sc.ik_q is None:
-                sc.ik_buffers(ffi, k, n)
+                sc.make_ik_buffers(ffi, k, n)
             memmove(sc.T, T, 128)
             fn(1, sc.T, sc.ik_q, sc.ik_valid, sc.status)
             if sc.status[0] == INVALID:

@@ -217,6 +217,12 @@ class IKKernelBuilder:
         u = self.const.vec(self.solver._ch.R0.T @ np.asarray(v, dtype=float))
         return tuple(_dot(self.R_t[r], u) for r in range(3))
 
+    def _move_point(self, x):
+        """G x = R_t R0^T (x - p0) + p_t for a constant point x: where the motion G =
+        T_target T(0)^-1 carries it."""
+        ch = self.solver._ch
+        return _add(self._rotate_target(np.asarray(x, dtype=float) - ch.p0), self.p_t)
+
     def _arm(self, W_t):
         """ik_analytic._ElbowSolver._arm: joints 1-3 placing the wrist point at W_t for the
         four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
@@ -299,7 +305,7 @@ class IKKernelBuilder:
         uu, vv = s._uu, s._vv
         tape.stage("planar arm: the point P, the travel along u and the yaw about u")
         # P_t = R_G P + p_G = R_t R0^T (P - p0) + p_t
-        P_t = tape.vec("P_t", _add(self._rotate_target_raw(ch.R0.T @ (s._P - ch.p0)), self.p_t))
+        P_t = tape.vec("P_t", self._move_point(s._P))
         h = tape.let("travel", _dot(_add(P_t, _scale(-1, K.vec(s._P))), K.vec(u)))
         t = tuple(tape.let(f"t{j + 1}", _dot(K.vec(E[j]), P_t) - K(s._A[j])) for j in range(2))
         g1 = self._rotate_target(E[0])
@@ -309,7 +315,7 @@ class IKKernelBuilder:
         branches = {}
         if s._ic is None:
             tape.stage("Paul's method (slides 103-105): psi from the rotation, q1 from joint 2")
-            B_t = _add(self._rotate_target_raw(ch.R0.T @ (ch.o[s._ib] - ch.p0)), self.p_t)
+            B_t = self._move_point(ch.o[s._ib])
             tb = [_dot(K.vec(E[j]), B_t) - K(s._A[j]) for j in range(2)]
             p1 = _named(tape, "paul1", _atan2(tape, "phi_b", tb[1], tb[0])
                         - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
@@ -479,8 +485,7 @@ class IKKernelBuilder:
         the central wrist (6R)."""
         s, tape = self.solver, self.tape
         tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
-        c_w = s._ch.R0.T @ (s._W - s._ch.p0)
-        W_t = tape.vec("W_t", _add(self._rotate_target_raw(c_w), self.p_t))
+        W_t = tape.vec("W_t", self._move_point(s._W))
         solutions = {}
         for tag, q1, th2, th3, ok_arm, t, ok1, sigma in self._arm(W_t):
             if s.structure == "elbow_4r":
@@ -540,10 +545,6 @@ class IKKernelBuilder:
             status_doc=("OK (some branch is valid); UNREACHABLE (no branch reaches the pose "
                         "within the joint limits); INVALID (a non-finite input; q NaN)"),
         )
-
-    def _rotate_target_raw(self, v):
-        u = self.const.vec(v)
-        return tuple(_dot(self.R_t[r], u) for r in range(3))
 
 
 def ik_kernel(desc, chain) -> Kernel | None:

@@ -534,20 +534,14 @@ def single_solver(arm):
     runs solve(), whose first attempt is exactly this one: same options, same start)."""
     core = arm._core
     ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
-    mask = default_mask(arm)
-
-    def options(window):  # solve()'s defaults: tol 1e-10, damping "auto", step_limit 0.5
-        return core.ik_options(
-            tol_p=1e-10, tol_r=1e-10, step_limit=0.5, damping=1.0, base_damping=BASE_DAMPING,
-            max_iter=100, stall_window=window, respect_limits=True, free_first=FREE_FIRST,
-            mask=mask)
-
+    # solve()'s defaults: tol 1e-10, max_iter 100, damping "auto", step_limit 0.5, limits
+    options = _c_options(core, 1e-10, 1e-10, 100, 1.0, BASE_DAMPING, 0.5, True,
+                         default_mask(arm))
     # the first attempt's stall window depends on whether restarts follow (_iterate_c)
     with_restarts, alone = options(FIRST_WINDOW_FACTOR * STALL_WINDOW), options(0)
     later = options(STALL_WINDOW)
     qlim = ffi.new("double[]", [float(x) for x in np.asarray(arm.qlim).reshape(-1)])
-    box_lo, box_hi = _sample_box(arm)
-    box_lo, box_hi = np.maximum(box_lo, arm.qlim[:, 0]), np.minimum(box_hi, arm.qlim[:, 1])
+    box_lo, box_hi = _restart_box(arm, True)
     scratch = _SingleBuffers(ffi, n)
     fn, OK = core._ik_newton, st.OK
 
@@ -575,6 +569,26 @@ def single_solver(arm):
     return call
 
 
+def _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask):
+    """options(stall_window): the <arm>_ik_options struct of these settings."""
+
+    def options(window):
+        return core.ik_options(
+            tol_p=tol_p, tol_r=tol_r, step_limit=np.inf if step_limit is None else step_limit,
+            damping=k_nh, base_damping=c0, max_iter=max_iter, stall_window=window,
+            respect_limits=respect, free_first=respect and FREE_FIRST, mask=mask)
+
+    return options
+
+
+def _restart_box(arm, respect):
+    """The box random restarts are drawn from (_sample_box, inside the limits if respected)."""
+    box_lo, box_hi = _sample_box(arm)
+    if respect:
+        box_lo, box_hi = np.maximum(box_lo, arm.qlim[:, 0]), np.minimum(box_hi, arm.qlim[:, 1])
+    return box_lo, box_hi
+
+
 def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect,
                restarts, seed):
     """The compiled engine: one C call per attempt (<arm>_ik_newton, the iteration of the
@@ -583,16 +597,9 @@ def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, 
     core = arm._core
     N, n = q0.shape
     rng = np.random.default_rng(seed)
-    box_lo, box_hi = _sample_box(arm)
+    box_lo, box_hi = _restart_box(arm, respect)
     qlim = np.ascontiguousarray(arm.qlim, dtype=float)
-    if respect:
-        box_lo, box_hi = np.maximum(box_lo, qlim[:, 0]), np.minimum(box_hi, qlim[:, 1])
-
-    def options(window):
-        return core.ik_options(
-            tol_p=tol_p, tol_r=tol_r, step_limit=np.inf if step_limit is None else step_limit,
-            damping=k_nh, base_damping=c0, max_iter=max_iter, stall_window=window,
-            respect_limits=respect, free_first=respect and FREE_FIRST, mask=mask)
+    options = _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask)
 
     # stall windows as in the numpy engine: only while a restart is left
     first = options(FIRST_WINDOW_FACTOR * STALL_WINDOW if restarts else 0)

@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import status as st
 from ..errors import GeometryError, SingularityError, rows_text
-from ..inputs import InputError, as_float_array, broadcast_rows, check_errors_mode
+from ..inputs import InputError, as_float_array, broadcast_rows, check_errors_mode, plain_pose
 from ..paths import robots_dir
 from ..status import SINGULAR_TOL
 from .description import SerialDescription
@@ -430,8 +430,7 @@ class SerialRobot:
         None when the general path must answer (other inputs, or the first attempt did not
         converge: restarts and errors are the general path's)."""
         n, ndarray = self.n, np.ndarray
-        if (type(T) is not ndarray or T.shape != (4, 4) or T.dtype.char != "d"
-                or not T.flags.c_contiguous or T[3].tolist() != [0.0, 0.0, 0.0, 1.0]):
+        if not plain_pose(T):
             return None
         if q0 is not None and (type(q0) is not ndarray or q0.shape != (n,)
                                or q0.dtype.char != "d" or not q0.flags.c_contiguous):
