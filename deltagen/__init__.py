@@ -1,9 +1,9 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
-from .delta.robot import DeltaRobot
-from .serial.robot import SerialRobot
-from .errors import GeometryError, SingularityError, UnreachableError
-from .inputs import InputError
+from deltagen.api.delta import DeltaRobot
+from deltagen.api.serial import SerialRobot
+from deltagen.errors import GeometryError, SingularityError, UnreachableError
+from deltagen.inputs import InputError
 
 __all__ = [
     "DeltaRobot",

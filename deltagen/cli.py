@@ -12,8 +12,8 @@ import numpy as np
 
 def _robot(args):
     """'default' (the delta robot), a bundled serial arm's name, or a robot TOML file."""
-    from .delta.robot import DeltaRobot
-    from .serial.robot import SerialRobot, bundled_robots
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.serial import SerialRobot, bundled_robots
 
     name = args.robot
     if name in (None, "default"):
@@ -31,7 +31,7 @@ def _robot(args):
 
 
 def cmd_generate(args) -> int:
-    from . import generate
+    from deltagen.apps import generate
 
     if args.robot_file:
         folder = generate.generate_robot_file(args.robot_file)
@@ -68,7 +68,7 @@ def _write_batch(path: Path, data: np.ndarray, header: str) -> None:
 
 
 def _evaluate_serial(args, arm, forward: bool) -> int:
-    from .serial.robot import euler_zyx
+    from deltagen.api.serial import euler_zyx
 
     if not forward:
         print("inverse kinematics of serial arms is not available yet (issue 4)", file=sys.stderr)
@@ -108,7 +108,7 @@ def _evaluate_serial(args, arm, forward: bool) -> int:
 
 def _evaluate(args, forward: bool) -> int:
     robot = _robot(args)
-    from .serial.robot import SerialRobot
+    from deltagen.api.serial import SerialRobot
 
     if isinstance(robot, SerialRobot):
         return _evaluate_serial(args, robot, forward)
@@ -178,20 +178,20 @@ def main(argv=None) -> int:
     v.add_argument("--no-plot", action="store_true", help="skip the PNG figure")
     v.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     v.add_argument("--quiet", action="store_true", help="no progress output")
-    v.set_defaults(func=lambda a: _lazy("deltagen.delta.validation", a))
+    v.set_defaults(func=lambda a: _lazy("deltagen.apps.validate", a))
 
     d = sub.add_parser("demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place")
     d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place"))
     d.add_argument("--out", default=None,
                    help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
                         "lecture-scara writes its plot only when given)")
-    d.set_defaults(func=lambda a: _lazy("deltagen.demos", a))
+    d.set_defaults(func=lambda a: _lazy("deltagen.apps.demos", a))
 
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
     b.add_argument("--markdown", action="store_true", help="print the table as Markdown")
-    b.set_defaults(func=lambda a: _lazy("deltagen.bench", a))
+    b.set_defaults(func=lambda a: _lazy("deltagen.apps.bench", a))
 
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in evaluators:
@@ -201,7 +201,7 @@ def main(argv=None) -> int:
         args.command = argv[0]
     else:
         args = parser.parse_args(argv)
-    from .errors import DeltagenError
+    from deltagen.errors import DeltagenError
 
     try:
         return int(args.func(args) or 0)

@@ -7,7 +7,7 @@ import numbers
 
 import numpy as np
 
-from .errors import DeltagenError
+from deltagen.errors import DeltagenError
 
 
 class InputError(DeltagenError, ValueError):

@@ -21,7 +21,13 @@ def generated_dir() -> Path:
 
 
 def template_dir() -> Path:
-    return _find("templates", "source.c.j2")
+    """codegen/templates/: the Jinja layout of the generated C."""
+    return _PACKAGE / "codegen" / "templates"
+
+
+def runtime_dir() -> Path:
+    """codegen/runtime/: hand-written C compiled beside each generated module."""
+    return _PACKAGE / "codegen" / "runtime"
 
 
 def cache_dir() -> Path:

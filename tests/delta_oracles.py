@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from deltagen.delta.description import DeltaGeometry
+from deltagen.model.delta import DeltaGeometry
 
 
 def geometry(r_a, r_b, l_a, l_b, theta_deg, **kw) -> DeltaGeometry:
@@ -173,7 +173,7 @@ def singular_band_pose(geom, inside=(1.0, 1.0, 1.0), outside=(0.86, -1.45, -2.88
     centres). Found by bisection along the segment inside -> outside on the status of the
     numpy reference; use a singular_tol of about 1e-6 so the band is far wider than
     rounding."""
-    from deltagen.delta import reference as ref
+    from deltagen.reference import delta as ref
     from deltagen.status import OK, UNREACHABLE
 
     inside, outside = np.asarray(inside, float), np.asarray(outside, float)

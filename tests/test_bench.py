@@ -11,7 +11,7 @@ import importlib.util
 
 import pytest
 
-from deltagen import bench
+from deltagen.apps import bench
 from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
@@ -99,7 +99,7 @@ def test_bad_sizes_are_rejected(capsys, argv):
 def test_serial_poses_are_within_limits():
     import numpy as np
 
-    from deltagen.serial.robot import SerialRobot
+    from deltagen.api.serial import SerialRobot
 
     robot = SerialRobot.load(bench.SERIAL_ROBOT)
     data = bench.sample_serial(300, robot, np.random.default_rng(0))

@@ -17,8 +17,8 @@ import pytest
 from delta_oracles import DEFAULT, KLIPPER, random_q, well_conditioned
 
 from deltagen import paths
-from deltagen.build import compile_flags
-from deltagen.delta import reference as ref
+from deltagen.native.build import compile_flags
+from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, UNREACHABLE
 
 GCC = shutil.which("gcc")
@@ -52,7 +52,7 @@ def test_strict_c99_compiles_warning_free(source_dir, tmp_path, opt):
 
 
 def test_compiles_warning_free_with_the_build_flags(source_dir, tmp_path):
-    """The flags deltagen.build uses for the cffi core (vector math included where
+    """The flags deltagen.native.build uses for the cffi core (vector math included where
     available), plus -pedantic -Werror."""
     args, _ = compile_flags("delta")
     _gcc([*args, "-pedantic", "-Werror", "-c", str(source_dir / "delta_kinematics.c"),
@@ -512,8 +512,8 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     """<arm>_ik_newton on its own, linked with ASan/UBSan: converged rows reproduce their
     targets through the module's fk and stay within the limits, non-finite rows are
     INVALID, bad options and NULL pointers give -1 and write nothing."""
-    from deltagen.serial import reference
-    from deltagen.serial.robot import SerialRobot
+    from deltagen.reference import serial as reference
+    from deltagen.api.serial import SerialRobot
 
     arm = SerialRobot.load(name, backend="reference")
     n_rows, nj = 70, arm.n

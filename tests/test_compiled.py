@@ -1,5 +1,5 @@
 """The compiled C core (generated/delta_kinematics.c via cffi) against independent evidence:
-the numpy reference (deltagen.delta.reference) on large random batches, hand-derived
+the numpy reference (deltagen.reference.delta) on large random batches, hand-derived
 values, symmetry, central finite differences and round trips.
 
 The low-level backends are called directly here (``robot._core.fk(q) -> (p, status)``);
@@ -21,7 +21,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as hs
 
 from deltagen import DeltaRobot
-from deltagen.delta import reference as ref
+from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, SINGULAR, UNREACHABLE
 
 N_LARGE = 100_000

@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from deltagen import cli, demos
-from deltagen.serial.robot import SerialRobot
+from deltagen import cli
+from deltagen.apps import demos
+from deltagen.api.serial import SerialRobot
 
 # Slide "Folie 111", "Ergebnisse einer Naeherungsrechnung mit Matlab", columns
 # X-Soll, X-Ist, Y-Soll, Y-Ist, as printed (L1 = 4, L2 = 3, q10 = 10 deg, q20 = 30 deg,
@@ -52,7 +53,7 @@ def test_slide_table_reproduced_digit_for_digit(table):
 
 def test_slide_table_with_the_reference_backend():
     """The numpy reference kinematics give the same printed table."""
-    from deltagen.serial.trajectory import Task, jacobian_path_following
+    from deltagen.plan.trajectory import Task, jacobian_path_following
 
     arm = SerialRobot.load("lecture_scara", backend="reference")
     t = jacobian_path_following(arm, np.radians([10.0, 30.0]), [4.0, 3.0], steps=10, task=Task("xy"))

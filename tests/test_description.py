@@ -9,7 +9,7 @@ import pytest
 
 import deltagen
 from deltagen import DeltaRobot, GeometryError
-from deltagen.delta.description import DeltaGeometry
+from deltagen.model.delta import DeltaGeometry
 
 GOOD = dict(r_a=0.2, r_b=0.045, l_a=0.35, l_b=0.8, theta=(0.0, 2 * math.pi / 3, 4 * math.pi / 3))
 

@@ -1,4 +1,4 @@
-"""The report's printed equations (deltagen.delta.printed) against deltagen's derivation.
+"""The report's printed equations (deltagen.derive.delta.printed) against deltagen's derivation.
 
 Each test names the equation(s) it checks. Where the print is wrong, the test ASSERTS the
 disagreement (so the erratum stays pinned) and shows the corrected form agrees; numeric
@@ -16,17 +16,17 @@ import pytest
 import sympy as sp
 
 from deltagen import DeltaRobot
-from deltagen.delta import printed as P
-from deltagen.delta import symbols as s
-from deltagen.delta.derive_acceleration import constraint_acceleration
-from deltagen.delta.derive_fk import report_elimination, report_linear_coefficients
-from deltagen.delta.derive_ik import crank_equation
-from deltagen.delta.derive_velocity import constraint_rate
-from deltagen.delta.description import DeltaGeometry
+from deltagen.derive.delta import printed as P
+from deltagen.derive.delta import symbols as s
+from deltagen.derive.delta.acceleration import constraint_acceleration
+from deltagen.derive.delta.fk import report_elimination, report_linear_coefficients
+from deltagen.derive.delta.ik import crank_equation
+from deltagen.derive.delta.velocity import constraint_rate
+from deltagen.model.delta import DeltaGeometry
 
 CHAINS = (0, 1, 2)
 DEFAULT = DeltaGeometry.default()
-SEED = Path("/work/shared/seeds/000_e75353eb064fd002.txt")
+SEED = Path(__file__).resolve().parents[2] / "shared" / "seeds" / "000_e75353eb064fd002.txt"
 
 
 def zero(expr) -> bool:

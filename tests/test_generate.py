@@ -12,9 +12,10 @@ import textwrap
 
 import pytest
 
-from deltagen import cli, generate, paths
+from deltagen import cli, paths
+from deltagen.apps import generate
 
-from deltagen.serial.robot import bundled_robots
+from deltagen.api.serial import bundled_robots
 
 DELTA = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
 # the delta core plus one C module per bundled serial arm
@@ -104,7 +105,7 @@ def test_rendering_is_deterministic_across_processes(tmp_path):
     """Two fresh interpreters with different hash seeds render byte-identical files."""
     script = textwrap.dedent("""
         import sys
-        from deltagen import generate
+        from deltagen.apps import generate
         generate.write(sys.argv[1])
     """)
     procs = []

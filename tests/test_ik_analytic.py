@@ -1,4 +1,4 @@
-"""Closed-form inverse kinematics (deltagen.serial.ik_analytic) of the bundled serial arms.
+"""Closed-form inverse kinematics (deltagen.solve.analytic) of the bundled serial arms.
 
 Evidence used here, independent of the solver's own construction where possible:
 * round trips through the numpy reference forward kinematics (plain 4x4 products);
@@ -18,9 +18,9 @@ import pytest
 
 from deltagen.inputs import InputError
 from deltagen.paths import robots_dir
-from deltagen.serial import reference
-from deltagen.serial.description import SerialDescription, transform
-from deltagen.serial.ik_analytic import AnalyticSolver, analytic_solver
+from deltagen.reference import serial as reference
+from deltagen.model.serial import SerialDescription, transform
+from deltagen.solve.analytic import AnalyticSolver, analytic_solver
 
 EXPECTED = {
     "lecture_scara": ("planar", ("elbow_up", "elbow_down")),

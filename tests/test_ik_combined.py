@@ -1,4 +1,4 @@
-"""Combined explicit + numerical IK (deltagen.serial.ik_combined) on the Puma 560 with an
+"""Combined explicit + numerical IK (deltagen.solve.combined) on the Puma 560 with an
 offset wrist (robots/puma560_offset_wrist.toml, a4 = 0.02 m)."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import warnings
 import numpy as np
 import pytest
 
-from deltagen.serial import ik_combined
-from deltagen.serial.ik_analytic import analytic_solver
-from deltagen.serial.robot import SerialRobot
+from deltagen.solve import combined as ik_combined
+from deltagen.solve.analytic import analytic_solver
+from deltagen.api.serial import SerialRobot
 
 N = 500
 

@@ -1,4 +1,4 @@
-"""The closed-form IK emitted as C (deltagen/serial/ik_kernel.py, `<arm>_ik_all`).
+"""The closed-form IK emitted as C (deltagen/derive/serial/ik_closed_form.py, `<arm>_ik_all`).
 
 Evidence: the numpy solver of ik_analytic (written independently, on the product-of-
 exponentials model) through the reference backend; forward kinematics of every valid
@@ -18,8 +18,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as hst
 
 from deltagen import SerialRobot, paths
-from deltagen.serial.ik_kernel import SUPPORTED, compiled_solver
-from deltagen.serial.robot import bundled_robots
+from deltagen.derive.serial.ik_closed_form import SUPPORTED, compiled_solver
+from deltagen.api.serial import bundled_robots
 from deltagen.status import INVALID, OK, UNREACHABLE
 
 CENTRAL_WRIST = ("puma560", "motoman_up6", "manutec_r15")
@@ -307,7 +307,7 @@ def test_exactly_singular_target_raises_or_masks(backend):
 def test_numeric_single_target_path_equals_general_path():
     """arm.ik(T, method="numeric") for one (4, 4) array takes ik_numeric.single_solver;
     its answer must be the general path's (which an explicit default option forces)."""
-    from deltagen.serial import ik_numeric
+    from deltagen.solve import numeric as ik_numeric
 
     arm = SerialRobot.load("puma560")
     q = _in_limit_q(arm, 60, seed=21)

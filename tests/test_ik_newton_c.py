@@ -2,7 +2,7 @@
 ``ik_numeric.solve(..., engine="c")``).
 
 The evidence is independent of the C routine: every solution is checked with the numpy
-reference kinematics (deltagen.serial.reference), joint limits are checked here, and the
+reference kinematics (deltagen.reference.serial), joint limits are checked here, and the
 numpy engine (a separate implementation of the same iteration) must land on the same
 solution from the same near start.
 """
@@ -16,9 +16,9 @@ import pytest
 
 from deltagen import status as st
 from deltagen.inputs import InputError
-from deltagen.serial import ik_numeric as ikn
-from deltagen.serial import reference
-from deltagen.serial.robot import SerialRobot
+from deltagen.solve import numeric as ikn
+from deltagen.reference import serial as reference
+from deltagen.api.serial import SerialRobot
 
 SIX_AXIS = ("puma560", "motoman_up6", "manutec_r15")
 TOL = 1e-10

@@ -1,7 +1,7 @@
-"""Numerical inverse kinematics of serial arms (deltagen.serial.ik_numeric).
+"""Numerical inverse kinematics of serial arms (deltagen.solve.numeric).
 
 Evidence is independent of the solver: every solution is checked with the pure-numpy
-reference kinematics (deltagen.serial.reference, which shares nothing with the generated C
+reference kinematics (deltagen.reference.serial, which shares nothing with the generated C
 the solver iterates on), pose errors are recomputed here with their own formulas (rotation
 angle from the Frobenius distance of the rotation matrices), the Jacobian sources are
 compared with each other and with the reference, and single steps are compared with
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from deltagen.inputs import InputError
-from deltagen.serial import reference
-from deltagen.serial import ik_numeric as ikn
-from deltagen.serial.robot import SerialRobot, bundled_robots
+from deltagen.reference import serial as reference
+from deltagen.solve import numeric as ikn
+from deltagen.api.serial import SerialRobot, bundled_robots
 
 SIX_AXIS = ("puma560", "manutec_r15", "motoman_up6")
 TOL = 1e-10

@@ -1,4 +1,4 @@
-"""Tests of the independent numpy reference kinematics (deltagen.delta.reference).
+"""Tests of the independent numpy reference kinematics (deltagen.reference.delta).
 
 Expected values come from the geometry (report eq. (1)), hand derivations or
 finite differences, never from what the code prints.
@@ -13,8 +13,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from deltagen.delta import reference as ref
-from deltagen.delta.description import DeltaGeometry
+from deltagen.reference import delta as ref
+from deltagen.model.delta import DeltaGeometry
 from deltagen.status import INVALID, OK, SINGULAR, UNREACHABLE
 
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")  # numpy must never warn

@@ -16,8 +16,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as hs
 
 from deltagen import DeltaRobot, InputError, SingularityError, UnreachableError
-from deltagen.delta.description import DeltaGeometry
-from deltagen.delta.robot import DeltaRobot as DeltaRobotFromModule
+from deltagen.model.delta import DeltaGeometry
+from deltagen.api.delta import DeltaRobot as DeltaRobotFromModule
 from deltagen.errors import GeometryError
 
 BACKENDS = ("compiled", "reference")
@@ -182,7 +182,7 @@ def test_api_backends_agree_in_nan_mode(geometry, rng):
 
 def _unreachable_q(n_rows):
     """Crank angles the numpy reference calls unreachable (the spheres do not meet)."""
-    from deltagen.delta import reference as ref
+    from deltagen.reference import delta as ref
 
     q = np.random.default_rng(11).uniform(-math.pi, math.pi, size=(4000, 3))
     _, status = ref.fk(DEFAULT, q)

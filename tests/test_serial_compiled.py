@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from deltagen import GeometryError, InputError, SerialRobot, SingularityError, cli
-from deltagen.serial import reference as ref
-from deltagen.serial.robot import bundled_robots, euler_zyx
+from deltagen.reference import serial as ref
+from deltagen.api.serial import bundled_robots, euler_zyx
 
 ROBOTS = bundled_robots()
 N = 100_000
@@ -159,7 +159,7 @@ UNIVERSAL = [dict(axis="z", tz=0.4, rx_deg=-90), dict(axis="z", tx=0.5), dict(ax
 
 
 def test_same_arm_in_three_conventions_gives_one_tool_pose():
-    from deltagen.serial.description import SerialDescription, transform
+    from deltagen.model.serial import SerialDescription, transform
 
     std = SerialRobot.from_dh(STANDARD, "standard", name="three_std")
     tool = transform((0.3, 0, 0), (np.radians(45), 0, 0))

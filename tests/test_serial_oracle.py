@@ -25,7 +25,7 @@ import math
 import numpy as np
 import pytest
 
-from deltagen.serial.robot import SerialRobot
+from deltagen.api.serial import SerialRobot
 
 TOL = 1e-12
 COUNT = 1000
@@ -162,8 +162,8 @@ def test_fk_and_jacobian_match_pinocchio(puma, pin_puma, configurations):
 
 
 def test_bench_pinocchio_model_is_the_robot(pin_puma, configurations):
-    """deltagen.bench builds its pinocchio model from the robot's own description."""
-    from deltagen.bench import pinocchio_model
+    """deltagen.apps.bench builds its pinocchio model from the robot's own description."""
+    from deltagen.apps.bench import pinocchio_model
 
     pin = pin_puma[0]
     robot = SerialRobot.load("puma560")

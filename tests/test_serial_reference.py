@@ -1,4 +1,4 @@
-"""The numpy serial-arm reference (deltagen.serial.reference) against independent evidence:
+"""The numpy serial-arm reference (deltagen.reference.serial) against independent evidence:
 the lecture's printed examples (slides 81-96), the EASY-ROB paper's universal coordinates
 (eq. (3), table 1), hand-derived closed forms, the same arm written in three conventions,
 and finite differences for every velocity quantity."""
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from deltagen.inputs import InputError
-from deltagen.serial import reference as ref
-from deltagen.serial.description import SerialDescription, transform
+from deltagen.reference import serial as ref
+from deltagen.model.serial import SerialDescription, transform
 from deltagen.status import INVALID, OK
 
 DEG = math.pi / 180

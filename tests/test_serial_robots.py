@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltagen.serial.description import SerialDescription
+from deltagen.model.serial import SerialDescription
 
 ROBOTS = Path(__file__).resolve().parent.parent / "robots"
 DEG = math.pi / 180.0

@@ -1,4 +1,4 @@
-"""Singularity report (deltagen.serial.singularity); lecture slides 112-114.
+"""Singularity report (deltagen.solve.singularity); lecture slides 112-114.
 
 Independent evidence: the singular poses are derived here from the Puma 560 DH table
 (closed-form planar geometry of joints 2 and 3), and every flagged pose is also checked to
@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from deltagen.serial.robot import SerialRobot
-from deltagen.serial.singularity import describe, report, row_of
+from deltagen.api.serial import SerialRobot
+from deltagen.solve.singularity import describe, report, row_of
 
 # Puma 560 DH table (robots/puma560.toml, standard DH)
 A2, A3, D3, D4 = 0.4318, 0.0203, 0.15005, 0.4318

@@ -1,4 +1,4 @@
-"""Cartesian trajectories and their joint-space conversion (deltagen.serial.trajectory):
+"""Cartesian trajectories and their joint-space conversion (deltagen.plan.trajectory):
 time scalings, line and arc geometry, slerp, per-sample Newton IK without branch flips,
 exact vs numerical joint rates.
 
@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from deltagen.serial.robot import SerialRobot
-from deltagen.serial import trajectory as tr
+from deltagen.api.serial import SerialRobot
+from deltagen.plan import trajectory as tr
 
 
 @pytest.fixture(scope="module")

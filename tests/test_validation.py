@@ -1,4 +1,4 @@
-"""Tests of `deltagen validate` (deltagen.delta.validation): the report's trajectory of
+"""Tests of `deltagen validate` (deltagen.apps.validate): the report's trajectory of
 eqs. (40)-(42), the round trip ik_acc -> fk_acc, the CSV/PNG output and the exit codes.
 
 Expected values come from the printed equations and from finite differences, never from
@@ -15,7 +15,7 @@ import pytest
 
 from deltagen import DeltaRobot
 from deltagen.cli import main as cli_main
-from deltagen.delta import validation as val
+from deltagen.apps import validate as val
 
 
 # ------------------------------------------------------------------ trajectory

@@ -1,2 +1,6 @@
-"""Robot-independent stages of the pipeline: kernel description → CSE + C printing →
-Jinja rendering."""
+"""Code generation: kernel -> CSE + C99 printing (``lowering``, ``printer``) ->
+Jinja rendering (``render``) of a robot's C module (``delta``, ``serial``). ``templates/``
+holds layout only; ``runtime/`` holds hand-written C compiled beside each module.
+
+May import: ``derive``, ``model``, ``geometry``, the foundation modules.
+"""

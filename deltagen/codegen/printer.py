@@ -13,22 +13,8 @@ from __future__ import annotations
 
 import sympy as sp
 from sympy.codegen.rewriting import create_expand_pow_optimization
-from sympy.logic.boolalg import BooleanFunction
 from sympy.printing.c import C99CodePrinter
 
-
-class AllFinite(BooleanFunction):
-    """True when every argument is finite (neither NaN nor infinite)."""
-
-    @classmethod
-    def eval(cls, *args):
-        return None
-
-
-class CopySign(sp.Function):
-    """C99 copysign(magnitude, sign)."""
-
-    nargs = 2
 
 
 expand_small_powers = create_expand_pow_optimization(4)

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 import jinja2
 import sympy as sp
 
-from .. import status as st
-from ..paths import template_dir
-from .kernel import Stage
-from .lowering import LoweredKernel, keep_needed, lower_stage
+from deltagen import status as st
+from deltagen.paths import template_dir
+from deltagen.derive.kernel import Stage
+from deltagen.codegen.lowering import LoweredKernel, keep_needed, lower_stage
 
 
 def environment() -> jinja2.Environment:

@@ -1,0 +1,232 @@
+"""DeltaRobot: the Python API of the delta kinematics (see DESIGN.md, "Public Python API").
+
+Every method takes one pose (shape (3,) or (4,) with the fourth axis) or a batch with any
+leading dimensions (..., 3|4), and returns arrays of the same leading shape.
+``errors="raise"`` (default) raises on any failing row, naming the rows;
+``errors="nan"`` returns NaN there plus a boolean ``valid`` mask as the last result.
+
+Position-level calls (fk, ik) also return poses that are singular but well defined
+(det J_p ~ 0 in fk, a J_q entry ~ 0 in ik: the workspace boundary); calls that need a
+Jacobian inverse (fk_vel, fk_acc, jacobian, ik_vel, ik_acc) treat them as errors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from deltagen import status as st
+from deltagen.errors import SingularityError, UnreachableError, rows_text
+from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
+from deltagen.model.delta import DeltaGeometry
+
+_BACKENDS = ("compiled", "reference")
+
+
+class DeltaRobot:
+    """Rotary delta robot of the 2008 report with an optional independent fourth axis.
+
+    Parameters are in metres and radians: r_a (base radius to the drive axes), r_b
+    (platform radius), l_a (crank), l_b (parallelogram rod), theta (the three drives'
+    angular positions about the base z axis). The base frame O lies in the plane of the
+    drive axes with z up, so the platform works at negative z; q_i > 0 turns a crank down.
+    """
+
+    def __init__(self, r_a, r_b, l_a, l_b, theta=(0.0, 2 * math.pi / 3, 4 * math.pi / 3), *,
+                 name="delta", singular_tol=st.SINGULAR_TOL, backend="compiled"):
+        self.geometry = DeltaGeometry(r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b, theta=theta,
+                                      name=name, singular_tol=singular_tol)
+        self._init_backend(backend)
+
+    def _init_backend(self, backend):
+        if backend not in _BACKENDS:
+            raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
+        self.backend = backend
+        if backend == "compiled":
+            from deltagen.native.delta import CompiledDelta
+
+            self._core = CompiledDelta(self.geometry)
+            # fast paths for one pose (same C function, same results)
+            self._fk_single = self._core.single("fk")
+            self._ik_single = self._core.single("ik")
+        else:
+            from deltagen.reference import delta as reference
+
+            self._core = _ReferenceCore(reference, self.geometry)
+            self._fk_single = self._ik_single = None
+
+    @classmethod
+    def from_geometry(cls, geometry: DeltaGeometry, backend="compiled") -> "DeltaRobot":
+        robot = cls.__new__(cls)
+        robot.geometry = geometry
+        robot._init_backend(backend)
+        return robot
+
+    @classmethod
+    def default(cls, backend="compiled") -> "DeltaRobot":
+        """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8 m, 0/120/240 deg."""
+        return cls.from_geometry(DeltaGeometry.default(), backend)
+
+    @classmethod
+    def from_toml(cls, path, backend="compiled") -> "DeltaRobot":
+        return cls.from_geometry(DeltaGeometry.from_toml(path), backend)
+
+    def with_backend(self, backend) -> "DeltaRobot":
+        return type(self).from_geometry(self.geometry, backend)
+
+    def __repr__(self):
+        g = self.geometry
+        deg = ", ".join(f"{math.degrees(t):g}" for t in g.theta)
+        return (f"DeltaRobot(r_a={g.r_a!r}, r_b={g.r_b!r}, l_a={g.l_a!r}, l_b={g.l_b!r}, "
+                f"theta_deg=({deg}), backend={self.backend!r})")
+
+    # -- the batched quantities -------------------------------------------------------
+
+    def fk(self, q, errors="raise"):
+        """Platform position p (..., 3|4) of crank angles q (..., 3|4), eqs. (2)-(27), (43)."""
+        if self._fk_single is not None and errors == "raise":
+            p = self._fk_single(q)
+            if p is not None:
+                return p
+        lead, _, (qf,) = self._prepare(errors, q=q)
+        p, status = self._core.fk(qf)
+        return self._finish(errors, lead, status, [p], ("q",), allow_singular=True)
+
+    def fk_vel(self, q, qd, errors="raise"):
+        """(p, pdot) from (q, qdot), eq. (30)."""
+        lead, _, (qf, qdf) = self._prepare(errors, q=q, qd=qd)
+        p, pd, status = self._core.fk_vel(qf, qdf)
+        return self._finish(errors, lead, status, [p, pd], ("q", "qd"))
+
+    def fk_acc(self, q, qd, qdd, errors="raise"):
+        """(p, pdot, pddot) from (q, qdot, qddot), eqs. (30), (38)."""
+        lead, _, (qf, qdf, qddf) = self._prepare(errors, q=q, qd=qd, qdd=qdd)
+        p, pd, pdd, status = self._core.fk_acc(qf, qdf, qddf)
+        return self._finish(errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"))
+
+    def jacobian(self, q, errors="raise"):
+        """J = J_p^-1 J_q (..., 3, 3) with pdot = J @ qdot (first three axes)."""
+        lead, _, (qf,) = self._prepare(errors, q=q)
+        J, status = self._core.jacobian(qf)
+        return self._finish(errors, lead, status, [J], ("q",), trailing=[(3, 3)])
+
+    def ik(self, p, errors="raise"):
+        """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
+        if self._ik_single is not None and errors == "raise":
+            q = self._ik_single(p)
+            if q is not None:
+                return q
+        lead, _, (pf,) = self._prepare(errors, p=p)
+        q, status = self._core.ik(pf)
+        return self._finish(errors, lead, status, [q], ("p",), allow_singular=True)
+
+    def ik_vel(self, p, pd, errors="raise"):
+        """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
+        return self._inverse_rates(errors, dict(p=p, pd=pd))
+
+    def ik_acc(self, p, pd, pdd, errors="raise"):
+        """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
+        Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
+        return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
+
+    # -- helpers ------------------------------------------------------------------------
+
+    def _prepare(self, errors, **arrays):
+        check_errors_mode(errors)
+        return broadcast_rows(arrays)
+
+    def _finish(self, errors, lead, status, outs, names, allow_singular=False, trailing=None):
+        trailing = trailing or [o.shape[1:] for o in outs]
+        ok = status == st.OK
+        all_ok = bool(ok.all())
+        if not all_ok:
+            if allow_singular:
+                singular = np.flatnonzero(status == st.SINGULAR)
+                ok[singular] = np.isfinite(outs[0][singular]).all(axis=1)
+            if errors == "raise" and not ok.all():
+                self._raise(status, ok, names)
+        shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
+        if errors == "nan":
+            if not all_ok:
+                for o in outs:
+                    o[~ok] = np.nan
+            return (*shaped, ok.reshape(lead))
+        return shaped[0] if len(shaped) == 1 else tuple(shaped)
+
+    @staticmethod
+    def _raise(status, ok, names):
+        bad = np.flatnonzero(~ok)
+        invalid = bad[status[bad] == st.INVALID]
+        if invalid.size:
+            raise InputError(
+                f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN or "
+                f"infinite values in rows {rows_text(invalid)}"
+            )
+        unreachable = bad[status[bad] == st.UNREACHABLE]
+        if unreachable.size:
+            what = "crank cannot reach the target" if names == ("p",) else "spheres do not meet"
+            raise UnreachableError(f"unreachable pose ({what}) in rows {rows_text(unreachable)}",
+                                   unreachable)
+        raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
+
+    def _inverse_rates(self, errors, arrays):
+        check_errors_mode(errors)
+        with_acceleration = "pdd" in arrays
+        lead, width, flat = broadcast_rows(arrays)
+        pf, pdf = flat[0], flat[1]
+        q, status = self._core.ik(pf)
+        bad_ik = status != st.OK  # here a J_q singularity is an error: qdot would be infinite
+        J, jstatus = self._core.jacobian(q)
+        finite_rates = np.isfinite(pdf).all(axis=1)
+        if with_acceleration:
+            finite_rates &= np.isfinite(flat[2]).all(axis=1)
+        status = np.where(bad_ik, status, jstatus).astype(np.int8)
+        status[(status == st.OK) & ~finite_rates] = st.INVALID
+        ok = status == st.OK
+        if errors == "raise" and not ok.all():
+            self._raise(status, ok, tuple(arrays))
+        qd = np.full_like(pdf, np.nan)
+        Jok = J[ok]
+        qd[ok, :3] = np.linalg.solve(Jok, pdf[ok, :3, None])[..., 0] if Jok.size else 0.0
+        if width == 4:
+            qd[ok, 3] = pdf[ok, 3]
+        outs = [q, qd]
+        if with_acceleration:
+            pddf = flat[2]
+            qdd = np.full_like(pddf, np.nan)
+            zero = np.zeros_like(pddf)
+            _, _, pdd0, _ = self._core.fk_acc(q, np.where(ok[:, None], qd, 0.0), zero)
+            rhs = pddf[ok, :3] - pdd0[ok, :3]
+            qdd[ok, :3] = np.linalg.solve(Jok, rhs[..., None])[..., 0] if Jok.size else 0.0
+            if width == 4:
+                qdd[ok, 3] = pddf[ok, 3]
+            outs.append(qdd)
+        for o in outs:
+            o[~ok] = np.nan
+        shaped = [o.reshape(lead + (width,)) for o in outs]
+        if errors == "nan":
+            return (*shaped, ok.reshape(lead))
+        return tuple(shaped)
+
+
+class _ReferenceCore:
+    """Adapter giving the numpy reference the compiled core's call signatures."""
+
+    def __init__(self, module, geometry):
+        self._m, self._g = module, geometry
+
+    def fk(self, q):
+        return self._m.fk(self._g, q)
+
+    def fk_vel(self, q, qd):
+        return self._m.fk_vel(self._g, q, qd)
+
+    def fk_acc(self, q, qd, qdd):
+        return self._m.fk_acc(self._g, q, qd, qdd)
+
+    def jacobian(self, q):
+        return self._m.jacobian(self._g, q)
+
+    def ik(self, p):
+        return self._m.ik(self._g, p)

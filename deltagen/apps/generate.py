@@ -1,0 +1,64 @@
+"""`deltagen generate`: (re)write generated/ deterministically, or check it is current."""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+from deltagen.paths import generated_dir
+
+
+def generated_files() -> dict[str, str]:
+    """Every checked-in generated file, by name: the delta core and each bundled arm."""
+    from deltagen.codegen.delta import delta_sources
+    from deltagen.paths import robots_dir
+    from deltagen.model.serial import SerialDescription
+    from deltagen.codegen.serial import arm_sources
+    from deltagen.api.serial import bundled_robots
+
+    files = dict(delta_sources())
+    for name in bundled_robots():
+        files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
+    return files
+
+
+def generate_robot_file(path) -> Path:
+    """`deltagen generate my_arm.toml`: render, compile and cache a user's robot module;
+    returns the folder holding its C sources."""
+    from deltagen.native.serial import CompiledArm, source_dir
+    from deltagen.model.serial import SerialDescription
+
+    desc = SerialDescription.from_toml(path)
+    CompiledArm(desc)  # builds (or finds) the cached module
+    return source_dir(desc)
+
+
+def write(directory: Path | None = None) -> list[Path]:
+    directory = Path(directory) if directory else generated_dir()
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, text in generated_files().items():
+        path = directory / name
+        if not path.exists() or path.read_text() != text:
+            path.write_text(text)
+            written.append(path)
+    return written
+
+
+def check(directory: Path | None = None) -> list[str]:
+    """Return a unified diff per stale or missing file (empty when generated/ is current)."""
+    directory = Path(directory) if directory else generated_dir()
+    problems = []
+    for name, text in generated_files().items():
+        path = directory / name
+        current = path.read_text() if path.exists() else ""
+        if current != text:
+            diff = difflib.unified_diff(
+                current.splitlines(keepends=True),
+                text.splitlines(keepends=True),
+                fromfile=f"{path} (checked in)",
+                tofile=f"{path} (regenerated)",
+                n=1,
+            )
+            problems.append(f"{name} is {'stale' if path.exists() else 'missing'}:\n" + "".join(list(diff)[:60]))
+    return problems

@@ -1,0 +1,83 @@
+"""Timing and tables of ``deltagen bench``: timers (one batch call, a calibrated loop),
+round-robin repeats with the collector off, medians, and text/markdown tables."""
+
+from __future__ import annotations
+
+import gc
+import statistics
+import time
+
+LATENCY_REPEAT_NS = 25_000_000  # target duration of one latency repeat
+
+
+def batch_timer(fn, args, points: int):
+    """A timer: one call of ``fn(*args)`` -> ns per point (the result is dropped)."""
+
+    def timer():
+        t0 = time.perf_counter_ns()
+        fn(*args)
+        return (time.perf_counter_ns() - t0) / points
+
+    return timer
+
+
+def loop_timer(fn):
+    """A timer: ``fn()`` looped for ~LATENCY_REPEAT_NS -> ns per call (calibrated here)."""
+    fn()
+    loops = 1
+    while True:
+        t0 = time.perf_counter_ns()
+        for _ in range(loops):
+            fn()
+        elapsed = time.perf_counter_ns() - t0
+        if elapsed >= LATENCY_REPEAT_NS // 10 or loops >= 1 << 20:
+            break
+        loops *= 4
+    loops = max(1, round(loops * LATENCY_REPEAT_NS / max(elapsed, 1)))
+
+    def timer():
+        t0 = time.perf_counter_ns()
+        for _ in range(loops):
+            fn()
+        return (time.perf_counter_ns() - t0) / loops
+
+    return timer
+
+
+def interleaved(timers: list, repeats: int) -> list["Stat"]:
+    """Run the timers round-robin ``repeats`` times (so a load change on a shared machine
+    hits every column alike), garbage collector off; one Stat per timer."""
+    samples = [[] for _ in timers]
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for _ in range(repeats):
+            for i, timer in enumerate(timers):
+                samples[i].append(timer())
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+    return [Stat(v) for v in samples]
+
+
+class Stat:
+    """Median and spread of one measurement, in ns (per point or per call)."""
+
+    def __init__(self, values):
+        self.values = list(values)
+        self.median = statistics.median(self.values)
+        self.min = min(self.values)
+        self.max = max(self.values)
+
+
+def table(header, rows, markdown: bool) -> list[str]:
+    if markdown:
+        lines = ["| " + " | ".join(header) + " |",
+                 "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        return lines
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
+    fmt = lambda r: "  ".join(  # noqa: E731
+        (c.ljust(w) if i == 0 else c.rjust(w)) for i, (c, w) in enumerate(zip(r, widths))
+    )
+    return [fmt(header), fmt(["-" * w for w in widths])] + [fmt(r) for r in rows]

@@ -1,0 +1,36 @@
+"""Emission of the delta core: the five kernels, lowered and rendered to generated/."""
+
+from __future__ import annotations
+
+from deltagen.codegen.lowering import lower
+from deltagen.codegen.render import StructField, Unit, render
+from deltagen.derive.delta.kernels import all_kernels
+
+UNIT = Unit(
+    prefix="delta",
+    base_name="delta_kinematics",
+    title="kinematics of the rotary delta robot",
+    source="the 2008 report on the direct kinematics of a delta robot (seed 000)",
+    struct_name="delta_geometry",
+    struct_doc="Geometry of the robot (report, Figure 4).",
+    conventions=(
+        "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
+        "point. `axes` is 3, or 4 when the last column carries the independent fourth axis",
+        "(report eq. (43): phi = q_4 and its derivatives pass through unchanged).",
+    ),
+    axes_choices=(3, 4),
+    axes_doc="3, or 4 with the fourth axis in the last column",
+    struct_fields=(
+        StructField("r_a", "double", "", "base radius, O to a drive axis [m]"),
+        StructField("r_b", "double", "", "platform radius, P to a joint C_i [m]"),
+        StructField("l_a", "double", "", "crank length [m]"),
+        StructField("l_b", "double", "", "parallelogram rod length [m]"),
+        StructField("cos_theta", "double", "[3]", "cos of the drive positions theta_i"),
+        StructField("sin_theta", "double", "[3]", "sin of the drive positions theta_i"),
+        StructField("singular_tol", "double", "", "relative singularity threshold, e.g. 1e-9"),
+    ),
+)
+
+
+def delta_sources() -> dict[str, str]:
+    return render(UNIT, [lower(k) for k in all_kernels()])

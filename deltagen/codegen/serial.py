@@ -1,0 +1,73 @@
+"""Emission of one serial arm's C module (generated/serial_<name>.{c,h,cdef.h})."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from deltagen.codegen.lowering import lower
+from deltagen.codegen.render import Unit, render
+from deltagen.derive.serial.kernels import ArmKernels
+
+
+def base_name(desc) -> str:
+    return f"serial_{desc.name}"
+
+
+def description_fingerprint(desc) -> str:
+    """Hash of everything in the description that shapes the generated code."""
+    return hashlib.sha256(desc.key().encode()).hexdigest()[:16]
+
+
+# What the generated text can depend on, by the layering rule (codegen imports only these
+# stages and the foundation modules; tests/test_layering.py holds the rule): every file in
+# them is hashed, so no hand-kept list can miss one.
+_GENERATOR_PACKAGES = ("model", "geometry", "derive", "codegen")
+_FOUNDATION = ("errors.py", "status.py", "inputs.py", "paths.py")
+
+
+def generator_files() -> list[Path]:
+    """Every file whose content can shape a generated module: the Python of the stages
+    codegen may import, its templates and runtime C."""
+    package = Path(__file__).resolve().parent.parent
+    files = [package / name for name in _FOUNDATION]
+    for stage in _GENERATOR_PACKAGES:
+        files += [f for f in (package / stage).rglob("*")
+                  if f.is_file() and f.suffix in (".py", ".j2", ".c", ".h")]
+    return sorted(files)
+
+
+def generator_fingerprint() -> str:
+    """Hash of the code, templates and runtime C that turn a description into C: a user
+    robot's cached sources are keyed by it, so a changed generator never reuses stale
+    sources."""
+    package = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for path in generator_files():
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def arm_unit(desc) -> Unit:
+    joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
+    return Unit(
+        prefix=desc.name,
+        base_name=base_name(desc),
+        title=f"kinematics of the serial arm '{desc.name}' ({desc.n} joints: {joints}; "
+              f"{desc.convention} convention)",
+        source="its robot description (deltagen/model/serial.py)",
+        struct_name=None,
+        struct_fields=(),
+        conventions=(
+            "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
+            f"point: q and qd hold {desc.n} values per point; matrices are stored row-major.",
+            "The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).",
+            f"Description fingerprint: {description_fingerprint(desc)}",
+        ),
+        newton=dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints]),
+    )
+
+
+def arm_sources(desc) -> dict[str, str]:
+    return render(arm_unit(desc), [lower(k) for k in ArmKernels(desc).all()])

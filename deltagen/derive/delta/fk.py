@@ -1,0 +1,127 @@
+"""Direct kinematics at position level: the intersection of three spheres, eqs. (2)-(27).
+
+Two derivations live here:
+
+* :func:`report_elimination` follows the report literally (u, v of eqs. (6)-(15), the
+  elimination (16)-(21) and the quadratic (22)-(25)); tests compare it with the printed
+  equations. Its eqs. (20)/(21) divide by v_2, which vanishes for some drive arrangements.
+* :func:`fk_stages` is what the C core evaluates: the same sphere subtraction, but in
+  coordinates centred on S_1, with the two planes and their line solved as a 3x3 system
+  by adjugate/determinant (Cramer). The only divisor is |e|^2, e = (S_2-S_1) x (S_3-S_1),
+  which vanishes only when the three sphere centres are collinear - a genuine singularity.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from deltagen.derive.kernel import Stage
+from deltagen.derive.functions import CopySign
+from deltagen.derive.delta import symbols as s
+
+
+def spheres(px=s.x, py=s.y, pz=s.z, centres=None):
+    """varsigma_i of eq. (2) about the centres S_i (symbols S_x_i... if not given)."""
+    if centres is None:
+        centres = [sp.Matrix(sp.symbols(f"S_x{i} S_y{i} S_z{i}", real=True)) for i in (1, 2, 3)]
+    return [
+        (px - c[0]) ** 2 + (py - c[1]) ** 2 + (pz - c[2]) ** 2 - s.l_b**2 for c in centres
+    ], centres
+
+
+def report_linear_coefficients():
+    """u_1..u_4 and v_1..v_4 of eqs. (6)-(15), read off varsigma_1 - varsigma_2 and
+    varsigma_1 - varsigma_3 with SymPy."""
+    sig, centres = spheres()
+    out = []
+    for other in (1, 2):
+        plane = sp.Poly(sp.expand(sig[0] - sig[other]), s.x, s.y, s.z)
+        out.append(
+            (
+                plane.coeff_monomial(s.x),
+                plane.coeff_monomial(s.y),
+                plane.coeff_monomial(s.z),
+                plane.coeff_monomial(1),
+            )
+        )
+    return out[0], out[1], centres
+
+
+def report_elimination():
+    """w_1..w_7 of eqs. (16)-(25) as SymPy derives them from the planes (6), (7) and the
+    sphere varsigma_3, in terms of symbols u_k, v_k and S_k3."""
+    u = sp.symbols("u1:5", real=True)
+    v = sp.symbols("v1:5", real=True)
+    sol = sp.solve(
+        [u[0] * s.x + u[1] * s.y + u[2] * s.z + u[3], v[0] * s.x + v[1] * s.y + v[2] * s.z + v[3]],
+        [s.x, s.y],
+        dict=True,
+    )[0]
+    xs, ys = sp.expand(sol[s.x]), sp.expand(sol[s.y])
+    w1, w2 = sp.factor(xs.coeff(s.z, 1)), sp.factor(xs.coeff(s.z, 0))
+    w3, w4 = sp.factor(ys.coeff(s.z, 1)), sp.factor(ys.coeff(s.z, 0))
+    ws = sp.symbols("w1:5", real=True)
+    sig, centres = spheres()
+    quad = sp.Poly(
+        sp.expand(sig[2].subs({s.x: ws[0] * s.z + ws[1], s.y: ws[2] * s.z + ws[3]})), s.z
+    )
+    w5, w6, w7 = (quad.coeff_monomial(s.z**k) for k in (2, 1, 0))
+    return dict(u=u, v=v, w=ws, S3=centres[2], w1=w1, w2=w2, w3=w3, w4=w4, w5=w5, w6=w6, w7=w7)
+
+
+# Symbols of the staged derivation (names become C identifiers).
+S = [sp.Matrix(sp.symbols(f"S_x{i} S_y{i} S_z{i}", real=True)) for i in (1, 2, 3)]
+a = sp.Matrix(sp.symbols("a_x a_y a_z", real=True))  # S_2 - S_1
+b = sp.Matrix(sp.symbols("b_x b_y b_z", real=True))  # S_3 - S_1
+e = sp.Matrix(sp.symbols("e_x e_y e_z", real=True))  # a x b, direction of the planes' line
+x0 = sp.Matrix(sp.symbols("x0_x x0_y x0_z", real=True))  # foot point of the line, from S_1
+e_sq, inv_e_sq, h_sq, lam = sp.symbols("e_sq inv_e_sq h_sq lambda_", real=True)
+det_D = sp.Symbol("det_D", real=True)  # det of the rows p - S_i (= det J_p / 8)
+
+
+def _centred_planes():
+    """Planes of eqs. (6), (7) in coordinates xi = p - S_1: subtracting sphere 1 from
+    spheres 2, 3 leaves 2 a.xi = |a|^2 and 2 b.xi = |b|^2 (derived, not asserted)."""
+    xi = sp.Matrix(sp.symbols("xi_x xi_y xi_z", real=True))
+    sig, _ = spheres(*xi, centres=[sp.zeros(3, 1), a, b])
+    planes = []
+    for other in (1, 2):
+        plane = sp.Poly(sp.expand(sig[0] - sig[other]), *xi)
+        normal = sp.Matrix([plane.coeff_monomial(c) for c in xi])
+        planes.append((normal, -plane.coeff_monomial(1)))
+    return planes
+
+
+def fk_stages():
+    """Stages computing p = (x, y, z) from cos q_i, sin q_i; also e_sq, h_sq and det_D for
+    the status. The lower of the two intersections is chosen (z points up, eq. (26))."""
+    centres = []
+    for i in range(3):
+        centres += list(zip(S[i], s.sphere_centre(i)))
+    edges = list(zip(a, S[1] - S[0])) + list(zip(b, S[2] - S[0]))
+    (n1, d1), (n2, d2) = _centred_planes()
+    cross = list(zip(e, a.cross(b))) + [(e_sq, e.dot(e))]
+    reciprocal = [(inv_e_sq, 1 / e_sq)]  # one division, used twice
+    # Rows: plane 1, plane 2, and e.xi = 0 (the foot point of the line nearest S_1).
+    M = sp.Matrix.vstack(n1.T, n2.T, e.T)
+    rhs = sp.Matrix([d1, d2, 0])
+    # det M = 4 e.(a x b) = 4 |e|^2: Cramer's rule with the adjugate.
+    det_M = sp.factor(M.det().subs({e[0]: a.cross(b)[0], e[1]: a.cross(b)[1], e[2]: a.cross(b)[2]}))
+    assert sp.simplify(det_M - 4 * (a.cross(b)).dot(a.cross(b))) == 0
+    foot = M.adjugate() * rhs * inv_e_sq / 4
+    foot_point = list(zip(x0, foot)) + [(h_sq, s.l_b**2 - x0.dot(x0))]
+    # xi = x0 + lambda e with |xi| = l_b and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
+    # Lower intersection: lambda * e_z < 0 (eq. (26) takes the minimum z).
+    line = [(lam, -CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]
+    position = [(sym, S[0][k] + x0[k] + lam * e[k]) for k, sym in enumerate((s.x, s.y, s.z))]
+    # det of rows (p - S_i) = xi.(a x b) = lambda |e|^2 (rows xi, xi - a, xi - b).
+    det_rows = [(det_D, lam * e_sq)]
+    return [
+        Stage("sphere centres S_i, eqs. (3)-(5)", tuple(centres)),
+        Stage("edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle", tuple(edges)),
+        Stage("e = a x b, normal of the centre plane; its squared length", tuple(cross)),
+        Stage("1 / |e|^2 (|e| = 0 only for collinear centres)", tuple(reciprocal)),
+        Stage("foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule", tuple(foot_point)),
+        Stage("lower intersection with sphere 1, eqs. (22)-(26)", tuple(line)),
+        Stage("platform position p, eq. (27)", tuple(position) + tuple(det_rows)),
+    ]

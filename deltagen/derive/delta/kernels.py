@@ -1,0 +1,237 @@
+"""The five batched kernels of the delta core, assembled from the derivations:
+fk (eqs. (2)-(27)), fk_vel (+ (28)-(35)), fk_acc (+ (36)-(39)), jacobian (eq. (30)) and
+ik (closed-form inverse), each with the fourth axis of eq. (43) as a pass-through column.
+
+Status rules (identical in the numpy reference, see deltagen/status.py):
+  INVALID      an input of the row is NaN or infinite
+  SINGULAR     centres S_i collinear: |e| < tol l_b^2  (no output)
+  UNREACHABLE  the spheres do not meet: h^2 < 0          (no output)
+  SINGULAR     |det D| < tol l_b^3, D rows p - S_i        (p given, derivatives NaN)
+  (ik) UNREACHABLE if a chain's rho^2 - G^2 < 0; SINGULAR if rho^2 - G^2 < (2 tol l_a l_b)^2
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import sympy as sp
+
+from deltagen import status as st
+from deltagen.derive.kernel import Angle, Kernel, Parameter, Port, Stage
+from deltagen.derive.functions import AllFinite
+from deltagen.derive.delta import acceleration as acc
+from deltagen.derive.delta import fk as fkd
+from deltagen.derive.delta import ik as ikd
+from deltagen.derive.delta import velocity as vel
+from deltagen.derive.delta import symbols as s
+
+collinear_limit, det_limit, jq_limit = sp.symbols("collinear_limit det_limit jq_limit", positive=True)
+
+PARAMETERS = (
+    Parameter(s.r_a, "r_a"),
+    Parameter(s.r_b, "r_b"),
+    Parameter(s.l_a, "l_a"),
+    Parameter(s.l_b, "l_b"),
+    *(Parameter(s.cos_theta[i], "cos_theta", i) for i in range(3)),
+    *(Parameter(s.sin_theta[i], "sin_theta", i) for i in range(3)),
+    Parameter(s.singular_tol, "singular_tol"),
+)
+
+SETUP = (
+    Stage(
+        "r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot",
+        (
+            (s.r, s.r_a - s.r_b),
+            (collinear_limit, (s.singular_tol * s.l_b**2) ** 2),
+            (det_limit, s.singular_tol * s.l_b**3),
+            (jq_limit, (2 * s.singular_tol * s.l_a * s.l_b) ** 2),
+        ),
+    ),
+)
+
+ANGLES = tuple(Angle(s.q[i], s.cos_q[i], s.sin_q[i]) for i in range(3))
+
+
+# fourth axis, eq. (43): its angle and rates ride along in column 4 (0 when axes == 3)
+q4, qd4, qdd4 = sp.symbols("q4 qd4 qdd4", real=True)
+phi = sp.Symbol("phi", real=True)
+
+
+def _masked(names, values, bad):
+    """Output stage: each value, or NaN where ``bad`` holds."""
+    outs = sp.symbols(" ".join(f"out_{n}" for n in names), real=True)
+    return outs, tuple((o, sp.Piecewise((sp.nan, bad), (v, True))) for o, v in zip(outs, values))
+
+
+def _q_port():
+    return Port("q", s.q, "crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; "
+                "column 4: fourth-axis angle q_4 [rad]", "rad", fourth=q4)
+
+
+def _qd_port():
+    return Port("qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]", "rad/s", fourth=qd4)
+
+
+def _qdd_port():
+    return Port("qdd", s.qdd, "crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]",
+                "rad/s^2", fourth=qdd4)
+
+
+invalid, collinear, unreachable, singular = sp.symbols("invalid collinear unreachable singular")
+
+
+def _fk_level(inputs_finite):
+    """Status flags, status and masks shared by the fk-level kernels."""
+    flags = Stage(
+        "status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0",
+        (
+            (invalid, sp.Not(inputs_finite)),
+            (collinear, fkd.e_sq <= collinear_limit),
+            (unreachable, fkd.h_sq < 0),
+            (singular, sp.Abs(fkd.det_D) <= det_limit),
+        ),
+    )
+    status = sp.Piecewise(
+        (st.INVALID, invalid),
+        (st.SINGULAR, collinear),
+        (st.UNREACHABLE, unreachable),
+        (st.SINGULAR, singular),
+        (st.OK, True),
+    )
+    no_position = sp.Or(invalid, collinear, unreachable)
+    no_rates = sp.Or(no_position, singular)
+    return flags, status, no_position, no_rates
+
+
+_FK_STATUS_DOC = ("OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); "
+                  "SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres "
+                  "(no output))")
+
+
+def _outputs(no_p, no_rates, levels):
+    """Masked output symbols and their stage for p (and pdot, pddot), column 4 included."""
+    names = [("x", "y", "z", "phi"), ("xd", "yd", "zd", "phid"), ("xdd", "ydd", "zdd", "phidd")]
+    values = [(s.x, s.y, s.z, q4), (s.xd, s.yd, s.zd, qd4), (s.xdd, s.ydd, s.zdd, qdd4)]
+    ports, assignments = [], ()
+    docs = [
+        ("p", "platform position x, y, z of P in the base frame O [m]; column 4: "
+              "fourth-axis angle phi = q_4, eq. (43) [rad]", "m"),
+        ("pd", "platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]", "m/s"),
+        ("pdd", "platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]", "m/s^2"),
+    ]
+    for level in range(levels):
+        outs, stage = _masked(names[level], values[level], no_p if level == 0 else no_rates)
+        assignments += stage
+        name, doc, unit = docs[level]
+        ports.append(Port(name, outs[:3], doc, unit, fourth=outs[3]))
+    return tuple(ports), Stage("outputs (NaN where the status says they do not exist)", assignments)
+
+
+@lru_cache(maxsize=None)
+def fk_kernel() -> Kernel:
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
+    ports, outputs = _outputs(no_p, no_rates, 1)
+    return Kernel(
+        name="fk",
+        doc="Direct kinematics: crank angles q -> platform position p, eqs. (2)-(27).",
+        inputs=(_q_port(),),
+        outputs=ports,
+        stages=tuple(fkd.fk_stages()) + (flags, outputs),
+        status=status,
+        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; p is still given where only det J_p is small",
+    )
+
+
+def _rate_stages(with_jacobian=False):
+    stages = (vel.rows_stage(), vel.jq_stage(), vel.inverse_stage())
+    return stages + ((vel.jacobian_stage(),) if with_jacobian else ())
+
+
+@lru_cache(maxsize=None)
+def jacobian_kernel() -> Kernel:
+    flags, status, _, no_rates = _fk_level(AllFinite(*s.q, q4))
+    names = [f"J{i + 1}{j + 1}" for i in range(3) for j in range(3)]
+    J_out, J_stage = _masked(names, list(vel.J), no_rates)
+    return Kernel(
+        name="jacobian",
+        doc="Jacobian J = J_p^-1 J_q of eq. (30), row-major 3x3 per point: pdot = J qdot.",
+        inputs=(_q_port(),),
+        outputs=(Port("J", J_out, "Jacobian d p / d q, row-major 3x3 [m/rad]", "m/rad", width=9),),
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages(with_jacobian=True)
+        + (Stage("outputs (NaN unless OK)", J_stage),),
+        status=status,
+        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; J is NaN unless OK",
+    )
+
+
+@lru_cache(maxsize=None)
+def fk_vel_kernel() -> Kernel:
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4))
+    ports, outputs = _outputs(no_p, no_rates, 2)
+    return Kernel(
+        name="fk_vel",
+        doc="Direct kinematics at velocity level: (q, qdot) -> (p, pdot), eqs. (2)-(35).",
+        inputs=(_q_port(), _qd_port()),
+        outputs=ports,
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages() + (vel.velocity_stage(), outputs),
+        status=status,
+        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; pd is NaN unless OK",
+    )
+
+
+@lru_cache(maxsize=None)
+def fk_acc_kernel() -> Kernel:
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4, *s.qdd, qdd4))
+    ports, outputs = _outputs(no_p, no_rates, 3)
+    return Kernel(
+        name="fk_acc",
+        doc="Direct kinematics at acceleration level: (q, qdot, qddot) -> (p, pdot, pddot), "
+            "eqs. (2)-(39).",
+        inputs=(_q_port(), _qd_port(), _qdd_port()),
+        outputs=ports,
+        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages()
+        + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(), outputs),
+        status=status,
+        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; pd and pdd are NaN unless OK",
+    )
+
+
+@lru_cache(maxsize=None)
+def ik_kernel() -> Kernel:
+    finite = AllFinite(s.x, s.y, s.z, phi)
+    flags = Stage(
+        "status flags: non-finite input, a crank cannot reach, a crank at its reach limit",
+        (
+            (invalid, sp.Not(finite)),
+            (unreachable, sp.Or(*(ikd.disc[i] < 0 for i in range(3)))),
+            (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
+        ),
+    )
+    status = sp.Piecewise(
+        (st.INVALID, invalid),
+        (st.UNREACHABLE, unreachable),
+        (st.SINGULAR, singular),
+        (st.OK, True),
+    )
+    q_out, q_stage = _masked(("q1", "q2", "q3", "q4"), (*s.q, phi), sp.Or(invalid, unreachable))
+    return Kernel(
+        name="ik",
+        doc="Inverse kinematics (elbow-out): platform position p -> crank angles q in (-pi, pi].",
+        inputs=(Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m",
+                     fourth=phi),),
+        outputs=(Port("q", q_out[:3], "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
+                      "rad", fourth=q_out[3]),),
+        stages=tuple(ikd.ik_stages()) + (flags, Stage("outputs (NaN where unreachable)", q_stage)),
+        status=status,
+        parameters=PARAMETERS, setup=SETUP,
+        status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "
+                   "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)",
+    )
+
+
+def all_kernels():
+    return (fk_kernel(), fk_vel_kernel(), fk_acc_kernel(), jacobian_kernel(), ik_kernel())

@@ -1,0 +1,555 @@
+"""The closed-form inverse kinematics as a C kernel: ``ik_all``.
+
+The solvers of :mod:`deltagen.solve.analytic` read the arm's structure from its joint
+axes and solve in numpy. This module writes the same closed forms as SymPy statements with
+the arm's constants compiled in, so the C core returns every branch of a batch of poses in
+one call, like the forward kinematics. The steps and their names follow ik_analytic (its
+module docstring has the derivation); here the point is how they become straight-line code:
+
+* every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
+  ``y / h`` (h = hypot(x, y)) instead of calling cos and sin on the result, and sums and
+  differences of angles use the addition theorems. The rotations that undo q1 and q2 + q3,
+  and the forward-kinematics check of every branch, then need no trigonometric calls;
+* the check evaluates the symbolic forward kinematics of the description (derive.Chain,
+  not the product-of-exponentials model the solver is built on) with those cosines and
+  sines, and compares it with the target: rotation entries and position / arm size within
+  ``TOL`` (ik_analytic's default);
+* the joint-limit fit is ik_analytic's: wrap into [-pi, pi), shift by +-2 pi, +-4 pi where
+  that fits the range, clip a value within 1e-12 of a limit onto it.
+
+Constants (joint axes, the wrist centre, the arm frame) come from the solver's numpy set-up
+and are rounded to 13 significant digits, values below 1e-13 of the arm's size to zero, so
+that the generated file does not depend on the last bit of a BLAS call (and exact zeros
+and ones simplify the expressions).
+
+Per pose: ``q`` (k x n, k branches in the order of the solver's ``configs``; NaN where the
+branch has no real solution or misses the pose) and ``valid`` (k values, 1.0 where the
+branch is a solution inside the joint limits, else 0.0); status OK when some branch is
+valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVALID for a
+non-finite input (all outputs NaN / 0).
+
+Supported: every structure of ik_analytic with the full pose given (its ``solve`` default):
+``spherical_wrist_6r`` (8 branches), ``elbow_4r`` (Paul's method for q2 + q3, 4 branches) and
+``planar`` (2 branches; Paul's method for the 2R arm). ``position_only`` and other
+tolerances stay with the numpy solver.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from deltagen import status as st
+from deltagen.derive.kernel import Kernel, Port, Stage
+from deltagen.derive.functions import AllFinite
+from deltagen.solve.analytic import analytic_solver
+
+TOL = 1e-8  # accepted forward-kinematics residual (ik_analytic.AnalyticSolver.solve's tol)
+LIMIT_TOL = 1e-12  # ik_analytic._LIMIT_TOL
+WRIST_SINGULAR = 1e-12  # ik_analytic._SING
+SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar")
+_DIGITS = 13
+_TINY = sp.Float("1e-300")
+
+
+def compiled_solver(desc):
+    """ik_analytic's solver for ``desc`` when its structure has a C kernel, else None."""
+    solver = analytic_solver(desc)
+    if solver is None or solver.structure not in SUPPORTED:
+        return None
+    return solver
+
+
+# ------------------------------------------------------------------ building blocks
+
+
+class _Tape:
+    """Assignments recorded in stages; each ``let`` names a value (one C statement)."""
+
+    def __init__(self):
+        self.stages = []
+        self._names = set()
+
+    def stage(self, comment):
+        self.stages.append((comment, []))
+
+    def let(self, name, expr, alias=True):
+        """A symbol for expr (a new statement), or with ``alias`` expr itself when it is
+        already a symbol or true/false (a flag that simplified away needs no variable)."""
+        expr = sp.sympify(expr)
+        if alias and (isinstance(expr, sp.Symbol) or expr in (sp.true, sp.false)):
+            return expr
+        if name in self._names:  # one C variable per name
+            raise ValueError(f"ik kernel: {name!r} assigned twice")
+        self._names.add(name)
+        sym = sp.Symbol(name, real=True)
+        self.stages[-1][1].append((sym, expr))
+        return sym
+
+    def vec(self, name, v):
+        return tuple(self.let(f"{name}_{axis}", e) for axis, e in zip("xyz", v))
+
+    def as_stages(self):
+        return [Stage(comment, tuple(a)) for comment, a in self.stages if a]
+
+
+@dataclass(frozen=True)
+class _Angle:
+    """An angle with its cosine and sine (expressions or symbols)."""
+
+    theta: object
+    c: object
+    s: object
+
+    def __add__(self, other):
+        return _Angle(self.theta + other.theta, self.c * other.c - self.s * other.s,
+                      self.s * other.c + self.c * other.s)
+
+    def __sub__(self, other):
+        return _Angle(self.theta - other.theta, self.c * other.c + self.s * other.s,
+                      self.s * other.c - self.c * other.s)
+
+    def scaled(self, sign):
+        """sign * angle for sign = +-1."""
+        return _Angle(sign * self.theta, self.c, sign * self.s)
+
+
+def _direction(tape, name, y, x):
+    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0, as atan2)."""
+    h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
+    # the division is done whatever h is, so the selection below is a plain blend (a
+    # division inside a ternary would be a branch)
+    inv = tape.let(f"{name}_inv", 1 / sp.Max(h, _TINY))
+    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, h > 0), (1, True)))
+    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, h > 0), (0, True)))
+    return c, s
+
+
+def _atan2(tape, name, y, x) -> _Angle:
+    """atan2(y, x) with its cosine and sine (_direction)."""
+    c, s = _direction(tape, name, y, x)
+    return _Angle(tape.let(name, sp.atan2(y, x)), c, s)
+
+
+def _named(tape, name, a: _Angle) -> _Angle:
+    return _Angle(tape.let(name, a.theta), tape.let(f"{name}_c", a.c), tape.let(f"{name}_s", a.s))
+
+
+def _dot(a, b):
+    return sum(x * y for x, y in zip(a, b))
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _add(a, b):
+    return tuple(x + y for x, y in zip(a, b))
+
+
+def _scale(k, a):
+    return tuple(k * x for x in a)
+
+
+def _rotate(w, c, s, v):
+    """Rodrigues: v turned about the unit axis w by the angle with cosine c and sine s."""
+    wv = _dot(w, v)
+    wxv = _cross(w, v)
+    return tuple(v[i] * c + wxv[i] * s + w[i] * wv * (1 - c) for i in range(3))
+
+
+def _sp1(tape, name, w, a, b) -> _Angle:
+    """Paden-Kahan subproblem 1 (ik_analytic._sp1): the angle about w turning the part of
+    a normal to w into the direction of that of b."""
+    a = _add(a, _scale(-_dot(a, w), w))
+    b = _add(b, _scale(-_dot(b, w), w))
+    return _atan2(tape, name, _dot(_cross(a, b), w), _dot(a, b))
+
+
+class _Constants:
+    """Rounds the solver's numpy constants (module docstring)."""
+
+    def __init__(self, scale):
+        self.zero = 1e-13 * max(1.0, scale)
+
+    def __call__(self, value):
+        value = float(value)
+        if abs(value) < self.zero:
+            return sp.S.Zero
+        for exact in (1, -1):
+            if abs(value - exact) < 1e-13:
+                return sp.Integer(exact)
+        return sp.Float(f"{value:.{_DIGITS}g}", 17)
+
+    def vec(self, v):
+        return tuple(self(x) for x in v)
+
+
+# ------------------------------------------------------------------------ the kernel
+
+
+class IKKernelBuilder:
+    """Builds the ``ik_all`` kernel of an arm from its solver and its Chain derivation."""
+
+    def __init__(self, solver, chain):
+        self.solver = solver
+        self.chain = chain
+        self.n = solver.n
+        self.configs = tuple(solver.configs)
+        self.const = _Constants(solver._ch.scale)
+        self.tape = _Tape()
+        self.T = tuple(sp.Symbol(f"Tt{r + 1}{c + 1}", real=True)
+                       for r in range(4) for c in range(4))
+        self.invalid = sp.Symbol("invalid")
+
+    # -- shared steps --------------------------------------------------------------
+
+    def _target(self):
+        T = self.T
+        self.R_t = [[T[4 * r + c] for c in range(3)] for r in range(3)]
+        self.p_t = tuple(T[4 * r + 3] for r in range(3))
+
+    def _rotate_target(self, v):
+        """R_G v = R_t R0^T v for a constant vector v."""
+        u = self.const.vec(self.solver._ch.R0.T @ np.asarray(v, dtype=float))
+        return tuple(_dot(self.R_t[r], u) for r in range(3))
+
+    def _move_point(self, x):
+        """G x = R_t R0^T (x - p0) + p_t for a constant point x: where the motion G =
+        T_target T(0)^-1 carries it."""
+        ch = self.solver._ch
+        return _add(self._rotate_target(np.asarray(x, dtype=float) - ch.p0), self.p_t)
+
+    def _arm(self, W_t):
+        """ik_analytic._ElbowSolver._arm: joints 1-3 placing the wrist point at W_t for the
+        four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
+        s, tape, K = self.solver, self.tape, self.const
+        ch = s._ch
+        tape.stage("arm: the wrist point in the arm frame (ex, ey along axis 1's normal plane)")
+        d = _add(W_t, _scale(-1, K.vec(ch.o[0])))
+        px = tape.let("px", _dot(d, K.vec(s._ex)))
+        py = tape.let("py", _dot(d, K.vec(s._ey)))
+        pz = tape.let("pz", _dot(d, K.vec(s._ez)))
+        yV = tape.let("yV", (K(s._cw) - K(s._cb) * pz) / K(s._sb))
+        rad = tape.let("rad", px * px + py * py - yV * yV)
+        ok1 = tape.let("ok_reach", rad >= -1e-9 * ch.scale ** 2)
+        r = tape.let("xV", sp.sqrt(sp.Max(rad, 0)))
+        on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ch.scale) ** 2)
+        a = _Angle(0, *_direction(tape, "phi_p", py, px))
+        uu, vv = s._uu, s._vv
+        branches = []
+        shoulders = {}
+        for f in sorted(set(s._front.tolist()), reverse=True):
+            tag = "front" if f > 0 else "back"
+            tape.stage(f"shoulder q1, {tag} branches")
+            xV = f * r
+            # q1 = atan2(py, px) - atan2(yV, xV), one atan2 of the difference's cos and sin
+            q1 = a - _Angle(0, *_direction(tape, f"phi_{tag}", yV, xV))
+            home = 0.0 if f > 0 else -math.pi
+            c1 = tape.let(f"q1_{tag}_c", sp.Piecewise((K(math.cos(home)), on_axis), (q1.c, True)))
+            s1 = tape.let(f"q1_{tag}_s", sp.Piecewise((0, on_axis), (q1.s, True)))
+            q1 = _Angle(tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis),
+                                                            (sp.atan2(s1, c1), True))), c1, s1)
+            V = _add(_add(K.vec(ch.o[0]), _scale(xV, K.vec(s._ex))),
+                     _add(_scale(yV, K.vec(s._ey)), _scale(pz, K.vec(s._ez))))
+            t = tuple(tape.let(f"t{j + 1}_{tag}", _dot(K.vec(s._P2[j]), V) - K(s._S[j]))
+                      for j in range(2))
+            kc, ks, bend, ok2 = self._cosine_law(tag, t, uu, vv)
+            shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
+        for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
+            f, sigma = float(s._front[index]), float(s._bend[index])
+            q1, t, kc, ks, bend, ok1, ok2 = shoulders[f]
+            tag = config.rsplit("_", 1)[0] if self.n == 6 else config
+            tape.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
+            th2, th3 = self._elbow(tag, t, kc, ks, bend, sigma, uu, vv)
+            ok = tape.let(f"ok_arm_{tag}", sp.And(ok1, ok2))
+            branches.append((tag, q1, th2, th3, ok, t, ok1, sigma))
+        return branches
+
+    def _paul_4r(self, tag, q1, t, ok1, sigma):
+        """ik_analytic._ElbowSolver._arm / _solve for the 4R arm with the pose given: q2 + q3
+        from the direction of axis 4 (Paul's method), which fixes the elbow of the shoulder
+        branch (the other elbow branch stays empty), then the roll q4."""
+        s, tape, K = self.solver, self.tape, self.const
+        w = [K.vec(x) for x in s._ch.w]
+        uu, vv = s._uu, s._vv
+        tape.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
+        d4 = _rotate(w[0], q1.c, -q1.s, self._rotate_target(s._ch.w[3]))
+        tot = _sp1(tape, f"tot_{tag}", w[1], w[3], d4)
+        z = (t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
+             t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])))
+        a_uu = math.atan2(uu[1], uu[0])
+        th2 = _named(tape, f"paul2_{tag}", _atan2(tape, f"phi2_{tag}", z[1], z[0])
+                     - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
+        th3 = _named(tape, f"paul3_{tag}", tot - th2)
+        c = math.atan2(vv[1], vv[0]) - a_uu
+        sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
+        mine = tape.let(f"mine_{tag}", sin_bend >= 0 if sigma > 0 else sin_bend < 0)
+        ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
+        tape.stage(f"roll, branch {tag}: q4 about axis 4")
+        y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s._x4)))
+        q4 = _sp1(tape, f"q4_{tag}", w[3], K.vec(s._x4), y)
+        return (q1, th2, th3.scaled(s._s3), q4), ok
+
+    def _planar(self):
+        """ik_analytic._PlanarSolver._solve: a planar 2R arm for the point P in the plane
+        normal to u (law of cosines, both elbows), the roll of a third revolute joint from
+        the target yaw, a prismatic joint from the travel along u; with two revolute joints
+        and the pose given, Paul's method (the pose fixes the elbow)."""
+        s, tape, K = self.solver, self.tape, self.const
+        ch = s._ch
+        u, E = s._u, s._E
+        uu, vv = s._uu, s._vv
+        tape.stage("planar arm: the point P, the travel along u and the yaw about u")
+        # P_t = R_G P + p_G = R_t R0^T (P - p0) + p_t
+        P_t = tape.vec("P_t", self._move_point(s._P))
+        h = tape.let("travel", _dot(_add(P_t, _scale(-1, K.vec(s._P))), K.vec(u)))
+        t = tuple(tape.let(f"t{j + 1}", _dot(K.vec(E[j]), P_t) - K(s._A[j])) for j in range(2))
+        g1 = self._rotate_target(E[0])
+        yaw = _atan2(tape, "yaw", _dot(g1, K.vec(E[1])), _dot(g1, K.vec(E[0])))
+        a_uu = math.atan2(uu[1], uu[0])
+        c_uv = math.atan2(vv[1], vv[0]) - a_uu
+        branches = {}
+        if s._ic is None:
+            tape.stage("Paul's method (slides 103-105): psi from the rotation, q1 from joint 2")
+            B_t = self._move_point(ch.o[s._ib])
+            tb = [_dot(K.vec(E[j]), B_t) - K(s._A[j]) for j in range(2)]
+            p1 = _named(tape, "paul1", _atan2(tape, "phi_b", tb[1], tb[0])
+                        - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
+            p2 = _named(tape, "paul2", yaw - p1)
+            down = tape.let("elbow_down", p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)) >= 0)
+            for config, sigma in zip(s.configs, s._SIGMA):
+                mine = down if sigma > 0 else sp.Not(down)
+                branches[config] = (p1, p2, None, mine)
+        else:
+            tape.stage("planar arm: law of cosines")
+            kc, ks, bend, ok2 = self._cosine_law("planar", t, uu, vv)
+            for config, sigma in zip(s.configs, s._SIGMA):
+                tape.stage(f"planar arm, {config}")
+                th1, th2 = self._elbow(config, t, kc, ks, bend, sigma, uu, vv)
+                roll = _named(tape, f"roll_{config}", yaw - th1 - th2)
+                branches[config] = (th1, th2, roll, ok2)
+        solutions = {}
+        sign = s._sign
+        for config, (th1, th2, roll, ok) in branches.items():
+            q = [None] * self.n
+            q[s._ia] = th1.scaled(float(sign[s._ia]))
+            q[s._ib] = th2.scaled(float(sign[s._ib]))
+            if s._ic is not None:
+                q[s._ic] = roll.scaled(float(sign[s._ic]))
+            if s._ip is not None:
+                q[s._ip] = K(float(sign[s._ip])) * h
+            solutions[config] = (tuple(q), ok)
+        return solutions
+
+    def _cosine_law(self, tag, t, uu, vv):
+        """The elbow of a planar 2R arm reaching t (ik_analytic._two_link): cos and sin of
+        the bend, its angle, and whether the law of cosines is met (to 1e-9)."""
+        tape, K = self.tape, self.const
+        lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
+        kappa = tape.let(f"kappa_{tag}",
+                         (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv))
+        ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
+        kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
+        ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
+        bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
+        return kc, ks, bend, ok2
+
+    def _elbow(self, tag, t, kc, ks, bend, sigma, uu, vv):
+        """First-axis and elbow angles of the planar 2R arm for the bend sign sigma."""
+        tape, K = self.tape, self.const
+        a = math.atan2(uu[1], uu[0]) - math.atan2(vv[1], vv[0])
+        elbow = _Angle(K(a), K(math.cos(a)), K(math.sin(a))) + _Angle(sigma * bend, kc, sigma * ks)
+        th2 = _named(tape, f"th3_{tag}", elbow)
+        m = (K(uu[0]) + th2.c * K(vv[0]) - th2.s * K(vv[1]),
+             K(uu[1]) + th2.s * K(vv[0]) + th2.c * K(vv[1]))
+        th1 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
+        return th1, th2
+
+    def _undo(self, q1, tot, v):
+        """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
+        w = [self.const.vec(x) for x in self.solver._ch.w]
+        v = _rotate(w[0], q1.c, -q1.s, v)
+        return _rotate(w[1], tot.c, -tot.s, v)
+
+    def _wrist(self, tag, q1, th2, th3):
+        """ik_analytic._ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions."""
+        s, tape, K = self.solver, self.tape, self.const
+        w = [K.vec(x) for x in s._ch.w]
+        tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
+        tot = _named(tape, f"tot_{tag}", th2 + th3)
+        qv = tape.vec(f"qv_{tag}", self._undo(q1, tot, self._rotate_target(s._ch.w[5])))
+        qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s._x6)))
+        w4, w5, w6 = w[3], w[4], w[5]
+        c12 = float(s._ch.w[3] @ s._ch.w[4])
+        s2 = 1.0 - c12 * c12
+        b_p = float(s._ch.w[4] @ s._ch.w[5])
+        a_q = _dot(qv, w4)
+        alpha = tape.let(f"alpha_{tag}", (a_q - K(c12 * b_p)) / K(s2))
+        beta = tape.let(f"beta_{tag}", (K(b_p) - K(c12) * a_q) / K(s2))
+        perp = _cross(qv, w4)
+        perp2 = tape.let(f"perp2_{tag}", _dot(perp, perp))
+        gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
+        okw = tape.let(f"ok_wrist_{tag}", gam2 >= -1e-9)
+        gam = tape.let(f"gam_{tag}", sp.sqrt(sp.Max(gam2, 0)))
+        singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR ** 2)
+        n45 = K.vec(np.cross(s._ch.w[3], s._ch.w[4]))
+        out = []
+        for sig, flip in ((1, "noflip"), (-1, "flip")):
+            name = f"{tag}_{flip}"
+            tape.stage(f"wrist, branch {name}: q5, q4 (Paden-Kahan 2), q6")
+            cvec = tape.vec(f"cw_{name}", _add(_add(_scale(alpha, w4), _scale(beta, w5)),
+                                               _scale(sig * gam, n45)))
+            q5 = _sp1(tape, f"q5_{name}", w5, w6, cvec)
+            q4 = _sp1(tape, f"q4r_{name}", w4, cvec, qv)
+            q4 = _named(tape, f"q4_{name}", _Angle(
+                sp.Piecewise((0, singular), (q4.theta, True)),
+                sp.Piecewise((1, singular), (q4.c, True)),
+                sp.Piecewise((0, singular), (q4.s, True))))
+            y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
+            q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s._x6), y)
+            out.append((name, okw, q4, q5, q6))
+        return out
+
+    def _fit_limits(self, name, i, a):
+        """ik_analytic.AnalyticSolver._fit_limits for joint i: (value, inside). A revolute
+        joint (a an _Angle) is wrapped into [-pi, pi) and shifted by +-2 pi, +-4 pi where that
+        fits its range; a prismatic one (a its displacement) is only checked. Either is
+        clipped onto a limit it passes by at most LIMIT_TOL."""
+        tape = self.tape
+        lo, hi = (float(x) for x in self.solver._qlim[i])
+        revolute = isinstance(a, _Angle)
+        if revolute:
+            two_pi = 2 * sp.pi
+            x = tape.let(f"{name}_w", a.theta - two_pi * sp.floor((a.theta + sp.pi) / two_pi))
+        else:
+            x = tape.let(f"{name}_d", a)
+        if not (math.isfinite(lo) or math.isfinite(hi)):
+            return x, sp.true
+
+        def inside(v):
+            conds = []
+            if math.isfinite(lo):
+                conds.append(v >= sp.Float(repr(lo - LIMIT_TOL), 17))
+            if math.isfinite(hi):
+                conds.append(v <= sp.Float(repr(hi + LIMIT_TOL), 17))
+            return sp.And(*conds)
+
+        x0 = x
+        fits = tape.let(f"{name}_in0", inside(x))
+        if revolute:
+            for k, shift in enumerate((1, -1, 2, -2), start=1):
+                y = x0 + shift * two_pi
+                fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
+                x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
+                fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
+        clipped = x
+        if math.isfinite(lo):
+            clipped = sp.Max(clipped, sp.Float(repr(lo), 17))
+        if math.isfinite(hi):
+            clipped = sp.Min(clipped, sp.Float(repr(hi), 17))
+        return tape.let(name, sp.Piecewise((clipped, fits), (x, True))), fits
+
+    def _reproduces(self, name, angles):
+        """Forward kinematics of the description at the branch's cosines and sines, compared
+        with the target (ik_analytic.AnalyticSolver._reproduces)."""
+        tape, chain = self.tape, self.chain
+        sym = chain.sym
+        mapping = {}
+        for i, a in enumerate(angles):
+            if isinstance(a, _Angle):
+                mapping[sym.cos[i]] = a.c
+                mapping[sym.sin[i]] = a.s
+            else:  # a prismatic joint's displacement
+                mapping[sym.q[i]] = a
+        tape.stage(f"check, branch {name}: forward kinematics at the solution")
+        for stage in chain.stages:
+            for s, expr in stage.assignments:
+                mapping[s] = tape.let(f"{s}_{name}", sp.sympify(expr).xreplace(mapping))
+        T = chain.T.xreplace(mapping)
+        scale = self.solver._ch.scale
+        conds = []
+        for r in range(3):
+            for c in range(3):
+                conds.append(sp.Abs(T[r, c] - self.R_t[r][c]) <= TOL)
+            conds.append(sp.Abs(T[r, 3] - self.p_t[r]) <= TOL * scale)
+        return tape.let(f"hit_{name}", sp.And(*conds))
+
+    # -- the kernel ----------------------------------------------------------------
+
+    def _elbow_arm(self):
+        """The 4R and 6R elbow arms: joints 1-3 from the wrist point, then the roll (4R) or
+        the central wrist (6R)."""
+        s, tape = self.solver, self.tape
+        tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
+        W_t = tape.vec("W_t", self._move_point(s._W))
+        solutions = {}
+        for tag, q1, th2, th3, ok_arm, t, ok1, sigma in self._arm(W_t):
+            if s.structure == "elbow_4r":
+                solutions[tag] = self._paul_4r(tag, q1, t, ok1, sigma)
+                continue
+            q3 = th3.scaled(s._s3)
+            for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
+                solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
+        return solutions
+
+    def build(self) -> Kernel:
+        s, tape, n = self.solver, self.tape, self.n
+        self._target()
+        tape.stage("status flag: a non-finite pose")
+        invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
+        if s.structure == "planar":
+            solutions = self._planar()
+        else:
+            solutions = self._elbow_arm()
+        q_out, valid_out, valid_flags = [], [], []
+        for name in self.configs:
+            angles, ok = solutions[name]
+            hit = self._reproduces(name, angles)
+            tape.stage(f"joint limits and outputs, branch {name}")
+            values, inside = [], []
+            for i, a in enumerate(angles):
+                value, fits = self._fit_limits(f"fit_q{i + 1}_{name}", i, a)
+                values.append(value)
+                inside.append(fits)
+            good = tape.let(f"ok_{name}", sp.And(ok, hit, AllFinite(*values), sp.Not(invalid)))
+            valid = tape.let(f"valid_{name}", sp.And(good, *inside))
+            valid_flags.append(valid)
+            for i, v in enumerate(values):
+                q_out.append(tape.let(f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True)),
+                                      alias=False))
+            valid_out.append(tape.let(f"out_valid_{name}",
+                                      sp.Piecewise((sp.Float(1.0), valid), (sp.Float(0.0), True)),
+                                      alias=False))
+        tape.stage("status")
+        any_valid = tape.let("any_valid", sp.Or(*valid_flags))
+        k = len(self.configs)
+        return Kernel(
+            name="ik_all",
+            doc=(f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
+                 "configurations " + ", ".join(self.configs) + " (in this order)."),
+            inputs=(Port("T", self.T, "tool pose, 4x4 row-major (rotation | position m)", "m",
+                         width=16),),
+            outputs=(
+                Port("q", tuple(q_out), f"{k} x {n} joint values per pose, branch after branch "
+                     "[rad]; NaN where the branch has no real solution", "rad", width=k * n),
+                Port("valid", tuple(valid_out), f"{k} flags per pose: 1.0 where the branch "
+                     "reaches the pose within the joint limits, else 0.0", "-", width=k),
+            ),
+            stages=tuple(tape.as_stages()),
+            status=sp.Piecewise((st.INVALID, invalid), (st.OK, any_valid),
+                                (st.UNREACHABLE, True)),
+            status_doc=("OK (some branch is valid); UNREACHABLE (no branch reaches the pose "
+                        "within the joint limits); INVALID (a non-finite input; q NaN)"),
+        )
+
+
+def ik_kernel(desc, chain) -> Kernel | None:
+    """The ``ik_all`` kernel of ``desc``, or None when its structure has none in C."""
+    solver = compiled_solver(desc)
+    if solver is None:
+        return None
+    return IKKernelBuilder(solver, chain).build()

@@ -1,0 +1,10 @@
+"""Robot descriptions: what a robot *is*, validated, before any math is derived.
+
+Holds the delta geometry (``delta``), serial chains in DH / modified DH / universal
+coordinates (``serial``), TOML robot files (``robot_file``), names that reach C identifiers
+(``naming``) and structure detection of a chain (``structure``: central wrist, parallel
+axes, planar arms), which both the derivation and the solvers read.
+
+May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
+``inputs``, ``paths``). Nothing else of deltagen.
+"""

@@ -1,0 +1,143 @@
+"""Delta robot description: the geometry of the report's Figure 4, validated.
+
+r_a  base radius, origin O to a drive axis            [m]
+r_b  platform radius, centre P to a joint C_i          [m]
+l_a  crank length, A_i to B_i                          [m]
+l_b  parallelogram rod length, B_i to C_i              [m]
+theta_i  angular position of drive i about base z      [rad]
+
+Robot files are TOML::
+
+    name = "my_delta"          # optional, a C identifier
+    [delta]
+    r_a = 0.2
+    r_b = 0.045
+    l_a = 0.35
+    l_b = 0.8
+    theta_deg = [0, 120, 240]  # or theta = [...] in radians, not both
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from deltagen.errors import GeometryError
+from deltagen.model.robot_file import read_toml, real
+from deltagen.model.naming import check_identifier
+from deltagen.status import SINGULAR_TOL
+
+_LENGTHS = ("r_a", "r_b", "l_a", "l_b")
+_DELTA_KEYS = set(_LENGTHS) | {"theta", "theta_deg", "singular_tol"}
+_TOP_KEYS = {"name", "delta"}
+#: Smallest angular separation of two drives still called distinct [rad].
+MIN_DRIVE_SEPARATION = 1e-6
+
+
+
+
+@dataclass(frozen=True)
+class DeltaGeometry:
+    r_a: float
+    r_b: float
+    l_a: float
+    l_b: float
+    theta: tuple[float, float, float]
+    name: str = "delta"
+    singular_tol: float = SINGULAR_TOL
+
+    def __post_init__(self):
+        for key in _LENGTHS:
+            object.__setattr__(self, key, real(getattr(self, key), key))
+        for key in ("r_a", "l_a", "l_b"):
+            if getattr(self, key) <= 0.0:
+                raise GeometryError(f"{key} must be positive, got {getattr(self, key)!r}")
+        if self.r_b < 0.0:
+            raise GeometryError(f"r_b must be non-negative, got {self.r_b!r}")
+        theta = self.theta
+        if isinstance(theta, (str, bytes)) or not hasattr(theta, "__len__") or len(theta) != 3:
+            raise GeometryError(f"theta must hold exactly 3 drive angles, got {theta!r}")
+        theta = tuple(real(t, f"theta[{i}]") for i, t in enumerate(theta))
+        object.__setattr__(self, "theta", theta)
+        for i in range(3):
+            for j in range(i + 1, 3):
+                d = math.remainder(theta[i] - theta[j], 2.0 * math.pi)
+                if abs(d) < MIN_DRIVE_SEPARATION:
+                    raise GeometryError(
+                        f"drive angles theta[{i}] and theta[{j}] coincide "
+                        f"({theta[i]!r} and {theta[j]!r} rad): the chains would be parallel"
+                    )
+        # On the base axis (x = y = 0) the distance from P to the circle of sphere
+        # centres S_i is |sqrt(r^2 + z^2) - l_a|; some z closes it iff |r| <= l_a + l_b.
+        if abs(self.r) > self.l_a + self.l_b:
+            raise GeometryError(
+                f"rods too short: |r_a - r_b| = {abs(self.r):g} m exceeds l_a + l_b = "
+                f"{self.l_a + self.l_b:g} m, so the chains close nowhere"
+            )
+        check_identifier(self.name)
+        tol = real(self.singular_tol, "singular_tol")
+        if not 0.0 <= tol < 1.0:
+            raise GeometryError(f"singular_tol must lie in [0, 1), got {tol!r}")
+        object.__setattr__(self, "singular_tol", tol)
+
+    @property
+    def r(self) -> float:
+        """r = r_a - r_b, the radius of the sphere-centre circles' axis (report, eq. (1))."""
+        return self.r_a - self.r_b
+
+    @property
+    def size(self) -> float:
+        """Characteristic length used for relative tolerances: l_a + l_b + r_a."""
+        return self.l_a + self.l_b + self.r_a
+
+    @classmethod
+    def default(cls) -> "DeltaGeometry":
+        """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8, 0/120/240 deg."""
+        return cls(
+            r_a=0.2, r_b=0.045, l_a=0.35, l_b=0.8,
+            theta=tuple(math.radians(t) for t in (0.0, 120.0, 240.0)),
+            name="default",
+        )
+
+    @classmethod
+    def from_mapping(cls, data, source: str = "robot description") -> "DeltaGeometry":
+        if not isinstance(data, dict):
+            raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
+        unknown = set(data) - _TOP_KEYS
+        if unknown:
+            raise GeometryError(f"{source}: unknown top-level keys {sorted(unknown)}")
+        if "delta" not in data:
+            raise GeometryError(f"{source}: missing [delta] table")
+        delta = data["delta"]
+        if not isinstance(delta, dict):
+            raise GeometryError(f"{source}: [delta] must be a table")
+        unknown = set(delta) - _DELTA_KEYS
+        if unknown:
+            raise GeometryError(f"{source}: unknown keys in [delta]: {sorted(unknown)}")
+        missing = [k for k in _LENGTHS if k not in delta]
+        if missing:
+            raise GeometryError(f"{source}: missing keys in [delta]: {missing}")
+        if "theta" in delta and "theta_deg" in delta:
+            raise GeometryError(f"{source}: give theta (rad) or theta_deg (deg), not both")
+        key = "theta_deg" if "theta_deg" in delta else "theta"
+        if key not in delta:
+            raise GeometryError(f"{source}: missing key theta (rad) or theta_deg (deg) in [delta]")
+        raw = delta[key]
+        if not isinstance(raw, list) or len(raw) != 3:
+            raise GeometryError(f"{source}: {key} must be a list of 3 numbers")
+        try:
+            values = [real(t, f"{key}[{i}]") for i, t in enumerate(raw)]
+        except GeometryError as exc:
+            raise GeometryError(f"{source}: {exc}") from None
+        theta = tuple(math.radians(t) for t in values) if key == "theta_deg" else tuple(values)
+        kwargs = {k: delta[k] for k in _LENGTHS}
+        if "singular_tol" in delta:
+            kwargs["singular_tol"] = delta["singular_tol"]
+        try:
+            return cls(theta=theta, name=data.get("name", "delta"), **kwargs)
+        except GeometryError as exc:
+            raise GeometryError(f"{source}: {exc}") from None
+
+    @classmethod
+    def from_toml(cls, path) -> "DeltaGeometry":
+        return cls.from_mapping(read_toml(path), source=str(path))

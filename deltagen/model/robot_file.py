@@ -1,0 +1,35 @@
+"""Reading robot files: TOML via tomllib, and the checks every description shares."""
+
+from __future__ import annotations
+
+import math
+import numbers
+import tomllib
+from pathlib import Path
+
+from deltagen.errors import GeometryError
+
+
+def read_toml(path) -> dict:
+    """The parsed table of a robot file; unreadable or malformed files raise GeometryError."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise GeometryError(f"cannot read robot file {path}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise GeometryError(f"{path}: not UTF-8 text") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise GeometryError(f"{path}: malformed TOML: {exc}") from None
+
+
+def real(value, where: str) -> float:
+    """A finite real number (bools and text are rejected), as float."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise GeometryError(f"{where} must be a real number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise GeometryError(f"{where} must be finite, got {value!r}")
+    return value

@@ -1,0 +1,303 @@
+"""Serial-arm descriptions: standard DH, modified DH (Craig) and universal coordinates.
+
+Conventions (lecture slides 80-89, EASY-ROB paper eqs. (1)-(3)):
+
+* ``standard``  A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i); joint i moves
+  theta_i (revolute) or d_i (prismatic) about / along z_{i-1}.
+* ``modified``  A_i = Rot_x(alpha_{i-1}) Trans_x(a_{i-1}) Rot_z(theta_i) Trans_z(d_i) (Craig);
+  a row's ``a`` and ``alpha`` are those of the link before the joint.
+* ``universal`` D_i = Rot_i(q_i) Trans_x(tx) Trans_y(ty) Trans_z(tz) Rot_x(rx) Rot_y(ry) Rot_z(rz)
+  with Rot_i the joint's own motion about (or along) its ``axis`` x, y or z (paper eq. (3)).
+
+T(q) = base . A_1(q_1) ... A_n(q_n) . tool. The joint variable enters as q_i + offset_i.
+Lengths in metres, angles in radians; robot files may use ``*_deg`` keys instead.
+
+Robot files (TOML) state the convention explicitly; there is no default::
+
+    name = "my_arm"
+    convention = "standard"          # "standard" | "modified" | "universal"
+    [base]                           # optional: xyz [m], rpy or rpy_deg = [roll, pitch, yaw]
+    xyz = [0, 0, 0.1]
+    [tool]                           # optional, same keys
+    xyz = [0, 0, 0.05]
+    [[joint]]                        # one table per joint, base to tool
+    type = "revolute"                # or "prismatic"
+    a = 0.0                          # DH keys: a, alpha|alpha_deg, d, theta|theta_deg, offset|offset_deg
+    alpha_deg = 90
+    d = 0.67183
+    qlim_deg = [-160, 160]           # optional; qlim = [...] in rad (m for prismatic)
+    [configurations]                 # optional named joint vectors (rad / m)
+    qz = [0, 0, 0, 0, 0, 0]
+
+Universal-coordinate joints use tx, ty, tz [m], rx|rx_deg, ry|ry_deg, rz|rz_deg, axis
+("x" | "y" | "z") and offset.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from deltagen.errors import GeometryError
+from deltagen.model.robot_file import read_toml, real
+from deltagen.model.naming import check_identifier
+
+CONVENTIONS = ("standard", "modified", "universal")
+JOINT_TYPES = ("revolute", "prismatic")
+_DH_LENGTHS = ("a", "d")
+_DH_ANGLES = ("alpha", "theta", "offset")
+_UC_LENGTHS = ("tx", "ty", "tz")
+_UC_ANGLES = ("rx", "ry", "rz", "offset")
+
+
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint and the link it drives. Unused fields of the other conventions stay 0."""
+
+    type: str = "revolute"
+    a: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+    offset: float = 0.0
+    tx: float = 0.0
+    ty: float = 0.0
+    tz: float = 0.0
+    rx: float = 0.0
+    ry: float = 0.0
+    rz: float = 0.0
+    axis: str = "z"
+    qlim: tuple | None = None
+    name: str = ""
+
+    @property
+    def revolute(self) -> bool:
+        return self.type == "revolute"
+
+
+def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """4x4 homogeneous transform: translation xyz, rotation Rz(yaw) Ry(pitch) Rx(roll)."""
+    roll, pitch, yaw = rpy
+    cr, sr, cp, sp_, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch),
+                               math.sin(pitch), math.cos(yaw), math.sin(yaw))
+    T = np.eye(4)
+    T[:3, :3] = [
+        [cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
+        [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr],
+        [-sp_, cp * sr, cp * cr],
+    ]
+    T[:3, 3] = xyz
+    return T
+
+
+@dataclass(frozen=True)
+class SerialDescription:
+    name: str
+    convention: str
+    joints: tuple
+    base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
+    configurations: dict = field(default_factory=dict)
+    doc: str = ""
+
+    def __post_init__(self):
+        check_identifier(self.name)
+        if self.convention not in CONVENTIONS:
+            raise GeometryError(
+                f"convention must be one of {CONVENTIONS} (stated explicitly), got {self.convention!r}"
+            )
+        if not self.joints:
+            raise GeometryError(f"robot {self.name!r} has no joints")
+        for which in ("base", "tool"):
+            M = np.asarray(getattr(self, which), dtype=float)
+            if M.shape != (4, 4) or not np.all(np.isfinite(M)):
+                raise GeometryError(f"{which} must be a finite 4x4 homogeneous transform")
+            R = M[:3, :3]
+            if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or not np.allclose(M[3], [0, 0, 0, 1]):
+                raise GeometryError(f"{which} is not a rigid transform (rotation part not orthonormal)")
+            object.__setattr__(self, which, M.copy())
+        n = len(self.joints)
+        for key, q in self.configurations.items():
+            check_identifier(key, "configuration name")
+            if len(q) != n:
+                raise GeometryError(f"configuration {key!r} has {len(q)} values, the arm has {n} joints")
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    @property
+    def qlim(self) -> np.ndarray:
+        """(n, 2) joint limits; +-inf where a joint has none."""
+        lim = np.tile([-np.inf, np.inf], (self.n, 1))
+        for i, j in enumerate(self.joints):
+            if j.qlim is not None:
+                lim[i] = j.qlim
+        return lim
+
+    def key(self) -> str:
+        """A canonical text of everything that determines the generated code."""
+        parts = [self.name, self.convention]
+        for j in self.joints:
+            parts.append(repr((j.type, j.a, j.alpha, j.d, j.theta, j.offset, j.tx, j.ty, j.tz,
+                               j.rx, j.ry, j.rz, j.axis)))
+        parts.append(repr(self.base.tolist()))
+        parts.append(repr(self.tool.tolist()))
+        return "\n".join(parts)
+
+    # -- construction ---------------------------------------------------------------
+
+    @classmethod
+    def from_rows(cls, rows, convention, name="arm", base=None, tool=None, configurations=None,
+                  doc="") -> "SerialDescription":
+        if convention not in CONVENTIONS:
+            raise GeometryError(
+                f"convention must be one of {CONVENTIONS} (stated explicitly), got {convention!r}"
+            )
+        if isinstance(rows, (str, bytes)) or not hasattr(rows, "__iter__"):
+            raise GeometryError("rows must be a list of joint tables")
+        joints = tuple(_joint(row, convention, f"joint {i + 1}") for i, row in enumerate(rows))
+        return cls(
+            name=name, convention=convention, joints=joints,
+            base=np.eye(4) if base is None else base,
+            tool=np.eye(4) if tool is None else tool,
+            configurations={k: tuple(real(v, f"configuration {k}") for v in q)
+                            for k, q in (configurations or {}).items()},
+            doc=doc,
+        )
+
+    @classmethod
+    def from_mapping(cls, data, source="robot description") -> "SerialDescription":
+        try:
+            return cls._from_mapping(data)
+        except GeometryError as exc:
+            raise GeometryError(f"{source}: {exc}") from None
+
+    @classmethod
+    def _from_mapping(cls, data) -> "SerialDescription":
+        if not isinstance(data, dict):
+            raise GeometryError("expected a table")
+        allowed = {"name", "convention", "base", "tool", "joint", "configurations", "doc"}
+        unknown = set(data) - allowed
+        if unknown:
+            raise GeometryError(f"unknown top-level keys {sorted(unknown)}")
+        if "convention" not in data:
+            raise GeometryError(
+                'missing key "convention": state "standard", "modified" or "universal" '
+                "(deltagen never guesses between standard and modified DH)"
+            )
+        if "joint" not in data or not isinstance(data["joint"], list):
+            raise GeometryError("missing [[joint]] tables")
+        configurations = data.get("configurations", {})
+        if not isinstance(configurations, dict):
+            raise GeometryError("[configurations] must be a table of joint vectors")
+        for k, q in configurations.items():
+            if not isinstance(q, list):
+                raise GeometryError(f"configuration {k!r} must be a list of numbers")
+        return cls.from_rows(
+            data["joint"], data["convention"], name=data.get("name", "arm"),
+            base=_frame(data.get("base"), "base"), tool=_frame(data.get("tool"), "tool"),
+            configurations=configurations, doc=str(data.get("doc", "")),
+        )
+
+    @classmethod
+    def from_toml(cls, path) -> "SerialDescription":
+        return cls.from_mapping(read_toml(path), source=str(path))
+
+
+def _angle(row, key, where, required=False):
+    """Value of ``key`` (rad) or ``key_deg`` (deg), never both."""
+    has_rad, has_deg = key in row, f"{key}_deg" in row
+    if has_rad and has_deg:
+        raise GeometryError(f"{where}: give {key} (rad) or {key}_deg (deg), not both")
+    if has_deg:
+        return math.radians(real(row[f"{key}_deg"], f"{where}: {key}_deg"))
+    if has_rad:
+        return real(row[key], f"{where}: {key}")
+    if required:
+        raise GeometryError(f"{where}: missing key {key} (or {key}_deg)")
+    return 0.0
+
+
+def _joint(row, convention, where) -> Joint:
+    if not isinstance(row, dict):
+        raise GeometryError(f"{where}: expected a table of joint parameters")
+    kind = row.get("type", row.get("joint", "revolute"))
+    if "type" in row and "joint" in row:
+        raise GeometryError(f"{where}: give the joint type once (type or joint)")
+    if kind not in JOINT_TYPES:
+        raise GeometryError(f"{where}: unknown joint type {kind!r}; use 'revolute' or 'prismatic'")
+    if convention == "universal":
+        lengths, angles = _UC_LENGTHS, _UC_ANGLES
+        extra = {"axis"}
+    else:
+        lengths, angles = _DH_LENGTHS, _DH_ANGLES
+        extra = set()
+    prismatic = kind == "prismatic"
+    allowed = set(lengths) | set(angles) | {f"{a}_deg" for a in angles} | extra | {
+        "type", "joint", "qlim", "qlim_deg", "name"}
+    unknown = set(row) - allowed
+    if unknown:
+        hint = ""
+        if unknown & {"tx", "ty", "tz", "rx", "ry", "rz", "axis", "a", "alpha", "d", "theta"}:
+            hint = f" (keys of another convention; this file says {convention!r})"
+        raise GeometryError(f"{where}: unknown keys {sorted(unknown)}{hint}")
+    values = {k: real(row[k], f"{where}: {k}") for k in lengths if k in row}
+    for k in angles:
+        values[k] = _angle(row, k, where)
+    if convention != "universal":
+        if not prismatic and ("theta" in row or "theta_deg" in row):
+            raise GeometryError(f"{where}: a revolute joint's theta is its variable; use offset")
+        if prismatic and "d" in row:
+            raise GeometryError(f"{where}: a prismatic joint's d is its variable; use offset")
+    else:
+        axis = row.get("axis", None)
+        if axis not in ("x", "y", "z"):
+            raise GeometryError(f"{where}: axis must be 'x', 'y' or 'z', got {axis!r}")
+        values["axis"] = axis
+    qlim = None
+    if "qlim" in row or "qlim_deg" in row:
+        if "qlim" in row and "qlim_deg" in row:
+            raise GeometryError(f"{where}: give qlim or qlim_deg, not both")
+        raw = row.get("qlim", row.get("qlim_deg"))
+        if not isinstance(raw, (list, tuple)) or len(raw) != 2:
+            raise GeometryError(f"{where}: qlim must be [lower, upper]")
+        lo, hi = (real(v, f"{where}: qlim") for v in raw)
+        if "qlim_deg" in row:
+            if prismatic:
+                raise GeometryError(f"{where}: qlim_deg on a prismatic joint (use qlim in m)")
+            lo, hi = math.radians(lo), math.radians(hi)
+        if not lo < hi:
+            raise GeometryError(f"{where}: qlim lower {lo!r} must be below upper {hi!r}")
+        qlim = (lo, hi)
+    name = row.get("name", "")
+    if not isinstance(name, str):
+        raise GeometryError(f"{where}: name must be text")
+    return Joint(type=kind, qlim=qlim, name=name, **values)
+
+
+def _frame(table, which):
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise GeometryError(f"[{which}] must be a table with xyz and rpy/rpy_deg")
+    unknown = set(table) - {"xyz", "rpy", "rpy_deg"}
+    if unknown:
+        raise GeometryError(f"[{which}]: unknown keys {sorted(unknown)}")
+    xyz = table.get("xyz", [0.0, 0.0, 0.0])
+    if not isinstance(xyz, list) or len(xyz) != 3:
+        raise GeometryError(f"[{which}] xyz must be 3 numbers")
+    xyz = [real(v, f"[{which}] xyz") for v in xyz]
+    if "rpy" in table and "rpy_deg" in table:
+        raise GeometryError(f"[{which}]: give rpy or rpy_deg, not both")
+    rpy = table.get("rpy", table.get("rpy_deg", [0.0, 0.0, 0.0]))
+    if not isinstance(rpy, list) or len(rpy) != 3:
+        raise GeometryError(f"[{which}] rpy must be 3 numbers [roll, pitch, yaw]")
+    rpy = [real(v, f"[{which}] rpy") for v in rpy]
+    if "rpy_deg" in table:
+        rpy = [math.radians(v) for v in rpy]
+    return transform(xyz, rpy)

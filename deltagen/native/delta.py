@@ -1,0 +1,103 @@
+"""The compiled backend: the generated C core (generated/delta_kinematics.c) via cffi."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+from deltagen import status as st
+from deltagen.native.build import load
+
+
+class _Scratch(threading.local):
+    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
+
+    def __init__(self, ffi):
+        self.inp = ffi.new("double[4]")
+        self.out = ffi.new("double[4]")
+        self.status = ffi.new("int8_t[1]")
+        self.inp_np = np.frombuffer(ffi.buffer(self.inp), dtype=np.float64)
+        self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
+
+
+class CompiledDelta:
+    """Batched calls into the C core; arrays are (N, 3|4) C-contiguous float64."""
+
+    def __init__(self, geometry):
+        module = load("delta_kinematics", "delta")
+        self._ffi, self._lib = module.ffi, module.lib
+        g = geometry
+        self._geometry = self._ffi.new(
+            "delta_geometry *",
+            {
+                "r_a": g.r_a, "r_b": g.r_b, "l_a": g.l_a, "l_b": g.l_b,
+                "cos_theta": [math.cos(t) for t in g.theta],
+                "sin_theta": [math.sin(t) for t in g.theta],
+                "singular_tol": g.singular_tol,
+            },
+        )
+
+        self._scratch = _Scratch(self._ffi)
+
+    def single(self, name):
+        """A fast function for one pose: a (3,) float64 array or a list/tuple of 3 numbers
+        in, the (3,) result out, or None when the general path must handle the call
+        (other shapes or types, or a status to report). Same C function, same numbers."""
+        fn = self._lib.delta_fk if name == "fk" else self._lib.delta_ik
+        geometry, scratch, memmove = self._geometry, self._scratch, self._ffi.memmove
+        ndarray, OK, SINGULAR = np.ndarray, st.OK, st.SINGULAR
+
+        def call(pose):
+            sc = scratch
+            kind = type(pose)
+            try:
+                if kind is ndarray:
+                    if pose.shape != (3,) or pose.dtype.char != "d":
+                        return None
+                    memmove(sc.inp, pose, 24)  # non-contiguous views raise: general path
+                elif (kind is list or kind is tuple) and len(pose) == 3:
+                    sc.inp[0:3] = pose  # cffi converts Python numbers, rejects others
+                else:
+                    return None
+            except (TypeError, ValueError, BufferError):
+                return None
+            fn(geometry, 1, 3, sc.inp, sc.out, sc.status)
+            code = sc.status[0]
+            if code != OK and not (code == SINGULAR and sc.out[0] == sc.out[0]):
+                return None
+            return sc.out_np[:3].copy()
+
+        return call
+
+    def _run(self, fn, inputs, n_out, out_width=None):
+        n, axes = inputs[0].shape
+        fb = self._ffi.from_buffer
+        outs = [np.empty((n, out_width or axes)) for _ in range(n_out)]
+        status = np.empty(n, dtype=np.int8)
+        rc = fn(
+            self._geometry, n, axes,
+            *(fb("double[]", a) for a in inputs),
+            *(fb("double[]", o, require_writable=True) for o in outs),
+            fb("int8_t[]", status, require_writable=True),
+        )
+        if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return (*outs, status)
+
+    def fk(self, q):
+        return self._run(self._lib.delta_fk, [q], 1)
+
+    def fk_vel(self, q, qd):
+        return self._run(self._lib.delta_fk_vel, [q, qd], 2)
+
+    def fk_acc(self, q, qd, qdd):
+        return self._run(self._lib.delta_fk_acc, [q, qd, qdd], 3)
+
+    def jacobian(self, q):
+        J, status = self._run(self._lib.delta_jacobian, [q], 1, out_width=9)
+        return J.reshape(-1, 3, 3), status
+
+    def ik(self, p):
+        return self._run(self._lib.delta_ik, [p], 1)

@@ -1,0 +1,205 @@
+"""The compiled backend of a serial arm: its generated C module via cffi. Bundled robots
+use the checked-in generated/serial_<name>.c; any other description is rendered into the
+build cache under a key of its content (a changed file never loads a stale module)."""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from deltagen import status as st
+from deltagen.native.build import load
+from deltagen.inputs import plain_pose
+from deltagen.paths import cache_dir, generated_dir
+from deltagen.codegen.serial import arm_sources, base_name, description_fingerprint, generator_fingerprint
+
+
+def source_dir(desc) -> Path:
+    """generated/ when it holds this description's checked-in module (bundled robots; kept
+    current by `deltagen generate --check`), else a cache folder keyed by the description
+    and the generator, rendered on first use."""
+    name = base_name(desc)
+    header = generated_dir() / f"{name}.h"
+    stamp = f"Description fingerprint: {description_fingerprint(desc)}"
+    if header.is_file() and stamp in header.read_text():
+        return generated_dir()
+    key = hashlib.sha256((desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
+    folder = cache_dir() / "sources" / f"{name}_{key}"
+    if not (folder / f"{name}.cdef.h").is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        sources = arm_sources(desc)
+        # the .cdef.h marks a complete folder, so it is written last
+        for file_name in sorted(sources, key=lambda f: f.endswith(".cdef.h")):
+            tmp = folder / f".{file_name}.{threading.get_ident()}.tmp"
+            tmp.write_text(sources[file_name])
+            tmp.replace(folder / file_name)
+    return folder
+
+
+class _Scratch(threading.local):
+    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
+
+    def __init__(self, ffi, n):
+        self.q = ffi.new(f"double[{n}]")
+        self.T = ffi.new("double[16]")
+        self.J = ffi.new(f"double[{6 * n}]")
+        self.status = ffi.new("int8_t[1]")
+        self.T_np = np.frombuffer(ffi.buffer(self.T), dtype=np.float64).reshape(4, 4)
+        self.J_np = np.frombuffer(ffi.buffer(self.J), dtype=np.float64).reshape(6, n)
+        self.ik_q = self.ik_valid = None  # ik_all buffers, made on first use
+
+    def make_ik_buffers(self, ffi, k, n):
+        self.ik_q = ffi.new(f"double[{k * n}]")
+        self.ik_valid = ffi.new(f"double[{k}]")
+        self.ik_q_np = np.frombuffer(ffi.buffer(self.ik_q), dtype=np.float64).reshape(k, n)
+        self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.float64)
+
+
+class CompiledArm:
+    """Batched calls into an arm's C module; q is (N, n) C-contiguous float64."""
+
+    def __init__(self, desc):
+        self.desc = desc
+        module = load(base_name(desc), desc.name, source_dir(desc))
+        self._ffi, self._lib = module.ffi, module.lib
+        self._prefix = desc.name
+        self._scratch = _Scratch(self._ffi, desc.n)
+        self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
+
+    def _run(self, name, inputs, *widths):
+        """Call <prefix>_<name> on the input rows: one (N, width) output per width, then
+        the status."""
+        n = inputs[0].shape[0]
+        fb = self._ffi.from_buffer
+        outs = [np.empty((n, width)) for width in widths]
+        status = np.empty(n, dtype=np.int8)
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
+        rc = fn(n, *(fb("double[]", a) for a in inputs),
+                *(fb("double[]", out, require_writable=True) for out in outs),
+                fb("int8_t[]", status, require_writable=True))
+        if rc != 0:
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return (*outs, status)
+
+    def fk(self, q):
+        T, status = self._run("fk", [q], 16)
+        return T.reshape(-1, 4, 4), status
+
+    def frames(self, q):
+        count = self.desc.n + 2
+        F, status = self._run("frames", [q], 16 * count)
+        return F.reshape(-1, count, 4, 4), status
+
+    def jacobian(self, q):
+        J, status = self._run("jacobian", [q], 6 * self.desc.n)
+        return J.reshape(-1, 6, self.desc.n), status
+
+    def fk_jacobian(self, q):
+        """T (N, 4, 4) and J (N, 6, n) from one evaluation, and the status."""
+        n = self.desc.n
+        T, J, status = self._run("fk_jacobian", [q], 16, 6 * n)
+        return T.reshape(-1, 4, 4), J.reshape(-1, 6, n), status
+
+    def ik_options(self, *, tol_p, tol_r, step_limit, damping, base_damping, max_iter,
+                   stall_window, respect_limits, free_first, mask):
+        """A filled <prefix>_ik_options struct (cffi-owned) for :meth:`ik_newton`."""
+        o = self._ffi.new(f"{self._prefix}_ik_options *")
+        o.tol_p, o.tol_r, o.step_limit = tol_p, tol_r, step_limit
+        o.damping, o.base_damping = damping, base_damping
+        o.max_iter, o.stall_window = max_iter, stall_window
+        o.respect_limits, o.free_first = int(respect_limits), int(free_first)
+        o.mask = [int(bool(m)) for m in mask]
+        return o
+
+    def ik_newton(self, options, T, q0, qlim=None):
+        """One damped Newton attempt per target in C (<prefix>_ik_newton).
+
+        options: from :meth:`ik_options`; T (N, 4, 4) and q0 (N, n) float64 C-contiguous;
+        qlim (n, 2) or None. Returns q (N, n), err_p (N), err_r (N), iterations (N) int32,
+        status (N) int8 (OK converged, UNREACHABLE not converged, INVALID non-finite row)."""
+        N, n = q0.shape[0], self.desc.n
+        fb = self._ffi.from_buffer
+        q = np.empty((N, n))
+        err_p, err_r = np.empty(N), np.empty(N)
+        iterations = np.empty(N, dtype=np.int32)
+        status = np.empty(N, dtype=np.int8)
+        lim = self._ffi.NULL if qlim is None else fb("double[]", qlim)
+        rc = self._ik_newton(N, options, fb("double[]", T), fb("double[]", q0), lim,
+                             fb("double[]", q, require_writable=True),
+                             fb("double[]", err_p, require_writable=True),
+                             fb("double[]", err_r, require_writable=True),
+                             fb("int32_t[]", iterations, require_writable=True),
+                             fb("int8_t[]", status, require_writable=True))
+        if rc != 0:
+            raise RuntimeError(f"C core rejected the IK arguments (rc={rc})")
+        return q, err_p, err_r, iterations, status
+
+    def jacobian_dot(self, q, qd):
+        Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
+        return Jd.reshape(-1, 6, self.desc.n), status
+
+    @property
+    def has_ik_all(self) -> bool:
+        return hasattr(self._lib, f"{self._prefix}_ik_all")
+
+    def ik_all(self, T, k):
+        """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
+        q (N, k, n), valid (N, k) bool, status (N,)."""
+        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n, k)
+        return q.reshape(-1, k, self.desc.n), valid != 0.0, status
+
+    def single_ik_all(self, k):
+        """Fast path of ik_all for one pose ((4, 4) C-contiguous float64 array with the
+        bottom row 0 0 0 1): (q (k, n), valid (k,)), or None when the general path must
+        handle the call (other input types, non-finite values)."""
+        if not self.has_ik_all:
+            return None
+        fn = getattr(self._lib, f"{self._prefix}_ik_all")
+        scratch, memmove, ffi, n = self._scratch, self._ffi.memmove, self._ffi, self.desc.n
+        INVALID = st.INVALID
+
+        def call(T):
+            if not plain_pose(T):
+                return None
+            sc = scratch
+            if sc.ik_q is None:
+                sc.make_ik_buffers(ffi, k, n)
+            memmove(sc.T, T, 128)
+            fn(1, sc.T, sc.ik_q, sc.ik_valid, sc.status)
+            if sc.status[0] == INVALID:
+                return None
+            return sc.ik_q_np.copy(), sc.ik_valid_np.astype(bool)  # valid is 1.0 or 0.0
+
+        return call
+
+    def single(self, name):
+        """Fast path for one configuration (list/tuple or (n,) float64 array) of fk or
+        jacobian: the result, or None when the general path must handle the call."""
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
+        scratch, memmove, n = self._scratch, self._ffi.memmove, self.desc.n
+        ndarray, OK = np.ndarray, st.OK
+        out_name = "T" if name == "fk" else "J"
+
+        def call(q):
+            sc = scratch
+            kind = type(q)
+            try:
+                if kind is ndarray:
+                    if q.shape != (n,) or q.dtype.char != "d":
+                        return None
+                    memmove(sc.q, q, 8 * n)
+                elif (kind is list or kind is tuple) and len(q) == n:
+                    sc.q[0:n] = q
+                else:
+                    return None
+            except (TypeError, ValueError, BufferError):
+                return None
+            fn(1, sc.q, getattr(sc, out_name), sc.status)
+            if sc.status[0] != OK:
+                return None
+            return getattr(sc, out_name + "_np").copy()
+
+        return call

@@ -1,0 +1,1010 @@
+"""Cartesian trajectories of serial arms and their conversion into joint trajectories.
+
+The pieces, bottom up:
+
+* **Time scaling** ``s(tau)``, ``tau = (t - t_start) / T`` in [0, 1], maps the time of a
+  segment onto its path parameter ``s`` in [0, 1]:
+
+  - :class:`Quintic` (default): ``s = 10 tau^3 - 15 tau^4 + 6 tau^5``, the rest-to-rest
+    polynomial with ``s' = s'' = 0`` at both ends. Velocity and acceleration are continuous
+    (also across segments that stop at their joints); the jerk jumps at the segment ends.
+    Peak ``ds/dtau = 15/8``, peak ``|d2s/dtau2| = 10/sqrt(3)``.
+  - :class:`Trapezoid` (linear segment with parabolic blends, LSPB): constant acceleration
+    for the blend fraction ``b`` of the time at each end, constant velocity
+    ``1 / (1 - b)`` in between; ``b = 1/2`` is the triangular (bang-bang) profile. The
+    velocity is continuous, the acceleration jumps at the four blend corners (so there a
+    numerical first derivative is only O(h) and a second derivative O(1) wrong).
+
+* **Paths** in space, parameterised by ``s`` in [0, 1]: :class:`Line` ``p0 -> p1`` and
+  :class:`Arc` (a circular arc by centre, start point, axis and signed angle, or
+  :meth:`Arc.from_three_points`). Each gives the point and its first and second
+  derivatives with respect to ``s``; the chain rule with the time scaling gives the
+  Cartesian velocity and acceleration (``v = p' sd``, ``a = p'' sd^2 + p' sdd``).
+
+* **Orientation** is interpolated by slerp on SO(3) with the same ``s``:
+  ``R(s) = R0 exp(s log(R0^T R1))`` (the shortest rotation, constant axis
+  ``k = R0 log(R0^T R1) / theta`` in the base frame), so the angular velocity is
+  ``w = theta sd k`` and the angular acceleration ``wd = theta sdd k``. The same
+  interpolation on unit quaternions is :func:`quat_slerp`; both agree (tested).
+
+* **Prescribed joints**: an arm with fewer than six joints cannot follow an arbitrary pose.
+  A :class:`Task` picks what is prescribed: some base-frame position axes (``"xy"`` for
+  the planar lecture SCARA, ``"xyz"``), optionally the full orientation (six-axis arms),
+  and optionally joint coordinates directly (e.g. the wrist roll q4 of the Miskolc RRRR
+  arm, which turns the gripper about the forearm and does not move the gripper origin).
+  Prescribed joint values are interpolated with the same time scaling.
+
+* **Inverse kinematics along the path** (:func:`to_joint_trajectory`): sample the path on a
+  uniform time grid and, at each sample, run a small damped Newton (Levenberg-Marquardt)
+  iteration starting from the previous sample's solution (extrapolated quadratically from
+  the last three samples as a predictor). Starting in a chosen configuration (``q0``) and moving by small
+  steps keeps the solution on that branch: no elbow or wrist flips. Every step is checked:
+  ``max |q_k - q_(k-1)| <= max_step`` and an optional ``branch`` predicate (e.g. elbow up,
+  ``q3 <= 0``); a violation raises :class:`TrajectoryError` naming the samples.
+
+* **Joint rates**, two ways, compared by :meth:`JointTrajectory.rate_errors`:
+
+  - exact, from the task Jacobian (rows of the geometric Jacobian, unit rows for prescribed
+    joints): ``qd = J^+ xd`` and ``qdd = J^+ (xdd - Jdot qd)``;
+  - numerically, as the Miskolc paper does (seed 004, section 5: "the joint velocities and
+    accelerations can be obtained by numerical differentiation of the angle functions with
+    respect to time"): second-order central differences ``(q_(k+1) - q_(k-1)) / 2h`` and
+    ``(q_(k+1) - 2 q_k + q_(k-1)) / h^2`` with second-order one-sided formulas at the ends,
+    :func:`numerical_rates`. Both are O(h^2). Differentiated across a segment joint where
+    the jerk jumps (quintic stops), the second difference is only O(h) there, so the joint
+    samples can be used as breaks: each segment is differentiated on its own.
+
+  For a square task (as many task rows as joints) the exact rates are the derivatives of
+  the sampled IK solution, so the two agree to O(h^2) (plus IK noise / h^2). For a redundant
+  task the exact rates are the minimum-norm rates, and the IK solution may drift in the null
+  space: the comparison then also shows that drift.
+
+* The lecture's path following (seed 002, slides 106-111; table on the slide footed
+  "Folie 111"): :func:`jacobian_path_following` splits the straight line into equal
+  sub-steps and takes ONE step ``dQ = J^-1(q) (P_soll,k+1 - P_ist,k)`` per sub-point with
+  the inverse Jacobian at the current q, then a direct transformation ``P_ist = f(q)``
+  ("damit sich die einzelnen Fehler nicht addieren, wird nach jedem Schritt eine direkte
+  Transformation durchgefuehrt"). :func:`newton_step` is that step.
+
+Units: as the robot (metres, radians); time in seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from deltagen.errors import KinematicsError
+from deltagen.inputs import InputError
+
+_AXES = "xyz"
+
+
+class TrajectoryError(KinematicsError):
+    """The IK along a path failed: no convergence, a jump (branch flip), a branch predicate
+    or a joint limit violated. ``rows`` lists the failing sample indices."""
+
+
+# =========================================================================== time scaling
+
+
+class Quintic:
+    """Rest-to-rest quintic ``s = 10 tau^3 - 15 tau^4 + 6 tau^5`` (s' = s'' = 0 at both ends)."""
+
+    name = "quintic"
+
+    def __call__(self, tau):
+        tau = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+        t2 = tau * tau
+        s = t2 * tau * (10.0 + tau * (-15.0 + 6.0 * tau))
+        sd = 30.0 * t2 * (1.0 - tau) ** 2
+        sdd = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau)
+        return s, sd, sdd
+
+    def __repr__(self):
+        return "Quintic()"
+
+
+class Trapezoid:
+    """Trapezoidal velocity (LSPB): blends of constant acceleration for the fraction ``blend``
+    of the segment time at each end (0 < blend <= 1/2), constant velocity 1 / (1 - blend)
+    in between (in units of the path parameter per segment time)."""
+
+    name = "trapezoid"
+
+    def __init__(self, blend: float = 0.25):
+        blend = float(blend)
+        if not (0.0 < blend <= 0.5):
+            raise InputError(f"Trapezoid blend must be in (0, 0.5], got {blend}")
+        self.blend = blend
+        self.vmax = 1.0 / (1.0 - blend)
+        self.amax = self.vmax / blend
+
+    def __call__(self, tau):
+        tau = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+        b, v, a = self.blend, self.vmax, self.amax
+        rise, fall = tau < b, tau > 1.0 - b
+        u = 1.0 - tau
+        s = np.where(rise, 0.5 * a * tau**2,
+                     np.where(fall, 1.0 - 0.5 * a * u**2, 0.5 * a * b**2 + v * (tau - b)))
+        sd = np.where(rise, a * tau, np.where(fall, a * u, v))
+        sdd = np.where(rise, a, np.where(fall, -a, 0.0))
+        return s, sd, sdd
+
+    def __repr__(self):
+        return f"Trapezoid(blend={self.blend:g})"
+
+
+def _scaling(scaling):
+    if scaling is None or scaling == "quintic":
+        return Quintic()
+    if scaling == "trapezoid":
+        return Trapezoid()
+    if callable(scaling):
+        return scaling
+    raise InputError(f"time scaling must be 'quintic', 'trapezoid' or a scaling object, got {scaling!r}")
+
+
+# =========================================================================== rotations
+
+
+def _vec3(v, name):
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise InputError(f"{name} must be 3 finite numbers, got {v!r}")
+    return a
+
+
+def _rotation(R, name="R"):
+    R = np.asarray(R, dtype=float)
+    if R.shape == (4, 4):
+        R = R[:3, :3]
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise InputError(f"{name} must be a 3x3 rotation matrix (or a 4x4 pose)")
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-8) or np.linalg.det(R) < 0:
+        raise InputError(f"{name} is not a rotation matrix (R R^T != I or det R < 0)")
+    return R
+
+
+def skew(w):
+    """[w]x (..., 3, 3) with [w]x v = w x v."""
+    w = np.asarray(w, dtype=float)
+    W = np.zeros(w.shape[:-1] + (3, 3))
+    W[..., 0, 1], W[..., 0, 2] = -w[..., 2], w[..., 1]
+    W[..., 1, 0], W[..., 1, 2] = w[..., 2], -w[..., 0]
+    W[..., 2, 0], W[..., 2, 1] = -w[..., 1], w[..., 0]
+    return W
+
+
+def rot_exp(v):
+    """Rotation matrices (..., 3, 3) of rotation vectors v (..., 3) (Rodrigues)."""
+    v = np.asarray(v, dtype=float)
+    th2 = np.sum(v * v, axis=-1)
+    th = np.sqrt(th2)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    # series below 1e-4 rad: error ~ th^4 / 120 < 1e-18
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
+    W = skew(v)
+    return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
+
+
+def quat_from_matrix(R):
+    """Unit quaternions (..., 4) = (w, x, y, z) with w >= 0 of rotation matrices (..., 3, 3)
+    (Shepperd's method: the largest of the four candidates is computed from the trace or a
+    diagonal element, the others from off-diagonal sums, so no cancellation near 180 deg)."""
+    R = np.asarray(R, dtype=float)
+    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    tr = m00 + m11 + m22
+    cand = np.stack([tr, m00, m11, m22], axis=-1)
+    k = np.argmax(cand, axis=-1)
+    q = np.empty(R.shape[:-2] + (4,))
+    r21, r12 = R[..., 2, 1], R[..., 1, 2]
+    r02, r20 = R[..., 0, 2], R[..., 2, 0]
+    r10, r01 = R[..., 1, 0], R[..., 0, 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # k = 0: w largest
+        s0 = 2.0 * np.sqrt(np.maximum(1.0 + tr, 0.0))
+        q0 = np.stack([s0 / 4, (r21 - r12) / s0, (r02 - r20) / s0, (r10 - r01) / s0], axis=-1)
+        s1 = 2.0 * np.sqrt(np.maximum(1.0 + m00 - m11 - m22, 0.0))
+        q1 = np.stack([(r21 - r12) / s1, s1 / 4, (r01 + r10) / s1, (r02 + r20) / s1], axis=-1)
+        s2 = 2.0 * np.sqrt(np.maximum(1.0 - m00 + m11 - m22, 0.0))
+        q2 = np.stack([(r02 - r20) / s2, (r01 + r10) / s2, s2 / 4, (r12 + r21) / s2], axis=-1)
+        s3 = 2.0 * np.sqrt(np.maximum(1.0 - m00 - m11 + m22, 0.0))
+        q3 = np.stack([(r10 - r01) / s3, (r02 + r20) / s3, (r12 + r21) / s3, s3 / 4], axis=-1)
+    for idx, cand_q in enumerate((q0, q1, q2, q3)):
+        sel = k == idx
+        q[sel] = cand_q[sel]
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0.0, -q, q)
+
+
+def matrix_from_quat(q):
+    """Rotation matrices (..., 3, 3) of quaternions (..., 4) = (w, x, y, z) (normalised first)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    R = np.empty(q.shape[:-1] + (3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - w * z)
+    R[..., 0, 2] = 2 * (x * z + w * y)
+    R[..., 1, 0] = 2 * (x * y + w * z)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - w * x)
+    R[..., 2, 0] = 2 * (x * z - w * y)
+    R[..., 2, 1] = 2 * (y * z + w * x)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def _rot_log_small(R):
+    """rot_log of one 3x3 matrix whose angle is well below pi (the IK error): the
+    antisymmetric part, scaled by angle / sin(angle); None if the angle is not small."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    if tr < 2.0:  # angle above ~60 deg: use the robust quaternion route
+        return None
+    v = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    sn = math.sqrt(float(v @ v))  # sin(angle)
+    if sn < 1e-6:
+        return v * (1.0 + sn * sn / 6.0)
+    return v * (math.asin(min(sn, 1.0)) / sn)
+
+
+def rot_log(R):
+    """Rotation vectors (..., 3) (axis times angle in [0, pi]) of rotation matrices, through
+    the quaternion (robust at 0 and near pi)."""
+    R = np.asarray(R, dtype=float)
+    if R.shape == (3, 3):
+        v = _rot_log_small(R)
+        if v is not None:
+            return v
+    q = quat_from_matrix(R)
+    w, v = q[..., 0], q[..., 1:]
+    n = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(n, w)
+    small = n < 1e-12
+    factor = np.where(small, 2.0 / np.where(w == 0, 1.0, w), angle / np.where(small, 1.0, n))
+    return v * factor[..., None]
+
+
+def quat_slerp(q0, q1, s):
+    """Spherical linear interpolation of unit quaternions along the shorter arc;
+    s (...,) -> (..., 4)."""
+    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
+    q1 = np.asarray(q1, dtype=float) / np.linalg.norm(q1)
+    d = float(np.dot(q0, q1))
+    if d < 0.0:
+        q1, d = -q1, -d
+    s = np.asarray(s, dtype=float)[..., None]
+    if d > 1.0 - 1e-12:
+        out = q0 + s * (q1 - q0)
+        return out / np.linalg.norm(out, axis=-1, keepdims=True)
+    om = math.acos(min(d, 1.0))
+    return (np.sin((1.0 - s) * om) * q0 + np.sin(s * om) * q1) / math.sin(om)
+
+
+def slerp(R0, R1, s):
+    """R(s) = R0 exp(s log(R0^T R1)) for s (...,) -> (..., 3, 3): the shortest rotation from R0
+    to R1 at constant angular velocity about a fixed axis."""
+    R0, R1 = _rotation(R0, "R0"), _rotation(R1, "R1")
+    k = rot_log(R0.T @ R1)
+    s = np.asarray(s, dtype=float)
+    return R0 @ rot_exp(s[..., None] * k)
+
+
+# =========================================================================== paths
+
+
+@dataclass(frozen=True)
+class Line:
+    """The straight line p(s) = p0 + s (p1 - p0), s in [0, 1]."""
+
+    p0: np.ndarray
+    p1: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "p0", _vec3(self.p0, "Line p0"))
+        object.__setattr__(self, "p1", _vec3(self.p1, "Line p1"))
+
+    @property
+    def start(self):
+        return self.p0
+
+    @property
+    def end(self):
+        return self.p1
+
+    @property
+    def length(self) -> float:
+        return float(np.linalg.norm(self.p1 - self.p0))
+
+    def evaluate(self, s):
+        """p, dp/ds, d2p/ds2 at s (N,) -> three (N, 3) arrays."""
+        s = np.asarray(s, dtype=float).reshape(-1)
+        d = self.p1 - self.p0
+        p = self.p0 + s[:, None] * d
+        return p, np.broadcast_to(d, p.shape).copy(), np.zeros_like(p)
+
+
+@dataclass(frozen=True)
+class Arc:
+    """A circular arc in space: centre ``center``, starting at ``start``, turning by the signed
+    ``angle`` [rad] about the unit ``axis`` through the centre (right-hand rule); the axis
+    must be perpendicular to ``start - center``.
+
+    p(s) = c + cos(s Phi) u + sin(s Phi) (n x u), u = start - c, Phi = angle.
+    """
+
+    center: np.ndarray
+    start_point: np.ndarray
+    axis: np.ndarray
+    angle: float
+
+    def __post_init__(self):
+        c = _vec3(self.center, "Arc center")
+        p0 = _vec3(self.start_point, "Arc start")
+        n = _vec3(self.axis, "Arc axis")
+        if np.linalg.norm(n) < 1e-12:
+            raise InputError("Arc axis must not be zero")
+        n = n / np.linalg.norm(n)
+        u = p0 - c
+        r = np.linalg.norm(u)
+        if r < 1e-12:
+            raise InputError("Arc start coincides with its centre (radius 0)")
+        if abs(np.dot(u, n)) > 1e-9 * max(1.0, r):
+            raise InputError("Arc axis must be perpendicular to start - center")
+        angle = float(self.angle)
+        if not math.isfinite(angle) or angle == 0.0:
+            raise InputError(f"Arc angle must be finite and non-zero, got {self.angle!r}")
+        object.__setattr__(self, "center", c)
+        object.__setattr__(self, "start_point", p0)
+        object.__setattr__(self, "axis", n)
+        object.__setattr__(self, "angle", angle)
+
+    @classmethod
+    def from_three_points(cls, p0, via, p1) -> "Arc":
+        """The arc of the circle through three points from p0 through ``via`` to p1."""
+        a, m, b = _vec3(p0, "arc start"), _vec3(via, "arc via point"), _vec3(p1, "arc end")
+        e1, e2 = m - a, b - a
+        nvec = np.cross(e1, e2)
+        nn = float(np.dot(nvec, nvec))
+        scale = max(np.dot(e1, e1), np.dot(e2, e2))
+        if nn <= 1e-18 * scale * scale or scale == 0.0:
+            raise InputError("arc points are collinear or coincide: no unique circle")
+        # circumcentre: a + ((|e1|^2 e2 - |e2|^2 e1) x (e1 x e2)) / (2 |e1 x e2|^2)
+        c = a + np.cross(np.dot(e1, e1) * e2 - np.dot(e2, e2) * e1, nvec) / (2.0 * nn)
+        # a -> m -> b counter-clockwise about n (an inscribed triangle in circular order is
+        # positively oriented), so the arc from a to b about n passes through m
+        n = nvec / math.sqrt(nn)
+        u, w = a - c, b - c
+        phi = math.atan2(float(np.dot(np.cross(u, w), n)), float(np.dot(u, w)))
+        if phi <= 0.0:
+            phi += 2.0 * math.pi
+        return cls(c, a, n, phi)
+
+    @property
+    def radius(self) -> float:
+        return float(np.linalg.norm(self.start_point - self.center))
+
+    @property
+    def start(self):
+        return self.start_point
+
+    @property
+    def end(self):
+        return self.evaluate(np.array([1.0]))[0][0]
+
+    @property
+    def length(self) -> float:
+        return self.radius * abs(self.angle)
+
+    def evaluate(self, s):
+        s = np.asarray(s, dtype=float).reshape(-1)
+        u = self.start_point - self.center
+        w = np.cross(self.axis, u)
+        ph = s * self.angle
+        c, sn = np.cos(ph)[:, None], np.sin(ph)[:, None]
+        p = self.center + c * u + sn * w
+        dp = self.angle * (-sn * u + c * w)
+        ddp = -(self.angle**2) * (c * u + sn * w)
+        return p, dp, ddp
+
+
+# =========================================================================== segments
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One piece of a trajectory: a path run through in ``duration`` seconds with a time
+    scaling; orientation slerped from R0 to R1 (None: no orientation); prescribed joint
+    values interpolated from j0 to j1 (empty arrays: none)."""
+
+    path: object
+    duration: float
+    scaling: object = field(default_factory=Quintic)
+    R0: np.ndarray | None = None
+    R1: np.ndarray | None = None
+    j0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    j1: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    label: str = ""
+
+    def __post_init__(self):
+        T = float(self.duration)
+        if not (math.isfinite(T) and T > 0.0):
+            raise InputError(f"segment duration must be positive, got {self.duration!r}")
+        object.__setattr__(self, "duration", T)
+        object.__setattr__(self, "scaling", _scaling(self.scaling))
+        if (self.R0 is None) != (self.R1 is None):
+            raise InputError("give both R0 and R1 or neither")
+        if self.R0 is not None:
+            object.__setattr__(self, "R0", _rotation(self.R0, "R0"))
+            object.__setattr__(self, "R1", _rotation(self.R1, "R1"))
+            object.__setattr__(self, "_k", rot_log(self.R0.T @ self.R1))
+        j0 = np.atleast_1d(np.asarray(self.j0, dtype=float))
+        j1 = np.atleast_1d(np.asarray(self.j1, dtype=float))
+        if j0.shape != j1.shape or j0.ndim != 1:
+            raise InputError("prescribed joint values j0 and j1 must be vectors of one length")
+        object.__setattr__(self, "j0", j0)
+        object.__setattr__(self, "j1", j1)
+
+    @property
+    def rotation_angle(self) -> float:
+        return 0.0 if self.R0 is None else float(np.linalg.norm(self._k))
+
+    def evaluate(self, t_local):
+        """Everything at local times t_local (N,) in [0, duration]: a dict of arrays."""
+        t_local = np.asarray(t_local, dtype=float).reshape(-1)
+        T = self.duration
+        s, sd, sdd = self.scaling(t_local / T)
+        sd, sdd = sd / T, sdd / T**2
+        p, dp, ddp = self.path.evaluate(s)
+        out = {
+            "s": s, "sd": sd, "sdd": sdd,
+            "p": p, "v": dp * sd[:, None], "a": ddp * (sd**2)[:, None] + dp * sdd[:, None],
+        }
+        if self.R0 is not None:
+            out["R"] = self.R0 @ rot_exp(s[:, None] * self._k)
+            k_base = self.R0 @ self._k  # the slerp axis (times angle) in the base frame
+            out["w"] = sd[:, None] * k_base
+            out["wd"] = sdd[:, None] * k_base
+        dj = self.j1 - self.j0
+        out["qj"] = self.j0 + s[:, None] * dj
+        out["qjd"] = sd[:, None] * dj
+        out["qjdd"] = sdd[:, None] * dj
+        return out
+
+
+@dataclass
+class CartesianSamples:
+    """A trajectory sampled at times t (N,): position p, velocity v, acceleration a (N, 3);
+    orientation R (N, 3, 3), angular velocity w and acceleration wd (N, 3) (None without
+    orientation); prescribed joints qj, qjd, qjdd (N, k); segment index (N,)."""
+
+    t: np.ndarray
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    R: np.ndarray | None
+    w: np.ndarray | None
+    wd: np.ndarray | None
+    qj: np.ndarray
+    qjd: np.ndarray
+    qjdd: np.ndarray
+    segment: np.ndarray
+
+
+class CartesianTrajectory:
+    """Segments run one after the other (each starts where the previous one ended: position,
+    orientation and prescribed joints continuous; checked). Built directly from
+    :class:`Segment` objects or with :class:`PathBuilder`."""
+
+    def __init__(self, segments):
+        segments = list(segments)
+        if not segments:
+            raise InputError("a trajectory needs at least one segment")
+        has_R = {s.R0 is not None for s in segments}
+        if len(has_R) != 1:
+            raise InputError("either every segment has an orientation or none does")
+        nj = {s.j0.size for s in segments}
+        if len(nj) != 1:
+            raise InputError("every segment must prescribe the same number of joints")
+        for k in range(1, len(segments)):
+            a, b = segments[k - 1], segments[k]
+            scale = max(1.0, float(np.max(np.abs(a.path.end))))
+            if np.linalg.norm(a.path.end - b.path.start) > 1e-9 * scale:
+                raise InputError(f"segment {k} starts at {b.path.start}, segment {k - 1} ends at "
+                                 f"{a.path.end}: the path must be continuous")
+            if a.R1 is not None and np.max(np.abs(a.R1 - b.R0)) > 1e-9:
+                raise InputError(f"segment {k} starts with another orientation than segment "
+                                 f"{k - 1} ends with")
+            if np.max(np.abs(a.j1 - b.j0), initial=0.0) > 1e-12:
+                raise InputError(f"segment {k}: prescribed joints jump at the start")
+        self.segments = segments
+        self.has_orientation = segments[0].R0 is not None
+        self.n_joints_prescribed = segments[0].j0.size
+        self.starts = np.concatenate([[0.0], np.cumsum([s.duration for s in segments])])
+
+    @property
+    def duration(self) -> float:
+        return float(self.starts[-1])
+
+    @property
+    def breaks(self) -> np.ndarray:
+        """Times where one segment ends and the next starts."""
+        return self.starts[1:-1].copy()
+
+    def sample_times(self, dt: float) -> np.ndarray:
+        """A uniform grid from 0 to the duration with a step <= dt (exactly dt when the
+        duration is a multiple of dt)."""
+        dt = float(dt)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise InputError(f"time step must be positive, got {dt!r}")
+        n = int(math.ceil(self.duration / dt - 1e-9)) + 1
+        return np.linspace(0.0, self.duration, max(n, 2))
+
+    def evaluate(self, t) -> CartesianSamples:
+        t = np.asarray(t, dtype=float).reshape(-1)
+        seg = np.clip(np.searchsorted(self.starts, t, side="right") - 1, 0, len(self.segments) - 1)
+        N, k = t.size, self.n_joints_prescribed
+        p, v, a = np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3))
+        R = np.empty((N, 3, 3)) if self.has_orientation else None
+        w = np.empty((N, 3)) if self.has_orientation else None
+        wd = np.empty((N, 3)) if self.has_orientation else None
+        qj, qjd, qjdd = np.empty((N, k)), np.empty((N, k)), np.empty((N, k))
+        for i, s in enumerate(self.segments):
+            sel = seg == i
+            if not sel.any():
+                continue
+            out = s.evaluate(np.clip(t[sel] - self.starts[i], 0.0, s.duration))
+            p[sel], v[sel], a[sel] = out["p"], out["v"], out["a"]
+            if R is not None:
+                R[sel], w[sel], wd[sel] = out["R"], out["w"], out["wd"]
+            qj[sel], qjd[sel], qjdd[sel] = out["qj"], out["qjd"], out["qjdd"]
+        return CartesianSamples(t, p, v, a, R, w, wd, qj, qjd, qjdd, seg)
+
+
+class PathBuilder:
+    """Chain segments from a start pose::
+
+        b = PathBuilder([0.9, 0, 0.9], R=None, joints=[0.0])
+        b.line([0.6, 0.5, 0.6], 2.0).line([0.6, 0.5, 0.35], 1.0, joints=[1.57])
+        b.arc(via, end, 3.0).dwell(0.5)
+        traj = b.build()
+
+    ``R=None`` / ``joints=None`` in a step keep the current orientation / joint values."""
+
+    def __init__(self, start, R=None, joints=(), scaling="quintic"):
+        self.p = _vec3(start, "start")
+        self.R = None if R is None else _rotation(R)
+        self.j = np.atleast_1d(np.asarray(joints, dtype=float)).reshape(-1)
+        self.scaling = _scaling(scaling)
+        self.segments: list[Segment] = []
+
+    def _add(self, path, duration, R, joints, scaling, label):
+        if R is not None and self.R is None:
+            raise InputError("this path has no orientation: give R at the start (PathBuilder(R=...))")
+        R1 = self.R if R is None else _rotation(R)
+        j1 = self.j if joints is None else np.atleast_1d(np.asarray(joints, dtype=float)).reshape(-1)
+        if j1.shape != self.j.shape:
+            raise InputError(f"joints must have {self.j.size} values")
+        self.segments.append(Segment(path, duration, self.scaling if scaling is None else scaling,
+                                     self.R, R1, self.j, j1, label))
+        self.p, self.R, self.j = path.end.copy(), R1, j1
+        return self
+
+    def line(self, end, duration, R=None, joints=None, scaling=None, label=""):
+        return self._add(Line(self.p, end), duration, R, joints, scaling, label or "line")
+
+    def arc(self, via, end, duration, R=None, joints=None, scaling=None, label=""):
+        """Through ``via`` to ``end`` on the circle through the current point, via and end."""
+        arc = Arc.from_three_points(self.p, via, end)
+        return self._add(arc, duration, R, joints, scaling, label or "arc")
+
+    def arc_about(self, center, axis, angle, duration, R=None, joints=None, scaling=None, label=""):
+        """Turn by ``angle`` about ``axis`` through ``center`` (the axis is moved along
+        itself to the current point's plane)."""
+        c = _vec3(center, "center")
+        n = _vec3(axis, "axis")
+        n = n / np.linalg.norm(n)
+        c = c + np.dot(self.p - c, n) * n
+        return self._add(Arc(c, self.p, n, angle), duration, R, joints, scaling, label or "arc")
+
+    def dwell(self, duration, label=""):
+        return self._add(Line(self.p, self.p), duration, None, None, None, label or "dwell")
+
+    def build(self) -> CartesianTrajectory:
+        return CartesianTrajectory(self.segments)
+
+
+# =========================================================================== tasks and IK
+
+
+@dataclass(frozen=True)
+class Task:
+    """What the IK prescribes: base-frame position axes (a subset of "xyz"), optionally the
+    full orientation (three angular rows), and optionally joints by index (0-based), in
+    that row order. The number of rows must not exceed the number of joints."""
+
+    position: str = "xyz"
+    orientation: bool = False
+    joints: tuple = ()
+
+    def __post_init__(self):
+        if not isinstance(self.position, str) or any(c not in _AXES for c in self.position) \
+                or len(set(self.position)) != len(self.position):
+            raise InputError(f"Task position must be distinct letters of 'xyz', got {self.position!r}")
+        object.__setattr__(self, "joints", tuple(int(j) for j in self.joints))
+
+    @property
+    def rows(self) -> int:
+        return len(self.position) + 3 * bool(self.orientation) + len(self.joints)
+
+    @property
+    def axes(self) -> list:
+        return [_AXES.index(c) for c in self.position]
+
+    def check(self, robot):
+        if self.rows == 0:
+            raise InputError("the task prescribes nothing")
+        if self.rows > robot.n:
+            raise InputError(f"the task has {self.rows} rows but {robot.name} only {robot.n} joints")
+        if any(not (0 <= j < robot.n) for j in self.joints):
+            raise InputError(f"task joints must be indices 0..{robot.n - 1}, got {self.joints}")
+
+    def jacobian(self, J):
+        """Task Jacobian (..., m, n) from geometric Jacobians (..., 6, n)."""
+        parts = [J[..., self.axes, :]]
+        if self.orientation:
+            parts.append(J[..., 3:, :])
+        if self.joints:
+            E = np.zeros(J.shape[:-2] + (len(self.joints), J.shape[-1]))
+            for r, j in enumerate(self.joints):
+                E[..., r, j] = 1.0
+            parts.append(E)
+        return np.concatenate(parts, axis=-2)
+
+    def jacobian_dot(self, Jd):
+        parts = [Jd[..., self.axes, :]]
+        if self.orientation:
+            parts.append(Jd[..., 3:, :])
+        if self.joints:
+            parts.append(np.zeros(Jd.shape[:-2] + (len(self.joints), Jd.shape[-1])))
+        return np.concatenate(parts, axis=-2)
+
+    def error(self, T, q, p, R=None, qj=None):
+        """Task error (m,) at pose T (4, 4), joints q: position p - p(q), orientation
+        log(R R(q)^T) (base frame), prescribed joints qj - q[joints]."""
+        parts = [np.asarray(p, dtype=float)[self.axes] - T[self.axes, 3]]
+        if self.orientation:
+            parts.append(rot_log(R @ T[:3, :3].T))
+        if self.joints:
+            parts.append(np.asarray(qj, dtype=float) - q[list(self.joints)])
+        return np.concatenate(parts)
+
+    def velocity(self, cs: CartesianSamples):
+        parts = [cs.v[:, self.axes]]
+        if self.orientation:
+            parts.append(cs.w)
+        if self.joints:
+            parts.append(cs.qjd)
+        return np.concatenate(parts, axis=-1)
+
+    def acceleration(self, cs: CartesianSamples):
+        parts = [cs.a[:, self.axes]]
+        if self.orientation:
+            parts.append(cs.wd)
+        if self.joints:
+            parts.append(cs.qjdd)
+        return np.concatenate(parts, axis=-1)
+
+
+def _solve(Jt, e, damping):
+    """Damped least squares dq = J^T (J J^T + lam^2 I)^-1 e; lam = 0: J^-1 e (square) or the
+    minimum-norm solution."""
+    m = Jt.shape[0]
+    if damping == 0.0:
+        if m == Jt.shape[1]:
+            return np.linalg.solve(Jt, e)
+        return np.linalg.lstsq(Jt, e, rcond=None)[0]
+    A = Jt @ Jt.T
+    lam2 = (damping**2) * max(np.trace(A) / m, 1e-300)
+    return Jt.T @ np.linalg.solve(A + lam2 * np.eye(m), e)
+
+
+def newton_step(robot, q, task: Task, p, R=None, qj=None, damping=0.0):
+    """One Newton step towards the target: ``q + J^-1(q) e(q)`` (the lecture's
+    ``Q = Q0 + J^-1 (P - P0)`` with P0 = f(Q0), slide 109). Returns the new q."""
+    q = np.asarray(q, dtype=float)
+    T = robot.fk(q)
+    e = task.error(T, q, p, R, qj)
+    Jt = task.jacobian(robot.jacobian(q))
+    return q + _solve(Jt, e, damping)
+
+
+def solve_ik(robot, task: Task, p, R=None, qj=None, q_init=None, tol=1e-13, max_iter=50,
+             damping=1e-9):
+    """Damped Newton (Levenberg-Marquardt) from q_init: returns (q, |e|, iterations).
+
+    The damping lam^2 = (damping)^2 * mean(eig(J J^T)) is tiny by default, so the steps are
+    Newton steps away from singularities and stay bounded near them; a step that increases
+    the error is retried with ten times the damping. Converged when |e| <= tol, or when the
+    iteration stalls (|e| no longer halves) below ``floor = max(tol, 1e-3 sqrt(tol))`` (the
+    rounding floor of a large arm); else TrajectoryError."""
+    task.check(robot)
+    if q_init is None:
+        raise InputError("solve_ik needs a start guess q_init (it selects the configuration)")
+    q = np.array(q_init, dtype=float)
+    if q.shape != (robot.n,):
+        raise InputError(f"q_init must have {robot.n} values")
+    floor = max(tol, 1e-3 * math.sqrt(tol))
+    lam = damping
+    T = robot.fk(q)
+    e = task.error(T, q, p, R, qj)
+    err = float(np.linalg.norm(e))
+    it = 0
+    while err > tol and it < max_iter:
+        it += 1
+        Jt = task.jacobian(robot.jacobian(q))
+        for _ in range(12):
+            dq = _solve(Jt, e, lam)
+            q_new = q + dq
+            T_new = robot.fk(q_new)
+            e_new = task.error(T_new, q_new, p, R, qj)
+            err_new = float(np.linalg.norm(e_new))
+            if err_new < err or err_new <= tol:
+                break
+            lam = max(lam * 10.0, 1e-6)
+        else:
+            break  # no decrease even with strong damping: stagnation
+        stalled = err_new >= 0.5 * err
+        q, e, err = q_new, e_new, err_new
+        lam = max(lam * 0.1, damping)
+        if stalled and err <= floor:  # rounding floor reached
+            break
+    if not err <= floor:
+        raise TrajectoryError(f"IK did not converge: |e| = {err:.3g} after {it} iterations")
+    return q, err, it
+
+
+# =========================================================================== joint trajectory
+
+
+def numerical_rates(t, q, breaks=()):
+    """qd, qdd of samples q (N, n) on the uniform grid t (N,) by second-order finite
+    differences: central (q[k+1] - q[k-1]) / 2h and (q[k+1] - 2 q[k] + q[k-1]) / h^2 inside,
+    second-order one-sided formulas at the ends ((-3 q0 + 4 q1 - q2) / 2h and
+    (2 q0 - 5 q1 + 4 q2 - q3) / h^2). ``breaks`` (times): differentiate each piece between
+    breaks on its own (a break sample gets the mean of both one-sided values)."""
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if q.ndim == 1:
+        q = q[:, None]
+    N = t.size
+    if N < 4:
+        raise InputError("numerical differentiation needs at least 4 samples")
+    h = (t[-1] - t[0]) / (N - 1)
+    if np.max(np.abs(np.diff(t) - h)) > 1e-9 * h:
+        raise InputError("numerical_rates needs a uniform time grid")
+    cuts = [0]
+    for b in np.sort(np.atleast_1d(np.asarray(breaks, dtype=float))):
+        i = int(round((b - t[0]) / h))
+        if 0 < i < N - 1 and abs(t[i] - b) <= 1e-9 * max(1.0, abs(b)) + 1e-6 * h:
+            if i - cuts[-1] >= 3 and N - 1 - i >= 3:
+                cuts.append(i)
+    cuts.append(N - 1)
+    qd = np.zeros_like(q)
+    qdd = np.zeros_like(q)
+    count = np.zeros(N)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        x = q[a:b + 1]
+        d1 = np.empty_like(x)
+        d2 = np.empty_like(x)
+        d1[1:-1] = (x[2:] - x[:-2]) / (2 * h)
+        d1[0] = (-3 * x[0] + 4 * x[1] - x[2]) / (2 * h)
+        d1[-1] = (3 * x[-1] - 4 * x[-2] + x[-3]) / (2 * h)
+        d2[1:-1] = (x[2:] - 2 * x[1:-1] + x[:-2]) / h**2
+        d2[0] = (2 * x[0] - 5 * x[1] + 4 * x[2] - x[3]) / h**2
+        d2[-1] = (2 * x[-1] - 5 * x[-2] + 4 * x[-3] - x[-4]) / h**2
+        qd[a:b + 1] += d1
+        qdd[a:b + 1] += d2
+        count[a:b + 1] += 1
+    return qd / count[:, None], qdd / count[:, None]
+
+
+@dataclass
+class JointTrajectory:
+    """The IK solution along a Cartesian trajectory and its rates.
+
+    t (N,), q, qd, qdd (N, n) exact rates from the task Jacobian; qd_num, qdd_num numerical
+    (piecewise between segment joints); task_error (N,) |e| after the IK; iterations (N,)
+    Newton iterations per sample; cartesian: the sampled target."""
+
+    robot: object
+    task: Task
+    trajectory: CartesianTrajectory
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    qd_num: np.ndarray
+    qdd_num: np.ndarray
+    task_error: np.ndarray
+    iterations: np.ndarray
+    cartesian: CartesianSamples
+
+    @property
+    def dt(self) -> float:
+        return float(self.t[1] - self.t[0])
+
+    @property
+    def joint_steps(self) -> np.ndarray:
+        """|q_k - q_(k-1)| per joint (N - 1, n)."""
+        return np.abs(np.diff(self.q, axis=0))
+
+    @property
+    def max_joint_step(self) -> float:
+        return float(self.joint_steps.max())
+
+    def rate_errors(self) -> dict:
+        """Max |exact - numerical| per joint and overall, for qd and qdd."""
+        dqd = np.abs(self.qd - self.qd_num)
+        dqdd = np.abs(self.qdd - self.qdd_num)
+        return {
+            "qd": float(dqd.max()), "qdd": float(dqdd.max()),
+            "qd_per_joint": dqd.max(axis=0), "qdd_per_joint": dqdd.max(axis=0),
+            "qd_peak": float(np.abs(self.qd).max()), "qdd_peak": float(np.abs(self.qdd).max()),
+        }
+
+    def numerical_rates_unsplit(self):
+        """The paper's way without breaks: the whole signal differentiated at once."""
+        return numerical_rates(self.t, self.q)
+
+
+def exact_rates(robot, task: Task, q, cs: CartesianSamples):
+    """qd = J^+ xd and qdd = J^+ (xdd - Jdot qd) with the task Jacobian at q (N, n)."""
+    Jt = task.jacobian(robot.jacobian(q))
+    pinv = np.linalg.pinv(Jt)
+    qd = np.einsum("nij,nj->ni", pinv, task.velocity(cs))
+    Jdt = task.jacobian_dot(robot.jacobian_dot(q, qd))
+    rhs = task.acceleration(cs) - np.einsum("nij,nj->ni", Jdt, qd)
+    qdd = np.einsum("nij,nj->ni", pinv, rhs)
+    return qd, qdd
+
+
+def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, dt=0.01, *,
+                        tol=1e-13, max_iter=30, max_step=0.2, branch=None, limits="raise",
+                        damping=1e-9) -> JointTrajectory:
+    """Inverse kinematics along ``trajectory`` sampled every ``dt`` (or less, see
+    :meth:`CartesianTrajectory.sample_times`), in the configuration of ``q0``.
+
+    ``q0`` is the starting guess for the first sample (a joint vector or the name of one of
+    the robot's configurations); every later sample starts from the previous solutions
+    extrapolated by a quadratic (``3 q_(k-1) - 3 q_(k-2) + q_(k-3)``). Checks (TrajectoryError naming the
+    samples): convergence, ``max |q_k - q_(k-1)| <= max_step`` [rad or m] (no jumps, i.e.
+    no branch flips), ``branch(q) -> bool`` (optional, e.g. elbow up), and the joint limits
+    (``limits="raise"``; ``"ignore"`` skips them)."""
+    task.check(robot)
+    if limits not in ("raise", "ignore"):
+        raise InputError('limits must be "raise" or "ignore"')
+    if task.orientation and not trajectory.has_orientation:
+        raise InputError("the task prescribes the orientation but the trajectory has none")
+    if len(task.joints) != trajectory.n_joints_prescribed:
+        raise InputError(f"the task prescribes {len(task.joints)} joints, the trajectory "
+                         f"{trajectory.n_joints_prescribed}")
+    if isinstance(q0, str):
+        q0 = robot.configuration(q0)
+    q0 = np.asarray(q0, dtype=float)
+    if q0.shape != (robot.n,):
+        raise InputError(f"q0 must have {robot.n} values")
+    t = trajectory.sample_times(dt)
+    cs = trajectory.evaluate(t)
+    N = t.size
+    Q = np.empty((N, robot.n))
+    err = np.empty(N)
+    its = np.zeros(N, dtype=int)
+    guess = q0
+    for k in range(N):
+        R = None if cs.R is None else cs.R[k]
+        try:
+            q, err[k], its[k] = solve_ik(robot, task, cs.p[k], R, cs.qj[k], guess, tol=tol,
+                                         max_iter=max_iter, damping=damping)
+        except TrajectoryError as exc:
+            raise TrajectoryError(f"sample {k} (t = {t[k]:.6g} s): {exc}", [k]) from None
+        if k > 0:
+            step = float(np.max(np.abs(q - Q[k - 1])))
+            if step > max_step:
+                raise TrajectoryError(
+                    f"joint jump of {step:.3g} > max_step = {max_step:g} between samples {k - 1} "
+                    f"and {k} (t = {t[k]:.6g} s): a branch flip or a singularity on the path", [k])
+        Q[k] = q
+        # predictor for the next sample: the quadratic through the last three solutions
+        # (error O(h^3)), so one or two Newton iterations suffice
+        if k >= 2:
+            guess = 3.0 * (q - Q[k - 1]) + Q[k - 2]
+        elif k == 1:
+            guess = 2.0 * q - Q[0]
+        else:
+            guess = q
+    if branch is not None:
+        ok = np.asarray(branch(Q), dtype=bool)
+        if not ok.all():
+            bad = np.flatnonzero(~ok)
+            raise TrajectoryError(f"the branch condition fails at {bad.size} samples (first t = "
+                                  f"{t[bad[0]]:.6g} s)", bad)
+    if limits == "raise":
+        inside = robot.within_limits(Q)
+        if not inside.all():
+            bad = np.flatnonzero(~inside)
+            lim = robot.qlim
+            worst = np.max(np.maximum(lim[:, 0] - Q[bad], Q[bad] - lim[:, 1]), axis=0)
+            raise TrajectoryError(f"joint limits exceeded at {bad.size} samples (first t = "
+                                  f"{t[bad[0]]:.6g} s; overshoot per joint {np.round(worst, 6)})", bad)
+    qd, qdd = exact_rates(robot, task, Q, cs)
+    qd_num, qdd_num = numerical_rates(t, Q, trajectory.breaks)
+    return JointTrajectory(robot, task, trajectory, t, Q, qd, qdd, qd_num, qdd_num, err, its, cs)
+
+
+# =========================================================================== the lecture
+
+
+@dataclass
+class PathFollowingTable:
+    """The lecture's table (slide "Folie 111"): per sub-point k = 0..steps the commanded
+    ("Soll") and reached ("Ist") task coordinates, and the joints; then the further Newton
+    iterations at the target (``converge_*``)."""
+
+    soll: np.ndarray
+    ist: np.ndarray
+    q: np.ndarray
+    converge_ist: np.ndarray
+    converge_q: np.ndarray
+
+    @property
+    def final_error(self) -> float:
+        last = self.converge_ist[-1] if len(self.converge_ist) else self.ist[-1]
+        return float(np.linalg.norm(last - self.soll[-1]))
+
+
+def jacobian_path_following(robot, q0, target, steps=10, task=Task("xy"), converge_tol=1e-12,
+                            max_converge=20) -> PathFollowingTable:
+    """Slides 106-111: the straight line from P0 = f(q0) to ``target`` split into ``steps``
+    equal parts along each axis; per sub-point ONE step ``q += J^-1(q) (P_soll,k+1 - f(q))``
+    with J the task Jacobian at the current q (for the planar SCARA the 2x2 matrix of slide
+    108), then the direct transformation. Afterwards Newton steps at the target itself until
+    ``|P_ist - target| <= converge_tol``."""
+    task.check(robot)
+    if task.orientation or task.joints:
+        raise InputError("jacobian_path_following follows positions only")
+    q = np.array(q0, dtype=float)
+    target = np.asarray(target, dtype=float)
+    axes = task.axes
+
+    def pos(qq):
+        return robot.fk(qq)[axes, 3]
+
+    def full(x):
+        out = np.zeros(3)
+        out[axes] = x
+        return out
+
+    P0 = pos(q)
+    soll = P0 + (target - P0) * (np.arange(steps + 1) / steps)[:, None]
+    soll[-1] = target
+    ist, qs = [P0], [q.copy()]
+    for k in range(1, steps + 1):
+        q = newton_step(robot, q, task, full(soll[k]), damping=0.0)
+        qs.append(q.copy())
+        ist.append(pos(q))
+    c_ist, c_q = [], []
+    for _ in range(max_converge):
+        if np.linalg.norm((c_ist[-1] if c_ist else ist[-1]) - target) <= converge_tol:
+            break
+        q = newton_step(robot, q, task, full(target), damping=0.0)
+        c_q.append(q.copy())
+        c_ist.append(pos(q))
+    return PathFollowingTable(soll, np.array(ist), np.array(qs),
+                              np.array(c_ist).reshape(-1, len(axes)),
+                              np.array(c_q).reshape(-1, robot.n))

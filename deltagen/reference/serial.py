@@ -1,0 +1,351 @@
+"""Independent pure-numpy reference kinematics of serial arms.
+
+This module shares nothing with the SymPy derivation or the generated C core. It builds
+every link transform as a plain product of elementary 4x4 matrices (batched over N poses
+with numpy) and multiplies them along the chain:
+
+* ``standard`` DH (lecture slides 80-84, EASY-ROB paper eq. (2)):
+  ``A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i)``;
+* ``modified`` DH (Craig): ``A_i = Rot_x(alpha_{i-1}) Trans_x(a_{i-1}) Rot_z(theta_i)
+  Trans_z(d_i)``, a row's ``a`` / ``alpha`` being those of the link before the joint;
+* ``universal`` coordinates (EASY-ROB paper eq. (3)):
+  ``D_i = Rot_i(q_i) Trans_x(tx) Trans_y(ty) Trans_z(tz) Rot_x(rx) Rot_y(ry) Rot_z(rz)``
+  with ``Rot_i`` the joint's rotation about (revolute) or translation along (prismatic)
+  its ``axis``.
+
+The joint variable enters as ``q_i + offset_i`` (revolute: theta / the axis rotation;
+prismatic: d / the translation along the axis) and ``T = base A_1 ... A_n tool``.
+
+Velocities use the geometric construction: every joint axis (unit direction ``w_i`` and,
+for a revolute joint, a point ``o_i`` on it) is fixed in the link before the joint (see
+:func:`joint_axes`), so the tool-point Jacobian
+column is ``[w_i x (p_e - o_i); w_i]`` (revolute) or ``[w_i; 0]`` (prismatic). Its time
+derivative follows from differentiating these column formulas with the angular velocity
+``Omega_{i-1}`` of the link that carries axis i and the velocity of the point ``o_i``:
+
+* ``dw_i/dt = Omega_{i-1} x w_i`` with ``Omega_{i-1} = sum_{j<i, revolute} w_j qd_j``;
+* ``do_i/dt = sum_{j<i} (revolute: w_j x (o_i - o_j), prismatic: w_j) qd_j``;
+* ``dp_e/dt = J_v qd``.
+
+In the tool frame, ``J_tool = R^T J`` (both halves) and, with ``omega_e`` the tool's
+angular velocity, ``dJ_tool/dt = R^T (dJ/dt - omega_e x J)`` (both halves).
+
+Status (int8, :mod:`deltagen.status`): INVALID for rows with any non-finite input value
+(their outputs are NaN), OK otherwise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from deltagen.inputs import InputError, as_float_array
+from deltagen.status import INVALID, OK
+
+__all__ = [
+    "link_transforms",
+    "frames",
+    "fk",
+    "joint_axes",
+    "jacobian",
+    "jacobian_dot",
+    "euler_zyx",
+    "rpy",
+]
+
+_AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+# ----------------------------------------------------------------- elementary matrices
+
+
+def _eye(N: int) -> np.ndarray:
+    return np.broadcast_to(np.eye(4), (N, 4, 4)).copy()
+
+
+def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) rotations about coordinate axis 0/1/2 by ``angle`` (N,)."""
+    angle = np.asarray(angle, dtype=np.float64)
+    M = _eye(angle.shape[0])
+    c, s = np.cos(angle), np.sin(angle)
+    j, k = [(1, 2), (2, 0), (0, 1)][axis]  # right-handed cyclic pair
+    M[:, j, j] = c
+    M[:, j, k] = -s
+    M[:, k, j] = s
+    M[:, k, k] = c
+    return M
+
+
+def _trans(axis: int, dist: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) translations along coordinate axis 0/1/2 by ``dist`` (N,)."""
+    dist = np.asarray(dist, dtype=np.float64)
+    M = _eye(dist.shape[0])
+    M[:, axis, 3] = dist
+    return M
+
+
+def _product(*mats: np.ndarray) -> np.ndarray:
+    out = mats[0]
+    for M in mats[1:]:
+        out = np.matmul(out, M)
+    return out
+
+
+# ------------------------------------------------------------------------ input helpers
+
+
+def _check_q(desc, q, name="q") -> np.ndarray:
+    arr = as_float_array(q, name)
+    if arr.ndim != 2 or arr.shape[1] != desc.n:
+        raise InputError(f"{name} must have shape (N, {desc.n}) for this arm, got {arr.shape}")
+    return arr
+
+
+def _split_invalid(*arrays):
+    """(bad rows mask, sanitised copies with bad rows zeroed)."""
+    N = arrays[0].shape[0]
+    bad = np.zeros(N, dtype=bool)
+    for a in arrays:
+        bad |= ~np.all(np.isfinite(a), axis=1)
+    clean = []
+    for a in arrays:
+        c = np.array(a, dtype=np.float64, copy=True)
+        c[bad] = 0.0
+        clean.append(c)
+    return bad, clean
+
+
+def _status(bad: np.ndarray) -> np.ndarray:
+    st = np.full(bad.shape[0], OK, dtype=np.int8)
+    st[bad] = INVALID
+    return st
+
+
+# ------------------------------------------------------------------------- transforms
+
+
+def _link(desc, i: int, qi: np.ndarray) -> np.ndarray:
+    j = desc.joints[i]
+    N = qi.shape[0]
+    var = qi + j.offset
+    const = np.full(N, 0.0)
+    if desc.convention == "standard":
+        theta = var if j.revolute else const + j.theta
+        d = const + j.d if j.revolute else var
+        return _product(_rot(2, theta), _trans(2, d),
+                        _trans(0, const + j.a), _rot(0, const + j.alpha))
+    if desc.convention == "modified":
+        theta = var if j.revolute else const + j.theta
+        d = const + j.d if j.revolute else var
+        return _product(_rot(0, const + j.alpha), _trans(0, const + j.a),
+                        _rot(2, theta), _trans(2, d))
+    if desc.convention == "universal":
+        ax = _AXIS[j.axis]
+        motion = _rot(ax, var) if j.revolute else _trans(ax, var)
+        return _product(
+            motion,
+            _trans(0, const + j.tx), _trans(1, const + j.ty), _trans(2, const + j.tz),
+            _rot(0, const + j.rx), _rot(1, const + j.ry), _rot(2, const + j.rz),
+        )
+    raise ValueError(f"unknown convention {desc.convention!r}")  # pragma: no cover
+
+
+def link_transforms(desc, q) -> list:
+    """A_i(q_i) per the description's convention: a list of n arrays (N, 4, 4).
+
+    Rows with non-finite joint values give NaN matrices.
+    """
+    q = _check_q(desc, q)
+    bad, (qc,) = _split_invalid(q)
+    out = []
+    for i in range(desc.n):
+        A = _link(desc, i, qc[:, i])
+        A[bad] = np.nan
+        out.append(A)
+    return out
+
+
+def _frames_clean(desc, qc: np.ndarray) -> np.ndarray:
+    N, n = qc.shape
+    F = np.empty((N, n + 2, 4, 4))
+    F[:, 0] = desc.base
+    for i in range(n):
+        F[:, i + 1] = np.matmul(F[:, i], _link(desc, i, qc[:, i]))
+    F[:, n + 1] = np.matmul(F[:, n], desc.tool)
+    return F
+
+
+def frames(desc, q):
+    """(F (N, n+2, 4, 4), status): F[:, 0] = base, F[:, i] = base A_1 ... A_i,
+    F[:, n+1] = F[:, n] tool."""
+    q = _check_q(desc, q)
+    bad, (qc,) = _split_invalid(q)
+    F = _frames_clean(desc, qc)
+    F[bad] = np.nan
+    return F, _status(bad)
+
+
+def fk(desc, q):
+    """(T (N, 4, 4), status): the tool pose base A_1 ... A_n tool."""
+    F, status = frames(desc, q)
+    return np.ascontiguousarray(F[:, -1]), status
+
+
+def _axes_from_frames(desc, F: np.ndarray, qc: np.ndarray):
+    """Joint-axis points and unit directions (N, n, 3) in the base frame."""
+    N, n = qc.shape
+    origins = np.empty((N, n, 3))
+    axes = np.empty((N, n, 3))
+    for i, j in enumerate(desc.joints):
+        if desc.convention == "standard":
+            M = F[:, i]  # frame i-1: joint i moves about / along z_{i-1}
+            c = 2
+        elif desc.convention == "modified":
+            # frame i = frame i-1 Rot_x(alpha) Trans_x(a) Rot_z(theta_i) Trans_z(d_i): z_i and
+            # the origin of frame i lie on joint i's axis (for a revolute joint that origin is
+            # fixed in link i-1, since d_i is constant).
+            M = F[:, i + 1]
+            c = 2
+        else:  # universal: the axis of the frame in which Rot_i acts (base D_1 ... D_{i-1})
+            M = F[:, i]
+            c = _AXIS[j.axis]
+        origins[:, i] = M[:, :3, 3]
+        axes[:, i] = M[:, :3, c]
+    return origins, axes
+
+
+def joint_axes(desc, q):
+    """(origins (N, n, 3), axes (N, n, 3)) of the joint motion axes in the base frame.
+
+    standard DH: origin and z of frame i-1; modified DH: origin and z of frame i;
+    universal: origin and ``axis`` of base D_1 ... D_{i-1}. Non-finite rows are NaN.
+    """
+    q = _check_q(desc, q)
+    bad, (qc,) = _split_invalid(q)
+    F = _frames_clean(desc, qc)
+    origins, axes = _axes_from_frames(desc, F, qc)
+    origins[bad] = np.nan
+    axes[bad] = np.nan
+    return origins, axes
+
+
+# ------------------------------------------------------------------------- velocities
+
+
+def _check_frame(frame: str) -> str:
+    if frame not in ("base", "tool"):
+        raise InputError(f'frame must be "base" or "tool", got {frame!r}')
+    return frame
+
+
+def _revolute_mask(desc) -> np.ndarray:
+    return np.array([j.revolute for j in desc.joints], dtype=bool)
+
+
+def _jacobian_parts(desc, qc: np.ndarray):
+    """Base-frame J (N, 6, n) plus the pieces jacobian_dot needs."""
+    F = _frames_clean(desc, qc)
+    o, w = _axes_from_frames(desc, F, qc)
+    T = F[:, -1]
+    p = T[:, :3, 3]
+    rev = _revolute_mask(desc)
+    N, n = qc.shape
+    J = np.zeros((N, 6, n))
+    lin_rev = np.cross(w, p[:, None, :] - o)  # (N, n, 3)
+    J[:, :3, :] = np.where(rev[None, :, None], lin_rev, w).transpose(0, 2, 1)
+    J[:, 3:, :] = np.where(rev[None, :, None], w, 0.0).transpose(0, 2, 1)
+    return J, T, o, w, p, rev
+
+
+def jacobian(desc, q, frame: str = "base"):
+    """(J (N, 6, n), status): geometric Jacobian of the tool point, rows vx vy vz wx wy wz.
+
+    ``frame="tool"`` expresses the same twist in the tool frame (R^T on both halves).
+    """
+    _check_frame(frame)
+    q = _check_q(desc, q)
+    bad, (qc,) = _split_invalid(q)
+    J, T, *_ = _jacobian_parts(desc, qc)
+    if frame == "tool":
+        J = _to_tool(J, T[:, :3, :3])
+    J[bad] = np.nan
+    return J, _status(bad)
+
+
+def _to_tool(X: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """R^T applied to both 3-row halves of (N, 6, n)."""
+    out = np.empty_like(X)
+    out[:, :3] = np.einsum("nji,njk->nik", R, X[:, :3])
+    out[:, 3:] = np.einsum("nji,njk->nik", R, X[:, 3:])
+    return out
+
+
+def jacobian_dot(desc, q, qd, frame: str = "base"):
+    """(Jd (N, 6, n), status): time derivative of :func:`jacobian` along qd.
+
+    Analytic differentiation of the column formulas (see the module docstring).
+    """
+    _check_frame(frame)
+    q = _check_q(desc, q)
+    qd = _check_q(desc, qd, "qd")
+    if q.shape != qd.shape:
+        raise InputError(f"q and qd must have the same shape, got {q.shape} and {qd.shape}")
+    bad, (qc, qdc) = _split_invalid(q, qd)
+    J, T, o, w, p, rev = _jacobian_parts(desc, qc)
+    N, n = qc.shape
+
+    # Angular velocity of link i-1 (the link carrying axis i): revolute j < i.
+    wq = w * (qdc * rev[None, :])[:, :, None]  # (N, n, 3): w_j qd_j for revolute j
+    Omega = np.cumsum(wq, axis=1) - wq  # exclusive prefix sum: sum over j < i
+    lower = np.tril(np.ones((n, n), dtype=bool), k=-1)  # [i, j] = j < i
+
+    # Velocity of point o_i (fixed in link i-1): contributions of every joint j < i.
+    diff = o[:, :, None, :] - o[:, None, :, :]  # (N, i, j, 3) = o_i - o_j
+    w_j = np.broadcast_to(w[:, None, :, :], diff.shape)
+    contrib = np.where(rev[None, None, :, None], np.cross(w_j, diff), w_j)
+    contrib = contrib * (qdc[:, None, :, None] * lower[None, :, :, None])
+    o_dot = contrib.sum(axis=2)  # (N, n, 3)
+
+    p_dot = np.einsum("nkj,nj->nk", J[:, :3], qdc)  # (N, 3)
+    w_dot = np.cross(Omega, w)  # (N, n, 3)
+
+    top_rev = np.cross(w_dot, p[:, None, :] - o) + np.cross(w, p_dot[:, None, :] - o_dot)
+    Jd = np.zeros((N, 6, n))
+    Jd[:, :3] = np.where(rev[None, :, None], top_rev, w_dot).transpose(0, 2, 1)
+    Jd[:, 3:] = np.where(rev[None, :, None], w_dot, 0.0).transpose(0, 2, 1)
+
+    if frame == "tool":
+        omega_e = wq.sum(axis=1)  # (N, 3)
+        corr = np.empty_like(J)
+        corr[:, :3] = np.cross(omega_e[:, None, :], J[:, :3].transpose(0, 2, 1)).transpose(0, 2, 1)
+        corr[:, 3:] = np.cross(omega_e[:, None, :], J[:, 3:].transpose(0, 2, 1)).transpose(0, 2, 1)
+        Jd = _to_tool(Jd - corr, T[:, :3, :3])
+    Jd[bad] = np.nan
+    return Jd, _status(bad)
+
+
+# ------------------------------------------------------------------------- orientation
+
+
+def euler_zyx(R) -> np.ndarray:
+    """(..., 3, 3) -> (..., 3) angles (psi, theta, phi) after Vukobratovic (lecture
+    slide 89): R = Rot_z(psi) Rot_y(theta) Rot_x(phi)::
+
+        psi   = atan2(a21, a11)
+        theta = atan2(-a31, a11 cos psi + a21 sin psi)
+        phi   = atan2(a32, a33)
+    """
+    R = np.asarray(R, dtype=np.float64)
+    if R.ndim < 2 or R.shape[-2:] != (3, 3):
+        raise InputError(f"R must have shape (..., 3, 3), got {R.shape}")
+    a11, a21, a31 = R[..., 0, 0], R[..., 1, 0], R[..., 2, 0]
+    a32, a33 = R[..., 2, 1], R[..., 2, 2]
+    psi = np.arctan2(a21, a11)
+    theta = np.arctan2(-a31, a11 * np.cos(psi) + a21 * np.sin(psi))
+    phi = np.arctan2(a32, a33)
+    return np.stack([psi, theta, phi], axis=-1)
+
+
+def rpy(R) -> np.ndarray:
+    """(..., 3, 3) -> (..., 3) (roll, pitch, yaw) with R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll),
+    i.e. :func:`euler_zyx` reversed."""
+    return euler_zyx(R)[..., ::-1].copy()

@@ -1,0 +1,771 @@
+"""Numerical inverse kinematics of serial arms: batched, damped Newton-Raphson.
+
+The method is the iteration of the EASY-ROB paper (seed 003, "Numerisches Loesungsverfahren
+zur inversen Transformation", steps 1-6) and of the lecture's Jacobian method (seed 002,
+slides 106-110), vectorised over N targets (no Python loop over targets):
+
+1. given the target pose T* (position p*, rotation R*), find q with fk(q) = T*;
+2. evaluate T = fk(q) and the Jacobian J(q);
+3. error dx = [p* - p; w] in the base frame, where w = theta * axis is the rotation vector
+   (axis-angle) of R* R^T, the rotation that still has to be applied to the tool (its
+   norm theta is the rotation error, exact also near theta = pi);
+4. solve J dq = dx on the selected rows ("mask"), limit dq;
+5. q <- q + dq (wrapped by 2 pi / clamped into the joint limits), T = fk(q);
+6. stop when |p* - p| <= tol_position [m] and |w| <= tol_rotation [rad], else go to 2.
+
+Jacobian sources (``jacobian=``), the seed's three methods:
+
+* ``"symbolic"``  -- the generated C geometric Jacobian (the SymPy derivation, i.e. the
+  "analytic derivative" route), ``arm._core.jacobian``;
+* ``"geometric"`` -- the cross-product method, computed HERE from the frames of the arm
+  (``arm._core.frames``): column i is [w_i x (p - o_i); w_i] for a revolute joint and
+  [w_i; 0] for a prismatic one, w_i / o_i the joint axis direction / a point on it
+  (standard DH: z and origin of frame i-1; modified DH: of frame i; universal: the joint's
+  ``axis`` column of base D_1 ... D_{i-1}). It does not use the C Jacobian;
+* ``"fd"``        -- central finite differences of fk alone (the seed's "general method",
+  for chains with couplings): v_i = (p(q + h e_i) - p(q - h e_i)) / 2h and
+  [w_i]x = skew((R(q + h e_i) - R(q - h e_i)) R^T) / 2h, h = 2^-17.
+
+Solving J dq = dx (per row, batched), with k = number of matched components:
+
+* n == k (e.g. a 6-axis arm, all six components), well-conditioned (sigma_min >=
+  ``SIGMA_WELL`` = 1e-2) and the damping negligible (lambda <= 1e-3 sigma_min, i.e. it
+  would change the step by less than 1e-6 relative; true in the final, quadratically
+  convergent steps): Gauss elimination, ``np.linalg.solve`` (the seed's choice for
+  m = n = 6);
+* otherwise the singular value decomposition J = U S V^T and the damped pseudo-inverse
+  dq = V diag(s / (s^2 + lambda^2)) U^T dx. With lambda = 0 this is the Moore-Penrose
+  pseudo-inverse: the minimum-norm step for redundant arms (n > k, the seed's "SVD for
+  m > 6") and the least-squares step for n < k. For n > k an optional null-space term
+  ``null_space * min(1, |dx|) * (I - J^+ J) (q_mid - q)`` pulls towards the middle of the
+  joint ranges while the error is large (it fades out with |dx|, so the final steps stay
+  quadratic; its effect on where the solution lands is therefore modest).
+
+Damping (``damping="auto"``: Levenberg-Marquardt with a singularity-robust term):
+lambda^2 = (mu + c0 + K (1 - (sigma_min / SIGMA_WELL)^2)_+) * |dx|^2, c0 = 0.1, K = 1.
+The K term is the Nakamura-Hanafusa rule (damping grows as sigma_min falls below a
+threshold); mu is the row's Levenberg-Marquardt parameter (0 at the start, raised x10 /
+at least to 1e-2 when a step is rejected, lowered /10 when one is accepted). All terms
+are scaled by the squared error (Yamashita-Fukushima): the damping vanishes at the
+solution, so the iteration stays fast even at singular solutions (the Puma wrist at
+q5 = 0), where a constant damping would stall the weak direction at ~lambda^2-relative
+accuracy. ``damping=<float c>``: the same with K = c. ``damping=None``: plain
+Newton-Raphson as in the seed (no damping, every step taken, singular values below
+1e-12 sigma_max dropped).
+
+Step acceptance (with damping): non-monotone (Zhang-Hager): a step is taken if the new
+|dx| = sqrt(|dp|^2 + |w|^2) (matched components, m and rad) is below C, the running
+average C <- (eta Q C + |dx|) / (eta Q + 1), Q <- eta Q + 1 of the accepted errors
+(eta = ``ETA`` = 0.95; eta = 0 is the monotone rule |dx_new| < |dx|). Allowing a
+temporary rise lets the iteration leave the curved valleys near singular configurations
+(an elbow stretched at the workspace boundary) where a monotone rule creeps for hundreds
+of steps. The q returned for an unconverged row is the best one seen.
+
+Step limiting: dq is scaled so that max_i |dq_i| <= ``step_limit`` (rad or m).
+
+Joint limits (``respect_limits=True``; the result is always within arm.qlim):
+
+* a revolute joint outside its range is shifted by a multiple of 2 pi wherever that
+  brings it inside (the same pose);
+* each attempt (the first one from q0) first iterates with the limits unenforced (2 pi
+  shifts only) -- Newton's basins are larger without clamping -- and checks the limits
+  once |dx| <= max(tol, 1e-9) per component. If that solution is outside the limits,
+  the attempt goes back to its start point (clamped into the limits) and iterates again
+  with the limits enforced: after every step clamp, and joints that a step would push
+  through a limit are set onto it while the remaining joints solve for the rest of dx
+  (one active-set pass, a second SVD for those rows). Restarting the limited phase from
+  the start rather than from the clamped out-of-range solution converged more often
+  (Puma 560 from qz, no restarts: 72 vs 68 %);
+* a row that is stuck ends its attempt: mu above 1e12 (no step is accepted any more),
+  or, when a restart is left, |dx| not halved over 8 steps (24 in the attempt from the
+  caller's q0, usually the informed one: a slow but converging start near a singularity
+  is not given up early) -- at a limit or in a local minimum. With ``restarts`` > 0 it
+  starts again from a random q, uniform in qlim (unlimited revolute joints in
+  [-pi, pi], unlimited prismatic ones in [-1, 1] m), drawn from
+  ``np.random.default_rng(seed)``. Each attempt has at most ``max_iter`` steps; rows still
+  unconverged after the last attempt return the best in-limit q found, converged False.
+
+A 6-axis arm has up to 8 (16) isolated solutions and often only one or two lie inside the
+limits; a random start reaches one of them with probability ~0.1-0.9 depending on the
+target, so global success from an arbitrary start needs restarts (tens for 100 % on
+1000 random targets); from a start near the solution one attempt suffices.
+
+Mask ("tool fitting", seed 003, for arms with fewer than 6 axes): 6 booleans for the
+components (vx vy vz wx wy wz) to match; the others are ignored. Default: all six if
+n >= 6; for n < 6 the components the arm can move at all, i.e. the rows of the Jacobian
+(of the chosen source) that are not identically zero (max |J_row| <= 1e-9 max |J|; 1e-6
+for "fd") over 32 random in-limit configurations. A SCARA (manutec_h5, bosch_sr800) gets
+vx vy vz wz (position + rotation about z); the planar 2R lecture_scara gets vx vy wz
+(three components for two joints: a least-squares fit that converges for targets of the
+form fk(q); give mask=(1,1,0,0,0,0) for position only). With wz the only rotation
+component, the z component of the rotation vector of R* R^T is driven to zero: the
+tool's rotation about the base z axis is fitted, a tilt of the target's tool axis (which
+such an arm cannot follow) is ignored. position_error / rotation_error measure the
+matched components only.
+
+Invalid input rows (any non-finite value in T or q0) are not iterated: converged False,
+q, position_error and rotation_error NaN, iterations 0. Nothing warns: floating-point
+errors are suppressed inside and every array is finite on the rows that are iterated.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from deltagen import status as st
+from deltagen.inputs import InputError, as_float_array
+
+__all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
+
+JACOBIANS = ("symbolic", "geometric", "fd")
+ENGINES = ("auto", "c", "numpy")
+SIGMA_WELL = 1e-2       # sigma_min below this: damping grows (Nakamura-Hanafusa threshold)
+BASE_DAMPING = 0.1      # c0: lambda^2 >= c0 |dx|^2 always
+GAUSS_REL = 1e-3        # Gauss elimination when lambda <= GAUSS_REL * sigma_min (and n == k)
+MU_START = 1e-2         # LM parameter after the first rejected step
+MU_MAX = 1e12           # LM parameter above which the attempt counts as stuck
+STALL_WINDOW = 8        # steps over which |dx| must at least halve (else stuck)
+FIRST_WINDOW_FACTOR = 3  # ... times this for the attempt from the caller's q0
+FD_STEP = 2.0 ** -17    # central-difference step (~ eps^(1/3))
+ACTIVE_SET = True       # re-solve without the joints a step pushes through a limit
+ETA = 0.95              # non-monotone acceptance weight (Zhang-Hager); 0: monotone
+PHASE2_FROM_START = True  # the limited phase restarts from the attempt's start point
+FREE_CHECK = 1e-9        # free phase: limits checked once |dx| <= max(tol, this)
+FREE_FIRST = True       # each attempt starts with the limits unenforced (module docstring)
+_RCOND = 1e-12
+_AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass
+class IKResult:
+    """Result of :func:`solve`, shaped like the targets' leading dimensions.
+
+    q: (..., n) joint values (the solution, or the best q found for unconverged rows);
+    converged: (...) bool; iterations: (...) Newton steps used over all attempts;
+    position_error [m] and rotation_error [rad]: (...) norms of the matched (masked)
+    components of p* - p and of the rotation vector of R* R^T at q; mask: the (6,) bool
+    mask used (vx vy vz wx wy wz).
+    """
+
+    q: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    position_error: np.ndarray
+    rotation_error: np.ndarray
+    mask: np.ndarray
+
+    def __repr__(self):
+        conv = np.asarray(self.converged)
+        return (f"IKResult({int(conv.sum())} of {conv.size} converged, "
+                f"max iterations {int(np.max(self.iterations, initial=0))})")
+
+
+# ------------------------------------------------------------------------------ geometry
+
+
+def rotation_vector(R: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations -> (N, 3) rotation vectors theta * axis (the matrix logarithm).
+
+    theta = atan2(|v|, (tr R - 1) / 2) with v = vee(R - R^T) / 2 = sin(theta) axis. For
+    theta <= pi/2 the axis is v / |v| (v itself when |v| is tiny: exact to first order);
+    for theta > pi/2 it comes from the symmetric part, (R + R^T)/2 = c I + (1 - c) a a^T,
+    column of the largest diagonal entry, with the sign of v (accurate up to theta = pi).
+    """
+    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
+                        R[:, 1, 0] - R[:, 0, 1]], axis=-1)
+    c = np.clip(0.5 * (R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0), -1.0, 1.0)
+    s = np.linalg.norm(v, axis=-1)
+    theta = np.arctan2(s, c)
+    small = s < 1e-300
+    factor = np.where(small, 1.0, theta / np.where(small, 1.0, s))
+    out = v * factor[:, None]
+    big = c < 0.0
+    if np.any(big):
+        Rb, cb, vb, tb = R[big], c[big], v[big], theta[big]
+        S = 0.5 * (Rb + np.swapaxes(Rb, 1, 2)) - cb[:, None, None] * np.eye(3)
+        S = S / (1.0 - cb)[:, None, None]  # = a a^T
+        k = np.argmax(np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2]], axis=-1), axis=-1)
+        a = S[np.arange(len(k)), :, k]
+        a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+        sign = np.where(np.einsum("ij,ij->i", a, vb) < 0.0, -1.0, 1.0)
+        out[big] = a * (sign * tb)[:, None]
+    return out
+
+
+def pose_error(T_current: np.ndarray, T_target: np.ndarray, mask=None) -> np.ndarray:
+    """(N, 6): [p* - p; rotation vector of R* R^T] in the base frame; components outside
+    ``mask`` set to 0."""
+    e = np.empty(T_current.shape[:1] + (6,))
+    e[:, :3] = T_target[:, :3, 3] - T_current[:, :3, 3]
+    e[:, 3:] = rotation_vector(T_target[:, :3, :3] @ np.swapaxes(T_current[:, :3, :3], 1, 2))
+    if mask is not None:
+        e[:, ~np.asarray(mask, dtype=bool)] = 0.0
+    return e
+
+
+def _geometric_jacobian(arm, q: np.ndarray) -> np.ndarray:
+    """Cross-product Jacobian from the frames (see the module docstring)."""
+    desc = arm.description
+    F, _ = arm._core.frames(q)
+    N, n = q.shape
+    idx = np.arange(n)
+    if desc.convention == "modified":
+        M = F[:, idx + 1]
+        cols = np.full(n, 2)
+    elif desc.convention == "standard":
+        M = F[:, idx]
+        cols = np.full(n, 2)
+    else:
+        M = F[:, idx]
+        cols = np.array([_AXIS[j.axis] for j in desc.joints])
+    o = M[:, :, :3, 3]                          # (N, n, 3) points on the axes
+    w = np.einsum("nkij,kj->nki", M[:, :, :3, :], np.eye(4)[cols])  # (N, n, 3) directions
+    p = F[:, -1, :3, 3]
+    rev = np.array([j.revolute for j in desc.joints])
+    J = np.empty((N, 6, n))
+    J[:, :3] = np.where(rev[None, :, None], np.cross(w, p[:, None, :] - o), w).transpose(0, 2, 1)
+    J[:, 3:] = np.where(rev[None, :, None], w, 0.0).transpose(0, 2, 1)
+    return J
+
+
+def _fd_jacobian(arm, q: np.ndarray) -> np.ndarray:
+    N, n = q.shape
+    h = FD_STEP
+    Q = np.repeat(q[:, None, None, :], 2, axis=1).repeat(n, axis=2)  # (N, 2, n, n)
+    eye = np.eye(n) * h
+    Q[:, 0] += eye
+    Q[:, 1] -= eye
+    Tpm, _ = arm._core.fk(np.ascontiguousarray(Q.reshape(-1, n)))
+    Tpm = Tpm.reshape(N, 2, n, 4, 4)
+    T0, _ = arm._core.fk(q)
+    Tp, Tm = Tpm[:, 0], Tpm[:, 1]
+    J = np.empty((N, 6, n))
+    J[:, :3] = ((Tp[..., :3, 3] - Tm[..., :3, 3]) / (2 * h)).transpose(0, 2, 1)
+    D = (Tp[..., :3, :3] - Tm[..., :3, :3]) @ np.swapaxes(T0[:, None, :3, :3], -1, -2)
+    D = D / (2 * h)
+    wv = 0.5 * np.stack([D[..., 2, 1] - D[..., 1, 2], D[..., 0, 2] - D[..., 2, 0],
+                         D[..., 1, 0] - D[..., 0, 1]], axis=-1)  # (N, n, 3)
+    J[:, 3:] = wv.transpose(0, 2, 1)
+    return J
+
+
+def jacobian(arm, q, source: str = "symbolic") -> np.ndarray:
+    """Base-frame geometric Jacobian (N, 6, n) of finite q (N, n) from one of the sources
+    "symbolic" (generated C), "geometric" (cross products of the frames) or "fd"
+    (central differences of fk)."""
+    if source not in JACOBIANS:
+        raise InputError(f"jacobian must be one of {JACOBIANS}, got {source!r}")
+    q = as_float_array(q, "q")
+    if q.shape[-1] != arm.n:
+        raise InputError(f"q must have shape (..., {arm.n}) for {arm.name}, got {q.shape}")
+    q = np.ascontiguousarray(q.reshape(-1, arm.n))
+    if source == "symbolic":
+        return arm._core.jacobian(q)[0]
+    if source == "geometric":
+        return _geometric_jacobian(arm, q)
+    return _fd_jacobian(arm, q)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _sample_box(arm):
+    """Finite (lo, hi) boxes for random starts."""
+    lim = arm.qlim
+    rev = np.array([j.revolute for j in arm.description.joints])
+    width = np.where(rev, 2 * np.pi, 2.0)
+    lo, hi = lim[:, 0].copy(), lim[:, 1].copy()
+    lo_f, hi_f = np.isfinite(lo), np.isfinite(hi)
+    lo = np.where(lo_f, lo, np.where(hi_f, hi - width, -width / 2))
+    hi = np.where(hi_f, hi, lo + width)
+    return lo, hi
+
+
+def default_mask(arm, source: str = "symbolic") -> np.ndarray:
+    """The default components to match (see the module docstring)."""
+    if arm.n >= 6:
+        return np.ones(6, dtype=bool)
+    lo, hi = _sample_box(arm)
+    rng = np.random.default_rng(20240601)
+    q = lo + (hi - lo) * rng.random((32, arm.n))
+    J = jacobian(arm, q, source)
+    size = np.max(np.abs(J), axis=(0, 2))
+    rel = 1e-6 if source == "fd" else 1e-9  # fd rows carry ~1e-11 relative noise
+    return size > rel * max(float(np.max(size)), 1e-300)
+
+
+def _check_mask(mask) -> np.ndarray:
+    m = np.asarray(mask)
+    if m.shape != (6,) or not (m.dtype.kind in "biu" and np.all((m == 0) | (m == 1))):
+        raise InputError("mask must be 6 booleans (vx vy vz wx wy wz)")
+    m = m.astype(bool)
+    if not m.any():
+        raise InputError("mask selects no pose component")
+    return m
+
+
+def _is_real(x) -> bool:
+    return (isinstance(x, (int, float, np.integer, np.floating))
+            and not isinstance(x, (bool, np.bool_)))
+
+
+def _check_tol(tol):
+    try:
+        t = np.asarray(tol, dtype=float)
+        t = np.broadcast_to(t, (2,)) if t.ndim <= 1 else None
+    except (TypeError, ValueError):
+        t = None
+    if t is None or not np.all(np.isfinite(t)) or np.any(t < 0):
+        raise InputError("tol must be a finite value >= 0 or a pair (position [m], rotation [rad])")
+    return float(t[0]), float(t[1])
+
+
+class _Limits:
+    def __init__(self, arm, respect):
+        lim = arm.qlim
+        self.lo, self.hi = lim[:, 0], lim[:, 1]
+        self.respect = respect
+        rev = np.array([j.revolute for j in arm.description.joints])
+        self.wrap = rev & np.isfinite(self.lo) & np.isfinite(self.hi)
+        self.mid = np.where(np.isfinite(self.lo) & np.isfinite(self.hi),
+                            0.5 * (self.lo + self.hi), np.nan)
+
+    def wrap_only(self, q):
+        """q with out-of-range revolute joints shifted by 2 pi where that brings them in."""
+        if not self.respect:
+            return q
+        two_pi = 2 * np.pi
+        below, above = q < self.lo, q > self.hi
+        if not (below.any() or above.any()):
+            return q
+        k = np.where(below, np.ceil((self.lo - q) / two_pi), 0.0)
+        k = np.where(above, -np.ceil((q - self.hi) / two_pi), k)
+        q2 = q + two_pi * k
+        use = (below | above) & self.wrap & (q2 >= self.lo) & (q2 <= self.hi)
+        return np.where(use, q2, q)
+
+    def apply(self, q):
+        if not self.respect:
+            return q
+        return np.clip(self.wrap_only(q), self.lo, self.hi)
+
+
+# ------------------------------------------------------------------------------- solve
+
+
+def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symbolic",
+          damping="auto", step_limit=0.5, respect_limits=True, restarts=0, seed=0,
+          null_space=0.0, engine="auto") -> IKResult:
+    """Joint values q with fk(q) = T for a batch of target poses (module docstring).
+
+    arm: a SerialRobot (its raw batched backend ``arm._core`` is used).
+    T: (..., 4, 4) targets (only the rotation block and the position column are used).
+    q0: (n,) or (..., n) start, broadcast against T's leading shape; None: the arm's "qz"
+    configuration if it has one, else zeros.
+    tol: one value for both, or (position [m], rotation [rad]).
+    max_iter: Newton steps per attempt.
+    mask: 6 booleans vx vy vz wx wy wz (default: see the module docstring).
+    jacobian: "symbolic" | "geometric" | "fd".
+    damping: "auto" | float >= 0 (the Nakamura-Hanafusa weight K) | None (plain Newton).
+    step_limit: max |dq_i| per step [rad or m] (None: unlimited).
+    respect_limits: keep q in arm.qlim (always True for the returned q then).
+    restarts: extra attempts from random in-limit starts for unconverged rows; seed: their
+    random generator's seed (results are reproducible).
+    null_space: gain of the pull towards mid-range (redundant case n > k only).
+    engine: "c" (the compiled Newton routine <arm>_ik_newton; restarts drawn here), "numpy"
+    (the batched numpy iteration), or "auto": "c" when it applies -- the compiled
+    backend, jacobian="symbolic", damping not None, null_space == 0 -- else "numpy".
+
+    Returns an :class:`IKResult` shaped like T's leading dimensions; invalid rows (any
+    non-finite value in T or q0) come back NaN and unconverged, nothing raises or warns
+    for them.
+    """
+    if jacobian not in JACOBIANS:
+        raise InputError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    tol_p, tol_r = _check_tol(tol)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
+        raise InputError(f"max_iter must be an integer >= 0, got {max_iter!r}")
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
+        raise InputError(f"restarts must be an integer >= 0, got {restarts!r}")
+    if isinstance(damping, str) and damping == "auto":
+        k_nh, c0, lm = 1.0, BASE_DAMPING, True
+    elif damping is None:
+        k_nh, c0, lm = 0.0, 0.0, False
+    elif _is_real(damping) and np.isfinite(damping) and damping >= 0:
+        k_nh, c0, lm = float(damping), BASE_DAMPING, True
+    else:
+        raise InputError(f'damping must be "auto", a number >= 0 or None, got {damping!r}')
+    if step_limit is not None and not (_is_real(step_limit) and step_limit > 0):
+        raise InputError(f"step_limit must be a number > 0 or None, got {step_limit!r}")
+    if not (_is_real(null_space) and np.isfinite(null_space) and null_space >= 0):
+        raise InputError(f"null_space must be a finite number >= 0, got {null_space!r}")
+    if engine not in ENGINES:
+        raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+    c_ok = (getattr(arm, "backend", None) == "compiled" and jacobian == "symbolic" and lm
+            and null_space == 0)
+    if engine == "c" and not c_ok:
+        raise InputError('engine="c" needs the compiled backend, jacobian="symbolic", '
+                         'damping "auto" or a number, and null_space=0')
+    use_c = engine == "c" or (engine == "auto" and c_ok)
+    n = arm.n
+    T = as_float_array(T, "T")
+    if T.ndim < 2 or T.shape[-2:] != (4, 4):
+        raise InputError(f"T must have shape (..., 4, 4), got {T.shape}")
+    lead = T.shape[:-2]
+    if q0 is None:
+        q0 = arm.configurations.get("qz", np.zeros(n))
+    q0 = as_float_array(q0, "q0")
+    if q0.shape[-1] != n:
+        raise InputError(f"q0 must have shape (..., {n}) for {arm.name}, got {q0.shape}")
+    try:
+        q0 = np.broadcast_to(q0, lead + (n,))
+    except ValueError:
+        raise InputError(
+            f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}") from None
+    mask = default_mask(arm, jacobian) if mask is None else _check_mask(mask)
+
+    Tt = np.ascontiguousarray(T.reshape(-1, 4, 4))
+    Q0 = np.array(q0.reshape(-1, n), dtype=float)
+    N = Tt.shape[0]
+    valid = np.all(np.isfinite(Tt), axis=(1, 2)) & np.all(np.isfinite(Q0), axis=1)
+    q_out = np.full((N, n), np.nan)
+    conv = np.zeros(N, dtype=bool)
+    iters = np.zeros(N, dtype=np.int64)
+    pos_err = np.full(N, np.nan)
+    rot_err = np.full(N, np.nan)
+    rows = np.flatnonzero(valid)
+    if rows.size:
+        if use_c:
+            q, c, it, pe, re = _iterate_c(
+                arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), k_nh, c0,
+                step_limit, bool(respect_limits), int(restarts), seed)
+        else:
+            with np.errstate(all="ignore"):
+                q, c, it, pe, re = _iterate(
+                    arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), jacobian, k_nh,
+                    c0, lm, step_limit, bool(respect_limits), int(restarts), seed,
+                    float(null_space))
+        q_out[rows], conv[rows], iters[rows], pos_err[rows], rot_err[rows] = q, c, it, pe, re
+    return IKResult(q=q_out.reshape(lead + (n,)), converged=conv.reshape(lead),
+                    iterations=iters.reshape(lead), position_error=pos_err.reshape(lead),
+                    rotation_error=rot_err.reshape(lead), mask=mask)
+
+
+def _newton_step(A, r, err, mu, damped, c0, k_nh, q, mid, null_gain, step_limit, smin_prev):
+    """The step dq for (k, m, n) A and (k, m) r (module docstring), and sigma_min.
+
+    lambda^2 = mu |dx|^2, plus (c0 + K (1 - (sigma_min / SIGMA_WELL)^2)_+) |dx|^2 if
+    ``damped``. Square rows whose damping is negligible are solved by Gauss elimination;
+    the decision uses the row's sigma_min of the previous step (``smin_prev``, 0: unknown)
+    with a safety factor 2, so that those rows skip the SVD (the costly part); the others
+    get the damped SVD step, the null-space pull (n > k) and a fresh sigma_min."""
+    k, m, n = A.shape
+    dq = np.empty((k, n))
+    smin = smin_prev.copy()
+
+    def lam2_of(sm, rows):
+        lam2 = mu[rows] * err[rows] ** 2
+        if damped:
+            nh = k_nh * np.clip(1.0 - (sm / SIGMA_WELL) ** 2, 0.0, None)
+            lam2 = lam2 + (c0 + nh) * err[rows] ** 2
+        return lam2
+
+    fast = np.zeros(k, dtype=bool)
+    if m == n:
+        negligible = lam2_of(smin_prev, np.arange(k)) <= (GAUSS_REL * smin_prev) ** 2
+        fast = (smin_prev >= 2 * SIGMA_WELL) & negligible
+        if np.any(fast):
+            try:
+                dq[fast] = np.linalg.solve(A[fast], r[fast][:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:  # an exactly singular matrix: use the SVD
+                fast[:] = False
+    slow = np.flatnonzero(~fast)
+    if slow.size:
+        As, rs = A[slow], r[slow]
+        U, s, Vt = np.linalg.svd(As, full_matrices=False)
+        sm = s[:, -1]
+        smin[slow] = sm
+        keep = s > _RCOND * s[:, :1]
+        lam2 = lam2_of(sm, slow)
+        f = np.where(keep, s / np.where(keep, s * s + lam2[:, None], 1.0), 0.0)
+        d = np.einsum("kri,kr->ki", Vt, f * np.einsum("kmr,km->kr", U, rs))
+        if m == n:
+            gauss = (lam2 <= (GAUSS_REL * sm) ** 2) & (sm >= SIGMA_WELL)
+            if np.any(gauss):
+                try:
+                    d[gauss] = np.linalg.solve(As[gauss], rs[gauss][:, :, None])[:, :, 0]
+                except np.linalg.LinAlgError:  # pragma: no cover - excluded by sm check
+                    pass
+        if mid is not None and m < n:
+            ok = np.isfinite(mid)
+            # scaled by min(1, |dx|): the pull fades out as the error vanishes, so its
+            # second-order effect on the pose (~ |dx|^2) keeps the convergence quadratic
+            gain = null_gain * np.minimum(1.0, err[slow])[:, None]
+            z = np.where(ok, gain * (np.where(ok, mid, 0.0) - q[slow]), 0.0)
+            Vk = Vt * keep[:, :, None]
+            d = d + z - np.einsum("kri,kr->ki", Vk, np.einsum("kri,ki->kr", Vk, z))
+        dq[slow] = d
+    if step_limit is not None:
+        big = np.max(np.abs(dq), axis=1)
+        dq = dq * np.where(big > step_limit, step_limit / np.where(big > 0, big, 1.0), 1.0)[:, None]
+    return dq, smin
+
+
+class _SingleBuffers(threading.local):
+    """Per-thread cffi buffers of single_solver (cffi releases the GIL during calls)."""
+
+    def __init__(self, ffi, n):
+        self.T = ffi.new("double[16]")
+        self.q0 = ffi.new(f"double[{n}]")
+        self.q = ffi.new(f"double[{n}]")
+        self.ep, self.er = ffi.new("double[1]"), ffi.new("double[1]")
+        self.it = ffi.new("int32_t[1]")
+        self.status = ffi.new("int8_t[1]")
+        self.q_np = np.frombuffer(ffi.buffer(self.q), dtype=np.float64)
+
+
+def single_solver(arm):
+    """Fast path of :func:`solve` for one target with the default options on the compiled
+    backend: ``call(T, q0, restarts)`` with T a (4, 4) and q0 an (n,) C-contiguous float64
+    array returns the q of the first attempt if it converged, else None (the caller then
+    runs solve(), whose first attempt is exactly this one: same options, same start)."""
+    core = arm._core
+    ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
+    # solve()'s defaults: tol 1e-10, max_iter 100, damping "auto", step_limit 0.5, limits
+    options = _c_options(core, 1e-10, 1e-10, 100, 1.0, BASE_DAMPING, 0.5, True,
+                         default_mask(arm))
+    # the first attempt's stall window depends on whether restarts follow (_iterate_c)
+    with_restarts, alone = options(FIRST_WINDOW_FACTOR * STALL_WINDOW), options(0)
+    later = options(STALL_WINDOW)
+    qlim = ffi.new("double[]", [float(x) for x in np.asarray(arm.qlim).reshape(-1)])
+    box_lo, box_hi = _restart_box(arm, True)
+    scratch = _SingleBuffers(ffi, n)
+    fn, OK = core._ik_newton, st.OK
+
+    def attempt(b, opts):
+        fn(1, opts, b.T, b.q0, qlim, b.q, b.ep, b.er, b.it, b.status)
+        return b.status[0] == OK
+
+    def call(T, q0, restarts, seed=0):
+        b = scratch
+        memmove(b.T, T, 128)
+        memmove(b.q0, q0, 8 * n)
+        if attempt(b, with_restarts if restarts else alone):
+            return b.q_np.copy()
+        if type(seed) is not int:  # a Generator would be consumed twice: general path
+            return None
+        # the restarts of _iterate_c for one row: the same generator, draws and options
+        rng = np.random.default_rng(seed)
+        for k in range(1, restarts + 1):
+            start = box_lo + (box_hi - box_lo) * rng.random((1, n))[0]
+            memmove(b.q0, np.ascontiguousarray(start), 8 * n)
+            if attempt(b, later if k < restarts else alone):
+                return b.q_np.copy()
+        return None
+
+    return call
+
+
+def _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask):
+    """options(stall_window): the <arm>_ik_options struct of these settings."""
+
+    def options(window):
+        return core.ik_options(
+            tol_p=tol_p, tol_r=tol_r, step_limit=np.inf if step_limit is None else step_limit,
+            damping=k_nh, base_damping=c0, max_iter=max_iter, stall_window=window,
+            respect_limits=respect, free_first=respect and FREE_FIRST, mask=mask)
+
+    return options
+
+
+def _restart_box(arm, respect):
+    """The box random restarts are drawn from (_sample_box, inside the limits if respected)."""
+    box_lo, box_hi = _sample_box(arm)
+    if respect:
+        box_lo, box_hi = np.maximum(box_lo, arm.qlim[:, 0]), np.minimum(box_hi, arm.qlim[:, 1])
+    return box_lo, box_hi
+
+
+def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect,
+               restarts, seed):
+    """The compiled engine: one C call per attempt (<arm>_ik_newton, the iteration of the
+    module docstring for one attempt), restarts for the unconverged rows drawn here with
+    the numpy engine's rules (same box, same generator, same stall windows)."""
+    core = arm._core
+    N, n = q0.shape
+    rng = np.random.default_rng(seed)
+    box_lo, box_hi = _restart_box(arm, respect)
+    qlim = np.ascontiguousarray(arm.qlim, dtype=float)
+    options = _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask)
+
+    # stall windows as in the numpy engine: only while a restart is left
+    first = options(FIRST_WINDOW_FACTOR * STALL_WINDOW if restarts else 0)
+    q, ep, er, it, status = core.ik_newton(first, Tt, np.ascontiguousarray(q0), qlim)
+    it = it.astype(np.int64)
+    conv = status == st.OK
+    best = np.hypot(ep, er)  # the unconverged rows' q is their best in-limit q
+    later = options(STALL_WINDOW)
+    for attempt in range(1, restarts + 1):
+        rows = np.flatnonzero(~conv)
+        if rows.size == 0:
+            break
+        start = box_lo + (box_hi - box_lo) * rng.random((rows.size, n))
+        opts = later if attempt < restarts else options(0)
+        qa, epa, era, ita, sa = core.ik_newton(opts, np.ascontiguousarray(Tt[rows]), start, qlim)
+        it[rows] += ita
+        ca = sa == st.OK
+        better = ca | (np.hypot(epa, era) < best[rows])
+        take = rows[better]
+        q[take], ep[take], er[take] = qa[better], epa[better], era[better]
+        best[take] = np.hypot(epa[better], era[better])
+        conv[rows[ca]] = True
+    return q, conv, it, ep, er
+
+
+def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, step_limit,
+             respect, restarts, seed, null_gain):
+    """The batched iteration; every row carries its own state (see the module docstring)."""
+    N, n = q.shape
+    limits = _Limits(arm, respect)
+    rng = np.random.default_rng(seed)
+    box_lo, box_hi = _sample_box(arm)
+    if respect:
+        box_lo, box_hi = np.maximum(box_lo, limits.lo), np.minimum(box_hi, limits.hi)
+    mid = limits.mid if null_gain > 0 else None
+    mrows = np.flatnonzero(mask)
+
+    def errors(qa, rows):
+        Tc, _ = arm._core.fk(np.ascontiguousarray(qa))
+        e = pose_error(Tc, Tt[rows], mask)
+        return e, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1)
+
+    def inside(qa):
+        return np.all((qa >= limits.lo) & (qa <= limits.hi), axis=1) if respect else \
+            np.ones(qa.shape[0], dtype=bool)
+
+    # per-row state
+    free = np.full(N, respect and FREE_FIRST)  # phase 1: limits only checked at the end
+    q = np.where(free[:, None], limits.wrap_only(q), limits.apply(q))
+    e, ep, er = errors(q, np.arange(N))
+    err = np.hypot(ep, er)
+    mu = np.zeros(N)
+    it = np.zeros(N, dtype=np.int64)          # steps over all attempts
+    it_att = np.zeros(N, dtype=np.int64)      # steps in the current attempt
+    attempts = np.zeros(N, dtype=np.int64)
+    chk = err.copy()                          # |dx| at the last stall checkpoint
+    cref = err.copy()                         # non-monotone reference (Zhang-Hager)
+    qz = np.ones(N)
+    sig = np.zeros(N)                         # sigma_min at the last SVD (0: unknown)
+    stuck = np.zeros(N, dtype=bool)
+    conv = np.zeros(N, dtype=bool)
+    active = np.ones(N, dtype=bool)
+    # the best in-limit q seen (start: q0 clamped into the limits)
+    best_q = limits.apply(q)
+    _, best_ep, best_er = errors(best_q, np.arange(N))
+    best_err = np.hypot(best_ep, best_er)
+
+    q_start = q.copy()                        # start of the current attempt
+
+    def set_state(rows, qr):
+        q[rows] = qr
+        e[rows], ep[rows], er[rows] = errors(qr, rows)
+        err[rows] = np.hypot(ep[rows], er[rows])
+        mu[rows] = 0.0
+        chk[rows] = err[rows]
+        cref[rows] = err[rows]
+        qz[rows] = 1.0
+        sig[rows] = 0.0
+        stuck[rows] = False
+
+    def record_best(rows):
+        rows = rows[(err[rows] < best_err[rows]) & inside(q[rows])]
+        best_q[rows], best_err[rows] = q[rows], err[rows]
+        best_ep[rows], best_er[rows] = ep[rows], er[rows]
+
+    for _ in range((restarts + 1) * (2 * max_iter + 3) + 2):
+        a = np.flatnonzero(active)
+        if a.size == 0:
+            break
+        # -- converged? (a free-phase row within tol but outside the limits continues from
+        # the clamped q with the limits enforced)
+        met = (ep[a] <= tol_p) & (er[a] <= tol_r)
+        within = inside(q[a])
+        ok = met & within
+        conv[a[ok]] = True
+        active[a[ok]] = False
+        # a free-phase row near a solution outside the limits (checked at max(tol, 1e-9),
+        # so that a tol at or below rounding level cannot keep it there)
+        near = (ep[a] <= max(tol_p, FREE_CHECK)) & (er[a] <= max(tol_r, FREE_CHECK))
+        out = a[near & ~within & free[a]]
+        if out.size:
+            free[out] = False
+            set_state(out, limits.apply(q_start[out] if PHASE2_FROM_START else q[out]))
+        a = a[~ok]
+        a = a[~np.isin(a, out)] if out.size else a
+        # -- attempt over (step cap or stuck)? restart from a random in-limit q or stop
+        over = (it_att[a] >= max_iter) | stuck[a]
+        if np.any(over):
+            ended = a[over]
+            again = ended[attempts[ended] < restarts]
+            active[ended[attempts[ended] >= restarts]] = False
+            if again.size:
+                attempts[again] += 1
+                it_att[again] = 0
+                free[again] = respect and FREE_FIRST
+                set_state(again, box_lo + (box_hi - box_lo) * rng.random((again.size, n)))
+                q_start[again] = q[again]
+                record_best(again)
+            a = a[~over]
+        if a.size == 0:
+            continue
+        # -- one damped Newton step on the rows in a
+        qa = np.ascontiguousarray(q[a])
+        A = jacobian(arm, qa, source)[:, mrows, :]       # (k, m, n)
+        r = e[a][:, mrows]                               # (k, m)
+        fa = free[a]
+        step = (err[a], mu[a], lm, c0, k_nh)
+        dq, sig[a] = _newton_step(A, r, *step, qa, mid, null_gain, step_limit, sig[a])
+        target = qa + dq
+        if respect and ACTIVE_SET:
+            # joints the step would push beyond a limit (no 2 pi shift helps) are set onto
+            # the limit and the others solve for the rest of dx (one active-set pass)
+            viol = (limits.apply(target) != limits.wrap_only(target)) & ~fa[:, None]
+            fix = np.flatnonzero(np.any(viol, axis=1))
+            if fix.size:
+                Af, vf = A[fix], viol[fix]
+                moved = np.where(vf, limits.apply(target[fix]) - qa[fix], 0.0)
+                rf = r[fix] - np.einsum("kmi,ki->km", Af, moved)
+                Af = np.where(vf[:, None, :], 0.0, Af)
+                dq2, _ = _newton_step(Af, rf, err[a][fix], mu[a][fix], *step[2:], qa[fix], mid,
+                                      null_gain, step_limit, np.zeros(fix.size))
+                target[fix] = qa[fix] + np.where(vf, moved, dq2)
+        q_new = np.where(fa[:, None], limits.wrap_only(target), limits.apply(target))
+        e_new, ep_new, er_new = errors(q_new, a)
+        err_new = np.hypot(ep_new, er_new)
+        it[a] += 1
+        it_att[a] += 1
+        good = np.isfinite(err_new)
+        accept = good & (err_new < cref[a]) if lm else good
+        acc, rej = a[accept], a[~accept]
+        qz_new = ETA * qz[acc] + 1.0
+        cref[acc] = (ETA * qz[acc] * cref[acc] + err_new[accept]) / qz_new
+        qz[acc] = qz_new
+        q[acc], e[acc], ep[acc] = q_new[accept], e_new[accept], ep_new[accept]
+        er[acc], err[acc] = er_new[accept], err_new[accept]
+        mu[acc] = np.where(mu[acc] / 10.0 < MU_START, 0.0, mu[acc] / 10.0)
+        mu[rej] = np.maximum(mu[rej] * 10.0, MU_START)
+        record_best(acc)
+        # -- stuck? the LM parameter ran away (no step is accepted any more), or, with a
+        # restart left, |dx| did not halve over the last STALL_WINDOW steps
+        stuck[a] = mu[a] > MU_MAX
+        span = np.where(attempts[a] == 0, FIRST_WINDOW_FACTOR * STALL_WINDOW, STALL_WINDOW)
+        window = a[it_att[a] % span == 0]
+        slow = err[window] > 0.5 * chk[window]
+        stuck[window[slow & (attempts[window] < restarts)]] = True
+        chk[window] = err[window]
+
+    q_res = np.where(conv[:, None], q, best_q)
+    return q_res, conv, it, np.where(conv, ep, best_ep), np.where(conv, er, best_er)
