@@ -209,6 +209,85 @@ class SerialDescription:
         return cls.from_mapping(read_toml(path), source=str(path))
 
 
+# ------------------------------------------------------------- numeric link transforms
+# The description's own forward kinematics, for the structure detection of
+# model/structure.py (the joint axes at q = 0 and its product-of-exponentials check). Written
+# from the conventions above like the reference (reference/serial.py, which stays
+# independent of the model's code): the same elementary matrices, multiplied in the same
+# order, batched over N joint vectors.
+
+_AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) rotations about coordinate axis 0/1/2 by ``angle`` (N,) [rad]."""
+    M = np.broadcast_to(np.eye(4), (angle.shape[0], 4, 4)).copy()
+    c, s = np.cos(angle), np.sin(angle)
+    j, k = [(1, 2), (2, 0), (0, 1)][axis]
+    M[:, j, j] = c
+    M[:, j, k] = -s
+    M[:, k, j] = s
+    M[:, k, k] = c
+    return M
+
+
+def _trans(axis: int, dist: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) translations along coordinate axis 0/1/2 by ``dist`` (N,) [m]."""
+    M = np.broadcast_to(np.eye(4), (dist.shape[0], 4, 4)).copy()
+    M[:, axis, 3] = dist
+    return M
+
+
+def link_transform(desc: SerialDescription, i: int, qi) -> np.ndarray:
+    """A_i(q_i) (N, 4, 4) of joint i (0-based) for joint values qi (N,) per the description's
+    convention (module docstring); the joint variable enters as q_i + offset_i."""
+    j = desc.joints[i]
+    qi = np.asarray(qi, dtype=np.float64)
+    var = qi + j.offset
+    const = np.full(qi.shape[0], 0.0)
+    if desc.convention == "universal":
+        ax = _AXIS[j.axis]
+        mats = [_rot(ax, var) if j.revolute else _trans(ax, var),
+                _trans(0, const + j.tx), _trans(1, const + j.ty), _trans(2, const + j.tz),
+                _rot(0, const + j.rx), _rot(1, const + j.ry), _rot(2, const + j.rz)]
+    else:
+        theta = var if j.revolute else const + j.theta
+        d = const + j.d if j.revolute else var
+        if desc.convention == "standard":
+            mats = [_rot(2, theta), _trans(2, d), _trans(0, const + j.a), _rot(0, const + j.alpha)]
+        else:  # modified
+            mats = [_rot(0, const + j.alpha), _trans(0, const + j.a), _rot(2, theta), _trans(2, d)]
+    out = mats[0]
+    for M in mats[1:]:
+        out = np.matmul(out, M)
+    return out
+
+
+def frames(desc: SerialDescription, q) -> np.ndarray:
+    """F (N, n+2, 4, 4) for finite joint vectors q (N, n): F[:, 0] = base,
+    F[:, i] = base A_1 ... A_i, F[:, n+1] = F[:, n] tool (the tool pose)."""
+    q = np.asarray(q, dtype=np.float64)
+    N, n = q.shape
+    F = np.empty((N, n + 2, 4, 4))
+    F[:, 0] = desc.base
+    for i in range(n):
+        F[:, i + 1] = np.matmul(F[:, i], link_transform(desc, i, q[:, i]))
+    F[:, n + 1] = np.matmul(F[:, n], desc.tool)
+    return F
+
+
+def axis_frame(desc: SerialDescription, i: int) -> tuple[int, int]:
+    """(index into :func:`frames`' F, column) of the frame whose column is joint i's motion
+    axis and whose origin lies on it: standard DH z of frame i-1 (F[:, i]); modified DH z of
+    frame i (F[:, i+1]: for a revolute joint that origin is fixed in link i-1, since d_i is
+    constant); universal the joint's ``axis`` of base D_1 ... D_{i-1} (F[:, i])."""
+    if desc.convention == "standard":
+        return i, 2
+    if desc.convention == "modified":
+        return i + 1, 2
+    return i, _AXIS[desc.joints[i].axis]
+
+
 def _angle(row, key, where, required=False):
     """Value of ``key`` (rad) or ``key_deg`` (deg), never both."""
     has_rad, has_deg = key in row, f"{key}_deg" in row

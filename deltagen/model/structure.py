@@ -1,0 +1,425 @@
+"""Structure detection of a serial chain: which closed forms its joint axes allow.
+
+Read from the description alone (any convention: standard DH, modified DH, universal
+coordinates; base and tool transforms included) -- nothing is keyed on robot names. Both the
+numpy closed-form solver (:mod:`deltagen.solve.analytic`) and the C kernel emitter
+(:mod:`deltagen.derive.serial.ik_closed_form`) are written in terms of the objects made here,
+so they share one set of precomputed constants; the singularity report
+(:mod:`deltagen.solve.singularity`) reads the same detection.
+
+Joint axes and the product of exponentials
+------------------------------------------
+:func:`joint_axes` composes the description's own link transforms
+(:func:`deltagen.model.serial.frames`) at q = 0 and returns :class:`JointAxes`: for every
+joint the unit direction ``w_i`` and a point ``o_i`` of its motion axis in the world (base)
+frame, the tool pose ``T(0)`` and the arm's length scale. The joint offsets are part of the
+q = 0 pose. Every arm then satisfies
+
+    T(q) = exp(xi_1 q_1) ... exp(xi_n q_n) T(0)
+
+(a revolute joint turns about its axis by q_i, a prismatic one slides along it), so base and
+tool transforms need no special case. :meth:`JointAxes.fk` evaluates this model and
+:meth:`JointAxes.matches` compares it with the composed transforms at a few random
+configurations; :func:`detect` returns None on a mismatch.
+
+Structures (tolerances of :mod:`deltagen.geometry.axes`: parallel when ``|w_i x w_j| <=
+1e-9``, not parallel when ``>= 1e-6``, points within 1e-9 of the arm's scale)
+--------------------------------------------------------------------------------------------
+:class:`PlanarArm` (``planar``) -- 2 or 3 revolute joints with parallel axes (direction u,
+    either sign) and at most one prismatic joint along u (SCARAs).
+:class:`Elbow4R` (``elbow_4r``) -- 4 revolute joints: axis 1 not parallel to axis 2, axes 2
+    and 3 parallel and distinct, axis 4 not parallel to axis 2 (a roll joint; Miskolc RRRR).
+:class:`SphericalWrist6R` (``spherical_wrist_6r``) -- 6 revolute joints: axis 1 not parallel
+    to axis 2, axes 2 and 3 parallel and distinct, axes 4, 5, 6 through one point W (central
+    wrist), 4 not parallel to 5, 5 not parallel to 6 (Puma 560, Motoman UP6, Manutec r15).
+
+Each is a frozen dataclass of the precomputed quantities (arrays are read-only); the meaning
+of the branch names and the solution method are in :mod:`deltagen.solve.analytic`.
+
+Predicates of general use (UR-type arms have three consecutive parallel axes):
+:func:`parallel_pairs`, :func:`parallel_runs`, :func:`common_point_of`,
+:func:`central_wrist`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from deltagen.geometry import axes as geo
+from deltagen.geometry.axes import LENGTH_TOL, NONPARALLEL_TOL, PARALLEL_TOL
+from deltagen.model.serial import SerialDescription, axis_frame, frames
+
+__all__ = ["JointAxes", "PlanarArm", "ElbowArm", "Elbow4R", "SphericalWrist6R", "Structure",
+           "joint_axes", "detect", "detect_planar", "detect_elbow", "parallel_pairs",
+           "parallel_runs", "common_point_of", "central_wrist", "ARM_BRANCHES"]
+
+_CHECK_SEED = 20140101  # the random configurations of JointAxes.matches
+_ELBOW_CONFIGS = ("front_up", "front_down", "back_up", "back_down")
+# The four arm branches of the elbow arms, in the order of _ELBOW_CONFIGS: shoulder sign
+# (front = +1) and the factor of the elbow bend sign (see ElbowArm.bend).
+ARM_BRANCHES = ((1.0, -1.0), (1.0, 1.0), (-1.0, -1.0), (-1.0, 1.0))
+
+
+def _frozen(a) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+def _rotv(w, th, v) -> np.ndarray:
+    """Rotate vectors v (..., 3) about the unit axis w (3,) by th (...) (Rodrigues)."""
+    th = np.asarray(th, dtype=float)[..., None]
+    c, s = np.cos(th), np.sin(th)
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    return v * c + (v @ K.T) * s + np.multiply.outer(v @ w, w) * (1.0 - c)
+
+
+def _cross(a, b) -> np.ndarray:
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+# ------------------------------------------------------------------------ joint axes
+
+
+@dataclass(frozen=True, eq=False)
+class JointAxes:
+    """The joint axes of a chain at q = 0 in the world (base) frame, and T(0).
+
+    ``T(q) = exp(xi_1 q_1) ... exp(xi_n q_n) T(0)`` (module docstring).
+    """
+
+    name: str  # the arm's name (for messages)
+    revolute: np.ndarray  # (n,) bool: revolute (True) or prismatic joint
+    points: np.ndarray  # (n, 3) [m] o_i, a point of joint i's axis
+    directions: np.ndarray  # (n, 3) w_i, unit direction of joint i's axis (motion sign)
+    T0: np.ndarray  # (4, 4) tool pose at q = 0 [m]
+    qlim: np.ndarray  # (n, 2) joint limits [rad or m], +-inf where a joint has none
+    scale: float  # [m] the arm's size: max(1, largest distance of an o_i or p0 from o_1)
+
+    @property
+    def n(self) -> int:
+        return len(self.revolute)
+
+    @property
+    def R0(self) -> np.ndarray:
+        """(3, 3) tool rotation at q = 0."""
+        return self.T0[:3, :3]
+
+    @property
+    def p0(self) -> np.ndarray:
+        """(3,) [m] tool point at q = 0."""
+        return self.T0[:3, 3]
+
+    def fk(self, q):
+        """(R (M, 3, 3), p (M, 3) [m]) for q (M, n): the product of exponentials (the tool
+        point and two axes of T(0) carried through exp(xi_n q_n), ..., exp(xi_1 q_1),
+        Rodrigues on vectors)."""
+        q = np.asarray(q, dtype=float)
+        M = q.shape[0]
+        V = np.empty((M, 3, 3))
+        V[:, 0] = self.p0
+        V[:, 1:] = self.R0[:, :2].T
+        for i in range(self.n - 1, -1, -1):
+            w, o = self.directions[i], self.points[i]
+            if self.revolute[i]:
+                V[:, 0] -= o
+                V = _rotv(w, q[:, i, None], V)
+                V[:, 0] += o
+            else:
+                V[:, 0] += w * q[:, i, None]
+        R = np.stack([V[:, 1], V[:, 2], _cross(V[:, 1], V[:, 2])], axis=-1)
+        return R, V[:, 0]
+
+    def matches(self, desc: SerialDescription) -> bool:
+        """The product of exponentials agrees with the description's composed transforms
+        (model.serial.frames) at 8 random configurations: rotation entries to 1e-9,
+        position to 1e-9 of the scale."""
+        rng = np.random.default_rng(_CHECK_SEED)
+        q = rng.uniform(-2.0, 2.0, size=(8, self.n))
+        T = frames(desc, q)[:, -1]
+        R, p = self.fk(q)
+        return (np.max(np.abs(R - T[:, :3, :3])) < 1e-9
+                and np.max(np.abs(p - T[:, :3, 3])) < 1e-9 * self.scale)
+
+
+def joint_axes(desc: SerialDescription) -> JointAxes:
+    """The joint axes at q = 0 of ``desc`` (module docstring)."""
+    n = desc.n
+    F = frames(desc, np.zeros((1, n)))
+    o = np.empty((n, 3))
+    w = np.empty((n, 3))
+    for i in range(n):
+        k, c = axis_frame(desc, i)
+        o[i] = F[0, k, :3, 3]
+        w[i] = F[0, k, :3, c]
+    w = w / np.linalg.norm(w, axis=1, keepdims=True)
+    T0 = np.ascontiguousarray(F[:, -1])[0].copy()
+    pts = np.vstack([o, T0[:3, 3]])
+    scale = max(1.0, float(np.max(np.linalg.norm(pts - pts[0], axis=1))))
+    return JointAxes(name=desc.name,
+                     revolute=np.array([j.revolute for j in desc.joints], dtype=bool),
+                     points=_frozen(o), directions=_frozen(w), T0=_frozen(T0),
+                     qlim=_frozen(desc.qlim), scale=scale)
+
+
+# ------------------------------------------------------------------- the structures
+
+
+@dataclass(frozen=True, eq=False)
+class PlanarArm:
+    """2-3 revolute joints with parallel axes (direction u) and at most one prismatic joint
+    along u. The first two revolute joints form a planar 2R arm for the point P: the tool
+    point (2R) or the point of the last revolute axis (3R: that joint is a roll about u).
+    Plane coordinates: (x . e1, x . e2) with e1, e2 = ``plane``.
+    """
+
+    kind: ClassVar[str] = "planar"
+    configs: ClassVar[tuple] = ("elbow_up", "elbow_down")
+    bend_signs: ClassVar[tuple] = (-1.0, 1.0)  # sign of the elbow bend of each config
+
+    axes: JointAxes
+    u: np.ndarray  # (3,) unit direction shared by all axes (that of the first revolute one)
+    signs: np.ndarray  # (n,) +-1: joint i's axis direction is signs[i] * u
+    first: int  # index of the first revolute joint (the 2R arm's shoulder)
+    second: int  # index of the second revolute joint (its elbow)
+    roll: int | None  # index of the third revolute joint, or None (2R arm)
+    lift: int | None  # index of the prismatic joint, or None
+    plane: np.ndarray  # (2, 3) e1 (from the first towards the second axis, normal to u), u x e1
+    first_xy: np.ndarray  # (2,) [m] the first axis in plane coordinates
+    second_xy: np.ndarray  # (2,) [m] the second axis in plane coordinates
+    point: np.ndarray  # (3,) [m] P at q = 0: the tool point, or its foot on the roll axis
+    upper: np.ndarray  # (2,) [m] plane vector first axis -> second axis (q = 0)
+    lower: np.ndarray  # (2,) [m] plane vector second axis -> P (q = 0)
+    position_only_ok: bool  # the tool point is P (no roll, or the tool point on its axis)
+
+    @property
+    def qlim(self) -> np.ndarray:
+        return self.axes.qlim
+
+
+@dataclass(frozen=True, eq=False)
+class ElbowArm:
+    """Joints 1-3 of an elbow arm: axis 1 not parallel to axis 2, axes 2 and 3 parallel and
+    distinct; they place a point W (the wrist point) of the forearm.
+
+    Arm frame (ex, ey, ez): ez = w1, ey = the part of w2 normal to w1, ex = ey x ez, oriented
+    so that W at q = 0 lies at ex >= 0 ("front"). Elbow plane: normal to w2, coordinates
+    (x . ex, x . et), et = w2 x ex, positive rotation about w2 counter-clockwise.
+    Branch k of the arm (``ARM_BRANCHES`` order: front_up, front_down, back_up, back_down)
+    has the shoulder sign ``front[k]`` and the elbow bend sign ``bend[k]`` of the planar 2R
+    arm of joints 2 and 3 ("up" <=> bend = -up_sign * front, up_sign = sign(w1 . et)).
+    """
+
+    kind: ClassVar[str] = ""
+    configs: ClassVar[tuple] = ()
+
+    axes: JointAxes
+    wrist: np.ndarray  # (3,) [m] W at q = 0
+    ex: np.ndarray  # (3,) arm frame, unit
+    ey: np.ndarray  # (3,)
+    ez: np.ndarray  # (3,) = w1
+    w2_offset: float  # [m] w2 . (W - o1): W's offset from axis 1 along w2 (the shoulder offset)
+    cos_12: float  # w2 . ez (cosine of the angle between axes 1 and 2)
+    sin_12: float  # w2 . ey (its sine, > 0)
+    plane: np.ndarray  # (2, 3) rows ex, et: coordinates in the plane normal to w2
+    shoulder_xy: np.ndarray  # (2,) [m] axis 2 in plane coordinates
+    upper: np.ndarray  # (2,) [m] plane vector axis 2 -> axis 3 (upper arm, q = 0)
+    lower: np.ndarray  # (2,) [m] plane vector axis 3 -> W (forearm, q = 0)
+    sign3: float  # +-1: w3 = sign3 * w2
+    front: np.ndarray  # (4,) shoulder sign of each arm branch
+    bend: np.ndarray  # (4,) elbow bend sign of each arm branch
+    position_only_ok: bool  # the tool point is W (always for the central wrist)
+
+    @property
+    def qlim(self) -> np.ndarray:
+        return self.axes.qlim
+
+
+@dataclass(frozen=True, eq=False)
+class Elbow4R(ElbowArm):
+    """An elbow arm with a fourth revolute joint, a roll whose axis is not parallel to axis
+    2; W is the point of axis 4 nearest the tool point."""
+
+    kind: ClassVar[str] = "elbow_4r"
+    configs: ClassVar[tuple] = _ELBOW_CONFIGS
+
+    roll_ref: np.ndarray  # (3,) unit vector normal to w4: the roll angle's reference
+
+
+@dataclass(frozen=True, eq=False)
+class SphericalWrist6R(ElbowArm):
+    """An elbow arm with a central wrist: axes 4, 5, 6 through W (the wrist centre)."""
+
+    kind: ClassVar[str] = "spherical_wrist_6r"
+    configs: ClassVar[tuple] = tuple(f"{s}_{e}_{f}" for s in ("front", "back")
+                                     for e in ("up", "down") for f in ("noflip", "flip"))
+
+    wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
+    cos_45: float  # w4 . w5
+    cos_56: float  # w5 . w6
+    normal_45: np.ndarray  # (3,) w4 x w5
+
+
+Structure = PlanarArm | Elbow4R | SphericalWrist6R
+
+
+# ------------------------------------------------------------------------- detection
+
+
+def _clearly_skew(a, b) -> bool:
+    return geo.not_parallel(a, b, NONPARALLEL_TOL)
+
+
+def detect_planar(ax: JointAxes) -> PlanarArm | None:
+    """A :class:`PlanarArm` when the axes have that structure, else None."""
+    rev = np.flatnonzero(ax.revolute)
+    pri = np.flatnonzero(~ax.revolute)
+    if len(rev) not in (2, 3) or len(pri) > 1:
+        return None
+    w, o = ax.directions, ax.points
+    u = w[rev[0]]
+    if not all(geo.parallel(w[i], u, PARALLEL_TOL) for i in range(ax.n)):
+        return None
+    tol = LENGTH_TOL * ax.scale
+    ia, ib = int(rev[0]), int(rev[1])
+    if geo.line_distance(o[ia], u, o[ib], u) < tol:
+        return None
+    ic = int(rev[2]) if len(rev) == 3 else None
+    e1 = o[ib] - o[ia]
+    e1 = geo.unit(e1 - (e1 @ u) * u)
+    E = np.stack([e1, np.cross(u, e1)])
+    A, B = E @ o[ia], E @ o[ib]
+    if ic is None:
+        P = ax.p0.copy()
+        position_only_ok = True
+    else:
+        P = geo.foot(ax.p0, o[ic], u)
+        position_only_ok = bool(np.linalg.norm(ax.p0 - P) < tol)
+    vv = E @ P - B
+    if np.hypot(*vv) < tol:
+        return None
+    return PlanarArm(axes=ax, u=_frozen(u), signs=_frozen(np.sign(w @ u)), first=ia,
+                     second=ib, roll=ic, lift=int(pri[0]) if len(pri) else None,
+                     plane=_frozen(E), first_xy=_frozen(A), second_xy=_frozen(B),
+                     point=_frozen(P), upper=_frozen(B - A), lower=_frozen(vv),
+                     position_only_ok=position_only_ok)
+
+
+def _reference_normal(w, ex, ey) -> np.ndarray:
+    """A unit vector normal to w: w x ex, or w x ey where w is nearly along ex."""
+    return geo.unit(np.cross(w, ex if np.linalg.norm(np.cross(w, ex)) > 0.1 else ey))
+
+
+def detect_elbow(ax: JointAxes) -> Elbow4R | SphericalWrist6R | None:
+    """An :class:`Elbow4R` or a :class:`SphericalWrist6R` when the axes have that structure,
+    else None."""
+    n = ax.n
+    if n not in (4, 6) or not ax.revolute.all():
+        return None
+    w, o = ax.directions, ax.points
+    tol = LENGTH_TOL * ax.scale
+    if not _clearly_skew(w[0], w[1]):
+        return None
+    if not geo.parallel(w[1], w[2], PARALLEL_TOL):
+        return None
+    if geo.line_distance(o[1], w[1], o[2], w[2]) < tol:
+        return None
+    if n == 6:
+        if not (_clearly_skew(w[3], w[4]) and _clearly_skew(w[4], w[5])):
+            return None
+        W, dist = geo.common_point(o[3:6], w[3:6])
+        if dist > tol:
+            return None
+        position_only_ok = True
+    else:
+        if not _clearly_skew(w[3], w[1]):
+            return None
+        W = geo.foot(ax.p0, o[3], w[3])
+        position_only_ok = bool(np.linalg.norm(ax.p0 - W) < tol)
+    ez = w[0]
+    ey = geo.unit(w[1] - (w[1] @ ez) * ez)
+    ex = np.cross(ey, ez)
+    if ex @ (W - o[0]) < 0:
+        ex, ey = -ex, -ey
+    et = np.cross(w[1], ex)
+    P2 = np.stack([ex, et])
+    S, E, Wp = P2 @ o[1], P2 @ o[2], P2 @ W
+    uu, vv = E - S, Wp - E
+    if np.hypot(*uu) < tol or np.hypot(*vv) < tol:
+        return None
+    up_sign = float(np.sign(w[0] @ et))
+    front = np.array([b[0] for b in ARM_BRANCHES])
+    bend = np.array([b[1] for b in ARM_BRANCHES]) * up_sign * front
+    common = dict(axes=ax, wrist=_frozen(W), ex=_frozen(ex), ey=_frozen(ey), ez=_frozen(ez),
+                  w2_offset=float(w[1] @ (W - o[0])), cos_12=float(w[1] @ ez),
+                  sin_12=float(w[1] @ ey), plane=_frozen(P2), shoulder_xy=_frozen(S),
+                  upper=_frozen(uu), lower=_frozen(vv), sign3=float(np.sign(w[2] @ w[1])),
+                  front=_frozen(front), bend=_frozen(bend), position_only_ok=position_only_ok)
+    if n == 6:
+        return SphericalWrist6R(**common, wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
+                                cos_45=float(w[3] @ w[4]), cos_56=float(w[4] @ w[5]),
+                                normal_45=_frozen(np.cross(w[3], w[4])))
+    return Elbow4R(**common, roll_ref=_frozen(_reference_normal(w[3], ex, ey)))
+
+
+def detect(desc: SerialDescription) -> Structure | None:
+    """The structure of ``desc`` with a closed form (:class:`PlanarArm`, :class:`Elbow4R`,
+    :class:`SphericalWrist6R`), or None (no supported structure, or a description whose
+    product-of-exponentials model does not match its transforms)."""
+    try:
+        ax = joint_axes(desc)
+    except (ValueError, FloatingPointError, np.linalg.LinAlgError):  # pragma: no cover
+        return None
+    if not ax.matches(desc):  # pragma: no cover - a convention the model misses
+        return None
+    for find in (detect_planar, detect_elbow):
+        found = find(ax)
+        if found is not None:
+            return found
+    return None
+
+
+# -------------------------------------------------------------- general predicates
+
+
+def parallel_pairs(ax: JointAxes, tol: float = PARALLEL_TOL) -> list:
+    """(i, j), 0-based i < j, of the joints whose axes are parallel (either sign)."""
+    w = ax.directions
+    return [(i, j) for i in range(ax.n) for j in range(i + 1, ax.n)
+            if geo.parallel(w[i], w[j], tol)]
+
+
+def parallel_runs(ax: JointAxes, length: int = 3, tol: float = PARALLEL_TOL) -> list:
+    """Indices i where the revolute joints i, ..., i + length - 1 have parallel axes (three
+    consecutive parallel axes: the UR-type shoulder-elbow-wrist 1 group)."""
+    w, rev = ax.directions, ax.revolute
+    return [i for i in range(ax.n - length + 1)
+            if rev[i:i + length].all()
+            and all(geo.parallel(w[i], w[j], tol) for j in range(i + 1, i + length))]
+
+
+def common_point_of(ax: JointAxes, joints, tol: float = LENGTH_TOL):
+    """The point [m] all axes of ``joints`` (0-based indices) pass through, within ``tol``
+    times the arm's scale, or None. Two parallel axes have no single common point (None)."""
+    joints = list(joints)
+    w = ax.directions[joints]
+    if all(geo.parallel(w[0], x, PARALLEL_TOL) for x in w[1:]):
+        return None
+    return geo.meet(ax.points[joints], w, tol * ax.scale)
+
+
+def central_wrist(ax: JointAxes):
+    """The wrist centre [m] when the last three joints are revolute with axes through one
+    point (4 not parallel to 5, 5 not parallel to 6), else None."""
+    if ax.n < 3 or not ax.revolute[-3:].all():
+        return None
+    w = ax.directions
+    if not (_clearly_skew(w[-3], w[-2]) and _clearly_skew(w[-2], w[-1])):
+        return None
+    return common_point_of(ax, range(ax.n - 3, ax.n))
