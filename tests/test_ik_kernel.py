@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as hst
 
 from deltagen import SerialRobot, paths
-from deltagen.derive.serial.ik_closed_form import SUPPORTED, compiled_solver
+from deltagen.derive.serial.ik_closed_form import SUPPORTED, compiled_structure
 from deltagen.api.serial import bundled_robots
 from deltagen.status import INVALID, OK, UNREACHABLE
 
@@ -47,12 +47,12 @@ def test_kernel_exists_exactly_for_the_supported_structures():
     for name in bundled_robots():
         arm = SerialRobot.load(name, backend="reference")
         solver = arm._analytic()
-        has_c = compiled_solver(arm.description) is not None
+        has_c = compiled_structure(arm.description) is not None
         assert has_c == (solver is not None and solver.structure in SUPPORTED), name
         header = (paths.generated_dir() / f"serial_{name}.h").read_text()
         assert (f"{name}_ik_all(" in header) == has_c, name
     assert {n for n in bundled_robots()
-            if compiled_solver(SerialRobot.load(n, backend="reference").description)} \
+            if compiled_structure(SerialRobot.load(n, backend="reference").description)} \
         >= set(C_ARMS)
 
 

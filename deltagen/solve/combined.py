@@ -42,12 +42,13 @@ and with the names of the closed-form solver (``branch_names(arm)``, for a Puma-
 ``{front|back}_{up|down}_{noflip|flip}``). A branch is valid when Newton converged within
 ``tol`` (position [m] and rotation [rad] error norms) and the solution lies within the joint
 limits (revolute angles are shifted by 2 pi into the limits where that fits, as the analytic
-solver does). Converged solutions outside the limits keep their values with valid False;
-branches without a start (the central-wrist arm cannot reach the pose) or without
-convergence are NaN. Newton runs with the limits unenforced (``respect_limits=False``) so
-that a branch is not pushed into a different solution by clamping; the limits are checked
-afterwards. Two branches can converge to the same solution near singularities (the wrist
-flip at q5 ~ 0, the stretched elbow); they are not merged.
+solver does: :func:`deltagen.geometry.limits.fit_limits`). Converged solutions outside the
+limits keep their values with valid False; branches without a start (the central-wrist arm
+cannot reach the pose) or without convergence are NaN. Newton runs with the limits
+unenforced (``respect_limits=False``) so that a branch is not pushed into a different
+solution by clamping; the limits are checked afterwards. Two branches can converge to the
+same solution near singularities (the wrist flip at q5 ~ 0, the stretched elbow); they are
+not merged.
 
 Non-finite or non-rigid targets give NaN / False; nothing raises or warns for unreachable
 targets.
@@ -56,11 +57,11 @@ targets.
 from __future__ import annotations
 
 import dataclasses
-import math
 import weakref
 
 import numpy as np
 
+from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
 from deltagen.solve import numeric as ik_numeric
 from deltagen.model.serial import SerialDescription
@@ -68,8 +69,6 @@ from deltagen.solve.analytic import analytic_solver
 
 __all__ = ["nearest_central_wrist", "central_solver", "branch_names", "solve_all"]
 
-_TWO_PI = 2.0 * math.pi
-_LIMIT_TOL = 1e-12
 # (row index, field) of the wrist offsets per convention, 0-based rows of a 6-joint arm
 _WRIST_OFFSETS = {
     "standard": ((3, "a"), (4, "a"), (4, "d")),
@@ -114,35 +113,16 @@ def branch_names(arm) -> tuple:
     return tuple(central_solver(arm).configs)
 
 
-def _fit_limits(q, qlim):
-    """Shift revolute angles by multiples of 2 pi into the limits where that fits (else into
-    [-pi, pi)); (q, inside). All joints are revolute here."""
-    q = q.copy()
-    inside = np.ones(q.shape[:-1], dtype=bool)
-    for i in range(q.shape[-1]):
-        lo, hi = qlim[i]
-        x = np.mod(q[..., i] + math.pi, _TWO_PI) - math.pi
-        fits = (x >= lo - _LIMIT_TOL) & (x <= hi + _LIMIT_TOL)
-        for shift in (_TWO_PI, -_TWO_PI, 2 * _TWO_PI, -2 * _TWO_PI):
-            y = x + shift
-            fy = (y >= lo - _LIMIT_TOL) & (y <= hi + _LIMIT_TOL) & ~fits
-            x = np.where(fy, y, x)
-            fits |= fy
-        q[..., i] = np.where(fits, np.clip(x, lo, hi), x)
-        inside &= fits
-    return q, inside
-
-
 def _central_starts(solver, arm, T, corrections):
     """(N, k, n) closed-form starts of every branch for poses T (N, 4, 4) (module docstring)."""
     N, k = T.shape[0], len(solver.configs)
-    q, _ = solver._solve(T[:, :3, :3], T[:, :3, 3], False)  # clipped, unverified, no limits
+    q, _ = solver.closed_form(T[:, :3, :3], T[:, :3, 3])  # clipped, unverified, no limits
     rows = np.arange(k)
     for _ in range(int(corrections)):
         flat = q.reshape(N * k, -1)
         fin = np.all(np.isfinite(flat), axis=1)
         qs = np.where(fin[:, None], flat, 0.0)
-        Rc, pc = solver._ch.fk(qs)                        # central-wrist arm at q
+        Rc, pc = solver.axes.fk(qs)                       # central-wrist arm at q
         Tr, _ = arm._core.fk(np.ascontiguousarray(qs))    # real arm at q
         # T' = fk_central(q) fk_real(q)^-1 T: the pose the central arm must reach so that
         # the real arm reaches T at the same q (to first order in the offset)
@@ -151,7 +131,7 @@ def _central_starts(solver, arm, T, corrections):
         D = Rc @ np.swapaxes(Rr, 1, 2)
         R2 = D @ Tt[:, :3, :3]
         p2 = np.einsum("nij,nj->ni", D, Tt[:, :3, 3] - pr) + pc
-        q2, _ = solver._solve(R2, p2, False)             # (N k, k, n): keep own branch
+        q2, _ = solver.closed_form(R2, p2)               # (N k, k, n): keep own branch
         q2 = q2.reshape(N, k, k, -1)[:, rows, rows]
         ok2 = np.all(np.isfinite(q2), axis=-1) & fin.reshape(N, k)
         q = np.where(ok2[..., None], q2, q)
@@ -188,7 +168,7 @@ def solve_all(arm, T, *, tol=1e-10, max_iter=50, corrections=2, info=False):
                            restarts=0, respect_limits=False)
     conv = res.converged.reshape(N, k) & has
     with np.errstate(invalid="ignore"):
-        q, inside = _fit_limits(res.q.reshape(N, k, n), arm.qlim)
+        q, inside = fit_limits(res.q.reshape(N, k, n), arm.qlim, [True] * n)
     q[~conv] = np.nan
     valid = conv & inside
     out = (q.reshape(lead + (k, n)), valid.reshape(lead + (k,)))

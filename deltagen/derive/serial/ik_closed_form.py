@@ -1,10 +1,14 @@
 """The closed-form inverse kinematics as a C kernel: ``ik_all``.
 
-The solvers of :mod:`deltagen.solve.analytic` read the arm's structure from its joint
-axes and solve in numpy. This module writes the same closed forms as SymPy statements with
-the arm's constants compiled in, so the C core returns every branch of a batch of poses in
-one call, like the forward kinematics. The steps and their names follow ik_analytic (its
-module docstring has the derivation); here the point is how they become straight-line code:
+The arm's structure and every constant of its closed form come from
+:func:`deltagen.model.structure.detect` (a :class:`~deltagen.model.structure.PlanarArm`,
+:class:`~deltagen.model.structure.Elbow4R` or
+:class:`~deltagen.model.structure.SphericalWrist6R`); the numpy solver of
+:mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
+closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
+every branch of a batch of poses in one call, like the forward kinematics. The steps and
+their names follow the numpy solver (its module docstring has the derivation); here the
+point is how they become straight-line code:
 
 * every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
   ``y / h`` (h = hypot(x, y)) instead of calling cos and sin on the result, and sums and
@@ -13,25 +17,26 @@ module docstring has the derivation); here the point is how they become straight
 * the check evaluates the symbolic forward kinematics of the description (derive.Chain,
   not the product-of-exponentials model the solver is built on) with those cosines and
   sines, and compares it with the target: rotation entries and position / arm size within
-  ``TOL`` (ik_analytic's default);
-* the joint-limit fit is ik_analytic's: wrap into [-pi, pi), shift by +-2 pi, +-4 pi where
-  that fits the range, clip a value within 1e-12 of a limit onto it.
+  ``TOL`` (the numpy solver's default);
+* the joint-limit fit is :func:`deltagen.geometry.limits.fit_limits` written in SymPy, with
+  its constants (``LIMIT_TOL``, ``SHIFTS``): wrap into [-pi, pi), shift by +-2 pi, +-4 pi
+  where that fits the range, clip a value within 1e-12 of a limit onto it.
 
-Constants (joint axes, the wrist centre, the arm frame) come from the solver's numpy set-up
-and are rounded to 13 significant digits, values below 1e-13 of the arm's size to zero, so
-that the generated file does not depend on the last bit of a BLAS call (and exact zeros
-and ones simplify the expressions).
+Constants (joint axes, the wrist centre, the arm frame) are those of the structure object,
+rounded to 13 significant digits, values below 1e-13 of the arm's size to zero, so that the
+generated file does not depend on the last bit of a BLAS call (and exact zeros and ones
+simplify the expressions).
 
-Per pose: ``q`` (k x n, k branches in the order of the solver's ``configs``; NaN where the
+Per pose: ``q`` (k x n, k branches in the order of the structure's ``configs``; NaN where the
 branch has no real solution or misses the pose) and ``valid`` (k values, 1.0 where the
 branch is a solution inside the joint limits, else 0.0); status OK when some branch is
 valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVALID for a
 non-finite input (all outputs NaN / 0).
 
-Supported: every structure of ik_analytic with the full pose given (its ``solve`` default):
-``spherical_wrist_6r`` (8 branches), ``elbow_4r`` (Paul's method for q2 + q3, 4 branches) and
-``planar`` (2 branches; Paul's method for the 2R arm). ``position_only`` and other
-tolerances stay with the numpy solver.
+Supported: every structure of model.structure with the full pose given (the numpy solver's
+``solve`` default): ``spherical_wrist_6r`` (8 branches), ``elbow_4r`` (Paul's method for
+q2 + q3, 4 branches) and ``planar`` (2 branches; Paul's method for the 2R arm).
+``position_only`` and other tolerances stay with the numpy solver.
 """
 
 from __future__ import annotations
@@ -45,22 +50,23 @@ import sympy as sp
 from deltagen import status as st
 from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.derive.functions import AllFinite
-from deltagen.solve.analytic import analytic_solver
+from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
+from deltagen.model.structure import Elbow4R, PlanarArm, detect
 
-TOL = 1e-8  # accepted forward-kinematics residual (ik_analytic.AnalyticSolver.solve's tol)
-LIMIT_TOL = 1e-12  # ik_analytic._LIMIT_TOL
-WRIST_SINGULAR = 1e-12  # ik_analytic._SING
+TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
+WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
 SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
 
 
-def compiled_solver(desc):
-    """ik_analytic's solver for ``desc`` when its structure has a C kernel, else None."""
-    solver = analytic_solver(desc)
-    if solver is None or solver.structure not in SUPPORTED:
+def compiled_structure(desc):
+    """The detected structure of ``desc`` (model.structure.detect) when it has a C kernel,
+    else None."""
+    found = detect(desc)
+    if found is None or found.kind not in SUPPORTED:
         return None
-    return solver
+    return found
 
 
 # ------------------------------------------------------------------ building blocks
@@ -162,7 +168,7 @@ def _rotate(w, c, s, v):
 
 
 def _sp1(tape, name, w, a, b) -> _Angle:
-    """Paden-Kahan subproblem 1 (ik_analytic._sp1): the angle about w turning the part of
+    """Paden-Kahan subproblem 1 (solve.analytic._sp1): the angle about w turning the part of
     a normal to w into the direction of that of b."""
     a = _add(a, _scale(-_dot(a, w), w))
     b = _add(b, _scale(-_dot(b, w), w))
@@ -170,7 +176,7 @@ def _sp1(tape, name, w, a, b) -> _Angle:
 
 
 class _Constants:
-    """Rounds the solver's numpy constants (module docstring)."""
+    """Rounds the structure's numpy constants (module docstring)."""
 
     def __init__(self, scale):
         self.zero = 1e-13 * max(1.0, scale)
@@ -192,14 +198,16 @@ class _Constants:
 
 
 class IKKernelBuilder:
-    """Builds the ``ik_all`` kernel of an arm from its solver and its Chain derivation."""
+    """Builds the ``ik_all`` kernel of an arm from its detected structure
+    (model.structure) and its Chain derivation."""
 
-    def __init__(self, solver, chain):
-        self.solver = solver
+    def __init__(self, structure, chain):
+        self.s = structure
+        self.axes = structure.axes
         self.chain = chain
-        self.n = solver.n
-        self.configs = tuple(solver.configs)
-        self.const = _Constants(solver._ch.scale)
+        self.n = structure.axes.n
+        self.configs = tuple(structure.configs)
+        self.const = _Constants(structure.axes.scale)
         self.tape = _Tape()
         self.T = tuple(sp.Symbol(f"Tt{r + 1}{c + 1}", real=True)
                        for r in range(4) for c in range(4))
@@ -214,35 +222,33 @@ class IKKernelBuilder:
 
     def _rotate_target(self, v):
         """R_G v = R_t R0^T v for a constant vector v."""
-        u = self.const.vec(self.solver._ch.R0.T @ np.asarray(v, dtype=float))
+        u = self.const.vec(self.axes.R0.T @ np.asarray(v, dtype=float))
         return tuple(_dot(self.R_t[r], u) for r in range(3))
 
     def _move_point(self, x):
         """G x = R_t R0^T (x - p0) + p_t for a constant point x: where the motion G =
         T_target T(0)^-1 carries it."""
-        ch = self.solver._ch
-        return _add(self._rotate_target(np.asarray(x, dtype=float) - ch.p0), self.p_t)
+        return _add(self._rotate_target(np.asarray(x, dtype=float) - self.axes.p0), self.p_t)
 
     def _arm(self, W_t):
-        """ik_analytic._ElbowSolver._arm: joints 1-3 placing the wrist point at W_t for the
-        four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
-        s, tape, K = self.solver, self.tape, self.const
-        ch = s._ch
+        """The numpy solver's _ElbowSolver._arm: joints 1-3 placing the wrist point at W_t
+        for the four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
+        s, ax, tape, K = self.s, self.axes, self.tape, self.const
         tape.stage("arm: the wrist point in the arm frame (ex, ey along axis 1's normal plane)")
-        d = _add(W_t, _scale(-1, K.vec(ch.o[0])))
-        px = tape.let("px", _dot(d, K.vec(s._ex)))
-        py = tape.let("py", _dot(d, K.vec(s._ey)))
-        pz = tape.let("pz", _dot(d, K.vec(s._ez)))
-        yV = tape.let("yV", (K(s._cw) - K(s._cb) * pz) / K(s._sb))
+        d = _add(W_t, _scale(-1, K.vec(ax.points[0])))
+        px = tape.let("px", _dot(d, K.vec(s.ex)))
+        py = tape.let("py", _dot(d, K.vec(s.ey)))
+        pz = tape.let("pz", _dot(d, K.vec(s.ez)))
+        yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
         rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", rad >= -1e-9 * ch.scale ** 2)
+        ok1 = tape.let("ok_reach", rad >= -1e-9 * ax.scale ** 2)
         r = tape.let("xV", sp.sqrt(sp.Max(rad, 0)))
-        on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ch.scale) ** 2)
+        on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ax.scale) ** 2)
         a = _Angle(0, *_direction(tape, "phi_p", py, px))
-        uu, vv = s._uu, s._vv
+        uu, vv = s.upper, s.lower
         branches = []
         shoulders = {}
-        for f in sorted(set(s._front.tolist()), reverse=True):
+        for f in sorted(set(s.front.tolist()), reverse=True):
             tag = "front" if f > 0 else "back"
             tape.stage(f"shoulder q1, {tag} branches")
             xV = f * r
@@ -253,14 +259,15 @@ class IKKernelBuilder:
             s1 = tape.let(f"q1_{tag}_s", sp.Piecewise((0, on_axis), (q1.s, True)))
             q1 = _Angle(tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis),
                                                             (sp.atan2(s1, c1), True))), c1, s1)
-            V = _add(_add(K.vec(ch.o[0]), _scale(xV, K.vec(s._ex))),
-                     _add(_scale(yV, K.vec(s._ey)), _scale(pz, K.vec(s._ez))))
-            t = tuple(tape.let(f"t{j + 1}_{tag}", _dot(K.vec(s._P2[j]), V) - K(s._S[j]))
+            V = _add(_add(K.vec(ax.points[0]), _scale(xV, K.vec(s.ex))),
+                     _add(_scale(yV, K.vec(s.ey)), _scale(pz, K.vec(s.ez))))
+            t = tuple(tape.let(f"t{j + 1}_{tag}",
+                               _dot(K.vec(s.plane[j]), V) - K(s.shoulder_xy[j]))
                       for j in range(2))
             kc, ks, bend, ok2 = self._cosine_law(tag, t, uu, vv)
             shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
         for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
-            f, sigma = float(s._front[index]), float(s._bend[index])
+            f, sigma = float(s.front[index]), float(s.bend[index])
             q1, t, kc, ks, bend, ok1, ok2 = shoulders[f]
             tag = config.rsplit("_", 1)[0] if self.n == 6 else config
             tape.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
@@ -270,14 +277,14 @@ class IKKernelBuilder:
         return branches
 
     def _paul_4r(self, tag, q1, t, ok1, sigma):
-        """ik_analytic._ElbowSolver._arm / _solve for the 4R arm with the pose given: q2 + q3
-        from the direction of axis 4 (Paul's method), which fixes the elbow of the shoulder
-        branch (the other elbow branch stays empty), then the roll q4."""
-        s, tape, K = self.solver, self.tape, self.const
-        w = [K.vec(x) for x in s._ch.w]
-        uu, vv = s._uu, s._vv
+        """The numpy solver's _ElbowSolver._arm / _solve for the 4R arm with the pose given:
+        q2 + q3 from the direction of axis 4 (Paul's method), which fixes the elbow of the
+        shoulder branch (the other elbow branch stays empty), then the roll q4."""
+        s, tape, K = self.s, self.tape, self.const
+        w = [K.vec(x) for x in self.axes.directions]
+        uu, vv = s.upper, s.lower
         tape.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
-        d4 = _rotate(w[0], q1.c, -q1.s, self._rotate_target(s._ch.w[3]))
+        d4 = _rotate(w[0], q1.c, -q1.s, self._rotate_target(self.axes.directions[3]))
         tot = _sp1(tape, f"tot_{tag}", w[1], w[3], d4)
         z = (t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
              t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])))
@@ -290,63 +297,62 @@ class IKKernelBuilder:
         mine = tape.let(f"mine_{tag}", sin_bend >= 0 if sigma > 0 else sin_bend < 0)
         ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
         tape.stage(f"roll, branch {tag}: q4 about axis 4")
-        y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s._x4)))
-        q4 = _sp1(tape, f"q4_{tag}", w[3], K.vec(s._x4), y)
-        return (q1, th2, th3.scaled(s._s3), q4), ok
+        y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s.roll_ref)))
+        q4 = _sp1(tape, f"q4_{tag}", w[3], K.vec(s.roll_ref), y)
+        return (q1, th2, th3.scaled(s.sign3), q4), ok
 
     def _planar(self):
-        """ik_analytic._PlanarSolver._solve: a planar 2R arm for the point P in the plane
-        normal to u (law of cosines, both elbows), the roll of a third revolute joint from
-        the target yaw, a prismatic joint from the travel along u; with two revolute joints
-        and the pose given, Paul's method (the pose fixes the elbow)."""
-        s, tape, K = self.solver, self.tape, self.const
-        ch = s._ch
-        u, E = s._u, s._E
-        uu, vv = s._uu, s._vv
+        """The numpy solver's _PlanarSolver._solve: a planar 2R arm for the point P in the
+        plane normal to u (law of cosines, both elbows), the roll of a third revolute joint
+        from the target yaw, a prismatic joint from the travel along u; with two revolute
+        joints and the pose given, Paul's method (the pose fixes the elbow)."""
+        s, tape, K = self.s, self.tape, self.const
+        u, E, A = s.u, s.plane, s.first_xy
+        uu, vv = s.upper, s.lower
         tape.stage("planar arm: the point P, the travel along u and the yaw about u")
         # P_t = R_G P + p_G = R_t R0^T (P - p0) + p_t
-        P_t = tape.vec("P_t", self._move_point(s._P))
-        h = tape.let("travel", _dot(_add(P_t, _scale(-1, K.vec(s._P))), K.vec(u)))
-        t = tuple(tape.let(f"t{j + 1}", _dot(K.vec(E[j]), P_t) - K(s._A[j])) for j in range(2))
+        P_t = tape.vec("P_t", self._move_point(s.point))
+        h = tape.let("travel", _dot(_add(P_t, _scale(-1, K.vec(s.point))), K.vec(u)))
+        t = tuple(tape.let(f"t{j + 1}", _dot(K.vec(E[j]), P_t) - K(A[j])) for j in range(2))
         g1 = self._rotate_target(E[0])
         yaw = _atan2(tape, "yaw", _dot(g1, K.vec(E[1])), _dot(g1, K.vec(E[0])))
         a_uu = math.atan2(uu[1], uu[0])
         c_uv = math.atan2(vv[1], vv[0]) - a_uu
         branches = {}
-        if s._ic is None:
+        if s.roll is None:
             tape.stage("Paul's method (slides 103-105): psi from the rotation, q1 from joint 2")
-            B_t = self._move_point(ch.o[s._ib])
-            tb = [_dot(K.vec(E[j]), B_t) - K(s._A[j]) for j in range(2)]
+            B_t = self._move_point(self.axes.points[s.second])
+            tb = [_dot(K.vec(E[j]), B_t) - K(A[j]) for j in range(2)]
             p1 = _named(tape, "paul1", _atan2(tape, "phi_b", tb[1], tb[0])
                         - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
             p2 = _named(tape, "paul2", yaw - p1)
             down = tape.let("elbow_down", p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)) >= 0)
-            for config, sigma in zip(s.configs, s._SIGMA):
+            for config, sigma in zip(s.configs, s.bend_signs):
                 mine = down if sigma > 0 else sp.Not(down)
                 branches[config] = (p1, p2, None, mine)
         else:
             tape.stage("planar arm: law of cosines")
             kc, ks, bend, ok2 = self._cosine_law("planar", t, uu, vv)
-            for config, sigma in zip(s.configs, s._SIGMA):
+            for config, sigma in zip(s.configs, s.bend_signs):
                 tape.stage(f"planar arm, {config}")
                 th1, th2 = self._elbow(config, t, kc, ks, bend, sigma, uu, vv)
                 roll = _named(tape, f"roll_{config}", yaw - th1 - th2)
                 branches[config] = (th1, th2, roll, ok2)
         solutions = {}
-        sign = s._sign
+        sign = s.signs
         for config, (th1, th2, roll, ok) in branches.items():
             q = [None] * self.n
-            q[s._ia] = th1.scaled(float(sign[s._ia]))
-            q[s._ib] = th2.scaled(float(sign[s._ib]))
-            if s._ic is not None:
-                q[s._ic] = roll.scaled(float(sign[s._ic]))
-            if s._ip is not None:
-                q[s._ip] = K(float(sign[s._ip])) * h
+            q[s.first] = th1.scaled(float(sign[s.first]))
+            q[s.second] = th2.scaled(float(sign[s.second]))
+            if s.roll is not None:
+                q[s.roll] = roll.scaled(float(sign[s.roll]))
+            if s.lift is not None:
+                q[s.lift] = K(float(sign[s.lift])) * h
             solutions[config] = (tuple(q), ok)
         return solutions
 
     def _cosine_law(self, tag, t, uu, vv):
-        """The elbow of a planar 2R arm reaching t (ik_analytic._two_link): cos and sin of
+        """The elbow of a planar 2R arm reaching t (solve.analytic._two_link): cos and sin of
         the bend, its angle, and whether the law of cosines is met (to 1e-9)."""
         tape, K = self.tape, self.const
         lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
@@ -371,22 +377,23 @@ class IKKernelBuilder:
 
     def _undo(self, q1, tot, v):
         """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
-        w = [self.const.vec(x) for x in self.solver._ch.w]
+        w = [self.const.vec(x) for x in self.axes.directions]
         v = _rotate(w[0], q1.c, -q1.s, v)
         return _rotate(w[1], tot.c, -tot.s, v)
 
     def _wrist(self, tag, q1, th2, th3):
-        """ik_analytic._ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions."""
-        s, tape, K = self.solver, self.tape, self.const
-        w = [K.vec(x) for x in s._ch.w]
+        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions."""
+        s, tape, K = self.s, self.tape, self.const
+        w = [K.vec(x) for x in self.axes.directions]
         tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
         tot = _named(tape, f"tot_{tag}", th2 + th3)
-        qv = tape.vec(f"qv_{tag}", self._undo(q1, tot, self._rotate_target(s._ch.w[5])))
-        qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s._x6)))
+        qv = tape.vec(f"qv_{tag}",
+                      self._undo(q1, tot, self._rotate_target(self.axes.directions[5])))
+        qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s.wrist_ref)))
         w4, w5, w6 = w[3], w[4], w[5]
-        c12 = float(s._ch.w[3] @ s._ch.w[4])
+        c12 = s.cos_45
         s2 = 1.0 - c12 * c12
-        b_p = float(s._ch.w[4] @ s._ch.w[5])
+        b_p = s.cos_56
         a_q = _dot(qv, w4)
         alpha = tape.let(f"alpha_{tag}", (a_q - K(c12 * b_p)) / K(s2))
         beta = tape.let(f"beta_{tag}", (K(b_p) - K(c12) * a_q) / K(s2))
@@ -396,7 +403,7 @@ class IKKernelBuilder:
         okw = tape.let(f"ok_wrist_{tag}", gam2 >= -1e-9)
         gam = tape.let(f"gam_{tag}", sp.sqrt(sp.Max(gam2, 0)))
         singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR ** 2)
-        n45 = K.vec(np.cross(s._ch.w[3], s._ch.w[4]))
+        n45 = K.vec(s.normal_45)
         out = []
         for sig, flip in ((1, "noflip"), (-1, "flip")):
             name = f"{tag}_{flip}"
@@ -410,17 +417,17 @@ class IKKernelBuilder:
                 sp.Piecewise((1, singular), (q4.c, True)),
                 sp.Piecewise((0, singular), (q4.s, True))))
             y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
-            q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s._x6), y)
+            q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s.wrist_ref), y)
             out.append((name, okw, q4, q5, q6))
         return out
 
     def _fit_limits(self, name, i, a):
-        """ik_analytic.AnalyticSolver._fit_limits for joint i: (value, inside). A revolute
-        joint (a an _Angle) is wrapped into [-pi, pi) and shifted by +-2 pi, +-4 pi where that
-        fits its range; a prismatic one (a its displacement) is only checked. Either is
-        clipped onto a limit it passes by at most LIMIT_TOL."""
+        """geometry.limits.fit_limits for joint i, in SymPy: (value, inside). A revolute
+        joint (a an _Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of
+        2 pi (+-2 pi, +-4 pi) where that fits its range; a prismatic one (a its displacement)
+        is only checked. Either is clipped onto a limit it passes by at most LIMIT_TOL."""
         tape = self.tape
-        lo, hi = (float(x) for x in self.solver._qlim[i])
+        lo, hi = (float(x) for x in self.s.qlim[i])
         revolute = isinstance(a, _Angle)
         if revolute:
             two_pi = 2 * sp.pi
@@ -441,7 +448,7 @@ class IKKernelBuilder:
         x0 = x
         fits = tape.let(f"{name}_in0", inside(x))
         if revolute:
-            for k, shift in enumerate((1, -1, 2, -2), start=1):
+            for k, shift in enumerate(SHIFTS, start=1):
                 y = x0 + shift * two_pi
                 fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
                 x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
@@ -455,7 +462,7 @@ class IKKernelBuilder:
 
     def _reproduces(self, name, angles):
         """Forward kinematics of the description at the branch's cosines and sines, compared
-        with the target (ik_analytic.AnalyticSolver._reproduces)."""
+        with the target (solve.analytic.AnalyticSolver._reproduces)."""
         tape, chain = self.tape, self.chain
         sym = chain.sym
         mapping = {}
@@ -470,7 +477,7 @@ class IKKernelBuilder:
             for s, expr in stage.assignments:
                 mapping[s] = tape.let(f"{s}_{name}", sp.sympify(expr).xreplace(mapping))
         T = chain.T.xreplace(mapping)
-        scale = self.solver._ch.scale
+        scale = self.axes.scale
         conds = []
         for r in range(3):
             for c in range(3):
@@ -483,25 +490,25 @@ class IKKernelBuilder:
     def _elbow_arm(self):
         """The 4R and 6R elbow arms: joints 1-3 from the wrist point, then the roll (4R) or
         the central wrist (6R)."""
-        s, tape = self.solver, self.tape
+        s, tape = self.s, self.tape
         tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
-        W_t = tape.vec("W_t", self._move_point(s._W))
+        W_t = tape.vec("W_t", self._move_point(s.wrist))
         solutions = {}
         for tag, q1, th2, th3, ok_arm, t, ok1, sigma in self._arm(W_t):
-            if s.structure == "elbow_4r":
+            if isinstance(s, Elbow4R):
                 solutions[tag] = self._paul_4r(tag, q1, t, ok1, sigma)
                 continue
-            q3 = th3.scaled(s._s3)
+            q3 = th3.scaled(s.sign3)
             for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
                 solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
         return solutions
 
     def build(self) -> Kernel:
-        s, tape, n = self.solver, self.tape, self.n
+        s, tape, n = self.s, self.tape, self.n
         self._target()
         tape.stage("status flag: a non-finite pose")
         invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
-        if s.structure == "planar":
+        if isinstance(s, PlanarArm):
             solutions = self._planar()
         else:
             solutions = self._elbow_arm()
@@ -549,7 +556,7 @@ class IKKernelBuilder:
 
 def ik_kernel(desc, chain) -> Kernel | None:
     """The ``ik_all`` kernel of ``desc``, or None when its structure has none in C."""
-    solver = compiled_solver(desc)
-    if solver is None:
+    found = compiled_structure(desc)
+    if found is None:
         return None
-    return IKKernelBuilder(solver, chain).build()
+    return IKKernelBuilder(found, chain).build()
