@@ -23,6 +23,7 @@ import numpy as np
 
 from deltagen import status as st
 from deltagen.errors import GeometryError, SingularityError, rows_text
+from deltagen.geometry.limits import wrap_to_pi
 from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_errors_mode, plain_pose
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
@@ -490,7 +491,7 @@ class SerialRobot:
             return q_all[:, k], valid_all[:, k]
         if q0 is not None:
             start = self._start(q0, q_all.shape[0])
-            d = np.remainder(q_all - start[:, None, :] + np.pi, 2 * np.pi) - np.pi
+            d = wrap_to_pi(q_all - start[:, None, :])
             revolute = np.array([j.revolute for j in self.description.joints])
             d = np.where(revolute, d, q_all - start[:, None, :])
             dist = np.where(valid_all, np.linalg.norm(np.nan_to_num(d, nan=np.inf), axis=-1), np.inf)

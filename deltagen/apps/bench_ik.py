@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
+from deltagen.geometry.limits import wrap_to_pi
 
 IK_ROBOT = "puma560"
 IK_ANALYTIC_N = 100_000
@@ -39,7 +40,7 @@ def _in_limit_q(arm, count, rng):
 
 
 def _angle_diff(a, b):
-    return np.remainder(a - b + np.pi, 2 * np.pi) - np.pi
+    return wrap_to_pi(a - b)
 
 
 def measure_analytic(compiled, reference, repeats, n=IK_ANALYTIC_N):

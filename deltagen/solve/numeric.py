@@ -66,7 +66,7 @@ Step limiting: dq is scaled so that max_i |dq_i| <= ``step_limit`` (rad or m).
 Joint limits (``respect_limits=True``; the result is always within arm.qlim):
 
 * a revolute joint outside its range is shifted by a multiple of 2 pi wherever that
-  brings it inside (the same pose);
+  brings it inside (the same pose; :func:`deltagen.geometry.limits.shift_into_limits`);
 * each attempt (the first one from q0) first iterates with the limits unenforced (2 pi
   shifts only) -- Newton's basins are larger without clamping -- and checks the limits
   once |dx| <= max(tol, 1e-9) per component. If that solution is outside the limits,
@@ -116,6 +116,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from deltagen import status as st
+from deltagen.geometry.limits import shift_into_limits
 from deltagen.inputs import InputError, as_float_array
 
 __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
@@ -337,15 +338,7 @@ class _Limits:
         """q with out-of-range revolute joints shifted by 2 pi where that brings them in."""
         if not self.respect:
             return q
-        two_pi = 2 * np.pi
-        below, above = q < self.lo, q > self.hi
-        if not (below.any() or above.any()):
-            return q
-        k = np.where(below, np.ceil((self.lo - q) / two_pi), 0.0)
-        k = np.where(above, -np.ceil((q - self.hi) / two_pi), k)
-        q2 = q + two_pi * k
-        use = (below | above) & self.wrap & (q2 >= self.lo) & (q2 <= self.hi)
-        return np.where(use, q2, q)
+        return shift_into_limits(q, self.lo, self.hi, self.wrap)
 
     def apply(self, q):
         if not self.respect:

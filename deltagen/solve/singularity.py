@@ -26,10 +26,11 @@ joint vectors q (..., n) and returns a dict of arrays of shape (...,):
 
 For ``spherical_wrist_6r`` arms -- 6 revolute joints, axes 4, 5, 6 through one point W
 (the wrist centre), axis 1 not parallel to axis 2, axes 2 and 3 parallel: the Puma 560,
-the Motoman UP6, the Manutec r15 -- the structure is read from the joint axes (as
-:mod:`ik_analytic` does; no robot names), and the Jacobian's determinant factors into the
-wrist part and the 3 x 3 position Jacobian of W, whose columns are ``w_i x (W - o_i)``,
-i = 1..3. Three named flags (each 1 where the factor vanishes) follow:
+the Motoman UP6, the Manutec r15 -- the structure is read from the joint axes by
+:func:`deltagen.model.structure.detect`, the detection the closed-form solver uses (no robot
+names), and the Jacobian's determinant factors into the wrist part and the 3 x 3 position
+Jacobian of W, whose columns are ``w_i x (W - o_i)``, i = 1..3 (W per configuration:
+:func:`deltagen.geometry.axes.common_points`). Three named flags (each 1 where the factor vanishes) follow:
 
 ``wrist``
     axes 4 and 6 collinear: ``|w4 x w6| < tol`` (both pass through W, so parallel means the
@@ -60,14 +61,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from deltagen.geometry.axes import common_points
 from deltagen.inputs import InputError, as_float_array
-from deltagen.reference import serial as reference
 from deltagen.model.serial import SerialDescription
+from deltagen.model.structure import SphericalWrist6R, detect
+from deltagen.reference import serial as reference
 
 __all__ = ["report", "describe", "row_of", "structure_of"]
-
-_GEO_TOL = 1e-9  # structure checks (fixed-in-link facts), relative to the arm's size
-_NONPAR = 1e-6
 
 
 def _description(arm) -> SerialDescription:
@@ -109,50 +109,9 @@ class _Structure:
         Jt = J[:, self.rows]
         self.rank = int(max(np.linalg.matrix_rank(Ji, tol=1e-9 * max(self.size, 1.0))
                             for Ji in Jt))
-        self.kind = "spherical_wrist_6r" if self._is_wrist_6r(qs) else "general"
-
-    def _is_wrist_6r(self, qs) -> bool:
-        if self.n != 6 or not self.revolute.all():
-            return False
-        o, w = reference.joint_axes(self.desc, qs[:3])
-        tol = _GEO_TOL * self.size
-        for k in range(o.shape[0]):
-            ok, wk = o[k], w[k]
-            if np.linalg.norm(np.cross(wk[0], wk[1])) < _NONPAR:
-                return False
-            if np.linalg.norm(np.cross(wk[1], wk[2])) > 1e-9:
-                return False
-            if np.linalg.norm(np.cross(wk[3], wk[4])) < _NONPAR:
-                return False
-            if np.linalg.norm(np.cross(wk[4], wk[5])) < _NONPAR:
-                return False
-            W, resid = _common_point(ok[3:6], wk[3:6])
-            if resid > tol:
-                return False
-            d = ok[2] - ok[1]  # axes 2 and 3 distinct
-            if np.linalg.norm(d - (d @ wk[1]) * wk[1]) < tol:
-                return False
-        return True
-
-
-def _common_point(points, dirs):
-    A = np.zeros((3, 3))
-    b = np.zeros(3)
-    for o, w in zip(points, dirs):
-        P = np.eye(3) - np.outer(w, w)
-        A += P
-        b += P @ o
-    x = np.linalg.lstsq(A, b, rcond=None)[0]
-    resid = max(np.linalg.norm((np.eye(3) - np.outer(w, w)) @ (x - o)) for o, w in zip(points, dirs))
-    return x, float(resid)
-
-
-def _batched_common_point(o, w):
-    """Least-squares common point of the lines (o[:, k], w[:, k]) per row: (N, 3)."""
-    P = np.eye(3) - w[..., :, None] * w[..., None, :]  # (N, k, 3, 3)
-    A = P.sum(axis=1)
-    b = np.einsum("nkij,nkj->ni", P, o)
-    return np.linalg.solve(A, b[..., None])[..., 0]
+        # the closed-form solver's detection (model.structure): one reading of the axes
+        wrist_6r = isinstance(detect(desc), SphericalWrist6R)
+        self.kind = "spherical_wrist_6r" if wrist_6r else "general"
 
 
 def _unit(v):
@@ -220,7 +179,7 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     d_sh = np.full(N, np.nan)
     d_el = np.full(N, np.nan)
     if s.kind == "spherical_wrist_6r":
-        W = _batched_common_point(o[:, 3:6], w[:, 3:6])
+        W = common_points(o[:, 3:6], w[:, 3:6])
         wrist = np.linalg.norm(np.cross(w[:, 3], w[:, 5]), axis=1) < tol
         n_sh = _unit(np.cross(w[:, 0], w[:, 1]))
         d_sh = np.abs(np.sum((W - o[:, 0]) * n_sh, axis=1))
