@@ -87,7 +87,7 @@ def _cross(a, b) -> np.ndarray:
 # ------------------------------------------------------------------------ joint axes
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class JointAxes:
     """The joint axes of a chain at q = 0 in the world (base) frame, and T(0).
 
@@ -101,6 +101,9 @@ class JointAxes:
     T0: np.ndarray  # (4, 4) tool pose at q = 0 [m]
     qlim: np.ndarray  # (n, 2) joint limits [rad or m], +-inf where a joint has none
     scale: float  # [m] the arm's size: max(1, largest distance of an o_i or p0 from o_1)
+
+    def __repr__(self):
+        return f"JointAxes({self.name!r}, {self.n} joints)"
 
     @property
     def n(self) -> int:
@@ -171,7 +174,7 @@ def joint_axes(desc: SerialDescription) -> JointAxes:
 # ------------------------------------------------------------------- the structures
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class PlanarArm:
     """2-3 revolute joints with parallel axes (direction u) and at most one prismatic joint
     along u. The first two revolute joints form a planar 2R arm for the point P: the tool
@@ -198,12 +201,16 @@ class PlanarArm:
     lower: np.ndarray  # (2,) [m] plane vector second axis -> P (q = 0)
     position_only_ok: bool  # the tool point is P (no roll, or the tool point on its axis)
 
+    def __repr__(self):
+        return f"{type(self).__name__}({self.axes.name!r})"
+
     @property
     def qlim(self) -> np.ndarray:
+        """(n, 2) joint limits [rad or m] (+-inf where a joint has none)."""
         return self.axes.qlim
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class ElbowArm:
     """Joints 1-3 of an elbow arm: axis 1 not parallel to axis 2, axes 2 and 3 parallel and
     distinct; they place a point W (the wrist point) of the forearm.
@@ -226,7 +233,7 @@ class ElbowArm:
     ez: np.ndarray  # (3,) = w1
     w2_offset: float  # [m] w2 . (W - o1): W's offset from axis 1 along w2 (the shoulder offset)
     cos_12: float  # w2 . ez (cosine of the angle between axes 1 and 2)
-    sin_12: float  # w2 . ey (its sine, > 0)
+    sin_12: float  # w2 . ey (its sine, signed by the arm frame's orientation; not 0)
     plane: np.ndarray  # (2, 3) rows ex, et: coordinates in the plane normal to w2
     shoulder_xy: np.ndarray  # (2,) [m] axis 2 in plane coordinates
     upper: np.ndarray  # (2,) [m] plane vector axis 2 -> axis 3 (upper arm, q = 0)
@@ -236,12 +243,16 @@ class ElbowArm:
     bend: np.ndarray  # (4,) elbow bend sign of each arm branch
     position_only_ok: bool  # the tool point is W (always for the central wrist)
 
+    def __repr__(self):
+        return f"{type(self).__name__}({self.axes.name!r})"
+
     @property
     def qlim(self) -> np.ndarray:
+        """(n, 2) joint limits [rad or m] (+-inf where a joint has none)."""
         return self.axes.qlim
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Elbow4R(ElbowArm):
     """An elbow arm with a fourth revolute joint, a roll whose axis is not parallel to axis
     2; W is the point of axis 4 nearest the tool point."""
@@ -252,7 +263,7 @@ class Elbow4R(ElbowArm):
     roll_ref: np.ndarray  # (3,) unit vector normal to w4: the roll angle's reference
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class SphericalWrist6R(ElbowArm):
     """An elbow arm with a central wrist: axes 4, 5, 6 through W (the wrist centre)."""
 
