@@ -43,7 +43,6 @@ Predicates of general use (UR-type arms have three consecutive parallel axes):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
