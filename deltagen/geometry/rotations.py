@@ -27,6 +27,8 @@ runtime were written and tested against), and deltagen does not otherwise need s
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from deltagen.inputs import InputError
@@ -148,6 +150,10 @@ def rot_log(R) -> np.ndarray:
     R = np.asarray(R, dtype=float)
     if R.ndim < 2 or R.shape[-2:] != (3, 3):
         raise InputError(f"R must have shape (..., 3, 3), got {R.shape}")
+    if R.ndim == 2:  # one matrix (an IK error in a loop): the same steps on Python floats
+        v = _rot_log_one(R)
+        if v is not None:
+            return v
     v = vee(R)
     c = np.clip(0.5 * (R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2] - 1.0), -1.0, 1.0)
     s = np.linalg.norm(v, axis=-1)
@@ -166,6 +172,19 @@ def rot_log(R) -> np.ndarray:
         sign = np.where(np.einsum("ij,ij->i", a, vb) < 0.0, -1.0, 1.0)
         out[big] = a * (sign * tb)[:, None]
     return out
+
+
+def _rot_log_one(R):
+    """rot_log of one matrix with theta <= pi/2 by the same operations on Python floats
+    (a tenth of the time of the array path, same numbers); None where theta > pi/2."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+    c = min(max(0.5 * (r00 + r11 + r22 - 1.0), -1.0), 1.0)
+    if not c >= 0.0:  # also NaN: the array path
+        return None
+    v0, v1, v2 = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
+    s = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    factor = 1.0 if s < 1e-300 else math.atan2(s, c) / s
+    return np.array([v0 * factor, v1 * factor, v2 * factor])
 
 
 # ---------------------------------------------------------------- Euler angles, rpy
