@@ -65,6 +65,9 @@ _EXP_SERIES = 1e-4  # rot_exp: below this angle the series (error ~ theta^4 / 12
 def skew(w) -> np.ndarray:
     """[w]x (..., 3, 3) of vectors w (..., 3): ``skew(w) @ v == cross(w, v)``."""
     w = np.asarray(w, dtype=float)
+    if w.shape == (3,):  # one vector (Rodrigues about one axis): a literal is faster
+        x, y, z = w.tolist()
+        return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     W = np.zeros(w.shape[:-1] + (3, 3))
     W[..., 0, 1], W[..., 0, 2] = -w[..., 2], w[..., 1]
     W[..., 1, 0], W[..., 1, 2] = w[..., 2], -w[..., 0]
