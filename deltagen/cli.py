@@ -68,7 +68,7 @@ def _write_batch(path: Path, data: np.ndarray, header: str) -> None:
 
 
 def _evaluate_serial(args, arm, forward: bool) -> int:
-    from deltagen.api.serial import euler_zyx
+    from deltagen.geometry.rotations import euler_zyx
 
     if not forward:
         print("inverse kinematics of serial arms is not available yet (issue 4)", file=sys.stderr)

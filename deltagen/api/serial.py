@@ -24,6 +24,7 @@ import numpy as np
 from deltagen import status as st
 from deltagen.errors import GeometryError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
+from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
 from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_errors_mode, plain_pose
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
@@ -40,14 +41,6 @@ def _is_arm_file(path: Path) -> bool:
 def bundled_robots() -> list[str]:
     """Names of the bundled serial arms (robots/*.toml with a convention)."""
     return [path.stem for path in sorted(robots_dir().glob("*.toml")) if _is_arm_file(path)]
-
-
-def euler_zyx(R: np.ndarray) -> np.ndarray:
-    """(psi, theta, phi) after Vukobratovic of rotation matrices (..., 3, 3)."""
-    psi = np.arctan2(R[..., 1, 0], R[..., 0, 0])
-    theta = np.arctan2(-R[..., 2, 0], R[..., 0, 0] * np.cos(psi) + R[..., 1, 0] * np.sin(psi))
-    phi = np.arctan2(R[..., 2, 1], R[..., 2, 2])
-    return np.stack([psi, theta, phi], axis=-1)
 
 
 class SerialRobot:
@@ -174,7 +167,7 @@ class SerialRobot:
             # angular velocity in the base frame)
             J, _ = self._core.jacobian(qf)
             w = np.einsum("nij,nj->ni", J[:, 3:], qdf)
-            W = _skew(w)
+            W = skew(w)
             corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
             Jd = self._to_tool(qf, Jd - corr)
         return self._finish(errors, lead, status, [Jd], ("q", "qd"))
@@ -551,14 +544,6 @@ class SerialRobot:
         if errors == "nan":
             return (*shaped, ok.reshape(lead))
         return shaped[0] if len(shaped) == 1 else tuple(shaped)
-
-
-def _skew(w):
-    W = np.zeros(w.shape[:-1] + (3, 3))
-    W[..., 0, 1], W[..., 0, 2] = -w[..., 2], w[..., 1]
-    W[..., 1, 0], W[..., 1, 2] = w[..., 2], -w[..., 0]
-    W[..., 2, 0], W[..., 2, 1] = -w[..., 1], w[..., 0]
-    return W
 
 
 class _ReferenceArm:

@@ -53,6 +53,7 @@ import numpy as np
 
 from deltagen import status as st
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
+from deltagen.geometry.rotations import rot_axis
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
 #: The issue's throughput targets for the compiled core [ns per point].
@@ -419,13 +420,10 @@ def pinocchio_model(description):
         # motion, Rot_z(offset) or Rot_z(theta) Trans_z(offset), goes into its placement
         turn = joint.offset if joint.revolute else joint.theta
         shift = 0.0 if joint.revolute else joint.offset
-        c, s = np.cos(turn), np.sin(turn)
-        pre = pin.SE3(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
-                      np.array([0.0, 0.0, shift]))
+        pre = pin.SE3(rot_axis("z", turn), np.array([0.0, 0.0, shift]))
         kind = pin.JointModelRZ() if joint.revolute else pin.JointModelPZ()
         parent = model.addJoint(parent, kind, placement * pre, f"joint{i + 1}")
-        ca, sa = np.cos(joint.alpha), np.sin(joint.alpha)
-        placement = pin.SE3(np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]]),
+        placement = pin.SE3(rot_axis("x", joint.alpha),
                             np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0]))
     tool = placement * pin.SE3(description.tool[:3, :3].copy(), description.tool[:3, 3].copy())
     fid = model.addFrame(pin.Frame("tool", parent, 0, tool, pin.FrameType.OP_FRAME))

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from deltagen.errors import GeometryError
+from deltagen.geometry.rotations import matrix_from_rpy
 from deltagen.model.robot_file import read_toml, real
 from deltagen.model.naming import check_identifier
 
@@ -81,15 +82,8 @@ class Joint:
 
 def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
     """4x4 homogeneous transform: translation xyz, rotation Rz(yaw) Ry(pitch) Rx(roll)."""
-    roll, pitch, yaw = rpy
-    cr, sr, cp, sp_, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch),
-                               math.sin(pitch), math.cos(yaw), math.sin(yaw))
     T = np.eye(4)
-    T[:3, :3] = [
-        [cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
-        [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr],
-        [-sp_, cp * sr, cp * cr],
-    ]
+    T[:3, :3] = matrix_from_rpy(rpy)
     T[:3, 3] = xyz
     return T
 

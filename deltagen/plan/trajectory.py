@@ -78,6 +78,17 @@ import numpy as np
 
 from deltagen.errors import KinematicsError
 from deltagen.inputs import InputError
+# the rotation helpers live in geometry; skew ... slerp stay importable from here
+from deltagen.geometry.rotations import (  # noqa: F401
+    as_rotation,
+    matrix_from_quat,
+    quat_from_matrix,
+    quat_slerp,
+    rot_exp,
+    rot_log,
+    skew,
+    slerp,
+)
 
 _AXES = "xyz"
 
@@ -158,141 +169,11 @@ def _vec3(v, name):
 
 
 def _rotation(R, name="R"):
-    R = np.asarray(R, dtype=float)
-    if R.shape == (4, 4):
-        R = R[:3, :3]
-    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+    """One rotation matrix (3, 3) (or the rotation block of a 4x4 pose), checked."""
+    R = as_rotation(R, name)
+    if R.shape != (3, 3):
         raise InputError(f"{name} must be a 3x3 rotation matrix (or a 4x4 pose)")
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-8) or np.linalg.det(R) < 0:
-        raise InputError(f"{name} is not a rotation matrix (R R^T != I or det R < 0)")
     return R
-
-
-def skew(w):
-    """[w]x (..., 3, 3) with [w]x v = w x v."""
-    w = np.asarray(w, dtype=float)
-    W = np.zeros(w.shape[:-1] + (3, 3))
-    W[..., 0, 1], W[..., 0, 2] = -w[..., 2], w[..., 1]
-    W[..., 1, 0], W[..., 1, 2] = w[..., 2], -w[..., 0]
-    W[..., 2, 0], W[..., 2, 1] = -w[..., 1], w[..., 0]
-    return W
-
-
-def rot_exp(v):
-    """Rotation matrices (..., 3, 3) of rotation vectors v (..., 3) (Rodrigues)."""
-    v = np.asarray(v, dtype=float)
-    th2 = np.sum(v * v, axis=-1)
-    th = np.sqrt(th2)
-    small = th < 1e-4
-    ths = np.where(small, 1.0, th)
-    # series below 1e-4 rad: error ~ th^4 / 120 < 1e-18
-    a = np.where(small, 1.0 - th2 / 6.0, np.sin(ths) / ths)
-    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
-    W = skew(v)
-    return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
-
-
-def quat_from_matrix(R):
-    """Unit quaternions (..., 4) = (w, x, y, z) with w >= 0 of rotation matrices (..., 3, 3)
-    (Shepperd's method: the largest of the four candidates is computed from the trace or a
-    diagonal element, the others from off-diagonal sums, so no cancellation near 180 deg)."""
-    R = np.asarray(R, dtype=float)
-    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
-    tr = m00 + m11 + m22
-    cand = np.stack([tr, m00, m11, m22], axis=-1)
-    k = np.argmax(cand, axis=-1)
-    q = np.empty(R.shape[:-2] + (4,))
-    r21, r12 = R[..., 2, 1], R[..., 1, 2]
-    r02, r20 = R[..., 0, 2], R[..., 2, 0]
-    r10, r01 = R[..., 1, 0], R[..., 0, 1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        # k = 0: w largest
-        s0 = 2.0 * np.sqrt(np.maximum(1.0 + tr, 0.0))
-        q0 = np.stack([s0 / 4, (r21 - r12) / s0, (r02 - r20) / s0, (r10 - r01) / s0], axis=-1)
-        s1 = 2.0 * np.sqrt(np.maximum(1.0 + m00 - m11 - m22, 0.0))
-        q1 = np.stack([(r21 - r12) / s1, s1 / 4, (r01 + r10) / s1, (r02 + r20) / s1], axis=-1)
-        s2 = 2.0 * np.sqrt(np.maximum(1.0 - m00 + m11 - m22, 0.0))
-        q2 = np.stack([(r02 - r20) / s2, (r01 + r10) / s2, s2 / 4, (r12 + r21) / s2], axis=-1)
-        s3 = 2.0 * np.sqrt(np.maximum(1.0 - m00 - m11 + m22, 0.0))
-        q3 = np.stack([(r10 - r01) / s3, (r02 + r20) / s3, (r12 + r21) / s3, s3 / 4], axis=-1)
-    for idx, cand_q in enumerate((q0, q1, q2, q3)):
-        sel = k == idx
-        q[sel] = cand_q[sel]
-    q /= np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., :1] < 0.0, -q, q)
-
-
-def matrix_from_quat(q):
-    """Rotation matrices (..., 3, 3) of quaternions (..., 4) = (w, x, y, z) (normalised first)."""
-    q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    R = np.empty(q.shape[:-1] + (3, 3))
-    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    R[..., 0, 1] = 2 * (x * y - w * z)
-    R[..., 0, 2] = 2 * (x * z + w * y)
-    R[..., 1, 0] = 2 * (x * y + w * z)
-    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    R[..., 1, 2] = 2 * (y * z - w * x)
-    R[..., 2, 0] = 2 * (x * z - w * y)
-    R[..., 2, 1] = 2 * (y * z + w * x)
-    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
-
-
-def _rot_log_small(R):
-    """rot_log of one 3x3 matrix whose angle is well below pi (the IK error): the
-    antisymmetric part, scaled by angle / sin(angle); None if the angle is not small."""
-    tr = R[0, 0] + R[1, 1] + R[2, 2]
-    if tr < 2.0:  # angle above ~60 deg: use the robust quaternion route
-        return None
-    v = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    sn = math.sqrt(float(v @ v))  # sin(angle)
-    if sn < 1e-6:
-        return v * (1.0 + sn * sn / 6.0)
-    return v * (math.asin(min(sn, 1.0)) / sn)
-
-
-def rot_log(R):
-    """Rotation vectors (..., 3) (axis times angle in [0, pi]) of rotation matrices, through
-    the quaternion (robust at 0 and near pi)."""
-    R = np.asarray(R, dtype=float)
-    if R.shape == (3, 3):
-        v = _rot_log_small(R)
-        if v is not None:
-            return v
-    q = quat_from_matrix(R)
-    w, v = q[..., 0], q[..., 1:]
-    n = np.linalg.norm(v, axis=-1)
-    angle = 2.0 * np.arctan2(n, w)
-    small = n < 1e-12
-    factor = np.where(small, 2.0 / np.where(w == 0, 1.0, w), angle / np.where(small, 1.0, n))
-    return v * factor[..., None]
-
-
-def quat_slerp(q0, q1, s):
-    """Spherical linear interpolation of unit quaternions along the shorter arc;
-    s (...,) -> (..., 4)."""
-    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
-    q1 = np.asarray(q1, dtype=float) / np.linalg.norm(q1)
-    d = float(np.dot(q0, q1))
-    if d < 0.0:
-        q1, d = -q1, -d
-    s = np.asarray(s, dtype=float)[..., None]
-    if d > 1.0 - 1e-12:
-        out = q0 + s * (q1 - q0)
-        return out / np.linalg.norm(out, axis=-1, keepdims=True)
-    om = math.acos(min(d, 1.0))
-    return (np.sin((1.0 - s) * om) * q0 + np.sin(s * om) * q1) / math.sin(om)
-
-
-def slerp(R0, R1, s):
-    """R(s) = R0 exp(s log(R0^T R1)) for s (...,) -> (..., 3, 3): the shortest rotation from R0
-    to R1 at constant angular velocity about a fixed axis."""
-    R0, R1 = _rotation(R0, "R0"), _rotation(R1, "R1")
-    k = rot_log(R0.T @ R1)
-    s = np.asarray(s, dtype=float)
-    return R0 @ rot_exp(s[..., None] * k)
 
 
 # =========================================================================== paths

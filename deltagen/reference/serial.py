@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from deltagen.geometry.rotations import euler_zyx, rot_axis, rpy  # noqa: F401 (public here)
 from deltagen.inputs import InputError, as_float_array
 from deltagen.status import INVALID, OK
 
@@ -66,12 +67,7 @@ def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
     """(N, 4, 4) rotations about coordinate axis 0/1/2 by ``angle`` (N,)."""
     angle = np.asarray(angle, dtype=np.float64)
     M = _eye(angle.shape[0])
-    c, s = np.cos(angle), np.sin(angle)
-    j, k = [(1, 2), (2, 0), (0, 1)][axis]  # right-handed cyclic pair
-    M[:, j, j] = c
-    M[:, j, k] = -s
-    M[:, k, j] = s
-    M[:, k, k] = c
+    M[:, :3, :3] = rot_axis(axis, angle)
     return M
 
 
@@ -321,31 +317,3 @@ def jacobian_dot(desc, q, qd, frame: str = "base"):
         Jd = _to_tool(Jd - corr, T[:, :3, :3])
     Jd[bad] = np.nan
     return Jd, _status(bad)
-
-
-# ------------------------------------------------------------------------- orientation
-
-
-def euler_zyx(R) -> np.ndarray:
-    """(..., 3, 3) -> (..., 3) angles (psi, theta, phi) after Vukobratovic (lecture
-    slide 89): R = Rot_z(psi) Rot_y(theta) Rot_x(phi)::
-
-        psi   = atan2(a21, a11)
-        theta = atan2(-a31, a11 cos psi + a21 sin psi)
-        phi   = atan2(a32, a33)
-    """
-    R = np.asarray(R, dtype=np.float64)
-    if R.ndim < 2 or R.shape[-2:] != (3, 3):
-        raise InputError(f"R must have shape (..., 3, 3), got {R.shape}")
-    a11, a21, a31 = R[..., 0, 0], R[..., 1, 0], R[..., 2, 0]
-    a32, a33 = R[..., 2, 1], R[..., 2, 2]
-    psi = np.arctan2(a21, a11)
-    theta = np.arctan2(-a31, a11 * np.cos(psi) + a21 * np.sin(psi))
-    phi = np.arctan2(a32, a33)
-    return np.stack([psi, theta, phi], axis=-1)
-
-
-def rpy(R) -> np.ndarray:
-    """(..., 3, 3) -> (..., 3) (roll, pitch, yaw) with R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll),
-    i.e. :func:`euler_zyx` reversed."""
-    return euler_zyx(R)[..., ::-1].copy()

@@ -104,6 +104,7 @@ import math
 import numpy as np
 
 from deltagen.geometry.limits import fit_limits
+from deltagen.geometry.rotations import rotate as _rotv, rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import PlanarArm, Structure, detect
@@ -117,15 +118,6 @@ _CHUNK = 8192  # poses per pass (keeps the temporaries in cache)
 # ------------------------------------------------------------------------ small helpers
 
 
-def _skew(w) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def _rotv(w, th, v) -> np.ndarray:
-    """Rotate vectors v (..., 3) about the unit axis w (3,) by th (...) (Rodrigues)."""
-    th = np.asarray(th, dtype=float)[..., None]
-    c, s = np.cos(th), np.sin(th)
-    return v * c + (v @ _skew(w).T) * s + np.multiply.outer(v @ w, w) * (1.0 - c)
 
 
 def _cross(a, b) -> np.ndarray:
@@ -144,12 +136,6 @@ def _sp1(w, a, b) -> np.ndarray:
 
 def _cross2(a, b) -> np.ndarray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def _rot2(th, v) -> np.ndarray:
-    """Rotate 2D vectors v (..., 2) by th (...)."""
-    c, s = np.cos(th), np.sin(th)
-    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
 
 
 def _angle2(v) -> np.ndarray:

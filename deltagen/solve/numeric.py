@@ -117,6 +117,7 @@ import numpy as np
 
 from deltagen import status as st
 from deltagen.geometry.limits import shift_into_limits
+from deltagen.geometry.rotations import rot_log as rotation_vector, vee  # rotation_vector: public
 from deltagen.inputs import InputError, as_float_array
 
 __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
@@ -165,35 +166,6 @@ class IKResult:
 
 
 # ------------------------------------------------------------------------------ geometry
-
-
-def rotation_vector(R: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations -> (N, 3) rotation vectors theta * axis (the matrix logarithm).
-
-    theta = atan2(|v|, (tr R - 1) / 2) with v = vee(R - R^T) / 2 = sin(theta) axis. For
-    theta <= pi/2 the axis is v / |v| (v itself when |v| is tiny: exact to first order);
-    for theta > pi/2 it comes from the symmetric part, (R + R^T)/2 = c I + (1 - c) a a^T,
-    column of the largest diagonal entry, with the sign of v (accurate up to theta = pi).
-    """
-    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
-                        R[:, 1, 0] - R[:, 0, 1]], axis=-1)
-    c = np.clip(0.5 * (R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0), -1.0, 1.0)
-    s = np.linalg.norm(v, axis=-1)
-    theta = np.arctan2(s, c)
-    small = s < 1e-300
-    factor = np.where(small, 1.0, theta / np.where(small, 1.0, s))
-    out = v * factor[:, None]
-    big = c < 0.0
-    if np.any(big):
-        Rb, cb, vb, tb = R[big], c[big], v[big], theta[big]
-        S = 0.5 * (Rb + np.swapaxes(Rb, 1, 2)) - cb[:, None, None] * np.eye(3)
-        S = S / (1.0 - cb)[:, None, None]  # = a a^T
-        k = np.argmax(np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2]], axis=-1), axis=-1)
-        a = S[np.arange(len(k)), :, k]
-        a = a / np.linalg.norm(a, axis=-1, keepdims=True)
-        sign = np.where(np.einsum("ij,ij->i", a, vb) < 0.0, -1.0, 1.0)
-        out[big] = a * (sign * tb)[:, None]
-    return out
 
 
 def pose_error(T_current: np.ndarray, T_target: np.ndarray, mask=None) -> np.ndarray:
@@ -247,8 +219,7 @@ def _fd_jacobian(arm, q: np.ndarray) -> np.ndarray:
     J[:, :3] = ((Tp[..., :3, 3] - Tm[..., :3, 3]) / (2 * h)).transpose(0, 2, 1)
     D = (Tp[..., :3, :3] - Tm[..., :3, :3]) @ np.swapaxes(T0[:, None, :3, :3], -1, -2)
     D = D / (2 * h)
-    wv = 0.5 * np.stack([D[..., 2, 1] - D[..., 1, 2], D[..., 0, 2] - D[..., 2, 0],
-                         D[..., 1, 0] - D[..., 0, 1]], axis=-1)  # (N, n, 3)
+    wv = vee(D)  # (N, n, 3)
     J[:, 3:] = wv.transpose(0, 2, 1)
     return J
 
