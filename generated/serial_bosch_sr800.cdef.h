@@ -12,20 +12,8 @@ int bosch_sr800_fk_jacobian(size_t n, const double *q, double *T, double *J, int
 int bosch_sr800_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 int bosch_sr800_ik_all(size_t n, const double *T, double *q, double *valid, int8_t *status);
 
-typedef struct bosch_sr800_ik_options {
-    double tol_p;
-    double tol_r;
-    double step_limit;
-    double damping;
-    double base_damping;
-    int32_t max_iter;
-    int32_t stall_window;
-    int32_t respect_limits;
-    int32_t free_first;
-    int32_t mask[6];
-} bosch_sr800_ik_options;
 
-int bosch_sr800_ik_newton(size_t n, const bosch_sr800_ik_options *options,
+int bosch_sr800_ik_newton(size_t n, const deltagen_ik_options *options,
     const double *T_target, const double *q0, const double *qlim,
     double *q, double *err_p, double *err_r,
     int32_t *iterations, int8_t *status);

@@ -11,20 +11,8 @@ int lecture_prp_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int lecture_prp_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int lecture_prp_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 
-typedef struct lecture_prp_ik_options {
-    double tol_p;
-    double tol_r;
-    double step_limit;
-    double damping;
-    double base_damping;
-    int32_t max_iter;
-    int32_t stall_window;
-    int32_t respect_limits;
-    int32_t free_first;
-    int32_t mask[6];
-} lecture_prp_ik_options;
 
-int lecture_prp_ik_newton(size_t n, const lecture_prp_ik_options *options,
+int lecture_prp_ik_newton(size_t n, const deltagen_ik_options *options,
     const double *T_target, const double *q0, const double *qlim,
     double *q, double *err_p, double *err_r,
     int32_t *iterations, int8_t *status);

@@ -23,6 +23,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "deltagen_ik_newton.h"  /* deltagen_ik_options; the runtime, compiled beside */
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -91,27 +93,13 @@ int manutec_r15_jacobian_dot(size_t n, const double *restrict q, const double *r
  */
 int manutec_r15_ik_all(size_t n, const double *restrict T, double *restrict q, double *restrict valid, int8_t *restrict status);
 
-/* Options of manutec_r15_ik_newton (numerical inverse kinematics, damped Newton). */
-typedef struct manutec_r15_ik_options {
-    double tol_p;            /* position tolerance [m], >= 0 */
-    double tol_r;            /* rotation tolerance [rad], >= 0 */
-    double step_limit;       /* max |dq_i| per step [rad or m], > 0 (INFINITY: unlimited) */
-    double damping;          /* K >= 0: weight of the singularity term of the damping */
-    double base_damping;     /* c0 >= 0: damping always present, times |dx|^2 */
-    int32_t max_iter;        /* Newton steps per target, >= 0 */
-    int32_t stall_window;    /* stop when |dx| did not halve over this many steps (0: never) */
-    int32_t respect_limits;  /* 1: the result stays within qlim; 0: qlim is ignored */
-    int32_t free_first;      /* 1: iterate without clamping first (see the source) */
-    int32_t mask[6];         /* pose components to match, vx vy vz wx wy wz: 0 or 1 */
-} manutec_r15_ik_options;
 
-/* Numerical inverse kinematics of n target poses, one damped Newton attempt per target
- * (Levenberg-Marquardt with error-scaled damping, non-monotone acceptance, step limiting,
- * 2 pi wrapping and clamping into the joint limits; the algorithm is described in
- * deltagen/solve/numeric.py and in the comments of manutec_r15_ik_newton's source).
+/* Numerical inverse kinematics of n target poses, one damped Newton attempt per target:
+ * deltagen_ik_newton (deltagen_ik_newton.h, the runtime compiled beside this module) on
+ * this arm's fk_jacobian.
  *
  * n           number of targets
- * options     in: tolerances, damping, iteration cap, mask (see manutec_r15_ik_options)
+ * options     in: tolerances, damping, iteration cap, mask (see deltagen_ik_options)
  * T_target    in,  n x 16: target poses, 4x4 row-major (the rotation block and the position)
  * q0          in,  n x 6: start configurations
  * qlim        in,  6 x 2: joint limits [lower, upper] (+-INFINITY: none), or NULL (no limits)
@@ -123,9 +111,10 @@ typedef struct manutec_r15_ik_options {
  *             max_iter or stuck), MANUTEC_R15_INVALID (a non-finite value in the row's T_target
  *             or q0; q, err_p, err_r NaN, iterations 0)
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
- * n > 0 (then nothing is written). Reentrant; about 2 KiB of stack besides fk_jacobian's.
+ * n > 0 (then nothing is written).
  */
-int manutec_r15_ik_newton(size_t n, const manutec_r15_ik_options *restrict options,
+
+int manutec_r15_ik_newton(size_t n, const deltagen_ik_options *restrict options,
     const double *restrict T_target, const double *restrict q0, const double *restrict qlim,
     double *restrict q, double *restrict err_p, double *restrict err_r,
     int32_t *restrict iterations, int8_t *restrict status);

@@ -11,20 +11,8 @@ int puma560_offset_wrist_jacobian(size_t n, const double *q, double *J, int8_t *
 int puma560_offset_wrist_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int puma560_offset_wrist_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 
-typedef struct puma560_offset_wrist_ik_options {
-    double tol_p;
-    double tol_r;
-    double step_limit;
-    double damping;
-    double base_damping;
-    int32_t max_iter;
-    int32_t stall_window;
-    int32_t respect_limits;
-    int32_t free_first;
-    int32_t mask[6];
-} puma560_offset_wrist_ik_options;
 
-int puma560_offset_wrist_ik_newton(size_t n, const puma560_offset_wrist_ik_options *options,
+int puma560_offset_wrist_ik_newton(size_t n, const deltagen_ik_options *options,
     const double *T_target, const double *q0, const double *qlim,
     double *q, double *err_p, double *err_r,
     int32_t *iterations, int8_t *status);

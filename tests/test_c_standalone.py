@@ -414,25 +414,85 @@ def _serial_sources():
     return sorted(p.name for p in paths.generated_dir().glob("serial_*.c"))
 
 
-@pytest.mark.parametrize("name", _serial_sources())
-def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
-    """Every checked-in arm module: strict C99 at -O2 warning-free, the build flags too,
-    only libm symbols undefined, no global data."""
-    for ext in (".c", ".h"):
-        shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
-    prefix = name[len("serial_"):-2]
-    _gcc([*STRICT, "-O2", "-c", name, "-o", "s.o"], cwd=tmp_path)
-    args, _ = compile_flags(prefix)
-    _gcc([*args, "-pedantic", "-Werror", "-c", name, "-o", "v.o"], cwd=tmp_path)
+RUNTIME_SOURCES = sorted(p.name for p in paths.runtime_dir().glob("deltagen_*.c"))
+
+
+def _copy_runtime(dest):
+    """The hand-written runtime C (codegen/runtime/), which arm modules are compiled with."""
+    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
+        shutil.copy(path, dest)
+
+
+def _check_symbols(objects, cwd):
+    """Only libm symbols undefined (besides the objects' own), no global data."""
     nm = shutil.which("nm")
     if nm is None:
         return
-    table = subprocess.run([nm, "s.o"], cwd=tmp_path, capture_output=True, text=True,
-                           check=True).stdout
-    undefined = {line.split()[1] for line in table.splitlines() if line.split()[:1] == ["U"]}
-    assert undefined <= LIBM, sorted(undefined - LIBM)
-    kinds = {line.split()[1] for line in table.splitlines() if len(line.split()) == 3}
+    defined, undefined, kinds = set(), set(), set()
+    for obj in objects:
+        table = subprocess.run([nm, obj], cwd=cwd, capture_output=True, text=True,
+                               check=True).stdout
+        for line in table.splitlines():
+            parts = line.split()
+            if parts[:1] == ["U"]:
+                undefined.add(parts[1])
+            elif len(parts) == 3:
+                defined.add(parts[2])
+                kinds.add(parts[1])
+    assert undefined - defined <= LIBM, sorted(undefined - defined - LIBM)
     assert not kinds & set("DdBbCGgSsVv")
+
+
+@pytest.mark.parametrize("name", _serial_sources())
+def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
+    """Every checked-in arm module with the runtime: strict C99 at -O2 warning-free, the
+    build flags too, only libm symbols undefined, no global data."""
+    for ext in (".c", ".h"):
+        shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
+    _copy_runtime(tmp_path)
+    prefix = name[len("serial_"):-2]
+    args, _ = compile_flags(prefix)
+    objects = []
+    for source in [name, *RUNTIME_SOURCES]:
+        obj = source.replace(".c", ".o")
+        _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
+        _gcc([*args, "-pedantic", "-Werror", "-c", source, "-o", "v_" + obj], cwd=tmp_path)
+        objects.append(obj)
+    _check_symbols(objects, tmp_path)
+
+
+def _long_arm(n_joints):
+    """A revolute arm of n_joints > 6 (redundant), its limits within +-170 deg."""
+    from deltagen.model.serial import SerialDescription
+
+    rows = []
+    for i in range(n_joints):
+        rows.append(dict(a=0.3 if i % 3 == 1 else 0.02, alpha_deg=(90, -90, 0)[i % 3],
+                         d=0.1 if i % 2 else 0.25, qlim_deg=[-170, 170]))
+    return SerialDescription.from_rows(rows, "standard", name=f"long{n_joints}")
+
+
+def _render_arm(desc, dest):
+    from deltagen.codegen.serial import arm_sources
+
+    for file_name, text in arm_sources(desc).items():
+        (dest / file_name).write_text(text)
+    _copy_runtime(dest)
+
+
+@pytest.mark.parametrize("n_joints", [7, 9])
+def test_long_arms_compile_warning_free(n_joints, tmp_path):
+    """Arms with more than 6 joints: the module and the runtime compile with -Werror and
+    -Warray-bounds at -O2 and -O3 (arrays sized by the joint count work for any count)."""
+    desc = _long_arm(n_joints)
+    _render_arm(desc, tmp_path)
+    args, _ = compile_flags(desc.name)
+    for source in [f"serial_{desc.name}.c", *RUNTIME_SOURCES]:
+        for opt in ("-O2", "-O3"):
+            _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"],
+                 cwd=tmp_path)
+        _gcc([*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
+             cwd=tmp_path)
 
 
 IK_DRIVER = r"""
@@ -453,7 +513,7 @@ static int8_t st[N], st2[N];
 
 int main(void)
 {
-    %(name)s_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
+    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
     CHECK(%(name)s_ik_newton(N, &o, TT, Q0, QLIM, q, ep, er, it, st) == 0, "rc");
     CHECK(%(name)s_fk(N, q, T, st2) == 0, "fk rc");
     int ok = 0;
@@ -480,7 +540,7 @@ int main(void)
     int8_t s1 = 42;
     double q1[NJ] = {0}, e1 = 7.0, e2 = 7.0;
     int32_t i1;
-    %(name)s_ik_options bad = o;
+    deltagen_ik_options bad = o;
     bad.tol_p = -1.0;
     CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "tol_p");
     bad = o;
@@ -507,15 +567,24 @@ int main(void)
 """
 
 
-@pytest.mark.parametrize("name", ["puma560", "manutec_h5"])
+@pytest.mark.parametrize("name", ["puma560", "manutec_h5", "long7", "long9"])
 def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
-    """<arm>_ik_newton on its own, linked with ASan/UBSan: converged rows reproduce their
-    targets through the module's fk and stay within the limits, non-finite rows are
-    INVALID, bad options and NULL pointers give -1 and write nothing."""
+    """<arm>_ik_newton (the generated wrapper and the runtime solver) on its own, linked with
+    ASan/UBSan: converged rows reproduce their targets through the module's fk and stay
+    within the limits, non-finite rows are INVALID, bad options and NULL pointers give -1
+    and write nothing. long7 and long9 are redundant arms (7 and 9 joints)."""
     from deltagen.reference import serial as reference
     from deltagen.api.serial import SerialRobot
 
-    arm = SerialRobot.load(name, backend="reference")
+    if name.startswith("long"):
+        desc = _long_arm(int(name[4:]))
+        _render_arm(desc, tmp_path)
+        arm = SerialRobot(desc, backend="reference")
+    else:
+        arm = SerialRobot.load(name, backend="reference")
+        for ext in (".c", ".h"):
+            shutil.copy(paths.generated_dir() / f"serial_{name}{ext}", tmp_path)
+        _copy_runtime(tmp_path)
     n_rows, nj = 70, arm.n
     rng = np.random.default_rng(7)
     lo, hi = arm.qlim.T
@@ -526,16 +595,20 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     T[3, 0, 3] = np.nan
     q0[10, 1] = np.inf
     bad[[3, 10]] = 1
-    for ext in (".c", ".h"):
-        shutil.copy(paths.generated_dir() / f"serial_{name}{ext}", tmp_path)
     arrays = "".join([_c_array("TT", T), _c_array("Q0", q0), _c_array("QLIM", arm.qlim),
                       _c_array("BAD", bad, "int")])
     source = IK_DRIVER % dict(name=name, upper=name.upper(), n=n_rows, nj=nj, arrays=arrays)
     if nj < 6:
         source = source.replace("{1, 1, 1, 1, 1, 1}}", "{1, 1, 1, 0, 0, 1}}")
     (tmp_path / "driver.c").write_text(source)
-    _gcc([*STRICT, "-O1", *sanitizers, "driver.c", f"serial_{name}.c", "-o", "driver", "-lm"],
-         cwd=tmp_path)
+    module = f"serial_{name}.c"
+    if name.startswith("long"):
+        # the long arms' generated kernels are big and tested elsewhere: instrumenting them
+        # (-g) costs minutes, so the runtime and the driver alone run under the sanitizers
+        _gcc([*STRICT, "-O1", "-c", module, "-o", "module.o"], cwd=tmp_path)
+        module = "module.o"
+    _gcc([*STRICT, "-O1", *sanitizers, "driver.c", module, *RUNTIME_SOURCES,
+          "-o", "driver", "-lm"], cwd=tmp_path)
     env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:detect_stack_use_after_return=1",
                UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
     proc = subprocess.run([str(tmp_path / "driver")], capture_output=True, text=True,

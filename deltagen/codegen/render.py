@@ -49,7 +49,7 @@ class Unit:
     axes_choices: tuple = ()  # e.g. (3, 4): a run-time row length; () for fixed widths
     axes_doc: str = ""
     block: int = 64
-    newton: dict | None = None  # {n, revolute}: emit <prefix>_ik_newton (templates/ik_newton.*)
+    newton: dict | None = None  # {n, revolute}: emit <prefix>_ik_newton, the wrapper of runtime/deltagen_ik_newton.c
 
 
 def _columns(port):

@@ -103,16 +103,25 @@ class CompiledArm:
         T, J, status = self._run("fk_jacobian", [q], 16, 6 * n)
         return T.reshape(-1, 4, 4), J.reshape(-1, 6, n), status
 
-    def ik_options(self, *, tol_p, tol_r, step_limit, damping, base_damping, max_iter,
-                   stall_window, respect_limits, free_first, mask):
-        """A filled <prefix>_ik_options struct (cffi-owned) for :meth:`ik_newton`."""
-        o = self._ffi.new(f"{self._prefix}_ik_options *")
-        o.tol_p, o.tol_r, o.step_limit = tol_p, tol_r, step_limit
-        o.damping, o.base_damping = damping, base_damping
-        o.max_iter, o.stall_window = max_iter, stall_window
-        o.respect_limits, o.free_first = int(respect_limits), int(free_first)
-        o.mask = [int(bool(m)) for m in mask]
-        return o
+    def ik_options(self, **fields):
+        """A filled deltagen_ik_options struct (cffi-owned) for :meth:`ik_newton`: one
+        keyword per field of the struct, which is declared once, in the runtime's C header
+        (codegen/runtime/deltagen_ik_newton.h); integers and flags are converted."""
+        types = dict(self._ffi.typeof("deltagen_ik_options").fields)
+        if set(fields) != set(types):
+            raise TypeError(f"ik_options needs exactly the fields {sorted(types)}; missing "
+                            f"{sorted(set(types) - set(fields))}, unknown "
+                            f"{sorted(set(fields) - set(types))}")
+        values = {}
+        for name, value in fields.items():
+            ctype = types[name].type
+            if ctype.kind == "array":  # the mask: 0/1 flags
+                values[name] = [int(bool(v)) for v in value]
+            elif ctype.cname.startswith("int"):
+                values[name] = int(value)
+            else:
+                values[name] = float(value)
+        return self._ffi.new("deltagen_ik_options *", values)
 
     def ik_newton(self, options, T, q0, qlim=None):
         """One damped Newton attempt per target in C (<prefix>_ik_newton).
