@@ -51,6 +51,9 @@ def cmd_generate(args) -> int:
         print(f"wrote {path}")
     if not written:
         print("generated/ already up to date")
+    for name in generate.stray():
+        print(f"warning: generated/{name} is not produced by the generator; delete it "
+              "(`deltagen generate --check` fails while it is there)", file=sys.stderr)
     return 0
 
 

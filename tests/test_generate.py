@@ -61,7 +61,7 @@ def test_checked_in_files_equal_a_fresh_render(rendered):
 def test_check_reports_a_modified_file_with_a_diff(generated_copy, capsys):
     target = generated_copy / "delta_kinematics.c"
     text = target.read_text()
-    marker = "#define DELTA_BLOCK"
+    marker = "#define DELTAGEN_DELTA_BLOCK"
     assert marker in text
     target.write_text(text.replace(marker, "/* hand edit */\n" + marker, 1))
 
@@ -92,6 +92,21 @@ def test_check_reports_missing_and_changed_files(generated_copy, capsys):
     assert any("int16_t" in p for p in problems)
     assert cli.main(["generate", "--check"]) == 1
     capsys.readouterr()
+
+
+def test_check_fails_on_a_stray_file(generated_copy, capsys):
+    """A file in generated/ that the generator does not produce (a removed robot's module, a
+    hand-made file) fails --check; `generate` warns about it and leaves it alone."""
+    (generated_copy / "serial_retired_arm.c").write_text("/* an old module */\n")
+    problems = generate.check(generated_copy)
+    assert len(problems) == 1 and problems[0].startswith("serial_retired_arm.c is stray")
+    assert generate.stray(generated_copy) == ["serial_retired_arm.c"]
+    assert cli.main(["generate", "--check"]) == 1
+    assert "serial_retired_arm.c is stray" in capsys.readouterr().err
+    assert cli.main(["generate"]) == 0
+    assert "serial_retired_arm.c is not produced" in capsys.readouterr().err
+    (generated_copy / "serial_retired_arm.c").unlink()
+    assert generate.check(generated_copy) == []
 
 
 def test_write_into_an_empty_directory(tmp_path, rendered):
