@@ -35,7 +35,10 @@ def cmd_generate(args) -> int:
 
     if args.robot_file:
         folder = generate.generate_robot_file(args.robot_file)
-        print(f"generated and compiled {args.robot_file}: C sources in {folder}")
+        from deltagen.paths import runtime_dir
+
+        print(f"generated and compiled {args.robot_file}: C sources in {folder} "
+              f"(compile them with the runtime C in {runtime_dir()})")
         return 0
     if args.check:
         problems = generate.check()

@@ -43,11 +43,11 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
         double q1_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q3_b[DELTAGEN_LECTURE_PRP_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 3 + 0];
-                q2_b[k] = q[(start + k) * 3 + 1];
-                q3_b[k] = q[(start + k) * 3 + 2];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 3 + 0];
+            q2_b[k] = q[(start + k) * 3 + 1];
+            q3_b[k] = q[(start + k) * 3 + 2];
+        }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -129,24 +129,24 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+        }
     }
     return 0;
 }
@@ -166,11 +166,11 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
         double q1_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q3_b[DELTAGEN_LECTURE_PRP_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 3 + 0];
-                q2_b[k] = q[(start + k) * 3 + 1];
-                q3_b[k] = q[(start + k) * 3 + 2];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 3 + 0];
+            q2_b[k] = q[(start + k) * 3 + 1];
+            q3_b[k] = q[(start + k) * 3 + 2];
+        }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -449,88 +449,88 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                F[(start + k) * 80 + 0] = out_F0_b[k];
-                F[(start + k) * 80 + 1] = out_F1_b[k];
-                F[(start + k) * 80 + 2] = out_F2_b[k];
-                F[(start + k) * 80 + 3] = out_F3_b[k];
-                F[(start + k) * 80 + 4] = out_F4_b[k];
-                F[(start + k) * 80 + 5] = out_F5_b[k];
-                F[(start + k) * 80 + 6] = out_F6_b[k];
-                F[(start + k) * 80 + 7] = out_F7_b[k];
-                F[(start + k) * 80 + 8] = out_F8_b[k];
-                F[(start + k) * 80 + 9] = out_F9_b[k];
-                F[(start + k) * 80 + 10] = out_F10_b[k];
-                F[(start + k) * 80 + 11] = out_F11_b[k];
-                F[(start + k) * 80 + 12] = out_F12_b[k];
-                F[(start + k) * 80 + 13] = out_F13_b[k];
-                F[(start + k) * 80 + 14] = out_F14_b[k];
-                F[(start + k) * 80 + 15] = out_F15_b[k];
-                F[(start + k) * 80 + 16] = out_F16_b[k];
-                F[(start + k) * 80 + 17] = out_F17_b[k];
-                F[(start + k) * 80 + 18] = out_F18_b[k];
-                F[(start + k) * 80 + 19] = out_F19_b[k];
-                F[(start + k) * 80 + 20] = out_F20_b[k];
-                F[(start + k) * 80 + 21] = out_F21_b[k];
-                F[(start + k) * 80 + 22] = out_F22_b[k];
-                F[(start + k) * 80 + 23] = out_F23_b[k];
-                F[(start + k) * 80 + 24] = out_F24_b[k];
-                F[(start + k) * 80 + 25] = out_F25_b[k];
-                F[(start + k) * 80 + 26] = out_F26_b[k];
-                F[(start + k) * 80 + 27] = out_F27_b[k];
-                F[(start + k) * 80 + 28] = out_F28_b[k];
-                F[(start + k) * 80 + 29] = out_F29_b[k];
-                F[(start + k) * 80 + 30] = out_F30_b[k];
-                F[(start + k) * 80 + 31] = out_F31_b[k];
-                F[(start + k) * 80 + 32] = out_F32_b[k];
-                F[(start + k) * 80 + 33] = out_F33_b[k];
-                F[(start + k) * 80 + 34] = out_F34_b[k];
-                F[(start + k) * 80 + 35] = out_F35_b[k];
-                F[(start + k) * 80 + 36] = out_F36_b[k];
-                F[(start + k) * 80 + 37] = out_F37_b[k];
-                F[(start + k) * 80 + 38] = out_F38_b[k];
-                F[(start + k) * 80 + 39] = out_F39_b[k];
-                F[(start + k) * 80 + 40] = out_F40_b[k];
-                F[(start + k) * 80 + 41] = out_F41_b[k];
-                F[(start + k) * 80 + 42] = out_F42_b[k];
-                F[(start + k) * 80 + 43] = out_F43_b[k];
-                F[(start + k) * 80 + 44] = out_F44_b[k];
-                F[(start + k) * 80 + 45] = out_F45_b[k];
-                F[(start + k) * 80 + 46] = out_F46_b[k];
-                F[(start + k) * 80 + 47] = out_F47_b[k];
-                F[(start + k) * 80 + 48] = out_F48_b[k];
-                F[(start + k) * 80 + 49] = out_F49_b[k];
-                F[(start + k) * 80 + 50] = out_F50_b[k];
-                F[(start + k) * 80 + 51] = out_F51_b[k];
-                F[(start + k) * 80 + 52] = out_F52_b[k];
-                F[(start + k) * 80 + 53] = out_F53_b[k];
-                F[(start + k) * 80 + 54] = out_F54_b[k];
-                F[(start + k) * 80 + 55] = out_F55_b[k];
-                F[(start + k) * 80 + 56] = out_F56_b[k];
-                F[(start + k) * 80 + 57] = out_F57_b[k];
-                F[(start + k) * 80 + 58] = out_F58_b[k];
-                F[(start + k) * 80 + 59] = out_F59_b[k];
-                F[(start + k) * 80 + 60] = out_F60_b[k];
-                F[(start + k) * 80 + 61] = out_F61_b[k];
-                F[(start + k) * 80 + 62] = out_F62_b[k];
-                F[(start + k) * 80 + 63] = out_F63_b[k];
-                F[(start + k) * 80 + 64] = out_F64_b[k];
-                F[(start + k) * 80 + 65] = out_F65_b[k];
-                F[(start + k) * 80 + 66] = out_F66_b[k];
-                F[(start + k) * 80 + 67] = out_F67_b[k];
-                F[(start + k) * 80 + 68] = out_F68_b[k];
-                F[(start + k) * 80 + 69] = out_F69_b[k];
-                F[(start + k) * 80 + 70] = out_F70_b[k];
-                F[(start + k) * 80 + 71] = out_F71_b[k];
-                F[(start + k) * 80 + 72] = out_F72_b[k];
-                F[(start + k) * 80 + 73] = out_F73_b[k];
-                F[(start + k) * 80 + 74] = out_F74_b[k];
-                F[(start + k) * 80 + 75] = out_F75_b[k];
-                F[(start + k) * 80 + 76] = out_F76_b[k];
-                F[(start + k) * 80 + 77] = out_F77_b[k];
-                F[(start + k) * 80 + 78] = out_F78_b[k];
-                F[(start + k) * 80 + 79] = out_F79_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            F[(start + k) * 80 + 0] = out_F0_b[k];
+            F[(start + k) * 80 + 1] = out_F1_b[k];
+            F[(start + k) * 80 + 2] = out_F2_b[k];
+            F[(start + k) * 80 + 3] = out_F3_b[k];
+            F[(start + k) * 80 + 4] = out_F4_b[k];
+            F[(start + k) * 80 + 5] = out_F5_b[k];
+            F[(start + k) * 80 + 6] = out_F6_b[k];
+            F[(start + k) * 80 + 7] = out_F7_b[k];
+            F[(start + k) * 80 + 8] = out_F8_b[k];
+            F[(start + k) * 80 + 9] = out_F9_b[k];
+            F[(start + k) * 80 + 10] = out_F10_b[k];
+            F[(start + k) * 80 + 11] = out_F11_b[k];
+            F[(start + k) * 80 + 12] = out_F12_b[k];
+            F[(start + k) * 80 + 13] = out_F13_b[k];
+            F[(start + k) * 80 + 14] = out_F14_b[k];
+            F[(start + k) * 80 + 15] = out_F15_b[k];
+            F[(start + k) * 80 + 16] = out_F16_b[k];
+            F[(start + k) * 80 + 17] = out_F17_b[k];
+            F[(start + k) * 80 + 18] = out_F18_b[k];
+            F[(start + k) * 80 + 19] = out_F19_b[k];
+            F[(start + k) * 80 + 20] = out_F20_b[k];
+            F[(start + k) * 80 + 21] = out_F21_b[k];
+            F[(start + k) * 80 + 22] = out_F22_b[k];
+            F[(start + k) * 80 + 23] = out_F23_b[k];
+            F[(start + k) * 80 + 24] = out_F24_b[k];
+            F[(start + k) * 80 + 25] = out_F25_b[k];
+            F[(start + k) * 80 + 26] = out_F26_b[k];
+            F[(start + k) * 80 + 27] = out_F27_b[k];
+            F[(start + k) * 80 + 28] = out_F28_b[k];
+            F[(start + k) * 80 + 29] = out_F29_b[k];
+            F[(start + k) * 80 + 30] = out_F30_b[k];
+            F[(start + k) * 80 + 31] = out_F31_b[k];
+            F[(start + k) * 80 + 32] = out_F32_b[k];
+            F[(start + k) * 80 + 33] = out_F33_b[k];
+            F[(start + k) * 80 + 34] = out_F34_b[k];
+            F[(start + k) * 80 + 35] = out_F35_b[k];
+            F[(start + k) * 80 + 36] = out_F36_b[k];
+            F[(start + k) * 80 + 37] = out_F37_b[k];
+            F[(start + k) * 80 + 38] = out_F38_b[k];
+            F[(start + k) * 80 + 39] = out_F39_b[k];
+            F[(start + k) * 80 + 40] = out_F40_b[k];
+            F[(start + k) * 80 + 41] = out_F41_b[k];
+            F[(start + k) * 80 + 42] = out_F42_b[k];
+            F[(start + k) * 80 + 43] = out_F43_b[k];
+            F[(start + k) * 80 + 44] = out_F44_b[k];
+            F[(start + k) * 80 + 45] = out_F45_b[k];
+            F[(start + k) * 80 + 46] = out_F46_b[k];
+            F[(start + k) * 80 + 47] = out_F47_b[k];
+            F[(start + k) * 80 + 48] = out_F48_b[k];
+            F[(start + k) * 80 + 49] = out_F49_b[k];
+            F[(start + k) * 80 + 50] = out_F50_b[k];
+            F[(start + k) * 80 + 51] = out_F51_b[k];
+            F[(start + k) * 80 + 52] = out_F52_b[k];
+            F[(start + k) * 80 + 53] = out_F53_b[k];
+            F[(start + k) * 80 + 54] = out_F54_b[k];
+            F[(start + k) * 80 + 55] = out_F55_b[k];
+            F[(start + k) * 80 + 56] = out_F56_b[k];
+            F[(start + k) * 80 + 57] = out_F57_b[k];
+            F[(start + k) * 80 + 58] = out_F58_b[k];
+            F[(start + k) * 80 + 59] = out_F59_b[k];
+            F[(start + k) * 80 + 60] = out_F60_b[k];
+            F[(start + k) * 80 + 61] = out_F61_b[k];
+            F[(start + k) * 80 + 62] = out_F62_b[k];
+            F[(start + k) * 80 + 63] = out_F63_b[k];
+            F[(start + k) * 80 + 64] = out_F64_b[k];
+            F[(start + k) * 80 + 65] = out_F65_b[k];
+            F[(start + k) * 80 + 66] = out_F66_b[k];
+            F[(start + k) * 80 + 67] = out_F67_b[k];
+            F[(start + k) * 80 + 68] = out_F68_b[k];
+            F[(start + k) * 80 + 69] = out_F69_b[k];
+            F[(start + k) * 80 + 70] = out_F70_b[k];
+            F[(start + k) * 80 + 71] = out_F71_b[k];
+            F[(start + k) * 80 + 72] = out_F72_b[k];
+            F[(start + k) * 80 + 73] = out_F73_b[k];
+            F[(start + k) * 80 + 74] = out_F74_b[k];
+            F[(start + k) * 80 + 75] = out_F75_b[k];
+            F[(start + k) * 80 + 76] = out_F76_b[k];
+            F[(start + k) * 80 + 77] = out_F77_b[k];
+            F[(start + k) * 80 + 78] = out_F78_b[k];
+            F[(start + k) * 80 + 79] = out_F79_b[k];
+        }
     }
     return 0;
 }
@@ -550,11 +550,11 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
         double q1_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q3_b[DELTAGEN_LECTURE_PRP_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 3 + 0];
-                q2_b[k] = q[(start + k) * 3 + 1];
-                q3_b[k] = q[(start + k) * 3 + 2];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 3 + 0];
+            q2_b[k] = q[(start + k) * 3 + 1];
+            q3_b[k] = q[(start + k) * 3 + 2];
+        }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -658,26 +658,26 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                J[(start + k) * 18 + 0] = out_J0_b[k];
-                J[(start + k) * 18 + 1] = out_J1_b[k];
-                J[(start + k) * 18 + 2] = out_J2_b[k];
-                J[(start + k) * 18 + 3] = out_J3_b[k];
-                J[(start + k) * 18 + 4] = out_J4_b[k];
-                J[(start + k) * 18 + 5] = out_J5_b[k];
-                J[(start + k) * 18 + 6] = out_J6_b[k];
-                J[(start + k) * 18 + 7] = out_J7_b[k];
-                J[(start + k) * 18 + 8] = out_J8_b[k];
-                J[(start + k) * 18 + 9] = out_J9_b[k];
-                J[(start + k) * 18 + 10] = out_J10_b[k];
-                J[(start + k) * 18 + 11] = out_J11_b[k];
-                J[(start + k) * 18 + 12] = out_J12_b[k];
-                J[(start + k) * 18 + 13] = out_J13_b[k];
-                J[(start + k) * 18 + 14] = out_J14_b[k];
-                J[(start + k) * 18 + 15] = out_J15_b[k];
-                J[(start + k) * 18 + 16] = out_J16_b[k];
-                J[(start + k) * 18 + 17] = out_J17_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            J[(start + k) * 18 + 0] = out_J0_b[k];
+            J[(start + k) * 18 + 1] = out_J1_b[k];
+            J[(start + k) * 18 + 2] = out_J2_b[k];
+            J[(start + k) * 18 + 3] = out_J3_b[k];
+            J[(start + k) * 18 + 4] = out_J4_b[k];
+            J[(start + k) * 18 + 5] = out_J5_b[k];
+            J[(start + k) * 18 + 6] = out_J6_b[k];
+            J[(start + k) * 18 + 7] = out_J7_b[k];
+            J[(start + k) * 18 + 8] = out_J8_b[k];
+            J[(start + k) * 18 + 9] = out_J9_b[k];
+            J[(start + k) * 18 + 10] = out_J10_b[k];
+            J[(start + k) * 18 + 11] = out_J11_b[k];
+            J[(start + k) * 18 + 12] = out_J12_b[k];
+            J[(start + k) * 18 + 13] = out_J13_b[k];
+            J[(start + k) * 18 + 14] = out_J14_b[k];
+            J[(start + k) * 18 + 15] = out_J15_b[k];
+            J[(start + k) * 18 + 16] = out_J16_b[k];
+            J[(start + k) * 18 + 17] = out_J17_b[k];
+        }
     }
     return 0;
 }
@@ -697,11 +697,11 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
         double q1_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double q3_b[DELTAGEN_LECTURE_PRP_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 3 + 0];
-                q2_b[k] = q[(start + k) * 3 + 1];
-                q3_b[k] = q[(start + k) * 3 + 2];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 3 + 0];
+            q2_b[k] = q[(start + k) * 3 + 1];
+            q3_b[k] = q[(start + k) * 3 + 2];
+        }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -856,42 +856,42 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-                J[(start + k) * 18 + 0] = out_J0_b[k];
-                J[(start + k) * 18 + 1] = out_J1_b[k];
-                J[(start + k) * 18 + 2] = out_J2_b[k];
-                J[(start + k) * 18 + 3] = out_J3_b[k];
-                J[(start + k) * 18 + 4] = out_J4_b[k];
-                J[(start + k) * 18 + 5] = out_J5_b[k];
-                J[(start + k) * 18 + 6] = out_J6_b[k];
-                J[(start + k) * 18 + 7] = out_J7_b[k];
-                J[(start + k) * 18 + 8] = out_J8_b[k];
-                J[(start + k) * 18 + 9] = out_J9_b[k];
-                J[(start + k) * 18 + 10] = out_J10_b[k];
-                J[(start + k) * 18 + 11] = out_J11_b[k];
-                J[(start + k) * 18 + 12] = out_J12_b[k];
-                J[(start + k) * 18 + 13] = out_J13_b[k];
-                J[(start + k) * 18 + 14] = out_J14_b[k];
-                J[(start + k) * 18 + 15] = out_J15_b[k];
-                J[(start + k) * 18 + 16] = out_J16_b[k];
-                J[(start + k) * 18 + 17] = out_J17_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+            J[(start + k) * 18 + 0] = out_J0_b[k];
+            J[(start + k) * 18 + 1] = out_J1_b[k];
+            J[(start + k) * 18 + 2] = out_J2_b[k];
+            J[(start + k) * 18 + 3] = out_J3_b[k];
+            J[(start + k) * 18 + 4] = out_J4_b[k];
+            J[(start + k) * 18 + 5] = out_J5_b[k];
+            J[(start + k) * 18 + 6] = out_J6_b[k];
+            J[(start + k) * 18 + 7] = out_J7_b[k];
+            J[(start + k) * 18 + 8] = out_J8_b[k];
+            J[(start + k) * 18 + 9] = out_J9_b[k];
+            J[(start + k) * 18 + 10] = out_J10_b[k];
+            J[(start + k) * 18 + 11] = out_J11_b[k];
+            J[(start + k) * 18 + 12] = out_J12_b[k];
+            J[(start + k) * 18 + 13] = out_J13_b[k];
+            J[(start + k) * 18 + 14] = out_J14_b[k];
+            J[(start + k) * 18 + 15] = out_J15_b[k];
+            J[(start + k) * 18 + 16] = out_J16_b[k];
+            J[(start + k) * 18 + 17] = out_J17_b[k];
+        }
     }
     return 0;
 }
@@ -914,14 +914,14 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
         double qd1_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double qd2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double qd3_b[DELTAGEN_LECTURE_PRP_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 3 + 0];
-                q2_b[k] = q[(start + k) * 3 + 1];
-                q3_b[k] = q[(start + k) * 3 + 2];
-                qd1_b[k] = qd[(start + k) * 3 + 0];
-                qd2_b[k] = qd[(start + k) * 3 + 1];
-                qd3_b[k] = qd[(start + k) * 3 + 2];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 3 + 0];
+            q2_b[k] = q[(start + k) * 3 + 1];
+            q3_b[k] = q[(start + k) * 3 + 2];
+            qd1_b[k] = qd[(start + k) * 3 + 0];
+            qd2_b[k] = qd[(start + k) * 3 + 1];
+            qd3_b[k] = qd[(start + k) * 3 + 2];
+        }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -1035,26 +1035,26 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                Jd[(start + k) * 18 + 0] = out_Jd0_b[k];
-                Jd[(start + k) * 18 + 1] = out_Jd1_b[k];
-                Jd[(start + k) * 18 + 2] = out_Jd2_b[k];
-                Jd[(start + k) * 18 + 3] = out_Jd3_b[k];
-                Jd[(start + k) * 18 + 4] = out_Jd4_b[k];
-                Jd[(start + k) * 18 + 5] = out_Jd5_b[k];
-                Jd[(start + k) * 18 + 6] = out_Jd6_b[k];
-                Jd[(start + k) * 18 + 7] = out_Jd7_b[k];
-                Jd[(start + k) * 18 + 8] = out_Jd8_b[k];
-                Jd[(start + k) * 18 + 9] = out_Jd9_b[k];
-                Jd[(start + k) * 18 + 10] = out_Jd10_b[k];
-                Jd[(start + k) * 18 + 11] = out_Jd11_b[k];
-                Jd[(start + k) * 18 + 12] = out_Jd12_b[k];
-                Jd[(start + k) * 18 + 13] = out_Jd13_b[k];
-                Jd[(start + k) * 18 + 14] = out_Jd14_b[k];
-                Jd[(start + k) * 18 + 15] = out_Jd15_b[k];
-                Jd[(start + k) * 18 + 16] = out_Jd16_b[k];
-                Jd[(start + k) * 18 + 17] = out_Jd17_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Jd[(start + k) * 18 + 0] = out_Jd0_b[k];
+            Jd[(start + k) * 18 + 1] = out_Jd1_b[k];
+            Jd[(start + k) * 18 + 2] = out_Jd2_b[k];
+            Jd[(start + k) * 18 + 3] = out_Jd3_b[k];
+            Jd[(start + k) * 18 + 4] = out_Jd4_b[k];
+            Jd[(start + k) * 18 + 5] = out_Jd5_b[k];
+            Jd[(start + k) * 18 + 6] = out_Jd6_b[k];
+            Jd[(start + k) * 18 + 7] = out_Jd7_b[k];
+            Jd[(start + k) * 18 + 8] = out_Jd8_b[k];
+            Jd[(start + k) * 18 + 9] = out_Jd9_b[k];
+            Jd[(start + k) * 18 + 10] = out_Jd10_b[k];
+            Jd[(start + k) * 18 + 11] = out_Jd11_b[k];
+            Jd[(start + k) * 18 + 12] = out_Jd12_b[k];
+            Jd[(start + k) * 18 + 13] = out_Jd13_b[k];
+            Jd[(start + k) * 18 + 14] = out_Jd14_b[k];
+            Jd[(start + k) * 18 + 15] = out_Jd15_b[k];
+            Jd[(start + k) * 18 + 16] = out_Jd16_b[k];
+            Jd[(start + k) * 18 + 17] = out_Jd17_b[k];
+        }
     }
     return 0;
 }

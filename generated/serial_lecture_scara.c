@@ -42,10 +42,10 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 2 + 0];
-                q2_b[k] = q[(start + k) * 2 + 1];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 2 + 0];
+            q2_b[k] = q[(start + k) * 2 + 1];
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -148,24 +148,24 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+        }
     }
     return 0;
 }
@@ -184,10 +184,10 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 2 + 0];
-                q2_b[k] = q[(start + k) * 2 + 1];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 2 + 0];
+            q2_b[k] = q[(start + k) * 2 + 1];
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -441,72 +441,72 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                F[(start + k) * 64 + 0] = out_F0_b[k];
-                F[(start + k) * 64 + 1] = out_F1_b[k];
-                F[(start + k) * 64 + 2] = out_F2_b[k];
-                F[(start + k) * 64 + 3] = out_F3_b[k];
-                F[(start + k) * 64 + 4] = out_F4_b[k];
-                F[(start + k) * 64 + 5] = out_F5_b[k];
-                F[(start + k) * 64 + 6] = out_F6_b[k];
-                F[(start + k) * 64 + 7] = out_F7_b[k];
-                F[(start + k) * 64 + 8] = out_F8_b[k];
-                F[(start + k) * 64 + 9] = out_F9_b[k];
-                F[(start + k) * 64 + 10] = out_F10_b[k];
-                F[(start + k) * 64 + 11] = out_F11_b[k];
-                F[(start + k) * 64 + 12] = out_F12_b[k];
-                F[(start + k) * 64 + 13] = out_F13_b[k];
-                F[(start + k) * 64 + 14] = out_F14_b[k];
-                F[(start + k) * 64 + 15] = out_F15_b[k];
-                F[(start + k) * 64 + 16] = out_F16_b[k];
-                F[(start + k) * 64 + 17] = out_F17_b[k];
-                F[(start + k) * 64 + 18] = out_F18_b[k];
-                F[(start + k) * 64 + 19] = out_F19_b[k];
-                F[(start + k) * 64 + 20] = out_F20_b[k];
-                F[(start + k) * 64 + 21] = out_F21_b[k];
-                F[(start + k) * 64 + 22] = out_F22_b[k];
-                F[(start + k) * 64 + 23] = out_F23_b[k];
-                F[(start + k) * 64 + 24] = out_F24_b[k];
-                F[(start + k) * 64 + 25] = out_F25_b[k];
-                F[(start + k) * 64 + 26] = out_F26_b[k];
-                F[(start + k) * 64 + 27] = out_F27_b[k];
-                F[(start + k) * 64 + 28] = out_F28_b[k];
-                F[(start + k) * 64 + 29] = out_F29_b[k];
-                F[(start + k) * 64 + 30] = out_F30_b[k];
-                F[(start + k) * 64 + 31] = out_F31_b[k];
-                F[(start + k) * 64 + 32] = out_F32_b[k];
-                F[(start + k) * 64 + 33] = out_F33_b[k];
-                F[(start + k) * 64 + 34] = out_F34_b[k];
-                F[(start + k) * 64 + 35] = out_F35_b[k];
-                F[(start + k) * 64 + 36] = out_F36_b[k];
-                F[(start + k) * 64 + 37] = out_F37_b[k];
-                F[(start + k) * 64 + 38] = out_F38_b[k];
-                F[(start + k) * 64 + 39] = out_F39_b[k];
-                F[(start + k) * 64 + 40] = out_F40_b[k];
-                F[(start + k) * 64 + 41] = out_F41_b[k];
-                F[(start + k) * 64 + 42] = out_F42_b[k];
-                F[(start + k) * 64 + 43] = out_F43_b[k];
-                F[(start + k) * 64 + 44] = out_F44_b[k];
-                F[(start + k) * 64 + 45] = out_F45_b[k];
-                F[(start + k) * 64 + 46] = out_F46_b[k];
-                F[(start + k) * 64 + 47] = out_F47_b[k];
-                F[(start + k) * 64 + 48] = out_F48_b[k];
-                F[(start + k) * 64 + 49] = out_F49_b[k];
-                F[(start + k) * 64 + 50] = out_F50_b[k];
-                F[(start + k) * 64 + 51] = out_F51_b[k];
-                F[(start + k) * 64 + 52] = out_F52_b[k];
-                F[(start + k) * 64 + 53] = out_F53_b[k];
-                F[(start + k) * 64 + 54] = out_F54_b[k];
-                F[(start + k) * 64 + 55] = out_F55_b[k];
-                F[(start + k) * 64 + 56] = out_F56_b[k];
-                F[(start + k) * 64 + 57] = out_F57_b[k];
-                F[(start + k) * 64 + 58] = out_F58_b[k];
-                F[(start + k) * 64 + 59] = out_F59_b[k];
-                F[(start + k) * 64 + 60] = out_F60_b[k];
-                F[(start + k) * 64 + 61] = out_F61_b[k];
-                F[(start + k) * 64 + 62] = out_F62_b[k];
-                F[(start + k) * 64 + 63] = out_F63_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            F[(start + k) * 64 + 0] = out_F0_b[k];
+            F[(start + k) * 64 + 1] = out_F1_b[k];
+            F[(start + k) * 64 + 2] = out_F2_b[k];
+            F[(start + k) * 64 + 3] = out_F3_b[k];
+            F[(start + k) * 64 + 4] = out_F4_b[k];
+            F[(start + k) * 64 + 5] = out_F5_b[k];
+            F[(start + k) * 64 + 6] = out_F6_b[k];
+            F[(start + k) * 64 + 7] = out_F7_b[k];
+            F[(start + k) * 64 + 8] = out_F8_b[k];
+            F[(start + k) * 64 + 9] = out_F9_b[k];
+            F[(start + k) * 64 + 10] = out_F10_b[k];
+            F[(start + k) * 64 + 11] = out_F11_b[k];
+            F[(start + k) * 64 + 12] = out_F12_b[k];
+            F[(start + k) * 64 + 13] = out_F13_b[k];
+            F[(start + k) * 64 + 14] = out_F14_b[k];
+            F[(start + k) * 64 + 15] = out_F15_b[k];
+            F[(start + k) * 64 + 16] = out_F16_b[k];
+            F[(start + k) * 64 + 17] = out_F17_b[k];
+            F[(start + k) * 64 + 18] = out_F18_b[k];
+            F[(start + k) * 64 + 19] = out_F19_b[k];
+            F[(start + k) * 64 + 20] = out_F20_b[k];
+            F[(start + k) * 64 + 21] = out_F21_b[k];
+            F[(start + k) * 64 + 22] = out_F22_b[k];
+            F[(start + k) * 64 + 23] = out_F23_b[k];
+            F[(start + k) * 64 + 24] = out_F24_b[k];
+            F[(start + k) * 64 + 25] = out_F25_b[k];
+            F[(start + k) * 64 + 26] = out_F26_b[k];
+            F[(start + k) * 64 + 27] = out_F27_b[k];
+            F[(start + k) * 64 + 28] = out_F28_b[k];
+            F[(start + k) * 64 + 29] = out_F29_b[k];
+            F[(start + k) * 64 + 30] = out_F30_b[k];
+            F[(start + k) * 64 + 31] = out_F31_b[k];
+            F[(start + k) * 64 + 32] = out_F32_b[k];
+            F[(start + k) * 64 + 33] = out_F33_b[k];
+            F[(start + k) * 64 + 34] = out_F34_b[k];
+            F[(start + k) * 64 + 35] = out_F35_b[k];
+            F[(start + k) * 64 + 36] = out_F36_b[k];
+            F[(start + k) * 64 + 37] = out_F37_b[k];
+            F[(start + k) * 64 + 38] = out_F38_b[k];
+            F[(start + k) * 64 + 39] = out_F39_b[k];
+            F[(start + k) * 64 + 40] = out_F40_b[k];
+            F[(start + k) * 64 + 41] = out_F41_b[k];
+            F[(start + k) * 64 + 42] = out_F42_b[k];
+            F[(start + k) * 64 + 43] = out_F43_b[k];
+            F[(start + k) * 64 + 44] = out_F44_b[k];
+            F[(start + k) * 64 + 45] = out_F45_b[k];
+            F[(start + k) * 64 + 46] = out_F46_b[k];
+            F[(start + k) * 64 + 47] = out_F47_b[k];
+            F[(start + k) * 64 + 48] = out_F48_b[k];
+            F[(start + k) * 64 + 49] = out_F49_b[k];
+            F[(start + k) * 64 + 50] = out_F50_b[k];
+            F[(start + k) * 64 + 51] = out_F51_b[k];
+            F[(start + k) * 64 + 52] = out_F52_b[k];
+            F[(start + k) * 64 + 53] = out_F53_b[k];
+            F[(start + k) * 64 + 54] = out_F54_b[k];
+            F[(start + k) * 64 + 55] = out_F55_b[k];
+            F[(start + k) * 64 + 56] = out_F56_b[k];
+            F[(start + k) * 64 + 57] = out_F57_b[k];
+            F[(start + k) * 64 + 58] = out_F58_b[k];
+            F[(start + k) * 64 + 59] = out_F59_b[k];
+            F[(start + k) * 64 + 60] = out_F60_b[k];
+            F[(start + k) * 64 + 61] = out_F61_b[k];
+            F[(start + k) * 64 + 62] = out_F62_b[k];
+            F[(start + k) * 64 + 63] = out_F63_b[k];
+        }
     }
     return 0;
 }
@@ -525,10 +525,10 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 2 + 0];
-                q2_b[k] = q[(start + k) * 2 + 1];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 2 + 0];
+            q2_b[k] = q[(start + k) * 2 + 1];
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -623,20 +623,20 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                J[(start + k) * 12 + 0] = out_J0_b[k];
-                J[(start + k) * 12 + 1] = out_J1_b[k];
-                J[(start + k) * 12 + 2] = out_J2_b[k];
-                J[(start + k) * 12 + 3] = out_J3_b[k];
-                J[(start + k) * 12 + 4] = out_J4_b[k];
-                J[(start + k) * 12 + 5] = out_J5_b[k];
-                J[(start + k) * 12 + 6] = out_J6_b[k];
-                J[(start + k) * 12 + 7] = out_J7_b[k];
-                J[(start + k) * 12 + 8] = out_J8_b[k];
-                J[(start + k) * 12 + 9] = out_J9_b[k];
-                J[(start + k) * 12 + 10] = out_J10_b[k];
-                J[(start + k) * 12 + 11] = out_J11_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            J[(start + k) * 12 + 0] = out_J0_b[k];
+            J[(start + k) * 12 + 1] = out_J1_b[k];
+            J[(start + k) * 12 + 2] = out_J2_b[k];
+            J[(start + k) * 12 + 3] = out_J3_b[k];
+            J[(start + k) * 12 + 4] = out_J4_b[k];
+            J[(start + k) * 12 + 5] = out_J5_b[k];
+            J[(start + k) * 12 + 6] = out_J6_b[k];
+            J[(start + k) * 12 + 7] = out_J7_b[k];
+            J[(start + k) * 12 + 8] = out_J8_b[k];
+            J[(start + k) * 12 + 9] = out_J9_b[k];
+            J[(start + k) * 12 + 10] = out_J10_b[k];
+            J[(start + k) * 12 + 11] = out_J11_b[k];
+        }
     }
     return 0;
 }
@@ -655,10 +655,10 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 2 + 0];
-                q2_b[k] = q[(start + k) * 2 + 1];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 2 + 0];
+            q2_b[k] = q[(start + k) * 2 + 1];
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -811,36 +811,36 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-                J[(start + k) * 12 + 0] = out_J0_b[k];
-                J[(start + k) * 12 + 1] = out_J1_b[k];
-                J[(start + k) * 12 + 2] = out_J2_b[k];
-                J[(start + k) * 12 + 3] = out_J3_b[k];
-                J[(start + k) * 12 + 4] = out_J4_b[k];
-                J[(start + k) * 12 + 5] = out_J5_b[k];
-                J[(start + k) * 12 + 6] = out_J6_b[k];
-                J[(start + k) * 12 + 7] = out_J7_b[k];
-                J[(start + k) * 12 + 8] = out_J8_b[k];
-                J[(start + k) * 12 + 9] = out_J9_b[k];
-                J[(start + k) * 12 + 10] = out_J10_b[k];
-                J[(start + k) * 12 + 11] = out_J11_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+            J[(start + k) * 12 + 0] = out_J0_b[k];
+            J[(start + k) * 12 + 1] = out_J1_b[k];
+            J[(start + k) * 12 + 2] = out_J2_b[k];
+            J[(start + k) * 12 + 3] = out_J3_b[k];
+            J[(start + k) * 12 + 4] = out_J4_b[k];
+            J[(start + k) * 12 + 5] = out_J5_b[k];
+            J[(start + k) * 12 + 6] = out_J6_b[k];
+            J[(start + k) * 12 + 7] = out_J7_b[k];
+            J[(start + k) * 12 + 8] = out_J8_b[k];
+            J[(start + k) * 12 + 9] = out_J9_b[k];
+            J[(start + k) * 12 + 10] = out_J10_b[k];
+            J[(start + k) * 12 + 11] = out_J11_b[k];
+        }
     }
     return 0;
 }
@@ -861,12 +861,12 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
         double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double qd1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double qd2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 2 + 0];
-                q2_b[k] = q[(start + k) * 2 + 1];
-                qd1_b[k] = qd[(start + k) * 2 + 0];
-                qd2_b[k] = qd[(start + k) * 2 + 1];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 2 + 0];
+            q2_b[k] = q[(start + k) * 2 + 1];
+            qd1_b[k] = qd[(start + k) * 2 + 0];
+            qd2_b[k] = qd[(start + k) * 2 + 1];
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -970,20 +970,20 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                Jd[(start + k) * 12 + 0] = out_Jd0_b[k];
-                Jd[(start + k) * 12 + 1] = out_Jd1_b[k];
-                Jd[(start + k) * 12 + 2] = out_Jd2_b[k];
-                Jd[(start + k) * 12 + 3] = out_Jd3_b[k];
-                Jd[(start + k) * 12 + 4] = out_Jd4_b[k];
-                Jd[(start + k) * 12 + 5] = out_Jd5_b[k];
-                Jd[(start + k) * 12 + 6] = out_Jd6_b[k];
-                Jd[(start + k) * 12 + 7] = out_Jd7_b[k];
-                Jd[(start + k) * 12 + 8] = out_Jd8_b[k];
-                Jd[(start + k) * 12 + 9] = out_Jd9_b[k];
-                Jd[(start + k) * 12 + 10] = out_Jd10_b[k];
-                Jd[(start + k) * 12 + 11] = out_Jd11_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Jd[(start + k) * 12 + 0] = out_Jd0_b[k];
+            Jd[(start + k) * 12 + 1] = out_Jd1_b[k];
+            Jd[(start + k) * 12 + 2] = out_Jd2_b[k];
+            Jd[(start + k) * 12 + 3] = out_Jd3_b[k];
+            Jd[(start + k) * 12 + 4] = out_Jd4_b[k];
+            Jd[(start + k) * 12 + 5] = out_Jd5_b[k];
+            Jd[(start + k) * 12 + 6] = out_Jd6_b[k];
+            Jd[(start + k) * 12 + 7] = out_Jd7_b[k];
+            Jd[(start + k) * 12 + 8] = out_Jd8_b[k];
+            Jd[(start + k) * 12 + 9] = out_Jd9_b[k];
+            Jd[(start + k) * 12 + 10] = out_Jd10_b[k];
+            Jd[(start + k) * 12 + 11] = out_Jd11_b[k];
+        }
     }
     return 0;
 }
@@ -1012,20 +1012,20 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
         double Tt32_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double Tt33_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double Tt34_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                Tt11_b[k] = T[(start + k) * 16 + 0];
-                Tt12_b[k] = T[(start + k) * 16 + 1];
-                Tt13_b[k] = T[(start + k) * 16 + 2];
-                Tt14_b[k] = T[(start + k) * 16 + 3];
-                Tt21_b[k] = T[(start + k) * 16 + 4];
-                Tt22_b[k] = T[(start + k) * 16 + 5];
-                Tt23_b[k] = T[(start + k) * 16 + 6];
-                Tt24_b[k] = T[(start + k) * 16 + 7];
-                Tt31_b[k] = T[(start + k) * 16 + 8];
-                Tt32_b[k] = T[(start + k) * 16 + 9];
-                Tt33_b[k] = T[(start + k) * 16 + 10];
-                Tt34_b[k] = T[(start + k) * 16 + 11];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Tt11_b[k] = T[(start + k) * 16 + 0];
+            Tt12_b[k] = T[(start + k) * 16 + 1];
+            Tt13_b[k] = T[(start + k) * 16 + 2];
+            Tt14_b[k] = T[(start + k) * 16 + 3];
+            Tt21_b[k] = T[(start + k) * 16 + 4];
+            Tt22_b[k] = T[(start + k) * 16 + 5];
+            Tt23_b[k] = T[(start + k) * 16 + 6];
+            Tt24_b[k] = T[(start + k) * 16 + 7];
+            Tt31_b[k] = T[(start + k) * 16 + 8];
+            Tt32_b[k] = T[(start + k) * 16 + 9];
+            Tt33_b[k] = T[(start + k) * 16 + 10];
+            Tt34_b[k] = T[(start + k) * 16 + 11];
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_q1_elbow_up_b[DELTAGEN_LECTURE_SCARA_BLOCK];
@@ -1139,14 +1139,14 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 4 + 0] = out_q1_elbow_up_b[k];
-                q[(start + k) * 4 + 1] = out_q2_elbow_up_b[k];
-                q[(start + k) * 4 + 2] = out_q1_elbow_down_b[k];
-                q[(start + k) * 4 + 3] = out_q2_elbow_down_b[k];
-                valid[(start + k) * 2 + 0] = (uint8_t)out_valid_elbow_up_b[k];
-                valid[(start + k) * 2 + 1] = (uint8_t)out_valid_elbow_down_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q[(start + k) * 4 + 0] = out_q1_elbow_up_b[k];
+            q[(start + k) * 4 + 1] = out_q2_elbow_up_b[k];
+            q[(start + k) * 4 + 2] = out_q1_elbow_down_b[k];
+            q[(start + k) * 4 + 3] = out_q2_elbow_down_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid_elbow_up_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid_elbow_down_b[k];
+        }
     }
     return 0;
 }

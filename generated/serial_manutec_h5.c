@@ -44,12 +44,12 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
         double q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 4 + 0];
-                q2_b[k] = q[(start + k) * 4 + 1];
-                q3_b[k] = q[(start + k) * 4 + 2];
-                q4_b[k] = q[(start + k) * 4 + 3];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 4 + 0];
+            q2_b[k] = q[(start + k) * 4 + 1];
+            q3_b[k] = q[(start + k) * 4 + 2];
+            q4_b[k] = q[(start + k) * 4 + 3];
+        }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -170,24 +170,24 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+        }
     }
     return 0;
 }
@@ -208,12 +208,12 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
         double q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 4 + 0];
-                q2_b[k] = q[(start + k) * 4 + 1];
-                q3_b[k] = q[(start + k) * 4 + 2];
-                q4_b[k] = q[(start + k) * 4 + 3];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 4 + 0];
+            q2_b[k] = q[(start + k) * 4 + 1];
+            q3_b[k] = q[(start + k) * 4 + 2];
+            q4_b[k] = q[(start + k) * 4 + 3];
+        }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -583,104 +583,104 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                F[(start + k) * 96 + 0] = out_F0_b[k];
-                F[(start + k) * 96 + 1] = out_F1_b[k];
-                F[(start + k) * 96 + 2] = out_F2_b[k];
-                F[(start + k) * 96 + 3] = out_F3_b[k];
-                F[(start + k) * 96 + 4] = out_F4_b[k];
-                F[(start + k) * 96 + 5] = out_F5_b[k];
-                F[(start + k) * 96 + 6] = out_F6_b[k];
-                F[(start + k) * 96 + 7] = out_F7_b[k];
-                F[(start + k) * 96 + 8] = out_F8_b[k];
-                F[(start + k) * 96 + 9] = out_F9_b[k];
-                F[(start + k) * 96 + 10] = out_F10_b[k];
-                F[(start + k) * 96 + 11] = out_F11_b[k];
-                F[(start + k) * 96 + 12] = out_F12_b[k];
-                F[(start + k) * 96 + 13] = out_F13_b[k];
-                F[(start + k) * 96 + 14] = out_F14_b[k];
-                F[(start + k) * 96 + 15] = out_F15_b[k];
-                F[(start + k) * 96 + 16] = out_F16_b[k];
-                F[(start + k) * 96 + 17] = out_F17_b[k];
-                F[(start + k) * 96 + 18] = out_F18_b[k];
-                F[(start + k) * 96 + 19] = out_F19_b[k];
-                F[(start + k) * 96 + 20] = out_F20_b[k];
-                F[(start + k) * 96 + 21] = out_F21_b[k];
-                F[(start + k) * 96 + 22] = out_F22_b[k];
-                F[(start + k) * 96 + 23] = out_F23_b[k];
-                F[(start + k) * 96 + 24] = out_F24_b[k];
-                F[(start + k) * 96 + 25] = out_F25_b[k];
-                F[(start + k) * 96 + 26] = out_F26_b[k];
-                F[(start + k) * 96 + 27] = out_F27_b[k];
-                F[(start + k) * 96 + 28] = out_F28_b[k];
-                F[(start + k) * 96 + 29] = out_F29_b[k];
-                F[(start + k) * 96 + 30] = out_F30_b[k];
-                F[(start + k) * 96 + 31] = out_F31_b[k];
-                F[(start + k) * 96 + 32] = out_F32_b[k];
-                F[(start + k) * 96 + 33] = out_F33_b[k];
-                F[(start + k) * 96 + 34] = out_F34_b[k];
-                F[(start + k) * 96 + 35] = out_F35_b[k];
-                F[(start + k) * 96 + 36] = out_F36_b[k];
-                F[(start + k) * 96 + 37] = out_F37_b[k];
-                F[(start + k) * 96 + 38] = out_F38_b[k];
-                F[(start + k) * 96 + 39] = out_F39_b[k];
-                F[(start + k) * 96 + 40] = out_F40_b[k];
-                F[(start + k) * 96 + 41] = out_F41_b[k];
-                F[(start + k) * 96 + 42] = out_F42_b[k];
-                F[(start + k) * 96 + 43] = out_F43_b[k];
-                F[(start + k) * 96 + 44] = out_F44_b[k];
-                F[(start + k) * 96 + 45] = out_F45_b[k];
-                F[(start + k) * 96 + 46] = out_F46_b[k];
-                F[(start + k) * 96 + 47] = out_F47_b[k];
-                F[(start + k) * 96 + 48] = out_F48_b[k];
-                F[(start + k) * 96 + 49] = out_F49_b[k];
-                F[(start + k) * 96 + 50] = out_F50_b[k];
-                F[(start + k) * 96 + 51] = out_F51_b[k];
-                F[(start + k) * 96 + 52] = out_F52_b[k];
-                F[(start + k) * 96 + 53] = out_F53_b[k];
-                F[(start + k) * 96 + 54] = out_F54_b[k];
-                F[(start + k) * 96 + 55] = out_F55_b[k];
-                F[(start + k) * 96 + 56] = out_F56_b[k];
-                F[(start + k) * 96 + 57] = out_F57_b[k];
-                F[(start + k) * 96 + 58] = out_F58_b[k];
-                F[(start + k) * 96 + 59] = out_F59_b[k];
-                F[(start + k) * 96 + 60] = out_F60_b[k];
-                F[(start + k) * 96 + 61] = out_F61_b[k];
-                F[(start + k) * 96 + 62] = out_F62_b[k];
-                F[(start + k) * 96 + 63] = out_F63_b[k];
-                F[(start + k) * 96 + 64] = out_F64_b[k];
-                F[(start + k) * 96 + 65] = out_F65_b[k];
-                F[(start + k) * 96 + 66] = out_F66_b[k];
-                F[(start + k) * 96 + 67] = out_F67_b[k];
-                F[(start + k) * 96 + 68] = out_F68_b[k];
-                F[(start + k) * 96 + 69] = out_F69_b[k];
-                F[(start + k) * 96 + 70] = out_F70_b[k];
-                F[(start + k) * 96 + 71] = out_F71_b[k];
-                F[(start + k) * 96 + 72] = out_F72_b[k];
-                F[(start + k) * 96 + 73] = out_F73_b[k];
-                F[(start + k) * 96 + 74] = out_F74_b[k];
-                F[(start + k) * 96 + 75] = out_F75_b[k];
-                F[(start + k) * 96 + 76] = out_F76_b[k];
-                F[(start + k) * 96 + 77] = out_F77_b[k];
-                F[(start + k) * 96 + 78] = out_F78_b[k];
-                F[(start + k) * 96 + 79] = out_F79_b[k];
-                F[(start + k) * 96 + 80] = out_F80_b[k];
-                F[(start + k) * 96 + 81] = out_F81_b[k];
-                F[(start + k) * 96 + 82] = out_F82_b[k];
-                F[(start + k) * 96 + 83] = out_F83_b[k];
-                F[(start + k) * 96 + 84] = out_F84_b[k];
-                F[(start + k) * 96 + 85] = out_F85_b[k];
-                F[(start + k) * 96 + 86] = out_F86_b[k];
-                F[(start + k) * 96 + 87] = out_F87_b[k];
-                F[(start + k) * 96 + 88] = out_F88_b[k];
-                F[(start + k) * 96 + 89] = out_F89_b[k];
-                F[(start + k) * 96 + 90] = out_F90_b[k];
-                F[(start + k) * 96 + 91] = out_F91_b[k];
-                F[(start + k) * 96 + 92] = out_F92_b[k];
-                F[(start + k) * 96 + 93] = out_F93_b[k];
-                F[(start + k) * 96 + 94] = out_F94_b[k];
-                F[(start + k) * 96 + 95] = out_F95_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            F[(start + k) * 96 + 0] = out_F0_b[k];
+            F[(start + k) * 96 + 1] = out_F1_b[k];
+            F[(start + k) * 96 + 2] = out_F2_b[k];
+            F[(start + k) * 96 + 3] = out_F3_b[k];
+            F[(start + k) * 96 + 4] = out_F4_b[k];
+            F[(start + k) * 96 + 5] = out_F5_b[k];
+            F[(start + k) * 96 + 6] = out_F6_b[k];
+            F[(start + k) * 96 + 7] = out_F7_b[k];
+            F[(start + k) * 96 + 8] = out_F8_b[k];
+            F[(start + k) * 96 + 9] = out_F9_b[k];
+            F[(start + k) * 96 + 10] = out_F10_b[k];
+            F[(start + k) * 96 + 11] = out_F11_b[k];
+            F[(start + k) * 96 + 12] = out_F12_b[k];
+            F[(start + k) * 96 + 13] = out_F13_b[k];
+            F[(start + k) * 96 + 14] = out_F14_b[k];
+            F[(start + k) * 96 + 15] = out_F15_b[k];
+            F[(start + k) * 96 + 16] = out_F16_b[k];
+            F[(start + k) * 96 + 17] = out_F17_b[k];
+            F[(start + k) * 96 + 18] = out_F18_b[k];
+            F[(start + k) * 96 + 19] = out_F19_b[k];
+            F[(start + k) * 96 + 20] = out_F20_b[k];
+            F[(start + k) * 96 + 21] = out_F21_b[k];
+            F[(start + k) * 96 + 22] = out_F22_b[k];
+            F[(start + k) * 96 + 23] = out_F23_b[k];
+            F[(start + k) * 96 + 24] = out_F24_b[k];
+            F[(start + k) * 96 + 25] = out_F25_b[k];
+            F[(start + k) * 96 + 26] = out_F26_b[k];
+            F[(start + k) * 96 + 27] = out_F27_b[k];
+            F[(start + k) * 96 + 28] = out_F28_b[k];
+            F[(start + k) * 96 + 29] = out_F29_b[k];
+            F[(start + k) * 96 + 30] = out_F30_b[k];
+            F[(start + k) * 96 + 31] = out_F31_b[k];
+            F[(start + k) * 96 + 32] = out_F32_b[k];
+            F[(start + k) * 96 + 33] = out_F33_b[k];
+            F[(start + k) * 96 + 34] = out_F34_b[k];
+            F[(start + k) * 96 + 35] = out_F35_b[k];
+            F[(start + k) * 96 + 36] = out_F36_b[k];
+            F[(start + k) * 96 + 37] = out_F37_b[k];
+            F[(start + k) * 96 + 38] = out_F38_b[k];
+            F[(start + k) * 96 + 39] = out_F39_b[k];
+            F[(start + k) * 96 + 40] = out_F40_b[k];
+            F[(start + k) * 96 + 41] = out_F41_b[k];
+            F[(start + k) * 96 + 42] = out_F42_b[k];
+            F[(start + k) * 96 + 43] = out_F43_b[k];
+            F[(start + k) * 96 + 44] = out_F44_b[k];
+            F[(start + k) * 96 + 45] = out_F45_b[k];
+            F[(start + k) * 96 + 46] = out_F46_b[k];
+            F[(start + k) * 96 + 47] = out_F47_b[k];
+            F[(start + k) * 96 + 48] = out_F48_b[k];
+            F[(start + k) * 96 + 49] = out_F49_b[k];
+            F[(start + k) * 96 + 50] = out_F50_b[k];
+            F[(start + k) * 96 + 51] = out_F51_b[k];
+            F[(start + k) * 96 + 52] = out_F52_b[k];
+            F[(start + k) * 96 + 53] = out_F53_b[k];
+            F[(start + k) * 96 + 54] = out_F54_b[k];
+            F[(start + k) * 96 + 55] = out_F55_b[k];
+            F[(start + k) * 96 + 56] = out_F56_b[k];
+            F[(start + k) * 96 + 57] = out_F57_b[k];
+            F[(start + k) * 96 + 58] = out_F58_b[k];
+            F[(start + k) * 96 + 59] = out_F59_b[k];
+            F[(start + k) * 96 + 60] = out_F60_b[k];
+            F[(start + k) * 96 + 61] = out_F61_b[k];
+            F[(start + k) * 96 + 62] = out_F62_b[k];
+            F[(start + k) * 96 + 63] = out_F63_b[k];
+            F[(start + k) * 96 + 64] = out_F64_b[k];
+            F[(start + k) * 96 + 65] = out_F65_b[k];
+            F[(start + k) * 96 + 66] = out_F66_b[k];
+            F[(start + k) * 96 + 67] = out_F67_b[k];
+            F[(start + k) * 96 + 68] = out_F68_b[k];
+            F[(start + k) * 96 + 69] = out_F69_b[k];
+            F[(start + k) * 96 + 70] = out_F70_b[k];
+            F[(start + k) * 96 + 71] = out_F71_b[k];
+            F[(start + k) * 96 + 72] = out_F72_b[k];
+            F[(start + k) * 96 + 73] = out_F73_b[k];
+            F[(start + k) * 96 + 74] = out_F74_b[k];
+            F[(start + k) * 96 + 75] = out_F75_b[k];
+            F[(start + k) * 96 + 76] = out_F76_b[k];
+            F[(start + k) * 96 + 77] = out_F77_b[k];
+            F[(start + k) * 96 + 78] = out_F78_b[k];
+            F[(start + k) * 96 + 79] = out_F79_b[k];
+            F[(start + k) * 96 + 80] = out_F80_b[k];
+            F[(start + k) * 96 + 81] = out_F81_b[k];
+            F[(start + k) * 96 + 82] = out_F82_b[k];
+            F[(start + k) * 96 + 83] = out_F83_b[k];
+            F[(start + k) * 96 + 84] = out_F84_b[k];
+            F[(start + k) * 96 + 85] = out_F85_b[k];
+            F[(start + k) * 96 + 86] = out_F86_b[k];
+            F[(start + k) * 96 + 87] = out_F87_b[k];
+            F[(start + k) * 96 + 88] = out_F88_b[k];
+            F[(start + k) * 96 + 89] = out_F89_b[k];
+            F[(start + k) * 96 + 90] = out_F90_b[k];
+            F[(start + k) * 96 + 91] = out_F91_b[k];
+            F[(start + k) * 96 + 92] = out_F92_b[k];
+            F[(start + k) * 96 + 93] = out_F93_b[k];
+            F[(start + k) * 96 + 94] = out_F94_b[k];
+            F[(start + k) * 96 + 95] = out_F95_b[k];
+        }
     }
     return 0;
 }
@@ -701,12 +701,12 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
         double q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 4 + 0];
-                q2_b[k] = q[(start + k) * 4 + 1];
-                q3_b[k] = q[(start + k) * 4 + 2];
-                q4_b[k] = q[(start + k) * 4 + 3];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 4 + 0];
+            q2_b[k] = q[(start + k) * 4 + 1];
+            q3_b[k] = q[(start + k) * 4 + 2];
+            q4_b[k] = q[(start + k) * 4 + 3];
+        }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -851,32 +851,32 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                J[(start + k) * 24 + 0] = out_J0_b[k];
-                J[(start + k) * 24 + 1] = out_J1_b[k];
-                J[(start + k) * 24 + 2] = out_J2_b[k];
-                J[(start + k) * 24 + 3] = out_J3_b[k];
-                J[(start + k) * 24 + 4] = out_J4_b[k];
-                J[(start + k) * 24 + 5] = out_J5_b[k];
-                J[(start + k) * 24 + 6] = out_J6_b[k];
-                J[(start + k) * 24 + 7] = out_J7_b[k];
-                J[(start + k) * 24 + 8] = out_J8_b[k];
-                J[(start + k) * 24 + 9] = out_J9_b[k];
-                J[(start + k) * 24 + 10] = out_J10_b[k];
-                J[(start + k) * 24 + 11] = out_J11_b[k];
-                J[(start + k) * 24 + 12] = out_J12_b[k];
-                J[(start + k) * 24 + 13] = out_J13_b[k];
-                J[(start + k) * 24 + 14] = out_J14_b[k];
-                J[(start + k) * 24 + 15] = out_J15_b[k];
-                J[(start + k) * 24 + 16] = out_J16_b[k];
-                J[(start + k) * 24 + 17] = out_J17_b[k];
-                J[(start + k) * 24 + 18] = out_J18_b[k];
-                J[(start + k) * 24 + 19] = out_J19_b[k];
-                J[(start + k) * 24 + 20] = out_J20_b[k];
-                J[(start + k) * 24 + 21] = out_J21_b[k];
-                J[(start + k) * 24 + 22] = out_J22_b[k];
-                J[(start + k) * 24 + 23] = out_J23_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            J[(start + k) * 24 + 0] = out_J0_b[k];
+            J[(start + k) * 24 + 1] = out_J1_b[k];
+            J[(start + k) * 24 + 2] = out_J2_b[k];
+            J[(start + k) * 24 + 3] = out_J3_b[k];
+            J[(start + k) * 24 + 4] = out_J4_b[k];
+            J[(start + k) * 24 + 5] = out_J5_b[k];
+            J[(start + k) * 24 + 6] = out_J6_b[k];
+            J[(start + k) * 24 + 7] = out_J7_b[k];
+            J[(start + k) * 24 + 8] = out_J8_b[k];
+            J[(start + k) * 24 + 9] = out_J9_b[k];
+            J[(start + k) * 24 + 10] = out_J10_b[k];
+            J[(start + k) * 24 + 11] = out_J11_b[k];
+            J[(start + k) * 24 + 12] = out_J12_b[k];
+            J[(start + k) * 24 + 13] = out_J13_b[k];
+            J[(start + k) * 24 + 14] = out_J14_b[k];
+            J[(start + k) * 24 + 15] = out_J15_b[k];
+            J[(start + k) * 24 + 16] = out_J16_b[k];
+            J[(start + k) * 24 + 17] = out_J17_b[k];
+            J[(start + k) * 24 + 18] = out_J18_b[k];
+            J[(start + k) * 24 + 19] = out_J19_b[k];
+            J[(start + k) * 24 + 20] = out_J20_b[k];
+            J[(start + k) * 24 + 21] = out_J21_b[k];
+            J[(start + k) * 24 + 22] = out_J22_b[k];
+            J[(start + k) * 24 + 23] = out_J23_b[k];
+        }
     }
     return 0;
 }
@@ -897,12 +897,12 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
         double q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 4 + 0];
-                q2_b[k] = q[(start + k) * 4 + 1];
-                q3_b[k] = q[(start + k) * 4 + 2];
-                q4_b[k] = q[(start + k) * 4 + 3];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 4 + 0];
+            q2_b[k] = q[(start + k) * 4 + 1];
+            q3_b[k] = q[(start + k) * 4 + 2];
+            q4_b[k] = q[(start + k) * 4 + 3];
+        }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -1121,48 +1121,48 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-                J[(start + k) * 24 + 0] = out_J0_b[k];
-                J[(start + k) * 24 + 1] = out_J1_b[k];
-                J[(start + k) * 24 + 2] = out_J2_b[k];
-                J[(start + k) * 24 + 3] = out_J3_b[k];
-                J[(start + k) * 24 + 4] = out_J4_b[k];
-                J[(start + k) * 24 + 5] = out_J5_b[k];
-                J[(start + k) * 24 + 6] = out_J6_b[k];
-                J[(start + k) * 24 + 7] = out_J7_b[k];
-                J[(start + k) * 24 + 8] = out_J8_b[k];
-                J[(start + k) * 24 + 9] = out_J9_b[k];
-                J[(start + k) * 24 + 10] = out_J10_b[k];
-                J[(start + k) * 24 + 11] = out_J11_b[k];
-                J[(start + k) * 24 + 12] = out_J12_b[k];
-                J[(start + k) * 24 + 13] = out_J13_b[k];
-                J[(start + k) * 24 + 14] = out_J14_b[k];
-                J[(start + k) * 24 + 15] = out_J15_b[k];
-                J[(start + k) * 24 + 16] = out_J16_b[k];
-                J[(start + k) * 24 + 17] = out_J17_b[k];
-                J[(start + k) * 24 + 18] = out_J18_b[k];
-                J[(start + k) * 24 + 19] = out_J19_b[k];
-                J[(start + k) * 24 + 20] = out_J20_b[k];
-                J[(start + k) * 24 + 21] = out_J21_b[k];
-                J[(start + k) * 24 + 22] = out_J22_b[k];
-                J[(start + k) * 24 + 23] = out_J23_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+            J[(start + k) * 24 + 0] = out_J0_b[k];
+            J[(start + k) * 24 + 1] = out_J1_b[k];
+            J[(start + k) * 24 + 2] = out_J2_b[k];
+            J[(start + k) * 24 + 3] = out_J3_b[k];
+            J[(start + k) * 24 + 4] = out_J4_b[k];
+            J[(start + k) * 24 + 5] = out_J5_b[k];
+            J[(start + k) * 24 + 6] = out_J6_b[k];
+            J[(start + k) * 24 + 7] = out_J7_b[k];
+            J[(start + k) * 24 + 8] = out_J8_b[k];
+            J[(start + k) * 24 + 9] = out_J9_b[k];
+            J[(start + k) * 24 + 10] = out_J10_b[k];
+            J[(start + k) * 24 + 11] = out_J11_b[k];
+            J[(start + k) * 24 + 12] = out_J12_b[k];
+            J[(start + k) * 24 + 13] = out_J13_b[k];
+            J[(start + k) * 24 + 14] = out_J14_b[k];
+            J[(start + k) * 24 + 15] = out_J15_b[k];
+            J[(start + k) * 24 + 16] = out_J16_b[k];
+            J[(start + k) * 24 + 17] = out_J17_b[k];
+            J[(start + k) * 24 + 18] = out_J18_b[k];
+            J[(start + k) * 24 + 19] = out_J19_b[k];
+            J[(start + k) * 24 + 20] = out_J20_b[k];
+            J[(start + k) * 24 + 21] = out_J21_b[k];
+            J[(start + k) * 24 + 22] = out_J22_b[k];
+            J[(start + k) * 24 + 23] = out_J23_b[k];
+        }
     }
     return 0;
 }
@@ -1187,16 +1187,16 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
         double qd2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double qd3_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double qd4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 4 + 0];
-                q2_b[k] = q[(start + k) * 4 + 1];
-                q3_b[k] = q[(start + k) * 4 + 2];
-                q4_b[k] = q[(start + k) * 4 + 3];
-                qd1_b[k] = qd[(start + k) * 4 + 0];
-                qd2_b[k] = qd[(start + k) * 4 + 1];
-                qd3_b[k] = qd[(start + k) * 4 + 2];
-                qd4_b[k] = qd[(start + k) * 4 + 3];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 4 + 0];
+            q2_b[k] = q[(start + k) * 4 + 1];
+            q3_b[k] = q[(start + k) * 4 + 2];
+            q4_b[k] = q[(start + k) * 4 + 3];
+            qd1_b[k] = qd[(start + k) * 4 + 0];
+            qd2_b[k] = qd[(start + k) * 4 + 1];
+            qd3_b[k] = qd[(start + k) * 4 + 2];
+            qd4_b[k] = qd[(start + k) * 4 + 3];
+        }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
@@ -1356,32 +1356,32 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                Jd[(start + k) * 24 + 0] = out_Jd0_b[k];
-                Jd[(start + k) * 24 + 1] = out_Jd1_b[k];
-                Jd[(start + k) * 24 + 2] = out_Jd2_b[k];
-                Jd[(start + k) * 24 + 3] = out_Jd3_b[k];
-                Jd[(start + k) * 24 + 4] = out_Jd4_b[k];
-                Jd[(start + k) * 24 + 5] = out_Jd5_b[k];
-                Jd[(start + k) * 24 + 6] = out_Jd6_b[k];
-                Jd[(start + k) * 24 + 7] = out_Jd7_b[k];
-                Jd[(start + k) * 24 + 8] = out_Jd8_b[k];
-                Jd[(start + k) * 24 + 9] = out_Jd9_b[k];
-                Jd[(start + k) * 24 + 10] = out_Jd10_b[k];
-                Jd[(start + k) * 24 + 11] = out_Jd11_b[k];
-                Jd[(start + k) * 24 + 12] = out_Jd12_b[k];
-                Jd[(start + k) * 24 + 13] = out_Jd13_b[k];
-                Jd[(start + k) * 24 + 14] = out_Jd14_b[k];
-                Jd[(start + k) * 24 + 15] = out_Jd15_b[k];
-                Jd[(start + k) * 24 + 16] = out_Jd16_b[k];
-                Jd[(start + k) * 24 + 17] = out_Jd17_b[k];
-                Jd[(start + k) * 24 + 18] = out_Jd18_b[k];
-                Jd[(start + k) * 24 + 19] = out_Jd19_b[k];
-                Jd[(start + k) * 24 + 20] = out_Jd20_b[k];
-                Jd[(start + k) * 24 + 21] = out_Jd21_b[k];
-                Jd[(start + k) * 24 + 22] = out_Jd22_b[k];
-                Jd[(start + k) * 24 + 23] = out_Jd23_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Jd[(start + k) * 24 + 0] = out_Jd0_b[k];
+            Jd[(start + k) * 24 + 1] = out_Jd1_b[k];
+            Jd[(start + k) * 24 + 2] = out_Jd2_b[k];
+            Jd[(start + k) * 24 + 3] = out_Jd3_b[k];
+            Jd[(start + k) * 24 + 4] = out_Jd4_b[k];
+            Jd[(start + k) * 24 + 5] = out_Jd5_b[k];
+            Jd[(start + k) * 24 + 6] = out_Jd6_b[k];
+            Jd[(start + k) * 24 + 7] = out_Jd7_b[k];
+            Jd[(start + k) * 24 + 8] = out_Jd8_b[k];
+            Jd[(start + k) * 24 + 9] = out_Jd9_b[k];
+            Jd[(start + k) * 24 + 10] = out_Jd10_b[k];
+            Jd[(start + k) * 24 + 11] = out_Jd11_b[k];
+            Jd[(start + k) * 24 + 12] = out_Jd12_b[k];
+            Jd[(start + k) * 24 + 13] = out_Jd13_b[k];
+            Jd[(start + k) * 24 + 14] = out_Jd14_b[k];
+            Jd[(start + k) * 24 + 15] = out_Jd15_b[k];
+            Jd[(start + k) * 24 + 16] = out_Jd16_b[k];
+            Jd[(start + k) * 24 + 17] = out_Jd17_b[k];
+            Jd[(start + k) * 24 + 18] = out_Jd18_b[k];
+            Jd[(start + k) * 24 + 19] = out_Jd19_b[k];
+            Jd[(start + k) * 24 + 20] = out_Jd20_b[k];
+            Jd[(start + k) * 24 + 21] = out_Jd21_b[k];
+            Jd[(start + k) * 24 + 22] = out_Jd22_b[k];
+            Jd[(start + k) * 24 + 23] = out_Jd23_b[k];
+        }
     }
     return 0;
 }
@@ -1410,20 +1410,20 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
         double Tt32_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double Tt33_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double Tt34_b[DELTAGEN_MANUTEC_H5_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                Tt11_b[k] = T[(start + k) * 16 + 0];
-                Tt12_b[k] = T[(start + k) * 16 + 1];
-                Tt13_b[k] = T[(start + k) * 16 + 2];
-                Tt14_b[k] = T[(start + k) * 16 + 3];
-                Tt21_b[k] = T[(start + k) * 16 + 4];
-                Tt22_b[k] = T[(start + k) * 16 + 5];
-                Tt23_b[k] = T[(start + k) * 16 + 6];
-                Tt24_b[k] = T[(start + k) * 16 + 7];
-                Tt31_b[k] = T[(start + k) * 16 + 8];
-                Tt32_b[k] = T[(start + k) * 16 + 9];
-                Tt33_b[k] = T[(start + k) * 16 + 10];
-                Tt34_b[k] = T[(start + k) * 16 + 11];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Tt11_b[k] = T[(start + k) * 16 + 0];
+            Tt12_b[k] = T[(start + k) * 16 + 1];
+            Tt13_b[k] = T[(start + k) * 16 + 2];
+            Tt14_b[k] = T[(start + k) * 16 + 3];
+            Tt21_b[k] = T[(start + k) * 16 + 4];
+            Tt22_b[k] = T[(start + k) * 16 + 5];
+            Tt23_b[k] = T[(start + k) * 16 + 6];
+            Tt24_b[k] = T[(start + k) * 16 + 7];
+            Tt31_b[k] = T[(start + k) * 16 + 8];
+            Tt32_b[k] = T[(start + k) * 16 + 9];
+            Tt33_b[k] = T[(start + k) * 16 + 10];
+            Tt34_b[k] = T[(start + k) * 16 + 11];
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_q1_elbow_up_b[DELTAGEN_MANUTEC_H5_BLOCK];
@@ -1715,18 +1715,18 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 8 + 0] = out_q1_elbow_up_b[k];
-                q[(start + k) * 8 + 1] = out_q2_elbow_up_b[k];
-                q[(start + k) * 8 + 2] = out_q3_elbow_up_b[k];
-                q[(start + k) * 8 + 3] = out_q4_elbow_up_b[k];
-                q[(start + k) * 8 + 4] = out_q1_elbow_down_b[k];
-                q[(start + k) * 8 + 5] = out_q2_elbow_down_b[k];
-                q[(start + k) * 8 + 6] = out_q3_elbow_down_b[k];
-                q[(start + k) * 8 + 7] = out_q4_elbow_down_b[k];
-                valid[(start + k) * 2 + 0] = (uint8_t)out_valid_elbow_up_b[k];
-                valid[(start + k) * 2 + 1] = (uint8_t)out_valid_elbow_down_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q[(start + k) * 8 + 0] = out_q1_elbow_up_b[k];
+            q[(start + k) * 8 + 1] = out_q2_elbow_up_b[k];
+            q[(start + k) * 8 + 2] = out_q3_elbow_up_b[k];
+            q[(start + k) * 8 + 3] = out_q4_elbow_up_b[k];
+            q[(start + k) * 8 + 4] = out_q1_elbow_down_b[k];
+            q[(start + k) * 8 + 5] = out_q2_elbow_down_b[k];
+            q[(start + k) * 8 + 6] = out_q3_elbow_down_b[k];
+            q[(start + k) * 8 + 7] = out_q4_elbow_down_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid_elbow_up_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid_elbow_down_b[k];
+        }
     }
     return 0;
 }

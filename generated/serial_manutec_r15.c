@@ -46,14 +46,14 @@ int deltagen_manutec_r15_fk(size_t n, const double *restrict q, double *restrict
         double q4_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q5_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q6_b[DELTAGEN_MANUTEC_R15_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 6 + 0];
-                q2_b[k] = q[(start + k) * 6 + 1];
-                q3_b[k] = q[(start + k) * 6 + 2];
-                q4_b[k] = q[(start + k) * 6 + 3];
-                q5_b[k] = q[(start + k) * 6 + 4];
-                q6_b[k] = q[(start + k) * 6 + 5];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 6 + 0];
+            q2_b[k] = q[(start + k) * 6 + 1];
+            q3_b[k] = q[(start + k) * 6 + 2];
+            q4_b[k] = q[(start + k) * 6 + 3];
+            q5_b[k] = q[(start + k) * 6 + 4];
+            q6_b[k] = q[(start + k) * 6 + 5];
+        }
         double cos_q1_b[DELTAGEN_MANUTEC_R15_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -227,24 +227,24 @@ int deltagen_manutec_r15_fk(size_t n, const double *restrict q, double *restrict
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+        }
     }
     return 0;
 }
@@ -267,14 +267,14 @@ int deltagen_manutec_r15_frames(size_t n, const double *restrict q, double *rest
         double q4_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q5_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q6_b[DELTAGEN_MANUTEC_R15_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 6 + 0];
-                q2_b[k] = q[(start + k) * 6 + 1];
-                q3_b[k] = q[(start + k) * 6 + 2];
-                q4_b[k] = q[(start + k) * 6 + 3];
-                q5_b[k] = q[(start + k) * 6 + 4];
-                q6_b[k] = q[(start + k) * 6 + 5];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 6 + 0];
+            q2_b[k] = q[(start + k) * 6 + 1];
+            q3_b[k] = q[(start + k) * 6 + 2];
+            q4_b[k] = q[(start + k) * 6 + 3];
+            q5_b[k] = q[(start + k) * 6 + 4];
+            q6_b[k] = q[(start + k) * 6 + 5];
+        }
         double cos_q1_b[DELTAGEN_MANUTEC_R15_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -809,136 +809,136 @@ int deltagen_manutec_r15_frames(size_t n, const double *restrict q, double *rest
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                F[(start + k) * 128 + 0] = out_F0_b[k];
-                F[(start + k) * 128 + 1] = out_F1_b[k];
-                F[(start + k) * 128 + 2] = out_F2_b[k];
-                F[(start + k) * 128 + 3] = out_F3_b[k];
-                F[(start + k) * 128 + 4] = out_F4_b[k];
-                F[(start + k) * 128 + 5] = out_F5_b[k];
-                F[(start + k) * 128 + 6] = out_F6_b[k];
-                F[(start + k) * 128 + 7] = out_F7_b[k];
-                F[(start + k) * 128 + 8] = out_F8_b[k];
-                F[(start + k) * 128 + 9] = out_F9_b[k];
-                F[(start + k) * 128 + 10] = out_F10_b[k];
-                F[(start + k) * 128 + 11] = out_F11_b[k];
-                F[(start + k) * 128 + 12] = out_F12_b[k];
-                F[(start + k) * 128 + 13] = out_F13_b[k];
-                F[(start + k) * 128 + 14] = out_F14_b[k];
-                F[(start + k) * 128 + 15] = out_F15_b[k];
-                F[(start + k) * 128 + 16] = out_F16_b[k];
-                F[(start + k) * 128 + 17] = out_F17_b[k];
-                F[(start + k) * 128 + 18] = out_F18_b[k];
-                F[(start + k) * 128 + 19] = out_F19_b[k];
-                F[(start + k) * 128 + 20] = out_F20_b[k];
-                F[(start + k) * 128 + 21] = out_F21_b[k];
-                F[(start + k) * 128 + 22] = out_F22_b[k];
-                F[(start + k) * 128 + 23] = out_F23_b[k];
-                F[(start + k) * 128 + 24] = out_F24_b[k];
-                F[(start + k) * 128 + 25] = out_F25_b[k];
-                F[(start + k) * 128 + 26] = out_F26_b[k];
-                F[(start + k) * 128 + 27] = out_F27_b[k];
-                F[(start + k) * 128 + 28] = out_F28_b[k];
-                F[(start + k) * 128 + 29] = out_F29_b[k];
-                F[(start + k) * 128 + 30] = out_F30_b[k];
-                F[(start + k) * 128 + 31] = out_F31_b[k];
-                F[(start + k) * 128 + 32] = out_F32_b[k];
-                F[(start + k) * 128 + 33] = out_F33_b[k];
-                F[(start + k) * 128 + 34] = out_F34_b[k];
-                F[(start + k) * 128 + 35] = out_F35_b[k];
-                F[(start + k) * 128 + 36] = out_F36_b[k];
-                F[(start + k) * 128 + 37] = out_F37_b[k];
-                F[(start + k) * 128 + 38] = out_F38_b[k];
-                F[(start + k) * 128 + 39] = out_F39_b[k];
-                F[(start + k) * 128 + 40] = out_F40_b[k];
-                F[(start + k) * 128 + 41] = out_F41_b[k];
-                F[(start + k) * 128 + 42] = out_F42_b[k];
-                F[(start + k) * 128 + 43] = out_F43_b[k];
-                F[(start + k) * 128 + 44] = out_F44_b[k];
-                F[(start + k) * 128 + 45] = out_F45_b[k];
-                F[(start + k) * 128 + 46] = out_F46_b[k];
-                F[(start + k) * 128 + 47] = out_F47_b[k];
-                F[(start + k) * 128 + 48] = out_F48_b[k];
-                F[(start + k) * 128 + 49] = out_F49_b[k];
-                F[(start + k) * 128 + 50] = out_F50_b[k];
-                F[(start + k) * 128 + 51] = out_F51_b[k];
-                F[(start + k) * 128 + 52] = out_F52_b[k];
-                F[(start + k) * 128 + 53] = out_F53_b[k];
-                F[(start + k) * 128 + 54] = out_F54_b[k];
-                F[(start + k) * 128 + 55] = out_F55_b[k];
-                F[(start + k) * 128 + 56] = out_F56_b[k];
-                F[(start + k) * 128 + 57] = out_F57_b[k];
-                F[(start + k) * 128 + 58] = out_F58_b[k];
-                F[(start + k) * 128 + 59] = out_F59_b[k];
-                F[(start + k) * 128 + 60] = out_F60_b[k];
-                F[(start + k) * 128 + 61] = out_F61_b[k];
-                F[(start + k) * 128 + 62] = out_F62_b[k];
-                F[(start + k) * 128 + 63] = out_F63_b[k];
-                F[(start + k) * 128 + 64] = out_F64_b[k];
-                F[(start + k) * 128 + 65] = out_F65_b[k];
-                F[(start + k) * 128 + 66] = out_F66_b[k];
-                F[(start + k) * 128 + 67] = out_F67_b[k];
-                F[(start + k) * 128 + 68] = out_F68_b[k];
-                F[(start + k) * 128 + 69] = out_F69_b[k];
-                F[(start + k) * 128 + 70] = out_F70_b[k];
-                F[(start + k) * 128 + 71] = out_F71_b[k];
-                F[(start + k) * 128 + 72] = out_F72_b[k];
-                F[(start + k) * 128 + 73] = out_F73_b[k];
-                F[(start + k) * 128 + 74] = out_F74_b[k];
-                F[(start + k) * 128 + 75] = out_F75_b[k];
-                F[(start + k) * 128 + 76] = out_F76_b[k];
-                F[(start + k) * 128 + 77] = out_F77_b[k];
-                F[(start + k) * 128 + 78] = out_F78_b[k];
-                F[(start + k) * 128 + 79] = out_F79_b[k];
-                F[(start + k) * 128 + 80] = out_F80_b[k];
-                F[(start + k) * 128 + 81] = out_F81_b[k];
-                F[(start + k) * 128 + 82] = out_F82_b[k];
-                F[(start + k) * 128 + 83] = out_F83_b[k];
-                F[(start + k) * 128 + 84] = out_F84_b[k];
-                F[(start + k) * 128 + 85] = out_F85_b[k];
-                F[(start + k) * 128 + 86] = out_F86_b[k];
-                F[(start + k) * 128 + 87] = out_F87_b[k];
-                F[(start + k) * 128 + 88] = out_F88_b[k];
-                F[(start + k) * 128 + 89] = out_F89_b[k];
-                F[(start + k) * 128 + 90] = out_F90_b[k];
-                F[(start + k) * 128 + 91] = out_F91_b[k];
-                F[(start + k) * 128 + 92] = out_F92_b[k];
-                F[(start + k) * 128 + 93] = out_F93_b[k];
-                F[(start + k) * 128 + 94] = out_F94_b[k];
-                F[(start + k) * 128 + 95] = out_F95_b[k];
-                F[(start + k) * 128 + 96] = out_F96_b[k];
-                F[(start + k) * 128 + 97] = out_F97_b[k];
-                F[(start + k) * 128 + 98] = out_F98_b[k];
-                F[(start + k) * 128 + 99] = out_F99_b[k];
-                F[(start + k) * 128 + 100] = out_F100_b[k];
-                F[(start + k) * 128 + 101] = out_F101_b[k];
-                F[(start + k) * 128 + 102] = out_F102_b[k];
-                F[(start + k) * 128 + 103] = out_F103_b[k];
-                F[(start + k) * 128 + 104] = out_F104_b[k];
-                F[(start + k) * 128 + 105] = out_F105_b[k];
-                F[(start + k) * 128 + 106] = out_F106_b[k];
-                F[(start + k) * 128 + 107] = out_F107_b[k];
-                F[(start + k) * 128 + 108] = out_F108_b[k];
-                F[(start + k) * 128 + 109] = out_F109_b[k];
-                F[(start + k) * 128 + 110] = out_F110_b[k];
-                F[(start + k) * 128 + 111] = out_F111_b[k];
-                F[(start + k) * 128 + 112] = out_F112_b[k];
-                F[(start + k) * 128 + 113] = out_F113_b[k];
-                F[(start + k) * 128 + 114] = out_F114_b[k];
-                F[(start + k) * 128 + 115] = out_F115_b[k];
-                F[(start + k) * 128 + 116] = out_F116_b[k];
-                F[(start + k) * 128 + 117] = out_F117_b[k];
-                F[(start + k) * 128 + 118] = out_F118_b[k];
-                F[(start + k) * 128 + 119] = out_F119_b[k];
-                F[(start + k) * 128 + 120] = out_F120_b[k];
-                F[(start + k) * 128 + 121] = out_F121_b[k];
-                F[(start + k) * 128 + 122] = out_F122_b[k];
-                F[(start + k) * 128 + 123] = out_F123_b[k];
-                F[(start + k) * 128 + 124] = out_F124_b[k];
-                F[(start + k) * 128 + 125] = out_F125_b[k];
-                F[(start + k) * 128 + 126] = out_F126_b[k];
-                F[(start + k) * 128 + 127] = out_F127_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            F[(start + k) * 128 + 0] = out_F0_b[k];
+            F[(start + k) * 128 + 1] = out_F1_b[k];
+            F[(start + k) * 128 + 2] = out_F2_b[k];
+            F[(start + k) * 128 + 3] = out_F3_b[k];
+            F[(start + k) * 128 + 4] = out_F4_b[k];
+            F[(start + k) * 128 + 5] = out_F5_b[k];
+            F[(start + k) * 128 + 6] = out_F6_b[k];
+            F[(start + k) * 128 + 7] = out_F7_b[k];
+            F[(start + k) * 128 + 8] = out_F8_b[k];
+            F[(start + k) * 128 + 9] = out_F9_b[k];
+            F[(start + k) * 128 + 10] = out_F10_b[k];
+            F[(start + k) * 128 + 11] = out_F11_b[k];
+            F[(start + k) * 128 + 12] = out_F12_b[k];
+            F[(start + k) * 128 + 13] = out_F13_b[k];
+            F[(start + k) * 128 + 14] = out_F14_b[k];
+            F[(start + k) * 128 + 15] = out_F15_b[k];
+            F[(start + k) * 128 + 16] = out_F16_b[k];
+            F[(start + k) * 128 + 17] = out_F17_b[k];
+            F[(start + k) * 128 + 18] = out_F18_b[k];
+            F[(start + k) * 128 + 19] = out_F19_b[k];
+            F[(start + k) * 128 + 20] = out_F20_b[k];
+            F[(start + k) * 128 + 21] = out_F21_b[k];
+            F[(start + k) * 128 + 22] = out_F22_b[k];
+            F[(start + k) * 128 + 23] = out_F23_b[k];
+            F[(start + k) * 128 + 24] = out_F24_b[k];
+            F[(start + k) * 128 + 25] = out_F25_b[k];
+            F[(start + k) * 128 + 26] = out_F26_b[k];
+            F[(start + k) * 128 + 27] = out_F27_b[k];
+            F[(start + k) * 128 + 28] = out_F28_b[k];
+            F[(start + k) * 128 + 29] = out_F29_b[k];
+            F[(start + k) * 128 + 30] = out_F30_b[k];
+            F[(start + k) * 128 + 31] = out_F31_b[k];
+            F[(start + k) * 128 + 32] = out_F32_b[k];
+            F[(start + k) * 128 + 33] = out_F33_b[k];
+            F[(start + k) * 128 + 34] = out_F34_b[k];
+            F[(start + k) * 128 + 35] = out_F35_b[k];
+            F[(start + k) * 128 + 36] = out_F36_b[k];
+            F[(start + k) * 128 + 37] = out_F37_b[k];
+            F[(start + k) * 128 + 38] = out_F38_b[k];
+            F[(start + k) * 128 + 39] = out_F39_b[k];
+            F[(start + k) * 128 + 40] = out_F40_b[k];
+            F[(start + k) * 128 + 41] = out_F41_b[k];
+            F[(start + k) * 128 + 42] = out_F42_b[k];
+            F[(start + k) * 128 + 43] = out_F43_b[k];
+            F[(start + k) * 128 + 44] = out_F44_b[k];
+            F[(start + k) * 128 + 45] = out_F45_b[k];
+            F[(start + k) * 128 + 46] = out_F46_b[k];
+            F[(start + k) * 128 + 47] = out_F47_b[k];
+            F[(start + k) * 128 + 48] = out_F48_b[k];
+            F[(start + k) * 128 + 49] = out_F49_b[k];
+            F[(start + k) * 128 + 50] = out_F50_b[k];
+            F[(start + k) * 128 + 51] = out_F51_b[k];
+            F[(start + k) * 128 + 52] = out_F52_b[k];
+            F[(start + k) * 128 + 53] = out_F53_b[k];
+            F[(start + k) * 128 + 54] = out_F54_b[k];
+            F[(start + k) * 128 + 55] = out_F55_b[k];
+            F[(start + k) * 128 + 56] = out_F56_b[k];
+            F[(start + k) * 128 + 57] = out_F57_b[k];
+            F[(start + k) * 128 + 58] = out_F58_b[k];
+            F[(start + k) * 128 + 59] = out_F59_b[k];
+            F[(start + k) * 128 + 60] = out_F60_b[k];
+            F[(start + k) * 128 + 61] = out_F61_b[k];
+            F[(start + k) * 128 + 62] = out_F62_b[k];
+            F[(start + k) * 128 + 63] = out_F63_b[k];
+            F[(start + k) * 128 + 64] = out_F64_b[k];
+            F[(start + k) * 128 + 65] = out_F65_b[k];
+            F[(start + k) * 128 + 66] = out_F66_b[k];
+            F[(start + k) * 128 + 67] = out_F67_b[k];
+            F[(start + k) * 128 + 68] = out_F68_b[k];
+            F[(start + k) * 128 + 69] = out_F69_b[k];
+            F[(start + k) * 128 + 70] = out_F70_b[k];
+            F[(start + k) * 128 + 71] = out_F71_b[k];
+            F[(start + k) * 128 + 72] = out_F72_b[k];
+            F[(start + k) * 128 + 73] = out_F73_b[k];
+            F[(start + k) * 128 + 74] = out_F74_b[k];
+            F[(start + k) * 128 + 75] = out_F75_b[k];
+            F[(start + k) * 128 + 76] = out_F76_b[k];
+            F[(start + k) * 128 + 77] = out_F77_b[k];
+            F[(start + k) * 128 + 78] = out_F78_b[k];
+            F[(start + k) * 128 + 79] = out_F79_b[k];
+            F[(start + k) * 128 + 80] = out_F80_b[k];
+            F[(start + k) * 128 + 81] = out_F81_b[k];
+            F[(start + k) * 128 + 82] = out_F82_b[k];
+            F[(start + k) * 128 + 83] = out_F83_b[k];
+            F[(start + k) * 128 + 84] = out_F84_b[k];
+            F[(start + k) * 128 + 85] = out_F85_b[k];
+            F[(start + k) * 128 + 86] = out_F86_b[k];
+            F[(start + k) * 128 + 87] = out_F87_b[k];
+            F[(start + k) * 128 + 88] = out_F88_b[k];
+            F[(start + k) * 128 + 89] = out_F89_b[k];
+            F[(start + k) * 128 + 90] = out_F90_b[k];
+            F[(start + k) * 128 + 91] = out_F91_b[k];
+            F[(start + k) * 128 + 92] = out_F92_b[k];
+            F[(start + k) * 128 + 93] = out_F93_b[k];
+            F[(start + k) * 128 + 94] = out_F94_b[k];
+            F[(start + k) * 128 + 95] = out_F95_b[k];
+            F[(start + k) * 128 + 96] = out_F96_b[k];
+            F[(start + k) * 128 + 97] = out_F97_b[k];
+            F[(start + k) * 128 + 98] = out_F98_b[k];
+            F[(start + k) * 128 + 99] = out_F99_b[k];
+            F[(start + k) * 128 + 100] = out_F100_b[k];
+            F[(start + k) * 128 + 101] = out_F101_b[k];
+            F[(start + k) * 128 + 102] = out_F102_b[k];
+            F[(start + k) * 128 + 103] = out_F103_b[k];
+            F[(start + k) * 128 + 104] = out_F104_b[k];
+            F[(start + k) * 128 + 105] = out_F105_b[k];
+            F[(start + k) * 128 + 106] = out_F106_b[k];
+            F[(start + k) * 128 + 107] = out_F107_b[k];
+            F[(start + k) * 128 + 108] = out_F108_b[k];
+            F[(start + k) * 128 + 109] = out_F109_b[k];
+            F[(start + k) * 128 + 110] = out_F110_b[k];
+            F[(start + k) * 128 + 111] = out_F111_b[k];
+            F[(start + k) * 128 + 112] = out_F112_b[k];
+            F[(start + k) * 128 + 113] = out_F113_b[k];
+            F[(start + k) * 128 + 114] = out_F114_b[k];
+            F[(start + k) * 128 + 115] = out_F115_b[k];
+            F[(start + k) * 128 + 116] = out_F116_b[k];
+            F[(start + k) * 128 + 117] = out_F117_b[k];
+            F[(start + k) * 128 + 118] = out_F118_b[k];
+            F[(start + k) * 128 + 119] = out_F119_b[k];
+            F[(start + k) * 128 + 120] = out_F120_b[k];
+            F[(start + k) * 128 + 121] = out_F121_b[k];
+            F[(start + k) * 128 + 122] = out_F122_b[k];
+            F[(start + k) * 128 + 123] = out_F123_b[k];
+            F[(start + k) * 128 + 124] = out_F124_b[k];
+            F[(start + k) * 128 + 125] = out_F125_b[k];
+            F[(start + k) * 128 + 126] = out_F126_b[k];
+            F[(start + k) * 128 + 127] = out_F127_b[k];
+        }
     }
     return 0;
 }
@@ -961,14 +961,14 @@ int deltagen_manutec_r15_jacobian(size_t n, const double *restrict q, double *re
         double q4_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q5_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q6_b[DELTAGEN_MANUTEC_R15_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 6 + 0];
-                q2_b[k] = q[(start + k) * 6 + 1];
-                q3_b[k] = q[(start + k) * 6 + 2];
-                q4_b[k] = q[(start + k) * 6 + 3];
-                q5_b[k] = q[(start + k) * 6 + 4];
-                q6_b[k] = q[(start + k) * 6 + 5];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 6 + 0];
+            q2_b[k] = q[(start + k) * 6 + 1];
+            q3_b[k] = q[(start + k) * 6 + 2];
+            q4_b[k] = q[(start + k) * 6 + 3];
+            q5_b[k] = q[(start + k) * 6 + 4];
+            q6_b[k] = q[(start + k) * 6 + 5];
+        }
         double cos_q1_b[DELTAGEN_MANUTEC_R15_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -1230,44 +1230,44 @@ int deltagen_manutec_r15_jacobian(size_t n, const double *restrict q, double *re
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                J[(start + k) * 36 + 0] = out_J0_b[k];
-                J[(start + k) * 36 + 1] = out_J1_b[k];
-                J[(start + k) * 36 + 2] = out_J2_b[k];
-                J[(start + k) * 36 + 3] = out_J3_b[k];
-                J[(start + k) * 36 + 4] = out_J4_b[k];
-                J[(start + k) * 36 + 5] = out_J5_b[k];
-                J[(start + k) * 36 + 6] = out_J6_b[k];
-                J[(start + k) * 36 + 7] = out_J7_b[k];
-                J[(start + k) * 36 + 8] = out_J8_b[k];
-                J[(start + k) * 36 + 9] = out_J9_b[k];
-                J[(start + k) * 36 + 10] = out_J10_b[k];
-                J[(start + k) * 36 + 11] = out_J11_b[k];
-                J[(start + k) * 36 + 12] = out_J12_b[k];
-                J[(start + k) * 36 + 13] = out_J13_b[k];
-                J[(start + k) * 36 + 14] = out_J14_b[k];
-                J[(start + k) * 36 + 15] = out_J15_b[k];
-                J[(start + k) * 36 + 16] = out_J16_b[k];
-                J[(start + k) * 36 + 17] = out_J17_b[k];
-                J[(start + k) * 36 + 18] = out_J18_b[k];
-                J[(start + k) * 36 + 19] = out_J19_b[k];
-                J[(start + k) * 36 + 20] = out_J20_b[k];
-                J[(start + k) * 36 + 21] = out_J21_b[k];
-                J[(start + k) * 36 + 22] = out_J22_b[k];
-                J[(start + k) * 36 + 23] = out_J23_b[k];
-                J[(start + k) * 36 + 24] = out_J24_b[k];
-                J[(start + k) * 36 + 25] = out_J25_b[k];
-                J[(start + k) * 36 + 26] = out_J26_b[k];
-                J[(start + k) * 36 + 27] = out_J27_b[k];
-                J[(start + k) * 36 + 28] = out_J28_b[k];
-                J[(start + k) * 36 + 29] = out_J29_b[k];
-                J[(start + k) * 36 + 30] = out_J30_b[k];
-                J[(start + k) * 36 + 31] = out_J31_b[k];
-                J[(start + k) * 36 + 32] = out_J32_b[k];
-                J[(start + k) * 36 + 33] = out_J33_b[k];
-                J[(start + k) * 36 + 34] = out_J34_b[k];
-                J[(start + k) * 36 + 35] = out_J35_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            J[(start + k) * 36 + 0] = out_J0_b[k];
+            J[(start + k) * 36 + 1] = out_J1_b[k];
+            J[(start + k) * 36 + 2] = out_J2_b[k];
+            J[(start + k) * 36 + 3] = out_J3_b[k];
+            J[(start + k) * 36 + 4] = out_J4_b[k];
+            J[(start + k) * 36 + 5] = out_J5_b[k];
+            J[(start + k) * 36 + 6] = out_J6_b[k];
+            J[(start + k) * 36 + 7] = out_J7_b[k];
+            J[(start + k) * 36 + 8] = out_J8_b[k];
+            J[(start + k) * 36 + 9] = out_J9_b[k];
+            J[(start + k) * 36 + 10] = out_J10_b[k];
+            J[(start + k) * 36 + 11] = out_J11_b[k];
+            J[(start + k) * 36 + 12] = out_J12_b[k];
+            J[(start + k) * 36 + 13] = out_J13_b[k];
+            J[(start + k) * 36 + 14] = out_J14_b[k];
+            J[(start + k) * 36 + 15] = out_J15_b[k];
+            J[(start + k) * 36 + 16] = out_J16_b[k];
+            J[(start + k) * 36 + 17] = out_J17_b[k];
+            J[(start + k) * 36 + 18] = out_J18_b[k];
+            J[(start + k) * 36 + 19] = out_J19_b[k];
+            J[(start + k) * 36 + 20] = out_J20_b[k];
+            J[(start + k) * 36 + 21] = out_J21_b[k];
+            J[(start + k) * 36 + 22] = out_J22_b[k];
+            J[(start + k) * 36 + 23] = out_J23_b[k];
+            J[(start + k) * 36 + 24] = out_J24_b[k];
+            J[(start + k) * 36 + 25] = out_J25_b[k];
+            J[(start + k) * 36 + 26] = out_J26_b[k];
+            J[(start + k) * 36 + 27] = out_J27_b[k];
+            J[(start + k) * 36 + 28] = out_J28_b[k];
+            J[(start + k) * 36 + 29] = out_J29_b[k];
+            J[(start + k) * 36 + 30] = out_J30_b[k];
+            J[(start + k) * 36 + 31] = out_J31_b[k];
+            J[(start + k) * 36 + 32] = out_J32_b[k];
+            J[(start + k) * 36 + 33] = out_J33_b[k];
+            J[(start + k) * 36 + 34] = out_J34_b[k];
+            J[(start + k) * 36 + 35] = out_J35_b[k];
+        }
     }
     return 0;
 }
@@ -1290,14 +1290,14 @@ int deltagen_manutec_r15_fk_jacobian(size_t n, const double *restrict q, double 
         double q4_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q5_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double q6_b[DELTAGEN_MANUTEC_R15_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 6 + 0];
-                q2_b[k] = q[(start + k) * 6 + 1];
-                q3_b[k] = q[(start + k) * 6 + 2];
-                q4_b[k] = q[(start + k) * 6 + 3];
-                q5_b[k] = q[(start + k) * 6 + 4];
-                q6_b[k] = q[(start + k) * 6 + 5];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 6 + 0];
+            q2_b[k] = q[(start + k) * 6 + 1];
+            q3_b[k] = q[(start + k) * 6 + 2];
+            q4_b[k] = q[(start + k) * 6 + 3];
+            q5_b[k] = q[(start + k) * 6 + 4];
+            q6_b[k] = q[(start + k) * 6 + 5];
+        }
         double cos_q1_b[DELTAGEN_MANUTEC_R15_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -1627,60 +1627,60 @@ int deltagen_manutec_r15_fk_jacobian(size_t n, const double *restrict q, double 
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                T[(start + k) * 16 + 0] = out_T0_b[k];
-                T[(start + k) * 16 + 1] = out_T1_b[k];
-                T[(start + k) * 16 + 2] = out_T2_b[k];
-                T[(start + k) * 16 + 3] = out_T3_b[k];
-                T[(start + k) * 16 + 4] = out_T4_b[k];
-                T[(start + k) * 16 + 5] = out_T5_b[k];
-                T[(start + k) * 16 + 6] = out_T6_b[k];
-                T[(start + k) * 16 + 7] = out_T7_b[k];
-                T[(start + k) * 16 + 8] = out_T8_b[k];
-                T[(start + k) * 16 + 9] = out_T9_b[k];
-                T[(start + k) * 16 + 10] = out_T10_b[k];
-                T[(start + k) * 16 + 11] = out_T11_b[k];
-                T[(start + k) * 16 + 12] = out_T12_b[k];
-                T[(start + k) * 16 + 13] = out_T13_b[k];
-                T[(start + k) * 16 + 14] = out_T14_b[k];
-                T[(start + k) * 16 + 15] = out_T15_b[k];
-                J[(start + k) * 36 + 0] = out_J0_b[k];
-                J[(start + k) * 36 + 1] = out_J1_b[k];
-                J[(start + k) * 36 + 2] = out_J2_b[k];
-                J[(start + k) * 36 + 3] = out_J3_b[k];
-                J[(start + k) * 36 + 4] = out_J4_b[k];
-                J[(start + k) * 36 + 5] = out_J5_b[k];
-                J[(start + k) * 36 + 6] = out_J6_b[k];
-                J[(start + k) * 36 + 7] = out_J7_b[k];
-                J[(start + k) * 36 + 8] = out_J8_b[k];
-                J[(start + k) * 36 + 9] = out_J9_b[k];
-                J[(start + k) * 36 + 10] = out_J10_b[k];
-                J[(start + k) * 36 + 11] = out_J11_b[k];
-                J[(start + k) * 36 + 12] = out_J12_b[k];
-                J[(start + k) * 36 + 13] = out_J13_b[k];
-                J[(start + k) * 36 + 14] = out_J14_b[k];
-                J[(start + k) * 36 + 15] = out_J15_b[k];
-                J[(start + k) * 36 + 16] = out_J16_b[k];
-                J[(start + k) * 36 + 17] = out_J17_b[k];
-                J[(start + k) * 36 + 18] = out_J18_b[k];
-                J[(start + k) * 36 + 19] = out_J19_b[k];
-                J[(start + k) * 36 + 20] = out_J20_b[k];
-                J[(start + k) * 36 + 21] = out_J21_b[k];
-                J[(start + k) * 36 + 22] = out_J22_b[k];
-                J[(start + k) * 36 + 23] = out_J23_b[k];
-                J[(start + k) * 36 + 24] = out_J24_b[k];
-                J[(start + k) * 36 + 25] = out_J25_b[k];
-                J[(start + k) * 36 + 26] = out_J26_b[k];
-                J[(start + k) * 36 + 27] = out_J27_b[k];
-                J[(start + k) * 36 + 28] = out_J28_b[k];
-                J[(start + k) * 36 + 29] = out_J29_b[k];
-                J[(start + k) * 36 + 30] = out_J30_b[k];
-                J[(start + k) * 36 + 31] = out_J31_b[k];
-                J[(start + k) * 36 + 32] = out_J32_b[k];
-                J[(start + k) * 36 + 33] = out_J33_b[k];
-                J[(start + k) * 36 + 34] = out_J34_b[k];
-                J[(start + k) * 36 + 35] = out_J35_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            T[(start + k) * 16 + 0] = out_T0_b[k];
+            T[(start + k) * 16 + 1] = out_T1_b[k];
+            T[(start + k) * 16 + 2] = out_T2_b[k];
+            T[(start + k) * 16 + 3] = out_T3_b[k];
+            T[(start + k) * 16 + 4] = out_T4_b[k];
+            T[(start + k) * 16 + 5] = out_T5_b[k];
+            T[(start + k) * 16 + 6] = out_T6_b[k];
+            T[(start + k) * 16 + 7] = out_T7_b[k];
+            T[(start + k) * 16 + 8] = out_T8_b[k];
+            T[(start + k) * 16 + 9] = out_T9_b[k];
+            T[(start + k) * 16 + 10] = out_T10_b[k];
+            T[(start + k) * 16 + 11] = out_T11_b[k];
+            T[(start + k) * 16 + 12] = out_T12_b[k];
+            T[(start + k) * 16 + 13] = out_T13_b[k];
+            T[(start + k) * 16 + 14] = out_T14_b[k];
+            T[(start + k) * 16 + 15] = out_T15_b[k];
+            J[(start + k) * 36 + 0] = out_J0_b[k];
+            J[(start + k) * 36 + 1] = out_J1_b[k];
+            J[(start + k) * 36 + 2] = out_J2_b[k];
+            J[(start + k) * 36 + 3] = out_J3_b[k];
+            J[(start + k) * 36 + 4] = out_J4_b[k];
+            J[(start + k) * 36 + 5] = out_J5_b[k];
+            J[(start + k) * 36 + 6] = out_J6_b[k];
+            J[(start + k) * 36 + 7] = out_J7_b[k];
+            J[(start + k) * 36 + 8] = out_J8_b[k];
+            J[(start + k) * 36 + 9] = out_J9_b[k];
+            J[(start + k) * 36 + 10] = out_J10_b[k];
+            J[(start + k) * 36 + 11] = out_J11_b[k];
+            J[(start + k) * 36 + 12] = out_J12_b[k];
+            J[(start + k) * 36 + 13] = out_J13_b[k];
+            J[(start + k) * 36 + 14] = out_J14_b[k];
+            J[(start + k) * 36 + 15] = out_J15_b[k];
+            J[(start + k) * 36 + 16] = out_J16_b[k];
+            J[(start + k) * 36 + 17] = out_J17_b[k];
+            J[(start + k) * 36 + 18] = out_J18_b[k];
+            J[(start + k) * 36 + 19] = out_J19_b[k];
+            J[(start + k) * 36 + 20] = out_J20_b[k];
+            J[(start + k) * 36 + 21] = out_J21_b[k];
+            J[(start + k) * 36 + 22] = out_J22_b[k];
+            J[(start + k) * 36 + 23] = out_J23_b[k];
+            J[(start + k) * 36 + 24] = out_J24_b[k];
+            J[(start + k) * 36 + 25] = out_J25_b[k];
+            J[(start + k) * 36 + 26] = out_J26_b[k];
+            J[(start + k) * 36 + 27] = out_J27_b[k];
+            J[(start + k) * 36 + 28] = out_J28_b[k];
+            J[(start + k) * 36 + 29] = out_J29_b[k];
+            J[(start + k) * 36 + 30] = out_J30_b[k];
+            J[(start + k) * 36 + 31] = out_J31_b[k];
+            J[(start + k) * 36 + 32] = out_J32_b[k];
+            J[(start + k) * 36 + 33] = out_J33_b[k];
+            J[(start + k) * 36 + 34] = out_J34_b[k];
+            J[(start + k) * 36 + 35] = out_J35_b[k];
+        }
     }
     return 0;
 }
@@ -1709,20 +1709,20 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
         double qd4_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double qd5_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double qd6_b[DELTAGEN_MANUTEC_R15_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                q1_b[k] = q[(start + k) * 6 + 0];
-                q2_b[k] = q[(start + k) * 6 + 1];
-                q3_b[k] = q[(start + k) * 6 + 2];
-                q4_b[k] = q[(start + k) * 6 + 3];
-                q5_b[k] = q[(start + k) * 6 + 4];
-                q6_b[k] = q[(start + k) * 6 + 5];
-                qd1_b[k] = qd[(start + k) * 6 + 0];
-                qd2_b[k] = qd[(start + k) * 6 + 1];
-                qd3_b[k] = qd[(start + k) * 6 + 2];
-                qd4_b[k] = qd[(start + k) * 6 + 3];
-                qd5_b[k] = qd[(start + k) * 6 + 4];
-                qd6_b[k] = qd[(start + k) * 6 + 5];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q1_b[k] = q[(start + k) * 6 + 0];
+            q2_b[k] = q[(start + k) * 6 + 1];
+            q3_b[k] = q[(start + k) * 6 + 2];
+            q4_b[k] = q[(start + k) * 6 + 3];
+            q5_b[k] = q[(start + k) * 6 + 4];
+            q6_b[k] = q[(start + k) * 6 + 5];
+            qd1_b[k] = qd[(start + k) * 6 + 0];
+            qd2_b[k] = qd[(start + k) * 6 + 1];
+            qd3_b[k] = qd[(start + k) * 6 + 2];
+            qd4_b[k] = qd[(start + k) * 6 + 3];
+            qd5_b[k] = qd[(start + k) * 6 + 4];
+            qd6_b[k] = qd[(start + k) * 6 + 5];
+        }
         double cos_q1_b[DELTAGEN_MANUTEC_R15_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
@@ -2058,44 +2058,44 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                Jd[(start + k) * 36 + 0] = out_Jd0_b[k];
-                Jd[(start + k) * 36 + 1] = out_Jd1_b[k];
-                Jd[(start + k) * 36 + 2] = out_Jd2_b[k];
-                Jd[(start + k) * 36 + 3] = out_Jd3_b[k];
-                Jd[(start + k) * 36 + 4] = out_Jd4_b[k];
-                Jd[(start + k) * 36 + 5] = out_Jd5_b[k];
-                Jd[(start + k) * 36 + 6] = out_Jd6_b[k];
-                Jd[(start + k) * 36 + 7] = out_Jd7_b[k];
-                Jd[(start + k) * 36 + 8] = out_Jd8_b[k];
-                Jd[(start + k) * 36 + 9] = out_Jd9_b[k];
-                Jd[(start + k) * 36 + 10] = out_Jd10_b[k];
-                Jd[(start + k) * 36 + 11] = out_Jd11_b[k];
-                Jd[(start + k) * 36 + 12] = out_Jd12_b[k];
-                Jd[(start + k) * 36 + 13] = out_Jd13_b[k];
-                Jd[(start + k) * 36 + 14] = out_Jd14_b[k];
-                Jd[(start + k) * 36 + 15] = out_Jd15_b[k];
-                Jd[(start + k) * 36 + 16] = out_Jd16_b[k];
-                Jd[(start + k) * 36 + 17] = out_Jd17_b[k];
-                Jd[(start + k) * 36 + 18] = out_Jd18_b[k];
-                Jd[(start + k) * 36 + 19] = out_Jd19_b[k];
-                Jd[(start + k) * 36 + 20] = out_Jd20_b[k];
-                Jd[(start + k) * 36 + 21] = out_Jd21_b[k];
-                Jd[(start + k) * 36 + 22] = out_Jd22_b[k];
-                Jd[(start + k) * 36 + 23] = out_Jd23_b[k];
-                Jd[(start + k) * 36 + 24] = out_Jd24_b[k];
-                Jd[(start + k) * 36 + 25] = out_Jd25_b[k];
-                Jd[(start + k) * 36 + 26] = out_Jd26_b[k];
-                Jd[(start + k) * 36 + 27] = out_Jd27_b[k];
-                Jd[(start + k) * 36 + 28] = out_Jd28_b[k];
-                Jd[(start + k) * 36 + 29] = out_Jd29_b[k];
-                Jd[(start + k) * 36 + 30] = out_Jd30_b[k];
-                Jd[(start + k) * 36 + 31] = out_Jd31_b[k];
-                Jd[(start + k) * 36 + 32] = out_Jd32_b[k];
-                Jd[(start + k) * 36 + 33] = out_Jd33_b[k];
-                Jd[(start + k) * 36 + 34] = out_Jd34_b[k];
-                Jd[(start + k) * 36 + 35] = out_Jd35_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Jd[(start + k) * 36 + 0] = out_Jd0_b[k];
+            Jd[(start + k) * 36 + 1] = out_Jd1_b[k];
+            Jd[(start + k) * 36 + 2] = out_Jd2_b[k];
+            Jd[(start + k) * 36 + 3] = out_Jd3_b[k];
+            Jd[(start + k) * 36 + 4] = out_Jd4_b[k];
+            Jd[(start + k) * 36 + 5] = out_Jd5_b[k];
+            Jd[(start + k) * 36 + 6] = out_Jd6_b[k];
+            Jd[(start + k) * 36 + 7] = out_Jd7_b[k];
+            Jd[(start + k) * 36 + 8] = out_Jd8_b[k];
+            Jd[(start + k) * 36 + 9] = out_Jd9_b[k];
+            Jd[(start + k) * 36 + 10] = out_Jd10_b[k];
+            Jd[(start + k) * 36 + 11] = out_Jd11_b[k];
+            Jd[(start + k) * 36 + 12] = out_Jd12_b[k];
+            Jd[(start + k) * 36 + 13] = out_Jd13_b[k];
+            Jd[(start + k) * 36 + 14] = out_Jd14_b[k];
+            Jd[(start + k) * 36 + 15] = out_Jd15_b[k];
+            Jd[(start + k) * 36 + 16] = out_Jd16_b[k];
+            Jd[(start + k) * 36 + 17] = out_Jd17_b[k];
+            Jd[(start + k) * 36 + 18] = out_Jd18_b[k];
+            Jd[(start + k) * 36 + 19] = out_Jd19_b[k];
+            Jd[(start + k) * 36 + 20] = out_Jd20_b[k];
+            Jd[(start + k) * 36 + 21] = out_Jd21_b[k];
+            Jd[(start + k) * 36 + 22] = out_Jd22_b[k];
+            Jd[(start + k) * 36 + 23] = out_Jd23_b[k];
+            Jd[(start + k) * 36 + 24] = out_Jd24_b[k];
+            Jd[(start + k) * 36 + 25] = out_Jd25_b[k];
+            Jd[(start + k) * 36 + 26] = out_Jd26_b[k];
+            Jd[(start + k) * 36 + 27] = out_Jd27_b[k];
+            Jd[(start + k) * 36 + 28] = out_Jd28_b[k];
+            Jd[(start + k) * 36 + 29] = out_Jd29_b[k];
+            Jd[(start + k) * 36 + 30] = out_Jd30_b[k];
+            Jd[(start + k) * 36 + 31] = out_Jd31_b[k];
+            Jd[(start + k) * 36 + 32] = out_Jd32_b[k];
+            Jd[(start + k) * 36 + 33] = out_Jd33_b[k];
+            Jd[(start + k) * 36 + 34] = out_Jd34_b[k];
+            Jd[(start + k) * 36 + 35] = out_Jd35_b[k];
+        }
     }
     return 0;
 }
@@ -2124,20 +2124,20 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
         double Tt32_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double Tt33_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double Tt34_b[DELTAGEN_MANUTEC_R15_BLOCK];
-            for (size_t k = 0; k < m; ++k) {
-                Tt11_b[k] = T[(start + k) * 16 + 0];
-                Tt12_b[k] = T[(start + k) * 16 + 1];
-                Tt13_b[k] = T[(start + k) * 16 + 2];
-                Tt14_b[k] = T[(start + k) * 16 + 3];
-                Tt21_b[k] = T[(start + k) * 16 + 4];
-                Tt22_b[k] = T[(start + k) * 16 + 5];
-                Tt23_b[k] = T[(start + k) * 16 + 6];
-                Tt24_b[k] = T[(start + k) * 16 + 7];
-                Tt31_b[k] = T[(start + k) * 16 + 8];
-                Tt32_b[k] = T[(start + k) * 16 + 9];
-                Tt33_b[k] = T[(start + k) * 16 + 10];
-                Tt34_b[k] = T[(start + k) * 16 + 11];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            Tt11_b[k] = T[(start + k) * 16 + 0];
+            Tt12_b[k] = T[(start + k) * 16 + 1];
+            Tt13_b[k] = T[(start + k) * 16 + 2];
+            Tt14_b[k] = T[(start + k) * 16 + 3];
+            Tt21_b[k] = T[(start + k) * 16 + 4];
+            Tt22_b[k] = T[(start + k) * 16 + 5];
+            Tt23_b[k] = T[(start + k) * 16 + 6];
+            Tt24_b[k] = T[(start + k) * 16 + 7];
+            Tt31_b[k] = T[(start + k) * 16 + 8];
+            Tt32_b[k] = T[(start + k) * 16 + 9];
+            Tt33_b[k] = T[(start + k) * 16 + 10];
+            Tt34_b[k] = T[(start + k) * 16 + 11];
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_MANUTEC_R15_BLOCK];
         double out_q1_front_up_noflip_b[DELTAGEN_MANUTEC_R15_BLOCK];
@@ -4071,64 +4071,64 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             status[start + k] = (int8_t)status_b[k];
         }
         /* scatter: results of this block into the caller's rows */
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 48 + 0] = out_q1_front_up_noflip_b[k];
-                q[(start + k) * 48 + 1] = out_q2_front_up_noflip_b[k];
-                q[(start + k) * 48 + 2] = out_q3_front_up_noflip_b[k];
-                q[(start + k) * 48 + 3] = out_q4_front_up_noflip_b[k];
-                q[(start + k) * 48 + 4] = out_q5_front_up_noflip_b[k];
-                q[(start + k) * 48 + 5] = out_q6_front_up_noflip_b[k];
-                q[(start + k) * 48 + 6] = out_q1_front_up_flip_b[k];
-                q[(start + k) * 48 + 7] = out_q2_front_up_flip_b[k];
-                q[(start + k) * 48 + 8] = out_q3_front_up_flip_b[k];
-                q[(start + k) * 48 + 9] = out_q4_front_up_flip_b[k];
-                q[(start + k) * 48 + 10] = out_q5_front_up_flip_b[k];
-                q[(start + k) * 48 + 11] = out_q6_front_up_flip_b[k];
-                q[(start + k) * 48 + 12] = out_q1_front_down_noflip_b[k];
-                q[(start + k) * 48 + 13] = out_q2_front_down_noflip_b[k];
-                q[(start + k) * 48 + 14] = out_q3_front_down_noflip_b[k];
-                q[(start + k) * 48 + 15] = out_q4_front_down_noflip_b[k];
-                q[(start + k) * 48 + 16] = out_q5_front_down_noflip_b[k];
-                q[(start + k) * 48 + 17] = out_q6_front_down_noflip_b[k];
-                q[(start + k) * 48 + 18] = out_q1_front_down_flip_b[k];
-                q[(start + k) * 48 + 19] = out_q2_front_down_flip_b[k];
-                q[(start + k) * 48 + 20] = out_q3_front_down_flip_b[k];
-                q[(start + k) * 48 + 21] = out_q4_front_down_flip_b[k];
-                q[(start + k) * 48 + 22] = out_q5_front_down_flip_b[k];
-                q[(start + k) * 48 + 23] = out_q6_front_down_flip_b[k];
-                q[(start + k) * 48 + 24] = out_q1_back_up_noflip_b[k];
-                q[(start + k) * 48 + 25] = out_q2_back_up_noflip_b[k];
-                q[(start + k) * 48 + 26] = out_q3_back_up_noflip_b[k];
-                q[(start + k) * 48 + 27] = out_q4_back_up_noflip_b[k];
-                q[(start + k) * 48 + 28] = out_q5_back_up_noflip_b[k];
-                q[(start + k) * 48 + 29] = out_q6_back_up_noflip_b[k];
-                q[(start + k) * 48 + 30] = out_q1_back_up_flip_b[k];
-                q[(start + k) * 48 + 31] = out_q2_back_up_flip_b[k];
-                q[(start + k) * 48 + 32] = out_q3_back_up_flip_b[k];
-                q[(start + k) * 48 + 33] = out_q4_back_up_flip_b[k];
-                q[(start + k) * 48 + 34] = out_q5_back_up_flip_b[k];
-                q[(start + k) * 48 + 35] = out_q6_back_up_flip_b[k];
-                q[(start + k) * 48 + 36] = out_q1_back_down_noflip_b[k];
-                q[(start + k) * 48 + 37] = out_q2_back_down_noflip_b[k];
-                q[(start + k) * 48 + 38] = out_q3_back_down_noflip_b[k];
-                q[(start + k) * 48 + 39] = out_q4_back_down_noflip_b[k];
-                q[(start + k) * 48 + 40] = out_q5_back_down_noflip_b[k];
-                q[(start + k) * 48 + 41] = out_q6_back_down_noflip_b[k];
-                q[(start + k) * 48 + 42] = out_q1_back_down_flip_b[k];
-                q[(start + k) * 48 + 43] = out_q2_back_down_flip_b[k];
-                q[(start + k) * 48 + 44] = out_q3_back_down_flip_b[k];
-                q[(start + k) * 48 + 45] = out_q4_back_down_flip_b[k];
-                q[(start + k) * 48 + 46] = out_q5_back_down_flip_b[k];
-                q[(start + k) * 48 + 47] = out_q6_back_down_flip_b[k];
-                valid[(start + k) * 8 + 0] = (uint8_t)out_valid_front_up_noflip_b[k];
-                valid[(start + k) * 8 + 1] = (uint8_t)out_valid_front_up_flip_b[k];
-                valid[(start + k) * 8 + 2] = (uint8_t)out_valid_front_down_noflip_b[k];
-                valid[(start + k) * 8 + 3] = (uint8_t)out_valid_front_down_flip_b[k];
-                valid[(start + k) * 8 + 4] = (uint8_t)out_valid_back_up_noflip_b[k];
-                valid[(start + k) * 8 + 5] = (uint8_t)out_valid_back_up_flip_b[k];
-                valid[(start + k) * 8 + 6] = (uint8_t)out_valid_back_down_noflip_b[k];
-                valid[(start + k) * 8 + 7] = (uint8_t)out_valid_back_down_flip_b[k];
-            }
+        for (size_t k = 0; k < m; ++k) {
+            q[(start + k) * 48 + 0] = out_q1_front_up_noflip_b[k];
+            q[(start + k) * 48 + 1] = out_q2_front_up_noflip_b[k];
+            q[(start + k) * 48 + 2] = out_q3_front_up_noflip_b[k];
+            q[(start + k) * 48 + 3] = out_q4_front_up_noflip_b[k];
+            q[(start + k) * 48 + 4] = out_q5_front_up_noflip_b[k];
+            q[(start + k) * 48 + 5] = out_q6_front_up_noflip_b[k];
+            q[(start + k) * 48 + 6] = out_q1_front_up_flip_b[k];
+            q[(start + k) * 48 + 7] = out_q2_front_up_flip_b[k];
+            q[(start + k) * 48 + 8] = out_q3_front_up_flip_b[k];
+            q[(start + k) * 48 + 9] = out_q4_front_up_flip_b[k];
+            q[(start + k) * 48 + 10] = out_q5_front_up_flip_b[k];
+            q[(start + k) * 48 + 11] = out_q6_front_up_flip_b[k];
+            q[(start + k) * 48 + 12] = out_q1_front_down_noflip_b[k];
+            q[(start + k) * 48 + 13] = out_q2_front_down_noflip_b[k];
+            q[(start + k) * 48 + 14] = out_q3_front_down_noflip_b[k];
+            q[(start + k) * 48 + 15] = out_q4_front_down_noflip_b[k];
+            q[(start + k) * 48 + 16] = out_q5_front_down_noflip_b[k];
+            q[(start + k) * 48 + 17] = out_q6_front_down_noflip_b[k];
+            q[(start + k) * 48 + 18] = out_q1_front_down_flip_b[k];
+            q[(start + k) * 48 + 19] = out_q2_front_down_flip_b[k];
+            q[(start + k) * 48 + 20] = out_q3_front_down_flip_b[k];
+            q[(start + k) * 48 + 21] = out_q4_front_down_flip_b[k];
+            q[(start + k) * 48 + 22] = out_q5_front_down_flip_b[k];
+            q[(start + k) * 48 + 23] = out_q6_front_down_flip_b[k];
+            q[(start + k) * 48 + 24] = out_q1_back_up_noflip_b[k];
+            q[(start + k) * 48 + 25] = out_q2_back_up_noflip_b[k];
+            q[(start + k) * 48 + 26] = out_q3_back_up_noflip_b[k];
+            q[(start + k) * 48 + 27] = out_q4_back_up_noflip_b[k];
+            q[(start + k) * 48 + 28] = out_q5_back_up_noflip_b[k];
+            q[(start + k) * 48 + 29] = out_q6_back_up_noflip_b[k];
+            q[(start + k) * 48 + 30] = out_q1_back_up_flip_b[k];
+            q[(start + k) * 48 + 31] = out_q2_back_up_flip_b[k];
+            q[(start + k) * 48 + 32] = out_q3_back_up_flip_b[k];
+            q[(start + k) * 48 + 33] = out_q4_back_up_flip_b[k];
+            q[(start + k) * 48 + 34] = out_q5_back_up_flip_b[k];
+            q[(start + k) * 48 + 35] = out_q6_back_up_flip_b[k];
+            q[(start + k) * 48 + 36] = out_q1_back_down_noflip_b[k];
+            q[(start + k) * 48 + 37] = out_q2_back_down_noflip_b[k];
+            q[(start + k) * 48 + 38] = out_q3_back_down_noflip_b[k];
+            q[(start + k) * 48 + 39] = out_q4_back_down_noflip_b[k];
+            q[(start + k) * 48 + 40] = out_q5_back_down_noflip_b[k];
+            q[(start + k) * 48 + 41] = out_q6_back_down_noflip_b[k];
+            q[(start + k) * 48 + 42] = out_q1_back_down_flip_b[k];
+            q[(start + k) * 48 + 43] = out_q2_back_down_flip_b[k];
+            q[(start + k) * 48 + 44] = out_q3_back_down_flip_b[k];
+            q[(start + k) * 48 + 45] = out_q4_back_down_flip_b[k];
+            q[(start + k) * 48 + 46] = out_q5_back_down_flip_b[k];
+            q[(start + k) * 48 + 47] = out_q6_back_down_flip_b[k];
+            valid[(start + k) * 8 + 0] = (uint8_t)out_valid_front_up_noflip_b[k];
+            valid[(start + k) * 8 + 1] = (uint8_t)out_valid_front_up_flip_b[k];
+            valid[(start + k) * 8 + 2] = (uint8_t)out_valid_front_down_noflip_b[k];
+            valid[(start + k) * 8 + 3] = (uint8_t)out_valid_front_down_flip_b[k];
+            valid[(start + k) * 8 + 4] = (uint8_t)out_valid_back_up_noflip_b[k];
+            valid[(start + k) * 8 + 5] = (uint8_t)out_valid_back_up_flip_b[k];
+            valid[(start + k) * 8 + 6] = (uint8_t)out_valid_back_down_noflip_b[k];
+            valid[(start + k) * 8 + 7] = (uint8_t)out_valid_back_down_flip_b[k];
+        }
     }
     return 0;
 }

@@ -5,6 +5,7 @@ processes with different hash seeds). Only copies of generated/ are ever modifie
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -44,6 +45,51 @@ def test_every_module_is_rendered(rendered):
         assert text.endswith("\n") and "\r" not in text, name
         assert "do not edit" in text and "deltagen" in text, name
     assert set(DELTA) <= set(rendered)
+
+
+def _layout_problems(name, text):
+    """Runs of blank lines, trailing whitespace, and code lines whose indentation is not
+    four spaces per open brace (continuation lines and comments aside)."""
+    problems = []
+    if "\n\n\n" in text:
+        problems.append(f"{name}: a run of blank lines")
+    if re.search(r"[ \t]\n", text):
+        problems.append(f"{name}: trailing whitespace")
+    depth, in_comment, prev, cplusplus = 0, False, ";", False
+    for number, line in enumerate(text.splitlines(), 1):
+        code = line.strip()
+        if code.startswith("#ifdef __cplusplus"):
+            cplusplus = True
+            continue
+        if cplusplus:  # extern "C" { and its }: no indentation level
+            cplusplus = False
+            continue
+        if in_comment:
+            in_comment = "*/" not in code
+            continue
+        if code.startswith("/*"):
+            in_comment = "*/" not in code
+            continue
+        if not code or code.startswith("#"):
+            continue
+        want = 4 * (depth - (1 if code.startswith("}") else 0))
+        indent = len(line) - len(line.lstrip(" "))
+        if prev[-1:] in (";", "{", "}") and indent != want:
+            problems.append(f"{name}:{number}: indented {indent}, expected {want}: {code[:60]}")
+        depth += code.count("{") - code.count("}")
+        prev = re.sub(r"/\*.*?\*/", "", code).rstrip()
+    return problems
+
+
+def test_generated_layout_is_clean(rendered):
+    """trim_blocks/lstrip_blocks and the templates give C without stray indentation or runs
+    of blank lines, and each file names the template it was rendered from."""
+    problems = [p for name, text in rendered.items() for p in _layout_problems(name, text)]
+    assert problems == [], "\n".join(problems[:20])
+    for name, text in rendered.items():
+        template = {".c": "source.c.j2", ".h": "header.h.j2"}.get(name[name.index("."):],
+                                                                 "cdef.h.j2")
+        assert f"deltagen/codegen/templates/{template}" in text.split("*/")[0], name
 
 
 def test_checkout_is_current(capsys):
