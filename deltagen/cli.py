@@ -35,7 +35,10 @@ def cmd_generate(args) -> int:
 
     if args.robot_file:
         folder = generate.generate_robot_file(args.robot_file)
-        print(f"generated and compiled {args.robot_file}: C sources in {folder}")
+        from deltagen.paths import runtime_dir
+
+        print(f"generated and compiled {args.robot_file}: C sources in {folder} "
+              f"(compile them with the runtime C in {runtime_dir()})")
         return 0
     if args.check:
         problems = generate.check()
@@ -51,6 +54,9 @@ def cmd_generate(args) -> int:
         print(f"wrote {path}")
     if not written:
         print("generated/ already up to date")
+    for name in generate.stray():
+        print(f"warning: generated/{name} is not produced by the generator; delete it "
+              "(`deltagen generate --check` fails while it is there)", file=sys.stderr)
     return 0
 
 

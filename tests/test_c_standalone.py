@@ -54,16 +54,16 @@ def test_strict_c99_compiles_warning_free(source_dir, tmp_path, opt):
 def test_compiles_warning_free_with_the_build_flags(source_dir, tmp_path):
     """The flags deltagen.native.build uses for the cffi core (vector math included where
     available), plus -pedantic -Werror."""
-    args, _ = compile_flags("delta")
+    args, _ = compile_flags("deltagen_delta")
     _gcc([*args, "-pedantic", "-Werror", "-c", str(source_dir / "delta_kinematics.c"),
           "-o", str(tmp_path / "k.o")], cwd=tmp_path)
-    if "-DDELTA_VECTOR_MATH" not in args:  # test the vector-math variant regardless
-        _gcc([*STRICT, "-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTA_VECTOR_MATH", "-c",
+    if "-DDELTAGEN_DELTA_VECTOR_MATH" not in args:  # test the vector-math variant regardless
+        _gcc([*STRICT, "-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTAGEN_DELTA_VECTOR_MATH", "-c",
               str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "v.o")], cwd=tmp_path)
 
 
 @pytest.mark.parametrize("flags", [["-O2"], ["-O3", "-fno-math-errno", "-fopenmp-simd",
-                                              "-DDELTA_VECTOR_MATH"]], ids=["O2", "vector-math"])
+                                              "-DDELTAGEN_DELTA_VECTOR_MATH"]], ids=["O2", "vector-math"])
 def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, flags):
     nm = shutil.which("nm")
     if nm is None:
@@ -80,8 +80,8 @@ def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, fla
         elif len(parts) == 3:
             defined[parts[2]] = parts[1]
     functions = {name for name, kind in defined.items() if kind == "T"}
-    assert functions == {"delta_fk", "delta_fk_vel", "delta_fk_acc", "delta_jacobian",
-                         "delta_ik"}
+    assert functions == {"deltagen_delta_fk", "deltagen_delta_fk_vel", "deltagen_delta_fk_acc", "deltagen_delta_jacobian",
+                         "deltagen_delta_ik"}
     data = {name: kind for name, kind in defined.items() if kind in "DdBbCGgSsVv"}
     assert not data, f"writable global/static data: {data}"
     external = {re.sub(r"^_ZGV\w+?_", "", name) for name in undefined}
@@ -156,7 +156,7 @@ static void load(double *dst, const double *src, size_t axes)
     }
 }
 
-static void run_axes(const delta_geometry *g, size_t axes)
+static void run_axes(const deltagen_delta_geometry *g, size_t axes)
 {
     load(q_in, Q, axes);
     for (size_t i = 0; i < N * axes; ++i) {
@@ -168,10 +168,10 @@ static void run_axes(const delta_geometry *g, size_t axes)
             qd_in[i * axes] = 0.0;
         }
     }
-    CHECK(delta_fk(g, N, axes, q_in, p_out, st) == 0, "fk rc");
+    CHECK(deltagen_delta_fk(g, N, axes, q_in, p_out, st) == 0, "fk rc");
     for (size_t i = 0; i < N; ++i) {
         CHECK(st[i] == FK_STATUS[i], "fk status row %%zu axes %%zu: %%d != %%d", i, axes, st[i], FK_STATUS[i]);
-        if (FK_STATUS[i] == DELTA_OK) {
+        if (FK_STATUS[i] == DELTAGEN_OK) {
             CHECK(isfinite(p_out[i * axes]) && isfinite(p_out[i * axes + 1]) && isfinite(p_out[i * axes + 2]),
                   "fk row %%zu not finite", i);
             if (axes == 4) {
@@ -184,27 +184,27 @@ static void run_axes(const delta_geometry *g, size_t axes)
         }
     }
     /* ik of fk: the elbow-out rows come back */
-    CHECK(delta_ik(g, N, axes, p_out, q_back, st2) == 0, "ik rc");
+    CHECK(deltagen_delta_ik(g, N, axes, p_out, q_back, st2) == 0, "ik rc");
     for (size_t i = 0; i < N; ++i) {
         if (ROUND_TRIP[i]) {
-            CHECK(st2[i] == DELTA_OK, "ik status row %%zu: %%d", i, st2[i]);
+            CHECK(st2[i] == DELTAGEN_OK, "ik status row %%zu: %%d", i, st2[i]);
             for (size_t c = 0; c < axes; ++c) {
                 CHECK(fabs(q_back[i * axes + c] - q_in[i * axes + c]) <= 1e-12,
                       "round trip row %%zu col %%zu: %%.17g vs %%.17g", i, c, q_back[i * axes + c], q_in[i * axes + c]);
             }
         }
-        if (FK_STATUS[i] != DELTA_OK) {
-            CHECK(st2[i] == DELTA_INVALID, "ik of a NaN row %%zu: %%d", i, st2[i]);
+        if (FK_STATUS[i] != DELTAGEN_OK) {
+            CHECK(st2[i] == DELTAGEN_INVALID, "ik of a NaN row %%zu: %%d", i, st2[i]);
         }
     }
     /* velocity, acceleration, Jacobian: same statuses, J qd = pd, fk_acc's pd = fk_vel's */
-    CHECK(delta_fk_vel(g, N, axes, q_in, qd_in, p_out, pd_out, st2) == 0, "fk_vel rc");
-    CHECK(delta_jacobian(g, N, axes, q_in, J_out, st) == 0, "jacobian rc");
+    CHECK(deltagen_delta_fk_vel(g, N, axes, q_in, qd_in, p_out, pd_out, st2) == 0, "fk_vel rc");
+    CHECK(deltagen_delta_jacobian(g, N, axes, q_in, J_out, st) == 0, "jacobian rc");
     double pd_keep[N * 4];
     memcpy(pd_keep, pd_out, sizeof pd_keep);
     for (size_t i = 0; i < N; ++i) {
         CHECK(st[i] == st2[i], "jacobian vs fk_vel status row %%zu", i);
-        if (st[i] == DELTA_OK) {
+        if (st[i] == DELTAGEN_OK) {
             for (size_t r = 0; r < 3; ++r) {
                 double s = 0.0, scale = 0.0;
                 for (size_t c = 0; c < 3; ++c) {
@@ -219,11 +219,11 @@ static void run_axes(const delta_geometry *g, size_t axes)
             }
         }
     }
-    CHECK(delta_fk_acc(g, N, axes, q_in, qd_in, qdd_in, p_out, pd_out, pdd_out, st2) == 0, "fk_acc rc");
+    CHECK(deltagen_delta_fk_acc(g, N, axes, q_in, qd_in, qdd_in, p_out, pd_out, pdd_out, st2) == 0, "fk_acc rc");
     for (size_t i = 0; i < N; ++i) {
         CHECK(st[i] == st2[i], "fk_acc status row %%zu", i);
         for (size_t c = 0; c < axes; ++c) {
-            if (st2[i] == DELTA_OK) {
+            if (st2[i] == DELTAGEN_OK) {
                 CHECK(pd_out[i * axes + c] == pd_keep[i * axes + c] ||
                       fabs(pd_out[i * axes + c] - pd_keep[i * axes + c]) <= 1e-15 * (1.0 + fabs(pd_keep[i * axes + c])),
                       "fk_acc pd row %%zu", i);
@@ -235,10 +235,10 @@ static void run_axes(const delta_geometry *g, size_t axes)
     }
     /* ik on positions with unreachable and non-finite rows */
     load(ik_in, P, axes);
-    CHECK(delta_ik(g, N, axes, ik_in, q_back, st2) == 0, "ik rc");
+    CHECK(deltagen_delta_ik(g, N, axes, ik_in, q_back, st2) == 0, "ik rc");
     for (size_t i = 0; i < N; ++i) {
         CHECK(st2[i] == IK_STATUS[i], "ik status row %%zu axes %%zu: %%d != %%d", i, axes, st2[i], IK_STATUS[i]);
-        if (IK_STATUS[i] == DELTA_UNREACHABLE || IK_STATUS[i] == DELTA_INVALID) {
+        if (IK_STATUS[i] == DELTAGEN_UNREACHABLE || IK_STATUS[i] == DELTAGEN_INVALID) {
             for (size_t c = 0; c < 3; ++c) {
                 CHECK(isnan(q_back[i * axes + c]), "failed ik row %%zu not NaN", i);
             }
@@ -248,19 +248,19 @@ static void run_axes(const delta_geometry *g, size_t axes)
     }
     /* the n-point call equals point-by-point calls (block boundaries are invisible) */
     load(q_in, Q, axes);
-    CHECK(delta_fk(g, N, axes, q_in, p_out, st) == 0, "fk rc");
+    CHECK(deltagen_delta_fk(g, N, axes, q_in, p_out, st) == 0, "fk rc");
     for (size_t i = 0; i < N; ++i) {
         double one[4];
         int8_t s1;
-        CHECK(delta_fk(g, 1, axes, q_in + i * axes, one, &s1) == 0, "fk(1) rc");
+        CHECK(deltagen_delta_fk(g, 1, axes, q_in + i * axes, one, &s1) == 0, "fk(1) rc");
         CHECK(s1 == st[i], "single-point status row %%zu", i);
-        for (size_t c = 0; c < axes && s1 == DELTA_OK; ++c) {
+        for (size_t c = 0; c < axes && s1 == DELTAGEN_OK; ++c) {
             CHECK(fabs(one[c] - p_out[i * axes + c]) <= 1e-15, "single-point fk row %%zu", i);
         }
     }
 }
 
-static void return_codes(const delta_geometry *g)
+static void return_codes(const deltagen_delta_geometry *g)
 {
     double a[8] = {0.1, 0.2, 0.3, 0.4, 0.1, 0.2, 0.3, 0.4}, b[8] = {0}, c[8] = {0};
     double o1[18], o2[8], o3[8];
@@ -269,36 +269,36 @@ static void return_codes(const delta_geometry *g)
     for (size_t k = 0; k < sizeof bad_axes / sizeof bad_axes[0]; ++k) {
         size_t ax = bad_axes[k];
         for (size_t i = 0; i < 18; ++i) o1[i] = 7.0;
-        CHECK(delta_fk(g, 2, ax, a, o1, s) == -1, "fk axes %%zu", ax);
-        CHECK(delta_fk_vel(g, 2, ax, a, b, o1, o2, s) == -1, "fk_vel axes %%zu", ax);
-        CHECK(delta_fk_acc(g, 2, ax, a, b, c, o1, o2, o3, s) == -1, "fk_acc axes %%zu", ax);
-        CHECK(delta_jacobian(g, 2, ax, a, o1, s) == -1, "jacobian axes %%zu", ax);
-        CHECK(delta_ik(g, 2, ax, a, o1, s) == -1, "ik axes %%zu", ax);
+        CHECK(deltagen_delta_fk(g, 2, ax, a, o1, s) == -1, "fk axes %%zu", ax);
+        CHECK(deltagen_delta_fk_vel(g, 2, ax, a, b, o1, o2, s) == -1, "fk_vel axes %%zu", ax);
+        CHECK(deltagen_delta_fk_acc(g, 2, ax, a, b, c, o1, o2, o3, s) == -1, "fk_acc axes %%zu", ax);
+        CHECK(deltagen_delta_jacobian(g, 2, ax, a, o1, s) == -1, "jacobian axes %%zu", ax);
+        CHECK(deltagen_delta_ik(g, 2, ax, a, o1, s) == -1, "ik axes %%zu", ax);
         CHECK(o1[0] == 7.0 && s[0] == 42, "something was written for axes %%zu", ax);
     }
     /* NULL pointers with n > 0: -1, nothing written */
-    CHECK(delta_fk(NULL, 2, 3, a, o1, s) == -1, "fk NULL geometry");
-    CHECK(delta_fk(g, 2, 3, NULL, o1, s) == -1, "fk NULL q");
-    CHECK(delta_fk(g, 2, 3, a, NULL, s) == -1, "fk NULL p");
-    CHECK(delta_fk(g, 2, 3, a, o1, NULL) == -1, "fk NULL status");
-    CHECK(delta_fk_vel(g, 2, 3, a, NULL, o1, o2, s) == -1, "fk_vel NULL qd");
-    CHECK(delta_fk_vel(g, 2, 3, a, b, o1, NULL, s) == -1, "fk_vel NULL pd");
-    CHECK(delta_fk_acc(g, 2, 3, a, b, NULL, o1, o2, o3, s) == -1, "fk_acc NULL qdd");
-    CHECK(delta_fk_acc(g, 2, 3, a, b, c, o1, o2, NULL, s) == -1, "fk_acc NULL pdd");
-    CHECK(delta_jacobian(g, 2, 3, a, NULL, s) == -1, "jacobian NULL J");
-    CHECK(delta_jacobian(NULL, 2, 3, a, o1, s) == -1, "jacobian NULL geometry");
-    CHECK(delta_ik(g, 2, 3, NULL, o1, s) == -1, "ik NULL p");
-    CHECK(delta_ik(g, 2, 4, a, o1, NULL) == -1, "ik NULL status");
+    CHECK(deltagen_delta_fk(NULL, 2, 3, a, o1, s) == -1, "fk NULL geometry");
+    CHECK(deltagen_delta_fk(g, 2, 3, NULL, o1, s) == -1, "fk NULL q");
+    CHECK(deltagen_delta_fk(g, 2, 3, a, NULL, s) == -1, "fk NULL p");
+    CHECK(deltagen_delta_fk(g, 2, 3, a, o1, NULL) == -1, "fk NULL status");
+    CHECK(deltagen_delta_fk_vel(g, 2, 3, a, NULL, o1, o2, s) == -1, "fk_vel NULL qd");
+    CHECK(deltagen_delta_fk_vel(g, 2, 3, a, b, o1, NULL, s) == -1, "fk_vel NULL pd");
+    CHECK(deltagen_delta_fk_acc(g, 2, 3, a, b, NULL, o1, o2, o3, s) == -1, "fk_acc NULL qdd");
+    CHECK(deltagen_delta_fk_acc(g, 2, 3, a, b, c, o1, o2, NULL, s) == -1, "fk_acc NULL pdd");
+    CHECK(deltagen_delta_jacobian(g, 2, 3, a, NULL, s) == -1, "jacobian NULL J");
+    CHECK(deltagen_delta_jacobian(NULL, 2, 3, a, o1, s) == -1, "jacobian NULL geometry");
+    CHECK(deltagen_delta_ik(g, 2, 3, NULL, o1, s) == -1, "ik NULL p");
+    CHECK(deltagen_delta_ik(g, 2, 4, a, o1, NULL) == -1, "ik NULL status");
     CHECK(s[0] == 42 && s[1] == 42, "status written on error");
     /* n = 0: nothing to do, success even with NULL arrays */
-    CHECK(delta_fk(g, 0, 3, NULL, NULL, NULL) == 0, "fk n=0");
-    CHECK(delta_fk_acc(g, 0, 4, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "fk_acc n=0");
-    CHECK(delta_ik(g, 0, 3, NULL, NULL, NULL) == 0, "ik n=0");
+    CHECK(deltagen_delta_fk(g, 0, 3, NULL, NULL, NULL) == 0, "fk n=0");
+    CHECK(deltagen_delta_fk_acc(g, 0, 4, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "fk_acc n=0");
+    CHECK(deltagen_delta_ik(g, 0, 3, NULL, NULL, NULL) == 0, "ik n=0");
 }
 
 int main(void)
 {
-    delta_geometry g;
+    deltagen_delta_geometry g;
     g.r_a = %(r_a)s;
     g.r_b = %(r_b)s;
     g.l_a = %(l_a)s;
@@ -313,7 +313,7 @@ int main(void)
     return_codes(&g);
     /* print fk of the batch (3 axes) for the Python side */
     load(q_in, Q, 3);
-    delta_fk(&g, N, 3, q_in, p_out, st);
+    deltagen_delta_fk(&g, N, 3, q_in, p_out, st);
     for (size_t i = 0; i < N; ++i) {
         printf("%%d %%a %%a %%a\n", st[i], p_out[i * 3], p_out[i * 3 + 1], p_out[i * 3 + 2]);
     }
@@ -347,7 +347,7 @@ SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-o
 
 def _build_flags():
     """The cffi build's compile flags and libraries (vector math where available)."""
-    args, libraries = compile_flags("delta")
+    args, libraries = compile_flags("deltagen_delta")
     return list(args), [f"-l{lib}" for lib in libraries]
 
 
@@ -414,25 +414,85 @@ def _serial_sources():
     return sorted(p.name for p in paths.generated_dir().glob("serial_*.c"))
 
 
-@pytest.mark.parametrize("name", _serial_sources())
-def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
-    """Every checked-in arm module: strict C99 at -O2 warning-free, the build flags too,
-    only libm symbols undefined, no global data."""
-    for ext in (".c", ".h"):
-        shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
-    prefix = name[len("serial_"):-2]
-    _gcc([*STRICT, "-O2", "-c", name, "-o", "s.o"], cwd=tmp_path)
-    args, _ = compile_flags(prefix)
-    _gcc([*args, "-pedantic", "-Werror", "-c", name, "-o", "v.o"], cwd=tmp_path)
+RUNTIME_SOURCES = sorted(p.name for p in paths.runtime_dir().glob("deltagen_*.c"))
+
+
+def _copy_runtime(dest):
+    """The hand-written runtime C (codegen/runtime/), which arm modules are compiled with."""
+    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
+        shutil.copy(path, dest)
+
+
+def _check_symbols(objects, cwd):
+    """Only libm symbols undefined (besides the objects' own), no global data."""
     nm = shutil.which("nm")
     if nm is None:
         return
-    table = subprocess.run([nm, "s.o"], cwd=tmp_path, capture_output=True, text=True,
-                           check=True).stdout
-    undefined = {line.split()[1] for line in table.splitlines() if line.split()[:1] == ["U"]}
-    assert undefined <= LIBM, sorted(undefined - LIBM)
-    kinds = {line.split()[1] for line in table.splitlines() if len(line.split()) == 3}
+    defined, undefined, kinds = set(), set(), set()
+    for obj in objects:
+        table = subprocess.run([nm, obj], cwd=cwd, capture_output=True, text=True,
+                               check=True).stdout
+        for line in table.splitlines():
+            parts = line.split()
+            if parts[:1] == ["U"]:
+                undefined.add(parts[1])
+            elif len(parts) == 3:
+                defined.add(parts[2])
+                kinds.add(parts[1])
+    assert undefined - defined <= LIBM, sorted(undefined - defined - LIBM)
     assert not kinds & set("DdBbCGgSsVv")
+
+
+@pytest.mark.parametrize("name", _serial_sources())
+def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
+    """Every checked-in arm module with the runtime: strict C99 at -O2 warning-free, the
+    build flags too, only libm symbols undefined, no global data."""
+    for ext in (".c", ".h"):
+        shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
+    _copy_runtime(tmp_path)
+    prefix = "deltagen_" + name[len("serial_"):-2]
+    args, _ = compile_flags(prefix)
+    objects = []
+    for source in [name, *RUNTIME_SOURCES]:
+        obj = source.replace(".c", ".o")
+        _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
+        _gcc([*args, "-pedantic", "-Werror", "-c", source, "-o", "v_" + obj], cwd=tmp_path)
+        objects.append(obj)
+    _check_symbols(objects, tmp_path)
+
+
+def _long_arm(n_joints):
+    """A revolute arm of n_joints > 6 (redundant), its limits within +-170 deg."""
+    from deltagen.model.serial import SerialDescription
+
+    rows = []
+    for i in range(n_joints):
+        rows.append(dict(a=0.3 if i % 3 == 1 else 0.02, alpha_deg=(90, -90, 0)[i % 3],
+                         d=0.1 if i % 2 else 0.25, qlim_deg=[-170, 170]))
+    return SerialDescription.from_rows(rows, "standard", name=f"long{n_joints}")
+
+
+def _render_arm(desc, dest):
+    from deltagen.codegen.serial import arm_sources
+
+    for file_name, text in arm_sources(desc).items():
+        (dest / file_name).write_text(text)
+    _copy_runtime(dest)
+
+
+@pytest.mark.parametrize("n_joints", [7, 9])
+def test_long_arms_compile_warning_free(n_joints, tmp_path):
+    """Arms with more than 6 joints: the module and the runtime compile with -Werror and
+    -Warray-bounds at -O2 and -O3 (arrays sized by the joint count work for any count)."""
+    desc = _long_arm(n_joints)
+    _render_arm(desc, tmp_path)
+    args, _ = compile_flags(f"deltagen_{desc.name}")
+    for source in [f"serial_{desc.name}.c", *RUNTIME_SOURCES]:
+        for opt in ("-O2", "-O3"):
+            _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"],
+                 cwd=tmp_path)
+        _gcc([*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
+             cwd=tmp_path)
 
 
 IK_DRIVER = r"""
@@ -453,21 +513,21 @@ static int8_t st[N], st2[N];
 
 int main(void)
 {
-    %(name)s_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
-    CHECK(%(name)s_ik_newton(N, &o, TT, Q0, QLIM, q, ep, er, it, st) == 0, "rc");
-    CHECK(%(name)s_fk(N, q, T, st2) == 0, "fk rc");
+    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
+    CHECK(deltagen_%(name)s_ik_newton(N, &o, TT, Q0, QLIM, q, ep, er, it, st) == 0, "rc");
+    CHECK(deltagen_%(name)s_fk(N, q, T, st2) == 0, "fk rc");
     int ok = 0;
     for (size_t i = 0; i < N; ++i) {
         if (BAD[i]) {
-            CHECK(st[i] == %(upper)s_INVALID && isnan(q[i * NJ]) && isnan(ep[i]) && it[i] == 0,
+            CHECK(st[i] == DELTAGEN_INVALID && isnan(q[i * NJ]) && isnan(ep[i]) && it[i] == 0,
                   "row %%zu not INVALID", i);
             continue;
         }
-        CHECK(st[i] == %(upper)s_OK || st[i] == %(upper)s_UNREACHABLE, "row %%zu status %%d", i, st[i]);
+        CHECK(st[i] == DELTAGEN_OK || st[i] == DELTAGEN_UNREACHABLE, "row %%zu status %%d", i, st[i]);
         for (size_t j = 0; j < NJ; ++j) {
             CHECK(q[i * NJ + j] >= QLIM[2 * j] && q[i * NJ + j] <= QLIM[2 * j + 1], "row %%zu limits", i);
         }
-        if (st[i] == %(upper)s_OK) {
+        if (st[i] == DELTAGEN_OK) {
             ++ok;
             CHECK(ep[i] <= 1e-10 && er[i] <= 1e-10, "row %%zu errors", i);
             for (size_t c = 0; c < 3; ++c) {
@@ -480,24 +540,24 @@ int main(void)
     int8_t s1 = 42;
     double q1[NJ] = {0}, e1 = 7.0, e2 = 7.0;
     int32_t i1;
-    %(name)s_ik_options bad = o;
+    deltagen_ik_options bad = o;
     bad.tol_p = -1.0;
-    CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "tol_p");
+    CHECK(deltagen_%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "tol_p");
     bad = o;
     bad.mask[0] = 2;
-    CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "mask");
+    CHECK(deltagen_%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "mask");
     bad = o;
     bad.max_iter = -1;
-    CHECK(%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "max_iter");
-    CHECK(%(name)s_ik_newton(1, NULL, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL options");
-    CHECK(%(name)s_ik_newton(1, &o, NULL, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL T");
-    CHECK(%(name)s_ik_newton(1, &o, TT, Q0, QLIM, q1, &e1, &e2, &i1, NULL) == -1, "NULL status");
+    CHECK(deltagen_%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "max_iter");
+    CHECK(deltagen_%(name)s_ik_newton(1, NULL, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL options");
+    CHECK(deltagen_%(name)s_ik_newton(1, &o, NULL, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL T");
+    CHECK(deltagen_%(name)s_ik_newton(1, &o, TT, Q0, QLIM, q1, &e1, &e2, &i1, NULL) == -1, "NULL status");
     CHECK(s1 == 42 && e1 == 7.0, "written on error");
-    CHECK(%(name)s_ik_newton(0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "n=0");
+    CHECK(deltagen_%(name)s_ik_newton(0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "n=0");
     /* no limits (qlim NULL), a mask, no step limit: still runs clean */
     o.step_limit = INFINITY;
     o.mask[3] = o.mask[4] = 0;
-    CHECK(%(name)s_ik_newton(N, &o, TT, Q0, NULL, q, ep, er, it, st) == 0, "rc no limits");
+    CHECK(deltagen_%(name)s_ik_newton(N, &o, TT, Q0, NULL, q, ep, er, it, st) == 0, "rc no limits");
     if (failures) {
         printf("%%d FAILURES\n", failures);
         return 1;
@@ -507,15 +567,24 @@ int main(void)
 """
 
 
-@pytest.mark.parametrize("name", ["puma560", "manutec_h5"])
+@pytest.mark.parametrize("name", ["puma560", "manutec_h5", "long7", "long9"])
 def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
-    """<arm>_ik_newton on its own, linked with ASan/UBSan: converged rows reproduce their
-    targets through the module's fk and stay within the limits, non-finite rows are
-    INVALID, bad options and NULL pointers give -1 and write nothing."""
+    """deltagen_<arm>_ik_newton (the generated wrapper and the runtime solver) on its own, linked with
+    ASan/UBSan: converged rows reproduce their targets through the module's fk and stay
+    within the limits, non-finite rows are INVALID, bad options and NULL pointers give -1
+    and write nothing. long7 and long9 are redundant arms (7 and 9 joints)."""
     from deltagen.reference import serial as reference
     from deltagen.api.serial import SerialRobot
 
-    arm = SerialRobot.load(name, backend="reference")
+    if name.startswith("long"):
+        desc = _long_arm(int(name[4:]))
+        _render_arm(desc, tmp_path)
+        arm = SerialRobot(desc, backend="reference")
+    else:
+        arm = SerialRobot.load(name, backend="reference")
+        for ext in (".c", ".h"):
+            shutil.copy(paths.generated_dir() / f"serial_{name}{ext}", tmp_path)
+        _copy_runtime(tmp_path)
     n_rows, nj = 70, arm.n
     rng = np.random.default_rng(7)
     lo, hi = arm.qlim.T
@@ -526,19 +595,98 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     T[3, 0, 3] = np.nan
     q0[10, 1] = np.inf
     bad[[3, 10]] = 1
-    for ext in (".c", ".h"):
-        shutil.copy(paths.generated_dir() / f"serial_{name}{ext}", tmp_path)
     arrays = "".join([_c_array("TT", T), _c_array("Q0", q0), _c_array("QLIM", arm.qlim),
                       _c_array("BAD", bad, "int")])
-    source = IK_DRIVER % dict(name=name, upper=name.upper(), n=n_rows, nj=nj, arrays=arrays)
+    source = IK_DRIVER % dict(name=name, n=n_rows, nj=nj, arrays=arrays)
     if nj < 6:
         source = source.replace("{1, 1, 1, 1, 1, 1}}", "{1, 1, 1, 0, 0, 1}}")
     (tmp_path / "driver.c").write_text(source)
-    _gcc([*STRICT, "-O1", *sanitizers, "driver.c", f"serial_{name}.c", "-o", "driver", "-lm"],
-         cwd=tmp_path)
+    module = f"serial_{name}.c"
+    if name.startswith("long"):
+        # the long arms' generated kernels are big and tested elsewhere: instrumenting them
+        # (-g) costs minutes, so the runtime and the driver alone run under the sanitizers
+        _gcc([*STRICT, "-O1", "-c", module, "-o", "module.o"], cwd=tmp_path)
+        module = "module.o"
+    _gcc([*STRICT, "-O1", *sanitizers, "driver.c", module, *RUNTIME_SOURCES,
+          "-o", "driver", "-lm"], cwd=tmp_path)
     env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:detect_stack_use_after_return=1",
                UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
     proc = subprocess.run([str(tmp_path / "driver")], capture_output=True, text=True,
                           timeout=120, env=env, cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert proc.stderr == "", proc.stderr[-3000:]
+
+
+# ------------------------------------------------- several modules in one program
+
+ONE_PROGRAM = r"""
+#include <math.h>
+#include <stdio.h>
+#include "delta_kinematics.h"
+#include "serial_puma560.h"
+#include "serial_manutec_h5.h"
+#include "serial_delta.h"
+
+int main(void)
+{
+    deltagen_delta_geometry g = {%(r_a)s, %(r_b)s, %(l_a)s, %(l_b)s,
+                                 {%(cos)s}, {%(sin)s}, 1e-9};
+    double qd[3] = {0.1, 0.2, 0.3}, p[3], T[16], T6[16], J6[36], q6[6] = {0.1, -0.4, 0.3, 0.2, 0.5, -0.1};
+    double q4[4] = {0.2, -0.3, 0.1, 0.4}, q0[6], q[6], ep, er;
+    int32_t it;
+    int8_t s;
+    int failures = 0;
+    failures += deltagen_delta_fk(&g, 1, 3, qd, p, &s) != 0 || s != DELTAGEN_OK;
+    failures += deltagen_puma560_fk_jacobian(1, q6, T6, J6, &s) != 0 || s != DELTAGEN_OK;
+    failures += deltagen_manutec_h5_fk(1, q4, T, &s) != 0 || s != DELTAGEN_OK;
+    failures += deltagen_delta_arm_fk(1, qd, T, &s) != 0 || s != DELTAGEN_OK;
+    failures += deltagen_delta_arm_jacobian(1, qd, J6, &s) != 0 || s != DELTAGEN_OK;
+    for (int i = 0; i < 6; ++i) {
+        q0[i] = q6[i] + 0.01;
+    }
+    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 0, 0, {1, 1, 1, 1, 1, 1}};
+    failures += deltagen_puma560_ik_newton(1, &o, T6, q0, NULL, q, &ep, &er, &it, &s) != 0
+        || s != DELTAGEN_OK || fabs(q[0] - q6[0]) > 1e-8;
+    printf("%%d failures\n", failures);
+    return failures;
+}
+"""
+
+
+def test_two_arms_the_delta_core_and_an_arm_named_delta_in_one_program(tmp_path):
+    """Every exported symbol carries the project prefix: the delta core, two arm modules, a
+    user arm named `delta` (its functions become deltagen_delta_arm_*) and the runtime
+    compile and link into one program, all headers in one translation unit."""
+    from deltagen.model.serial import SerialDescription
+
+    for base in ("delta_kinematics", "serial_puma560", "serial_manutec_h5"):
+        for ext in (".c", ".h"):
+            shutil.copy(paths.generated_dir() / f"{base}{ext}", tmp_path)
+    rows = [dict(a=0.3, alpha=0.0, d=0.0), dict(a=0.2, alpha=0.0, d=0.0),
+            dict(a=0.1, alpha=0.0, d=0.0)]
+    _render_arm(SerialDescription.from_rows(rows, "standard", name="delta"), tmp_path)
+    assert "int deltagen_delta_arm_fk(" in (tmp_path / "serial_delta.h").read_text()
+    geom = DEFAULT
+    (tmp_path / "main.c").write_text(ONE_PROGRAM % dict(
+        r_a=geom.r_a.hex(), r_b=geom.r_b.hex(), l_a=geom.l_a.hex(), l_b=geom.l_b.hex(),
+        cos=", ".join(float(c).hex() for c in np.cos(geom.theta)),
+        sin=", ".join(float(s).hex() for s in np.sin(geom.theta))))
+    sources = ["main.c", "delta_kinematics.c", "serial_puma560.c", "serial_manutec_h5.c",
+               "serial_delta.c", *RUNTIME_SOURCES]
+    _gcc([*STRICT, "-O1", *sources, "-o", "program", "-lm"], cwd=tmp_path)
+    proc = subprocess.run([str(tmp_path / "program")], capture_output=True, text=True,
+                          timeout=60, cwd=tmp_path)
+    assert proc.returncode == 0 and proc.stdout.strip() == "0 failures", proc.stdout
+
+
+def test_runtime_status_codes_are_deltagen_status():
+    """The runtime header's status block equals deltagen/status.py and the generated one."""
+    from deltagen import status
+
+    header = (paths.runtime_dir() / "deltagen_ik_newton.h").read_text()
+    codes = dict(re.findall(r"#define DELTAGEN_([A-Z]+) (\d+)\n", header))
+    assert {int(v): k for k, v in codes.items()} == status.STATUS_NAMES
+    generated = (paths.generated_dir() / "delta_kinematics.h").read_text()
+    block = header[header.index("#ifndef DELTAGEN_STATUS_CODES"):]
+    block = block[:block.index("#endif") + 6]
+    assert block in generated

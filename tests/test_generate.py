@@ -5,6 +5,7 @@ processes with different hash seeds). Only copies of generated/ are ever modifie
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -46,6 +47,51 @@ def test_every_module_is_rendered(rendered):
     assert set(DELTA) <= set(rendered)
 
 
+def _layout_problems(name, text):
+    """Runs of blank lines, trailing whitespace, and code lines whose indentation is not
+    four spaces per open brace (continuation lines and comments aside)."""
+    problems = []
+    if "\n\n\n" in text:
+        problems.append(f"{name}: a run of blank lines")
+    if re.search(r"[ \t]\n", text):
+        problems.append(f"{name}: trailing whitespace")
+    depth, in_comment, prev, cplusplus = 0, False, ";", False
+    for number, line in enumerate(text.splitlines(), 1):
+        code = line.strip()
+        if code.startswith("#ifdef __cplusplus"):
+            cplusplus = True
+            continue
+        if cplusplus:  # extern "C" { and its }: no indentation level
+            cplusplus = False
+            continue
+        if in_comment:
+            in_comment = "*/" not in code
+            continue
+        if code.startswith("/*"):
+            in_comment = "*/" not in code
+            continue
+        if not code or code.startswith("#"):
+            continue
+        want = 4 * (depth - (1 if code.startswith("}") else 0))
+        indent = len(line) - len(line.lstrip(" "))
+        if prev[-1:] in (";", "{", "}") and indent != want:
+            problems.append(f"{name}:{number}: indented {indent}, expected {want}: {code[:60]}")
+        depth += code.count("{") - code.count("}")
+        prev = re.sub(r"/\*.*?\*/", "", code).rstrip()
+    return problems
+
+
+def test_generated_layout_is_clean(rendered):
+    """trim_blocks/lstrip_blocks and the templates give C without stray indentation or runs
+    of blank lines, and each file names the template it was rendered from."""
+    problems = [p for name, text in rendered.items() for p in _layout_problems(name, text)]
+    assert problems == [], "\n".join(problems[:20])
+    for name, text in rendered.items():
+        template = {".c": "source.c.j2", ".h": "header.h.j2"}.get(name[name.index("."):],
+                                                                 "cdef.h.j2")
+        assert f"deltagen/codegen/templates/{template}" in text.split("*/")[0], name
+
+
 def test_checkout_is_current(capsys):
     assert cli.main(["generate", "--check"]) == 0
     assert "up to date" in capsys.readouterr().out
@@ -61,7 +107,7 @@ def test_checked_in_files_equal_a_fresh_render(rendered):
 def test_check_reports_a_modified_file_with_a_diff(generated_copy, capsys):
     target = generated_copy / "delta_kinematics.c"
     text = target.read_text()
-    marker = "#define DELTA_BLOCK"
+    marker = "#define DELTAGEN_DELTA_BLOCK"
     assert marker in text
     target.write_text(text.replace(marker, "/* hand edit */\n" + marker, 1))
 
@@ -92,6 +138,21 @@ def test_check_reports_missing_and_changed_files(generated_copy, capsys):
     assert any("int16_t" in p for p in problems)
     assert cli.main(["generate", "--check"]) == 1
     capsys.readouterr()
+
+
+def test_check_fails_on_a_stray_file(generated_copy, capsys):
+    """A file in generated/ that the generator does not produce (a removed robot's module, a
+    hand-made file) fails --check; `generate` warns about it and leaves it alone."""
+    (generated_copy / "serial_retired_arm.c").write_text("/* an old module */\n")
+    problems = generate.check(generated_copy)
+    assert len(problems) == 1 and problems[0].startswith("serial_retired_arm.c is stray")
+    assert generate.stray(generated_copy) == ["serial_retired_arm.c"]
+    assert cli.main(["generate", "--check"]) == 1
+    assert "serial_retired_arm.c is stray" in capsys.readouterr().err
+    assert cli.main(["generate"]) == 0
+    assert "serial_retired_arm.c is not produced" in capsys.readouterr().err
+    (generated_copy / "serial_retired_arm.c").unlink()
+    assert generate.check(generated_copy) == []
 
 
 def test_write_into_an_empty_directory(tmp_path, rendered):

@@ -1,4 +1,4 @@
-"""The closed-form IK emitted as C (deltagen/derive/serial/ik_closed_form.py, `<arm>_ik_all`).
+"""The closed-form IK emitted as C (deltagen/derive/serial/ik_closed_form.py, `deltagen_<arm>_ik_all`).
 
 Evidence: the numpy solver of ik_analytic (written independently, on the product-of-
 exponentials model) through the reference backend; forward kinematics of every valid
@@ -50,7 +50,7 @@ def test_kernel_exists_exactly_for_the_supported_structures():
         has_c = compiled_structure(arm.description) is not None
         assert has_c == (solver is not None and solver.structure in SUPPORTED), name
         header = (paths.generated_dir() / f"serial_{name}.h").read_text()
-        assert (f"{name}_ik_all(" in header) == has_c, name
+        assert (f"deltagen_{name}_ik_all(" in header) == has_c, name
     assert {n for n in bundled_robots()
             if compiled_structure(SerialRobot.load(n, backend="reference").description)} \
         >= set(C_ARMS)
@@ -188,25 +188,26 @@ DRIVER = r"""
 static const double T_IN[N * 16] = {%(poses)s};
 
 int main(void) {
-    static double q[N * 48], valid[N * 8];
+    static double q[N * 48];
+    static uint8_t valid[N * 8];
     static int8_t status[N];
     int failures = 0;
-    if (puma560_ik_all(N, T_IN, q, valid, status) != 0) {
+    if (deltagen_puma560_ik_all(N, T_IN, q, valid, status) != 0) {
         printf("FAIL rc\n");
         return 1;
     }
-    if (puma560_ik_all(N, NULL, q, valid, status) != -1) {
+    if (deltagen_puma560_ik_all(N, NULL, q, valid, status) != -1) {
         printf("FAIL NULL T accepted\n");
         failures++;
     }
-    if (puma560_ik_all(0, NULL, NULL, NULL, NULL) != 0) {
+    if (deltagen_puma560_ik_all(0, NULL, NULL, NULL, NULL) != 0) {
         printf("FAIL n = 0\n");
         failures++;
     }
     for (size_t i = 0; i < N; ++i) {
         printf("%%d", (int)status[i]);
         for (size_t b = 0; b < 8; ++b) {
-            printf(" %%d", valid[i * 8 + b] == 1.0);
+            printf(" %%d", valid[i * 8 + b] == 1);
         }
         for (size_t c = 0; c < 48; ++c) {
             printf(" %%a", q[i * 48 + c]);
@@ -238,9 +239,13 @@ def test_ik_all_alone_under_sanitizers(tmp_path):
                       for x in T.reshape(-1))
     for name in ("serial_puma560.c", "serial_puma560.h"):
         shutil.copy(paths.generated_dir() / name, tmp_path)
+    runtime = sorted(paths.runtime_dir().glob("deltagen_*.[ch]"))  # the module's ik_newton needs it
+    for path in runtime:
+        shutil.copy(path, tmp_path)
     (tmp_path / "driver.c").write_text(DRIVER % dict(n=len(T), poses=poses))
     build = subprocess.run([GCC, "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", *SANITIZE,
-                            "driver.c", "serial_puma560.c", "-o", "driver", "-lm"],
+                            "driver.c", "serial_puma560.c",
+                            *(p.name for p in runtime if p.suffix == ".c"), "-o", "driver", "-lm"],
                            cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert build.returncode == 0, build.stderr[-3000:]
     env = dict(os.environ, UBSAN_OPTIONS="halt_on_error=1")

@@ -253,7 +253,7 @@ def sample_serial(n: int, robot, rng) -> dict[str, np.ndarray]:
 
 
 def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
-    """A no-argument call of the arm's generated C function ``<robot>_<name>`` with
+    """A no-argument call of the arm's generated C function ``deltagen_<robot>_<name>`` with
     preallocated outputs, or None if the core is not the cffi one."""
     try:
         ffi, lib = core._ffi, core._lib

@@ -45,11 +45,25 @@ def write(directory: Path | None = None) -> list[Path]:
     return written
 
 
+def stray(directory: Path | None = None, names=None) -> list[str]:
+    """Files in generated/ that the generator does not produce (a removed robot, a hand-made
+    file): names, sorted."""
+    directory = Path(directory) if directory else generated_dir()
+    names = set(generated_files() if names is None else names)
+    if not directory.is_dir():
+        return []
+    return sorted(p.name for p in directory.iterdir() if p.is_file() and p.name not in names)
+
+
 def check(directory: Path | None = None) -> list[str]:
-    """Return a unified diff per stale or missing file (empty when generated/ is current)."""
+    """Return a unified diff per stale or missing file and a line per stray file (empty when
+    generated/ is current)."""
     directory = Path(directory) if directory else generated_dir()
     problems = []
-    for name, text in generated_files().items():
+    files = generated_files()
+    for name in stray(directory, files):
+        problems.append(f"{name} is stray: the generator does not produce it (delete it)\n")
+    for name, text in files.items():
         path = directory / name
         current = path.read_text() if path.exists() else ""
         if current != text:

@@ -7,11 +7,11 @@ from deltagen.codegen.render import StructField, Unit, render
 from deltagen.derive.delta.kernels import all_kernels
 
 UNIT = Unit(
-    prefix="delta",
+    prefix="deltagen_delta",
     base_name="delta_kinematics",
     title="kinematics of the rotary delta robot",
     source="the 2008 report on the direct kinematics of a delta robot (seed 000)",
-    struct_name="delta_geometry",
+    struct_name="deltagen_delta_geometry",
     struct_doc="Geometry of the robot (report, Figure 4).",
     conventions=(
         "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",

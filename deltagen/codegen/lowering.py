@@ -20,9 +20,15 @@ class Statement:
     ctype: str = "double"
 
 
+def _is_integer_code(expr) -> bool:
+    """A Piecewise whose every branch is an integer (a flag or code, printed as 0/1
+    arithmetic): an int in C."""
+    return isinstance(expr, sp.Piecewise) and all(arg.expr.is_Integer for arg in expr.args)
+
+
 def _statement(sym, expr) -> Statement:
-    ctype = "int" if isinstance(expr, (Relational, BooleanFunction)) else "double"
-    return Statement(str(sym), to_c(expr), ctype)
+    boolean = isinstance(expr, (Relational, BooleanFunction)) or _is_integer_code(expr)
+    return Statement(str(sym), to_c(expr), "int" if boolean else "double")
 
 
 @dataclass(frozen=True)

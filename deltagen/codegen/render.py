@@ -6,12 +6,14 @@ and stores); the templates only lay it out.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+
 import jinja2
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.paths import template_dir
+from deltagen.paths import runtime_dir, template_dir
 from deltagen.derive.kernel import Stage
 from deltagen.codegen.lowering import LoweredKernel, keep_needed, lower_stage
 
@@ -21,7 +23,8 @@ def environment() -> jinja2.Environment:
         loader=jinja2.FileSystemLoader(str(template_dir())),
         undefined=jinja2.StrictUndefined,
         keep_trailing_newline=True,
-        trim_blocks=False,
+        trim_blocks=True,
+        lstrip_blocks=True,
         autoescape=False,
     )
 
@@ -38,7 +41,7 @@ class StructField:
 class Unit:
     """What one generated C module needs besides its kernels."""
 
-    prefix: str  # C prefix of functions and constants, e.g. "delta"
+    prefix: str  # C prefix of functions and types, e.g. "deltagen_delta"
     base_name: str  # file stem, e.g. "delta_kinematics"
     title: str
     source: str  # where the equations come from
@@ -49,7 +52,7 @@ class Unit:
     axes_choices: tuple = ()  # e.g. (3, 4): a run-time row length; () for fixed widths
     axes_doc: str = ""
     block: int = 64
-    newton: dict | None = None  # {n, revolute}: emit <prefix>_ik_newton (templates/ik_newton.*)
+    newton: dict | None = None  # {n, revolute}: emit <prefix>_ik_newton, the wrapper of runtime/deltagen_ik_newton.c
 
 
 def _columns(port):
@@ -58,6 +61,33 @@ def _columns(port):
     if port.fourth is not None:
         cols.append((len(port.symbols), port.fourth))
     return cols
+
+
+def _kib(nbytes: int) -> str:
+    return f"{nbytes} bytes ({nbytes / 1024:.1f} KiB)"
+
+
+def stack_use(fn: dict, block: int, block_macro: str) -> tuple[int, str]:
+    """(bytes, text) of a function's block arrays: the columns it gathers, the cosines and
+    sines, the status and the outputs, each of ``block`` points (8-byte double, 4-byte int)."""
+    doubles = sum(1 for load in fn["loads"] if load["used"])
+    doubles += sum(int(a["cos_used"]) + int(a["sin_used"]) for a in fn["angles"])
+    ints = 1 + sum(1 for store in fn["stores"] if store["ctype"] != "double")
+    doubles += sum(1 for store in fn["stores"] if store["ctype"] == "double")
+    nbytes = block * (8 * doubles + 4 * ints)
+    return nbytes, (f"{doubles + ints} block arrays ({doubles} double, {ints} int) of "
+                    f"{block_macro} points,\n * {_kib(nbytes)} at {block}, plus scalars")
+
+
+def runtime_macro(name: str, **values) -> int:
+    """The value of a size macro of the runtime headers (e.g. DELTAGEN_IK_NEWTON_WORK_DOUBLES)
+    for the given arguments: the C header is the one definition."""
+    for header in sorted(runtime_dir().glob("*.h")):
+        found = re.search(rf"#define {name}\((\w+)\) ([0-9a-z()+* ]+)\n", header.read_text())
+        if found:
+            arg, body = found.groups()
+            return int(eval(body, {"__builtins__": {}}, {arg: values[arg]}))  # digits, + * ( )
+    raise KeyError(f"no macro {name} in {runtime_dir()}")
 
 
 def function_context(lk: LoweredKernel) -> dict:
@@ -90,7 +120,7 @@ def function_context(lk: LoweredKernel) -> dict:
         for col, sym in _columns(port)
     ]
     stores = [
-        dict(name=str(sym), port=port.name, column=col, width=port.width)
+        dict(name=str(sym), port=port.name, column=col, width=port.width, ctype=port.ctype)
         for port in k.outputs
         for col, sym in _columns(port)
     ]
@@ -106,7 +136,9 @@ def function_context(lk: LoweredKernel) -> dict:
         loads=loads,
         stages=lk.stages,
         stores=stores,
+        flag_outputs=any(port.ctype != "double" for port in k.outputs),
         status=lk.status,
+        operation_count=lk.operation_count,
     )
 
 
@@ -114,12 +146,31 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
     """Return {file name: text} for the C source, the header and the cffi declarations."""
     env = environment()
     header_name = f"{unit.base_name}.h"
+    block_macro = f"{unit.prefix.upper()}_BLOCK"
+    functions = [function_context(lk) for lk in lowered]
+    for fn in functions:
+        fn["stack_bytes"], fn["stack_doc"] = stack_use(fn, unit.block, block_macro)
+    newton = None
+    if unit.newton:
+        n = unit.newton["n"]
+        doubles = runtime_macro("DELTAGEN_IK_NEWTON_WORK_DOUBLES", n=n)
+        ints = runtime_macro("DELTAGEN_IK_NEWTON_WORK_INTS", n=n)
+        work = 8 * doubles + 4 * ints
+        fkj = next(fn for fn in functions if fn["name"] == "fk_jacobian")
+        newton = dict(unit.newton, stack_doc=(
+            f"{work} bytes of solver scratch memory in this frame ({doubles} doubles, {ints} "
+            f"ints),\n * plus fk_jacobian's {_kib(fkj['stack_bytes'])} at {unit.block} points "
+            "and the runtime's frames\n * (scalars and 3x3 blocks)"))
     context = dict(
         prefix=unit.prefix,
+        macro_prefix=unit.prefix.upper(),
+        block_macro=block_macro,
         title=unit.title,
         source=unit.source,
+        template_dir="deltagen/codegen/templates",
         header_name=header_name,
         source_name=f"{unit.base_name}.c",
+        cdef_name=f"{unit.base_name}.cdef.h",
         guard=f"DELTAGEN_{unit.base_name.upper()}_H",
         struct_name=unit.struct_name,
         struct_fields=unit.struct_fields,
@@ -128,12 +179,14 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         axes_choices=unit.axes_choices,
         axes_doc=unit.axes_doc,
         status_codes=sorted(st.STATUS_NAMES.items()),
-        functions=[function_context(lk) for lk in lowered],
+        functions=functions,
+        largest=max(functions, key=lambda fn: fn["stack_bytes"]),
         block=unit.block,
-        newton=unit.newton,
+        newton=newton,
     )
-    return {
-        header_name: env.get_template("header.h.j2").render(restrict="restrict ", **context),
-        f"{unit.base_name}.c": env.get_template("source.c.j2").render(restrict="restrict ", **context),
-        f"{unit.base_name}.cdef.h": env.get_template("cdef.h.j2").render(restrict="", **context),
-    }
+    files = {header_name: ("header.h.j2", "restrict "),
+             f"{unit.base_name}.c": ("source.c.j2", "restrict "),
+             f"{unit.base_name}.cdef.h": ("cdef.h.j2", "")}
+    return {name: env.get_template(template).render(template=template, restrict=restrict,
+                                                    **context)
+            for name, (template, restrict) in files.items()}

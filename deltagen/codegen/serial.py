@@ -14,6 +14,15 @@ def base_name(desc) -> str:
     return f"serial_{desc.name}"
 
 
+def c_prefix(desc) -> str:
+    """The prefix of the arm's C functions: ``deltagen_<name>``, so that two arms, the delta
+    core (``deltagen_delta_*``) and a user's own code do not clash. An arm named ``delta``
+    (in any case) becomes ``deltagen_<name>_arm``: its fk and jacobian would be the core's."""
+    if desc.name.lower() == "delta":
+        return f"deltagen_{desc.name}_arm"
+    return f"deltagen_{desc.name}"
+
+
 def description_fingerprint(desc) -> str:
     """Hash of everything in the description that shapes the generated code."""
     return hashlib.sha256(desc.key().encode()).hexdigest()[:16]
@@ -52,7 +61,7 @@ def generator_fingerprint() -> str:
 def arm_unit(desc) -> Unit:
     joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
     return Unit(
-        prefix=desc.name,
+        prefix=c_prefix(desc),
         base_name=base_name(desc),
         title=f"kinematics of the serial arm '{desc.name}' ({desc.n} joints: {joints}; "
               f"{desc.convention} convention)",

@@ -23,6 +23,7 @@ class Port:
     unit: str
     width: object = "axes"
     fourth: sp.Symbol | None = None  # column 4 when axes == 4 (the fourth axis, eq. (43))
+    ctype: str = "double"  # C element type; "uint8_t" for 0/1 flags (symbols are 0/1 ints)
 
     @property
     def shape(self) -> str:

@@ -26,11 +26,11 @@ class CompiledDelta:
     """Batched calls into the C core; arrays are (N, 3|4) C-contiguous float64."""
 
     def __init__(self, geometry):
-        module = load("delta_kinematics", "delta")
+        module = load("delta_kinematics", "deltagen_delta")
         self._ffi, self._lib = module.ffi, module.lib
         g = geometry
         self._geometry = self._ffi.new(
-            "delta_geometry *",
+            "deltagen_delta_geometry *",
             {
                 "r_a": g.r_a, "r_b": g.r_b, "l_a": g.l_a, "l_b": g.l_b,
                 "cos_theta": [math.cos(t) for t in g.theta],
@@ -45,7 +45,7 @@ class CompiledDelta:
         """A fast function for one pose: a (3,) float64 array or a list/tuple of 3 numbers
         in, the (3,) result out, or None when the general path must handle the call
         (other shapes or types, or a status to report). Same C function, same numbers."""
-        fn = self._lib.delta_fk if name == "fk" else self._lib.delta_ik
+        fn = self._lib.deltagen_delta_fk if name == "fk" else self._lib.deltagen_delta_ik
         geometry, scratch, memmove = self._geometry, self._scratch, self._ffi.memmove
         ndarray, OK, SINGULAR = np.ndarray, st.OK, st.SINGULAR
 
@@ -87,17 +87,17 @@ class CompiledDelta:
         return (*outs, status)
 
     def fk(self, q):
-        return self._run(self._lib.delta_fk, [q], 1)
+        return self._run(self._lib.deltagen_delta_fk, [q], 1)
 
     def fk_vel(self, q, qd):
-        return self._run(self._lib.delta_fk_vel, [q, qd], 2)
+        return self._run(self._lib.deltagen_delta_fk_vel, [q, qd], 2)
 
     def fk_acc(self, q, qd, qdd):
-        return self._run(self._lib.delta_fk_acc, [q, qd, qdd], 3)
+        return self._run(self._lib.deltagen_delta_fk_acc, [q, qd, qdd], 3)
 
     def jacobian(self, q):
-        J, status = self._run(self._lib.delta_jacobian, [q], 1, out_width=9)
+        J, status = self._run(self._lib.deltagen_delta_jacobian, [q], 1, out_width=9)
         return J.reshape(-1, 3, 3), status
 
     def ik(self, p):
-        return self._run(self._lib.delta_ik, [p], 1)
+        return self._run(self._lib.deltagen_delta_ik, [p], 1)

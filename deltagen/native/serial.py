@@ -14,7 +14,8 @@ from deltagen import status as st
 from deltagen.native.build import load
 from deltagen.inputs import plain_pose
 from deltagen.paths import cache_dir, generated_dir
-from deltagen.codegen.serial import arm_sources, base_name, description_fingerprint, generator_fingerprint
+from deltagen.codegen.serial import (arm_sources, base_name, c_prefix, description_fingerprint,
+                                     generator_fingerprint)
 
 
 def source_dir(desc) -> Path:
@@ -53,9 +54,9 @@ class _Scratch(threading.local):
 
     def make_ik_buffers(self, ffi, k, n):
         self.ik_q = ffi.new(f"double[{k * n}]")
-        self.ik_valid = ffi.new(f"double[{k}]")
+        self.ik_valid = ffi.new(f"uint8_t[{k}]")
         self.ik_q_np = np.frombuffer(ffi.buffer(self.ik_q), dtype=np.float64).reshape(k, n)
-        self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.float64)
+        self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.uint8)
 
 
 class CompiledArm:
@@ -63,22 +64,25 @@ class CompiledArm:
 
     def __init__(self, desc):
         self.desc = desc
-        module = load(base_name(desc), desc.name, source_dir(desc))
+        self._prefix = c_prefix(desc)  # of the C functions: deltagen_<name>
+        module = load(base_name(desc), self._prefix, source_dir(desc))
         self._ffi, self._lib = module.ffi, module.lib
-        self._prefix = desc.name
         self._scratch = _Scratch(self._ffi, desc.n)
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
     def _run(self, name, inputs, *widths):
         """Call <prefix>_<name> on the input rows: one (N, width) output per width, then
-        the status."""
+        the status. A width may be (width, "uint8_t") for a flag output."""
         n = inputs[0].shape[0]
         fb = self._ffi.from_buffer
-        outs = [np.empty((n, width)) for width in widths]
+        kinds = [w if isinstance(w, tuple) else (w, "double") for w in widths]
+        outs = [np.empty((n, width), dtype=np.uint8 if ctype == "uint8_t" else np.float64)
+                for width, ctype in kinds]
         status = np.empty(n, dtype=np.int8)
         fn = getattr(self._lib, f"{self._prefix}_{name}")
         rc = fn(n, *(fb("double[]", a) for a in inputs),
-                *(fb("double[]", out, require_writable=True) for out in outs),
+                *(fb(f"{ctype}[]", out, require_writable=True)
+                  for out, (_, ctype) in zip(outs, kinds)),
                 fb("int8_t[]", status, require_writable=True))
         if rc != 0:
             raise RuntimeError(f"C core rejected its arguments (rc={rc})")
@@ -103,16 +107,25 @@ class CompiledArm:
         T, J, status = self._run("fk_jacobian", [q], 16, 6 * n)
         return T.reshape(-1, 4, 4), J.reshape(-1, 6, n), status
 
-    def ik_options(self, *, tol_p, tol_r, step_limit, damping, base_damping, max_iter,
-                   stall_window, respect_limits, free_first, mask):
-        """A filled <prefix>_ik_options struct (cffi-owned) for :meth:`ik_newton`."""
-        o = self._ffi.new(f"{self._prefix}_ik_options *")
-        o.tol_p, o.tol_r, o.step_limit = tol_p, tol_r, step_limit
-        o.damping, o.base_damping = damping, base_damping
-        o.max_iter, o.stall_window = max_iter, stall_window
-        o.respect_limits, o.free_first = int(respect_limits), int(free_first)
-        o.mask = [int(bool(m)) for m in mask]
-        return o
+    def ik_options(self, **fields):
+        """A filled deltagen_ik_options struct (cffi-owned) for :meth:`ik_newton`: one
+        keyword per field of the struct, which is declared once, in the runtime's C header
+        (codegen/runtime/deltagen_ik_newton.h); integers and flags are converted."""
+        types = dict(self._ffi.typeof("deltagen_ik_options").fields)
+        if set(fields) != set(types):
+            raise TypeError(f"ik_options needs exactly the fields {sorted(types)}; missing "
+                            f"{sorted(set(types) - set(fields))}, unknown "
+                            f"{sorted(set(fields) - set(types))}")
+        values = {}
+        for name, value in fields.items():
+            ctype = types[name].type
+            if ctype.kind == "array":  # the mask: 0/1 flags
+                values[name] = [int(bool(v)) for v in value]
+            elif ctype.cname.startswith("int"):
+                values[name] = int(value)
+            else:
+                values[name] = float(value)
+        return self._ffi.new("deltagen_ik_options *", values)
 
     def ik_newton(self, options, T, q0, qlim=None):
         """One damped Newton attempt per target in C (<prefix>_ik_newton).
@@ -148,8 +161,9 @@ class CompiledArm:
     def ik_all(self, T, k):
         """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
         q (N, k, n), valid (N, k) bool, status (N,)."""
-        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n, k)
-        return q.reshape(-1, k, self.desc.n), valid != 0.0, status
+        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n,
+                                     (k, "uint8_t"))
+        return q.reshape(-1, k, self.desc.n), valid != 0, status
 
     def single_ik_all(self, k):
         """Fast path of ik_all for one pose ((4, 4) C-contiguous float64 array with the
@@ -171,7 +185,7 @@ class CompiledArm:
             fn(1, sc.T, sc.ik_q, sc.ik_valid, sc.status)
             if sc.status[0] == INVALID:
                 return None
-            return sc.ik_q_np.copy(), sc.ik_valid_np.astype(bool)  # valid is 1.0 or 0.0
+            return sc.ik_q_np.copy(), sc.ik_valid_np.astype(bool)  # uint8 flags, 1 or 0
 
         return call
 

@@ -339,7 +339,7 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
     restarts: extra attempts from random in-limit starts for unconverged rows; seed: their
     random generator's seed (results are reproducible).
     null_space: gain of the pull towards mid-range (redundant case n > k only).
-    engine: "c" (the compiled Newton routine <arm>_ik_newton; restarts drawn here), "numpy"
+    engine: "c" (the compiled Newton routine deltagen_<arm>_ik_newton; restarts drawn here), "numpy"
     (the batched numpy iteration), or "auto": "c" when it applies -- the compiled
     backend, jacobian="symbolic", damping not None, null_space == 0 -- else "numpy".
 
@@ -534,7 +534,7 @@ def single_solver(arm):
 
 
 def _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask):
-    """options(stall_window): the <arm>_ik_options struct of these settings."""
+    """options(stall_window): the deltagen_ik_options struct of these settings."""
 
     def options(window):
         return core.ik_options(
@@ -555,7 +555,7 @@ def _restart_box(arm, respect):
 
 def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect,
                restarts, seed):
-    """The compiled engine: one C call per attempt (<arm>_ik_newton, the iteration of the
+    """The compiled engine: one C call per attempt (deltagen_<arm>_ik_newton, the iteration of the
     module docstring for one attempt), restarts for the unconverged rows drawn here with
     the numpy engine's rules (same box, same generator, same stall windows)."""
     core = arm._core

@@ -28,8 +28,8 @@ generated file does not depend on the last bit of a BLAS call (and exact zeros a
 simplify the expressions).
 
 Per pose: ``q`` (k x n, k branches in the order of the structure's ``configs``; NaN where the
-branch has no real solution or misses the pose) and ``valid`` (k values, 1.0 where the
-branch is a solution inside the joint limits, else 0.0); status OK when some branch is
+branch has no real solution or misses the pose) and ``valid`` (k uint8 flags, 1 where the
+branch is a solution inside the joint limits, else 0); status OK when some branch is
 valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVALID for a
 non-finite input (all outputs NaN / 0).
 
@@ -529,7 +529,7 @@ class IKKernelBuilder:
                 q_out.append(tape.let(f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True)),
                                       alias=False))
             valid_out.append(tape.let(f"out_valid_{name}",
-                                      sp.Piecewise((sp.Float(1.0), valid), (sp.Float(0.0), True)),
+                                      sp.Piecewise((sp.Integer(1), valid), (sp.Integer(0), True)),
                                       alias=False))
         tape.stage("status")
         any_valid = tape.let("any_valid", sp.Or(*valid_flags))
@@ -543,8 +543,9 @@ class IKKernelBuilder:
             outputs=(
                 Port("q", tuple(q_out), f"{k} x {n} joint values per pose, branch after branch "
                      "[rad]; NaN where the branch has no real solution", "rad", width=k * n),
-                Port("valid", tuple(valid_out), f"{k} flags per pose: 1.0 where the branch "
-                     "reaches the pose within the joint limits, else 0.0", "-", width=k),
+                Port("valid", tuple(valid_out), f"{k} flags per pose: 1 where the branch "
+                     "reaches the pose within the joint limits, else 0", "-", width=k,
+                     ctype="uint8_t"),
             ),
             stages=tuple(tape.as_stages()),
             status=sp.Piecewise((st.INVALID, invalid), (st.OK, any_valid),

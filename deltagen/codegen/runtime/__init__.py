@@ -1,0 +1,7 @@
+"""Hand-written C, written once and compiled beside each generated module (native/build.py
+finds it through ``deltagen.paths.runtime_dir()``): ``deltagen_linalg`` (small dense linear
+algebra and the rotation logarithm) and ``deltagen_ik_newton`` (the damped Newton solver of
+numerical IK, called by each arm's generated ``deltagen_<arm>_ik_newton`` wrapper).
+
+Generated code calls runtime code, never the other way. No Python lives here.
+"""
