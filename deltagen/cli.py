@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -112,8 +113,24 @@ exit status:
 ROBOT_HELP = "'default' (the delta robot), a bundled serial arm's name, or a robot TOML file"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line usage error (the usage is one `--help` away)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+_NEGATIVE_NUMBER = re.compile(r"-(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+def _protect_negative_numbers(argv):
+    """argparse takes '-1e+16', '-inf' or '--q0 -0.1,0.2' for options (it only knows
+    '-1' and '-1.5' as numbers); a leading space keeps them values (float() ignores it)."""
+    return [" " + a if _NEGATIVE_NUMBER.match(a) else a for a in argv]
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="deltagen", description=__doc__, epilog=EXIT_STATUS_ALL,
+    parser = _Parser(prog="deltagen", description=__doc__, epilog=EXIT_STATUS_ALL,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -189,7 +206,7 @@ def main(argv=None) -> int:
         if argv and argv[0] in evaluators:
             # options may come between the values (`fk default --degrees 20 20 20`); argparse
             # cannot intermix with subparsers, so the evaluating subcommands parse themselves
-            args = evaluators[argv[0]].parse_intermixed_args(argv[1:])
+            args = evaluators[argv[0]].parse_intermixed_args(_protect_negative_numbers(argv[1:]))
             args.command = argv[0]
         else:
             args = parser.parse_args(argv)

@@ -62,16 +62,13 @@ class Job:
     """One command (fk or ik) on one robot: the layouts it reads, the columns it writes."""
 
     robot: object
+    serial: bool
     forward: bool
     degrees: bool
     layouts: list
     out_names: tuple = ()
     revolute: np.ndarray = field(default=None)  # per joint: convert with --degrees
     options: dict = field(default_factory=dict)  # serial ik: config, q0, method, restarts
-
-    @property
-    def serial(self) -> bool:
-        return not hasattr(self.robot, "geometry")
 
     @property
     def what(self) -> str:
@@ -158,7 +155,7 @@ def make_job(robot, forward: bool, args) -> Job:
                 raise InputError(f"{flag} applies to serial arms, not to the delta robot")
         joints = Columns(("q1", "q2", "q3"), ("q4",))
         pose = Columns(("x", "y", "z"), ("phi",))
-        return Job(robot, forward, args.degrees, [joints if forward else pose],
+        return Job(robot, False, forward, args.degrees, [joints if forward else pose],
                    revolute=np.ones(4, dtype=bool))
     revolute = np.array([j.revolute for j in robot.description.joints])
     joints = Columns(tuple(f"q{i + 1}" for i in range(robot.n)))
@@ -167,7 +164,7 @@ def make_job(robot, forward: bool, args) -> Job:
                             ("--restarts", args.restarts)):
             if value is not None:
                 raise InputError(f"{flag} applies to ik, not to fk")
-        return Job(robot, True, args.degrees, [joints], revolute=revolute)
+        return Job(robot, True, True, args.degrees, [joints], revolute=revolute)
     layouts = [Columns(TRANSFORM, TRANSFORM_LAST, positional=False), Columns(SERIAL_POSE)]
     options = {}
     if args.config is not None:
@@ -190,7 +187,7 @@ def make_job(robot, forward: bool, args) -> Job:
     if args.config is not None and args.method == "numeric":
         raise InputError("--config picks a closed-form branch; it does not apply to "
                          "--method numeric (give --q0 to choose where the solver starts)")
-    return Job(robot, False, args.degrees, layouts, revolute=revolute, options=options)
+    return Job(robot, True, False, args.degrees, layouts, revolute=revolute, options=options)
 
 
 def _parse_q0(robot, text, degrees, revolute) -> np.ndarray:

@@ -8,8 +8,8 @@ command reads what the others write.
 
 CSV
     Comma-separated (or whitespace-separated) numbers, one row per line. A header line
-    names the columns: plain (``q1,q2,q3``) or numpy's ``savetxt`` style (``# q1,q2,q3``).
-    Other lines starting with ``#`` and blank lines are skipped. Without a header, the
+    names the columns: plain (``q1,q2,q3``) or numpy's ``savetxt`` style (``# q1,q2,q3``,
+    comma-separated). Other lines starting with ``#`` and blank lines are skipped. Without a header, the
     columns are taken by position, and their number must fit the layout exactly. Names
     match case-insensitively. Written with a plain header line and ``%.17g`` numbers (exact
     round trip); ``valid`` is 1 or 0.
@@ -187,7 +187,7 @@ def _csv_columns(path, raw):
         tokens = _split(stripped.lstrip("#").strip())
         numbers = [_is_number(t) for t in tokens]
         if commented:
-            if not rows and tokens and not any(numbers) and all(
+            if not rows and "," in stripped and not any(numbers) and all(
                     t and " " not in t and len(t) <= 40 for t in tokens):
                 names, header_line = tokens, number  # numpy's savetxt header: "# x,y,z"
             continue  # any other comment
