@@ -4,10 +4,27 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from pathlib import Path
 
-import numpy as np
+
+def _robot_kind(path: Path) -> str:
+    """"serial" or "delta" for a robot file: serial-arm files state a convention and list
+    [[joint]] tables; delta files have a [delta] table."""
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError):
+        return "delta"  # its loader reports the unreadable file
+    try:
+        import tomllib
+
+        data = tomllib.loads(text)
+    except Exception:  # malformed: the loader named by a plain look reports it
+        return "serial" if "convention" in text and "[delta]" not in text else "delta"
+    if "delta" not in data and ("convention" in data or "joint" in data):
+        return "serial"
+    return "delta"
 
 
 def _robot(args):
@@ -24,8 +41,7 @@ def _robot(args):
     if path.suffix != ".toml" and not path.exists():
         raise ValueError(f"unknown robot {name!r}: use 'default', a bundled arm "
                          f"({', '.join(bundled_robots())}) or a robot .toml file")
-    text = path.read_text() if path.is_file() else ""
-    if "convention" in text:
+    if _robot_kind(path) == "serial":
         return SerialRobot.from_toml(path, backend=args.backend)
     return DeltaRobot.from_toml(path, backend=args.backend)
 
@@ -34,6 +50,13 @@ def cmd_generate(args) -> int:
     from deltagen.apps import generate
 
     if args.robot_file:
+        path = Path(args.robot_file)
+        if path.is_file() and _robot_kind(path) == "delta":
+            raise ValueError(
+                f"{path} describes a delta robot; `deltagen generate ROBOT_FILE` takes a "
+                "serial-arm file (a `convention` key and [[joint]] tables). The delta core is "
+                "generic (`deltagen generate` writes it; the geometry is read at run time), so "
+                f"use the file directly: `deltagen fk {path} ...`")
         folder = generate.generate_robot_file(args.robot_file)
         from deltagen.paths import runtime_dir
 
@@ -60,101 +83,61 @@ def cmd_generate(args) -> int:
     return 0
 
 
-def _read_batch(path: Path) -> np.ndarray:
-    if path.suffix == ".npy":
-        return np.load(path, allow_pickle=False)
-    return np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
-
-
-def _write_batch(path: Path, data: np.ndarray, header: str) -> None:
-    if path.suffix == ".npy":
-        np.save(path, data)
-    else:
-        np.savetxt(path, data, delimiter=",", header=header, fmt="%.17g")
-
-
-def _evaluate_serial(args, arm, forward: bool) -> int:
-    from deltagen.geometry.rotations import euler_zyx
-
-    if not forward:
-        print("inverse kinematics of serial arms is not available yet (issue 4)", file=sys.stderr)
-        return 2
-    if args.input:
-        data = _read_batch(Path(args.input))
-        if args.degrees:
-            data = np.radians(data)
-        T, valid = arm.fk(data, errors="nan")
-        table = np.column_stack([T[..., :3, 3], euler_zyx(T[..., :3, :3]), T.reshape(-1, 16),
-                                 valid.astype(float)])
-        names = "x,y,z,psi,theta,phi," + ",".join(f"T{r}{c}" for r in range(1, 5)
-                                                  for c in range(1, 5)) + ",valid"
-        if args.output:
-            _write_batch(Path(args.output), table, names)
-        else:
-            np.savetxt(sys.stdout, table, delimiter=",", header=names, fmt="%.17g")
-        return 0
-    if not args.values and args.config:
-        values = arm.configuration(args.config)
-    else:
-        values = np.array(args.values, dtype=float)
-        if args.degrees:
-            values = np.radians(values)
-    if values.shape != (arm.n,):
-        print(f"{arm.name} has {arm.n} joints: give {arm.n} values (or --config NAME)", file=sys.stderr)
-        return 2
-    T = arm.fk(values)
-    psi, theta, phi = euler_zyx(T[:3, :3])
-    np.set_printoptions(precision=6, suppress=True)
-    print(f"{arm.name}: T =\n{T}")
-    print("position  x, y, z = [" + ", ".join(f"{v:.9g}" for v in T[:3, 3]) + "] m")
-    print(f"Euler (Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)): psi = {np.degrees(psi):.6g} deg, "
-          f"theta = {np.degrees(theta):.6g} deg, phi = {np.degrees(phi):.6g} deg")
-    return 0
-
-
 def _evaluate(args, forward: bool) -> int:
-    robot = _robot(args)
-    from deltagen.api.serial import SerialRobot
+    from deltagen.apps import kinematics
 
-    if isinstance(robot, SerialRobot):
-        return _evaluate_serial(args, robot, forward)
-    fn = robot.fk if forward else robot.ik
-    if args.input:
-        data = _read_batch(Path(args.input))
-        if args.degrees and forward:
-            data = np.radians(data)
-        out, valid = fn(data, errors="nan")
-        if args.degrees and not forward:
-            out = np.degrees(out)
-        table = np.column_stack([out, valid.astype(float)])
-        names = ("x,y,z" if forward else "q1,q2,q3") + (",q4" if out.shape[1] == 4 else "") + ",valid"
-        if args.output:
-            _write_batch(Path(args.output), table, names)
-        else:
-            np.savetxt(sys.stdout, table, delimiter=",", header=names, fmt="%.17g")
-        bad = int((~valid).sum())
-        if bad:
-            print(f"{bad} of {len(valid)} rows failed (NaN, valid = 0)", file=sys.stderr)
-        return 0
-    if len(args.values) not in (3, 4):
-        print("give 3 values (or 4 with the fourth axis), or --input FILE", file=sys.stderr)
-        return 2
-    values = np.array(args.values, dtype=float)
-    if args.degrees and forward:
-        values = np.radians(values)
-    out = fn(values)
-    if forward:
-        print("p = [" + ", ".join(f"{v:.12g}" for v in out[:3]) + "] m"
-              + (f", phi = {out[3]:.12g} rad" if out.size == 4 else ""))
-    else:
-        shown = np.degrees(out) if args.degrees else out
-        unit = "deg" if args.degrees else "rad"
-        print("q = [" + ", ".join(f"{v:.12g}" for v in shown) + f"] {unit}")
-    return 0
+    return kinematics.run(_robot(args), forward, args)
+
+
+EXIT_STATUS = """\
+exit status:
+  0  success: every pose computed
+  1  computed, but some rows have no valid result (unreachable, singular, outside the
+     joint limits, or a row of the input file with NaN/inf); those rows are NaN with
+     valid = 0 in the output, and a message on stderr names them
+  2  usage or input error: bad arguments, an unreadable or malformed file, missing columns"""
+
+FILES = """\
+files (--input, --output): CSV or NPY, one pose per row, columns matched by name:
+  CSV  a header line names the columns, plain (q1,q2,q3) or numpy's (# q1,q2,q3); without
+       one the columns are positional
+  NPY  a structured array whose field names are the column names (what deltagen writes:
+       float64 fields, valid as bool); a plain 2-D array is positional
+  Other columns (valid, ...) are ignored, so ik reads what fk writes and the other way round.
+  Delta: q1,q2,q3[,q4] <-> x,y,z[,phi] (q4 the fourth axis, phi the platform's turn it
+  gives, delta report eq. (43)). Serial arm: q1..qn <-> x,y,z,psi,theta,phi (Euler angles
+  after Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)), T11..T44; ik uses T11..T34 when present.
+  --output: the extension (.csv, .txt or .npy, any case) picks the format."""
+
+EXIT_STATUS_ALL = """\
+exit status:
+  0  success
+  1  ran, but the result is not valid: fk/ik rows without a valid result, a stale
+     generated/ (generate --check), a tolerance missed (validate)
+  2  usage or input error (bad arguments, an unreadable or malformed file)"""
+
+ROBOT_HELP = "'default' (the delta robot), a bundled serial arm's name, or a robot TOML file"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line usage error (the usage is one `--help` away)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+_NEGATIVE_NUMBER = re.compile(r"-(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+def _protect_negative_numbers(argv):
+    """argparse takes '-1e+16', '-inf' or '--q0 -0.1,0.2' for options (it only knows
+    '-1' and '-1.5' as numbers); a leading space keeps them values (float() ignores it)."""
+    return [" " + a if _NEGATIVE_NUMBER.match(a) else a for a in argv]
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="deltagen", description=__doc__)
+    parser = _Parser(prog="deltagen", description=__doc__, epilog=EXIT_STATUS_ALL,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="regenerate generated/ (deterministic)")
@@ -164,17 +147,42 @@ def main(argv=None) -> int:
 
     evaluators = {}
     for name, forward in (("fk", True), ("ik", False)):
-        e = evaluators[name] = sub.add_parser(name, help=("direct" if forward else "inverse") + " kinematics of one pose or a CSV/NPY batch")
-        e.add_argument("robot", nargs="?", default="default",
-                       help="'default' (delta), a bundled arm name, or a robot TOML file")
-        e.add_argument("values", nargs="*", type=float,
-                       help="q1 q2 q3 [q4] in rad" if forward else "x y z [phi] in m (rad)")
-        e.add_argument("--input", help="CSV or NPY file with one pose per row")
-        e.add_argument("--output", help="write the batch result here (CSV or NPY)")
-        e.add_argument("--degrees", action="store_true", help="joint angles in degrees")
-        e.add_argument("--config", help="a serial arm's named configuration (e.g. qr)")
+        what = "direct" if forward else "inverse"
+        e = evaluators[name] = sub.add_parser(
+            name, help=f"{what} kinematics of one pose or of a CSV/NPY batch",
+            description=f"{what.capitalize()} kinematics of the delta robot or a serial arm: "
+                        "one pose from the values, or a batch with --input.",
+            epilog=FILES + "\n\n" + EXIT_STATUS, formatter_class=argparse.RawDescriptionHelpFormatter)
+        e.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
+        e.add_argument("values", nargs="*", type=float, help=(
+            "joint coordinates q1 .. qn: delta q1 q2 q3 [q4, the fourth axis]; serial arm one "
+            "per joint (rad, m for prismatic joints)" if forward else
+            "the pose: delta x y z [phi] (m, rad); serial arm x y z psi theta phi (m, rad)"))
+        e.add_argument("--input", help="CSV or NPY file with one pose per row (see below)")
+        e.add_argument("--output", help="write the result here (.csv, .txt or .npy), also for "
+                                        "a single pose")
+        e.add_argument("--degrees", action="store_true",
+                       help="revolute joint coordinates in degrees (prismatic stay in m; "
+                            + ("the input q" if forward else "the output q and --q0")
+                            + "; poses are always m and rad)")
+        if forward:
+            e.add_argument("--config", help="serial arm: a named joint configuration of its "
+                                            "robot file (e.g. qr) instead of values")
+        else:
+            e.add_argument("--config", help="serial arm: the closed-form branch by name "
+                                            "(e.g. front_up_noflip)")
+            e.add_argument("--q0", help="serial arm: start of the numeric solver, or with a "
+                                        "closed form the branch nearest it: n numbers "
+                                        "(--q0=-0.1,0.2,...) or a configuration name (e.g. qn)")
+            e.add_argument("--method", choices=("auto", "analytic", "numeric"),
+                           help="serial arm: auto (default: closed form if the arm has one), "
+                                "analytic, or numeric (damped Newton)")
+            e.add_argument("--restarts", type=int,
+                           help="serial arm, --method numeric: random restarts when a start "
+                                "does not converge")
         e.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
-        e.set_defaults(func=lambda a, f=forward: _evaluate(a, f))
+        e.set_defaults(func=lambda a, f=forward: _evaluate(a, f), q0=None, method=None,
+                       restarts=None)
 
     v = sub.add_parser("validate", help="the report's validation trajectory, eqs. (40)-(42)")
     v.add_argument("--robot", default="default", help="'default' or a robot TOML file")
@@ -200,13 +208,16 @@ def main(argv=None) -> int:
     b.set_defaults(func=lambda a: _lazy("deltagen.apps.bench", a))
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] in evaluators:
-        # options may come between the values (`fk default --degrees 20 20 20`); argparse
-        # cannot intermix with subparsers, so the evaluating subcommands parse themselves
-        args = evaluators[argv[0]].parse_intermixed_args(argv[1:])
-        args.command = argv[0]
-    else:
-        args = parser.parse_args(argv)
+    try:
+        if argv and argv[0] in evaluators:
+            # options may come between the values (`fk default --degrees 20 20 20`); argparse
+            # cannot intermix with subparsers, so the evaluating subcommands parse themselves
+            args = evaluators[argv[0]].parse_intermixed_args(_protect_negative_numbers(argv[1:]))
+            args.command = argv[0]
+        else:
+            args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2, argparse printed why)
+        return exc.code if isinstance(exc.code, int) else 2
     from deltagen.errors import DeltagenError
 
     try:

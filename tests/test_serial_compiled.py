@@ -264,9 +264,10 @@ def test_cli_batch_of_a_serial_arm(tmp_path):
     q = _sample(arm, 7, seed=15)
     np.save(tmp_path / "q.npy", q)
     assert cli.main(["fk", name, "--input", str(tmp_path / "q.npy"), "--output", str(tmp_path / "T.npy")]) == 0
-    table = np.load(tmp_path / "T.npy")
-    np.testing.assert_allclose(table[:, :3], arm.fk(q)[:, :3, 3], atol=1e-15)
-    assert np.all(table[:, -1] == 1.0)
+    table = np.load(tmp_path / "T.npy")  # a structured array: columns by name
+    xyz = np.column_stack([table["x"], table["y"], table["z"]])
+    np.testing.assert_allclose(xyz, arm.fk(q)[:, :3, 3], atol=1e-15)
+    assert np.all(table["valid"])
 
 
 def test_analytic_jacobian_raises_at_the_euler_singularity():

@@ -1,5 +1,6 @@
 """The CLI's jobs: ``generate``, ``validate`` (the delta report's trajectory),
-``demos``, ``bench``.
+``demos``, ``bench``, ``kinematics`` (``fk`` and ``ik`` of one pose or a batch) and
+``tables`` (the one CSV/NPY reader and writer of batches, columns by name).
 
 May import: anything of deltagen except ``cli``.
 """

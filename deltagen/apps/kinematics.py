@@ -1,0 +1,302 @@
+"""`deltagen fk | ik ROBOT ...`: kinematics of one pose (positional values) or of a batch
+(``--input`` CSV/NPY, read and written by :mod:`deltagen.apps.tables`).
+
+What each command reads and writes, by column name (a command reads the other's output):
+
+==============  ===================================  ===========================================
+robot, command  reads                                writes
+==============  ===================================  ===========================================
+delta fk        q1,q2,q3[,q4]                        x,y,z[,phi],valid
+delta ik        x,y,z[,phi]                          q1,q2,q3[,q4],valid
+serial fk       q1 .. qn                             x,y,z,psi,theta,phi,T11 .. T44,valid
+serial ik       T11 .. T34 (T41 .. T44 optional),    q1 .. qn,valid
+                else x,y,z,psi,theta,phi
+==============  ===================================  ===========================================
+
+q4 is the delta's fourth axis and phi the platform's turn about z that it gives (delta report
+eq. (43)); psi, theta, phi of a serial arm are the Euler angles after Vukobratovic,
+R = Rz(psi) Ry(theta) Rx(phi). A serial ik reads the full transform when the file has it (it
+is exact even where the Euler angles are singular, theta = +-90 deg).
+
+Units: m and rad. ``--degrees`` gives and prints *revolute joint coordinates* in degrees (fk
+input, ik output, ``--q0``); prismatic joints stay in m, and poses (x, y, z and the angles
+of the pose) are always in m and rad, so the files of a round trip never change units.
+
+Exit status: 0 every pose computed; 1 computed, but some rows have no valid result (NaN
+and valid = 0 in the output, and a message naming the rows); 2 usage or input error.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from deltagen.apps.tables import Columns, output_format, read_table, write_table
+from deltagen.errors import DeltagenError
+from deltagen.inputs import InputError
+
+EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
+
+SERIAL_POSE = ("x", "y", "z", "psi", "theta", "phi")
+TRANSFORM = tuple(f"T{r}{c}" for r in range(1, 4) for c in range(1, 5))
+TRANSFORM_LAST = ("T41", "T42", "T43", "T44")
+
+
+def euler_to_matrix(psi, theta, phi) -> np.ndarray:
+    """R = Rz(psi) Ry(theta) Rx(phi) (..., 3, 3), the inverse of api.serial.euler_zyx."""
+    cs, ss = np.cos(psi), np.sin(psi)
+    ct, st = np.cos(theta), np.sin(theta)
+    cf, sf = np.cos(phi), np.sin(phi)
+    R = np.empty(np.shape(psi) + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cs * ct, cs * st * sf - ss * cf, cs * st * cf + ss * sf
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = ss * ct, ss * st * sf + cs * cf, ss * st * cf - cs * sf
+    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -st, ct * sf, ct * cf
+    return R
+
+
+@dataclass
+class Job:
+    """One command (fk or ik) on one robot: the layouts it reads, the columns it writes."""
+
+    robot: object
+    serial: bool
+    forward: bool
+    degrees: bool
+    layouts: list
+    out_names: tuple = ()
+    revolute: np.ndarray = field(default=None)  # per joint: convert with --degrees
+    options: dict = field(default_factory=dict)  # serial ik: config, q0, method, restarts
+
+    @property
+    def what(self) -> str:
+        name = self.robot.name if self.serial else "the delta robot"
+        return f"{'fk' if self.forward else 'ik'} of {name}"
+
+    # -- input -> the API's arguments -------------------------------------------------
+
+    def prepare(self, data, layout):
+        """Table columns (N, k) of ``layouts[layout]`` -> the API's input (radians, 4x4)."""
+        if self.forward:
+            q = data.copy()
+            if self.degrees:
+                conv = self.revolute[: q.shape[1]]
+                q[:, conv] = np.radians(q[:, conv])
+            return q
+        if not self.serial:
+            return data
+        T = np.zeros((data.shape[0], 4, 4))
+        if self.layouts[layout].required == TRANSFORM:
+            T[:, :3, :] = data[:, :12].reshape(-1, 3, 4)
+            T[:, 3, :] = data[:, 12:16] if data.shape[1] == 16 else (0.0, 0.0, 0.0, 1.0)
+        else:
+            T[:, :3, :3] = euler_to_matrix(data[:, 3], data[:, 4], data[:, 5])
+            T[:, :3, 3] = data[:, :3]
+            T[:, 3, 3] = 1.0
+        return T
+
+    # -- the computation --------------------------------------------------------------
+
+    def compute(self, x):
+        """(table (N, m) of ``names``, valid (N,), names) for the API input x."""
+        robot = self.robot
+        with np.errstate(all="ignore"):
+            if self.forward and self.serial:
+                from deltagen.api.serial import euler_zyx
+
+                T, valid = robot.fk(x, errors="nan")
+                out = np.column_stack([T[:, :3, 3], euler_zyx(T[:, :3, :3]), T.reshape(-1, 16)])
+                names = SERIAL_POSE + tuple(f"T{r}{c}" for r in range(1, 5) for c in range(1, 5))
+            elif self.forward:
+                out, valid = robot.fk(x, errors="nan")
+                names = ("x", "y", "z", "phi")[: out.shape[1]]
+            else:
+                if self.serial:
+                    out, valid = robot.ik(x, errors="nan", **self.api_options())
+                else:
+                    out, valid = robot.ik(x, errors="nan")
+                out = out.copy()
+                if self.degrees:
+                    conv = self.revolute[: out.shape[1]]
+                    out[:, conv] = np.degrees(out[:, conv])
+                names = tuple(f"q{i + 1}" for i in range(out.shape[1]))
+        out = np.asarray(out, dtype=np.float64).reshape(len(valid), -1)
+        # a result that is not finite is never valid, whatever the kernel's status says
+        valid = np.asarray(valid, dtype=bool).reshape(-1) & np.all(np.isfinite(out), axis=1)
+        out[~valid] = np.nan
+        return out, valid, names
+
+    def api_options(self) -> dict:
+        return dict(self.options)
+
+    def explain(self, x) -> str:
+        """Why the single input row x has no valid result (the raising API's message)."""
+        try:
+            with np.errstate(all="ignore"):
+                if self.forward or not self.serial:
+                    (self.robot.fk if self.forward else self.robot.ik)(x[0])
+                else:
+                    self.robot.ik(x[0], **self.api_options())
+        except DeltagenError as exc:
+            return str(exc)
+        return "the result is not finite (the input is too large to evaluate)"
+
+
+def make_job(robot, forward: bool, args) -> Job:
+    from deltagen.api.serial import SerialRobot
+
+    serial = isinstance(robot, SerialRobot)
+    if not serial:
+        for flag, value in (("--config", args.config), ("--q0", args.q0),
+                            ("--method", args.method), ("--restarts", args.restarts)):
+            if value is not None:
+                raise InputError(f"{flag} applies to serial arms, not to the delta robot")
+        joints = Columns(("q1", "q2", "q3"), ("q4",))
+        pose = Columns(("x", "y", "z"), ("phi",))
+        return Job(robot, False, forward, args.degrees, [joints if forward else pose],
+                   revolute=np.ones(4, dtype=bool))
+    revolute = np.array([j.revolute for j in robot.description.joints])
+    joints = Columns(tuple(f"q{i + 1}" for i in range(robot.n)))
+    if forward:
+        for flag, value in (("--q0", args.q0), ("--method", args.method),
+                            ("--restarts", args.restarts)):
+            if value is not None:
+                raise InputError(f"{flag} applies to ik, not to fk")
+        return Job(robot, True, True, args.degrees, [joints], revolute=revolute)
+    layouts = [Columns(TRANSFORM, TRANSFORM_LAST, positional=False), Columns(SERIAL_POSE)]
+    options = {}
+    if args.config is not None:
+        configs = robot.analytic_configs()
+        if args.config not in configs:
+            known = ", ".join(configs) if configs else "none: it has no closed-form inverse"
+            raise InputError(f"--config {args.config!r} is not a branch of {robot.name}'s "
+                             f"closed-form ik (branches: {known})")
+        options["config"] = args.config
+    if args.q0 is not None:
+        options["q0"] = _parse_q0(robot, args.q0, args.degrees, revolute)
+    if args.method is not None:
+        options["method"] = args.method
+    if args.restarts is not None:
+        if args.method != "numeric":
+            raise InputError("--restarts applies to --method numeric")
+        if args.restarts < 0:
+            raise InputError(f"--restarts must be >= 0, got {args.restarts}")
+        options["restarts"] = args.restarts
+    if args.config is not None and args.method == "numeric":
+        raise InputError("--config picks a closed-form branch; it does not apply to "
+                         "--method numeric (give --q0 to choose where the solver starts)")
+    return Job(robot, True, False, args.degrees, layouts, revolute=revolute, options=options)
+
+
+def _parse_q0(robot, text, degrees, revolute) -> np.ndarray:
+    if text in robot.description.configurations:
+        return robot.configuration(text)
+    try:
+        values = [float(t) for t in text.replace(",", " ").split()]
+    except ValueError:
+        known = ", ".join(robot.description.configurations) or "none"
+        raise InputError(f"--q0 {text!r}: give {robot.n} numbers separated by commas, or a "
+                         f"configuration of {robot.name} (known: {known})") from None
+    q0 = np.array(values)
+    if q0.shape != (robot.n,):
+        raise InputError(f"--q0 has {q0.size} values; {robot.name} has {robot.n} joints")
+    if not np.all(np.isfinite(q0)):
+        raise InputError(f"--q0 must be finite, got {text!r}")
+    if degrees:
+        q0[revolute] = np.radians(q0[revolute])
+    return q0
+
+
+def run(robot, forward: bool, args) -> int:
+    """The job of `deltagen fk|ik`; returns the exit status."""
+    job = make_job(robot, forward, args)
+    if args.output is not None:
+        output_format(args.output)  # a bad file name fails before any work
+    if args.input is not None:
+        if args.values:
+            raise InputError(f"give the poses either as values or with --input, not both "
+                             f"(got {len(args.values)} values and --input {args.input})")
+        if forward and job.serial and args.config is not None:
+            raise InputError("give either --config NAME or --input FILE, not both")
+        data, layout, _ = read_table(args.input, job.layouts, job.what)
+        return _batch(job, job.prepare(data, layout), args.output)
+    return _single(job, args)
+
+
+def _batch(job, x, output) -> int:
+    out, valid, names = job.compute(x)
+    write_table(output if output is not None else sys.stdout, names, out, valid)
+    bad = np.flatnonzero(~valid)
+    if bad.size:
+        shown = ", ".join(str(r) for r in bad[:10]) + (", ..." if bad.size > 10 else "")
+        print(f"{bad.size} of {len(valid)} rows failed (NaN, valid = 0): data rows {shown} "
+              "(counted from 0)", file=sys.stderr)
+        return EXIT_INVALID
+    return EXIT_OK
+
+
+def _single(job, args) -> int:
+    robot = job.robot
+    values = list(args.values)
+    if job.forward and job.serial and args.config is not None:
+        if values:
+            raise InputError("give either joint values or --config NAME, not both")
+        q = robot.configuration(args.config)[None]  # radians, as in the robot file
+        x = q
+    else:
+        if not values:
+            raise InputError(f"give the {_expected(job)} (or --input FILE)")
+        width = [lay for lay in job.layouts if lay.positional and len(values) in lay.widths()]
+        if not width:
+            raise InputError(f"{job.what}: give {_expected(job)}; got {len(values)} values")
+        for v in values:
+            if not math.isfinite(v):
+                raise InputError(f"{job.what}: every value must be a finite number, got {v!r}")
+        data = np.array([values], dtype=np.float64)
+        x = job.prepare(data, job.layouts.index(width[0]))
+    out, valid, names = job.compute(x)
+    if args.output is not None:
+        write_table(args.output, names, out, valid)
+    if not valid[0]:
+        print(f"deltagen {'fk' if job.forward else 'ik'}: no valid result: {job.explain(x)}",
+              file=sys.stderr)
+        return EXIT_INVALID
+    if args.output is None:
+        _show(job, x, out[0])
+    return EXIT_OK
+
+
+def _expected(job) -> str:
+    if not job.serial:
+        return ("3 joint angles q1 q2 q3 (or 4 with the fourth axis q4)" if job.forward
+                else "3 coordinates x y z (or 4 with the fourth axis phi)")
+    if job.forward:
+        return f"{job.robot.n} joint values q1 .. q{job.robot.n} (or --config NAME)"
+    return "the pose as 6 values x y z psi theta phi (m, rad)"
+
+
+def _units(job) -> str:
+    units = ["deg" if (job.degrees and r) else ("rad" if r else "m") for r in job.revolute]
+    if not job.serial:
+        units = units[:3]
+    return units[0] if len(set(units)) == 1 else "(" + ", ".join(units) + ")"
+
+
+def _show(job, x, row) -> None:
+    robot = job.robot
+    if job.forward and job.serial:
+        T = row[6:].reshape(4, 4)
+        psi, theta, phi = row[3:6]
+        with np.printoptions(precision=6, suppress=True):
+            print(f"{robot.name}: T =\n{T}")
+        print("position  x, y, z = [" + ", ".join(f"{v:.9g}" for v in row[:3]) + "] m")
+        print(f"Euler (Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)): psi = "
+              f"{np.degrees(psi):.6g} deg, theta = {np.degrees(theta):.6g} deg, "
+              f"phi = {np.degrees(phi):.6g} deg")
+    elif job.forward:
+        print("p = [" + ", ".join(f"{v:.12g}" for v in row[:3]) + "] m"
+              + (f", phi = {row[3]:.12g} rad" if row.size == 4 else ""))
+    else:
+        print("q = [" + ", ".join(f"{v:.12g}" for v in row) + f"] {_units(job)}")
