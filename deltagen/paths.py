@@ -30,12 +30,20 @@ def runtime_dir() -> Path:
     return _PACKAGE / "codegen" / "runtime"
 
 
+_RESOLVED: dict[str, Path] = {}
+
+
 def cache_dir() -> Path:
-    """Build cache of compiled cores: $DELTAGEN_CACHE, else $XDG_CACHE_HOME/deltagen."""
-    if os.environ.get("DELTAGEN_CACHE"):
-        return Path(os.environ["DELTAGEN_CACHE"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "deltagen"
+    """Build cache of compiled cores: $DELTAGEN_CACHE, else $XDG_CACHE_HOME/deltagen, else
+    ~/.cache/deltagen. Always absolute: a relative value is resolved once, against the
+    working directory at its first use, so a later chdir cannot move the cache."""
+    raw = os.environ.get("DELTAGEN_CACHE")
+    if not raw:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        raw = os.path.join(base, "deltagen")
+    if raw not in _RESOLVED:
+        _RESOLVED[raw] = Path(os.path.abspath(os.path.expanduser(raw)))
+    return _RESOLVED[raw]
 
 
 def robots_dir() -> Path:

@@ -1,30 +1,57 @@
-"""Build stage: cffi (API mode) compiles checked-in generated C into an extension module,
-cached on disk under a key of the sources, the compiler flags and the interpreter, so a
-changed source never loads a stale module."""
+"""Build stage: compile a generated C module (and the runtime C it needs) into a cffi
+extension module, cached on disk under a key of everything that shapes the binary.
+
+How the cache stays sound (issue "Reliability", class 1):
+
+* **One build per key at a time**, from threads and processes alike: a lock per key, a
+  ``threading.Lock`` inside the process and an exclusive ``flock`` on a lock file across
+  processes. The first caller builds; the others wait and then load its result.
+* **No working-directory changes**: cffi only writes the wrapper C
+  (``FFI.emit_c_code``); the compiler is run here as one subprocess with absolute paths
+  (cffi's own ``compile`` changes the process's working directory, which breaks other
+  threads).
+* **Verified artifacts**: a build happens in a private temporary folder; the shared object's
+  size and SHA-256 go into a manifest next to it, and the folder is renamed into place in
+  one atomic step. Before loading, the manifest is checked against the file: a truncated,
+  empty, garbage or missing artifact is moved aside and rebuilt, never handed to the
+  dynamic loader (a truncated ``.so`` kills a process with SIGBUS).
+* **Clear errors**: a failed build raises :class:`BuildError` with the compiler's own error
+  text; a successful build's warnings never reach the user's terminal. A cache path that is
+  not a directory or is not writable gets an error naming the path.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import ctypes.util
 import hashlib
 import importlib.machinery
 import importlib.util
+import json
 import os
 import platform
 import re
+import shlex
 import shutil
+import subprocess
 import sys
 import sysconfig
 import tempfile
+import threading
 from pathlib import Path
 
 from deltagen.errors import DeltagenError
 from deltagen.paths import cache_dir, generated_dir, runtime_dir
 
 _LOADED: dict[str, object] = {}
+_GUARD = threading.Lock()  # guards _KEY_LOCKS and _LOADED
+_KEY_LOCKS: dict[str, threading.Lock] = {}
+_MANIFEST = "manifest.json"
+_BUILD_TIMEOUT_S = 600
 
 
 class BuildError(DeltagenError, RuntimeError):
-    """The C core could not be compiled (no compiler?); backend="reference" still works."""
+    """The C core could not be built or loaded; backend="reference" still works."""
 
 
 def _vector_math_available() -> bool:
@@ -78,9 +105,29 @@ def runtime_cdef(runtime: dict) -> str:
                    for part in _CFFI_PART.findall(text))
 
 
+def usable_cache_dir() -> Path:
+    """The build cache folder, absolute, created if needed; BuildError naming the path when
+    it is not a directory or cannot be written."""
+    root = cache_dir()
+    source = "DELTAGEN_CACHE" if os.environ.get("DELTAGEN_CACHE") else "the build cache"
+    if root.exists() and not root.is_dir():
+        raise BuildError(f"{source} {root} is not a directory; point DELTAGEN_CACHE at a "
+                         "writable folder (backend='reference' needs no cache)")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BuildError(f"{source} {root} cannot be created ({exc.strerror}); point "
+                         "DELTAGEN_CACHE at a writable folder") from exc
+    if not os.access(root, os.W_OK | os.X_OK):
+        raise BuildError(f"{source} {root} is not writable; point DELTAGEN_CACHE at a "
+                         "writable folder (backend='reference' needs no cache)")
+    return root
+
+
 def load(base_name: str, prefix: str, directory: Path | None = None):
-    """Return the compiled cffi module (``.ffi``, ``.lib``) of generated/<base_name>.c and
-    the runtime C it includes (codegen/runtime/, compiled beside it)."""
+    """Return the compiled cffi module (``.ffi``, ``.lib``) of <directory>/<base_name>.c
+    (generated/ by default) and the runtime C it includes (codegen/runtime/, compiled
+    beside it)."""
     directory = Path(directory) if directory else generated_dir()
     files = {ext: directory / f"{base_name}{ext}" for ext in (".c", ".h", ".cdef.h")}
     for path in files.values():
@@ -90,25 +137,97 @@ def load(base_name: str, prefix: str, directory: Path | None = None):
     runtime = {f: f.read_text() for f in runtime_files([texts[".c"], texts[".h"]])}
     args, libraries = compile_flags(prefix)
     key_material = "\0".join(
-        [texts[".c"], texts[".h"], texts[".cdef.h"], *(f.name + text for f, text in runtime.items()),
-         " ".join(args), " ".join(libraries), sys.version, sysconfig.get_platform(),
-         _cffi_version()]
+        [texts[".c"], texts[".h"], texts[".cdef.h"], " ".join(args), " ".join(libraries),
+         sys.version, sysconfig.get_platform(), _cffi_version(), _compiler_identity()]
+        + [f.name + "\0" + text for f, text in runtime.items()]
     )
     key = hashlib.sha256(key_material.encode()).hexdigest()[:16]
     module_name = f"_deltagen_{base_name}_{key}"
-    if module_name in _LOADED:
-        return _LOADED[module_name]
-    target = cache_dir() / module_name
-    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
-    built = target / f"{module_name}{suffix}"
-    if not built.is_file():
-        _compile(module_name, target, texts, files[".c"].name, files[".h"].name, runtime,
-                 args, libraries)
-    spec = importlib.util.spec_from_file_location(module_name, built)
+    with _GUARD:
+        if module_name in _LOADED:
+            return _LOADED[module_name]
+        key_lock = _KEY_LOCKS.setdefault(module_name, threading.Lock())
+    with key_lock:
+        with _GUARD:
+            if module_name in _LOADED:
+                return _LOADED[module_name]
+        root = usable_cache_dir()
+        target = root / module_name
+        shared_object = target / f"{module_name}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
+        with _process_lock(root, module_name):
+            if not _verified(target, shared_object):
+                _discard(target)
+                _build(module_name, target, shared_object.name, texts, files, runtime, args,
+                       libraries)
+            module = _import(module_name, shared_object)
+        with _GUARD:
+            _LOADED[module_name] = module
+        return module
+
+
+def _import(module_name: str, shared_object: Path):
+    spec = importlib.util.spec_from_file_location(module_name, shared_object)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    _LOADED[module_name] = module
+    try:
+        spec.loader.exec_module(module)
+    except ImportError as exc:
+        raise BuildError(f"the compiled core {shared_object} does not load ({exc}); delete "
+                         f"{shared_object.parent} to rebuild it") from exc
     return module
+
+
+@contextlib.contextmanager
+def _process_lock(root: Path, module_name: str):
+    """Exclusive lock across processes for one cache key (a no-op where flock is missing)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: threads are still serialised by the key lock
+        yield
+        return
+    locks = root / "locks"
+    locks.mkdir(exist_ok=True)
+    with open(locks / f"{module_name}.lock", "a+b") as handle:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+
+
+def _digest(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _verified(target: Path, shared_object: Path) -> bool:
+    """True when the artifact is complete: its manifest names its exact size and hash."""
+    try:
+        manifest = json.loads((target / _MANIFEST).read_text())
+        return (shared_object.is_file()
+                and shared_object.stat().st_size == manifest["size"]
+                and _digest(shared_object) == manifest["sha256"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def _discard(target: Path) -> None:
+    """Move a bad or partial artifact out of the way (a rename, so a process that still has
+    it mapped keeps its pages), then delete it."""
+    if not target.exists() and not target.is_symlink():
+        return
+    trash = target.with_name(f"{target.name}.bad.{os.getpid()}.{threading.get_ident()}")
+    try:
+        os.replace(target, trash)
+    except OSError:
+        trash = target
+    if trash.is_dir() and not trash.is_symlink():
+        shutil.rmtree(trash, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            trash.unlink()
 
 
 def _cffi_version() -> str:
@@ -117,40 +236,62 @@ def _cffi_version() -> str:
     return cffi.__version__
 
 
-def _compile(module_name, target: Path, texts, c_name, h_name, runtime, args, libraries) -> None:
-    import cffi
+def _compiler_command() -> list[str]:
+    """The interpreter's own shared-object link command (compile and link in one step)."""
+    command = os.environ.get("LDSHARED") or sysconfig.get_config_var("LDSHARED") or "cc -shared"
+    parts = shlex.split(command)
+    cc = os.environ.get("CC")
+    if cc:  # honour CC like setuptools does
+        parts = shlex.split(cc) + parts[1:]
+    return parts
 
-    target.parent.mkdir(parents=True, exist_ok=True)
+
+def _compiler_identity() -> str:
+    return " ".join(_compiler_command())
+
+
+def _build(module_name, target: Path, so_name: str, texts, files, runtime, args,
+           libraries) -> None:
+    import cffi
+    from cffi.recompiler import make_c_source
+
     work = Path(tempfile.mkdtemp(prefix=f"{module_name}.", dir=target.parent))
     try:
-        (work / c_name).write_text(texts[".c"])
-        (work / h_name).write_text(texts[".h"])
-        for f in runtime:  # copies: the compiled text is the hashed text
-            (work / f.name).write_text(runtime[f])
+        for ext in (".c", ".h"):
+            (work / files[ext].name).write_text(texts[ext])
+        for f, text in runtime.items():  # copies: the compiled text is the hashed text
+            (work / f.name).write_text(text)
         ffi = cffi.FFI()
         ffi.cdef(runtime_cdef(runtime) + texts[".cdef.h"])
-        ffi.set_source(
-            module_name,
-            f'#include "{h_name}"',
-            sources=[str(work / c_name), *(str(work / f.name) for f in runtime if f.suffix == ".c")],
-            include_dirs=[str(work)],
-            extra_compile_args=args,
-            libraries=libraries,
-        )
+        wrapper = work / f"{module_name}.c"
+        # cffi writes the wrapper C only; the compiler runs below (no chdir, no printing)
+        make_c_source(ffi, module_name, f'#include "{files[".h"].name}"', str(wrapper))
+        out = work / "out"
+        out.mkdir()
+        include = [f"-I{work}", f"-I{sysconfig.get_paths()['include']}"]
+        # what an extension build of this interpreter adds (-fwrapv, -DNDEBUG), minus -g
+        ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
+        ccshared += ["-fwrapv", "-DNDEBUG"]
+        command = (_compiler_command() + ccshared + args + include
+                   + [str(wrapper), str(work / files[".c"].name)] + [str(work / f.name) for f in runtime if f.suffix == ".c"]
+                   + ["-o", str(out / so_name)] + [f"-l{lib}" for lib in libraries])
         try:
-            built = ffi.compile(tmpdir=str(work), verbose=False)
-        except Exception as exc:  # distutils/setuptools raise several types
-            raise BuildError(
-                f"compiling the C core failed ({exc}); is a C compiler installed? "
-                "backend='reference' works without one"
-            ) from exc
-        final = work / "out"
-        final.mkdir()
-        shutil.move(built, final / Path(built).name)
-        try:
-            os.rename(final, target)
-        except OSError:
-            if not target.is_dir():  # lost a race to another process: theirs is as good
-                raise
+            proc = subprocess.run(command, cwd=work, capture_output=True, text=True,
+                                  timeout=_BUILD_TIMEOUT_S, stdin=subprocess.DEVNULL)
+        except FileNotFoundError as exc:
+            raise BuildError(f"no C compiler: {command[0]!r} was not found (set CC, or use "
+                             "backend='reference', which needs none)") from exc
+        except subprocess.TimeoutExpired as exc:
+            raise BuildError(f"compiling {files['.c'].name} took over {_BUILD_TIMEOUT_S} s; "
+                             "gave up") from exc
+        if proc.returncode != 0:
+            text = (proc.stderr or proc.stdout or "").strip()
+            raise BuildError(f"compiling {files['.c'].name} failed (exit {proc.returncode}):\n"
+                             f"{shlex.join(command)}\n{text[-4000:]}")
+        built = out / so_name
+        manifest = {"size": built.stat().st_size, "sha256": _digest(built),
+                    "command": shlex.join(command)}
+        (out / _MANIFEST).write_text(json.dumps(manifest, indent=1))
+        os.replace(out, target)  # atomic: a reader sees the whole folder or none
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -5,15 +5,16 @@ build cache under a key of its content (a changed file never loads a stale modul
 from __future__ import annotations
 
 import hashlib
+import os
 import threading
 from pathlib import Path
 
 import numpy as np
 
 from deltagen import status as st
-from deltagen.native.build import load
+from deltagen.native.build import load, usable_cache_dir
 from deltagen.inputs import plain_pose
-from deltagen.paths import cache_dir, generated_dir
+from deltagen.paths import generated_dir
 from deltagen.codegen.serial import (arm_sources, base_name, c_prefix, description_fingerprint,
                                      generator_fingerprint)
 
@@ -28,13 +29,13 @@ def source_dir(desc) -> Path:
     if header.is_file() and stamp in header.read_text():
         return generated_dir()
     key = hashlib.sha256((desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
-    folder = cache_dir() / "sources" / f"{name}_{key}"
+    folder = usable_cache_dir() / "sources" / f"{name}_{key}"
     if not (folder / f"{name}.cdef.h").is_file():
         folder.mkdir(parents=True, exist_ok=True)
         sources = arm_sources(desc)
         # the .cdef.h marks a complete folder, so it is written last
         for file_name in sorted(sources, key=lambda f: f.endswith(".cdef.h")):
-            tmp = folder / f".{file_name}.{threading.get_ident()}.tmp"
+            tmp = folder / f".{file_name}.{os.getpid()}.{threading.get_ident()}.tmp"
             tmp.write_text(sources[file_name])
             tmp.replace(folder / file_name)
     return folder

@@ -1,0 +1,223 @@
+"""The build cache under faults (issue "Reliability", class 1): concurrent cold builds from
+threads and processes, corrupted / truncated / missing artifacts, relative, non-directory
+and unusable cache paths, compiler errors and warnings.
+
+A tiny C module (one function) stands in for a robot core, so each cold build takes a
+fraction of a second; one test builds a real robot core from a relative cache path.
+Checks that must survive a crash of the loading process run in subprocesses.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+from pathlib import Path
+
+import pytest
+
+from deltagen.native import build
+
+TINY_C = """#include "tiny.h"
+int tiny_add(int a, int b) { return a + b; }
+"""
+TINY_H = "int tiny_add(int a, int b);\n"
+TINY_CDEF = "int tiny_add(int a, int b);\n"
+
+# loads the tiny module from the cache named by DELTAGEN_CACHE and calls it
+LOADER = textwrap.dedent("""
+    import sys
+    from deltagen.native import build
+    module = build.load("tiny", "tiny", sys.argv[1])
+    print(module.lib.tiny_add(2, 3))
+""")
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    source = tmp_path / "src"
+    source.mkdir()
+    # a comment unique to the test: its own cache key, never a module loaded before
+    (source / "tiny.c").write_text(f"/* {tmp_path.name} */\n" + TINY_C)
+    (source / "tiny.h").write_text(TINY_H)
+    (source / "tiny.cdef.h").write_text(TINY_CDEF)
+    return source
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
+    return folder
+
+
+def _run_loader(source: Path, cache: Path, cwd: Path | None = None):
+    env = dict(os.environ, DELTAGEN_CACHE=str(cache))
+    return subprocess.run([sys.executable, "-c", LOADER, str(source)], env=env, cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+
+
+def _artifact(cache: Path) -> Path:
+    (folder,) = [p for p in cache.iterdir() if p.name.startswith("_deltagen_tiny_")]
+    (so,) = folder.glob("*.so")
+    return so
+
+
+def test_cold_build_writes_a_verified_artifact(tiny, cache):
+    proc = _run_loader(tiny, cache)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "5"
+    so = _artifact(cache)
+    assert (so.parent / "manifest.json").is_file()
+    assert build._verified(so.parent, so)
+
+
+@pytest.mark.parametrize("fault", ["truncated", "zero_length", "garbage", "missing_so",
+                                   "missing_manifest", "wrong_manifest"])
+def test_a_damaged_artifact_is_rebuilt_not_loaded(tiny, cache, fault):
+    """Before the fix a truncated .so killed every later process with SIGBUS and an empty
+    one or a folder without its .so gave a permanent ImportError."""
+    assert _run_loader(tiny, cache).returncode == 0
+    so = _artifact(cache)
+    data = so.read_bytes()
+    if fault == "truncated":
+        so.write_bytes(data[: len(data) // 3])
+    elif fault == "zero_length":
+        so.write_bytes(b"")
+    elif fault == "garbage":
+        so.write_bytes(os.urandom(len(data)))
+    elif fault == "missing_so":
+        so.unlink()
+    elif fault == "missing_manifest":
+        (so.parent / "manifest.json").unlink()
+    elif fault == "wrong_manifest":
+        (so.parent / "manifest.json").write_text('{"size": 1, "sha256": "00"}')
+    proc = _run_loader(tiny, cache)
+    assert proc.returncode == 0, f"rc {proc.returncode}: {proc.stderr[-2000:]}"
+    assert proc.stdout.strip() == "5"
+    assert build._verified(so.parent, _artifact(cache))
+
+
+def test_concurrent_cold_builds_from_threads(tiny, cache):
+    """Before the fix cffi's compile changed the working directory of the whole process,
+    so threads building at once collided."""
+    cwd = os.getcwd()
+    results, errors, cwds = [], [], set()
+    barrier = threading.Barrier(4)
+
+    def worker():
+        try:
+            barrier.wait()
+            results.append(build.load("tiny", "tiny", tiny).lib.tiny_add(20, 22))
+            cwds.add(os.getcwd())
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=worker) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(300)
+    assert errors == []
+    assert results == [42] * 4
+    assert cwds == {cwd} and os.getcwd() == cwd
+    assert len([p for p in cache.iterdir() if p.name.startswith("_deltagen_tiny_")]) == 1
+
+
+def test_concurrent_cold_builds_from_processes(tiny, cache):
+    env = dict(os.environ, DELTAGEN_CACHE=str(cache))
+    procs = [subprocess.Popen([sys.executable, "-c", LOADER, str(tiny)], env=env,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(4)]
+    outputs = [p.communicate(timeout=300) for p in procs]
+    for proc, (out, err) in zip(procs, outputs):
+        assert proc.returncode == 0, err
+        assert out.strip() == "5"
+    assert not [p for p in cache.iterdir() if ".bad." in p.name or p.name.endswith(".tmp")]
+
+
+def test_relative_cache_path_is_resolved_once(tiny, tmp_path):
+    """Before the fix a relative DELTAGEN_CACHE made every build fail with a message that
+    blamed the compiler."""
+    work = tmp_path / "cwd"
+    work.mkdir()
+    proc = _run_loader(tiny, Path("relative-cache"), cwd=work)
+    assert proc.returncode == 0, proc.stderr
+    assert (work / "relative-cache").is_dir()
+    assert _artifact(work / "relative-cache").is_file()
+
+
+def test_relative_cache_path_builds_a_robot_core(tmp_path):
+    """The same for a real core: a user arm rendered and compiled from a relative cache."""
+    script = textwrap.dedent("""
+        import numpy as np
+        from deltagen import SerialRobot
+        arm = SerialRobot.from_dh([{"a": 0.3}, {"a": 0.2}], "standard", name="planar2")
+        T = arm.fk(np.array([0.1, 0.2]))
+        print(float(T[0, 3]))
+    """)
+    work = tmp_path / "cwd"
+    work.mkdir()
+    env = dict(os.environ, DELTAGEN_CACHE="rel")
+    proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=work,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stderr.strip() == "", "a successful build printed to the terminal"
+    assert (work / "rel").is_dir()
+
+
+def test_cache_path_that_is_a_file(tiny, tmp_path, monkeypatch):
+    blocker = tmp_path / "not-a-dir"
+    blocker.write_text("x")
+    monkeypatch.setenv("DELTAGEN_CACHE", str(blocker))
+    with pytest.raises(build.BuildError, match="not a directory") as info:
+        build.load("tiny", "tiny", tiny)
+    assert str(blocker) in str(info.value)
+
+
+def test_cache_path_that_cannot_be_created(tiny, tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    bad = blocker / "cache"
+    monkeypatch.setenv("DELTAGEN_CACHE", str(bad))
+    with pytest.raises(build.BuildError, match="cannot be created") as info:
+        build.load("tiny", "tiny", tiny)
+    assert str(bad) in str(info.value)
+
+
+def test_reference_backend_works_without_a_usable_cache(tmp_path, monkeypatch):
+    import numpy as np
+
+    from deltagen import DeltaRobot, SerialRobot
+
+    blocker = tmp_path / "not-a-dir"
+    blocker.write_text("x")
+    monkeypatch.setenv("DELTAGEN_CACHE", str(blocker))
+    p = DeltaRobot.default(backend="reference").fk(np.array([0.1, 0.2, 0.3]))
+    assert np.all(np.isfinite(p))
+    arm = SerialRobot.from_dh([{"a": 0.3}, {"a": 0.2}], "standard", name="planar2", backend="reference")
+    assert np.isfinite(arm.fk(np.array([0.1, 0.2]))).all()
+
+
+def test_compiler_error_text_reaches_the_user(tiny, cache):
+    (tiny / "tiny.c").write_text(TINY_C + "int broken_function(void) { return undeclared_name; }\n")
+    with pytest.raises(build.BuildError) as info:
+        build.load("tiny", "tiny", tiny)
+    text = str(info.value)
+    assert "undeclared_name" in text and "error" in text
+    assert "is a C compiler installed" not in text
+
+
+def test_warnings_of_a_successful_build_stay_quiet(tiny, cache, capfd):
+    (tiny / "tiny.c").write_text(TINY_C + "int unused_arg(int x, int y) { return x; }\n")
+    assert build.load("tiny", "tiny", tiny).lib.tiny_add(1, 1) == 2
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+
+
+def test_missing_compiler_is_named(tiny, cache, monkeypatch):
+    monkeypatch.setenv("CC", "/nonexistent/deltagen-cc")
+    with pytest.raises(build.BuildError, match="deltagen-cc"):
+        build.load("tiny", "tiny", tiny)
