@@ -1,4 +1,4 @@
-"""`deltagen validate`: the validation trajectory of the report (seed 000, section 4).
+"""`deltagen validate`: the validation trajectory of the delta report (section 4).
 
 The platform follows the test trajectory of eqs. (40)-(42) (two crossed chirps in x and
 y between 0.1 Hz and 5 Hz, a 5 Hz oscillation in z), and the fourth axis follows
