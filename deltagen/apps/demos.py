@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from deltagen.apps.plotting import pyplot
+
 NAMES = ("lecture-scara", "miskolc-pick-and-place")
 
 # ------------------------------------------------------------------ lecture
@@ -98,11 +100,7 @@ def lecture_lines(table=None) -> list[str]:
 
 
 def _plot_lecture(table, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 5.5), layout="constrained")
     ax.plot(table.soll[:, 0], table.soll[:, 1], "o-", color="tab:blue", ms=4, label="Soll")
     ax.plot(table.ist[:, 0], table.ist[:, 1], "s--", color="tab:red", ms=4, label="Ist")
@@ -211,7 +209,7 @@ def _segment_marks(ax, traj, labels=True):
 
 
 def _plot_joint_angles(jt, path):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     arm = jt.robot
     fig, ax = plt.subplots(figsize=(12, 6.2), layout="constrained")
@@ -244,7 +242,7 @@ _MARKS = {
 
 
 def _plot_arm_poses(jt, path, every=0.75):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     arm = jt.robot
     step = max(1, int(round(every / jt.dt)))
@@ -335,7 +333,7 @@ def _plot_arm_poses(jt, path, every=0.75):
 
 
 def _plot_rates(jt, jt_half, path):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from deltagen.plan.trajectory import numerical_rates
 
@@ -395,9 +393,7 @@ def _write_csv(jt, path):
 
 
 def run_miskolc(out=None, stream=None) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    pyplot()  # before the computation: without matplotlib, say so now
     from deltagen.api.serial import SerialRobot
 
     stream = sys.stdout if stream is None else stream
