@@ -18,13 +18,33 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_python_m_deltagen_runs_the_cli():
-    done = subprocess.run([sys.executable, "-m", "deltagen", "fk", "default", "--backend", "reference",
-                           "0.1", "0.2", "0.3"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "deltagen",
+            "fk",
+            "default",
+            "--backend",
+            "reference",
+            "0.1",
+            "0.2",
+            "0.3",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("p = [")
-    done = subprocess.run([sys.executable, "-m", "deltagen", "--help"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "deltagen", "--help"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 0 and "usage: deltagen" in done.stdout
 
 
@@ -64,17 +84,44 @@ def test_pyplot_without_matplotlib_names_the_extra(no_matplotlib):
 
 
 def test_validate_without_matplotlib_says_so_before_the_run(no_matplotlib, tmp_path, capsys):
-    rc = cli.main(["validate", "--rate", "50", "--duration", "0.2", "--backend", "reference",
-                   "--quiet", "--out", str(tmp_path)])
+    rc = cli.main(
+        [
+            "validate",
+            "--rate",
+            "50",
+            "--duration",
+            "0.2",
+            "--backend",
+            "reference",
+            "--quiet",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2
-    assert "deltagen validate: error: matplotlib is needed for plots: pip install " \
-           "'deltagen[plot]'" in err
+    assert (
+        "deltagen validate: error: matplotlib is needed for plots: pip install "
+        "'deltagen[plot]'" in err
+    )
     assert "Traceback" not in err
     assert not (tmp_path / "validation.csv").exists()  # stopped before the work
     # --no-plot needs no matplotlib
-    rc = cli.main(["validate", "--rate", "50", "--duration", "0.2", "--backend", "reference",
-                   "--quiet", "--no-plot", "--out", str(tmp_path)])
+    rc = cli.main(
+        [
+            "validate",
+            "--rate",
+            "50",
+            "--duration",
+            "0.2",
+            "--backend",
+            "reference",
+            "--quiet",
+            "--no-plot",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert rc == 0
     assert (tmp_path / "validation.csv").exists()
 
