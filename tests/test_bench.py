@@ -1,9 +1,10 @@
 """Smoke test of `deltagen bench` at a tiny size: it runs, exits 0 and names every
 quantity it measures. No timing assertions (shared machines are noisy).
 
-The comparison with roboticstoolbox-python / pinocchio (optional, `deltagen[bench]`) is
-switched off in the command-line runs (DELTAGEN_BENCH_ORACLES=0) and exercised on its own at a
-tiny size when a library is importable (CI installs neither)."""
+The comparison with roboticstoolbox-python / pinocchio (in the `test` extra, so CI has them;
+optional for users, `deltagen[bench]`) is switched off in the command-line runs
+(DELTAGEN_BENCH_ORACLES=0) and exercised on its own at a tiny size when a library is
+importable."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import importlib.util
 
 import pytest
 
-from deltagen.apps import bench
+from deltagen.apps import bench, timing
 from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
@@ -112,7 +113,7 @@ def test_serial_poses_are_within_limits():
 def test_oracle_section_at_tiny_size(monkeypatch, markdown):
     """The rtb / pinocchio comparison runs, pairs every library call with a deltagen call
     and finds them in agreement (sizes shrunk: this checks the wiring, not the speed)."""
-    monkeypatch.setattr(bench, "LATENCY_REPEAT_NS", 1_000_000)
+    monkeypatch.setattr(timing, "LATENCY_REPEAT_NS", 1_000_000)
     for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
         monkeypatch.setattr(bench, name, 50)
     serial = bench.run_serial(300, 1, oracles=True)
@@ -135,7 +136,7 @@ def test_oracle_section_at_tiny_size(monkeypatch, markdown):
 
 
 def test_oracle_section_names_absent_libraries(monkeypatch):
-    """Without the libraries (as in CI) the section says so and measures nothing."""
+    """Without the libraries the section says so and measures nothing."""
     import sys
 
     for module in ("roboticstoolbox", "pinocchio"):

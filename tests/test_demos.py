@@ -1,5 +1,5 @@
-"""`deltagen demo`: the lecture's Matlab table (seed 002, the slide footed "Folie 111")
-reproduced digit for digit, and the Miskolc pick-and-place (seed 004) with its figures.
+"""`deltagen demo`: the lecture's Matlab table (lecture slide 111, footed "Folie 111")
+reproduced digit for digit, and the Miskolc paper's pick-and-place with its figures.
 
 The independent evidence for the lecture demo is the table AS PRINTED on the slide, typed
 in below; the algorithm is the slides' (106-110), never tuned to the numbers."""

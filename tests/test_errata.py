@@ -464,7 +464,7 @@ def test_maxima_script_y_line_is_a_typo():
 
 def test_eq29_is_a_duplicated_line_of_eq28():
     if not SEED.exists():
-        pytest.skip("seed text not available")
+        pytest.skip(f"the delta report is not at {SEED} (docs/sources.md)")
     text = SEED.read_text(encoding="utf-8")
     line29 = next(ln for ln in text.splitlines() if ln.rstrip().endswith("(29)$$"))
     fragment = line29.strip("$ ").rsplit(r"\quad", 1)[0].strip()

@@ -2,8 +2,8 @@
 
 Evidence used here, independent of the solver's own construction where possible:
 * round trips through the numpy reference forward kinematics (plain 4x4 products);
-* the printed formulas of the seeds: Paul's method for the lecture SCARA (seed 002, slides
-  103-105) with the slide-95 numbers, and the Miskolc paper's eqs. (4)-(9) (seed 004);
+* the printed formulas of the sources: Paul's method for the lecture SCARA (lecture slides
+  103-105) with the slide-95 numbers, and the Miskolc paper's eqs. (4)-(9);
 * geometric meaning of the configuration names, measured on the arm's own frames;
 * Corke's Robotics Toolbox ``Puma560.ikine_a`` when roboticstoolbox is installed.
 """
@@ -257,7 +257,7 @@ def test_shoulder_and_elbow_singularities_of_the_manutec_r15():
     assert _singular(desc, cases).all()
 
 
-# -- seed 002: the lecture's planar SCARA (slides 95, 103-105) ------------------------------
+# -- lecture: the planar SCARA (slides 95, 103-105) -------------------------------------------
 
 
 def test_slide_95_numbers_give_30_30_on_one_branch():
@@ -322,7 +322,7 @@ def test_scara_position_only_and_yaw(name):
     assert np.abs(_fk(desc, qp)[..., :3, 3] - T[:, None, :3, 3]).max() < 1e-10
 
 
-# -- seed 004: the Miskolc RRRR robot, eqs. (4)-(9) -------------------------------------------
+# -- Miskolc paper: the RRRR robot, eqs. (4)-(9) ----------------------------------------------
 
 
 def test_miskolc_rrrr_agrees_with_the_papers_equations():

@@ -1,8 +1,9 @@
 """deltagen's Puma560 against independent libraries: roboticstoolbox-python (Corke's
 ``rtb.models.DH.Puma560()``) and pinocchio (a model built here from the DH table).
 
-Both are optional (``pip install deltagen[bench]``); every test here skips cleanly when its
-library is not importable, as in CI.
+Both are in the ``test`` extra, so CI runs these tests; for users they are optional
+(``pip install deltagen[bench]``), and every test here skips cleanly when its library is not
+importable.
 
 Conventions checked, and the one difference accounted for:
 

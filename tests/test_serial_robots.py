@@ -1,7 +1,7 @@
 """The bundled serial-arm robot files (robots/*.toml with a ``convention`` key).
 
 Every such file must load, be named after its file stem, have sane joint limits and
-configurations of the right length. For the files written from the seeds, the test checks
+configurations of the right length. For the files written from the sources, the test checks
 the structure against the printed tables and reproduces printed numbers with its OWN 4x4
 products (``_dh``, ``_uc`` and ``_fk`` below, plain numpy): deltagen's derivation, reference
 and generated code are not used, so these are independent checks of the robot files.
@@ -43,8 +43,8 @@ EXPECTED = {
     "manutec_h5": ("standard", "PRRR"),       # slide 97: d1 = Z, W2, W3, W4
     "bosch_sr800": ("standard", "RRPR"),      # slide 98: W1, W2, d3 = Z, W4
     "manutec_r15": ("standard", "RRRRRR"),    # slides 99/100: 3 main + 3 wrist axes
-    "motoman_up6": ("universal", "RRRRRR"),   # seed 003, table 1: A1..A6
-    "miskolc_rrrr": ("standard", "RRRR"),     # seed 004: "RRRR", n = 4
+    "motoman_up6": ("universal", "RRRRRR"),   # EASY-ROB paper, table 1: A1..A6
+    "miskolc_rrrr": ("standard", "RRRR"),     # Miskolc paper: "RRRR", n = 4
     "puma560": ("standard", "RRRRRR"),
 }
 
@@ -85,7 +85,7 @@ def _mdh(a, alpha, d, theta) -> np.ndarray:
 
 
 def _uc(j, q) -> np.ndarray:
-    """Universal coordinates (seed 003, eq. 3): Rot_i(q_i) Tx Ty Tz Rx Ry Rz."""
+    """Universal coordinates (EASY-ROB paper, eq. (3)): Rot_i(q_i) Tx Ty Tz Rx Ry Rz."""
     if j.revolute:
         motion = _rot(j.axis, q + j.offset)
     else:
@@ -186,7 +186,7 @@ def test_structure_matches_the_source(stem):
     assert desc.n == len(types)
 
 
-# -- lecture slides (seed 002) ---------------------------------------------------------------
+# -- lecture slides ---------------------------------------------------------------------------
 
 
 def test_lecture_scara_table():
@@ -338,7 +338,7 @@ def test_manutec_r15_table_and_poses():
         assert np.allclose(c1, c2, atol=1e-12)
 
 
-# -- EASY-ROB paper (seed 003): MOTOMAN UP6 ---------------------------------------------------
+# -- EASY-ROB paper: MOTOMAN UP6 --------------------------------------------------------------
 
 
 def test_motoman_up6_table():
@@ -380,7 +380,7 @@ def test_motoman_up6_central_wrist():
     assert np.allclose(T[:3, 3] - 0.095 * T[:3, 2], [0.670, 0.0, 0.890], atol=1e-12)
 
 
-# -- Miskolc paper (seed 004) -------------------------------------------------------------------
+# -- Miskolc paper ------------------------------------------------------------------------------
 
 
 def test_miskolc_rrrr_agrees_with_the_papers_inverse_kinematics():

@@ -13,10 +13,13 @@ Jacobian inverse (fk_vel, fk_acc, jacobian, ik_vel, ik_acc) treat them as errors
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from deltagen import status as st
+from deltagen.api.hints import Backend, Errors, PathLike, Result
 from deltagen.errors import SingularityError, UnreachableError, rows_text
 from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
 from deltagen.model.delta import DeltaGeometry
@@ -33,8 +36,12 @@ class DeltaRobot:
     drive axes with z up, so the platform works at negative z; q_i > 0 turns a crank down.
     """
 
-    def __init__(self, r_a, r_b, l_a, l_b, theta=(0.0, 2 * math.pi / 3, 4 * math.pi / 3), *,
-                 name="delta", singular_tol=st.SINGULAR_TOL, backend="compiled"):
+    _core: Any  # CompiledDelta or _ReferenceCore: the same call signatures
+
+    def __init__(self, r_a: float, r_b: float, l_a: float, l_b: float,
+                 theta: tuple[float, ...] = (0.0, 2 * math.pi / 3, 4 * math.pi / 3), *,
+                 name: str = "delta", singular_tol: float = st.SINGULAR_TOL,
+                 backend: Backend = "compiled") -> None:
         self.geometry = DeltaGeometry(r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b, theta=theta,
                                       name=name, singular_tol=singular_tol)
         self._init_backend(backend)
@@ -57,25 +64,25 @@ class DeltaRobot:
             self._fk_single = self._ik_single = None
 
     @classmethod
-    def from_geometry(cls, geometry: DeltaGeometry, backend="compiled") -> "DeltaRobot":
+    def from_geometry(cls, geometry: DeltaGeometry, backend: Backend = "compiled") -> DeltaRobot:
         robot = cls.__new__(cls)
         robot.geometry = geometry
         robot._init_backend(backend)
         return robot
 
     @classmethod
-    def default(cls, backend="compiled") -> "DeltaRobot":
+    def default(cls, backend: Backend = "compiled") -> DeltaRobot:
         """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8 m, 0/120/240 deg."""
         return cls.from_geometry(DeltaGeometry.default(), backend)
 
     @classmethod
-    def from_toml(cls, path, backend="compiled") -> "DeltaRobot":
+    def from_toml(cls, path: PathLike, backend: Backend = "compiled") -> DeltaRobot:
         return cls.from_geometry(DeltaGeometry.from_toml(path), backend)
 
-    def with_backend(self, backend) -> "DeltaRobot":
+    def with_backend(self, backend: Backend) -> DeltaRobot:
         return type(self).from_geometry(self.geometry, backend)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         g = self.geometry
         deg = ", ".join(f"{math.degrees(t):g}" for t in g.theta)
         return (f"DeltaRobot(r_a={g.r_a!r}, r_b={g.r_b!r}, l_a={g.l_a!r}, l_b={g.l_b!r}, "
@@ -83,7 +90,7 @@ class DeltaRobot:
 
     # -- the batched quantities -------------------------------------------------------
 
-    def fk(self, q, errors="raise"):
+    def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Platform position p (..., 3|4) of crank angles q (..., 3|4), eqs. (2)-(27), (43)."""
         if self._fk_single is not None and errors == "raise":
             p = self._fk_single(q)
@@ -93,25 +100,26 @@ class DeltaRobot:
         p, status = self._core.fk(qf)
         return self._finish(errors, lead, status, [p], ("q",), allow_singular=True)
 
-    def fk_vel(self, q, qd, errors="raise"):
+    def fk_vel(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """(p, pdot) from (q, qdot), eq. (30)."""
         lead, _, (qf, qdf) = self._prepare(errors, q=q, qd=qd)
         p, pd, status = self._core.fk_vel(qf, qdf)
         return self._finish(errors, lead, status, [p, pd], ("q", "qd"))
 
-    def fk_acc(self, q, qd, qdd, errors="raise"):
+    def fk_acc(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike,
+               errors: Errors = "raise") -> Result:
         """(p, pdot, pddot) from (q, qdot, qddot), eqs. (30), (38)."""
         lead, _, (qf, qdf, qddf) = self._prepare(errors, q=q, qd=qd, qdd=qdd)
         p, pd, pdd, status = self._core.fk_acc(qf, qdf, qddf)
         return self._finish(errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"))
 
-    def jacobian(self, q, errors="raise"):
+    def jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """J = J_p^-1 J_q (..., 3, 3) with pdot = J @ qdot (first three axes)."""
         lead, _, (qf,) = self._prepare(errors, q=q)
         J, status = self._core.jacobian(qf)
         return self._finish(errors, lead, status, [J], ("q",), trailing=[(3, 3)])
 
-    def ik(self, p, errors="raise"):
+    def ik(self, p: ArrayLike, errors: Errors = "raise") -> Result:
         """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
         if self._ik_single is not None and errors == "raise":
             q = self._ik_single(p)
@@ -121,11 +129,12 @@ class DeltaRobot:
         q, status = self._core.ik(pf)
         return self._finish(errors, lead, status, [q], ("p",), allow_singular=True)
 
-    def ik_vel(self, p, pd, errors="raise"):
+    def ik_vel(self, p: ArrayLike, pd: ArrayLike, errors: Errors = "raise") -> Result:
         """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
         return self._inverse_rates(errors, dict(p=p, pd=pd))
 
-    def ik_acc(self, p, pd, pdd, errors="raise"):
+    def ik_acc(self, p: ArrayLike, pd: ArrayLike, pdd: ArrayLike,
+               errors: Errors = "raise") -> Result:
         """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
         Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))

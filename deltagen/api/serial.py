@@ -17,11 +17,15 @@ Orientation conventions (spelled out because they are the usual source of confus
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from deltagen import status as st
+from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
 from deltagen.errors import GeometryError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
@@ -31,6 +35,7 @@ from deltagen.status import SINGULAR_TOL
 from deltagen.model.serial import SerialDescription
 
 _BACKENDS = ("compiled", "reference")
+Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
 
 
 def _is_arm_file(path: Path) -> bool:
@@ -46,7 +51,10 @@ def bundled_robots() -> list[str]:
 class SerialRobot:
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
-    def __init__(self, description: SerialDescription, backend="compiled"):
+    _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
+    _ik_all_single: Any  # the C closed form's one-pose path, once ik_all has made it
+
+    def __init__(self, description: SerialDescription, backend: Backend = "compiled") -> None:
         if not isinstance(description, SerialDescription):
             raise InputError("SerialRobot needs a SerialDescription (see from_dh, from_toml, load)")
         if backend not in _BACKENDS:
@@ -70,7 +78,7 @@ class SerialRobot:
     # -- construction ---------------------------------------------------------------
 
     @classmethod
-    def load(cls, name: str, backend="compiled") -> "SerialRobot":
+    def load(cls, name: str, backend: Backend = "compiled") -> SerialRobot:
         """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
         if not isinstance(name, str) or not name.isidentifier() or not _is_arm_file(
                 robots_dir() / f"{name}.toml"):
@@ -78,12 +86,15 @@ class SerialRobot:
         return cls(SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend)
 
     @classmethod
-    def from_toml(cls, path, backend="compiled") -> "SerialRobot":
+    def from_toml(cls, path: PathLike, backend: Backend = "compiled") -> SerialRobot:
         return cls(SerialDescription.from_toml(Path(path)), backend)
 
     @classmethod
-    def from_dh(cls, rows, convention=None, *, name="arm", base=None, tool=None,
-                configurations=None, backend="compiled") -> "SerialRobot":
+    def from_dh(cls, rows: Iterable[Mapping[str, Any]],
+                convention: Literal["standard", "modified"] | None = None, *, name: str = "arm",
+                base: ArrayLike | None = None, tool: ArrayLike | None = None,
+                configurations: Mapping[str, Sequence[float]] | None = None,
+                backend: Backend = "compiled") -> SerialRobot:
         """rows: dicts with a, alpha, d, offset, joint|type, qlim (and *_deg keys);
         convention "standard" or "modified" must be given (no silent default)."""
         if convention not in ("standard", "modified"):
@@ -92,10 +103,10 @@ class SerialRobot:
                                            configurations=configurations)
         return cls(desc, backend)
 
-    def with_backend(self, backend) -> "SerialRobot":
+    def with_backend(self, backend: Backend) -> SerialRobot:
         return type(self)(self.description, backend)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         d = self.description
         return f"SerialRobot({d.name!r}, {d.n} joints, {d.convention}, backend={self.backend!r})"
 
@@ -104,28 +115,28 @@ class SerialRobot:
         return self.description.name
 
     @property
-    def qlim(self) -> np.ndarray:
+    def qlim(self) -> FloatArray:
         return self.description.qlim
 
     @property
-    def configurations(self) -> dict:
+    def configurations(self) -> dict[str, FloatArray]:
         return {k: np.array(v) for k, v in self.description.configurations.items()}
 
-    def configuration(self, name: str) -> np.ndarray:
+    def configuration(self, name: str) -> FloatArray:
         try:
             return np.array(self.description.configurations[name])
         except KeyError:
             known = ", ".join(self.description.configurations) or "none"
             raise InputError(f"{self.name} has no configuration {name!r} (known: {known})") from None
 
-    def within_limits(self, q) -> np.ndarray:
-        q = self._joints(q, "q")[1]
+    def within_limits(self, q: ArrayLike) -> BoolArray:
+        qa = self._joints(q, "q")[1]
         lim = self.qlim
-        return np.all((q >= lim[:, 0]) & (q <= lim[:, 1]), axis=-1)
+        return np.all((qa >= lim[:, 0]) & (qa <= lim[:, 1]), axis=-1)
 
     # -- quantities -------------------------------------------------------------------
 
-    def fk(self, q, errors="raise"):
+    def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Tool pose T (..., 4, 4) = base A_1(q_1) ... A_n(q_n) tool."""
         if self._fk_single is not None and errors == "raise":
             T = self._fk_single(q)
@@ -135,13 +146,13 @@ class SerialRobot:
         T, status = self._core.fk(qf)
         return self._finish(errors, lead, status, [T], ("q",))
 
-    def frames(self, q, errors="raise"):
+    def frames(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """All frames (..., n + 2, 4, 4): base, after each joint, tool (for drawing)."""
         lead, qf = self._prepare(errors, q)
         F, status = self._core.frames(qf)
         return self._finish(errors, lead, status, [F], ("q",))
 
-    def jacobian(self, q, frame="base", errors="raise"):
+    def jacobian(self, q: ArrayLike, frame: Frame = "base", errors: Errors = "raise") -> Result:
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
         base frame (default) or the tool frame (frame="tool")."""
         if self._jacobian_single is not None and frame == "base" and errors == "raise":
@@ -155,7 +166,8 @@ class SerialRobot:
             J = self._to_tool(qf, J)
         return self._finish(errors, lead, status, [J], ("q",))
 
-    def jacobian_dot(self, q, qd, frame="base", errors="raise"):
+    def jacobian_dot(self, q: ArrayLike, qd: ArrayLike, frame: Frame = "base",
+                     errors: Errors = "raise") -> Result:
         """dJ/dt along qd (..., 6, n): tool acceleration = J qdd + Jdot qd (base frame).
         frame="tool" gives d/dt of the tool-frame Jacobian."""
         frame = self._check_frame(frame)
@@ -172,21 +184,21 @@ class SerialRobot:
             Jd = self._to_tool(qf, Jd - corr)
         return self._finish(errors, lead, status, [Jd], ("q", "qd"))
 
-    def euler(self, q, errors="raise"):
+    def euler(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
         if errors == "raise":
             return euler_zyx(self.fk(q)[..., :3, :3])
         T, valid = self.fk(q, errors=errors)
         return euler_zyx(T[..., :3, :3]), valid
 
-    def rpy(self, q, errors="raise"):
+    def rpy(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 3): (roll, pitch, yaw) = (phi, theta, psi); see the module docstring."""
         res = self.euler(q, errors=errors)
         if errors == "raise":
             return res[..., ::-1].copy()
         return res[0][..., ::-1].copy(), res[1]
 
-    def pose(self, q, errors="raise"):
+    def pose(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 6): x, y, z [m], psi, theta, phi [rad] (Vukobratovic angles)."""
         T = self.fk(q, errors="nan")
         T, valid = T
@@ -197,7 +209,7 @@ class SerialRobot:
             return out
         return out, valid
 
-    def analytic_jacobian(self, q, errors="raise"):
+    def analytic_jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 6, n): d(x, y, z, psi, theta, phi)/dq = diag(I, E^-1) J, where the angular
         velocity is w = E (psi_dot, theta_dot, phi_dot) for R = Rz(psi) Ry(theta) Rx(phi).
         Singular where cos(theta) = 0 (the Euler angles' own singularity)."""
@@ -231,7 +243,7 @@ class SerialRobot:
             return Ja
         return Ja, valid
 
-    def manipulability(self, q, errors="raise"):
+    def manipulability(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Yoshikawa's measure: the product of J's singular values (= sqrt(det(J J^T)) for
         n >= 6, sqrt(det(J^T J)) for n < 6)."""
         J, valid = self.jacobian(q, errors="nan")
@@ -240,7 +252,7 @@ class SerialRobot:
         out = np.prod(sv, axis=-1)
         return self._plain(errors, q, out, valid)
 
-    def condition_number(self, q, errors="raise"):
+    def condition_number(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """sigma_max / sigma_min of the geometric Jacobian (inf at a singularity)."""
         J, valid = self.jacobian(q, errors="nan")
         sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
@@ -249,7 +261,7 @@ class SerialRobot:
             out = sv[..., 0] / sv[..., -1]
         return self._plain(errors, q, out, valid)
 
-    def singularities(self, q, tol=1e-6) -> dict:
+    def singularities(self, q: ArrayLike, tol: float = 1e-6) -> dict[str, Any]:
         """Singularity report (lecture slides 112-114): condition number, manipulability,
         sigma_min, ``singular``, and for 6R arms with a central wrist the classic ``wrist``,
         ``shoulder`` and ``elbow`` flags; ``aligned_axes`` lists collinear joint axes.
@@ -273,7 +285,7 @@ class SerialRobot:
             rigid &= np.all(np.abs(flat[:, 3] - [0, 0, 0, 1]) < 1e-12, axis=1)
         return lead, flat, finite, rigid
 
-    def analytic_configs(self) -> tuple:
+    def analytic_configs(self) -> tuple[str, ...]:
         """Branch names of ik_all ((), if the arm has none): the closed form's, or for a
         6R arm whose wrist axes nearly meet, those of its nearest central-wrist arm."""
         solver = self._analytic()
@@ -301,7 +313,7 @@ class SerialRobot:
             self._analytic_solver = analytic_solver(self.description)
         return self._analytic_solver
 
-    def ik_all(self, T):
+    def ik_all(self, T: ArrayLike) -> tuple[FloatArray, BoolArray]:
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
         within the joint limits). Branch names: analytic_configs()."""
         if self._ik_all_single is not None:
@@ -324,12 +336,14 @@ class SerialRobot:
         elif solver is not None:
             q, valid = solver.solve(safe)
         else:  # explicit start from the nearest central-wrist arm, refined by Newton
+            assert combined is not None  # solver is None here, so combined is not
             q, valid = combined.solve_all(self, safe)
         q[bad], valid[bad] = np.nan, False
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
 
-    def ik(self, T, config=None, q0=None, method="auto", errors="raise", singular="raise",
-           **options):
+    def ik(self, T: ArrayLike, config: str | None = None, q0: ArrayLike | None = None,
+           method: Literal["auto", "analytic", "numeric"] = "auto", errors: Errors = "raise",
+           singular: Literal["raise", "allow"] = "raise", **options: Any) -> Result:
         """Joint coordinates reaching the tool pose(s) T (..., 4, 4).
 
         method "analytic" (closed form, where the structure allows), "numeric" (Newton /

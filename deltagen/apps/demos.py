@@ -1,6 +1,6 @@
 """`deltagen demo NAME`: worked examples of the serial-arm trajectory tools.
 
-* ``lecture-scara`` -- the numerical inverse of the lecture "Robotertechnik" (seed 002,
+* ``lecture-scara`` -- the numerical inverse of the lecture "Robotertechnik" (lecture
   slides 106-111; the Matlab table is on the slide footed "Folie 111", the one after the
   homogeneous J^-1 of "Folie 110"). Planar SCARA L1 = 4, L2 = 3, start q = (10 deg, 30 deg),
   i.e. P0 = (6.2374, 2.6230); target (4, 3); the straight line split along each axis into
@@ -12,8 +12,8 @@
   the target until it converges, and the final error. With ``--out`` also a PNG of the
   Soll/Ist path like the slide's plot.
 
-* ``miskolc-pick-and-place`` -- the pick-and-place task of the Miskolc paper (seed 004,
-  section 5) on the RRRR elbow robot (robots/miskolc_rrrr.toml), elbow up throughout.
+* ``miskolc-pick-and-place`` -- the pick-and-place task of the Miskolc paper
+  (section 5) on the RRRR elbow robot (robots/miskolc_rrrr.toml), elbow up throughout.
   The paper's figure 7 (the path) is missing from the text, so the stations are CHOSEN
   (see :data:`STATIONS`): from home (the ``ready`` configuration) to the in-feed conveyor,
   down and up in z to grasp (the paper: "egy z tengelyiranyu mozgassal megfog"), a
@@ -35,9 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
+from deltagen.apps.plotting import pyplot
+
 NAMES = ("lecture-scara", "miskolc-pick-and-place")
 
-# ------------------------------------------------------------------ lecture (seed 002)
+# ------------------------------------------------------------------ lecture
 
 #: Slide "Folie 111": start joints, target, number of sub-steps.
 LECTURE_Q0_DEG = (10.0, 30.0)
@@ -70,7 +72,7 @@ def lecture_lines(table=None) -> list[str]:
     x0, y0 = table.soll[0]
     out = [
         "Naeherungsrechnung fuer planaren SCARA",
-        "(Linnemann, Robotertechnik, seed 002, slides 106-111; table of the slide 'Folie 111')",
+        "(Linnemann, Robotertechnik, lecture slides 106-111; table of the slide 'Folie 111')",
         f"L1 = 4, L2 = 3, q10 = {LECTURE_Q0_DEG[0]:g}°, q20 = {LECTURE_Q0_DEG[1]:g}°",
         f"Startposition: x = {x0:.4f}, y = {y0:.4f}    "
         f"Gewaehlte Zielposition: x = {LECTURE_TARGET[0]:.1f}, y = {LECTURE_TARGET[1]:.1f}",
@@ -98,11 +100,7 @@ def lecture_lines(table=None) -> list[str]:
 
 
 def _plot_lecture(table, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 5.5), layout="constrained")
     ax.plot(table.soll[:, 0], table.soll[:, 1], "o-", color="tab:blue", ms=4, label="Soll")
     ax.plot(table.ist[:, 0], table.ist[:, 1], "s--", color="tab:red", ms=4, label="Ist")
@@ -135,7 +133,7 @@ def run_lecture(out=None, stream=None) -> int:
     return 0
 
 
-# ------------------------------------------------------------------ Miskolc (seed 004)
+# ------------------------------------------------------------------ Miskolc paper
 
 def _station(azimuth_deg, radius, z):
     a = math.radians(azimuth_deg)
@@ -211,7 +209,7 @@ def _segment_marks(ax, traj, labels=True):
 
 
 def _plot_joint_angles(jt, path):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     arm = jt.robot
     fig, ax = plt.subplots(figsize=(12, 6.2), layout="constrained")
@@ -244,7 +242,7 @@ _MARKS = {
 
 
 def _plot_arm_poses(jt, path, every=0.75):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     arm = jt.robot
     step = max(1, int(round(every / jt.dt)))
@@ -335,7 +333,7 @@ def _plot_arm_poses(jt, path, every=0.75):
 
 
 def _plot_rates(jt, jt_half, path):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     from deltagen.plan.trajectory import numerical_rates
 
@@ -395,9 +393,7 @@ def _write_csv(jt, path):
 
 
 def run_miskolc(out=None, stream=None) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    pyplot()  # before the computation: without matplotlib, say so now
     from deltagen.api.serial import SerialRobot
 
     stream = sys.stdout if stream is None else stream
@@ -409,7 +405,7 @@ def run_miskolc(out=None, stream=None) -> int:
     err, err2 = jt.rate_errors(), jt_half.rate_errors()
     qd_u, qdd_u = jt.numerical_rates_unsplit()
     deg = np.degrees
-    print("Miskolc RRRR robot (seed 004): pick and place, elbow up (q3 <= 0 at every sample)",
+    print("Miskolc RRRR robot (Miskolc paper): pick and place, elbow up (q3 <= 0 at every sample)",
           file=stream)
     print(f"  path: {len(jt.trajectory.segments)} segments, {jt.trajectory.duration:g} s, "
           f"{jt.t.size} samples at h = {jt.dt * 1e3:g} ms", file=stream)

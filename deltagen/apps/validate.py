@@ -1,4 +1,4 @@
-"""`deltagen validate`: the validation trajectory of the report (seed 000, section 4).
+"""`deltagen validate`: the validation trajectory of the delta report (section 4).
 
 The platform follows the test trajectory of eqs. (40)-(42) (two crossed chirps in x and
 y between 0.1 Hz and 5 Hz, a 5 Hz oscillation in z), and the fourth axis follows
@@ -343,11 +343,9 @@ def _positive(values):
 
 def plot(result: ValidationResult, path) -> Path:
     """A PNG overview: 3D path, speed and acceleration, relative errors, margins, cond."""
-    import matplotlib
+    from deltagen.apps.plotting import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     path = Path(path)
     g = result.robot.geometry
     t = result.t
@@ -550,6 +548,10 @@ def _load_robot(args):
 def main(args) -> int:
     """The `deltagen validate` subcommand: 0 if the run passes, 1 if it fails."""
     quiet = bool(getattr(args, "quiet", False))
+    if not getattr(args, "no_plot", False):
+        from deltagen.apps.plotting import pyplot
+
+        pyplot()  # before the run: without matplotlib, say so now (or use --no-plot)
     robot = _load_robot(args)
     rate = getattr(args, "rate", 1000.0)
     duration = getattr(args, "duration", 10.0)

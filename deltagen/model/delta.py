@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from deltagen.errors import GeometryError
-from deltagen.model.robot_file import read_toml, real
+from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.model.naming import check_identifier
 from deltagen.status import SINGULAR_TOL
 
@@ -42,11 +43,11 @@ class DeltaGeometry:
     r_b: float
     l_a: float
     l_b: float
-    theta: tuple[float, float, float]
+    theta: tuple[float, ...]  # exactly 3 drive angles [rad], checked in __post_init__
     name: str = "delta"
     singular_tol: float = SINGULAR_TOL
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for key in _LENGTHS:
             object.__setattr__(self, key, real(getattr(self, key), key))
         for key in ("r_a", "l_a", "l_b"):
@@ -91,7 +92,7 @@ class DeltaGeometry:
         return self.l_a + self.l_b + self.r_a
 
     @classmethod
-    def default(cls) -> "DeltaGeometry":
+    def default(cls) -> DeltaGeometry:
         """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8, 0/120/240 deg."""
         return cls(
             r_a=0.2, r_b=0.045, l_a=0.35, l_b=0.8,
@@ -100,7 +101,8 @@ class DeltaGeometry:
         )
 
     @classmethod
-    def from_mapping(cls, data, source: str = "robot description") -> "DeltaGeometry":
+    def from_mapping(cls, data: dict[str, Any],
+                     source: str = "robot description") -> DeltaGeometry:
         if not isinstance(data, dict):
             raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
         unknown = set(data) - _TOP_KEYS
@@ -139,5 +141,5 @@ class DeltaGeometry:
             raise GeometryError(f"{source}: {exc}") from None
 
     @classmethod
-    def from_toml(cls, path) -> "DeltaGeometry":
+    def from_toml(cls, path: PathLike) -> DeltaGeometry:
         return cls.from_mapping(read_toml(path), source=str(path))

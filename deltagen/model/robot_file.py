@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import tomllib
 from pathlib import Path
+from typing import Any, TypeAlias
 
 from deltagen.errors import GeometryError
 
+PathLike: TypeAlias = str | os.PathLike[str]
 
-def read_toml(path) -> dict:
+
+def read_toml(path: PathLike) -> dict[str, Any]:
     """The parsed table of a robot file; unreadable or malformed files raise GeometryError."""
     path = Path(path)
     try:
@@ -25,7 +29,7 @@ def read_toml(path) -> dict:
         raise GeometryError(f"{path}: malformed TOML: {exc}") from None
 
 
-def real(value, where: str) -> float:
+def real(value: object, where: str) -> float:
     """A finite real number (bools and text are rejected), as float."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise GeometryError(f"{where} must be a real number, got {value!r}")

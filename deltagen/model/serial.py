@@ -36,21 +36,24 @@ Universal-coordinate joints use tx, ty, tz [m], rx|rx_deg, ry|ry_deg, rz|rz_deg,
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy
-from deltagen.model.robot_file import read_toml, real
+from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.model.naming import check_identifier
 
 CONVENTIONS = ("standard", "modified", "universal")
 JOINT_TYPES = ("revolute", "prismatic")
-_DH_LENGTHS = ("a", "d")
-_DH_ANGLES = ("alpha", "theta", "offset")
-_UC_LENGTHS = ("tx", "ty", "tz")
-_UC_ANGLES = ("rx", "ry", "rz", "offset")
+_DH_LENGTHS: tuple[str, ...] = ("a", "d")
+_DH_ANGLES: tuple[str, ...] = ("alpha", "theta", "offset")
+_UC_LENGTHS: tuple[str, ...] = ("tx", "ty", "tz")
+_UC_ANGLES: tuple[str, ...] = ("rx", "ry", "rz", "offset")
 
 
 
@@ -72,7 +75,7 @@ class Joint:
     ry: float = 0.0
     rz: float = 0.0
     axis: str = "z"
-    qlim: tuple | None = None
+    qlim: tuple[float, float] | None = None
     name: str = ""
 
     @property
@@ -80,7 +83,8 @@ class Joint:
         return self.type == "revolute"
 
 
-def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
+def transform(xyz: Sequence[float] = (0.0, 0.0, 0.0),
+              rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> npt.NDArray[np.float64]:
     """4x4 homogeneous transform: translation xyz, rotation Rz(yaw) Ry(pitch) Rx(roll)."""
     T = np.eye(4)
     T[:3, :3] = matrix_from_rpy(rpy)
@@ -92,13 +96,13 @@ def transform(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> np.ndarray:
 class SerialDescription:
     name: str
     convention: str
-    joints: tuple
-    base: np.ndarray = field(default_factory=lambda: np.eye(4))
-    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
-    configurations: dict = field(default_factory=dict)
+    joints: tuple[Joint, ...]
+    base: npt.NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    tool: npt.NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    configurations: dict[str, tuple[float, ...]] = field(default_factory=dict)
     doc: str = ""
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         check_identifier(self.name)
         if self.convention not in CONVENTIONS:
             raise GeometryError(
@@ -125,7 +129,7 @@ class SerialDescription:
         return len(self.joints)
 
     @property
-    def qlim(self) -> np.ndarray:
+    def qlim(self) -> npt.NDArray[np.float64]:
         """(n, 2) joint limits; +-inf where a joint has none."""
         lim = np.tile([-np.inf, np.inf], (self.n, 1))
         for i, j in enumerate(self.joints):
@@ -146,8 +150,10 @@ class SerialDescription:
     # -- construction ---------------------------------------------------------------
 
     @classmethod
-    def from_rows(cls, rows, convention, name="arm", base=None, tool=None, configurations=None,
-                  doc="") -> "SerialDescription":
+    def from_rows(cls, rows: Iterable[Mapping[str, Any]], convention: str, name: str = "arm",
+                  base: npt.ArrayLike | None = None, tool: npt.ArrayLike | None = None,
+                  configurations: Mapping[str, Sequence[float]] | None = None,
+                  doc: str = "") -> SerialDescription:
         if convention not in CONVENTIONS:
             raise GeometryError(
                 f"convention must be one of {CONVENTIONS} (stated explicitly), got {convention!r}"
@@ -157,22 +163,23 @@ class SerialDescription:
         joints = tuple(_joint(row, convention, f"joint {i + 1}") for i, row in enumerate(rows))
         return cls(
             name=name, convention=convention, joints=joints,
-            base=np.eye(4) if base is None else base,
-            tool=np.eye(4) if tool is None else tool,
+            base=np.eye(4) if base is None else np.asarray(base, dtype=float),
+            tool=np.eye(4) if tool is None else np.asarray(tool, dtype=float),
             configurations={k: tuple(real(v, f"configuration {k}") for v in q)
                             for k, q in (configurations or {}).items()},
             doc=doc,
         )
 
     @classmethod
-    def from_mapping(cls, data, source="robot description") -> "SerialDescription":
+    def from_mapping(cls, data: dict[str, Any],
+                     source: str = "robot description") -> SerialDescription:
         try:
             return cls._from_mapping(data)
         except GeometryError as exc:
             raise GeometryError(f"{source}: {exc}") from None
 
     @classmethod
-    def _from_mapping(cls, data) -> "SerialDescription":
+    def _from_mapping(cls, data: dict[str, Any]) -> SerialDescription:
         if not isinstance(data, dict):
             raise GeometryError("expected a table")
         allowed = {"name", "convention", "base", "tool", "joint", "configurations", "doc"}
@@ -199,7 +206,7 @@ class SerialDescription:
         )
 
     @classmethod
-    def from_toml(cls, path) -> "SerialDescription":
+    def from_toml(cls, path: PathLike) -> SerialDescription:
         return cls.from_mapping(read_toml(path), source=str(path))
 
 
@@ -296,7 +303,7 @@ def _angle(row, key, where, required=False):
     return 0.0
 
 
-def _joint(row, convention, where) -> Joint:
+def _joint(row: object, convention: str, where: str) -> Joint:
     if not isinstance(row, dict):
         raise GeometryError(f"{where}: expected a table of joint parameters")
     kind = row.get("type", row.get("joint", "revolute"))
@@ -319,7 +326,7 @@ def _joint(row, convention, where) -> Joint:
         if unknown & {"tx", "ty", "tz", "rx", "ry", "rz", "axis", "a", "alpha", "d", "theta"}:
             hint = f" (keys of another convention; this file says {convention!r})"
         raise GeometryError(f"{where}: unknown keys {sorted(unknown)}{hint}")
-    values = {k: real(row[k], f"{where}: {k}") for k in lengths if k in row}
+    values: dict[str, Any] = {k: real(row[k], f"{where}: {k}") for k in lengths if k in row}
     for k in angles:
         values[k] = _angle(row, k, where)
     if convention != "universal":

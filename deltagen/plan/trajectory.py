@@ -46,7 +46,7 @@ The pieces, bottom up:
 
   - exact, from the task Jacobian (rows of the geometric Jacobian, unit rows for prescribed
     joints): ``qd = J^+ xd`` and ``qdd = J^+ (xdd - Jdot qd)``;
-  - numerically, as the Miskolc paper does (seed 004, section 5: "the joint velocities and
+  - numerically, as the Miskolc paper does (section 5: "the joint velocities and
     accelerations can be obtained by numerical differentiation of the angle functions with
     respect to time"): second-order central differences ``(q_(k+1) - q_(k-1)) / 2h`` and
     ``(q_(k+1) - 2 q_k + q_(k-1)) / h^2`` with second-order one-sided formulas at the ends,
@@ -59,7 +59,7 @@ The pieces, bottom up:
   task the exact rates are the minimum-norm rates, and the IK solution may drift in the null
   space: the comparison then also shows that drift.
 
-* The lecture's path following (seed 002, slides 106-111; table on the slide footed
+* The lecture's path following (slides 106-111; table on the slide footed
   "Folie 111"): :func:`jacobian_path_following` splits the straight line into equal
   sub-steps and takes ONE step ``dQ = J^-1(q) (P_soll,k+1 - P_ist,k)`` per sub-point with
   the inverse Jacobian at the current q, then a direct transformation ``P_ist = f(q)``

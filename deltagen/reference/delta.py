@@ -1,7 +1,7 @@
 """Independent pure-numpy reference kinematics of the rotary delta robot.
 
 This module deliberately shares nothing with the SymPy derivation or the generated C
-core: it works from the vector geometry of the report (seed 000, eq. (1)-(5), (43))
+core: it works from the vector geometry of the delta report (eq. (1)-(5), (43))
 and numpy linear algebra, vectorised over a batch of N points.
 
 Geometry. Chain i (drive angle ``theta_i``, crank angle ``q_i``) confines the platform

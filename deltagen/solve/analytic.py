@@ -42,7 +42,7 @@ Supported structures
     alpha = beta = 30 deg, is ``elbow_down``: the elbow lies below the line).
 
 ``elbow_4r`` -- 4 revolute joints: axis 1 not parallel to axis 2, axes 2 and 3 parallel
-    (distinct), axis 4 not parallel to axis 2 (a roll joint): the Miskolc RRRR robot (seed 004).
+    (distinct), axis 4 not parallel to axis 2 (a roll joint): the Miskolc paper's RRRR robot.
     The point W of axis 4 nearest the tool point is positioned by joints 1-3 (paper eqs. 4-9:
     q1 from atan2, the elbow from the law of cosines), q4 is the remaining roll about axis 4.
     With the full pose given, joints 2+3 are taken from the direction of axis 4 in the target

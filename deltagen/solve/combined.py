@@ -1,7 +1,7 @@
 """Combined explicit + numerical inverse kinematics: all branches of a 6R elbow arm whose
 wrist is *nearly* central (the wrist axes miss one common point by a few centimetres).
 
-This is the last method of the EASY-ROB paper (seed 003, "Kombination aus explizitem und
+This is the last method of the EASY-ROB paper ("Kombination aus explizitem und
 numerischem Loesungsverfahren"): a numerical method alone finds one configuration per start,
 so for every configuration
 
@@ -10,7 +10,7 @@ so for every configuration
 2. refine q_ist by Newton's method on the real arm (q_soll);
 3. go on with the next configuration.
 
-Start values (two additions to the seed's step 1): where the central-wrist arm just misses
+Start values (two additions to the paper's step 1): where the central-wrist arm just misses
 the pose (the offset changes the reach by up to its length; the elbow's law of cosines has no
 real solution), the closed form is clipped onto the nearest real elbow angle instead of
 giving up. And the start is improved by ``corrections`` passes of a target correction: with

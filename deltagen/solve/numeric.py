@@ -1,7 +1,7 @@
 """Numerical inverse kinematics of serial arms: batched, damped Newton-Raphson.
 
-The method is the iteration of the EASY-ROB paper (seed 003, "Numerisches Loesungsverfahren
-zur inversen Transformation", steps 1-6) and of the lecture's Jacobian method (seed 002,
+The method is the iteration of the EASY-ROB paper ("Numerisches Loesungsverfahren
+zur inversen Transformation", steps 1-6) and of the lecture's Jacobian method (lecture
 slides 106-110), vectorised over N targets (no Python loop over targets):
 
 1. given the target pose T* (position p*, rotation R*), find q with fk(q) = T*;
@@ -13,7 +13,7 @@ slides 106-110), vectorised over N targets (no Python loop over targets):
 5. q <- q + dq (wrapped by 2 pi / clamped into the joint limits), T = fk(q);
 6. stop when |p* - p| <= tol_position [m] and |w| <= tol_rotation [rad], else go to 2.
 
-Jacobian sources (``jacobian=``), the seed's three methods:
+Jacobian sources (``jacobian=``), the EASY-ROB paper's three methods:
 
 * ``"symbolic"``  -- the generated C geometric Jacobian (the SymPy derivation, i.e. the
   "analytic derivative" route), ``arm._core.jacobian``;
@@ -22,7 +22,7 @@ Jacobian sources (``jacobian=``), the seed's three methods:
   [w_i; 0] for a prismatic one, w_i / o_i the joint axis direction / a point on it
   (standard DH: z and origin of frame i-1; modified DH: of frame i; universal: the joint's
   ``axis`` column of base D_1 ... D_{i-1}). It does not use the C Jacobian;
-* ``"fd"``        -- central finite differences of fk alone (the seed's "general method",
+* ``"fd"``        -- central finite differences of fk alone (the paper's "general method",
   for chains with couplings): v_i = (p(q + h e_i) - p(q - h e_i)) / 2h and
   [w_i]x = skew((R(q + h e_i) - R(q - h e_i)) R^T) / 2h, h = 2^-17.
 
@@ -31,11 +31,11 @@ Solving J dq = dx (per row, batched), with k = number of matched components:
 * n == k (e.g. a 6-axis arm, all six components), well-conditioned (sigma_min >=
   ``SIGMA_WELL`` = 1e-2) and the damping negligible (lambda <= 1e-3 sigma_min, i.e. it
   would change the step by less than 1e-6 relative; true in the final, quadratically
-  convergent steps): Gauss elimination, ``np.linalg.solve`` (the seed's choice for
+  convergent steps): Gauss elimination, ``np.linalg.solve`` (the paper's choice for
   m = n = 6);
 * otherwise the singular value decomposition J = U S V^T and the damped pseudo-inverse
   dq = V diag(s / (s^2 + lambda^2)) U^T dx. With lambda = 0 this is the Moore-Penrose
-  pseudo-inverse: the minimum-norm step for redundant arms (n > k, the seed's "SVD for
+  pseudo-inverse: the minimum-norm step for redundant arms (n > k, the paper's "SVD for
   m > 6") and the least-squares step for n < k. For n > k an optional null-space term
   ``null_space * min(1, |dx|) * (I - J^+ J) (q_mid - q)`` pulls towards the middle of the
   joint ranges while the error is large (it fades out with |dx|, so the final steps stay
@@ -90,7 +90,7 @@ limits; a random start reaches one of them with probability ~0.1-0.9 depending o
 target, so global success from an arbitrary start needs restarts (tens for 100 % on
 1000 random targets); from a start near the solution one attempt suffices.
 
-Mask ("tool fitting", seed 003, for arms with fewer than 6 axes): 6 booleans for the
+Mask ("tool fitting", EASY-ROB paper, for arms with fewer than 6 axes): 6 booleans for the
 components (vx vy vz wx wy wz) to match; the others are ignored. Default: all six if
 n >= 6; for n < 6 the components the arm can move at all, i.e. the rows of the Jacobian
 (of the chosen source) that are not identically zero (max |J_row| <= 1e-9 max |J|; 1e-6

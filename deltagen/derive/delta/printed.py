@@ -1,4 +1,4 @@
-"""The report's PRINTED equations (seed 000), transcribed literally as SymPy expressions.
+"""The delta report's PRINTED equations, transcribed literally as SymPy expressions.
 
 Nothing here is derived: every expression is copied from the printed text, errors
 included, so that tests/test_errata.py can compare it with what deltagen derives

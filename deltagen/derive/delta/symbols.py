@@ -1,4 +1,4 @@
-"""SymPy symbols of the delta robot, named as in the report (seed 000, Figure 4).
+"""SymPy symbols of the delta robot, named as in the delta report (Figure 4).
 
 Geometry stays symbolic (r_a, r_b, l_a, l_b and cos/sin of theta_i), so one compiled core
 serves every geometry at run time. The crank angles enter only through cos q_i and sin q_i,
