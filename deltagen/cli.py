@@ -10,7 +10,7 @@ from pathlib import Path
 
 
 def _robot_kind(path: Path) -> str:
-    """"serial" or "delta" for a robot file: serial-arm files state a convention and list
+    """ "serial" or "delta" for a robot file: serial-arm files state a convention and list
     [[joint]] tables; delta files have a [delta] table."""
     try:
         text = path.read_text()
@@ -39,8 +39,10 @@ def _robot(args):
         return SerialRobot.load(name, backend=args.backend)
     path = Path(name)
     if path.suffix != ".toml" and not path.exists():
-        raise ValueError(f"unknown robot {name!r}: use 'default', a bundled arm "
-                         f"({', '.join(bundled_robots())}) or a robot .toml file")
+        raise ValueError(
+            f"unknown robot {name!r}: use 'default', a bundled arm "
+            f"({', '.join(bundled_robots())}) or a robot .toml file"
+        )
     if _robot_kind(path) == "serial":
         return SerialRobot.from_toml(path, backend=args.backend)
     return DeltaRobot.from_toml(path, backend=args.backend)
@@ -56,12 +58,15 @@ def cmd_generate(args) -> int:
                 f"{path} describes a delta robot; `deltagen generate ROBOT_FILE` takes a "
                 "serial-arm file (a `convention` key and [[joint]] tables). The delta core is "
                 "generic (`deltagen generate` writes it; the geometry is read at run time), so "
-                f"use the file directly: `deltagen fk {path} ...`")
+                f"use the file directly: `deltagen fk {path} ...`"
+            )
         folder = generate.generate_robot_file(args.robot_file)
         from deltagen.paths import runtime_dir
 
-        print(f"generated and compiled {args.robot_file}: C sources in {folder} "
-              f"(compile them with the runtime C in {runtime_dir()})")
+        print(
+            f"generated and compiled {args.robot_file}: C sources in {folder} "
+            f"(compile them with the runtime C in {runtime_dir()})"
+        )
         return 0
     if args.check:
         problems = generate.check()
@@ -78,8 +83,11 @@ def cmd_generate(args) -> int:
     if not written:
         print("generated/ already up to date")
     for name in generate.stray():
-        print(f"warning: generated/{name} is not produced by the generator; delete it "
-              "(`deltagen generate --check` fails while it is there)", file=sys.stderr)
+        print(
+            f"warning: generated/{name} is not produced by the generator; delete it "
+            "(`deltagen generate --check` fails while it is there)",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -136,53 +144,88 @@ def _protect_negative_numbers(argv):
 
 
 def main(argv=None) -> int:
-    parser = _Parser(prog="deltagen", description=__doc__, epilog=EXIT_STATUS_ALL,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = _Parser(
+        prog="deltagen",
+        description=__doc__,
+        epilog=EXIT_STATUS_ALL,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="regenerate generated/ (deterministic)")
-    g.add_argument("robot_file", nargs="?", help="a serial-arm TOML: generate, compile and cache its module")
-    g.add_argument("--check", action="store_true", help="fail and show a diff if generated/ is stale")
+    g.add_argument(
+        "robot_file", nargs="?", help="a serial-arm TOML: generate, compile and cache its module"
+    )
+    g.add_argument(
+        "--check", action="store_true", help="fail and show a diff if generated/ is stale"
+    )
     g.set_defaults(func=cmd_generate)
 
     evaluators = {}
     for name, forward in (("fk", True), ("ik", False)):
         what = "direct" if forward else "inverse"
         e = evaluators[name] = sub.add_parser(
-            name, help=f"{what} kinematics of one pose or of a CSV/NPY batch",
+            name,
+            help=f"{what} kinematics of one pose or of a CSV/NPY batch",
             description=f"{what.capitalize()} kinematics of the delta robot or a serial arm: "
-                        "one pose from the values, or a batch with --input.",
-            epilog=FILES + "\n\n" + EXIT_STATUS, formatter_class=argparse.RawDescriptionHelpFormatter)
+            "one pose from the values, or a batch with --input.",
+            epilog=FILES + "\n\n" + EXIT_STATUS,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
         e.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
-        e.add_argument("values", nargs="*", type=float, help=(
-            "joint coordinates q1 .. qn: delta q1 q2 q3 [q4, the fourth axis]; serial arm one "
-            "per joint (rad, m for prismatic joints)" if forward else
-            "the pose: delta x y z [phi] (m, rad); serial arm x y z psi theta phi (m, rad)"))
+        e.add_argument(
+            "values",
+            nargs="*",
+            type=float,
+            help=(
+                "joint coordinates q1 .. qn: delta q1 q2 q3 [q4, the fourth axis]; serial arm one "
+                "per joint (rad, m for prismatic joints)"
+                if forward
+                else "the pose: delta x y z [phi] (m, rad); serial arm x y z psi theta phi (m, rad)"
+            ),
+        )
         e.add_argument("--input", help="CSV or NPY file with one pose per row (see below)")
-        e.add_argument("--output", help="write the result here (.csv, .txt or .npy), also for "
-                                        "a single pose")
-        e.add_argument("--degrees", action="store_true",
-                       help="revolute joint coordinates in degrees (prismatic stay in m; "
-                            + ("the input q" if forward else "the output q and --q0")
-                            + "; poses are always m and rad)")
+        e.add_argument(
+            "--output", help="write the result here (.csv, .txt or .npy), also for a single pose"
+        )
+        e.add_argument(
+            "--degrees",
+            action="store_true",
+            help="revolute joint coordinates in degrees (prismatic stay in m; "
+            + ("the input q" if forward else "the output q and --q0")
+            + "; poses are always m and rad)",
+        )
         if forward:
-            e.add_argument("--config", help="serial arm: a named joint configuration of its "
-                                            "robot file (e.g. qr) instead of values")
+            e.add_argument(
+                "--config",
+                help="serial arm: a named joint configuration of its "
+                "robot file (e.g. qr) instead of values",
+            )
         else:
-            e.add_argument("--config", help="serial arm: the closed-form branch by name "
-                                            "(e.g. front_up_noflip)")
-            e.add_argument("--q0", help="serial arm: start of the numeric solver, or with a "
-                                        "closed form the branch nearest it: n numbers "
-                                        "(--q0=-0.1,0.2,...) or a configuration name (e.g. qn)")
-            e.add_argument("--method", choices=("auto", "analytic", "numeric"),
-                           help="serial arm: auto (default: closed form if the arm has one), "
-                                "analytic, or numeric (damped Newton)")
-            e.add_argument("--restarts", type=int,
-                           help="serial arm, --method numeric: random restarts when a start "
-                                "does not converge")
+            e.add_argument(
+                "--config", help="serial arm: the closed-form branch by name (e.g. front_up_noflip)"
+            )
+            e.add_argument(
+                "--q0",
+                help="serial arm: start of the numeric solver, or with a "
+                "closed form the branch nearest it: n numbers "
+                "(--q0=-0.1,0.2,...) or a configuration name (e.g. qn)",
+            )
+            e.add_argument(
+                "--method",
+                choices=("auto", "analytic", "numeric"),
+                help="serial arm: auto (default: closed form if the arm has one), "
+                "analytic, or numeric (damped Newton)",
+            )
+            e.add_argument(
+                "--restarts",
+                type=int,
+                help="serial arm, --method numeric: random restarts when a start does not converge",
+            )
         e.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
-        e.set_defaults(func=lambda a, f=forward: _evaluate(a, f), q0=None, method=None,
-                       restarts=None)
+        e.set_defaults(
+            func=lambda a, f=forward: _evaluate(a, f), q0=None, method=None, restarts=None
+        )
 
     v = sub.add_parser("validate", help="the report's validation trajectory, eqs. (40)-(42)")
     v.add_argument("--robot", default="default", help="'default' or a robot TOML file")
@@ -194,11 +237,16 @@ def main(argv=None) -> int:
     v.add_argument("--quiet", action="store_true", help="no progress output")
     v.set_defaults(func=lambda a: _lazy("deltagen.apps.validate", a))
 
-    d = sub.add_parser("demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place")
+    d = sub.add_parser(
+        "demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place"
+    )
     d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place"))
-    d.add_argument("--out", default=None,
-                   help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
-                        "lecture-scara writes its plot only when given)")
+    d.add_argument(
+        "--out",
+        default=None,
+        help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
+        "lecture-scara writes its plot only when given)",
+    )
     d.set_defaults(func=lambda a: _lazy("deltagen.apps.demos", a))
 
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")

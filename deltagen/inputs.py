@@ -23,7 +23,9 @@ def as_float_array(value, name: str) -> np.ndarray:
         # Lists mixing ints and floats land here: accept real numbers only (no strings,
         # None or bools, which a float conversion would silently turn into numbers).
         for element in arr.flat:
-            if isinstance(element, (bool, np.bool_)) or not isinstance(element, (numbers.Real, np.number)):
+            if isinstance(element, (bool, np.bool_)) or not isinstance(
+                element, (numbers.Real, np.number)
+            ):
                 raise InputError(
                     f"{name} must be numeric, got a non-numeric element {element!r} of type "
                     f"{type(element).__name__}"
@@ -76,5 +78,10 @@ def check_errors_mode(errors: str) -> str:
 def plain_pose(T) -> bool:
     """True for what the single-pose fast paths take: a (4, 4) C-contiguous float64 array
     whose bottom row is exactly 0 0 0 1 (anything else goes the general, checking path)."""
-    return (type(T) is np.ndarray and T.shape == (4, 4) and T.dtype.char == "d"
-            and T.flags.c_contiguous and T[3].tolist() == [0.0, 0.0, 0.0, 1.0])
+    return (
+        type(T) is np.ndarray
+        and T.shape == (4, 4)
+        and T.dtype.char == "d"
+        and T.flags.c_contiguous
+        and T[3].tolist() == [0.0, 0.0, 0.0, 1.0]
+    )

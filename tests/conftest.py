@@ -23,7 +23,7 @@ if str(TESTS) not in sys.path:  # delta_oracles is importable under any --import
 
 from delta_oracles import GEOMETRIES  # noqa: E402
 
-from deltagen import DeltaRobot
+from deltagen import DeltaRobot  # noqa: E402 - after the sys.path set-up above
 
 REPO = TESTS.parent
 

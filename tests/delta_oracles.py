@@ -19,8 +19,12 @@ from deltagen.model.delta import DeltaGeometry
 
 def geometry(r_a, r_b, l_a, l_b, theta_deg, **kw) -> DeltaGeometry:
     return DeltaGeometry(
-        r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b,
-        theta=tuple(math.radians(t) for t in theta_deg), **kw,
+        r_a=r_a,
+        r_b=r_b,
+        l_a=l_a,
+        l_b=l_b,
+        theta=tuple(math.radians(t) for t in theta_deg),
+        **kw,
     )
 
 
@@ -36,8 +40,15 @@ WORK_Q = (-0.6, 1.3)
 
 
 def with_tol(geom: DeltaGeometry, singular_tol: float) -> DeltaGeometry:
-    return DeltaGeometry(r_a=geom.r_a, r_b=geom.r_b, l_a=geom.l_a, l_b=geom.l_b,
-                         theta=geom.theta, name=geom.name, singular_tol=singular_tol)
+    return DeltaGeometry(
+        r_a=geom.r_a,
+        r_b=geom.r_b,
+        l_a=geom.l_a,
+        l_b=geom.l_b,
+        theta=geom.theta,
+        name=geom.name,
+        singular_tol=singular_tol,
+    )
 
 
 # ------------------------------------------------------------------ report eq. (1)-(5)
@@ -49,10 +60,22 @@ def centres(geom, q):
     th = np.asarray(geom.theta, dtype=float)
     rho = geom.r + geom.l_a * np.cos(q)
     S = np.stack((rho * np.cos(th), rho * np.sin(th), -geom.l_a * np.sin(q)), axis=-1)
-    dS = np.stack((-geom.l_a * np.sin(q) * np.cos(th), -geom.l_a * np.sin(q) * np.sin(th),
-                   -geom.l_a * np.cos(q)), axis=-1)
-    d2S = np.stack((-geom.l_a * np.cos(q) * np.cos(th), -geom.l_a * np.cos(q) * np.sin(th),
-                    geom.l_a * np.sin(q)), axis=-1)
+    dS = np.stack(
+        (
+            -geom.l_a * np.sin(q) * np.cos(th),
+            -geom.l_a * np.sin(q) * np.sin(th),
+            -geom.l_a * np.cos(q),
+        ),
+        axis=-1,
+    )
+    d2S = np.stack(
+        (
+            -geom.l_a * np.cos(q) * np.cos(th),
+            -geom.l_a * np.cos(q) * np.sin(th),
+            geom.l_a * np.sin(q),
+        ),
+        axis=-1,
+    )
     return S, dS, d2S
 
 
@@ -150,10 +173,13 @@ def random_q(rng, n, low=WORK_Q[0], high=WORK_Q[1]):
 
 def random_p(rng, geom, n):
     """Platform positions over (and beyond) the workspace, for status comparisons."""
-    return np.column_stack([
-        rng.uniform(-0.6, 0.6, n), rng.uniform(-0.6, 0.6, n),
-        rng.uniform(-1.5 * geom.l_b, 0.2 * geom.l_b, n),
-    ])
+    return np.column_stack(
+        [
+            rng.uniform(-0.6, 0.6, n),
+            rng.uniform(-0.6, 0.6, n),
+            rng.uniform(-1.5 * geom.l_b, 0.2 * geom.l_b, n),
+        ]
+    )
 
 
 def max_rel_err(actual, expected, scale):

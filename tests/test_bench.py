@@ -17,16 +17,16 @@ from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
 SERIAL_QUANTITIES = ("fk", "frames", "jacobian", "jacobian_dot")
-HAVE_ORACLE = any(importlib.util.find_spec(m) is not None
-                  for m in ("roboticstoolbox", "pinocchio"))
+HAVE_ORACLE = any(importlib.util.find_spec(m) is not None for m in ("roboticstoolbox", "pinocchio"))
 
 
 def _rows(text: str) -> dict[str, str]:
     """First cell of each table row -> the whole line."""
     rows = {}
     for line in text.splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split("|")] if "|" in line \
-            else line.split()
+        cells = (
+            [c.strip() for c in line.strip().strip("|").split("|")] if "|" in line else line.split()
+        )
         if cells and cells[0]:
             rows.setdefault(cells[0], line)
     return rows
@@ -43,17 +43,41 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
     rows = _rows(delta_part)
     for name in QUANTITIES:
         assert name in rows, f"no throughput row for {name}"
-    for column in ("C kernel", "compiled _core", "compiled API", "reference _core",
-                   "reference API", "speedup _core", "speedup API", "target"):
+    for column in (
+        "C kernel",
+        "compiled _core",
+        "compiled API",
+        "reference _core",
+        "reference API",
+        "speedup _core",
+        "speedup API",
+        "target",
+    ):
         assert column in out
-    for call in ("robot.fk(q), q ndarray (3,)", "robot.fk(q), q list of 3 floats",
-                 "robot.ik(p), p ndarray (3,)", "robot.ik(p), p list of 3 floats",
-                 "robot._core.fk(q)", "robot._core.ik(p)"):
+    for call in (
+        "robot.fk(q), q ndarray (3,)",
+        "robot.fk(q), q list of 3 floats",
+        "robot.ik(p), p ndarray (3,)",
+        "robot.ik(p), p list of 3 floats",
+        "robot._core.fk(q)",
+        "robot._core.ik(p)",
+    ):
         assert call in out
     for target in ("<= 12", "<= 18", "<= 25", "<= 20", "<= 1.5"):
         assert target in out
-    for fact in ("CPU", "cores", "Python", "numpy", "C flags", "-O3", "ns per point",
-                 "us per call", "N = 2,000", "2 repeats", "agreement"):
+    for fact in (
+        "CPU",
+        "cores",
+        "Python",
+        "numpy",
+        "C flags",
+        "-O3",
+        "ns per point",
+        "us per call",
+        "N = 2,000",
+        "2 repeats",
+        "agreement",
+    ):
         assert fact in out
     assert "WARNING" not in out  # compiled and reference agree on the sampled poses
     if markdown:
@@ -64,14 +88,25 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
     rows = _rows(serial_part)
     for name in SERIAL_QUANTITIES:
         assert name in rows, f"no serial throughput row for {name}"
-    for call in ("robot.fk(q), q ndarray (6,)", "robot.fk(q), q list of 6 floats",
-                 "robot.jacobian(q), q ndarray (6,)", "robot._core.fk(q), q (1, 6)",
-                 "robot._core.jacobian(q), q (1, 6)"):
+    for call in (
+        "robot.fk(q), q ndarray (6,)",
+        "robot.fk(q), q list of 6 floats",
+        "robot.jacobian(q), q ndarray (6,)",
+        "robot._core.fk(q), q (1, 6)",
+        "robot._core.jacobian(q), q (1, 6)",
+    ):
         assert call in serial_part
     for target in ("<= 30", "<= 50", "<= 1 "):
         assert target in serial_part
-    for fact in ("ns per configuration", "us per call", "N = 2,000", "C kernel",
-                 "reference _core", "agreement", "DELTAGEN_BENCH_ORACLES=0"):
+    for fact in (
+        "ns per configuration",
+        "us per call",
+        "N = 2,000",
+        "C kernel",
+        "reference _core",
+        "agreement",
+        "DELTAGEN_BENCH_ORACLES=0",
+    ):
         assert fact in serial_part
     assert "total bench time" in serial_part
 
@@ -83,8 +118,7 @@ def test_sampled_poses_are_valid_for_both_backends():
     from deltagen.status import OK
 
     compiled, reference = DeltaRobot.default(), DeltaRobot.default(backend="reference")
-    poses = bench.sample_poses(500, [compiled._core, reference._core],
-                               np.random.default_rng(0))
+    poses = bench.sample_poses(500, [compiled._core, reference._core], np.random.default_rng(0))
     assert all(v.shape == (500, 3) and v.flags.c_contiguous for v in poses.values())
     for robot in (compiled, reference):
         assert (robot._core.fk_acc(poses["q"], poses["qd"], poses["qdd"])[-1] == OK).all()
@@ -131,8 +165,11 @@ def test_oracle_section_at_tiny_size(monkeypatch, markdown):
     assert "WARNING" not in text
     for library, label in (("roboticstoolbox-python", "rtb "), ("pinocchio", "pinocchio ")):
         measured = any(key.startswith(library) for key in others["agreement"])
-        assert label in text if measured else any(
-            library in line and "not importable" in line for line in text.splitlines())
+        assert (
+            label in text
+            if measured
+            else any(library in line and "not importable" in line for line in text.splitlines())
+        )
 
 
 def test_oracle_section_names_absent_libraries(monkeypatch):

@@ -55,8 +55,14 @@ def cache(tmp_path, monkeypatch):
 
 def _run_loader(source: Path, cache: Path, cwd: Path | None = None):
     env = dict(os.environ, DELTAGEN_CACHE=str(cache))
-    return subprocess.run([sys.executable, "-c", LOADER, str(source)], env=env, cwd=cwd,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", LOADER, str(source)],
+        env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def _artifact(cache: Path) -> Path:
@@ -74,8 +80,10 @@ def test_cold_build_writes_a_verified_artifact(tiny, cache):
     assert build._verified(so.parent, so)
 
 
-@pytest.mark.parametrize("fault", ["truncated", "zero_length", "garbage", "missing_so",
-                                   "missing_manifest", "wrong_manifest"])
+@pytest.mark.parametrize(
+    "fault",
+    ["truncated", "zero_length", "garbage", "missing_so", "missing_manifest", "wrong_manifest"],
+)
 def test_a_damaged_artifact_is_rebuilt_not_loaded(tiny, cache, fault):
     """Before the fix a truncated .so killed every later process with SIGBUS and an empty
     one or a folder without its .so gave a permanent ImportError."""
@@ -128,9 +136,16 @@ def test_concurrent_cold_builds_from_threads(tiny, cache):
 
 def test_concurrent_cold_builds_from_processes(tiny, cache):
     env = dict(os.environ, DELTAGEN_CACHE=str(cache))
-    procs = [subprocess.Popen([sys.executable, "-c", LOADER, str(tiny)], env=env,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for _ in range(4)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", LOADER, str(tiny)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(4)
+    ]
     outputs = [p.communicate(timeout=300) for p in procs]
     for proc, (out, err) in zip(procs, outputs):
         assert proc.returncode == 0, err
@@ -161,8 +176,14 @@ def test_relative_cache_path_builds_a_robot_core(tmp_path):
     work = tmp_path / "cwd"
     work.mkdir()
     env = dict(os.environ, DELTAGEN_CACHE="rel")
-    proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=work,
-                          capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        env=env,
+        cwd=work,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stderr.strip() == "", "a successful build printed to the terminal"
     assert (work / "rel").is_dir()
@@ -197,7 +218,9 @@ def test_reference_backend_works_without_a_usable_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("DELTAGEN_CACHE", str(blocker))
     p = DeltaRobot.default(backend="reference").fk(np.array([0.1, 0.2, 0.3]))
     assert np.all(np.isfinite(p))
-    arm = SerialRobot.from_dh([{"a": 0.3}, {"a": 0.2}], "standard", name="planar2", backend="reference")
+    arm = SerialRobot.from_dh(
+        [{"a": 0.3}, {"a": 0.2}], "standard", name="planar2", backend="reference"
+    )
     assert np.isfinite(arm.fk(np.array([0.1, 0.2]))).all()
 
 

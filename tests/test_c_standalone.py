@@ -25,8 +25,28 @@ GCC = shutil.which("gcc")
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc not installed")
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
-LIBM = {"cos", "sin", "tan", "atan", "atan2", "acos", "asin", "sqrt", "cbrt", "hypot", "fabs",
-        "copysign", "fmin", "fmax", "fma", "pow", "exp", "log", "ceil", "floor"}
+LIBM = {
+    "cos",
+    "sin",
+    "tan",
+    "atan",
+    "atan2",
+    "acos",
+    "asin",
+    "sqrt",
+    "cbrt",
+    "hypot",
+    "fabs",
+    "copysign",
+    "fmin",
+    "fmax",
+    "fma",
+    "pow",
+    "exp",
+    "log",
+    "ceil",
+    "floor",
+}
 
 
 def _gcc(args, cwd):
@@ -47,30 +67,59 @@ def source_dir(tmp_path_factory):
 
 @pytest.mark.parametrize("opt", ["-O0", "-O2", "-O3"])
 def test_strict_c99_compiles_warning_free(source_dir, tmp_path, opt):
-    _gcc([*STRICT, opt, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "k.o")],
-         cwd=tmp_path)
+    _gcc(
+        [*STRICT, opt, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "k.o")],
+        cwd=tmp_path,
+    )
 
 
 def test_compiles_warning_free_with_the_build_flags(source_dir, tmp_path):
     """The flags deltagen.native.build uses for the cffi core (vector math included where
     available), plus -pedantic -Werror."""
     args, _ = compile_flags("deltagen_delta")
-    _gcc([*args, "-pedantic", "-Werror", "-c", str(source_dir / "delta_kinematics.c"),
-          "-o", str(tmp_path / "k.o")], cwd=tmp_path)
+    _gcc(
+        [
+            *args,
+            "-pedantic",
+            "-Werror",
+            "-c",
+            str(source_dir / "delta_kinematics.c"),
+            "-o",
+            str(tmp_path / "k.o"),
+        ],
+        cwd=tmp_path,
+    )
     if "-DDELTAGEN_DELTA_VECTOR_MATH" not in args:  # test the vector-math variant regardless
-        _gcc([*STRICT, "-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTAGEN_DELTA_VECTOR_MATH", "-c",
-              str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "v.o")], cwd=tmp_path)
+        _gcc(
+            [
+                *STRICT,
+                "-O3",
+                "-fno-math-errno",
+                "-fopenmp-simd",
+                "-DDELTAGEN_DELTA_VECTOR_MATH",
+                "-c",
+                str(source_dir / "delta_kinematics.c"),
+                "-o",
+                str(tmp_path / "v.o"),
+            ],
+            cwd=tmp_path,
+        )
 
 
-@pytest.mark.parametrize("flags", [["-O2"], ["-O3", "-fno-math-errno", "-fopenmp-simd",
-                                              "-DDELTAGEN_DELTA_VECTOR_MATH"]], ids=["O2", "vector-math"])
+@pytest.mark.parametrize(
+    "flags",
+    [["-O2"], ["-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTAGEN_DELTA_VECTOR_MATH"]],
+    ids=["O2", "vector-math"],
+)
 def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, flags):
     nm = shutil.which("nm")
     if nm is None:
         pytest.skip("nm not installed")
     obj = tmp_path / "k.o"
-    _gcc([*STRICT, *flags, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(obj)],
-         cwd=tmp_path)
+    _gcc(
+        [*STRICT, *flags, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(obj)],
+        cwd=tmp_path,
+    )
     table = subprocess.run([nm, str(obj)], capture_output=True, text=True, check=True).stdout
     defined, undefined = {}, set()
     for line in table.splitlines():
@@ -80,8 +129,13 @@ def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, fla
         elif len(parts) == 3:
             defined[parts[2]] = parts[1]
     functions = {name for name, kind in defined.items() if kind == "T"}
-    assert functions == {"deltagen_delta_fk", "deltagen_delta_fk_vel", "deltagen_delta_fk_acc", "deltagen_delta_jacobian",
-                         "deltagen_delta_ik"}
+    assert functions == {
+        "deltagen_delta_fk",
+        "deltagen_delta_fk_vel",
+        "deltagen_delta_fk_acc",
+        "deltagen_delta_jacobian",
+        "deltagen_delta_ik",
+    }
     data = {name: kind for name, kind in defined.items() if kind in "DdBbCGgSsVv"}
     assert not data, f"writable global/static data: {data}"
     external = {re.sub(r"^_ZGV\w+?_", "", name) for name in undefined}
@@ -328,21 +382,34 @@ int main(void)
 
 def _driver_source(geom, n_rows, seed):
     q, status, round_trip, targets, s_ik = _batch(geom, n_rows, seed)
-    arrays = "".join([
-        _c_array("Q", q),
-        _c_array("FK_STATUS", status, "int8_t"),
-        _c_array("ROUND_TRIP", round_trip.astype(int), "int"),
-        _c_array("P", targets),
-        _c_array("IK_STATUS", s_ik, "int8_t"),
-        _c_array("COS_THETA", np.cos(geom.theta)),
-        _c_array("SIN_THETA", np.sin(geom.theta)),
-    ])
-    source = DRIVER % dict(n=n_rows, arrays=arrays, r_a=geom.r_a.hex(), r_b=geom.r_b.hex(),
-                           l_a=geom.l_a.hex(), l_b=geom.l_b.hex())
+    arrays = "".join(
+        [
+            _c_array("Q", q),
+            _c_array("FK_STATUS", status, "int8_t"),
+            _c_array("ROUND_TRIP", round_trip.astype(int), "int"),
+            _c_array("P", targets),
+            _c_array("IK_STATUS", s_ik, "int8_t"),
+            _c_array("COS_THETA", np.cos(geom.theta)),
+            _c_array("SIN_THETA", np.sin(geom.theta)),
+        ]
+    )
+    source = DRIVER % dict(
+        n=n_rows,
+        arrays=arrays,
+        r_a=geom.r_a.hex(),
+        r_b=geom.r_b.hex(),
+        l_a=geom.l_a.hex(),
+        l_b=geom.l_b.hex(),
+    )
     return source, q, status, round_trip
 
 
-SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer", "-g"]
+SANITIZE = [
+    "-fsanitize=address,undefined",
+    "-fno-sanitize-recover=all",
+    "-fno-omit-frame-pointer",
+    "-g",
+]
 
 
 def _build_flags():
@@ -356,8 +423,12 @@ def sanitizers(tmp_path_factory):
     """Skip (rather than fail) where the toolchain has no ASan/UBSan runtime."""
     work = tmp_path_factory.mktemp("probe")
     (work / "probe.c").write_text("int main(void) { return 0; }\n")
-    build = subprocess.run([GCC, *SANITIZE, str(work / "probe.c"), "-o", str(work / "probe")],
-                           capture_output=True, text=True, timeout=120)
+    build = subprocess.run(
+        [GCC, *SANITIZE, str(work / "probe.c"), "-o", str(work / "probe")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     if build.returncode != 0:
         pytest.skip(f"no sanitizer runtime: {build.stderr[-300:]}")
     run = subprocess.run([str(work / "probe")], capture_output=True, text=True, timeout=60)
@@ -366,11 +437,15 @@ def sanitizers(tmp_path_factory):
     return SANITIZE
 
 
-@pytest.mark.parametrize("geom,n_rows,variant", [
-    (DEFAULT, 131, "plain"),
-    (KLIPPER, 200, "plain"),
-    (DEFAULT, 257, "build-flags"),
-], ids=["default-131-plain", "klipper-200-plain", "default-257-build-flags"])
+@pytest.mark.parametrize(
+    "geom,n_rows,variant",
+    [
+        (DEFAULT, 131, "plain"),
+        (KLIPPER, 200, "plain"),
+        (DEFAULT, 257, "build-flags"),
+    ],
+    ids=["default-131-plain", "klipper-200-plain", "default-257-build-flags"],
+)
 def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows, variant):
     assert n_rows % 64 != 0
     source, q, status, round_trip = _driver_source(geom, n_rows, seed=n_rows)
@@ -383,13 +458,30 @@ def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows,
     else:
         flags, libs = _build_flags()
         flags = [*flags, "-pedantic", "-Werror"]
-    _gcc([*flags, *sanitizers, f"-I{source_dir}", str(driver), str(source_dir / "delta_kinematics.c"),
-          "-o", str(exe), *libs], cwd=tmp_path)
-    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:detect_stack_use_after_return=1",
-               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    proc = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120, env=env,
-                          cwd=tmp_path)
-    failures = [line for line in proc.stdout.splitlines() if line.startswith("FAIL") or "FAILURES" in line]
+    _gcc(
+        [
+            *flags,
+            *sanitizers,
+            f"-I{source_dir}",
+            str(driver),
+            str(source_dir / "delta_kinematics.c"),
+            "-o",
+            str(exe),
+            *libs,
+        ],
+        cwd=tmp_path,
+    )
+    env = dict(
+        os.environ,
+        ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:detect_stack_use_after_return=1",
+        UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1",
+    )
+    proc = subprocess.run(
+        [str(exe)], capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path
+    )
+    failures = [
+        line for line in proc.stdout.splitlines() if line.startswith("FAIL") or "FAILURES" in line
+    ]
     assert proc.returncode == 0, "\n".join(failures[:30]) + proc.stderr[-3000:]
     assert proc.stderr == "", f"sanitizer output:\n{proc.stderr[-3000:]}"
     assert not failures
@@ -398,8 +490,12 @@ def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows,
     lines = proc.stdout.splitlines()
     assert len(lines) == n_rows
     got_status = np.array([int(line.split()[0]) for line in lines])
-    got_p = np.array([[float.fromhex(v) if v not in ("nan", "-nan") else math.nan
-                       for v in line.split()[1:]] for line in lines])
+    got_p = np.array(
+        [
+            [float.fromhex(v) if v not in ("nan", "-nan") else math.nan for v in line.split()[1:]]
+            for line in lines
+        ]
+    )
     np.testing.assert_array_equal(got_status, status)
     p_ref, _ = ref.fk(geom, q[:, :3])
     ok = status == OK
@@ -430,8 +526,9 @@ def _check_symbols(objects, cwd):
         return
     defined, undefined, kinds = set(), set(), set()
     for obj in objects:
-        table = subprocess.run([nm, obj], cwd=cwd, capture_output=True, text=True,
-                               check=True).stdout
+        table = subprocess.run(
+            [nm, obj], cwd=cwd, capture_output=True, text=True, check=True
+        ).stdout
         for line in table.splitlines():
             parts = line.split()
             if parts[:1] == ["U"]:
@@ -450,7 +547,7 @@ def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
     for ext in (".c", ".h"):
         shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
     _copy_runtime(tmp_path)
-    prefix = "deltagen_" + name[len("serial_"):-2]
+    prefix = "deltagen_" + name[len("serial_") : -2]
     args, _ = compile_flags(prefix)
     objects = []
     for source in [name, *RUNTIME_SOURCES]:
@@ -467,8 +564,14 @@ def _long_arm(n_joints):
 
     rows = []
     for i in range(n_joints):
-        rows.append(dict(a=0.3 if i % 3 == 1 else 0.02, alpha_deg=(90, -90, 0)[i % 3],
-                         d=0.1 if i % 2 else 0.25, qlim_deg=[-170, 170]))
+        rows.append(
+            dict(
+                a=0.3 if i % 3 == 1 else 0.02,
+                alpha_deg=(90, -90, 0)[i % 3],
+                d=0.1 if i % 2 else 0.25,
+                qlim_deg=[-170, 170],
+            )
+        )
     return SerialDescription.from_rows(rows, "standard", name=f"long{n_joints}")
 
 
@@ -489,10 +592,11 @@ def test_long_arms_compile_warning_free(n_joints, tmp_path):
     args, _ = compile_flags(f"deltagen_{desc.name}")
     for source in [f"serial_{desc.name}.c", *RUNTIME_SOURCES]:
         for opt in ("-O2", "-O3"):
-            _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"],
-                 cwd=tmp_path)
-        _gcc([*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
-             cwd=tmp_path)
+            _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"], cwd=tmp_path)
+        _gcc(
+            [*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
+            cwd=tmp_path,
+        )
 
 
 IK_DRIVER = r"""
@@ -573,8 +677,8 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     ASan/UBSan: converged rows reproduce their targets through the module's fk and stay
     within the limits, non-finite rows are INVALID, bad options and NULL pointers give -1
     and write nothing. long7 and long9 are redundant arms (7 and 9 joints)."""
-    from deltagen.reference import serial as reference
     from deltagen.api.serial import SerialRobot
+    from deltagen.reference import serial as reference
 
     if name.startswith("long"):
         desc = _long_arm(int(name[4:]))
@@ -595,8 +699,14 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     T[3, 0, 3] = np.nan
     q0[10, 1] = np.inf
     bad[[3, 10]] = 1
-    arrays = "".join([_c_array("TT", T), _c_array("Q0", q0), _c_array("QLIM", arm.qlim),
-                      _c_array("BAD", bad, "int")])
+    arrays = "".join(
+        [
+            _c_array("TT", T),
+            _c_array("Q0", q0),
+            _c_array("QLIM", arm.qlim),
+            _c_array("BAD", bad, "int"),
+        ]
+    )
     source = IK_DRIVER % dict(name=name, n=n_rows, nj=nj, arrays=arrays)
     if nj < 6:
         source = source.replace("{1, 1, 1, 1, 1, 1}}", "{1, 1, 1, 0, 0, 1}}")
@@ -607,12 +717,23 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
         # (-g) costs minutes, so the runtime and the driver alone run under the sanitizers
         _gcc([*STRICT, "-O1", "-c", module, "-o", "module.o"], cwd=tmp_path)
         module = "module.o"
-    _gcc([*STRICT, "-O1", *sanitizers, "driver.c", module, *RUNTIME_SOURCES,
-          "-o", "driver", "-lm"], cwd=tmp_path)
-    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:detect_stack_use_after_return=1",
-               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    proc = subprocess.run([str(tmp_path / "driver")], capture_output=True, text=True,
-                          timeout=120, env=env, cwd=tmp_path)
+    _gcc(
+        [*STRICT, "-O1", *sanitizers, "driver.c", module, *RUNTIME_SOURCES, "-o", "driver", "-lm"],
+        cwd=tmp_path,
+    )
+    env = dict(
+        os.environ,
+        ASAN_OPTIONS="detect_leaks=1:detect_stack_use_after_return=1",
+        UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1",
+    )
+    proc = subprocess.run(
+        [str(tmp_path / "driver")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert proc.stderr == "", proc.stderr[-3000:]
 
@@ -662,20 +783,37 @@ def test_two_arms_the_delta_core_and_an_arm_named_delta_in_one_program(tmp_path)
     for base in ("delta_kinematics", "serial_puma560", "serial_manutec_h5"):
         for ext in (".c", ".h"):
             shutil.copy(paths.generated_dir() / f"{base}{ext}", tmp_path)
-    rows = [dict(a=0.3, alpha=0.0, d=0.0), dict(a=0.2, alpha=0.0, d=0.0),
-            dict(a=0.1, alpha=0.0, d=0.0)]
+    rows = [
+        dict(a=0.3, alpha=0.0, d=0.0),
+        dict(a=0.2, alpha=0.0, d=0.0),
+        dict(a=0.1, alpha=0.0, d=0.0),
+    ]
     _render_arm(SerialDescription.from_rows(rows, "standard", name="delta"), tmp_path)
     assert "int deltagen_delta_arm_fk(" in (tmp_path / "serial_delta.h").read_text()
     geom = DEFAULT
-    (tmp_path / "main.c").write_text(ONE_PROGRAM % dict(
-        r_a=geom.r_a.hex(), r_b=geom.r_b.hex(), l_a=geom.l_a.hex(), l_b=geom.l_b.hex(),
-        cos=", ".join(float(c).hex() for c in np.cos(geom.theta)),
-        sin=", ".join(float(s).hex() for s in np.sin(geom.theta))))
-    sources = ["main.c", "delta_kinematics.c", "serial_puma560.c", "serial_manutec_h5.c",
-               "serial_delta.c", *RUNTIME_SOURCES]
+    (tmp_path / "main.c").write_text(
+        ONE_PROGRAM
+        % dict(
+            r_a=geom.r_a.hex(),
+            r_b=geom.r_b.hex(),
+            l_a=geom.l_a.hex(),
+            l_b=geom.l_b.hex(),
+            cos=", ".join(float(c).hex() for c in np.cos(geom.theta)),
+            sin=", ".join(float(s).hex() for s in np.sin(geom.theta)),
+        )
+    )
+    sources = [
+        "main.c",
+        "delta_kinematics.c",
+        "serial_puma560.c",
+        "serial_manutec_h5.c",
+        "serial_delta.c",
+        *RUNTIME_SOURCES,
+    ]
     _gcc([*STRICT, "-O1", *sources, "-o", "program", "-lm"], cwd=tmp_path)
-    proc = subprocess.run([str(tmp_path / "program")], capture_output=True, text=True,
-                          timeout=60, cwd=tmp_path)
+    proc = subprocess.run(
+        [str(tmp_path / "program")], capture_output=True, text=True, timeout=60, cwd=tmp_path
+    )
     assert proc.returncode == 0 and proc.stdout.strip() == "0 failures", proc.stdout
 
 
@@ -687,6 +825,6 @@ def test_runtime_status_codes_are_deltagen_status():
     codes = dict(re.findall(r"#define DELTAGEN_([A-Z]+) (\d+)\n", header))
     assert {int(v): k for k, v in codes.items()} == status.STATUS_NAMES
     generated = (paths.generated_dir() / "delta_kinematics.h").read_text()
-    block = header[header.index("#ifndef DELTAGEN_STATUS_CODES"):]
-    block = block[:block.index("#endif") + 6]
+    block = header[header.index("#ifndef DELTAGEN_STATUS_CODES") :]
+    block = block[: block.index("#endif") + 6]
     assert block in generated

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from numpy.lib.recfunctions import structured_to_unstructured
 from delta_oracles import DEFAULT, symmetric_fk
+from numpy.lib.recfunctions import structured_to_unstructured
 
 from deltagen import DeltaRobot, cli
 
@@ -57,9 +57,12 @@ def test_fk_default_at_home(capsys):
 def test_fk_with_degrees_fourth_axis_and_reference_backend(capsys):
     code, out, _ = run(capsys, "fk", "default", "20", "20", "20", "--degrees")
     assert code == 0
-    np.testing.assert_allclose(_bracket(out), symmetric_fk(DEFAULT, math.radians(20)),
-                               rtol=0, atol=1e-11)
-    code, out, _ = run(capsys, "fk", "default", "0.1", "0.1", "0.1", "0.75", "--backend", "reference")
+    np.testing.assert_allclose(
+        _bracket(out), symmetric_fk(DEFAULT, math.radians(20)), rtol=0, atol=1e-11
+    )
+    code, out, _ = run(
+        capsys, "fk", "default", "0.1", "0.1", "0.1", "0.75", "--backend", "reference"
+    )
     assert code == 0
     np.testing.assert_allclose(_bracket(out), symmetric_fk(DEFAULT, 0.1), rtol=0, atol=1e-11)
     assert re.search(r"phi = 0\.75\b", out)
@@ -68,8 +71,9 @@ def test_fk_with_degrees_fourth_axis_and_reference_backend(capsys):
 def test_options_before_values(capsys):
     code, out, _ = run(capsys, "fk", "default", "--degrees", "20", "20", "20")
     assert code == 0
-    np.testing.assert_allclose(_bracket(out), symmetric_fk(DEFAULT, math.radians(20)),
-                               rtol=0, atol=1e-11)
+    np.testing.assert_allclose(
+        _bracket(out), symmetric_fk(DEFAULT, math.radians(20)), rtol=0, atol=1e-11
+    )
 
 
 def test_ik_single_pose(capsys):
@@ -95,8 +99,9 @@ def test_robot_file_argument(capsys, tmp_path):
 
 
 def _q_batch():
-    q = np.array([[0.0, 0.0, 0.0], [0.1, 0.2, 0.3], [np.nan, 0.0, 0.0], [-0.3, 0.9, 0.4],
-                  [0.5, 0.5, 0.5]])
+    q = np.array(
+        [[0.0, 0.0, 0.0], [0.1, 0.2, 0.3], [np.nan, 0.0, 0.0], [-0.3, 0.9, 0.4], [0.5, 0.5, 0.5]]
+    )
     return q
 
 
@@ -151,10 +156,13 @@ def test_ik_csv_in_degrees(capsys, tmp_path):
     z = symmetric_fk(DEFAULT, math.radians(12))[2]
     src, dst = tmp_path / "p.csv", tmp_path / "q.csv"
     np.savetxt(src, [[0.0, 0.0, z]], delimiter=",")
-    code, _, _ = run(capsys, "ik", "default", "--degrees", "--input", str(src), "--output", str(dst))
+    code, _, _ = run(
+        capsys, "ik", "default", "--degrees", "--input", str(src), "--output", str(dst)
+    )
     assert code == 0
-    np.testing.assert_allclose(np.loadtxt(dst, delimiter=",", ndmin=2, skiprows=1)[0, :3], [12.0] * 3,
-                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        np.loadtxt(dst, delimiter=",", ndmin=2, skiprows=1)[0, :3], [12.0] * 3, rtol=0, atol=1e-9
+    )
 
 
 # ----------------------------------------------------------------------------- failures
@@ -183,13 +191,16 @@ def test_bad_robot_file_exits_2_with_message(capsys, tmp_path, command, case):
     assert "Traceback" not in err + out
 
 
-@pytest.mark.parametrize("argv,words", [
-    (["fk", "/nonexistent/robot.toml", "0", "0", "0"], "cannot read robot file"),
-    (["fk", "default", "1", "2"], "give 3 joint angles"),
-    (["fk", "default", "1", "2", "3", "4", "5"], "got 5 values"),
-    (["ik", "default", "0", "0", "nan"], "finite"),
-    (["fk", "default", "--input", "/nonexistent/q.csv"], "/nonexistent/q.csv"),
-])
+@pytest.mark.parametrize(
+    "argv,words",
+    [
+        (["fk", "/nonexistent/robot.toml", "0", "0", "0"], "cannot read robot file"),
+        (["fk", "default", "1", "2"], "give 3 joint angles"),
+        (["fk", "default", "1", "2", "3", "4", "5"], "got 5 values"),
+        (["ik", "default", "0", "0", "nan"], "finite"),
+        (["fk", "default", "--input", "/nonexistent/q.csv"], "/nonexistent/q.csv"),
+    ],
+)
 def test_bad_invocations_exit_2(capsys, argv, words):
     code, out, err = run(capsys, *argv)
     assert code == 2 and words in err, err
@@ -211,11 +222,13 @@ def test_real_process_reports_errors_without_traceback(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[delta]\nr_a = 0.2\n")
     cmd = [sys.executable, "-m", "deltagen.cli"]
-    ok = subprocess.run(cmd + ["fk", "default", "0", "0", "0"], capture_output=True, text=True,
-                        timeout=120)
+    ok = subprocess.run(
+        cmd + ["fk", "default", "0", "0", "0"], capture_output=True, text=True, timeout=120
+    )
     assert ok.returncode == 0 and "p = [" in ok.stdout
-    failed = subprocess.run(cmd + ["fk", str(bad), "0", "0", "0"], capture_output=True, text=True,
-                            timeout=120)
+    failed = subprocess.run(
+        cmd + ["fk", str(bad), "0", "0", "0"], capture_output=True, text=True, timeout=120
+    )
     assert failed.returncode == 2
     assert "missing keys" in failed.stderr and "Traceback" not in failed.stderr
     assert _numbers(ok.stdout)[-1] == pytest.approx(Z0, abs=1e-11)
@@ -278,8 +291,16 @@ def test_round_trip_puma_fk_ik_fk(capsys, tmp_path, ext):
     src, p1, q2, p2 = (tmp_path / f"{n}.{ext}" for n in ("q", "p1", "q2", "p2"))
     _write_q(src, q)
     assert run(capsys, "fk", "puma560", "--input", str(src), "--output", str(p1))[0] == 0
-    code, _, err = run(capsys, "ik", "puma560", "--input", str(p1), "--output", str(q2),
-                       "--q0=" + ",".join(str(float(v)) for v in q[0]))
+    code, _, err = run(
+        capsys,
+        "ik",
+        "puma560",
+        "--input",
+        str(p1),
+        "--output",
+        str(q2),
+        "--q0=" + ",".join(str(float(v)) for v in q[0]),
+    )
     assert code == 0, err
     assert run(capsys, "fk", "puma560", "--input", str(q2), "--output", str(p2))[0] == 0
     first, second = _read(p1), _read(p2)
@@ -306,16 +327,27 @@ def test_serial_ik_from_euler_columns_single_pose_and_options(capsys, tmp_path):
     np.testing.assert_allclose(arm.fk(got[0, :6]), arm.fk(q), rtol=0, atol=1e-12)
 
     values = [str(float(v)) for v in pose]
-    for extra in ([], ["--config", "front_up_noflip"], ["--method", "numeric", "--q0", "qn"],
-                  ["--method", "numeric", "--q0=" + ",".join(map(str, q + 0.05))]):
+    for extra in (
+        [],
+        ["--config", "front_up_noflip"],
+        ["--method", "numeric", "--q0", "qn"],
+        ["--method", "numeric", "--q0=" + ",".join(map(str, q + 0.05))],
+    ):
         code, out, err = run(capsys, "ik", "puma560", *values, *extra)
         assert code in (0, 1), err
         if code == 0:
             np.testing.assert_allclose(arm.fk(_bracket(out)), arm.fk(q), rtol=0, atol=1e-9)
         else:
             assert "no valid result" in err
-    code, out, _ = run(capsys, "ik", "puma560", *values, "--method", "numeric", "--q0=" +
-                       ",".join(map(str, q + 0.05)))
+    code, out, _ = run(
+        capsys,
+        "ik",
+        "puma560",
+        *values,
+        "--method",
+        "numeric",
+        "--q0=" + ",".join(map(str, q + 0.05)),
+    )
     assert code == 0
     np.testing.assert_allclose(_bracket(out), q, rtol=0, atol=1e-9)
     code, _, err = run(capsys, "ik", "puma560", *values, "--config", "upside_down")
@@ -328,9 +360,12 @@ def test_degrees_convert_revolute_joints_only(capsys, tmp_path):
     """lecture_prp is P-R-P: with --degrees the strokes stay in m (0.5 m, not 0.0087 m)."""
     code, out, _ = run(capsys, "fk", "lecture_prp", "0.5", "30", "0.4", "--degrees")
     assert code == 0
-    position = _bracket(out.splitlines()[-2][out.splitlines()[-2].index("="):])
-    np.testing.assert_allclose(position, [0.4 * math.cos(math.radians(30)),
-                                          0.4 * math.sin(math.radians(30)), 0.5], atol=1e-12)
+    position = _bracket(out.splitlines()[-2][out.splitlines()[-2].index("=") :])
+    np.testing.assert_allclose(
+        position,
+        [0.4 * math.cos(math.radians(30)), 0.4 * math.sin(math.radians(30)), 0.5],
+        atol=1e-12,
+    )
     # batch in, batch out; bosch_sr800 is R-R-P-R: ik prints q3 in m, the others in deg
     from deltagen import SerialRobot
 
@@ -340,15 +375,33 @@ def test_degrees_convert_revolute_joints_only(capsys, tmp_path):
     q_rad[:, [0, 1, 3]] = np.radians(q_rad[:, [0, 1, 3]])
     src, p, back = tmp_path / "q.csv", tmp_path / "p.csv", tmp_path / "back.csv"
     _write_q(src, q_deg)
-    assert run(capsys, "fk", "bosch_sr800", "--degrees", "--input", str(src), "--output", str(p))[0] == 0
+    assert (
+        run(capsys, "fk", "bosch_sr800", "--degrees", "--input", str(src), "--output", str(p))[0]
+        == 0
+    )
     T = [f"T{r}{c}" for r in range(1, 5) for c in range(1, 5)]
     np.testing.assert_allclose(_columns(_read(p), T).reshape(-1, 4, 4), arm.fk(q_rad), atol=1e-12)
-    code, _, err = run(capsys, "ik", "bosch_sr800", "--degrees", "--q0=20,-30,0.1,40", "--input",
-                       str(p), "--output", str(back))
+    code, _, err = run(
+        capsys,
+        "ik",
+        "bosch_sr800",
+        "--degrees",
+        "--q0=20,-30,0.1,40",
+        "--input",
+        str(p),
+        "--output",
+        str(back),
+    )
     assert code == 0, err
     np.testing.assert_allclose(_columns(_read(back), ["q1", "q2", "q3", "q4"]), q_deg, atol=1e-9)
-    code, out, _ = run(capsys, "ik", "bosch_sr800", "--degrees", "--q0=20,-30,0.1,40",
-                       *(str(float(v)) for v in arm.pose(q_rad[0])))
+    code, out, _ = run(
+        capsys,
+        "ik",
+        "bosch_sr800",
+        "--degrees",
+        "--q0=20,-30,0.1,40",
+        *(str(float(v)) for v in arm.pose(q_rad[0])),
+    )
     assert code == 0 and out.rstrip().endswith("(deg, deg, m, deg)")
     np.testing.assert_allclose(_bracket(out), q_deg[0], atol=1e-9)
 
@@ -365,21 +418,27 @@ def test_ik_reads_fk_output_by_name(capsys, tmp_path):
     np.testing.assert_allclose(_columns(table, ["q1", "q2", "q3"]), q, atol=1e-12)
 
 
-@pytest.mark.parametrize("text", [
-    "q1,q2,q3\n0.1,0.2,0.3\n",               # plain CSV header
-    "# q1,q2,q3\n0.1,0.2,0.3\n",             # numpy's savetxt header
-    "Q3, q1 ,q2,valid\n0.3,0.1,0.2,1\n",     # by name, any order and case, extra columns
-    "# made by hand\n0.1,0.2,0.3\n",          # a comment, then positional columns
-    "0.1 0.2 0.3\n",                          # whitespace-separated, positional
-    "\ufeffq1,q2,q3\r\n0.1,0.2,0.3\r\n",      # BOM and CRLF
-])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "q1,q2,q3\n0.1,0.2,0.3\n",  # plain CSV header
+        "# q1,q2,q3\n0.1,0.2,0.3\n",  # numpy's savetxt header
+        "Q3, q1 ,q2,valid\n0.3,0.1,0.2,1\n",  # by name, any order and case, extra columns
+        "# made by hand\n0.1,0.2,0.3\n",  # a comment, then positional columns
+        "0.1 0.2 0.3\n",  # whitespace-separated, positional
+        "\ufeffq1,q2,q3\r\n0.1,0.2,0.3\r\n",  # BOM and CRLF
+    ],
+)
 def test_csv_inputs_by_name_or_position(capsys, tmp_path, text):
     src = tmp_path / "q.csv"
     src.write_text(text, encoding="utf-8")
     code, out, err = run(capsys, "fk", "default", "--input", str(src))
     assert code == 0, err
-    np.testing.assert_allclose(np.loadtxt(out.splitlines()[1:], delimiter=",")[:3],
-                               DeltaRobot.default().fk([0.1, 0.2, 0.3]), atol=1e-15)
+    np.testing.assert_allclose(
+        np.loadtxt(out.splitlines()[1:], delimiter=",")[:3],
+        DeltaRobot.default().fk([0.1, 0.2, 0.3]),
+        atol=1e-15,
+    )
 
 
 def test_single_pose_with_output_writes_the_row(capsys, tmp_path):
@@ -387,8 +446,9 @@ def test_single_pose_with_output_writes_the_row(capsys, tmp_path):
     code, out, _ = run(capsys, "fk", "default", "0.1", "0.2", "0.3", "--output", str(dst))
     assert code == 0 and out == ""
     table = _read(dst)
-    np.testing.assert_allclose(_columns(table, ["x", "y", "z"])[0],
-                               DeltaRobot.default().fk([0.1, 0.2, 0.3]), atol=1e-15)
+    np.testing.assert_allclose(
+        _columns(table, ["x", "y", "z"])[0], DeltaRobot.default().fk([0.1, 0.2, 0.3]), atol=1e-15
+    )
     np.testing.assert_array_equal(table["valid"], [1.0])
     # an unreachable single pose: written as NaN, valid 0, exit 1
     code, _, err = run(capsys, "ik", "default", "0", "0", "-5", "--output", str(dst))
@@ -400,8 +460,9 @@ def test_output_extension_is_case_insensitive(capsys, tmp_path):
     dst = tmp_path / "p.NPY"
     assert run(capsys, "fk", "default", "0.1", "0.2", "0.3", "--output", str(dst))[0] == 0
     assert dst.read_bytes().startswith(b"\x93NUMPY") and not (tmp_path / "p.NPY.npy").exists()
-    code, _, err = run(capsys, "fk", "default", "0.1", "0.2", "0.3", "--output",
-                       str(tmp_path / "p.dat"))
+    code, _, err = run(
+        capsys, "fk", "default", "0.1", "0.2", "0.3", "--output", str(tmp_path / "p.dat")
+    )
     assert code == 2 and ".npy" in err
     # input: NPY is recognised by its content, whatever the name
     src = tmp_path / "q.bin"
@@ -467,10 +528,13 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as hs  # noqa: E402
 from hypothesis.extra import numpy as hnp  # noqa: E402
 
-FUZZ = settings(max_examples=60, deadline=None,
-                suppress_health_check=[HealthCheck.function_scoped_fixture])
-FLOATS = hs.one_of(hs.floats(allow_nan=True, allow_infinity=True),
-                   hs.sampled_from([0.0, -0.0, 0.3, -0.7, 1e-310, 1e155, -1e300, 5e-324]))
+FUZZ = settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+FLOATS = hs.one_of(
+    hs.floats(allow_nan=True, allow_infinity=True),
+    hs.sampled_from([0.0, -0.0, 0.3, -0.7, 1e-310, 1e155, -1e300, 5e-324]),
+)
 
 
 def _check_outcome(code, out, err, output=None):
@@ -493,11 +557,16 @@ def _check_outcome(code, out, err, output=None):
 
 
 @FUZZ
-@given(arr=hnp.arrays(dtype=hs.sampled_from([np.float64, np.float32, np.int64, np.bool_,
-                                             np.complex128, np.uint8]),
-                      shape=hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=5),
-                      elements=None),
-       command=hs.sampled_from(["fk", "ik"]))
+@given(
+    arr=hnp.arrays(
+        dtype=hs.sampled_from(
+            [np.float64, np.float32, np.int64, np.bool_, np.complex128, np.uint8]
+        ),
+        shape=hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=5),
+        elements=None,
+    ),
+    command=hs.sampled_from(["fk", "ik"]),
+)
 def test_fuzz_npy_inputs(capsys, tmp_path_factory, arr, command):
     if arr.dtype.kind == "f":
         arr = np.where(np.isfinite(arr), arr, np.nan) if arr.size % 2 else arr
@@ -508,9 +577,12 @@ def test_fuzz_npy_inputs(capsys, tmp_path_factory, arr, command):
 
 
 @FUZZ
-@given(rows=hs.lists(hs.lists(FLOATS, min_size=3, max_size=4), min_size=1, max_size=6),
-       header=hs.sampled_from(["", "q1,q2,q3\n", "# x,y,z\n", "x,y,z,phi\n", "a,b\n"]),
-       command=hs.sampled_from(["fk", "ik"]), ext=hs.sampled_from(["csv", "npy"]))
+@given(
+    rows=hs.lists(hs.lists(FLOATS, min_size=3, max_size=4), min_size=1, max_size=6),
+    header=hs.sampled_from(["", "q1,q2,q3\n", "# x,y,z\n", "x,y,z,phi\n", "a,b\n"]),
+    command=hs.sampled_from(["fk", "ik"]),
+    ext=hs.sampled_from(["csv", "npy"]),
+)
 def test_fuzz_values_nan_inf_huge(capsys, tmp_path_factory, rows, header, command, ext):
     width = len(rows[0])
     rows = [(r + r)[:width] for r in rows]
@@ -522,8 +594,9 @@ def test_fuzz_values_nan_inf_huge(capsys, tmp_path_factory, rows, header, comman
 
 
 @FUZZ
-@given(text=hs.text(alphabet=hs.sampled_from(list("0123456789.,-+eE #\n\tnaifxyzq\x00;")),
-                    max_size=60))
+@given(
+    text=hs.text(alphabet=hs.sampled_from(list("0123456789.,-+eE #\n\tnaifxyzq\x00;")), max_size=60)
+)
 def test_fuzz_malformed_csv(capsys, tmp_path_factory, text):
     src = tmp_path_factory.mktemp("fuzz") / "in.csv"
     src.write_text(text)
@@ -531,8 +604,9 @@ def test_fuzz_malformed_csv(capsys, tmp_path_factory, text):
     _check_outcome(code, out, err)
 
 
-@settings(max_examples=25, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(values=hs.lists(FLOATS, min_size=0, max_size=7), command=hs.sampled_from(["fk", "ik"]))
 def test_fuzz_serial_single_pose(capsys, values, command):
     code, out, err = run(capsys, command, "puma560", *(str(float(v)) for v in values))
@@ -551,12 +625,21 @@ def test_end_to_end_round_trip_in_a_process(tmp_path):
     src = tmp_path / "q.csv"
     _write_q(src, np.array([[0.1, 0.2, 0.3], [0.0, 0.0, 0.0]]))
     p = tmp_path / "p.npy"
-    first = subprocess.run(cmd + ["fk", "default", "--input", str(src), "--output", str(p)],
-                           capture_output=True, text=True, timeout=120)
+    first = subprocess.run(
+        cmd + ["fk", "default", "--input", str(src), "--output", str(p)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert first.returncode == 0, first.stderr
-    second = subprocess.run(cmd + ["ik", "default", "--input", str(p)], capture_output=True,
-                            text=True, timeout=120)
+    second = subprocess.run(
+        cmd + ["ik", "default", "--input", str(p)], capture_output=True, text=True, timeout=120
+    )
     assert second.returncode == 0 and second.stdout.startswith("q1,q2,q3,valid\n")
-    bad = subprocess.run(cmd + ["ik", "default", "1", "2", "3", "--input", str(p)],
-                         capture_output=True, text=True, timeout=120)
+    bad = subprocess.run(
+        cmd + ["ik", "default", "1", "2", "3", "--input", str(p)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr

@@ -13,9 +13,26 @@ import math
 import numpy as np
 import pytest
 from delta_oracles import (
-    DEFAULT, GEOMETRIES, IRREGULAR, KLIPPER, centres, det_rel, elbow_terms, geometry,
-    max_rel_err, random_p, random_q, rod_condition, rod_residual, rot_z, singular_band_pose,
-    stretched_chain_pose, symmetric_dz_dq, symmetric_fk, well_conditioned, with_tol,
+    DEFAULT,
+    GEOMETRIES,
+    IRREGULAR,
+    KLIPPER,
+    centres,
+    det_rel,
+    elbow_terms,
+    geometry,
+    max_rel_err,
+    random_p,
+    random_q,
+    rod_condition,
+    rod_residual,
+    rot_z,
+    singular_band_pose,
+    stretched_chain_pose,
+    symmetric_dz_dq,
+    symmetric_fk,
+    well_conditioned,
+    with_tol,
 )
 from hypothesis import assume, given, settings
 from hypothesis import strategies as hs
@@ -81,8 +98,12 @@ def test_core_matches_reference_on_reachable_poses(geom, rng):
         assert err <= RTOL, f"{name}: p differs by {err:.3g} * size at row {row}: q={q[row]}"
 
     s_pd, s_pdd, nJ = _rate_scales(geom, q, qd, qdd, J_r)
-    checks = (("fk_vel pd", pd_v, pd_r, s_pd), ("fk_acc pd", pd_a, pd_r, s_pd),
-              ("fk_acc pdd", pdd_a, pdd_r, s_pdd), ("jacobian", J, J_r, nJ))
+    checks = (
+        ("fk_vel pd", pd_v, pd_r, s_pd),
+        ("fk_acc pd", pd_a, pd_r, s_pd),
+        ("fk_acc pdd", pdd_a, pdd_r, s_pdd),
+        ("jacobian", J, J_r, nJ),
+    )
     for name, got, want, scale in checks:
         err, row = max_rel_err(got, want, scale)
         assert err <= RTOL, f"{name}: relative error {err:.3g} at row {row}: q={q[row]}"
@@ -110,10 +131,17 @@ def test_core_matches_reference_over_all_angles(geom, rng):
         mismatch = np.flatnonzero(status != s_r)
         assert mismatch.size == 0, (
             f"{name}: {mismatch.size} statuses differ, e.g. row {mismatch[0]}: "
-            f"q={q[mismatch[0]]}, core {status[mismatch[0]]}, reference {s_r[mismatch[0]]}")
+            f"q={q[mismatch[0]]}, core {status[mismatch[0]]}, reference {s_r[mismatch[0]]}"
+        )
     np.testing.assert_array_equal(sj_r, s_r)
-    for name, got, want in (("p", p, p_r), ("pd", pd_a, pd_r), ("pdd", pdd_a, pdd_r),
-                            ("J", J, J_r), ("p (fk_vel)", p_v, p_r), ("pd (fk_vel)", pd_v, pd_r)):
+    for name, got, want in (
+        ("p", p, p_r),
+        ("pd", pd_a, pd_r),
+        ("pdd", pdd_a, pdd_r),
+        ("J", J, J_r),
+        ("p (fk_vel)", p_v, p_r),
+        ("pd (fk_vel)", pd_v, pd_r),
+    ):
         np.testing.assert_array_equal(np.isfinite(got), np.isfinite(want), err_msg=name)
 
     has_p = np.isfinite(p_r[:, 0])
@@ -125,12 +153,16 @@ def test_core_matches_reference_over_all_angles(geom, rng):
     ok = s_r == OK
     kappa = rod_condition(geom, q[ok], p_r[ok])
     s_pd, s_pdd, nJ = _rate_scales(geom, q[ok], qd[ok], qdd[ok], J_r[ok])
-    for name, got, want, scale in (("pd", pd_a, pd_r, s_pd), ("pdd", pdd_a, pdd_r, s_pdd),
-                                   ("J", J, J_r, nJ)):
+    for name, got, want, scale in (
+        ("pd", pd_a, pd_r, s_pd),
+        ("pdd", pdd_a, pdd_r, s_pdd),
+        ("J", J, J_r, nJ),
+    ):
         e = np.linalg.norm((got[ok] - want[ok]).reshape(ok.sum(), -1), axis=1) / scale
         ratio = e / (RTOL * _cond_factor(kappa, 10.0))
         assert ratio.max() <= 1.0, (
-            f"{name}: error {e[ratio.argmax()]:.3g} at condition {kappa[ratio.argmax()]:.3g}")
+            f"{name}: error {e[ratio.argmax()]:.3g} at condition {kappa[ratio.argmax()]:.3g}"
+        )
 
 
 @pytest.mark.parametrize("geom", list(GEOMETRIES.values()), ids=list(GEOMETRIES))
@@ -352,7 +384,7 @@ def test_rotating_the_drives_rotates_the_platform(rng):
     np.testing.assert_array_equal(s0, s1)
     np.testing.assert_allclose(p1, p0 @ R.T, rtol=0, atol=1e-14 * base.size)
     np.testing.assert_allclose(pd1, pd0 @ R.T, rtol=0, atol=1e-13 * np.abs(pd0).max())
-    target = (p0 @ R.T)
+    target = p0 @ R.T
     q1, _ = _core(turned).ik(target)
     np.testing.assert_allclose(q1, q, rtol=0, atol=1e-12)
 
@@ -397,8 +429,9 @@ def test_fk_vel_and_fk_acc_match_finite_differences(geom, rng):
     pdd_fd = (4 * d2(1) - d2(2)) / 3
     np.testing.assert_array_equal(p, f[0.0])
     s_pd = np.linalg.norm(pd, axis=1) + geom.size * np.linalg.norm(qd, axis=1)
-    s_pdd = (np.linalg.norm(pdd, axis=1)
-             + geom.size * (np.linalg.norm(qdd, axis=1) + np.linalg.norm(qd, axis=1) ** 2))
+    s_pdd = np.linalg.norm(pdd, axis=1) + geom.size * (
+        np.linalg.norm(qdd, axis=1) + np.linalg.norm(qd, axis=1) ** 2
+    )
     err, row = max_rel_err(pd, pd_fd, s_pd)
     assert err < 1e-8, f"pd vs finite differences: {err:.3g} at q={q0[row]}"
     err, row = max_rel_err(pdd, pdd_fd, s_pdd)
@@ -458,8 +491,13 @@ def test_fk_of_ik_returns_p(geom, rng):
     """10^5 positions under the base: fk(ik(p)) == p to 1e-12 of the size wherever ik
     succeeds and the pose is well-conditioned."""
     core = _core(geom)
-    p = np.column_stack([rng.uniform(-0.35, 0.35, N_LARGE), rng.uniform(-0.35, 0.35, N_LARGE),
-                         rng.uniform(-1.2 * geom.l_b, -0.4 * geom.l_b, N_LARGE)])
+    p = np.column_stack(
+        [
+            rng.uniform(-0.35, 0.35, N_LARGE),
+            rng.uniform(-0.35, 0.35, N_LARGE),
+            rng.uniform(-1.2 * geom.l_b, -0.4 * geom.l_b, N_LARGE),
+        ]
+    )
     q, s = core.ik(p)
     keep = (s == OK) & well_conditioned(geom, q, p)
     assert keep.sum() > N_LARGE // 4

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from deltagen import cli
-from deltagen.apps import demos
 from deltagen.api.serial import SerialRobot
+from deltagen.apps import demos
 
 # Slide "Folie 111", "Ergebnisse einer Naeherungsrechnung mit Matlab", columns
 # X-Soll, X-Ist, Y-Soll, Y-Ist, as printed (L1 = 4, L2 = 3, q10 = 10 deg, q20 = 30 deg,
@@ -56,7 +56,9 @@ def test_slide_table_with_the_reference_backend():
     from deltagen.plan.trajectory import Task, jacobian_path_following
 
     arm = SerialRobot.load("lecture_scara", backend="reference")
-    t = jacobian_path_following(arm, np.radians([10.0, 30.0]), [4.0, 3.0], steps=10, task=Task("xy"))
+    t = jacobian_path_following(
+        arm, np.radians([10.0, 30.0]), [4.0, 3.0], steps=10, task=Task("xy")
+    )
     ours = [[f"{v:.4f}" for v in (s[0], i[0], s[1], i[1])] for s, i in zip(t.soll, t.ist)]
     assert ours == _rows(SLIDE_TABLE)
 
@@ -89,8 +91,10 @@ def test_demo_lecture_prints_the_slide_layout(capsys):
     assert cli.main(["demo", "lecture-scara"]) == 0
     out = capsys.readouterr().out
     lines = out.splitlines()
-    header = lines.index(next(line for line in lines if line.split() == ["X-Soll", "X-Ist", "Y-Soll", "Y-Ist"]))
-    assert [line.split() for line in lines[header + 1:header + 12]] == _rows(SLIDE_TABLE)
+    header = lines.index(
+        next(line for line in lines if line.split() == ["X-Soll", "X-Ist", "Y-Soll", "Y-Ist"])
+    )
+    assert [line.split() for line in lines[header + 1 : header + 12]] == _rows(SLIDE_TABLE)
     assert lines[header + 14].split()[:4] == SLIDE_LAST_ROW.split()
     assert "Naeherungsrechnung fuer planaren SCARA" in out
     assert "final error" in out
@@ -113,8 +117,8 @@ def test_demo_unknown_name_is_rejected(capsys):
 @pytest.fixture(scope="module")
 def miskolc_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("miskolc")
-    import io
     import contextlib
+    import io
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
@@ -163,7 +167,9 @@ def test_miskolc_gripper_z_moves_are_vertical(miskolc_jt):
         if seg.label.startswith(("down", "up")):
             sel = jt.cartesian.segment == i
             p = jt.robot.fk(jt.q[sel])[:, :3, 3]
-            np.testing.assert_allclose(p[:, :2], np.broadcast_to(p[0, :2], p[:, :2].shape), atol=1e-12)
+            np.testing.assert_allclose(
+                p[:, :2], np.broadcast_to(p[0, :2], p[:, :2].shape), atol=1e-12
+            )
             assert np.ptp(p[:, 2]) > 0.2  # 0.25 m down or up
 
 
@@ -183,10 +189,10 @@ def test_miskolc_ik_is_the_papers_elbow_up_solution(miskolc_jt):
     jt = miskolc_jt
     s1, a2, s4 = 0.50, 0.60, 0.50
     x, y, z = jt.cartesian.p.T
-    th1 = np.arctan2(y, x)                                              # (4)
+    th1 = np.arctan2(y, x)  # (4)
     r, s = np.hypot(x, y), z - s1
-    D = (r**2 + s**2 - a2**2 - s4**2) / (2 * a2 * s4)                   # (6)
-    th3 = np.arctan2(-np.sqrt(1 - D**2), D)                             # (7), upper elbow
+    D = (r**2 + s**2 - a2**2 - s4**2) / (2 * a2 * s4)  # (6)
+    th3 = np.arctan2(-np.sqrt(1 - D**2), D)  # (7), upper elbow
     th2 = np.arctan2(s, r) - np.arctan2(s4 * np.sin(th3), a2 + s4 * np.cos(th3))  # (9)
     np.testing.assert_allclose(jt.q[:, :3], np.column_stack([th1, th2, th3]), atol=1e-9)
     np.testing.assert_allclose(jt.q[:, 3], jt.cartesian.qj[:, 0], atol=1e-13)

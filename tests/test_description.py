@@ -42,21 +42,24 @@ def test_good_geometry_and_derived_lengths():
     assert isinstance(ints.r_a, float) and ints.theta == (0.0, 2.0, 4.0)
 
 
-@pytest.mark.parametrize("key,value,words", [
-    ("r_a", 0.0, ["r_a", "positive"]),
-    ("r_a", -0.2, ["r_a", "positive"]),
-    ("l_a", 0.0, ["l_a", "positive"]),
-    ("l_a", -0.35, ["l_a", "positive"]),
-    ("l_b", 0.0, ["l_b", "positive"]),
-    ("l_b", -1e-3, ["l_b", "positive"]),
-    ("r_b", -0.01, ["r_b", "non-negative"]),
-    ("l_b", math.nan, ["l_b", "finite"]),
-    ("r_a", math.inf, ["r_a", "finite"]),
-    ("l_a", "0.35", ["l_a", "real number"]),
-    ("l_a", True, ["l_a", "real number"]),
-    ("r_b", None, ["r_b", "real number"]),
-    ("l_b", 1j, ["l_b", "real number"]),
-])
+@pytest.mark.parametrize(
+    "key,value,words",
+    [
+        ("r_a", 0.0, ["r_a", "positive"]),
+        ("r_a", -0.2, ["r_a", "positive"]),
+        ("l_a", 0.0, ["l_a", "positive"]),
+        ("l_a", -0.35, ["l_a", "positive"]),
+        ("l_b", 0.0, ["l_b", "positive"]),
+        ("l_b", -1e-3, ["l_b", "positive"]),
+        ("r_b", -0.01, ["r_b", "non-negative"]),
+        ("l_b", math.nan, ["l_b", "finite"]),
+        ("r_a", math.inf, ["r_a", "finite"]),
+        ("l_a", "0.35", ["l_a", "real number"]),
+        ("l_a", True, ["l_a", "real number"]),
+        ("r_b", None, ["r_b", "real number"]),
+        ("l_b", 1j, ["l_b", "real number"]),
+    ],
+)
 def test_impossible_lengths(key, value, words):
     with pytest.raises(GeometryError) as info:
         DeltaGeometry(**_with(**{key: value}))
@@ -65,20 +68,25 @@ def test_impossible_lengths(key, value, words):
         assert word in str(info.value)
 
 
-@pytest.mark.parametrize("theta", [
-    (0.0, 0.0, 2.0),
-    (0.0, 2.0, 2.0),
-    (1.0, 2.0, 1.0),
-    (0.0, 2 * math.pi, 2.0),  # the same direction, one turn apart
-    (0.0, 1.0, -2 * math.pi + 1e-9),  # equal to theta[0] up to 1e-9 rad
-])
+@pytest.mark.parametrize(
+    "theta",
+    [
+        (0.0, 0.0, 2.0),
+        (0.0, 2.0, 2.0),
+        (1.0, 2.0, 1.0),
+        (0.0, 2 * math.pi, 2.0),  # the same direction, one turn apart
+        (0.0, 1.0, -2 * math.pi + 1e-9),  # equal to theta[0] up to 1e-9 rad
+    ],
+)
 def test_coinciding_drive_angles(theta):
     with pytest.raises(GeometryError, match="coincide"):
         DeltaGeometry(**_with(theta=theta))
 
 
-@pytest.mark.parametrize("theta", [(0.0, 1.0), (0.0, 1.0, 2.0, 3.0), 1.0, "abc", None,
-                                   (0.0, "x", 2.0), (0.0, math.nan, 2.0)])
+@pytest.mark.parametrize(
+    "theta",
+    [(0.0, 1.0), (0.0, 1.0, 2.0, 3.0), 1.0, "abc", None, (0.0, "x", 2.0), (0.0, math.nan, 2.0)],
+)
 def test_bad_theta(theta):
     with pytest.raises(GeometryError, match="theta"):
         DeltaGeometry(**_with(theta=theta))
@@ -93,8 +101,9 @@ def test_rods_too_short():
     DeltaGeometry(**_with(r_a=0.8, r_b=0.0, l_a=0.3, l_b=0.5))  # just closes: allowed
 
 
-@pytest.mark.parametrize("name", ["my robot", "1delta", "delta-2", "", "a/b", "x" * 65,
-                                  "delta.toml", "naïve", 3, None])
+@pytest.mark.parametrize(
+    "name", ["my robot", "1delta", "delta-2", "", "a/b", "x" * 65, "delta.toml", "naïve", 3, None]
+)
 def test_invalid_names(name):
     with pytest.raises(GeometryError, match="invalid robot name"):
         DeltaGeometry(**GOOD, name=name)
@@ -130,7 +139,9 @@ def test_toml_theta_deg_and_theta_rad(tmp_path):
     assert (g.r_a, g.r_b, g.l_a, g.l_b, g.name) == (0.2, 0.045, 0.35, 0.8, "my_delta")
     for got, deg in zip(g.theta, (0, 120, 240)):
         assert got == pytest.approx(math.radians(deg), abs=1e-15)
-    rad = GOOD_TOML.replace("theta_deg = [0, 120, 240]", "theta = [0.5, 2.5, 4.5]\nsingular_tol = 1e-6")
+    rad = GOOD_TOML.replace(
+        "theta_deg = [0, 120, 240]", "theta = [0.5, 2.5, 4.5]\nsingular_tol = 1e-6"
+    )
     g = DeltaGeometry.from_toml(_write(tmp_path, rad))
     assert g.theta == (0.5, 2.5, 4.5) and g.singular_tol == 1e-6
     no_name = GOOD_TOML.replace('name = "my_delta"\n', "")
@@ -164,8 +175,14 @@ BROKEN = {
     "theta_deg two": (lambda t: t.replace("[0, 120, 240]", "[0, 120]"), ["theta_deg", "3"]),
     "theta_deg words": (lambda t: t.replace("[0, 120, 240]", '[0, "a", 240]'), ["theta_deg[1]"]),
     "theta_deg same": (lambda t: t.replace("[0, 120, 240]", "[0, 120, 360]"), ["coincide"]),
-    "theta and theta_deg": (lambda t: t + "theta = [0.0, 2.0, 4.0]\n", ["theta", "theta_deg", "not both"]),
-    "theta rad bad": (lambda t: t.replace("theta_deg = [0, 120, 240]", 'theta = [0, 1]'), ["theta"]),
+    "theta and theta_deg": (
+        lambda t: t + "theta = [0.0, 2.0, 4.0]\n",
+        ["theta", "theta_deg", "not both"],
+    ),
+    "theta rad bad": (
+        lambda t: t.replace("theta_deg = [0, 120, 240]", "theta = [0, 1]"),
+        ["theta"],
+    ),
     "invalid name": (lambda t: t.replace('"my_delta"', '"my robot"'), ["my robot", "invalid"]),
     "name not string": (lambda t: t.replace('"my_delta"', "42"), ["42", "invalid"]),
     "delta not table": (lambda t: t.split("[delta]")[0] + "delta = 3\n", ["[delta]", "table"]),

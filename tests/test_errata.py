@@ -54,9 +54,13 @@ def numeric_subs(geom, i=None):
 def constraint_numeric(geom, i, p, qi):
     """f_i of eq. (1) from the points B_i and C_i of section 2.1 (numpy, independent)."""
     th = geom.theta[i]
-    B = np.array([(geom.r_a + geom.l_a * math.cos(qi)) * math.cos(th),
-                  (geom.r_a + geom.l_a * math.cos(qi)) * math.sin(th),
-                  -geom.l_a * math.sin(qi)])
+    B = np.array(
+        [
+            (geom.r_a + geom.l_a * math.cos(qi)) * math.cos(th),
+            (geom.r_a + geom.l_a * math.cos(qi)) * math.sin(th),
+            -geom.l_a * math.sin(qi),
+        ]
+    )
     C = np.array([p[0] + geom.r_b * math.cos(th), p[1] + geom.r_b * math.sin(th), p[2]])
     return float(np.dot(B - C, B - C) - geom.l_b**2)
 
@@ -69,8 +73,9 @@ def centres_numeric(geom, q):
 
 
 def geom_deg(theta_deg, r_a=0.2, r_b=0.045, l_a=0.35, l_b=0.8):
-    return DeltaGeometry(r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b,
-                         theta=tuple(math.radians(t) for t in theta_deg))
+    return DeltaGeometry(
+        r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b, theta=tuple(math.radians(t) for t in theta_deg)
+    )
 
 
 def trajectory(n):
@@ -215,9 +220,17 @@ def test_fk_regular_where_printed_chain_fails(theta_deg, q):
     assert abs(np.linalg.det(D)) / geom.l_b**3 > 0.5
     for i in CHAINS:
         _, jq = constraint_rate(i)
-        val = float(jq.subs(numeric_subs(geom)).subs({s.x: p[0], s.y: p[1], s.z: p[2],
-                                                      s.cos_q[i]: math.cos(q[i]),
-                                                      s.sin_q[i]: math.sin(q[i])}))
+        val = float(
+            jq.subs(numeric_subs(geom)).subs(
+                {
+                    s.x: p[0],
+                    s.y: p[1],
+                    s.z: p[2],
+                    s.cos_q[i]: math.cos(q[i]),
+                    s.sin_q[i]: math.sin(q[i]),
+                }
+            )
+        )
         assert abs(val) / (geom.l_a * geom.l_b) > 0.2
     assert np.linalg.cond(robot.jacobian(q)) < 5
     # the lower intersection: the mirror point across the centre plane lies higher
@@ -237,8 +250,9 @@ def test_printed_fk_chain_works_on_default_robot_trajectory():
     robot = DeltaRobot.default()
     q = robot.ik(pos)
     p = robot.fk(q)
-    printed = np.array([P.evaluate_fk(DEFAULT.r, DEFAULT.l_a, DEFAULT.l_b, DEFAULT.theta, qq)[0]
-                        for qq in q])
+    printed = np.array(
+        [P.evaluate_fk(DEFAULT.r, DEFAULT.l_a, DEFAULT.l_b, DEFAULT.theta, qq)[0] for qq in q]
+    )
     assert np.abs(printed - p).max() < 1e-12
 
 
@@ -318,8 +332,16 @@ def test_eq34_r_term_sign_is_wrong_and_consistent_with_eq28(i):
     printed = P.eq34_Jq_ii(i)
     assert not zero(printed - jq)
     assert zero(printed - jq + 4 * s.l_a * s.r * s.sin_q[i])
-    corrected = -2 * s.l_a * (s.cos_q[i] * s.z + s.sin_q[i] * s.sin_theta[i] * s.y
-                              + s.sin_q[i] * s.cos_theta[i] * s.x - s.r * s.sin_q[i])
+    corrected = (
+        -2
+        * s.l_a
+        * (
+            s.cos_q[i] * s.z
+            + s.sin_q[i] * s.sin_theta[i] * s.y
+            + s.sin_q[i] * s.cos_theta[i] * s.x
+            - s.r * s.sin_q[i]
+        )
+    )
     assert zero(corrected - jq)
     assert zero(printed + _printed_qd_coefficient(i))  # (34) = -(28): the same slip twice
     assert P.eq35_Jq()[0, 1] == 0 and P.eq35_Jq()[2, 0] == 0  # (35)
@@ -333,11 +355,24 @@ def test_eq28_counter_example_finite_differences():
     p0, pd = np.array([0.05, -0.1, -0.7]), np.array([0.3, -0.2, 0.5])
     q0, qd = 0.5, 1.3
     h = 1e-5
-    fd = (constraint_numeric(g, i, p0 + h * pd, q0 + h * qd)
-          - constraint_numeric(g, i, p0 - h * pd, q0 - h * qd)) / (2 * h)
+    fd = (
+        constraint_numeric(g, i, p0 + h * pd, q0 + h * qd)
+        - constraint_numeric(g, i, p0 - h * pd, q0 - h * qd)
+    ) / (2 * h)
     vals = numeric_subs(g)
-    vals.update({s.x: p0[0], s.y: p0[1], s.z: p0[2], s.xd: pd[0], s.yd: pd[1], s.zd: pd[2],
-                 s.qd[i]: qd, s.cos_q[i]: math.cos(q0), s.sin_q[i]: math.sin(q0)})
+    vals.update(
+        {
+            s.x: p0[0],
+            s.y: p0[1],
+            s.z: p0[2],
+            s.xd: pd[0],
+            s.yd: pd[1],
+            s.zd: pd[2],
+            s.qd[i]: qd,
+            s.cos_q[i]: math.cos(q0),
+            s.sin_q[i]: math.sin(q0),
+        }
+    )
     printed = float(P.eq28_df_dt(i).subs(vals))
     jp_row, jq = constraint_rate(i)
     derived = float(((jp_row * s.pd)[0] - jq * s.qd[i]).subs(vals))
@@ -387,8 +422,16 @@ def test_eq36_37_39_agree(i):
 def _total_time_derivative(expr, i):
     """d/dt of an expression in x, y, z, xd, yd, zd, q_i (angle) and qd_i."""
     q = s.q[i]
-    chain = [(s.x, s.xd), (s.y, s.yd), (s.z, s.zd), (s.xd, s.xdd), (s.yd, s.ydd),
-             (s.zd, s.zdd), (q, s.qd[i]), (s.qd[i], s.qdd[i])]
+    chain = [
+        (s.x, s.xd),
+        (s.y, s.yd),
+        (s.z, s.zd),
+        (s.xd, s.xdd),
+        (s.yd, s.ydd),
+        (s.zd, s.zdd),
+        (q, s.qd[i]),
+        (s.qd[i], s.qdd[i]),
+    ]
     out = sum(sp.diff(expr, a) * b for a, b in chain)
     return sp.expand(out).subs({sp.cos(q): s.cos_q[i], sp.sin(q): s.sin_q[i]})
 
@@ -419,8 +462,14 @@ def test_eq38_39_counter_check_finite_differences():
     vals = numeric_subs(g)
     vals.update({s.x: p[0], s.y: p[1], s.z: p[2], s.xd: pd[0], s.yd: pd[1], s.zd: pd[2]})
     for i in CHAINS:
-        vals.update({s.cos_q[i]: math.cos(q0[i]), s.sin_q[i]: math.sin(q0[i]),
-                     s.qd[i]: qd[i], s.qdd[i]: qdd[i]})
+        vals.update(
+            {
+                s.cos_q[i]: math.cos(q0[i]),
+                s.sin_q[i]: math.sin(q0[i]),
+                s.qd[i]: qd[i],
+                s.qdd[i]: qdd[i],
+            }
+        )
     Jp = np.array(sp.Matrix.vstack(*[P.eq31_33_Jp_row(i) for i in CHAINS]).subs(vals), dtype=float)
     hv = np.array([float(P.eq39_h(i).subs(vals)) for i in CHAINS])
     pdd_printed = np.linalg.solve(Jp, hv)
@@ -468,7 +517,7 @@ def test_eq29_is_a_duplicated_line_of_eq28():
     text = SEED.read_text(encoding="utf-8")
     line29 = next(ln for ln in text.splitlines() if ln.rstrip().endswith("(29)$$"))
     fragment = line29.strip("$ ").rsplit(r"\quad", 1)[0].strip()
-    block28 = text[text.index(r"\frac{df_i}{dt}"):text.index("(28)")]
+    block28 = text[text.index(r"\frac{df_i}{dt}") : text.index("(28)")]
     assert fragment.lstrip("+ ").replace(" ", "") in block28.replace(" ", "")
 
 

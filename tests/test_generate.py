@@ -14,14 +14,14 @@ import textwrap
 import pytest
 
 from deltagen import cli, paths
-from deltagen.apps import generate
-
 from deltagen.api.serial import bundled_robots
+from deltagen.apps import generate
 
 DELTA = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
 # the delta core plus one C module per bundled serial arm
-NAMES = DELTA + tuple(f"serial_{name}{ext}" for name in bundled_robots()
-                      for ext in (".c", ".h", ".cdef.h"))
+NAMES = DELTA + tuple(
+    f"serial_{name}{ext}" for name in bundled_robots() for ext in (".c", ".h", ".cdef.h")
+)
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +87,9 @@ def test_generated_layout_is_clean(rendered):
     problems = [p for name, text in rendered.items() for p in _layout_problems(name, text)]
     assert problems == [], "\n".join(problems[:20])
     for name, text in rendered.items():
-        template = {".c": "source.c.j2", ".h": "header.h.j2"}.get(name[name.index("."):],
-                                                                 "cdef.h.j2")
+        template = {".c": "source.c.j2", ".h": "header.h.j2"}.get(
+            name[name.index(".") :], "cdef.h.j2"
+        )
         assert f"deltagen/codegen/templates/{template}" in text.split("*/")[0], name
 
 
@@ -132,8 +133,10 @@ def test_check_reports_missing_and_changed_files(generated_copy, capsys):
     cdef = generated_copy / "delta_kinematics.cdef.h"
     cdef.write_text(cdef.read_text().replace("int8_t", "int16_t"))
     problems = generate.check(generated_copy)
-    assert sorted(p.split(" ")[0] for p in problems) == ["delta_kinematics.cdef.h",
-                                                        "delta_kinematics.h"]
+    assert sorted(p.split(" ")[0] for p in problems) == [
+        "delta_kinematics.cdef.h",
+        "delta_kinematics.h",
+    ]
     assert any("delta_kinematics.h is missing" in p for p in problems)
     assert any("int16_t" in p for p in problems)
     assert cli.main(["generate", "--check"]) == 1
@@ -173,10 +176,19 @@ def test_rendering_is_deterministic_across_processes(tmp_path):
     for seed in ("1", "4242"):
         env = dict(os.environ, PYTHONHASHSEED=seed)
         out = tmp_path / f"seed{seed}"
-        procs.append((out, subprocess.Popen(
-            [sys.executable, "-c", script, str(out)], env=env, cwd=str(paths.generated_dir().parent),
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE)))
-    for out, proc in procs:
+        procs.append(
+            (
+                out,
+                subprocess.Popen(
+                    [sys.executable, "-c", script, str(out)],
+                    env=env,
+                    cwd=str(paths.generated_dir().parent),
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE,
+                ),
+            )
+        )
+    for _out, proc in procs:
         stdout, stderr = proc.communicate(timeout=300)
         assert proc.returncode == 0, stderr.decode()
     (a, _), (b, _) = procs

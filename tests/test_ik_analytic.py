@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from deltagen.inputs import InputError
+from deltagen.model.serial import SerialDescription, transform
 from deltagen.paths import robots_dir
 from deltagen.reference import serial as reference
-from deltagen.model.serial import SerialDescription, transform
 from deltagen.solve.analytic import AnalyticSolver, analytic_solver
 
 EXPECTED = {
@@ -34,8 +34,9 @@ EXPECTED = {
 }
 SOLVABLE = [k for k, v in EXPECTED.items() if v[0] is not None]
 SIX_R = [k for k, v in EXPECTED.items() if v[0] == "spherical_wrist_6r"]
-EIGHT = tuple(f"{s}_{e}_{f}" for s in ("front", "back") for e in ("up", "down")
-              for f in ("noflip", "flip"))
+EIGHT = tuple(
+    f"{s}_{e}_{f}" for s in ("front", "back") for e in ("up", "down") for f in ("noflip", "flip")
+)
 N_SAMPLES = 2000
 
 
@@ -52,8 +53,9 @@ def _random_q(desc, rng, k):
 def _joint_diff(desc, a, b):
     """|a - b| per joint, revolute joints modulo 2 pi (desc None: all revolute)."""
     d = np.asarray(a, float) - np.asarray(b, float)
-    rev = (np.ones(d.shape[-1], bool) if desc is None
-           else np.array([j.revolute for j in desc.joints]))
+    rev = (
+        np.ones(d.shape[-1], bool) if desc is None else np.array([j.revolute for j in desc.joints])
+    )
     d[..., rev] = np.mod(d[..., rev] + math.pi, 2 * math.pi) - math.pi
     return np.abs(d)
 
@@ -93,20 +95,29 @@ def test_structure_detection_of_the_bundled_arms(name):
 
 
 def _puma_rows(changes=None):
-    rows = [dict(a=0.0, alpha_deg=90, d=0.6718), dict(a=0.4318, alpha_deg=0, d=0.0),
-            dict(a=0.0203, alpha_deg=-90, d=0.15005), dict(a=0.0, alpha_deg=90, d=0.4318),
-            dict(a=0.0, alpha_deg=-90, d=0.0), dict(a=0.0, alpha_deg=0, d=0.0)]
+    rows = [
+        dict(a=0.0, alpha_deg=90, d=0.6718),
+        dict(a=0.4318, alpha_deg=0, d=0.0),
+        dict(a=0.0203, alpha_deg=-90, d=0.15005),
+        dict(a=0.0, alpha_deg=90, d=0.4318),
+        dict(a=0.0, alpha_deg=-90, d=0.0),
+        dict(a=0.0, alpha_deg=0, d=0.0),
+    ]
     for (i, key), value in (changes or {}).items():
         rows[i][key] = value
     return rows
 
 
-@pytest.mark.parametrize("change", [
-    {(4, "a"): 0.05},          # axis 6 no longer meets axes 4/5: no central wrist
-    {(4, "d"): 0.04},          # axis 6 meets axis 5 at another point than axis 4 does
-    {(1, "alpha_deg"): 10.0},  # axes 2 and 3 not parallel
-    {(0, "alpha_deg"): 0.0},   # axis 1 parallel to axis 2
-], ids=["offset_wrist_a5", "offset_wrist_d5", "axes23_skew", "axes12_parallel"])
+@pytest.mark.parametrize(
+    "change",
+    [
+        {(4, "a"): 0.05},  # axis 6 no longer meets axes 4/5: no central wrist
+        {(4, "d"): 0.04},  # axis 6 meets axis 5 at another point than axis 4 does
+        {(1, "alpha_deg"): 10.0},  # axes 2 and 3 not parallel
+        {(0, "alpha_deg"): 0.0},  # axis 1 parallel to axis 2
+    ],
+    ids=["offset_wrist_a5", "offset_wrist_d5", "axes23_skew", "axes12_parallel"],
+)
 def test_structures_without_a_closed_form_are_refused(change):
     desc = SerialDescription.from_rows(_puma_rows(change), "standard", name="variant")
     assert analytic_solver(desc) is None
@@ -126,16 +137,21 @@ def _round_trip(desc, solver, q, **kw):
 def test_modified_dh_puma_with_base_and_tool():
     """Craig's modified-DH Puma 560 on a tilted base with an offset tool: the structure is
     read from the axes, whatever the convention, and base / tool are handled."""
-    rows = [dict(a=0.0, alpha=0.0, d=0.0, qlim_deg=[-160, 160]),
-            dict(a=0.0, alpha_deg=-90, d=0.0, qlim_deg=[-225, 45]),
-            dict(a=0.4318, alpha=0.0, d=0.15005, qlim_deg=[-45, 225]),
-            dict(a=0.0203, alpha_deg=-90, d=0.4318, qlim_deg=[-110, 170]),
-            dict(a=0.0, alpha_deg=90, d=0.0, qlim_deg=[-100, 100]),
-            dict(a=0.0, alpha_deg=-90, d=0.0, qlim_deg=[-266, 266])]
+    rows = [
+        dict(a=0.0, alpha=0.0, d=0.0, qlim_deg=[-160, 160]),
+        dict(a=0.0, alpha_deg=-90, d=0.0, qlim_deg=[-225, 45]),
+        dict(a=0.4318, alpha=0.0, d=0.15005, qlim_deg=[-45, 225]),
+        dict(a=0.0203, alpha_deg=-90, d=0.4318, qlim_deg=[-110, 170]),
+        dict(a=0.0, alpha_deg=90, d=0.0, qlim_deg=[-100, 100]),
+        dict(a=0.0, alpha_deg=-90, d=0.0, qlim_deg=[-266, 266]),
+    ]
     desc = SerialDescription.from_rows(
-        rows, "modified", name="craig_puma",
+        rows,
+        "modified",
+        name="craig_puma",
         base=transform((0.3, -0.2, 0.5), (0.2, -0.1, 0.7)),
-        tool=transform((0.01, -0.02, 0.12), (0.3, 0.4, -0.5)))
+        tool=transform((0.01, -0.02, 0.12), (0.3, 0.4, -0.5)),
+    )
     solver = analytic_solver(desc)
     assert solver is not None and solver.structure == "spherical_wrist_6r"
     q = _random_q(desc, np.random.default_rng(11), 300)
@@ -169,8 +185,10 @@ def test_round_trip_of_random_configurations(name):
     hit = (_joint_diff(desc, qs, q[:, None]).max(-1) < 1e-6) & valid
     missed = ~hit.any(axis=1)
     excused = _singular(desc, q[missed]) if missed.any() else np.zeros(0, bool)
-    print(f"{name}: original found for {N_SAMPLES - missed.sum()} of {N_SAMPLES}, "
-          f"{missed.sum()} missed, all at singular configurations: {excused.all()}")
+    print(
+        f"{name}: original found for {N_SAMPLES - missed.sum()} of {N_SAMPLES}, "
+        f"{missed.sum()} missed, all at singular configurations: {excused.all()}"
+    )
     assert excused.all()
     assert missed.sum() <= N_SAMPLES // 100
 
@@ -242,10 +260,14 @@ def test_shoulder_and_elbow_singularities_of_the_manutec_r15():
     # (q2 + q3 = -e3) with L1 cos e2 + L2 cos e3 = 0 (no horizontal reach).
     e2 = math.radians(50.0)
     e3 = math.acos(-L1 * math.cos(e2) / L2)
-    cases = np.array([[0.0, 0.0, 0.0, 0.0, 0.3, 0.0],      # stretched elbow (as qz), bent wrist
-                      [0.5, -1.2, 0.0, 0.2, -0.4, 0.9],    # stretched elbow, raised arm
-                      [0.3, -e2, e2 - e3, 0.4, 0.5, -0.6],  # shoulder singularity
-                      [0.0, -e2, e2 - e3, 0.0, 0.5, 0.0]])
+    cases = np.array(
+        [
+            [0.0, 0.0, 0.0, 0.0, 0.3, 0.0],  # stretched elbow (as qz), bent wrist
+            [0.5, -1.2, 0.0, 0.2, -0.4, 0.9],  # stretched elbow, raised arm
+            [0.3, -e2, e2 - e3, 0.4, 0.5, -0.6],  # shoulder singularity
+            [0.0, -e2, e2 - e3, 0.0, 0.5, 0.0],
+        ]
+    )
     T, qs, valid, err_p, err_r = _round_trip(desc, solver, cases, limits=False)
     Wc = T[:, :3, 3] - L3 * T[:, :3, 2]
     assert np.hypot(Wc[2:, 0], Wc[2:, 1]).max() < 1e-12
@@ -443,9 +465,12 @@ def test_puma560_agrees_with_robotics_toolbox_ikine_a():
 
 
 def test_solver_refuses_position_only_where_the_tool_point_moves_with_the_roll():
-    rows = [dict(a=0.45, alpha=0.0, d=0.5), dict(a=0.35, alpha_deg=180, d=0.0),
-            dict(type="prismatic", a=0.0, alpha=0.0, theta=0.0),
-            dict(a=0.05, alpha=0.0, d=0.0)]  # tool point 5 cm off the roll axis
+    rows = [
+        dict(a=0.45, alpha=0.0, d=0.5),
+        dict(a=0.35, alpha_deg=180, d=0.0),
+        dict(type="prismatic", a=0.0, alpha=0.0, theta=0.0),
+        dict(a=0.05, alpha=0.0, d=0.0),
+    ]  # tool point 5 cm off the roll axis
     desc = SerialDescription.from_rows(rows, "standard", name="offset_scara")
     solver = analytic_solver(desc)
     assert solver is not None and solver.structure == "planar"

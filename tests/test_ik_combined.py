@@ -8,9 +8,10 @@ import warnings
 import numpy as np
 import pytest
 
+from deltagen.api.serial import SerialRobot
+from deltagen.inputs import InputError
 from deltagen.solve import combined as ik_combined
 from deltagen.solve.analytic import analytic_solver
-from deltagen.api.serial import SerialRobot
 
 N = 500
 
@@ -54,7 +55,8 @@ def test_analytic_only_for_nearest_central_wrist(arm):
     puma = SerialRobot.load("puma560", backend="reference")
     q = np.array([0.3, 0.5, -1.0, 0.4, 0.7, -0.2])
     np.testing.assert_allclose(
-        SerialRobot(central, backend="reference").fk(q), puma.fk(q), atol=1e-14)
+        SerialRobot(central, backend="reference").fk(q), puma.fk(q), atol=1e-14
+    )
 
 
 def test_valid_branches_reproduce_T(arm, samples):
@@ -106,7 +108,7 @@ def test_compiled_backend_agrees(arm, samples):
 
 def test_not_supported():
     scara = SerialRobot.load("manutec_h5", backend="reference")
-    with pytest.raises(Exception):
+    with pytest.raises(InputError, match="6R arm"):
         ik_combined.nearest_central_wrist(scara.description)
 
 
@@ -117,4 +119,6 @@ def test_serial_robot_ik_all_uses_the_combined_method(arm):
     T = arm.fk(q)
     q_all, valid = arm.ik_all(T)
     assert q_all.shape == (50, 8, 6) and valid.any(axis=1).mean() > 0.9
-    np.testing.assert_allclose(arm.fk(q_all[valid]), np.repeat(T[:, None], 8, axis=1)[valid], atol=1e-10)
+    np.testing.assert_allclose(
+        arm.fk(q_all[valid]), np.repeat(T[:, None], 8, axis=1)[valid], atol=1e-10
+    )

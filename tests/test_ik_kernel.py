@@ -18,8 +18,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as hst
 
 from deltagen import SerialRobot, paths
-from deltagen.derive.serial.ik_closed_form import SUPPORTED, compiled_structure
 from deltagen.api.serial import bundled_robots
+from deltagen.derive.serial.ik_closed_form import SUPPORTED, compiled_structure
 from deltagen.status import INVALID, OK, UNREACHABLE
 
 CENTRAL_WRIST = ("puma560", "motoman_up6", "manutec_r15")
@@ -28,8 +28,7 @@ C_ARMS = CENTRAL_WRIST + ("miskolc_rrrr", "lecture_scara", "manutec_h5", "bosch_
 
 @pytest.fixture(scope="module", params=C_ARMS)
 def arms(request):
-    return (SerialRobot.load(request.param),
-            SerialRobot.load(request.param, backend="reference"))
+    return (SerialRobot.load(request.param), SerialRobot.load(request.param, backend="reference"))
 
 
 def _in_limit_q(arm, count, seed):
@@ -51,9 +50,11 @@ def test_kernel_exists_exactly_for_the_supported_structures():
         assert has_c == (solver is not None and solver.structure in SUPPORTED), name
         header = (paths.generated_dir() / f"serial_{name}.h").read_text()
         assert (f"deltagen_{name}_ik_all(" in header) == has_c, name
-    assert {n for n in bundled_robots()
-            if compiled_structure(SerialRobot.load(n, backend="reference").description)} \
-        >= set(C_ARMS)
+    assert {
+        n
+        for n in bundled_robots()
+        if compiled_structure(SerialRobot.load(n, backend="reference").description)
+    } >= set(C_ARMS)
 
 
 def test_c_matches_numpy_solver_on_random_poses(arms):
@@ -176,8 +177,12 @@ def test_property_pose_of_q_is_solved_back(unit):
 # ------------------------------------------------------------ the C alone, sanitized
 
 GCC = shutil.which("gcc")
-SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all",
-            "-fno-omit-frame-pointer", "-g"]
+SANITIZE = [
+    "-fsanitize=address,undefined",
+    "-fno-sanitize-recover=all",
+    "-fno-omit-frame-pointer",
+    "-g",
+]
 
 DRIVER = r"""
 #include <stdio.h>
@@ -223,8 +228,12 @@ int main(void) {
 def test_ik_all_alone_under_sanitizers(tmp_path):
     probe = tmp_path / "probe.c"
     probe.write_text("int main(void) { return 0; }\n")
-    if subprocess.run([GCC, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")],
-                      capture_output=True).returncode != 0:
+    if (
+        subprocess.run(
+            [GCC, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")], capture_output=True
+        ).returncode
+        != 0
+    ):
         pytest.skip("no sanitizer runtime")
     arm = SerialRobot.load("puma560")
     q = _in_limit_q(arm, 150, seed=5)
@@ -234,30 +243,57 @@ def test_ik_all_alone_under_sanitizers(tmp_path):
     T[30, 0, 3] = -np.inf
     T[40, :3, :3] *= 0.9
     T[50, :3, 3] = 1e300
-    poses = ", ".join(float(x).hex() if np.isfinite(x) else ("NAN" if np.isnan(x) else
-                                                               ("INFINITY" if x > 0 else "-INFINITY"))
-                      for x in T.reshape(-1))
+    poses = ", ".join(
+        float(x).hex()
+        if np.isfinite(x)
+        else ("NAN" if np.isnan(x) else ("INFINITY" if x > 0 else "-INFINITY"))
+        for x in T.reshape(-1)
+    )
     for name in ("serial_puma560.c", "serial_puma560.h"):
         shutil.copy(paths.generated_dir() / name, tmp_path)
     runtime = sorted(paths.runtime_dir().glob("deltagen_*.[ch]"))  # the module's ik_newton needs it
     for path in runtime:
         shutil.copy(path, tmp_path)
     (tmp_path / "driver.c").write_text(DRIVER % dict(n=len(T), poses=poses))
-    build = subprocess.run([GCC, "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", *SANITIZE,
-                            "driver.c", "serial_puma560.c",
-                            *(p.name for p in runtime if p.suffix == ".c"), "-o", "driver", "-lm"],
-                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    build = subprocess.run(
+        [
+            GCC,
+            "-std=c99",
+            "-O1",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            *SANITIZE,
+            "driver.c",
+            "serial_puma560.c",
+            *(p.name for p in runtime if p.suffix == ".c"),
+            "-o",
+            "driver",
+            "-lm",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert build.returncode == 0, build.stderr[-3000:]
     env = dict(os.environ, UBSAN_OPTIONS="halt_on_error=1")
-    run = subprocess.run([str(tmp_path / "driver")], cwd=tmp_path, capture_output=True,
-                         text=True, timeout=120, env=env)
+    run = subprocess.run(
+        [str(tmp_path / "driver")],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
     assert run.stderr == ""
     rows = [line.split() for line in run.stdout.splitlines()]
     status = np.array([int(r[0]) for r in rows])
     valid = np.array([[v == "1" for v in r[1:9]] for r in rows])
-    q_c = np.array([[float.fromhex(v) if "nan" not in v else math.nan for v in r[9:]]
-                    for r in rows]).reshape(len(T), 8, 6)
+    q_c = np.array(
+        [[float.fromhex(v) if "nan" not in v else math.nan for v in r[9:]] for r in rows]
+    ).reshape(len(T), 8, 6)
     assert status[20] == INVALID and status[30] == INVALID
     assert status[10] == UNREACHABLE and status[40] == UNREACHABLE and status[50] == UNREACHABLE
     # the standalone build at -O1 agrees with the numpy solver
@@ -286,9 +322,12 @@ def test_exactly_singular_target_raises_or_masks(backend):
     regular = np.array([0.3, 0.5, -0.4, 0.2, 0.6, -0.3])
     wrist = np.array([0.3, 0.5, -0.4, 0.2, 0.0, -0.3])
     T = arm.fk(np.stack([regular, wrist]))
-    k_wrist = int(np.flatnonzero(
-        np.all(np.abs(_angle_diff(arm.ik_all(T[1])[0][:, [0, 1, 2]], wrist[:3])) < 1e-9, -1)
-        & (np.abs(arm.ik_all(T[1])[0][:, 4]) < 1e-9))[0])
+    k_wrist = int(
+        np.flatnonzero(
+            np.all(np.abs(_angle_diff(arm.ik_all(T[1])[0][:, [0, 1, 2]], wrist[:3])) < 1e-9, -1)
+            & (np.abs(arm.ik_all(T[1])[0][:, 4]) < 1e-9)
+        )[0]
+    )
     config = arm.analytic_configs()[k_wrist]
     for target in (T[1], T[1].copy(order="F")):  # fast path and general path
         with pytest.raises(SingularityError, match="singularity") as info:
@@ -326,8 +365,9 @@ def test_numeric_single_target_path_equals_general_path():
         if fast[1]:
             np.testing.assert_allclose(arm.fk(fast[0]), T[i], rtol=0, atol=1e-9)
         q0 = q[i] + 0.05
-        np.testing.assert_array_equal(arm.ik(T[i], q0=q0, method="numeric"),
-                                      arm.ik(T[i], q0=q0.tolist(), method="numeric"))
+        np.testing.assert_array_equal(
+            arm.ik(T[i], q0=q0, method="numeric"), arm.ik(T[i], q0=q0.tolist(), method="numeric")
+        )
     # the fast path's first attempt is solve()'s first attempt
     single = ik_numeric.single_solver(arm)
     res = ik_numeric.solve(arm, T, np.tile(mid, (len(T), 1)))

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from deltagen import status as st
-from deltagen.inputs import InputError
-from deltagen.solve import numeric as ikn
-from deltagen.reference import serial as reference
 from deltagen.api.serial import SerialRobot
+from deltagen.inputs import InputError
+from deltagen.reference import serial as reference
+from deltagen.solve import numeric as ikn
 
 SIX_AXIS = ("puma560", "motoman_up6", "manutec_r15")
 TOL = 1e-10
@@ -125,8 +125,9 @@ def test_scara_with_mask(arms, rng):
     assert res.mask.tolist() == [1, 1, 1, 0, 0, 1]
     assert res.converged.all()
     _check(arm, res, T)
-    res = ikn.solve(arm, T, _random_q(arm, rng, 1000), restarts=30, engine="c",
-                    mask=[1, 1, 1, 0, 0, 0])
+    res = ikn.solve(
+        arm, T, _random_q(arm, rng, 1000), restarts=30, engine="c", mask=[1, 1, 1, 0, 0, 0]
+    )
     assert res.converged.all() and arm.within_limits(res.q).all()
     Tq = _ref_fk(arm, res.q)
     assert np.abs(Tq[:, :3, 3] - T[:, :3, 3]).max() <= 1e-10
@@ -172,8 +173,13 @@ def test_redundant_seven_axis(rng):
     assert np.allclose(one.q, one_np.q, rtol=0, atol=1e-12)
     J, _ = reference.jacobian(arm.description, q0)
     T0 = _ref_fk(arm, q0)
-    dx = np.concatenate([T[:50, :3, 3] - T0[:, :3, 3],
-                         ikn.rotation_vector(T[:50, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2))], 1)
+    dx = np.concatenate(
+        [
+            T[:50, :3, 3] - T0[:, :3, 3],
+            ikn.rotation_vector(T[:50, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2)),
+        ],
+        1,
+    )
     expected = np.einsum("nij,nj->ni", np.linalg.pinv(J), dx)
     well = np.linalg.cond(J) < 100
     assert well.sum() > 10
@@ -197,11 +203,24 @@ def test_non_finite_rows_are_invalid(arms, rng):
     assert res.converged[~bad].all()
     # the raw C routine marks them INVALID
     core = arm._core
-    opts = core.ik_options(tol_p=TOL, tol_r=TOL, step_limit=0.5, damping=1.0, base_damping=0.1,
-                           max_iter=50, stall_window=0, respect_limits=True, free_first=True,
-                           mask=[1] * 6)
-    q, ep, er, it, status = core.ik_newton(opts, np.ascontiguousarray(T.reshape(-1, 4, 4)),
-                                           np.ascontiguousarray(q0), np.ascontiguousarray(arm.qlim))
+    opts = core.ik_options(
+        tol_p=TOL,
+        tol_r=TOL,
+        step_limit=0.5,
+        damping=1.0,
+        base_damping=0.1,
+        max_iter=50,
+        stall_window=0,
+        respect_limits=True,
+        free_first=True,
+        mask=[1] * 6,
+    )
+    q, ep, er, it, status = core.ik_newton(
+        opts,
+        np.ascontiguousarray(T.reshape(-1, 4, 4)),
+        np.ascontiguousarray(q0),
+        np.ascontiguousarray(arm.qlim),
+    )
     assert np.all(status[bad] == st.INVALID) and np.all(status[~bad] == st.OK)
     assert np.isnan(q[bad]).all() and np.isnan(ep[bad]).all() and np.all(it[bad] == 0)
 
@@ -215,8 +234,9 @@ def test_unreachable_rows_return_the_best_q(arms, rng):
     assert np.isfinite(res.q).all() and arm.within_limits(res.q).all()
     assert np.all(res.iterations <= 3 * 40)
     Tq = _ref_fk(arm, res.q)
-    assert np.allclose(res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1),
-                       rtol=1e-9)
+    assert np.allclose(
+        res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1), rtol=1e-9
+    )
 
 
 def test_engine_selection_and_bad_options(arms):
@@ -224,8 +244,12 @@ def test_engine_selection_and_bad_options(arms):
     T = arm.fk(arm.configuration("qn"))
     with pytest.raises(InputError):
         ikn.solve(arm, T, np.zeros(6), engine="fortran")
-    for kwargs in (dict(jacobian="fd"), dict(jacobian="geometric"), dict(damping=None),
-                   dict(null_space=0.5)):
+    for kwargs in (
+        dict(jacobian="fd"),
+        dict(jacobian="geometric"),
+        dict(damping=None),
+        dict(null_space=0.5),
+    ):
         with pytest.raises(InputError):
             ikn.solve(arm, T, np.zeros(6), engine="c", **kwargs)
         ikn.solve(arm, T, np.zeros(6), **kwargs)  # auto: falls back to numpy
@@ -235,12 +259,29 @@ def test_engine_selection_and_bad_options(arms):
     assert ikn.solve(ref, T, arm.configuration("qn") + 0.01).converged
     # the C routine itself refuses bad options (-1, nothing written)
     core = arm._core
-    base = dict(tol_p=TOL, tol_r=TOL, step_limit=0.5, damping=1.0, base_damping=0.1,
-                max_iter=50, stall_window=0, respect_limits=True, free_first=True, mask=[1] * 6)
+    base = dict(
+        tol_p=TOL,
+        tol_r=TOL,
+        step_limit=0.5,
+        damping=1.0,
+        base_damping=0.1,
+        max_iter=50,
+        stall_window=0,
+        respect_limits=True,
+        free_first=True,
+        mask=[1] * 6,
+    )
     args = (np.ascontiguousarray(T.reshape(1, 4, 4)), np.zeros((1, 6)), None)
-    for bad in (dict(tol_p=-1.0), dict(tol_r=math.nan), dict(step_limit=0.0),
-                dict(damping=-1.0), dict(base_damping=math.inf), dict(max_iter=-1),
-                dict(stall_window=-3), dict(mask=[0] * 6)):
+    for bad in (
+        dict(tol_p=-1.0),
+        dict(tol_r=math.nan),
+        dict(step_limit=0.0),
+        dict(damping=-1.0),
+        dict(base_damping=math.inf),
+        dict(max_iter=-1),
+        dict(stall_window=-3),
+        dict(mask=[0] * 6),
+    ):
         with pytest.raises(RuntimeError):
             core.ik_newton(core.ik_options(**{**base, **bad}), *args)
     q, *_, status = core.ik_newton(core.ik_options(**base), *args)

@@ -16,10 +16,10 @@ import warnings
 import numpy as np
 import pytest
 
+from deltagen.api.serial import SerialRobot, bundled_robots
 from deltagen.inputs import InputError
 from deltagen.reference import serial as reference
 from deltagen.solve import numeric as ikn
-from deltagen.api.serial import SerialRobot, bundled_robots
 
 SIX_AXIS = ("puma560", "manutec_r15", "motoman_up6")
 TOL = 1e-10
@@ -106,8 +106,10 @@ def _rodrigues(axis, theta):
 
 def _small_rotvec(R):
     """Rotation vector of rotations below ~90 deg: vee(R - R^T)/2 rescaled by theta/sin."""
-    v = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                        R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    v = 0.5 * np.stack(
+        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
+        axis=-1,
+    )
     s = np.linalg.norm(v, axis=-1, keepdims=True)
     th = np.arcsin(np.clip(s, 0, 1))
     return v * np.where(s > 0, th / np.where(s > 0, s, 1), 1.0)
@@ -120,13 +122,15 @@ def test_rotation_vector_inverts_rodrigues(rng):
     N = 4000
     axis = rng.normal(size=(N, 3))
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-    theta = np.concatenate([
-        rng.uniform(0, np.pi, N - 400),
-        10.0 ** rng.uniform(-14, -2, 100),                 # tiny
-        np.pi / 2 + rng.uniform(-1e-6, 1e-6, 100),         # branch switch
-        np.pi - 10.0 ** rng.uniform(-12, -3, 100),         # near pi
-        np.full(100, np.pi),
-    ])
+    theta = np.concatenate(
+        [
+            rng.uniform(0, np.pi, N - 400),
+            10.0 ** rng.uniform(-14, -2, 100),  # tiny
+            np.pi / 2 + rng.uniform(-1e-6, 1e-6, 100),  # branch switch
+            np.pi - 10.0 ** rng.uniform(-12, -3, 100),  # near pi
+            np.full(100, np.pi),
+        ]
+    )
     R = _rodrigues(axis, theta)
     w = ikn.rotation_vector(R)
     # theta <= pi: the vector is theta * axis; at exactly pi the sign is free
@@ -210,8 +214,9 @@ def test_modified_dh_on_the_reference_backend(rng):
     _check_solution(arm, res, T)
     q_true = _random_q(arm2, rng, 100)
     T = _ref_fk(arm2, q_true)
-    res = ikn.solve(arm2, T, _perturbed(arm2, q_true, rng, 0.05), mask=[1, 1, 1, 0, 0, 0],
-                    restarts=10)
+    res = ikn.solve(
+        arm2, T, _perturbed(arm2, q_true, rng, 0.05), mask=[1, 1, 1, 0, 0, 0], restarts=10
+    )
     assert res.converged.all() and arm2.within_limits(res.q).all()
     assert np.abs(_ref_fk(arm2, res.q)[:, :3, 3] - T[:, :3, 3]).max() <= 1e-10
 
@@ -272,8 +277,13 @@ def test_single_step_is_gauss_elimination(arms, rng):
     assert len(q0) > 10
     res = ikn.solve(arm, T, q0, max_iter=1, damping=None, step_limit=None)
     T0 = _ref_fk(arm, q0)
-    dx = np.concatenate([T[:, :3, 3] - T0[:, :3, 3],
-                         _small_rotvec(T[:, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2))], axis=1)
+    dx = np.concatenate(
+        [
+            T[:, :3, 3] - T0[:, :3, 3],
+            _small_rotvec(T[:, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2)),
+        ],
+        axis=1,
+    )
     assert np.allclose(res.q - q0, np.linalg.solve(J, dx[:, :, None])[:, :, 0], atol=1e-12)
     assert np.all(res.iterations == 1)
 
@@ -318,8 +328,13 @@ def test_redundant_step_is_minimum_norm(puma7, rng):
     assert len(q0) > 10
     res = ikn.solve(arm, T, q0, max_iter=1, damping=None, step_limit=None)
     T0 = _ref_fk(arm, q0)
-    dx = np.concatenate([T[:, :3, 3] - T0[:, :3, 3],
-                         _small_rotvec(T[:, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2))], axis=1)
+    dx = np.concatenate(
+        [
+            T[:, :3, 3] - T0[:, :3, 3],
+            _small_rotvec(T[:, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2)),
+        ],
+        axis=1,
+    )
     expected = np.einsum("nij,nj->ni", np.linalg.pinv(J), dx)
     assert np.allclose(res.q - q0, expected, atol=1e-12)
 
@@ -337,7 +352,7 @@ def test_default_masks():
 
 @pytest.mark.parametrize("name", ["manutec_h5", "bosch_sr800"])
 def test_scara_tool_fitting(arms, name, rng):
-    """"Tool fitting": a SCARA matches the position and the rotation about the vertical.
+    """ "Tool fitting": a SCARA matches the position and the rotation about the vertical.
     The target's tool axis is tilted about a random horizontal axis (unreachable for a
     SCARA); the fit must ignore the tilt and return exactly the untilted pose: R* = R_t Q
     with Q a rotation about a horizontal axis u gives R* R_t^T = Rot(R_t u), whose rotation
@@ -376,12 +391,11 @@ def test_planar_scara_position_only(arms, rng):
     T = np.tile(np.eye(4), (N, 1, 1))
     T[:, 0, 3], T[:, 1, 3] = r * np.cos(phi), r * np.sin(phi)
     T[:, 2, 3] = 0.5  # out of the arm's plane: ignored by the mask
-    res = ikn.solve(arm, T, [0.3, 0.3], mask=[True, True, False, False, False, False],
-                    restarts=5)
+    res = ikn.solve(arm, T, [0.3, 0.3], mask=[True, True, False, False, False, False], restarts=5)
     assert res.converged.all()
     Tq = _ref_fk(arm, res.q)
     assert np.abs(Tq[:, :2, 3] - T[:, :2, 3]).max() <= 1e-10
-    cos_q2 = (r ** 2 - 16 - 9) / (2 * 4 * 3)  # law of cosines, L1 = 4, L2 = 3
+    cos_q2 = (r**2 - 16 - 9) / (2 * 4 * 3)  # law of cosines, L1 = 4, L2 = 3
     assert np.allclose(np.cos(res.q[:, 1]), cos_q2, atol=1e-9)
     q_true = _random_q(arm, rng, N)
     T2 = _ref_fk(arm, q_true)
@@ -446,10 +460,10 @@ def test_unreachable_targets(arms, rng):
     assert np.all(res.iterations <= 3 * 50)
     # the reported errors are those of the returned q (recomputed here)
     Tq = _ref_fk(arm, res.q)
-    assert np.allclose(res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1),
-                       rtol=1e-9)
-    assert np.allclose(res.rotation_error, _rotation_angle(Tq[:, :3, :3], T[:, :3, :3]),
-                       atol=1e-6)
+    assert np.allclose(
+        res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1), rtol=1e-9
+    )
+    assert np.allclose(res.rotation_error, _rotation_angle(Tq[:, :3, :3], T[:, :3, :3]), atol=1e-6)
     # the returned q is the best found: closer than the start, and 5 m minus the reach
     # (shoulder 0.67 m high, arm ~0.9 m) is the least possible distance
     assert np.all(res.position_error < start)
@@ -489,8 +503,14 @@ def test_nan_targets_and_starts(arms, rng):
     assert np.all(np.isnan(res.position_error[bad])) and np.all(np.isnan(res.rotation_error[bad]))
     assert res.converged[~bad].all()
     T_good = T[~bad]
-    sub = ikn.IKResult(res.q[~bad], res.converged[~bad], res.iterations[~bad],
-                       res.position_error[~bad], res.rotation_error[~bad], res.mask)
+    sub = ikn.IKResult(
+        res.q[~bad],
+        res.converged[~bad],
+        res.iterations[~bad],
+        res.position_error[~bad],
+        res.rotation_error[~bad],
+        res.mask,
+    )
     _check_solution(arm, sub, T_good)
 
 
@@ -532,8 +552,14 @@ def test_respect_limits_false_may_leave_the_range(arms):
     assert free.converged and np.allclose(free.q, q_out, atol=1e-8)
     kept = ikn.solve(arm, T[0], q_out + 0.01, restarts=20)
     assert kept.converged and arm.within_limits(kept.q)
-    one = ikn.IKResult(kept.q[None], kept.converged[None], kept.iterations[None],
-                       kept.position_error[None], kept.rotation_error[None], kept.mask)
+    one = ikn.IKResult(
+        kept.q[None],
+        kept.converged[None],
+        kept.iterations[None],
+        kept.position_error[None],
+        kept.rotation_error[None],
+        kept.mask,
+    )
     _check_solution(arm, one, T)
 
 
@@ -568,22 +594,25 @@ def test_zero_tolerance_and_zero_iterations(arms):
     assert res.iterations == 0 and not res.converged and np.allclose(res.q, qn + 0.05)
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(jacobian="analytic"),
-    dict(damping="lots"),
-    dict(damping=-1.0),
-    dict(mask=[1, 1, 1]),
-    dict(mask=[0] * 6),
-    dict(mask=[2, 0, 0, 0, 0, 0]),
-    dict(tol=-1.0),
-    dict(tol="small"),
-    dict(max_iter=-1),
-    dict(max_iter=2.5),
-    dict(restarts=-2),
-    dict(step_limit=0.0),
-    dict(step_limit="big"),
-    dict(null_space=-0.1),
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(jacobian="analytic"),
+        dict(damping="lots"),
+        dict(damping=-1.0),
+        dict(mask=[1, 1, 1]),
+        dict(mask=[0] * 6),
+        dict(mask=[2, 0, 0, 0, 0, 0]),
+        dict(tol=-1.0),
+        dict(tol="small"),
+        dict(max_iter=-1),
+        dict(max_iter=2.5),
+        dict(restarts=-2),
+        dict(step_limit=0.0),
+        dict(step_limit="big"),
+        dict(null_space=-0.1),
+    ],
+)
 def test_bad_arguments(arms, kwargs):
     arm = arms("puma560")
     with pytest.raises(InputError):

@@ -221,8 +221,9 @@ def test_any_real_dtype_and_layout_is_accepted(any_robot, method):
 
 def test_integer_angles_equal_float_angles(default_robot):
     np.testing.assert_array_equal(default_robot.fk([0, 0, 0]), default_robot.fk([0.0, 0.0, 0.0]))
-    np.testing.assert_array_equal(default_robot.fk(np.zeros((4, 3), dtype=np.int16)),
-                                  default_robot.fk(np.zeros((4, 3))))
+    np.testing.assert_array_equal(
+        default_robot.fk(np.zeros((4, 3), dtype=np.int16)), default_robot.fk(np.zeros((4, 3)))
+    )
 
 
 @pytest.mark.parametrize("method", ALL)
@@ -273,12 +274,15 @@ def test_errors_keyword_is_validated(any_robot, method, errors):
 @pytest.mark.parametrize("backend", ["fortran", "Compiled", "", None, 1, "c"])
 def test_backend_keyword_is_validated(backend, tmp_path):
     robot_file = tmp_path / "r.toml"
-    robot_file.write_text('[delta]\nr_a = 0.2\nr_b = 0.045\nl_a = 0.35\nl_b = 0.8\n'
-                          'theta_deg = [0, 120, 240]\n')
-    for make in (lambda: DeltaRobot(0.2, 0.045, 0.35, 0.8, backend=backend),
-                 lambda: DeltaRobot.default(backend=backend),
-                 lambda: DeltaRobot.from_toml(robot_file, backend=backend),
-                 lambda: DeltaRobot.default().with_backend(backend)):
+    robot_file.write_text(
+        "[delta]\nr_a = 0.2\nr_b = 0.045\nl_a = 0.35\nl_b = 0.8\ntheta_deg = [0, 120, 240]\n"
+    )
+    for make in (
+        lambda: DeltaRobot(0.2, 0.045, 0.35, 0.8, backend=backend),
+        lambda: DeltaRobot.default(backend=backend),
+        lambda: DeltaRobot.from_toml(robot_file, backend=backend),
+        lambda: DeltaRobot.default().with_backend(backend),
+    ):
         with pytest.raises(InputError) as info:
             make()
         assert isinstance(info.value, ValueError)

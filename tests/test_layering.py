@@ -88,8 +88,9 @@ def _violations():
             target_stage = _stage(full) if target == "deltagen" and name else _stage(target)
             if target_stage != stage and target_stage not in FOUNDATION | {"__version__"}:
                 if target_stage not in ALLOWED.get(stage, set()):
-                    found.append(f"{where}: {stage} imports {full} ({target_stage} is not below "
-                                 f"{stage})")
+                    found.append(
+                        f"{where}: {stage} imports {full} ({target_stage} is not below {stage})"
+                    )
             if target_stage != stage and name and name.startswith("_") and name != "__version__":
                 found.append(f"{where}: imports the private name {full}")
             private_module = [p for p in full.split(".")[1:-1] if p.startswith("_")]
@@ -112,15 +113,20 @@ def test_every_package_says_what_it_holds_and_may_import():
         doc = ast.get_docstring(ast.parse(init.read_text()))
         assert doc, f"{init.relative_to(PACKAGE.parent)} has no docstring"
         if init.parent.parent == PACKAGE:  # a stage
-            assert "May import" in doc, f"{init.relative_to(PACKAGE.parent)}: say what it may import"
+            assert "May import" in doc, (
+                f"{init.relative_to(PACKAGE.parent)}: say what it may import"
+            )
 
 
-@pytest.mark.parametrize("bad", [
-    ("model", "from deltagen.api.serial import SerialRobot\n"),
-    ("reference", "from deltagen.solve import numeric\n"),
-    ("derive", "def f():\n    from deltagen.codegen.printer import to_c\n"),
-    ("api", "from deltagen.native.serial import _Scratch\n"),
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        ("model", "from deltagen.api.serial import SerialRobot\n"),
+        ("reference", "from deltagen.solve import numeric\n"),
+        ("derive", "def f():\n    from deltagen.codegen.printer import to_c\n"),
+        ("api", "from deltagen.native.serial import _Scratch\n"),
+    ],
+)
 def test_the_check_catches_an_import_going_up(tmp_path, monkeypatch, bad):
     """The rule fails when an import goes back up (or takes a private name)."""
     stage, text = bad

@@ -13,8 +13,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from deltagen.reference import delta as ref
 from deltagen.model.delta import DeltaGeometry
+from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, SINGULAR, UNREACHABLE
 
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")  # numpy must never warn
@@ -22,8 +22,12 @@ pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")  # numpy must n
 
 def _geom(r_a, r_b, l_a, l_b, theta_deg, **kw):
     return DeltaGeometry(
-        r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b,
-        theta=tuple(math.radians(t) for t in theta_deg), **kw,
+        r_a=r_a,
+        r_b=r_b,
+        l_a=l_a,
+        l_b=l_b,
+        theta=tuple(math.radians(t) for t in theta_deg),
+        **kw,
     )
 
 
@@ -294,7 +298,7 @@ def test_jacobian_times_qd_is_pd(geom):
     for k in range(3):
         step = np.zeros(3)
         step[k] = 1.0
-        fd = _fd5(lambda t: ref.fk(geom, q0 + step * t)[0], 1e-3)
+        fd = _fd5(lambda t, step=step: ref.fk(geom, q0 + step * t)[0], 1e-3)
         np.testing.assert_allclose(J[ok][:, :, k], fd, rtol=0, atol=1e-9)
 
 

@@ -8,17 +8,26 @@ import math
 import numpy as np
 import pytest
 from delta_oracles import (
-    DEFAULT, GEOMETRIES, IRREGULAR, elbow_terms, max_rel_err, random_p, random_q,
-    rod_condition, singular_band_pose, stretched_chain_pose, well_conditioned, with_tol,
+    DEFAULT,
+    GEOMETRIES,
+    IRREGULAR,
+    elbow_terms,
+    max_rel_err,
+    random_p,
+    random_q,
+    rod_condition,
+    singular_band_pose,
+    stretched_chain_pose,
+    well_conditioned,
+    with_tol,
 )
-
 from hypothesis import assume, given, settings
 from hypothesis import strategies as hs
 
 from deltagen import DeltaRobot, InputError, SingularityError, UnreachableError
-from deltagen.model.delta import DeltaGeometry
 from deltagen.api.delta import DeltaRobot as DeltaRobotFromModule
 from deltagen.errors import GeometryError
+from deltagen.model.delta import DeltaGeometry
 
 BACKENDS = ("compiled", "reference")
 RTOL = 1e-12
@@ -43,8 +52,13 @@ def args_for(method, lead, width, rng=None):
     if kind == "q":
         first = random_q(rng, size)
     else:  # positions well inside the default robot's workspace
-        first = np.column_stack([rng.uniform(-0.1, 0.1, size), rng.uniform(-0.1, 0.1, size),
-                                 rng.uniform(-0.8, -0.6, size)])
+        first = np.column_stack(
+            [
+                rng.uniform(-0.1, 0.1, size),
+                rng.uniform(-0.1, 0.1, size),
+                rng.uniform(-0.8, -0.6, size),
+            ]
+        )
     arrays = [first] + [rng.normal(size=(size, 3)) for _ in range(n_args - 1)]
     if width == 4:
         arrays = [np.column_stack([a, rng.uniform(-3, 3, size)]) for a in arrays]
@@ -68,10 +82,22 @@ def any_robot(request):
 
 
 @pytest.mark.parametrize("method", list(METHODS))
-@pytest.mark.parametrize("lead,width", [
-    ((), 3), ((), 4), ((7,), 3), ((7,), 4), ((0,), 3), ((0,), 4), ((2, 5), 3), ((2, 5), 4),
-    ((1,), 3), ((3, 1, 2), 4),
-], ids=lambda v: str(v))
+@pytest.mark.parametrize(
+    "lead,width",
+    [
+        ((), 3),
+        ((), 4),
+        ((7,), 3),
+        ((7,), 4),
+        ((0,), 3),
+        ((0,), 4),
+        ((2, 5), 3),
+        ((2, 5), 4),
+        ((1,), 3),
+        ((3, 1, 2), 4),
+    ],
+    ids=lambda v: str(v),
+)
 def test_output_shapes(any_robot, method, lead, width):
     args = args_for(method, lead, width)
     n_out = METHODS[method][2]
@@ -150,8 +176,11 @@ def test_api_backends_agree_in_nan_mode(geometry, rng):
     J = reference.jacobian(q, errors="nan")[0][valid]
     nJ = np.linalg.norm(J, axis=(1, 2))
     quad = reference.fk_acc(q[valid], qd[valid], np.zeros_like(qd[valid]))[2]
-    scales = (np.full(valid.sum(), geometry.size), nJ * np.linalg.norm(qd[valid], axis=1),
-              nJ * np.linalg.norm(qdd[valid], axis=1) + np.linalg.norm(quad, axis=1))
+    scales = (
+        np.full(valid.sum(), geometry.size),
+        nJ * np.linalg.norm(qd[valid], axis=1),
+        nJ * np.linalg.norm(qdd[valid], axis=1) + np.linalg.norm(quad, axis=1),
+    )
     for name, g, w, scale in zip(("p", "pd", "pdd"), got[:-1], want[:-1], scales):
         e = np.linalg.norm(g[valid] - w[valid], axis=1) / scale / factor
         assert e.max() <= RTOL, f"{name}: {e.max():.3g}"
@@ -193,8 +222,12 @@ def test_fk_unreachable_rows_raise_and_are_named(any_robot):
     q = random_q(np.random.default_rng(1), 8)
     bad_rows = [2, 5]
     q[bad_rows] = _unreachable_q(2)
-    for method, args in (("fk", (q,)), ("fk_vel", (q, np.ones_like(q))),
-                         ("fk_acc", (q, np.ones_like(q), np.ones_like(q))), ("jacobian", (q,))):
+    for method, args in (
+        ("fk", (q,)),
+        ("fk_vel", (q, np.ones_like(q))),
+        ("fk_acc", (q, np.ones_like(q), np.ones_like(q))),
+        ("jacobian", (q,)),
+    ):
         with pytest.raises(UnreachableError) as info:
             call(any_robot, method, args)
         assert isinstance(info.value, ValueError)
@@ -214,8 +247,11 @@ def test_ik_unreachable_rows_raise_and_are_named(any_robot):
     p = np.tile([0.05, -0.02, -0.7], (12, 1))
     p[3] = [0.0, 0.0, -5.0]  # further from every drive axis than l_a + l_b
     p[11] = [3.0, 0.0, -0.5]
-    for method, args in (("ik", (p,)), ("ik_vel", (p, np.ones_like(p))),
-                         ("ik_acc", (p, np.ones_like(p), np.zeros_like(p)))):
+    for method, args in (
+        ("ik", (p,)),
+        ("ik_vel", (p, np.ones_like(p))),
+        ("ik_acc", (p, np.ones_like(p), np.zeros_like(p))),
+    ):
         with pytest.raises(UnreachableError) as info:
             call(any_robot, method, args)
         np.testing.assert_array_equal(info.value.rows, [3, 11])
@@ -270,8 +306,11 @@ def test_det_singular_pose_position_given_rates_refused(backend):
     assert np.all(np.isfinite(p))
     p_nan, valid = robot.fk(q, errors="nan")
     assert valid.all()
-    for method, args in (("jacobian", (q,)), ("fk_vel", (q, np.ones_like(q))),
-                         ("fk_acc", (q, np.ones_like(q), np.ones_like(q)))):
+    for method, args in (
+        ("jacobian", (q,)),
+        ("fk_vel", (q, np.ones_like(q))),
+        ("fk_acc", (q, np.ones_like(q), np.ones_like(q))),
+    ):
         with pytest.raises(SingularityError) as info:
             call(robot, method, args)
         np.testing.assert_array_equal(info.value.rows, [1])
@@ -292,8 +331,10 @@ def test_ik_singular_pose_angles_given_rates_refused(backend):
     assert np.all(np.isfinite(q)) and abs(elbow_terms(geom, q, p)[1, 0]) < geom.singular_tol
     q_nan, valid = robot.ik(p, errors="nan")
     np.testing.assert_array_equal(valid, [True, True])
-    for method, args in (("ik_vel", (p, np.ones_like(p))),
-                         ("ik_acc", (p, np.ones_like(p), np.ones_like(p)))):
+    for method, args in (
+        ("ik_vel", (p, np.ones_like(p))),
+        ("ik_acc", (p, np.ones_like(p), np.ones_like(p))),
+    ):
         with pytest.raises(SingularityError) as info:
             call(robot, method, args)
         np.testing.assert_array_equal(info.value.rows, [1])
@@ -331,21 +372,32 @@ def test_ik_vel_and_ik_acc_invert_fk_vel_and_fk_acc(geometry, backend, rng):
     assert err <= 1e-11, f"qdd: {err:.3g}"
     # and forwards again: J(q) qd = pd
     J = robot.jacobian(q1)
-    err, _ = max_rel_err(np.einsum("nij,nj->ni", J, qd1), pd,
-                         np.linalg.norm(J, axis=(1, 2)) * np.linalg.norm(qd1, axis=1))
+    err, _ = max_rel_err(
+        np.einsum("nij,nj->ni", J, qd1),
+        pd,
+        np.linalg.norm(J, axis=(1, 2)) * np.linalg.norm(qd1, axis=1),
+    )
     assert err <= RTOL
 
 
-_ROBOTS = {(name, backend): DeltaRobot.from_geometry(g, backend=backend)
-           for name, g in GEOMETRIES.items() for backend in BACKENDS}
+_ROBOTS = {
+    (name, backend): DeltaRobot.from_geometry(g, backend=backend)
+    for name, g in GEOMETRIES.items()
+    for backend in BACKENDS
+}
 _angle = hs.floats(-0.6, 1.3, allow_nan=False)
 _rate = hs.floats(-20.0, 20.0, allow_nan=False)
 _triple = lambda s: hs.tuples(s, s, s)  # noqa: E731
 
 
 @settings(max_examples=100, deadline=None)
-@given(hs.sampled_from(sorted(_ROBOTS)), _triple(_angle), _triple(_rate), _triple(_rate),
-       hs.floats(-1e6, 1e6))
+@given(
+    hs.sampled_from(sorted(_ROBOTS)),
+    _triple(_angle),
+    _triple(_rate),
+    _triple(_rate),
+    hs.floats(-1e6, 1e6),
+)
 def test_property_inverse_rates_round_trip(key, q, qd, qdd, phi):
     """fk_acc then ik_acc returns (q, qd, qdd); the fourth axis rides along unchanged."""
     robot = _ROBOTS[key]
@@ -420,6 +472,12 @@ def test_geometry_is_validated_by_the_robot():
 
 
 def test_singular_tol_is_a_constructor_keyword():
-    robot = DeltaRobot(r_a=IRREGULAR.r_a, r_b=IRREGULAR.r_b, l_a=IRREGULAR.l_a,
-                       l_b=IRREGULAR.l_b, theta=IRREGULAR.theta, singular_tol=1e-6)
+    robot = DeltaRobot(
+        r_a=IRREGULAR.r_a,
+        r_b=IRREGULAR.r_b,
+        l_a=IRREGULAR.l_a,
+        l_b=IRREGULAR.l_b,
+        theta=IRREGULAR.theta,
+        singular_tol=1e-6,
+    )
     assert robot.geometry.singular_tol == 1e-6

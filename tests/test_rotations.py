@@ -34,10 +34,14 @@ def _series_exp(v):
 def _hamilton(p, q):
     pw, px, py, pz = p
     qw, qx, qy, qz = q
-    return np.array([pw * qw - px * qx - py * qy - pz * qz,
-                     pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw])
+    return np.array(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ]
+    )
 
 
 def _quat_rotate(q, v):
@@ -72,15 +76,19 @@ def _angle_between(Ra, Rb):
 
 # ------------------------------------------------------------------ strategies
 
-_unit_axis = (hs.tuples(*[hs.floats(-1, 1)] * 3)
-              .map(np.array).filter(lambda a: np.linalg.norm(a) > 0.1)
-              .map(lambda a: a / np.linalg.norm(a)))
+_unit_axis = (
+    hs.tuples(*[hs.floats(-1, 1)] * 3)
+    .map(np.array)
+    .filter(lambda a: np.linalg.norm(a) > 0.1)
+    .map(lambda a: a / np.linalg.norm(a))
+)
 # generic angles, angles near 0 and angles near pi (down to 1e-12 from either end)
 _angle = hs.one_of(
     hs.floats(0.0, PI),
-    hs.floats(-12.0, -1.0).map(lambda e: 10.0 ** e),
-    hs.floats(-12.0, -1.0).map(lambda e: PI - 10.0 ** e),
-    hs.just(0.0), hs.just(PI),
+    hs.floats(-12.0, -1.0).map(lambda e: 10.0**e),
+    hs.floats(-12.0, -1.0).map(lambda e: PI - 10.0**e),
+    hs.just(0.0),
+    hs.just(PI),
 )
 
 
@@ -97,8 +105,9 @@ def test_skew_is_the_cross_product_and_vee_its_inverse(rng):
     # vee of a rotation is sin(theta) k
     k = w / np.linalg.norm(w, axis=-1, keepdims=True)
     th = rng.uniform(0, PI, 50)
-    np.testing.assert_allclose(rot.vee(rot.rot_exp(k * th[:, None])), k * np.sin(th)[:, None],
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        rot.vee(rot.rot_exp(k * th[:, None])), k * np.sin(th)[:, None], atol=1e-15
+    )
 
 
 def test_elementary_rotations_are_the_lecture_matrices():
@@ -119,8 +128,11 @@ def test_rotate_vectors_rodrigues(rng):
     expect = np.array([_quat_rotate(_axis_angle_quat(k[i], th[i]), v[i]) for i in range(30)])
     np.testing.assert_allclose(rot.rotate(k, th, v), expect, atol=1e-14)  # batched axes
     for i in range(3):  # one axis, a batch of angles and vectors
-        np.testing.assert_allclose(rot.rotate(k[i], th, v), (rot.rot_exp(k[i] * th[:, None])
-                                                             @ v[..., None])[..., 0], atol=1e-14)
+        np.testing.assert_allclose(
+            rot.rotate(k[i], th, v),
+            (rot.rot_exp(k[i] * th[:, None]) @ v[..., None])[..., 0],
+            atol=1e-14,
+        )
     # plane: 90 deg turns x into y
     np.testing.assert_allclose(rot.rotate2d(PI / 2, np.array([1.0, 0.0])), [0.0, 1.0], atol=1e-16)
     a = rng.uniform(-4, 4, 20)
@@ -184,8 +196,9 @@ def test_exp_log_broadcast_and_the_single_matrix_agrees_with_the_batch(rng):
 
 
 def test_euler_zyx_round_trip_and_definition(rng):
-    ang = np.column_stack([rng.uniform(-PI, PI, 300), rng.uniform(-1.55, 1.55, 300),
-                           rng.uniform(-PI, PI, 300)])
+    ang = np.column_stack(
+        [rng.uniform(-PI, PI, 300), rng.uniform(-1.55, 1.55, 300), rng.uniform(-PI, PI, 300)]
+    )
     R = rot.matrix_from_euler_zyx(ang)
     expect = np.array([_Rz(p) @ _Ry(t) @ _Rx(f) for p, t, f in ang])
     np.testing.assert_allclose(R, expect, atol=1e-15)
@@ -198,16 +211,19 @@ def test_euler_zyx_round_trip_and_definition(rng):
     np.testing.assert_allclose(np.degrees(rot.euler_zyx(T2)), [60.0, 0.0, 0.0], atol=1e-12)
     # rpy reads as turns about the fixed axes: roll about x first
     np.testing.assert_allclose(rot.matrix_from_rpy([0.4, 0, 0]), _Rx(0.4), atol=0)
-    np.testing.assert_allclose(rot.matrix_from_rpy([0.4, 0.2, 0]), _Ry(0.2) @ _Rx(0.4),
-                               atol=1e-16)
+    np.testing.assert_allclose(rot.matrix_from_rpy([0.4, 0.2, 0]), _Ry(0.2) @ _Rx(0.4), atol=1e-16)
     assert rot.euler_zyx(R.reshape(10, 30, 3, 3)).shape == (10, 30, 3)
     with pytest.raises(InputError):
         rot.euler_zyx(np.eye(4))
 
 
 @settings(max_examples=200)
-@given(hs.floats(-PI, PI), hs.sampled_from([-1.0, 1.0]), hs.floats(-PI, PI),
-       hs.one_of(hs.just(0.0), hs.floats(-16.0, -5.0).map(lambda e: 10.0 ** e)))
+@given(
+    hs.floats(-PI, PI),
+    hs.sampled_from([-1.0, 1.0]),
+    hs.floats(-PI, PI),
+    hs.one_of(hs.just(0.0), hs.floats(-16.0, -5.0).map(lambda e: 10.0**e)),
+)
 def test_euler_zyx_at_and_near_gimbal_lock_gives_the_rotation_back(psi, sign, phi, gap):
     """theta = +-pi/2 (or within 1e-5 of it): psi and phi are not separately defined, but
     the angles returned give the matrix back, and theta is right."""
@@ -301,8 +317,9 @@ def test_slerp_batched_and_nearly_equal_ends(rng):
     Rn = R0[0] @ rot.rot_exp([1e-9, 0, 0])
     q = rot.quat_slerp(rot.quat_from_matrix(R0[0]), rot.quat_from_matrix(Rn), [0.0, 0.5, 1.0])
     assert np.all(np.isfinite(q))
-    np.testing.assert_allclose(_angle_between(rot.matrix_from_quat(q), R0[0]),
-                               [0.0, 5e-10, 1e-9], atol=1e-15)
+    np.testing.assert_allclose(
+        _angle_between(rot.matrix_from_quat(q), R0[0]), [0.0, 5e-10, 1e-9], atol=1e-15
+    )
     with pytest.raises(InputError):
         rot.slerp(np.eye(3), 2 * np.eye(3), 0.5)
     with pytest.raises(InputError):
@@ -318,6 +335,13 @@ def test_public_names_elsewhere_are_the_geometry_ones():
     assert api_serial.euler_zyx is rot.euler_zyx
     assert reference.euler_zyx is rot.euler_zyx and reference.rpy is rot.rpy
     assert numeric.rotation_vector is rot.rot_log
-    for name in ("skew", "rot_exp", "rot_log", "quat_from_matrix", "matrix_from_quat",
-                 "quat_slerp", "slerp"):
+    for name in (
+        "skew",
+        "rot_exp",
+        "rot_log",
+        "quat_from_matrix",
+        "matrix_from_quat",
+        "quat_slerp",
+        "slerp",
+    ):
         assert getattr(trajectory, name) is getattr(rot, name)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from deltagen import GeometryError, InputError, SerialRobot, SingularityError, cli
-from deltagen.reference import serial as ref
 from deltagen.api.serial import bundled_robots, euler_zyx
+from deltagen.reference import serial as ref
 
 ROBOTS = bundled_robots()
 N = 100_000
@@ -82,8 +82,12 @@ def test_jacobian_dot_against_finite_differences(arm):
     h = 1e-6
     fd = (arm.jacobian(q + h * qd) - arm.jacobian(q - h * qd)) / (2 * h)
     np.testing.assert_allclose(arm.jacobian_dot(q, qd), fd, atol=1e-6 * _reach(arm))
-    fd_tool = (arm.jacobian(q + h * qd, frame="tool") - arm.jacobian(q - h * qd, frame="tool")) / (2 * h)
-    np.testing.assert_allclose(arm.jacobian_dot(q, qd, frame="tool"), fd_tool, atol=1e-6 * _reach(arm))
+    fd_tool = (arm.jacobian(q + h * qd, frame="tool") - arm.jacobian(q - h * qd, frame="tool")) / (
+        2 * h
+    )
+    np.testing.assert_allclose(
+        arm.jacobian_dot(q, qd, frame="tool"), fd_tool, atol=1e-6 * _reach(arm)
+    )
 
 
 def test_tool_frame_jacobian_is_the_rotated_twist(arm):
@@ -120,14 +124,22 @@ def test_compiled_and_reference_api_agree_on_every_quantity(arm):
     qd = np.random.default_rng(10).normal(size=q.shape)
     other = arm.with_backend("reference")
     scale = _reach(arm)
-    for name, args in [("fk", (q,)), ("frames", (q,)), ("jacobian", (q,)), ("jacobian_dot", (q, qd)),
-                       ("euler", (q,)), ("pose", (q,))]:
+    for name, args in [
+        ("fk", (q,)),
+        ("frames", (q,)),
+        ("jacobian", (q,)),
+        ("jacobian_dot", (q, qd)),
+        ("euler", (q,)),
+        ("pose", (q,)),
+    ]:
         a, b = getattr(arm, name)(*args), getattr(other, name)(*args)
         if name in ("euler", "pose"):  # angles compare modulo 2 pi (atan2 at +-pi, signed zeros)
             a, b = a[..., -3:], b[..., -3:]
             a = b + np.remainder(a - b + np.pi, 2 * np.pi) - np.pi
         np.testing.assert_allclose(a, b, atol=1e-11 * scale, err_msg=name)
-    np.testing.assert_allclose(arm.manipulability(q), other.manipulability(q), rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(
+        arm.manipulability(q), other.manipulability(q), rtol=1e-9, atol=1e-14
+    )
 
 
 def test_single_pose_fast_path_equals_the_batch(arm):
@@ -138,7 +150,7 @@ def test_single_pose_fast_path_equals_the_batch(arm):
 
 
 def test_named_configurations_evaluate(arm):
-    for name, q in arm.configurations.items():
+    for _name, q in arm.configurations.items():
         T = arm.fk(q)
         assert T.shape == (4, 4) and np.all(np.isfinite(T))
 
@@ -155,7 +167,11 @@ def test_within_limits(arm):
 
 STANDARD = [dict(a=0.0, alpha_deg=-90, d=0.4), dict(a=0.5), dict(a=0.3, alpha_deg=45, d=0.1)]
 MODIFIED = [dict(d=0.4), dict(alpha_deg=-90), dict(a=0.5, d=0.1)]
-UNIVERSAL = [dict(axis="z", tz=0.4, rx_deg=-90), dict(axis="z", tx=0.5), dict(axis="z", tz=0.1, tx=0.3, rx_deg=45)]
+UNIVERSAL = [
+    dict(axis="z", tz=0.4, rx_deg=-90),
+    dict(axis="z", tx=0.5),
+    dict(axis="z", tz=0.1, tx=0.3, rx_deg=45),
+]
 
 
 def test_same_arm_in_three_conventions_gives_one_tool_pose():
@@ -165,9 +181,17 @@ def test_same_arm_in_three_conventions_gives_one_tool_pose():
     tool = transform((0.3, 0, 0), (np.radians(45), 0, 0))
     mod = SerialRobot.from_dh(MODIFIED, "modified", name="three_mod", tool=tool)
     # universal: D_i = Rot_z(q_i) T(...) R(...); the standard rows rewritten in that order
-    uni = SerialRobot(SerialDescription.from_rows(
-        [dict(axis="z", tz=0.4, rx_deg=-90), dict(axis="z", tx=0.5),
-         dict(axis="z", tx=0.3, tz=0.1, rx_deg=45)], "universal", name="three_uni"))
+    uni = SerialRobot(
+        SerialDescription.from_rows(
+            [
+                dict(axis="z", tz=0.4, rx_deg=-90),
+                dict(axis="z", tx=0.5),
+                dict(axis="z", tx=0.3, tz=0.1, rx_deg=45),
+            ],
+            "universal",
+            name="three_uni",
+        )
+    )
     # the universal row 3 translates along the rotated z after Rot_z: Tz(d) Tx(a) commute
     q = np.random.default_rng(13).uniform(-3, 3, (1000, 3))
     T = std.fk(q)
@@ -209,19 +233,31 @@ def test_bad_inputs_name_the_problem():
         arm.configuration("nope")
 
 
-@pytest.mark.parametrize("text, words", [
-    ('name = "x"\n[[joint]]\na = 1\n', ["convention"]),
-    ('name = "x"\nconvention = "dh"\n[[joint]]\na = 1\n', ["convention"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\ntype = "spherical"\n', ["joint type"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\nalpha = 1\nalpha_deg = 90\n', ["not both"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\ntx = 1\n', ["another convention"]),
-    ('name = "my arm"\nconvention = "standard"\n[[joint]]\na = 1\n', ["invalid robot name"]),
-    ('name = "x"\nconvention = "universal"\n[[joint]]\ntx = 1\n', ["axis"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\na = "one"\n', ["real number"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\na = 1\n[configurations]\nhome = [0, 0]\n', ["2 values"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\ntype = "revolute"\ntheta = 1\n', ["offset"]),
-    ('name = "x"\nconvention = "standard"\n[[joint]]\na = [1\n', ["malformed TOML"]),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('name = "x"\n[[joint]]\na = 1\n', ["convention"]),
+        ('name = "x"\nconvention = "dh"\n[[joint]]\na = 1\n', ["convention"]),
+        ('name = "x"\nconvention = "standard"\n[[joint]]\ntype = "spherical"\n', ["joint type"]),
+        (
+            'name = "x"\nconvention = "standard"\n[[joint]]\nalpha = 1\nalpha_deg = 90\n',
+            ["not both"],
+        ),
+        ('name = "x"\nconvention = "standard"\n[[joint]]\ntx = 1\n', ["another convention"]),
+        ('name = "my arm"\nconvention = "standard"\n[[joint]]\na = 1\n', ["invalid robot name"]),
+        ('name = "x"\nconvention = "universal"\n[[joint]]\ntx = 1\n', ["axis"]),
+        ('name = "x"\nconvention = "standard"\n[[joint]]\na = "one"\n', ["real number"]),
+        (
+            'name = "x"\nconvention = "standard"\n[[joint]]\na = 1\n[configurations]\nhome = [0, 0]\n',
+            ["2 values"],
+        ),
+        (
+            'name = "x"\nconvention = "standard"\n[[joint]]\ntype = "revolute"\ntheta = 1\n',
+            ["offset"],
+        ),
+        ('name = "x"\nconvention = "standard"\n[[joint]]\na = [1\n', ["malformed TOML"]),
+    ],
+)
 def test_malformed_robot_files(tmp_path, text, words):
     path = tmp_path / "arm.toml"
     path.write_text(text)
@@ -235,12 +271,16 @@ def test_malformed_robot_files(tmp_path, text, words):
 def test_user_robot_file_is_generated_and_cached_by_content(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
     path = tmp_path / "arm.toml"
-    path.write_text('name = "user_arm"\nconvention = "standard"\n[[joint]]\na = 1.0\n[[joint]]\na = 0.5\n')
+    path.write_text(
+        'name = "user_arm"\nconvention = "standard"\n[[joint]]\na = 1.0\n[[joint]]\na = 0.5\n'
+    )
     assert cli.main(["generate", str(path)]) == 0
     assert "user_arm" in capsys.readouterr().out
     arm = SerialRobot.from_toml(path)
     np.testing.assert_allclose(arm.fk([0.0, 0.0])[:3, 3], [1.5, 0, 0], atol=1e-15)
-    path.write_text('name = "user_arm"\nconvention = "standard"\n[[joint]]\na = 1.0\n[[joint]]\na = 0.25\n')
+    path.write_text(
+        'name = "user_arm"\nconvention = "standard"\n[[joint]]\na = 1.0\n[[joint]]\na = 0.25\n'
+    )
     changed = SerialRobot.from_toml(path)  # same name, new content: a new module, not the stale one
     np.testing.assert_allclose(changed.fk([0.0, 0.0])[:3, 3], [1.25, 0, 0], atol=1e-15)
     assert len(list((tmp_path / "cache" / "sources").iterdir())) == 2
@@ -263,7 +303,12 @@ def test_cli_batch_of_a_serial_arm(tmp_path):
     arm = SerialRobot.load(name)
     q = _sample(arm, 7, seed=15)
     np.save(tmp_path / "q.npy", q)
-    assert cli.main(["fk", name, "--input", str(tmp_path / "q.npy"), "--output", str(tmp_path / "T.npy")]) == 0
+    assert (
+        cli.main(
+            ["fk", name, "--input", str(tmp_path / "q.npy"), "--output", str(tmp_path / "T.npy")]
+        )
+        == 0
+    )
     table = np.load(tmp_path / "T.npy")  # a structured array: columns by name
     xyz = np.column_stack([table["x"], table["y"], table["z"]])
     np.testing.assert_allclose(xyz, arm.fk(q)[:, :3, 3], atol=1e-15)

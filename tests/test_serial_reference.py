@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from deltagen.inputs import InputError
-from deltagen.reference import serial as ref
 from deltagen.model.serial import SerialDescription, transform
+from deltagen.reference import serial as ref
 from deltagen.status import INVALID, OK
 
 DEG = math.pi / 180
@@ -44,13 +44,16 @@ def Tr(x=0.0, y=0.0, z=0.0):
 
 def vee(S):
     """Axial vector of the (near) skew part of (..., 3, 3)."""
-    return 0.5 * np.stack([S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0],
-                           S[..., 1, 0] - S[..., 0, 1]], axis=-1)
+    return 0.5 * np.stack(
+        [S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0], S[..., 1, 0] - S[..., 0, 1]],
+        axis=-1,
+    )
 
 
 def scara(L1=4.0, L2=3.0, **kw):
     return SerialDescription.from_rows(
-        [dict(a=L1, alpha=0.0), dict(a=L2, alpha=0.0)], "standard", name="scara", **kw)
+        [dict(a=L1, alpha=0.0), dict(a=L2, alpha=0.0)], "standard", name="scara", **kw
+    )
 
 
 def random_arm(rng, convention, n=None, prismatic=0.3, frames=True):
@@ -60,9 +63,11 @@ def random_arm(rng, convention, n=None, prismatic=0.3, frames=True):
         kind = "prismatic" if rng.random() < prismatic else "revolute"
         row = dict(type=kind, offset=rng.uniform(-1, 1))
         if convention == "universal":
-            row.update(axis=str(rng.choice(["x", "y", "z"])),
-                       **{k: rng.uniform(-0.5, 0.5) for k in ("tx", "ty", "tz")},
-                       **{k: rng.uniform(-math.pi, math.pi) for k in ("rx", "ry", "rz")})
+            row.update(
+                axis=str(rng.choice(["x", "y", "z"])),
+                **{k: rng.uniform(-0.5, 0.5) for k in ("tx", "ty", "tz")},
+                **{k: rng.uniform(-math.pi, math.pi) for k in ("rx", "ry", "rz")},
+            )
         else:
             row.update(a=rng.uniform(-0.5, 0.5), alpha=rng.uniform(-math.pi, math.pi))
             if kind == "revolute":
@@ -72,8 +77,10 @@ def random_arm(rng, convention, n=None, prismatic=0.3, frames=True):
         rows.append(row)
     kw = {}
     if frames:
-        kw = dict(base=transform(rng.uniform(-1, 1, 3), rng.uniform(-3, 3, 3)),
-                  tool=transform(rng.uniform(-0.3, 0.3, 3), rng.uniform(-3, 3, 3)))
+        kw = dict(
+            base=transform(rng.uniform(-1, 1, 3), rng.uniform(-3, 3, 3)),
+            tool=transform(rng.uniform(-0.3, 0.3, 3), rng.uniform(-3, 3, 3)),
+        )
     return SerialDescription.from_rows(rows, convention, **kw)
 
 
@@ -105,8 +112,9 @@ def test_scara_numbers_slide95():
     assert round(T[0, 1, 3], 3) == 4.598
     assert T[0, 2, 3] == pytest.approx(0.0, abs=1e-15)
     # the printed rotation block [0.5 -0.866 0; 0.866 0.5 0; 0 0 1] (3 decimals)
-    np.testing.assert_allclose(T[0, :3, :3], [[0.5, -0.866, 0], [0.866, 0.5, 0], [0, 0, 1]],
-                               atol=5e-4)
+    np.testing.assert_allclose(
+        T[0, :3, :3], [[0.5, -0.866, 0], [0.866, 0.5, 0], [0, 0, 1]], atol=5e-4
+    )
     psi, theta, phi = ref.euler_zyx(T[0, :3, :3])
     assert psi == pytest.approx(60 * DEG, abs=1e-12)
     assert theta == pytest.approx(0.0, abs=1e-12)
@@ -186,11 +194,15 @@ def test_standard_link_matrix_slides81_82(rng):
             t, dd = np.full(50, th), q[:, 0] + off
         ct, st_, ca, sa = np.cos(t), np.sin(t), math.cos(alpha), math.sin(alpha)
         z = 0 * t
-        want = np.stack([
-            np.stack([ct, -st_ * ca, st_ * sa, a * ct], 1),
-            np.stack([st_, ct * ca, -ct * sa, a * st_], 1),
-            np.stack([z, z + sa, z + ca, dd], 1),
-            np.stack([z, z, z, z + 1], 1)], 1)
+        want = np.stack(
+            [
+                np.stack([ct, -st_ * ca, st_ * sa, a * ct], 1),
+                np.stack([st_, ct * ca, -ct * sa, a * st_], 1),
+                np.stack([z, z + sa, z + ca, dd], 1),
+                np.stack([z, z, z, z + 1], 1),
+            ],
+            1,
+        )
         np.testing.assert_allclose(A, want, atol=1e-14)
 
 
@@ -210,19 +222,26 @@ def test_modified_link_matrix_craig(rng):
             t, dd = np.full(50, th), q[:, 0] + off
         ct, st_, ca, sa = np.cos(t), np.sin(t), math.cos(alpha), math.sin(alpha)
         z = 0 * t
-        want = np.stack([
-            np.stack([ct, -st_, z, z + a], 1),
-            np.stack([st_ * ca, ct * ca, z - sa, -sa * dd], 1),
-            np.stack([st_ * sa, ct * sa, z + ca, ca * dd], 1),
-            np.stack([z, z, z, z + 1], 1)], 1)
+        want = np.stack(
+            [
+                np.stack([ct, -st_, z, z + a], 1),
+                np.stack([st_ * ca, ct * ca, z - sa, -sa * dd], 1),
+                np.stack([st_ * sa, ct * sa, z + ca, ca * dd], 1),
+                np.stack([z, z, z, z + 1], 1),
+            ],
+            1,
+        )
         np.testing.assert_allclose(A, want, atol=1e-14)
 
 
 def test_universal_link_matrix(rng):
     """D = Rot_axis(q + offset) Tx Ty Tz Rx Ry Rz, one joint at a time, against 4x4
     products of this test's own elementary matrices."""
-    elem = {"x": (Rx, lambda v: Tr(x=v)), "y": (Ry, lambda v: Tr(y=v)),
-            "z": (Rz, lambda v: Tr(z=v))}
+    elem = {
+        "x": (Rx, lambda v: Tr(x=v)),
+        "y": (Ry, lambda v: Tr(y=v)),
+        "z": (Rz, lambda v: Tr(z=v)),
+    }
     for axis in "xyz":
         for kind in ("revolute", "prismatic"):
             p = dict(zip(("tx", "ty", "tz", "rx", "ry", "rz", "offset"), rng.uniform(-2, 2, 7)))
@@ -233,8 +252,9 @@ def test_universal_link_matrix(rng):
             for k in range(5):
                 v = q[k, 0] + p["offset"]
                 motion = rot(v) if kind == "revolute" else tra(v)
-                want = (motion @ Tr(p["tx"], p["ty"], p["tz"]) @ Rx(p["rx"]) @ Ry(p["ry"])
-                        @ Rz(p["rz"]))
+                want = (
+                    motion @ Tr(p["tx"], p["ty"], p["tz"]) @ Rx(p["rx"]) @ Ry(p["ry"]) @ Rz(p["rz"])
+                )
                 np.testing.assert_allclose(A[k], want, atol=1e-14)
 
 
@@ -245,8 +265,9 @@ def test_prp_arm_slide96(rng):
     """Joint 1 translation d1 along z, joint 2 rotation q2 about z, joint 3 translation d3
     horizontal. Printed solution: 0T3 = [[c2, -s2, 0, d3 c2], [s2, c2, 0, d3 s2],
     [0, 0, 1, d1], [0, 0, 0, 1]]."""
-    q = np.column_stack([rng.uniform(0, 2, 100), rng.uniform(-math.pi, math.pi, 100),
-                         rng.uniform(0, 1.5, 100)])
+    q = np.column_stack(
+        [rng.uniform(0, 2, 100), rng.uniform(-math.pi, math.pi, 100), rng.uniform(0, 1.5, 100)]
+    )
     d1, q2, d3 = q.T
     c2, s2 = np.cos(q2), np.sin(q2)
     printed = np.zeros((100, 4, 4))
@@ -256,8 +277,13 @@ def test_prp_arm_slide96(rng):
     printed[:, 3, 3] = 1
     # universal coordinates reproduce the printed matrix as it stands
     uc = SerialDescription.from_rows(
-        [dict(type="prismatic", axis="z"), dict(type="revolute", axis="z"),
-         dict(type="prismatic", axis="x")], "universal")
+        [
+            dict(type="prismatic", axis="z"),
+            dict(type="revolute", axis="z"),
+            dict(type="prismatic", axis="x"),
+        ],
+        "universal",
+    )
     T, st = ref.fk(uc, q)
     assert np.all(st == OK)
     np.testing.assert_allclose(T, printed, atol=1e-14)
@@ -266,20 +292,24 @@ def test_prp_arm_slide96(rng):
     # d3 direction) is no DH frame: the tool transform Rx(-90) Rz(-90) turns it into it.
     dh = SerialDescription.from_rows(
         [dict(type="prismatic"), dict(alpha_deg=90, offset_deg=90), dict(type="prismatic")],
-        "standard")
+        "standard",
+    )
     T, _ = ref.fk(dh, q)
     np.testing.assert_allclose(T[:, :3, 3], printed[:, :3, 3], atol=1e-14)
     dh_tool = SerialDescription.from_rows(
         [dict(type="prismatic"), dict(alpha_deg=90, offset_deg=90), dict(type="prismatic")],
-        "standard", tool=Rx(-90 * DEG) @ Rz(-90 * DEG))
+        "standard",
+        tool=Rx(-90 * DEG) @ Rz(-90 * DEG),
+    )
     np.testing.assert_allclose(ref.fk(dh_tool, q)[0], printed, atol=1e-14)
     # the prismatic columns are the unit axis directions; the revolute one rotates about z
     J, _ = ref.jacobian(dh, q)
     np.testing.assert_allclose(J[:, :, 0], np.tile([0, 0, 1, 0, 0, 0.0], (100, 1)), atol=1e-14)
     np.testing.assert_allclose(J[:, :3, 2], np.stack([c2, s2, 0 * c2], 1), atol=1e-14)
     np.testing.assert_allclose(J[:, 3:, 2], 0.0, atol=0)
-    np.testing.assert_allclose(J[:, :, 1], np.stack([-d3 * s2, d3 * c2, 0 * c2, 0 * c2, 0 * c2,
-                                                     0 * c2 + 1], 1), atol=1e-14)
+    np.testing.assert_allclose(
+        J[:, :, 1], np.stack([-d3 * s2, d3 * c2, 0 * c2, 0 * c2, 0 * c2, 0 * c2 + 1], 1), atol=1e-14
+    )
 
 
 # --------------------------------------------------- one arm in three conventions
@@ -299,16 +329,35 @@ def three_conventions(base=None, tool=None):
     tool = np.eye(4) if tool is None else tool
     off = (0.2, -0.4, 0.7)
     std = SerialDescription.from_rows(
-        [dict(a=0, alpha_deg=-90, d=0.4, offset=off[0]), dict(a=0.5, alpha=0, d=0, offset=off[1]),
-         dict(a=0.3, alpha_deg=45, d=0.1, offset=off[2])], "standard", base=base, tool=tool)
+        [
+            dict(a=0, alpha_deg=-90, d=0.4, offset=off[0]),
+            dict(a=0.5, alpha=0, d=0, offset=off[1]),
+            dict(a=0.3, alpha_deg=45, d=0.1, offset=off[2]),
+        ],
+        "standard",
+        base=base,
+        tool=tool,
+    )
     mod = SerialDescription.from_rows(
-        [dict(a=0, alpha=0, d=0.4, offset=off[0]), dict(a=0, alpha_deg=-90, d=0, offset=off[1]),
-         dict(a=0.5, alpha=0, d=0.1, offset=off[2])], "modified", base=base,
-        tool=Tr(x=0.3) @ Rx(45 * DEG) @ tool)
+        [
+            dict(a=0, alpha=0, d=0.4, offset=off[0]),
+            dict(a=0, alpha_deg=-90, d=0, offset=off[1]),
+            dict(a=0.5, alpha=0, d=0.1, offset=off[2]),
+        ],
+        "modified",
+        base=base,
+        tool=Tr(x=0.3) @ Rx(45 * DEG) @ tool,
+    )
     uni = SerialDescription.from_rows(
-        [dict(axis="z", tz=0.4, offset=off[0]), dict(axis="y", tx=0.5, offset=off[1]),
-         dict(axis="y", tx=0.3, ty=0.1, rx_deg=-45, offset=off[2])], "universal", base=base,
-        tool=tool)
+        [
+            dict(axis="z", tz=0.4, offset=off[0]),
+            dict(axis="y", tx=0.5, offset=off[1]),
+            dict(axis="y", tx=0.3, ty=0.1, rx_deg=-45, offset=off[2]),
+        ],
+        "universal",
+        base=base,
+        tool=tool,
+    )
     return std, mod, uni
 
 
@@ -371,8 +420,9 @@ def test_base_tool_and_frames(rng):
     np.testing.assert_allclose(T[:, :3, :3], T0[:, :3, :3], atol=1e-14)
     np.testing.assert_allclose(T[:, :3, 3], T0[:, :3, 3] + [1, -2, 0.5], atol=1e-13)
     # a tool Trans_x(3) on an arm with a2 = 0 is the arm with a2 = 3
-    np.testing.assert_allclose(ref.fk(scara(4, 0, tool=Tr(x=3)), q)[0], ref.fk(scara(4, 3), q)[0],
-                               atol=1e-14)
+    np.testing.assert_allclose(
+        ref.fk(scara(4, 0, tool=Tr(x=3)), q)[0], ref.fk(scara(4, 3), q)[0], atol=1e-14
+    )
     # frames: F0 = base, F_{n+1} = F_n tool = fk
     desc = random_arm(rng, "universal", n=4)
     q = rng.uniform(-3, 3, (10, 4))
@@ -388,20 +438,24 @@ def test_base_tool_and_frames(rng):
         np.testing.assert_allclose(F[:, i + 1], M, atol=1e-14)
     # every frame is a rigid transform
     R = F[..., :3, :3]
-    np.testing.assert_allclose(R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape),
-                               atol=1e-13)
+    np.testing.assert_allclose(
+        R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape), atol=1e-13
+    )
     np.testing.assert_allclose(F[..., 3, :], np.broadcast_to([0, 0, 0, 1.0], F.shape[:-1]), atol=0)
 
 
 def test_joint_offsets(rng):
     q = rng.uniform(-3, 3, (50, 2))
     with_off = SerialDescription.from_rows(
-        [dict(a=4, offset_deg=10), dict(a=3, offset=-0.3)], "standard")
-    np.testing.assert_allclose(ref.fk(with_off, q)[0], ref.fk(scara(), q + [10 * DEG, -0.3])[0],
-                               atol=1e-13)
+        [dict(a=4, offset_deg=10), dict(a=3, offset=-0.3)], "standard"
+    )
+    np.testing.assert_allclose(
+        ref.fk(with_off, q)[0], ref.fk(scara(), q + [10 * DEG, -0.3])[0], atol=1e-13
+    )
     # prismatic offset adds to d; a prismatic joint with alpha = 0 lifts the point by d
     lift = SerialDescription.from_rows(
-        [dict(a=4), dict(type="prismatic", offset=0.25, theta_deg=90)], "standard")
+        [dict(a=4), dict(type="prismatic", offset=0.25, theta_deg=90)], "standard"
+    )
     T = ref.fk(lift, q)[0]
     np.testing.assert_allclose(T[:, 2, 3], q[:, 1] + 0.25, atol=1e-14)
     np.testing.assert_allclose(T[:, 0, 3], 4 * np.cos(q[:, 0]), atol=1e-14)
@@ -414,10 +468,18 @@ def test_joint_offsets(rng):
 
 def motoman():
     mm = 1e-3
-    table = [(150, 0, 450, 0, 0, 0, "z"), (0, 0, 310, 0, 0, 0, "y"), (520, 0, 130, 0, 0, 0, "y"),
-             (0, 0, 0, 0, 0, 0, "x"), (95, 0, 0, 0, 0, 0, "y"), (0, 0, 0, 0, 90, 0, "x")]
-    rows = [dict(tx=tx * mm, ty=ty * mm, tz=tz * mm, rx_deg=rx, ry_deg=ry, rz_deg=rz, axis=ax)
-            for tx, ty, tz, rx, ry, rz, ax in table]
+    table = [
+        (150, 0, 450, 0, 0, 0, "z"),
+        (0, 0, 310, 0, 0, 0, "y"),
+        (520, 0, 130, 0, 0, 0, "y"),
+        (0, 0, 0, 0, 0, 0, "x"),
+        (95, 0, 0, 0, 0, 0, "y"),
+        (0, 0, 0, 0, 90, 0, "x"),
+    ]
+    rows = [
+        dict(tx=tx * mm, ty=ty * mm, tz=tz * mm, rx_deg=rx, ry_deg=ry, rz_deg=rz, axis=ax)
+        for tx, ty, tz, rx, ry, rz, ax in table
+    ]
     return SerialDescription.from_rows(rows, "universal", name="up6")
 
 
@@ -428,9 +490,19 @@ def test_motoman_universal_coordinates(rng):
     # eq. (3) as a plain product of the paper's matrices at a random pose
     q = rng.uniform(-1, 1, 6)
     mm = 1e-3
-    want = (Rz(q[0]) @ Tr(150 * mm, 0, 450 * mm) @ Ry(q[1]) @ Tr(0, 0, 310 * mm) @ Ry(q[2])
-            @ Tr(520 * mm, 0, 130 * mm) @ Rx(q[3]) @ Ry(q[4]) @ Tr(95 * mm) @ Rx(q[5])
-            @ Ry(90 * DEG))
+    want = (
+        Rz(q[0])
+        @ Tr(150 * mm, 0, 450 * mm)
+        @ Ry(q[1])
+        @ Tr(0, 0, 310 * mm)
+        @ Ry(q[2])
+        @ Tr(520 * mm, 0, 130 * mm)
+        @ Rx(q[3])
+        @ Ry(q[4])
+        @ Tr(95 * mm)
+        @ Rx(q[5])
+        @ Ry(90 * DEG)
+    )
     np.testing.assert_allclose(ref.fk(arm, q[None])[0][0], want, atol=1e-15)
     # central wrist: with q5 = 0 the two x rotations add up
     qa = rng.uniform(-1, 1, (50, 6))
@@ -453,8 +525,13 @@ def test_motoman_universal_coordinates(rng):
 
 
 def test_euler_zyx_and_rpy(rng):
-    ang = np.column_stack([rng.uniform(-math.pi, math.pi, 200), rng.uniform(-1.5, 1.5, 200),
-                           rng.uniform(-math.pi, math.pi, 200)])
+    ang = np.column_stack(
+        [
+            rng.uniform(-math.pi, math.pi, 200),
+            rng.uniform(-1.5, 1.5, 200),
+            rng.uniform(-math.pi, math.pi, 200),
+        ]
+    )
     R = np.array([(Rz(p) @ Ry(t) @ Rx(f))[:3, :3] for p, t, f in ang])
     np.testing.assert_allclose(ref.euler_zyx(R), ang, atol=1e-12)
     np.testing.assert_allclose(ref.rpy(R), ang[:, ::-1], atol=1e-12)
@@ -507,8 +584,9 @@ def test_jacobian_dot_vs_finite_differences(conv, k, frame, rng):
     qd = rng.uniform(-2, 2, (N, n))
     Jd, st = ref.jacobian_dot(desc, q, qd, frame=frame)
     assert Jd.shape == (N, 6, n) and np.all(st == OK)
-    fd = (ref.jacobian(desc, q + h * qd, frame)[0]
-          - ref.jacobian(desc, q - h * qd, frame)[0]) / (2 * h)
+    fd = (ref.jacobian(desc, q + h * qd, frame)[0] - ref.jacobian(desc, q - h * qd, frame)[0]) / (
+        2 * h
+    )
     np.testing.assert_allclose(Jd, fd, atol=5e-8)
     # zero joint rates: zero derivative; and linear in qd for a fixed q
     Jd0, _ = ref.jacobian_dot(desc, q, 0 * qd, frame=frame)
@@ -525,11 +603,13 @@ def test_jacobian_dot_scara_closed_form(rng):
     Jd, _ = ref.jacobian_dot(scara(L1, L2), q, qd)
     a, ab = q[:, 0], q[:, 0] + q[:, 1]
     w1, w12 = qd[:, 0], qd[:, 0] + qd[:, 1]
-    np.testing.assert_allclose(Jd[:, 0, 0], -L1 * np.cos(a) * w1 - L2 * np.cos(ab) * w12,
-                               atol=1e-14)
+    np.testing.assert_allclose(
+        Jd[:, 0, 0], -L1 * np.cos(a) * w1 - L2 * np.cos(ab) * w12, atol=1e-14
+    )
     np.testing.assert_allclose(Jd[:, 0, 1], -L2 * np.cos(ab) * w12, atol=1e-14)
-    np.testing.assert_allclose(Jd[:, 1, 0], -L1 * np.sin(a) * w1 - L2 * np.sin(ab) * w12,
-                               atol=1e-14)
+    np.testing.assert_allclose(
+        Jd[:, 1, 0], -L1 * np.sin(a) * w1 - L2 * np.sin(ab) * w12, atol=1e-14
+    )
     np.testing.assert_allclose(Jd[:, 1, 1], -L2 * np.sin(ab) * w12, atol=1e-14)
     np.testing.assert_allclose(Jd[:, 2:], 0.0, atol=1e-15)
 

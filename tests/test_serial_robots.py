@@ -38,13 +38,13 @@ SERIAL_FILES = _serial_files()
 
 # stem -> (convention, joint types R/P base to tool)
 EXPECTED = {
-    "lecture_scara": ("standard", "RR"),      # slides 91-95: two revolute joints
-    "lecture_prp": ("standard", "PRP"),       # slide 96: Translation, Rotation, Translation
-    "manutec_h5": ("standard", "PRRR"),       # slide 97: d1 = Z, W2, W3, W4
-    "bosch_sr800": ("standard", "RRPR"),      # slide 98: W1, W2, d3 = Z, W4
-    "manutec_r15": ("standard", "RRRRRR"),    # slides 99/100: 3 main + 3 wrist axes
-    "motoman_up6": ("universal", "RRRRRR"),   # EASY-ROB paper, table 1: A1..A6
-    "miskolc_rrrr": ("standard", "RRRR"),     # Miskolc paper: "RRRR", n = 4
+    "lecture_scara": ("standard", "RR"),  # slides 91-95: two revolute joints
+    "lecture_prp": ("standard", "PRP"),  # slide 96: Translation, Rotation, Translation
+    "manutec_h5": ("standard", "PRRR"),  # slide 97: d1 = Z, W2, W3, W4
+    "bosch_sr800": ("standard", "RRPR"),  # slide 98: W1, W2, d3 = Z, W4
+    "manutec_r15": ("standard", "RRRRRR"),  # slides 99/100: 3 main + 3 wrist axes
+    "motoman_up6": ("universal", "RRRRRR"),  # EASY-ROB paper, table 1: A1..A6
+    "miskolc_rrrr": ("standard", "RRRR"),  # Miskolc paper: "RRRR", n = 4
     "puma560": ("standard", "RRRRRR"),
 }
 
@@ -90,8 +90,7 @@ def _uc(j, q) -> np.ndarray:
         motion = _rot(j.axis, q + j.offset)
     else:
         motion = _trans(**{j.axis: q + j.offset})
-    return (motion @ _trans(j.tx, j.ty, j.tz) @ _rot("x", j.rx) @ _rot("y", j.ry)
-            @ _rot("z", j.rz))
+    return motion @ _trans(j.tx, j.ty, j.tz) @ _rot("x", j.rx) @ _rot("y", j.ry) @ _rot("z", j.rz)
 
 
 def _fk(desc: SerialDescription, q) -> np.ndarray:
@@ -171,8 +170,10 @@ def test_configurations_have_the_right_length_and_respect_limits(path):
         for i, j in enumerate(desc.joints):  # always inside modulo 2 pi
             if j.revolute:
                 k = np.arange(-2, 3)
-                assert np.any((q[i] + 2 * math.pi * k >= lim[i, 0] - 1e-12)
-                              & (q[i] + 2 * math.pi * k <= lim[i, 1] + 1e-12)), (key, i)
+                assert np.any(
+                    (q[i] + 2 * math.pi * k >= lim[i, 0] - 1e-12)
+                    & (q[i] + 2 * math.pi * k <= lim[i, 1] + 1e-12)
+                ), (key, i)
             else:
                 assert lim[i, 0] - 1e-12 <= q[i] <= lim[i, 1] + 1e-12, (key, i)
 
@@ -233,7 +234,8 @@ def test_lecture_scara_slide94_product_and_its_erratum():
         # expanded (2,4) entry as printed: sin a L2 cos b + cos a L2 sin b + L1 sin a (correct)
         assert T[1, 3] == pytest.approx(
             math.sin(a) * L2 * math.cos(b) + math.cos(a) * L2 * math.sin(b) + L1 * math.sin(a),
-            abs=1e-12)
+            abs=1e-12,
+        )
     # Erratum: the expanded (1,4) entry is printed as
     #   cos a L2 cos b - sin a L2 sin b + L1 sin a;  it must end in L1 cos a.
     a = b = 30 * DEG
@@ -261,8 +263,12 @@ def test_lecture_scara_slide111_start_point():
     assert T[1, 3] == pytest.approx(2.6230, abs=5e-5)
     # slide 109: det J = L1 L2 sin q2 (= 6 sin 30 deg = 3 here), by central differences
     h = 1e-6
-    J = np.column_stack([(_fk(desc, np.add(q, dq))[:2, 3] - _fk(desc, np.subtract(q, dq))[:2, 3])
-                         / (2 * h) for dq in (np.array([h, 0.0]), np.array([0.0, h]))])
+    J = np.column_stack(
+        [
+            (_fk(desc, np.add(q, dq))[:2, 3] - _fk(desc, np.subtract(q, dq))[:2, 3]) / (2 * h)
+            for dq in (np.array([h, 0.0]), np.array([0.0, h]))
+        ]
+    )
     assert np.linalg.det(J) == pytest.approx(4 * 3 * math.sin(q[1]), rel=1e-6)
 
 
@@ -271,8 +277,12 @@ def test_lecture_prp_reproduces_printed_0T3():
     # The tool rotation, built here independently: Rot_x(-90) Rot_z(-90) (= rpy [0, -90, -90]).
     assert np.allclose(desc.tool, _rot("x", -math.pi / 2) @ _rot("z", -math.pi / 2), atol=1e-12)
     rng = np.random.default_rng(96)
-    for d1, q2, d3 in zip(rng.uniform(-1, 1, 20), rng.uniform(-math.pi, math.pi, 20),
-                          rng.uniform(0, 2, 20), strict=True):
+    for d1, q2, d3 in zip(
+        rng.uniform(-1, 1, 20),
+        rng.uniform(-math.pi, math.pi, 20),
+        rng.uniform(0, 2, 20),
+        strict=True,
+    ):
         c, s = math.cos(q2), math.sin(q2)
         printed = np.array([[c, -s, 0, d3 * c], [s, c, 0, d3 * s], [0, 0, 1, d1], [0, 0, 0, 1]])
         assert np.allclose(_fk(desc, (d1, q2, d3)), printed, atol=1e-12)
@@ -288,8 +298,14 @@ def test_manutec_h5_table_and_pose():
     assert np.allclose(_fk(desc, desc.configurations["home"])[:3, 3], [0.70, 0.0, 0.25])
     for Z, w2, w3, w4 in _random_q(desc, np.random.default_rng(97)):
         T = _fk(desc, (Z, w2, w3, w4))
-        assert np.allclose(T[:3, 3], [L1 * math.cos(w2) + L2 * math.cos(w2 + w3),
-                                      L1 * math.sin(w2) + L2 * math.sin(w2 + w3), Z - T_len])
+        assert np.allclose(
+            T[:3, 3],
+            [
+                L1 * math.cos(w2) + L2 * math.cos(w2 + w3),
+                L1 * math.sin(w2) + L2 * math.sin(w2 + w3),
+                Z - T_len,
+            ],
+        )
         assert np.allclose(T, _trans(*T[:3, 3]) @ _rot("z", w2 + w3 + w4), atol=1e-12)
 
 
@@ -306,8 +322,14 @@ def test_bosch_sr800_table_and_pose():
     for w1, w2, Z, w4 in _random_q(desc, np.random.default_rng(98)):
         T = _fk(desc, (w1, w2, Z, w4))
         # Z positive moves down ("Wunschrichtung fuer Achse 3")
-        assert np.allclose(T[:3, 3], [L1 * math.cos(w1) + L2 * math.cos(w1 + w2),
-                                      L1 * math.sin(w1) + L2 * math.sin(w1 + w2), H - Z])
+        assert np.allclose(
+            T[:3, 3],
+            [
+                L1 * math.cos(w1) + L2 * math.cos(w1 + w2),
+                L1 * math.sin(w1) + L2 * math.sin(w1 + w2),
+                H - Z,
+            ],
+        )
         assert np.allclose(T[:3, 2], [0, 0, -1])
 
 
@@ -318,8 +340,14 @@ def test_manutec_r15_table_and_poses():
     # slide 100: alpha = -90, 0, -90, +90, -90, 0 deg; d = H, 0, 0, L2, 0, L3; a2 = L1;
     # theta3 = W3 - 90 deg
     r = math.pi / 2
-    assert rows == [(0, -r, H, 0), (L1, 0, 0, 0), (0, -r, 0, -r), (0, r, L2, 0), (0, -r, 0, 0),
-                    (0, 0, L3, 0)]
+    assert rows == [
+        (0, -r, H, 0),
+        (L1, 0, 0, 0),
+        (0, -r, 0, -r),
+        (0, r, L2, 0),
+        (0, -r, 0, 0),
+        (0, 0, L3, 0),
+    ]
     # qz: stretched horizontally along x0: flange (L1 + L2 + L3, 0, H) = (1.50, 0, 0.75),
     # approach +x0
     T = _fk(desc, desc.configurations["qz"])
@@ -344,8 +372,14 @@ def test_manutec_r15_table_and_poses():
 def test_motoman_up6_table():
     desc = _load("motoman_up6")
     # Table 1 (mm) and Rot_i = Rz1, Ry2, Ry3, Rx4, Ry5, Rx6
-    table_mm = [(150, 0, 450, 0, 0, 0), (0, 0, 310, 0, 0, 0), (520, 0, 130, 0, 0, 0),
-                (0, 0, 0, 0, 0, 0), (95, 0, 0, 0, 0, 0), (0, 0, 0, 0, 90, 0)]
+    table_mm = [
+        (150, 0, 450, 0, 0, 0),
+        (0, 0, 310, 0, 0, 0),
+        (520, 0, 130, 0, 0, 0),
+        (0, 0, 0, 0, 0, 0),
+        (95, 0, 0, 0, 0, 0),
+        (0, 0, 0, 0, 90, 0),
+    ]
     for j, (tx, ty, tz, rx, ry, rz), axis in zip(desc.joints, table_mm, "zyyxyx", strict=True):
         assert (j.tx, j.ty, j.tz) == pytest.approx((tx / 1000, ty / 1000, tz / 1000), abs=1e-15)
         assert (j.rx, j.ry, j.rz) == pytest.approx((rx * DEG, ry * DEG, rz * DEG), abs=1e-15)
@@ -374,8 +408,7 @@ def test_motoman_up6_central_wrist():
         q2 = q.copy()
         q2[3:] = rng.uniform(-2, 2, 3)
         T1, T2 = _fk(desc, q), _fk(desc, q2)
-        assert np.allclose(T1[:3, 3] - 0.095 * T1[:3, 2], T2[:3, 3] - 0.095 * T2[:3, 2],
-                           atol=1e-12)
+        assert np.allclose(T1[:3, 3] - 0.095 * T1[:3, 2], T2[:3, 3] - 0.095 * T2[:3, 2], atol=1e-12)
     T = _fk(desc, [0, 0, 0, 0.3, -0.7, 1.1])
     assert np.allclose(T[:3, 3] - 0.095 * T[:3, 2], [0.670, 0.0, 0.890], atol=1e-12)
 
@@ -423,8 +456,10 @@ def test_puma560_table():
     assert [j.a for j in desc.joints] == [0, 0.4318, 0.0203, 0, 0, 0]
     assert [j.d for j in desc.joints] == [0.67183, 0, 0.15005, 0.4318, 0, 0]
     assert np.allclose([j.alpha for j in desc.joints], [r, 0, -r, r, -r, 0], atol=1e-15)
-    assert np.allclose(desc.qlim / DEG, [[-160, 160], [-45, 225], [-225, 45], [-110, 170],
-                                         [-100, 100], [-266, 266]])
+    assert np.allclose(
+        desc.qlim / DEG,
+        [[-160, 160], [-45, 225], [-225, 45], [-110, 170], [-100, 100], [-266, 266]],
+    )
     c = desc.configurations
     assert np.allclose(c["qz"], np.zeros(6))
     assert np.allclose(c["qr"], [0, math.pi / 2, -math.pi / 2, 0, 0, 0])

@@ -84,7 +84,9 @@ def _shoulder_q2(q3):
     # W in shoulder frame 1: x1 = a2 c2 + a3 c23 - d4 s23 (the d3 offset is along z1, i.e.
     # along axis 2). The shoulder singularity is x1 = 0: W in the plane of axis 1 and the
     # direction of axis 2, at the offset distance |d3| from axis 1 (it cannot reach axis 1).
-    f = lambda q2: A2 * math.cos(q2) + A3 * math.cos(q2 + q3) - D4 * math.sin(q2 + q3)
+    def f(q2):
+        return A2 * math.cos(q2) + A3 * math.cos(q2 + q3) - D4 * math.sin(q2 + q3)
+
     lo, hi = 0.0, 2.5
     assert f(lo) * f(hi) < 0
     for _ in range(200):
@@ -119,9 +121,12 @@ def test_shoulder_singularity_with_offset(puma):
 def test_shoulder_singularity_on_axis_without_offset():
     # the same arm with d3 = 0: now W reaches axis 1 itself
     rows = [
-        dict(a=0.0, alpha_deg=90, d=0.67183), dict(a=A2, alpha=0.0, d=0.0),
-        dict(a=A3, alpha_deg=-90, d=0.0), dict(a=0.0, alpha_deg=90, d=D4),
-        dict(a=0.0, alpha_deg=-90, d=0.0), dict(a=0.0, alpha=0.0, d=0.0),
+        dict(a=0.0, alpha_deg=90, d=0.67183),
+        dict(a=A2, alpha=0.0, d=0.0),
+        dict(a=A3, alpha_deg=-90, d=0.0),
+        dict(a=0.0, alpha_deg=90, d=D4),
+        dict(a=0.0, alpha_deg=-90, d=0.0),
+        dict(a=0.0, alpha=0.0, d=0.0),
     ]
     arm = SerialRobot.from_dh(rows, "standard", name="puma_no_offset", backend="reference")
     q3 = -0.6
@@ -149,8 +154,9 @@ def test_generic_poses_and_condition_number(puma):
     assert not rep["singular"][ok].any()
     assert np.all(np.isfinite(rep["condition"][ok]))
     np.testing.assert_allclose(rep["condition"], cond, rtol=1e-8)
-    np.testing.assert_allclose(rep["manipulability"], np.abs(np.linalg.det(J)), rtol=1e-8,
-                               atol=1e-14)
+    np.testing.assert_allclose(
+        rep["manipulability"], np.abs(np.linalg.det(J)), rtol=1e-8, atol=1e-14
+    )
     assert all(a == [] for a in rep["aligned_axes"][ok])
     r0 = row_of(rep, int(np.flatnonzero(ok)[0]))
     assert describe(r0).startswith("not singular; condition number")
@@ -180,8 +186,11 @@ def test_lecture_scara(scara):
 
 def test_aligned_axes_general_arm():
     # a 3R arm whose axes 1 and 3 can line up: a1 = 1, a2 = 1 (planar) ... use a spatial arm
-    rows = [dict(a=0.0, alpha_deg=90, d=0.0), dict(a=0.0, alpha_deg=-90, d=0.0),
-            dict(a=0.0, alpha=0.0, d=0.5)]
+    rows = [
+        dict(a=0.0, alpha_deg=90, d=0.0),
+        dict(a=0.0, alpha_deg=-90, d=0.0),
+        dict(a=0.0, alpha=0.0, d=0.5),
+    ]
     arm = SerialRobot.from_dh(rows, "standard", name="rrr", backend="reference")
     rep = report(arm, [[0.1, 0.0, 0.3], [0.1, 0.8, 0.3]])
     # axes 1 (z0) and 3 (z2) both pass through the origin; collinear when q2 = 0

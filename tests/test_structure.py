@@ -45,8 +45,11 @@ def _load(name: str) -> SerialDescription:
 
 def _rows(a, alpha, d, convention="standard", **extra):
     return SerialDescription.from_rows(
-        [dict(a=x, alpha=y, d=z) for x, y, z in zip(a, alpha, d)], convention,
-        name=extra.pop("name", "arm"), **extra)
+        [dict(a=x, alpha=y, d=z) for x, y, z in zip(a, alpha, d)],
+        convention,
+        name=extra.pop("name", "arm"),
+        **extra,
+    )
 
 
 def _puma_like(changes=None):
@@ -62,9 +65,12 @@ def _puma_like(changes=None):
 
 def _ur5():
     """UR5 (standard DH, Universal Robots' published table): axes 2, 3, 4 parallel."""
-    return _rows([0.0, -0.425, -0.39225, 0.0, 0.0, 0.0],
-                 [PI / 2, 0.0, 0.0, PI / 2, -PI / 2, 0.0],
-                 [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823], name="ur5")
+    return _rows(
+        [0.0, -0.425, -0.39225, 0.0, 0.0, 0.0],
+        [PI / 2, 0.0, 0.0, PI / 2, -PI / 2, 0.0],
+        [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823],
+        name="ur5",
+    )
 
 
 def _as_universal(desc: SerialDescription) -> SerialDescription:
@@ -75,11 +81,25 @@ def _as_universal(desc: SerialDescription) -> SerialDescription:
     joints = []
     for j in desc.joints:
         assert j.revolute or j.theta == 0.0
-        joints.append(dataclasses.replace(
-            j, a=0.0, alpha=0.0, d=0.0, theta=0.0, tx=j.a, ty=0.0, tz=j.d, rx=j.alpha,
-            ry=0.0, rz=0.0, axis="z"))
-    return dataclasses.replace(desc, name=f"{desc.name}_uc", convention="universal",
-                               joints=tuple(joints))
+        joints.append(
+            dataclasses.replace(
+                j,
+                a=0.0,
+                alpha=0.0,
+                d=0.0,
+                theta=0.0,
+                tx=j.a,
+                ty=0.0,
+                tz=j.d,
+                rx=j.alpha,
+                ry=0.0,
+                rz=0.0,
+                axis="z",
+            )
+        )
+    return dataclasses.replace(
+        desc, name=f"{desc.name}_uc", convention="universal", joints=tuple(joints)
+    )
 
 
 def _as_modified(desc: SerialDescription) -> SerialDescription:
@@ -87,30 +107,43 @@ def _as_modified(desc: SerialDescription) -> SerialDescription:
     and Tx(a_n) Rx(alpha_n) of the last link moves into the tool."""
     assert desc.convention == "standard"
     js = desc.joints
-    joints = [dataclasses.replace(j, a=js[i - 1].a if i else 0.0,
-                                  alpha=js[i - 1].alpha if i else 0.0)
-              for i, j in enumerate(js)]
+    joints = [
+        dataclasses.replace(j, a=js[i - 1].a if i else 0.0, alpha=js[i - 1].alpha if i else 0.0)
+        for i, j in enumerate(js)
+    ]
     tool = transform((js[-1].a, 0.0, 0.0), (js[-1].alpha, 0.0, 0.0)) @ desc.tool
-    return dataclasses.replace(desc, name=f"{desc.name}_mdh", convention="modified",
-                               joints=tuple(joints), tool=tool)
+    return dataclasses.replace(
+        desc, name=f"{desc.name}_mdh", convention="modified", joints=tuple(joints), tool=tool
+    )
 
 
 def _same_line(ax1, ax2, i, tol=1e-12):
     """Axis i of both is the same line with the same direction."""
     w1, w2 = ax1.directions[i], ax2.directions[i]
     d = ax2.points[i] - ax1.points[i]
-    return (np.allclose(w1, w2, atol=tol)
-            and np.linalg.norm(d - (d @ w1) * w1) < tol * max(1.0, ax1.scale))
+    return np.allclose(w1, w2, atol=tol) and np.linalg.norm(d - (d @ w1) * w1) < tol * max(
+        1.0, ax1.scale
+    )
 
 
 def _elbow_invariants(s):
     """What an elbow arm's closed form is made of, independent of where the description puts
     the points o_i along their axes."""
-    out = dict(wrist=s.wrist, ex=s.ex, ey=s.ey, ez=s.ez, upper=s.upper, lower=s.lower,
-               sign3=s.sign3, front=s.front, bend=s.bend, cos_12=s.cos_12, sin_12=s.sin_12)
+    out = dict(
+        wrist=s.wrist,
+        ex=s.ex,
+        ey=s.ey,
+        ez=s.ez,
+        upper=s.upper,
+        lower=s.lower,
+        sign3=s.sign3,
+        front=s.front,
+        bend=s.bend,
+        cos_12=s.cos_12,
+        sin_12=s.sin_12,
+    )
     if isinstance(s, st.SphericalWrist6R):
-        out.update(wrist_ref=s.wrist_ref, cos_45=s.cos_45, cos_56=s.cos_56,
-                   normal_45=s.normal_45)
+        out.update(wrist_ref=s.wrist_ref, cos_45=s.cos_45, cos_56=s.cos_56, normal_45=s.normal_45)
     else:
         out.update(roll_ref=s.roll_ref)
     return out
@@ -158,8 +191,7 @@ def test_puma560_constants():
     """Hand-checked: the Puma's wrist centre at q = 0 is (a2 + a3, -d3, d1 + d4) (the flange
     of robots/puma560.toml's comment: d6 = 0), the shoulder offset is d3."""
     s = st.detect(_load("puma560"))
-    np.testing.assert_allclose(s.wrist, [0.4318 + 0.0203, -0.15005, 0.67183 + 0.4318],
-                               atol=1e-12)
+    np.testing.assert_allclose(s.wrist, [0.4318 + 0.0203, -0.15005, 0.67183 + 0.4318], atol=1e-12)
     np.testing.assert_allclose(s.ez, [0, 0, 1], atol=1e-15)
     assert abs(s.cos_12) < 1e-15 and abs(s.sin_12) == pytest.approx(1.0)
     assert repr(s) == "SphericalWrist6R('puma560')"
@@ -188,8 +220,17 @@ def test_scara_constants():
 # -- invariance ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["puma560", "manutec_r15", "miskolc_rrrr", "bosch_sr800",
-                                  "lecture_scara", "puma560_offset_wrist"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "puma560",
+        "manutec_r15",
+        "miskolc_rrrr",
+        "bosch_sr800",
+        "lecture_scara",
+        "puma560_offset_wrist",
+    ],
+)
 def test_base_transform_moves_everything_rigidly(name):
     desc = _load(name)
     B = transform((0.3, -0.2, 0.5), (0.2, -0.1, 0.7))
@@ -229,8 +270,18 @@ def test_tool_transform_keeps_the_structure(name):
         assert not b.position_only_ok
 
 
-@pytest.mark.parametrize("name", ["puma560", "manutec_r15", "miskolc_rrrr", "lecture_scara",
-                                  "bosch_sr800", "manutec_h5", "puma560_offset_wrist"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "puma560",
+        "manutec_r15",
+        "miskolc_rrrr",
+        "lecture_scara",
+        "bosch_sr800",
+        "manutec_h5",
+        "puma560_offset_wrist",
+    ],
+)
 @pytest.mark.parametrize("rewrite", [_as_universal, _as_modified], ids=["universal", "modified"])
 def test_the_convention_does_not_matter(name, rewrite):
     """The same arm in another convention: the same lines, so the same structure and the
@@ -252,8 +303,7 @@ def test_the_convention_does_not_matter(name, rewrite):
     assert a.configs == b.configs
     if isinstance(a, st.PlanarArm):
         for key in ("u", "signs", "plane", "point", "upper", "lower"):
-            np.testing.assert_allclose(getattr(b, key), getattr(a, key), atol=1e-12,
-                                       err_msg=key)
+            np.testing.assert_allclose(getattr(b, key), getattr(a, key), atol=1e-12, err_msg=key)
         assert (a.first, a.second, a.roll, a.lift) == (b.first, b.second, b.roll, b.lift)
         return
     ia, ib = _elbow_invariants(a), _elbow_invariants(b)
@@ -264,15 +314,25 @@ def test_the_convention_does_not_matter(name, rewrite):
 # -- what is refused -----------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("changes", [
-    {(4, "a"): 0.05},                 # axis 6 misses the common point of axes 4, 5
-    {(4, "d"): 0.04},                 # axis 6 meets axis 5 elsewhere than axis 4 does
-    {(1, "alpha"): math.radians(10)},  # axes 2 and 3 not parallel
-    {(1, "alpha"): 1e-7},             # nearly parallel: neither parallel nor clearly not
-    {(0, "alpha"): 0.0},              # axis 1 parallel to axis 2
-    {(1, "a"): 0.0, (2, "a"): 0.0, (2, "d"): 0.0},  # axes 2 and 3 the same line
-], ids=["wrist_a5", "wrist_d5", "axes23_skew", "axes23_nearly", "axes12_parallel",
-        "axes23_collinear"])
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {(4, "a"): 0.05},  # axis 6 misses the common point of axes 4, 5
+        {(4, "d"): 0.04},  # axis 6 meets axis 5 elsewhere than axis 4 does
+        {(1, "alpha"): math.radians(10)},  # axes 2 and 3 not parallel
+        {(1, "alpha"): 1e-7},  # nearly parallel: neither parallel nor clearly not
+        {(0, "alpha"): 0.0},  # axis 1 parallel to axis 2
+        {(1, "a"): 0.0, (2, "a"): 0.0, (2, "d"): 0.0},  # axes 2 and 3 the same line
+    ],
+    ids=[
+        "wrist_a5",
+        "wrist_d5",
+        "axes23_skew",
+        "axes23_nearly",
+        "axes12_parallel",
+        "axes23_collinear",
+    ],
+)
 def test_six_axis_arms_without_a_closed_form(changes):
     assert st.detect(_puma_like(changes)) is None
 
@@ -301,11 +361,13 @@ def test_predicates_of_a_puma_and_a_ur5():
     # at q = 0 axes 1, 4, 6 point along z and axes 2, 3, 5 along -y
     assert st.parallel_pairs(puma) == [(0, 3), (0, 5), (1, 2), (1, 4), (2, 4), (3, 5)]
     assert st.parallel_runs(puma) == [] and st.parallel_runs(puma, length=2) == [1]
-    np.testing.assert_allclose(st.central_wrist(puma), st.detect(_load("puma560")).wrist,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        st.central_wrist(puma), st.detect(_load("puma560")).wrist, atol=1e-12
+    )
     assert st.common_point_of(puma, [1, 2]) is None  # parallel and distinct
-    np.testing.assert_allclose(st.common_point_of(puma, [0, 1]), [0, 0, 0.67183],
-                               atol=1e-12)  # axes 1 and 2 meet at the shoulder
+    np.testing.assert_allclose(
+        st.common_point_of(puma, [0, 1]), [0, 0, 0.67183], atol=1e-12
+    )  # axes 1 and 2 meet at the shoulder
     ur5 = st.joint_axes(_ur5())
     assert st.parallel_runs(ur5) == [1]  # axes 2, 3, 4
     assert st.parallel_runs(ur5, length=2) == [1, 2]
@@ -343,12 +405,19 @@ def test_common_point():
     np.testing.assert_allclose(x, p, atol=1e-14)
     assert dist < 1e-14
     # the x axis and a line along y at z = 1: nearest point (0, 0, 0.5), each 0.5 away
-    x, dist = geo.common_point([np.zeros(3), np.array([0.0, 0, 1])],
-                               [np.array([1.0, 0, 0]), np.array([0.0, 1, 0])])
+    x, dist = geo.common_point(
+        [np.zeros(3), np.array([0.0, 0, 1])], [np.array([1.0, 0, 0]), np.array([0.0, 1, 0])]
+    )
     np.testing.assert_allclose(x, [0, 0, 0.5], atol=1e-15)
     assert dist == pytest.approx(0.5)
-    assert geo.meet([np.zeros(3), np.array([0.0, 0, 1])],
-                    [np.array([1.0, 0, 0]), np.array([0.0, 1, 0])], 0.4) is None
+    assert (
+        geo.meet(
+            [np.zeros(3), np.array([0.0, 0, 1])],
+            [np.array([1.0, 0, 0]), np.array([0.0, 1, 0])],
+            0.4,
+        )
+        is None
+    )
     o = np.array([[np.zeros(3), np.array([0.0, 0, 1])]] * 2)
     w = np.array([[[1.0, 0, 0], [0.0, 1, 0]]] * 2)
     np.testing.assert_allclose(geo.common_points(o, w), [[0, 0, 0.5]] * 2, atol=1e-15)
@@ -358,24 +427,30 @@ def test_common_point():
 
 
 def test_wrap_to_pi():
-    np.testing.assert_allclose(limits.wrap_to_pi(np.array([PI, -PI, 1.5 * PI, 7.0, 0.0])),
-                               [-PI, -PI, -0.5 * PI, 7.0 - 2 * PI, 0.0], atol=1e-15)
+    np.testing.assert_allclose(
+        limits.wrap_to_pi(np.array([PI, -PI, 1.5 * PI, 7.0, 0.0])),
+        [-PI, -PI, -0.5 * PI, 7.0 - 2 * PI, 0.0],
+        atol=1e-15,
+    )
     assert limits.TWO_PI == 2 * PI and limits.LIMIT_TOL == 1e-12
     assert limits.SHIFTS == (1, -1, 2, -2)
 
 
-@pytest.mark.parametrize("value, lo, hi, expected, inside", [
-    (-PI / 2, 0.0, 2 * PI, 1.5 * PI, True),       # +2 pi
-    (3.0, -4.0, -2.0, 3.0 - 2 * PI, True),        # -2 pi
-    (-1.0, 10.0, 12.0, -1.0 + 4 * PI, True),      # +4 pi (the third shift)
-    (1.0 + 4 * PI, -0.5, 1.5, 1.0, True),         # wrapped into [-pi, pi) first
-    (2.0, -0.5, 0.5, 2.0, False),                 # nothing fits: stays in [-pi, pi)
-    (5.0, -0.5, 0.5, 5.0 - 2 * PI, False),
-    (1.0 + 5e-13, -1.0, 1.0, 1.0, True),          # within LIMIT_TOL: clipped onto the limit
-    (1.0 + 1e-11, -1.0, 1.0, 1.0 + 1e-11, False),
-    (4.0, -np.inf, np.inf, 4.0 - 2 * PI, True),   # no limits: [-pi, pi)
-    (3.5, -4.0, 4.0, 3.5 - 2 * PI, True),         # inside, yet wrapped: the closed forms' rule
-])
+@pytest.mark.parametrize(
+    "value, lo, hi, expected, inside",
+    [
+        (-PI / 2, 0.0, 2 * PI, 1.5 * PI, True),  # +2 pi
+        (3.0, -4.0, -2.0, 3.0 - 2 * PI, True),  # -2 pi
+        (-1.0, 10.0, 12.0, -1.0 + 4 * PI, True),  # +4 pi (the third shift)
+        (1.0 + 4 * PI, -0.5, 1.5, 1.0, True),  # wrapped into [-pi, pi) first
+        (2.0, -0.5, 0.5, 2.0, False),  # nothing fits: stays in [-pi, pi)
+        (5.0, -0.5, 0.5, 5.0 - 2 * PI, False),
+        (1.0 + 5e-13, -1.0, 1.0, 1.0, True),  # within LIMIT_TOL: clipped onto the limit
+        (1.0 + 1e-11, -1.0, 1.0, 1.0 + 1e-11, False),
+        (4.0, -np.inf, np.inf, 4.0 - 2 * PI, True),  # no limits: [-pi, pi)
+        (3.5, -4.0, 4.0, 3.5 - 2 * PI, True),  # inside, yet wrapped: the closed forms' rule
+    ],
+)
 def test_fit_limits_revolute(value, lo, hi, expected, inside):
     q, ok = limits.fit_limits(np.array([[value]]), np.array([[lo, hi]]), [True])
     assert q[0, 0] == pytest.approx(expected, abs=1e-14)
@@ -397,11 +472,13 @@ def test_shift_into_limits():
     lo, hi = np.array([-PI, -4.0, -1.0, -1.0]), np.array([PI, 4.0, 1.0, 1.0])
     wraps = np.array([True, True, True, False])
     q = np.array([7.0, 3.5, 10.0, 3.0])
-    np.testing.assert_allclose(limits.shift_into_limits(q, lo, hi, wraps),
-                               [7.0 - 2 * PI, 3.5, 10.0, 3.0])  # 10: no shift brings it in
+    np.testing.assert_allclose(
+        limits.shift_into_limits(q, lo, hi, wraps), [7.0 - 2 * PI, 3.5, 10.0, 3.0]
+    )  # 10: no shift brings it in
     q = np.array([[-7.0, -9.0, 0.5, 0.0]])
-    np.testing.assert_allclose(limits.shift_into_limits(q, lo, hi, wraps),
-                               [[-7.0 + 2 * PI, -9.0 + 2 * PI, 0.5, 0.0]])
+    np.testing.assert_allclose(
+        limits.shift_into_limits(q, lo, hi, wraps), [[-7.0 + 2 * PI, -9.0 + 2 * PI, 0.5, 0.0]]
+    )
 
 
 def test_the_c_kernel_fit_is_the_numpy_fit():
@@ -418,20 +495,26 @@ def test_the_c_kernel_fit_is_the_numpy_fit():
     theta, d = sp.Symbol("theta", real=True), sp.Symbol("d", real=True)
     outs = []
     for i in range(found.axes.n):
-        a = (ikc._Angle(theta, sp.cos(theta), sp.sin(theta)) if found.axes.revolute[i]
-             else d)
+        a = ikc._Angle(theta, sp.cos(theta), sp.sin(theta)) if found.axes.revolute[i] else d
         outs.append(builder._fit_limits(f"f{i}", i, a))
     rng = np.random.default_rng(1)
-    values = np.concatenate([rng.uniform(-15, 15, 300), found.qlim[np.isfinite(found.qlim)],
-                             found.qlim[np.isfinite(found.qlim)] + 5e-13])
+    values = np.concatenate(
+        [
+            rng.uniform(-15, 15, 300),
+            found.qlim[np.isfinite(found.qlim)],
+            found.qlim[np.isfinite(found.qlim)] + 5e-13,
+        ]
+    )
     env = {theta: values, d: values}
     for _, assignments in builder.tape.stages:
         for sym, expr in assignments:
             args = sorted(expr.free_symbols, key=str)
             env[sym] = np.broadcast_to(
-                sp.lambdify(args, expr, "numpy")(*[env[s] for s in args]), values.shape)
+                sp.lambdify(args, expr, "numpy")(*[env[s] for s in args]), values.shape
+            )
     for i, (value, fits) in enumerate(outs):
-        expected, inside = limits.fit_limits(values[:, None], found.qlim[i:i + 1],
-                                             found.axes.revolute[i:i + 1])
+        expected, inside = limits.fit_limits(
+            values[:, None], found.qlim[i : i + 1], found.axes.revolute[i : i + 1]
+        )
         np.testing.assert_allclose(env[value], expected[:, 0], rtol=0, atol=1e-15)
         np.testing.assert_array_equal(env[fits] if fits in env else bool(fits), inside)

@@ -43,8 +43,9 @@ def test_quintic_boundary_conditions_and_shape():
     np.testing.assert_allclose(s, 10 * tau**3 - 15 * tau**4 + 6 * tau**5, atol=1e-15)
 
 
-@pytest.mark.parametrize("scaling", [tr.Quintic(), tr.Trapezoid(0.25), tr.Trapezoid(0.5),
-                                     tr.Trapezoid(0.1)], ids=repr)
+@pytest.mark.parametrize(
+    "scaling", [tr.Quintic(), tr.Trapezoid(0.25), tr.Trapezoid(0.5), tr.Trapezoid(0.1)], ids=repr
+)
 def test_scaling_derivatives_match_finite_differences(scaling):
     h = 1e-6
     tau = np.linspace(0.013, 0.987, 301)
@@ -144,8 +145,9 @@ def test_arc_through_three_points_geometry(a0, a1, a2):
 def test_arc_by_centre_axis_angle_and_direction():
     arc = tr.Arc([0, 0, 0.5], [1, 0, 0.5], [0, 0, 1], math.pi / 2)
     p, dp, _ = arc.evaluate(np.array([0.0, 0.5, 1.0]))
-    np.testing.assert_allclose(p, [[1, 0, 0.5], [math.sqrt(0.5), math.sqrt(0.5), 0.5],
-                                   [0, 1, 0.5]], atol=1e-15)
+    np.testing.assert_allclose(
+        p, [[1, 0, 0.5], [math.sqrt(0.5), math.sqrt(0.5), 0.5], [0, 1, 0.5]], atol=1e-15
+    )
     assert dp[0, 1] > 0  # counter-clockwise about +z
     cw = tr.Arc([0, 0, 0.5], [1, 0, 0.5], [0, 0, 1], -math.pi / 2)
     np.testing.assert_allclose(cw.end, [0, -1, 0.5], atol=1e-15)
@@ -178,18 +180,24 @@ def _rand_rot(rng):
 def test_rot_exp_log_roundtrip_including_small_and_near_pi(rng):
     axes = rng.normal(size=(40, 3))
     axes /= np.linalg.norm(axes, axis=1, keepdims=True)
-    angles = np.r_[np.geomspace(1e-12, 1e-3, 10), rng.uniform(0, math.pi, 20),
-                   math.pi - np.geomspace(1e-3, 1e-9, 10)]
+    angles = np.r_[
+        np.geomspace(1e-12, 1e-3, 10),
+        rng.uniform(0, math.pi, 20),
+        math.pi - np.geomspace(1e-3, 1e-9, 10),
+    ]
     v = axes * angles[:, None]
     R = tr.rot_exp(v)
-    np.testing.assert_allclose(R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-14)
+    np.testing.assert_allclose(
+        R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-14
+    )
     np.testing.assert_allclose(tr.rot_log(R), v, atol=2e-8)  # near pi: sqrt(eps)-limited sign
     np.testing.assert_allclose(tr.rot_log(R[:30]), v[:30], atol=1e-13)
     for k in range(40):  # the single-matrix path agrees with the batch path
-        np.testing.assert_allclose(tr.rot_log(R[k]), tr.rot_log(R[k:k + 1])[0], atol=1e-12)
+        np.testing.assert_allclose(tr.rot_log(R[k]), tr.rot_log(R[k : k + 1])[0], atol=1e-12)
     # Rodrigues typed in for one case: 90 deg about z
-    np.testing.assert_allclose(tr.rot_exp([0, 0, math.pi / 2]),
-                               [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15)
+    np.testing.assert_allclose(
+        tr.rot_exp([0, 0, math.pi / 2]), [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15
+    )
 
 
 def test_quaternion_roundtrip(rng):
@@ -199,8 +207,9 @@ def test_quaternion_roundtrip(rng):
     assert np.all(q[:, 0] >= 0)
     np.testing.assert_allclose(tr.matrix_from_quat(q), R, atol=1e-14)
     # 180 deg about x: (w, x, y, z) = (0, 1, 0, 0)
-    np.testing.assert_allclose(np.abs(tr.quat_from_matrix(np.diag([1.0, -1, -1]))), [0, 1, 0, 0],
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        np.abs(tr.quat_from_matrix(np.diag([1.0, -1, -1]))), [0, 1, 0, 0], atol=1e-15
+    )
 
 
 def test_slerp_endpoints_agrees_with_quaternion_slerp_and_constant_rate(rng):
@@ -259,8 +268,12 @@ def test_path_builder_continuity_and_sampling():
 
 def test_trajectory_rejects_gaps():
     with pytest.raises(ValueError, match="continuous"):
-        tr.CartesianTrajectory([tr.Segment(tr.Line([0, 0, 0], [1, 0, 0]), 1.0),
-                                tr.Segment(tr.Line([1, 0, 0.1], [1, 1, 0]), 1.0)])
+        tr.CartesianTrajectory(
+            [
+                tr.Segment(tr.Line([0, 0, 0], [1, 0, 0]), 1.0),
+                tr.Segment(tr.Line([1, 0, 0.1], [1, 1, 0]), 1.0),
+            ]
+        )
     with pytest.raises(ValueError):
         tr.Segment(tr.Line([0, 0, 0], [1, 0, 0]), 0.0)
 
@@ -273,13 +286,19 @@ def test_numerical_rates_exact_for_quadratics_and_second_order():
     q = np.column_stack([3 - 2 * t + 0.7 * t**2, 0.5 * t**2])
     qd, qdd = tr.numerical_rates(t, q)
     np.testing.assert_allclose(qd, np.column_stack([-2 + 1.4 * t, t]), atol=1e-12)
-    np.testing.assert_allclose(qdd, np.column_stack([np.full_like(t, 1.4), np.ones_like(t)]), atol=1e-9)
+    np.testing.assert_allclose(
+        qdd, np.column_stack([np.full_like(t, 1.4), np.ones_like(t)]), atol=1e-9
+    )
     errs = []
     for n in (101, 201, 401):
         t = np.linspace(0, 3, n)
         qd, qdd = tr.numerical_rates(t, np.sin(2 * t))
-        errs.append((np.abs(qd[:, 0] - 2 * np.cos(2 * t)).max(),
-                     np.abs(qdd[:, 0] + 4 * np.sin(2 * t)).max()))
+        errs.append(
+            (
+                np.abs(qd[:, 0] - 2 * np.cos(2 * t)).max(),
+                np.abs(qdd[:, 0] + 4 * np.sin(2 * t)).max(),
+            )
+        )
     errs = np.array(errs)
     ratios = errs[:-1] / errs[1:]
     assert np.all((ratios > 3.5) & (ratios < 4.5)), ratios
@@ -318,8 +337,9 @@ def test_scara_line_stays_on_its_branch(scara, sign, q0):
     traj = tr.PathBuilder(p0).line([4.0, 3.0, 0.0], 2.0).build()
     jt = tr.to_joint_trajectory(scara, traj, tr.Task("xy"), q0, dt=0.01)
     assert np.all(np.sign(jt.q[:, 1]) == sign)
-    np.testing.assert_allclose(jt.q, _scara_ik_elbow(jt.cartesian.p[:, 0], jt.cartesian.p[:, 1], sign),
-                               atol=1e-10)
+    np.testing.assert_allclose(
+        jt.q, _scara_ik_elbow(jt.cartesian.p[:, 0], jt.cartesian.p[:, 1], sign), atol=1e-10
+    )
     # joint steps bounded: no jumps, at most the peak rate times h (plus a little)
     assert jt.max_joint_step <= np.abs(jt.qd).max() * jt.dt * 1.01
     assert jt.task_error.max() < 1e-12
@@ -350,8 +370,9 @@ def test_branch_flip_and_bad_paths_are_detected(scara):
     with pytest.raises(tr.TrajectoryError, match="max_step"):
         tr.to_joint_trajectory(scara, traj, tr.Task("xy"), q0, dt=0.01, max_step=1e-4)
     with pytest.raises(tr.TrajectoryError, match="branch"):
-        tr.to_joint_trajectory(scara, traj, tr.Task("xy"), q0, dt=0.01,
-                               branch=lambda q: q[:, 1] < math.radians(60))
+        tr.to_joint_trajectory(
+            scara, traj, tr.Task("xy"), q0, dt=0.01, branch=lambda q: q[:, 1] < math.radians(60)
+        )
     # a start guess on the other branch is followed there, not flipped back
     q_other = _scara_ik_elbow(np.array([p0[0]]), np.array([p0[1]]), -1)[0]
     jt = tr.to_joint_trajectory(scara, traj, tr.Task("xy"), q_other, dt=0.01)
@@ -373,7 +394,9 @@ def test_task_validation(scara, puma):
         tr.Task("xy", joints=(5,)).check(scara)
     traj = tr.PathBuilder([6, 2, 0]).line([5, 2, 0], 1.0).build()
     with pytest.raises(ValueError, match="orientation"):
-        tr.to_joint_trajectory(puma, traj, tr.Task("xyz", orientation=True), puma.configuration("qn"))
+        tr.to_joint_trajectory(
+            puma, traj, tr.Task("xyz", orientation=True), puma.configuration("qn")
+        )
 
 
 def _puma_trajectory(puma, scaling="quintic"):
@@ -401,10 +424,15 @@ def test_six_axis_pose_trajectory_exact_vs_numerical_rates_second_order(puma):
         # the exact rates satisfy J qd = (v, w) and J qdd + Jdot qd = (a, wd)
         J = puma.jacobian(jt.q)
         twist = np.einsum("nij,nj->ni", J, jt.qd)
-        np.testing.assert_allclose(twist, np.column_stack([jt.cartesian.v, jt.cartesian.w]), atol=1e-12)
+        np.testing.assert_allclose(
+            twist, np.column_stack([jt.cartesian.v, jt.cartesian.w]), atol=1e-12
+        )
         acc = np.einsum("nij,nj->ni", J, jt.qdd) + np.einsum(
-            "nij,nj->ni", puma.jacobian_dot(jt.q, jt.qd), jt.qd)
-        np.testing.assert_allclose(acc, np.column_stack([jt.cartesian.a, jt.cartesian.wd]), atol=1e-11)
+            "nij,nj->ni", puma.jacobian_dot(jt.q, jt.qd), jt.qd
+        )
+        np.testing.assert_allclose(
+            acc, np.column_stack([jt.cartesian.a, jt.cartesian.wd]), atol=1e-11
+        )
     e = np.array([[r.rate_errors()["qd"], r.rate_errors()["qdd"]] for r in runs])
     ratios = e[:-1] / e[1:]
     assert np.all((ratios > 3.6) & (ratios < 4.4)), ratios  # O(h^2)
@@ -468,8 +496,12 @@ def test_jacobian_path_following_is_slide_algorithm(scara):
     q = np.radians([10.0, 30.0])
 
     def f(q):
-        return np.array([L1 * math.cos(q[0]) + L2 * math.cos(q[0] + q[1]),
-                         L1 * math.sin(q[0]) + L2 * math.sin(q[0] + q[1])])
+        return np.array(
+            [
+                L1 * math.cos(q[0]) + L2 * math.cos(q[0] + q[1]),
+                L1 * math.sin(q[0]) + L2 * math.sin(q[0] + q[1]),
+            ]
+        )
 
     def J(q):
         s1, c1 = math.sin(q[0]), math.cos(q[0])

@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from deltagen import DeltaRobot
-from deltagen.cli import main as cli_main
 from deltagen.apps import validate as val
-
+from deltagen.cli import main as cli_main
 
 # ------------------------------------------------------------------ trajectory
 
@@ -39,8 +38,12 @@ def test_trajectory_is_eqs_40_to_42():
     np.testing.assert_allclose(p[:, 3], 0.5 * np.sin(np.pi * t), rtol=0, atol=1e-15)
     # t = 0: x = y = 0, z = 0.1 - 0.7556; the initial speeds are the start frequencies
     np.testing.assert_allclose(p[0], [0.0, 0.0, 0.1 - 0.7556, 0.0], atol=1e-15)
-    np.testing.assert_allclose(pd[0], [0.25 * 0.2 * math.pi, 0.25 * 10 * math.pi, 0.0,
-                                       0.5 * math.pi], rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(
+        pd[0],
+        [0.25 * 0.2 * math.pi, 0.25 * 10 * math.pi, 0.0, 0.5 * math.pi],
+        rtol=1e-14,
+        atol=1e-14,
+    )
 
 
 def test_trajectory_scalar_time():
@@ -82,8 +85,13 @@ def test_sample_times():
     assert val.sample_times(100.0, 1.0).size == 101
     assert val.sample_times(200.0, 0.0).size == 1
     assert val.sample_times(3.0, 1.5).size == 5  # 0, 1/3, 2/3, 1, 4/3: never beyond 1.5 s
-    for rate, duration in ((0.0, 1.0), (-5.0, 1.0), (math.nan, 1.0), (10.0, -1.0),
-                           (10.0, math.inf)):
+    for rate, duration in (
+        (0.0, 1.0),
+        (-5.0, 1.0),
+        (math.nan, 1.0),
+        (10.0, -1.0),
+        (10.0, math.inf),
+    ):
         with pytest.raises(ValueError):
             val.sample_times(rate, duration)
 
@@ -95,8 +103,13 @@ def test_sample_times():
 def test_run_default_robot_passes(backend):
     robot = DeltaRobot.default(backend=backend)
     calls = []
-    result = val.run(robot, rate=200.0, duration=2.0, chunk=150,
-                     progress=lambda done, total: calls.append((done, total)))
+    result = val.run(
+        robot,
+        rate=200.0,
+        duration=2.0,
+        chunk=150,
+        progress=lambda done, total: calls.append((done, total)),
+    )
     assert result.n == 401
     assert calls[-1] == (401, 401) and len(calls) == 3
     assert not result.failed.any()
@@ -109,8 +122,9 @@ def test_run_default_robot_passes(backend):
     np.testing.assert_array_equal(result.qdd[:, 3], result.pdd[:, 3])
     # joint rates really are J^-1 pd: check with the Jacobian
     J = robot.jacobian(result.q)
-    np.testing.assert_allclose(np.einsum("nij,nj->ni", J, result.qd[:, :3]), result.pd[:, :3],
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        np.einsum("nij,nj->ni", J, result.qd[:, :3]), result.pd[:, :3], rtol=0, atol=1e-12
+    )
     # the default robot is far from singular on this trajectory
     assert 0.3 < np.nanmin(result.det_margin) <= 1.0
     assert 0.3 < np.nanmin(result.jq_margin) <= 1.0
@@ -122,8 +136,7 @@ def test_backends_agree():
     b = val.run(DeltaRobot.default(backend="reference"), rate=100.0, duration=1.0)
     for name in ("q", "qd", "qdd"):
         scale = np.abs(getattr(b, name)).max()
-        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0,
-                                   atol=1e-11 * scale)
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-11 * scale)
 
 
 def test_singularity_margins_by_hand():
@@ -135,11 +148,20 @@ def test_singularity_margins_by_hand():
     det_margin, jq_margin = val.singularity_margins(g, p, q)
     q1 = q[0, 0]
     rho = g.r + g.l_a * math.cos(q1)
-    S = np.array([[rho * math.cos(th), rho * math.sin(th), -g.l_a * math.sin(q1)]
-                  for th in g.theta])
+    S = np.array(
+        [[rho * math.cos(th), rho * math.sin(th), -g.l_a * math.sin(q1)] for th in g.theta]
+    )
     D = p[0, :3] - S
-    dS = np.array([[-g.l_a * math.sin(q1) * math.cos(th), -g.l_a * math.sin(q1) * math.sin(th),
-                    -g.l_a * math.cos(q1)] for th in g.theta])
+    dS = np.array(
+        [
+            [
+                -g.l_a * math.sin(q1) * math.cos(th),
+                -g.l_a * math.sin(q1) * math.sin(th),
+                -g.l_a * math.cos(q1),
+            ]
+            for th in g.theta
+        ]
+    )
     assert det_margin[0] == pytest.approx(abs(np.linalg.det(D)) / g.l_b**3, rel=1e-12)
     assert jq_margin[0] == pytest.approx(abs(D[0] @ dS[0]) / (g.l_a * g.l_b), rel=1e-12)
 
@@ -167,8 +189,10 @@ def test_run_detects_wrong_kinematics():
 
 def _short_robot(tmp_path):
     path = tmp_path / "short.toml"
-    path.write_text('name = "short"\n[delta]\nr_a = 0.2\nr_b = 0.045\nl_a = 0.35\n'
-                    "l_b = 0.5\ntheta_deg = [0, 120, 240]\n")
+    path.write_text(
+        'name = "short"\n[delta]\nr_a = 0.2\nr_b = 0.045\nl_a = 0.35\n'
+        "l_b = 0.5\ntheta_deg = [0, 120, 240]\n"
+    )
     return path
 
 
@@ -199,22 +223,38 @@ def test_cli_validate_writes_csv_and_png(tmp_path, capsys):
     assert len(rows) == 1 + 101
     header = rows[0]
     assert header[:5] == ["t", "x", "y", "z", "phi"]
-    for name in ("q1", "q4", "qd1", "qdd4", "err_pos", "err_vel", "err_acc", "det_margin",
-                 "cond"):
+    for name in ("q1", "q4", "qd1", "qdd4", "err_pos", "err_vel", "err_acc", "det_margin", "cond"):
         assert name in header
     assert all(len(r) == len(header) for r in rows)
     data = np.array(rows[1:], dtype=float)
     assert data[-1, 0] == pytest.approx(1.0)
     robot = DeltaRobot.default()
-    np.testing.assert_allclose(data[:, header.index("q1"):header.index("q4") + 1],
-                               robot.ik(data[:, 1:5]), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        data[:, header.index("q1") : header.index("q4") + 1],
+        robot.ik(data[:, 1:5]),
+        rtol=0,
+        atol=1e-15,
+    )
     png = (out / "validation.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 
 
 def test_cli_validate_quiet_no_plot(tmp_path, capsys):
-    rc = cli_main(["validate", "--rate", "50", "--duration", "0.5", "--out", str(tmp_path),
-                   "--no-plot", "--quiet", "--backend", "reference"])
+    rc = cli_main(
+        [
+            "validate",
+            "--rate",
+            "50",
+            "--duration",
+            "0.5",
+            "--out",
+            str(tmp_path),
+            "--no-plot",
+            "--quiet",
+            "--backend",
+            "reference",
+        ]
+    )
     captured = capsys.readouterr()
     assert rc == 0
     assert captured.err == ""
@@ -224,8 +264,21 @@ def test_cli_validate_quiet_no_plot(tmp_path, capsys):
 
 def test_cli_validate_unreachable_robot_fails_cleanly(tmp_path, capsys):
     robot = _short_robot(tmp_path)
-    rc = cli_main(["validate", "--robot", str(robot), "--rate", "100", "--duration", "1",
-                   "--out", str(tmp_path / "out"), "--no-plot", "--quiet"])
+    rc = cli_main(
+        [
+            "validate",
+            "--robot",
+            str(robot),
+            "--rate",
+            "100",
+            "--duration",
+            "1",
+            "--out",
+            str(tmp_path / "out"),
+            "--no-plot",
+            "--quiet",
+        ]
+    )
     captured = capsys.readouterr()
     assert rc == 1
     assert "Traceback" not in captured.err + captured.out

@@ -38,12 +38,21 @@ class DeltaRobot:
 
     _core: Any  # CompiledDelta or _ReferenceCore: the same call signatures
 
-    def __init__(self, r_a: float, r_b: float, l_a: float, l_b: float,
-                 theta: tuple[float, ...] = (0.0, 2 * math.pi / 3, 4 * math.pi / 3), *,
-                 name: str = "delta", singular_tol: float = st.SINGULAR_TOL,
-                 backend: Backend = "compiled") -> None:
-        self.geometry = DeltaGeometry(r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b, theta=theta,
-                                      name=name, singular_tol=singular_tol)
+    def __init__(
+        self,
+        r_a: float,
+        r_b: float,
+        l_a: float,
+        l_b: float,
+        theta: tuple[float, ...] = (0.0, 2 * math.pi / 3, 4 * math.pi / 3),
+        *,
+        name: str = "delta",
+        singular_tol: float = st.SINGULAR_TOL,
+        backend: Backend = "compiled",
+    ) -> None:
+        self.geometry = DeltaGeometry(
+            r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b, theta=theta, name=name, singular_tol=singular_tol
+        )
         self._init_backend(backend)
 
     def _init_backend(self, backend):
@@ -85,8 +94,10 @@ class DeltaRobot:
     def __repr__(self) -> str:
         g = self.geometry
         deg = ", ".join(f"{math.degrees(t):g}" for t in g.theta)
-        return (f"DeltaRobot(r_a={g.r_a!r}, r_b={g.r_b!r}, l_a={g.l_a!r}, l_b={g.l_b!r}, "
-                f"theta_deg=({deg}), backend={self.backend!r})")
+        return (
+            f"DeltaRobot(r_a={g.r_a!r}, r_b={g.r_b!r}, l_a={g.l_a!r}, l_b={g.l_b!r}, "
+            f"theta_deg=({deg}), backend={self.backend!r})"
+        )
 
     # -- the batched quantities -------------------------------------------------------
 
@@ -106,8 +117,9 @@ class DeltaRobot:
         p, pd, status = self._core.fk_vel(qf, qdf)
         return self._finish(errors, lead, status, [p, pd], ("q", "qd"))
 
-    def fk_acc(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike,
-               errors: Errors = "raise") -> Result:
+    def fk_acc(
+        self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
         """(p, pdot, pddot) from (q, qdot, qddot), eqs. (30), (38)."""
         lead, _, (qf, qdf, qddf) = self._prepare(errors, q=q, qd=qd, qdd=qdd)
         p, pd, pdd, status = self._core.fk_acc(qf, qdf, qddf)
@@ -133,8 +145,9 @@ class DeltaRobot:
         """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
         return self._inverse_rates(errors, dict(p=p, pd=pd))
 
-    def ik_acc(self, p: ArrayLike, pd: ArrayLike, pdd: ArrayLike,
-               errors: Errors = "raise") -> Result:
+    def ik_acc(
+        self, p: ArrayLike, pd: ArrayLike, pdd: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
         """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
         Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
@@ -175,8 +188,9 @@ class DeltaRobot:
         unreachable = bad[status[bad] == st.UNREACHABLE]
         if unreachable.size:
             what = "crank cannot reach the target" if names == ("p",) else "spheres do not meet"
-            raise UnreachableError(f"unreachable pose ({what}) in rows {rows_text(unreachable)}",
-                                   unreachable)
+            raise UnreachableError(
+                f"unreachable pose ({what}) in rows {rows_text(unreachable)}", unreachable
+            )
         raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
 
     def _inverse_rates(self, errors, arrays):

@@ -29,10 +29,16 @@ from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike,
 from deltagen.errors import GeometryError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
-from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_errors_mode, plain_pose
+from deltagen.inputs import (
+    InputError,
+    as_float_array,
+    broadcast_rows,
+    check_errors_mode,
+    plain_pose,
+)
+from deltagen.model.serial import SerialDescription
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
-from deltagen.model.serial import SerialDescription
 
 _BACKENDS = ("compiled", "reference")
 Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
@@ -80,9 +86,14 @@ class SerialRobot:
     @classmethod
     def load(cls, name: str, backend: Backend = "compiled") -> SerialRobot:
         """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
-        if not isinstance(name, str) or not name.isidentifier() or not _is_arm_file(
-                robots_dir() / f"{name}.toml"):
-            raise InputError(f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}")
+        if (
+            not isinstance(name, str)
+            or not name.isidentifier()
+            or not _is_arm_file(robots_dir() / f"{name}.toml")
+        ):
+            raise InputError(
+                f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}"
+            )
         return cls(SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend)
 
     @classmethod
@@ -90,17 +101,24 @@ class SerialRobot:
         return cls(SerialDescription.from_toml(Path(path)), backend)
 
     @classmethod
-    def from_dh(cls, rows: Iterable[Mapping[str, Any]],
-                convention: Literal["standard", "modified"] | None = None, *, name: str = "arm",
-                base: ArrayLike | None = None, tool: ArrayLike | None = None,
-                configurations: Mapping[str, Sequence[float]] | None = None,
-                backend: Backend = "compiled") -> SerialRobot:
+    def from_dh(
+        cls,
+        rows: Iterable[Mapping[str, Any]],
+        convention: Literal["standard", "modified"] | None = None,
+        *,
+        name: str = "arm",
+        base: ArrayLike | None = None,
+        tool: ArrayLike | None = None,
+        configurations: Mapping[str, Sequence[float]] | None = None,
+        backend: Backend = "compiled",
+    ) -> SerialRobot:
         """rows: dicts with a, alpha, d, offset, joint|type, qlim (and *_deg keys);
         convention "standard" or "modified" must be given (no silent default)."""
         if convention not in ("standard", "modified"):
             raise InputError('from_dh needs convention="standard" or convention="modified"')
-        desc = SerialDescription.from_rows(rows, convention, name=name, base=base, tool=tool,
-                                           configurations=configurations)
+        desc = SerialDescription.from_rows(
+            rows, convention, name=name, base=base, tool=tool, configurations=configurations
+        )
         return cls(desc, backend)
 
     def with_backend(self, backend: Backend) -> SerialRobot:
@@ -127,7 +145,9 @@ class SerialRobot:
             return np.array(self.description.configurations[name])
         except KeyError:
             known = ", ".join(self.description.configurations) or "none"
-            raise InputError(f"{self.name} has no configuration {name!r} (known: {known})") from None
+            raise InputError(
+                f"{self.name} has no configuration {name!r} (known: {known})"
+            ) from None
 
     def within_limits(self, q: ArrayLike) -> BoolArray:
         qa = self._joints(q, "q")[1]
@@ -166,8 +186,9 @@ class SerialRobot:
             J = self._to_tool(qf, J)
         return self._finish(errors, lead, status, [J], ("q",))
 
-    def jacobian_dot(self, q: ArrayLike, qd: ArrayLike, frame: Frame = "base",
-                     errors: Errors = "raise") -> Result:
+    def jacobian_dot(
+        self, q: ArrayLike, qd: ArrayLike, frame: Frame = "base", errors: Errors = "raise"
+    ) -> Result:
         """dJ/dt along qd (..., 6, n): tool acceleration = J qdd + Jdot qd (base frame).
         frame="tool" gives d/dt of the tool-frame Jacobian."""
         frame = self._check_frame(frame)
@@ -239,7 +260,8 @@ class SerialRobot:
                 self.jacobian(q)  # non-finite input rows raise there
                 bad = np.flatnonzero(~valid.reshape(-1))
                 raise SingularityError(
-                    f"Euler-angle singularity (cos theta = 0) in rows {rows_text(bad)}", bad)
+                    f"Euler-angle singularity (cos theta = 0) in rows {rows_text(bad)}", bad
+                )
             return Ja
         return Ja, valid
 
@@ -341,9 +363,16 @@ class SerialRobot:
         q[bad], valid[bad] = np.nan, False
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
 
-    def ik(self, T: ArrayLike, config: str | None = None, q0: ArrayLike | None = None,
-           method: Literal["auto", "analytic", "numeric"] = "auto", errors: Errors = "raise",
-           singular: Literal["raise", "allow"] = "raise", **options: Any) -> Result:
+    def ik(
+        self,
+        T: ArrayLike,
+        config: str | None = None,
+        q0: ArrayLike | None = None,
+        method: Literal["auto", "analytic", "numeric"] = "auto",
+        errors: Errors = "raise",
+        singular: Literal["raise", "allow"] = "raise",
+        **options: Any,
+    ) -> Result:
         """Joint coordinates reaching the tool pose(s) T (..., 4, 4).
 
         method "analytic" (closed form, where the structure allows), "numeric" (Newton /
@@ -360,13 +389,22 @@ class SerialRobot:
         returns the solution found (e.g. q4 = 0 at a wrist singularity)."""
         if singular not in ("raise", "allow"):
             raise InputError(f'singular must be "raise" or "allow", got {singular!r}')
-        if (self._ik_all_single is not None and errors == "raise" and q0 is None
-                and method != "numeric" and not options):
+        if (
+            self._ik_all_single is not None
+            and errors == "raise"
+            and q0 is None
+            and method != "numeric"
+            and not options
+        ):
             q = self._ik_single(T, config)
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q
-        if (method == "numeric" and self.backend == "compiled" and errors in ("raise", "nan")
-                and options.keys() <= {"restarts", "seed"}):
+        if (
+            method == "numeric"
+            and self.backend == "compiled"
+            and errors in ("raise", "nan")
+            and options.keys() <= {"restarts", "seed"}
+        ):
             q = self._numeric_single(T, q0, options.get("restarts", 0), options.get("seed", 0))
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q if errors == "raise" else (q, np.array(True))
@@ -403,7 +441,9 @@ class SerialRobot:
                     raise SingularityError(
                         f"the target is at a singularity of {self.name} (sigma_min/sigma_max "
                         f"< {SINGULAR_TOL:g}; the solution is not unique) in rows "
-                        f"{rows_text(bad)}; singular='allow' returns one of its solutions", bad)
+                        f"{rows_text(bad)}; singular='allow' returns one of its solutions",
+                        bad,
+                    )
                 ok = ok & ~at_singularity
                 q[at_singularity] = np.nan
         if errors == "raise":
@@ -413,7 +453,9 @@ class SerialRobot:
                 bad = np.flatnonzero(~ok)
                 raise UnreachableError(
                     f"no solution within the joint limits for rows {rows_text(bad)}"
-                    + (f" in configuration {config!r}" if config else ""), bad)
+                    + (f" in configuration {config!r}" if config else ""),
+                    bad,
+                )
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
 
@@ -440,8 +482,12 @@ class SerialRobot:
         n, ndarray = self.n, np.ndarray
         if not plain_pose(T):
             return None
-        if q0 is not None and (type(q0) is not ndarray or q0.shape != (n,)
-                               or q0.dtype.char != "d" or not q0.flags.c_contiguous):
+        if q0 is not None and (
+            type(q0) is not ndarray
+            or q0.shape != (n,)
+            or q0.dtype.char != "d"
+            or not q0.flags.c_contiguous
+        ):
             return None
         if not isinstance(restarts, int) or isinstance(restarts, bool) or restarts < 0:
             return None
@@ -501,7 +547,9 @@ class SerialRobot:
             d = wrap_to_pi(q_all - start[:, None, :])
             revolute = np.array([j.revolute for j in self.description.joints])
             d = np.where(revolute, d, q_all - start[:, None, :])
-            dist = np.where(valid_all, np.linalg.norm(np.nan_to_num(d, nan=np.inf), axis=-1), np.inf)
+            dist = np.where(
+                valid_all, np.linalg.norm(np.nan_to_num(d, nan=np.inf), axis=-1), np.inf
+            )
             k = np.argmin(dist, axis=1)
         else:
             k = np.argmax(valid_all, axis=1)
@@ -530,7 +578,9 @@ class SerialRobot:
     def _joints(self, q, name):
         arr = as_float_array(q, name)
         if arr.ndim == 0 or arr.shape[-1] != self.n:
-            raise InputError(f"{name} must have shape (..., {self.n}) for {self.name}, got {arr.shape}")
+            raise InputError(
+                f"{name} must have shape (..., {self.n}) for {self.name}, got {arr.shape}"
+            )
         return arr.shape[:-1], arr
 
     def _prepare(self, errors, q):

@@ -40,10 +40,8 @@ solves, so OPENBLAS_NUM_THREADS / OMP_NUM_THREADS make no difference.
 
 from __future__ import annotations
 
-import gc
 import os
 import platform
-import statistics
 import subprocess
 import sys
 import sysconfig
@@ -139,7 +137,9 @@ def _kernel_callable(core, name: str, inputs: list[np.ndarray]):
         status = np.empty(n, dtype=np.int8)
         fb = ffi.from_buffer
         cargs = (
-            geometry, n, axes,
+            geometry,
+            n,
+            axes,
             *(fb("double[]", a) for a in inputs),
             *(fb("double[]", o, require_writable=True) for o in outs),
             fb("int8_t[]", status, require_writable=True),
@@ -206,8 +206,9 @@ def _latency_calls(robot, q1, p1):
 def _measure_latency(compiled, reference, q1, p1, repeats):
     """[(label, compiled Stat, reference Stat, has target)] in ns per call."""
     rows = []
-    for (label, fn, has_target), (_, ref_fn, _) in zip(_latency_calls(compiled, q1, p1),
-                                                       _latency_calls(reference, q1, p1)):
+    for (label, fn, has_target), (_, ref_fn, _) in zip(
+        _latency_calls(compiled, q1, p1), _latency_calls(reference, q1, p1)
+    ):
         comp, ref = interleaved([loop_timer(fn), loop_timer(ref_fn)], repeats)
         rows.append((label, comp, ref, has_target))
     return rows
@@ -231,8 +232,7 @@ RTB_SE3_BATCH_N = 20_000  # ETS.fkine on a batch: C++ then one SE3 per configura
 ORACLE_AGREEMENT_N = 200  # configurations compared with each library
 ORACLE_TOL = 1e-12
 
-_SERIAL_INPUTS = {"fk": ("q",), "frames": ("q",), "jacobian": ("q",),
-                  "jacobian_dot": ("q", "qd")}
+_SERIAL_INPUTS = {"fk": ("q",), "frames": ("q",), "jacobian": ("q",), "jacobian_dot": ("q", "qd")}
 _SERIAL_UNITS = {"fk": "m", "frames": "m", "jacobian": "m/rad", "jacobian_dot": "m/(rad s)"}
 
 
@@ -261,9 +261,12 @@ def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
         out = np.empty((points, _serial_width(name, axes)))
         status = np.empty(points, dtype=np.int8)
         fb = ffi.from_buffer
-        cargs = (points, *(fb("double[]", a) for a in inputs),
-                 fb("double[]", out, require_writable=True),
-                 fb("int8_t[]", status, require_writable=True))
+        cargs = (
+            points,
+            *(fb("double[]", a) for a in inputs),
+            fb("double[]", out, require_writable=True),
+            fb("int8_t[]", status, require_writable=True),
+        )
         fn = getattr(lib, f"{core._prefix}_{name}")
         if fn(*cargs) != 0 or not (status == st.OK).all():
             return None
@@ -317,8 +320,9 @@ def _serial_latency_calls(robot, q1):
 def _measure_serial_latency(compiled, reference, q1, repeats):
     """[(label, compiled Stat, reference Stat, has target)] in ns per call."""
     rows = []
-    for (label, fn, has_target), (_, ref_fn, _) in zip(_serial_latency_calls(compiled, q1),
-                                                       _serial_latency_calls(reference, q1)):
+    for (label, fn, has_target), (_, ref_fn, _) in zip(
+        _serial_latency_calls(compiled, q1), _serial_latency_calls(reference, q1)
+    ):
         comp, ref = interleaved([loop_timer(fn), loop_timer(ref_fn)], repeats)
         rows.append((label, comp, ref, has_target))
     return rows
@@ -341,8 +345,15 @@ def _pair(library, call, lib_fn, dg_call, dg_fn, repeats, unit="us", points=1):
         lib_fn(), dg_fn()  # warm-up
         timers = [batch_timer(lib_fn, (), points), batch_timer(dg_fn, (), points)]
     lib, dg = interleaved(timers, repeats)
-    return {"library": library, "call": call, "lib": lib, "dg_call": dg_call, "dg": dg,
-            "unit": unit, "points": points}
+    return {
+        "library": library,
+        "call": call,
+        "lib": lib,
+        "dg_call": dg_call,
+        "dg": dg,
+        "unit": unit,
+        "points": points,
+    }
 
 
 def _rtb_oracle(compiled, q, repeats):
@@ -373,22 +384,54 @@ def _rtb_oracle(compiled, q, repeats):
     }
     notes = []
     if d1_dg != d1_rtb:
-        notes.append(f"d1: deltagen {d1_dg:.10g} m, rtb {d1_rtb:.10g} m (26.45 in); fk compared "
-                     f"as Trans_z({d1_rtb - d1_dg:+.3g} m) T_deltagen")
+        notes.append(
+            f"d1: deltagen {d1_dg:.10g} m, rtb {d1_rtb:.10g} m (26.45 in); fk compared "
+            f"as Trans_z({d1_rtb - d1_dg:+.3g} m) T_deltagen"
+        )
 
     lib = f"rtb {rtb.__version__}"
     fk1, jac1 = f"robot.fk(q), q ndarray ({n},)", f"robot.jacobian(q), q ndarray ({n},)"
     rows = [
-        _pair(lib, "DHRobot.fkine(q) -> SE3 (Python)", lambda: puma.fkine(q1),
-              fk1, lambda: compiled.fk(q1), repeats),
-        _pair(lib, "ETS.fkine(q) -> SE3 (C++ fknm)", lambda: ets.fkine(q1),
-              fk1, lambda: compiled.fk(q1), repeats),
-        _pair(lib, "ETS.eval(q) -> ndarray (C++ fknm)", lambda: ets.eval(q1),
-              fk1, lambda: compiled.fk(q1), repeats),
-        _pair(lib, "DHRobot.jacob0(q) (Python)", lambda: puma.jacob0(q1),
-              jac1, lambda: compiled.jacobian(q1), repeats),
-        _pair(lib, "ETS.jacob0(q) (C++ fknm)", lambda: ets.jacob0(q1),
-              jac1, lambda: compiled.jacobian(q1), repeats),
+        _pair(
+            lib,
+            "DHRobot.fkine(q) -> SE3 (Python)",
+            lambda: puma.fkine(q1),
+            fk1,
+            lambda: compiled.fk(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "ETS.fkine(q) -> SE3 (C++ fknm)",
+            lambda: ets.fkine(q1),
+            fk1,
+            lambda: compiled.fk(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "ETS.eval(q) -> ndarray (C++ fknm)",
+            lambda: ets.eval(q1),
+            fk1,
+            lambda: compiled.fk(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "DHRobot.jacob0(q) (Python)",
+            lambda: puma.jacob0(q1),
+            jac1,
+            lambda: compiled.jacobian(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "ETS.jacob0(q) (C++ fknm)",
+            lambda: ets.jacob0(q1),
+            jac1,
+            lambda: compiled.jacobian(q1),
+            repeats,
+        ),
     ]
     for call, fn, size in (
         ("DHRobot.fkine(Q) -> SE3 of N values (Python loop)", puma.fkine, RTB_PY_BATCH_N),
@@ -397,8 +440,18 @@ def _rtb_oracle(compiled, q, repeats):
     ):
         size = min(size, q.shape[0])
         Q = np.ascontiguousarray(q[:size])
-        rows.append(_pair(lib, call, lambda f=fn, Q=Q: f(Q), f"robot.fk(Q), Q ({size:,}, {n})",
-                          lambda Q=Q: compiled.fk(Q), repeats, unit="ns", points=size))
+        rows.append(
+            _pair(
+                lib,
+                call,
+                lambda f=fn, Q=Q: f(Q),
+                f"robot.fk(Q), Q ({size:,}, {n})",
+                lambda Q=Q: compiled.fk(Q),
+                repeats,
+                unit="ns",
+                points=size,
+            )
+        )
     return rows, agree, notes
 
 
@@ -423,8 +476,9 @@ def pinocchio_model(description):
         pre = pin.SE3(rot_axis("z", turn), np.array([0.0, 0.0, shift]))
         kind = pin.JointModelRZ() if joint.revolute else pin.JointModelPZ()
         parent = model.addJoint(parent, kind, placement * pre, f"joint{i + 1}")
-        placement = pin.SE3(rot_axis("x", joint.alpha),
-                            np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0]))
+        placement = pin.SE3(
+            rot_axis("x", joint.alpha), np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0])
+        )
     tool = placement * pin.SE3(description.tool[:3, :3].copy(), description.tool[:3, 3].copy())
     fid = model.addFrame(pin.Frame("tool", parent, 0, tool, pin.FrameType.OP_FRAME))
     return model, fid
@@ -466,15 +520,38 @@ def _pinocchio_oracle(compiled, q, repeats):
         return pin.getFrameJacobian(model, data, fid, world)
 
     rows = [
-        _pair(lib, "forwardKinematics + updateFramePlacements", fk_update,
-              fk1, lambda: compiled.fk(q1), repeats),
-        _pair(lib, "framesForwardKinematics + oMf[tool].homogeneous", fk_pose,
-              fk1, lambda: compiled.fk(q1), repeats),
-        _pair(lib, "computeJointJacobians + getFrameJacobian", jac_get,
-              jac1, lambda: compiled.jacobian(q1), repeats),
-        _pair(lib, "computeFrameJacobian(q, tool)",
-              lambda: pin.computeFrameJacobian(model, data, q1, fid, world),
-              jac1, lambda: compiled.jacobian(q1), repeats),
+        _pair(
+            lib,
+            "forwardKinematics + updateFramePlacements",
+            fk_update,
+            fk1,
+            lambda: compiled.fk(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "framesForwardKinematics + oMf[tool].homogeneous",
+            fk_pose,
+            fk1,
+            lambda: compiled.fk(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "computeJointJacobians + getFrameJacobian",
+            jac_get,
+            jac1,
+            lambda: compiled.jacobian(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "computeFrameJacobian(q, tool)",
+            lambda: pin.computeFrameJacobian(model, data, q1, fid, world),
+            jac1,
+            lambda: compiled.jacobian(q1),
+            repeats,
+        ),
     ]
     return rows, agree, []
 
@@ -496,8 +573,9 @@ def _measure_oracles(compiled, q, repeats, enabled=True):
     "absent": [text]} for roboticstoolbox-python and pinocchio, each when importable."""
     result = {"rows": [], "agreement": {}, "notes": [], "absent": []}
     if not enabled:
-        result["absent"].append("roboticstoolbox-python and pinocchio skipped "
-                                "(DELTAGEN_BENCH_ORACLES=0)")
+        result["absent"].append(
+            "roboticstoolbox-python and pinocchio skipped (DELTAGEN_BENCH_ORACLES=0)"
+        )
         return result
     for label, module, measure in (
         ("roboticstoolbox-python", "roboticstoolbox", _rtb_oracle),
@@ -506,8 +584,9 @@ def _measure_oracles(compiled, q, repeats, enabled=True):
         try:
             __import__(module)
         except Exception as exc:  # noqa: BLE001 - absent or broken: say so, go on
-            result["absent"].append(f"{label} not importable ({type(exc).__name__}); "
-                                    "`pip install deltagen[bench]`")
+            result["absent"].append(
+                f"{label} not importable ({type(exc).__name__}); `pip install deltagen[bench]`"
+            )
             continue
         rows, agree, notes = measure(compiled, q, repeats)
         result["rows"] += rows
@@ -523,18 +602,28 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
     compiled = SerialRobot.load(SERIAL_ROBOT, backend="compiled")
     reference = compiled.with_backend("reference")
     data = sample_serial(n, compiled, np.random.default_rng(SEED))
-    throughput, sizes, agreement = _measure_serial_throughput(compiled, reference, data,
-                                                              repeats)
+    throughput, sizes, agreement = _measure_serial_throughput(compiled, reference, data, repeats)
     latency = _measure_serial_latency(compiled, reference, data["q"][0].copy(), repeats)
     others = _measure_oracles(compiled, data["q"], repeats, enabled=oracles)
     from deltagen.apps import bench_ik
 
     # the full IK workload for real runs; a small one for quick (test) runs
-    ik = bench_ik.run(compiled, reference, repeats, analytic_n=min(n, bench_ik.IK_ANALYTIC_N),
-                      numeric_n=bench_ik.IK_NUMERIC_N if n >= 100_000 else 20)
+    ik = bench_ik.run(
+        compiled,
+        reference,
+        repeats,
+        analytic_n=min(n, bench_ik.IK_ANALYTIC_N),
+        numeric_n=bench_ik.IK_NUMERIC_N if n >= 100_000 else 20,
+    )
     return {
-        "robot": compiled, "n": n, "sizes": sizes, "throughput": throughput,
-        "agreement": agreement, "latency": latency, "oracles": others, "ik": ik,
+        "robot": compiled,
+        "n": n,
+        "sizes": sizes,
+        "throughput": throughput,
+        "agreement": agreement,
+        "latency": latency,
+        "oracles": others,
+        "ik": ik,
     }
 
 
@@ -587,13 +676,19 @@ def machine_info(compiled_robot) -> list[tuple[str, str]]:
 
     return [
         ("CPU", _cpu_model()),
-        ("cores", f"{os.cpu_count()} logical ({usable} usable by this process); "
-                  "all measurements single-threaded"),
+        (
+            "cores",
+            f"{os.cpu_count()} logical ({usable} usable by this process); "
+            "all measurements single-threaded",
+        ),
         ("OS", f"{platform.system()} {platform.release()} {platform.machine()}"),
         ("Python", f"{platform.python_implementation()} {platform.python_version()}"),
         ("numpy / cffi", f"{np.__version__} / {cffi.__version__}"),
         ("compiler", _compiler()),
-        ("C flags", " ".join(args) + "  (libraries: " + " ".join(f"-l{x}" for x in libraries) + ")"),
+        (
+            "C flags",
+            " ".join(args) + "  (libraries: " + " ".join(f"-l{x}" for x in libraries) + ")",
+        ),
         ("C build", _build_name(compiled_robot)),
     ]
 
@@ -641,28 +736,53 @@ def render(result: dict, markdown: bool) -> str:
     for key, value in result["machine"]:
         v = f"`{value}`" if markdown and key.startswith("C ") else value
         out.append(f"{bullet}{key}: {v}")
-    out.append(f"{bullet}load average (1 min): {result['load_before']} before, "
-               f"{result['load_after']} after")
-    out.append(f"{bullet}workload: DeltaRobot.default(), q uniform in [{Q_RANGE[0]}, {Q_RANGE[1]}]"
-               f" rad, qd in [{QD_RANGE[0]}, {QD_RANGE[1]}] rad/s, qdd in "
-               f"[{QDD_RANGE[0]}, {QDD_RANGE[1]}] rad/s^2, p = fk(q); every row OK; seed {SEED}")
-    out.append(f"{bullet}N = {n:,} points (compiled), {ref_n:,} points (reference, scaled per "
-               f"point); median [min, max] of {repeats} repeats after a warm-up call, the columns "
-               "of a row timed round-robin")
+    out.append(
+        f"{bullet}load average (1 min): {result['load_before']} before, "
+        f"{result['load_after']} after"
+    )
+    out.append(
+        f"{bullet}workload: DeltaRobot.default(), q uniform in [{Q_RANGE[0]}, {Q_RANGE[1]}]"
+        f" rad, qd in [{QD_RANGE[0]}, {QD_RANGE[1]}] rad/s, qdd in "
+        f"[{QDD_RANGE[0]}, {QDD_RANGE[1]}] rad/s^2, p = fk(q); every row OK; seed {SEED}"
+    )
+    out.append(
+        f"{bullet}N = {n:,} points (compiled), {ref_n:,} points (reference, scaled per "
+        f"point); median [min, max] of {repeats} repeats after a warm-up call, the columns "
+        "of a row timed round-robin"
+    )
     out.append("")
 
     out.append(h("Throughput, ns per point"))
     out.append("")
-    header = ["quantity", "C kernel", "compiled _core", "compiled API", "reference _core",
-              "reference API", "speedup _core", "speedup API", "target (_core)"]
+    header = [
+        "quantity",
+        "C kernel",
+        "compiled _core",
+        "compiled API",
+        "reference _core",
+        "reference API",
+        "speedup _core",
+        "speedup API",
+        "target (_core)",
+    ]
     rows = []
     for name in QUANTITIES:
         c = result["throughput"][name]
         target = TARGETS_NS.get(name)
         tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
-        rows.append([name, _cell(c.get("kernel")), _cell(c["core"]), _cell(c["api"]),
-                     _cell(c["ref_core"]), _cell(c["ref_api"]), _ratio(c["ref_core"], c["core"]),
-                     _ratio(c["ref_api"], c["api"]), tcell])
+        rows.append(
+            [
+                name,
+                _cell(c.get("kernel")),
+                _cell(c["core"]),
+                _cell(c["api"]),
+                _cell(c["ref_core"]),
+                _cell(c["ref_api"]),
+                _ratio(c["ref_core"], c["core"]),
+                _ratio(c["ref_api"], c["api"]),
+                tcell,
+            ]
+        )
     out += table(header, rows, markdown)
     out.append("")
 
@@ -671,8 +791,11 @@ def render(result: dict, markdown: bool) -> str:
     header = ["call", "compiled", "reference", "speedup", "target (compiled)"]
     rows = []
     for label, comp, ref, has_target in result["latency"]:
-        tcell = (f"<= {SINGLE_TARGET_NS / 1000:g} {_verdict(comp.median, SINGLE_TARGET_NS)}"
-                 if has_target else "-")
+        tcell = (
+            f"<= {SINGLE_TARGET_NS / 1000:g} {_verdict(comp.median, SINGLE_TARGET_NS)}"
+            if has_target
+            else "-"
+        )
         lab = f"`{label}`" if markdown else label
         rows.append([lab, _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp), tcell])
     out += table(header, rows, markdown)
@@ -682,13 +805,19 @@ def render(result: dict, markdown: bool) -> str:
     out.append(f"{bullet}agreement, max |compiled - reference| over the reference points: {agree}")
     bad = [k for k, v in result["agreement"].items() if not v <= AGREEMENT_TOL]
     if bad:
-        out.append(f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
-                   f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core")
-    out.append(f"{bullet}C kernel = generated C function with preallocated outputs; _core = "
-               "robot._core.<fn> (fresh numpy outputs); API = robot.<fn> with validation. "
-               "Targets are checked against the compiled _core median.")
-    out.append(f"{bullet}single-threaded: the C loop starts no threads and the reference uses "
-               "numpy ufuncs, so OPENBLAS/OMP thread settings are irrelevant")
+        out.append(
+            f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
+            f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core"
+        )
+    out.append(
+        f"{bullet}C kernel = generated C function with preallocated outputs; _core = "
+        "robot._core.<fn> (fresh numpy outputs); API = robot.<fn> with validation. "
+        "Targets are checked against the compiled _core median."
+    )
+    out.append(
+        f"{bullet}single-threaded: the C loop starts no threads and the reference uses "
+        "numpy ufuncs, so OPENBLAS/OMP thread settings are irrelevant"
+    )
     if result.get("serial") is not None:
         out.append("")
         out += _render_serial(result["serial"], repeats, markdown)
@@ -708,26 +837,47 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     conv = robot.description.convention
     out.append(h(f"Serial arm: {robot.name} ({robot.n} joints, {conv} DH)"))
     out.append("")
-    out.append(f"{bullet}workload: {code(f'SerialRobot.load({robot.name!r})')}, q uniform within "
-               f"the joint limits ({lim}) rad, qd uniform in [{SERIAL_QD_RANGE[0]}, "
-               f"{SERIAL_QD_RANGE[1]}] rad/s; seed {SEED}")
-    out.append(f"{bullet}N = {n:,} configurations for fk and jacobian, "
-               f"{small['frames']:,} for frames and jacobian_dot; reference on the first "
-               f"{min(n, SERIAL_REFERENCE_N):,} (scaled per configuration); median [min, max] "
-               f"of {repeats} repeats, columns round-robin")
+    out.append(
+        f"{bullet}workload: {code(f'SerialRobot.load({robot.name!r})')}, q uniform within "
+        f"the joint limits ({lim}) rad, qd uniform in [{SERIAL_QD_RANGE[0]}, "
+        f"{SERIAL_QD_RANGE[1]}] rad/s; seed {SEED}"
+    )
+    out.append(
+        f"{bullet}N = {n:,} configurations for fk and jacobian, "
+        f"{small['frames']:,} for frames and jacobian_dot; reference on the first "
+        f"{min(n, SERIAL_REFERENCE_N):,} (scaled per configuration); median [min, max] "
+        f"of {repeats} repeats, columns round-robin"
+    )
     out.append("")
     out.append(h(f"{robot.name}: throughput, ns per configuration"))
     out.append("")
-    header = ["quantity", "N", "C kernel", "compiled _core", "compiled API", "reference _core",
-              "speedup _core", "target (_core)"]
+    header = [
+        "quantity",
+        "N",
+        "C kernel",
+        "compiled _core",
+        "compiled API",
+        "reference _core",
+        "speedup _core",
+        "target (_core)",
+    ]
     rows = []
     for name in SERIAL_QUANTITIES:
         c = serial["throughput"][name]
         target = SERIAL_TARGETS_NS.get(name)
         tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
-        rows.append([name, f"{serial['sizes'][name][0]:,}", _cell(c.get("kernel")),
-                     _cell(c["core"]), _cell(c["api"]), _cell(c["ref_core"]),
-                     _ratio(c["ref_core"], c["core"]), tcell])
+        rows.append(
+            [
+                name,
+                f"{serial['sizes'][name][0]:,}",
+                _cell(c.get("kernel")),
+                _cell(c["core"]),
+                _cell(c["api"]),
+                _cell(c["ref_core"]),
+                _ratio(c["ref_core"], c["core"]),
+                tcell,
+            ]
+        )
     out += table(header, rows, markdown)
     out.append("")
 
@@ -736,50 +886,83 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     header = ["call", "compiled", "reference", "speedup", "target (compiled)"]
     rows = []
     for label, comp, ref, has_target in serial["latency"]:
-        tcell = (f"<= {SERIAL_SINGLE_TARGET_NS / 1000:g} "
-                 f"{_verdict(comp.median, SERIAL_SINGLE_TARGET_NS)}" if has_target else "-")
-        rows.append([code(label), _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp),
-                     tcell])
+        tcell = (
+            f"<= {SERIAL_SINGLE_TARGET_NS / 1000:g} "
+            f"{_verdict(comp.median, SERIAL_SINGLE_TARGET_NS)}"
+            if has_target
+            else "-"
+        )
+        rows.append(
+            [code(label), _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp), tcell]
+        )
     out += table(header, rows, markdown)
     out.append("")
     agree = ", ".join(f"{k} {v:.1e} {_SERIAL_UNITS[k]}" for k, v in serial["agreement"].items())
     out.append(f"{bullet}agreement, max |compiled - reference| over the reference points: {agree}")
     bad = [k for k, v in serial["agreement"].items() if not v <= AGREEMENT_TOL]
     if bad:
-        out.append(f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
-                   f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core")
+        out.append(
+            f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
+            f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core"
+        )
 
     others = serial["oracles"]
     if others["rows"]:
         out.append("")
-        for unit, title, scale in (("us", "single call, us per call", 1000.0),
-                                   ("ns", "batch, ns per configuration", 1.0)):
+        for unit, title, scale in (
+            ("us", "single call, us per call", 1000.0),
+            ("ns", "batch, ns per configuration", 1.0),
+        ):
             rows = []
             for r in others["rows"]:
                 if r["unit"] != unit:
                     continue
-                rows.append([r["library"], code(r["call"]), _cell(r["lib"], scale),
-                             code(r["dg_call"]), _cell(r["dg"], scale), _ratio(r["lib"], r["dg"])])
+                rows.append(
+                    [
+                        r["library"],
+                        code(r["call"]),
+                        _cell(r["lib"], scale),
+                        code(r["dg_call"]),
+                        _cell(r["dg"], scale),
+                        _ratio(r["lib"], r["dg"]),
+                    ]
+                )
             if not rows:
                 continue
             out.append(h(f"{robot.name} vs other libraries: {title}"))
             out.append("")
-            out += table(["library", "call", "library time", "deltagen call",
-                           "deltagen time (compiled)", "library / deltagen"], rows, markdown)
+            out += table(
+                [
+                    "library",
+                    "call",
+                    "library time",
+                    "deltagen call",
+                    "deltagen time (compiled)",
+                    "library / deltagen",
+                ],
+                rows,
+                markdown,
+            )
             out.append("")
         for library, agree in others["agreement"].items():
             text = ", ".join(f"{k} {v:.1e}" for k, v in agree.items())
-            out.append(f"{bullet}agreement with {library}, max |deltagen - library| over "
-                       f"{min(ORACLE_AGREEMENT_N, n)} configurations: {text}")
+            out.append(
+                f"{bullet}agreement with {library}, max |deltagen - library| over "
+                f"{min(ORACLE_AGREEMENT_N, n)} configurations: {text}"
+            )
             bad = [k for k, v in agree.items() if not v <= ORACLE_TOL]
             if bad:
-                out.append(f"{bullet}WARNING: deltagen and {library} disagree on "
-                           f"{', '.join(bad)} (> {ORACLE_TOL:g})")
+                out.append(
+                    f"{bullet}WARNING: deltagen and {library} disagree on "
+                    f"{', '.join(bad)} (> {ORACLE_TOL:g})"
+                )
         for note in others["notes"]:
             out.append(f"{bullet}{note}")
-        out.append(f"{bullet}each library call is timed round-robin with the deltagen call beside "
-                   "it (single calls looped ~25 ms per repeat; batches on the same "
-                   "configurations)")
+        out.append(
+            f"{bullet}each library call is timed round-robin with the deltagen call beside "
+            "it (single calls looped ~25 ms per repeat; batches on the same "
+            "configurations)"
+        )
     for text in others["absent"]:
         out.append(f"{bullet}{text}")
     out.append("")
@@ -793,8 +976,7 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
 # ------------------------------------------------------------------------- entry point
 
 
-def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True,
-        oracles: bool = True) -> dict:
+def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool = True) -> dict:
     """Measure everything; returns the raw result (see :func:`render`). ``serial`` adds the
     Puma560 section, ``oracles`` its comparison with roboticstoolbox-python / pinocchio."""
     from deltagen.api.delta import DeltaRobot
@@ -820,8 +1002,9 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True,
     throughput, agreement = _measure_throughput(compiled, reference, poses, ref_poses, repeats)
     del ref_poses
 
-    latency = _measure_latency(compiled, reference, poses["q"][0].copy(), poses["p"][0].copy(),
-                               repeats)
+    latency = _measure_latency(
+        compiled, reference, poses["q"][0].copy(), poses["p"][0].copy(), repeats
+    )
     del poses
     serial_result = run_serial(n, repeats, oracles) if serial else None
     machine = machine_info(compiled)
@@ -829,14 +1012,23 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True,
         machine.append(("C build (serial)", _build_name(serial_result["robot"])))
         if oracles:
             versions = _library_versions()
-            machine.append(("other libraries", ", ".join(
-                f"{k} {v or 'not installed'}" for k, v in versions.items())))
+            machine.append(
+                (
+                    "other libraries",
+                    ", ".join(f"{k} {v or 'not installed'}" for k, v in versions.items()),
+                )
+            )
     return {
-        "n": n, "ref_n": ref_n, "repeats": repeats,
+        "n": n,
+        "ref_n": ref_n,
+        "repeats": repeats,
         "machine": machine,
-        "throughput": throughput, "latency": latency,
-        "agreement": agreement, "serial": serial_result,
-        "load_before": load_before, "load_after": _load(),
+        "throughput": throughput,
+        "latency": latency,
+        "agreement": agreement,
+        "serial": serial_result,
+        "load_before": load_before,
+        "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,
     }
 
@@ -846,8 +1038,12 @@ def _oracles_wanted(args) -> bool:
     line offers it) or DELTAGEN_BENCH_ORACLES=0."""
     if getattr(args, "no_oracles", False):
         return False
-    return os.environ.get("DELTAGEN_BENCH_ORACLES", "1").strip().lower() not in ("0", "no",
-                                                                                 "false", "off")
+    return os.environ.get("DELTAGEN_BENCH_ORACLES", "1").strip().lower() not in (
+        "0",
+        "no",
+        "false",
+        "off",
+    )
 
 
 def main(args) -> int:

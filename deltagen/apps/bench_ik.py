@@ -51,25 +51,33 @@ def measure_analytic(compiled, reference, repeats, n=IK_ANALYTIC_N):
     ref_n = min(n, IK_REFERENCE_N)
     T_ref = np.ascontiguousarray(T[:ref_n])
     compiled.ik_all(T[:1])  # builds the fast path
-    batch = interleaved([
-        batch_timer(compiled._core.ik_all, (T, k), n),
-        batch_timer(compiled.ik_all, (T,), n),
-        batch_timer(reference.ik_all, (T_ref,), ref_n),
-    ], repeats)
+    batch = interleaved(
+        [
+            batch_timer(compiled._core.ik_all, (T, k), n),
+            batch_timer(compiled.ik_all, (T,), n),
+            batch_timer(reference.ik_all, (T_ref,), ref_n),
+        ],
+        repeats,
+    )
     T1 = T[0].copy()
-    single = interleaved([
-        loop_timer(lambda: compiled.ik_all(T1)),
-        loop_timer(lambda: reference.ik_all(T1)),
-        loop_timer(lambda: compiled.ik(T1, singular="allow")),
-        loop_timer(lambda: compiled.ik(T1)),
-    ], repeats)
+    single = interleaved(
+        [
+            loop_timer(lambda: compiled.ik_all(T1)),
+            loop_timer(lambda: reference.ik_all(T1)),
+            loop_timer(lambda: compiled.ik(T1, singular="allow")),
+            loop_timer(lambda: compiled.ik(T1)),
+        ],
+        repeats,
+    )
     q_all, valid = compiled.ik_all(T)
     found = np.all(np.abs(_angle_diff(q_all, q[:, None])) < 1e-8, axis=-1) & valid
     m = min(n, 20_000)
     qv = np.where(valid[:m, :, None], q_all[:m], 0.0).reshape(-1, compiled.n)
     residual = np.abs(compiled.fk(qv).reshape(m, k, 4, 4) - T[:m, None])[valid[:m]]
     return {
-        "n": n, "ref_n": ref_n, "k": k,
+        "n": n,
+        "ref_n": ref_n,
+        "k": k,
         "batch": dict(zip(("kernel", "api", "numpy"), batch)),
         "single": dict(zip(("api", "numpy", "ik", "ik_singular_check"), single)),
         "found": float(np.mean(found.any(axis=1))),
@@ -114,9 +122,11 @@ def measure_numeric(compiled, n=IK_NUMERIC_N, restarts=IK_RESTARTS):
         if gc_was:
             gc.enable()
     return {
-        "n": n, "restarts": restarts,
+        "n": n,
+        "restarts": restarts,
         "single_success": float(np.mean(success(q_single, ok_single))),
-        "median_ns": float(np.median(times)), "p95_ns": float(np.percentile(times, 95)),
+        "median_ns": float(np.median(times)),
+        "p95_ns": float(np.percentile(times, 95)),
         "max_ns": float(times.max()),
         "batch_success": float(np.mean(success(q_batch, ok_batch))),
         "batch_ns": float(batch_ns),
@@ -124,8 +134,10 @@ def measure_numeric(compiled, n=IK_NUMERIC_N, restarts=IK_RESTARTS):
 
 
 def run(compiled, reference, repeats, analytic_n=IK_ANALYTIC_N, numeric_n=IK_NUMERIC_N) -> dict:
-    return {"analytic": measure_analytic(compiled, reference, repeats, n=analytic_n),
-            "numeric": measure_numeric(compiled, n=numeric_n)}
+    return {
+        "analytic": measure_analytic(compiled, reference, repeats, n=analytic_n),
+        "numeric": measure_numeric(compiled, n=numeric_n),
+    }
 
 
 def _us(stat: Stat, scale=1000.0) -> str:
@@ -143,33 +155,55 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
         return "met" if value <= target else "MISSED"
 
     rows = [
-        [f"all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, batch of {a['n']:,}",
-         _us(a["batch"]["kernel"]), "-"],
-        [f"all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}", _us(a["batch"]["api"]),
-         f"<= 2 {verdict(a['batch']['api'].median, TARGETS['analytic_batch_ns'])}"],
-        [f"all {a['k']} branches, numpy solver (reference backend), batch of {a['ref_n']:,}",
-         _us(a["batch"]["numpy"]), "-"],
-        ["all branches, `arm.ik_all(T)`, one pose per call", _us(a["single"]["api"]),
-         f"<= 5 {verdict(a['single']['api'].median, TARGETS['analytic_single_ns'])}"],
+        [
+            f"all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, batch of {a['n']:,}",
+            _us(a["batch"]["kernel"]),
+            "-",
+        ],
+        [
+            f"all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}",
+            _us(a["batch"]["api"]),
+            f"<= 2 {verdict(a['batch']['api'].median, TARGETS['analytic_batch_ns'])}",
+        ],
+        [
+            f"all {a['k']} branches, numpy solver (reference backend), batch of {a['ref_n']:,}",
+            _us(a["batch"]["numpy"]),
+            "-",
+        ],
+        [
+            "all branches, `arm.ik_all(T)`, one pose per call",
+            _us(a["single"]["api"]),
+            f"<= 5 {verdict(a['single']['api'].median, TARGETS['analytic_single_ns'])}",
+        ],
         ["all branches, numpy solver, one pose per call", _us(a["single"]["numpy"]), "-"],
-        ["`arm.ik(T, singular='allow')`, one pose (first valid branch)", _us(a["single"]["ik"]),
-         "-"],
-        ["`arm.ik(T)`, one pose (+ the exact-singularity check)",
-         _us(a["single"]["ik_singular_check"]), "-"],
+        [
+            "`arm.ik(T, singular='allow')`, one pose (first valid branch)",
+            _us(a["single"]["ik"]),
+            "-",
+        ],
+        [
+            "`arm.ik(T)`, one pose (+ the exact-singularity check)",
+            _us(a["single"]["ik_singular_check"]),
+            "-",
+        ],
     ]
     out += table(["call", "us per pose, median [min, max]", "target"], rows, markdown)
     out.append("")
-    out.append(f"{bullet}closed form: the original q is among the valid branches for "
-               f"{100 * a['found']:.3f} % of the poses ({a['valid_per_pose']:.2f} valid branches "
-               f"per pose on average); largest fk residual of a valid branch "
-               f"{a['max_residual']:.1e}")
-    out.append(f"{bullet}numerical IK, {nm['n']:,} targets fk(q), q uniform in the limits, "
-               f"start at mid-range, up to {nm['restarts']} random restarts, tol {IK_TOL:g} m "
-               f"and rad: one target per call: success {100 * nm['single_success']:.1f} %, "
-               f"median {nm['median_ns'] / 1000:.3g} us, p95 {nm['p95_ns'] / 1000:.3g} us, "
-               f"max {nm['max_ns'] / 1000:.3g} us per solve (target: median <= 10 us, "
-               f"{verdict(nm['median_ns'], TARGETS['numeric_median_ns'])}); one batched call: "
-               f"success {100 * nm['batch_success']:.1f} %, {nm['batch_ns'] / 1000:.3g} us per "
-               "target")
+    out.append(
+        f"{bullet}closed form: the original q is among the valid branches for "
+        f"{100 * a['found']:.3f} % of the poses ({a['valid_per_pose']:.2f} valid branches "
+        f"per pose on average); largest fk residual of a valid branch "
+        f"{a['max_residual']:.1e}"
+    )
+    out.append(
+        f"{bullet}numerical IK, {nm['n']:,} targets fk(q), q uniform in the limits, "
+        f"start at mid-range, up to {nm['restarts']} random restarts, tol {IK_TOL:g} m "
+        f"and rad: one target per call: success {100 * nm['single_success']:.1f} %, "
+        f"median {nm['median_ns'] / 1000:.3g} us, p95 {nm['p95_ns'] / 1000:.3g} us, "
+        f"max {nm['max_ns'] / 1000:.3g} us per solve (target: median <= 10 us, "
+        f"{verdict(nm['median_ns'], TARGETS['numeric_median_ns'])}); one batched call: "
+        f"success {100 * nm['batch_success']:.1f} %, {nm['batch_ns'] / 1000:.3g} us per "
+        "target"
+    )
     out.append("")
     return out

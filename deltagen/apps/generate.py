@@ -10,11 +10,11 @@ from deltagen.paths import generated_dir
 
 def generated_files() -> dict[str, str]:
     """Every checked-in generated file, by name: the delta core and each bundled arm."""
-    from deltagen.codegen.delta import delta_sources
-    from deltagen.paths import robots_dir
-    from deltagen.model.serial import SerialDescription
-    from deltagen.codegen.serial import arm_sources
     from deltagen.api.serial import bundled_robots
+    from deltagen.codegen.delta import delta_sources
+    from deltagen.codegen.serial import arm_sources
+    from deltagen.model.serial import SerialDescription
+    from deltagen.paths import robots_dir
 
     files = dict(delta_sources())
     for name in bundled_robots():
@@ -25,8 +25,8 @@ def generated_files() -> dict[str, str]:
 def generate_robot_file(path) -> Path:
     """`deltagen generate my_arm.toml`: render, compile and cache a user's robot module;
     returns the folder holding its C sources."""
-    from deltagen.native.serial import CompiledArm, source_dir
     from deltagen.model.serial import SerialDescription
+    from deltagen.native.serial import CompiledArm, source_dir
 
     desc = SerialDescription.from_toml(path)
     CompiledArm(desc)  # builds (or finds) the cached module
@@ -74,5 +74,7 @@ def check(directory: Path | None = None) -> list[str]:
                 tofile=f"{path} (regenerated)",
                 n=1,
             )
-            problems.append(f"{name} is {'stale' if path.exists() else 'missing'}:\n" + "".join(list(diff)[:60]))
+            problems.append(
+                f"{name} is {'stale' if path.exists() else 'missing'}:\n" + "".join(list(diff)[:60])
+            )
     return problems

@@ -51,8 +51,16 @@ def euler_to_matrix(psi, theta, phi) -> np.ndarray:
     ct, st = np.cos(theta), np.sin(theta)
     cf, sf = np.cos(phi), np.sin(phi)
     R = np.empty(np.shape(psi) + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = cs * ct, cs * st * sf - ss * cf, cs * st * cf + ss * sf
-    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = ss * ct, ss * st * sf + cs * cf, ss * st * cf - cs * sf
+    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = (
+        cs * ct,
+        cs * st * sf - ss * cf,
+        cs * st * cf + ss * sf,
+    )
+    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = (
+        ss * ct,
+        ss * st * sf + cs * cf,
+        ss * st * cf - cs * sf,
+    )
     R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -st, ct * sf, ct * cf
     return R
 
@@ -149,19 +157,32 @@ def make_job(robot, forward: bool, args) -> Job:
 
     serial = isinstance(robot, SerialRobot)
     if not serial:
-        for flag, value in (("--config", args.config), ("--q0", args.q0),
-                            ("--method", args.method), ("--restarts", args.restarts)):
+        for flag, value in (
+            ("--config", args.config),
+            ("--q0", args.q0),
+            ("--method", args.method),
+            ("--restarts", args.restarts),
+        ):
             if value is not None:
                 raise InputError(f"{flag} applies to serial arms, not to the delta robot")
         joints = Columns(("q1", "q2", "q3"), ("q4",))
         pose = Columns(("x", "y", "z"), ("phi",))
-        return Job(robot, False, forward, args.degrees, [joints if forward else pose],
-                   revolute=np.ones(4, dtype=bool))
+        return Job(
+            robot,
+            False,
+            forward,
+            args.degrees,
+            [joints if forward else pose],
+            revolute=np.ones(4, dtype=bool),
+        )
     revolute = np.array([j.revolute for j in robot.description.joints])
     joints = Columns(tuple(f"q{i + 1}" for i in range(robot.n)))
     if forward:
-        for flag, value in (("--q0", args.q0), ("--method", args.method),
-                            ("--restarts", args.restarts)):
+        for flag, value in (
+            ("--q0", args.q0),
+            ("--method", args.method),
+            ("--restarts", args.restarts),
+        ):
             if value is not None:
                 raise InputError(f"{flag} applies to ik, not to fk")
         return Job(robot, True, True, args.degrees, [joints], revolute=revolute)
@@ -171,8 +192,10 @@ def make_job(robot, forward: bool, args) -> Job:
         configs = robot.analytic_configs()
         if args.config not in configs:
             known = ", ".join(configs) if configs else "none: it has no closed-form inverse"
-            raise InputError(f"--config {args.config!r} is not a branch of {robot.name}'s "
-                             f"closed-form ik (branches: {known})")
+            raise InputError(
+                f"--config {args.config!r} is not a branch of {robot.name}'s "
+                f"closed-form ik (branches: {known})"
+            )
         options["config"] = args.config
     if args.q0 is not None:
         options["q0"] = _parse_q0(robot, args.q0, args.degrees, revolute)
@@ -185,8 +208,10 @@ def make_job(robot, forward: bool, args) -> Job:
             raise InputError(f"--restarts must be >= 0, got {args.restarts}")
         options["restarts"] = args.restarts
     if args.config is not None and args.method == "numeric":
-        raise InputError("--config picks a closed-form branch; it does not apply to "
-                         "--method numeric (give --q0 to choose where the solver starts)")
+        raise InputError(
+            "--config picks a closed-form branch; it does not apply to "
+            "--method numeric (give --q0 to choose where the solver starts)"
+        )
     return Job(robot, True, False, args.degrees, layouts, revolute=revolute, options=options)
 
 
@@ -197,8 +222,10 @@ def _parse_q0(robot, text, degrees, revolute) -> np.ndarray:
         values = [float(t) for t in text.replace(",", " ").split()]
     except ValueError:
         known = ", ".join(robot.description.configurations) or "none"
-        raise InputError(f"--q0 {text!r}: give {robot.n} numbers separated by commas, or a "
-                         f"configuration of {robot.name} (known: {known})") from None
+        raise InputError(
+            f"--q0 {text!r}: give {robot.n} numbers separated by commas, or a "
+            f"configuration of {robot.name} (known: {known})"
+        ) from None
     q0 = np.array(values)
     if q0.shape != (robot.n,):
         raise InputError(f"--q0 has {q0.size} values; {robot.name} has {robot.n} joints")
@@ -216,8 +243,10 @@ def run(robot, forward: bool, args) -> int:
         output_format(args.output)  # a bad file name fails before any work
     if args.input is not None:
         if args.values:
-            raise InputError(f"give the poses either as values or with --input, not both "
-                             f"(got {len(args.values)} values and --input {args.input})")
+            raise InputError(
+                f"give the poses either as values or with --input, not both "
+                f"(got {len(args.values)} values and --input {args.input})"
+            )
         if forward and job.serial and args.config is not None:
             raise InputError("give either --config NAME or --input FILE, not both")
         data, layout, _ = read_table(args.input, job.layouts, job.what)
@@ -231,8 +260,11 @@ def _batch(job, x, output) -> int:
     bad = np.flatnonzero(~valid)
     if bad.size:
         shown = ", ".join(str(r) for r in bad[:10]) + (", ..." if bad.size > 10 else "")
-        print(f"{bad.size} of {len(valid)} rows failed (NaN, valid = 0): data rows {shown} "
-              "(counted from 0)", file=sys.stderr)
+        print(
+            f"{bad.size} of {len(valid)} rows failed (NaN, valid = 0): data rows {shown} "
+            "(counted from 0)",
+            file=sys.stderr,
+        )
         return EXIT_INVALID
     return EXIT_OK
 
@@ -260,8 +292,10 @@ def _single(job, args) -> int:
     if args.output is not None:
         write_table(args.output, names, out, valid)
     if not valid[0]:
-        print(f"deltagen {'fk' if job.forward else 'ik'}: no valid result: {job.explain(x)}",
-              file=sys.stderr)
+        print(
+            f"deltagen {'fk' if job.forward else 'ik'}: no valid result: {job.explain(x)}",
+            file=sys.stderr,
+        )
         return EXIT_INVALID
     if args.output is None:
         _show(job, x, out[0])
@@ -270,8 +304,11 @@ def _single(job, args) -> int:
 
 def _expected(job) -> str:
     if not job.serial:
-        return ("3 joint angles q1 q2 q3 (or 4 with the fourth axis q4)" if job.forward
-                else "3 coordinates x y z (or 4 with the fourth axis phi)")
+        return (
+            "3 joint angles q1 q2 q3 (or 4 with the fourth axis q4)"
+            if job.forward
+            else "3 coordinates x y z (or 4 with the fourth axis phi)"
+        )
     if job.forward:
         return f"{job.robot.n} joint values q1 .. q{job.robot.n} (or --config NAME)"
     return "the pose as 6 values x y z psi theta phi (m, rad)"
@@ -292,11 +329,17 @@ def _show(job, x, row) -> None:
         with np.printoptions(precision=6, suppress=True):
             print(f"{robot.name}: T =\n{T}")
         print("position  x, y, z = [" + ", ".join(f"{v:.9g}" for v in row[:3]) + "] m")
-        print(f"Euler (Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)): psi = "
-              f"{np.degrees(psi):.6g} deg, theta = {np.degrees(theta):.6g} deg, "
-              f"phi = {np.degrees(phi):.6g} deg")
+        print(
+            f"Euler (Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)): psi = "
+            f"{np.degrees(psi):.6g} deg, theta = {np.degrees(theta):.6g} deg, "
+            f"phi = {np.degrees(phi):.6g} deg"
+        )
     elif job.forward:
-        print("p = [" + ", ".join(f"{v:.12g}" for v in row[:3]) + "] m"
-              + (f", phi = {row[3]:.12g} rad" if row.size == 4 else ""))
+        print(
+            "p = ["
+            + ", ".join(f"{v:.12g}" for v in row[:3])
+            + "] m"
+            + (f", phi = {row[3]:.12g} rad" if row.size == 4 else "")
+        )
     else:
         print("q = [" + ", ".join(f"{v:.12g}" for v in row) + f"] {_units(job)}")

@@ -58,7 +58,7 @@ class Columns:
 
 
 def output_format(path) -> str:
-    """"npy" or "csv" from an output file name (extensions are case-insensitive)."""
+    """ "npy" or "csv" from an output file name (extensions are case-insensitive)."""
     suffix = Path(path).suffix.lower()
     if suffix == ".npy":
         return "npy"
@@ -95,10 +95,13 @@ def read_table(path, layouts, what: str) -> tuple[np.ndarray, int, tuple]:
                 width = columns.shape[1]
                 chosen = (layout.required + layout.optional)[:width]
                 return columns, index, chosen
-        expected = " or ".join(f"{lay.describe()} ({_widths_text(lay)} columns)"
-                               for lay in layouts if lay.positional)
-        raise InputError(f"{path}: {columns.shape[1]} columns without names; {what} reads "
-                         f"{expected}, or name the columns in a header line")
+        expected = " or ".join(
+            f"{lay.describe()} ({_widths_text(lay)} columns)" for lay in layouts if lay.positional
+        )
+        raise InputError(
+            f"{path}: {columns.shape[1]} columns without names; {what} reads "
+            f"{expected}, or name the columns in a header line"
+        )
     lookup = {}
     for k, name in enumerate(names):
         key = name.strip().lower()
@@ -118,8 +121,10 @@ def read_table(path, layouts, what: str) -> tuple[np.ndarray, int, tuple]:
     shown = ",".join(n.strip() for n in names)
     expected = " or ".join(lay.describe() for lay in layouts)
     missing = [n for n in layouts[-1].required if n.lower() not in lookup]
-    raise InputError(f"{path}: the columns are named {shown}; {what} needs {expected} "
-                     f"(missing {','.join(missing)})")
+    raise InputError(
+        f"{path}: the columns are named {shown}; {what} needs {expected} "
+        f"(missing {','.join(missing)})"
+    )
 
 
 def _widths_text(layout) -> str:
@@ -145,8 +150,10 @@ def _npy_columns(path, raw):
     if arr.dtype.kind not in "iuf":
         raise InputError(f"{path}: the array must hold real numbers, got dtype {arr.dtype}")
     if arr.ndim != 2:
-        raise InputError(f"{path}: the array must be 2-D (one pose per row, one column per "
-                         f"coordinate), got shape {arr.shape}")
+        raise InputError(
+            f"{path}: the array must be 2-D (one pose per row, one column per "
+            f"coordinate), got shape {arr.shape}"
+        )
     return None, np.asarray(arr, dtype=np.float64)
 
 
@@ -187,8 +194,12 @@ def _csv_columns(path, raw):
         tokens = _split(stripped.lstrip("#").strip())
         numbers = [_is_number(t) for t in tokens]
         if commented:
-            if not rows and "," in stripped and not any(numbers) and all(
-                    t and " " not in t and len(t) <= 40 for t in tokens):
+            if (
+                not rows
+                and "," in stripped
+                and not any(numbers)
+                and all(t and " " not in t and len(t) <= 40 for t in tokens)
+            ):
                 names, header_line = tokens, number  # numpy's savetxt header: "# x,y,z"
             continue  # any other comment
         if not all(numbers):
@@ -199,11 +210,14 @@ def _csv_columns(path, raw):
         if width is None:
             width = len(tokens)
             if names is not None and len(names) != width:
-                raise InputError(f"{path}: line {number} has {width} values, the header "
-                                 f"(line {header_line}) names {len(names)} columns")
+                raise InputError(
+                    f"{path}: line {number} has {width} values, the header "
+                    f"(line {header_line}) names {len(names)} columns"
+                )
         elif len(tokens) != width:
-            raise InputError(f"{path}: line {number} has {len(tokens)} values, the lines "
-                             f"before have {width}")
+            raise InputError(
+                f"{path}: line {number} has {len(tokens)} values, the lines before have {width}"
+            )
         rows.append([float(t) for t in tokens])
     if not rows:
         raise InputError(f"{path}: no data rows")
@@ -234,8 +248,9 @@ def write_table(target, names, data, valid) -> None:
         return
     lines = [",".join(list(names) + ["valid"])]
     for row, ok in zip(data, valid):
-        lines.append(",".join(_format(v) for v in row) + ("," if len(row) else "")
-                     + ("1" if ok else "0"))
+        lines.append(
+            ",".join(_format(v) for v in row) + ("," if len(row) else "") + ("1" if ok else "0")
+        )
     text = "\n".join(lines) + "\n"
     if isinstance(target, (str, Path)):
         with open(target, "w") as f:
@@ -247,4 +262,4 @@ def write_table(target, names, data, valid) -> None:
 def _format(value: float) -> str:
     if math.isnan(value):
         return "nan"
-    return "%.17g" % value
+    return f"{value:.17g}"

@@ -44,7 +44,7 @@ def loop_timer(fn):
     return timer
 
 
-def interleaved(timers: list, repeats: int) -> list["Stat"]:
+def interleaved(timers: list, repeats: int) -> list[Stat]:
     """Run the timers round-robin ``repeats`` times (so a load change on a shared machine
     hits every column alike), garbage collector off; one Stat per timer."""
     samples = [[] for _ in timers]
@@ -72,8 +72,10 @@ class Stat:
 
 def table(header, rows, markdown: bool) -> list[str]:
     if markdown:
-        lines = ["| " + " | ".join(header) + " |",
-                 "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+        lines = [
+            "| " + " | ".join(header) + " |",
+            "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|",
+        ]
         lines += ["| " + " | ".join(r) + " |" for r in rows]
         return lines
     widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]

@@ -289,8 +289,9 @@ def run(robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK) -> Valida
     err_pos = np.linalg.norm(pb[:, :3] - p[:, :3], axis=1)
     err_vel = np.linalg.norm(pdb[:, :3] - pd[:, :3], axis=1)
     err_acc = np.linalg.norm(pddb[:, :3] - pdd[:, :3], axis=1)
-    err_phi = np.abs(np.stack([pb[:, 3] - p[:, 3], pdb[:, 3] - pd[:, 3],
-                               pddb[:, 3] - pdd[:, 3]], axis=1))
+    err_phi = np.abs(
+        np.stack([pb[:, 3] - p[:, 3], pdb[:, 3] - pd[:, 3], pddb[:, 3] - pdd[:, 3]], axis=1)
+    )
     # margins: where ik reached the pose, from q of ik (ik_acc NaNs singular rows)
     q_pos = q.copy()
     missing = ~unreachable & np.isnan(q_pos[:, 0])
@@ -299,11 +300,26 @@ def run(robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK) -> Valida
     det_margin, jq_margin = singularity_margins(robot.geometry, p, q_pos)
     cond = _condition(J, ~(unreachable | singular))
     return ValidationResult(
-        robot=robot, t=t, p=p, pd=pd, pdd=pdd, q=q, qd=qd, qdd=qdd,
-        p_back=pb, pd_back=pdb, pdd_back=pddb,
-        err_pos=err_pos, err_vel=err_vel, err_acc=err_acc, err_phi=err_phi,
-        det_margin=det_margin, jq_margin=jq_margin, cond=cond,
-        unreachable=unreachable, singular=singular,
+        robot=robot,
+        t=t,
+        p=p,
+        pd=pd,
+        pdd=pdd,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        p_back=pb,
+        pd_back=pdb,
+        pdd_back=pddb,
+        err_pos=err_pos,
+        err_vel=err_vel,
+        err_acc=err_acc,
+        err_phi=err_phi,
+        det_margin=det_margin,
+        jq_margin=jq_margin,
+        cond=cond,
+        unreachable=unreachable,
+        singular=singular,
         elapsed=time.perf_counter() - start,
     )
 
@@ -315,22 +331,43 @@ CSV_COLUMNS = (
     + [f"q{i}" for i in range(1, 5)]
     + [f"qd{i}" for i in range(1, 5)]
     + [f"qdd{i}" for i in range(1, 5)]
-    + ["err_pos", "err_vel", "err_acc", "err_phi", "err_phid", "err_phidd",
-       "det_margin", "jq_margin", "cond", "valid"]
+    + [
+        "err_pos",
+        "err_vel",
+        "err_acc",
+        "err_phi",
+        "err_phid",
+        "err_phidd",
+        "det_margin",
+        "jq_margin",
+        "cond",
+        "valid",
+    ]
 )
 
 
 def write_csv(result: ValidationResult, path) -> Path:
     """One row per sample, a single header line of column names (SI units, rad)."""
     path = Path(path)
-    table = np.column_stack([
-        result.t, result.p, result.q, result.qd, result.qdd,
-        result.err_pos, result.err_vel, result.err_acc, result.err_phi,
-        result.det_margin, result.jq_margin, result.cond, result.ok.astype(np.float64),
-    ])
+    table = np.column_stack(
+        [
+            result.t,
+            result.p,
+            result.q,
+            result.qd,
+            result.qdd,
+            result.err_pos,
+            result.err_vel,
+            result.err_acc,
+            result.err_phi,
+            result.det_margin,
+            result.jq_margin,
+            result.cond,
+            result.ok.astype(np.float64),
+        ]
+    )
     assert table.shape[1] == len(CSV_COLUMNS)
-    np.savetxt(path, table, delimiter=",", header=",".join(CSV_COLUMNS), comments="",
-               fmt="%.17g")
+    np.savetxt(path, table, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.17g")
     return path
 
 
@@ -354,15 +391,23 @@ def plot(result: ValidationResult, path) -> Path:
     fig.suptitle(
         f"deltagen validate: robot {g.name!r} (r_a={g.r_a:g}, r_b={g.r_b:g}, l_a={g.l_a:g}, "
         f"l_b={g.l_b:g} m), {result.n} samples, backend {result.robot.backend}: "
-        f"{'PASSED' if result.passed else 'FAILED'}", fontsize=13)
+        f"{'PASSED' if result.passed else 'FAILED'}",
+        fontsize=13,
+    )
     failed = result.failed
     p = result.p
 
     ax = fig.add_subplot(gs[0:2, 0], projection="3d")
     ax.plot(p[:, 0], p[:, 1], p[:, 2], lw=0.4, color="tab:blue", label="trajectory (40)-(42)")
     if failed.any():
-        ax.scatter(p[failed, 0], p[failed, 1], p[failed, 2], s=4, color="tab:red",
-                   label=f"failed samples ({int(failed.sum())})")
+        ax.scatter(
+            p[failed, 0],
+            p[failed, 1],
+            p[failed, 2],
+            s=4,
+            color="tab:red",
+            label=f"failed samples ({int(failed.sum())})",
+        )
     ax.scatter(*p[0, :3], color="k", s=20, label="t = 0")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -373,8 +418,17 @@ def plot(result: ValidationResult, path) -> Path:
 
     def shade_failed(ax):
         if failed.any():
-            ax.fill_between(t, 0, 1, where=failed, color="tab:red", alpha=0.2, lw=0,
-                            transform=ax.get_xaxis_transform(), label="failed samples")
+            ax.fill_between(
+                t,
+                0,
+                1,
+                where=failed,
+                color="tab:red",
+                alpha=0.2,
+                lw=0,
+                transform=ax.get_xaxis_transform(),
+                label="failed samples",
+            )
 
     ax = fig.add_subplot(gs[2, 0])
     ax.plot(t, result.speed, lw=0.5, color="tab:blue", label="|pd|")
@@ -391,18 +445,24 @@ def plot(result: ValidationResult, path) -> Path:
     shade_failed(ax)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("acceleration [m/s²]")
-    ax.set_title(f"platform acceleration (peak {result.peak_accel:.3g} m/s²"
-                 f" = {result.peak_accel / 9.80665:.3g} g)")
+    ax.set_title(
+        f"platform acceleration (peak {result.peak_accel:.3g} m/s²"
+        f" = {result.peak_accel / 9.80665:.3g} g)"
+    )
     ax.legend(loc="upper center", fontsize=8)
 
     ax = fig.add_subplot(gs[0:2, 1])
     rel = result.relative_error_series()
-    labels = {"position": "|Δp| / robot size", "velocity": "|Δpd| / peak speed",
-              "acceleration": "|Δpdd| / peak acceleration"}
+    labels = {
+        "position": "|Δp| / robot size",
+        "velocity": "|Δpd| / peak speed",
+        "acceleration": "|Δpdd| / peak acceleration",
+    }
     for (k, v), color in zip(rel.items(), ("tab:blue", "tab:green", "tab:red")):
         ax.plot(t, _positive(v), lw=0.4, color=color, alpha=0.8, label=labels[k])
-    ax.axhline(result.tolerance, color="k", ls="--", lw=0.8,
-               label=f"tolerance {result.tolerance:g}")
+    ax.axhline(
+        result.tolerance, color="k", ls="--", lw=0.8, label=f"tolerance {result.tolerance:g}"
+    )
     shade_failed(ax)
     ax.set_yscale("log")
     ax.set_ylim(1e-20, 1e-6)
@@ -413,16 +473,17 @@ def plot(result: ValidationResult, path) -> Path:
 
     ax = fig.add_subplot(gs[2, 1])
     ax.plot(t, result.det_margin, lw=0.6, color="tab:purple", label="|det D| / l_b³  (J_p = 2D)")
-    ax.plot(t, result.jq_margin, lw=0.6, color="tab:brown",
-            label="min_i |J_q,ii| / (2 l_a l_b)")
+    ax.plot(t, result.jq_margin, lw=0.6, color="tab:brown", label="min_i |J_q,ii| / (2 l_a l_b)")
     shade_failed(ax)
     ax.set_ylim(0.0, 1.05)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("normalised margin (0 = singular)")
     dm, dm_t = result._worst(result.det_margin, smallest=True)
     jm, jm_t = result._worst(result.jq_margin, smallest=True)
-    ax.set_title(f"singularity margins (smallest: det {dm:.3g} at t = {dm_t:.3f} s, "
-                 f"J_q {jm:.3g} at t = {jm_t:.3f} s)")
+    ax.set_title(
+        f"singularity margins (smallest: det {dm:.3g} at t = {dm_t:.3f} s, "
+        f"J_q {jm:.3g} at t = {jm_t:.3f} s)"
+    )
     ax.legend(loc="lower right", fontsize=8)
 
     ax = fig.add_subplot(gs[3, 1])
@@ -449,8 +510,10 @@ def _ranges(t, mask, limit=8) -> str:
     breaks = np.flatnonzero(np.diff(idx) > 1)
     starts = np.r_[idx[0], idx[breaks + 1]]
     ends = np.r_[idx[breaks], idx[-1]]
-    parts = [f"{t[a]:.6g} s" if a == b else f"{t[a]:.6g}-{t[b]:.6g} s"
-             for a, b in zip(starts[:limit], ends[:limit])]
+    parts = [
+        f"{t[a]:.6g} s" if a == b else f"{t[a]:.6g}-{t[b]:.6g} s"
+        for a, b in zip(starts[:limit], ends[:limit])
+    ]
     more = f", ... ({starts.size - limit} more intervals)" if starts.size > limit else ""
     return "t = " + ", ".join(parts) + more
 
@@ -463,60 +526,96 @@ def report(result: ValidationResult, out=None) -> None:
         print(text, file=out)
 
     g = result.robot.geometry
-    w(f"robot {g.name!r}: r_a={g.r_a:g} m, r_b={g.r_b:g} m, l_a={g.l_a:g} m, l_b={g.l_b:g} m, "
-      f"theta=({', '.join(f'{math.degrees(a):g}' for a in g.theta)}) deg, "
-      f"size={g.size:g} m, backend {result.robot.backend}")
+    w(
+        f"robot {g.name!r}: r_a={g.r_a:g} m, r_b={g.r_b:g} m, l_a={g.l_a:g} m, l_b={g.l_b:g} m, "
+        f"theta=({', '.join(f'{math.degrees(a):g}' for a in g.theta)}) deg, "
+        f"size={g.size:g} m, backend {result.robot.backend}"
+    )
     dt = result.t[1] - result.t[0] if result.n > 1 else 0.0
-    w(f"trajectory eqs. (40)-(42) + phi = {AMP_PHI:g} sin(2 pi {F_PHI:g} t): {result.n} samples, "
-      f"t = 0..{result.t[-1]:g} s" + (f" at {1.0 / dt:g} Hz" if dt else "")
-      + f" ({result.elapsed:.2f} s)")
+    w(
+        f"trajectory eqs. (40)-(42) + phi = {AMP_PHI:g} sin(2 pi {F_PHI:g} t): {result.n} samples, "
+        f"t = 0..{result.t[-1]:g} s"
+        + (f" at {1.0 / dt:g} Hz" if dt else "")
+        + f" ({result.elapsed:.2f} s)"
+    )
     nfail = int(result.failed.sum())
     if nfail:
         w(f"FAILED SAMPLES: {nfail} of {result.n}")
         if result.unreachable.any():
-            w(f"  unreachable (a crank cannot reach the platform position): "
-              f"{int(result.unreachable.sum())} samples, {_ranges(result.t, result.unreachable)}")
+            w(
+                f"  unreachable (a crank cannot reach the platform position): "
+                f"{int(result.unreachable.sum())} samples, {_ranges(result.t, result.unreachable)}"
+            )
         if result.singular.any():
-            w(f"  singular (J_q or J_p near singular, rates undefined): "
-              f"{int(result.singular.sum())} samples, {_ranges(result.t, result.singular)}")
+            w(
+                f"  singular (J_q or J_p near singular, rates undefined): "
+                f"{int(result.singular.sum())} samples, {_ranges(result.t, result.singular)}"
+            )
         w("  errors, peaks and margins below are over the remaining samples")
 
     errs = result.max_errors()
     rel = result.relative_errors()
     sc = result.scales()
-    w("round-trip errors fk_acc(ik_acc(p, pd, pdd)) vs the analytic trajectory "
-      "(max over samples, Euclidean norm of x, y, z):")
-    units = {"position": "m", "velocity": "m/s", "acceleration": "m/s^2",
-             "phi": "rad", "phid": "rad/s", "phidd": "rad/s^2"}
-    norms = {"position": f"robot size {sc['position']:.6g} m",
-             "velocity": f"peak speed {sc['velocity']:.6g} m/s",
-             "acceleration": f"peak acceleration {sc['acceleration']:.6g} m/s^2",
-             "phi": f"peak |phi| {sc['phi']:.6g} rad",
-             "phid": f"peak |phid| {sc['phid']:.6g} rad/s",
-             "phidd": f"peak |phidd| {sc['phidd']:.6g} rad/s^2"}
+    w(
+        "round-trip errors fk_acc(ik_acc(p, pd, pdd)) vs the analytic trajectory "
+        "(max over samples, Euclidean norm of x, y, z):"
+    )
+    units = {
+        "position": "m",
+        "velocity": "m/s",
+        "acceleration": "m/s^2",
+        "phi": "rad",
+        "phid": "rad/s",
+        "phidd": "rad/s^2",
+    }
+    norms = {
+        "position": f"robot size {sc['position']:.6g} m",
+        "velocity": f"peak speed {sc['velocity']:.6g} m/s",
+        "acceleration": f"peak acceleration {sc['acceleration']:.6g} m/s^2",
+        "phi": f"peak |phi| {sc['phi']:.6g} rad",
+        "phid": f"peak |phid| {sc['phid']:.6g} rad/s",
+        "phidd": f"peak |phidd| {sc['phidd']:.6g} rad/s^2",
+    }
     for k, (v, tv) in errs.items():
-        w(f"  {k:<12} {v:10.3e} {units[k]:<7} (t = {tv:.3f} s)  relative {rel[k]:9.3e}"
-          f"  (/ {norms[k]})")
+        w(
+            f"  {k:<12} {v:10.3e} {units[k]:<7} (t = {tv:.3f} s)  relative {rel[k]:9.3e}"
+            f"  (/ {norms[k]})"
+        )
 
     ok = result.ok
     sp = np.where(ok, result.speed, np.nan)
     ac = np.where(ok, result.accel, np.nan)
     if np.isfinite(sp).any():
         i, j = int(np.nanargmax(sp)), int(np.nanargmax(ac))
-        w(f"peak speed        {sp[i]:8.3f} m/s    at t = {result.t[i]:.3f} s "
-          f"(report claims up to {REPORT_SPEED:g} m/s)")
-        w(f"peak acceleration {ac[j]:8.3f} m/s^2  at t = {result.t[j]:.3f} s "
-          f"(report claims up to {REPORT_ACCEL:g} m/s^2; = {ac[j] / 9.80665:.1f} g)")
+        w(
+            f"peak speed        {sp[i]:8.3f} m/s    at t = {result.t[i]:.3f} s "
+            f"(report claims up to {REPORT_SPEED:g} m/s)"
+        )
+        w(
+            f"peak acceleration {ac[j]:8.3f} m/s^2  at t = {result.t[j]:.3f} s "
+            f"(report claims up to {REPORT_ACCEL:g} m/s^2; = {ac[j] / 9.80665:.1f} g)"
+        )
         qd = np.abs(result.qd[ok])
         qdd = np.abs(result.qdd[ok])
-        w("joint peaks  max |qd|  = [" + ", ".join(f"{v:.3f}" for v in qd[:, :3].max(axis=0))
-          + f"] rad/s, q4: {qd[:, 3].max():.3f} rad/s")
-        w("             max |qdd| = [" + ", ".join(f"{v:.1f}" for v in qdd[:, :3].max(axis=0))
-          + f"] rad/s^2, q4: {qdd[:, 3].max():.3f} rad/s^2")
+        w(
+            "joint peaks  max |qd|  = ["
+            + ", ".join(f"{v:.3f}" for v in qd[:, :3].max(axis=0))
+            + f"] rad/s, q4: {qd[:, 3].max():.3f} rad/s"
+        )
+        w(
+            "             max |qdd| = ["
+            + ", ".join(f"{v:.1f}" for v in qdd[:, :3].max(axis=0))
+            + f"] rad/s^2, q4: {qdd[:, 3].max():.3f} rad/s^2"
+        )
         q = result.q[ok]
-        w("joint range  q = [" + ", ".join(
-            f"{math.degrees(a):.1f}..{math.degrees(b):.1f}"
-            for a, b in zip(q[:, :3].min(axis=0), q[:, :3].max(axis=0))) + "] deg")
+        w(
+            "joint range  q = ["
+            + ", ".join(
+                f"{math.degrees(a):.1f}..{math.degrees(b):.1f}"
+                for a, b in zip(q[:, :3].min(axis=0), q[:, :3].max(axis=0))
+            )
+            + "] deg"
+        )
     dm, dmt = result._worst(result.det_margin, smallest=True)
     jm, jmt = result._worst(result.jq_margin, smallest=True)
     cn, cnt = result._worst(result.cond)
@@ -531,8 +630,10 @@ def report(result: ValidationResult, out=None) -> None:
     bad = [k for k, v in rel.items() if not (math.isfinite(v) and v < result.tolerance)]
     if bad and not (nfail and all(math.isnan(rel[k]) for k in bad)):
         why.append("relative errors above tolerance: " + ", ".join(bad))
-    w(f"{verdict}: every relative error must be < {result.tolerance:g} and every sample "
-      f"reachable and regular" + (f" ({'; '.join(why)})" if why else ""))
+    w(
+        f"{verdict}: every relative error must be < {result.tolerance:g} and every sample "
+        f"reachable and regular" + (f" ({'; '.join(why)})" if why else "")
+    )
 
 
 def _load_robot(args):
@@ -557,8 +658,11 @@ def main(args) -> int:
     duration = getattr(args, "duration", 10.0)
 
     def progress(done, total):
-        print(f"validate: {done}/{total} samples ({100 * done // total} %)",
-              file=sys.stderr, flush=True)
+        print(
+            f"validate: {done}/{total} samples ({100 * done // total} %)",
+            file=sys.stderr,
+            flush=True,
+        )
 
     try:
         result = run(robot, rate, duration, progress=None if quiet else progress)
@@ -576,9 +680,12 @@ def main(args) -> int:
         print(f"wrote {png}")
     if not result.passed:
         if result.failed.any():
-            print(f"deltagen validate: FAILED: {int(result.failed.sum())} of {result.n} samples "
-                  f"unreachable or singular (first at t = {result.t[result.failed][0]:.6g} s); "
-                  f"see above", file=sys.stderr)
+            print(
+                f"deltagen validate: FAILED: {int(result.failed.sum())} of {result.n} samples "
+                f"unreachable or singular (first at t = {result.t[result.failed][0]:.6g} s); "
+                f"see above",
+                file=sys.stderr,
+            )
         else:
             print("deltagen validate: FAILED: round-trip errors above tolerance", file=sys.stderr)
         return 1

@@ -9,8 +9,8 @@ import sympy as sp
 from sympy.core.relational import Relational
 from sympy.logic.boolalg import BooleanFunction
 
-from deltagen.derive.kernel import Kernel, Stage
 from deltagen.codegen.printer import to_c
+from deltagen.derive.kernel import Kernel, Stage
 
 
 @dataclass(frozen=True)

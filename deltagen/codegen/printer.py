@@ -15,8 +15,6 @@ import sympy as sp
 from sympy.codegen.rewriting import create_expand_pow_optimization
 from sympy.printing.c import C99CodePrinter
 
-
-
 expand_small_powers = create_expand_pow_optimization(4)
 
 

@@ -13,9 +13,9 @@ import jinja2
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.paths import runtime_dir, template_dir
-from deltagen.derive.kernel import Stage
 from deltagen.codegen.lowering import LoweredKernel, keep_needed, lower_stage
+from deltagen.derive.kernel import Stage
+from deltagen.paths import runtime_dir, template_dir
 
 
 def environment() -> jinja2.Environment:
@@ -52,7 +52,9 @@ class Unit:
     axes_choices: tuple = ()  # e.g. (3, 4): a run-time row length; () for fixed widths
     axes_doc: str = ""
     block: int = 64
-    newton: dict | None = None  # {n, revolute}: emit <prefix>_ik_newton, the wrapper of runtime/deltagen_ik_newton.c
+    newton: dict | None = (
+        None  # {n, revolute}: emit <prefix>_ik_newton, the wrapper of runtime/deltagen_ik_newton.c
+    )
 
 
 def _columns(port):
@@ -75,8 +77,10 @@ def stack_use(fn: dict, block: int, block_macro: str) -> tuple[int, str]:
     ints = 1 + sum(1 for store in fn["stores"] if store["ctype"] != "double")
     doubles += sum(1 for store in fn["stores"] if store["ctype"] == "double")
     nbytes = block * (8 * doubles + 4 * ints)
-    return nbytes, (f"{doubles + ints} block arrays ({doubles} double, {ints} int) of "
-                    f"{block_macro} points,\n * {_kib(nbytes)} at {block}, plus scalars")
+    return nbytes, (
+        f"{doubles + ints} block arrays ({doubles} double, {ints} int) of "
+        f"{block_macro} points,\n * {_kib(nbytes)} at {block}, plus scalars"
+    )
 
 
 def runtime_macro(name: str, **values) -> int:
@@ -109,8 +113,13 @@ def function_context(lk: LoweredKernel) -> dict:
         if p.symbol in needed
     ]
     angles = [
-        dict(angle=str(a.angle), cos=str(a.cos), sin=str(a.sin),
-             cos_used=a.cos in body_symbols, sin_used=a.sin in body_symbols)
+        dict(
+            angle=str(a.angle),
+            cos=str(a.cos),
+            sin=str(a.sin),
+            cos_used=a.cos in body_symbols,
+            sin_used=a.sin in body_symbols,
+        )
         for a in k.angles
         if a.cos in body_symbols or a.sin in body_symbols
     ]
@@ -157,10 +166,14 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         ints = runtime_macro("DELTAGEN_IK_NEWTON_WORK_INTS", n=n)
         work = 8 * doubles + 4 * ints
         fkj = next(fn for fn in functions if fn["name"] == "fk_jacobian")
-        newton = dict(unit.newton, stack_doc=(
-            f"{work} bytes of solver scratch memory in this frame ({doubles} doubles, {ints} "
-            f"ints),\n * plus fk_jacobian's {_kib(fkj['stack_bytes'])} at {unit.block} points "
-            "and the runtime's frames\n * (scalars and 3x3 blocks)"))
+        newton = dict(
+            unit.newton,
+            stack_doc=(
+                f"{work} bytes of solver scratch memory in this frame ({doubles} doubles, {ints} "
+                f"ints),\n * plus fk_jacobian's {_kib(fkj['stack_bytes'])} at {unit.block} points "
+                "and the runtime's frames\n * (scalars and 3x3 blocks)"
+            ),
+        )
     context = dict(
         prefix=unit.prefix,
         macro_prefix=unit.prefix.upper(),
@@ -184,9 +197,12 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         block=unit.block,
         newton=newton,
     )
-    files = {header_name: ("header.h.j2", "restrict "),
-             f"{unit.base_name}.c": ("source.c.j2", "restrict "),
-             f"{unit.base_name}.cdef.h": ("cdef.h.j2", "")}
-    return {name: env.get_template(template).render(template=template, restrict=restrict,
-                                                    **context)
-            for name, (template, restrict) in files.items()}
+    files = {
+        header_name: ("header.h.j2", "restrict "),
+        f"{unit.base_name}.c": ("source.c.j2", "restrict "),
+        f"{unit.base_name}.cdef.h": ("cdef.h.j2", ""),
+    }
+    return {
+        name: env.get_template(template).render(template=template, restrict=restrict, **context)
+        for name, (template, restrict) in files.items()
+    }

@@ -41,8 +41,11 @@ def generator_files() -> list[Path]:
     package = Path(__file__).resolve().parent.parent
     files = [package / name for name in _FOUNDATION]
     for stage in _GENERATOR_PACKAGES:
-        files += [f for f in (package / stage).rglob("*")
-                  if f.is_file() and f.suffix in (".py", ".j2", ".c", ".h")]
+        files += [
+            f
+            for f in (package / stage).rglob("*")
+            if f.is_file() and f.suffix in (".py", ".j2", ".c", ".h")
+        ]
     return sorted(files)
 
 
@@ -64,7 +67,7 @@ def arm_unit(desc) -> Unit:
         prefix=c_prefix(desc),
         base_name=base_name(desc),
         title=f"kinematics of the serial arm '{desc.name}' ({desc.n} joints: {joints}; "
-              f"{desc.convention} convention)",
+        f"{desc.convention} convention)",
         source="its robot description (deltagen/model/serial.py)",
         struct_name=None,
         struct_fields=(),

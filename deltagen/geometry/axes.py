@@ -21,9 +21,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["PARALLEL_TOL", "NONPARALLEL_TOL", "LENGTH_TOL", "unit", "parallel",
-           "not_parallel", "line_distance", "foot", "common_point", "meet",
-           "common_points"]
+__all__ = [
+    "PARALLEL_TOL",
+    "NONPARALLEL_TOL",
+    "LENGTH_TOL",
+    "unit",
+    "parallel",
+    "not_parallel",
+    "line_distance",
+    "foot",
+    "common_point",
+    "meet",
+    "common_points",
+]
 
 PARALLEL_TOL = 1e-9  # |w_i x w_j| at or below this: parallel
 NONPARALLEL_TOL = 1e-6  # |w_i x w_j| at or above this: not parallel
@@ -71,8 +81,9 @@ def common_point(points, dirs):
         A += P
         b += P @ o
     x = np.linalg.lstsq(A, b, rcond=None)[0]
-    dist = max(float(np.linalg.norm((np.eye(3) - np.outer(w, w)) @ (x - o)))
-               for o, w in zip(points, dirs))
+    dist = max(
+        float(np.linalg.norm((np.eye(3) - np.outer(w, w)) @ (x - o))) for o, w in zip(points, dirs)
+    )
     return x, dist
 
 

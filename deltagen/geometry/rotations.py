@@ -80,8 +80,10 @@ def vee(W) -> np.ndarray:
     the inverse of :func:`skew` (exact on a skew matrix). Of a rotation matrix it is
     sin(theta) k; of dR/dt R^T, the angular velocity."""
     W = np.asarray(W, dtype=float)
-    return 0.5 * np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0],
-                           W[..., 1, 0] - W[..., 0, 1]], axis=-1)
+    return 0.5 * np.stack(
+        [W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0], W[..., 1, 0] - W[..., 0, 1]],
+        axis=-1,
+    )
 
 
 _AXES = {"x": 0, "y": 1, "z": 2, 0: 0, 1: 1, 2: 2}
@@ -220,8 +222,9 @@ def euler_zyx(R) -> np.ndarray:
     phi = np.arctan2(a32, a33)
     lock = ct < GIMBAL_TOL
     if np.any(lock):
-        phi_lock = np.arctan2(R[..., 0, 2] * sp - R[..., 1, 2] * cp,
-                              R[..., 1, 1] * cp - R[..., 0, 1] * sp)
+        phi_lock = np.arctan2(
+            R[..., 0, 2] * sp - R[..., 1, 2] * cp, R[..., 1, 1] * cp - R[..., 0, 1] * sp
+        )
         phi = np.where(lock, phi_lock, phi)
     return np.stack([psi, theta, phi], axis=-1)
 
@@ -244,8 +247,14 @@ def matrix_from_rpy(rpy_angles) -> np.ndarray:
     if a.shape[-1:] != (3,):
         raise InputError(f"rpy must have shape (..., 3), got {a.shape}")
     roll, pitch, yaw = a[..., 0], a[..., 1], a[..., 2]
-    cr, sr, cp, sp_, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
-                               np.cos(yaw), np.sin(yaw))
+    cr, sr, cp, sp_, cy, sy = (
+        np.cos(roll),
+        np.sin(roll),
+        np.cos(pitch),
+        np.sin(pitch),
+        np.cos(yaw),
+        np.sin(yaw),
+    )
     R = np.empty(a.shape[:-1] + (3, 3))
     R[..., 0, 0] = cy * cp
     R[..., 0, 1] = cy * sp_ * sr - sy * cr
@@ -354,7 +363,8 @@ def as_rotation(R, name="R") -> np.ndarray:
         R = R[..., :3, :3]
     if R.ndim < 2 or R.shape[-2:] != (3, 3) or not np.all(np.isfinite(R)):
         raise InputError(f"{name} must be a 3x3 rotation matrix (or a 4x4 pose)")
-    if (not np.allclose(R @ np.swapaxes(R, -1, -2), np.eye(3), atol=1e-8)
-            or np.any(np.linalg.det(R) < 0)):
+    if not np.allclose(R @ np.swapaxes(R, -1, -2), np.eye(3), atol=1e-8) or np.any(
+        np.linalg.det(R) < 0
+    ):
         raise InputError(f"{name} is not a rotation matrix (R R^T != I or det R < 0)")
     return R

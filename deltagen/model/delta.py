@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from deltagen.errors import GeometryError
-from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.model.naming import check_identifier
+from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
 _LENGTHS = ("r_a", "r_b", "l_a", "l_b")
@@ -33,8 +33,6 @@ _DELTA_KEYS = set(_LENGTHS) | {"theta", "theta_deg", "singular_tol"}
 _TOP_KEYS = {"name", "delta"}
 #: Smallest angular separation of two drives still called distinct [rad].
 MIN_DRIVE_SEPARATION = 1e-6
-
-
 
 
 @dataclass(frozen=True)
@@ -95,14 +93,16 @@ class DeltaGeometry:
     def default(cls) -> DeltaGeometry:
         """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8, 0/120/240 deg."""
         return cls(
-            r_a=0.2, r_b=0.045, l_a=0.35, l_b=0.8,
+            r_a=0.2,
+            r_b=0.045,
+            l_a=0.35,
+            l_b=0.8,
             theta=tuple(math.radians(t) for t in (0.0, 120.0, 240.0)),
             name="default",
         )
 
     @classmethod
-    def from_mapping(cls, data: dict[str, Any],
-                     source: str = "robot description") -> DeltaGeometry:
+    def from_mapping(cls, data: dict[str, Any], source: str = "robot description") -> DeltaGeometry:
         if not isinstance(data, dict):
             raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
         unknown = set(data) - _TOP_KEYS

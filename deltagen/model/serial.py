@@ -45,8 +45,8 @@ import numpy.typing as npt
 
 from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy
-from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.model.naming import check_identifier
+from deltagen.model.robot_file import PathLike, read_toml, real
 
 CONVENTIONS = ("standard", "modified", "universal")
 JOINT_TYPES = ("revolute", "prismatic")
@@ -54,8 +54,6 @@ _DH_LENGTHS: tuple[str, ...] = ("a", "d")
 _DH_ANGLES: tuple[str, ...] = ("alpha", "theta", "offset")
 _UC_LENGTHS: tuple[str, ...] = ("tx", "ty", "tz")
 _UC_ANGLES: tuple[str, ...] = ("rx", "ry", "rz", "offset")
-
-
 
 
 @dataclass(frozen=True)
@@ -83,8 +81,9 @@ class Joint:
         return self.type == "revolute"
 
 
-def transform(xyz: Sequence[float] = (0.0, 0.0, 0.0),
-              rpy: Sequence[float] = (0.0, 0.0, 0.0)) -> npt.NDArray[np.float64]:
+def transform(
+    xyz: Sequence[float] = (0.0, 0.0, 0.0), rpy: Sequence[float] = (0.0, 0.0, 0.0)
+) -> npt.NDArray[np.float64]:
     """4x4 homogeneous transform: translation xyz, rotation Rz(yaw) Ry(pitch) Rx(roll)."""
     T = np.eye(4)
     T[:3, :3] = matrix_from_rpy(rpy)
@@ -115,14 +114,20 @@ class SerialDescription:
             if M.shape != (4, 4) or not np.all(np.isfinite(M)):
                 raise GeometryError(f"{which} must be a finite 4x4 homogeneous transform")
             R = M[:3, :3]
-            if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or not np.allclose(M[3], [0, 0, 0, 1]):
-                raise GeometryError(f"{which} is not a rigid transform (rotation part not orthonormal)")
+            if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or not np.allclose(
+                M[3], [0, 0, 0, 1]
+            ):
+                raise GeometryError(
+                    f"{which} is not a rigid transform (rotation part not orthonormal)"
+                )
             object.__setattr__(self, which, M.copy())
         n = len(self.joints)
         for key, q in self.configurations.items():
             check_identifier(key, "configuration name")
             if len(q) != n:
-                raise GeometryError(f"configuration {key!r} has {len(q)} values, the arm has {n} joints")
+                raise GeometryError(
+                    f"configuration {key!r} has {len(q)} values, the arm has {n} joints"
+                )
 
     @property
     def n(self) -> int:
@@ -141,8 +146,25 @@ class SerialDescription:
         """A canonical text of everything that determines the generated code."""
         parts = [self.name, self.convention]
         for j in self.joints:
-            parts.append(repr((j.type, j.a, j.alpha, j.d, j.theta, j.offset, j.tx, j.ty, j.tz,
-                               j.rx, j.ry, j.rz, j.axis)))
+            parts.append(
+                repr(
+                    (
+                        j.type,
+                        j.a,
+                        j.alpha,
+                        j.d,
+                        j.theta,
+                        j.offset,
+                        j.tx,
+                        j.ty,
+                        j.tz,
+                        j.rx,
+                        j.ry,
+                        j.rz,
+                        j.axis,
+                    )
+                )
+            )
         parts.append(repr(self.base.tolist()))
         parts.append(repr(self.tool.tolist()))
         return "\n".join(parts)
@@ -150,10 +172,16 @@ class SerialDescription:
     # -- construction ---------------------------------------------------------------
 
     @classmethod
-    def from_rows(cls, rows: Iterable[Mapping[str, Any]], convention: str, name: str = "arm",
-                  base: npt.ArrayLike | None = None, tool: npt.ArrayLike | None = None,
-                  configurations: Mapping[str, Sequence[float]] | None = None,
-                  doc: str = "") -> SerialDescription:
+    def from_rows(
+        cls,
+        rows: Iterable[Mapping[str, Any]],
+        convention: str,
+        name: str = "arm",
+        base: npt.ArrayLike | None = None,
+        tool: npt.ArrayLike | None = None,
+        configurations: Mapping[str, Sequence[float]] | None = None,
+        doc: str = "",
+    ) -> SerialDescription:
         if convention not in CONVENTIONS:
             raise GeometryError(
                 f"convention must be one of {CONVENTIONS} (stated explicitly), got {convention!r}"
@@ -162,17 +190,22 @@ class SerialDescription:
             raise GeometryError("rows must be a list of joint tables")
         joints = tuple(_joint(row, convention, f"joint {i + 1}") for i, row in enumerate(rows))
         return cls(
-            name=name, convention=convention, joints=joints,
+            name=name,
+            convention=convention,
+            joints=joints,
             base=np.eye(4) if base is None else np.asarray(base, dtype=float),
             tool=np.eye(4) if tool is None else np.asarray(tool, dtype=float),
-            configurations={k: tuple(real(v, f"configuration {k}") for v in q)
-                            for k, q in (configurations or {}).items()},
+            configurations={
+                k: tuple(real(v, f"configuration {k}") for v in q)
+                for k, q in (configurations or {}).items()
+            },
             doc=doc,
         )
 
     @classmethod
-    def from_mapping(cls, data: dict[str, Any],
-                     source: str = "robot description") -> SerialDescription:
+    def from_mapping(
+        cls, data: dict[str, Any], source: str = "robot description"
+    ) -> SerialDescription:
         try:
             return cls._from_mapping(data)
         except GeometryError as exc:
@@ -200,9 +233,13 @@ class SerialDescription:
             if not isinstance(q, list):
                 raise GeometryError(f"configuration {k!r} must be a list of numbers")
         return cls.from_rows(
-            data["joint"], data["convention"], name=data.get("name", "arm"),
-            base=_frame(data.get("base"), "base"), tool=_frame(data.get("tool"), "tool"),
-            configurations=configurations, doc=str(data.get("doc", "")),
+            data["joint"],
+            data["convention"],
+            name=data.get("name", "arm"),
+            base=_frame(data.get("base"), "base"),
+            tool=_frame(data.get("tool"), "tool"),
+            configurations=configurations,
+            doc=str(data.get("doc", "")),
         )
 
     @classmethod
@@ -239,7 +276,7 @@ def _trans(axis: int, dist: np.ndarray) -> np.ndarray:
     return M
 
 
-def link_transform(desc: SerialDescription, i: int, qi) -> np.ndarray:
+def link_transform(desc: SerialDescription, i: int, qi: Any) -> np.ndarray:
     """A_i(q_i) (N, 4, 4) of joint i (0-based) for joint values qi (N,) per the description's
     convention (module docstring); the joint variable enters as q_i + offset_i."""
     j = desc.joints[i]
@@ -248,9 +285,15 @@ def link_transform(desc: SerialDescription, i: int, qi) -> np.ndarray:
     const = np.full(qi.shape[0], 0.0)
     if desc.convention == "universal":
         ax = _AXIS[j.axis]
-        mats = [_rot(ax, var) if j.revolute else _trans(ax, var),
-                _trans(0, const + j.tx), _trans(1, const + j.ty), _trans(2, const + j.tz),
-                _rot(0, const + j.rx), _rot(1, const + j.ry), _rot(2, const + j.rz)]
+        mats = [
+            _rot(ax, var) if j.revolute else _trans(ax, var),
+            _trans(0, const + j.tx),
+            _trans(1, const + j.ty),
+            _trans(2, const + j.tz),
+            _rot(0, const + j.rx),
+            _rot(1, const + j.ry),
+            _rot(2, const + j.rz),
+        ]
     else:
         theta = var if j.revolute else const + j.theta
         d = const + j.d if j.revolute else var
@@ -264,7 +307,7 @@ def link_transform(desc: SerialDescription, i: int, qi) -> np.ndarray:
     return out
 
 
-def frames(desc: SerialDescription, q) -> np.ndarray:
+def frames(desc: SerialDescription, q: Any) -> np.ndarray:
     """F (N, n+2, 4, 4) for finite joint vectors q (N, n): F[:, 0] = base,
     F[:, i] = base A_1 ... A_i, F[:, n+1] = F[:, n] tool (the tool pose)."""
     q = np.asarray(q, dtype=np.float64)
@@ -318,8 +361,13 @@ def _joint(row: object, convention: str, where: str) -> Joint:
         lengths, angles = _DH_LENGTHS, _DH_ANGLES
         extra = set()
     prismatic = kind == "prismatic"
-    allowed = set(lengths) | set(angles) | {f"{a}_deg" for a in angles} | extra | {
-        "type", "joint", "qlim", "qlim_deg", "name"}
+    allowed = (
+        set(lengths)
+        | set(angles)
+        | {f"{a}_deg" for a in angles}
+        | extra
+        | {"type", "joint", "qlim", "qlim_deg", "name"}
+    )
     unknown = set(row) - allowed
     if unknown:
         hint = ""

@@ -44,17 +44,32 @@ Predicates of general use (UR-type arms have three consecutive parallel axes):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from deltagen.geometry import axes as geo
 from deltagen.geometry.axes import LENGTH_TOL, NONPARALLEL_TOL, PARALLEL_TOL
+from deltagen.geometry.rotations import rotate
 from deltagen.model.serial import SerialDescription, axis_frame, frames
 
-__all__ = ["JointAxes", "PlanarArm", "ElbowArm", "Elbow4R", "SphericalWrist6R", "Structure",
-           "joint_axes", "detect", "detect_planar", "detect_elbow", "parallel_pairs",
-           "parallel_runs", "common_point_of", "central_wrist", "ARM_BRANCHES"]
+__all__ = [
+    "JointAxes",
+    "PlanarArm",
+    "ElbowArm",
+    "Elbow4R",
+    "SphericalWrist6R",
+    "Structure",
+    "joint_axes",
+    "detect",
+    "detect_planar",
+    "detect_elbow",
+    "parallel_pairs",
+    "parallel_runs",
+    "common_point_of",
+    "central_wrist",
+    "ARM_BRANCHES",
+]
 
 _CHECK_SEED = 20140101  # the random configurations of JointAxes.matches
 _ELBOW_CONFIGS = ("front_up", "front_down", "back_up", "back_down")
@@ -63,21 +78,13 @@ _ELBOW_CONFIGS = ("front_up", "front_down", "back_up", "back_down")
 ARM_BRANCHES = ((1.0, -1.0), (1.0, 1.0), (-1.0, -1.0), (-1.0, 1.0))
 
 
-def _frozen(a) -> np.ndarray:
+def _frozen(a: Any) -> np.ndarray:
     a = np.array(a, dtype=float)
     a.flags.writeable = False
     return a
 
 
-def _rotv(w, th, v) -> np.ndarray:
-    """Rotate vectors v (..., 3) about the unit axis w (3,) by th (...) (Rodrigues)."""
-    th = np.asarray(th, dtype=float)[..., None]
-    c, s = np.cos(th), np.sin(th)
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    return v * c + (v @ K.T) * s + np.multiply.outer(v @ w, w) * (1.0 - c)
-
-
-def _cross(a, b) -> np.ndarray:
+def _cross(a: Any, b: Any) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
@@ -131,7 +138,7 @@ class JointAxes:
             w, o = self.directions[i], self.points[i]
             if self.revolute[i]:
                 V[:, 0] -= o
-                V = _rotv(w, q[:, i, None], V)
+                V = rotate(w, q[:, i, None], V)
                 V[:, 0] += o
             else:
                 V[:, 0] += w * q[:, i, None]
@@ -146,8 +153,10 @@ class JointAxes:
         q = rng.uniform(-2.0, 2.0, size=(8, self.n))
         T = frames(desc, q)[:, -1]
         R, p = self.fk(q)
-        return (np.max(np.abs(R - T[:, :3, :3])) < 1e-9
-                and np.max(np.abs(p - T[:, :3, 3])) < 1e-9 * self.scale)
+        return (
+            np.max(np.abs(R - T[:, :3, :3])) < 1e-9
+            and np.max(np.abs(p - T[:, :3, 3])) < 1e-9 * self.scale
+        )
 
 
 def joint_axes(desc: SerialDescription) -> JointAxes:
@@ -164,10 +173,15 @@ def joint_axes(desc: SerialDescription) -> JointAxes:
     T0 = np.ascontiguousarray(F[:, -1])[0].copy()
     pts = np.vstack([o, T0[:3, 3]])
     scale = max(1.0, float(np.max(np.linalg.norm(pts - pts[0], axis=1))))
-    return JointAxes(name=desc.name,
-                     revolute=np.array([j.revolute for j in desc.joints], dtype=bool),
-                     points=_frozen(o), directions=_frozen(w), T0=_frozen(T0),
-                     qlim=_frozen(desc.qlim), scale=scale)
+    return JointAxes(
+        name=desc.name,
+        revolute=np.array([j.revolute for j in desc.joints], dtype=bool),
+        points=_frozen(o),
+        directions=_frozen(w),
+        T0=_frozen(T0),
+        qlim=_frozen(desc.qlim),
+        scale=scale,
+    )
 
 
 # ------------------------------------------------------------------- the structures
@@ -267,8 +281,12 @@ class SphericalWrist6R(ElbowArm):
     """An elbow arm with a central wrist: axes 4, 5, 6 through W (the wrist centre)."""
 
     kind: ClassVar[str] = "spherical_wrist_6r"
-    configs: ClassVar[tuple] = tuple(f"{s}_{e}_{f}" for s in ("front", "back")
-                                     for e in ("up", "down") for f in ("noflip", "flip"))
+    configs: ClassVar[tuple] = tuple(
+        f"{s}_{e}_{f}"
+        for s in ("front", "back")
+        for e in ("up", "down")
+        for f in ("noflip", "flip")
+    )
 
     wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
     cos_45: float  # w4 . w5
@@ -282,7 +300,7 @@ Structure = PlanarArm | Elbow4R | SphericalWrist6R
 # ------------------------------------------------------------------------- detection
 
 
-def _clearly_skew(a, b) -> bool:
+def _clearly_skew(a: Any, b: Any) -> bool:
     return geo.not_parallel(a, b, NONPARALLEL_TOL)
 
 
@@ -314,14 +332,25 @@ def detect_planar(ax: JointAxes) -> PlanarArm | None:
     vv = E @ P - B
     if np.hypot(*vv) < tol:
         return None
-    return PlanarArm(axes=ax, u=_frozen(u), signs=_frozen(np.sign(w @ u)), first=ia,
-                     second=ib, roll=ic, lift=int(pri[0]) if len(pri) else None,
-                     plane=_frozen(E), first_xy=_frozen(A), second_xy=_frozen(B),
-                     point=_frozen(P), upper=_frozen(B - A), lower=_frozen(vv),
-                     position_only_ok=position_only_ok)
+    return PlanarArm(
+        axes=ax,
+        u=_frozen(u),
+        signs=_frozen(np.sign(w @ u)),
+        first=ia,
+        second=ib,
+        roll=ic,
+        lift=int(pri[0]) if len(pri) else None,
+        plane=_frozen(E),
+        first_xy=_frozen(A),
+        second_xy=_frozen(B),
+        point=_frozen(P),
+        upper=_frozen(B - A),
+        lower=_frozen(vv),
+        position_only_ok=position_only_ok,
+    )
 
 
-def _reference_normal(w, ex, ey) -> np.ndarray:
+def _reference_normal(w: Any, ex: Any, ey: Any) -> np.ndarray:
     """A unit vector normal to w: w x ex, or w x ey where w is nearly along ex."""
     return geo.unit(np.cross(w, ex if np.linalg.norm(np.cross(w, ex)) > 0.1 else ey))
 
@@ -366,15 +395,32 @@ def detect_elbow(ax: JointAxes) -> Elbow4R | SphericalWrist6R | None:
     up_sign = float(np.sign(w[0] @ et))
     front = np.array([b[0] for b in ARM_BRANCHES])
     bend = np.array([b[1] for b in ARM_BRANCHES]) * up_sign * front
-    common = dict(axes=ax, wrist=_frozen(W), ex=_frozen(ex), ey=_frozen(ey), ez=_frozen(ez),
-                  w2_offset=float(w[1] @ (W - o[0])), cos_12=float(w[1] @ ez),
-                  sin_12=float(w[1] @ ey), plane=_frozen(P2), shoulder_xy=_frozen(S),
-                  upper=_frozen(uu), lower=_frozen(vv), sign3=float(np.sign(w[2] @ w[1])),
-                  front=_frozen(front), bend=_frozen(bend), position_only_ok=position_only_ok)
+    common: dict[str, Any] = dict(
+        axes=ax,
+        wrist=_frozen(W),
+        ex=_frozen(ex),
+        ey=_frozen(ey),
+        ez=_frozen(ez),
+        w2_offset=float(w[1] @ (W - o[0])),
+        cos_12=float(w[1] @ ez),
+        sin_12=float(w[1] @ ey),
+        plane=_frozen(P2),
+        shoulder_xy=_frozen(S),
+        upper=_frozen(uu),
+        lower=_frozen(vv),
+        sign3=float(np.sign(w[2] @ w[1])),
+        front=_frozen(front),
+        bend=_frozen(bend),
+        position_only_ok=position_only_ok,
+    )
     if n == 6:
-        return SphericalWrist6R(**common, wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
-                                cos_45=float(w[3] @ w[4]), cos_56=float(w[4] @ w[5]),
-                                normal_45=_frozen(np.cross(w[3], w[4])))
+        return SphericalWrist6R(
+            **common,
+            wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
+            cos_45=float(w[3] @ w[4]),
+            cos_56=float(w[4] @ w[5]),
+            normal_45=_frozen(np.cross(w[3], w[4])),
+        )
     return Elbow4R(**common, roll_ref=_frozen(_reference_normal(w[3], ex, ey)))
 
 
@@ -401,20 +447,24 @@ def detect(desc: SerialDescription) -> Structure | None:
 def parallel_pairs(ax: JointAxes, tol: float = PARALLEL_TOL) -> list:
     """(i, j), 0-based i < j, of the joints whose axes are parallel (either sign)."""
     w = ax.directions
-    return [(i, j) for i in range(ax.n) for j in range(i + 1, ax.n)
-            if geo.parallel(w[i], w[j], tol)]
+    return [
+        (i, j) for i in range(ax.n) for j in range(i + 1, ax.n) if geo.parallel(w[i], w[j], tol)
+    ]
 
 
 def parallel_runs(ax: JointAxes, length: int = 3, tol: float = PARALLEL_TOL) -> list:
     """Indices i where the revolute joints i, ..., i + length - 1 have parallel axes (three
     consecutive parallel axes: the UR-type shoulder-elbow-wrist 1 group)."""
     w, rev = ax.directions, ax.revolute
-    return [i for i in range(ax.n - length + 1)
-            if rev[i:i + length].all()
-            and all(geo.parallel(w[i], w[j], tol) for j in range(i + 1, i + length))]
+    return [
+        i
+        for i in range(ax.n - length + 1)
+        if rev[i : i + length].all()
+        and all(geo.parallel(w[i], w[j], tol) for j in range(i + 1, i + length))
+    ]
 
 
-def common_point_of(ax: JointAxes, joints, tol: float = LENGTH_TOL):
+def common_point_of(ax: JointAxes, joints: Any, tol: float = LENGTH_TOL) -> Any:
     """The point [m] all axes of ``joints`` (0-based indices) pass through, within ``tol``
     times the arm's scale, or None. Two parallel axes have no single common point (None)."""
     joints = list(joints)
@@ -424,7 +474,7 @@ def common_point_of(ax: JointAxes, joints, tol: float = LENGTH_TOL):
     return geo.meet(ax.points[joints], w, tol * ax.scale)
 
 
-def central_wrist(ax: JointAxes):
+def central_wrist(ax: JointAxes) -> Any:
     """The wrist centre [m] when the last three joints are revolute with axes through one
     point (4 not parallel to 5, 5 not parallel to 6), else None."""
     if ax.n < 3 or not ax.revolute[-3:].all():

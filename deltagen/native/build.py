@@ -101,8 +101,9 @@ def runtime_files(texts) -> list[Path]:
 def runtime_cdef(runtime: dict) -> str:
     """The declarations cffi needs from the runtime headers ({path: text}): the part of each
     between its ``cffi: begin`` and ``cffi: end`` comments (types declared once, in C)."""
-    return "".join(part for f, text in runtime.items() if f.suffix == ".h"
-                   for part in _CFFI_PART.findall(text))
+    return "".join(
+        part for f, text in runtime.items() if f.suffix == ".h" for part in _CFFI_PART.findall(text)
+    )
 
 
 def usable_cache_dir() -> Path:
@@ -111,16 +112,22 @@ def usable_cache_dir() -> Path:
     root = cache_dir()
     source = "DELTAGEN_CACHE" if os.environ.get("DELTAGEN_CACHE") else "the build cache"
     if root.exists() and not root.is_dir():
-        raise BuildError(f"{source} {root} is not a directory; point DELTAGEN_CACHE at a "
-                         "writable folder (backend='reference' needs no cache)")
+        raise BuildError(
+            f"{source} {root} is not a directory; point DELTAGEN_CACHE at a "
+            "writable folder (backend='reference' needs no cache)"
+        )
     try:
         root.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise BuildError(f"{source} {root} cannot be created ({exc.strerror}); point "
-                         "DELTAGEN_CACHE at a writable folder") from exc
+        raise BuildError(
+            f"{source} {root} cannot be created ({exc.strerror}); point "
+            "DELTAGEN_CACHE at a writable folder"
+        ) from exc
     if not os.access(root, os.W_OK | os.X_OK):
-        raise BuildError(f"{source} {root} is not writable; point DELTAGEN_CACHE at a "
-                         "writable folder (backend='reference' needs no cache)")
+        raise BuildError(
+            f"{source} {root} is not writable; point DELTAGEN_CACHE at a "
+            "writable folder (backend='reference' needs no cache)"
+        )
     return root
 
 
@@ -137,8 +144,17 @@ def load(base_name: str, prefix: str, directory: Path | None = None):
     runtime = {f: f.read_text() for f in runtime_files([texts[".c"], texts[".h"]])}
     args, libraries = compile_flags(prefix)
     key_material = "\0".join(
-        [texts[".c"], texts[".h"], texts[".cdef.h"], " ".join(args), " ".join(libraries),
-         sys.version, sysconfig.get_platform(), _cffi_version(), _compiler_identity()]
+        [
+            texts[".c"],
+            texts[".h"],
+            texts[".cdef.h"],
+            " ".join(args),
+            " ".join(libraries),
+            sys.version,
+            sysconfig.get_platform(),
+            _cffi_version(),
+            _compiler_identity(),
+        ]
         + [f.name + "\0" + text for f, text in runtime.items()]
     )
     key = hashlib.sha256(key_material.encode()).hexdigest()[:16]
@@ -157,8 +173,9 @@ def load(base_name: str, prefix: str, directory: Path | None = None):
         with _process_lock(root, module_name):
             if not _verified(target, shared_object):
                 _discard(target)
-                _build(module_name, target, shared_object.name, texts, files, runtime, args,
-                       libraries)
+                _build(
+                    module_name, target, shared_object.name, texts, files, runtime, args, libraries
+                )
             module = _import(module_name, shared_object)
         with _GUARD:
             _LOADED[module_name] = module
@@ -171,8 +188,10 @@ def _import(module_name: str, shared_object: Path):
     try:
         spec.loader.exec_module(module)
     except ImportError as exc:
-        raise BuildError(f"the compiled core {shared_object} does not load ({exc}); delete "
-                         f"{shared_object.parent} to rebuild it") from exc
+        raise BuildError(
+            f"the compiled core {shared_object} does not load ({exc}); delete "
+            f"{shared_object.parent} to rebuild it"
+        ) from exc
     return module
 
 
@@ -206,9 +225,11 @@ def _verified(target: Path, shared_object: Path) -> bool:
     """True when the artifact is complete: its manifest names its exact size and hash."""
     try:
         manifest = json.loads((target / _MANIFEST).read_text())
-        return (shared_object.is_file()
-                and shared_object.stat().st_size == manifest["size"]
-                and _digest(shared_object) == manifest["sha256"])
+        return (
+            shared_object.is_file()
+            and shared_object.stat().st_size == manifest["size"]
+            and _digest(shared_object) == manifest["sha256"]
+        )
     except (OSError, ValueError, KeyError, TypeError):
         return False
 
@@ -250,8 +271,7 @@ def _compiler_identity() -> str:
     return " ".join(_compiler_command())
 
 
-def _build(module_name, target: Path, so_name: str, texts, files, runtime, args,
-           libraries) -> None:
+def _build(module_name, target: Path, so_name: str, texts, files, runtime, args, libraries) -> None:
     import cffi
     from cffi.recompiler import make_c_source
 
@@ -272,25 +292,46 @@ def _build(module_name, target: Path, so_name: str, texts, files, runtime, args,
         # what an extension build of this interpreter adds (-fwrapv, -DNDEBUG), minus -g
         ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
         ccshared += ["-fwrapv", "-DNDEBUG"]
-        command = (_compiler_command() + ccshared + args + include
-                   + [str(wrapper), str(work / files[".c"].name)] + [str(work / f.name) for f in runtime if f.suffix == ".c"]
-                   + ["-o", str(out / so_name)] + [f"-l{lib}" for lib in libraries])
+        command = (
+            _compiler_command()
+            + ccshared
+            + args
+            + include
+            + [str(wrapper), str(work / files[".c"].name)]
+            + [str(work / f.name) for f in runtime if f.suffix == ".c"]
+            + ["-o", str(out / so_name)]
+            + [f"-l{lib}" for lib in libraries]
+        )
         try:
-            proc = subprocess.run(command, cwd=work, capture_output=True, text=True,
-                                  timeout=_BUILD_TIMEOUT_S, stdin=subprocess.DEVNULL)
+            proc = subprocess.run(
+                command,
+                cwd=work,
+                capture_output=True,
+                text=True,
+                timeout=_BUILD_TIMEOUT_S,
+                stdin=subprocess.DEVNULL,
+            )
         except FileNotFoundError as exc:
-            raise BuildError(f"no C compiler: {command[0]!r} was not found (set CC, or use "
-                             "backend='reference', which needs none)") from exc
+            raise BuildError(
+                f"no C compiler: {command[0]!r} was not found (set CC, or use "
+                "backend='reference', which needs none)"
+            ) from exc
         except subprocess.TimeoutExpired as exc:
-            raise BuildError(f"compiling {files['.c'].name} took over {_BUILD_TIMEOUT_S} s; "
-                             "gave up") from exc
+            raise BuildError(
+                f"compiling {files['.c'].name} took over {_BUILD_TIMEOUT_S} s; gave up"
+            ) from exc
         if proc.returncode != 0:
             text = (proc.stderr or proc.stdout or "").strip()
-            raise BuildError(f"compiling {files['.c'].name} failed (exit {proc.returncode}):\n"
-                             f"{shlex.join(command)}\n{text[-4000:]}")
+            raise BuildError(
+                f"compiling {files['.c'].name} failed (exit {proc.returncode}):\n"
+                f"{shlex.join(command)}\n{text[-4000:]}"
+            )
         built = out / so_name
-        manifest = {"size": built.stat().st_size, "sha256": _digest(built),
-                    "command": shlex.join(command)}
+        manifest = {
+            "size": built.stat().st_size,
+            "sha256": _digest(built),
+            "command": shlex.join(command),
+        }
         (out / _MANIFEST).write_text(json.dumps(manifest, indent=1))
         os.replace(out, target)  # atomic: a reader sees the whole folder or none
     finally:

@@ -32,7 +32,10 @@ class CompiledDelta:
         self._geometry = self._ffi.new(
             "deltagen_delta_geometry *",
             {
-                "r_a": g.r_a, "r_b": g.r_b, "l_a": g.l_a, "l_b": g.l_b,
+                "r_a": g.r_a,
+                "r_b": g.r_b,
+                "l_a": g.l_a,
+                "l_b": g.l_b,
                 "cos_theta": [math.cos(t) for t in g.theta],
                 "sin_theta": [math.sin(t) for t in g.theta],
                 "singular_tol": g.singular_tol,
@@ -77,7 +80,9 @@ class CompiledDelta:
         outs = [np.empty((n, out_width or axes)) for _ in range(n_out)]
         status = np.empty(n, dtype=np.int8)
         rc = fn(
-            self._geometry, n, axes,
+            self._geometry,
+            n,
+            axes,
             *(fb("double[]", a) for a in inputs),
             *(fb("double[]", o, require_writable=True) for o in outs),
             fb("int8_t[]", status, require_writable=True),

@@ -12,11 +12,16 @@ from pathlib import Path
 import numpy as np
 
 from deltagen import status as st
-from deltagen.native.build import load, usable_cache_dir
+from deltagen.codegen.serial import (
+    arm_sources,
+    base_name,
+    c_prefix,
+    description_fingerprint,
+    generator_fingerprint,
+)
 from deltagen.inputs import plain_pose
+from deltagen.native.build import load, usable_cache_dir
 from deltagen.paths import generated_dir
-from deltagen.codegen.serial import (arm_sources, base_name, c_prefix, description_fingerprint,
-                                     generator_fingerprint)
 
 
 def source_dir(desc) -> Path:
@@ -77,14 +82,18 @@ class CompiledArm:
         n = inputs[0].shape[0]
         fb = self._ffi.from_buffer
         kinds = [w if isinstance(w, tuple) else (w, "double") for w in widths]
-        outs = [np.empty((n, width), dtype=np.uint8 if ctype == "uint8_t" else np.float64)
-                for width, ctype in kinds]
+        outs = [
+            np.empty((n, width), dtype=np.uint8 if ctype == "uint8_t" else np.float64)
+            for width, ctype in kinds
+        ]
         status = np.empty(n, dtype=np.int8)
         fn = getattr(self._lib, f"{self._prefix}_{name}")
-        rc = fn(n, *(fb("double[]", a) for a in inputs),
-                *(fb(f"{ctype}[]", out, require_writable=True)
-                  for out, (_, ctype) in zip(outs, kinds)),
-                fb("int8_t[]", status, require_writable=True))
+        rc = fn(
+            n,
+            *(fb("double[]", a) for a in inputs),
+            *(fb(f"{ctype}[]", out, require_writable=True) for out, (_, ctype) in zip(outs, kinds)),
+            fb("int8_t[]", status, require_writable=True),
+        )
         if rc != 0:
             raise RuntimeError(f"C core rejected its arguments (rc={rc})")
         return (*outs, status)
@@ -114,9 +123,11 @@ class CompiledArm:
         (codegen/runtime/deltagen_ik_newton.h); integers and flags are converted."""
         types = dict(self._ffi.typeof("deltagen_ik_options").fields)
         if set(fields) != set(types):
-            raise TypeError(f"ik_options needs exactly the fields {sorted(types)}; missing "
-                            f"{sorted(set(types) - set(fields))}, unknown "
-                            f"{sorted(set(fields) - set(types))}")
+            raise TypeError(
+                f"ik_options needs exactly the fields {sorted(types)}; missing "
+                f"{sorted(set(types) - set(fields))}, unknown "
+                f"{sorted(set(fields) - set(types))}"
+            )
         values = {}
         for name, value in fields.items():
             ctype = types[name].type
@@ -141,12 +152,18 @@ class CompiledArm:
         iterations = np.empty(N, dtype=np.int32)
         status = np.empty(N, dtype=np.int8)
         lim = self._ffi.NULL if qlim is None else fb("double[]", qlim)
-        rc = self._ik_newton(N, options, fb("double[]", T), fb("double[]", q0), lim,
-                             fb("double[]", q, require_writable=True),
-                             fb("double[]", err_p, require_writable=True),
-                             fb("double[]", err_r, require_writable=True),
-                             fb("int32_t[]", iterations, require_writable=True),
-                             fb("int8_t[]", status, require_writable=True))
+        rc = self._ik_newton(
+            N,
+            options,
+            fb("double[]", T),
+            fb("double[]", q0),
+            lim,
+            fb("double[]", q, require_writable=True),
+            fb("double[]", err_p, require_writable=True),
+            fb("double[]", err_r, require_writable=True),
+            fb("int32_t[]", iterations, require_writable=True),
+            fb("int8_t[]", status, require_writable=True),
+        )
         if rc != 0:
             raise RuntimeError(f"C core rejected the IK arguments (rc={rc})")
         return q, err_p, err_r, iterations, status
@@ -162,8 +179,7 @@ class CompiledArm:
     def ik_all(self, T, k):
         """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
         q (N, k, n), valid (N, k) bool, status (N,)."""
-        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n,
-                                     (k, "uint8_t"))
+        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n, (k, "uint8_t"))
         return q.reshape(-1, k, self.desc.n), valid != 0, status
 
     def single_ik_all(self, k):

@@ -77,7 +77,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from deltagen.errors import KinematicsError
-from deltagen.inputs import InputError
+
 # the rotation helpers live in geometry; skew ... slerp stay importable from here
 from deltagen.geometry.rotations import (  # noqa: F401
     as_rotation,
@@ -89,6 +89,7 @@ from deltagen.geometry.rotations import (  # noqa: F401
     skew,
     slerp,
 )
+from deltagen.inputs import InputError
 
 _AXES = "xyz"
 
@@ -138,8 +139,11 @@ class Trapezoid:
         b, v, a = self.blend, self.vmax, self.amax
         rise, fall = tau < b, tau > 1.0 - b
         u = 1.0 - tau
-        s = np.where(rise, 0.5 * a * tau**2,
-                     np.where(fall, 1.0 - 0.5 * a * u**2, 0.5 * a * b**2 + v * (tau - b)))
+        s = np.where(
+            rise,
+            0.5 * a * tau**2,
+            np.where(fall, 1.0 - 0.5 * a * u**2, 0.5 * a * b**2 + v * (tau - b)),
+        )
         sd = np.where(rise, a * tau, np.where(fall, a * u, v))
         sdd = np.where(rise, a, np.where(fall, -a, 0.0))
         return s, sd, sdd
@@ -155,7 +159,9 @@ def _scaling(scaling):
         return Trapezoid()
     if callable(scaling):
         return scaling
-    raise InputError(f"time scaling must be 'quintic', 'trapezoid' or a scaling object, got {scaling!r}")
+    raise InputError(
+        f"time scaling must be 'quintic', 'trapezoid' or a scaling object, got {scaling!r}"
+    )
 
 
 # =========================================================================== rotations
@@ -246,7 +252,7 @@ class Arc:
         object.__setattr__(self, "angle", angle)
 
     @classmethod
-    def from_three_points(cls, p0, via, p1) -> "Arc":
+    def from_three_points(cls, p0, via, p1) -> Arc:
         """The arc of the circle through three points from p0 through ``via`` to p1."""
         a, m, b = _vec3(p0, "arc start"), _vec3(via, "arc via point"), _vec3(p1, "arc end")
         e1, e2 = m - a, b - a
@@ -343,8 +349,12 @@ class Segment:
         sd, sdd = sd / T, sdd / T**2
         p, dp, ddp = self.path.evaluate(s)
         out = {
-            "s": s, "sd": sd, "sdd": sdd,
-            "p": p, "v": dp * sd[:, None], "a": ddp * (sd**2)[:, None] + dp * sdd[:, None],
+            "s": s,
+            "sd": sd,
+            "sdd": sdd,
+            "p": p,
+            "v": dp * sd[:, None],
+            "a": ddp * (sd**2)[:, None] + dp * sdd[:, None],
         }
         if self.R0 is not None:
             out["R"] = self.R0 @ rot_exp(s[:, None] * self._k)
@@ -396,11 +406,14 @@ class CartesianTrajectory:
             a, b = segments[k - 1], segments[k]
             scale = max(1.0, float(np.max(np.abs(a.path.end))))
             if np.linalg.norm(a.path.end - b.path.start) > 1e-9 * scale:
-                raise InputError(f"segment {k} starts at {b.path.start}, segment {k - 1} ends at "
-                                 f"{a.path.end}: the path must be continuous")
+                raise InputError(
+                    f"segment {k} starts at {b.path.start}, segment {k - 1} ends at "
+                    f"{a.path.end}: the path must be continuous"
+                )
             if a.R1 is not None and np.max(np.abs(a.R1 - b.R0)) > 1e-9:
-                raise InputError(f"segment {k} starts with another orientation than segment "
-                                 f"{k - 1} ends with")
+                raise InputError(
+                    f"segment {k} starts with another orientation than segment {k - 1} ends with"
+                )
             if np.max(np.abs(a.j1 - b.j0), initial=0.0) > 1e-12:
                 raise InputError(f"segment {k}: prescribed joints jump at the start")
         self.segments = segments
@@ -466,13 +479,27 @@ class PathBuilder:
 
     def _add(self, path, duration, R, joints, scaling, label):
         if R is not None and self.R is None:
-            raise InputError("this path has no orientation: give R at the start (PathBuilder(R=...))")
+            raise InputError(
+                "this path has no orientation: give R at the start (PathBuilder(R=...))"
+            )
         R1 = self.R if R is None else _rotation(R)
-        j1 = self.j if joints is None else np.atleast_1d(np.asarray(joints, dtype=float)).reshape(-1)
+        j1 = (
+            self.j if joints is None else np.atleast_1d(np.asarray(joints, dtype=float)).reshape(-1)
+        )
         if j1.shape != self.j.shape:
             raise InputError(f"joints must have {self.j.size} values")
-        self.segments.append(Segment(path, duration, self.scaling if scaling is None else scaling,
-                                     self.R, R1, self.j, j1, label))
+        self.segments.append(
+            Segment(
+                path,
+                duration,
+                self.scaling if scaling is None else scaling,
+                self.R,
+                R1,
+                self.j,
+                j1,
+                label,
+            )
+        )
         self.p, self.R, self.j = path.end.copy(), R1, j1
         return self
 
@@ -514,9 +541,14 @@ class Task:
     joints: tuple = ()
 
     def __post_init__(self):
-        if not isinstance(self.position, str) or any(c not in _AXES for c in self.position) \
-                or len(set(self.position)) != len(self.position):
-            raise InputError(f"Task position must be distinct letters of 'xyz', got {self.position!r}")
+        if (
+            not isinstance(self.position, str)
+            or any(c not in _AXES for c in self.position)
+            or len(set(self.position)) != len(self.position)
+        ):
+            raise InputError(
+                f"Task position must be distinct letters of 'xyz', got {self.position!r}"
+            )
         object.__setattr__(self, "joints", tuple(int(j) for j in self.joints))
 
     @property
@@ -531,7 +563,9 @@ class Task:
         if self.rows == 0:
             raise InputError("the task prescribes nothing")
         if self.rows > robot.n:
-            raise InputError(f"the task has {self.rows} rows but {robot.name} only {robot.n} joints")
+            raise InputError(
+                f"the task has {self.rows} rows but {robot.name} only {robot.n} joints"
+            )
         if any(not (0 <= j < robot.n) for j in self.joints):
             raise InputError(f"task joints must be indices 0..{robot.n - 1}, got {self.joints}")
 
@@ -605,8 +639,9 @@ def newton_step(robot, q, task: Task, p, R=None, qj=None, damping=0.0):
     return q + _solve(Jt, e, damping)
 
 
-def solve_ik(robot, task: Task, p, R=None, qj=None, q_init=None, tol=1e-13, max_iter=50,
-             damping=1e-9):
+def solve_ik(
+    robot, task: Task, p, R=None, qj=None, q_init=None, tol=1e-13, max_iter=50, damping=1e-9
+):
     """Damped Newton (Levenberg-Marquardt) from q_init: returns (q, |e|, iterations).
 
     The damping lam^2 = (damping)^2 * mean(eig(J J^T)) is tiny by default, so the steps are
@@ -680,7 +715,7 @@ def numerical_rates(t, q, breaks=()):
     qdd = np.zeros_like(q)
     count = np.zeros(N)
     for a, b in zip(cuts[:-1], cuts[1:]):
-        x = q[a:b + 1]
+        x = q[a : b + 1]
         d1 = np.empty_like(x)
         d2 = np.empty_like(x)
         d1[1:-1] = (x[2:] - x[:-2]) / (2 * h)
@@ -689,9 +724,9 @@ def numerical_rates(t, q, breaks=()):
         d2[1:-1] = (x[2:] - 2 * x[1:-1] + x[:-2]) / h**2
         d2[0] = (2 * x[0] - 5 * x[1] + 4 * x[2] - x[3]) / h**2
         d2[-1] = (2 * x[-1] - 5 * x[-2] + 4 * x[-3] - x[-4]) / h**2
-        qd[a:b + 1] += d1
-        qdd[a:b + 1] += d2
-        count[a:b + 1] += 1
+        qd[a : b + 1] += d1
+        qdd[a : b + 1] += d2
+        count[a : b + 1] += 1
     return qd / count[:, None], qdd / count[:, None]
 
 
@@ -734,9 +769,12 @@ class JointTrajectory:
         dqd = np.abs(self.qd - self.qd_num)
         dqdd = np.abs(self.qdd - self.qdd_num)
         return {
-            "qd": float(dqd.max()), "qdd": float(dqdd.max()),
-            "qd_per_joint": dqd.max(axis=0), "qdd_per_joint": dqdd.max(axis=0),
-            "qd_peak": float(np.abs(self.qd).max()), "qdd_peak": float(np.abs(self.qdd).max()),
+            "qd": float(dqd.max()),
+            "qdd": float(dqdd.max()),
+            "qd_per_joint": dqd.max(axis=0),
+            "qdd_per_joint": dqdd.max(axis=0),
+            "qd_peak": float(np.abs(self.qd).max()),
+            "qdd_peak": float(np.abs(self.qdd).max()),
         }
 
     def numerical_rates_unsplit(self):
@@ -755,9 +793,20 @@ def exact_rates(robot, task: Task, q, cs: CartesianSamples):
     return qd, qdd
 
 
-def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, dt=0.01, *,
-                        tol=1e-13, max_iter=30, max_step=0.2, branch=None, limits="raise",
-                        damping=1e-9) -> JointTrajectory:
+def to_joint_trajectory(
+    robot,
+    trajectory: CartesianTrajectory,
+    task: Task,
+    q0,
+    dt=0.01,
+    *,
+    tol=1e-13,
+    max_iter=30,
+    max_step=0.2,
+    branch=None,
+    limits="raise",
+    damping=1e-9,
+) -> JointTrajectory:
     """Inverse kinematics along ``trajectory`` sampled every ``dt`` (or less, see
     :meth:`CartesianTrajectory.sample_times`), in the configuration of ``q0``.
 
@@ -773,8 +822,10 @@ def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, 
     if task.orientation and not trajectory.has_orientation:
         raise InputError("the task prescribes the orientation but the trajectory has none")
     if len(task.joints) != trajectory.n_joints_prescribed:
-        raise InputError(f"the task prescribes {len(task.joints)} joints, the trajectory "
-                         f"{trajectory.n_joints_prescribed}")
+        raise InputError(
+            f"the task prescribes {len(task.joints)} joints, the trajectory "
+            f"{trajectory.n_joints_prescribed}"
+        )
     if isinstance(q0, str):
         q0 = robot.configuration(q0)
     q0 = np.asarray(q0, dtype=float)
@@ -790,8 +841,17 @@ def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, 
     for k in range(N):
         R = None if cs.R is None else cs.R[k]
         try:
-            q, err[k], its[k] = solve_ik(robot, task, cs.p[k], R, cs.qj[k], guess, tol=tol,
-                                         max_iter=max_iter, damping=damping)
+            q, err[k], its[k] = solve_ik(
+                robot,
+                task,
+                cs.p[k],
+                R,
+                cs.qj[k],
+                guess,
+                tol=tol,
+                max_iter=max_iter,
+                damping=damping,
+            )
         except TrajectoryError as exc:
             raise TrajectoryError(f"sample {k} (t = {t[k]:.6g} s): {exc}", [k]) from None
         if k > 0:
@@ -799,7 +859,9 @@ def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, 
             if step > max_step:
                 raise TrajectoryError(
                     f"joint jump of {step:.3g} > max_step = {max_step:g} between samples {k - 1} "
-                    f"and {k} (t = {t[k]:.6g} s): a branch flip or a singularity on the path", [k])
+                    f"and {k} (t = {t[k]:.6g} s): a branch flip or a singularity on the path",
+                    [k],
+                )
         Q[k] = q
         # predictor for the next sample: the quadratic through the last three solutions
         # (error O(h^3)), so one or two Newton iterations suffice
@@ -813,16 +875,21 @@ def to_joint_trajectory(robot, trajectory: CartesianTrajectory, task: Task, q0, 
         ok = np.asarray(branch(Q), dtype=bool)
         if not ok.all():
             bad = np.flatnonzero(~ok)
-            raise TrajectoryError(f"the branch condition fails at {bad.size} samples (first t = "
-                                  f"{t[bad[0]]:.6g} s)", bad)
+            raise TrajectoryError(
+                f"the branch condition fails at {bad.size} samples (first t = {t[bad[0]]:.6g} s)",
+                bad,
+            )
     if limits == "raise":
         inside = robot.within_limits(Q)
         if not inside.all():
             bad = np.flatnonzero(~inside)
             lim = robot.qlim
             worst = np.max(np.maximum(lim[:, 0] - Q[bad], Q[bad] - lim[:, 1]), axis=0)
-            raise TrajectoryError(f"joint limits exceeded at {bad.size} samples (first t = "
-                                  f"{t[bad[0]]:.6g} s; overshoot per joint {np.round(worst, 6)})", bad)
+            raise TrajectoryError(
+                f"joint limits exceeded at {bad.size} samples (first t = "
+                f"{t[bad[0]]:.6g} s; overshoot per joint {np.round(worst, 6)})",
+                bad,
+            )
     qd, qdd = exact_rates(robot, task, Q, cs)
     qd_num, qdd_num = numerical_rates(t, Q, trajectory.breaks)
     return JointTrajectory(robot, task, trajectory, t, Q, qd, qdd, qd_num, qdd_num, err, its, cs)
@@ -849,8 +916,9 @@ class PathFollowingTable:
         return float(np.linalg.norm(last - self.soll[-1]))
 
 
-def jacobian_path_following(robot, q0, target, steps=10, task=Task("xy"), converge_tol=1e-12,
-                            max_converge=20) -> PathFollowingTable:
+def jacobian_path_following(
+    robot, q0, target, steps=10, task=Task("xy"), converge_tol=1e-12, max_converge=20
+) -> PathFollowingTable:
     """Slides 106-111: the straight line from P0 = f(q0) to ``target`` split into ``steps``
     equal parts along each axis; per sub-point ONE step ``q += J^-1(q) (P_soll,k+1 - f(q))``
     with J the task Jacobian at the current q (for the planar SCARA the 2x2 matrix of slide
@@ -886,6 +954,10 @@ def jacobian_path_following(robot, q0, target, steps=10, task=Task("xy"), conver
         q = newton_step(robot, q, task, full(target), damping=0.0)
         c_q.append(q.copy())
         c_ist.append(pos(q))
-    return PathFollowingTable(soll, np.array(ist), np.array(qs),
-                              np.array(c_ist).reshape(-1, len(axes)),
-                              np.array(c_q).reshape(-1, robot.n))
+    return PathFollowingTable(
+        soll,
+        np.array(ist),
+        np.array(qs),
+        np.array(c_ist).reshape(-1, len(axes)),
+        np.array(c_q).reshape(-1, robot.n),
+    )

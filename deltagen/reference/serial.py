@@ -127,20 +127,26 @@ def _link(desc, i: int, qi: np.ndarray) -> np.ndarray:
     if desc.convention == "standard":
         theta = var if j.revolute else const + j.theta
         d = const + j.d if j.revolute else var
-        return _product(_rot(2, theta), _trans(2, d),
-                        _trans(0, const + j.a), _rot(0, const + j.alpha))
+        return _product(
+            _rot(2, theta), _trans(2, d), _trans(0, const + j.a), _rot(0, const + j.alpha)
+        )
     if desc.convention == "modified":
         theta = var if j.revolute else const + j.theta
         d = const + j.d if j.revolute else var
-        return _product(_rot(0, const + j.alpha), _trans(0, const + j.a),
-                        _rot(2, theta), _trans(2, d))
+        return _product(
+            _rot(0, const + j.alpha), _trans(0, const + j.a), _rot(2, theta), _trans(2, d)
+        )
     if desc.convention == "universal":
         ax = _AXIS[j.axis]
         motion = _rot(ax, var) if j.revolute else _trans(ax, var)
         return _product(
             motion,
-            _trans(0, const + j.tx), _trans(1, const + j.ty), _trans(2, const + j.tz),
-            _rot(0, const + j.rx), _rot(1, const + j.ry), _rot(2, const + j.rz),
+            _trans(0, const + j.tx),
+            _trans(1, const + j.ty),
+            _trans(2, const + j.tz),
+            _rot(0, const + j.rx),
+            _rot(1, const + j.ry),
+            _rot(2, const + j.rz),
         )
     raise ValueError(f"unknown convention {desc.convention!r}")  # pragma: no cover
 

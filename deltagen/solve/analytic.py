@@ -104,7 +104,8 @@ import math
 import numpy as np
 
 from deltagen.geometry.limits import fit_limits
-from deltagen.geometry.rotations import rotate as _rotv, rotate2d as _rot2
+from deltagen.geometry.rotations import rotate as _rotv
+from deltagen.geometry.rotations import rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import PlanarArm, Structure, detect
@@ -116,8 +117,6 @@ _CHUNK = 8192  # poses per pass (keeps the temporaries in cache)
 
 
 # ------------------------------------------------------------------------ small helpers
-
-
 
 
 def _cross(a, b) -> np.ndarray:
@@ -180,13 +179,22 @@ class AnalyticSolver:
         self.configs = tuple(detected.configs)
 
     def __repr__(self):
-        return (f"AnalyticSolver({self.axes.name!r}, {self.structure}, "
-                f"{len(self.configs)} configurations)")
+        return (
+            f"AnalyticSolver({self.axes.name!r}, {self.structure}, "
+            f"{len(self.configs)} configurations)"
+        )
 
     # -- public ------------------------------------------------------------------------
 
-    def solve(self, T, *, position_only: bool = False, limits: bool = True, tol: float = 1e-8,
-              check: bool = True):
+    def solve(
+        self,
+        T,
+        *,
+        position_only: bool = False,
+        limits: bool = True,
+        tol: float = 1e-8,
+        check: bool = True,
+    ):
         """All branches for poses T (..., 4, 4) -> (q (..., k, n), valid (..., k)).
 
         ``tol``: accepted forward-kinematics residual (rotation entries; position divided by
@@ -203,7 +211,8 @@ class AnalyticSolver:
         if position_only and not self.detected.position_only_ok:
             raise InputError(
                 f"{self.axes.name}: position_only needs the tool point on the last "
-                "joint axis (it would move with the last joint otherwise)")
+                "joint axis (it would move with the last joint otherwise)"
+            )
         lead = T.shape[:-2]
         Tf = T.reshape(-1, 4, 4)
         N, k, n = Tf.shape[0], len(self.configs), self.n
@@ -211,8 +220,9 @@ class AnalyticSolver:
         valid = np.empty((N, k), dtype=bool)
         for a in range(0, N, _CHUNK):
             b = min(N, a + _CHUNK)
-            q[a:b], valid[a:b] = self._solve_chunk(Tf[a:b], bool(position_only), bool(limits),
-                                                   float(tol), bool(check))
+            q[a:b], valid[a:b] = self._solve_chunk(
+                Tf[a:b], bool(position_only), bool(limits), float(tol), bool(check)
+            )
         return q.reshape(lead + (k, n)), valid.reshape(lead + (k,))
 
     def closed_form(self, R_t, p_t, position_only: bool = False):
@@ -309,7 +319,7 @@ class _ElbowSolver(AnalyticSolver):
         px, py, pz = d @ s.ex, d @ s.ey, d @ s.ez
         yV = (s.w2_offset - s.cos_12 * pz) / s.sin_12
         rad = px * px + py * py - yV * yV
-        ok1 = rad >= -1e-9 * ax.scale ** 2
+        ok1 = rad >= -1e-9 * ax.scale**2
         xV = s.front[None, :] * np.sqrt(np.maximum(rad, 0.0))[:, None]  # (N, 4)
         yVb = np.broadcast_to(yV[:, None], xV.shape)
         q1 = np.arctan2(py, px)[:, None] - np.arctan2(yVb, xV)
@@ -318,8 +328,7 @@ class _ElbowSolver(AnalyticSolver):
         on_axis = px * px + py * py < (1e-12 * ax.scale) ** 2
         q1 = np.where(on_axis[:, None], np.where(s.front > 0, 0.0, -math.pi), q1)
         # wrist target in the arm frame (q1 undone), in plane coordinates
-        V = (o1 + xV[..., None] * s.ex + yVb[..., None] * s.ey
-             + pz[:, None, None] * s.ez)
+        V = o1 + xV[..., None] * s.ex + yVb[..., None] * s.ey + pz[:, None, None] * s.ez
         t = V @ s.plane.T - s.shoulder_xy
         th2, th3, ok2 = _two_link(s.upper, s.lower, t, s.bend[None, :])
         ok = ok1[:, None] & np.broadcast_to(ok2, th2.shape)
@@ -329,8 +338,7 @@ class _ElbowSolver(AnalyticSolver):
             d4 = np.broadcast_to((R_G @ w4)[:, None, :], xV.shape + (3,))
             d4 = _rotv(w1, -q1, d4)
             tot = _sp1(w2, w4, d4)
-            p2 = (_angle2(t - _rot2(tot, np.broadcast_to(s.lower, t.shape)))
-                  - _angle2(s.upper))
+            p2 = _angle2(t - _rot2(tot, np.broadcast_to(s.lower, t.shape))) - _angle2(s.upper)
             p3 = tot - p2
             bend = np.sign(np.sin(p3 + _angle2(s.lower) - _angle2(s.upper)))
             bend = np.where(bend == 0.0, 1.0, bend)
@@ -360,6 +368,7 @@ class _ElbowSolver(AnalyticSolver):
         W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
         q1, th2, th3, ok = self._arm(W_t)
         tot = th2 + th3
+
         # wrist rotation R_w = (R1 R23)^T R_G, applied to w6 and x6
         def undo(v):
             v = np.broadcast_to(v[:, None, :], q1.shape + (3,))
@@ -380,8 +389,11 @@ class _ElbowSolver(AnalyticSolver):
         gam = np.sqrt(np.maximum(gam2, 0.0))
         n45 = s.normal_45
         sig = np.array([1.0, -1.0])  # noflip, flip: sin(q5 - q5s) has the sign of -sig
-        c = (alpha[..., None, None] * w4 + beta[..., None, None] * w5
-             + (sig[:, None] * gam[..., None, None]) * n45)  # (N, 4, 2, 3)
+        c = (
+            alpha[..., None, None] * w4
+            + beta[..., None, None] * w5
+            + (sig[:, None] * gam[..., None, None]) * n45
+        )  # (N, 4, 2, 3)
         q5 = _sp1(w5, w6, c)
         qv2 = np.broadcast_to(qv[:, :, None, :], c.shape)
         q4 = _sp1(w4, c, qv2)
@@ -397,8 +409,9 @@ class _ElbowSolver(AnalyticSolver):
         return q, okk.reshape(N, 8)
 
 
-def solver_for(detected: Structure | None,
-               description: SerialDescription | None = None) -> AnalyticSolver | None:
+def solver_for(
+    detected: Structure | None, description: SerialDescription | None = None
+) -> AnalyticSolver | None:
     """The closed-form solver of a detected structure (None for None)."""
     if detected is None:
         return None

@@ -63,8 +63,8 @@ import numpy as np
 
 from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
-from deltagen.solve import numeric as ik_numeric
 from deltagen.model.serial import SerialDescription
+from deltagen.solve import numeric as ik_numeric
 from deltagen.solve.analytic import analytic_solver
 
 __all__ = ["nearest_central_wrist", "central_solver", "branch_names", "solve_all"]
@@ -74,7 +74,7 @@ _WRIST_OFFSETS = {
     "standard": ((3, "a"), (4, "a"), (4, "d")),
     "modified": ((4, "a"), (5, "a"), (4, "d")),
 }
-_SOLVERS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_SOLVERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def nearest_central_wrist(desc: SerialDescription) -> SerialDescription:
@@ -86,16 +86,24 @@ def nearest_central_wrist(desc: SerialDescription) -> SerialDescription:
     if desc.n != 6 or not all(j.revolute for j in desc.joints):
         raise InputError(f"{desc.name}: the combined solution needs a 6R arm")
     if desc.convention not in _WRIST_OFFSETS:
-        raise InputError(f"{desc.name}: nearest_central_wrist supports standard and modified DH, "
-                         f"not {desc.convention!r}")
+        raise InputError(
+            f"{desc.name}: nearest_central_wrist supports standard and modified DH, "
+            f"not {desc.convention!r}"
+        )
     joints = list(desc.joints)
     for i, field in _WRIST_OFFSETS[desc.convention]:
         joints[i] = dataclasses.replace(joints[i], **{field: 0.0})
-    central = dataclasses.replace(desc, name=f"{desc.name}_central", joints=tuple(joints),
-                                  doc=f"{desc.name} with the wrist offsets set to zero")
+    central = dataclasses.replace(
+        desc,
+        name=f"{desc.name}_central",
+        joints=tuple(joints),
+        doc=f"{desc.name} with the wrist offsets set to zero",
+    )
     if analytic_solver(central) is None:
-        raise InputError(f"{desc.name}: no closed form for the arm with a central wrist "
-                         "(needs axes 2 and 3 parallel, axis 1 not parallel to them)")
+        raise InputError(
+            f"{desc.name}: no closed form for the arm with a central wrist "
+            "(needs axes 2 and 3 parallel, axis 1 not parallel to them)"
+        )
     return central
 
 
@@ -122,8 +130,8 @@ def _central_starts(solver, arm, T, corrections):
         flat = q.reshape(N * k, -1)
         fin = np.all(np.isfinite(flat), axis=1)
         qs = np.where(fin[:, None], flat, 0.0)
-        Rc, pc = solver.axes.fk(qs)                       # central-wrist arm at q
-        Tr, _ = arm._core.fk(np.ascontiguousarray(qs))    # real arm at q
+        Rc, pc = solver.axes.fk(qs)  # central-wrist arm at q
+        Tr, _ = arm._core.fk(np.ascontiguousarray(qs))  # real arm at q
         # T' = fk_central(q) fk_real(q)^-1 T: the pose the central arm must reach so that
         # the real arm reaches T at the same q (to first order in the offset)
         Rr, pr = Tr[:, :3, :3], Tr[:, :3, 3]
@@ -131,7 +139,7 @@ def _central_starts(solver, arm, T, corrections):
         D = Rc @ np.swapaxes(Rr, 1, 2)
         R2 = D @ Tt[:, :3, :3]
         p2 = np.einsum("nij,nj->ni", D, Tt[:, :3, 3] - pr) + pc
-        q2, _ = solver.closed_form(R2, p2)               # (N k, k, n): keep own branch
+        q2, _ = solver.closed_form(R2, p2)  # (N k, k, n): keep own branch
         q2 = q2.reshape(N, k, k, -1)[:, rows, rows]
         ok2 = np.all(np.isfinite(q2), axis=-1) & fin.reshape(N, k)
         q = np.where(ok2[..., None], q2, q)
@@ -164,8 +172,9 @@ def solve_all(arm, T, *, tol=1e-10, max_iter=50, corrections=2, info=False):
     q0[~has] = np.nan
     # 2. Newton on the real arm from every branch (rows without a start are skipped)
     Tk = np.repeat(safe, k, axis=0)
-    res = ik_numeric.solve(arm, Tk, q0.reshape(N * k, n), tol=tol, max_iter=max_iter,
-                           restarts=0, respect_limits=False)
+    res = ik_numeric.solve(
+        arm, Tk, q0.reshape(N * k, n), tol=tol, max_iter=max_iter, restarts=0, respect_limits=False
+    )
     conv = res.converged.reshape(N, k) & has
     with np.errstate(invalid="ignore"):
         q, inside = fit_limits(res.q.reshape(N, k, n), arm.qlim, [True] * n)
@@ -174,6 +183,7 @@ def solve_all(arm, T, *, tol=1e-10, max_iter=50, corrections=2, info=False):
     out = (q.reshape(lead + (k, n)), valid.reshape(lead + (k,)))
     if info:
         iters = np.where(has, res.iterations.reshape(N, k), 0)
-        return out + ({"start": q0.reshape(lead + (k, n)),
-                       "iterations": iters.reshape(lead + (k,))},)
+        return out + (
+            {"start": q0.reshape(lead + (k, n)), "iterations": iters.reshape(lead + (k,))},
+        )
     return out

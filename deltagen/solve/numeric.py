@@ -117,26 +117,27 @@ import numpy as np
 
 from deltagen import status as st
 from deltagen.geometry.limits import shift_into_limits
-from deltagen.geometry.rotations import rot_log as rotation_vector, vee  # rotation_vector: public
+from deltagen.geometry.rotations import rot_log as rotation_vector  # rotation_vector: public
+from deltagen.geometry.rotations import vee
 from deltagen.inputs import InputError, as_float_array
 
 __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
 
 JACOBIANS = ("symbolic", "geometric", "fd")
 ENGINES = ("auto", "c", "numpy")
-SIGMA_WELL = 1e-2       # sigma_min below this: damping grows (Nakamura-Hanafusa threshold)
-BASE_DAMPING = 0.1      # c0: lambda^2 >= c0 |dx|^2 always
-GAUSS_REL = 1e-3        # Gauss elimination when lambda <= GAUSS_REL * sigma_min (and n == k)
-MU_START = 1e-2         # LM parameter after the first rejected step
-MU_MAX = 1e12           # LM parameter above which the attempt counts as stuck
-STALL_WINDOW = 8        # steps over which |dx| must at least halve (else stuck)
+SIGMA_WELL = 1e-2  # sigma_min below this: damping grows (Nakamura-Hanafusa threshold)
+BASE_DAMPING = 0.1  # c0: lambda^2 >= c0 |dx|^2 always
+GAUSS_REL = 1e-3  # Gauss elimination when lambda <= GAUSS_REL * sigma_min (and n == k)
+MU_START = 1e-2  # LM parameter after the first rejected step
+MU_MAX = 1e12  # LM parameter above which the attempt counts as stuck
+STALL_WINDOW = 8  # steps over which |dx| must at least halve (else stuck)
 FIRST_WINDOW_FACTOR = 3  # ... times this for the attempt from the caller's q0
-FD_STEP = 2.0 ** -17    # central-difference step (~ eps^(1/3))
-ACTIVE_SET = True       # re-solve without the joints a step pushes through a limit
-ETA = 0.95              # non-monotone acceptance weight (Zhang-Hager); 0: monotone
+FD_STEP = 2.0**-17  # central-difference step (~ eps^(1/3))
+ACTIVE_SET = True  # re-solve without the joints a step pushes through a limit
+ETA = 0.95  # non-monotone acceptance weight (Zhang-Hager); 0: monotone
 PHASE2_FROM_START = True  # the limited phase restarts from the attempt's start point
-FREE_CHECK = 1e-9        # free phase: limits checked once |dx| <= max(tol, this)
-FREE_FIRST = True       # each attempt starts with the limits unenforced (module docstring)
+FREE_CHECK = 1e-9  # free phase: limits checked once |dx| <= max(tol, this)
+FREE_FIRST = True  # each attempt starts with the limits unenforced (module docstring)
 _RCOND = 1e-12
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
@@ -161,8 +162,10 @@ class IKResult:
 
     def __repr__(self):
         conv = np.asarray(self.converged)
-        return (f"IKResult({int(conv.sum())} of {conv.size} converged, "
-                f"max iterations {int(np.max(self.iterations, initial=0))})")
+        return (
+            f"IKResult({int(conv.sum())} of {conv.size} converged, "
+            f"max iterations {int(np.max(self.iterations, initial=0))})"
+        )
 
 
 # ------------------------------------------------------------------------------ geometry
@@ -194,7 +197,7 @@ def _geometric_jacobian(arm, q: np.ndarray) -> np.ndarray:
     else:
         M = F[:, idx]
         cols = np.array([_AXIS[j.axis] for j in desc.joints])
-    o = M[:, :, :3, 3]                          # (N, n, 3) points on the axes
+    o = M[:, :, :3, 3]  # (N, n, 3) points on the axes
     w = np.einsum("nkij,kj->nki", M[:, :, :3, :], np.eye(4)[cols])  # (N, n, 3) directions
     p = F[:, -1, :3, 3]
     rev = np.array([j.revolute for j in desc.joints])
@@ -280,8 +283,9 @@ def _check_mask(mask) -> np.ndarray:
 
 
 def _is_real(x) -> bool:
-    return (isinstance(x, (int, float, np.integer, np.floating))
-            and not isinstance(x, (bool, np.bool_)))
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(
+        x, (bool, np.bool_)
+    )
 
 
 def _check_tol(tol):
@@ -302,8 +306,9 @@ class _Limits:
         self.respect = respect
         rev = np.array([j.revolute for j in arm.description.joints])
         self.wrap = rev & np.isfinite(self.lo) & np.isfinite(self.hi)
-        self.mid = np.where(np.isfinite(self.lo) & np.isfinite(self.hi),
-                            0.5 * (self.lo + self.hi), np.nan)
+        self.mid = np.where(
+            np.isfinite(self.lo) & np.isfinite(self.hi), 0.5 * (self.lo + self.hi), np.nan
+        )
 
     def wrap_only(self, q):
         """q with out-of-range revolute joints shifted by 2 pi where that brings them in."""
@@ -320,9 +325,23 @@ class _Limits:
 # ------------------------------------------------------------------------------- solve
 
 
-def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symbolic",
-          damping="auto", step_limit=0.5, respect_limits=True, restarts=0, seed=0,
-          null_space=0.0, engine="auto") -> IKResult:
+def solve(
+    arm,
+    T,
+    q0=None,
+    *,
+    tol=1e-10,
+    max_iter=100,
+    mask=None,
+    jacobian="symbolic",
+    damping="auto",
+    step_limit=0.5,
+    respect_limits=True,
+    restarts=0,
+    seed=0,
+    null_space=0.0,
+    engine="auto",
+) -> IKResult:
     """Joint values q with fk(q) = T for a batch of target poses (module docstring).
 
     arm: a SerialRobot (its raw batched backend ``arm._core`` is used).
@@ -368,11 +387,17 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
         raise InputError(f"null_space must be a finite number >= 0, got {null_space!r}")
     if engine not in ENGINES:
         raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
-    c_ok = (getattr(arm, "backend", None) == "compiled" and jacobian == "symbolic" and lm
-            and null_space == 0)
+    c_ok = (
+        getattr(arm, "backend", None) == "compiled"
+        and jacobian == "symbolic"
+        and lm
+        and null_space == 0
+    )
     if engine == "c" and not c_ok:
-        raise InputError('engine="c" needs the compiled backend, jacobian="symbolic", '
-                         'damping "auto" or a number, and null_space=0')
+        raise InputError(
+            'engine="c" needs the compiled backend, jacobian="symbolic", '
+            'damping "auto" or a number, and null_space=0'
+        )
     use_c = engine == "c" or (engine == "auto" and c_ok)
     n = arm.n
     T = as_float_array(T, "T")
@@ -388,7 +413,8 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
         q0 = np.broadcast_to(q0, lead + (n,))
     except ValueError:
         raise InputError(
-            f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}") from None
+            f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}"
+        ) from None
     mask = default_mask(arm, jacobian) if mask is None else _check_mask(mask)
 
     Tt = np.ascontiguousarray(T.reshape(-1, 4, 4))
@@ -404,18 +430,49 @@ def solve(arm, T, q0=None, *, tol=1e-10, max_iter=100, mask=None, jacobian="symb
     if rows.size:
         if use_c:
             q, c, it, pe, re = _iterate_c(
-                arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), k_nh, c0,
-                step_limit, bool(respect_limits), int(restarts), seed)
+                arm,
+                Tt[rows],
+                Q0[rows],
+                mask,
+                tol_p,
+                tol_r,
+                int(max_iter),
+                k_nh,
+                c0,
+                step_limit,
+                bool(respect_limits),
+                int(restarts),
+                seed,
+            )
         else:
             with np.errstate(all="ignore"):
                 q, c, it, pe, re = _iterate(
-                    arm, Tt[rows], Q0[rows], mask, tol_p, tol_r, int(max_iter), jacobian, k_nh,
-                    c0, lm, step_limit, bool(respect_limits), int(restarts), seed,
-                    float(null_space))
+                    arm,
+                    Tt[rows],
+                    Q0[rows],
+                    mask,
+                    tol_p,
+                    tol_r,
+                    int(max_iter),
+                    jacobian,
+                    k_nh,
+                    c0,
+                    lm,
+                    step_limit,
+                    bool(respect_limits),
+                    int(restarts),
+                    seed,
+                    float(null_space),
+                )
         q_out[rows], conv[rows], iters[rows], pos_err[rows], rot_err[rows] = q, c, it, pe, re
-    return IKResult(q=q_out.reshape(lead + (n,)), converged=conv.reshape(lead),
-                    iterations=iters.reshape(lead), position_error=pos_err.reshape(lead),
-                    rotation_error=rot_err.reshape(lead), mask=mask)
+    return IKResult(
+        q=q_out.reshape(lead + (n,)),
+        converged=conv.reshape(lead),
+        iterations=iters.reshape(lead),
+        position_error=pos_err.reshape(lead),
+        rotation_error=rot_err.reshape(lead),
+        mask=mask,
+    )
 
 
 def _newton_step(A, r, err, mu, damped, c0, k_nh, q, mid, null_gain, step_limit, smin_prev):
@@ -499,8 +556,7 @@ def single_solver(arm):
     core = arm._core
     ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
     # solve()'s defaults: tol 1e-10, max_iter 100, damping "auto", step_limit 0.5, limits
-    options = _c_options(core, 1e-10, 1e-10, 100, 1.0, BASE_DAMPING, 0.5, True,
-                         default_mask(arm))
+    options = _c_options(core, 1e-10, 1e-10, 100, 1.0, BASE_DAMPING, 0.5, True, default_mask(arm))
     # the first attempt's stall window depends on whether restarts follow (_iterate_c)
     with_restarts, alone = options(FIRST_WINDOW_FACTOR * STALL_WINDOW), options(0)
     later = options(STALL_WINDOW)
@@ -538,9 +594,17 @@ def _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask
 
     def options(window):
         return core.ik_options(
-            tol_p=tol_p, tol_r=tol_r, step_limit=np.inf if step_limit is None else step_limit,
-            damping=k_nh, base_damping=c0, max_iter=max_iter, stall_window=window,
-            respect_limits=respect, free_first=respect and FREE_FIRST, mask=mask)
+            tol_p=tol_p,
+            tol_r=tol_r,
+            step_limit=np.inf if step_limit is None else step_limit,
+            damping=k_nh,
+            base_damping=c0,
+            max_iter=max_iter,
+            stall_window=window,
+            respect_limits=respect,
+            free_first=respect and FREE_FIRST,
+            mask=mask,
+        )
 
     return options
 
@@ -553,8 +617,9 @@ def _restart_box(arm, respect):
     return box_lo, box_hi
 
 
-def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect,
-               restarts, seed):
+def _iterate_c(
+    arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, restarts, seed
+):
     """The compiled engine: one C call per attempt (deltagen_<arm>_ik_newton, the iteration of the
     module docstring for one attempt), restarts for the unconverged rows drawn here with
     the numpy engine's rules (same box, same generator, same stall windows)."""
@@ -589,8 +654,24 @@ def _iterate_c(arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, 
     return q, conv, it, ep, er
 
 
-def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, step_limit,
-             respect, restarts, seed, null_gain):
+def _iterate(
+    arm,
+    Tt,
+    q,
+    mask,
+    tol_p,
+    tol_r,
+    max_iter,
+    source,
+    k_nh,
+    c0,
+    lm,
+    step_limit,
+    respect,
+    restarts,
+    seed,
+    null_gain,
+):
     """The batched iteration; every row carries its own state (see the module docstring)."""
     N, n = q.shape
     limits = _Limits(arm, respect)
@@ -607,8 +688,11 @@ def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, ste
         return e, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1)
 
     def inside(qa):
-        return np.all((qa >= limits.lo) & (qa <= limits.hi), axis=1) if respect else \
-            np.ones(qa.shape[0], dtype=bool)
+        return (
+            np.all((qa >= limits.lo) & (qa <= limits.hi), axis=1)
+            if respect
+            else np.ones(qa.shape[0], dtype=bool)
+        )
 
     # per-row state
     free = np.full(N, respect and FREE_FIRST)  # phase 1: limits only checked at the end
@@ -616,13 +700,13 @@ def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, ste
     e, ep, er = errors(q, np.arange(N))
     err = np.hypot(ep, er)
     mu = np.zeros(N)
-    it = np.zeros(N, dtype=np.int64)          # steps over all attempts
-    it_att = np.zeros(N, dtype=np.int64)      # steps in the current attempt
+    it = np.zeros(N, dtype=np.int64)  # steps over all attempts
+    it_att = np.zeros(N, dtype=np.int64)  # steps in the current attempt
     attempts = np.zeros(N, dtype=np.int64)
-    chk = err.copy()                          # |dx| at the last stall checkpoint
-    cref = err.copy()                         # non-monotone reference (Zhang-Hager)
+    chk = err.copy()  # |dx| at the last stall checkpoint
+    cref = err.copy()  # non-monotone reference (Zhang-Hager)
     qz = np.ones(N)
-    sig = np.zeros(N)                         # sigma_min at the last SVD (0: unknown)
+    sig = np.zeros(N)  # sigma_min at the last SVD (0: unknown)
     stuck = np.zeros(N, dtype=bool)
     conv = np.zeros(N, dtype=bool)
     active = np.ones(N, dtype=bool)
@@ -631,7 +715,7 @@ def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, ste
     _, best_ep, best_er = errors(best_q, np.arange(N))
     best_err = np.hypot(best_ep, best_er)
 
-    q_start = q.copy()                        # start of the current attempt
+    q_start = q.copy()  # start of the current attempt
 
     def set_state(rows, qr):
         q[rows] = qr
@@ -687,8 +771,8 @@ def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, ste
             continue
         # -- one damped Newton step on the rows in a
         qa = np.ascontiguousarray(q[a])
-        A = jacobian(arm, qa, source)[:, mrows, :]       # (k, m, n)
-        r = e[a][:, mrows]                               # (k, m)
+        A = jacobian(arm, qa, source)[:, mrows, :]  # (k, m, n)
+        r = e[a][:, mrows]  # (k, m)
         fa = free[a]
         step = (err[a], mu[a], lm, c0, k_nh)
         dq, sig[a] = _newton_step(A, r, *step, qa, mid, null_gain, step_limit, sig[a])
@@ -703,8 +787,18 @@ def _iterate(arm, Tt, q, mask, tol_p, tol_r, max_iter, source, k_nh, c0, lm, ste
                 moved = np.where(vf, limits.apply(target[fix]) - qa[fix], 0.0)
                 rf = r[fix] - np.einsum("kmi,ki->km", Af, moved)
                 Af = np.where(vf[:, None, :], 0.0, Af)
-                dq2, _ = _newton_step(Af, rf, err[a][fix], mu[a][fix], *step[2:], qa[fix], mid,
-                                      null_gain, step_limit, np.zeros(fix.size))
+                dq2, _ = _newton_step(
+                    Af,
+                    rf,
+                    err[a][fix],
+                    mu[a][fix],
+                    *step[2:],
+                    qa[fix],
+                    mid,
+                    null_gain,
+                    step_limit,
+                    np.zeros(fix.size),
+                )
                 target[fix] = qa[fix] + np.where(vf, moved, dq2)
         q_new = np.where(fa[:, None], limits.wrap_only(target), limits.apply(target))
         e_new, ep_new, er_new = errors(q_new, a)

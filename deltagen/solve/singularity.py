@@ -99,16 +99,16 @@ class _Structure:
         qs = _sample_q(desc)
         J, _ = reference.jacobian(desc, qs)
         # task Jacobian rows (see the module docstring)
-        if self.n < 6 and all(np.linalg.matrix_rank(Ji[:3], tol=1e-9 * max(self.size, 1.0))
-                              == self.n for Ji in J):
+        if self.n < 6 and all(
+            np.linalg.matrix_rank(Ji[:3], tol=1e-9 * max(self.size, 1.0)) == self.n for Ji in J
+        ):
             self.rows = slice(0, 3)
             self.task = "position"
         else:
             self.rows = slice(0, 6)
             self.task = "full"
         Jt = J[:, self.rows]
-        self.rank = int(max(np.linalg.matrix_rank(Ji, tol=1e-9 * max(self.size, 1.0))
-                            for Ji in Jt))
+        self.rank = int(max(np.linalg.matrix_rank(Ji, tol=1e-9 * max(self.size, 1.0)) for Ji in Jt))
         # the closed-form solver's detection (model.structure): one reading of the axes
         wrist_6r = isinstance(detect(desc), SphericalWrist6R)
         self.kind = "spherical_wrist_6r" if wrist_6r else "general"
@@ -162,8 +162,12 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     size = s.size
     # collinear revolute axis pairs
     aligned = np.empty(N, dtype=object)
-    pairs = [(i, j) for i in range(desc.n) for j in range(i + 1, desc.n)
-             if s.revolute[i] and s.revolute[j]]
+    pairs = [
+        (i, j)
+        for i in range(desc.n)
+        for j in range(i + 1, desc.n)
+        if s.revolute[i] and s.revolute[j]
+    ]
     col = {}
     for i, j in pairs:
         par = np.linalg.norm(np.cross(w[:, i], w[:, j]), axis=1) < tol
@@ -229,13 +233,17 @@ def describe(row: dict) -> str:
     for k, v in row.items():
         if isinstance(v, np.ndarray) and v.dtype != object:
             if v.size != 1:
-                raise InputError("describe() needs the report of one configuration "
-                                 "(use row_of(report, index))")
+                raise InputError(
+                    "describe() needs the report of one configuration (use row_of(report, index))"
+                )
             v = v.reshape(())[()]
         vals[k] = v
     cond = vals.get("condition", np.nan)
-    cond_txt = f"condition number {float(cond):.3g}" if np.isfinite(cond) else (
-        "condition number inf" if cond == np.inf else "condition number nan")
+    cond_txt = (
+        f"condition number {float(cond):.3g}"
+        if np.isfinite(cond)
+        else ("condition number inf" if cond == np.inf else "condition number nan")
+    )
     if not np.isfinite(vals.get("sigma_min", np.nan)):
         return "no singularity report: non-finite joint values"
     parts = []
@@ -243,11 +251,15 @@ def describe(row: dict) -> str:
     if vals.get("wrist"):
         parts.append("wrist singularity: axes 4 and 6 aligned")
     if vals.get("shoulder"):
-        parts.append("shoulder singularity: wrist centre over axis 1 "
-                     f"(distance from the axis-1 plane {float(vals['shoulder_distance']):.2g})")
+        parts.append(
+            "shoulder singularity: wrist centre over axis 1 "
+            f"(distance from the axis-1 plane {float(vals['shoulder_distance']):.2g})"
+        )
     if vals.get("elbow"):
-        parts.append("elbow singularity: forearm stretched or folded "
-                     "(wrist centre in the plane of axes 2 and 3)")
+        parts.append(
+            "elbow singularity: forearm stretched or folded "
+            "(wrist centre in the plane of axes 2 and 3)"
+        )
     others = [p for p in aligned if not (vals.get("wrist") and tuple(p) == (4, 6))]
     if others:
         parts.append("collinear axes " + ", ".join(f"{i} and {j}" for i, j in others))

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import sympy as sp
 
-from deltagen.derive.kernel import Stage
 from deltagen.derive.delta import symbols as s
-from deltagen.derive.delta.velocity import adjD, inv_det
-from deltagen.derive.delta.velocity import time_functions
+from deltagen.derive.delta.velocity import adjD, inv_det, time_functions
+from deltagen.derive.kernel import Stage
 
 hh = sp.symbols("h1:4", real=True)  # h_i / 2
 
@@ -26,7 +25,7 @@ def constraint_acceleration(i: int):
     acc = (s.xdd, s.ydd, s.zdd, s.qdd[i])
     vel = (s.xd, s.yd, s.zd, s.qd[i])
     subs = {}
-    for v, a_, d in zip((X, Y, Z, Q), acc, vel):
+    for v, a_, _d in zip((X, Y, Z, Q), acc, vel):
         subs[sp.Derivative(v, (s.t, 2))] = a_
     d2f = d2f.subs(subs)
     d2f = d2f.subs({sp.Derivative(v, s.t): d for v, d in zip((X, Y, Z, Q), vel)})

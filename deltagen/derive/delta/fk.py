@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import sympy as sp
 
-from deltagen.derive.kernel import Stage
-from deltagen.derive.functions import CopySign
 from deltagen.derive.delta import symbols as s
+from deltagen.derive.functions import CopySign
+from deltagen.derive.kernel import Stage
 
 
 def spheres(px=s.x, py=s.y, pz=s.z, centres=None):
@@ -121,7 +121,9 @@ def fk_stages():
         Stage("edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle", tuple(edges)),
         Stage("e = a x b, normal of the centre plane; its squared length", tuple(cross)),
         Stage("1 / |e|^2 (|e| = 0 only for collinear centres)", tuple(reciprocal)),
-        Stage("foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule", tuple(foot_point)),
+        Stage(
+            "foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule", tuple(foot_point)
+        ),
         Stage("lower intersection with sphere 1, eqs. (22)-(26)", tuple(line)),
         Stage("platform position p, eq. (27)", tuple(position) + tuple(det_rows)),
     ]

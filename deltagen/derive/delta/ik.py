@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import sympy as sp
 
-from deltagen.derive.kernel import Stage
 from deltagen.derive.delta import symbols as s
+from deltagen.derive.kernel import Stage
 
 E = sp.symbols("E1:4", real=True)
 F = sp.symbols("F1:4", real=True)
@@ -51,5 +51,7 @@ def ik_stages():
     return [
         Stage("crank equation E cos q + F sin q + G = 0 from eq. (1), per chain", tuple(coeffs)),
         Stage("discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular)", tuple(discs)),
-        Stage("elbow-out crank angles atan2(F) + atan2(sqrt(disc), -G) as one atan2", tuple(angles)),
+        Stage(
+            "elbow-out crank angles atan2(F) + atan2(sqrt(disc), -G) as one atan2", tuple(angles)
+        ),
     ]

@@ -12,20 +12,22 @@ Status rules (identical in the numpy reference, see deltagen/status.py):
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.derive.kernel import Angle, Kernel, Parameter, Port, Stage
-from deltagen.derive.functions import AllFinite
 from deltagen.derive.delta import acceleration as acc
 from deltagen.derive.delta import fk as fkd
 from deltagen.derive.delta import ik as ikd
-from deltagen.derive.delta import velocity as vel
 from deltagen.derive.delta import symbols as s
+from deltagen.derive.delta import velocity as vel
+from deltagen.derive.functions import AllFinite
+from deltagen.derive.kernel import Angle, Kernel, Parameter, Port, Stage
 
-collinear_limit, det_limit, jq_limit = sp.symbols("collinear_limit det_limit jq_limit", positive=True)
+collinear_limit, det_limit, jq_limit = sp.symbols(
+    "collinear_limit det_limit jq_limit", positive=True
+)
 
 PARAMETERS = (
     Parameter(s.r_a, "r_a"),
@@ -64,17 +66,30 @@ def _masked(names, values, bad):
 
 
 def _q_port():
-    return Port("q", s.q, "crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; "
-                "column 4: fourth-axis angle q_4 [rad]", "rad", fourth=q4)
+    return Port(
+        "q",
+        s.q,
+        "crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; "
+        "column 4: fourth-axis angle q_4 [rad]",
+        "rad",
+        fourth=q4,
+    )
 
 
 def _qd_port():
-    return Port("qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]", "rad/s", fourth=qd4)
+    return Port(
+        "qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]", "rad/s", fourth=qd4
+    )
 
 
 def _qdd_port():
-    return Port("qdd", s.qdd, "crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]",
-                "rad/s^2", fourth=qdd4)
+    return Port(
+        "qdd",
+        s.qdd,
+        "crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]",
+        "rad/s^2",
+        fourth=qdd4,
+    )
 
 
 invalid, collinear, unreachable, singular = sp.symbols("invalid collinear unreachable singular")
@@ -103,9 +118,11 @@ def _fk_level(inputs_finite):
     return flags, status, no_position, no_rates
 
 
-_FK_STATUS_DOC = ("OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); "
-                  "SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres "
-                  "(no output))")
+_FK_STATUS_DOC = (
+    "OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); "
+    "SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres "
+    "(no output))"
+)
 
 
 def _outputs(no_p, no_rates, levels):
@@ -114,8 +131,12 @@ def _outputs(no_p, no_rates, levels):
     values = [(s.x, s.y, s.z, q4), (s.xd, s.yd, s.zd, qd4), (s.xdd, s.ydd, s.zdd, qdd4)]
     ports, assignments = [], ()
     docs = [
-        ("p", "platform position x, y, z of P in the base frame O [m]; column 4: "
-              "fourth-axis angle phi = q_4, eq. (43) [rad]", "m"),
+        (
+            "p",
+            "platform position x, y, z of P in the base frame O [m]; column 4: "
+            "fourth-axis angle phi = q_4, eq. (43) [rad]",
+            "m",
+        ),
         ("pd", "platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]", "m/s"),
         ("pdd", "platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]", "m/s^2"),
     ]
@@ -127,7 +148,7 @@ def _outputs(no_p, no_rates, levels):
     return tuple(ports), Stage("outputs (NaN where the status says they do not exist)", assignments)
 
 
-@lru_cache(maxsize=None)
+@cache
 def fk_kernel() -> Kernel:
     flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
     ports, outputs = _outputs(no_p, no_rates, 1)
@@ -138,7 +159,9 @@ def fk_kernel() -> Kernel:
         outputs=ports,
         stages=tuple(fkd.fk_stages()) + (flags, outputs),
         status=status,
-        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; p is still given where only det J_p is small",
     )
 
@@ -148,7 +171,7 @@ def _rate_stages(with_jacobian=False):
     return stages + ((vel.jacobian_stage(),) if with_jacobian else ())
 
 
-@lru_cache(maxsize=None)
+@cache
 def jacobian_kernel() -> Kernel:
     flags, status, _, no_rates = _fk_level(AllFinite(*s.q, q4))
     names = [f"J{i + 1}{j + 1}" for i in range(3) for j in range(3)]
@@ -158,15 +181,19 @@ def jacobian_kernel() -> Kernel:
         doc="Jacobian J = J_p^-1 J_q of eq. (30), row-major 3x3 per point: pdot = J qdot.",
         inputs=(_q_port(),),
         outputs=(Port("J", J_out, "Jacobian d p / d q, row-major 3x3 [m/rad]", "m/rad", width=9),),
-        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages(with_jacobian=True)
+        stages=tuple(fkd.fk_stages())
+        + (flags,)
+        + _rate_stages(with_jacobian=True)
         + (Stage("outputs (NaN unless OK)", J_stage),),
         status=status,
-        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; J is NaN unless OK",
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def fk_vel_kernel() -> Kernel:
     flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4))
     ports, outputs = _outputs(no_p, no_rates, 2)
@@ -177,30 +204,36 @@ def fk_vel_kernel() -> Kernel:
         outputs=ports,
         stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages() + (vel.velocity_stage(), outputs),
         status=status,
-        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; pd is NaN unless OK",
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def fk_acc_kernel() -> Kernel:
     flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4, *s.qdd, qdd4))
     ports, outputs = _outputs(no_p, no_rates, 3)
     return Kernel(
         name="fk_acc",
         doc="Direct kinematics at acceleration level: (q, qdot, qddot) -> (p, pdot, pddot), "
-            "eqs. (2)-(39).",
+        "eqs. (2)-(39).",
         inputs=(_q_port(), _qd_port(), _qdd_port()),
         outputs=ports,
-        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages()
+        stages=tuple(fkd.fk_stages())
+        + (flags,)
+        + _rate_stages()
         + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(), outputs),
         status=status,
-        parameters=PARAMETERS, setup=SETUP, angles=ANGLES,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
         status_doc=_FK_STATUS_DOC + "; pd and pdd are NaN unless OK",
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def ik_kernel() -> Kernel:
     finite = AllFinite(s.x, s.y, s.z, phi)
     flags = Stage(
@@ -221,15 +254,26 @@ def ik_kernel() -> Kernel:
     return Kernel(
         name="ik",
         doc="Inverse kinematics (elbow-out): platform position p -> crank angles q in (-pi, pi].",
-        inputs=(Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m",
-                     fourth=phi),),
-        outputs=(Port("q", q_out[:3], "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
-                      "rad", fourth=q_out[3]),),
+        inputs=(
+            Port(
+                "p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m", fourth=phi
+            ),
+        ),
+        outputs=(
+            Port(
+                "q",
+                q_out[:3],
+                "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
+                "rad",
+                fourth=q_out[3],
+            ),
+        ),
         stages=tuple(ikd.ik_stages()) + (flags, Stage("outputs (NaN where unreachable)", q_stage)),
         status=status,
-        parameters=PARAMETERS, setup=SETUP,
+        parameters=PARAMETERS,
+        setup=SETUP,
         status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "
-                   "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)",
+        "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)",
     )
 
 

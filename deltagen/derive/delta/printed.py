@@ -41,16 +41,19 @@ def _trig(i, cq, sq):
 
 # ----------------------------------------------------------------- 2.1 constraints
 
+
 def vector_CB(i, cq=None, sq=None, first_form=False) -> sp.Matrix:
     """C_i B_i as printed before eq. (1); ``first_form`` uses r_a, r_b, else r."""
     cq, sq, ct, st = _trig(i, cq, sq)
     x, y, z, la = s.x, s.y, s.z, s.l_a
     if first_form:
-        return sp.Matrix([
-            (s.r_a + la * cq) * ct - s.r_b * ct - x,
-            (s.r_a + la * cq) * st - s.r_b * st - y,
-            -la * sq - z,
-        ])
+        return sp.Matrix(
+            [
+                (s.r_a + la * cq) * ct - s.r_b * ct - x,
+                (s.r_a + la * cq) * st - s.r_b * st - y,
+                -la * sq - z,
+            ]
+        )
     return sp.Matrix([(s.r + la * cq) * ct - x, (s.r + la * cq) * st - y, -la * sq - z])
 
 
@@ -69,6 +72,7 @@ def eq1_constraint(i, cq=None, sq=None) -> sp.Expr:
 
 # ------------------------------------------------------- 2.2 direct kinematic problem
 
+
 def eq2_sphere(i, px=s.x, py=s.y, pz=s.z) -> sp.Expr:
     """(2)  varsigma_i = (x - S_xi)^2 + (y - S_yi)^2 + (z - S_zi)^2 - l_b^2."""
     return (px - Sx[i]) ** 2 + (py - Sy[i]) ** 2 + (pz - Sz[i]) ** 2 - s.l_b**2
@@ -78,11 +82,13 @@ def eq3_5_centre(i, cq=None, sq=None) -> sp.Matrix:
     """(3) S_xi = (r + l_a cos q_i) cos th_i, (4) S_yi = (r + l_a cos q_i) sin th_i,
     (5) S_zi = -l_a sin q_i."""
     cq, sq, ct, st = _trig(i, cq, sq)
-    return sp.Matrix([
-        (s.r + s.l_a * cq) * ct,  # (3)
-        (s.r + s.l_a * cq) * st,  # (4)
-        -s.l_a * sq,  # (5)
-    ])
+    return sp.Matrix(
+        [
+            (s.r + s.l_a * cq) * ct,  # (3)
+            (s.r + s.l_a * cq) * st,  # (4)
+            -s.l_a * sq,  # (5)
+        ]
+    )
 
 
 def eq6_7_planes():
@@ -101,13 +107,13 @@ def eq8_15_uv():
         2 * Sx[1] - 2 * Sx[0],  # (8)
         2 * Sy[1] - 2 * Sy[0],  # (9)
         2 * Sz[1] - 2 * Sz[0],  # (10)
-        -Sz[1] ** 2 - Sy[1] ** 2 - Sx[1] ** 2 + Sz[0] ** 2 + Sy[0] ** 2 + Sx[0] ** 2,  # (11)
+        -(Sz[1] ** 2) - Sy[1] ** 2 - Sx[1] ** 2 + Sz[0] ** 2 + Sy[0] ** 2 + Sx[0] ** 2,  # (11)
     )
     V = (
         2 * Sx[2] - 2 * Sx[0],  # (12)
         2 * Sy[2] - 2 * Sy[0],  # (13)
         2 * Sz[2] - 2 * Sz[0],  # (14)
-        -Sz[2] ** 2 - Sy[2] ** 2 - Sx[2] ** 2 + Sz[0] ** 2 + Sy[0] ** 2 + Sx[0] ** 2,  # (15)
+        -(Sz[2] ** 2) - Sy[2] ** 2 - Sx[2] ** 2 + Sz[0] ** 2 + Sy[0] ** 2 + Sx[0] ** 2,  # (15)
     )
     return U, V
 
@@ -149,8 +155,14 @@ def eq23_25_w():
     return (
         w3**2 + w1**2 + 1,  # (23)
         2 * w3 * w4 - 2 * Sy[2] * w3 - 2 * Sz[2] - 2 * w1 * Sx[2] + 2 * w1 * w2,  # (24)
-        -s.l_b**2 + w4**2 - 2 * Sy[2] * w4 + Sz[2] ** 2 + Sy[2] ** 2 + Sx[2] ** 2
-        - 2 * w2 * Sx[2] + w2**2,  # (25)
+        -(s.l_b**2)
+        + w4**2
+        - 2 * Sy[2] * w4
+        + Sz[2] ** 2
+        + Sy[2] ** 2
+        + Sx[2] ** 2
+        - 2 * w2 * Sx[2]
+        + w2**2,  # (25)
     )
 
 
@@ -176,9 +188,9 @@ def evaluate_fk(r, l_a, l_b, theta, q):
     Sn = np.column_stack([R * np.cos(th), R * np.sin(th), -l_a * np.sin(q)])  # (3)-(5)
     (sx1, sy1, sz1), (sx2, sy2, sz2), (sx3, sy3, sz3) = Sn
     u1, u2, u3 = 2 * sx2 - 2 * sx1, 2 * sy2 - 2 * sy1, 2 * sz2 - 2 * sz1  # (8)-(10)
-    u4 = -sz2**2 - sy2**2 - sx2**2 + sz1**2 + sy1**2 + sx1**2  # (11)
+    u4 = -(sz2**2) - sy2**2 - sx2**2 + sz1**2 + sy1**2 + sx1**2  # (11)
     v1, v2, v3 = 2 * sx3 - 2 * sx1, 2 * sy3 - 2 * sy1, 2 * sz3 - 2 * sz1  # (12)-(14)
-    v4 = -sz3**2 - sy3**2 - sx3**2 + sz1**2 + sy1**2 + sx1**2  # (15)
+    v4 = -(sz3**2) - sy3**2 - sx3**2 + sz1**2 + sy1**2 + sx1**2  # (15)
     with np.errstate(all="ignore"):
         den = np.float64(v1 * u2 - u1 * v2)
         w1 = (v2 * u3 - u2 * v3) / den  # (18)
@@ -187,8 +199,9 @@ def evaluate_fk(r, l_a, l_b, theta, q):
         w4 = (-v4 - v1 * w2) / np.float64(v2)  # (21)
         w5 = w3**2 + w1**2 + 1  # (23)
         w6 = 2 * w3 * w4 - 2 * sy3 * w3 - 2 * sz3 - 2 * w1 * sx3 + 2 * w1 * w2  # (24)
-        w7 = (-l_b**2 + w4**2 - 2 * sy3 * w4 + sz3**2 + sy3**2 + sx3**2
-              - 2 * w2 * sx3 + w2**2)  # (25)
+        w7 = (
+            -(l_b**2) + w4**2 - 2 * sy3 * w4 + sz3**2 + sy3**2 + sx3**2 - 2 * w2 * sx3 + w2**2
+        )  # (25)
         root = np.sqrt(w6**2 - 4 * w5 * w7)
         zw = min(-(w6 + root) / (2 * w5), -(w6 - root) / (2 * w5))  # (26)
     p = np.array([w1 * zw + w2, w3 * zw + w4, zw])  # (27)
@@ -196,6 +209,7 @@ def evaluate_fk(r, l_a, l_b, theta, q):
 
 
 # ------------------------------------------------------ 3 differential kinematics
+
 
 def eq28_df_dt(i, cq=None, sq=None) -> sp.Expr:
     """(28) df_i/dt as printed (the r term of the qdot_i coefficient reads + 2 l_a r sin q_i).
@@ -207,8 +221,8 @@ def eq28_df_dt(i, cq=None, sq=None) -> sp.Expr:
         (2 * x - (2 * r + 2 * la * cq) * ct) * s.xd
         + (2 * y - (2 * r + 2 * la * cq) * st) * s.yd
         + (2 * z + 2 * la * sq) * s.zd
-        + (2 * la * cq * z + 2 * la * sq * st * y
-           + 2 * la * sq * ct * x + 2 * la * r * sq) * s.qd[i]
+        + (2 * la * cq * z + 2 * la * sq * st * y + 2 * la * sq * ct * x + 2 * la * r * sq)
+        * s.qd[i]
     )
 
 
@@ -216,11 +230,15 @@ def eq31_33_Jp_row(i, cq=None, sq=None) -> sp.Matrix:
     """(31)-(33): row i of J_p."""
     cq, sq, ct, st = _trig(i, cq, sq)
     la, r = s.l_a, s.r
-    return sp.Matrix([[
-        2 * s.x - (2 * r + 2 * la * cq) * ct,  # (31)
-        2 * s.y - (2 * r + 2 * la * cq) * st,  # (32)
-        2 * s.z + 2 * la * sq,  # (33)
-    ]])
+    return sp.Matrix(
+        [
+            [
+                2 * s.x - (2 * r + 2 * la * cq) * ct,  # (31)
+                2 * s.y - (2 * r + 2 * la * cq) * st,  # (32)
+                2 * s.z + 2 * la * sq,  # (33)
+            ]
+        ]
+    )
 
 
 def eq34_Jq_ii(i, cq=None, sq=None) -> sp.Expr:
@@ -231,8 +249,12 @@ def eq34_Jq_ii(i, cq=None, sq=None) -> sp.Expr:
 
 def eq35_Jq(cq=None, sq=None) -> sp.Matrix:
     """(35) J_q,ij = 0 for i != j, with the diagonal of (34)."""
-    return sp.diag(*[eq34_Jq_ii(i, None if cq is None else cq[i], None if sq is None else sq[i])
-                     for i in range(3)])
+    return sp.diag(
+        *[
+            eq34_Jq_ii(i, None if cq is None else cq[i], None if sq is None else sq[i])
+            for i in range(3)
+        ]
+    )
 
 
 def eq37_s(i, cq=None, sq=None) -> sp.Expr:
@@ -249,9 +271,15 @@ def _acc_bracket(i, cq, sq):
     qd, qdd = s.qd[i], s.qdd[i]
     si = eq37_s(i, cq, sq)
     return (
-        2 * zd**2 + 4 * la * cq * qd * zd + 2 * la * (cq * qdd - sq * qd**2) * z
-        + 2 * yd**2 + 4 * la * sq * st * qd * yd + si * st * y
-        + 2 * xd**2 + 4 * la * sq * ct * qd * xd + si * ct * x
+        2 * zd**2
+        + 4 * la * cq * qd * zd
+        + 2 * la * (cq * qdd - sq * qd**2) * z
+        + 2 * yd**2
+        + 4 * la * sq * st * qd * yd
+        + si * st * y
+        + 2 * xd**2
+        + 4 * la * sq * ct * qd * xd
+        + si * ct * x
         - si * r
     )
 
@@ -272,7 +300,8 @@ def eq39_h(i, cq=None, sq=None) -> sp.Expr:
 T = s.t  # seconds; lengths in metres
 _PI = sp.pi
 eq40_x = sp.Rational(1, 4) * sp.sin(
-    sp.Rational(1, 2) * (5 - sp.Rational(1, 10)) * 2 * _PI / 10 * T**2 + sp.Rational(1, 10) * 2 * _PI * T
+    sp.Rational(1, 2) * (5 - sp.Rational(1, 10)) * 2 * _PI / 10 * T**2
+    + sp.Rational(1, 10) * 2 * _PI * T
 )  # (40)
 eq41_y = sp.Rational(1, 4) * sp.sin(
     sp.Rational(1, 2) * (sp.Rational(1, 10) - 5) * 2 * _PI / 10 * T**2 + 5 * 2 * _PI * T
@@ -296,4 +325,3 @@ eq43_identity = sp.eye(3)  # (43) [phi, phid, phidd]^T = I_3x3 [q4, q4d, q4dd]^T
 #: the script's lines `x: w[1]*z + w[2];` and `y: w[2]*z + w[3];` (w[k] is w_k)
 maxima_x = w[0] * s.z + w[1]
 maxima_y = w[1] * s.z + w[2]
-

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import sympy as sp
 
-from deltagen.derive.kernel import Stage
 from deltagen.derive.delta import symbols as s
 from deltagen.derive.delta.fk import S, det_D
+from deltagen.derive.kernel import Stage
 
 
 def time_functions():
@@ -34,7 +34,10 @@ def constraint_rate(i: int):
     df = df.subs({sp.Derivative(v, s.t): r for v, r in zip((X, Y, Z, Q), rates)})
     back = {X: s.x, Y: s.y, Z: s.z, sp.cos(Q): s.cos_q[i], sp.sin(Q): s.sin_q[i]}
     coeff = [s.on_unit_circle(df.coeff(r).subs(back)) for r in rates]
-    assert sp.expand(df - sum(c * r for c, r in zip([sp.expand(df.coeff(r)) for r in rates], rates))) == 0
+    assert (
+        sp.expand(df - sum(c * r for c, r in zip([sp.expand(df.coeff(r)) for r in rates], rates)))
+        == 0
+    )
     jp_row = sp.Matrix(coeff[:3]).T
     jq_ii = -coeff[3]  # J_p pdot + c qdot = 0  =>  J_p pdot = (-c) qdot
     return jp_row, jq_ii

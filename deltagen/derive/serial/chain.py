@@ -102,10 +102,12 @@ def link_transform(desc, i: int, sym: ArmSymbols):
     conv = desc.convention
     if conv == "universal":
         motion = rot(j.axis, *cs) if j.revolute else trans(**{j.axis: disp})
-        fixed = (trans(exact_length(j.tx), exact_length(j.ty), exact_length(j.tz))
-                 * rot("x", *cos_sin(exact_angle(j.rx)))
-                 * rot("y", *cos_sin(exact_angle(j.ry)))
-                 * rot("z", *cos_sin(exact_angle(j.rz))))
+        fixed = (
+            trans(exact_length(j.tx), exact_length(j.ty), exact_length(j.tz))
+            * rot("x", *cos_sin(exact_angle(j.rx)))
+            * rot("y", *cos_sin(exact_angle(j.ry)))
+            * rot("z", *cos_sin(exact_angle(j.rz)))
+        )
         return motion * fixed, sp.eye(4), j.axis
     if j.revolute:
         rz = rot("z", *cs)
@@ -167,8 +169,12 @@ class Chain:
             self.axes.append(w)
             self.points.append(o)
             F, assignments = _symbolic_frame(f"F{i + 1}", prev * A)
-            self.stages.append(Stage(f"frame {i + 1}: F_{i + 1} = F_{i} A_{i + 1} "
-                                     f"({desc.convention} convention)", tuple(assignments)))
+            self.stages.append(
+                Stage(
+                    f"frame {i + 1}: F_{i + 1} = F_{i} A_{i + 1} ({desc.convention} convention)",
+                    tuple(assignments),
+                )
+            )
             self.frames.append(F)
         T, assignments = _symbolic_frame("T", self.frames[-1] * numeric_matrix(desc.tool))
         self.stages.append(Stage("tool frame T = F_n . tool", tuple(assignments)))

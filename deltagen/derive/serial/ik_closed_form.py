@@ -48,8 +48,8 @@ import numpy as np
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.derive.functions import AllFinite
+from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
 from deltagen.model.structure import Elbow4R, PlanarArm, detect
 
@@ -111,12 +111,18 @@ class _Angle:
     s: object
 
     def __add__(self, other):
-        return _Angle(self.theta + other.theta, self.c * other.c - self.s * other.s,
-                      self.s * other.c + self.c * other.s)
+        return _Angle(
+            self.theta + other.theta,
+            self.c * other.c - self.s * other.s,
+            self.s * other.c + self.c * other.s,
+        )
 
     def __sub__(self, other):
-        return _Angle(self.theta - other.theta, self.c * other.c + self.s * other.s,
-                      self.s * other.c - self.c * other.s)
+        return _Angle(
+            self.theta - other.theta,
+            self.c * other.c + self.s * other.s,
+            self.s * other.c - self.c * other.s,
+        )
 
     def scaled(self, sign):
         """sign * angle for sign = +-1."""
@@ -209,8 +215,9 @@ class IKKernelBuilder:
         self.configs = tuple(structure.configs)
         self.const = _Constants(structure.axes.scale)
         self.tape = _Tape()
-        self.T = tuple(sp.Symbol(f"Tt{r + 1}{c + 1}", real=True)
-                       for r in range(4) for c in range(4))
+        self.T = tuple(
+            sp.Symbol(f"Tt{r + 1}{c + 1}", real=True) for r in range(4) for c in range(4)
+        )
         self.invalid = sp.Symbol("invalid")
 
     # -- shared steps --------------------------------------------------------------
@@ -241,7 +248,7 @@ class IKKernelBuilder:
         pz = tape.let("pz", _dot(d, K.vec(s.ez)))
         yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
         rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", rad >= -1e-9 * ax.scale ** 2)
+        ok1 = tape.let("ok_reach", rad >= -1e-9 * ax.scale**2)
         r = tape.let("xV", sp.sqrt(sp.Max(rad, 0)))
         on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ax.scale) ** 2)
         a = _Angle(0, *_direction(tape, "phi_p", py, px))
@@ -257,13 +264,19 @@ class IKKernelBuilder:
             home = 0.0 if f > 0 else -math.pi
             c1 = tape.let(f"q1_{tag}_c", sp.Piecewise((K(math.cos(home)), on_axis), (q1.c, True)))
             s1 = tape.let(f"q1_{tag}_s", sp.Piecewise((0, on_axis), (q1.s, True)))
-            q1 = _Angle(tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis),
-                                                            (sp.atan2(s1, c1), True))), c1, s1)
-            V = _add(_add(K.vec(ax.points[0]), _scale(xV, K.vec(s.ex))),
-                     _add(_scale(yV, K.vec(s.ey)), _scale(pz, K.vec(s.ez))))
-            t = tuple(tape.let(f"t{j + 1}_{tag}",
-                               _dot(K.vec(s.plane[j]), V) - K(s.shoulder_xy[j]))
-                      for j in range(2))
+            q1 = _Angle(
+                tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis), (sp.atan2(s1, c1), True))),
+                c1,
+                s1,
+            )
+            V = _add(
+                _add(K.vec(ax.points[0]), _scale(xV, K.vec(s.ex))),
+                _add(_scale(yV, K.vec(s.ey)), _scale(pz, K.vec(s.ez))),
+            )
+            t = tuple(
+                tape.let(f"t{j + 1}_{tag}", _dot(K.vec(s.plane[j]), V) - K(s.shoulder_xy[j]))
+                for j in range(2)
+            )
             kc, ks, bend, ok2 = self._cosine_law(tag, t, uu, vv)
             shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
         for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
@@ -286,11 +299,17 @@ class IKKernelBuilder:
         tape.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
         d4 = _rotate(w[0], q1.c, -q1.s, self._rotate_target(self.axes.directions[3]))
         tot = _sp1(tape, f"tot_{tag}", w[1], w[3], d4)
-        z = (t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
-             t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])))
+        z = (
+            t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
+            t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])),
+        )
         a_uu = math.atan2(uu[1], uu[0])
-        th2 = _named(tape, f"paul2_{tag}", _atan2(tape, f"phi2_{tag}", z[1], z[0])
-                     - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
+        th2 = _named(
+            tape,
+            f"paul2_{tag}",
+            _atan2(tape, f"phi2_{tag}", z[1], z[0])
+            - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
+        )
         th3 = _named(tape, f"paul3_{tag}", tot - th2)
         c = math.atan2(vv[1], vv[0]) - a_uu
         sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
@@ -323,8 +342,12 @@ class IKKernelBuilder:
             tape.stage("Paul's method (slides 103-105): psi from the rotation, q1 from joint 2")
             B_t = self._move_point(self.axes.points[s.second])
             tb = [_dot(K.vec(E[j]), B_t) - K(A[j]) for j in range(2)]
-            p1 = _named(tape, "paul1", _atan2(tape, "phi_b", tb[1], tb[0])
-                        - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))))
+            p1 = _named(
+                tape,
+                "paul1",
+                _atan2(tape, "phi_b", tb[1], tb[0])
+                - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
+            )
             p2 = _named(tape, "paul2", yaw - p1)
             down = tape.let("elbow_down", p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)) >= 0)
             for config, sigma in zip(s.configs, s.bend_signs):
@@ -356,8 +379,9 @@ class IKKernelBuilder:
         the bend, its angle, and whether the law of cosines is met (to 1e-9)."""
         tape, K = self.tape, self.const
         lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
-        kappa = tape.let(f"kappa_{tag}",
-                         (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv))
+        kappa = tape.let(
+            f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
+        )
         ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
         kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
         ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
@@ -370,8 +394,10 @@ class IKKernelBuilder:
         a = math.atan2(uu[1], uu[0]) - math.atan2(vv[1], vv[0])
         elbow = _Angle(K(a), K(math.cos(a)), K(math.sin(a))) + _Angle(sigma * bend, kc, sigma * ks)
         th2 = _named(tape, f"th3_{tag}", elbow)
-        m = (K(uu[0]) + th2.c * K(vv[0]) - th2.s * K(vv[1]),
-             K(uu[1]) + th2.s * K(vv[0]) + th2.c * K(vv[1]))
+        m = (
+            K(uu[0]) + th2.c * K(vv[0]) - th2.s * K(vv[1]),
+            K(uu[1]) + th2.s * K(vv[0]) + th2.c * K(vv[1]),
+        )
         th1 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
         return th1, th2
 
@@ -387,8 +413,9 @@ class IKKernelBuilder:
         w = [K.vec(x) for x in self.axes.directions]
         tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
         tot = _named(tape, f"tot_{tag}", th2 + th3)
-        qv = tape.vec(f"qv_{tag}",
-                      self._undo(q1, tot, self._rotate_target(self.axes.directions[5])))
+        qv = tape.vec(
+            f"qv_{tag}", self._undo(q1, tot, self._rotate_target(self.axes.directions[5]))
+        )
         qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s.wrist_ref)))
         w4, w5, w6 = w[3], w[4], w[5]
         c12 = s.cos_45
@@ -402,20 +429,27 @@ class IKKernelBuilder:
         gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
         okw = tape.let(f"ok_wrist_{tag}", gam2 >= -1e-9)
         gam = tape.let(f"gam_{tag}", sp.sqrt(sp.Max(gam2, 0)))
-        singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR ** 2)
+        singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR**2)
         n45 = K.vec(s.normal_45)
         out = []
         for sig, flip in ((1, "noflip"), (-1, "flip")):
             name = f"{tag}_{flip}"
             tape.stage(f"wrist, branch {name}: q5, q4 (Paden-Kahan 2), q6")
-            cvec = tape.vec(f"cw_{name}", _add(_add(_scale(alpha, w4), _scale(beta, w5)),
-                                               _scale(sig * gam, n45)))
+            cvec = tape.vec(
+                f"cw_{name}",
+                _add(_add(_scale(alpha, w4), _scale(beta, w5)), _scale(sig * gam, n45)),
+            )
             q5 = _sp1(tape, f"q5_{name}", w5, w6, cvec)
             q4 = _sp1(tape, f"q4r_{name}", w4, cvec, qv)
-            q4 = _named(tape, f"q4_{name}", _Angle(
-                sp.Piecewise((0, singular), (q4.theta, True)),
-                sp.Piecewise((1, singular), (q4.c, True)),
-                sp.Piecewise((0, singular), (q4.s, True))))
+            q4 = _named(
+                tape,
+                f"q4_{name}",
+                _Angle(
+                    sp.Piecewise((0, singular), (q4.theta, True)),
+                    sp.Piecewise((1, singular), (q4.c, True)),
+                    sp.Piecewise((0, singular), (q4.s, True)),
+                ),
+            )
             y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
             q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s.wrist_ref), y)
             out.append((name, okw, q4, q5, q6))
@@ -526,32 +560,57 @@ class IKKernelBuilder:
             valid = tape.let(f"valid_{name}", sp.And(good, *inside))
             valid_flags.append(valid)
             for i, v in enumerate(values):
-                q_out.append(tape.let(f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True)),
-                                      alias=False))
-            valid_out.append(tape.let(f"out_valid_{name}",
-                                      sp.Piecewise((sp.Integer(1), valid), (sp.Integer(0), True)),
-                                      alias=False))
+                q_out.append(
+                    tape.let(
+                        f"out_q{i + 1}_{name}", sp.Piecewise((v, good), (sp.nan, True)), alias=False
+                    )
+                )
+            valid_out.append(
+                tape.let(
+                    f"out_valid_{name}",
+                    sp.Piecewise((sp.Integer(1), valid), (sp.Integer(0), True)),
+                    alias=False,
+                )
+            )
         tape.stage("status")
         any_valid = tape.let("any_valid", sp.Or(*valid_flags))
         k = len(self.configs)
         return Kernel(
             name="ik_all",
-            doc=(f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
-                 "configurations " + ", ".join(self.configs) + " (in this order)."),
-            inputs=(Port("T", self.T, "tool pose, 4x4 row-major (rotation | position m)", "m",
-                         width=16),),
+            doc=(
+                f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
+                "configurations " + ", ".join(self.configs) + " (in this order)."
+            ),
+            inputs=(
+                Port(
+                    "T", self.T, "tool pose, 4x4 row-major (rotation | position m)", "m", width=16
+                ),
+            ),
             outputs=(
-                Port("q", tuple(q_out), f"{k} x {n} joint values per pose, branch after branch "
-                     "[rad]; NaN where the branch has no real solution", "rad", width=k * n),
-                Port("valid", tuple(valid_out), f"{k} flags per pose: 1 where the branch "
-                     "reaches the pose within the joint limits, else 0", "-", width=k,
-                     ctype="uint8_t"),
+                Port(
+                    "q",
+                    tuple(q_out),
+                    f"{k} x {n} joint values per pose, branch after branch "
+                    "[rad]; NaN where the branch has no real solution",
+                    "rad",
+                    width=k * n,
+                ),
+                Port(
+                    "valid",
+                    tuple(valid_out),
+                    f"{k} flags per pose: 1 where the branch "
+                    "reaches the pose within the joint limits, else 0",
+                    "-",
+                    width=k,
+                    ctype="uint8_t",
+                ),
             ),
             stages=tuple(tape.as_stages()),
-            status=sp.Piecewise((st.INVALID, invalid), (st.OK, any_valid),
-                                (st.UNREACHABLE, True)),
-            status_doc=("OK (some branch is valid); UNREACHABLE (no branch reaches the pose "
-                        "within the joint limits); INVALID (a non-finite input; q NaN)"),
+            status=sp.Piecewise((st.INVALID, invalid), (st.OK, any_valid), (st.UNREACHABLE, True)),
+            status_doc=(
+                "OK (some branch is valid); UNREACHABLE (no branch reaches the pose "
+                "within the joint limits); INVALID (a non-finite input; q NaN)"
+            ),
         )
 
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.derive.kernel import Angle, Kernel, Port, Stage
 from deltagen.derive.functions import AllFinite
+from deltagen.derive.kernel import Angle, Kernel, Port, Stage
 from deltagen.derive.serial.chain import Chain
 from deltagen.derive.serial.ik_closed_form import ik_kernel
 
@@ -18,7 +18,9 @@ invalid = sp.Symbol("invalid")
 
 def _masked(prefix, values, bad):
     outs = [sp.Symbol(f"out_{prefix}{k}", real=True) for k in range(len(values))]
-    return tuple(outs), tuple((o, sp.Piecewise((sp.nan, bad), (v, True))) for o, v in zip(outs, values))
+    return tuple(outs), tuple(
+        (o, sp.Piecewise((sp.nan, bad), (v, True))) for o, v in zip(outs, values)
+    )
 
 
 def _flags(symbols):
@@ -37,18 +39,23 @@ class ArmKernels:
         self.chain = Chain(desc)
         sym = self.chain.sym
         self.angles = tuple(
-            Angle(sym.q[i], sym.cos[i], sym.sin[i])
-            for i, j in enumerate(desc.joints) if j.revolute
+            Angle(sym.q[i], sym.cos[i], sym.sin[i]) for i, j in enumerate(desc.joints) if j.revolute
         )
         n = desc.n
         self.q_port = Port("q", sym.q, f"joint coordinates q_1..q_{n} [rad or m]", "rad|m", width=n)
-        self.qd_port = Port("qd", sym.qd, f"joint rates qdot_1..qdot_{n} [rad/s or m/s]",
-                            "rad/s|m/s", width=n)
+        self.qd_port = Port(
+            "qd", sym.qd, f"joint rates qdot_1..qdot_{n} [rad/s or m/s]", "rad/s|m/s", width=n
+        )
 
     def _kernel(self, name, doc, inputs, outputs, stages):
         return Kernel(
-            name=name, doc=doc, inputs=inputs, outputs=outputs,
-            stages=tuple(stages), status=_status(), angles=self.angles,
+            name=name,
+            doc=doc,
+            inputs=inputs,
+            outputs=outputs,
+            stages=tuple(stages),
+            status=_status(),
+            angles=self.angles,
             status_doc="OK; INVALID (a non-finite input; the row's outputs are NaN)",
         )
 
@@ -57,11 +64,12 @@ class ArmKernels:
         values = [c.T[r, k] for r in range(4) for k in range(4)]
         outs, stage = _masked("T", values, invalid)
         return self._kernel(
-            "fk", f"Forward kinematics: q -> tool pose T = base A_1 ... A_{self.desc.n} tool "
+            "fk",
+            f"Forward kinematics: q -> tool pose T = base A_1 ... A_{self.desc.n} tool "
             "(4x4 homogeneous, row-major; position in m).",
             (self.q_port,),
             (Port("T", outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16),),
-            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)]
+            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)],
         )
 
     def frames(self) -> Kernel:
@@ -70,12 +78,20 @@ class ArmKernels:
         outs, stage = _masked("F", values, invalid)
         count = len(c.frames)
         return self._kernel(
-            "frames", f"Every frame of the arm: base, F_1 ... F_{self.desc.n}, tool "
+            "frames",
+            f"Every frame of the arm: base, F_1 ... F_{self.desc.n}, tool "
             f"({count} 4x4 row-major matrices per point), for drawing the arm.",
             (self.q_port,),
-            (Port("F", outs, f"{count} frames x 4x4 row-major, base to tool", "m",
-                  width=16 * count),),
-            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)]
+            (
+                Port(
+                    "F",
+                    outs,
+                    f"{count} frames x 4x4 row-major, base to tool",
+                    "m",
+                    width=16 * count,
+                ),
+            ),
+            [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)],
         )
 
     def _jacobian_stage(self):
@@ -86,20 +102,29 @@ class ArmKernels:
         for r in range(6):
             for k in range(n):
                 assignments.append((Js[r, k], J[r, k]))
-        return Js, Stage("geometric Jacobian: revolute [w x (p - o); w], prismatic [w; 0]",
-                         tuple(assignments))
+        return Js, Stage(
+            "geometric Jacobian: revolute [w x (p - o); w], prismatic [w; 0]", tuple(assignments)
+        )
 
     def jacobian(self) -> Kernel:
         c, n = self.chain, self.desc.n
         Js, stage = self._jacobian_stage()
         outs, out_stage = _masked("J", list(Js), invalid)
         return self._kernel(
-            "jacobian", "Geometric Jacobian of the tool point in the base frame: rows vx vy vz "
+            "jacobian",
+            "Geometric Jacobian of the tool point in the base frame: rows vx vy vz "
             f"wx wy wz, 6 x {n} row-major (twist = J qdot).",
             (self.q_port,),
-            (Port("J", outs, f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]", "-",
-                  width=6 * n),),
-            [*c.stages, stage, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", out_stage)]
+            (
+                Port(
+                    "J",
+                    outs,
+                    f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]",
+                    "-",
+                    width=6 * n,
+                ),
+            ),
+            [*c.stages, stage, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", out_stage)],
         )
 
     def fk_jacobian(self) -> Kernel:
@@ -111,14 +136,28 @@ class ArmKernels:
         Js, stage = self._jacobian_stage()
         j_outs, j_stage = _masked("J", list(Js), invalid)
         return self._kernel(
-            "fk_jacobian", f"Tool pose and geometric Jacobian together (one shared evaluation): "
+            "fk_jacobian",
+            f"Tool pose and geometric Jacobian together (one shared evaluation): "
             f"T as in fk, J as in jacobian (6 x {n} row-major, base frame).",
             (self.q_port,),
-            (Port("T", t_outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16),
-             Port("J", j_outs, f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]", "-",
-                  width=6 * n)),
-            [*c.stages, stage, _flags(c.sym.q),
-             Stage("outputs (NaN on invalid rows)", t_stage + j_stage)]
+            (
+                Port(
+                    "T", t_outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16
+                ),
+                Port(
+                    "J",
+                    j_outs,
+                    f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]",
+                    "-",
+                    width=6 * n,
+                ),
+            ),
+            [
+                *c.stages,
+                stage,
+                _flags(c.sym.q),
+                Stage("outputs (NaN on invalid rows)", t_stage + j_stage),
+            ],
         )
 
     def jacobian_dot(self) -> Kernel:
@@ -126,16 +165,24 @@ class ArmKernels:
         Js, stage = self._jacobian_stage()
         Jd = c.jacobian_dot(Js)
         Jds = sp.Matrix(6, n, lambda r, k: sp.Symbol(f"Jd{r + 1}_{k + 1}", real=True))
-        jd_stage = Stage("dJ/dt along qdot: axis rates Omega x w, point velocities",
-                         tuple((Jds[r, k], Jd[r, k]) for r in range(6) for k in range(n)))
+        jd_stage = Stage(
+            "dJ/dt along qdot: axis rates Omega x w, point velocities",
+            tuple((Jds[r, k], Jd[r, k]) for r in range(6) for k in range(n)),
+        )
         outs, out_stage = _masked("Jd", list(Jds), invalid)
         return self._kernel(
-            "jacobian_dot", f"Time derivative of the geometric Jacobian along qdot, 6 x {n} "
+            "jacobian_dot",
+            f"Time derivative of the geometric Jacobian along qdot, 6 x {n} "
             "row-major: tool acceleration = J qddot + Jdot qdot.",
             (self.q_port, self.qd_port),
             (Port("Jd", outs, f"6 x {n} row-major, per second", "-", width=6 * n),),
-            [*c.stages, stage, jd_stage, _flags((*c.sym.q, *c.sym.qd)),
-             Stage("outputs (NaN on invalid rows)", out_stage)]
+            [
+                *c.stages,
+                stage,
+                jd_stage,
+                _flags((*c.sym.q, *c.sym.qd)),
+                Stage("outputs (NaN on invalid rows)", out_stage),
+            ],
         )
 
     def ik_all(self) -> Kernel | None:
@@ -143,7 +190,12 @@ class ArmKernels:
         return ik_kernel(self.desc, self.chain)
 
     def all(self):
-        kernels = [self.fk(), self.frames(), self.jacobian(), self.fk_jacobian(),
-                   self.jacobian_dot()]
+        kernels = [
+            self.fk(),
+            self.frames(),
+            self.jacobian(),
+            self.fk_jacobian(),
+            self.jacobian_dot(),
+        ]
         ik = self.ik_all()
         return tuple(kernels + ([ik] if ik is not None else []))
