@@ -44,7 +44,7 @@ import numpy as np
 import numpy.typing as npt
 
 from deltagen.errors import GeometryError
-from deltagen.geometry.rotations import matrix_from_rpy
+from deltagen.geometry.rotations import matrix_from_rpy, rot_axis
 from deltagen.model.naming import check_identifier
 from deltagen.model.robot_file import PathLike, read_toml, real
 
@@ -260,12 +260,7 @@ _AXIS = {"x": 0, "y": 1, "z": 2}
 def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
     """(N, 4, 4) rotations about coordinate axis 0/1/2 by ``angle`` (N,) [rad]."""
     M = np.broadcast_to(np.eye(4), (angle.shape[0], 4, 4)).copy()
-    c, s = np.cos(angle), np.sin(angle)
-    j, k = [(1, 2), (2, 0), (0, 1)][axis]
-    M[:, j, j] = c
-    M[:, j, k] = -s
-    M[:, k, j] = s
-    M[:, k, k] = c
+    M[:, :3, :3] = rot_axis(axis, angle)
     return M
 
 

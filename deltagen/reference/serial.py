@@ -1,8 +1,9 @@
 """Independent pure-numpy reference kinematics of serial arms.
 
-This module shares nothing with the SymPy derivation or the generated C core. It builds
-every link transform as a plain product of elementary 4x4 matrices (batched over N poses
-with numpy) and multiplies them along the chain:
+This module shares nothing with the SymPy derivation or the generated C core. Its link
+transforms are the model's numeric definition (:func:`deltagen.model.serial.link_transform`,
+one copy, which structure detection uses too): a plain product of elementary 4x4 matrices
+(batched over N poses with numpy), multiplied along the chain:
 
 * ``standard`` DH (lecture slides 80-84, EASY-ROB paper eq. (2)):
   ``A_i = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i)``;
@@ -38,8 +39,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from deltagen.geometry.rotations import euler_zyx, rot_axis, rpy  # noqa: F401 (public here)
+from deltagen.geometry.rotations import euler_zyx, rpy  # noqa: F401 (public here)
 from deltagen.inputs import InputError, as_float_array
+from deltagen.model.serial import frames as model_frames
+from deltagen.model.serial import link_transform
 from deltagen.status import INVALID, OK
 
 __all__ = [
@@ -54,36 +57,6 @@ __all__ = [
 ]
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
-
-
-# ----------------------------------------------------------------- elementary matrices
-
-
-def _eye(N: int) -> np.ndarray:
-    return np.broadcast_to(np.eye(4), (N, 4, 4)).copy()
-
-
-def _rot(axis: int, angle: np.ndarray) -> np.ndarray:
-    """(N, 4, 4) rotations about coordinate axis 0/1/2 by ``angle`` (N,)."""
-    angle = np.asarray(angle, dtype=np.float64)
-    M = _eye(angle.shape[0])
-    M[:, :3, :3] = rot_axis(axis, angle)
-    return M
-
-
-def _trans(axis: int, dist: np.ndarray) -> np.ndarray:
-    """(N, 4, 4) translations along coordinate axis 0/1/2 by ``dist`` (N,)."""
-    dist = np.asarray(dist, dtype=np.float64)
-    M = _eye(dist.shape[0])
-    M[:, axis, 3] = dist
-    return M
-
-
-def _product(*mats: np.ndarray) -> np.ndarray:
-    out = mats[0]
-    for M in mats[1:]:
-        out = np.matmul(out, M)
-    return out
 
 
 # ------------------------------------------------------------------------ input helpers
@@ -119,38 +92,6 @@ def _status(bad: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------- transforms
 
 
-def _link(desc, i: int, qi: np.ndarray) -> np.ndarray:
-    j = desc.joints[i]
-    N = qi.shape[0]
-    var = qi + j.offset
-    const = np.full(N, 0.0)
-    if desc.convention == "standard":
-        theta = var if j.revolute else const + j.theta
-        d = const + j.d if j.revolute else var
-        return _product(
-            _rot(2, theta), _trans(2, d), _trans(0, const + j.a), _rot(0, const + j.alpha)
-        )
-    if desc.convention == "modified":
-        theta = var if j.revolute else const + j.theta
-        d = const + j.d if j.revolute else var
-        return _product(
-            _rot(0, const + j.alpha), _trans(0, const + j.a), _rot(2, theta), _trans(2, d)
-        )
-    if desc.convention == "universal":
-        ax = _AXIS[j.axis]
-        motion = _rot(ax, var) if j.revolute else _trans(ax, var)
-        return _product(
-            motion,
-            _trans(0, const + j.tx),
-            _trans(1, const + j.ty),
-            _trans(2, const + j.tz),
-            _rot(0, const + j.rx),
-            _rot(1, const + j.ry),
-            _rot(2, const + j.rz),
-        )
-    raise ValueError(f"unknown convention {desc.convention!r}")  # pragma: no cover
-
-
 def link_transforms(desc, q) -> list:
     """A_i(q_i) per the description's convention: a list of n arrays (N, 4, 4).
 
@@ -160,20 +101,10 @@ def link_transforms(desc, q) -> list:
     bad, (qc,) = _split_invalid(q)
     out = []
     for i in range(desc.n):
-        A = _link(desc, i, qc[:, i])
+        A = link_transform(desc, i, qc[:, i])
         A[bad] = np.nan
         out.append(A)
     return out
-
-
-def _frames_clean(desc, qc: np.ndarray) -> np.ndarray:
-    N, n = qc.shape
-    F = np.empty((N, n + 2, 4, 4))
-    F[:, 0] = desc.base
-    for i in range(n):
-        F[:, i + 1] = np.matmul(F[:, i], _link(desc, i, qc[:, i]))
-    F[:, n + 1] = np.matmul(F[:, n], desc.tool)
-    return F
 
 
 def frames(desc, q):
@@ -181,7 +112,7 @@ def frames(desc, q):
     F[:, n+1] = F[:, n] tool."""
     q = _check_q(desc, q)
     bad, (qc,) = _split_invalid(q)
-    F = _frames_clean(desc, qc)
+    F = model_frames(desc, qc)
     F[bad] = np.nan
     return F, _status(bad)
 
@@ -223,7 +154,7 @@ def joint_axes(desc, q):
     """
     q = _check_q(desc, q)
     bad, (qc,) = _split_invalid(q)
-    F = _frames_clean(desc, qc)
+    F = model_frames(desc, qc)
     origins, axes = _axes_from_frames(desc, F, qc)
     origins[bad] = np.nan
     axes[bad] = np.nan
@@ -245,7 +176,7 @@ def _revolute_mask(desc) -> np.ndarray:
 
 def _jacobian_parts(desc, qc: np.ndarray):
     """Base-frame J (N, 6, n) plus the pieces jacobian_dot needs."""
-    F = _frames_clean(desc, qc)
+    F = model_frames(desc, qc)
     o, w = _axes_from_frames(desc, F, qc)
     T = F[:, -1]
     p = T[:, :3, 3]
