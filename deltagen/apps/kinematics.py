@@ -36,6 +36,7 @@ import numpy as np
 
 from deltagen.apps.tables import Columns, output_format, read_table, write_table
 from deltagen.errors import DeltagenError
+from deltagen.geometry.rotations import matrix_from_euler_zyx
 from deltagen.inputs import InputError
 
 EXIT_OK, EXIT_INVALID, EXIT_USAGE = 0, 1, 2
@@ -46,23 +47,8 @@ TRANSFORM_LAST = ("T41", "T42", "T43", "T44")
 
 
 def euler_to_matrix(psi, theta, phi) -> np.ndarray:
-    """R = Rz(psi) Ry(theta) Rx(phi) (..., 3, 3), the inverse of api.serial.euler_zyx."""
-    cs, ss = np.cos(psi), np.sin(psi)
-    ct, st = np.cos(theta), np.sin(theta)
-    cf, sf = np.cos(phi), np.sin(phi)
-    R = np.empty(np.shape(psi) + (3, 3))
-    R[..., 0, 0], R[..., 0, 1], R[..., 0, 2] = (
-        cs * ct,
-        cs * st * sf - ss * cf,
-        cs * st * cf + ss * sf,
-    )
-    R[..., 1, 0], R[..., 1, 1], R[..., 1, 2] = (
-        ss * ct,
-        ss * st * sf + cs * cf,
-        ss * st * cf - cs * sf,
-    )
-    R[..., 2, 0], R[..., 2, 1], R[..., 2, 2] = -st, ct * sf, ct * cf
-    return R
+    """R = Rz(psi) Ry(theta) Rx(phi) (..., 3, 3), the inverse of euler_zyx."""
+    return matrix_from_euler_zyx(np.stack(np.broadcast_arrays(psi, theta, phi), axis=-1))
 
 
 @dataclass
