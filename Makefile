@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup run test lint typecheck generate check bench clean
+.PHONY: setup run test quick lint typecheck generate check bench clean
 
 setup: $(VENV)/.installed
 
@@ -21,6 +21,10 @@ run: setup
 test: lint typecheck
 	$(BIN)/deltagen generate --check
 	$(BIN)/python -m pytest -q
+
+# the suite without the tests marked slow (sanitizer builds, fresh interpreters)
+quick: setup
+	$(BIN)/python -m pytest -q -m "not slow"
 
 lint: setup
 	$(BIN)/ruff check deltagen tests

@@ -437,6 +437,7 @@ def sanitizers(tmp_path_factory):
     return SANITIZE
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "geom,n_rows,variant",
     [
@@ -671,6 +672,7 @@ int main(void)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["puma560", "manutec_h5", "long7", "long9"])
 def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     """deltagen_<arm>_ik_newton (the generated wrapper and the runtime solver) on its own, linked with

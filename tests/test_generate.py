@@ -26,11 +26,19 @@ NAMES = DELTA + tuple(
 
 @pytest.fixture(scope="module")
 def rendered():
+    """Every generated file, rendered once for the module (a full render derives all
+    robots: the tests below reuse it instead of rendering again)."""
     return generate.generated_files()
 
 
 @pytest.fixture
-def generated_copy(tmp_path, monkeypatch):
+def render_once(monkeypatch, rendered):
+    """`generate`'s render returns the module's render (same text, no re-derivation)."""
+    monkeypatch.setattr(generate, "generated_files", lambda: dict(rendered))
+
+
+@pytest.fixture
+def generated_copy(tmp_path, monkeypatch, render_once):
     """A copy of generated/ that `deltagen generate` will use instead of the real one."""
     copy = tmp_path / "generated"
     shutil.copytree(paths.generated_dir(), copy)
@@ -93,7 +101,7 @@ def test_generated_layout_is_clean(rendered):
         assert f"deltagen/codegen/templates/{template}" in text.split("*/")[0], name
 
 
-def test_checkout_is_current(capsys):
+def test_checkout_is_current(capsys, render_once):
     assert cli.main(["generate", "--check"]) == 0
     assert "up to date" in capsys.readouterr().out
     assert generate.check() == []
@@ -158,13 +166,14 @@ def test_check_fails_on_a_stray_file(generated_copy, capsys):
     assert generate.check(generated_copy) == []
 
 
-def test_write_into_an_empty_directory(tmp_path, rendered):
+def test_write_into_an_empty_directory(tmp_path, rendered, render_once):
     written = generate.write(tmp_path / "out")
     assert sorted(p.name for p in written) == sorted(NAMES)
     for name in NAMES:
         assert (tmp_path / "out" / name).read_text() == rendered[name]
 
 
+@pytest.mark.slow
 def test_rendering_is_deterministic_across_processes(tmp_path):
     """Two fresh interpreters with different hash seeds render byte-identical files."""
     script = textwrap.dedent("""
@@ -206,6 +215,8 @@ def test_rendering_uses_the_templates(tmp_path, monkeypatch, rendered):
     header = copy / "header.h.j2"
     header.write_text("/* template marker */\n" + header.read_text())
     monkeypatch.setattr(render, "template_dir", lambda: copy)
-    again = generate.generated_files()
+    from deltagen.codegen.delta import delta_sources
+
+    again = delta_sources()  # the delta module alone: the templates are shared
     assert again["delta_kinematics.h"] == "/* template marker */\n" + rendered["delta_kinematics.h"]
     assert again["delta_kinematics.c"] == rendered["delta_kinematics.c"]

@@ -224,6 +224,7 @@ int main(void) {
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(GCC is None, reason="gcc not installed")
 def test_ik_all_alone_under_sanitizers(tmp_path):
     probe = tmp_path / "probe.c"
