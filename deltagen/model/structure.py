@@ -187,8 +187,22 @@ def joint_axes(desc: SerialDescription) -> JointAxes:
 # ------------------------------------------------------------------- the structures
 
 
+class _Structure:
+    """What every structure object offers: its axes' name in the repr, the joint limits."""
+
+    axes: JointAxes
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.axes.name!r})"
+
+    @property
+    def qlim(self) -> np.ndarray:
+        """(n, 2) joint limits [rad or m] (+-inf where a joint has none)."""
+        return self.axes.qlim
+
+
 @dataclass(frozen=True, eq=False, repr=False)
-class PlanarArm:
+class PlanarArm(_Structure):
     """2-3 revolute joints with parallel axes (direction u) and at most one prismatic joint
     along u. The first two revolute joints form a planar 2R arm for the point P: the tool
     point (2R) or the point of the last revolute axis (3R: that joint is a roll about u).
@@ -214,17 +228,9 @@ class PlanarArm:
     lower: np.ndarray  # (2,) [m] plane vector second axis -> P (q = 0)
     position_only_ok: bool  # the tool point is P (no roll, or the tool point on its axis)
 
-    def __repr__(self):
-        return f"{type(self).__name__}({self.axes.name!r})"
-
-    @property
-    def qlim(self) -> np.ndarray:
-        """(n, 2) joint limits [rad or m] (+-inf where a joint has none)."""
-        return self.axes.qlim
-
 
 @dataclass(frozen=True, eq=False, repr=False)
-class ElbowArm:
+class ElbowArm(_Structure):
     """Joints 1-3 of an elbow arm: axis 1 not parallel to axis 2, axes 2 and 3 parallel and
     distinct; they place a point W (the wrist point) of the forearm.
 
@@ -255,14 +261,6 @@ class ElbowArm:
     front: np.ndarray  # (4,) shoulder sign of each arm branch
     bend: np.ndarray  # (4,) elbow bend sign of each arm branch
     position_only_ok: bool  # the tool point is W (always for the central wrist)
-
-    def __repr__(self):
-        return f"{type(self).__name__}({self.axes.name!r})"
-
-    @property
-    def qlim(self) -> np.ndarray:
-        """(n, 2) joint limits [rad or m] (+-inf where a joint has none)."""
-        return self.axes.qlim
 
 
 @dataclass(frozen=True, eq=False, repr=False)
