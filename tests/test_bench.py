@@ -43,6 +43,8 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
     rows = _rows(delta_part)
     for name in QUANTITIES:
         assert name in rows, f"no throughput row for {name}"
+        # every column measured: the raw C kernel too (n/a when its symbol is not found)
+        assert "n/a" not in rows[name], f"a column of {name} was not measured: {rows[name]}"
     for column in (
         "C kernel",
         "compiled _core",

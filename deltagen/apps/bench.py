@@ -144,7 +144,7 @@ def _kernel_callable(core, name: str, inputs: list[np.ndarray]):
             *(fb("double[]", o, require_writable=True) for o in outs),
             fb("int8_t[]", status, require_writable=True),
         )
-        fn = getattr(lib, f"delta_{name}")
+        fn = getattr(lib, f"deltagen_delta_{name}")
         if fn(*cargs) != 0:
             return None
         keep = (inputs, outs, status)  # the buffers must outlive the call object
