@@ -41,9 +41,9 @@ LENGTH_TOL = 1e-9  # distances: relative to the arm's size
 
 
 def unit(v) -> np.ndarray:
-    """v / |v| (a vector (3,))."""
+    """v / |v| of a vector (3,) or of each row of (..., 3) (NaN rows for zero vectors)."""
     v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def parallel(w1, w2, tol: float = PARALLEL_TOL) -> bool:

@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from deltagen.geometry.axes import common_points
+from deltagen.geometry.axes import common_points, unit
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import SphericalWrist6R, detect
@@ -112,12 +112,6 @@ class _Structure:
         # the closed-form solver's detection (model.structure): one reading of the axes
         wrist_6r = isinstance(detect(desc), SphericalWrist6R)
         self.kind = "spherical_wrist_6r" if wrist_6r else "general"
-
-
-def _unit(v):
-    nrm = np.linalg.norm(v, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return v / nrm
 
 
 _CACHE: dict = {}
@@ -185,11 +179,13 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     if s.kind == "spherical_wrist_6r":
         W = common_points(o[:, 3:6], w[:, 3:6])
         wrist = np.linalg.norm(np.cross(w[:, 3], w[:, 5]), axis=1) < tol
-        n_sh = _unit(np.cross(w[:, 0], w[:, 1]))
+        with np.errstate(invalid="ignore", divide="ignore"):  # NaN for aligned axes
+            n_sh = unit(np.cross(w[:, 0], w[:, 1]))
         d_sh = np.abs(np.sum((W - o[:, 0]) * n_sh, axis=1))
         d23 = o[:, 2] - o[:, 1]
         d23 = d23 - np.sum(d23 * w[:, 1], axis=1)[:, None] * w[:, 1]
-        n_el = _unit(np.cross(w[:, 1], d23))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            n_el = unit(np.cross(w[:, 1], d23))
         d_el = np.abs(np.sum((W - o[:, 1]) * n_el, axis=1))
         shoulder = d_sh < tol * size
         elbow = d_el < tol * size
