@@ -13,7 +13,13 @@ def rows_text(rows) -> str:
 
 
 class DeltagenError(Exception):
-    """Base class of deltagen's own errors."""
+    """Base class of deltagen's own errors. ``rows`` lists the failing batch indices (flat,
+    C order over the leading dimensions); empty when the error is not about rows (a bad
+    option, a malformed file) or concerns the whole call."""
+
+    def __init__(self, message: str = "", rows=()):
+        self.rows = np.asarray(rows, dtype=np.intp).reshape(-1)
+        super().__init__(message)
 
 
 class GeometryError(DeltagenError, ValueError):
@@ -22,10 +28,6 @@ class GeometryError(DeltagenError, ValueError):
 
 class KinematicsError(DeltagenError, ValueError):
     """A pose the kinematics cannot evaluate; ``rows`` lists the failing batch indices."""
-
-    def __init__(self, message: str, rows=()):
-        self.rows = np.asarray(rows, dtype=np.intp)
-        super().__init__(message)
 
 
 class UnreachableError(KinematicsError):

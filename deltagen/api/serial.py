@@ -34,13 +34,15 @@ from deltagen.inputs import (
     as_float_array,
     broadcast_rows,
     check_errors_mode,
-    plain_pose,
 )
 from deltagen.model.serial import SerialDescription
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
 
 _BACKENDS = ("compiled", "reference")
+_IK_METHODS = ("auto", "analytic", "numeric")
+_EYE3 = np.eye(3)
+_BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
 
 
@@ -283,29 +285,68 @@ class SerialRobot:
             out = sv[..., 0] / sv[..., -1]
         return self._plain(errors, q, out, valid)
 
-    def singularities(self, q: ArrayLike, tol: float = 1e-6) -> dict[str, Any]:
+    def singularities(
+        self, q: ArrayLike, tol: float = 1e-6, errors: Errors = "raise"
+    ) -> dict[str, Any]:
         """Singularity report (lecture slides 112-114): condition number, manipulability,
         sigma_min, ``singular``, and for 6R arms with a central wrist the classic ``wrist``,
         ``shoulder`` and ``elbow`` flags; ``aligned_axes`` lists collinear joint axes.
-        deltagen.solve.singularity.describe(row) words one configuration's report."""
+        deltagen.solve.singularity.describe(row) words one configuration's report.
+
+        Rows of q with NaN or infinite values have no report: errors="raise" raises
+        InputError naming them; errors="nan" gives NaN numbers and False flags there and
+        adds ``valid`` (...) to the report."""
         from deltagen.solve.singularity import report
 
-        return report(self, q, tol=tol)
+        check_errors_mode(errors)
+        lead, arr = self._joints(q, "q")
+        finite = np.isfinite(arr).all(axis=-1)
+        if errors == "raise" and not np.all(finite):
+            bad = np.flatnonzero(~finite.reshape(-1))
+            raise InputError(
+                f"q contains NaN or infinite values in rows {rows_text(bad)} (no singularity "
+                "report for them; errors='nan' reports the others)",
+                bad,
+            )
+        rep = report(self, arr, tol=tol)
+        if errors == "nan":
+            rep["valid"] = finite if lead else bool(finite)
+        return rep
 
     # -- inverse kinematics -------------------------------------------------------------
 
     def _poses(self, T, name="T"):
-        arr = as_float_array(T, name)
+        """The one check of target poses (every ik / ik_all call, single pose or batch):
+        (lead, flat (N, 4, 4), finite (N,), rigid (N,)). rigid: the rotation block is
+        orthonormal to 1e-6 and the bottom row is 0 0 0 1 to 1e-12."""
+        arr = as_float_array(T, name, "(..., 4, 4)")
         if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
             raise InputError(f"{name} must have shape (..., 4, 4), got {arr.shape}")
         lead = arr.shape[:-2]
-        flat = np.ascontiguousarray(arr.reshape(-1, 4, 4))
-        finite = np.all(np.isfinite(flat), axis=(1, 2))
+        flat = arr.reshape(-1, 4, 4)  # as_float_array gives a C-contiguous array
+        finite = np.isfinite(flat).all(axis=(1, 2))
         R = flat[:, :3, :3]
-        with np.errstate(invalid="ignore"):
-            rigid = np.all(np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)) < 1e-6, axis=(1, 2))
-            rigid &= np.all(np.abs(flat[:, 3] - [0, 0, 0, 1]) < 1e-12, axis=1)
-        return lead, flat, finite, rigid
+        with np.errstate(all="ignore"):
+            rigid = (np.abs(R @ np.swapaxes(R, -1, -2) - _EYE3) < 1e-6).all(axis=(1, 2))
+            rigid &= (np.abs(flat[:, 3] - _BOTTOM) < 1e-12).all(axis=1)
+        return lead, flat, finite, rigid & finite
+
+    @staticmethod
+    def _raise_bad_poses(finite, rigid, name="T"):
+        """InputError naming the rows of T that are not finite, or not rigid transforms."""
+        nonfinite = np.flatnonzero(~finite)
+        if nonfinite.size:
+            raise InputError(
+                f"{name} contains NaN or infinite values in rows {rows_text(nonfinite)}",
+                nonfinite,
+            )
+        bad = np.flatnonzero(~rigid)
+        if bad.size:
+            raise InputError(
+                f"{name} is not a rigid transform (rotation block not orthonormal, or bottom "
+                f"row not [0, 0, 0, 1]) in rows {rows_text(bad)}",
+                bad,
+            )
 
     def analytic_configs(self) -> tuple[str, ...]:
         """Branch names of ik_all ((), if the arm has none): the closed form's, or for a
@@ -337,17 +378,23 @@ class SerialRobot:
 
     def ik_all(self, T: ArrayLike) -> tuple[FloatArray, BoolArray]:
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
-        within the joint limits). Branch names: analytic_configs()."""
-        if self._ik_all_single is not None:
-            result = self._ik_all_single(T)
-            if result is not None:
-                return result
+        within the joint limits). Branch names: analytic_configs(). Rows of T that are not
+        finite rigid transforms come back NaN and invalid."""
         solver = self._analytic()
         combined = self._combined() if solver is None else None
         if solver is None and combined is None:
             raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")
-        lead, flat, finite, rigid = self._poses(T)
-        bad = ~(finite & rigid)
+        lead, flat, finite, rigid = self._poses(T)  # every call, whichever path follows
+        if self._ik_all_single is not None and flat.shape[0] == 1 and rigid[0]:
+            result = self._ik_all_single(flat[0])
+            if result is not None:
+                q1, valid1 = result
+                return q1.reshape(lead + q1.shape), valid1.reshape(lead + valid1.shape)
+        return self._ik_all_rows(lead, flat, rigid, solver, combined)
+
+    def _ik_all_rows(self, lead, flat, good, solver, combined):
+        """ik_all's general path for checked poses (good: finite rigid rows)."""
+        bad = ~good
         safe = flat.copy()
         safe[bad] = np.eye(4)
         k = len(self.analytic_configs())
@@ -362,6 +409,53 @@ class SerialRobot:
             q, valid = combined.solve_all(self, safe)
         q[bad], valid[bad] = np.nan, False
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
+
+    def _ik_request(self, config, q0, method, errors, singular, options):
+        """The one check of ik's options, made on every call before any path is chosen
+        (so a call is accepted or refused the same way for one pose or a batch, first call
+        or later). Returns (analytic: bool, q0 as a float64 array or None, numeric options
+        checked by deltagen.solve.numeric.check_options or None)."""
+        check_errors_mode(errors)
+        if not isinstance(singular, str) or singular not in ("raise", "allow"):
+            raise InputError(f'singular must be "raise" or "allow", got {singular!r}')
+        if not isinstance(method, str) or method not in _IK_METHODS:
+            raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
+        configs = self.analytic_configs()
+        if method == "analytic" and not configs:
+            raise InputError(f"{self.name} has no closed-form inverse; use method='numeric'")
+        analytic = method == "analytic" or (method == "auto" and bool(configs))
+        if config is not None:
+            if not analytic:
+                raise InputError(
+                    f"config picks a closed-form branch; it does not apply to the numeric "
+                    f"method ({self.name}, method={method!r}; give q0 to choose the start)"
+                )
+            if not isinstance(config, str) or config not in configs:
+                raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
+        from deltagen.solve import numeric as ik_numeric
+
+        unknown = sorted(set(options) - set(ik_numeric.OPTIONS))
+        if unknown:
+            raise InputError(
+                f"ik got unknown option(s) {', '.join(unknown)}; it takes config, q0, method, "
+                f"errors, singular and, for method='numeric', {', '.join(ik_numeric.OPTIONS)}"
+            )
+        checked = None
+        if analytic:
+            if options:
+                raise InputError(
+                    f"option(s) {', '.join(sorted(options))} apply to method='numeric' only; "
+                    f"this call uses {self.name}'s closed form (method={method!r})"
+                )
+        else:
+            checked = ik_numeric.check_options(self, **options)  # max_iter >= 1 here
+        if q0 is not None:
+            q0 = as_float_array(q0, "q0", f"(..., {self.n})")
+            if q0.shape[-1] != self.n:
+                raise InputError(
+                    f"q0 must have shape (..., {self.n}) for {self.name}, got {q0.shape}"
+                )
+        return analytic, q0, checked
 
     def ik(
         self,
@@ -380,56 +474,63 @@ class SerialRobot:
         "auto" (analytic if available). Analytic: ``config`` picks a branch by name
         (analytic_configs()); ``q0`` picks the valid branch nearest q0; neither: the first
         valid branch in the order of analytic_configs(). Numeric: starts at q0 (default the
-        middle of the joint ranges, or zeros).
+        middle of the joint ranges, or zeros). q0 (n,) or (..., n) broadcasts against T's
+        leading shape.
 
         A solution at an exact singularity of the arm (sigma_min / sigma_max of the geometric
         Jacobian below status.SINGULAR_TOL = 1e-9: the Puma's wrist at q5 = 0, a stretched
         elbow) is not unique: ``singular="raise"`` (default) raises SingularityError for such
         rows (errors="raise") or gives NaN and False (errors="nan"); ``singular="allow"``
-        returns the solution found (e.g. q4 = 0 at a wrist singularity)."""
-        if singular not in ("raise", "allow"):
-            raise InputError(f'singular must be "raise" or "allow", got {singular!r}')
-        if (
-            self._ik_all_single is not None
-            and errors == "raise"
-            and q0 is None
-            and method != "numeric"
-            and not options
-        ):
-            q = self._ik_single(T, config)
-            if q is not None and (singular == "allow" or not self._singular_one(q)):
-                return q
-        if (
-            method == "numeric"
+        returns the solution found (e.g. q4 = 0 at a wrist singularity).
+
+        Every call checks all of its arguments the same way, whichever internal path (one
+        pose or a batch) answers it. errors="raise" raises InputError for targets that are
+        not finite rigid transforms, non-finite q0 rows and bad options, and
+        UnreachableError naming the cause per row (out of reach, orientation not reachable
+        by this structure, outside the joint limits, no convergence)."""
+        analytic, q0a, checked = self._ik_request(config, q0, method, errors, singular, options)
+        lead, flat, finite, rigid = self._poses(T)
+        single = flat.shape[0] == 1 and not lead and rigid[0]
+        if single and errors == "raise" and q0a is None and analytic:
+            if self._ik_all_single is not None:
+                q = self._ik_single(flat[0], config)
+                if q is not None and (singular == "allow" or not self._singular_one(q)):
+                    return q
+        elif (
+            single
+            and not analytic
             and self.backend == "compiled"
-            and errors in ("raise", "nan")
             and options.keys() <= {"restarts", "seed"}
+            and (q0a is None or (q0a.shape == (self.n,) and np.isfinite(q0a).all()))
         ):
-            q = self._numeric_single(T, q0, options.get("restarts", 0), options.get("seed", 0))
+            q = self._numeric_single(flat[0], q0a, options.get("restarts", 0), options.get("seed", 0))
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q if errors == "raise" else (q, np.array(True))
-        check_errors_mode(errors)
-        if method not in ("auto", "analytic", "numeric"):
-            raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
-        lead, flat, finite, rigid = self._poses(T)
-        if errors == "raise" and not np.all(finite & rigid):
-            bad = np.flatnonzero(~(finite & rigid))
-            raise InputError(f"T is not a finite rigid transform in rows {rows_text(bad)}")
-        has_branches = bool(self.analytic_configs())
-        use_analytic = method == "analytic" or (method == "auto" and has_branches)
-        if use_analytic:
-            if not has_branches:
-                raise InputError(f"{self.name} has no closed-form inverse; use method='numeric'")
-            q_all, valid_all = self.ik_all(flat)
-            q, ok = self._pick_branch(q_all, valid_all, config, q0)
+        good = rigid
+        if errors == "raise" and not np.all(good):
+            self._raise_bad_poses(finite, rigid)
+        start = None
+        if q0a is not None:
+            start = self._start(q0a, lead)
+            q0_ok = np.isfinite(start).all(axis=1)
+            if errors == "raise" and not np.all(q0_ok):
+                bad = np.flatnonzero(~q0_ok)
+                raise InputError(f"q0 contains NaN or infinite values in rows {rows_text(bad)}", bad)
+            good = good & q0_ok
+        if analytic:
+            q_all, valid_all = self._ik_all_rows(
+                (flat.shape[0],), flat, good, self._analytic(), self._combined()
+            )
+            q, ok = self._pick_branch(q_all, valid_all, config, start)
         else:
             from deltagen.solve import numeric as ik_numeric
 
-            start = self._start(q0, flat.shape[0])
+            if start is None:
+                start = self._start(None, (flat.shape[0],))
             safe = flat.copy()
-            safe[~(finite & rigid)] = np.eye(4)
+            safe[~good] = np.eye(4)
             result = ik_numeric.solve(self, safe, start, **options)
-            q, ok = result.q, result.converged & finite & rigid
+            q, ok = result.q, result.converged & good
         q = q.copy()
         q[~ok] = np.nan
         if singular == "raise" and np.any(ok):
@@ -448,16 +549,116 @@ class SerialRobot:
                 q[at_singularity] = np.nan
         if errors == "raise":
             if not np.all(ok):
-                from deltagen.errors import UnreachableError
-
                 bad = np.flatnonzero(~ok)
-                raise UnreachableError(
-                    f"no solution within the joint limits for rows {rows_text(bad)}"
-                    + (f" in configuration {config!r}" if config else ""),
-                    bad,
-                )
+                raise self._unsolved(flat, bad, analytic, config, options)
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
+
+    # -- why a target has no solution (errors="raise" only: the error path) -------------
+
+    def _unsolved(self, flat, bad, analytic, config, options):
+        """UnreachableError for the unsolved rows ``bad`` of finite rigid targets, naming
+        each row's cause: out of reach, an orientation this structure cannot reach, a
+        solution only outside the joint limits, or (numeric) no convergence."""
+        from deltagen.errors import UnreachableError
+
+        T = flat[bad]
+        cause = np.full(bad.size, "", dtype=object)
+        dist, reach = self._reach_of(T)
+        far = dist > reach
+        tilt = self._tilt_of(T)
+        solver = self._analytic() if analytic else None
+        if solver is not None:
+            with np.errstate(all="ignore"):
+                _, free = solver.solve(T, limits=False)
+                _, within = solver.solve(T)
+            k = None if config is None else self.analytic_configs().index(config)
+            sel = slice(None) if k is None else k
+            exists = np.asarray(free[:, sel]).reshape(bad.size, -1).any(axis=1)
+            other = within.any(axis=1) & (k is not None)
+            cause[exists] = "its solution lies outside the joint limits"
+            cause[~exists & other] = f"no solution in configuration {config!r} (others exist)"
+            oriented = np.zeros(bad.size, dtype=bool)
+            if solver.detected.position_only_ok:
+                _, pos = solver.solve(T, limits=False, position_only=True)
+                oriented = pos.any(axis=1)
+            cause[(cause == "") & (tilt | oriented) & ~far] = "orientation not reachable"
+        elif not analytic:
+            max_iter = options.get("max_iter", 100)
+            restarts = options.get("restarts", 0)
+            cause[:] = (
+                f"no convergence in max_iter={max_iter} steps and restarts={restarts} "
+                "(a target outside the joint limits or a poor start; try restarts= or "
+                "another q0)"
+            )
+        cause[far] = "out of reach"
+        cause[cause == ""] = (
+            "out of reach"
+            if solver is not None
+            else "no solution found (out of reach or outside the joint limits)"
+        )
+        parts = []
+        for text in dict.fromkeys(cause):
+            rows = bad[cause == text]
+            if text == "out of reach":
+                sub = far[cause == text]
+                detail = (
+                    f" (the tool point is up to {float(np.max(dist[cause == text])):.4g} m "
+                    f"from the base; {self.name} reaches at most {reach:.4g} m)"
+                    if np.any(sub)
+                    else " (no closed-form solution)"
+                )
+                text = text + detail
+            elif text == "orientation not reachable":
+                text = (
+                    f"orientation not reachable by this structure ({self.name} "
+                    + (
+                        "turns the tool about the base z axis only; the target's tool is "
+                        "tilted"
+                        if self._turns_about_z() is not None
+                        else "cannot reach the target's rotation at that position"
+                    )
+                    + ")"
+                )
+            parts.append(f"{text} in rows {rows_text(rows)}")
+        return UnreachableError(f"ik of {self.name} has no solution: " + "; ".join(parts), bad)
+
+    def _reach_of(self, T):
+        """(distance of each target's tool point from the base origin, the arm's reach):
+        for arms of revolute joints only the distance between consecutive joint frames is
+        constant, so their sum bounds the reach; otherwise the reach is inf."""
+        if not hasattr(self, "_reach"):
+            reach = np.inf
+            if all(j.revolute for j in self.description.joints):
+                F, _ = self._core.frames(np.zeros((1, self.n)))
+                o = F[0, :, :3, 3]
+                reach = float(np.sum(np.linalg.norm(np.diff(o, axis=0), axis=1)))
+                reach = reach * (1 + 1e-9) + 1e-12
+            self._reach = reach
+        base_origin = self.description.base[:3, 3]
+        return np.linalg.norm(T[:, :3, 3] - base_origin, axis=1), self._reach
+
+    def _turns_about_z(self):
+        """R0 (tool rotation at q = 0) if every reachable tool rotation is Rz(a) R0 (the
+        SCARAs, the planar arms: checked at fixed sample configurations), else None."""
+        if not hasattr(self, "_z_only"):
+            rng = np.random.default_rng(7)
+            qs = np.vstack([np.zeros(self.n), rng.uniform(-2.0, 2.0, (8, self.n))])
+            R, _ = self._core.fk(np.ascontiguousarray(qs))
+            R = R[:, :3, :3]
+            Rrel = R @ R[0].T
+            z_only = np.all(np.abs(Rrel[:, 2, 2] - 1.0) < 1e-9)
+            self._z_only = R[0].copy() if z_only else None
+        return self._z_only
+
+    def _tilt_of(self, T):
+        """Rows of T whose rotation this arm cannot reach by turning about z (only for the
+        arms of _turns_about_z; False elsewhere)."""
+        R0 = self._turns_about_z()
+        if R0 is None:
+            return np.zeros(T.shape[0], dtype=bool)
+        Rrel = T[:, :3, :3] @ R0.T
+        return np.linalg.norm(Rrel[:, :, 2] - [0.0, 0.0, 1.0], axis=1) > 1e-8
 
     def _singular_rows(self, q):
         """Rows of finite q (M, n) whose Jacobian is singular: sigma_min / sigma_max <
@@ -476,28 +677,17 @@ class SerialRobot:
         return singular
 
     def _numeric_single(self, T, q0, restarts, seed):
-        """Fast path of the numerical ik for one target (ik_numeric.single_solver): q, or
-        None when the general path must answer (other inputs, or the first attempt did not
-        converge: restarts and errors are the general path's)."""
-        n, ndarray = self.n, np.ndarray
-        if not plain_pose(T):
-            return None
-        if q0 is not None and (
-            type(q0) is not ndarray
-            or q0.shape != (n,)
-            or q0.dtype.char != "d"
-            or not q0.flags.c_contiguous
-        ):
-            return None
-        if not isinstance(restarts, int) or isinstance(restarts, bool) or restarts < 0:
-            return None
+        """Fast path of the numerical ik for one checked target T (4, 4) and q0 None or a
+        finite (n,) array (ik_numeric.single_solver): q, or None when the general path must
+        answer (the first attempt did not converge: restarts and errors are its)."""
         solver = self.__dict__.get("_numeric_solver")
         if solver is None:
             from deltagen.solve.numeric import single_solver
 
             solver = self._numeric_solver = single_solver(self)
-            self._mid_range = np.ascontiguousarray(self._start(None, 1)[0])
-        return solver(T, self._mid_range if q0 is None else q0, restarts, seed)
+            self._mid_range = np.ascontiguousarray(self._start(None, (1,))[0])
+        start = self._mid_range if q0 is None else np.ascontiguousarray(q0)
+        return solver(T, start, int(restarts), seed)
 
     def _singular_one(self, q):
         """_singular_rows for one configuration, lean (the single-pose fast path)."""
@@ -510,40 +700,43 @@ class SerialRobot:
         return bool(self._singular_rows(q[None])[0])
 
     def _ik_single(self, T, config):
-        """Fast path of ik for one pose with a C closed form: q, or None when the general
-        path must answer (it also raises the errors)."""
+        """Fast path of ik for one checked pose with a C closed form (config checked by
+        _ik_request): q, or None when the general path must answer (it raises the errors)."""
         result = self._ik_all_single(T)
         if result is None:
             return None
         q_all, valid = result
-        if config is None:
-            k = int(valid.argmax())
-        else:
-            configs = self._analytic().configs
-            if config not in configs:
-                return None
-            k = configs.index(config)
+        k = int(valid.argmax()) if config is None else self._analytic().configs.index(config)
         return q_all[k] if valid[k] else None
 
-    def _start(self, q0, count):
+    def _start(self, q0, lead):
+        """(N, n) start rows for targets of leading shape ``lead``: q0 (checked by
+        _ik_request) broadcast against it, or the middle of the joint ranges (0 where a
+        range is unbounded)."""
+        count = int(np.prod(lead))
         if q0 is None:
             lim = self.qlim
             bounded = np.isfinite(lim).all(axis=1)
             mid = np.where(bounded, np.where(bounded[:, None], lim, 0.0).mean(axis=1), 0.0)
             return np.tile(mid, (count, 1))
-        _, arr = self._joints(q0, "q0")
-        return np.ascontiguousarray(np.broadcast_to(arr.reshape(-1, self.n), (count, self.n)))
+        try:
+            start = np.broadcast_to(q0, tuple(lead) + (self.n,))
+        except ValueError:
+            raise InputError(
+                f"q0 of shape {q0.shape} does not broadcast to the targets' leading shape "
+                f"{tuple(lead)}"
+            ) from None
+        return np.ascontiguousarray(start.reshape(count, self.n))
 
-    def _pick_branch(self, q_all, valid_all, config, q0):
+    def _pick_branch(self, q_all, valid_all, config, start):
+        """The branch of each row: ``config`` (checked by _ik_request), else the valid
+        branch nearest the start rows (N, n), else the first valid one."""
         configs = self.analytic_configs()
         rows = np.arange(q_all.shape[0])
         if config is not None:
-            if config not in configs:
-                raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
             k = configs.index(config)
             return q_all[:, k], valid_all[:, k]
-        if q0 is not None:
-            start = self._start(q0, q_all.shape[0])
+        if start is not None:
             d = wrap_to_pi(q_all - start[:, None, :])
             revolute = np.array([j.revolute for j in self.description.joints])
             d = np.where(revolute, d, q_all - start[:, None, :])
@@ -576,7 +769,7 @@ class SerialRobot:
         return np.concatenate([Rt @ J[:, :3], Rt @ J[:, 3:]], axis=1)
 
     def _joints(self, q, name):
-        arr = as_float_array(q, name)
+        arr = as_float_array(q, name, f"(..., {self.n})")
         if arr.ndim == 0 or arr.shape[-1] != self.n:
             raise InputError(
                 f"{name} must have shape (..., {self.n}) for {self.name}, got {arr.shape}"

@@ -8,6 +8,7 @@ import threading
 import numpy as np
 
 from deltagen import status as st
+from deltagen.inputs import plain_row
 from deltagen.native.build import load
 
 
@@ -45,31 +46,35 @@ class CompiledDelta:
         self._scratch = _Scratch(self._ffi)
 
     def single(self, name):
-        """A fast function for one pose: a (3,) float64 array or a list/tuple of 3 numbers
-        in, the (3,) result out, or None when the general path must handle the call
-        (other shapes or types, or a status to report). Same C function, same numbers."""
+        """A fast function for one pose: what inputs.plain_row(pose, 3) accepts (a (3,)
+        float64 array or a list/tuple of 3 Python floats/ints) in, the (3,) result out, or
+        None when the general path must handle the call (other inputs, whose checks it
+        makes, or a status to report). Same C function, same numbers."""
         fn = self._lib.deltagen_delta_fk if name == "fk" else self._lib.deltagen_delta_ik
         geometry, scratch, memmove = self._geometry, self._scratch, self._ffi.memmove
-        ndarray, OK, SINGULAR = np.ndarray, st.OK, st.SINGULAR
+        ndarray, OK, SINGULAR, isfinite = np.ndarray, st.OK, st.SINGULAR, math.isfinite
 
         def call(pose):
+            if not plain_row(pose, 3):
+                return None
             sc = scratch
-            kind = type(pose)
             try:
-                if kind is ndarray:
-                    if pose.shape != (3,) or pose.dtype.char != "d":
-                        return None
+                if type(pose) is ndarray:
                     memmove(sc.inp, pose, 24)  # non-contiguous views raise: general path
-                elif (kind is list or kind is tuple) and len(pose) == 3:
-                    sc.inp[0:3] = pose  # cffi converts Python numbers, rejects others
                 else:
-                    return None
-            except (TypeError, ValueError, BufferError):
+                    sc.inp[0:3] = pose
+            except (TypeError, ValueError, BufferError, OverflowError):
                 return None
             fn(geometry, 1, 3, sc.inp, sc.out, sc.status)
             code = sc.status[0]
-            if code != OK and not (code == SINGULAR and sc.out[0] == sc.out[0]):
-                return None
+            if code != OK:
+                # a singular pose is a result when all of it is finite (as in the general
+                # path's DeltaRobot._finish); anything else is reported there
+                out = sc.out
+                if code != SINGULAR or not (
+                    isfinite(out[0]) and isfinite(out[1]) and isfinite(out[2])
+                ):
+                    return None
             return sc.out_np[:3].copy()
 
         return call

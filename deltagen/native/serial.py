@@ -19,7 +19,7 @@ from deltagen.codegen.serial import (
     description_fingerprint,
     generator_fingerprint,
 )
-from deltagen.inputs import plain_pose
+from deltagen.inputs import plain_pose, plain_row
 from deltagen.native.build import load, usable_cache_dir
 from deltagen.paths import generated_dir
 
@@ -207,26 +207,23 @@ class CompiledArm:
         return call
 
     def single(self, name):
-        """Fast path for one configuration (list/tuple or (n,) float64 array) of fk or
-        jacobian: the result, or None when the general path must handle the call."""
+        """Fast path for one configuration of fk or jacobian: what inputs.plain_row(q, n)
+        accepts in, the result out, or None when the general path must handle the call."""
         fn = getattr(self._lib, f"{self._prefix}_{name}")
         scratch, memmove, n = self._scratch, self._ffi.memmove, self.desc.n
         ndarray, OK = np.ndarray, st.OK
         out_name = "T" if name == "fk" else "J"
 
         def call(q):
+            if not plain_row(q, n):
+                return None
             sc = scratch
-            kind = type(q)
             try:
-                if kind is ndarray:
-                    if q.shape != (n,) or q.dtype.char != "d":
-                        return None
+                if type(q) is ndarray:
                     memmove(sc.q, q, 8 * n)
-                elif (kind is list or kind is tuple) and len(q) == n:
-                    sc.q[0:n] = q
                 else:
-                    return None
-            except (TypeError, ValueError, BufferError):
+                    sc.q[0:n] = q
+            except (TypeError, ValueError, BufferError, OverflowError):
                 return None
             fn(1, sc.q, getattr(sc, out_name), sc.status)
             if sc.status[0] != OK:

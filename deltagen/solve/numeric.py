@@ -324,6 +324,99 @@ class _Limits:
 
 # ------------------------------------------------------------------------------- solve
 
+#: the keyword options of solve() (and of SerialRobot.ik(method="numeric"))
+OPTIONS = (
+    "tol",
+    "max_iter",
+    "mask",
+    "jacobian",
+    "damping",
+    "step_limit",
+    "respect_limits",
+    "restarts",
+    "seed",
+    "null_space",
+    "engine",
+)
+
+
+def _is_count(x) -> bool:
+    return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+
+def check_options(
+    arm,
+    *,
+    tol=1e-10,
+    max_iter=100,
+    mask=None,
+    jacobian="symbolic",
+    damping="auto",
+    step_limit=0.5,
+    respect_limits=True,
+    restarts=0,
+    seed=0,
+    null_space=0.0,
+    engine="auto",
+    min_iter=1,
+) -> dict:
+    """The one check of solve()'s options (solve() and SerialRobot.ik call it on every
+    call): raises InputError naming the first bad option, else returns them checked:
+    tol as (position, rotation), damping as (K, c0, Levenberg-Marquardt on), mask as a
+    (6,) bool array or None, and c_ok (the compiled engine applies). ``min_iter``: the
+    smallest max_iter accepted (solve(): 0, which only checks the start; ik: 1)."""
+    if jacobian not in JACOBIANS:
+        raise InputError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
+    tol_pr = _check_tol(tol)
+    if not _is_count(max_iter) or max_iter < min_iter:
+        raise InputError(f"max_iter must be an integer >= {min_iter}, got {max_iter!r}")
+    if not _is_count(restarts) or restarts < 0:
+        raise InputError(f"restarts must be an integer >= 0, got {restarts!r}")
+    if not (
+        (_is_count(seed) and seed >= 0)
+        or seed is None
+        or isinstance(seed, (np.random.Generator, np.random.SeedSequence))
+    ):
+        raise InputError(
+            f"seed must be an integer >= 0, None or a numpy Generator/SeedSequence, got {seed!r}"
+        )
+    if isinstance(damping, str) and damping == "auto":
+        damp = (1.0, BASE_DAMPING, True)
+    elif damping is None:
+        damp = (0.0, 0.0, False)
+    elif _is_real(damping) and np.isfinite(damping) and damping >= 0:
+        damp = (float(damping), BASE_DAMPING, True)
+    else:
+        raise InputError(f'damping must be "auto", a number >= 0 or None, got {damping!r}')
+    if step_limit is not None and not (
+        _is_real(step_limit) and not np.isnan(step_limit) and step_limit > 0
+    ):
+        raise InputError(f"step_limit must be a number > 0 or None, got {step_limit!r}")
+    if not isinstance(respect_limits, (bool, np.bool_)):
+        raise InputError(f"respect_limits must be True or False, got {respect_limits!r}")
+    if not (_is_real(null_space) and np.isfinite(null_space) and null_space >= 0):
+        raise InputError(f"null_space must be a finite number >= 0, got {null_space!r}")
+    if not isinstance(engine, str) or engine not in ENGINES:
+        raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+    c_ok = (
+        getattr(arm, "backend", None) == "compiled"
+        and jacobian == "symbolic"
+        and damp[2]
+        and null_space == 0
+    )
+    if engine == "c" and not c_ok:
+        raise InputError(
+            'engine="c" needs the compiled backend, jacobian="symbolic", '
+            'damping "auto" or a number, and null_space=0'
+        )
+    return {
+        "tol": tol_pr,
+        "damping": damp,
+        "mask": None if mask is None else _check_mask(mask),
+        "c_ok": c_ok,
+    }
+
+
 
 def solve(
     arm,
@@ -366,38 +459,24 @@ def solve(
     non-finite value in T or q0) come back NaN and unconverged, nothing raises or warns
     for them.
     """
-    if jacobian not in JACOBIANS:
-        raise InputError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
-    tol_p, tol_r = _check_tol(tol)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
-        raise InputError(f"max_iter must be an integer >= 0, got {max_iter!r}")
-    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
-        raise InputError(f"restarts must be an integer >= 0, got {restarts!r}")
-    if isinstance(damping, str) and damping == "auto":
-        k_nh, c0, lm = 1.0, BASE_DAMPING, True
-    elif damping is None:
-        k_nh, c0, lm = 0.0, 0.0, False
-    elif _is_real(damping) and np.isfinite(damping) and damping >= 0:
-        k_nh, c0, lm = float(damping), BASE_DAMPING, True
-    else:
-        raise InputError(f'damping must be "auto", a number >= 0 or None, got {damping!r}')
-    if step_limit is not None and not (_is_real(step_limit) and step_limit > 0):
-        raise InputError(f"step_limit must be a number > 0 or None, got {step_limit!r}")
-    if not (_is_real(null_space) and np.isfinite(null_space) and null_space >= 0):
-        raise InputError(f"null_space must be a finite number >= 0, got {null_space!r}")
-    if engine not in ENGINES:
-        raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
-    c_ok = (
-        getattr(arm, "backend", None) == "compiled"
-        and jacobian == "symbolic"
-        and lm
-        and null_space == 0
+    opts = check_options(
+        arm,
+        tol=tol,
+        max_iter=max_iter,
+        mask=mask,
+        jacobian=jacobian,
+        damping=damping,
+        step_limit=step_limit,
+        respect_limits=respect_limits,
+        restarts=restarts,
+        seed=seed,
+        null_space=null_space,
+        engine=engine,
+        min_iter=0,
     )
-    if engine == "c" and not c_ok:
-        raise InputError(
-            'engine="c" needs the compiled backend, jacobian="symbolic", '
-            'damping "auto" or a number, and null_space=0'
-        )
+    tol_p, tol_r = opts["tol"]
+    k_nh, c0, lm = opts["damping"]
+    c_ok = opts["c_ok"]
     use_c = engine == "c" or (engine == "auto" and c_ok)
     n = arm.n
     T = as_float_array(T, "T")
@@ -415,7 +494,7 @@ def solve(
         raise InputError(
             f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}"
         ) from None
-    mask = default_mask(arm, jacobian) if mask is None else _check_mask(mask)
+    mask = default_mask(arm, jacobian) if mask is None else opts["mask"]
 
     Tt = np.ascontiguousarray(T.reshape(-1, 4, 4))
     Q0 = np.array(q0.reshape(-1, n), dtype=float)

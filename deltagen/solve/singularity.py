@@ -131,10 +131,15 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     """Singularity report of ``arm`` at q (..., n); see the module docstring."""
     desc = _description(arm)
     s = structure_of(desc)
-    q = as_float_array(q, "q")
+    q = as_float_array(q, "q", f"(..., {desc.n})")
     if q.ndim == 0 or q.shape[-1] != desc.n:
         raise InputError(f"q must have shape (..., {desc.n}) for {desc.name}, got {q.shape}")
-    if not (np.isfinite(tol) and tol > 0):
+    if not (
+        isinstance(tol, (int, float, np.integer, np.floating))
+        and not isinstance(tol, (bool, np.bool_))
+        and np.isfinite(tol)
+        and tol > 0
+    ):
         raise InputError(f"tol must be a positive number, got {tol!r}")
     lead = q.shape[:-1]
     qf = np.ascontiguousarray(q.reshape(-1, desc.n))
