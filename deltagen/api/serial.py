@@ -17,6 +17,7 @@ Orientation conventions (spelled out because they are the usual source of confus
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -43,7 +44,29 @@ _BACKENDS = ("compiled", "reference")
 _IK_METHODS = ("auto", "analytic", "numeric")
 _EYE3 = np.eye(3)
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
-Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
+_RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # SerialRobot._poses: what counts as a rigid transform
+
+
+def _check_one_pose(v):
+    """(finite, rigid) of one pose given as its 16 entries (row by row, a Python list):
+    SerialRobot._poses's rule for a batch, in Python floats (a few us instead of ~20)."""
+    if not all(map(math.isfinite, v)):
+        return False, False
+    a, b, c, _, d, e, f, _, g, h, i, _, w, x, y, z = v
+    tol, bottom = _RIGID_TOL, _BOTTOM_TOL
+    rigid = (
+        abs(a * a + b * b + c * c - 1.0) < tol
+        and abs(d * d + e * e + f * f - 1.0) < tol
+        and abs(g * g + h * h + i * i - 1.0) < tol
+        and abs(a * d + b * e + c * f) < tol
+        and abs(a * g + b * h + c * i) < tol
+        and abs(d * g + e * h + f * i) < tol
+        and abs(w) < bottom
+        and abs(x) < bottom
+        and abs(y) < bottom
+        and abs(z - 1.0) < bottom
+    )
+    return True, rigid
 
 
 def _is_arm_file(path: Path) -> bool:
@@ -317,18 +340,25 @@ class SerialRobot:
 
     def _poses(self, T, name="T"):
         """The one check of target poses (every ik / ik_all call, single pose or batch):
-        (lead, flat (N, 4, 4), finite (N,), rigid (N,)). rigid: the rotation block is
-        orthonormal to 1e-6 and the bottom row is 0 0 0 1 to 1e-12."""
-        arr = as_float_array(T, name, "(..., 4, 4)")
-        if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
-            raise InputError(f"{name} must have shape (..., 4, 4), got {arr.shape}")
+        (lead, flat (N, 4, 4), finite (N,), rigid (N,)). rigid: finite, the rotation block
+        orthonormal (|R R^T - I| < 1e-6 entrywise) and the bottom row 0 0 0 1 to 1e-12.
+        One pose is checked with Python floats (the same rule, a tenth of the time)."""
+        if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype.char == "d":
+            arr = np.ascontiguousarray(T)
+        else:
+            arr = as_float_array(T, name, "(..., 4, 4)")
+            if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
+                raise InputError(f"{name} must have shape (..., 4, 4), got {arr.shape}")
         lead = arr.shape[:-2]
-        flat = arr.reshape(-1, 4, 4)  # as_float_array gives a C-contiguous array
+        flat = arr.reshape(-1, 4, 4)  # C-contiguous
+        if flat.shape[0] == 1:
+            finite, rigid = _check_one_pose(flat.ravel().tolist())
+            return lead, flat, np.array([finite]), np.array([rigid])
         finite = np.isfinite(flat).all(axis=(1, 2))
         R = flat[:, :3, :3]
         with np.errstate(all="ignore"):
-            rigid = (np.abs(R @ np.swapaxes(R, -1, -2) - _EYE3) < 1e-6).all(axis=(1, 2))
-            rigid &= (np.abs(flat[:, 3] - _BOTTOM) < 1e-12).all(axis=1)
+            rigid = (np.abs(R @ np.swapaxes(R, -1, -2) - _EYE3) < _RIGID_TOL).all(axis=(1, 2))
+            rigid &= (np.abs(flat[:, 3] - _BOTTOM) < _BOTTOM_TOL).all(axis=1)
         return lead, flat, finite, rigid & finite
 
     @staticmethod
@@ -450,8 +480,9 @@ class SerialRobot:
         else:
             checked = ik_numeric.check_options(self, **options)  # max_iter >= 1 here
         if q0 is not None:
-            q0 = as_float_array(q0, "q0", f"(..., {self.n})")
-            if q0.shape[-1] != self.n:
+            if not (type(q0) is np.ndarray and q0.dtype.char == "d"):
+                q0 = as_float_array(q0, "q0", f"(..., {self.n})")
+            if q0.ndim == 0 or q0.shape[-1] != self.n:
                 raise InputError(
                     f"q0 must have shape (..., {self.n}) for {self.name}, got {q0.shape}"
                 )
@@ -501,7 +532,7 @@ class SerialRobot:
             and not analytic
             and self.backend == "compiled"
             and options.keys() <= {"restarts", "seed"}
-            and (q0a is None or (q0a.shape == (self.n,) and np.isfinite(q0a).all()))
+            and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
         ):
             q = self._numeric_single(flat[0], q0a, options.get("restarts", 0), options.get("seed", 0))
             if q is not None and (singular == "allow" or not self._singular_one(q)):

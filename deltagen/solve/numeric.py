@@ -110,6 +110,7 @@ errors are suppressed inside and every array is finite on the rows that are iter
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 
@@ -289,6 +290,9 @@ def _is_real(x) -> bool:
 
 
 def _check_tol(tol):
+    if type(tol) is float or type(tol) is int:  # the common case, without numpy
+        if math.isfinite(tol) and tol >= 0:
+            return float(tol), float(tol)
     try:
         t = np.asarray(tol, dtype=float)
         t = np.broadcast_to(t, (2,)) if t.ndim <= 1 else None
@@ -341,7 +345,13 @@ OPTIONS = (
 
 
 def _is_count(x) -> bool:
+    if type(x) is int:
+        return True
     return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
+
+
+def _finite_real(x) -> bool:
+    return _is_real(x) and math.isfinite(x)
 
 
 def check_options(
@@ -384,17 +394,17 @@ def check_options(
         damp = (1.0, BASE_DAMPING, True)
     elif damping is None:
         damp = (0.0, 0.0, False)
-    elif _is_real(damping) and np.isfinite(damping) and damping >= 0:
+    elif _finite_real(damping) and damping >= 0:
         damp = (float(damping), BASE_DAMPING, True)
     else:
         raise InputError(f'damping must be "auto", a number >= 0 or None, got {damping!r}')
     if step_limit is not None and not (
-        _is_real(step_limit) and not np.isnan(step_limit) and step_limit > 0
+        _is_real(step_limit) and not math.isnan(step_limit) and step_limit > 0
     ):
         raise InputError(f"step_limit must be a number > 0 or None, got {step_limit!r}")
-    if not isinstance(respect_limits, (bool, np.bool_)):
+    if respect_limits is not True and not isinstance(respect_limits, (bool, np.bool_)):
         raise InputError(f"respect_limits must be True or False, got {respect_limits!r}")
-    if not (_is_real(null_space) and np.isfinite(null_space) and null_space >= 0):
+    if not (_finite_real(null_space) and null_space >= 0):
         raise InputError(f"null_space must be a finite number >= 0, got {null_space!r}")
     if not isinstance(engine, str) or engine not in ENGINES:
         raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
