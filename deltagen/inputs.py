@@ -88,7 +88,7 @@ def broadcast_rows(arrays: dict, widths=(3, 4)) -> tuple[tuple, int, list]:
 
 
 def check_errors_mode(errors: str) -> str:
-    if errors not in ("raise", "nan"):
+    if not isinstance(errors, str) or errors not in ("raise", "nan"):
         raise InputError(f'errors must be "raise" or "nan", got {errors!r}')
     return errors
 

@@ -103,6 +103,7 @@ class DeltaRobot:
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Platform position p (..., 3|4) of crank angles q (..., 3|4), eqs. (2)-(27), (43)."""
+        check_errors_mode(errors)  # every call, before the fast path
         if self._fk_single is not None and errors == "raise":
             p = self._fk_single(q)
             if p is not None:
@@ -133,6 +134,7 @@ class DeltaRobot:
 
     def ik(self, p: ArrayLike, errors: Errors = "raise") -> Result:
         """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
+        check_errors_mode(errors)  # every call, before the fast path
         if self._ik_single is not None and errors == "raise":
             q = self._ik_single(p)
             if q is not None:

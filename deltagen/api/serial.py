@@ -183,6 +183,7 @@ class SerialRobot:
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Tool pose T (..., 4, 4) = base A_1(q_1) ... A_n(q_n) tool."""
+        check_errors_mode(errors)  # every call, before the fast path
         if self._fk_single is not None and errors == "raise":
             T = self._fk_single(q)
             if T is not None:
@@ -200,11 +201,12 @@ class SerialRobot:
     def jacobian(self, q: ArrayLike, frame: Frame = "base", errors: Errors = "raise") -> Result:
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
         base frame (default) or the tool frame (frame="tool")."""
+        frame = self._check_frame(frame)  # every call, before the fast path
+        check_errors_mode(errors)
         if self._jacobian_single is not None and frame == "base" and errors == "raise":
             J = self._jacobian_single(q)
             if J is not None:
                 return J
-        frame = self._check_frame(frame)
         lead, qf = self._prepare(errors, q)
         J, status = self._core.jacobian(qf)
         if frame == "tool":
@@ -232,6 +234,7 @@ class SerialRobot:
 
     def euler(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
+        check_errors_mode(errors)
         if errors == "raise":
             return euler_zyx(self.fk(q)[..., :3, :3])
         T, valid = self.fk(q, errors=errors)
@@ -246,6 +249,7 @@ class SerialRobot:
 
     def pose(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 6): x, y, z [m], psi, theta, phi [rad] (Vukobratovic angles)."""
+        check_errors_mode(errors)
         T = self.fk(q, errors="nan")
         T, valid = T
         out = np.concatenate([T[..., :3, 3], euler_zyx(T[..., :3, :3])], axis=-1)
@@ -293,6 +297,7 @@ class SerialRobot:
     def manipulability(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Yoshikawa's measure: the product of J's singular values (= sqrt(det(J J^T)) for
         n >= 6, sqrt(det(J^T J)) for n < 6)."""
+        check_errors_mode(errors)
         J, valid = self.jacobian(q, errors="nan")
         sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
         sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
@@ -301,6 +306,7 @@ class SerialRobot:
 
     def condition_number(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """sigma_max / sigma_min of the geometric Jacobian (inf at a singularity)."""
+        check_errors_mode(errors)
         J, valid = self.jacobian(q, errors="nan")
         sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
         sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
@@ -790,7 +796,7 @@ class SerialRobot:
 
     @staticmethod
     def _check_frame(frame):
-        if frame not in ("base", "tool"):
+        if not isinstance(frame, str) or frame not in ("base", "tool"):
             raise InputError(f'frame must be "base" or "tool", got {frame!r}')
         return frame
 

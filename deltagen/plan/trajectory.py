@@ -89,7 +89,7 @@ from deltagen.geometry.rotations import (  # noqa: F401
     skew,
     slerp,
 )
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, as_float_array
 
 _AXES = "xyz"
 
@@ -652,9 +652,23 @@ def solve_ik(
     task.check(robot)
     if q_init is None:
         raise InputError("solve_ik needs a start guess q_init (it selects the configuration)")
-    q = np.array(q_init, dtype=float)
+    q = as_float_array(q_init, "q_init", f"({robot.n},)")
     if q.shape != (robot.n,):
-        raise InputError(f"q_init must have {robot.n} values")
+        raise InputError(f"q_init must have {robot.n} values, got shape {q.shape}")
+    # the inputs' own faults are named here, not reported as "did not converge"
+    if not np.all(np.isfinite(q)):
+        raise InputError("q_init contains NaN or infinite values")
+    _vec3(p, "p")
+    if task.orientation:
+        R = _rotation(R)
+    if task.joints:
+        qj_arr = as_float_array(qj, "qj", f"({len(task.joints)},)")
+        if qj_arr.shape != (len(task.joints),) or not np.all(np.isfinite(qj_arr)):
+            raise InputError(f"qj must be {len(task.joints)} finite values, got {qj_arr.tolist()}")
+    if not (isinstance(max_iter, (int, np.integer)) and not isinstance(max_iter, bool)) or (
+        max_iter < 1
+    ):
+        raise InputError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     floor = max(tol, 1e-3 * math.sqrt(tol))
     lam = damping
     T = robot.fk(q)
