@@ -244,3 +244,104 @@ def test_missing_compiler_is_named(tiny, cache, monkeypatch):
     monkeypatch.setenv("CC", "/nonexistent/deltagen-cc")
     with pytest.raises(build.BuildError, match="deltagen-cc"):
         build.load("tiny", "tiny", tiny)
+
+
+def _read_only(folder: Path, how: str, monkeypatch) -> None:
+    """Make ``folder`` read-only: chmod 0o555 (root ignores permissions: skipped there), or
+    os.access reporting no write permission for it (what the cache check asks; works as
+    root too)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if how == "chmod":
+        if os.geteuid() == 0:
+            pytest.skip("root ignores directory permissions")
+        folder.chmod(0o555)
+        return
+    real_access = os.access
+
+    def access(path, mode, *args, **kwargs):
+        if Path(path).resolve() == folder.resolve() and mode & os.W_OK:
+            return False
+        return real_access(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(build.os, "access", access)
+
+
+@pytest.mark.parametrize("how", ["chmod", "access"])
+def test_read_only_cache_dir_is_named(tiny, tmp_path, monkeypatch, how):
+    folder = tmp_path / "read-only-cache"
+    _read_only(folder, how, monkeypatch)
+    monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
+    try:
+        with pytest.raises(build.BuildError, match="not writable") as info:
+            build.load("tiny", "tiny", tiny)
+        assert str(folder) in str(info.value)
+        assert "DELTAGEN_CACHE" in str(info.value)
+        assert list(folder.iterdir()) == []  # nothing half-written was left behind
+    finally:
+        folder.chmod(0o755)
+
+
+@pytest.mark.parametrize("how", ["chmod", "access"])
+def test_reference_backend_works_with_a_read_only_cache(tmp_path, monkeypatch, how):
+    import numpy as np
+
+    from deltagen import DeltaRobot, SerialRobot
+
+    folder = tmp_path / "read-only-cache"
+    _read_only(folder, how, monkeypatch)
+    monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
+    try:
+        robot = DeltaRobot.default(backend="reference")
+        q = np.array([0.1, 0.2, 0.3])
+        assert np.allclose(robot.ik(robot.fk(q)), q, atol=1e-12)  # a round trip, not a number
+        arm = SerialRobot.from_dh(
+            [{"a": 0.3}, {"a": 0.2}], "standard", name="planar2", backend="reference"
+        )
+        T = arm.fk(np.array([0.1, 0.2]))
+        assert np.isclose(T[0, 3], 0.3 * np.cos(0.1) + 0.2 * np.cos(0.3))
+    finally:
+        folder.chmod(0o755)
+
+
+# a fresh interpreter (no core loaded yet) whose os.access refuses writes to the cache: the
+# public compiled API gives the cache's BuildError naming the path, the reference one works
+READ_ONLY_API = textwrap.dedent("""
+    import os, sys
+    from pathlib import Path
+    cache = Path(sys.argv[1]).resolve()
+    real_access = os.access
+    def access(path, mode, *args, **kwargs):
+        if Path(path).resolve() == cache and mode & os.W_OK:
+            return False
+        return real_access(path, mode, *args, **kwargs)
+    os.access = access
+    from deltagen import DeltaRobot
+    from deltagen.native.build import BuildError
+    try:
+        DeltaRobot.default()
+    except BuildError as exc:
+        print("BuildError:", exc)
+    q = [0.1, 0.2, 0.3]
+    robot = DeltaRobot.default(backend="reference")
+    print("reference round trip", max(abs(a - b) for a, b in zip(robot.ik(robot.fk(q)), q)))
+""")
+
+
+def test_compiled_api_names_a_read_only_cache_in_a_fresh_process(tmp_path):
+    cache = tmp_path / "read-only-cache"
+    cache.mkdir()
+    env = dict(os.environ, DELTAGEN_CACHE=str(cache))
+    proc = subprocess.run(
+        [sys.executable, "-c", READ_ONLY_API, str(cache)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("BuildError:") and "not writable" in lines[0]
+    assert str(cache) in lines[0]
+    assert float(lines[1].split()[-1]) < 1e-12
+    assert "Traceback" not in proc.stderr
+    assert list(cache.iterdir()) == []
