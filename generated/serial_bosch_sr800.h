@@ -10,7 +10,7 @@
  * Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per
  * point: q and qd hold 4 values per point; matrices are stored row-major.
  * The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).
- * Description fingerprint: df03d22905f4d5bb
+ * Description fingerprint: f72dae1896d077d5
  * Every function evaluates n points and writes one status code per point:
  *   DELTAGEN_OK = 0
  *   DELTAGEN_UNREACHABLE = 1

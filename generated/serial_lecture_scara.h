@@ -10,7 +10,7 @@
  * Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per
  * point: q and qd hold 2 values per point; matrices are stored row-major.
  * The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).
- * Description fingerprint: a65eee4d5d48ae13
+ * Description fingerprint: c0d80a66f21583fb
  * Every function evaluates n points and writes one status code per point:
  *   DELTAGEN_OK = 0
  *   DELTAGEN_UNREACHABLE = 1

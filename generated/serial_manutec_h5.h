@@ -10,7 +10,7 @@
  * Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per
  * point: q and qd hold 4 values per point; matrices are stored row-major.
  * The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).
- * Description fingerprint: 653afc00fbe87a49
+ * Description fingerprint: 29d8920c1581a4ae
  * Every function evaluates n points and writes one status code per point:
  *   DELTAGEN_OK = 0
  *   DELTAGEN_UNREACHABLE = 1

@@ -10,7 +10,7 @@
  * Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per
  * point: q and qd hold 6 values per point; matrices are stored row-major.
  * The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).
- * Description fingerprint: 74addd5bceda4068
+ * Description fingerprint: 979f57f4422b7cfb
  * Every function evaluates n points and writes one status code per point:
  *   DELTAGEN_OK = 0
  *   DELTAGEN_UNREACHABLE = 1

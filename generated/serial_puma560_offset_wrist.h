@@ -10,7 +10,7 @@
  * Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per
  * point: q and qd hold 6 values per point; matrices are stored row-major.
  * The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).
- * Description fingerprint: e2be32ede46d1434
+ * Description fingerprint: 1fac0bb81dc66c4f
  * Every function evaluates n points and writes one status code per point:
  *   DELTAGEN_OK = 0
  *   DELTAGEN_UNREACHABLE = 1

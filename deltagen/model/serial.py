@@ -162,6 +162,9 @@ class SerialDescription:
                         j.ry,
                         j.rz,
                         j.axis,
+                        # the closed-form ik_all checks the limits in C: two arms that
+                        # differ only in limits must not share a compiled core
+                        None if j.qlim is None else tuple(float(x) for x in j.qlim),
                     )
                 )
             )
