@@ -185,7 +185,8 @@ class DeltaRobot:
         if invalid.size:
             raise InputError(
                 f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN or "
-                f"infinite values in rows {rows_text(invalid)}"
+                f"infinite values in rows {rows_text(invalid)}",
+                invalid,
             )
         unreachable = bad[status[bad] == st.UNREACHABLE]
         if unreachable.size:

@@ -619,7 +619,8 @@ class SerialRobot:
             if solver.detected.position_only_ok:
                 _, pos = solver.solve(T, limits=False, position_only=True)
                 oriented = pos.any(axis=1)
-            cause[(cause == "") & (tilt | oriented) & ~far] = "orientation not reachable"
+            cause[(cause == "") & tilt & ~far] = "orientation not reachable: tilted"
+            cause[(cause == "") & oriented & ~far] = "orientation not reachable"
         elif not analytic:
             max_iter = options.get("max_iter", 100)
             restarts = options.get("restarts", 0)
@@ -646,16 +647,15 @@ class SerialRobot:
                     else " (no closed-form solution)"
                 )
                 text = text + detail
+            elif text == "orientation not reachable: tilted":
+                text = (
+                    f"orientation not reachable by this structure ({self.name} turns the "
+                    "tool about the base z axis only; the target's tool axis is tilted)"
+                )
             elif text == "orientation not reachable":
                 text = (
-                    f"orientation not reachable by this structure ({self.name} "
-                    + (
-                        "turns the tool about the base z axis only; the target's tool is "
-                        "tilted"
-                        if self._turns_about_z() is not None
-                        else "cannot reach the target's rotation at that position"
-                    )
-                    + ")"
+                    f"orientation not reachable by this structure ({self.name} cannot reach "
+                    "the target's rotation at that position; the position alone is reachable)"
                 )
             parts.append(f"{text} in rows {rows_text(rows)}")
         return UnreachableError(f"ik of {self.name} has no solution: " + "; ".join(parts), bad)
@@ -830,7 +830,8 @@ class SerialRobot:
                 bad = np.flatnonzero(~ok)
                 raise InputError(
                     f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN "
-                    f"or infinite values in rows {rows_text(bad)}"
+                    f"or infinite values in rows {rows_text(bad)}",
+                    bad,
                 )
             for o in outs:
                 o[~ok] = np.nan
