@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
-from deltagen.errors import SingularityError, UnreachableError, rows_text
+from deltagen.errors import KinematicsError, SingularityError, UnreachableError, rows_text
 from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
 from deltagen.model.delta import DeltaGeometry
 
@@ -162,12 +162,16 @@ class DeltaRobot:
 
     def _finish(self, errors, lead, status, outs, names, allow_singular=False, trailing=None):
         trailing = trailing or [o.shape[1:] for o in outs]
-        ok = status == st.OK
+        # a non-finite result is never OK, whatever the status says (huge finite inputs
+        # overflow inside the kernels)
+        finite = np.ones(status.shape, dtype=bool)
+        for o in outs:
+            finite &= np.isfinite(o).all(axis=tuple(range(1, o.ndim)))
+        ok = (status == st.OK) & finite
         all_ok = bool(ok.all())
         if not all_ok:
             if allow_singular:
-                singular = np.flatnonzero(status == st.SINGULAR)
-                ok[singular] = np.isfinite(outs[0][singular]).all(axis=1)
+                ok |= (status == st.SINGULAR) & finite
             if errors == "raise" and not ok.all():
                 self._raise(status, ok, names)
         shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
@@ -187,6 +191,13 @@ class DeltaRobot:
                 f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN or "
                 f"infinite values in rows {rows_text(invalid)}",
                 invalid,
+            )
+        overflow = bad[status[bad] == st.OK]
+        if overflow.size:
+            raise KinematicsError(
+                f"the result is not finite (the input is too large to evaluate) in rows "
+                f"{rows_text(overflow)}",
+                overflow,
             )
         unreachable = bad[status[bad] == st.UNREACHABLE]
         if unreachable.size:
@@ -228,6 +239,11 @@ class DeltaRobot:
             if width == 4:
                 qdd[ok, 3] = pddf[ok, 3]
             outs.append(qdd)
+        with np.errstate(invalid="ignore"):
+            for o in outs:  # a non-finite result is never OK (overflow of huge rates)
+                ok &= np.isfinite(o).all(axis=1)
+        if errors == "raise" and not ok.all():
+            self._raise(status, ok, tuple(arrays))
         for o in outs:
             o[~ok] = np.nan
         shaped = [o.reshape(lead + (width,)) for o in outs]

@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
-from deltagen.errors import GeometryError, SingularityError, rows_text
+from deltagen.errors import GeometryError, KinematicsError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
 from deltagen.inputs import (
@@ -67,6 +67,9 @@ def _check_one_pose(v):
         and abs(z - 1.0) < bottom
     )
     return True, rigid
+
+
+Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
 
 
 def _is_arm_file(path: Path) -> bool:
@@ -540,7 +543,9 @@ class SerialRobot:
             and options.keys() <= {"restarts", "seed"}
             and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
         ):
-            q = self._numeric_single(flat[0], q0a, options.get("restarts", 0), options.get("seed", 0))
+            q = self._numeric_single(
+                flat[0], q0a, options.get("restarts", 0), options.get("seed", 0)
+            )
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q if errors == "raise" else (q, np.array(True))
         good = rigid
@@ -552,7 +557,9 @@ class SerialRobot:
             q0_ok = np.isfinite(start).all(axis=1)
             if errors == "raise" and not np.all(q0_ok):
                 bad = np.flatnonzero(~q0_ok)
-                raise InputError(f"q0 contains NaN or infinite values in rows {rows_text(bad)}", bad)
+                raise InputError(
+                    f"q0 contains NaN or infinite values in rows {rows_text(bad)}", bad
+                )
             good = good & q0_ok
         if analytic:
             q_all, valid_all = self._ik_all_rows(
@@ -825,7 +832,16 @@ class SerialRobot:
 
     def _finish(self, errors, lead, status, outs, names):
         ok = status == st.OK
+        for o in outs:  # a non-finite result is never OK, whatever the status says
+            ok &= np.isfinite(o).all(axis=tuple(range(1, o.ndim)))
         if not ok.all():
+            overflow = np.flatnonzero(~ok & (status == st.OK))
+            if errors == "raise" and overflow.size:
+                raise KinematicsError(
+                    f"the result is not finite (the input is too large to evaluate) in rows "
+                    f"{rows_text(overflow)}",
+                    overflow,
+                )
             if errors == "raise":
                 bad = np.flatnonzero(~ok)
                 raise InputError(

@@ -66,15 +66,13 @@ class CompiledDelta:
             except (TypeError, ValueError, BufferError, OverflowError):
                 return None
             fn(geometry, 1, 3, sc.inp, sc.out, sc.status)
-            code = sc.status[0]
-            if code != OK:
-                # a singular pose is a result when all of it is finite (as in the general
-                # path's DeltaRobot._finish); anything else is reported there
-                out = sc.out
-                if code != SINGULAR or not (
-                    isfinite(out[0]) and isfinite(out[1]) and isfinite(out[2])
-                ):
-                    return None
+            code, out = sc.status[0], sc.out
+            # a result is OK (or a singular pose) only when all of it is finite, as in the
+            # general path's DeltaRobot._finish; anything else is reported there
+            if (code != OK and code != SINGULAR) or not (
+                isfinite(out[0]) and isfinite(out[1]) and isfinite(out[2])
+            ):
+                return None
             return sc.out_np[:3].copy()
 
         return call

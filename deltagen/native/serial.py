@@ -5,6 +5,7 @@ build cache under a key of its content (a changed file never loads a stale modul
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import threading
 from pathlib import Path
@@ -211,7 +212,7 @@ class CompiledArm:
         accepts in, the result out, or None when the general path must handle the call."""
         fn = getattr(self._lib, f"{self._prefix}_{name}")
         scratch, memmove, n = self._scratch, self._ffi.memmove, self.desc.n
-        ndarray, OK = np.ndarray, st.OK
+        ndarray, OK, isfinite = np.ndarray, st.OK, math.isfinite
         out_name = "T" if name == "fk" else "J"
 
         def call(q):
@@ -228,6 +229,9 @@ class CompiledArm:
             fn(1, sc.q, getattr(sc, out_name), sc.status)
             if sc.status[0] != OK:
                 return None
-            return getattr(sc, out_name + "_np").copy()
+            out = getattr(sc, out_name + "_np")
+            if not isfinite(out.sum()):  # a non-finite result: the general path reports it
+                return None
+            return out.copy()
 
         return call

@@ -427,7 +427,6 @@ def check_options(
     }
 
 
-
 def solve(
     arm,
     T,
