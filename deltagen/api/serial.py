@@ -604,9 +604,13 @@ class SerialRobot:
         """UnreachableError for the unsolved rows ``bad`` of finite rigid targets, naming
         each row's cause: out of reach, an orientation this structure cannot reach, a
         solution only outside the joint limits, or (numeric) no convergence."""
+
+        with np.errstate(all="ignore"):  # huge targets: the distances overflow to inf
+            return self._unsolved_rows(flat[bad], bad, analytic, config, options)
+
+    def _unsolved_rows(self, T, bad, analytic, config, options):
         from deltagen.errors import UnreachableError
 
-        T = flat[bad]
         cause = np.full(bad.size, "", dtype=object)
         dist, reach = self._reach_of(T)
         far = dist > reach
