@@ -205,9 +205,16 @@ class AnalyticSolver:
         which for a 6R arm and a rigid T means the pose is reached, but for the arms with
         fewer joints does not confirm the part of the pose they cannot choose.
         """
-        T = as_float_array(T, "T")
+        T = as_float_array(T, "T", "(..., 4, 4)")
         if T.ndim < 2 or T.shape[-2:] != (4, 4):
             raise InputError(f"T must have shape (..., 4, 4), got {T.shape}")
+        if not (
+            isinstance(tol, (int, float, np.integer, np.floating))
+            and not isinstance(tol, (bool, np.bool_))
+            and np.isfinite(tol)
+            and tol > 0
+        ):
+            raise InputError(f"tol must be a number > 0, got {tol!r}")
         if position_only and not self.detected.position_only_ok:
             raise InputError(
                 f"{self.axes.name}: position_only needs the tool point on the last "

@@ -156,6 +156,12 @@ def solve_all(arm, T, *, tol=1e-10, max_iter=50, corrections=2, info=False):
     start of each branch (NaN where the central-wrist arm has none), and ``iterations``
     (..., k), Newton steps per branch (0 where it was not run).
     """
+    if (
+        isinstance(corrections, bool)
+        or not isinstance(corrections, (int, np.integer))
+        or corrections < 0
+    ):
+        raise InputError(f"corrections must be an integer >= 0, got {corrections!r}")
     solver = central_solver(arm)
     lead, flat, finite, rigid = arm._poses(T)
     good = finite & rigid
