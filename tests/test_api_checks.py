@@ -418,3 +418,46 @@ def test_errors_from_single_pose_paths_carry_rows():
     with pytest.raises(UnreachableError) as info:
         arm.ik(_far())
     assert info.value.rows.tolist() == [0]
+
+
+@pytest.mark.parametrize("backend", ["compiled", "reference"])
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda r: r.ik([1e155, 0.0, -1.0]),
+        lambda r: r.ik([0.0, 0.0, -1e155]),
+        lambda r: r.ik_vel([0.0, 0.0, -0.9], [1e308, 1e308, 0.0]),
+    ],
+    ids=["ik far x", "ik far z", "ik_vel huge rate"],
+)
+def test_delta_non_finite_result_is_never_valid_on_any_path(backend, call):
+    """Huge finite inputs overflow inside the kernels: whatever status the kernel gives,
+    the API never returns a non-finite value as valid, single pose or batch."""
+    robot = DeltaRobot.default(backend=backend)
+    kinds = set()
+    for wrap in (lambda v: v, lambda v: [v], lambda v: np.array([v, [0.0, 0.0, -0.9]])):
+
+        class Wrapped:
+            def __getattr__(self, name, _wrap=wrap):
+                method = getattr(robot, name)
+                return lambda *args, **kw: method(*(_wrap(a) for a in args), **kw)
+
+        with pytest.raises(DeltagenError) as info:
+            call(Wrapped())
+        assert 0 in info.value.rows and 1 not in info.value.rows
+        kinds.add(type(info.value))
+        result = call(_NanMode(Wrapped()))
+        ok = result[-1]
+        assert not np.asarray(ok).reshape(-1)[0]
+        for out in result[:-1]:
+            assert np.isnan(np.asarray(out).reshape(-1, 3)[0]).all()
+    assert len(kinds) == 1
+
+
+class _NanMode:
+    def __init__(self, robot):
+        self._robot = robot
+
+    def __getattr__(self, name):
+        method = getattr(self._robot, name)
+        return lambda *args, **kw: method(*args, errors="nan", **kw)

@@ -473,7 +473,7 @@ class SerialRobot:
                 raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
         from deltagen.solve import numeric as ik_numeric
 
-        unknown = sorted(set(options) - set(ik_numeric.OPTIONS))
+        unknown = sorted(set(options) - set(ik_numeric.OPTIONS)) if options else ()
         if unknown:
             raise InputError(
                 f"ik got unknown option(s) {', '.join(unknown)}; it takes config, q0, method, "
