@@ -299,21 +299,30 @@ def test_joint_limits_named_when_the_solutions_lie_outside_them(backend):
 
 
 @pytest.mark.parametrize("backend", ["compiled", "reference"])
-def test_tilted_scara_target_names_the_orientation(backend):
-    arm = SerialRobot.load("lecture_scara", backend=backend)
-    T = arm.fk(np.array([0.3, 0.4]))
-    np.testing.assert_allclose(arm.fk(arm.ik(T)), T, atol=1e-9)
+@pytest.mark.parametrize("method", ["auto", "numeric"])
+@pytest.mark.parametrize("name", ["lecture_scara", "manutec_h5"])
+def test_tilted_scara_target_names_the_orientation(backend, method, name):
+    arm = SerialRobot.load(name, backend=backend)
+    q_true = np.clip(np.full(arm.n, 0.3), arm.qlim[:, 0], arm.qlim[:, 1])
+    T = arm.fk(q_true)
+    start = dict(q0=q_true + 0.05) if method == "numeric" else {}
+    np.testing.assert_allclose(arm.fk(arm.ik(T, method=method, **start)), T, atol=1e-9)
     tilted = T.copy()
     tilted[:3, :3] = rot_axis("x", 0.2) @ T[:3, :3]
-    with pytest.raises(UnreachableError, match="orientation not reachable by this structure") as e:
-        arm.ik(tilted)
-    assert "joint limits" not in str(e.value) and "out of reach" not in str(e.value)
+    for shape in (tilted, tilted[None]):  # one pose and a batch of one: the same refusal
+        with pytest.raises(UnreachableError, match="orientation not reachable by this") as e:
+            arm.ik(shape, method=method, **start)
+        assert "tilted" in str(e.value)
+        assert "joint limits" not in str(e.value) and "out of reach" not in str(e.value)
     batch = np.stack([T, tilted, T])
     with pytest.raises(UnreachableError) as info:
-        arm.ik(batch)
+        arm.ik(batch, method=method, **start)
     assert info.value.rows.tolist() == [1]
-    q, ok = arm.ik(batch, errors="nan")
+    q, ok = arm.ik(batch, method=method, errors="nan", **start)
     assert ok.tolist() == [True, False, True]
+    if method == "numeric":  # the fit of the components the arm moves, when asked for
+        fitted = arm.ik(tilted, method=method, mask=[1, 1, 1, 0, 0, 1], **start)
+        np.testing.assert_allclose(arm.fk(fitted)[:3, 3], T[:3, 3], atol=1e-9)
 
 
 @pytest.mark.parametrize("method", ["auto", "numeric"])

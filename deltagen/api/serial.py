@@ -546,6 +546,8 @@ class SerialRobot:
             q = self._numeric_single(
                 flat[0], q0a, options.get("restarts", 0), options.get("seed", 0)
             )
+            if q is not None and self._fits_tool() and not self._reaches_fully(q[None], flat)[0]:
+                q = None  # the general path names the pose the arm cannot take
             if q is not None and (singular == "allow" or not self._singular_one(q)):
                 return q if errors == "raise" else (q, np.array(True))
         good = rigid
@@ -575,6 +577,13 @@ class SerialRobot:
             safe[~good] = np.eye(4)
             result = ik_numeric.solve(self, safe, start, **options)
             q, ok = result.q, result.converged & good
+            unfit = np.zeros_like(ok)
+            if "mask" not in options and self._fits_tool() and np.any(ok):
+                # the default mask of an arm with fewer than 6 joints matches what it can
+                # move; a target it cannot take in the other components (a tilted SCARA
+                # tool) is not reached: no solution here (mask= asks for the fit)
+                unfit[ok] = ~self._reaches_fully(q[ok], flat[ok])
+                ok = ok & ~unfit
         q = q.copy()
         q[~ok] = np.nan
         if singular == "raise" and np.any(ok):
@@ -594,21 +603,42 @@ class SerialRobot:
         if errors == "raise":
             if not np.all(ok):
                 bad = np.flatnonzero(~ok)
-                raise self._unsolved(flat, bad, analytic, config, options)
+                unfit_rows = None if analytic else np.flatnonzero(unfit)
+                raise self._unsolved(flat, bad, analytic, config, options, unfit_rows)
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
 
     # -- why a target has no solution (errors="raise" only: the error path) -------------
 
-    def _unsolved(self, flat, bad, analytic, config, options):
+    def _fits_tool(self):
+        """True when the numeric solver's default mask leaves pose components out (arms
+        with fewer than 6 joints): its solutions are then checked against the whole pose."""
+        if not hasattr(self, "_partial_mask"):
+            from deltagen.solve.numeric import default_mask
+
+            self._partial_mask = not bool(default_mask(self).all())
+        return self._partial_mask
+
+    def _reaches_fully(self, q, T, tol=1e-8):
+        """Rows where fk(q) is the whole target pose T: position within tol [m], rotation
+        within tol [rad] (the closed form's tolerance, analytic.AnalyticSolver.solve)."""
+        from deltagen.solve.numeric import pose_error
+
+        Tq, _ = self._core.fk(np.ascontiguousarray(q))
+        err = pose_error(Tq, T)
+        return (np.linalg.norm(err[:, :3], axis=1) <= tol) & (
+            np.linalg.norm(err[:, 3:], axis=1) <= tol
+        )
+
+    def _unsolved(self, flat, bad, analytic, config, options, unfit=None):
         """UnreachableError for the unsolved rows ``bad`` of finite rigid targets, naming
         each row's cause: out of reach, an orientation this structure cannot reach, a
         solution only outside the joint limits, or (numeric) no convergence."""
 
         with np.errstate(all="ignore"):  # huge targets: the distances overflow to inf
-            return self._unsolved_rows(flat[bad], bad, analytic, config, options)
+            return self._unsolved_rows(flat[bad], bad, analytic, config, options, unfit)
 
-    def _unsolved_rows(self, T, bad, analytic, config, options):
+    def _unsolved_rows(self, T, bad, analytic, config, options, unfit):
         from deltagen.errors import UnreachableError
 
         cause = np.full(bad.size, "", dtype=object)
@@ -635,7 +665,10 @@ class SerialRobot:
         elif not analytic:
             max_iter = options.get("max_iter", 100)
             restarts = options.get("restarts", 0)
-            cause[:] = (
+            fitted = np.isin(bad, unfit) if unfit is not None else np.zeros(bad.size, bool)
+            cause[fitted & tilt] = "orientation not reachable: tilted"
+            cause[fitted & ~tilt] = "pose not reachable: fitted"
+            cause[~fitted] = (
                 f"no convergence in max_iter={max_iter} steps and restarts={restarts} "
                 "(a target outside the joint limits or a poor start; try restarts= or "
                 "another q0)"
@@ -662,6 +695,12 @@ class SerialRobot:
                 text = (
                     f"orientation not reachable by this structure ({self.name} turns the "
                     "tool about the base z axis only; the target's tool axis is tilted)"
+                )
+            elif text == "pose not reachable: fitted":
+                text = (
+                    f"pose not reachable by this structure ({self.name} matches the "
+                    "components it can move, but not the whole target; mask= asks for "
+                    "that fit)"
                 )
             elif text == "orientation not reachable":
                 text = (
