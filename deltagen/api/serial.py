@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
+from deltagen.api.validity import finite_rows, invalid_message
 from deltagen.errors import GeometryError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
@@ -164,13 +165,13 @@ class SerialRobot:
                 return T
         lead, qf = self._prepare(errors, q)
         T, status = self._core.fk(qf)
-        return self._finish(errors, lead, status, [T], ("q",))
+        return self._finish(errors, lead, status, [T], ("q",), [qf])
 
     def frames(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """All frames (..., n + 2, 4, 4): base, after each joint, tool (for drawing)."""
         lead, qf = self._prepare(errors, q)
         F, status = self._core.frames(qf)
-        return self._finish(errors, lead, status, [F], ("q",))
+        return self._finish(errors, lead, status, [F], ("q",), [qf])
 
     def jacobian(self, q: ArrayLike, frame: Frame = "base", errors: Errors = "raise") -> Result:
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
@@ -184,7 +185,7 @@ class SerialRobot:
         J, status = self._core.jacobian(qf)
         if frame == "tool":
             J = self._to_tool(qf, J)
-        return self._finish(errors, lead, status, [J], ("q",))
+        return self._finish(errors, lead, status, [J], ("q",), [qf], check=frame == "tool")
 
     def jacobian_dot(
         self, q: ArrayLike, qd: ArrayLike, frame: Frame = "base", errors: Errors = "raise"
@@ -199,11 +200,14 @@ class SerialRobot:
             # J_t = Rbar^T J with Rbar = diag(R, R): dJ_t/dt = Rbar^T (Jd - [w]x J) (w = tool
             # angular velocity in the base frame)
             J, _ = self._core.jacobian(qf)
-            w = np.einsum("nij,nj->ni", J[:, 3:], qdf)
-            W = skew(w)
-            corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
-            Jd = self._to_tool(qf, Jd - corr)
-        return self._finish(errors, lead, status, [Jd], ("q", "qd"))
+            with np.errstate(all="ignore"):  # overflow: the finite check of _finish
+                w = np.einsum("nij,nj->ni", J[:, 3:], qdf)
+                W = skew(w)
+                corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
+                Jd = self._to_tool(qf, Jd - corr)
+        return self._finish(
+            errors, lead, status, [Jd], ("q", "qd"), [qf, qdf], check=frame == "tool"
+        )
 
     def euler(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
@@ -269,28 +273,35 @@ class SerialRobot:
         """Yoshikawa's measure: the product of J's singular values (= sqrt(det(J J^T)) for
         n >= 6, sqrt(det(J^T J)) for n < 6)."""
         J, valid = self.jacobian(q, errors="nan")
-        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
-        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
-        out = np.prod(sv, axis=-1)
-        return self._plain(errors, q, out, valid)
+        with np.errstate(over="ignore"):  # a product that overflows: not valid (_plain)
+            out = np.prod(self._singular_values(J, valid), axis=-1)
+        return self._plain(errors, q, out, valid, "manipulability")
 
     def condition_number(self, q: ArrayLike, errors: Errors = "raise") -> Result:
-        """sigma_max / sigma_min of the geometric Jacobian (inf at a singularity)."""
+        """sigma_max / sigma_min of the geometric Jacobian. At an exact singularity
+        (sigma_min = 0) it is infinite: a non-finite value is never valid, so such rows
+        raise SingularityError (errors="raise") or give NaN and False (errors="nan")."""
         J, valid = self.jacobian(q, errors="nan")
-        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
-        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
-        with np.errstate(divide="ignore"):
+        sv = self._singular_values(J, valid)
+        with np.errstate(divide="ignore", invalid="ignore"):
             out = sv[..., 0] / sv[..., -1]
-        return self._plain(errors, q, out, valid)
+        return self._plain(errors, q, out, valid, "condition number")
 
     def singularities(self, q: ArrayLike, tol: float = 1e-6) -> dict[str, Any]:
         """Singularity report (lecture slides 112-114): condition number, manipulability,
         sigma_min, ``singular``, and for 6R arms with a central wrist the classic ``wrist``,
         ``shoulder`` and ``elbow`` flags; ``aligned_axes`` lists collinear joint axes.
-        deltagen.solve.singularity.describe(row) words one configuration's report."""
+        deltagen.solve.singularity.describe(row) words one configuration's report.
+        Rows with non-finite q, or q so large that the Jacobian is not finite, have no
+        report: InputError naming them."""
         from deltagen.solve.singularity import report
 
-        return report(self, q, tol=tol)
+        rep = report(self, q, tol=tol)
+        lead, qf = self._prepare("raise", q)
+        no_report = np.isnan(np.asarray(rep["sigma_max"], dtype=float).reshape(-1))
+        if np.any(no_report):
+            raise InputError(invalid_message(("q",), [qf], np.flatnonzero(no_report)))
+        return rep
 
     # -- inverse kinematics -------------------------------------------------------------
 
@@ -557,12 +568,40 @@ class SerialRobot:
 
     # -- helpers ----------------------------------------------------------------------
 
-    def _plain(self, errors, q, out, valid):
+    @staticmethod
+    def _singular_values(J, valid):
+        """Singular values (..., min(6, n)) of the valid rows' J, NaN elsewhere (and where
+        LAPACK does not converge, which huge finite entries can cause)."""
+        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
+        try:
+            sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
+        except np.linalg.LinAlgError:
+            rows = np.argwhere(valid)
+            for index in map(tuple, rows):
+                try:
+                    sv[index] = np.linalg.svd(J[index], compute_uv=False)
+                except np.linalg.LinAlgError:
+                    pass
+        return sv
+
+    def _plain(self, errors, q, out, valid, what):
+        """A per-row number derived from J: valid only where it is finite (the finite-output
+        rule); NaN where not valid."""
+        out = np.asarray(out, dtype=float)
+        nonfinite = valid & ~np.isfinite(out)
+        valid = valid & ~nonfinite
+        out = np.where(valid, out, np.nan)
         if errors == "raise":
             if not np.all(valid):
-                self.jacobian(q)
-            return out
-        return out, valid
+                self.jacobian(q)  # non-finite q: raises there, naming the rows
+                bad = np.flatnonzero(nonfinite.reshape(-1))
+                message = (
+                    f"the {what} is not finite in rows {rows_text(bad)} (an exact singularity "
+                    "of the Jacobian, or q so large that the arithmetic overflows)"
+                )
+                raise SingularityError(message, bad)
+            return out[()] if out.ndim == 0 else out
+        return out[()] if out.ndim == 0 else out, valid
 
     @staticmethod
     def _check_frame(frame):
@@ -593,15 +632,16 @@ class SerialRobot:
         lead, _, flat = broadcast_rows(checked, widths=(self.n,))
         return lead, flat
 
-    def _finish(self, errors, lead, status, outs, names):
+    def _finish(self, errors, lead, status, outs, names, inputs, check=False):
+        """Shape the kernel's outputs. The kernel's status already applies the
+        finite-output rule; ``check``: outputs were transformed here (the tool frame), so
+        their rows are checked again."""
+        if check:
+            status[(status == st.OK) & ~finite_rows(*outs)] = st.INVALID
         ok = status == st.OK
         if not ok.all():
             if errors == "raise":
-                bad = np.flatnonzero(~ok)
-                raise InputError(
-                    f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN "
-                    f"or infinite values in rows {rows_text(bad)}"
-                )
+                raise InputError(invalid_message(names, inputs, np.flatnonzero(~ok)))
             for o in outs:
                 o[~ok] = np.nan
         shaped = [o.reshape(lead + o.shape[1:]) for o in outs]
