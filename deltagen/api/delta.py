@@ -124,9 +124,7 @@ class DeltaRobot:
         """(p, pdot, pddot) from (q, qdot, qddot), eqs. (30), (38)."""
         lead, _, (qf, qdf, qddf) = self._prepare(errors, q=q, qd=qd, qdd=qdd)
         p, pd, pdd, status = self._core.fk_acc(qf, qdf, qddf)
-        return self._finish(
-            errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"), [qf, qdf, qddf]
-        )
+        return self._finish(errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"), [qf, qdf, qddf])
 
     def jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """J = J_p^-1 J_q (..., 3, 3) with pdot = J @ qdot (first three axes)."""

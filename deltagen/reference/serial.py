@@ -260,8 +260,12 @@ def jacobian_dot(desc, q, qd, frame: str = "base"):
         if frame == "tool":
             omega_e = wq.sum(axis=1)  # (N, 3)
             corr = np.empty_like(J)
-            corr[:, :3] = np.cross(omega_e[:, None, :], J[:, :3].transpose(0, 2, 1)).transpose(0, 2, 1)
-            corr[:, 3:] = np.cross(omega_e[:, None, :], J[:, 3:].transpose(0, 2, 1)).transpose(0, 2, 1)
+            corr[:, :3] = np.cross(omega_e[:, None, :], J[:, :3].transpose(0, 2, 1)).transpose(
+                0, 2, 1
+            )
+            corr[:, 3:] = np.cross(omega_e[:, None, :], J[:, 3:].transpose(0, 2, 1)).transpose(
+                0, 2, 1
+            )
             Jd = _to_tool(Jd - corr, T[:, :3, :3])
     Jd[bad] = np.nan
     return Jd, _status(bad, Jd)
