@@ -299,6 +299,7 @@ SERIAL_METHODS = {
     "rpy": ("q",),
     "pose": ("q",),
     "manipulability": ("q",),
+    "analytic_jacobian": ("q",),
     "ik_all": ("T",),
 }
 ARMS = ("puma560", "lecture_prp", "lecture_scara", "bosch_sr800")

@@ -258,14 +258,18 @@ class SerialRobot:
             Einv[..., 2, 1] = sp_ / c_th
             Ja = J.copy()
             Ja[..., 3:, :] = Einv @ J[..., 3:, :]
+            # the finite-output rule: E^-1 near cos theta = 0 times a huge J may overflow
+            overflow = valid & ~np.all(np.isfinite(Ja), axis=(-2, -1))
+        valid = valid & ~overflow
         Ja[~valid] = np.nan
         if errors == "raise":
             if not np.all(valid):
                 self.jacobian(q)  # non-finite input rows raise there
                 bad = np.flatnonzero(~valid.reshape(-1))
-                raise SingularityError(
-                    f"Euler-angle singularity (cos theta = 0) in rows {rows_text(bad)}", bad
-                )
+                cause = "Euler-angle singularity (cos theta = 0)"
+                if np.any(overflow):
+                    cause += " or a result that is not finite (q too large: overflow)"
+                raise SingularityError(f"{cause} in rows {rows_text(bad)}", bad)
             return Ja
         return Ja, valid
 

@@ -4,12 +4,15 @@ inf, or was finite but so large that the result overflows."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from deltagen.errors import rows_text
 
 
-def finite_rows(*arrays) -> np.ndarray:
+def finite_rows(*arrays: np.ndarray) -> np.ndarray:
     """(N,) True where every value of the row is finite in every (N, ...) array."""
     n = arrays[0].shape[0]
     ok = np.ones(n, dtype=bool)
@@ -18,7 +21,7 @@ def finite_rows(*arrays) -> np.ndarray:
     return ok
 
 
-def invalid_message(names, inputs, rows) -> str:
+def invalid_message(names: Sequence[str], inputs: Sequence[np.ndarray], rows: ArrayLike) -> str:
     """Why the ``rows`` (indices of the flattened batch) are INVALID: non-finite values in
     the inputs named ``names`` ((N, ...) arrays ``inputs``), or finite inputs whose results
     are not finite."""
