@@ -148,7 +148,8 @@ def guard_outputs(kernel: Kernel) -> Kernel:
     checked copy of every output; the status gets INVALID as its first branch. The NaN a
     status explains is recognised from the output's Piecewise (a NaN branch and its
     condition), so a kernel needs nothing to opt in. Cost: one isfinite per output value
-    and one select per output (see the per-point timing in the issue notes)."""
+    and one select per output: measured with the build flags (-O3 -march=native, best of 6),
+    delta fk 33.6 -> 36.3 ns per point, delta ik 72.1 -> 75.3, Puma 560 fk 51.2 -> 55.6."""
     assignments = {sym: sp.sympify(e) for stage in kernel.stages for sym, e in stage.assignments}
     by_mask: dict = {}
     for port in kernel.outputs:
