@@ -7,7 +7,13 @@ with the ``DELTAGEN_*`` constants the templates emit from :data:`STATUS_NAMES`.
 OK = 0
 UNREACHABLE = 1  # spheres do not meet (fk) / target out of reach of a crank (ik)
 SINGULAR = 2  # det J_p ~ 0 (fk level), a J_q diagonal entry ~ 0 (ik), collinear centres
-INVALID = 3  # a non-finite input value
+INVALID = 3  # a non-finite input value, or finite inputs whose outputs are not finite
+
+# The finite-output rule, the same in every kernel (deltagen.codegen.lowering.guard_outputs
+# for the generated C, the numpy reference and the solvers): a row is OK only if every output
+# is finite. A row whose outputs, apart from the NaNs its status explains (e.g. the rates of
+# a SINGULAR fk row), are not all finite is INVALID, with all its outputs NaN: finite but
+# huge inputs (a target 1e155 m away, rates of 1e155) overflow inside the arithmetic.
 
 STATUS_NAMES = {
     OK: "OK",

@@ -103,10 +103,10 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_x_b[DELTAGEN_DELTA_BLOCK];
-        double out_y_b[DELTAGEN_DELTA_BLOCK];
-        double out_z_b[DELTAGEN_DELTA_BLOCK];
-        double out_phi_b[DELTAGEN_DELTA_BLOCK];
+        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
@@ -174,11 +174,17 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
             const double out_y = ((t8_0) ? NAN : y);
             const double out_z = ((t8_0) ? NAN : z);
             const double out_phi = ((t8_0) ? NAN : q4);
-            out_x_b[k] = out_x;
-            out_y_b[k] = out_y;
-            out_z_b[k] = out_z;
-            out_phi_b[k] = out_phi;
-            status_b[k] = (3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(out_x) & isfinite(out_y) & isfinite(out_z) & isfinite(out_phi))));
+            const double out_x_checked = ((nonfinite_output) ? NAN : out_x);
+            const double out_y_checked = ((nonfinite_output) ? NAN : out_y);
+            const double out_z_checked = ((nonfinite_output) ? NAN : out_z);
+            const double out_phi_checked = ((nonfinite_output) ? NAN : out_phi);
+            out_x_checked_b[k] = out_x_checked;
+            out_y_checked_b[k] = out_y_checked;
+            out_z_checked_b[k] = out_z_checked;
+            out_phi_checked_b[k] = out_phi_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -188,16 +194,16 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
         /* scatter: results of this block into the caller's rows */
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 3 + 0] = out_x_b[k];
-                p[(start + k) * 3 + 1] = out_y_b[k];
-                p[(start + k) * 3 + 2] = out_z_b[k];
+                p[(start + k) * 3 + 0] = out_x_checked_b[k];
+                p[(start + k) * 3 + 1] = out_y_checked_b[k];
+                p[(start + k) * 3 + 2] = out_z_checked_b[k];
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 4 + 0] = out_x_b[k];
-                p[(start + k) * 4 + 1] = out_y_b[k];
-                p[(start + k) * 4 + 2] = out_z_b[k];
-                p[(start + k) * 4 + 3] = out_phi_b[k];
+                p[(start + k) * 4 + 0] = out_x_checked_b[k];
+                p[(start + k) * 4 + 1] = out_y_checked_b[k];
+                p[(start + k) * 4 + 2] = out_z_checked_b[k];
+                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
             }
         }
     }
@@ -291,14 +297,14 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_x_b[DELTAGEN_DELTA_BLOCK];
-        double out_y_b[DELTAGEN_DELTA_BLOCK];
-        double out_z_b[DELTAGEN_DELTA_BLOCK];
-        double out_phi_b[DELTAGEN_DELTA_BLOCK];
-        double out_xd_b[DELTAGEN_DELTA_BLOCK];
-        double out_yd_b[DELTAGEN_DELTA_BLOCK];
-        double out_zd_b[DELTAGEN_DELTA_BLOCK];
-        double out_phid_b[DELTAGEN_DELTA_BLOCK];
+        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_xd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_yd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_zd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phid_checked_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
@@ -414,15 +420,25 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
             const double out_yd = ((t12_1) ? NAN : yd);
             const double out_zd = ((t12_1) ? NAN : zd);
             const double out_phid = ((t12_1) ? NAN : qd4);
-            out_x_b[k] = out_x;
-            out_y_b[k] = out_y;
-            out_z_b[k] = out_z;
-            out_phi_b[k] = out_phi;
-            out_xd_b[k] = out_xd;
-            out_yd_b[k] = out_yd;
-            out_zd_b[k] = out_zd;
-            out_phid_b[k] = out_phid;
-            status_b[k] = (3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(out_x) & isfinite(out_y) & isfinite(out_z) & isfinite(out_phi))))) | (((!(isfinite(out_xd) & isfinite(out_yd) & isfinite(out_zd) & isfinite(out_phid))) & (!(((collinear) | (invalid) | (singular) | (unreachable)))))));
+            const double out_x_checked = ((nonfinite_output) ? NAN : out_x);
+            const double out_y_checked = ((nonfinite_output) ? NAN : out_y);
+            const double out_z_checked = ((nonfinite_output) ? NAN : out_z);
+            const double out_phi_checked = ((nonfinite_output) ? NAN : out_phi);
+            const double out_xd_checked = ((nonfinite_output) ? NAN : out_xd);
+            const double out_yd_checked = ((nonfinite_output) ? NAN : out_yd);
+            const double out_zd_checked = ((nonfinite_output) ? NAN : out_zd);
+            const double out_phid_checked = ((nonfinite_output) ? NAN : out_phid);
+            out_x_checked_b[k] = out_x_checked;
+            out_y_checked_b[k] = out_y_checked;
+            out_z_checked_b[k] = out_z_checked;
+            out_phi_checked_b[k] = out_phi_checked;
+            out_xd_checked_b[k] = out_xd_checked;
+            out_yd_checked_b[k] = out_yd_checked;
+            out_zd_checked_b[k] = out_zd_checked;
+            out_phid_checked_b[k] = out_phid_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -432,23 +448,23 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
         /* scatter: results of this block into the caller's rows */
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 3 + 0] = out_x_b[k];
-                p[(start + k) * 3 + 1] = out_y_b[k];
-                p[(start + k) * 3 + 2] = out_z_b[k];
-                pd[(start + k) * 3 + 0] = out_xd_b[k];
-                pd[(start + k) * 3 + 1] = out_yd_b[k];
-                pd[(start + k) * 3 + 2] = out_zd_b[k];
+                p[(start + k) * 3 + 0] = out_x_checked_b[k];
+                p[(start + k) * 3 + 1] = out_y_checked_b[k];
+                p[(start + k) * 3 + 2] = out_z_checked_b[k];
+                pd[(start + k) * 3 + 0] = out_xd_checked_b[k];
+                pd[(start + k) * 3 + 1] = out_yd_checked_b[k];
+                pd[(start + k) * 3 + 2] = out_zd_checked_b[k];
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 4 + 0] = out_x_b[k];
-                p[(start + k) * 4 + 1] = out_y_b[k];
-                p[(start + k) * 4 + 2] = out_z_b[k];
-                p[(start + k) * 4 + 3] = out_phi_b[k];
-                pd[(start + k) * 4 + 0] = out_xd_b[k];
-                pd[(start + k) * 4 + 1] = out_yd_b[k];
-                pd[(start + k) * 4 + 2] = out_zd_b[k];
-                pd[(start + k) * 4 + 3] = out_phid_b[k];
+                p[(start + k) * 4 + 0] = out_x_checked_b[k];
+                p[(start + k) * 4 + 1] = out_y_checked_b[k];
+                p[(start + k) * 4 + 2] = out_z_checked_b[k];
+                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
+                pd[(start + k) * 4 + 0] = out_xd_checked_b[k];
+                pd[(start + k) * 4 + 1] = out_yd_checked_b[k];
+                pd[(start + k) * 4 + 2] = out_zd_checked_b[k];
+                pd[(start + k) * 4 + 3] = out_phid_checked_b[k];
             }
         }
     }
@@ -554,18 +570,18 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_x_b[DELTAGEN_DELTA_BLOCK];
-        double out_y_b[DELTAGEN_DELTA_BLOCK];
-        double out_z_b[DELTAGEN_DELTA_BLOCK];
-        double out_phi_b[DELTAGEN_DELTA_BLOCK];
-        double out_xd_b[DELTAGEN_DELTA_BLOCK];
-        double out_yd_b[DELTAGEN_DELTA_BLOCK];
-        double out_zd_b[DELTAGEN_DELTA_BLOCK];
-        double out_phid_b[DELTAGEN_DELTA_BLOCK];
-        double out_xdd_b[DELTAGEN_DELTA_BLOCK];
-        double out_ydd_b[DELTAGEN_DELTA_BLOCK];
-        double out_zdd_b[DELTAGEN_DELTA_BLOCK];
-        double out_phidd_b[DELTAGEN_DELTA_BLOCK];
+        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_xd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_yd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_zd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phid_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_xdd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_ydd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_zdd_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phidd_checked_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
@@ -721,19 +737,33 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             const double out_ydd = ((t14_1) ? NAN : ydd);
             const double out_zdd = ((t14_1) ? NAN : zdd);
             const double out_phidd = ((t14_1) ? NAN : qdd4);
-            out_x_b[k] = out_x;
-            out_y_b[k] = out_y;
-            out_z_b[k] = out_z;
-            out_phi_b[k] = out_phi;
-            out_xd_b[k] = out_xd;
-            out_yd_b[k] = out_yd;
-            out_zd_b[k] = out_zd;
-            out_phid_b[k] = out_phid;
-            out_xdd_b[k] = out_xdd;
-            out_ydd_b[k] = out_ydd;
-            out_zdd_b[k] = out_zdd;
-            out_phidd_b[k] = out_phidd;
-            status_b[k] = (3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(out_x) & isfinite(out_y) & isfinite(out_z) & isfinite(out_phi))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) & (!(isfinite(out_xd) & isfinite(out_yd) & isfinite(out_zd) & isfinite(out_phid) & isfinite(out_xdd) & isfinite(out_ydd) & isfinite(out_zdd) & isfinite(out_phidd))))));
+            const double out_x_checked = ((nonfinite_output) ? NAN : out_x);
+            const double out_y_checked = ((nonfinite_output) ? NAN : out_y);
+            const double out_z_checked = ((nonfinite_output) ? NAN : out_z);
+            const double out_phi_checked = ((nonfinite_output) ? NAN : out_phi);
+            const double out_xd_checked = ((nonfinite_output) ? NAN : out_xd);
+            const double out_yd_checked = ((nonfinite_output) ? NAN : out_yd);
+            const double out_zd_checked = ((nonfinite_output) ? NAN : out_zd);
+            const double out_phid_checked = ((nonfinite_output) ? NAN : out_phid);
+            const double out_xdd_checked = ((nonfinite_output) ? NAN : out_xdd);
+            const double out_ydd_checked = ((nonfinite_output) ? NAN : out_ydd);
+            const double out_zdd_checked = ((nonfinite_output) ? NAN : out_zdd);
+            const double out_phidd_checked = ((nonfinite_output) ? NAN : out_phidd);
+            out_x_checked_b[k] = out_x_checked;
+            out_y_checked_b[k] = out_y_checked;
+            out_z_checked_b[k] = out_z_checked;
+            out_phi_checked_b[k] = out_phi_checked;
+            out_xd_checked_b[k] = out_xd_checked;
+            out_yd_checked_b[k] = out_yd_checked;
+            out_zd_checked_b[k] = out_zd_checked;
+            out_phid_checked_b[k] = out_phid_checked;
+            out_xdd_checked_b[k] = out_xdd_checked;
+            out_ydd_checked_b[k] = out_ydd_checked;
+            out_zdd_checked_b[k] = out_zdd_checked;
+            out_phidd_checked_b[k] = out_phidd_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -743,30 +773,30 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
         /* scatter: results of this block into the caller's rows */
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 3 + 0] = out_x_b[k];
-                p[(start + k) * 3 + 1] = out_y_b[k];
-                p[(start + k) * 3 + 2] = out_z_b[k];
-                pd[(start + k) * 3 + 0] = out_xd_b[k];
-                pd[(start + k) * 3 + 1] = out_yd_b[k];
-                pd[(start + k) * 3 + 2] = out_zd_b[k];
-                pdd[(start + k) * 3 + 0] = out_xdd_b[k];
-                pdd[(start + k) * 3 + 1] = out_ydd_b[k];
-                pdd[(start + k) * 3 + 2] = out_zdd_b[k];
+                p[(start + k) * 3 + 0] = out_x_checked_b[k];
+                p[(start + k) * 3 + 1] = out_y_checked_b[k];
+                p[(start + k) * 3 + 2] = out_z_checked_b[k];
+                pd[(start + k) * 3 + 0] = out_xd_checked_b[k];
+                pd[(start + k) * 3 + 1] = out_yd_checked_b[k];
+                pd[(start + k) * 3 + 2] = out_zd_checked_b[k];
+                pdd[(start + k) * 3 + 0] = out_xdd_checked_b[k];
+                pdd[(start + k) * 3 + 1] = out_ydd_checked_b[k];
+                pdd[(start + k) * 3 + 2] = out_zdd_checked_b[k];
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 4 + 0] = out_x_b[k];
-                p[(start + k) * 4 + 1] = out_y_b[k];
-                p[(start + k) * 4 + 2] = out_z_b[k];
-                p[(start + k) * 4 + 3] = out_phi_b[k];
-                pd[(start + k) * 4 + 0] = out_xd_b[k];
-                pd[(start + k) * 4 + 1] = out_yd_b[k];
-                pd[(start + k) * 4 + 2] = out_zd_b[k];
-                pd[(start + k) * 4 + 3] = out_phid_b[k];
-                pdd[(start + k) * 4 + 0] = out_xdd_b[k];
-                pdd[(start + k) * 4 + 1] = out_ydd_b[k];
-                pdd[(start + k) * 4 + 2] = out_zdd_b[k];
-                pdd[(start + k) * 4 + 3] = out_phidd_b[k];
+                p[(start + k) * 4 + 0] = out_x_checked_b[k];
+                p[(start + k) * 4 + 1] = out_y_checked_b[k];
+                p[(start + k) * 4 + 2] = out_z_checked_b[k];
+                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
+                pd[(start + k) * 4 + 0] = out_xd_checked_b[k];
+                pd[(start + k) * 4 + 1] = out_yd_checked_b[k];
+                pd[(start + k) * 4 + 2] = out_zd_checked_b[k];
+                pd[(start + k) * 4 + 3] = out_phid_checked_b[k];
+                pdd[(start + k) * 4 + 0] = out_xdd_checked_b[k];
+                pdd[(start + k) * 4 + 1] = out_ydd_checked_b[k];
+                pdd[(start + k) * 4 + 2] = out_zdd_checked_b[k];
+                pdd[(start + k) * 4 + 3] = out_phidd_checked_b[k];
             }
         }
     }
@@ -848,15 +878,15 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_J11_b[DELTAGEN_DELTA_BLOCK];
-        double out_J12_b[DELTAGEN_DELTA_BLOCK];
-        double out_J13_b[DELTAGEN_DELTA_BLOCK];
-        double out_J21_b[DELTAGEN_DELTA_BLOCK];
-        double out_J22_b[DELTAGEN_DELTA_BLOCK];
-        double out_J23_b[DELTAGEN_DELTA_BLOCK];
-        double out_J31_b[DELTAGEN_DELTA_BLOCK];
-        double out_J32_b[DELTAGEN_DELTA_BLOCK];
-        double out_J33_b[DELTAGEN_DELTA_BLOCK];
+        double out_J11_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J12_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J13_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J21_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J22_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J23_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J31_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J32_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_J33_checked_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
@@ -974,16 +1004,27 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const double out_J31 = ((t12_0) ? NAN : J31);
             const double out_J32 = ((t12_0) ? NAN : J32);
             const double out_J33 = ((t12_0) ? NAN : J33);
-            out_J11_b[k] = out_J11;
-            out_J12_b[k] = out_J12;
-            out_J13_b[k] = out_J13;
-            out_J21_b[k] = out_J21;
-            out_J22_b[k] = out_J22;
-            out_J23_b[k] = out_J23;
-            out_J31_b[k] = out_J31;
-            out_J32_b[k] = out_J32;
-            out_J33_b[k] = out_J33;
-            status_b[k] = (3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(((collinear) | (invalid) | (singular) | (unreachable)))) & (!(isfinite(out_J11) & isfinite(out_J12) & isfinite(out_J13) & isfinite(out_J21) & isfinite(out_J22) & isfinite(out_J23) & isfinite(out_J31) & isfinite(out_J32) & isfinite(out_J33))));
+            const double out_J11_checked = ((nonfinite_output) ? NAN : out_J11);
+            const double out_J12_checked = ((nonfinite_output) ? NAN : out_J12);
+            const double out_J13_checked = ((nonfinite_output) ? NAN : out_J13);
+            const double out_J21_checked = ((nonfinite_output) ? NAN : out_J21);
+            const double out_J22_checked = ((nonfinite_output) ? NAN : out_J22);
+            const double out_J23_checked = ((nonfinite_output) ? NAN : out_J23);
+            const double out_J31_checked = ((nonfinite_output) ? NAN : out_J31);
+            const double out_J32_checked = ((nonfinite_output) ? NAN : out_J32);
+            const double out_J33_checked = ((nonfinite_output) ? NAN : out_J33);
+            out_J11_checked_b[k] = out_J11_checked;
+            out_J12_checked_b[k] = out_J12_checked;
+            out_J13_checked_b[k] = out_J13_checked;
+            out_J21_checked_b[k] = out_J21_checked;
+            out_J22_checked_b[k] = out_J22_checked;
+            out_J23_checked_b[k] = out_J23_checked;
+            out_J31_checked_b[k] = out_J31_checked;
+            out_J32_checked_b[k] = out_J32_checked;
+            out_J33_checked_b[k] = out_J33_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -993,27 +1034,27 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
         /* scatter: results of this block into the caller's rows */
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {
-                J[(start + k) * 9 + 0] = out_J11_b[k];
-                J[(start + k) * 9 + 1] = out_J12_b[k];
-                J[(start + k) * 9 + 2] = out_J13_b[k];
-                J[(start + k) * 9 + 3] = out_J21_b[k];
-                J[(start + k) * 9 + 4] = out_J22_b[k];
-                J[(start + k) * 9 + 5] = out_J23_b[k];
-                J[(start + k) * 9 + 6] = out_J31_b[k];
-                J[(start + k) * 9 + 7] = out_J32_b[k];
-                J[(start + k) * 9 + 8] = out_J33_b[k];
+                J[(start + k) * 9 + 0] = out_J11_checked_b[k];
+                J[(start + k) * 9 + 1] = out_J12_checked_b[k];
+                J[(start + k) * 9 + 2] = out_J13_checked_b[k];
+                J[(start + k) * 9 + 3] = out_J21_checked_b[k];
+                J[(start + k) * 9 + 4] = out_J22_checked_b[k];
+                J[(start + k) * 9 + 5] = out_J23_checked_b[k];
+                J[(start + k) * 9 + 6] = out_J31_checked_b[k];
+                J[(start + k) * 9 + 7] = out_J32_checked_b[k];
+                J[(start + k) * 9 + 8] = out_J33_checked_b[k];
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
-                J[(start + k) * 9 + 0] = out_J11_b[k];
-                J[(start + k) * 9 + 1] = out_J12_b[k];
-                J[(start + k) * 9 + 2] = out_J13_b[k];
-                J[(start + k) * 9 + 3] = out_J21_b[k];
-                J[(start + k) * 9 + 4] = out_J22_b[k];
-                J[(start + k) * 9 + 5] = out_J23_b[k];
-                J[(start + k) * 9 + 6] = out_J31_b[k];
-                J[(start + k) * 9 + 7] = out_J32_b[k];
-                J[(start + k) * 9 + 8] = out_J33_b[k];
+                J[(start + k) * 9 + 0] = out_J11_checked_b[k];
+                J[(start + k) * 9 + 1] = out_J12_checked_b[k];
+                J[(start + k) * 9 + 2] = out_J13_checked_b[k];
+                J[(start + k) * 9 + 3] = out_J21_checked_b[k];
+                J[(start + k) * 9 + 4] = out_J22_checked_b[k];
+                J[(start + k) * 9 + 5] = out_J23_checked_b[k];
+                J[(start + k) * 9 + 6] = out_J31_checked_b[k];
+                J[(start + k) * 9 + 7] = out_J32_checked_b[k];
+                J[(start + k) * 9 + 8] = out_J33_checked_b[k];
             }
         }
     }
@@ -1070,10 +1111,10 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_q1_b[DELTAGEN_DELTA_BLOCK];
-        double out_q2_b[DELTAGEN_DELTA_BLOCK];
-        double out_q3_b[DELTAGEN_DELTA_BLOCK];
-        double out_q4_b[DELTAGEN_DELTA_BLOCK];
+        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m; ++k) {
             const double x = x_b[k];
             const double y = y_b[k];
@@ -1121,11 +1162,17 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
             const double out_q2 = ((t4_0) ? NAN : q2);
             const double out_q3 = ((t4_0) ? NAN : q3);
             const double out_q4 = ((t4_0) ? NAN : phi);
-            out_q1_b[k] = out_q1;
-            out_q2_b[k] = out_q2;
-            out_q3_b[k] = out_q3;
-            out_q4_b[k] = out_q4;
-            status_b[k] = (3*invalid + (1 - invalid)*(unreachable + (1 - unreachable)*(2*singular)));
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))));
+            const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
+            const double out_q2_checked = ((nonfinite_output) ? NAN : out_q2);
+            const double out_q3_checked = ((nonfinite_output) ? NAN : out_q3);
+            const double out_q4_checked = ((nonfinite_output) ? NAN : out_q4);
+            out_q1_checked_b[k] = out_q1_checked;
+            out_q2_checked_b[k] = out_q2_checked;
+            out_q3_checked_b[k] = out_q3_checked;
+            out_q4_checked_b[k] = out_q4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -1135,16 +1182,16 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
         /* scatter: results of this block into the caller's rows */
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 3 + 0] = out_q1_b[k];
-                q[(start + k) * 3 + 1] = out_q2_b[k];
-                q[(start + k) * 3 + 2] = out_q3_b[k];
+                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 4 + 0] = out_q1_b[k];
-                q[(start + k) * 4 + 1] = out_q2_b[k];
-                q[(start + k) * 4 + 2] = out_q3_b[k];
-                q[(start + k) * 4 + 3] = out_q4_b[k];
+                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
+                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
             }
         }
     }

@@ -14,6 +14,8 @@
  *   DELTAGEN_SINGULAR = 2
  *   DELTAGEN_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
+ * An OK row's outputs are all finite: a row whose outputs would not be (finite inputs so
+ * large that the arithmetic overflows) is DELTAGEN_INVALID, with every output NaN.
  * Return value: 0, or -1 if axes is not 3 or 4 or a pointer is NULL
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
@@ -57,9 +59,9 @@ typedef struct deltagen_delta_geometry {
  * axes      3, or 4 with the fourth axis in the last column
  * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); p is still given where only det J_p is small
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); p is still given where only det J_p is small; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 119 operations per point.
+ * Cost: 128 operations per point.
  * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 7424 bytes (7.2 KiB) at 64, plus scalars.
  */
@@ -74,9 +76,9 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
  * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
  * pd        out, n x axes: platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd is NaN unless OK
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 228 operations per point.
+ * Cost: 247 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -93,9 +95,9 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
  * pd        out, n x axes: platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]
  * pdd       out, n x axes: platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd and pdd are NaN unless OK
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd and pdd are NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 380 operations per point.
+ * Cost: 403 operations per point.
  * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */
@@ -108,9 +110,9 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
  * axes      3, or 4 with the fourth axis in the last column
  * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
  * J         out, n x 9: Jacobian d p / d q, row-major 3x3 [m/rad]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); J is NaN unless OK
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); J is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 219 operations per point.
+ * Cost: 233 operations per point.
  * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9984 bytes (9.8 KiB) at 64, plus scalars.
  */
@@ -123,9 +125,9 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  * axes      3, or 4 with the fourth axis in the last column
  * p         in,  n x axes: platform position [m]; column 4: phi [rad]
  * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 105 operations per point.
+ * Cost: 114 operations per point.
  * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 4352 bytes (4.2 KiB) at 64, plus scalars.
  */

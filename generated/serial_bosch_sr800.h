@@ -17,6 +17,8 @@
  *   DELTAGEN_SINGULAR = 2
  *   DELTAGEN_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
+ * An OK row's outputs are all finite: a row whose outputs would not be (finite inputs so
+ * large that the arithmetic overflows) is DELTAGEN_INVALID, with every output NaN.
  * Return value: 0, or -1 if a pointer is NULL
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
@@ -49,9 +51,9 @@ extern "C" {
  * n         number of points
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 43 operations per point.
+ * Cost: 63 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 13568 bytes (13.2 KiB) at 64, plus scalars.
  */
@@ -62,9 +64,9 @@ int deltagen_bosch_sr800_fk(size_t n, const double *restrict q, double *restrict
  * n         number of points
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * F         out, n x 96: 6 frames x 4x4 row-major, base to tool
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 54 operations per point.
+ * Cost: 154 operations per point.
  * Stack: 107 block arrays (106 double, 1 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 54528 bytes (53.2 KiB) at 64, plus scalars.
  */
@@ -75,9 +77,9 @@ int deltagen_bosch_sr800_frames(size_t n, const double *restrict q, double *rest
  * n         number of points
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 43 operations per point.
+ * Cost: 71 operations per point.
  * Stack: 33 block arrays (32 double, 1 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 16640 bytes (16.2 KiB) at 64, plus scalars.
  */
@@ -89,9 +91,9 @@ int deltagen_bosch_sr800_jacobian(size_t n, const double *restrict q, double *re
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 72 operations per point.
+ * Cost: 116 operations per point.
  * Stack: 51 block arrays (50 double, 1 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 25856 bytes (25.2 KiB) at 64, plus scalars.
  */
@@ -103,9 +105,9 @@ int deltagen_bosch_sr800_fk_jacobian(size_t n, const double *restrict q, double 
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * qd        in,  n x 4: joint rates qdot_1..qdot_4 [rad/s or m/s]
  * Jd        out, n x 24: 6 x 4 row-major, per second
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 70 operations per point.
+ * Cost: 98 operations per point.
  * Stack: 37 block arrays (36 double, 1 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 18688 bytes (18.2 KiB) at 64, plus scalars.
  */
@@ -117,9 +119,9 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
  * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
  * q         out, n x 8: 2 x 4 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
- * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN)
+ * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 531 operations per point.
+ * Cost: 548 operations per point.
  * Stack: 23 block arrays (20 double, 3 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 11008 bytes (10.8 KiB) at 64, plus scalars.
  */

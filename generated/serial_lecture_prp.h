@@ -17,6 +17,8 @@
  *   DELTAGEN_SINGULAR = 2
  *   DELTAGEN_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
+ * An OK row's outputs are all finite: a row whose outputs would not be (finite inputs so
+ * large that the arithmetic overflows) is DELTAGEN_INVALID, with every output NaN.
  * Return value: 0, or -1 if a pointer is NULL
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
@@ -49,9 +51,9 @@ extern "C" {
  * n         number of points
  * q         in,  n x 3: joint coordinates q_1..q_3 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 13 operations per point.
+ * Cost: 33 operations per point.
  * Stack: 22 block arrays (21 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 11008 bytes (10.8 KiB) at 64, plus scalars.
  */
@@ -62,9 +64,9 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
  * n         number of points
  * q         in,  n x 3: joint coordinates q_1..q_3 [rad or m]
  * F         out, n x 80: 5 frames x 4x4 row-major, base to tool
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 13 operations per point.
+ * Cost: 97 operations per point.
  * Stack: 86 block arrays (85 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 43776 bytes (42.8 KiB) at 64, plus scalars.
  */
@@ -75,9 +77,9 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
  * n         number of points
  * q         in,  n x 3: joint coordinates q_1..q_3 [rad or m]
  * J         out, n x 18: 6 x 3 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 23 operations per point.
+ * Cost: 45 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -89,9 +91,9 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
  * q         in,  n x 3: joint coordinates q_1..q_3 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * J         out, n x 18: 6 x 3 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 32 operations per point.
+ * Cost: 70 operations per point.
  * Stack: 40 block arrays (39 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 20224 bytes (19.8 KiB) at 64, plus scalars.
  */
@@ -103,9 +105,9 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
  * q         in,  n x 3: joint coordinates q_1..q_3 [rad or m]
  * qd        in,  n x 3: joint rates qdot_1..qdot_3 [rad/s or m/s]
  * Jd        out, n x 18: 6 x 3 row-major, per second
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 37 operations per point.
+ * Cost: 59 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 13568 bytes (13.2 KiB) at 64, plus scalars.
  */

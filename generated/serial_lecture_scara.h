@@ -17,6 +17,8 @@
  *   DELTAGEN_SINGULAR = 2
  *   DELTAGEN_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
+ * An OK row's outputs are all finite: a row whose outputs would not be (finite inputs so
+ * large that the arithmetic overflows) is DELTAGEN_INVALID, with every output NaN.
  * Return value: 0, or -1 if a pointer is NULL
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
@@ -49,9 +51,9 @@ extern "C" {
  * n         number of points
  * q         in,  n x 2: joint coordinates q_1..q_2 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 27 operations per point.
+ * Cost: 47 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -62,9 +64,9 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
  * n         number of points
  * q         in,  n x 2: joint coordinates q_1..q_2 [rad or m]
  * F         out, n x 64: 4 frames x 4x4 row-major, base to tool
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 33 operations per point.
+ * Cost: 101 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -75,9 +77,9 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
  * n         number of points
  * q         in,  n x 2: joint coordinates q_1..q_2 [rad or m]
  * J         out, n x 12: 6 x 2 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 29 operations per point.
+ * Cost: 45 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -89,9 +91,9 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
  * q         in,  n x 2: joint coordinates q_1..q_2 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * J         out, n x 12: 6 x 2 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 42 operations per point.
+ * Cost: 74 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -103,9 +105,9 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
  * q         in,  n x 2: joint coordinates q_1..q_2 [rad or m]
  * qd        in,  n x 2: joint rates qdot_1..qdot_2 [rad/s or m/s]
  * Jd        out, n x 12: 6 x 2 row-major, per second
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 40 operations per point.
+ * Cost: 56 operations per point.
  * Stack: 21 block arrays (20 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 10496 bytes (10.2 KiB) at 64, plus scalars.
  */
@@ -117,9 +119,9 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
  * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
  * q         out, n x 4: 2 x 2 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
- * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN)
+ * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 188 operations per point.
+ * Cost: 201 operations per point.
  * Stack: 19 block arrays (16 double, 3 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 8960 bytes (8.8 KiB) at 64, plus scalars.
  */

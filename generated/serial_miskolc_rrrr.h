@@ -17,6 +17,8 @@
  *   DELTAGEN_SINGULAR = 2
  *   DELTAGEN_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
+ * An OK row's outputs are all finite: a row whose outputs would not be (finite inputs so
+ * large that the arithmetic overflows) is DELTAGEN_INVALID, with every output NaN.
  * Return value: 0, or -1 if a pointer is NULL
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
@@ -49,9 +51,9 @@ extern "C" {
  * n         number of points
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 66 operations per point.
+ * Cost: 86 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 14592 bytes (14.2 KiB) at 64, plus scalars.
  */
@@ -62,9 +64,9 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
  * n         number of points
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * F         out, n x 96: 6 frames x 4x4 row-major, base to tool
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 83 operations per point.
+ * Cost: 183 operations per point.
  * Stack: 109 block arrays (108 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 55552 bytes (54.2 KiB) at 64, plus scalars.
  */
@@ -75,9 +77,9 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
  * n         number of points
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 81 operations per point.
+ * Cost: 109 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -89,9 +91,9 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 120 operations per point.
+ * Cost: 164 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -103,9 +105,9 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
  * q         in,  n x 4: joint coordinates q_1..q_4 [rad or m]
  * qd        in,  n x 4: joint rates qdot_1..qdot_4 [rad/s or m/s]
  * Jd        out, n x 24: 6 x 4 row-major, per second
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 189 operations per point.
+ * Cost: 217 operations per point.
  * Stack: 39 block arrays (38 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 19712 bytes (19.2 KiB) at 64, plus scalars.
  */
@@ -117,9 +119,9 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
  * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
  * q         out, n x 16: 4 x 4 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
  * valid     out, n x 4 (uint8_t): 4 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
- * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN)
+ * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 1427 operations per point.
+ * Cost: 1460 operations per point.
  * Stack: 33 block arrays (28 double, 5 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */

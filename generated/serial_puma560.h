@@ -17,6 +17,8 @@
  *   DELTAGEN_SINGULAR = 2
  *   DELTAGEN_INVALID = 3
  * Rows that do not succeed get NaN in the outputs the status explains (see each function).
+ * An OK row's outputs are all finite: a row whose outputs would not be (finite inputs so
+ * large that the arithmetic overflows) is DELTAGEN_INVALID, with every output NaN.
  * Return value: 0, or -1 if a pointer is NULL
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
@@ -49,9 +51,9 @@ extern "C" {
  * n         number of points
  * q         in,  n x 6: joint coordinates q_1..q_6 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 119 operations per point.
+ * Cost: 139 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -62,9 +64,9 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
  * n         number of points
  * q         in,  n x 6: joint coordinates q_1..q_6 [rad or m]
  * F         out, n x 128: 8 frames x 4x4 row-major, base to tool
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 159 operations per point.
+ * Cost: 291 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 75008 bytes (73.2 KiB) at 64, plus scalars.
  */
@@ -75,9 +77,9 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
  * n         number of points
  * q         in,  n x 6: joint coordinates q_1..q_6 [rad or m]
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 151 operations per point.
+ * Cost: 191 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -89,9 +91,9 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
  * q         in,  n x 6: joint coordinates q_1..q_6 [rad or m]
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 195 operations per point.
+ * Cost: 251 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -103,9 +105,9 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
  * q         in,  n x 6: joint coordinates q_1..q_6 [rad or m]
  * qd        in,  n x 6: joint rates qdot_1..qdot_6 [rad/s or m/s]
  * Jd        out, n x 36: 6 x 6 row-major, per second
- * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN)
+ * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 397 operations per point.
+ * Cost: 437 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */
@@ -117,9 +119,9 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
  * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
  * q         out, n x 48: 8 x 6 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
  * valid     out, n x 8 (uint8_t): 8 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
- * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN)
+ * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 4175 operations per point.
+ * Cost: 4256 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_PUMA560_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars.
  */

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
+from deltagen.api.validity import finite_rows, invalid_message
 from deltagen.errors import KinematicsError, SingularityError, UnreachableError, rows_text
 from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
 from deltagen.model.delta import DeltaGeometry
@@ -110,13 +111,13 @@ class DeltaRobot:
                 return p
         lead, _, (qf,) = self._prepare(errors, q=q)
         p, status = self._core.fk(qf)
-        return self._finish(errors, lead, status, [p], ("q",), allow_singular=True)
+        return self._finish(errors, lead, status, [p], ("q",), [qf], allow_singular=True)
 
     def fk_vel(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """(p, pdot) from (q, qdot), eq. (30)."""
         lead, _, (qf, qdf) = self._prepare(errors, q=q, qd=qd)
         p, pd, status = self._core.fk_vel(qf, qdf)
-        return self._finish(errors, lead, status, [p, pd], ("q", "qd"))
+        return self._finish(errors, lead, status, [p, pd], ("q", "qd"), [qf, qdf])
 
     def fk_acc(
         self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
@@ -124,13 +125,13 @@ class DeltaRobot:
         """(p, pdot, pddot) from (q, qdot, qddot), eqs. (30), (38)."""
         lead, _, (qf, qdf, qddf) = self._prepare(errors, q=q, qd=qd, qdd=qdd)
         p, pd, pdd, status = self._core.fk_acc(qf, qdf, qddf)
-        return self._finish(errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"))
+        return self._finish(errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"), [qf, qdf, qddf])
 
     def jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """J = J_p^-1 J_q (..., 3, 3) with pdot = J @ qdot (first three axes)."""
         lead, _, (qf,) = self._prepare(errors, q=q)
         J, status = self._core.jacobian(qf)
-        return self._finish(errors, lead, status, [J], ("q",), trailing=[(3, 3)])
+        return self._finish(errors, lead, status, [J], ("q",), [qf], trailing=[(3, 3)])
 
     def ik(self, p: ArrayLike, errors: Errors = "raise") -> Result:
         """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
@@ -141,7 +142,7 @@ class DeltaRobot:
                 return q
         lead, _, (pf,) = self._prepare(errors, p=p)
         q, status = self._core.ik(pf)
-        return self._finish(errors, lead, status, [q], ("p",), allow_singular=True)
+        return self._finish(errors, lead, status, [q], ("p",), [pf], allow_singular=True)
 
     def ik_vel(self, p: ArrayLike, pd: ArrayLike, errors: Errors = "raise") -> Result:
         """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
@@ -160,7 +161,12 @@ class DeltaRobot:
         check_errors_mode(errors)
         return broadcast_rows(arrays)
 
-    def _finish(self, errors, lead, status, outs, names, allow_singular=False, trailing=None):
+    def _finish(
+        self, errors, lead, status, outs, names, inputs, allow_singular=False, trailing=None
+    ):
+        """Shape the kernel's outputs; its status already applies the finite-output rule
+        (a row with a non-finite output is not OK), so only the singular rows that fk and
+        ik return need a look at their values."""
         trailing = trailing or [o.shape[1:] for o in outs]
         # a non-finite result is never OK, whatever the status says (huge finite inputs
         # overflow inside the kernels)
@@ -173,7 +179,7 @@ class DeltaRobot:
             if allow_singular:
                 ok |= (status == st.SINGULAR) & finite
             if errors == "raise" and not ok.all():
-                self._raise(status, ok, names)
+                self._raise(status, ok, names, inputs)
         shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
         if errors == "nan":
             if not all_ok:
@@ -183,16 +189,12 @@ class DeltaRobot:
         return shaped[0] if len(shaped) == 1 else tuple(shaped)
 
     @staticmethod
-    def _raise(status, ok, names):
+    def _raise(status, ok, names, inputs):
         bad = np.flatnonzero(~ok)
         invalid = bad[status[bad] == st.INVALID]
         if invalid.size:
-            raise InputError(
-                f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN or "
-                f"infinite values in rows {rows_text(invalid)}",
-                invalid,
-            )
-        overflow = bad[status[bad] == st.OK]
+            raise InputError(invalid_message(names, inputs, invalid), invalid)
+        overflow = bad[status[bad] == st.OK]  # safety net: the kernels already mark these
         if overflow.size:
             raise KinematicsError(
                 f"the result is not finite (the input is too large to evaluate) in rows "
@@ -222,28 +224,32 @@ class DeltaRobot:
         status[(status == st.OK) & ~finite_rates] = st.INVALID
         ok = status == st.OK
         if errors == "raise" and not ok.all():
-            self._raise(status, ok, tuple(arrays))
+            self._raise(status, ok, tuple(arrays), flat)
         qd = np.full_like(pdf, np.nan)
         Jok = J[ok]
-        qd[ok, :3] = np.linalg.solve(Jok, pdf[ok, :3, None])[..., 0] if Jok.size else 0.0
-        if width == 4:
-            qd[ok, 3] = pdf[ok, 3]
-        outs = [q, qd]
-        if with_acceleration:
-            pddf = flat[2]
-            qdd = np.full_like(pddf, np.nan)
-            zero = np.zeros_like(pddf)
-            _, _, pdd0, _ = self._core.fk_acc(q, np.where(ok[:, None], qd, 0.0), zero)
-            rhs = pddf[ok, :3] - pdd0[ok, :3]
-            qdd[ok, :3] = np.linalg.solve(Jok, rhs[..., None])[..., 0] if Jok.size else 0.0
+        with np.errstate(all="ignore"):  # overflow of huge rates: the finite check below
+            qd[ok, :3] = np.linalg.solve(Jok, pdf[ok, :3, None])[..., 0] if Jok.size else 0.0
             if width == 4:
-                qdd[ok, 3] = pddf[ok, 3]
-            outs.append(qdd)
-        with np.errstate(invalid="ignore"):
-            for o in outs:  # a non-finite result is never OK (overflow of huge rates)
-                ok &= np.isfinite(o).all(axis=1)
-        if errors == "raise" and not ok.all():
-            self._raise(status, ok, tuple(arrays))
+                qd[ok, 3] = pdf[ok, 3]
+            outs = [q, qd]
+            if with_acceleration:
+                pddf = flat[2]
+                qdd = np.full_like(pddf, np.nan)
+                zero = np.zeros_like(pddf)
+                # Jdot qdot (pdd0) is NaN where huge rates overflow: qdd then fails the check
+                _, _, pdd0, _ = self._core.fk_acc(q, np.where(ok[:, None], qd, 0.0), zero)
+                rhs = pddf[ok, :3] - pdd0[ok, :3]
+                qdd[ok, :3] = np.linalg.solve(Jok, rhs[..., None])[..., 0] if Jok.size else 0.0
+                if width == 4:
+                    qdd[ok, 3] = pddf[ok, 3]
+                outs.append(qdd)
+        # the finite-output rule (deltagen.status): rates computed here are checked here
+        overflow = ok & ~finite_rows(*outs)
+        if overflow.any():
+            status[overflow] = st.INVALID
+            ok &= ~overflow
+            if errors == "raise":
+                self._raise(status, ok, tuple(arrays), flat)
         for o in outs:
             o[~ok] = np.nan
         shaped = [o.reshape(lead + (width,)) for o in outs]

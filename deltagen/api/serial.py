@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
+from deltagen.api.validity import finite_rows, invalid_message
 from deltagen.errors import GeometryError, KinematicsError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
@@ -193,13 +194,13 @@ class SerialRobot:
                 return T
         lead, qf = self._prepare(errors, q)
         T, status = self._core.fk(qf)
-        return self._finish(errors, lead, status, [T], ("q",))
+        return self._finish(errors, lead, status, [T], ("q",), [qf])
 
     def frames(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """All frames (..., n + 2, 4, 4): base, after each joint, tool (for drawing)."""
         lead, qf = self._prepare(errors, q)
         F, status = self._core.frames(qf)
-        return self._finish(errors, lead, status, [F], ("q",))
+        return self._finish(errors, lead, status, [F], ("q",), [qf])
 
     def jacobian(self, q: ArrayLike, frame: Frame = "base", errors: Errors = "raise") -> Result:
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
@@ -214,7 +215,7 @@ class SerialRobot:
         J, status = self._core.jacobian(qf)
         if frame == "tool":
             J = self._to_tool(qf, J)
-        return self._finish(errors, lead, status, [J], ("q",))
+        return self._finish(errors, lead, status, [J], ("q",), [qf], check=frame == "tool")
 
     def jacobian_dot(
         self, q: ArrayLike, qd: ArrayLike, frame: Frame = "base", errors: Errors = "raise"
@@ -229,11 +230,14 @@ class SerialRobot:
             # J_t = Rbar^T J with Rbar = diag(R, R): dJ_t/dt = Rbar^T (Jd - [w]x J) (w = tool
             # angular velocity in the base frame)
             J, _ = self._core.jacobian(qf)
-            w = np.einsum("nij,nj->ni", J[:, 3:], qdf)
-            W = skew(w)
-            corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
-            Jd = self._to_tool(qf, Jd - corr)
-        return self._finish(errors, lead, status, [Jd], ("q", "qd"))
+            with np.errstate(all="ignore"):  # overflow: the finite check of _finish
+                w = np.einsum("nij,nj->ni", J[:, 3:], qdf)
+                W = skew(w)
+                corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
+                Jd = self._to_tool(qf, Jd - corr)
+        return self._finish(
+            errors, lead, status, [Jd], ("q", "qd"), [qf, qdf], check=frame == "tool"
+        )
 
     def euler(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
@@ -286,14 +290,18 @@ class SerialRobot:
             Einv[..., 2, 1] = sp_ / c_th
             Ja = J.copy()
             Ja[..., 3:, :] = Einv @ J[..., 3:, :]
+            # the finite-output rule: E^-1 near cos theta = 0 times a huge J may overflow
+            overflow = valid & ~np.all(np.isfinite(Ja), axis=(-2, -1))
+        valid = valid & ~overflow
         Ja[~valid] = np.nan
         if errors == "raise":
             if not np.all(valid):
                 self.jacobian(q)  # non-finite input rows raise there
                 bad = np.flatnonzero(~valid.reshape(-1))
-                raise SingularityError(
-                    f"Euler-angle singularity (cos theta = 0) in rows {rows_text(bad)}", bad
-                )
+                cause = "Euler-angle singularity (cos theta = 0)"
+                if np.any(overflow):
+                    cause += " or a result that is not finite (q too large: overflow)"
+                raise SingularityError(f"{cause} in rows {rows_text(bad)}", bad)
             return Ja
         return Ja, valid
 
@@ -302,20 +310,20 @@ class SerialRobot:
         n >= 6, sqrt(det(J^T J)) for n < 6)."""
         check_errors_mode(errors)
         J, valid = self.jacobian(q, errors="nan")
-        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
-        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
-        out = np.prod(sv, axis=-1)
-        return self._plain(errors, q, out, valid)
+        with np.errstate(over="ignore"):  # a product that overflows: not valid (_plain)
+            out = np.prod(self._singular_values(J, valid), axis=-1)
+        return self._plain(errors, q, out, valid, "manipulability")
 
     def condition_number(self, q: ArrayLike, errors: Errors = "raise") -> Result:
-        """sigma_max / sigma_min of the geometric Jacobian (inf at a singularity)."""
+        """sigma_max / sigma_min of the geometric Jacobian. At an exact singularity
+        (sigma_min = 0) it is infinite: a non-finite value is never valid, so such rows
+        raise SingularityError (errors="raise") or give NaN and False (errors="nan")."""
         check_errors_mode(errors)
         J, valid = self.jacobian(q, errors="nan")
-        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
-        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
-        with np.errstate(divide="ignore"):
+        sv = self._singular_values(J, valid)
+        with np.errstate(divide="ignore", invalid="ignore"):
             out = sv[..., 0] / sv[..., -1]
-        return self._plain(errors, q, out, valid)
+        return self._plain(errors, q, out, valid, "condition number")
 
     def singularities(
         self, q: ArrayLike, tol: float = 1e-6, errors: Errors = "raise"
@@ -325,24 +333,27 @@ class SerialRobot:
         ``shoulder`` and ``elbow`` flags; ``aligned_axes`` lists collinear joint axes.
         deltagen.solve.singularity.describe(row) words one configuration's report.
 
-        Rows of q with NaN or infinite values have no report: errors="raise" raises
-        InputError naming them; errors="nan" gives NaN numbers and False flags there and
-        adds ``valid`` (...) to the report."""
+        Rows of q with NaN or infinite values, or q so large that the Jacobian is not
+        finite, have no report: errors="raise" raises InputError naming them;
+        errors="nan" gives NaN numbers and False flags there and adds ``valid`` (...) to
+        the report."""
         from deltagen.solve.singularity import report
 
         check_errors_mode(errors)
         lead, arr = self._joints(q, "q")
-        finite = np.isfinite(arr).all(axis=-1)
-        if errors == "raise" and not np.all(finite):
-            bad = np.flatnonzero(~finite.reshape(-1))
+        rep = report(self, arr, tol=tol)
+        no_report = np.isnan(np.asarray(rep["sigma_max"], dtype=float)).reshape(-1)
+        if errors == "raise" and np.any(no_report):
+            bad = np.flatnonzero(no_report)
+            flat = np.ascontiguousarray(arr.reshape(-1, self.n))
             raise InputError(
-                f"q contains NaN or infinite values in rows {rows_text(bad)} (no singularity "
-                "report for them; errors='nan' reports the others)",
+                f"{invalid_message(('q',), [flat], bad)} (no singularity report for them; "
+                "errors='nan' reports the others)",
                 bad,
             )
-        rep = report(self, arr, tol=tol)
         if errors == "nan":
-            rep["valid"] = finite if lead else bool(finite)
+            valid = ~no_report
+            rep["valid"] = valid.reshape(lead) if lead else bool(valid[0])
         return rep
 
     # -- inverse kinematics -------------------------------------------------------------
@@ -837,12 +848,40 @@ class SerialRobot:
 
     # -- helpers ----------------------------------------------------------------------
 
-    def _plain(self, errors, q, out, valid):
+    @staticmethod
+    def _singular_values(J, valid):
+        """Singular values (..., min(6, n)) of the valid rows' J, NaN elsewhere (and where
+        LAPACK does not converge, which huge finite entries can cause)."""
+        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
+        try:
+            sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
+        except np.linalg.LinAlgError:
+            rows = np.argwhere(valid)
+            for index in map(tuple, rows):
+                try:
+                    sv[index] = np.linalg.svd(J[index], compute_uv=False)
+                except np.linalg.LinAlgError:
+                    pass
+        return sv
+
+    def _plain(self, errors, q, out, valid, what):
+        """A per-row number derived from J: valid only where it is finite (the finite-output
+        rule); NaN where not valid."""
+        out = np.asarray(out, dtype=float)
+        nonfinite = valid & ~np.isfinite(out)
+        valid = valid & ~nonfinite
+        out = np.where(valid, out, np.nan)
         if errors == "raise":
             if not np.all(valid):
-                self.jacobian(q)
-            return out
-        return out, valid
+                self.jacobian(q)  # non-finite q: raises there, naming the rows
+                bad = np.flatnonzero(nonfinite.reshape(-1))
+                message = (
+                    f"the {what} is not finite in rows {rows_text(bad)} (an exact singularity "
+                    "of the Jacobian, or q so large that the arithmetic overflows)"
+                )
+                raise SingularityError(message, bad)
+            return out[()] if out.ndim == 0 else out
+        return out[()] if out.ndim == 0 else out, valid
 
     @staticmethod
     def _check_frame(frame):
@@ -873,7 +912,12 @@ class SerialRobot:
         lead, _, flat = broadcast_rows(checked, widths=(self.n,))
         return lead, flat
 
-    def _finish(self, errors, lead, status, outs, names):
+    def _finish(self, errors, lead, status, outs, names, inputs, check=False):
+        """Shape the kernel's outputs. The kernel's status already applies the
+        finite-output rule; ``check``: outputs were transformed here (the tool frame), so
+        their rows are checked again."""
+        if check:
+            status[(status == st.OK) & ~finite_rows(*outs)] = st.INVALID
         ok = status == st.OK
         for o in outs:  # a non-finite result is never OK, whatever the status says
             ok &= np.isfinite(o).all(axis=tuple(range(1, o.ndim)))
@@ -887,11 +931,7 @@ class SerialRobot:
                 )
             if errors == "raise":
                 bad = np.flatnonzero(~ok)
-                raise InputError(
-                    f"{' or '.join(names)} {'contains' if len(names) == 1 else 'contain'} NaN "
-                    f"or infinite values in rows {rows_text(bad)}",
-                    bad,
-                )
+                raise InputError(invalid_message(names, inputs, bad), bad)
             for o in outs:
                 o[~ok] = np.nan
         shaped = [o.reshape(lead + o.shape[1:]) for o in outs]

@@ -1,5 +1,6 @@
-"""Kernel → C statements: common-subexpression elimination per stage (sympy.cse) and
-printing (SymPy's C99 printer). The result is plain data for the Jinja templates."""
+"""Kernel → C statements: the finite-output rule (:func:`guard_outputs`), common-subexpression
+elimination per stage (sympy.cse) and printing (SymPy's C99 printer). The result is plain
+data for the Jinja templates."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ import sympy as sp
 from sympy.core.relational import Relational
 from sympy.logic.boolalg import BooleanFunction
 
+from deltagen import status as st
 from deltagen.codegen.printer import to_c
+from deltagen.derive.functions import AllFinite
 from deltagen.derive.kernel import Kernel, Stage
 
 
@@ -27,7 +30,11 @@ def _is_integer_code(expr) -> bool:
 
 
 def _statement(sym, expr) -> Statement:
-    boolean = isinstance(expr, (Relational, BooleanFunction)) or _is_integer_code(expr)
+    boolean = (
+        isinstance(expr, (Relational, BooleanFunction))
+        or _is_integer_code(expr)
+        or bool(sym.is_integer)  # a symbol declared integer (a 0/1 flag output)
+    )
     return Statement(str(sym), to_c(expr), "int" if boolean else "double")
 
 
@@ -102,8 +109,100 @@ def prune(kernel: Kernel) -> Kernel:
     return replace(kernel, stages=tuple(reversed(kept_stages)))
 
 
+#: Appended to every kernel's status documentation by :func:`guard_outputs`.
+NONFINITE_DOC = (
+    "; INVALID also where finite inputs give an output the status would return that is not "
+    "finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN "
+    "(flags 0)"
+)
+
+
+def _nan_condition(expr):
+    """Where an output's assignment is NaN by design: the condition under which its
+    Piecewise takes a NaN branch (false when it has none). Such NaNs are what the status
+    explains; any other non-finite value is an overflow."""
+    if not isinstance(expr, sp.Piecewise):
+        return sp.false
+    earlier, conditions = sp.false, []
+    for value, cond in expr.args:
+        if value is sp.nan:
+            conditions.append(sp.And(cond, sp.Not(earlier)))
+        earlier = sp.Or(earlier, cond)
+    return sp.Or(*conditions)
+
+
+def _finite_by_construction(expr) -> bool:
+    """Every value the assignment can take is a finite number or NaN (e.g. the constant
+    bottom row of a homogeneous matrix): no check needed."""
+    values = [a.expr for a in expr.args] if isinstance(expr, sp.Piecewise) else [expr]
+    return all(v is sp.nan or (v.is_Number and v.is_finite) for v in values)
+
+
+def guard_outputs(kernel: Kernel) -> Kernel:
+    """The finite-output rule, applied to every kernel: a row whose outputs are not all
+    finite, apart from the NaNs its status explains, gets status INVALID and NaN in every
+    output (0 in every flag output). Finite but huge inputs (a target 1e155 m away, rates
+    of 1e155) overflow inside the arithmetic; without this rule they came back OK.
+
+    Implemented as one more stage after the kernel's own: ``nonfinite_output``, then a
+    checked copy of every output; the status gets INVALID as its first branch. The NaN a
+    status explains is recognised from the output's Piecewise (a NaN branch and its
+    condition), so a kernel needs nothing to opt in. Cost: one isfinite per output value
+    and one select per output: measured with the build flags (-O3 -march=native, best of 6),
+    delta fk 33.6 -> 36.3 ns per point, delta ik 72.1 -> 75.3, Puma 560 fk 51.2 -> 55.6."""
+    assignments = {sym: sp.sympify(e) for stage in kernel.stages for sym, e in stage.assignments}
+    by_mask: dict = {}
+    for port in kernel.outputs:
+        if port.ctype != "double":
+            continue
+        for sym in (*port.symbols, *(() if port.fourth is None else (port.fourth,))):
+            expr = assignments.get(sym, sym)
+            if _finite_by_construction(expr):
+                continue
+            by_mask.setdefault(_nan_condition(expr), []).append(sym)
+    if not by_mask:
+        return kernel
+    nonfinite = sp.Symbol("nonfinite_output")
+    overflow = sp.Or(
+        *(sp.And(sp.Not(mask), sp.Not(AllFinite(*syms))) for mask, syms in by_mask.items())
+    )
+    checked = [(nonfinite, overflow)]
+
+    def checked_symbol(sym, flag):
+        new = sp.Symbol(f"{sym}_checked", integer=True) if flag else sp.Symbol(f"{sym}_checked")
+        blank = sp.Integer(0) if flag else sp.nan
+        checked.append((new, sp.Piecewise((blank, nonfinite), (sym, True))))
+        return new
+
+    outputs = []
+    for port in kernel.outputs:
+        flag = port.ctype != "double"
+        outputs.append(
+            replace(
+                port,
+                symbols=tuple(checked_symbol(sym, flag) for sym in port.symbols),
+                fourth=None if port.fourth is None else checked_symbol(port.fourth, flag),
+            )
+        )
+    old = sp.sympify(kernel.status)
+    branches = old.args if isinstance(old, sp.Piecewise) else ((old, True),)
+    status = sp.Piecewise((st.INVALID, nonfinite), *branches)
+    stage = Stage(
+        "finite outputs: a non-finite value the status does not explain makes the row INVALID, "
+        "all NaN",
+        tuple(checked),
+    )
+    return replace(
+        kernel,
+        outputs=tuple(outputs),
+        stages=(*kernel.stages, stage),
+        status=status,
+        status_doc=kernel.status_doc + NONFINITE_DOC,
+    )
+
+
 def lower(kernel: Kernel) -> LoweredKernel:
-    kernel = prune(kernel)
+    kernel = prune(guard_outputs(kernel))
     stages, total = [], 0
     for index, stage in enumerate(kernel.stages):
         lowered, ops = lower_stage(index, stage, prefix="t")

@@ -63,7 +63,10 @@ class Kernel:
     inputs: tuple  # (Port, ...)
     outputs: tuple  # (Port, ...); output symbols are assigned in the stages
     stages: tuple  # (Stage, ...)
-    status: sp.Expr  # integer-valued expression (Piecewise) of earlier symbols
+    # integer-valued expression (Piecewise) of earlier symbols; lowering adds the
+    # finite-output rule (codegen.lowering.guard_outputs): INVALID where an output is not
+    # finite beyond the NaNs of a Piecewise (NaN, condition) branch, which the status explains
+    status: sp.Expr
     parameters: tuple = ()  # (Parameter, ...)
     setup: tuple = ()  # (Stage, ...) evaluated once per call from the parameters
     angles: tuple = ()  # (Angle, ...)

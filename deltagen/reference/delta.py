@@ -43,6 +43,9 @@ Status rules (per point, int8; see :mod:`deltagen.status`):
   ``|det D| / l_b^3 < tol`` (p is returned, pd / pdd / J are NaN); else OK.
 * ik: UNREACHABLE if for any chain ``E^2 + F^2 - G^2 < 0`` (row NaN); else SINGULAR if
   for any chain ``|j_i| / (l_a l_b) < tol`` (q is returned); else OK.
+* Finite outputs (:mod:`deltagen.status`, the rule the generated C applies too): INVALID
+  where an output the status gives is not finite (finite but huge inputs overflow, e.g. a
+  target 1e155 m away); all outputs of the row NaN.
 
 ``tol`` is ``geom.singular_tol``. An exactly zero ``|e|``, ``det D`` or ``j_i`` counts
 as singular even when ``tol == 0``. Whole rows are NaN'd, including a fourth column.
@@ -185,6 +188,21 @@ def _fk_core(geom, q: np.ndarray, *others: np.ndarray):
     return q3, p3, S, dS, d2S, D, status, no_position, solvable
 
 
+def _finite_outputs(status, pairs):
+    """The finite-output rule: rows where an output holds a non-finite value its status does
+    not explain become INVALID, every output NaN. ``pairs``: (output (N, ...), rows whose
+    NaN in that output the status explains)."""
+    over = np.zeros(status.shape[0], dtype=bool)
+    for out, explained in pairs:
+        width = int(np.prod(out.shape[1:]))
+        over |= ~explained & ~np.all(np.isfinite(out.reshape(status.shape[0], width)), axis=1)
+    if over.any():
+        status[over] = INVALID
+        for out, _ in pairs:
+            out[over] = np.nan
+    return status
+
+
 # ------------------------------------------------------------------------------ API
 
 
@@ -194,7 +212,7 @@ def fk(geom, q):
     with np.errstate(all="ignore"):
         _, p3, _, _, _, _, status, no_position, _ = _fk_core(geom, q)
         p = _with_fourth(p3, q, no_position)
-    return p, status
+    return p, _finite_outputs(status, [(p, no_position)])
 
 
 def fk_vel(geom, q, qd):
@@ -208,7 +226,7 @@ def fk_vel(geom, q, qd):
         pd3 = _solve(D, j * qd3, ok)
         p = _with_fourth(p3, q, no_position)
         pd = _with_fourth(pd3, qd, ~ok)
-    return p, pd, status
+    return p, pd, _finite_outputs(status, [(p, no_position), (pd, ~ok)])
 
 
 def fk_acc(geom, q, qd, qdd):
@@ -229,7 +247,7 @@ def fk_acc(geom, q, qd, qdd):
         p = _with_fourth(p3, q, no_position)
         pd = _with_fourth(pd3, qd, ~ok)
         pdd = _with_fourth(pdd3, qdd, ~ok)
-    return p, pd, pdd, status
+    return p, pd, pdd, _finite_outputs(status, [(p, no_position), (pd, ~ok), (pdd, ~ok)])
 
 
 def jacobian(geom, q):
@@ -239,8 +257,8 @@ def jacobian(geom, q):
         _, _, _, dS, _, D, status, _, ok = _fk_core(geom, q)
         j = np.einsum("nci,nci->nc", D, dS)
         Jq = j[:, :, None] * np.eye(3)  # diagonal J_q
-        J = _solve(D, Jq, ok)
-    return np.ascontiguousarray(J), status
+        J = np.ascontiguousarray(_solve(D, Jq, ok))
+    return J, _finite_outputs(status, [(J, ~ok)])
 
 
 def ik(geom, p):
@@ -272,4 +290,4 @@ def ik(geom, p):
         status[unreachable] = UNREACHABLE
         status[bad] = INVALID
         q = _with_fourth(q3, p, bad | unreachable)
-    return q, status
+    return q, _finite_outputs(status, [(q, bad | unreachable)])

@@ -31,8 +31,10 @@ derivative follows from differentiating these column formulas with the angular v
 In the tool frame, ``J_tool = R^T J`` (both halves) and, with ``omega_e`` the tool's
 angular velocity, ``dJ_tool/dt = R^T (dJ/dt - omega_e x J)`` (both halves).
 
-Status (int8, :mod:`deltagen.status`): INVALID for rows with any non-finite input value
-(their outputs are NaN), OK otherwise.
+Status (int8, :mod:`deltagen.status`): INVALID for rows with any non-finite input value,
+and for rows whose outputs are not all finite (finite but huge inputs that overflow, e.g. a
+prismatic q of 1e300 with rates of 1e200; the finite-output rule of the generated C); their
+outputs are NaN. OK otherwise.
 """
 
 from __future__ import annotations
@@ -83,7 +85,13 @@ def _split_invalid(*arrays):
     return bad, clean
 
 
-def _status(bad: np.ndarray) -> np.ndarray:
+def _status(bad: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """INVALID for the ``bad`` rows and (the finite-output rule) for rows of ``out`` that are
+    not all finite, whose values are then NaN; OK elsewhere."""
+    if out is not None:
+        over = ~np.all(np.isfinite(out.reshape(out.shape[0], int(np.prod(out.shape[1:])))), axis=1)
+        out[over] = np.nan
+        bad = bad | over
     st = np.full(bad.shape[0], OK, dtype=np.int8)
     st[bad] = INVALID
     return st
@@ -112,9 +120,10 @@ def frames(desc, q):
     F[:, n+1] = F[:, n] tool."""
     q = _check_q(desc, q)
     bad, (qc,) = _split_invalid(q)
-    F = model_frames(desc, qc)
+    with np.errstate(all="ignore"):
+        F = model_frames(desc, qc)
     F[bad] = np.nan
-    return F, _status(bad)
+    return F, _status(bad, F)
 
 
 def fk(desc, q):
@@ -197,11 +206,12 @@ def jacobian(desc, q, frame: str = "base"):
     _check_frame(frame)
     q = _check_q(desc, q)
     bad, (qc,) = _split_invalid(q)
-    J, T, *_ = _jacobian_parts(desc, qc)
-    if frame == "tool":
-        J = _to_tool(J, T[:, :3, :3])
+    with np.errstate(all="ignore"):
+        J, T, *_ = _jacobian_parts(desc, qc)
+        if frame == "tool":
+            J = _to_tool(J, T[:, :3, :3])
     J[bad] = np.nan
-    return J, _status(bad)
+    return J, _status(bad, J)
 
 
 def _to_tool(X: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -223,34 +233,39 @@ def jacobian_dot(desc, q, qd, frame: str = "base"):
     if q.shape != qd.shape:
         raise InputError(f"q and qd must have the same shape, got {q.shape} and {qd.shape}")
     bad, (qc, qdc) = _split_invalid(q, qd)
-    J, T, o, w, p, rev = _jacobian_parts(desc, qc)
-    N, n = qc.shape
+    with np.errstate(all="ignore"):  # overflow of huge inputs: the status says so
+        J, T, o, w, p, rev = _jacobian_parts(desc, qc)
+        N, n = qc.shape
 
-    # Angular velocity of link i-1 (the link carrying axis i): revolute j < i.
-    wq = w * (qdc * rev[None, :])[:, :, None]  # (N, n, 3): w_j qd_j for revolute j
-    Omega = np.cumsum(wq, axis=1) - wq  # exclusive prefix sum: sum over j < i
-    lower = np.tril(np.ones((n, n), dtype=bool), k=-1)  # [i, j] = j < i
+        # Angular velocity of link i-1 (the link carrying axis i): revolute j < i.
+        wq = w * (qdc * rev[None, :])[:, :, None]  # (N, n, 3): w_j qd_j for revolute j
+        Omega = np.cumsum(wq, axis=1) - wq  # exclusive prefix sum: sum over j < i
+        lower = np.tril(np.ones((n, n), dtype=bool), k=-1)  # [i, j] = j < i
 
-    # Velocity of point o_i (fixed in link i-1): contributions of every joint j < i.
-    diff = o[:, :, None, :] - o[:, None, :, :]  # (N, i, j, 3) = o_i - o_j
-    w_j = np.broadcast_to(w[:, None, :, :], diff.shape)
-    contrib = np.where(rev[None, None, :, None], np.cross(w_j, diff), w_j)
-    contrib = contrib * (qdc[:, None, :, None] * lower[None, :, :, None])
-    o_dot = contrib.sum(axis=2)  # (N, n, 3)
+        # Velocity of point o_i (fixed in link i-1): contributions of every joint j < i.
+        diff = o[:, :, None, :] - o[:, None, :, :]  # (N, i, j, 3) = o_i - o_j
+        w_j = np.broadcast_to(w[:, None, :, :], diff.shape)
+        contrib = np.where(rev[None, None, :, None], np.cross(w_j, diff), w_j)
+        contrib = contrib * (qdc[:, None, :, None] * lower[None, :, :, None])
+        o_dot = contrib.sum(axis=2)  # (N, n, 3)
 
-    p_dot = np.einsum("nkj,nj->nk", J[:, :3], qdc)  # (N, 3)
-    w_dot = np.cross(Omega, w)  # (N, n, 3)
+        p_dot = np.einsum("nkj,nj->nk", J[:, :3], qdc)  # (N, 3)
+        w_dot = np.cross(Omega, w)  # (N, n, 3)
 
-    top_rev = np.cross(w_dot, p[:, None, :] - o) + np.cross(w, p_dot[:, None, :] - o_dot)
-    Jd = np.zeros((N, 6, n))
-    Jd[:, :3] = np.where(rev[None, :, None], top_rev, w_dot).transpose(0, 2, 1)
-    Jd[:, 3:] = np.where(rev[None, :, None], w_dot, 0.0).transpose(0, 2, 1)
+        top_rev = np.cross(w_dot, p[:, None, :] - o) + np.cross(w, p_dot[:, None, :] - o_dot)
+        Jd = np.zeros((N, 6, n))
+        Jd[:, :3] = np.where(rev[None, :, None], top_rev, w_dot).transpose(0, 2, 1)
+        Jd[:, 3:] = np.where(rev[None, :, None], w_dot, 0.0).transpose(0, 2, 1)
 
-    if frame == "tool":
-        omega_e = wq.sum(axis=1)  # (N, 3)
-        corr = np.empty_like(J)
-        corr[:, :3] = np.cross(omega_e[:, None, :], J[:, :3].transpose(0, 2, 1)).transpose(0, 2, 1)
-        corr[:, 3:] = np.cross(omega_e[:, None, :], J[:, 3:].transpose(0, 2, 1)).transpose(0, 2, 1)
-        Jd = _to_tool(Jd - corr, T[:, :3, :3])
+        if frame == "tool":
+            omega_e = wq.sum(axis=1)  # (N, 3)
+            corr = np.empty_like(J)
+            corr[:, :3] = np.cross(omega_e[:, None, :], J[:, :3].transpose(0, 2, 1)).transpose(
+                0, 2, 1
+            )
+            corr[:, 3:] = np.cross(omega_e[:, None, :], J[:, 3:].transpose(0, 2, 1)).transpose(
+                0, 2, 1
+            )
+            Jd = _to_tool(Jd - corr, T[:, :3, :3])
     Jd[bad] = np.nan
-    return Jd, _status(bad)
+    return Jd, _status(bad, Jd)

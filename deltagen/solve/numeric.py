@@ -553,6 +553,8 @@ def solve(
                     float(null_space),
                 )
         q_out[rows], conv[rows], iters[rows], pos_err[rows], rot_err[rows] = q, c, it, pe, re
+    # the finite-output rule (deltagen.status): converged means every value is finite
+    conv &= np.all(np.isfinite(q_out), axis=1) & np.isfinite(pos_err) & np.isfinite(rot_err)
     return IKResult(
         q=q_out.reshape(lead + (n,)),
         converged=conv.reshape(lead),

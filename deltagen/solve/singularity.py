@@ -51,7 +51,9 @@ For other arms these flags are False and the distances NaN; ``singular`` and
 ``aligned_axes`` still apply. ``size`` is the arm's length scale: the summed lengths of the
 links (joint frame to joint frame, and to the tool) at q = 0.
 
-Rows with non-finite q give NaN numbers, False flags and empty ``aligned_axes``.
+Rows with non-finite q, or whose Jacobian is not finite (finite q so large that the
+arithmetic overflows: the reference kinematics call them INVALID), give NaN numbers, False
+flags and empty ``aligned_axes`` (``SerialRobot.singularities`` raises for them).
 
 ``describe(row)`` turns the report of one configuration (``report(arm, q)`` with q of shape
 (n,), or ``row_of(rep, index)``) into one line of text for messages.
@@ -66,6 +68,7 @@ from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import SphericalWrist6R, detect
 from deltagen.reference import serial as reference
+from deltagen.status import OK
 
 __all__ = ["report", "describe", "row_of", "structure_of"]
 
@@ -147,8 +150,10 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     good = np.all(np.isfinite(qf), axis=1)
     qc = np.where(good[:, None], qf, 0.0)
 
-    J, _ = reference.jacobian(desc, qc)
-    Jt = J[:, s.rows]
+    J, status = reference.jacobian(desc, qc)
+    good &= status == OK  # the finite-output rule: an overflowing row has no report
+    qc[~good] = 0.0
+    Jt = np.where(good[:, None, None], J[:, s.rows], 0.0)
     sv = np.linalg.svd(Jt, compute_uv=False)[:, : s.rank]
     smax, smin = sv[:, 0], sv[:, -1]
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -447,13 +447,23 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
             }
         }
         const double *q_res = converged ? cur->q : best_q;
+        int finite_out = 1;
         for (size_t i = 0; i < N; ++i) {
             q_out[i] = q_res[i];
+            finite_out &= isfinite(q_res[i]) != 0;
         }
         err_p[row] = converged ? cur->ep : best_ep;
         err_r[row] = converged ? cur->er : best_er;
         iterations[row] = it;
         status[row] = converged ? DELTAGEN_OK : DELTAGEN_UNREACHABLE;
+        finite_out &= (isfinite(err_p[row]) != 0) & (isfinite(err_r[row]) != 0);
+        if (converged && !finite_out) {  /* the finite-output rule (deltagen/status.py) */
+            for (size_t i = 0; i < N; ++i) {
+                q_out[i] = NAN;
+            }
+            err_p[row] = err_r[row] = NAN;
+            status[row] = DELTAGEN_INVALID;
+        }
     }
     return 0;
 }

@@ -79,7 +79,8 @@ typedef struct deltagen_ik_arm {
  * iterations  out, n: Newton steps taken
  * status      out, n: DELTAGEN_OK (converged), DELTAGEN_UNREACHABLE (not converged within
  *             max_iter or stuck), DELTAGEN_INVALID (a non-finite value in the row's T_target
- *             or q0; q, err_p, err_r NaN, iterations 0)
+ *             or q0; q, err_p, err_r NaN, iterations 0; or, by the finite-output rule, a
+ *             converged row whose q or errors are not finite: q, err_p, err_r NaN)
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
  * n > 0 (then nothing is written).
  */

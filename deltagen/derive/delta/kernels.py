@@ -8,6 +8,8 @@ Status rules (identical in the numpy reference, see deltagen/status.py):
   UNREACHABLE  the spheres do not meet: h^2 < 0          (no output)
   SINGULAR     |det D| < tol l_b^3, D rows p - S_i        (p given, derivatives NaN)
   (ik) UNREACHABLE if a chain's rho^2 - G^2 < 0; SINGULAR if rho^2 - G^2 < (2 tol l_a l_b)^2
+  INVALID      (every kernel, added by codegen.lowering.guard_outputs) an output the status
+               gives is not finite: finite inputs that overflow; the row is all NaN
 """
 
 from __future__ import annotations

@@ -1,7 +1,11 @@
 """The batched kernels of one serial arm: fk (T, 4x4 row-major), frames (every link frame),
 jacobian (geometric, base frame, 6 x n row-major), fk_jacobian (T and the Jacobian from one
 shared CSE: the evaluation of one Newton step of the compiled IK solver) and jacobian_dot
-(dJ/dt along qd)."""
+(dJ/dt along qd).
+
+Status: INVALID for a non-finite input, and (codegen.lowering.guard_outputs, for every
+kernel) for finite inputs whose outputs are not finite (e.g. a prismatic q of 1e308, rates
+of 1e200: the arithmetic overflows); the row's outputs are then NaN. Otherwise OK."""
 
 from __future__ import annotations
 
