@@ -1150,3 +1150,725 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     }
     return 0;
 }
+
+int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || payload == NULL || tau == NULL) {
+        return -1;
+    }
+    const double r_a = geometry->r_a;
+    const double r_b = geometry->r_b;
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    const double I_a = geometry->I_a;
+    const double m_a = geometry->m_a;
+    const double r_ca = geometry->r_ca;
+    const double m_b = geometry->m_b;
+    const double m_p = geometry->m_p;
+    const double g_x = geometry->gravity[0];
+    const double g_y = geometry->gravity[1];
+    const double g_z = geometry->gravity[2];
+    const double I_4 = geometry->I_4;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double r = r_a - r_b;
+    const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        double q4_b[DELTAGEN_DELTA_BLOCK];
+        double qd1_b[DELTAGEN_DELTA_BLOCK];
+        double qd2_b[DELTAGEN_DELTA_BLOCK];
+        double qd3_b[DELTAGEN_DELTA_BLOCK];
+        double qd4_b[DELTAGEN_DELTA_BLOCK];
+        double qdd1_b[DELTAGEN_DELTA_BLOCK];
+        double qdd2_b[DELTAGEN_DELTA_BLOCK];
+        double qdd3_b[DELTAGEN_DELTA_BLOCK];
+        double qdd4_b[DELTAGEN_DELTA_BLOCK];
+        double payload_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 3 + 0];
+                q2_b[k] = q[(start + k) * 3 + 1];
+                q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
+                qd1_b[k] = qd[(start + k) * 3 + 0];
+                qd2_b[k] = qd[(start + k) * 3 + 1];
+                qd3_b[k] = qd[(start + k) * 3 + 2];
+                qd4_b[k] = 0.0;  /* no fourth axis */
+                qdd1_b[k] = qdd[(start + k) * 3 + 0];
+                qdd2_b[k] = qdd[(start + k) * 3 + 1];
+                qdd3_b[k] = qdd[(start + k) * 3 + 2];
+                qdd4_b[k] = 0.0;  /* no fourth axis */
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 4 + 0];
+                q2_b[k] = q[(start + k) * 4 + 1];
+                q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
+                qd1_b[k] = qd[(start + k) * 4 + 0];
+                qd2_b[k] = qd[(start + k) * 4 + 1];
+                qd3_b[k] = qd[(start + k) * 4 + 2];
+                qd4_b[k] = qd[(start + k) * 4 + 3];
+                qdd1_b[k] = qdd[(start + k) * 4 + 0];
+                qdd2_b[k] = qdd[(start + k) * 4 + 1];
+                qdd3_b[k] = qdd[(start + k) * 4 + 2];
+                qdd4_b[k] = qdd[(start + k) * 4 + 3];
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        }
+        double cos_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q1_b[k] = cos(q1_b[k]);
+        }
+        double sin_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q1_b[k] = sin(q1_b[k]);
+        }
+        double cos_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q2_b[k] = cos(q2_b[k]);
+        }
+        double sin_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q2_b[k] = sin(q2_b[k]);
+        }
+        double cos_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q3_b[k] = cos(q3_b[k]);
+        }
+        double sin_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q3_b[k] = sin(q3_b[k]);
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau1_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau2_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau3_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau4_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double q1 = q1_b[k];
+            const double q2 = q2_b[k];
+            const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
+            const double qd1 = qd1_b[k];
+            const double qd2 = qd2_b[k];
+            const double qd3 = qd3_b[k];
+            const double qd4 = qd4_b[k];
+            const double qdd1 = qdd1_b[k];
+            const double qdd2 = qdd2_b[k];
+            const double qdd3 = qdd3_b[k];
+            const double qdd4 = qdd4_b[k];
+            const double payload = payload_b[k];
+            const double cos_q1 = cos_q1_b[k];
+            const double sin_q1 = sin_q1_b[k];
+            const double cos_q2 = cos_q2_b[k];
+            const double sin_q2 = sin_q2_b[k];
+            const double cos_q3 = cos_q3_b[k];
+            const double sin_q3 = sin_q3_b[k];
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t0_0 = cos_q1*l_a + r;
+            const double t0_1 = cos_q2*l_a + r;
+            const double t0_2 = cos_q3*l_a + r;
+            const double S_x1 = cos_theta1*t0_0;
+            const double S_y1 = sin_theta1*t0_0;
+            const double S_z1 = -l_a*sin_q1;
+            const double S_x2 = cos_theta2*t0_1;
+            const double S_y2 = sin_theta2*t0_1;
+            const double S_z2 = -l_a*sin_q2;
+            const double S_x3 = cos_theta3*t0_2;
+            const double S_y3 = sin_theta3*t0_2;
+            const double S_z3 = -l_a*sin_q3;
+            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+            const double a_x = -S_x1 + S_x2;
+            const double a_y = -S_y1 + S_y2;
+            const double a_z = -S_z1 + S_z2;
+            const double b_x = -S_x1 + S_x3;
+            const double b_y = -S_y1 + S_y3;
+            const double b_z = -S_z1 + S_z3;
+            /* e = a x b, normal of the centre plane; its squared length */
+            const double e_x = a_y*b_z - a_z*b_y;
+            const double e_y = -a_x*b_z + a_z*b_x;
+            const double e_z = a_x*b_y - a_y*b_x;
+            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+            const double inv_e_sq = 1.0/e_sq;
+            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+            const double t4_0 = 2*e_z;
+            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_2 = 2*e_y;
+            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
+            const double t4_4 = (1.0/4.0)*inv_e_sq;
+            const double t4_5 = 2*e_x;
+            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
+            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
+            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            /* lower intersection with sphere 1, eqs. (22)-(26) */
+            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+            /* platform position p, eq. (27) */
+            const double x = S_x1 + e_x*lambda_ + x0_x;
+            const double y = S_y1 + e_y*lambda_ + x0_y;
+            const double z = S_z1 + e_z*lambda_ + x0_z;
+            const double det_D = e_sq*lambda_;
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) & isfinite(qdd4) & isfinite(payload));
+            const int collinear = (e_sq <= collinear_limit);
+            const int unreachable = (h_sq < 0);
+            const int singular = (fabs(det_D) <= det_limit);
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t8_0 = -x;
+            const double t8_1 = -y;
+            const double t8_2 = -z;
+            const double D11 = -S_x1 - t8_0;
+            const double D12 = -S_y1 - t8_1;
+            const double D13 = -S_z1 - t8_2;
+            const double D21 = -S_x2 - t8_0;
+            const double D22 = -S_y2 - t8_1;
+            const double D23 = -S_z2 - t8_2;
+            const double D31 = -S_x3 - t8_0;
+            const double D32 = -S_y3 - t8_1;
+            const double D33 = -S_z3 - t8_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t9_0 = l_a*z;
+            const double t9_1 = l_a*sin_q1;
+            const double t9_2 = l_a*sin_q2;
+            const double t9_3 = l_a*sin_q3;
+            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
+            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
+            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
+            const double adjD11 = D22*D33 - D23*D32;
+            const double adjD12 = -D12*D33 + D13*D32;
+            const double adjD13 = D12*D23 - D13*D22;
+            const double adjD21 = -D21*D33 + D23*D31;
+            const double adjD22 = D11*D33 - D13*D31;
+            const double adjD23 = -D11*D23 + D13*D21;
+            const double adjD31 = D21*D32 - D22*D31;
+            const double adjD32 = -D11*D32 + D12*D31;
+            const double adjD33 = D11*D22 - D12*D21;
+            const double inv_det_D = 1.0/det_D;
+            /* Jacobian J = J_p^-1 J_q, eq. (30) */
+            const double t11_0 = inv_det_D*jq1;
+            const double t11_1 = inv_det_D*jq2;
+            const double t11_2 = inv_det_D*jq3;
+            const double J11 = adjD11*t11_0;
+            const double J12 = adjD12*t11_1;
+            const double J13 = adjD13*t11_2;
+            const double J21 = adjD21*t11_0;
+            const double J22 = adjD22*t11_1;
+            const double J23 = adjD23*t11_2;
+            const double J31 = adjD31*t11_0;
+            const double J32 = adjD32*t11_1;
+            const double J33 = adjD33*t11_2;
+            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+            const double t12_0 = jq1*qd1;
+            const double t12_1 = jq2*qd2;
+            const double t12_2 = jq3*qd3;
+            const double xd = inv_det_D*(adjD11*t12_0 + adjD12*t12_1 + adjD13*t12_2);
+            const double yd = inv_det_D*(adjD21*t12_0 + adjD22*t12_1 + adjD23*t12_2);
+            const double zd = inv_det_D*(adjD31*t12_0 + adjD32*t12_1 + adjD33*t12_2);
+            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39) */
+            const double t13_0 = l_a*z;
+            const double t13_1 = qd1*qd1;
+            const double t13_2 = 2*l_a;
+            const double t13_3 = t13_2*zd;
+            const double t13_4 = cos_q1*l_a*t13_1;
+            const double t13_5 = cos_theta1*x;
+            const double t13_6 = sin_theta1*y;
+            const double t13_7 = l_a*qdd1*sin_q1;
+            const double t13_8 = t13_2*xd;
+            const double t13_9 = qd1*sin_q1;
+            const double t13_10 = t13_2*yd;
+            const double t13_11 = xd*xd + yd*yd + zd*zd;
+            const double t13_12 = qd2*qd2;
+            const double t13_13 = cos_q2*l_a*t13_12;
+            const double t13_14 = cos_theta2*x;
+            const double t13_15 = sin_theta2*y;
+            const double t13_16 = l_a*qdd2*sin_q2;
+            const double t13_17 = qd2*sin_q2;
+            const double t13_18 = qd3*qd3;
+            const double t13_19 = cos_q3*l_a*t13_18;
+            const double t13_20 = cos_theta3*x;
+            const double t13_21 = sin_theta3*y;
+            const double t13_22 = l_a*qdd3*sin_q3;
+            const double t13_23 = qd3*sin_q3;
+            const double h1 = cos_q1*l_a*r*t13_1 - cos_q1*qd1*t13_3 - cos_q1*qdd1*t13_0 - cos_theta1*t13_8*t13_9 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t13_1*z - sin_theta1*t13_10*t13_9 - t13_11 - t13_4*t13_5 - t13_4*t13_6 - t13_5*t13_7 - t13_6*t13_7;
+            const double h2 = cos_q2*l_a*r*t13_12 - cos_q2*qd2*t13_3 - cos_q2*qdd2*t13_0 - cos_theta2*t13_17*t13_8 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t13_12*z - sin_theta2*t13_10*t13_17 - t13_11 - t13_13*t13_14 - t13_13*t13_15 - t13_14*t13_16 - t13_15*t13_16;
+            const double h3 = cos_q3*l_a*r*t13_18 - cos_q3*qd3*t13_3 - cos_q3*qdd3*t13_0 - cos_theta3*t13_23*t13_8 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t13_18*z - sin_theta3*t13_10*t13_23 - t13_11 - t13_19*t13_20 - t13_19*t13_21 - t13_20*t13_22 - t13_21*t13_22;
+            /* platform acceleration pddot = J_p^-1 h, eq. (38) */
+            const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
+            const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
+            const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
+            /* crank tips B_i: velocity per unit crank rate dB_i/dq_i and acceleration a_B_i */
+            const double t15_0 = l_a*sin_q1;
+            const double t15_1 = cos_theta1*t15_0;
+            const double t15_2 = sin_theta1*t15_0;
+            const double t15_3 = cos_q1*l_a;
+            const double t15_4 = qd1*qd1;
+            const double t15_5 = t15_3*t15_4;
+            const double t15_6 = l_a*sin_q2;
+            const double t15_7 = cos_theta2*t15_6;
+            const double t15_8 = sin_theta2*t15_6;
+            const double t15_9 = cos_q2*l_a;
+            const double t15_10 = qd2*qd2;
+            const double t15_11 = t15_10*t15_9;
+            const double t15_12 = l_a*sin_q3;
+            const double t15_13 = cos_theta3*t15_12;
+            const double t15_14 = sin_theta3*t15_12;
+            const double t15_15 = cos_q3*l_a;
+            const double t15_16 = qd3*qd3;
+            const double t15_17 = t15_15*t15_16;
+            const double dB_x1 = -t15_1;
+            const double dB_y1 = -t15_2;
+            const double dB_z1 = -t15_3;
+            const double aB_x1 = -cos_theta1*t15_5 - qdd1*t15_1;
+            const double aB_y1 = -qdd1*t15_2 - sin_theta1*t15_5;
+            const double aB_z1 = l_a*sin_q1*t15_4 - qdd1*t15_3;
+            const double dB_x2 = -t15_7;
+            const double dB_y2 = -t15_8;
+            const double dB_z2 = -t15_9;
+            const double aB_x2 = -cos_theta2*t15_11 - qdd2*t15_7;
+            const double aB_y2 = -qdd2*t15_8 - sin_theta2*t15_11;
+            const double aB_z2 = l_a*sin_q2*t15_10 - qdd2*t15_9;
+            const double dB_x3 = -t15_13;
+            const double dB_y3 = -t15_14;
+            const double dB_z3 = -t15_15;
+            const double aB_x3 = -cos_theta3*t15_17 - qdd3*t15_13;
+            const double aB_y3 = -qdd3*t15_14 - sin_theta3*t15_17;
+            const double aB_z3 = l_a*sin_q3*t15_16 - qdd3*t15_15;
+            /* motor torques by virtual work, exact rigid-body model: tau = sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+            const double t16_0 = m_a*r_ca;
+            const double t16_1 = g_z*t16_0;
+            const double t16_2 = sin_q1*t16_0;
+            const double t16_3 = -3*g_x + xdd;
+            const double t16_4 = (1.0/6.0)*m_b;
+            const double t16_5 = -3*g_y + ydd;
+            const double t16_6 = -3*g_z + zdd;
+            const double t16_7 = (3.0/2.0)*m_b;
+            const double t16_8 = aB_x1*t16_4 + aB_x2*t16_4 + aB_x3*t16_4 - g_x*m_p - g_x*payload - g_x*t16_7 + m_b*xdd + m_p*xdd + payload*xdd;
+            const double t16_9 = aB_y1*t16_4 + aB_y2*t16_4 + aB_y3*t16_4 - g_y*m_p - g_y*payload - g_y*t16_7 + m_b*ydd + m_p*ydd + payload*ydd;
+            const double t16_10 = aB_z1*t16_4 + aB_z2*t16_4 + aB_z3*t16_4 - g_z*m_p - g_z*payload - g_z*t16_7 + m_b*zdd + m_p*zdd + payload*zdd;
+            const double t16_11 = sin_q2*t16_0;
+            const double t16_12 = sin_q3*t16_0;
+            const double tau1 = I_a*qdd1 + J11*t16_8 + J21*t16_9 + J31*t16_10 + cos_q1*t16_1 + cos_theta1*g_x*t16_2 + dB_x1*t16_4*(2*aB_x1 + t16_3) + dB_y1*t16_4*(2*aB_y1 + t16_5) + dB_z1*t16_4*(2*aB_z1 + t16_6) + g_y*sin_theta1*t16_2;
+            const double tau2 = I_a*qdd2 + J12*t16_8 + J22*t16_9 + J32*t16_10 + cos_q2*t16_1 + cos_theta2*g_x*t16_11 + dB_x2*t16_4*(2*aB_x2 + t16_3) + dB_y2*t16_4*(2*aB_y2 + t16_5) + dB_z2*t16_4*(2*aB_z2 + t16_6) + g_y*sin_theta2*t16_11;
+            const double tau3 = I_a*qdd3 + J13*t16_8 + J23*t16_9 + J33*t16_10 + cos_q3*t16_1 + cos_theta3*g_x*t16_12 + dB_x3*t16_4*(2*aB_x3 + t16_3) + dB_y3*t16_4*(2*aB_y3 + t16_5) + dB_z3*t16_4*(2*aB_z3 + t16_6) + g_y*sin_theta3*t16_12;
+            /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+            const double tau4 = I_4*qdd4;
+            /* outputs (NaN unless OK) */
+            const int t18_0 = ((collinear) | (invalid) | (singular) | (unreachable));
+            const double out_tau1 = ((t18_0) ? NAN : tau1);
+            const double out_tau2 = ((t18_0) ? NAN : tau2);
+            const double out_tau3 = ((t18_0) ? NAN : tau3);
+            const double out_tau4 = ((t18_0) ? NAN : tau4);
+            out_tau1_b[k] = out_tau1;
+            out_tau2_b[k] = out_tau2;
+            out_tau3_b[k] = out_tau3;
+            out_tau4_b[k] = out_tau4;
+            status_b[k] = (3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 3 + 0] = out_tau1_b[k];
+                tau[(start + k) * 3 + 1] = out_tau2_b[k];
+                tau[(start + k) * 3 + 2] = out_tau3_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 4 + 0] = out_tau1_b[k];
+                tau[(start + k) * 4 + 1] = out_tau2_b[k];
+                tau[(start + k) * 4 + 2] = out_tau3_b[k];
+                tau[(start + k) * 4 + 3] = out_tau4_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
+int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || payload == NULL || tau == NULL) {
+        return -1;
+    }
+    const double r_a = geometry->r_a;
+    const double r_b = geometry->r_b;
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    const double I_a = geometry->I_a;
+    const double m_a = geometry->m_a;
+    const double r_ca = geometry->r_ca;
+    const double m_b = geometry->m_b;
+    const double m_p = geometry->m_p;
+    const double g_x = geometry->gravity[0];
+    const double g_y = geometry->gravity[1];
+    const double g_z = geometry->gravity[2];
+    const double I_4 = geometry->I_4;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double r = r_a - r_b;
+    const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        double q4_b[DELTAGEN_DELTA_BLOCK];
+        double qd1_b[DELTAGEN_DELTA_BLOCK];
+        double qd2_b[DELTAGEN_DELTA_BLOCK];
+        double qd3_b[DELTAGEN_DELTA_BLOCK];
+        double qd4_b[DELTAGEN_DELTA_BLOCK];
+        double qdd1_b[DELTAGEN_DELTA_BLOCK];
+        double qdd2_b[DELTAGEN_DELTA_BLOCK];
+        double qdd3_b[DELTAGEN_DELTA_BLOCK];
+        double qdd4_b[DELTAGEN_DELTA_BLOCK];
+        double payload_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 3 + 0];
+                q2_b[k] = q[(start + k) * 3 + 1];
+                q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
+                qd1_b[k] = qd[(start + k) * 3 + 0];
+                qd2_b[k] = qd[(start + k) * 3 + 1];
+                qd3_b[k] = qd[(start + k) * 3 + 2];
+                qd4_b[k] = 0.0;  /* no fourth axis */
+                qdd1_b[k] = qdd[(start + k) * 3 + 0];
+                qdd2_b[k] = qdd[(start + k) * 3 + 1];
+                qdd3_b[k] = qdd[(start + k) * 3 + 2];
+                qdd4_b[k] = 0.0;  /* no fourth axis */
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 4 + 0];
+                q2_b[k] = q[(start + k) * 4 + 1];
+                q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
+                qd1_b[k] = qd[(start + k) * 4 + 0];
+                qd2_b[k] = qd[(start + k) * 4 + 1];
+                qd3_b[k] = qd[(start + k) * 4 + 2];
+                qd4_b[k] = qd[(start + k) * 4 + 3];
+                qdd1_b[k] = qdd[(start + k) * 4 + 0];
+                qdd2_b[k] = qdd[(start + k) * 4 + 1];
+                qdd3_b[k] = qdd[(start + k) * 4 + 2];
+                qdd4_b[k] = qdd[(start + k) * 4 + 3];
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        }
+        double cos_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q1_b[k] = cos(q1_b[k]);
+        }
+        double sin_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q1_b[k] = sin(q1_b[k]);
+        }
+        double cos_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q2_b[k] = cos(q2_b[k]);
+        }
+        double sin_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q2_b[k] = sin(q2_b[k]);
+        }
+        double cos_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q3_b[k] = cos(q3_b[k]);
+        }
+        double sin_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q3_b[k] = sin(q3_b[k]);
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau1_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau2_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau3_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau4_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double q1 = q1_b[k];
+            const double q2 = q2_b[k];
+            const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
+            const double qd1 = qd1_b[k];
+            const double qd2 = qd2_b[k];
+            const double qd3 = qd3_b[k];
+            const double qd4 = qd4_b[k];
+            const double qdd1 = qdd1_b[k];
+            const double qdd2 = qdd2_b[k];
+            const double qdd3 = qdd3_b[k];
+            const double qdd4 = qdd4_b[k];
+            const double payload = payload_b[k];
+            const double cos_q1 = cos_q1_b[k];
+            const double sin_q1 = sin_q1_b[k];
+            const double cos_q2 = cos_q2_b[k];
+            const double sin_q2 = sin_q2_b[k];
+            const double cos_q3 = cos_q3_b[k];
+            const double sin_q3 = sin_q3_b[k];
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t0_0 = cos_q1*l_a + r;
+            const double t0_1 = cos_q2*l_a + r;
+            const double t0_2 = cos_q3*l_a + r;
+            const double S_x1 = cos_theta1*t0_0;
+            const double S_y1 = sin_theta1*t0_0;
+            const double S_z1 = -l_a*sin_q1;
+            const double S_x2 = cos_theta2*t0_1;
+            const double S_y2 = sin_theta2*t0_1;
+            const double S_z2 = -l_a*sin_q2;
+            const double S_x3 = cos_theta3*t0_2;
+            const double S_y3 = sin_theta3*t0_2;
+            const double S_z3 = -l_a*sin_q3;
+            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+            const double a_x = -S_x1 + S_x2;
+            const double a_y = -S_y1 + S_y2;
+            const double a_z = -S_z1 + S_z2;
+            const double b_x = -S_x1 + S_x3;
+            const double b_y = -S_y1 + S_y3;
+            const double b_z = -S_z1 + S_z3;
+            /* e = a x b, normal of the centre plane; its squared length */
+            const double e_x = a_y*b_z - a_z*b_y;
+            const double e_y = -a_x*b_z + a_z*b_x;
+            const double e_z = a_x*b_y - a_y*b_x;
+            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+            const double inv_e_sq = 1.0/e_sq;
+            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+            const double t4_0 = 2*e_z;
+            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_2 = 2*e_y;
+            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
+            const double t4_4 = (1.0/4.0)*inv_e_sq;
+            const double t4_5 = 2*e_x;
+            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
+            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
+            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            /* lower intersection with sphere 1, eqs. (22)-(26) */
+            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+            /* platform position p, eq. (27) */
+            const double x = S_x1 + e_x*lambda_ + x0_x;
+            const double y = S_y1 + e_y*lambda_ + x0_y;
+            const double z = S_z1 + e_z*lambda_ + x0_z;
+            const double det_D = e_sq*lambda_;
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) & isfinite(qdd4) & isfinite(payload));
+            const int collinear = (e_sq <= collinear_limit);
+            const int unreachable = (h_sq < 0);
+            const int singular = (fabs(det_D) <= det_limit);
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t8_0 = -x;
+            const double t8_1 = -y;
+            const double t8_2 = -z;
+            const double D11 = -S_x1 - t8_0;
+            const double D12 = -S_y1 - t8_1;
+            const double D13 = -S_z1 - t8_2;
+            const double D21 = -S_x2 - t8_0;
+            const double D22 = -S_y2 - t8_1;
+            const double D23 = -S_z2 - t8_2;
+            const double D31 = -S_x3 - t8_0;
+            const double D32 = -S_y3 - t8_1;
+            const double D33 = -S_z3 - t8_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t9_0 = l_a*z;
+            const double t9_1 = l_a*sin_q1;
+            const double t9_2 = l_a*sin_q2;
+            const double t9_3 = l_a*sin_q3;
+            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
+            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
+            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
+            const double adjD11 = D22*D33 - D23*D32;
+            const double adjD12 = -D12*D33 + D13*D32;
+            const double adjD13 = D12*D23 - D13*D22;
+            const double adjD21 = -D21*D33 + D23*D31;
+            const double adjD22 = D11*D33 - D13*D31;
+            const double adjD23 = -D11*D23 + D13*D21;
+            const double adjD31 = D21*D32 - D22*D31;
+            const double adjD32 = -D11*D32 + D12*D31;
+            const double adjD33 = D11*D22 - D12*D21;
+            const double inv_det_D = 1.0/det_D;
+            /* Jacobian J = J_p^-1 J_q, eq. (30) */
+            const double t11_0 = inv_det_D*jq1;
+            const double t11_1 = inv_det_D*jq2;
+            const double t11_2 = inv_det_D*jq3;
+            const double J11 = adjD11*t11_0;
+            const double J12 = adjD12*t11_1;
+            const double J13 = adjD13*t11_2;
+            const double J21 = adjD21*t11_0;
+            const double J22 = adjD22*t11_1;
+            const double J23 = adjD23*t11_2;
+            const double J31 = adjD31*t11_0;
+            const double J32 = adjD32*t11_1;
+            const double J33 = adjD33*t11_2;
+            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+            const double t12_0 = jq1*qd1;
+            const double t12_1 = jq2*qd2;
+            const double t12_2 = jq3*qd3;
+            const double xd = inv_det_D*(adjD11*t12_0 + adjD12*t12_1 + adjD13*t12_2);
+            const double yd = inv_det_D*(adjD21*t12_0 + adjD22*t12_1 + adjD23*t12_2);
+            const double zd = inv_det_D*(adjD31*t12_0 + adjD32*t12_1 + adjD33*t12_2);
+            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39) */
+            const double t13_0 = l_a*z;
+            const double t13_1 = qd1*qd1;
+            const double t13_2 = 2*l_a;
+            const double t13_3 = t13_2*zd;
+            const double t13_4 = cos_q1*l_a*t13_1;
+            const double t13_5 = cos_theta1*x;
+            const double t13_6 = sin_theta1*y;
+            const double t13_7 = l_a*qdd1*sin_q1;
+            const double t13_8 = t13_2*xd;
+            const double t13_9 = qd1*sin_q1;
+            const double t13_10 = t13_2*yd;
+            const double t13_11 = xd*xd + yd*yd + zd*zd;
+            const double t13_12 = qd2*qd2;
+            const double t13_13 = cos_q2*l_a*t13_12;
+            const double t13_14 = cos_theta2*x;
+            const double t13_15 = sin_theta2*y;
+            const double t13_16 = l_a*qdd2*sin_q2;
+            const double t13_17 = qd2*sin_q2;
+            const double t13_18 = qd3*qd3;
+            const double t13_19 = cos_q3*l_a*t13_18;
+            const double t13_20 = cos_theta3*x;
+            const double t13_21 = sin_theta3*y;
+            const double t13_22 = l_a*qdd3*sin_q3;
+            const double t13_23 = qd3*sin_q3;
+            const double h1 = cos_q1*l_a*r*t13_1 - cos_q1*qd1*t13_3 - cos_q1*qdd1*t13_0 - cos_theta1*t13_8*t13_9 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t13_1*z - sin_theta1*t13_10*t13_9 - t13_11 - t13_4*t13_5 - t13_4*t13_6 - t13_5*t13_7 - t13_6*t13_7;
+            const double h2 = cos_q2*l_a*r*t13_12 - cos_q2*qd2*t13_3 - cos_q2*qdd2*t13_0 - cos_theta2*t13_17*t13_8 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t13_12*z - sin_theta2*t13_10*t13_17 - t13_11 - t13_13*t13_14 - t13_13*t13_15 - t13_14*t13_16 - t13_15*t13_16;
+            const double h3 = cos_q3*l_a*r*t13_18 - cos_q3*qd3*t13_3 - cos_q3*qdd3*t13_0 - cos_theta3*t13_23*t13_8 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t13_18*z - sin_theta3*t13_10*t13_23 - t13_11 - t13_19*t13_20 - t13_19*t13_21 - t13_20*t13_22 - t13_21*t13_22;
+            /* platform acceleration pddot = J_p^-1 h, eq. (38) */
+            const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
+            const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
+            const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
+            /* crank tips B_i: velocity per unit crank rate dB_i/dq_i and acceleration a_B_i */
+            const double t15_0 = l_a*sin_q1;
+            const double t15_1 = cos_theta1*t15_0;
+            const double t15_2 = sin_theta1*t15_0;
+            const double t15_3 = cos_q1*l_a;
+            const double t15_4 = qd1*qd1;
+            const double t15_5 = t15_3*t15_4;
+            const double t15_6 = l_a*sin_q2;
+            const double t15_7 = cos_theta2*t15_6;
+            const double t15_8 = sin_theta2*t15_6;
+            const double t15_9 = cos_q2*l_a;
+            const double t15_10 = qd2*qd2;
+            const double t15_11 = t15_10*t15_9;
+            const double t15_12 = l_a*sin_q3;
+            const double t15_13 = cos_theta3*t15_12;
+            const double t15_14 = sin_theta3*t15_12;
+            const double t15_15 = cos_q3*l_a;
+            const double t15_16 = qd3*qd3;
+            const double t15_17 = t15_15*t15_16;
+            const double dB_x1 = -t15_1;
+            const double dB_y1 = -t15_2;
+            const double dB_z1 = -t15_3;
+            const double aB_x1 = -cos_theta1*t15_5 - qdd1*t15_1;
+            const double aB_y1 = -qdd1*t15_2 - sin_theta1*t15_5;
+            const double aB_z1 = l_a*sin_q1*t15_4 - qdd1*t15_3;
+            const double dB_x2 = -t15_7;
+            const double dB_y2 = -t15_8;
+            const double dB_z2 = -t15_9;
+            const double aB_x2 = -cos_theta2*t15_11 - qdd2*t15_7;
+            const double aB_y2 = -qdd2*t15_8 - sin_theta2*t15_11;
+            const double aB_z2 = l_a*sin_q2*t15_10 - qdd2*t15_9;
+            const double dB_x3 = -t15_13;
+            const double dB_y3 = -t15_14;
+            const double dB_z3 = -t15_15;
+            const double aB_x3 = -cos_theta3*t15_17 - qdd3*t15_13;
+            const double aB_y3 = -qdd3*t15_14 - sin_theta3*t15_17;
+            const double aB_z3 = l_a*sin_q3*t15_16 - qdd3*t15_15;
+            /* motor torques by virtual work, simplified model (rod mass split): tau = sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+            const double t16_0 = m_a*r_ca;
+            const double t16_1 = g_z*t16_0;
+            const double t16_2 = sin_q1*t16_0;
+            const double t16_3 = -g_x;
+            const double t16_4 = (1.0/2.0)*m_b;
+            const double t16_5 = -g_y;
+            const double t16_6 = -g_z;
+            const double t16_7 = (3.0/2.0)*m_b;
+            const double t16_8 = -g_x*m_p - g_x*payload - g_x*t16_7 + (3.0/2.0)*m_b*xdd + m_p*xdd + payload*xdd;
+            const double t16_9 = -g_y*m_p - g_y*payload - g_y*t16_7 + (3.0/2.0)*m_b*ydd + m_p*ydd + payload*ydd;
+            const double t16_10 = -g_z*m_p - g_z*payload - g_z*t16_7 + (3.0/2.0)*m_b*zdd + m_p*zdd + payload*zdd;
+            const double t16_11 = sin_q2*t16_0;
+            const double t16_12 = sin_q3*t16_0;
+            const double tau1 = I_a*qdd1 + J11*t16_8 + J21*t16_9 + J31*t16_10 + cos_q1*t16_1 + cos_theta1*g_x*t16_2 + dB_x1*t16_4*(aB_x1 + t16_3) + dB_y1*t16_4*(aB_y1 + t16_5) + dB_z1*t16_4*(aB_z1 + t16_6) + g_y*sin_theta1*t16_2;
+            const double tau2 = I_a*qdd2 + J12*t16_8 + J22*t16_9 + J32*t16_10 + cos_q2*t16_1 + cos_theta2*g_x*t16_11 + dB_x2*t16_4*(aB_x2 + t16_3) + dB_y2*t16_4*(aB_y2 + t16_5) + dB_z2*t16_4*(aB_z2 + t16_6) + g_y*sin_theta2*t16_11;
+            const double tau3 = I_a*qdd3 + J13*t16_8 + J23*t16_9 + J33*t16_10 + cos_q3*t16_1 + cos_theta3*g_x*t16_12 + dB_x3*t16_4*(aB_x3 + t16_3) + dB_y3*t16_4*(aB_y3 + t16_5) + dB_z3*t16_4*(aB_z3 + t16_6) + g_y*sin_theta3*t16_12;
+            /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+            const double tau4 = I_4*qdd4;
+            /* outputs (NaN unless OK) */
+            const int t18_0 = ((collinear) | (invalid) | (singular) | (unreachable));
+            const double out_tau1 = ((t18_0) ? NAN : tau1);
+            const double out_tau2 = ((t18_0) ? NAN : tau2);
+            const double out_tau3 = ((t18_0) ? NAN : tau3);
+            const double out_tau4 = ((t18_0) ? NAN : tau4);
+            out_tau1_b[k] = out_tau1;
+            out_tau2_b[k] = out_tau2;
+            out_tau3_b[k] = out_tau3;
+            out_tau4_b[k] = out_tau4;
+            status_b[k] = (3*invalid + (1 - invalid)*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 3 + 0] = out_tau1_b[k];
+                tau[(start + k) * 3 + 1] = out_tau2_b[k];
+                tau[(start + k) * 3 + 2] = out_tau3_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 4 + 0] = out_tau1_b[k];
+                tau[(start + k) * 4 + 1] = out_tau2_b[k];
+                tau[(start + k) * 4 + 2] = out_tau3_b[k];
+                tau[(start + k) * 4 + 3] = out_tau4_b[k];
+            }
+        }
+    }
+    return 0;
+}
