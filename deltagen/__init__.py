@@ -4,8 +4,10 @@ from deltagen.api.delta import DeltaRobot
 from deltagen.api.serial import SerialRobot
 from deltagen.errors import GeometryError, SingularityError, UnreachableError
 from deltagen.inputs import InputError
+from deltagen.model.delta import DeltaInertia
 
 __all__ = [
+    "DeltaInertia",
     "DeltaRobot",
     "GeometryError",
     "InputError",

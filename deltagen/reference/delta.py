@@ -403,10 +403,31 @@ def _reaction_system(geom, inertia, q3, qd3, qdd3, p3, pd3, pdd3, payload, gravi
     return sol[:, 18:21], sol[:, 0:9].reshape(n, 3, 3), sol[:, 9:18].reshape(n, 3, 3)
 
 
-def inverse_dynamics(geom, inertia, q, qd, qdd, payload, gravity=None):
-    """Motor torques tau (N, 3|4) of the exact rigid-body model by Newton-Euler with
-    reaction forces (see above), status (N,) as fk_acc's; ``payload`` is (N,) [kg].
+def simplified_inertia(geom, inertia):
+    """The common simplified model as a robot of its own: each rod pair's mass split, m_b/2
+    a point mass at the crank tip (adding (m_b/2) l_a^2 to the crank's inertia about its
+    axis and moving its centre of mass) and m_b/2 on the platform; massless rods."""
+    from dataclasses import replace
+
+    half = 0.5 * inertia.m_b
+    m_a = inertia.m_a + half
+    return replace(
+        inertia,
+        I_a=inertia.I_a + half * geom.l_a**2,
+        m_a=m_a,
+        r_ca=(inertia.m_a * inertia.r_ca + half * geom.l_a) / m_a if m_a > 0 else 0.0,
+        m_b=0.0,
+        m_p=inertia.m_p + 3.0 * half,
+    )
+
+
+def inverse_dynamics(geom, inertia, q, qd, qdd, payload, gravity=None, model="exact"):
+    """Motor torques tau (N, 3|4) by Newton-Euler with reaction forces (see above), status
+    (N,) as fk_acc's; ``payload`` is (N,) [kg]. ``model="simplified"``: the same bodies
+    with each rod pair's mass split (:func:`simplified_inertia`).
     Column 4 (fourth axis, eq. (43)): I_4 qddot_4."""
+    if model == "simplified":
+        inertia = simplified_inertia(geom, inertia)
     q, qd, qdd = _as_batch(q), _as_batch(qd), _as_batch(qdd)
     payload = np.ascontiguousarray(payload, dtype=np.float64).reshape(-1)
     gravity = inertia.gravity if gravity is None else gravity
