@@ -446,28 +446,32 @@ def inverse_dynamics(geom, inertia, q, qd, qdd, payload, gravity=None, model="ex
     return tau, status
 
 
-def mass_matrix(geom, inertia, q, payload=0.0):
-    """M(q) (N, 3, 3) of the crank coordinates, column k = the torques that give
-    qddot = e_k from rest without gravity (tau is linear in qddot)."""
-    q = _as_batch(q)[:, :3]
+def _dynamics_terms(geom, inertia, q, qd, payload):
+    """(M(q) (N, 3, 3), h(q, qdot) (N, 3)) with tau = M qddot + h, from one batched inverse
+    dynamics call: h at qddot = 0, and M's column k as the torques of qddot = e_k at rest
+    minus those of rest (tau is linear in qddot; the velocity terms vanish at rest)."""
     n = q.shape[0]
-    load = np.broadcast_to(np.asarray(payload, dtype=np.float64), (n,))
     zero = np.zeros_like(q)
-    cols = []
-    for k in range(3):
-        e = np.zeros_like(q)
-        e[:, k] = 1.0
-        cols.append(inverse_dynamics(geom, inertia, q, zero, e, load, gravity=(0.0, 0.0, 0.0))[0])
-    return np.stack(cols, axis=-1)
+    rows_q = np.concatenate([q] * 5)
+    rows_qd = np.concatenate([qd, zero, zero, zero, zero])
+    rows_qdd = np.concatenate([zero, zero] + [np.broadcast_to(e, q.shape) for e in np.eye(3)])
+    load = np.concatenate([np.broadcast_to(np.asarray(payload, dtype=np.float64), (n,))] * 5)
+    tau = inverse_dynamics(geom, inertia, rows_q, rows_qd, rows_qdd, load)[0].reshape(5, n, 3)
+    M = np.stack([tau[2 + k] - tau[1] for k in range(3)], axis=-1)
+    return M, tau[0]
+
+
+def mass_matrix(geom, inertia, q, payload=0.0):
+    """M(q) (N, 3, 3) of the crank coordinates (column k: the torques of qddot = e_k)."""
+    q = _as_batch(q)[:, :3]
+    return _dynamics_terms(geom, inertia, q, np.zeros_like(q), payload)[0]
 
 
 def forward_dynamics(geom, inertia, q, qd, tau, payload=0.0):
-    """qddot (N, 3) of the cranks from the motor torques: M(q) qddot = tau - h(q, qdot),
-    h = inverse dynamics at qddot = 0 (velocity and gravity terms)."""
+    """qddot (N, 3) of the cranks from the motor torques: M(q) qddot = tau - h(q, qdot)."""
     q, qd, tau = _as_batch(q)[:, :3], _as_batch(qd)[:, :3], _as_batch(tau)[:, :3]
-    load = np.broadcast_to(np.asarray(payload, dtype=np.float64), (q.shape[0],))
-    h = inverse_dynamics(geom, inertia, q, qd, np.zeros_like(q), load)[0]
-    return np.linalg.solve(mass_matrix(geom, inertia, q, load), (tau - h)[..., None])[..., 0]
+    M, h = _dynamics_terms(geom, inertia, q, qd, payload)
+    return np.linalg.solve(M, (tau - h)[..., None])[..., 0]
 
 
 def simulate(geom, inertia, torque, t_span, q0, qd0, t_eval, payload=0.0, rtol=1e-10, atol=1e-12):
