@@ -136,7 +136,11 @@ def test_energy_identity_along_a_smooth_trajectory(robot):
     """dE/dt = qdot . tau along q(t) = q0 + sum of sines (no friction, no fourth axis)."""
     rng = np.random.default_rng(5)
     q0 = _states(robot, 1, seed=2)[0][0]
-    amp, w, ph = rng.uniform(0.02, 0.08, (3, 3)), rng.uniform(2, 12, (3, 3)), rng.uniform(0, 6, (3, 3))
+    amp, w, ph = (
+        rng.uniform(0.02, 0.08, (3, 3)),
+        rng.uniform(2, 12, (3, 3)),
+        rng.uniform(0, 6, (3, 3)),
+    )
 
     def motion(t):
         t = np.asarray(t)[:, None, None]
@@ -276,10 +280,10 @@ def test_singular_pose_has_no_torque(backend):
     )
     q_flat = math.acos((0.3 - g.r) / g.l_a)
     zero = np.zeros((1, 3))
-    near = robot.with_inertia(g.inertia)  # same robot, tolerance below
     held = [
-        DeltaRobot(g.r_a, g.r_b, g.l_a, 0.3, singular_tol=0.0, inertia=g.inertia, backend=backend)
-        .inverse_dynamics(np.full((1, 3), q_flat + d), zero, zero)[0, 0]
+        DeltaRobot(
+            g.r_a, g.r_b, g.l_a, 0.3, singular_tol=0.0, inertia=g.inertia, backend=backend
+        ).inverse_dynamics(np.full((1, 3), q_flat + d), zero, zero)[0, 0]
         for d in (1e-3, 1e-5)
     ]
     assert abs(held[1]) > 5 * abs(held[0])  # ~ 1/sqrt(d): the singularity is real
@@ -318,6 +322,7 @@ def test_simulation_driven_by_feedforward_follows_the_report_trajectory():
     qs, _ = ref.simulate(g, g.inertia, torque, (0.0, duration), q[0], qd[0], t, rtol=1e-10)
     err = np.linalg.norm(robot.fk(qs) - p[:, :3], axis=1).max()
     assert err < 1e-7, err  # measured ~1e-10 m
+
     # the simplified model's torques drive the true bodies off the path
     def simple(t):
         p, pd, pdd = trajectory(np.array([t]))

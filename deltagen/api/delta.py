@@ -242,7 +242,9 @@ class DeltaRobot:
             ) from None
         negative = np.flatnonzero(load.reshape(-1) < 0.0)
         if negative.size:
-            raise InputError(f"payload must be non-negative [kg], negative in rows {rows_text(negative)}")
+            raise InputError(
+                f"payload must be non-negative [kg], negative in rows {rows_text(negative)}"
+            )
         return np.ascontiguousarray(load.reshape(-1, 1), dtype=np.float64)
 
     # -- helpers ------------------------------------------------------------------------

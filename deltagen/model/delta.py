@@ -123,7 +123,9 @@ class DeltaGeometry:
 
     def __post_init__(self) -> None:
         if self.inertia is not None and not isinstance(self.inertia, DeltaInertia):
-            raise GeometryError(f"inertia must be a DeltaInertia, got {type(self.inertia).__name__}")
+            raise GeometryError(
+                f"inertia must be a DeltaInertia, got {type(self.inertia).__name__}"
+            )
         for key in _LENGTHS:
             object.__setattr__(self, key, real(getattr(self, key), key))
         for key in ("r_a", "l_a", "l_b"):

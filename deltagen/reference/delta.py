@@ -54,7 +54,17 @@ import numpy as np
 
 from deltagen.status import INVALID, OK, SINGULAR, UNREACHABLE
 
-__all__ = ["fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics", "mass_matrix", "forward_dynamics", "simulate"]
+__all__ = [
+    "fk",
+    "fk_vel",
+    "fk_acc",
+    "jacobian",
+    "ik",
+    "inverse_dynamics",
+    "mass_matrix",
+    "forward_dynamics",
+    "simulate",
+]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -396,7 +406,9 @@ def _reaction_system(geom, inertia, q3, qd3, qdd3, p3, pd3, pdd3, payload, gravi
         M[:, row, 18 + i] = 1.0
         # e_t . (l x F_B) = (e_t x l) . F_B, moved to the left-hand side
         M[:, row, 3 * i : 3 * i + 3] = -np.cross(e_t[i], lever)
-        gravity_moment = np.einsum("k,nk->n", e_t[i], np.cross(inertia.r_ca * direction[:, i], inertia.m_a * g))
+        gravity_moment = np.einsum(
+            "k,nk->n", e_t[i], np.cross(inertia.r_ca * direction[:, i], inertia.m_a * g)
+        )
         rhs[:, row] = inertia.I_a * qdd3[:, i] - gravity_moment
         row += 1
     sol = np.linalg.solve(M, rhs[..., None])[..., 0]
@@ -439,8 +451,16 @@ def inverse_dynamics(geom, inertia, q, qd, qdd, payload, gravity=None, model="ex
         tau3 = np.full((q.shape[0], 3), np.nan)
         if ok.any():
             tau3[ok] = _reaction_system(
-                geom, inertia, q[ok, :3], qd[ok, :3], qdd[ok, :3],
-                p[ok, :3], pd[ok, :3], pdd[ok, :3], payload[ok], gravity,
+                geom,
+                inertia,
+                q[ok, :3],
+                qd[ok, :3],
+                qdd[ok, :3],
+                p[ok, :3],
+                pd[ok, :3],
+                pdd[ok, :3],
+                payload[ok],
+                gravity,
             )[0]
         tau = _with_fourth(tau3, inertia.I_4 * qdd, ~ok)
     return tau, status
@@ -486,7 +506,12 @@ def simulate(geom, inertia, torque, t_span, q0, qd0, t_eval, payload=0.0, rtol=1
         return np.concatenate((state[3:], qdd[0]))
 
     sol = solve_ivp(
-        rhs, t_span, np.concatenate((q0, qd0)), method="DOP853", t_eval=t_eval, rtol=rtol,
+        rhs,
+        t_span,
+        np.concatenate((q0, qd0)),
+        method="DOP853",
+        t_eval=t_eval,
+        rtol=rtol,
         atol=atol,
     )
     if not sol.success:

@@ -301,7 +301,9 @@ def _inverse_dynamics(model: str) -> Kernel:
         AllFinite(*s.q, q4, *s.qd, qd4, *s.qdd, qdd4, dyn.payload)
     )
     tau_out, tau_stage = _masked(("tau1", "tau2", "tau3", "tau4"), (*dyn.tau, tau4), no_rates)
-    tau_fourth = Stage("fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4", ((tau4, dyn.I_4 * qdd4),))
+    tau_fourth = Stage(
+        "fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4", ((tau4, dyn.I_4 * qdd4),)
+    )
     what = (
         "exact rigid-body model (cranks, rod pairs as slender rods with their rotation, "
         "platform + payload)"
