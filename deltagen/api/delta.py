@@ -245,7 +245,7 @@ class DeltaRobot:
             raise InputError(
                 f"payload must be non-negative [kg], negative in rows {rows_text(negative)}"
             )
-        return np.ascontiguousarray(load.reshape(-1, 1), dtype=np.float64)
+        return np.ascontiguousarray(load.reshape(-1), dtype=np.float64)
 
     # -- helpers ------------------------------------------------------------------------
 
@@ -351,5 +351,5 @@ class _ReferenceCore:
 
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
         return self._m.inverse_dynamics(
-            self._g, self._g.inertia, q, qd, qdd, payload[:, 0], model=model
+            self._g, self._g.inertia, q, qd, qdd, payload, model=model
         )

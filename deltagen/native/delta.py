@@ -124,7 +124,7 @@ class CompiledDelta:
         return self._run(self._lib.deltagen_delta_ik, [p], 1)
 
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
-        """tau (N, axes) and status; ``payload`` is (N, 1) [kg]."""
+        """tau (N, axes) and status; ``payload`` is (N,) [kg], C-contiguous float64."""
         fn = (
             self._lib.deltagen_delta_inverse_dynamics
             if model == "exact"

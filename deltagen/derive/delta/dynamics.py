@@ -146,8 +146,12 @@ def _grouped(expr: sp.Expr) -> sp.Expr:
     coefficients F (the generalized platform force) and f (the force on crank tip k) are
     the same expressions in every tau_k, which CSE then evaluates once."""
     keys = list(J) + [c for v in dB for c in v]
+    motion = list(s.pdd) + list(gravity) + [c for v in aB for c in v]
     parts = sp.collect(sp.expand(expr), keys, evaluate=False)
-    return sum((key * sp.factor_terms(value) for key, value in parts.items()), sp.S.Zero)
+    return sum(
+        (key * sp.collect(value, motion, func=sp.factor) for key, value in parts.items()),
+        sp.S.Zero,
+    )
 
 
 def tau_expressions(model: str) -> list:
