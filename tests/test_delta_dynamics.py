@@ -332,3 +332,41 @@ def test_simulation_driven_by_feedforward_follows_the_report_trajectory():
 
     qs2, _ = ref.simulate(g, g.inertia, simple, (0.0, duration), q[0], qd[0], t, rtol=1e-8)
     assert np.linalg.norm(robot.fk(qs2) - p[:, :3], axis=1).max() > 100 * max(err, 1e-9)
+
+
+# -- deltagen validate ------------------------------------------------------------------------
+
+
+def test_validate_reports_torques_peaks_and_the_simplified_models_error(tmp_path, capsys):
+    import csv
+
+    from deltagen.cli import main as cli_main
+
+    out = tmp_path / "val"
+    rc = cli_main(["validate", "--rate", "200", "--duration", "2", "--out", str(out), "--quiet"])
+    text = capsys.readouterr().out
+    assert rc == 0
+    with open(out / "validation.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, data = rows[0], np.array(rows[1:], dtype=float)
+
+    def cols(*names):
+        return data[:, [header.index(n) for n in names]]
+
+    q, qd, qdd = cols("q1", "q2", "q3"), cols("qd1", "qd2", "qd3"), cols("qdd1", "qdd2", "qdd3")
+    tau = cols("tau1", "tau2", "tau3")
+    # the CSV's torques are the Newton-Euler reference's for the CSV's motion
+    g = DEFAULT.geometry
+    tau_ref = ref.inverse_dynamics(g, g.inertia, q, qd, qdd, np.zeros(len(q)))[0]
+    np.testing.assert_allclose(tau, tau_ref, rtol=0, atol=1e-9 * np.abs(tau_ref).max())
+    # the summary lines hold the peaks, RMS and peak power of those columns
+    lines = {line.split()[0] + line.split()[1]: line for line in text.splitlines() if line[:2] == "  "}
+    numbers = lambda key: [float(v) for v in lines[key].split()[2:5]]  # noqa: E731
+    np.testing.assert_allclose(numbers("peak|tau|"), np.abs(tau).max(axis=0), rtol=1e-3)
+    np.testing.assert_allclose(numbers("RMStau"), np.sqrt((tau**2).mean(axis=0)), rtol=1e-3)
+    np.testing.assert_allclose(numbers("peakpower"), np.abs(tau * qd).max(axis=0), rtol=1e-3)
+    simple = ref.inverse_dynamics(g, g.inertia, q, qd, qdd, np.zeros(len(q)), model="simplified")[0]
+    peak_diff = [float(v) for v in lines["peak|diff|"].split()[2:5]]
+    np.testing.assert_allclose(peak_diff, np.abs(simple - tau_ref).max(axis=0), rtol=1e-3)
+    png = (out / "validation_torques.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
