@@ -360,7 +360,9 @@ def test_validate_reports_torques_peaks_and_the_simplified_models_error(tmp_path
     tau_ref = ref.inverse_dynamics(g, g.inertia, q, qd, qdd, np.zeros(len(q)))[0]
     np.testing.assert_allclose(tau, tau_ref, rtol=0, atol=1e-9 * np.abs(tau_ref).max())
     # the summary lines hold the peaks, RMS and peak power of those columns
-    lines = {line.split()[0] + line.split()[1]: line for line in text.splitlines() if line[:2] == "  "}
+    lines = {
+        line.split()[0] + line.split()[1]: line for line in text.splitlines() if line[:2] == "  "
+    }
     numbers = lambda key: [float(v) for v in lines[key].split()[2:5]]  # noqa: E731
     np.testing.assert_allclose(numbers("peak|tau|"), np.abs(tau).max(axis=0), rtol=1e-3)
     np.testing.assert_allclose(numbers("RMStau"), np.sqrt((tau**2).mean(axis=0)), rtol=1e-3)
@@ -370,3 +372,60 @@ def test_validate_reports_torques_peaks_and_the_simplified_models_error(tmp_path
     np.testing.assert_allclose(peak_diff, np.abs(simple - tau_ref).max(axis=0), rtol=1e-3)
     png = (out / "validation_torques.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# -- deltagen dynamics ROBOT --input -----------------------------------------------------------
+
+
+def test_cli_dynamics_from_platform_samples_and_from_crank_samples(tmp_path, capsys):
+    from deltagen.apps.tables import Columns, read_table
+    from deltagen.cli import main as cli_main
+
+    t = np.linspace(0.0, 0.5, 501)
+    p, pd, pdd = trajectory(t)
+    given = tmp_path / "given.csv"
+    names = "t,x,y,z,xd,yd,zd,xdd,ydd,zdd"
+    np.savetxt(
+        given,
+        np.column_stack((t, p[:, :3], pd[:, :3], pdd[:, :3])),
+        delimiter=",",
+        header=names,
+        comments="",
+    )
+    out = tmp_path / "tau.npy"
+    assert (
+        cli_main(
+            ["dynamics", "default", "--input", str(given), "--output", str(out), "--payload", "0.3"]
+        )
+        == 0
+    )
+    table = np.load(out)
+    want = DEFAULT.inverse_dynamics_from_platform(p[:, :3], pd[:, :3], pdd[:, :3], payload=0.3)
+    np.testing.assert_allclose(
+        np.column_stack([table[f"tau{i}"] for i in (1, 2, 3)]), want, rtol=0, atol=1e-9
+    )
+    assert table["valid"].all()
+    # positions only: rates by second-order differences, close to the analytic ones
+    q = DEFAULT.ik(p[:, :3])
+    positional = tmp_path / "q.csv"
+    np.savetxt(positional, np.column_stack((t, q)), delimiter=",")
+    assert cli_main(["dynamics", "--input", str(positional), "--model", "simplified"]) == 0
+    text = capsys.readouterr().out
+    csv_text = text[text.index("t,q1") :]
+    (tmp_path / "out.csv").write_text(csv_text)
+    data, _, _ = read_table(
+        tmp_path / "out.csv", [Columns(("tau1", "tau2", "tau3"), positional=False)], "test"
+    )
+    exact_simple = DEFAULT.inverse_dynamics_from_platform(
+        p[:, :3], pd[:, :3], pdd[:, :3], model="simplified"
+    )
+    inner = slice(5, -5)  # one-sided differences at the ends are less accurate
+    scale = np.abs(exact_simple).max()
+    err = np.abs(data[inner] - exact_simple[inner]).max()
+    assert err < 2e-3 * scale, err / scale
+    # serial arms and bad files: input errors (exit 2)
+    assert cli_main(["dynamics", "puma560", "--input", str(given)]) == 2
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,x,y,z\n0,0,0,-0.8\n0,0,0,-0.8\n0,0,0,-0.8\n")
+    assert cli_main(["dynamics", "--input", str(bad)]) == 2
+    assert "strictly increasing" in capsys.readouterr().err

@@ -350,6 +350,4 @@ class _ReferenceCore:
         return self._m.ik(self._g, p)
 
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
-        return self._m.inverse_dynamics(
-            self._g, self._g.inertia, q, qd, qdd, payload, model=model
-        )
+        return self._m.inverse_dynamics(self._g, self._g.inertia, q, qd, qdd, payload, model=model)

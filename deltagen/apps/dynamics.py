@@ -74,7 +74,10 @@ def report(profile: TorqueProfile, out=None, title="feed-forward torques") -> No
         f"{title} (exact rigid-body model, payload {profile.payload:g} kg, "
         f"{n_ok} of {profile.t.size} samples):"
     )
-    w("  drive          1          2          3     axis 4")
+    w(
+        "  drive          1          2          3"
+        + ("     axis 4" if len(table["peak"]) == 4 else "")
+    )
     w("  peak |tau| " + "".join(f"{v:10.4g} " for v in table["peak"]) + " N m")
     w("  RMS tau    " + "".join(f"{v:10.4g} " for v in table["rms"]) + " N m")
     w("  peak power " + "".join(f"{v:10.4g} " for v in table["power"]) + " W  (max |tau qdot|)")
@@ -128,3 +131,92 @@ def plot(profile: TorqueProfile, path, title: str = "") -> Path:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+# -- `deltagen dynamics ROBOT --input traj.csv` ---------------------------------------------
+
+_Q = ("q1", "q2", "q3")
+_QD = ("qd1", "qd2", "qd3")
+_QDD = ("qdd1", "qdd2", "qdd3")
+_P = ("x", "y", "z")
+_PD = ("xd", "yd", "zd")
+_PDD = ("xdd", "ydd", "zdd")
+
+
+def _layouts():
+    from deltagen.apps.tables import Columns
+
+    return [
+        Columns(("t", *_Q, *_QD, *_QDD), positional=False),  # crank motion with its rates
+        Columns(("t", *_P, *_PD, *_PDD), positional=False),  # platform motion with rates
+        Columns(("t", *_Q)),  # crank angles; rates by finite differences
+        Columns(("t", *_P), positional=False),  # platform positions; rates by differences
+    ]
+
+
+def rates_by_differences(t, x):
+    """First and second time derivatives of samples x(t) (N, k): second-order central
+    differences (one-sided at the ends), on any increasing time grid."""
+    xd = np.gradient(x, t, axis=0, edge_order=2)
+    return xd, np.gradient(xd, t, axis=0, edge_order=2)
+
+
+def load_trajectory(robot, path):
+    """(t, q, qd, qdd, valid) of a trajectory file; platform motion goes through ik_acc."""
+    from deltagen.apps.tables import read_table
+    from deltagen.inputs import InputError
+
+    data, layout, _ = read_table(path, _layouts(), "dynamics")
+    t = data[:, 0]
+    if t.size < 3 and layout >= 2:
+        raise InputError(f"{path}: rates by finite differences need at least 3 samples")
+    if not (np.isfinite(t).all() and (np.diff(t) > 0).all()):
+        raise InputError(f"{path}: the t column must be finite and strictly increasing")
+    x = data[:, 1:4]
+    if layout in (0, 1):
+        xd, xdd = data[:, 4:7], data[:, 7:10]
+    else:
+        xd, xdd = rates_by_differences(t, x)
+    if layout in (0, 2):
+        valid = np.isfinite(np.column_stack((x, xd, xdd))).all(axis=1)
+        return t, x, xd, xdd, valid
+    q, qd, qdd, valid = robot.ik_acc(x, xd, xdd, errors="nan")
+    return t, q, qd, qdd, valid
+
+
+def main(args) -> int:
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.apps.tables import write_table
+    from deltagen.errors import rows_text
+    from deltagen.inputs import InputError
+
+    robot = args.robot_object
+    if not isinstance(robot, DeltaRobot):
+        raise InputError(
+            "deltagen dynamics takes a delta robot ('default' or a delta robot file with an "
+            "[inertia] table); serial-arm dynamics are not part of this command yet"
+        )
+    t, q, qd, qdd, valid = load_trajectory(robot, args.input)
+    if args.payload < 0 or not math.isfinite(args.payload):
+        raise InputError(f"--payload must be a non-negative mass in kg, got {args.payload!r}")
+    profile = torque_profile(robot, t, q, qd, qdd, args.payload)
+    tau = profile.tau if args.model == "exact" else profile.tau_simplified
+    ok = valid & profile.ok
+    report(profile, title=f"torques along {args.input}")
+    names = ["t", *_Q, *_QD, *_QDD, "tau1", "tau2", "tau3"]
+    table = np.column_stack((t, q[:, :3], qd[:, :3], qdd[:, :3], tau[:, :3]))
+    table[~ok, 1:] = np.nan
+    write_table(args.output if args.output else sys.stdout, names, table, ok)
+    if args.output:
+        print(f"wrote {args.output} ({args.model} model)")
+    if args.plot:
+        print(f"wrote {plot(profile, args.plot, title=f'torques along {args.input}')}")
+    if not ok.all():
+        bad = np.flatnonzero(~ok)
+        print(
+            f"deltagen dynamics: no torques (unreachable, singular or non-finite) in rows "
+            f"{rows_text(bad)}",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
