@@ -429,3 +429,27 @@ def test_cli_dynamics_from_platform_samples_and_from_crank_samples(tmp_path, cap
     bad.write_text("t,x,y,z\n0,0,0,-0.8\n0,0,0,-0.8\n0,0,0,-0.8\n")
     assert cli_main(["dynamics", "--input", str(bad)]) == 2
     assert "strictly increasing" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        (
+            "I_a = 0.01\nm_a = 0.1\nr_ca = 0.1\nm_b = 0.1\n",
+            "missing keys in \\[inertia\\]: \\['m_p'\\]",
+        ),
+        ("I_a = 0.01\nm_a = 0.1\nr_ca = 0.1\nm_b = 0.1\nm_p = 1\nmass = 2\n", "unknown keys"),
+        ("I_a = 0.01\nm_a = 0.1\nr_ca = 0.1\nm_b = 0.1\nm_p = -1\n", "m_p must be non-negative"),
+        ("I_a = 0.01\nm_a = 0.1\nr_ca = 0.1\nm_b = 0.1\nm_p = 1\ngravity = 9.81\n", "gravity"),
+        ("I_a = 'heavy'\nm_a = 0.1\nr_ca = 0.1\nm_b = 0.1\nm_p = 1\n", "I_a must be a real"),
+    ],
+)
+def test_bad_inertia_tables_name_the_file_and_key(tmp_path, table, message):
+    path = tmp_path / "robot.toml"
+    path.write_text(
+        "[delta]\nr_a = 0.2\nr_b = 0.045\nl_a = 0.35\nl_b = 0.8\ntheta_deg = [0, 120, 240]\n"
+        f"[inertia]\n{table}"
+    )
+    with pytest.raises(GeometryError, match=message) as info:
+        DeltaRobot.from_toml(path)
+    assert str(path) in str(info.value)
