@@ -141,30 +141,56 @@ def _tau_simplified(k: int) -> sp.Expr:
     return total
 
 
-def _grouped(expr: sp.Expr) -> sp.Expr:
-    """``expr`` expanded, then written as sum_j J_jk F_j + sum_c dB_ck f_c + rest: the
-    coefficients F (the generalized platform force) and f (the force on crank tip k) are
-    the same expressions in every tau_k, which CSE then evaluates once."""
-    keys = list(J) + [c for v in dB for c in v]
+def _split(expr: sp.Expr, k: int):
+    """tau_k (expanded) as (F, f, rest) with tau_k = J[:, k] . F + dB_k . f + rest: F is the
+    force the platform needs (the same for every k: virtual work gives J^T F), f the force
+    crank tip k needs. Coefficients collected by the accelerations and gravity."""
     motion = list(s.pdd) + list(gravity) + [c for v in aB for c in v]
+    keys = list(J) + [c for v in dB for c in v]
     parts = sp.collect(sp.expand(expr), keys, evaluate=False)
-    return sum(
-        (key * sp.collect(value, motion, func=sp.factor) for key, value in parts.items()),
-        sp.S.Zero,
-    )
+
+    def tidy(value):
+        return sp.collect(value, motion, func=sp.factor)
+
+    F = [tidy(parts.pop(J[j, k], sp.S.Zero)) for j in range(3)]
+    f = [tidy(parts.pop(dB[k][c], sp.S.Zero)) for c in range(3)]
+    rest = parts.pop(sp.S.One, sp.S.Zero)
+    assert not parts, f"tau_{k + 1} has terms in other chains' J columns or crank tips: {parts}"
+    return F, f, tidy(rest)
 
 
-def tau_expressions(model: str) -> list:
-    """tau_1..tau_3 of the ``"exact"`` or ``"simplified"`` model in terms of the staged
-    symbols (J_ij, pddot, dB_i, a_B_i) and the inputs."""
+# staged symbols of the generalized forces
+F_platform = sp.Matrix(sp.symbols("F_x F_y F_z", real=True))
+f_tip = [sp.Matrix(sp.symbols(f"f_x{i} f_y{i} f_z{i}", real=True)) for i in (1, 2, 3)]
+
+
+def force_stage(model: str) -> Stage:
+    """F (platform) and f_i (crank tips) of :func:`_split`, checked to be one F for all k."""
     term = {"exact": _tau_exact, "simplified": _tau_simplified}[model]
-    return [_grouped(term(k)) for k in range(3)]
-
-
-def tau_stage(model: str) -> Stage:
-    what = "exact rigid-body model" if model == "exact" else "simplified model (rod mass split)"
+    pairs, F_first = [], None
+    for k in range(3):
+        F, f, _ = _split(term(k), k)
+        if F_first is None:
+            F_first = F
+            pairs += list(zip(F_platform, F))
+        else:
+            assert all(sp.expand(a - b) == 0 for a, b in zip(F, F_first)), "not J^T F"
+        pairs += list(zip(f_tip[k], f))
+    what = "exact model" if model == "exact" else "simplified model (rod mass split)"
     return Stage(
-        f"motor torques by virtual work, {what}: tau = sum over bodies of "
-        "(d v / d qdot)^T m (a - g) + rotation",
-        tuple(zip(tau, tau_expressions(model))),
+        f"forces by virtual work, {what}: F on the platform (tau = J^T F + ...), f_i on the "
+        "crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation",
+        tuple(pairs),
     )
+
+
+def tau_stage(model: str, adjD, jq, inv_det) -> Stage:
+    """tau_k = J[:, k] . F + dB_k . f_k + rest_k with J = adj(D) diag(J_q / 2) / det D
+    (eq. (30)) applied without forming J: J[:, k] . F = (J_q,kk / 2) (adj(D)[:, k] . F) / det D."""
+    term = {"exact": _tau_exact, "simplified": _tau_simplified}[model]
+    pairs = []
+    for k in range(3):
+        _, _, rest = _split(term(k), k)
+        JtF = jq[k] * inv_det * sum(adjD[j, k] * F_platform[j] for j in range(3))
+        pairs.append((tau[k], JtF + (dB[k].T * f_tip[k])[0] + rest))
+    return Stage("motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30)", tuple(pairs))

@@ -328,13 +328,14 @@ def _inverse_dynamics(model: str) -> Kernel:
         ),
         stages=tuple(fkd.fk_stages())
         + (flags,)
-        + _rate_stages(with_jacobian=True)
+        + _rate_stages()
         + (
             vel.velocity_stage(),
             acc.h_stage(),
             acc.acceleration_stage(),
             dyn.crank_tip_stage(),
-            dyn.tau_stage(model),
+            dyn.force_stage(model),
+            dyn.tau_stage(model, vel.adjD, vel.jq, vel.inv_det),
             tau_fourth,
             Stage("outputs (NaN unless OK)", tau_stage),
         ),
