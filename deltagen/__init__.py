@@ -1,10 +1,9 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
-from deltagen.api.delta import DeltaRobot
+from deltagen.api.delta import DeltaInertia, DeltaRobot
 from deltagen.api.serial import SerialRobot
 from deltagen.errors import GeometryError, SingularityError, UnreachableError
 from deltagen.inputs import InputError
-from deltagen.model.delta import DeltaInertia
 
 __all__ = [
     "DeltaInertia",

@@ -25,6 +25,7 @@ from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_er
 from deltagen.model.delta import DeltaGeometry, DeltaInertia
 
 _MODELS = ("exact", "simplified")
+__all__ = ["DeltaInertia", "DeltaRobot"]
 
 _BACKENDS = ("compiled", "reference")
 
