@@ -150,7 +150,7 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK
  *
- * Cost: 572 operations per point.
+ * Cost: 544 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -168,7 +168,7 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
  * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK
  *
- * Cost: 552 operations per point.
+ * Cost: 524 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */

@@ -331,9 +331,7 @@ def _inverse_dynamics(model: str) -> Kernel:
         + _rate_stages()
         + (
             vel.velocity_stage(),
-            acc.h_stage(),
-            acc.acceleration_stage(),
-            dyn.crank_tip_stage(),
+            _acceleration_and_crank_tips(),
             dyn.force_stage(model),
             dyn.tau_stage(model, vel.adjD, vel.jq, vel.inv_det),
             tau_fourth,
@@ -348,6 +346,16 @@ def _inverse_dynamics(model: str) -> Kernel:
 
 
 tau4 = sp.Symbol("tau4", real=True)
+
+
+def _acceleration_and_crank_tips() -> Stage:
+    """pddot (eqs. (38)-(39)) and the crank tips' motion in one stage, so that their common
+    terms (l_a sin q_i qdot_i^2, ...) are evaluated once (about 30 operations less)."""
+    stages = (acc.h_stage(), acc.acceleration_stage(), dyn.crank_tip_stage())
+    return Stage(
+        "; ".join(stage.comment for stage in stages),
+        tuple(a for stage in stages for a in stage.assignments),
+    )
 
 
 @cache
