@@ -1,11 +1,12 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
-from deltagen.api.delta import DeltaRobot
+from deltagen.api.delta import DeltaInertia, DeltaRobot
 from deltagen.api.serial import SerialRobot
 from deltagen.errors import GeometryError, SingularityError, UnreachableError
 from deltagen.inputs import InputError
 
 __all__ = [
+    "DeltaInertia",
     "DeltaRobot",
     "GeometryError",
     "InputError",

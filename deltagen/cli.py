@@ -1,4 +1,4 @@
-"""Command line: deltagen generate | validate | fk | ik | bench."""
+"""Command line: deltagen generate | validate | fk | ik | dynamics | bench."""
 
 from __future__ import annotations
 
@@ -249,6 +249,24 @@ def main(argv=None) -> int:
     )
     d.set_defaults(func=lambda a: _lazy("deltagen.apps.demos", a))
 
+    y = sub.add_parser(
+        "dynamics",
+        help="motor torques of a delta robot along a trajectory file",
+        description="Feed-forward motor torques along a trajectory (CSV or NPY, columns by "
+        "name): t,q1,q2,q3,qd1..qd3,qdd1..qdd3 or t,x,y,z,xd,yd,zd,xdd,ydd,zdd (rates given), "
+        "or t,q1,q2,q3 / t,x,y,z (rates by second-order finite differences). Prints peak and "
+        "RMS torque and peak power per drive and the simplified model's difference; writes "
+        "t,q..,qd..,qdd..,tau1..tau3,valid.",
+    )
+    y.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
+    y.add_argument("--input", required=True, help="trajectory file (CSV or NPY)")
+    y.add_argument("--output", help="torque file (.csv or .npy; default: stdout)")
+    y.add_argument("--payload", type=float, default=0.0, help="payload [kg] (default 0)")
+    y.add_argument("--model", choices=("exact", "simplified"), default="exact")
+    y.add_argument("--plot", help="PNG of q, qd, qdd and tau per drive")
+    y.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    y.set_defaults(func=_dynamics)
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
@@ -279,6 +297,13 @@ def main(argv=None) -> int:
     except (DeltagenError, ValueError, OSError) as exc:
         print(f"deltagen {args.command}: error: {exc}", file=sys.stderr)
         return 2
+
+
+def _dynamics(args) -> int:
+    from deltagen.apps import dynamics
+
+    args.robot_object = _robot(args)
+    return dynamics.main(args)
 
 
 def _lazy(module: str, args) -> int:

@@ -1197,3 +1197,723 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     }
     return 0;
 }
+
+int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || payload == NULL || tau == NULL) {
+        return -1;
+    }
+    const double r_a = geometry->r_a;
+    const double r_b = geometry->r_b;
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    const double I_a = geometry->I_a;
+    const double m_a = geometry->m_a;
+    const double r_ca = geometry->r_ca;
+    const double m_b = geometry->m_b;
+    const double m_p = geometry->m_p;
+    const double g_x = geometry->gravity[0];
+    const double g_y = geometry->gravity[1];
+    const double g_z = geometry->gravity[2];
+    const double I_4 = geometry->I_4;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double r = r_a - r_b;
+    const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        double q4_b[DELTAGEN_DELTA_BLOCK];
+        double qd1_b[DELTAGEN_DELTA_BLOCK];
+        double qd2_b[DELTAGEN_DELTA_BLOCK];
+        double qd3_b[DELTAGEN_DELTA_BLOCK];
+        double qd4_b[DELTAGEN_DELTA_BLOCK];
+        double qdd1_b[DELTAGEN_DELTA_BLOCK];
+        double qdd2_b[DELTAGEN_DELTA_BLOCK];
+        double qdd3_b[DELTAGEN_DELTA_BLOCK];
+        double qdd4_b[DELTAGEN_DELTA_BLOCK];
+        double payload_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 3 + 0];
+                q2_b[k] = q[(start + k) * 3 + 1];
+                q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
+                qd1_b[k] = qd[(start + k) * 3 + 0];
+                qd2_b[k] = qd[(start + k) * 3 + 1];
+                qd3_b[k] = qd[(start + k) * 3 + 2];
+                qd4_b[k] = 0.0;  /* no fourth axis */
+                qdd1_b[k] = qdd[(start + k) * 3 + 0];
+                qdd2_b[k] = qdd[(start + k) * 3 + 1];
+                qdd3_b[k] = qdd[(start + k) * 3 + 2];
+                qdd4_b[k] = 0.0;  /* no fourth axis */
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 4 + 0];
+                q2_b[k] = q[(start + k) * 4 + 1];
+                q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
+                qd1_b[k] = qd[(start + k) * 4 + 0];
+                qd2_b[k] = qd[(start + k) * 4 + 1];
+                qd3_b[k] = qd[(start + k) * 4 + 2];
+                qd4_b[k] = qd[(start + k) * 4 + 3];
+                qdd1_b[k] = qdd[(start + k) * 4 + 0];
+                qdd2_b[k] = qdd[(start + k) * 4 + 1];
+                qdd3_b[k] = qdd[(start + k) * 4 + 2];
+                qdd4_b[k] = qdd[(start + k) * 4 + 3];
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        }
+        double cos_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q1_b[k] = cos(q1_b[k]);
+        }
+        double sin_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q1_b[k] = sin(q1_b[k]);
+        }
+        double cos_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q2_b[k] = cos(q2_b[k]);
+        }
+        double sin_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q2_b[k] = sin(q2_b[k]);
+        }
+        double cos_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q3_b[k] = cos(q3_b[k]);
+        }
+        double sin_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q3_b[k] = sin(q3_b[k]);
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau4_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double q1 = q1_b[k];
+            const double q2 = q2_b[k];
+            const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
+            const double qd1 = qd1_b[k];
+            const double qd2 = qd2_b[k];
+            const double qd3 = qd3_b[k];
+            const double qd4 = qd4_b[k];
+            const double qdd1 = qdd1_b[k];
+            const double qdd2 = qdd2_b[k];
+            const double qdd3 = qdd3_b[k];
+            const double qdd4 = qdd4_b[k];
+            const double payload = payload_b[k];
+            const double cos_q1 = cos_q1_b[k];
+            const double sin_q1 = sin_q1_b[k];
+            const double cos_q2 = cos_q2_b[k];
+            const double sin_q2 = sin_q2_b[k];
+            const double cos_q3 = cos_q3_b[k];
+            const double sin_q3 = sin_q3_b[k];
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t0_0 = cos_q1*l_a + r;
+            const double t0_1 = cos_q2*l_a + r;
+            const double t0_2 = cos_q3*l_a + r;
+            const double S_x1 = cos_theta1*t0_0;
+            const double S_y1 = sin_theta1*t0_0;
+            const double S_z1 = -l_a*sin_q1;
+            const double S_x2 = cos_theta2*t0_1;
+            const double S_y2 = sin_theta2*t0_1;
+            const double S_z2 = -l_a*sin_q2;
+            const double S_x3 = cos_theta3*t0_2;
+            const double S_y3 = sin_theta3*t0_2;
+            const double S_z3 = -l_a*sin_q3;
+            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+            const double a_x = -S_x1 + S_x2;
+            const double a_y = -S_y1 + S_y2;
+            const double a_z = -S_z1 + S_z2;
+            const double b_x = -S_x1 + S_x3;
+            const double b_y = -S_y1 + S_y3;
+            const double b_z = -S_z1 + S_z3;
+            /* e = a x b, normal of the centre plane; its squared length */
+            const double e_x = a_y*b_z - a_z*b_y;
+            const double e_y = -a_x*b_z + a_z*b_x;
+            const double e_z = a_x*b_y - a_y*b_x;
+            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+            const double inv_e_sq = 1.0/e_sq;
+            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+            const double t4_0 = 2*e_z;
+            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_2 = 2*e_y;
+            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
+            const double t4_4 = (1.0/4.0)*inv_e_sq;
+            const double t4_5 = 2*e_x;
+            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
+            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
+            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            /* lower intersection with sphere 1, eqs. (22)-(26) */
+            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+            /* platform position p, eq. (27) */
+            const double x = S_x1 + e_x*lambda_ + x0_x;
+            const double y = S_y1 + e_y*lambda_ + x0_y;
+            const double z = S_z1 + e_z*lambda_ + x0_z;
+            const double det_D = e_sq*lambda_;
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) & isfinite(qdd4) & isfinite(payload));
+            const int collinear = (e_sq <= collinear_limit);
+            const int unreachable = (h_sq < 0);
+            const int singular = (fabs(det_D) <= det_limit);
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t8_0 = -x;
+            const double t8_1 = -y;
+            const double t8_2 = -z;
+            const double D11 = -S_x1 - t8_0;
+            const double D12 = -S_y1 - t8_1;
+            const double D13 = -S_z1 - t8_2;
+            const double D21 = -S_x2 - t8_0;
+            const double D22 = -S_y2 - t8_1;
+            const double D23 = -S_z2 - t8_2;
+            const double D31 = -S_x3 - t8_0;
+            const double D32 = -S_y3 - t8_1;
+            const double D33 = -S_z3 - t8_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t9_0 = l_a*z;
+            const double t9_1 = l_a*sin_q1;
+            const double t9_2 = l_a*sin_q2;
+            const double t9_3 = l_a*sin_q3;
+            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
+            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
+            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
+            const double adjD11 = D22*D33 - D23*D32;
+            const double adjD12 = -D12*D33 + D13*D32;
+            const double adjD13 = D12*D23 - D13*D22;
+            const double adjD21 = -D21*D33 + D23*D31;
+            const double adjD22 = D11*D33 - D13*D31;
+            const double adjD23 = -D11*D23 + D13*D21;
+            const double adjD31 = D21*D32 - D22*D31;
+            const double adjD32 = -D11*D32 + D12*D31;
+            const double adjD33 = D11*D22 - D12*D21;
+            const double inv_det_D = 1.0/det_D;
+            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+            const double t11_0 = jq1*qd1;
+            const double t11_1 = jq2*qd2;
+            const double t11_2 = jq3*qd3;
+            const double xd = inv_det_D*(adjD11*t11_0 + adjD12*t11_1 + adjD13*t11_2);
+            const double yd = inv_det_D*(adjD21*t11_0 + adjD22*t11_1 + adjD23*t11_2);
+            const double zd = inv_det_D*(adjD31*t11_0 + adjD32*t11_1 + adjD33*t11_2);
+            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39); platform acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i and acceleration a_B_i */
+            const double t12_0 = cos_q1*l_a;
+            const double t12_1 = qdd1*t12_0;
+            const double t12_2 = qd1*qd1;
+            const double t12_3 = 2*zd;
+            const double t12_4 = t12_0*t12_2;
+            const double t12_5 = cos_theta1*t12_4;
+            const double t12_6 = sin_theta1*t12_4;
+            const double t12_7 = l_a*sin_q1;
+            const double t12_8 = cos_theta1*t12_7;
+            const double t12_9 = qdd1*t12_8;
+            const double t12_10 = sin_theta1*t12_7;
+            const double t12_11 = qdd1*t12_10;
+            const double t12_12 = 2*qd1;
+            const double t12_13 = xd*xd + yd*yd + zd*zd;
+            const double t12_14 = cos_q2*l_a;
+            const double t12_15 = qdd2*t12_14;
+            const double t12_16 = qd2*qd2;
+            const double t12_17 = t12_14*t12_16;
+            const double t12_18 = cos_theta2*t12_17;
+            const double t12_19 = sin_theta2*t12_17;
+            const double t12_20 = l_a*sin_q2;
+            const double t12_21 = cos_theta2*t12_20;
+            const double t12_22 = qdd2*t12_21;
+            const double t12_23 = sin_theta2*t12_20;
+            const double t12_24 = qdd2*t12_23;
+            const double t12_25 = 2*qd2;
+            const double t12_26 = cos_q3*l_a;
+            const double t12_27 = qdd3*t12_26;
+            const double t12_28 = qd3*qd3;
+            const double t12_29 = t12_26*t12_28;
+            const double t12_30 = cos_theta3*t12_29;
+            const double t12_31 = sin_theta3*t12_29;
+            const double t12_32 = l_a*sin_q3;
+            const double t12_33 = cos_theta3*t12_32;
+            const double t12_34 = qdd3*t12_33;
+            const double t12_35 = sin_theta3*t12_32;
+            const double t12_36 = qdd3*t12_35;
+            const double t12_37 = 2*qd3;
+            const double h1 = cos_q1*l_a*r*t12_2 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t12_2*z - qd1*t12_0*t12_3 - t12_1*z - t12_10*t12_12*yd - t12_11*y - t12_12*t12_8*xd - t12_13 - t12_5*x - t12_6*y - t12_9*x;
+            const double h2 = cos_q2*l_a*r*t12_16 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t12_16*z - qd2*t12_14*t12_3 - t12_13 - t12_15*z - t12_18*x - t12_19*y - t12_21*t12_25*xd - t12_22*x - t12_23*t12_25*yd - t12_24*y;
+            const double h3 = cos_q3*l_a*r*t12_28 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t12_28*z - qd3*t12_26*t12_3 - t12_13 - t12_27*z - t12_30*x - t12_31*y - t12_33*t12_37*xd - t12_34*x - t12_35*t12_37*yd - t12_36*y;
+            const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
+            const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
+            const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
+            const double dB_x1 = -t12_8;
+            const double dB_y1 = -t12_10;
+            const double dB_z1 = -t12_0;
+            const double aB_x1 = -t12_5 - t12_9;
+            const double aB_y1 = -t12_11 - t12_6;
+            const double aB_z1 = l_a*sin_q1*t12_2 - t12_1;
+            const double dB_x2 = -t12_21;
+            const double dB_y2 = -t12_23;
+            const double dB_z2 = -t12_14;
+            const double aB_x2 = -t12_18 - t12_22;
+            const double aB_y2 = -t12_19 - t12_24;
+            const double aB_z2 = l_a*sin_q2*t12_16 - t12_15;
+            const double dB_x3 = -t12_33;
+            const double dB_y3 = -t12_35;
+            const double dB_z3 = -t12_26;
+            const double aB_x3 = -t12_30 - t12_34;
+            const double aB_y3 = -t12_31 - t12_36;
+            const double aB_z3 = l_a*sin_q3*t12_28 - t12_27;
+            /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+            const double t13_0 = (1.0/6.0)*m_b;
+            const double t13_1 = m_b + m_p + payload;
+            const double t13_2 = (3.0/2.0)*m_b + m_p + payload;
+            const double t13_3 = (1.0/3.0)*m_b;
+            const double t13_4 = (1.0/2.0)*m_b;
+            const double t13_5 = -g_x*t13_4 + t13_0*xdd;
+            const double t13_6 = -g_y*t13_4 + t13_0*ydd;
+            const double t13_7 = -g_z*t13_4 + t13_0*zdd;
+            const double F_x = aB_x1*t13_0 + aB_x2*t13_0 + aB_x3*t13_0 - g_x*t13_2 + t13_1*xdd;
+            const double F_y = aB_y1*t13_0 + aB_y2*t13_0 + aB_y3*t13_0 - g_y*t13_2 + t13_1*ydd;
+            const double F_z = aB_z1*t13_0 + aB_z2*t13_0 + aB_z3*t13_0 - g_z*t13_2 + t13_1*zdd;
+            const double f_x1 = aB_x1*t13_3 + t13_5;
+            const double f_y1 = aB_y1*t13_3 + t13_6;
+            const double f_z1 = aB_z1*t13_3 + t13_7;
+            const double f_x2 = aB_x2*t13_3 + t13_5;
+            const double f_y2 = aB_y2*t13_3 + t13_6;
+            const double f_z2 = aB_z2*t13_3 + t13_7;
+            const double f_x3 = aB_x3*t13_3 + t13_5;
+            const double f_y3 = aB_y3*t13_3 + t13_6;
+            const double f_z3 = aB_z3*t13_3 + t13_7;
+            /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
+            const double t14_0 = m_a*r_ca;
+            const double t14_1 = g_z*t14_0;
+            const double t14_2 = sin_q1*t14_0;
+            const double t14_3 = sin_q2*t14_0;
+            const double t14_4 = sin_q3*t14_0;
+            const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 + dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+            const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 + dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+            const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 + dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+            /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+            const double tau4 = I_4*qdd4;
+            /* outputs (NaN unless OK) */
+            const int t16_0 = ((collinear) | (invalid) | (singular) | (unreachable));
+            const double out_tau1 = ((t16_0) ? NAN : tau1);
+            const double out_tau2 = ((t16_0) ? NAN : tau2);
+            const double out_tau3 = ((t16_0) ? NAN : tau3);
+            const double out_tau4 = ((t16_0) ? NAN : tau4);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(isfinite(out_tau1) & isfinite(out_tau2) & isfinite(out_tau3) & isfinite(out_tau4))) & (!(((collinear) | (invalid) | (singular) | (unreachable)))));
+            const double out_tau1_checked = ((nonfinite_output) ? NAN : out_tau1);
+            const double out_tau2_checked = ((nonfinite_output) ? NAN : out_tau2);
+            const double out_tau3_checked = ((nonfinite_output) ? NAN : out_tau3);
+            const double out_tau4_checked = ((nonfinite_output) ? NAN : out_tau4);
+            out_tau1_checked_b[k] = out_tau1_checked;
+            out_tau2_checked_b[k] = out_tau2_checked;
+            out_tau3_checked_b[k] = out_tau3_checked;
+            out_tau4_checked_b[k] = out_tau4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 3 + 0] = out_tau1_checked_b[k];
+                tau[(start + k) * 3 + 1] = out_tau2_checked_b[k];
+                tau[(start + k) * 3 + 2] = out_tau3_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 4 + 0] = out_tau1_checked_b[k];
+                tau[(start + k) * 4 + 1] = out_tau2_checked_b[k];
+                tau[(start + k) * 4 + 2] = out_tau3_checked_b[k];
+                tau[(start + k) * 4 + 3] = out_tau4_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
+int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || payload == NULL || tau == NULL) {
+        return -1;
+    }
+    const double r_a = geometry->r_a;
+    const double r_b = geometry->r_b;
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    const double I_a = geometry->I_a;
+    const double m_a = geometry->m_a;
+    const double r_ca = geometry->r_ca;
+    const double m_b = geometry->m_b;
+    const double m_p = geometry->m_p;
+    const double g_x = geometry->gravity[0];
+    const double g_y = geometry->gravity[1];
+    const double g_z = geometry->gravity[2];
+    const double I_4 = geometry->I_4;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double r = r_a - r_b;
+    const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        double q4_b[DELTAGEN_DELTA_BLOCK];
+        double qd1_b[DELTAGEN_DELTA_BLOCK];
+        double qd2_b[DELTAGEN_DELTA_BLOCK];
+        double qd3_b[DELTAGEN_DELTA_BLOCK];
+        double qd4_b[DELTAGEN_DELTA_BLOCK];
+        double qdd1_b[DELTAGEN_DELTA_BLOCK];
+        double qdd2_b[DELTAGEN_DELTA_BLOCK];
+        double qdd3_b[DELTAGEN_DELTA_BLOCK];
+        double qdd4_b[DELTAGEN_DELTA_BLOCK];
+        double payload_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 3 + 0];
+                q2_b[k] = q[(start + k) * 3 + 1];
+                q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
+                qd1_b[k] = qd[(start + k) * 3 + 0];
+                qd2_b[k] = qd[(start + k) * 3 + 1];
+                qd3_b[k] = qd[(start + k) * 3 + 2];
+                qd4_b[k] = 0.0;  /* no fourth axis */
+                qdd1_b[k] = qdd[(start + k) * 3 + 0];
+                qdd2_b[k] = qdd[(start + k) * 3 + 1];
+                qdd3_b[k] = qdd[(start + k) * 3 + 2];
+                qdd4_b[k] = 0.0;  /* no fourth axis */
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 4 + 0];
+                q2_b[k] = q[(start + k) * 4 + 1];
+                q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
+                qd1_b[k] = qd[(start + k) * 4 + 0];
+                qd2_b[k] = qd[(start + k) * 4 + 1];
+                qd3_b[k] = qd[(start + k) * 4 + 2];
+                qd4_b[k] = qd[(start + k) * 4 + 3];
+                qdd1_b[k] = qdd[(start + k) * 4 + 0];
+                qdd2_b[k] = qdd[(start + k) * 4 + 1];
+                qdd3_b[k] = qdd[(start + k) * 4 + 2];
+                qdd4_b[k] = qdd[(start + k) * 4 + 3];
+                payload_b[k] = payload[(start + k) * 1 + 0];
+            }
+        }
+        double cos_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q1_b[k] = cos(q1_b[k]);
+        }
+        double sin_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q1_b[k] = sin(q1_b[k]);
+        }
+        double cos_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q2_b[k] = cos(q2_b[k]);
+        }
+        double sin_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q2_b[k] = sin(q2_b[k]);
+        }
+        double cos_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q3_b[k] = cos(q3_b[k]);
+        }
+        double sin_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q3_b[k] = sin(q3_b[k]);
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_tau4_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double q1 = q1_b[k];
+            const double q2 = q2_b[k];
+            const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
+            const double qd1 = qd1_b[k];
+            const double qd2 = qd2_b[k];
+            const double qd3 = qd3_b[k];
+            const double qd4 = qd4_b[k];
+            const double qdd1 = qdd1_b[k];
+            const double qdd2 = qdd2_b[k];
+            const double qdd3 = qdd3_b[k];
+            const double qdd4 = qdd4_b[k];
+            const double payload = payload_b[k];
+            const double cos_q1 = cos_q1_b[k];
+            const double sin_q1 = sin_q1_b[k];
+            const double cos_q2 = cos_q2_b[k];
+            const double sin_q2 = sin_q2_b[k];
+            const double cos_q3 = cos_q3_b[k];
+            const double sin_q3 = sin_q3_b[k];
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t0_0 = cos_q1*l_a + r;
+            const double t0_1 = cos_q2*l_a + r;
+            const double t0_2 = cos_q3*l_a + r;
+            const double S_x1 = cos_theta1*t0_0;
+            const double S_y1 = sin_theta1*t0_0;
+            const double S_z1 = -l_a*sin_q1;
+            const double S_x2 = cos_theta2*t0_1;
+            const double S_y2 = sin_theta2*t0_1;
+            const double S_z2 = -l_a*sin_q2;
+            const double S_x3 = cos_theta3*t0_2;
+            const double S_y3 = sin_theta3*t0_2;
+            const double S_z3 = -l_a*sin_q3;
+            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+            const double a_x = -S_x1 + S_x2;
+            const double a_y = -S_y1 + S_y2;
+            const double a_z = -S_z1 + S_z2;
+            const double b_x = -S_x1 + S_x3;
+            const double b_y = -S_y1 + S_y3;
+            const double b_z = -S_z1 + S_z3;
+            /* e = a x b, normal of the centre plane; its squared length */
+            const double e_x = a_y*b_z - a_z*b_y;
+            const double e_y = -a_x*b_z + a_z*b_x;
+            const double e_z = a_x*b_y - a_y*b_x;
+            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+            const double inv_e_sq = 1.0/e_sq;
+            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+            const double t4_0 = 2*e_z;
+            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_2 = 2*e_y;
+            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
+            const double t4_4 = (1.0/4.0)*inv_e_sq;
+            const double t4_5 = 2*e_x;
+            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
+            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
+            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            /* lower intersection with sphere 1, eqs. (22)-(26) */
+            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+            /* platform position p, eq. (27) */
+            const double x = S_x1 + e_x*lambda_ + x0_x;
+            const double y = S_y1 + e_y*lambda_ + x0_y;
+            const double z = S_z1 + e_z*lambda_ + x0_z;
+            const double det_D = e_sq*lambda_;
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) & isfinite(qdd4) & isfinite(payload));
+            const int collinear = (e_sq <= collinear_limit);
+            const int unreachable = (h_sq < 0);
+            const int singular = (fabs(det_D) <= det_limit);
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t8_0 = -x;
+            const double t8_1 = -y;
+            const double t8_2 = -z;
+            const double D11 = -S_x1 - t8_0;
+            const double D12 = -S_y1 - t8_1;
+            const double D13 = -S_z1 - t8_2;
+            const double D21 = -S_x2 - t8_0;
+            const double D22 = -S_y2 - t8_1;
+            const double D23 = -S_z2 - t8_2;
+            const double D31 = -S_x3 - t8_0;
+            const double D32 = -S_y3 - t8_1;
+            const double D33 = -S_z3 - t8_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t9_0 = l_a*z;
+            const double t9_1 = l_a*sin_q1;
+            const double t9_2 = l_a*sin_q2;
+            const double t9_3 = l_a*sin_q3;
+            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
+            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
+            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
+            const double adjD11 = D22*D33 - D23*D32;
+            const double adjD12 = -D12*D33 + D13*D32;
+            const double adjD13 = D12*D23 - D13*D22;
+            const double adjD21 = -D21*D33 + D23*D31;
+            const double adjD22 = D11*D33 - D13*D31;
+            const double adjD23 = -D11*D23 + D13*D21;
+            const double adjD31 = D21*D32 - D22*D31;
+            const double adjD32 = -D11*D32 + D12*D31;
+            const double adjD33 = D11*D22 - D12*D21;
+            const double inv_det_D = 1.0/det_D;
+            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+            const double t11_0 = jq1*qd1;
+            const double t11_1 = jq2*qd2;
+            const double t11_2 = jq3*qd3;
+            const double xd = inv_det_D*(adjD11*t11_0 + adjD12*t11_1 + adjD13*t11_2);
+            const double yd = inv_det_D*(adjD21*t11_0 + adjD22*t11_1 + adjD23*t11_2);
+            const double zd = inv_det_D*(adjD31*t11_0 + adjD32*t11_1 + adjD33*t11_2);
+            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39); platform acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i and acceleration a_B_i */
+            const double t12_0 = cos_q1*l_a;
+            const double t12_1 = qdd1*t12_0;
+            const double t12_2 = qd1*qd1;
+            const double t12_3 = 2*zd;
+            const double t12_4 = t12_0*t12_2;
+            const double t12_5 = cos_theta1*t12_4;
+            const double t12_6 = sin_theta1*t12_4;
+            const double t12_7 = l_a*sin_q1;
+            const double t12_8 = cos_theta1*t12_7;
+            const double t12_9 = qdd1*t12_8;
+            const double t12_10 = sin_theta1*t12_7;
+            const double t12_11 = qdd1*t12_10;
+            const double t12_12 = 2*qd1;
+            const double t12_13 = xd*xd + yd*yd + zd*zd;
+            const double t12_14 = cos_q2*l_a;
+            const double t12_15 = qdd2*t12_14;
+            const double t12_16 = qd2*qd2;
+            const double t12_17 = t12_14*t12_16;
+            const double t12_18 = cos_theta2*t12_17;
+            const double t12_19 = sin_theta2*t12_17;
+            const double t12_20 = l_a*sin_q2;
+            const double t12_21 = cos_theta2*t12_20;
+            const double t12_22 = qdd2*t12_21;
+            const double t12_23 = sin_theta2*t12_20;
+            const double t12_24 = qdd2*t12_23;
+            const double t12_25 = 2*qd2;
+            const double t12_26 = cos_q3*l_a;
+            const double t12_27 = qdd3*t12_26;
+            const double t12_28 = qd3*qd3;
+            const double t12_29 = t12_26*t12_28;
+            const double t12_30 = cos_theta3*t12_29;
+            const double t12_31 = sin_theta3*t12_29;
+            const double t12_32 = l_a*sin_q3;
+            const double t12_33 = cos_theta3*t12_32;
+            const double t12_34 = qdd3*t12_33;
+            const double t12_35 = sin_theta3*t12_32;
+            const double t12_36 = qdd3*t12_35;
+            const double t12_37 = 2*qd3;
+            const double h1 = cos_q1*l_a*r*t12_2 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t12_2*z - qd1*t12_0*t12_3 - t12_1*z - t12_10*t12_12*yd - t12_11*y - t12_12*t12_8*xd - t12_13 - t12_5*x - t12_6*y - t12_9*x;
+            const double h2 = cos_q2*l_a*r*t12_16 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t12_16*z - qd2*t12_14*t12_3 - t12_13 - t12_15*z - t12_18*x - t12_19*y - t12_21*t12_25*xd - t12_22*x - t12_23*t12_25*yd - t12_24*y;
+            const double h3 = cos_q3*l_a*r*t12_28 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t12_28*z - qd3*t12_26*t12_3 - t12_13 - t12_27*z - t12_30*x - t12_31*y - t12_33*t12_37*xd - t12_34*x - t12_35*t12_37*yd - t12_36*y;
+            const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
+            const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
+            const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
+            const double dB_x1 = -t12_8;
+            const double dB_y1 = -t12_10;
+            const double dB_z1 = -t12_0;
+            const double aB_x1 = -t12_5 - t12_9;
+            const double aB_y1 = -t12_11 - t12_6;
+            const double aB_z1 = l_a*sin_q1*t12_2 - t12_1;
+            const double dB_x2 = -t12_21;
+            const double dB_y2 = -t12_23;
+            const double dB_z2 = -t12_14;
+            const double aB_x2 = -t12_18 - t12_22;
+            const double aB_y2 = -t12_19 - t12_24;
+            const double aB_z2 = l_a*sin_q2*t12_16 - t12_15;
+            const double dB_x3 = -t12_33;
+            const double dB_y3 = -t12_35;
+            const double dB_z3 = -t12_26;
+            const double aB_x3 = -t12_30 - t12_34;
+            const double aB_y3 = -t12_31 - t12_36;
+            const double aB_z3 = l_a*sin_q3*t12_28 - t12_27;
+            /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+            const double t13_0 = 3*m_b + 2*m_p + 2*payload;
+            const double t13_1 = (1.0/2.0)*t13_0;
+            const double t13_2 = (1.0/2.0)*m_b;
+            const double t13_3 = -g_x*t13_2;
+            const double t13_4 = -g_y*t13_2;
+            const double t13_5 = -g_z*t13_2;
+            const double F_x = -g_x*t13_1 + (1.0/2.0)*t13_0*xdd;
+            const double F_y = -g_y*t13_1 + (1.0/2.0)*t13_0*ydd;
+            const double F_z = -g_z*t13_1 + (1.0/2.0)*t13_0*zdd;
+            const double f_x1 = aB_x1*t13_2 + t13_3;
+            const double f_y1 = aB_y1*t13_2 + t13_4;
+            const double f_z1 = aB_z1*t13_2 + t13_5;
+            const double f_x2 = aB_x2*t13_2 + t13_3;
+            const double f_y2 = aB_y2*t13_2 + t13_4;
+            const double f_z2 = aB_z2*t13_2 + t13_5;
+            const double f_x3 = aB_x3*t13_2 + t13_3;
+            const double f_y3 = aB_y3*t13_2 + t13_4;
+            const double f_z3 = aB_z3*t13_2 + t13_5;
+            /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
+            const double t14_0 = m_a*r_ca;
+            const double t14_1 = g_z*t14_0;
+            const double t14_2 = sin_q1*t14_0;
+            const double t14_3 = sin_q2*t14_0;
+            const double t14_4 = sin_q3*t14_0;
+            const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 + dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+            const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 + dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+            const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 + dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+            /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+            const double tau4 = I_4*qdd4;
+            /* outputs (NaN unless OK) */
+            const int t16_0 = ((collinear) | (invalid) | (singular) | (unreachable));
+            const double out_tau1 = ((t16_0) ? NAN : tau1);
+            const double out_tau2 = ((t16_0) ? NAN : tau2);
+            const double out_tau3 = ((t16_0) ? NAN : tau3);
+            const double out_tau4 = ((t16_0) ? NAN : tau4);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(isfinite(out_tau1) & isfinite(out_tau2) & isfinite(out_tau3) & isfinite(out_tau4))) & (!(((collinear) | (invalid) | (singular) | (unreachable)))));
+            const double out_tau1_checked = ((nonfinite_output) ? NAN : out_tau1);
+            const double out_tau2_checked = ((nonfinite_output) ? NAN : out_tau2);
+            const double out_tau3_checked = ((nonfinite_output) ? NAN : out_tau3);
+            const double out_tau4_checked = ((nonfinite_output) ? NAN : out_tau4);
+            out_tau1_checked_b[k] = out_tau1_checked;
+            out_tau2_checked_b[k] = out_tau2_checked;
+            out_tau3_checked_b[k] = out_tau3_checked;
+            out_tau4_checked_b[k] = out_tau4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 3 + 0] = out_tau1_checked_b[k];
+                tau[(start + k) * 3 + 1] = out_tau2_checked_b[k];
+                tau[(start + k) * 3 + 2] = out_tau3_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                tau[(start + k) * 4 + 0] = out_tau1_checked_b[k];
+                tau[(start + k) * 4 + 1] = out_tau2_checked_b[k];
+                tau[(start + k) * 4 + 2] = out_tau3_checked_b[k];
+                tau[(start + k) * 4 + 3] = out_tau4_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}

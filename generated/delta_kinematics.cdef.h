@@ -13,6 +13,13 @@ typedef struct deltagen_delta_geometry {
     double cos_theta[3];
     double sin_theta[3];
     double singular_tol;
+    double I_a;
+    double m_a;
+    double r_ca;
+    double m_b;
+    double m_p;
+    double gravity[3];
+    double I_4;
 } deltagen_delta_geometry;
 
 int deltagen_delta_fk(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *p, int8_t *status);
@@ -20,3 +27,5 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *geometry, size_t n, siz
 int deltagen_delta_fk_acc(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, const double *qdd, double *p, double *pd, double *pdd, int8_t *status);
 int deltagen_delta_jacobian(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *J, int8_t *status);
 int deltagen_delta_ik(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p, double *q, int8_t *status);
+int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, const double *qdd, const double *payload, double *tau, int8_t *status);
+int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, const double *qdd, const double *payload, double *tau, int8_t *status);

@@ -41,7 +41,7 @@ extern "C" {
 #define DELTAGEN_INVALID 3
 #endif
 
-/* Geometry of the robot (report, Figure 4). */
+/* Geometry of the robot (report, Figure 4) and its inertia (for the dynamics). */
 typedef struct deltagen_delta_geometry {
     double r_a; /* base radius, O to a drive axis [m] */
     double r_b; /* platform radius, P to a joint C_i [m] */
@@ -50,6 +50,13 @@ typedef struct deltagen_delta_geometry {
     double cos_theta[3]; /* cos of the drive positions theta_i */
     double sin_theta[3]; /* sin of the drive positions theta_i */
     double singular_tol; /* relative singularity threshold, e.g. 1e-9 */
+    double I_a; /* crank inertia about the drive axis, rotor + gearbox [kg m^2] */
+    double m_a; /* crank mass (gravity) [kg] */
+    double r_ca; /* crank centre of mass from A_i along the crank [m] */
+    double m_b; /* mass of one rod pair (parallelogram) [kg] */
+    double m_p; /* platform mass without payload [kg] */
+    double gravity[3]; /* gravity vector in the base frame [m/s^2] */
+    double I_4; /* fourth-axis inertia about its axis [kg m^2] */
 } deltagen_delta_geometry;
 
 /* Direct kinematics: crank angles q -> platform position p, eqs. (2)-(27).
@@ -132,6 +139,42 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  * 4352 bytes (4.2 KiB) at 64, plus scalars.
  */
 int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, double *restrict q, int8_t *restrict status);
+
+/* Inverse dynamics, exact rigid-body model (cranks, rod pairs as slender rods with their rotation, platform + payload): (q, qdot, qddot, payload) -> motor torques tau, by virtual work with J of eq. (30) and pddot of eq. (38) (deltagen/derive/delta/dynamics.py).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
+ * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]
+ * qdd       in,  n x axes: crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]
+ * payload   in,  n x 1: mass carried by the platform besides m_p, per point [kg]
+ * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 553 operations per point.
+ * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status);
+
+/* Inverse dynamics, simplified model (each rod pair's mass half on the crank tip, half on the platform; no rod rotation): (q, qdot, qddot, payload) -> motor torques tau, by virtual work with J of eq. (30) and pddot of eq. (38) (deltagen/derive/delta/dynamics.py).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
+ * qd        in,  n x axes: crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]
+ * qdd       in,  n x axes: crank accelerations qddot [rad/s^2]; column 4: qddot_4 [rad/s^2]
+ * payload   in,  n x 1: mass carried by the platform besides m_p, per point [kg]
+ * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 533 operations per point.
+ * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status);
 
 #ifdef __cplusplus
 }

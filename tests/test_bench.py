@@ -121,7 +121,10 @@ def test_sampled_poses_are_valid_for_both_backends():
 
     compiled, reference = DeltaRobot.default(), DeltaRobot.default(backend="reference")
     poses = bench.sample_poses(500, [compiled._core, reference._core], np.random.default_rng(0))
-    assert all(v.shape == (500, 3) and v.flags.c_contiguous for v in poses.values())
+    assert poses["payload"].shape == (500,) and (poses["payload"] >= 0).all()
+    assert all(
+        v.shape == (500, 3) and v.flags.c_contiguous for k, v in poses.items() if k != "payload"
+    )
     for robot in (compiled, reference):
         assert (robot._core.fk_acc(poses["q"], poses["qd"], poses["qdd"])[-1] == OK).all()
         assert (robot._core.ik(poses["p"])[-1] == OK).all()

@@ -135,6 +135,8 @@ def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, fla
         "deltagen_delta_fk_acc",
         "deltagen_delta_jacobian",
         "deltagen_delta_ik",
+        "deltagen_delta_inverse_dynamics",
+        "deltagen_delta_inverse_dynamics_simplified",
     }
     data = {name: kind for name, kind in defined.items() if kind in "DdBbCGgSsVv"}
     assert not data, f"writable global/static data: {data}"
@@ -287,6 +289,28 @@ static void run_axes(const deltagen_delta_geometry *g, size_t axes)
             }
         }
     }
+    /* inverse dynamics, both models: fk_acc's statuses, finite torques where OK, NaN
+     * elsewhere; column 4 = I_4 qdd_4 */
+    double payload[N], tau_out[N * 4];
+    for (size_t i = 0; i < N; ++i) {
+        payload[i] = 0.1 * (double)(i %% 4);
+    }
+    for (int model = 0; model < 2; ++model) {
+        CHECK((model ? deltagen_delta_inverse_dynamics_simplified : deltagen_delta_inverse_dynamics)(
+                  g, N, axes, q_in, qd_in, qdd_in, payload, tau_out, st) == 0, "inverse_dynamics rc");
+        for (size_t i = 0; i < N; ++i) {
+            CHECK(st[i] == st2[i], "inverse_dynamics status row %%zu", i);
+            for (size_t c = 0; c < 3; ++c) {
+                CHECK(st[i] == DELTAGEN_OK ? isfinite(tau_out[i * axes + c]) : isnan(tau_out[i * axes + c]),
+                      "tau row %%zu col %%zu", i, c);
+            }
+            if (axes == 4 && st[i] == DELTAGEN_OK) {
+                CHECK(tau_out[i * 4 + 3] == g->I_4 * qdd_in[i * 4 + 3], "tau_4 row %%zu", i);
+            }
+        }
+    }
+    CHECK(deltagen_delta_inverse_dynamics(g, 2, 3, q_in, qd_in, qdd_in, NULL, tau_out, st) == -1,
+          "inverse_dynamics NULL payload");
     /* ik on positions with unreachable and non-finite rows */
     load(ik_in, P, axes);
     CHECK(deltagen_delta_ik(g, N, axes, ik_in, q_back, st2) == 0, "ik rc");
@@ -362,6 +386,15 @@ int main(void)
         g.sin_theta[i] = SIN_THETA[i];
     }
     g.singular_tol = 1e-9;
+    g.I_a = 0.037;
+    g.m_a = 0.6;
+    g.r_ca = 0.15;
+    g.m_b = 0.2;
+    g.m_p = 0.5;
+    g.gravity[0] = 0.0;
+    g.gravity[1] = 0.0;
+    g.gravity[2] = -9.81;
+    g.I_4 = 2e-4;
     run_axes(&g, 3);
     run_axes(&g, 4);
     return_codes(&g);
@@ -753,7 +786,8 @@ ONE_PROGRAM = r"""
 int main(void)
 {
     deltagen_delta_geometry g = {%(r_a)s, %(r_b)s, %(l_a)s, %(l_b)s,
-                                 {%(cos)s}, {%(sin)s}, 1e-9};
+                                 {%(cos)s}, {%(sin)s}, 1e-9,
+                                 0.037, 0.6, 0.15, 0.2, 0.5, {0.0, 0.0, -9.81}, 2e-4};
     double qd[3] = {0.1, 0.2, 0.3}, p[3], T[16], T6[16], J6[36], q6[6] = {0.1, -0.4, 0.3, 0.2, 0.5, -0.1};
     double q4[4] = {0.2, -0.3, 0.1, 0.4}, q0[6], q[6], ep, er;
     int32_t it;

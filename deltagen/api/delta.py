@@ -21,9 +21,18 @@ from numpy.typing import ArrayLike
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
 from deltagen.api.validity import finite_rows, invalid_message
-from deltagen.errors import KinematicsError, SingularityError, UnreachableError, rows_text
-from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
-from deltagen.model.delta import DeltaGeometry
+from deltagen.errors import (
+    GeometryError,
+    KinematicsError,
+    SingularityError,
+    UnreachableError,
+    rows_text,
+)
+from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_errors_mode
+from deltagen.model.delta import DeltaGeometry, DeltaInertia
+
+_MODELS = ("exact", "simplified")
+__all__ = ["DeltaInertia", "DeltaRobot"]
 
 _BACKENDS = ("compiled", "reference")
 
@@ -49,10 +58,18 @@ class DeltaRobot:
         *,
         name: str = "delta",
         singular_tol: float = st.SINGULAR_TOL,
+        inertia: DeltaInertia | None = None,
         backend: Backend = "compiled",
     ) -> None:
         self.geometry = DeltaGeometry(
-            r_a=r_a, r_b=r_b, l_a=l_a, l_b=l_b, theta=theta, name=name, singular_tol=singular_tol
+            r_a=r_a,
+            r_b=r_b,
+            l_a=l_a,
+            l_b=l_b,
+            theta=theta,
+            name=name,
+            singular_tol=singular_tol,
+            inertia=inertia,
         )
         self._init_backend(backend)
 
@@ -91,6 +108,12 @@ class DeltaRobot:
 
     def with_backend(self, backend: Backend) -> DeltaRobot:
         return type(self).from_geometry(self.geometry, backend)
+
+    def with_inertia(self, inertia: DeltaInertia | None) -> DeltaRobot:
+        """The same robot with other inertial parameters (same backend)."""
+        from dataclasses import replace
+
+        return type(self).from_geometry(replace(self.geometry, inertia=inertia), self.backend)
 
     def __repr__(self) -> str:
         g = self.geometry
@@ -154,6 +177,87 @@ class DeltaRobot:
         """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
         Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
+
+    # -- dynamics -----------------------------------------------------------------------
+
+    @property
+    def inertia(self) -> DeltaInertia | None:
+        return self.geometry.inertia
+
+    def inverse_dynamics(
+        self,
+        q: ArrayLike,
+        qd: ArrayLike,
+        qdd: ArrayLike,
+        payload: ArrayLike = 0.0,
+        model: str = "exact",
+        errors: Errors = "raise",
+    ) -> Result:
+        """Motor torques tau (..., 3|4) [N m] for crank motion (q, qdot, qddot): the
+        feed-forward torques of the report's Figure 2. ``payload`` [kg] rides on the
+        platform: a number or an array broadcasting with the leading dimensions (it may
+        change along a trajectory). ``model``: "exact" (rigid bodies, rods with their own
+        rotation) or "simplified" (each rod pair's mass split between crank tip and
+        platform). Column 4: the fourth axis, I_4 qddot_4. Singular poses (det J_p ~ 0)
+        have no torques (SingularityError, or NaN with errors="nan")."""
+        self._check_dynamics(model)
+        check_errors_mode(errors)
+        lead, _, (qf, qdf, qddf) = broadcast_rows(dict(q=q, qd=qd, qdd=qdd))
+        load = self._payload_column(payload, lead)
+        tau, status = self._core.inverse_dynamics(qf, qdf, qddf, load, model)
+        return self._finish(
+            errors, lead, status, [tau], ("q", "qd", "qdd", "payload"), [qf, qdf, qddf, load]
+        )
+
+    def inverse_dynamics_from_platform(
+        self,
+        p: ArrayLike,
+        pd: ArrayLike,
+        pdd: ArrayLike,
+        payload: ArrayLike = 0.0,
+        model: str = "exact",
+        errors: Errors = "raise",
+    ) -> Result:
+        """Motor torques tau (..., 3|4) for platform motion (p, pdot, pddot): ik_acc, then
+        inverse_dynamics (the report's Figure 1: the inverse kinematic model feeds the
+        dynamic model). In NaN mode rows failing either step are NaN and not valid."""
+        self._check_dynamics(model)
+        check_errors_mode(errors)
+        if errors == "raise":
+            q, qd, qdd = self.ik_acc(p, pd, pdd)
+            return self.inverse_dynamics(q, qd, qdd, payload, model)
+        q, qd, qdd, ok = self.ik_acc(p, pd, pdd, errors="nan")
+        tau, valid = self.inverse_dynamics(q, qd, qdd, payload, model, errors="nan")
+        return tau, valid & ok
+
+    def _check_dynamics(self, model):
+        if model not in _MODELS:
+            raise InputError(f"model must be one of {_MODELS}, got {model!r}")
+        if self.geometry.inertia is None:
+            raise GeometryError(
+                "this robot has no inertial parameters: give DeltaRobot(..., "
+                "inertia=DeltaInertia(...)) or an [inertia] table in its robot file"
+            )
+
+    @staticmethod
+    def _payload_column(payload, lead):
+        scalar = np.ndim(payload) == 0
+        load = as_float_array(np.reshape(payload, (1,)) if scalar else payload, "payload")
+        if scalar:
+            load = load.reshape(())
+        try:
+            load = np.broadcast_to(load, lead)
+        except ValueError:
+            raise InputError(
+                f"payload of shape {np.shape(payload)} does not broadcast to the leading "
+                f"shape {lead} of q"
+            ) from None
+        negative = np.flatnonzero(load.reshape(-1) < 0.0)
+        if negative.size:
+            raise InputError(
+                f"payload must be non-negative [kg], negative in rows {rows_text(negative)}"
+            )
+        return np.ascontiguousarray(load.reshape(-1), dtype=np.float64)
 
     # -- helpers ------------------------------------------------------------------------
 
@@ -278,3 +382,6 @@ class _ReferenceCore:
 
     def ik(self, p):
         return self._m.ik(self._g, p)
+
+    def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
+        return self._m.inverse_dynamics(self._g, self._g.inertia, q, qd, qdd, payload, model=model)

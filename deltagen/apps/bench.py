@@ -53,9 +53,9 @@ from deltagen import status as st
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.rotations import rot_axis
 
-QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
-#: The issue's throughput targets for the compiled core [ns per point].
-TARGETS_NS = {"fk": 12.0, "fk_vel": 18.0, "fk_acc": 25.0, "ik": 20.0}
+QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
+#: The issues' throughput targets for the compiled core [ns per point].
+TARGETS_NS = {"fk": 12.0, "fk_vel": 18.0, "fk_acc": 25.0, "ik": 20.0, "inverse_dynamics": 30.0}
 #: The issue's target for one single-pose call from Python [ns].
 SINGLE_TARGET_NS = 1500.0
 REFERENCE_N = 200_000
@@ -72,8 +72,17 @@ _SIGNATURES = {
     "fk_acc": (("q", "qd", "qdd"), 3, None),
     "jacobian": (("q",), 1, 9),
     "ik": (("p",), 1, None),
+    "inverse_dynamics": (("q", "qd", "qdd", "payload"), 1, None),  # exact model
 }
-_UNITS = {"fk": "m", "fk_vel": "m/s", "fk_acc": "m/s^2", "jacobian": "m/rad", "ik": "rad"}
+_UNITS = {
+    "fk": "m",
+    "fk_vel": "m/s",
+    "fk_acc": "m/s^2",
+    "jacobian": "m/rad",
+    "ik": "rad",
+    "inverse_dynamics": "N m",
+}
+PAYLOAD_RANGE = (0.0, 2.0)  # kg
 
 
 # ------------------------------------------------------------------------- timing
@@ -96,7 +105,7 @@ def _valid_rows(core, q, qd, qdd):
 
 def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
     """n rows of q, qd, qdd and p = fk(q), all OK for every core in ``cores``."""
-    parts = {k: [] for k in ("q", "qd", "qdd", "p")}
+    parts = {k: [] for k in ("q", "qd", "qdd", "p", "payload")}
     have, tries = 0, 0
     while have < n:
         tries += 1
@@ -113,7 +122,8 @@ def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
             ok &= ok_c
             p = p_c if p is None else p  # positions from the first core (compiled)
         take = np.flatnonzero(ok)[: n - have]
-        for key, arr in (("q", q), ("qd", qd), ("qdd", qdd), ("p", p)):
+        payload = rng.uniform(*PAYLOAD_RANGE, m)
+        for key, arr in (("q", q), ("qd", qd), ("qdd", qdd), ("p", p), ("payload", payload)):
             parts[key].append(arr[take])
         have += take.size
     return {k: np.ascontiguousarray(np.concatenate(v)) for k, v in parts.items()}
@@ -743,7 +753,8 @@ def render(result: dict, markdown: bool) -> str:
     out.append(
         f"{bullet}workload: DeltaRobot.default(), q uniform in [{Q_RANGE[0]}, {Q_RANGE[1]}]"
         f" rad, qd in [{QD_RANGE[0]}, {QD_RANGE[1]}] rad/s, qdd in "
-        f"[{QDD_RANGE[0]}, {QDD_RANGE[1]}] rad/s^2, p = fk(q); every row OK; seed {SEED}"
+        f"[{QDD_RANGE[0]}, {QDD_RANGE[1]}] rad/s^2, payload in [{PAYLOAD_RANGE[0]}, "
+        f"{PAYLOAD_RANGE[1]}] kg, p = fk(q); every row OK; seed {SEED}"
     )
     out.append(
         f"{bullet}N = {n:,} points (compiled), {ref_n:,} points (reference, scaled per "

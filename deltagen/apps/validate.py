@@ -31,6 +31,12 @@ Singularity margins reported per sample (both as in :mod:`deltagen.status`):
 * ``jq_margin = min_i |j_i| / (l_a l_b)``, ``j_i = (p - S_i) . dS_i/dq_i``
   (the report's J_q,ii / 2; inverse-kinematics singularity, crank and rod aligned);
 * ``cond``: the 2-norm condition number of J = J_p^-1 J_q (``robot.jacobian(q)``).
+
+When the robot has inertial parameters (an ``[inertia]`` table; the default robot has
+chosen ones), the run also computes the feed-forward torques of both dynamic models along
+the trajectory (:mod:`deltagen.apps.dynamics`): peak and RMS torque and peak mechanical
+power per drive, the simplified model's difference from the exact one, and a plot of q,
+qdot, qddot and tau per drive (``validation_torques.png``).
 """
 
 from __future__ import annotations
@@ -168,6 +174,7 @@ class ValidationResult:
     singular: np.ndarray  # (N,) bool: reachable, but J_q or J_p (near) singular
     elapsed: float = 0.0
     tolerance: float = TOLERANCE
+    dynamics: object = None  # apps.dynamics.TorqueProfile, when the robot has inertia
     _summary: dict = field(default_factory=dict, repr=False)
 
     # -- summary numbers ----------------------------------------------------------------
@@ -258,7 +265,9 @@ class ValidationResult:
         }
 
 
-def run(robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK) -> ValidationResult:
+def run(
+    robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK, payload=0.0
+) -> ValidationResult:
     """Run the validation trajectory through ``robot``; see the module docstring.
 
     ``progress(done, total)`` is called after each chunk of samples. Failing samples
@@ -299,6 +308,11 @@ def run(robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK) -> Valida
         q_pos[missing] = robot.ik(p[missing], errors="nan")[0]
     det_margin, jq_margin = singularity_margins(robot.geometry, p, q_pos)
     cond = _condition(J, ~(unreachable | singular))
+    dynamics = None
+    if robot.inertia is not None:  # the torques the trajectory asks of the drives
+        from deltagen.apps.dynamics import torque_profile
+
+        dynamics = torque_profile(robot, t, q, qd, qdd, payload)
     return ValidationResult(
         robot=robot,
         t=t,
@@ -321,6 +335,7 @@ def run(robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK) -> Valida
         unreachable=unreachable,
         singular=singular,
         elapsed=time.perf_counter() - start,
+        dynamics=dynamics,
     )
 
 
@@ -343,6 +358,7 @@ CSV_COLUMNS = (
         "cond",
         "valid",
     ]
+    + [f"tau{i}" for i in range(1, 5)]  # exact model [N m]; NaN without inertia
 )
 
 
@@ -364,6 +380,7 @@ def write_csv(result: ValidationResult, path) -> Path:
             result.jq_margin,
             result.cond,
             result.ok.astype(np.float64),
+            result.dynamics.tau if result.dynamics is not None else np.full((result.n, 4), np.nan),
         ]
     )
     assert table.shape[1] == len(CSV_COLUMNS)
@@ -623,6 +640,10 @@ def report(result: ValidationResult, out=None) -> None:
     w(f"  smallest |det D| / l_b^3          {dm:.4g} (t = {dmt:.3f} s)   [J_p = 2 D]")
     w(f"  smallest min_i |J_q,ii|/(2 l_a l_b) {jm:.4g} (t = {jmt:.3f} s)")
     w(f"  largest cond(J)                   {cn:.4g} (t = {cnt:.3f} s)")
+    if result.dynamics is not None:
+        from deltagen.apps import dynamics
+
+        dynamics.report(result.dynamics, out, title="feed-forward torques along the trajectory")
     verdict = "PASSED" if result.passed else "FAILED"
     why = []
     if nfail:
@@ -678,6 +699,17 @@ def main(args) -> int:
     if not getattr(args, "no_plot", False):
         png = plot(result, out / "validation.png")
         print(f"wrote {png}")
+        if result.dynamics is not None:
+            from deltagen.apps import dynamics
+
+            g = robot.geometry
+            png = dynamics.plot(
+                result.dynamics,
+                out / "validation_torques.png",
+                title=f"deltagen validate: q, qdot, qddot and feed-forward torques along the "
+                f"report's trajectory, robot {g.name!r}",
+            )
+            print(f"wrote {png}")
     if not result.passed:
         if result.failed.any():
             print(

@@ -12,7 +12,7 @@ UNIT = Unit(
     title="kinematics of the rotary delta robot",
     source="the delta report of docs/sources.md (2008, direct kinematics of a delta robot)",
     struct_name="deltagen_delta_geometry",
-    struct_doc="Geometry of the robot (report, Figure 4).",
+    struct_doc="Geometry of the robot (report, Figure 4) and its inertia (for the dynamics).",
     conventions=(
         "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
         "point. `axes` is 3, or 4 when the last column carries the independent fourth axis",
@@ -28,6 +28,15 @@ UNIT = Unit(
         StructField("cos_theta", "double", "[3]", "cos of the drive positions theta_i"),
         StructField("sin_theta", "double", "[3]", "sin of the drive positions theta_i"),
         StructField("singular_tol", "double", "", "relative singularity threshold, e.g. 1e-9"),
+        StructField(
+            "I_a", "double", "", "crank inertia about the drive axis, rotor + gearbox [kg m^2]"
+        ),
+        StructField("m_a", "double", "", "crank mass (gravity) [kg]"),
+        StructField("r_ca", "double", "", "crank centre of mass from A_i along the crank [m]"),
+        StructField("m_b", "double", "", "mass of one rod pair (parallelogram) [kg]"),
+        StructField("m_p", "double", "", "platform mass without payload [kg]"),
+        StructField("gravity", "double", "[3]", "gravity vector in the base frame [m/s^2]"),
+        StructField("I_4", "double", "", "fourth-axis inertia about its axis [kg m^2]"),
     ),
 )
 

@@ -15,6 +15,22 @@ Robot files are TOML::
     l_a = 0.35
     l_b = 0.8
     theta_deg = [0, 120, 240]  # or theta = [...] in radians, not both
+    [inertia]                  # optional; needed only for the dynamics
+    I_a = 0.037                # crank inertia about its drive axis, rotor + gearbox reflected [kg m^2]
+    m_a = 0.6                  # crank mass [kg]
+    r_ca = 0.15                # crank centre of mass from A_i along the crank [m]
+    m_b = 0.2                  # mass of one rod pair (both rods of a parallelogram) [kg]
+    m_p = 0.5                  # platform mass, without payload [kg]
+    gravity = [0, 0, -9.81]    # in the base frame O, z up [m/s^2]
+    I_4 = 0.0                  # fourth-axis inertia about its own axis [kg m^2]
+
+Dynamics (``DeltaInertia``): each crank turns about its fixed drive axis (inertia I_a,
+mass m_a at r_ca along the crank for gravity). Each parallelogram is two slender rods of
+length l_b moving in parallel (the report, Figure 4, lumps them into one rod): their pair
+has mass m_b, its centre of mass midway between B_i and C_i, and the inertia
+m_b l_b^2 / 12 about every axis perpendicular to the rods (none about the rod axis). The
+platform translates only (the parallelograms keep its orientation) with mass m_p plus the
+payload given per call.
 """
 
 from __future__ import annotations
@@ -30,9 +46,68 @@ from deltagen.status import SINGULAR_TOL
 
 _LENGTHS = ("r_a", "r_b", "l_a", "l_b")
 _DELTA_KEYS = set(_LENGTHS) | {"theta", "theta_deg", "singular_tol"}
-_TOP_KEYS = {"name", "delta"}
+_TOP_KEYS = {"name", "delta", "inertia"}
+_INERTIA_KEYS = ("I_a", "m_a", "r_ca", "m_b", "m_p", "I_4")
+STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 #: Smallest angular separation of two drives still called distinct [rad].
 MIN_DRIVE_SEPARATION = 1e-6
+
+
+@dataclass(frozen=True)
+class DeltaInertia:
+    """Inertial parameters of a rotary delta robot (SI units; see the module docstring).
+
+    I_a      crank inertia about its drive axis, incl. reflected motor rotor and gearbox [kg m^2]
+    m_a      crank mass (its gravity only: its inertia is in I_a)                      [kg]
+    r_ca     distance of the crank's centre of mass from A_i along the crank          [m]
+    m_b      mass of one rod pair (both rods of a parallelogram)                       [kg]
+    m_p      platform mass without payload (fourth-axis parts riding on it included)   [kg]
+    gravity  gravity vector in the base frame O (z up)                                 [m/s^2]
+    I_4      fourth-axis inertia about its own axis, reflected to its motor (eq. (43)) [kg m^2]
+    """
+
+    I_a: float
+    m_a: float
+    r_ca: float
+    m_b: float
+    m_p: float
+    gravity: tuple[float, ...] = STANDARD_GRAVITY
+    I_4: float = 0.0
+
+    def __post_init__(self) -> None:
+        for key in _INERTIA_KEYS:
+            value = real(getattr(self, key), f"inertia {key}")
+            if value < 0.0:
+                raise GeometryError(f"inertia {key} must be non-negative, got {value!r}")
+            object.__setattr__(self, key, value)
+        g = self.gravity
+        if isinstance(g, (str, bytes)) or not hasattr(g, "__len__") or len(g) != 3:
+            raise GeometryError(f"inertia gravity must hold 3 numbers (m/s^2), got {g!r}")
+        object.__setattr__(
+            self, "gravity", tuple(real(v, f"inertia gravity[{i}]") for i, v in enumerate(g))
+        )
+
+    @classmethod
+    def default(cls) -> DeltaInertia:
+        """Chosen values for the report's robot (the report prints no masses): see
+        robots/default_delta.toml for where each number comes from."""
+        return cls(I_a=0.037, m_a=0.6, r_ca=0.15, m_b=0.2, m_p=0.5, I_4=2.0e-4)
+
+    @classmethod
+    def from_mapping(cls, data: Any, source: str = "[inertia]") -> DeltaInertia:
+        if not isinstance(data, dict):
+            raise GeometryError(f"{source}: [inertia] must be a table")
+        allowed = set(_INERTIA_KEYS) | {"gravity"}
+        unknown = set(data) - allowed
+        if unknown:
+            raise GeometryError(f"{source}: unknown keys in [inertia]: {sorted(unknown)}")
+        missing = [k for k in ("I_a", "m_a", "r_ca", "m_b", "m_p") if k not in data]
+        if missing:
+            raise GeometryError(f"{source}: missing keys in [inertia]: {missing}")
+        try:
+            return cls(**data)
+        except (GeometryError, TypeError) as exc:
+            raise GeometryError(f"{source}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -44,8 +119,13 @@ class DeltaGeometry:
     theta: tuple[float, ...]  # exactly 3 drive angles [rad], checked in __post_init__
     name: str = "delta"
     singular_tol: float = SINGULAR_TOL
+    inertia: DeltaInertia | None = None  # needed only for the dynamics
 
     def __post_init__(self) -> None:
+        if self.inertia is not None and not isinstance(self.inertia, DeltaInertia):
+            raise GeometryError(
+                f"inertia must be a DeltaInertia, got {type(self.inertia).__name__}"
+            )
         for key in _LENGTHS:
             object.__setattr__(self, key, real(getattr(self, key), key))
         for key in ("r_a", "l_a", "l_b"):
@@ -99,6 +179,7 @@ class DeltaGeometry:
             l_b=0.8,
             theta=tuple(math.radians(t) for t in (0.0, 120.0, 240.0)),
             name="default",
+            inertia=DeltaInertia.default(),
         )
 
     @classmethod
@@ -135,6 +216,8 @@ class DeltaGeometry:
         kwargs = {k: delta[k] for k in _LENGTHS}
         if "singular_tol" in delta:
             kwargs["singular_tol"] = delta["singular_tol"]
+        if "inertia" in data:
+            kwargs["inertia"] = DeltaInertia.from_mapping(data["inertia"], source)
         try:
             return cls(theta=theta, name=data.get("name", "delta"), **kwargs)
         except GeometryError as exc:

@@ -30,6 +30,21 @@ class CompiledDelta:
         module = load("delta_kinematics", "deltagen_delta")
         self._ffi, self._lib = module.ffi, module.lib
         g = geometry
+        inertia = g.inertia
+        # without inertia the dynamics kernels are never called (the API raises first)
+        dynamics = (
+            {
+                "I_a": inertia.I_a,
+                "m_a": inertia.m_a,
+                "r_ca": inertia.r_ca,
+                "m_b": inertia.m_b,
+                "m_p": inertia.m_p,
+                "gravity": list(inertia.gravity),
+                "I_4": inertia.I_4,
+            }
+            if inertia is not None
+            else {}
+        )
         self._geometry = self._ffi.new(
             "deltagen_delta_geometry *",
             {
@@ -40,6 +55,7 @@ class CompiledDelta:
                 "cos_theta": [math.cos(t) for t in g.theta],
                 "sin_theta": [math.sin(t) for t in g.theta],
                 "singular_tol": g.singular_tol,
+                **dynamics,
             },
         )
 
@@ -109,3 +125,26 @@ class CompiledDelta:
 
     def ik(self, p):
         return self._run(self._lib.deltagen_delta_ik, [p], 1)
+
+    def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
+        """tau (N, axes) and status; ``payload`` is (N,) [kg], C-contiguous float64."""
+        fn = (
+            self._lib.deltagen_delta_inverse_dynamics
+            if model == "exact"
+            else self._lib.deltagen_delta_inverse_dynamics_simplified
+        )
+        n, axes = q.shape
+        fb = self._ffi.from_buffer
+        tau = np.empty((n, axes))
+        status = np.empty(n, dtype=np.int8)
+        rc = fn(
+            self._geometry,
+            n,
+            axes,
+            *(fb("double[]", a) for a in (q, qd, qdd, payload)),
+            fb("double[]", tau, require_writable=True),
+            fb("int8_t[]", status, require_writable=True),
+        )
+        if rc != 0:
+            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        return tau, status

@@ -57,7 +57,17 @@ import numpy as np
 
 from deltagen.status import INVALID, OK, SINGULAR, UNREACHABLE
 
-__all__ = ["fk", "fk_vel", "fk_acc", "jacobian", "ik"]
+__all__ = [
+    "fk",
+    "fk_vel",
+    "fk_acc",
+    "jacobian",
+    "ik",
+    "inverse_dynamics",
+    "mass_matrix",
+    "forward_dynamics",
+    "simulate",
+]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -291,3 +301,237 @@ def ik(geom, p):
         status[bad] = INVALID
         q = _with_fourth(q3, p, bad | unreachable)
     return q, _finite_outputs(status, [(q, bad | unreachable)])
+
+
+# ------------------------------------------------------------------------ dynamics
+#
+# A second formulation of the delta robot's dynamics, written from the bodies and not from
+# the derivation (deltagen/derive/delta/dynamics.py works by virtual work with J of
+# eq. (30)). Here every body gets its own Newton-Euler equations and the joint reaction
+# forces are unknowns, solved for numerically per state:
+#
+#   rod pair i (slender rigid body, mass m_b, centre x_i midway between B_i and C_i,
+#   inertia tensor I_r (E - u u^T) about x_i, I_r = m_b l_b^2 / 12, u = (C_i - B_i) / l_b):
+#       F_Bi + F_Ci + m_b g = m_b a_xi
+#       (B_i - x_i) x F_Bi + (C_i - x_i) x F_Ci = I alpha_i + w_i x I w_i   (two components
+#       perpendicular to u; the axial one is 0 = 0 for slender rods)
+#   with w_i = u x udot, alpha_i = u x uddot (the spin about u carries no inertia);
+#   platform (translating point mass m_p + payload at P, rods act at C_i):
+#       -sum_i F_Ci + (m_p + payload) g = (m_p + payload) pddot
+#   crank i (turning about its drive axis e_t,i through A_i):
+#       I_a qddot_i = tau_i + e_t . ((c_i - A_i) x m_a g) - e_t . ((B_i - A_i) x F_Bi)
+#
+# F_Bi is the force of crank i on rod i, F_Ci that of the platform on rod i. 21 equations,
+# 21 unknowns (F_B, F_C, tau) per state, solved by LU (numpy.linalg.solve) for a batch.
+
+
+def _crank_frames(geom, q3):
+    """Per chain (N, 3, 3 coords): A_i, the crank's unit direction, its derivative per
+    unit angle and the drive axis e_t (so that d(B - A)/dq = e_t x (B - A))."""
+    c, s = _trig(geom)
+    e_r = np.stack((c, s, np.zeros(3)), axis=-1)  # (3 chains, 3)
+    e_z = np.array([0.0, 0.0, 1.0])
+    e_t = np.cross(e_z, e_r)
+    cq, sq = np.cos(q3)[..., None], np.sin(q3)[..., None]
+    direction = cq * e_r - sq * e_z  # crank points down for q > 0
+    d_direction = -sq * e_r - cq * e_z
+    A = geom.r_a * e_r
+    return A, direction, d_direction, e_t
+
+
+def _rod_basis(u):
+    """Two unit vectors perpendicular to u (N, 3, 3) and to each other."""
+    helper = np.where(
+        (np.abs(u[..., 2]) < 0.9)[..., None], np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    )
+    n1 = np.cross(u, helper)
+    n1 /= np.linalg.norm(n1, axis=-1, keepdims=True)
+    return n1, np.cross(u, n1)
+
+
+def _reaction_system(geom, inertia, q3, qd3, qdd3, p3, pd3, pdd3, payload, gravity):
+    """Assemble and solve the 21 x 21 Newton-Euler system per state.
+    Returns tau (N, 3), F_B (N, 3, 3), F_C (N, 3, 3)."""
+    n = q3.shape[0]
+    m_b, l_b = inertia.m_b, geom.l_b
+    I_r = m_b * l_b**2 / 12.0
+    m_P = inertia.m_p + payload  # (N,)
+    g = np.asarray(gravity, dtype=np.float64)
+    A, direction, d_direction, e_t = _crank_frames(geom, q3)
+    B = A + geom.l_a * direction
+    vB = geom.l_a * d_direction * qd3[..., None]
+    # d^2 direction / dq^2 = -direction
+    aB = geom.l_a * (d_direction * qdd3[..., None] - direction * (qd3**2)[..., None])
+    c, s = _trig(geom)
+    e_r = np.stack((c, s, np.zeros(3)), axis=-1)
+    C = p3[:, None, :] + geom.r_b * e_r
+    vC = np.broadcast_to(pd3[:, None, :], C.shape)
+    aC = np.broadcast_to(pdd3[:, None, :], C.shape)
+    x = 0.5 * (B + C)
+    a_x = 0.5 * (aB + aC)
+    d = C - B
+    length = np.linalg.norm(d, axis=-1, keepdims=True)
+    u = d / length
+    udot = (vC - vB) / length
+    uddot = (aC - aB) / length
+    w = np.cross(u, udot)
+    alpha = np.cross(u, uddot)
+    # inertia tensor about x: I_r (E - u u^T), applied to vectors
+    Iw = I_r * (w - u * np.einsum("nck,nck->nc", u, w)[..., None])
+    Ialpha = I_r * (alpha - u * np.einsum("nck,nck->nc", u, alpha)[..., None])
+    moment = Ialpha + np.cross(w, Iw)
+    n1, n2 = _rod_basis(u)
+
+    def skew(v):  # (..., 3) -> (..., 3, 3), skew(v) @ f = v x f
+        z = np.zeros(v.shape[:-1])
+        return np.stack(
+            (
+                np.stack((z, -v[..., 2], v[..., 1]), -1),
+                np.stack((v[..., 2], z, -v[..., 0]), -1),
+                np.stack((-v[..., 1], v[..., 0], z), -1),
+            ),
+            -2,
+        )
+
+    # unknown layout: F_B1..3 (0:9), F_C1..3 (9:18), tau (18:21)
+    M = np.zeros((n, 21, 21))
+    rhs = np.zeros((n, 21))
+    row = 0
+    eye = np.eye(3)
+    for i in range(3):
+        fb, fc = slice(3 * i, 3 * i + 3), slice(9 + 3 * i, 9 + 3 * i + 3)
+        # rod i, force balance
+        M[:, row : row + 3, fb] = eye
+        M[:, row : row + 3, fc] = eye
+        rhs[:, row : row + 3] = m_b * (a_x[:, i] - g)
+        row += 3
+        # rod i, moment balance about x_i, two components perpendicular to the rod
+        lever_B = skew(B[:, i] - x[:, i])
+        lever_C = skew(C[:, i] - x[:, i])
+        for nvec in (n1[:, i], n2[:, i]):
+            M[:, row, fb] = np.einsum("nk,nkj->nj", nvec, lever_B)
+            M[:, row, fc] = np.einsum("nk,nkj->nj", nvec, lever_C)
+            rhs[:, row] = np.einsum("nk,nk->n", nvec, moment[:, i])
+            row += 1
+    # platform: -sum F_C = m_P (pddot - g)
+    for i in range(3):
+        M[:, row : row + 3, 9 + 3 * i : 12 + 3 * i] = -eye
+    rhs[:, row : row + 3] = m_P[:, None] * (pdd3 - g)
+    row += 3
+    # cranks: tau_i - e_t . ((B - A) x F_B) = I_a qdd - e_t . ((c - A) x m_a g)
+    for i in range(3):
+        lever = geom.l_a * direction[:, i]
+        M[:, row, 18 + i] = 1.0
+        # e_t . (l x F_B) = (e_t x l) . F_B, moved to the left-hand side
+        M[:, row, 3 * i : 3 * i + 3] = -np.cross(e_t[i], lever)
+        gravity_moment = np.einsum(
+            "k,nk->n", e_t[i], np.cross(inertia.r_ca * direction[:, i], inertia.m_a * g)
+        )
+        rhs[:, row] = inertia.I_a * qdd3[:, i] - gravity_moment
+        row += 1
+    sol = np.linalg.solve(M, rhs[..., None])[..., 0]
+    return sol[:, 18:21], sol[:, 0:9].reshape(n, 3, 3), sol[:, 9:18].reshape(n, 3, 3)
+
+
+def simplified_inertia(geom, inertia):
+    """The common simplified model as a robot of its own: each rod pair's mass split, m_b/2
+    a point mass at the crank tip (adding (m_b/2) l_a^2 to the crank's inertia about its
+    axis and moving its centre of mass) and m_b/2 on the platform; massless rods."""
+    from dataclasses import replace
+
+    half = 0.5 * inertia.m_b
+    m_a = inertia.m_a + half
+    return replace(
+        inertia,
+        I_a=inertia.I_a + half * geom.l_a**2,
+        m_a=m_a,
+        r_ca=(inertia.m_a * inertia.r_ca + half * geom.l_a) / m_a if m_a > 0 else 0.0,
+        m_b=0.0,
+        m_p=inertia.m_p + 3.0 * half,
+    )
+
+
+def inverse_dynamics(geom, inertia, q, qd, qdd, payload, gravity=None, model="exact"):
+    """Motor torques tau (N, 3|4) by Newton-Euler with reaction forces (see above), status
+    (N,) as fk_acc's; ``payload`` is (N,) [kg]. ``model="simplified"``: the same bodies
+    with each rod pair's mass split (:func:`simplified_inertia`).
+    Column 4 (fourth axis, eq. (43)): I_4 qddot_4."""
+    if model == "simplified":
+        inertia = simplified_inertia(geom, inertia)
+    q, qd, qdd = _as_batch(q), _as_batch(qd), _as_batch(qdd)
+    payload = np.ascontiguousarray(payload, dtype=np.float64).reshape(-1)
+    gravity = inertia.gravity if gravity is None else gravity
+    with np.errstate(all="ignore"):
+        p, pd, pdd, status = fk_acc(geom, q, qd, qdd)
+        status = status.copy()
+        status[(status == OK) & ~np.isfinite(payload)] = INVALID
+        ok = status == OK
+        tau3 = np.full((q.shape[0], 3), np.nan)
+        if ok.any():
+            tau3[ok] = _reaction_system(
+                geom,
+                inertia,
+                q[ok, :3],
+                qd[ok, :3],
+                qdd[ok, :3],
+                p[ok, :3],
+                pd[ok, :3],
+                pdd[ok, :3],
+                payload[ok],
+                gravity,
+            )[0]
+        tau = _with_fourth(tau3, inertia.I_4 * qdd, ~ok)
+    return tau, _finite_outputs(status, [(tau, ~ok)])
+
+
+def _dynamics_terms(geom, inertia, q, qd, payload):
+    """(M(q) (N, 3, 3), h(q, qdot) (N, 3)) with tau = M qddot + h, from one batched inverse
+    dynamics call: h at qddot = 0, and M's column k as the torques of qddot = e_k at rest
+    minus those of rest (tau is linear in qddot; the velocity terms vanish at rest)."""
+    n = q.shape[0]
+    zero = np.zeros_like(q)
+    rows_q = np.concatenate([q] * 5)
+    rows_qd = np.concatenate([qd, zero, zero, zero, zero])
+    rows_qdd = np.concatenate([zero, zero] + [np.broadcast_to(e, q.shape) for e in np.eye(3)])
+    load = np.concatenate([np.broadcast_to(np.asarray(payload, dtype=np.float64), (n,))] * 5)
+    tau = inverse_dynamics(geom, inertia, rows_q, rows_qd, rows_qdd, load)[0].reshape(5, n, 3)
+    M = np.stack([tau[2 + k] - tau[1] for k in range(3)], axis=-1)
+    return M, tau[0]
+
+
+def mass_matrix(geom, inertia, q, payload=0.0):
+    """M(q) (N, 3, 3) of the crank coordinates (column k: the torques of qddot = e_k)."""
+    q = _as_batch(q)[:, :3]
+    return _dynamics_terms(geom, inertia, q, np.zeros_like(q), payload)[0]
+
+
+def forward_dynamics(geom, inertia, q, qd, tau, payload=0.0):
+    """qddot (N, 3) of the cranks from the motor torques: M(q) qddot = tau - h(q, qdot)."""
+    q, qd, tau = _as_batch(q)[:, :3], _as_batch(qd)[:, :3], _as_batch(tau)[:, :3]
+    M, h = _dynamics_terms(geom, inertia, q, qd, payload)
+    return np.linalg.solve(M, (tau - h)[..., None])[..., 0]
+
+
+def simulate(geom, inertia, torque, t_span, q0, qd0, t_eval, payload=0.0, rtol=1e-10, atol=1e-12):
+    """Integrate the multibody equations (minimal coordinates q, this module's own mass
+    matrix) under motor torques ``torque(t) -> (3,)`` with scipy's DOP853.
+    Returns (q (len(t_eval), 3), qd (len(t_eval), 3))."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(t, state):
+        q, qd = state[:3][None], state[3:][None]
+        qdd = forward_dynamics(geom, inertia, q, qd, np.asarray(torque(t))[None, :3], payload)
+        return np.concatenate((state[3:], qdd[0]))
+
+    sol = solve_ivp(
+        rhs,
+        t_span,
+        np.concatenate((q0, qd0)),
+        method="DOP853",
+        t_eval=t_eval,
+        rtol=rtol,
+        atol=atol,
+    )
+    if not sol.success:
+        raise RuntimeError(f"simulation failed: {sol.message}")
+    return sol.y[:3].T, sol.y[3:].T

@@ -20,6 +20,7 @@ import sympy as sp
 
 from deltagen import status as st
 from deltagen.derive.delta import acceleration as acc
+from deltagen.derive.delta import dynamics as dyn
 from deltagen.derive.delta import fk as fkd
 from deltagen.derive.delta import ik as ikd
 from deltagen.derive.delta import symbols as s
@@ -39,6 +40,14 @@ PARAMETERS = (
     *(Parameter(s.cos_theta[i], "cos_theta", i) for i in range(3)),
     *(Parameter(s.sin_theta[i], "sin_theta", i) for i in range(3)),
     Parameter(s.singular_tol, "singular_tol"),
+    # inertia (read by the dynamics kernels only)
+    Parameter(dyn.I_a, "I_a"),
+    Parameter(dyn.m_a, "m_a"),
+    Parameter(dyn.r_ca, "r_ca"),
+    Parameter(dyn.m_b, "m_b"),
+    Parameter(dyn.m_p, "m_p"),
+    *(Parameter(dyn.gravity[k], "gravity", k) for k in range(3)),
+    Parameter(dyn.I_4, "I_4"),
 )
 
 SETUP = (
@@ -279,5 +288,95 @@ def ik_kernel() -> Kernel:
     )
 
 
+def _payload_port():
+    return Port(
+        "payload",
+        (dyn.payload,),
+        "mass carried by the platform besides m_p, per point [kg]",
+        "kg",
+        width=1,
+    )
+
+
+def _inverse_dynamics(model: str) -> Kernel:
+    flags, status, _, no_rates = _fk_level(
+        AllFinite(*s.q, q4, *s.qd, qd4, *s.qdd, qdd4, dyn.payload)
+    )
+    tau_out, tau_stage = _masked(("tau1", "tau2", "tau3", "tau4"), (*dyn.tau, tau4), no_rates)
+    tau_fourth = Stage(
+        "fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4", ((tau4, dyn.I_4 * qdd4),)
+    )
+    what = (
+        "exact rigid-body model (cranks, rod pairs as slender rods with their rotation, "
+        "platform + payload)"
+        if model == "exact"
+        else "simplified model (each rod pair's mass half on the crank tip, half on the "
+        "platform; no rod rotation)"
+    )
+    return Kernel(
+        name="inverse_dynamics" if model == "exact" else "inverse_dynamics_simplified",
+        doc=f"Inverse dynamics, {what}: (q, qdot, qddot, payload) -> motor torques tau, by "
+        "virtual work with J of eq. (30) and pddot of eq. (38) (deltagen/derive/delta/dynamics.py).",
+        inputs=(_q_port(), _qd_port(), _qdd_port(), _payload_port()),
+        outputs=(
+            Port(
+                "tau",
+                tau_out[:3],
+                "motor torques about the drive axes, positive turning the crank down [N m]; "
+                "column 4: fourth-axis torque [N m]",
+                "N m",
+                fourth=tau_out[3],
+            ),
+        ),
+        stages=tuple(fkd.fk_stages())
+        + (flags,)
+        + _rate_stages()
+        + (
+            vel.velocity_stage(),
+            _acceleration_and_crank_tips(),
+            dyn.force_stage(model),
+            dyn.tau_stage(model, vel.adjD, vel.jq, vel.inv_det),
+            tau_fourth,
+            Stage("outputs (NaN unless OK)", tau_stage),
+        ),
+        status=status,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; tau is NaN unless OK",
+    )
+
+
+tau4 = sp.Symbol("tau4", real=True)
+
+
+def _acceleration_and_crank_tips() -> Stage:
+    """pddot (eqs. (38)-(39)) and the crank tips' motion in one stage, so that their common
+    terms (l_a sin q_i qdot_i^2, ...) are evaluated once (about 30 operations less)."""
+    stages = (acc.h_stage(), acc.acceleration_stage(), dyn.crank_tip_stage())
+    return Stage(
+        "; ".join(stage.comment for stage in stages),
+        tuple(a for stage in stages for a in stage.assignments),
+    )
+
+
+@cache
+def inverse_dynamics_kernel() -> Kernel:
+    return _inverse_dynamics("exact")
+
+
+@cache
+def inverse_dynamics_simplified_kernel() -> Kernel:
+    return _inverse_dynamics("simplified")
+
+
 def all_kernels():
-    return (fk_kernel(), fk_vel_kernel(), fk_acc_kernel(), jacobian_kernel(), ik_kernel())
+    return (
+        fk_kernel(),
+        fk_vel_kernel(),
+        fk_acc_kernel(),
+        jacobian_kernel(),
+        ik_kernel(),
+        inverse_dynamics_kernel(),
+        inverse_dynamics_simplified_kernel(),
+    )
