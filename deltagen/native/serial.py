@@ -172,6 +172,72 @@ class CompiledArm:
         Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
         return Jd.reshape(-1, 6, self.desc.n), status
 
+    # -- dynamics (arms with inertial parameters; the API checks has_inertia first) ------
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return self._run("inverse_dynamics", [q, qd, qdd], self.desc.n)
+
+    def nonlinear_effects(self, q, qd):
+        return self._run("nonlinear_effects", [q, qd], self.desc.n)
+
+    def gravity_torque(self, q):
+        return self._run("gravity_torque", [q], self.desc.n)
+
+    def mass_matrix(self, q):
+        n = self.desc.n
+        M, status = self._run("mass_matrix", [q], n * n)
+        return M.reshape(-1, n, n), status
+
+    def coriolis(self, q, qd):
+        n = self.desc.n
+        C, status = self._run("coriolis", [q, qd], n * n)
+        return C.reshape(-1, n, n), status
+
+    def forward_dynamics(self, q, qd, tau):
+        return self._run("forward_dynamics", [q, qd, tau], self.desc.n)
+
+    def single_dynamics(self, name):
+        """Fast path for one state of inverse_dynamics or forward_dynamics (three (n,)
+        float64 arrays, or lists/tuples of n numbers): the (n,) result, or None when the
+        general path must handle the call (other inputs, a status other than OK)."""
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
+        n, ffi = self.desc.n, self._ffi
+        local = threading.local()
+        ndarray, OK = np.ndarray, st.OK
+
+        def buffers():
+            b = local.__dict__.get("b")
+            if b is None:
+                ins = [ffi.new(f"double[{n}]") for _ in range(3)]
+                out = ffi.new(f"double[{n}]")
+                b = local.b = (ins, out, ffi.new("int8_t[1]"),
+                               np.frombuffer(ffi.buffer(out), dtype=np.float64))
+            return b
+
+        memmove = ffi.memmove
+
+        def call(a, b, c):
+            ins, out, status, out_np = buffers()
+            try:
+                for buf, x in zip(ins, (a, b, c)):
+                    kind = type(x)
+                    if kind is ndarray:
+                        if x.shape != (n,) or x.dtype.char != "d" or not x.flags.c_contiguous:
+                            return None
+                        memmove(buf, x, 8 * n)
+                    elif (kind is list or kind is tuple) and len(x) == n:
+                        buf[0:n] = x
+                    else:
+                        return None
+            except (TypeError, ValueError, BufferError):
+                return None
+            fn(1, ins[0], ins[1], ins[2], out, status)
+            if status[0] != OK:
+                return None
+            return out_np.copy()
+
+        return call
+
     @property
     def has_ik_all(self) -> bool:
         return hasattr(self._lib, f"{self._prefix}_ik_all")
