@@ -6402,7 +6402,7 @@ int deltagen_puma560_forward_dynamics(size_t n, const double *restrict q, const 
             if (s == DELTAGEN_OK && !finite) {
                 s = DELTAGEN_INVALID;
             }
-            if (s == DELTAGEN_OK && deltagen_cholesky(Mk, 6, inv) != 0) {
+            if (s == DELTAGEN_OK && deltagen_cholesky_relative(Mk, 6, inv, 1e-12) != 0) {
                 s = DELTAGEN_SINGULAR;
             }
             if (s == DELTAGEN_OK) {

@@ -235,7 +235,8 @@ int deltagen_puma560_ik_newton(size_t n, const deltagen_ik_options *restrict opt
  * tau       in,  n x 6: joint torques [N m or N]
  * qdd       out, n x 6: joint accelerations [rad/s^2 or m/s^2]
  * status    out, n: OK; INVALID (a non-finite input or result); SINGULAR (M not positive
- *           definite); the row's qdd is NaN unless OK
+ *           definite: a Cholesky pivot L_jj^2 <= 1e-12 max_j M_jj); the row's qdd
+ *           is NaN unless OK
  * Return value: 0, or -1 if a pointer is NULL while n > 0 (then nothing is written).
  *
  * Stack: 21632 bytes (21.1 KiB) at 64 points (M and h of a block), plus 96 bytes per point and the stack of mass_matrix and nonlinear_effects.

@@ -292,6 +292,111 @@ class SerialRobot:
 
         return report(self, q, tol=tol)
 
+    # -- dynamics -----------------------------------------------------------------------
+    #
+    # Arms whose robot file gives inertial parameters (deltagen.model.serial): recursive
+    # Newton-Euler in generated C (derive/serial/dynamics.py), or the Jacobian-form numpy
+    # reference. Torques in N m (N for prismatic joints); gravity from the description.
+
+    def _dynamics(self):
+        """The core, after checking that the arm has inertial parameters."""
+        if not self.description.has_inertia:
+            raise InputError(
+                f"{self.name} has no inertial parameters: its robot file gives no mass, com "
+                "or inertia in its [[joint]] tables (see deltagen.model.serial), so it has "
+                "no dynamics"
+            )
+        return self._core
+
+    def _single_dynamics(self, name):
+        fast = self.__dict__.get(f"_{name}_single")
+        if fast is None and self.backend == "compiled":
+            fast = self._core.single_dynamics(name)
+            setattr(self, f"_{name}_single", fast)
+        return fast
+
+    def inverse_dynamics(
+        self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
+        """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
+        viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
+        if errors == "raise" and self.description.has_inertia:
+            fast = self._single_dynamics("inverse_dynamics")
+            if fast is not None:
+                tau = fast(q, qd, qdd)
+                if tau is not None:
+                    return tau
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf, qddf) = self._broadcast(q=q, qd=qd, qdd=qdd)
+        tau, status = core.inverse_dynamics(qf, qdf, qddf)
+        return self._finish_dynamics(errors, lead, status, [tau], ("q", "qd", "qdd"))
+
+    def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
+        """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
+        core = self._dynamics()
+        lead, qf = self._prepare(errors, q)
+        M, status = core.mass_matrix(qf)
+        return self._finish_dynamics(errors, lead, status, [M], ("q",))
+
+    def gravity_torque(self, q: ArrayLike, errors: Errors = "raise") -> Result:
+        """g(q) (..., n): the joint torques that hold the arm still against gravity."""
+        core = self._dynamics()
+        lead, qf = self._prepare(errors, q)
+        g, status = core.gravity_torque(qf)
+        return self._finish_dynamics(errors, lead, status, [g], ("q",))
+
+    def coriolis(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
+        """Coriolis matrix C (..., n, n) in the Christoffel form: C qd holds the Coriolis
+        and centrifugal torques and Mdot - 2C is skew-symmetric."""
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
+        C, status = core.coriolis(qf, qdf)
+        return self._finish_dynamics(errors, lead, status, [C], ("q", "qd"))
+
+    def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
+        """h (..., n) = C(q, qd) qd + g(q) + friction: the torques at qdd = 0."""
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
+        h, status = core.nonlinear_effects(qf, qdf)
+        return self._finish_dynamics(errors, lead, status, [h], ("q", "qd"))
+
+    def forward_dynamics(
+        self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
+        """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
+        SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
+        if errors == "raise" and self.description.has_inertia:
+            fast = self._single_dynamics("forward_dynamics")
+            if fast is not None:
+                qdd = fast(q, qd, tau)
+                if qdd is not None:
+                    return qdd
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf, tf) = self._broadcast(q=q, qd=qd, tau=tau)
+        qdd, status = core.forward_dynamics(qf, qdf, tf)
+        return self._finish_dynamics(errors, lead, status, [qdd], ("q", "qd", "tau"))
+
+    def _finish_dynamics(self, errors, lead, status, outs, names):
+        singular = status == st.SINGULAR
+        if errors == "raise" and np.any(singular) and np.all((status == st.OK) | singular):
+            bad = np.flatnonzero(singular)
+            raise SingularityError(
+                f"the mass matrix of {self.name} is not positive definite in rows "
+                f"{rows_text(bad)} (forward dynamics has no unique solution)",
+                bad,
+            )
+        if errors == "raise" and not np.all((status == st.OK) | singular):
+            bad = np.flatnonzero((status != st.OK) & ~singular)
+            raise InputError(
+                f"{' or '.join(names)} contain NaN or infinite values (or the result "
+                f"overflows) in rows {rows_text(bad)}"
+            )
+        return self._finish(errors, lead, status, outs, names)
+
     # -- inverse kinematics -------------------------------------------------------------
 
     def _poses(self, T, name="T"):
@@ -627,3 +732,21 @@ class _ReferenceArm:
 
     def jacobian_dot(self, q, qd):
         return self._m.jacobian_dot(self._d, q, qd)
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return self._m.inverse_dynamics(self._d, q, qd, qdd)
+
+    def mass_matrix(self, q):
+        return self._m.mass_matrix(self._d, q)
+
+    def gravity_torque(self, q):
+        return self._m.gravity_torque(self._d, q)
+
+    def coriolis(self, q, qd):
+        return self._m.coriolis(self._d, q, qd)
+
+    def nonlinear_effects(self, q, qd):
+        return self._m.nonlinear_effects(self._d, q, qd)
+
+    def forward_dynamics(self, q, qd, tau):
+        return self._m.forward_dynamics(self._d, q, qd, tau)

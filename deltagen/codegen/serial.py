@@ -6,6 +6,7 @@ import hashlib
 from pathlib import Path
 
 from deltagen.codegen.lowering import lower
+from deltagen.status import MASS_MATRIX_TOL
 from deltagen.codegen.render import Unit, render
 from deltagen.derive.serial.kernels import ArmKernels
 
@@ -88,7 +89,7 @@ def arm_unit(desc) -> Unit:
             f"Description fingerprint: {description_fingerprint(desc)}",
         ),
         newton=dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints]),
-        dynamics=dict(n=desc.n) if desc.has_inertia else None,
+        dynamics=dict(n=desc.n, tol=repr(MASS_MATRIX_TOL)) if desc.has_inertia else None,
     )
 
 

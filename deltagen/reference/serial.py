@@ -43,7 +43,7 @@ from deltagen.geometry.rotations import euler_zyx, rpy  # noqa: F401 (public her
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import frames as model_frames
 from deltagen.model.serial import link_transform
-from deltagen.status import INVALID, OK, SINGULAR
+from deltagen.status import INVALID, MASS_MATRIX_TOL, OK, SINGULAR
 
 __all__ = [
     "link_transforms",
@@ -425,13 +425,15 @@ def inverse_dynamics(desc, q, qd, qdd):
 
 
 def forward_dynamics(desc, q, qd, tau):
-    """(qdd (N, n), status): M^-1 (tau - h); SINGULAR where M is not positive definite."""
+    """(qdd (N, n), status): M^-1 (tau - h); SINGULAR where M is not positive definite
+    (an eigenvalue not above MASS_MATRIX_TOL times the largest diagonal entry)."""
     bad, (qc, qdc, tauc) = _dyn_inputs(desc, q, qd, tau)
     M = mass_matrix(desc, qc)[0]
     rhs = tauc - nonlinear_effects(desc, qc, qdc)[0]
     qdd = np.full_like(rhs, np.nan)
     eig = np.linalg.eigvalsh(M)
-    spd = eig[:, 0] > 0
+    largest = np.max(np.diagonal(M, axis1=1, axis2=2), axis=1)
+    spd = eig[:, 0] > MASS_MATRIX_TOL * largest
     qdd[spd] = np.linalg.solve(M[spd], rhs[spd][..., None])[..., 0]
     qdd, status = _finish(qdd, bad)
     status[~spd & ~bad] = SINGULAR
