@@ -37,18 +37,55 @@ def _rel(a, b):
 # and shifted base, a tool, products of inertia, armature, asymmetric friction and a tilted
 # gravity vector (numbers chosen here, no source).
 TOY_ROWS = [
-    dict(type="revolute", a=0.0, alpha=0.0, d=0.3, offset=0.2, mass=3.0,
-         com=[0.02, -0.01, -0.1], inertia=[0.05, 0.06, 0.04, 0.002, -0.001, 0.003],
-         armature=0.4, viscous=1.5, coulomb=[2.0, -1.5]),
-    dict(type="prismatic", a=0.1, alpha_deg=-90, theta=0.3, offset=0.15, mass=2.0,
-         com=[0.0, 0.05, -0.2], inertia=[0.03, 0.03, 0.01, 0.0, 0.001, 0.0],
-         armature=1.2, viscous=20.0, coulomb=5.0),
-    dict(type="revolute", a=0.05, alpha_deg=90, d=0.12, mass=1.5,
-         com=[0.1, 0.0, 0.02], inertia=[0.01, 0.02, 0.02, -0.002, 0.0, 0.001],
-         armature=0.2, viscous=0.5, coulomb=[0.3, -0.4]),
-    dict(type="revolute", a=0.25, alpha=0.4, d=-0.05, offset=-0.3, mass=0.8,
-         com=[0.05, 0.02, 0.0], inertia=[0.004, 0.006, 0.005, 0.0, 0.0005, 0.0],
-         armature=0.05),
+    dict(
+        type="revolute",
+        a=0.0,
+        alpha=0.0,
+        d=0.3,
+        offset=0.2,
+        mass=3.0,
+        com=[0.02, -0.01, -0.1],
+        inertia=[0.05, 0.06, 0.04, 0.002, -0.001, 0.003],
+        armature=0.4,
+        viscous=1.5,
+        coulomb=[2.0, -1.5],
+    ),
+    dict(
+        type="prismatic",
+        a=0.1,
+        alpha_deg=-90,
+        theta=0.3,
+        offset=0.15,
+        mass=2.0,
+        com=[0.0, 0.05, -0.2],
+        inertia=[0.03, 0.03, 0.01, 0.0, 0.001, 0.0],
+        armature=1.2,
+        viscous=20.0,
+        coulomb=5.0,
+    ),
+    dict(
+        type="revolute",
+        a=0.05,
+        alpha_deg=90,
+        d=0.12,
+        mass=1.5,
+        com=[0.1, 0.0, 0.02],
+        inertia=[0.01, 0.02, 0.02, -0.002, 0.0, 0.001],
+        armature=0.2,
+        viscous=0.5,
+        coulomb=[0.3, -0.4],
+    ),
+    dict(
+        type="revolute",
+        a=0.25,
+        alpha=0.4,
+        d=-0.05,
+        offset=-0.3,
+        mass=0.8,
+        com=[0.05, 0.02, 0.0],
+        inertia=[0.004, 0.006, 0.005, 0.0, 0.0005, 0.0],
+        armature=0.05,
+    ),
 ]
 TOY_BASE = transform([0.1, -0.2, 0.4], [0.1, -0.2, 0.5])
 TOY_TOOL = transform([0.0, 0.0, 0.07], [0.0, 0.3, 0.0])
@@ -57,7 +94,11 @@ TOY_GRAVITY = (0.4, -0.3, -9.7)
 
 def toy(convention="modified", rows=TOY_ROWS):
     return SerialDescription.from_rows(
-        rows, convention, name=f"toy_dyn_{convention}", base=TOY_BASE, tool=TOY_TOOL,
+        rows,
+        convention,
+        name=f"toy_dyn_{convention}",
+        base=TOY_BASE,
+        tool=TOY_TOOL,
         gravity=TOY_GRAVITY,
     )
 
@@ -67,8 +108,17 @@ def toy_universal():
     rows = []
     for row, axis, k in zip(TOY_ROWS, axes, range(4)):
         r = {key: row[key] for key in ("type", "mass", "com", "inertia") if key in row}
-        r.update(axis=axis, tx=0.1 * k, ty=-0.05, tz=0.2, rx=0.3, ry=-0.2 * k, rz=0.1,
-                 offset=row.get("offset", 0.0), armature=row.get("armature", 0.0))
+        r.update(
+            axis=axis,
+            tx=0.1 * k,
+            ty=-0.05,
+            tz=0.2,
+            rx=0.3,
+            ry=-0.2 * k,
+            rz=0.1,
+            offset=row.get("offset", 0.0),
+            armature=row.get("armature", 0.0),
+        )
         rows.append(r)
     return toy("universal", rows)
 
@@ -141,14 +191,26 @@ def _split(desc, i):
     if desc.convention == "universal":
         pre = _rot(j.axis, j.offset) if j.revolute else _trans(j.axis, j.offset)
         post = (
-            _trans("x", j.tx) @ _trans("y", j.ty) @ _trans("z", j.tz)
-            @ _rot("x", j.rx) @ _rot("y", j.ry) @ _rot("z", j.rz)
+            _trans("x", j.tx)
+            @ _trans("y", j.ty)
+            @ _trans("z", j.tz)
+            @ _rot("x", j.rx)
+            @ _rot("y", j.ry)
+            @ _rot("z", j.rz)
         )
         return pre, j.axis, post
     if desc.convention == "standard":
         if j.revolute:
-            return _rot("z", j.offset), "z", _trans("z", j.d) @ _trans("x", j.a) @ _rot("x", j.alpha)
-        return _rot("z", j.theta) @ _trans("z", j.offset), "z", _trans("x", j.a) @ _rot("x", j.alpha)
+            return (
+                _rot("z", j.offset),
+                "z",
+                _trans("z", j.d) @ _trans("x", j.a) @ _rot("x", j.alpha),
+            )
+        return (
+            _rot("z", j.theta) @ _trans("z", j.offset),
+            "z",
+            _trans("x", j.a) @ _rot("x", j.alpha),
+        )
     before = _rot("x", j.alpha) @ _trans("x", j.a)
     if j.revolute:
         return before @ _rot("z", j.offset), "z", _trans("z", j.d)
@@ -162,9 +224,12 @@ def pinocchio_model(desc):
     for i, joint in enumerate(desc.joints):
         pre, axis, post = _split(desc, i)
         kind = {
-            ("revolute", "x"): pin.JointModelRX, ("revolute", "y"): pin.JointModelRY,
-            ("revolute", "z"): pin.JointModelRZ, ("prismatic", "x"): pin.JointModelPX,
-            ("prismatic", "y"): pin.JointModelPY, ("prismatic", "z"): pin.JointModelPZ,
+            ("revolute", "x"): pin.JointModelRX,
+            ("revolute", "y"): pin.JointModelRY,
+            ("revolute", "z"): pin.JointModelRZ,
+            ("prismatic", "x"): pin.JointModelPX,
+            ("prismatic", "y"): pin.JointModelPY,
+            ("prismatic", "z"): pin.JointModelPZ,
         }[(joint.type, axis)]()
         M = placement @ pre
         parent = model.addJoint(parent, kind, pin.SE3(M[:3, :3].copy(), M[:3, 3].copy()), f"j{i}")
@@ -364,7 +429,8 @@ def test_single_call_matches_batch_and_broadcasts(puma):
             puma.inverse_dynamics(list(q[k]), qd[k], qdd[k]), tau[k], rtol=1e-13
         )
         np.testing.assert_allclose(
-            puma.forward_dynamics(q[k], qd[k], tau[k]), puma.forward_dynamics(q, qd, tau)[k],
+            puma.forward_dynamics(q[k], qd[k], tau[k]),
+            puma.forward_dynamics(q, qd, tau)[k],
             rtol=1e-13,
         )
     assert puma.inverse_dynamics(q[0], np.zeros((2, 3, 6)), qdd[0]).shape == (2, 3, 6)

@@ -6,9 +6,9 @@ import hashlib
 from pathlib import Path
 
 from deltagen.codegen.lowering import lower
-from deltagen.status import MASS_MATRIX_TOL
 from deltagen.codegen.render import Unit, render
 from deltagen.derive.serial.kernels import ArmKernels
+from deltagen.status import MASS_MATRIX_TOL
 
 
 def base_name(desc) -> str:

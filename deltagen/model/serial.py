@@ -226,6 +226,7 @@ class SerialDescription:
         joints = tuple(
             replace(j, inertial=replace(j.inertial, viscous=0.0, coulomb=(0.0, 0.0)))
             for j in self.joints
+            if j.inertial is not None
         )
         return replace(self, joints=joints)
 
@@ -316,7 +317,16 @@ class SerialDescription:
     def _from_mapping(cls, data: dict[str, Any]) -> SerialDescription:
         if not isinstance(data, dict):
             raise GeometryError("expected a table")
-        allowed = {"name", "convention", "base", "tool", "joint", "configurations", "doc", "gravity"}
+        allowed = {
+            "name",
+            "convention",
+            "base",
+            "tool",
+            "joint",
+            "configurations",
+            "doc",
+            "gravity",
+        }
         unknown = set(data) - allowed
         if unknown:
             raise GeometryError(f"unknown top-level keys {sorted(unknown)}")
@@ -506,7 +516,7 @@ def _joint(row: object, convention: str, where: str) -> Joint:
     return Joint(type=kind, qlim=qlim, name=name, inertial=_inertial(row, where), **values)
 
 
-def _vector(raw, size, where) -> tuple:
+def _vector(raw: Any, size: int, where: str) -> tuple:
     if isinstance(raw, (str, bytes)) or not isinstance(raw, (list, tuple, np.ndarray)):
         raise GeometryError(f"{where} must be a list of {size} numbers, got {raw!r}")
     if len(raw) != size:
@@ -529,7 +539,7 @@ def _inertial(row: Mapping[str, Any], where: str) -> Inertial | None:
     inertia = _vector(
         row.get("inertia", [0.0] * 6), 6, f"{where}: inertia [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]"
     )
-    inertial = Inertial(mass=mass, com=com, inertia=inertia)  # type: ignore[arg-type]
+    inertial = Inertial(mass=mass, com=com, inertia=inertia)
     eig = np.linalg.eigvalsh(inertial.inertia_matrix)
     scale = max(1.0, float(np.max(np.abs(inertia))))
     if eig[0] < -1e-12 * scale:
@@ -556,8 +566,8 @@ def _inertial(row: Mapping[str, Any], where: str) -> Inertial | None:
         )
     return Inertial(
         mass=mass,
-        com=com,  # type: ignore[arg-type]
-        inertia=inertia,  # type: ignore[arg-type]
+        com=com,
+        inertia=inertia,
         armature=values["armature"],
         viscous=values["viscous"],
         coulomb=(plus, minus),

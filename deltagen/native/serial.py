@@ -210,8 +210,12 @@ class CompiledArm:
             if b is None:
                 ins = [ffi.new(f"double[{n}]") for _ in range(3)]
                 out = ffi.new(f"double[{n}]")
-                b = local.b = (ins, out, ffi.new("int8_t[1]"),
-                               np.frombuffer(ffi.buffer(out), dtype=np.float64))
+                b = local.b = (
+                    ins,
+                    out,
+                    ffi.new("int8_t[1]"),
+                    np.frombuffer(ffi.buffer(out), dtype=np.float64),
+                )
             return b
 
         memmove = ffi.memmove

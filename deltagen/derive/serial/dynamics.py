@@ -115,11 +115,11 @@ class Velocities:
             return _cross(self.u, _cross(self.u, r))
         return HALF * (_cross(self.u, _cross(self.v, r)) + _cross(self.v, _cross(self.u, r)))
 
-    def gyroscopic(self, I) -> sp.Matrix:
+    def gyroscopic(self, inertia) -> sp.Matrix:
         """Symmetrised w x I w."""
         if self.same:
-            return _cross(self.u, I * self.u)
-        return HALF * (_cross(self.u, I * self.v) + _cross(self.v, I * self.u))
+            return _cross(self.u, inertia * self.u)
+        return HALF * (_cross(self.u, inertia * self.v) + _cross(self.v, inertia * self.u))
 
 
 class Dynamics:
@@ -147,7 +147,8 @@ class Dynamics:
             inertial = j.inertial
             self.mass.append(_number(inertial.mass))
             self.com.append(sp.Matrix([_number(c) for c in inertial.com]))
-            self.inertia.append(sp.Matrix(3, 3, lambda r, c: _number(inertial.inertia_matrix[r, c])))
+            tensor = inertial.inertia_matrix
+            self.inertia.append(sp.Matrix(3, 3, [_number(x) for x in tensor.ravel()]))
         base_R = numeric_matrix(desc.base)[:3, :3]
         self.gravity0 = (-base_R.T * sp.Matrix([_number(g) for g in desc.gravity])).applyfunc(
             sp.expand
@@ -194,9 +195,7 @@ class Dynamics:
                 w = Velocities(wu, wv, w.same)
                 wd = self._name(out, name("wd", i), wd)
                 back = -self.u_axis[i]
-                a = self._name(
-                    out, name("a", i), a_joint + _cross(wd, back) + w.double_cross(back)
-                )
+                a = self._name(out, name("a", i), a_joint + _cross(wd, back) + w.double_cross(back))
             else:
                 # origin i slides along the axis relative to link i-1: carried acceleration,
                 # Coriolis 2 omega_i x z_i qd_i (bilinear) and the sliding acceleration
@@ -207,10 +206,10 @@ class Dynamics:
                 w = Velocities(wu, wv, w.same)
                 a = a_carried + 2 * w.cross(Velocities(z * u[i], z * v[i], w.same)) + z * qdd[i]
                 a = self._name(out, name("a", i), a)
-            m, r, I = self.mass[i], self.com[i], self.inertia[i]
+            m, r, inertia = self.mass[i], self.com[i], self.inertia[i]
             a_c = a + _cross(wd, r) + w.double_cross(r)
             F = self._name(out, name("F", i), m * a_c)
-            N = self._name(out, name("N", i), I * wd + w.gyroscopic(I))
+            N = self._name(out, name("N", i), inertia * wd + w.gyroscopic(inertia))
             forces.append(F)
             moments.append((N, r, F))
         tau = [sp.S.Zero] * n

@@ -226,7 +226,9 @@ class ArmKernels:
             inputs=inputs,
             outputs=(Port(port[0], outs, port[1], port[2], width=len(values)),),
             stages=(
-                Stage("recursive Newton-Euler passes (derive/serial/dynamics.py)", tuple(assignments)),
+                Stage(
+                    "recursive Newton-Euler passes (derive/serial/dynamics.py)", tuple(assignments)
+                ),
                 Stage("results", tuple(raw_assign)),
                 flag,
                 Stage("outputs (NaN on invalid rows)", out_stage),
