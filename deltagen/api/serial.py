@@ -59,6 +59,8 @@ class SerialRobot:
 
     _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
     _ik_all_single: Any  # the C closed form's one-pose path, once ik_all has made it
+    _id_single: Any  # one-state inverse_dynamics / forward_dynamics (compiled, with inertia)
+    _fd_single: Any
 
     def __init__(self, description: SerialDescription, backend: Backend = "compiled") -> None:
         if not isinstance(description, SerialDescription):
@@ -75,11 +77,15 @@ class SerialRobot:
             self._fk_single = self._core.single("fk")
             self._jacobian_single = self._core.single("jacobian")
             self._ik_all_single = None  # made by ik_all when the arm has a C closed form
+            dynamics = description.has_inertia
+            self._id_single = self._core.single_dynamics("inverse_dynamics") if dynamics else None
+            self._fd_single = self._core.single_dynamics("forward_dynamics") if dynamics else None
         else:
             from deltagen.reference import serial as reference
 
             self._core = _ReferenceArm(reference, description)
             self._fk_single = self._jacobian_single = self._ik_all_single = None
+            self._id_single = self._fd_single = None
 
     # -- construction ---------------------------------------------------------------
 
@@ -308,24 +314,15 @@ class SerialRobot:
             )
         return self._core
 
-    def _single_dynamics(self, name):
-        fast = self.__dict__.get(f"_{name}_single")
-        if fast is None and self.backend == "compiled":
-            fast = self._core.single_dynamics(name)
-            setattr(self, f"_{name}_single", fast)
-        return fast
-
     def inverse_dynamics(
         self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
     ) -> Result:
         """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
         viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
-        if errors == "raise" and self.description.has_inertia:
-            fast = self._single_dynamics("inverse_dynamics")
-            if fast is not None:
-                tau = fast(q, qd, qdd)
-                if tau is not None:
-                    return tau
+        if self._id_single is not None and errors == "raise":
+            tau = self._id_single(q, qd, qdd)
+            if tau is not None:
+                return tau
         core = self._dynamics()
         check_errors_mode(errors)
         lead, (qf, qdf, qddf) = self._broadcast(q=q, qd=qd, qdd=qdd)
@@ -368,12 +365,10 @@ class SerialRobot:
     ) -> Result:
         """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
         SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
-        if errors == "raise" and self.description.has_inertia:
-            fast = self._single_dynamics("forward_dynamics")
-            if fast is not None:
-                qdd = fast(q, qd, tau)
-                if qdd is not None:
-                    return qdd
+        if self._fd_single is not None and errors == "raise":
+            qdd = self._fd_single(q, qd, tau)
+            if qdd is not None:
+                return qdd
         core = self._dynamics()
         check_errors_mode(errors)
         lead, (qf, qdf, tf) = self._broadcast(q=q, qd=qd, tau=tau)

@@ -65,6 +65,16 @@ class _Scratch(threading.local):
         self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.uint8)
 
 
+class _DynamicsScratch(threading.local):
+    """Per-thread buffers of the single-state dynamics calls (three inputs, one output)."""
+
+    def __init__(self, ffi, n):
+        self.a, self.b, self.c = (ffi.new(f"double[{n}]") for _ in range(3))
+        self.out = ffi.new(f"double[{n}]")
+        self.status = ffi.new("int8_t[1]")
+        self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
+
+
 class CompiledArm:
     """Batched calls into an arm's C module; q is (N, n) C-contiguous float64."""
 
@@ -198,47 +208,33 @@ class CompiledArm:
 
     def single_dynamics(self, name):
         """Fast path for one state of inverse_dynamics or forward_dynamics (three (n,)
-        float64 arrays, or lists/tuples of n numbers): the (n,) result, or None when the
-        general path must handle the call (other inputs, a status other than OK)."""
+        C-contiguous float64 arrays): the (n,) result, or None when the general path must
+        handle the call (other inputs, a status other than OK)."""
         fn = getattr(self._lib, f"{self._prefix}_{name}")
-        n, ffi = self.desc.n, self._ffi
-        local = threading.local()
+        scratch = _DynamicsScratch(self._ffi, self.desc.n)
+        n, nbytes = self.desc.n, 8 * self.desc.n
+        memmove = self._ffi.memmove
         ndarray, OK = np.ndarray, st.OK
 
-        def buffers():
-            b = local.__dict__.get("b")
-            if b is None:
-                ins = [ffi.new(f"double[{n}]") for _ in range(3)]
-                out = ffi.new(f"double[{n}]")
-                b = local.b = (
-                    ins,
-                    out,
-                    ffi.new("int8_t[1]"),
-                    np.frombuffer(ffi.buffer(out), dtype=np.float64),
-                )
-            return b
-
-        memmove = ffi.memmove
+        def plain(x):
+            return (
+                type(x) is ndarray
+                and x.shape == (n,)
+                and x.dtype.char == "d"
+                and x.flags.c_contiguous
+            )
 
         def call(a, b, c):
-            ins, out, status, out_np = buffers()
-            try:
-                for buf, x in zip(ins, (a, b, c)):
-                    kind = type(x)
-                    if kind is ndarray:
-                        if x.shape != (n,) or x.dtype.char != "d" or not x.flags.c_contiguous:
-                            return None
-                        memmove(buf, x, 8 * n)
-                    elif (kind is list or kind is tuple) and len(x) == n:
-                        buf[0:n] = x
-                    else:
-                        return None
-            except (TypeError, ValueError, BufferError):
+            if not (plain(a) and plain(b) and plain(c)):
                 return None
-            fn(1, ins[0], ins[1], ins[2], out, status)
-            if status[0] != OK:
+            sc = scratch
+            memmove(sc.a, a, nbytes)
+            memmove(sc.b, b, nbytes)
+            memmove(sc.c, c, nbytes)
+            fn(1, sc.a, sc.b, sc.c, sc.out, sc.status)
+            if sc.status[0] != OK:
                 return None
-            return out_np.copy()
+            return sc.out_np.copy()
 
         return call
 
