@@ -433,6 +433,11 @@ def test_single_call_matches_batch_and_broadcasts(puma):
             puma.forward_dynamics(q, qd, tau)[k],
             rtol=1e-13,
         )
+    M = puma.mass_matrix(q)
+    for k in range(4):
+        np.testing.assert_allclose(puma.mass_matrix(q[k]), M[k], rtol=1e-13, atol=1e-15)
+    with pytest.raises(InputError, match=r"rows \[0\]"):
+        puma.mass_matrix(np.full(6, np.nan))  # the single-call path checks too
     assert puma.inverse_dynamics(q[0], np.zeros((2, 3, 6)), qdd[0]).shape == (2, 3, 6)
     assert puma.mass_matrix(q.reshape(2, 2, 6)).shape == (2, 2, 6, 6)
     assert puma.coriolis(q[0], qd).shape == (4, 6, 6)

@@ -61,6 +61,7 @@ class SerialRobot:
     _ik_all_single: Any  # the C closed form's one-pose path, once ik_all has made it
     _id_single: Any  # one-state inverse_dynamics / forward_dynamics (compiled, with inertia)
     _fd_single: Any
+    _mass_single: Any
 
     def __init__(self, description: SerialDescription, backend: Backend = "compiled") -> None:
         if not isinstance(description, SerialDescription):
@@ -80,12 +81,13 @@ class SerialRobot:
             dynamics = description.has_inertia
             self._id_single = self._core.single_dynamics("inverse_dynamics") if dynamics else None
             self._fd_single = self._core.single_dynamics("forward_dynamics") if dynamics else None
+            self._mass_single = self._core.single_mass_matrix() if dynamics else None
         else:
             from deltagen.reference import serial as reference
 
             self._core = _ReferenceArm(reference, description)
             self._fk_single = self._jacobian_single = self._ik_all_single = None
-            self._id_single = self._fd_single = None
+            self._id_single = self._fd_single = self._mass_single = None
 
     # -- construction ---------------------------------------------------------------
 
@@ -331,6 +333,10 @@ class SerialRobot:
 
     def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
+        if self._mass_single is not None and errors == "raise":
+            M = self._mass_single(q)
+            if M is not None:
+                return M
         core = self._dynamics()
         lead, qf = self._prepare(errors, q)
         M, status = core.mass_matrix(qf)

@@ -68,9 +68,9 @@ class _Scratch(threading.local):
 class _DynamicsScratch(threading.local):
     """Per-thread buffers of the single-state dynamics calls (three inputs, one output)."""
 
-    def __init__(self, ffi, n):
+    def __init__(self, ffi, n, out_size=None):
         self.a, self.b, self.c = (ffi.new(f"double[{n}]") for _ in range(3))
-        self.out = ffi.new(f"double[{n}]")
+        self.out = ffi.new(f"double[{out_size or n}]")
         self.status = ffi.new("int8_t[1]")
         self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
 
@@ -235,6 +235,32 @@ class CompiledArm:
             if sc.status[0] != OK:
                 return None
             return sc.out_np.copy()
+
+        return call
+
+    def single_mass_matrix(self):
+        """Fast path of mass_matrix for one (n,) C-contiguous float64 q: M (n, n), or None
+        when the general path must handle the call."""
+        fn = getattr(self._lib, f"{self._prefix}_mass_matrix")
+        scratch = _DynamicsScratch(self._ffi, self.desc.n, self.desc.n**2)
+        n, nbytes = self.desc.n, 8 * self.desc.n
+        memmove = self._ffi.memmove
+        ndarray, OK = np.ndarray, st.OK
+
+        def call(q):
+            if not (
+                type(q) is ndarray
+                and q.shape == (n,)
+                and q.dtype.char == "d"
+                and q.flags.c_contiguous
+            ):
+                return None
+            sc = scratch
+            memmove(sc.a, q, nbytes)
+            fn(1, sc.a, sc.out, sc.status)
+            if sc.status[0] != OK:
+                return None
+            return sc.out_np.reshape(n, n).copy()
 
         return call
 
