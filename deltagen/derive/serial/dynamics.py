@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import sympy as sp
 
-from deltagen.derive.kernel import Stage
 from deltagen.derive.serial.chain import (
     ArmSymbols,
     cos_sin,
@@ -299,7 +298,3 @@ class Dynamics:
             for r in range(n):
                 C[r][c] = col[r]
         return C, out
-
-
-def stage(comment: str, assignments) -> Stage:
-    return Stage(comment, tuple(assignments))
