@@ -25,3 +25,7 @@ STATUS_NAMES = {
 #: Default relative threshold below which a pose is called singular. Quantities are
 #: normalised by the robot's size: |det J_p| / (8 l_b^3) and |J_q,ii| / (2 l_a l_b).
 SINGULAR_TOL = 1e-9
+
+#: Relative definiteness threshold of a mass matrix (forward dynamics): SINGULAR when a
+#: Cholesky pivot L_jj^2 is not above MASS_MATRIX_TOL times the largest diagonal entry.
+MASS_MATRIX_TOL = 1e-12

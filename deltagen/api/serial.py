@@ -88,6 +88,9 @@ class SerialRobot:
 
     _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
     _ik_all_single: Any  # the C closed form's one-pose path, once ik_all has made it
+    _id_single: Any  # one-state inverse_dynamics / forward_dynamics (compiled, with inertia)
+    _fd_single: Any
+    _mass_single: Any
 
     def __init__(self, description: SerialDescription, backend: Backend = "compiled") -> None:
         if not isinstance(description, SerialDescription):
@@ -104,11 +107,16 @@ class SerialRobot:
             self._fk_single = self._core.single("fk")
             self._jacobian_single = self._core.single("jacobian")
             self._ik_all_single = None  # made by ik_all when the arm has a C closed form
+            dynamics = description.has_inertia
+            self._id_single = self._core.single_dynamics("inverse_dynamics") if dynamics else None
+            self._fd_single = self._core.single_dynamics("forward_dynamics") if dynamics else None
+            self._mass_single = self._core.single_mass_matrix() if dynamics else None
         else:
             from deltagen.reference import serial as reference
 
             self._core = _ReferenceArm(reference, description)
             self._fk_single = self._jacobian_single = self._ik_all_single = None
+            self._id_single = self._fd_single = self._mass_single = None
 
     # -- construction ---------------------------------------------------------------
 
@@ -355,6 +363,103 @@ class SerialRobot:
             valid = ~no_report
             rep["valid"] = valid.reshape(lead) if lead else bool(valid[0])
         return rep
+
+    # -- dynamics -----------------------------------------------------------------------
+    #
+    # Arms whose robot file gives inertial parameters (deltagen.model.serial): recursive
+    # Newton-Euler in generated C (derive/serial/dynamics.py), or the Jacobian-form numpy
+    # reference. Torques in N m (N for prismatic joints); gravity from the description.
+
+    def _dynamics(self):
+        """The core, after checking that the arm has inertial parameters."""
+        if not self.description.has_inertia:
+            raise InputError(
+                f"{self.name} has no inertial parameters: its robot file gives no mass, com "
+                "or inertia in its [[joint]] tables (see deltagen.model.serial), so it has "
+                "no dynamics"
+            )
+        return self._core
+
+    def inverse_dynamics(
+        self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
+        """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
+        viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
+        if self._id_single is not None and errors == "raise":
+            tau = self._id_single(q, qd, qdd)
+            if tau is not None:
+                return tau
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf, qddf) = self._broadcast(q=q, qd=qd, qdd=qdd)
+        tau, status = core.inverse_dynamics(qf, qdf, qddf)
+        return self._finish_dynamics(
+            errors, lead, status, [tau], ("q", "qd", "qdd"), [qf, qdf, qddf]
+        )
+
+    def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
+        """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
+        if self._mass_single is not None and errors == "raise":
+            M = self._mass_single(q)
+            if M is not None:
+                return M
+        core = self._dynamics()
+        lead, qf = self._prepare(errors, q)
+        M, status = core.mass_matrix(qf)
+        return self._finish_dynamics(errors, lead, status, [M], ("q",), [qf])
+
+    def gravity_torque(self, q: ArrayLike, errors: Errors = "raise") -> Result:
+        """g(q) (..., n): the joint torques that hold the arm still against gravity."""
+        core = self._dynamics()
+        lead, qf = self._prepare(errors, q)
+        g, status = core.gravity_torque(qf)
+        return self._finish_dynamics(errors, lead, status, [g], ("q",), [qf])
+
+    def coriolis(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
+        """Coriolis matrix C (..., n, n) in the Christoffel form: C qd holds the Coriolis
+        and centrifugal torques and Mdot - 2C is skew-symmetric."""
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
+        C, status = core.coriolis(qf, qdf)
+        return self._finish_dynamics(errors, lead, status, [C], ("q", "qd"), [qf, qdf])
+
+    def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
+        """h (..., n) = C(q, qd) qd + g(q) + friction: the torques at qdd = 0."""
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
+        h, status = core.nonlinear_effects(qf, qdf)
+        return self._finish_dynamics(errors, lead, status, [h], ("q", "qd"), [qf, qdf])
+
+    def forward_dynamics(
+        self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
+        """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
+        SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
+        if self._fd_single is not None and errors == "raise":
+            qdd = self._fd_single(q, qd, tau)
+            if qdd is not None:
+                return qdd
+        core = self._dynamics()
+        check_errors_mode(errors)
+        lead, (qf, qdf, tf) = self._broadcast(q=q, qd=qd, tau=tau)
+        qdd, status = core.forward_dynamics(qf, qdf, tf)
+        return self._finish_dynamics(errors, lead, status, [qdd], ("q", "qd", "tau"), [qf, qdf, tf])
+
+    def _finish_dynamics(self, errors, lead, status, outs, names, inputs):
+        singular = status == st.SINGULAR
+        if errors == "raise" and np.any(singular) and np.all((status == st.OK) | singular):
+            bad = np.flatnonzero(singular)
+            raise SingularityError(
+                f"the mass matrix of {self.name} is not positive definite in rows "
+                f"{rows_text(bad)} (forward dynamics has no unique solution)",
+                bad,
+            )
+        if errors == "raise" and not np.all((status == st.OK) | singular):
+            bad = np.flatnonzero((status != st.OK) & ~singular)
+            raise InputError(invalid_message(names, inputs, bad), bad)
+        return self._finish(errors, lead, status, outs, names, inputs)
 
     # -- inverse kinematics -------------------------------------------------------------
 
@@ -957,3 +1062,21 @@ class _ReferenceArm:
 
     def jacobian_dot(self, q, qd):
         return self._m.jacobian_dot(self._d, q, qd)
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return self._m.inverse_dynamics(self._d, q, qd, qdd)
+
+    def mass_matrix(self, q):
+        return self._m.mass_matrix(self._d, q)
+
+    def gravity_torque(self, q):
+        return self._m.gravity_torque(self._d, q)
+
+    def coriolis(self, q, qd):
+        return self._m.coriolis(self._d, q, qd)
+
+    def nonlinear_effects(self, q, qd):
+        return self._m.nonlinear_effects(self._d, q, qd)
+
+    def forward_dynamics(self, q, qd, tau):
+        return self._m.forward_dynamics(self._d, q, qd, tau)

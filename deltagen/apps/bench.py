@@ -227,27 +227,60 @@ def _measure_latency(compiled, reference, q1, p1, repeats):
 # ------------------------------------------------------------------------- serial arm
 
 SERIAL_ROBOT = "puma560"
-SERIAL_QUANTITIES = ("fk", "frames", "jacobian", "jacobian_dot")
+SERIAL_QUANTITIES = (
+    "fk",
+    "frames",
+    "jacobian",
+    "jacobian_dot",
+    "inverse_dynamics",
+    "mass_matrix",
+    "forward_dynamics",
+)
 #: The issue's serial-arm targets for the compiled core [ns per configuration].
-SERIAL_TARGETS_NS = {"fk": 30.0, "jacobian": 50.0}
+SERIAL_TARGETS_NS = {"fk": 30.0, "jacobian": 50.0, "inverse_dynamics": 150.0}
 #: The issue's target for one single-pose serial fk call from Python [ns].
 SERIAL_SINGLE_TARGET_NS = 1000.0
 SERIAL_REFERENCE_N = 100_000
 #: frames (n + 2 matrices, 1 KiB per configuration) and jacobian_dot run on fewer points
 SERIAL_SMALL_N = 250_000
 SERIAL_QD_RANGE = (-2.0, 2.0)  # rad/s
+SERIAL_QDD_RANGE = (-5.0, 5.0)  # rad/s^2
 RTB_PY_BATCH_N = 2_000  # DHRobot.fkine on a batch is a Python loop (~50 us per configuration)
 RTB_C_BATCH_N = 100_000  # ETS.eval (C++) on a batch, ~1 us per configuration
 RTB_SE3_BATCH_N = 20_000  # ETS.fkine on a batch: C++ then one SE3 per configuration
 ORACLE_AGREEMENT_N = 200  # configurations compared with each library
 ORACLE_TOL = 1e-12
 
-_SERIAL_INPUTS = {"fk": ("q",), "frames": ("q",), "jacobian": ("q",), "jacobian_dot": ("q", "qd")}
-_SERIAL_UNITS = {"fk": "m", "frames": "m", "jacobian": "m/rad", "jacobian_dot": "m/(rad s)"}
+_SERIAL_INPUTS = {
+    "fk": ("q",),
+    "frames": ("q",),
+    "jacobian": ("q",),
+    "jacobian_dot": ("q", "qd"),
+    "inverse_dynamics": ("q", "qd", "qdd"),
+    "mass_matrix": ("q",),
+    "forward_dynamics": ("q", "qd", "tau"),
+}
+_SERIAL_UNITS = {
+    "fk": "m",
+    "frames": "m",
+    "jacobian": "m/rad",
+    "jacobian_dot": "m/(rad s)",
+    "inverse_dynamics": "N m",
+    "mass_matrix": "kg m^2",
+    "forward_dynamics": "rad/s^2",
+}
 
 
 def _serial_width(name: str, n: int) -> int:
-    return {"fk": 16, "frames": 16 * (n + 2), "jacobian": 6 * n, "jacobian_dot": 6 * n}[name]
+    return {
+        "fk": 16,
+        "frames": 16 * (n + 2),
+        "jacobian": 6 * n,
+        "jacobian_dot": 6 * n,
+        "inverse_dynamics": n,
+        "mass_matrix": n * n,
+        "forward_dynamics": n,
+    }[name]
 
 
 def _serial_points(name: str, n: int) -> int:
@@ -255,11 +288,22 @@ def _serial_points(name: str, n: int) -> int:
 
 
 def sample_serial(n: int, robot, rng) -> dict[str, np.ndarray]:
-    """n configurations q uniform within the arm's joint limits and rates qd (C-contiguous)."""
+    """n configurations q uniform within the arm's joint limits, rates qd and accelerations
+    qdd (C-contiguous); for arms with inertial parameters also tau, the numpy reference's
+    inverse dynamics of (q, qd, qdd) on the first SERIAL_SMALL_N (forward dynamics input)."""
     lim = robot.qlim
     q = rng.uniform(lim[:, 0], lim[:, 1], (n, robot.n))
     qd = rng.uniform(*SERIAL_QD_RANGE, (n, robot.n))
-    return {"q": np.ascontiguousarray(q), "qd": np.ascontiguousarray(qd)}
+    qdd = rng.uniform(*SERIAL_QDD_RANGE, (n, robot.n))
+    out = {"q": np.ascontiguousarray(q), "qd": np.ascontiguousarray(qd)}
+    out["qdd"] = np.ascontiguousarray(qdd)
+    if robot.description.has_inertia:
+        from deltagen.reference import serial as reference
+
+        m = min(n, SERIAL_SMALL_N)
+        tau, _ = reference.inverse_dynamics(robot.description, q[:m], qd[:m], qdd[:m])
+        out["tau"] = np.ascontiguousarray(tau)
+    return out
 
 
 def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
@@ -292,6 +336,8 @@ def _measure_serial_throughput(compiled, reference, data, repeats):
     n = data["q"].shape[0]
     stats, sizes, agreement = {}, {}, {}
     for name in SERIAL_QUANTITIES:
+        if any(k not in data for k in _SERIAL_INPUTS[name]):
+            continue  # dynamics of an arm without inertial parameters
         points = _serial_points(name, n)
         ref_n = min(points, SERIAL_REFERENCE_N)
         inputs = [np.ascontiguousarray(data[k][:points]) for k in _SERIAL_INPUTS[name]]
@@ -324,6 +370,11 @@ def _serial_latency_calls(robot, q1):
         (f"robot.jacobian(q), q ndarray ({n},)", lambda: robot.jacobian(q1), False),
         (f"robot._core.fk(q), q (1, {n})", lambda: robot._core.fk(q2), False),
         (f"robot._core.jacobian(q), q (1, {n})", lambda: robot._core.jacobian(q2), False),
+        (
+            f"robot.inverse_dynamics(q, qd, qdd), ndarrays ({n},)",
+            lambda: robot.inverse_dynamics(q1, q1, q1),
+            False,
+        ),
     ]
 
 
@@ -469,7 +520,8 @@ def pinocchio_model(description):
     """A pinocchio Model of a standard-DH arm and the id of its tool frame: joint i is a
     revolute (prismatic) joint about (along) z_{i-1}, placed at the fixed part
     Trans_z(d) Trans_x(a) Rot_x(alpha) of the link before it; the tool frame sits on the
-    last joint at the last fixed part times the tool transform."""
+    last joint at the last fixed part times the tool transform. With inertial parameters,
+    link i's body is appended at frame i (that fixed part), with armature and gravity."""
     import pinocchio as pin
 
     if description.convention != "standard":
@@ -489,6 +541,14 @@ def pinocchio_model(description):
         placement = pin.SE3(
             rot_axis("x", joint.alpha), np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0])
         )
+        if description.has_inertia:  # link i's inertials live in frame i = this placement
+            x = joint.inertial
+            model.appendBodyToJoint(
+                parent, pin.Inertia(x.mass, np.array(x.com), x.inertia_matrix), placement
+            )
+    if description.has_inertia:
+        model.armature = np.array([j.inertial.armature for j in description.joints])
+        model.gravity.linear = np.array(description.gravity)
     tool = placement * pin.SE3(description.tool[:3, :3].copy(), description.tool[:3, 3].copy())
     fid = model.addFrame(pin.Frame("tool", parent, 0, tool, pin.FrameType.OP_FRAME))
     return model, fid
@@ -563,7 +623,120 @@ def _pinocchio_oracle(compiled, q, repeats):
             repeats,
         ),
     ]
+    if compiled.description.has_inertia:
+        dyn_rows, dyn_agree = _pinocchio_dynamics(pin, model, compiled, q, repeats)
+        rows += dyn_rows
+        agree.update(dyn_agree)
     return rows, agree, []
+
+
+PIN_BATCH_N = 2_000  # pinocchio's per-configuration calls looped from Python
+
+
+def _pinocchio_dynamics(pin, model, compiled, q, repeats):
+    """rnea / crba / aba beside inverse_dynamics / mass_matrix / forward_dynamics: single
+    calls, Python-looped batches against the batched C core, and agreement (relative to
+    max(1, |value|); pinocchio has no friction: the Puma's is added to its rnea)."""
+    data = model.createData()
+    n = compiled.n
+    rng = np.random.default_rng(SEED + 1)
+    m = min(PIN_BATCH_N, q.shape[0])
+    qb = np.ascontiguousarray(q[:m])
+    qdb = np.ascontiguousarray(rng.uniform(*SERIAL_QD_RANGE, (m, n)))
+    qddb = np.ascontiguousarray(rng.uniform(*SERIAL_QDD_RANGE, (m, n)))
+    desc = compiled.description
+    viscous = np.array([j.inertial.viscous for j in desc.joints])
+    plus = np.array([j.inertial.coulomb[0] for j in desc.joints])
+    minus = np.array([j.inertial.coulomb[1] for j in desc.joints])
+    friction = viscous * qdb + np.where(qdb > 0, plus, np.where(qdb < 0, minus, 0.0))
+    k = min(ORACLE_AGREEMENT_N, m)
+    tau_dg = compiled.inverse_dynamics(qb[:k], qdb[:k], qddb[:k])
+    M_dg = compiled.mass_matrix(qb[:k])
+    rigid = tau_dg - friction[:k]  # what pinocchio's aba takes
+    qdd_dg = compiled.forward_dynamics(qb[:k], qdb[:k], tau_dg)
+    err = {"rnea": 0.0, "crba": 0.0, "aba": 0.0}
+    for i in range(k):
+        tau = pin.rnea(model, data, qb[i], qdb[i], qddb[i]) + friction[i]
+        M = pin.crba(model, data, qb[i])
+        M = np.triu(M) + np.triu(M, 1).T
+        qdd = pin.aba(model, data, qb[i], qdb[i], rigid[i])
+        for key, a, b in (("rnea", tau, tau_dg[i]), ("crba", M, M_dg[i]), ("aba", qdd, qdd_dg[i])):
+            err[key] = max(err[key], float(np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(a)))))
+    agree = {
+        "inverse_dynamics (rnea + friction, relative)": err["rnea"],
+        "mass_matrix (crba, relative)": err["crba"],
+        "forward_dynamics (aba, relative)": err["aba"],
+    }
+    lib = f"pinocchio {pin.__version__}"
+    q1, qd1, qdd1 = qb[0].copy(), qdb[0].copy(), qddb[0].copy()
+    tau1 = compiled.inverse_dynamics(q1, qd1, qdd1)
+    core = compiled._core
+    taub = compiled.inverse_dynamics(qb, qdb, qddb)
+
+    def loop(fn):
+        def run():
+            for i in range(m):
+                fn(i)
+
+        return run
+
+    rows = [
+        _pair(
+            lib,
+            "rnea(q, v, a)",
+            lambda: pin.rnea(model, data, q1, qd1, qdd1),
+            f"robot.inverse_dynamics(q, qd, qdd), ndarrays ({n},)",
+            lambda: compiled.inverse_dynamics(q1, qd1, qdd1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "crba(q)",
+            lambda: pin.crba(model, data, q1),
+            f"robot.mass_matrix(q), q ndarray ({n},)",
+            lambda: compiled.mass_matrix(q1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            "aba(q, v, tau)",
+            lambda: pin.aba(model, data, q1, qd1, tau1),
+            f"robot.forward_dynamics(q, qd, tau), ndarrays ({n},)",
+            lambda: compiled.forward_dynamics(q1, qd1, tau1),
+            repeats,
+        ),
+        _pair(
+            lib,
+            f"rnea looped over {m:,} configurations",
+            loop(lambda i: pin.rnea(model, data, qb[i], qdb[i], qddb[i])),
+            "robot._core.inverse_dynamics(q, qd, qdd), (N, 6)",
+            lambda: core.inverse_dynamics(qb, qdb, qddb),
+            repeats,
+            unit="ns",
+            points=m,
+        ),
+        _pair(
+            lib,
+            f"crba looped over {m:,} configurations",
+            loop(lambda i: pin.crba(model, data, qb[i])),
+            "robot._core.mass_matrix(q), (N, 6)",
+            lambda: core.mass_matrix(qb),
+            repeats,
+            unit="ns",
+            points=m,
+        ),
+        _pair(
+            lib,
+            f"aba looped over {m:,} configurations",
+            loop(lambda i: pin.aba(model, data, qb[i], qdb[i], taub[i])),
+            "robot._core.forward_dynamics(q, qd, tau), (N, 6)",
+            lambda: core.forward_dynamics(qb, qdb, taub),
+            repeats,
+            unit="ns",
+            points=m,
+        ),
+    ]
+    return rows, agree
 
 
 def _library_versions() -> dict[str, str | None]:
@@ -855,7 +1028,7 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     )
     out.append(
         f"{bullet}N = {n:,} configurations for fk and jacobian, "
-        f"{small['frames']:,} for frames and jacobian_dot; reference on the first "
+        f"{small['frames']:,} for frames, jacobian_dot and the dynamics; reference on the first "
         f"{min(n, SERIAL_REFERENCE_N):,} (scaled per configuration); median [min, max] "
         f"of {repeats} repeats, columns round-robin"
     )
@@ -874,6 +1047,8 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     ]
     rows = []
     for name in SERIAL_QUANTITIES:
+        if name not in serial["throughput"]:
+            continue
         c = serial["throughput"][name]
         target = SERIAL_TARGETS_NS.get(name)
         tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"

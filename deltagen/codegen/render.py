@@ -55,6 +55,7 @@ class Unit:
     newton: dict | None = (
         None  # {n, revolute}: emit <prefix>_ik_newton, the wrapper of runtime/deltagen_ik_newton.c
     )
+    dynamics: dict | None = None  # {n}: emit <prefix>_forward_dynamics (runtime Cholesky)
 
 
 def _columns(port):
@@ -174,6 +175,17 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
                 "and the runtime's frames\n * (scalars and 3x3 blocks)"
             ),
         )
+    dynamics = None
+    if unit.dynamics:
+        n = unit.dynamics["n"]
+        nbytes = unit.block * (8 * (n * n + n) + 2)
+        dynamics = dict(
+            unit.dynamics,
+            stack_doc=(
+                f"{_kib(nbytes)} at {unit.block} points (M and h of a block), plus "
+                f"{16 * n} bytes per point and the stack of mass_matrix and nonlinear_effects"
+            ),
+        )
     context = dict(
         prefix=unit.prefix,
         macro_prefix=unit.prefix.upper(),
@@ -196,6 +208,7 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         largest=max(functions, key=lambda fn: fn["stack_bytes"]),
         block=unit.block,
         newton=newton,
+        dynamics=dynamics,
     )
     files = {
         header_name: ("header.h.j2", "restrict "),

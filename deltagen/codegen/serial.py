@@ -8,6 +8,7 @@ from pathlib import Path
 from deltagen.codegen.lowering import lower
 from deltagen.codegen.render import Unit, render
 from deltagen.derive.serial.kernels import ArmKernels
+from deltagen.status import MASS_MATRIX_TOL
 
 
 def base_name(desc) -> str:
@@ -63,10 +64,11 @@ def generator_fingerprint() -> str:
 
 def arm_unit(desc) -> Unit:
     joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
+    title = "kinematics" + (" and dynamics" if desc.has_inertia else "")
     return Unit(
         prefix=c_prefix(desc),
         base_name=base_name(desc),
-        title=f"kinematics of the serial arm '{desc.name}' ({desc.n} joints: {joints}; "
+        title=f"{title} of the serial arm '{desc.name}' ({desc.n} joints: {joints}; "
         f"{desc.convention} convention)",
         source="its robot description (deltagen/model/serial.py)",
         struct_name=None,
@@ -75,9 +77,19 @@ def arm_unit(desc) -> Unit:
             "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
             f"point: q and qd hold {desc.n} values per point; matrices are stored row-major.",
             "The geometry is compiled in (exact where a value is a multiple of 15 deg or zero).",
+            *(
+                (
+                    "Dynamics: masses in kg, torques in N m (forces in N for prismatic joints);",
+                    f"gravity {list(desc.gravity)} m/s^2 in the base frame; inertial parameters",
+                    "compiled in (link frame i = the frame after A_i).",
+                )
+                if desc.has_inertia
+                else ()
+            ),
             f"Description fingerprint: {description_fingerprint(desc)}",
         ),
         newton=dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints]),
+        dynamics=dict(n=desc.n, tol=repr(MASS_MATRIX_TOL)) if desc.has_inertia else None,
     )
 
 

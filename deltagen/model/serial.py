@@ -31,6 +31,35 @@ Robot files (TOML) state the convention explicitly; there is no default::
 
 Universal-coordinate joints use tx, ty, tz [m], rx|rx_deg, ry|ry_deg, rz|rz_deg, axis
 ("x" | "y" | "z") and offset.
+
+Inertial parameters (for the dynamics; optional, but all or nothing: once one ``[[joint]]``
+table has a ``mass``, every table must have one). Each ``[[joint]]`` table describes joint i
+and the link i it drives::
+
+    mass = 17.4                      # [kg], >= 0
+    com = [-0.3638, 0.006, 0.2275]   # centre of mass in link frame i [m] (default 0)
+    inertia = [0.13, 0.524, 0.539, 0, 0, 0]
+                                     # about the COM, axes of link frame i [kg m^2]:
+                                     # Ixx Iyy Izz Ixy Ixz Iyz (default 0; positive
+                                     # semidefinite. The triangle inequalities are not
+                                     # enforced: published sets such as the Puma's link 1,
+                                     # a massless link with inertia, violate them)
+    armature = 1.2                   # motor inertia reflected to the joint, Jm G^2
+                                     # [kg m^2 or kg] (default 0)
+    viscous = 2.3                    # viscous friction B at the joint [N m s/rad | N s/m]
+    coulomb = [3.0, -4.0]            # Coulomb friction at the joint [N m | N]: [Tc+, Tc-]
+                                     # (Tc+ >= 0 acts for qd > 0, Tc- <= 0 for qd < 0;
+                                     # one number c means [c, -c]); none at qd = 0
+
+and the top level may give ``gravity = [0, 0, -9.81]`` [m/s^2] in the base frame (the
+default). Joint torque tau_i = (rigid-body torque) + armature_i qdd_i + viscous_i qd_i +
+(Tc+_i if qd_i > 0, Tc-_i if qd_i < 0, else 0).
+
+Link frame i, in which com and inertia are expressed, is the frame after A_i (D_i) in every
+convention: standard DH frame i (its origin at the far end of link i, z_i the axis of joint
+i+1; the joint's own axis z_{i-1} is not in it), modified DH frame i (origin and z_i on joint
+i's own axis), universal coordinates frame base D_1 ... D_i. The inertials of a URDF link
+are in its link frame, which is the modified-DH kind of frame.
 """
 
 from __future__ import annotations
@@ -75,10 +104,39 @@ class Joint:
     axis: str = "z"
     qlim: tuple[float, float] | None = None
     name: str = ""
+    inertial: Inertial | None = None
 
     @property
     def revolute(self) -> bool:
         return self.type == "revolute"
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Inertial parameters of link i and the drive of joint i (module docstring): mass [kg],
+    com (3,) in link frame i [m], inertia (Ixx, Iyy, Izz, Ixy, Ixz, Iyz) about the COM in the
+    axes of link frame i [kg m^2], armature (reflected motor inertia Jm G^2), viscous
+    friction, Coulomb friction (Tc+, Tc-) at the joint."""
+
+    mass: float = 0.0
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia: tuple[float, float, float, float, float, float] = (0.0,) * 6
+    armature: float = 0.0
+    viscous: float = 0.0
+    coulomb: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def inertia_matrix(self) -> npt.NDArray[np.float64]:
+        """3x3 inertia tensor about the COM in link frame i."""
+        xx, yy, zz, xy, xz, yz = self.inertia
+        return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+    def key(self) -> tuple:
+        return (self.mass, self.com, self.inertia, self.armature, self.viscous, self.coulomb)
+
+
+INERTIAL_KEYS = ("mass", "com", "inertia", "armature", "viscous", "coulomb")
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 
 
 def transform(
@@ -100,9 +158,21 @@ class SerialDescription:
     tool: npt.NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     configurations: dict[str, tuple[float, ...]] = field(default_factory=dict)
     doc: str = ""
+    gravity: tuple[float, float, float] = DEFAULT_GRAVITY
 
     def __post_init__(self) -> None:
         check_identifier(self.name)
+        given = [j.inertial is not None for j in self.joints]
+        if any(given) and not all(given):
+            missing = [str(i + 1) for i, g in enumerate(given) if not g]
+            raise GeometryError(
+                f"inertial parameters are all or nothing: joints {', '.join(missing)} have "
+                "no mass (give mass = 0 for a massless link)"
+            )
+        g = tuple(float(v) for v in self.gravity)
+        if len(g) != 3 or not all(math.isfinite(v) for v in g):
+            raise GeometryError(f"gravity must be 3 finite numbers [m/s^2], got {self.gravity!r}")
+        object.__setattr__(self, "gravity", g)
         if self.convention not in CONVENTIONS:
             raise GeometryError(
                 f"convention must be one of {CONVENTIONS} (stated explicitly), got {self.convention!r}"
@@ -132,6 +202,33 @@ class SerialDescription:
     @property
     def n(self) -> int:
         return len(self.joints)
+
+    @property
+    def has_inertia(self) -> bool:
+        """True when the description carries inertial parameters (every joint has them)."""
+        return self.joints[0].inertial is not None
+
+    def require_inertia(self) -> None:
+        """Raise a clear error when the dynamics are asked of an arm without inertials."""
+        if not self.has_inertia:
+            raise GeometryError(
+                f"robot {self.name!r} has no inertial parameters: its robot file gives no "
+                "mass/com/inertia in its [[joint]] tables (see deltagen.model.serial), so "
+                "it has no dynamics"
+            )
+
+    def without_friction(self) -> SerialDescription:
+        """The same arm with viscous and Coulomb friction set to zero."""
+        from dataclasses import replace
+
+        if not self.has_inertia:
+            return self
+        joints = tuple(
+            replace(j, inertial=replace(j.inertial, viscous=0.0, coulomb=(0.0, 0.0)))
+            for j in self.joints
+            if j.inertial is not None
+        )
+        return replace(self, joints=joints)
 
     @property
     def qlim(self) -> npt.NDArray[np.float64]:
@@ -170,6 +267,9 @@ class SerialDescription:
             )
         parts.append(repr(self.base.tolist()))
         parts.append(repr(self.tool.tolist()))
+        if self.has_inertia:  # arms without inertials keep their fingerprint
+            parts.append(repr(self.gravity))
+            parts.extend(repr(j.inertial.key()) for j in self.joints if j.inertial)
         return "\n".join(parts)
 
     # -- construction ---------------------------------------------------------------
@@ -184,6 +284,7 @@ class SerialDescription:
         tool: npt.ArrayLike | None = None,
         configurations: Mapping[str, Sequence[float]] | None = None,
         doc: str = "",
+        gravity: Sequence[float] = DEFAULT_GRAVITY,
     ) -> SerialDescription:
         if convention not in CONVENTIONS:
             raise GeometryError(
@@ -203,6 +304,7 @@ class SerialDescription:
                 for k, q in (configurations or {}).items()
             },
             doc=doc,
+            gravity=_vector(gravity, 3, "gravity"),
         )
 
     @classmethod
@@ -218,7 +320,16 @@ class SerialDescription:
     def _from_mapping(cls, data: dict[str, Any]) -> SerialDescription:
         if not isinstance(data, dict):
             raise GeometryError("expected a table")
-        allowed = {"name", "convention", "base", "tool", "joint", "configurations", "doc"}
+        allowed = {
+            "name",
+            "convention",
+            "base",
+            "tool",
+            "joint",
+            "configurations",
+            "doc",
+            "gravity",
+        }
         unknown = set(data) - allowed
         if unknown:
             raise GeometryError(f"unknown top-level keys {sorted(unknown)}")
@@ -243,6 +354,7 @@ class SerialDescription:
             tool=_frame(data.get("tool"), "tool"),
             configurations=configurations,
             doc=str(data.get("doc", "")),
+            gravity=data.get("gravity", DEFAULT_GRAVITY),
         )
 
     @classmethod
@@ -365,6 +477,7 @@ def _joint(row: object, convention: str, where: str) -> Joint:
         | {f"{a}_deg" for a in angles}
         | extra
         | {"type", "joint", "qlim", "qlim_deg", "name"}
+        | set(INERTIAL_KEYS)
     )
     unknown = set(row) - allowed
     if unknown:
@@ -403,7 +516,65 @@ def _joint(row: object, convention: str, where: str) -> Joint:
     name = row.get("name", "")
     if not isinstance(name, str):
         raise GeometryError(f"{where}: name must be text")
-    return Joint(type=kind, qlim=qlim, name=name, **values)
+    return Joint(type=kind, qlim=qlim, name=name, inertial=_inertial(row, where), **values)
+
+
+def _vector(raw: Any, size: int, where: str) -> tuple:
+    if isinstance(raw, (str, bytes)) or not isinstance(raw, (list, tuple, np.ndarray)):
+        raise GeometryError(f"{where} must be a list of {size} numbers, got {raw!r}")
+    if len(raw) != size:
+        raise GeometryError(f"{where} must be a list of {size} numbers, got {len(raw)}")
+    return tuple(real(v, where) for v in raw)
+
+
+def _inertial(row: Mapping[str, Any], where: str) -> Inertial | None:
+    """The joint table's inertial parameters (module docstring), validated; None if it has
+    none. A table with any inertial key must give mass."""
+    keys = [k for k in INERTIAL_KEYS if k in row]
+    if not keys:
+        return None
+    if "mass" not in row:
+        raise GeometryError(f"{where}: {', '.join(keys)} given without mass [kg]")
+    mass = real(row["mass"], f"{where}: mass")
+    if mass < 0:
+        raise GeometryError(f"{where}: mass must be >= 0 kg, got {mass!r}")
+    com = _vector(row.get("com", [0.0, 0.0, 0.0]), 3, f"{where}: com [m]")
+    inertia = _vector(
+        row.get("inertia", [0.0] * 6), 6, f"{where}: inertia [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]"
+    )
+    inertial = Inertial(mass=mass, com=com, inertia=inertia)
+    eig = np.linalg.eigvalsh(inertial.inertia_matrix)
+    scale = max(1.0, float(np.max(np.abs(inertia))))
+    if eig[0] < -1e-12 * scale:
+        raise GeometryError(
+            f"{where}: inertia {list(inertia)} is not positive semidefinite "
+            f"(smallest principal moment {eig[0]:.6g} kg m^2)"
+        )
+    values = {}
+    for k in ("armature", "viscous"):
+        v = real(row.get(k, 0.0), f"{where}: {k}")
+        if v < 0:
+            raise GeometryError(f"{where}: {k} must be >= 0, got {v!r}")
+        values[k] = v
+    raw = row.get("coulomb", 0.0)
+    if isinstance(raw, (list, tuple)):
+        plus, minus = _vector(raw, 2, f"{where}: coulomb [Tc+, Tc-]")
+    else:
+        c = real(raw, f"{where}: coulomb")
+        plus, minus = c, -c
+    if plus < 0 or minus > 0:
+        raise GeometryError(
+            f"{where}: coulomb [Tc+, Tc-] must have Tc+ >= 0 (for qd > 0) and Tc- <= 0 "
+            f"(for qd < 0), got [{plus!r}, {minus!r}]"
+        )
+    return Inertial(
+        mass=mass,
+        com=com,
+        inertia=inertia,
+        armature=values["armature"],
+        viscous=values["viscous"],
+        coulomb=(plus, minus),
+    )
 
 
 def _frame(table, which):

@@ -65,6 +65,16 @@ class _Scratch(threading.local):
         self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.uint8)
 
 
+class _DynamicsScratch(threading.local):
+    """Per-thread buffers of the single-state dynamics calls (three inputs, one output)."""
+
+    def __init__(self, ffi, n, out_size=None):
+        self.a, self.b, self.c = (ffi.new(f"double[{n}]") for _ in range(3))
+        self.out = ffi.new(f"double[{out_size or n}]")
+        self.status = ffi.new("int8_t[1]")
+        self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
+
+
 class CompiledArm:
     """Batched calls into an arm's C module; q is (N, n) C-contiguous float64."""
 
@@ -171,6 +181,88 @@ class CompiledArm:
     def jacobian_dot(self, q, qd):
         Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
         return Jd.reshape(-1, 6, self.desc.n), status
+
+    # -- dynamics (arms with inertial parameters; the API checks has_inertia first) ------
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return self._run("inverse_dynamics", [q, qd, qdd], self.desc.n)
+
+    def nonlinear_effects(self, q, qd):
+        return self._run("nonlinear_effects", [q, qd], self.desc.n)
+
+    def gravity_torque(self, q):
+        return self._run("gravity_torque", [q], self.desc.n)
+
+    def mass_matrix(self, q):
+        n = self.desc.n
+        M, status = self._run("mass_matrix", [q], n * n)
+        return M.reshape(-1, n, n), status
+
+    def coriolis(self, q, qd):
+        n = self.desc.n
+        C, status = self._run("coriolis", [q, qd], n * n)
+        return C.reshape(-1, n, n), status
+
+    def forward_dynamics(self, q, qd, tau):
+        return self._run("forward_dynamics", [q, qd, tau], self.desc.n)
+
+    def single_dynamics(self, name):
+        """Fast path for one state of inverse_dynamics or forward_dynamics (three (n,)
+        C-contiguous float64 arrays): the (n,) result, or None when the general path must
+        handle the call (other inputs, a status other than OK)."""
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
+        scratch = _DynamicsScratch(self._ffi, self.desc.n)
+        n, nbytes = self.desc.n, 8 * self.desc.n
+        memmove = self._ffi.memmove
+        ndarray, OK = np.ndarray, st.OK
+
+        def plain(x):
+            return (
+                type(x) is ndarray
+                and x.shape == (n,)
+                and x.dtype.char == "d"
+                and x.flags.c_contiguous
+            )
+
+        def call(a, b, c):
+            if not (plain(a) and plain(b) and plain(c)):
+                return None
+            sc = scratch
+            memmove(sc.a, a, nbytes)
+            memmove(sc.b, b, nbytes)
+            memmove(sc.c, c, nbytes)
+            fn(1, sc.a, sc.b, sc.c, sc.out, sc.status)
+            if sc.status[0] != OK:
+                return None
+            return sc.out_np.copy()
+
+        return call
+
+    def single_mass_matrix(self):
+        """Fast path of mass_matrix for one (n,) C-contiguous float64 q: M (n, n), or None
+        when the general path must handle the call."""
+        fn = getattr(self._lib, f"{self._prefix}_mass_matrix")
+        scratch = _DynamicsScratch(self._ffi, self.desc.n, self.desc.n**2)
+        n, nbytes = self.desc.n, 8 * self.desc.n
+        memmove = self._ffi.memmove
+        ndarray, OK = np.ndarray, st.OK
+
+        def call(q):
+            if not (
+                type(q) is ndarray
+                and q.shape == (n,)
+                and q.dtype.char == "d"
+                and q.flags.c_contiguous
+            ):
+                return None
+            sc = scratch
+            memmove(sc.a, q, nbytes)
+            fn(1, sc.a, sc.out, sc.status)
+            if sc.status[0] != OK:
+                return None
+            return sc.out_np.reshape(n, n).copy()
+
+        return call
 
     @property
     def has_ik_all(self) -> bool:

@@ -45,7 +45,7 @@ from deltagen.geometry.rotations import euler_zyx, rpy  # noqa: F401 (public her
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import frames as model_frames
 from deltagen.model.serial import link_transform
-from deltagen.status import INVALID, OK
+from deltagen.status import INVALID, MASS_MATRIX_TOL, OK, SINGULAR
 
 __all__ = [
     "link_transforms",
@@ -56,6 +56,12 @@ __all__ = [
     "jacobian_dot",
     "euler_zyx",
     "rpy",
+    "mass_matrix",
+    "gravity_torque",
+    "coriolis",
+    "nonlinear_effects",
+    "inverse_dynamics",
+    "forward_dynamics",
 ]
 
 _AXIS = {"x": 0, "y": 1, "z": 2}
@@ -269,3 +275,182 @@ def jacobian_dot(desc, q, qd, frame: str = "base"):
             Jd = _to_tool(Jd - corr, T[:, :3, :3])
     Jd[bad] = np.nan
     return Jd, _status(bad, Jd)
+
+
+# --------------------------------------------------------------------------- dynamics
+#
+# Written from the Lagrangian (Jacobian) form, not from the Newton-Euler recursion of the
+# derivation (derive/serial/dynamics.py). For link i with mass m_i, centre of mass c_i and
+# world-frame inertia I_i = R_i I_i' R_i^T (I_i' about the COM in link frame i, the frame
+# after A_i), the COM Jacobian Jv_i and the angular Jacobian Jw_i have the columns of the
+# joints j <= i (revolute: w_j x (c_i - o_j) and w_j; prismatic: w_j and 0), and
+# Jdot_i follows from the column formulas as in jacobian_dot (the axis turns with
+# Omega_{j-1} = sum_{k<j, revolute} w_k qd_k, its point o_j moves with link j-1):
+#
+#   M      = sum_i m_i Jv_i^T Jv_i + Jw_i^T I_i Jw_i + diag(armature)
+#   g(q)   = - sum_i m_i Jv_i^T g                         (the torque that holds the arm)
+#   C      = sum_i m_i Jv_i^T Jvdot_i + Jw_i^T (I_i Jwdot_i + B_i Jw_i),
+#            B_i = 1/2 ([omega_i]x I_i - I_i [omega_i]x - [I_i omega_i]x)
+#   tau    = M qdd + C qd + g + viscous qd + Coulomb(sign qd)
+#
+# C is the Christoffel matrix: C(x) y is symmetric in (x, y) (Jv_i is the gradient of c_i,
+# and the [I omega]x term symmetrises the rotational part), and C(qd) qd holds the
+# Coriolis and centrifugal terms m Jv^T Jvdot qd + Jw^T (I Jwdot qd + omega x I omega),
+# so C_kj = sum_i c_ijk qd_i; Mdot - 2C = (skew) + Jw^T [I omega]x Jw is skew-symmetric.
+
+
+def _link_jacobians(desc, qc, qdc):
+    """Per link i: (Jv, Jw, Jvd, Jwd) each (N, n, 3, n) [link, row, joint], the link's
+    angular velocity omega (N, n, 3), world inertia Iw (N, n, 3, 3)."""
+    F = model_frames(desc, qc)
+    o, w = _axes_from_frames(desc, F, qc)
+    rev = _revolute_mask(desc)
+    N, n = qc.shape
+    Jv = np.zeros((N, n, 3, n))
+    Jw = np.zeros((N, n, 3, n))
+    Jvd = np.zeros((N, n, 3, n))
+    Jwd = np.zeros((N, n, 3, n))
+    wq = w * (qdc * rev[None, :])[:, :, None]
+    Omega_before = np.cumsum(wq, axis=1) - wq  # angular velocity of link j-1
+    omega = np.cumsum(wq, axis=1)  # angular velocity of link i
+    # velocity of the axis point o_j (fixed in link j-1)
+    o_dot = np.zeros((N, n, 3))
+    for j in range(n):
+        for k in range(j):
+            step = np.cross(w[:, k], o[:, j] - o[:, k]) if rev[k] else w[:, k]
+            o_dot[:, j] += step * qdc[:, k, None]
+    w_dot = np.cross(Omega_before, w)
+    Iw = np.zeros((N, n, 3, 3))
+    for i, joint in enumerate(desc.joints):
+        inertial = joint.inertial
+        R = F[:, i + 1, :3, :3]
+        c = F[:, i + 1, :3, :3] @ np.asarray(inertial.com) + F[:, i + 1, :3, 3]
+        Iw[:, i] = R @ inertial.inertia_matrix @ np.swapaxes(R, -1, -2)
+        for j in range(i + 1):
+            if rev[j]:
+                Jv[:, i, :, j] = np.cross(w[:, j], c - o[:, j])
+                Jw[:, i, :, j] = w[:, j]
+            else:
+                Jv[:, i, :, j] = w[:, j]
+        c_dot = np.einsum("nrj,nj->nr", Jv[:, i], qdc)
+        for j in range(i + 1):
+            if rev[j]:
+                Jvd[:, i, :, j] = np.cross(w_dot[:, j], c - o[:, j]) + np.cross(
+                    w[:, j], c_dot - o_dot[:, j]
+                )
+                Jwd[:, i, :, j] = w_dot[:, j]
+            else:
+                Jvd[:, i, :, j] = w_dot[:, j]
+    return Jv, Jw, Jvd, Jwd, omega, Iw
+
+
+def _skew(v):
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def _masses(desc):
+    return np.array([j.inertial.mass for j in desc.joints])
+
+
+def _friction(desc, qdc):
+    viscous = np.array([j.inertial.viscous for j in desc.joints])
+    plus = np.array([j.inertial.coulomb[0] for j in desc.joints])
+    minus = np.array([j.inertial.coulomb[1] for j in desc.joints])
+    return viscous * qdc + np.where(qdc > 0, plus, np.where(qdc < 0, minus, 0.0))
+
+
+def _armature(desc):
+    return np.array([j.inertial.armature for j in desc.joints])
+
+
+def _dyn_inputs(desc, *arrays):
+    desc.require_inertia()
+    names = ("q", "qd", "qdd", "tau")[: len(arrays)]
+    checked = [_check_q(desc, a, nm) for a, nm in zip(arrays, names)]
+    for a, nm in zip(checked[1:], names[1:]):
+        if a.shape != checked[0].shape:
+            raise InputError(f"{nm} must have the shape of q {checked[0].shape}, got {a.shape}")
+    return _split_invalid(*checked)
+
+
+def _finish(out, bad):
+    """NaN and INVALID for bad input rows and for rows whose result is not finite."""
+    axes = tuple(range(1, out.ndim))
+    bad = bad | ~np.all(np.isfinite(out), axis=axes)
+    out[bad] = np.nan
+    return out, _status(bad)
+
+
+def mass_matrix(desc, q):
+    """(M (N, n, n), status): joint-space inertia matrix, armature on the diagonal."""
+    bad, (qc,) = _dyn_inputs(desc, q)
+    Jv, Jw, _, _, _, Iw = _link_jacobians(desc, qc, np.zeros_like(qc))
+    m = _masses(desc)
+    M = np.einsum("i,nirj,nirk->njk", m, Jv, Jv)
+    M += np.einsum("nirj,nirs,nisk->njk", Jw, Iw, Jw)
+    M += np.diag(_armature(desc))
+    return _finish(M, bad)
+
+
+def gravity_torque(desc, q):
+    """(g (N, n), status): the joint torques that hold the arm against gravity."""
+    bad, (qc,) = _dyn_inputs(desc, q)
+    Jv, *_ = _link_jacobians(desc, qc, np.zeros_like(qc))
+    g = np.asarray(desc.gravity)
+    tau = -np.einsum("i,nirj,r->nj", _masses(desc), Jv, g)
+    return _finish(tau, bad)
+
+
+def _coriolis(desc, qc, qdc):
+    Jv, Jw, Jvd, Jwd, omega, Iw = _link_jacobians(desc, qc, qdc)
+    m = _masses(desc)
+    Iomega = np.einsum("nirs,nis->nir", Iw, omega)
+    B = 0.5 * (_skew(omega) @ Iw - Iw @ _skew(omega) - _skew(Iomega))
+    C = np.einsum("i,nirj,nirk->njk", m, Jv, Jvd)
+    C += np.einsum("nirj,nirs,nisk->njk", Jw, Iw, Jwd)
+    C += np.einsum("nirj,nirs,nisk->njk", Jw, B, Jw)
+    return C
+
+
+def coriolis(desc, q, qd):
+    """(C (N, n, n), status): the Christoffel-form Coriolis matrix (C qd: Coriolis and
+    centrifugal torques; Mdot - 2C skew-symmetric)."""
+    bad, (qc, qdc) = _dyn_inputs(desc, q, qd)
+    return _finish(_coriolis(desc, qc, qdc), bad)
+
+
+def nonlinear_effects(desc, q, qd):
+    """(h (N, n), status): C qd + g + friction, the torque at qdd = 0."""
+    bad, (qc, qdc) = _dyn_inputs(desc, q, qd)
+    h = np.einsum("njk,nk->nj", _coriolis(desc, qc, qdc), qdc)
+    h += gravity_torque(desc, qc)[0] + _friction(desc, qdc)
+    return _finish(h, bad)
+
+
+def inverse_dynamics(desc, q, qd, qdd):
+    """(tau (N, n), status): M qdd + C qd + g + friction."""
+    bad, (qc, qdc, qddc) = _dyn_inputs(desc, q, qd, qdd)
+    tau = np.einsum("njk,nk->nj", mass_matrix(desc, qc)[0], qddc)
+    tau += nonlinear_effects(desc, qc, qdc)[0]
+    return _finish(tau, bad)
+
+
+def forward_dynamics(desc, q, qd, tau):
+    """(qdd (N, n), status): M^-1 (tau - h); SINGULAR where M is not positive definite
+    (an eigenvalue not above MASS_MATRIX_TOL times the largest diagonal entry)."""
+    bad, (qc, qdc, tauc) = _dyn_inputs(desc, q, qd, tau)
+    M = mass_matrix(desc, qc)[0]
+    rhs = tauc - nonlinear_effects(desc, qc, qdc)[0]
+    qdd = np.full_like(rhs, np.nan)
+    eig = np.linalg.eigvalsh(M)
+    largest = np.max(np.diagonal(M, axis1=1, axis2=2), axis=1)
+    spd = eig[:, 0] > MASS_MATRIX_TOL * largest
+    qdd[spd] = np.linalg.solve(M[spd], rhs[spd][..., None])[..., 0]
+    qdd, status = _finish(qdd, bad)
+    status[~spd & ~bad] = SINGULAR
+    qdd[~spd] = np.nan
+    return qdd, status

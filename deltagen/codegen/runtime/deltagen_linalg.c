@@ -64,6 +64,23 @@ int deltagen_cholesky(double *A, size_t s, double *inv)
     return 0;
 }
 
+int deltagen_cholesky_relative(double *A, size_t s, double *inv, double rtol)
+{
+    double largest = 0.0;
+    for (size_t j = 0; j < s; ++j) {
+        largest = A[j * s + j] > largest ? A[j * s + j] : largest;
+    }
+    if (deltagen_cholesky(A, s, inv) != 0) {
+        return -1;
+    }
+    for (size_t j = 0; j < s; ++j) {
+        if (!(A[j * s + j] * A[j * s + j] > rtol * largest)) {
+            return -1;
+        }
+    }
+    return 0;
+}
+
 void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const double *b,
                              double *x)
 {

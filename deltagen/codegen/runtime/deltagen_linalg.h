@@ -24,6 +24,11 @@ void deltagen_rotation_log(const double R[9], double w[3]);
  * positive definite. */
 int deltagen_cholesky(double *A, size_t s, double *inv);
 
+/* deltagen_cholesky with a relative test of definiteness: -1 also when a pivot L_jj^2 is
+ * not above rtol times the largest diagonal entry of A (a matrix positive definite only by
+ * rounding, e.g. the mass matrix of an arm with a massless link and no armature). */
+int deltagen_cholesky_relative(double *A, size_t s, double *inv, double rtol);
+
 /* Solve L L^T x = b (L, inv from deltagen_cholesky); b and x may be the same array. */
 void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const double *b,
                              double *x);

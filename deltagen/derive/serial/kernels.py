@@ -1,7 +1,9 @@
 """The batched kernels of one serial arm: fk (T, 4x4 row-major), frames (every link frame),
 jacobian (geometric, base frame, 6 x n row-major), fk_jacobian (T and the Jacobian from one
 shared CSE: the evaluation of one Newton step of the compiled IK solver) and jacobian_dot
-(dJ/dt along qd).
+(dJ/dt along qd); for arms with inertial parameters also the dynamics (dynamics.py):
+inverse_dynamics, mass_matrix, gravity_torque, coriolis and nonlinear_effects (the
+forward dynamics is a C wrapper of the last two and the runtime's Cholesky solver).
 
 Status: INVALID for a non-finite input, and (codegen.lowering.guard_outputs, for every
 kernel) for finite inputs whose outputs are not finite (e.g. a prismatic q of 1e308, rates
@@ -15,6 +17,7 @@ from deltagen import status as st
 from deltagen.derive.functions import AllFinite
 from deltagen.derive.kernel import Angle, Kernel, Port, Stage
 from deltagen.derive.serial.chain import Chain
+from deltagen.derive.serial.dynamics import Dynamics
 from deltagen.derive.serial.ik_closed_form import ik_kernel
 
 invalid = sp.Symbol("invalid")
@@ -193,6 +196,140 @@ class ArmKernels:
         """Every closed-form IK branch in C, for the structures ik_kernel supports."""
         return ik_kernel(self.desc, self.chain)
 
+    # -- dynamics (arms with inertial parameters) -----------------------------------
+
+    def _dynamics(self) -> Dynamics:
+        if not hasattr(self, "_dyn"):
+            self._dyn = Dynamics(self.desc, self.chain.sym)
+        return self._dyn
+
+    def _dynamics_kernel(self, name, doc, inputs, port, values, assignments):
+        """A kernel whose outputs are ``values`` (a list, row-major; entries that are the
+        same object as an earlier entry reuse its symbol, e.g. the mirrored half of M).
+        INVALID when an input or an output is not finite (e.g. an overflow at huge rates)."""
+        raw, raw_assign, seen = [], [], {}
+        for k, value in enumerate(values):
+            key = id(value)
+            if key in seen:
+                raw.append(seen[key])
+                continue
+            sym = sp.Symbol(f"{port[0]}_{k}", real=True)
+            raw_assign.append((sym, value))
+            raw.append(sym)
+            seen[key] = sym
+        inputs_symbols = [s for p in inputs for s in p.symbols]
+        unique = list(dict.fromkeys(raw))
+        flag = Stage(
+            "status flag: a non-finite input or result",
+            ((invalid, sp.Not(AllFinite(*inputs_symbols, *unique))),),
+        )
+        outs, out_stage = _masked(port[0], raw, invalid)
+        return Kernel(
+            name=name,
+            doc=doc,
+            inputs=inputs,
+            outputs=(Port(port[0], outs, port[1], port[2], width=len(values)),),
+            stages=(
+                Stage(
+                    "recursive Newton-Euler passes (derive/serial/dynamics.py)", tuple(assignments)
+                ),
+                Stage("results", tuple(raw_assign)),
+                flag,
+                Stage("outputs (NaN on invalid rows)", out_stage),
+            ),
+            status=_status(),
+            angles=self.angles,
+            status_doc="OK; INVALID (a non-finite input or result; the row's outputs are NaN)",
+        )
+
+    def _qdd_port(self):
+        n = self.desc.n
+        return Port(
+            "qdd",
+            self._dynamics().qdd,
+            f"joint accelerations qddot_1..qddot_{n} [rad/s^2 or m/s^2]",
+            "rad/s^2|m/s^2",
+            width=n,
+        )
+
+    def _tau_doc(self):
+        return f"joint torques tau_1..tau_{self.desc.n} [N m (revolute) or N (prismatic)]"
+
+    def inverse_dynamics(self) -> Kernel:
+        tau, assignments = self._dynamics().inverse_dynamics()
+        return self._dynamics_kernel(
+            "inverse_dynamics",
+            "Inverse dynamics: tau = M(q) qdd + C(q, qd) qd + g(q) + armature qdd + viscous qd "
+            "+ Coulomb(sign qd), by the recursive Newton-Euler algorithm (gravity of the "
+            "description, base frame).",
+            (self.q_port, self.qd_port, self._qdd_port()),
+            ("tau", self._tau_doc(), "N m|N"),
+            tau,
+            assignments,
+        )
+
+    def nonlinear_effects(self) -> Kernel:
+        h, assignments = self._dynamics().nonlinear_effects()
+        return self._dynamics_kernel(
+            "nonlinear_effects",
+            "Nonlinear effects h = C(q, qd) qd + g(q) + friction: the joint torques at qdd = 0 "
+            "(what forward_dynamics subtracts).",
+            (self.q_port, self.qd_port),
+            ("h", self._tau_doc(), "N m|N"),
+            h,
+            assignments,
+        )
+
+    def gravity_torque(self) -> Kernel:
+        g, assignments = self._dynamics().gravity_torque()
+        return self._dynamics_kernel(
+            "gravity_torque",
+            "Gravity torque g(q): the joint torques that hold the arm still against gravity.",
+            (self.q_port,),
+            ("g", self._tau_doc(), "N m|N"),
+            g,
+            assignments,
+        )
+
+    def mass_matrix(self) -> Kernel:
+        n = self.desc.n
+        M, assignments = self._dynamics().mass_matrix()
+        return self._dynamics_kernel(
+            "mass_matrix",
+            f"Joint-space inertia matrix M(q), {n} x {n} row-major, symmetric, with the "
+            "armature (reflected motor inertia) on the diagonal; one RNEA pass per column "
+            "(qdd = e_j, no velocity, no gravity).",
+            (self.q_port,),
+            ("M", f"{n} x {n} row-major [kg m^2 | kg m | kg]", "kg m^2|kg"),
+            [M[r][c] for r in range(n) for c in range(n)],
+            assignments,
+        )
+
+    def coriolis(self) -> Kernel:
+        n = self.desc.n
+        C, assignments = self._dynamics().coriolis()
+        return self._dynamics_kernel(
+            "coriolis",
+            f"Coriolis matrix C(q, qd), {n} x {n} row-major, in the Christoffel form "
+            "(C qd: Coriolis and centrifugal torques; Mdot - 2C skew-symmetric); column j is "
+            "the bilinear RNEA of (qd, e_j).",
+            (self.q_port, self.qd_port),
+            ("C", f"{n} x {n} row-major [kg m^2/s | ...]", "kg m^2/s"),
+            [C[r][c] for r in range(n) for c in range(n)],
+            assignments,
+        )
+
+    def dynamics(self) -> tuple:
+        if not self.desc.has_inertia:
+            return ()
+        return (
+            self.inverse_dynamics(),
+            self.mass_matrix(),
+            self.gravity_torque(),
+            self.coriolis(),
+            self.nonlinear_effects(),
+        )
+
     def all(self):
         kernels = [
             self.fk(),
@@ -202,4 +339,4 @@ class ArmKernels:
             self.jacobian_dot(),
         ]
         ik = self.ik_all()
-        return tuple(kernels + ([ik] if ik is not None else []))
+        return tuple(kernels + ([ik] if ik is not None else []) + list(self.dynamics()))
