@@ -9,8 +9,12 @@ Instead the kernels stay single-threaded and the caller splits the rows: cffi's
 out-of-line API-mode modules (``native.build`` writes them with ``make_c_source``) wrap
 every C call in ``Py_BEGIN_ALLOW_THREADS`` / ``Py_END_ALLOW_THREADS``, so the chunks
 really run in parallel. Every kernel treats each row on its own (per-point status, no
-state between rows), so a chunk writes its own rows of the shared output buffers and the
-result is bit-for-bit the single-threaded one, whatever the split.
+state between rows), so a chunk writes its own rows of the shared output buffers. For
+the result to be bit-for-bit the single-threaded one, every chunk but the last starts and
+ends on a multiple of :data:`ROW_ALIGN` rows: the kernels work in blocks of
+``<PREFIX>_BLOCK`` (64) rows, and within a block a row goes through the vector loop
+(libmvec's sin/cos/sqrt) or the scalar remainder (libm's), which may differ in the last
+bit; aligned chunks put every row at the same place of the same block as one call would.
 
 Threshold (:data:`MIN_ROWS_PER_THREAD`): a chunk must amortise the hand-off to a pool
 thread (~20-50 us for submit, wake-up and join here). Measured on the 2-core shared
@@ -39,6 +43,9 @@ from typing import Callable
 from deltagen.inputs import InputError
 
 MIN_ROWS_PER_THREAD = 20000
+# a multiple of every generated module's <PREFIX>_BLOCK (codegen.render.Unit.block, 64);
+# tests/test_threads.py checks it against generated/
+ROW_ALIGN = 256
 _MAX_POOL_THREADS = 64  # pool threads are started only when needed, up to this many
 
 _pool: ThreadPoolExecutor | None = None
@@ -112,7 +119,8 @@ if hasattr(os, "register_at_fork"):
 def chunks(n: int, threads: int | None) -> list[tuple[int, int]]:
     """The contiguous row ranges [(lo, hi), ...] a batch of n rows is split into."""
     count = max(1, min(resolve_threads(threads), n // MIN_ROWS_PER_THREAD))
-    bounds = [n * i // count for i in range(count + 1)]
+    inner = {n * i // count // ROW_ALIGN * ROW_ALIGN for i in range(1, count)}
+    bounds = [0, *sorted(inner - {0, n}), n]
     return list(zip(bounds[:-1], bounds[1:]))
 
 
