@@ -1037,7 +1037,10 @@ def _render_threads(result: dict, markdown: bool) -> list[str]:
     header = ["quantity", "threads=1", f"threads={k}", "speedup"]
     out += table(
         header,
-        [[label, _cell(one), _cell(many), _ratio(one, many)] for label, one, many in result["rows"]],
+        [
+            [label, _cell(one), _cell(many), _ratio(one, many)]
+            for label, one, many in result["rows"]
+        ],
         markdown,
     )
     out.append("")
