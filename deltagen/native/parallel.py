@@ -38,7 +38,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 from deltagen.inputs import InputError
 
@@ -135,6 +135,9 @@ def run_rows(n: int, threads: int | None, call: Callable[[int, int], int]) -> in
         return call(0, n)
     pool = _get_pool()
     futures = [pool.submit(call, lo, hi) for lo, hi in parts[1:]]
-    rcs = [call(*parts[0])]
-    rcs += [f.result() for f in futures]  # waits for every chunk, even after an error
+    try:
+        rcs = [call(*parts[0])]
+    finally:  # every chunk is done with the buffers before the caller goes on
+        wait(futures)
+    rcs += [f.result() for f in futures]
     return next((rc for rc in rcs if rc != 0), 0)
