@@ -168,6 +168,24 @@ def test_the_batch_is_really_split(small_chunks):
     assert parallel.run_rows(n, 3, lambda lo, hi: 4 if lo else 0) == 4  # a chunk's rc
 
 
+def test_an_error_in_the_callers_chunk_waits_for_the_others(small_chunks):
+    """The buffers stay in use until every chunk is done, even when one chunk raises."""
+    done = threading.Event()
+    started = threading.Barrier(2, timeout=10)
+
+    def call(lo, hi):
+        started.wait()
+        if lo == 0:
+            raise RuntimeError("boom")
+        threading.Event().wait(0.05)  # still writing when the caller's chunk fails
+        done.set()
+        return 0
+
+    with pytest.raises(RuntimeError, match="boom"):
+        parallel.run_rows(2 * parallel.ROW_ALIGN + 3, 2, call)
+    assert done.is_set()
+
+
 def test_row_align_is_a_multiple_of_every_kernel_block():
     """Chunks that start on a block boundary keep each row's vector/scalar path."""
     import re

@@ -17,11 +17,12 @@ ends on a multiple of :data:`ROW_ALIGN` rows: the kernels work in blocks of
 bit; aligned chunks put every row at the same place of the same block as one call would.
 
 Threshold (:data:`MIN_ROWS_PER_THREAD`): a chunk must amortise the hand-off to a pool
-thread (~20-50 us for submit, wake-up and join here). Measured on the 2-core shared
-machine (``deltagen bench`` rows and tests/../README): delta fk costs ~9 ns/row and Puma
-fk ~15 ns/row, so 20000 rows are ~0.2-0.3 ms of work, ~10x the hand-off; below that the
-split gains little and is noise on a busy machine. A batch of N rows uses
-``min(threads, N // MIN_ROWS_PER_THREAD)`` chunks (at least one).
+thread. Measured on the project's 2-core shared machine (load average 1.4): splitting a
+no-op call in two costs 55 us median (p90 99 us: submit, wake-up, join); delta fk costs
+9 ns/row on an idle core (README benchmark) and 45-60 ns/row with the other core busy, so
+a 20000-row chunk is 0.18-1.2 ms of work, 3-20x the hand-off. Splits of 2000-10000 rows
+measured 0.6-0.9x (slower) at that load; at 10^5-10^6 rows, 1.5-1.9x. A batch of N rows
+uses ``min(threads, N // MIN_ROWS_PER_THREAD)`` chunks, so splitting starts at 40000 rows.
 
 How many threads: ``threads=`` on the robot (DeltaRobot / SerialRobot), else the
 ``DELTAGEN_THREADS`` environment variable (a positive integer), else the cores this
