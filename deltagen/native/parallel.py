@@ -21,8 +21,10 @@ thread. Measured on the project's 2-core shared machine (load average 1.4): spli
 no-op call in two costs 55 us median (p90 99 us: submit, wake-up, join); delta fk costs
 9 ns/row on an idle core (README benchmark) and 45-60 ns/row with the other core busy, so
 a 20000-row chunk is 0.18-1.2 ms of work, 3-20x the hand-off. Splits of 2000-10000 rows
-measured 0.6-0.9x (slower) at that load; at 10^5-10^6 rows, 1.5-1.9x. A batch of N rows
-uses ``min(threads, N // MIN_ROWS_PER_THREAD)`` chunks, so splitting starts at 40000 rows.
+measured 0.6-0.9x (slower) at that load; at 10^5-10^6 rows, 1.5-1.9x with the second
+core free and ~0.95x while another job held it (README, "All cores on batches"). A batch
+of N rows uses ``min(threads, N // MIN_ROWS_PER_THREAD)`` chunks, so splitting starts at
+40000 rows.
 
 How many threads: ``threads=`` on the robot (DeltaRobot / SerialRobot), else the
 ``DELTAGEN_THREADS`` environment variable (a positive integer), else the cores this
