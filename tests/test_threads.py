@@ -248,7 +248,10 @@ def test_threads_is_kept_by_derived_robots():
 def test_deltagen_threads_is_checked(monkeypatch, small_chunks, delta, text):
     monkeypatch.setenv("DELTAGEN_THREADS", text)
     with pytest.raises(InputError, match="DELTAGEN_THREADS must be a positive integer"):
-        delta.fk(np.zeros((N_SPLIT, 3)))
+        delta.fk(np.zeros((N_SPLIT, 3)))  # a robot made before the variable was set
+    with pytest.raises(InputError, match="DELTAGEN_THREADS must be a positive integer"):
+        SerialRobot.load("puma560")  # a new robot: at once, whatever its batches
+    assert DeltaRobot.default(threads=2).threads == 2  # threads= does not read it
 
 
 def test_deltagen_threads_and_the_default(monkeypatch):

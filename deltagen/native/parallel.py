@@ -65,8 +65,10 @@ def available_cores() -> int:
 
 def check_threads(threads, source: str = "threads"):
     """None (the default: DELTAGEN_THREADS or the available cores) or a positive int;
-    InputError otherwise."""
+    InputError otherwise. With None, DELTAGEN_THREADS is checked now too (a robot made
+    under a bad value fails at once, not at its first large batch)."""
     if threads is None:
+        resolve_threads(None)
         return None
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise InputError(
