@@ -111,6 +111,12 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
     ):
         assert fact in serial_part
     assert "total bench time" in serial_part
+    # all cores: threads=1 against the default thread count
+    threads_part = serial_part.partition("All cores: threads=1 vs threads=")[2]
+    assert threads_part, "no all-cores section"
+    for name in ("delta fk", "puma560 fk", "puma560 jacobian"):
+        assert any(line.strip("| ").startswith(name) for line in threads_part.splitlines()), name
+    assert "speedup" in threads_part and "DELTAGEN_THREADS" in threads_part
 
 
 def test_sampled_poses_are_valid_for_both_backends():

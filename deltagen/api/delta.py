@@ -30,6 +30,7 @@ from deltagen.errors import (
 )
 from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_errors_mode
 from deltagen.model.delta import DeltaGeometry, DeltaInertia
+from deltagen.native.parallel import check_threads
 
 _MODELS = ("exact", "simplified")
 __all__ = ["DeltaInertia", "DeltaRobot"]
@@ -60,6 +61,7 @@ class DeltaRobot:
         singular_tol: float = st.SINGULAR_TOL,
         inertia: DeltaInertia | None = None,
         backend: Backend = "compiled",
+        threads: int | None = None,
     ) -> None:
         self.geometry = DeltaGeometry(
             r_a=r_a,
@@ -71,16 +73,17 @@ class DeltaRobot:
             singular_tol=singular_tol,
             inertia=inertia,
         )
-        self._init_backend(backend)
+        self._init_backend(backend, threads)
 
-    def _init_backend(self, backend):
+    def _init_backend(self, backend, threads=None):
         if backend not in _BACKENDS:
             raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
+        threads = check_threads(threads)
         self.backend = backend
         if backend == "compiled":
             from deltagen.native.delta import CompiledDelta
 
-            self._core = CompiledDelta(self.geometry)
+            self._core = CompiledDelta(self.geometry, threads)
             # fast paths for one pose (same C function, same results)
             self._fk_single = self._core.single("fk")
             self._ik_single = self._core.single("ik")
@@ -89,31 +92,51 @@ class DeltaRobot:
 
             self._core = _ReferenceCore(reference, self.geometry)
             self._fk_single = self._ik_single = None
+        self._threads = threads
+
+    @property
+    def threads(self) -> int | None:
+        """Threads a batched call may use (compiled backend; batches of at least 2 x
+        native.parallel.MIN_ROWS_PER_THREAD rows are split into row chunks): a positive
+        integer, or None for DELTAGEN_THREADS, else every available core. Results do not
+        depend on it (bit for bit)."""
+        return self._threads
+
+    @threads.setter
+    def threads(self, threads: int | None) -> None:
+        self._threads = check_threads(threads)
+        self._core.threads = self._threads
 
     @classmethod
-    def from_geometry(cls, geometry: DeltaGeometry, backend: Backend = "compiled") -> DeltaRobot:
+    def from_geometry(
+        cls, geometry: DeltaGeometry, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> DeltaRobot:
         robot = cls.__new__(cls)
         robot.geometry = geometry
-        robot._init_backend(backend)
+        robot._init_backend(backend, threads)
         return robot
 
     @classmethod
-    def default(cls, backend: Backend = "compiled") -> DeltaRobot:
+    def default(cls, backend: Backend = "compiled", *, threads: int | None = None) -> DeltaRobot:
         """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8 m, 0/120/240 deg."""
-        return cls.from_geometry(DeltaGeometry.default(), backend)
+        return cls.from_geometry(DeltaGeometry.default(), backend, threads=threads)
 
     @classmethod
-    def from_toml(cls, path: PathLike, backend: Backend = "compiled") -> DeltaRobot:
-        return cls.from_geometry(DeltaGeometry.from_toml(path), backend)
+    def from_toml(
+        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> DeltaRobot:
+        return cls.from_geometry(DeltaGeometry.from_toml(path), backend, threads=threads)
 
     def with_backend(self, backend: Backend) -> DeltaRobot:
-        return type(self).from_geometry(self.geometry, backend)
+        return type(self).from_geometry(self.geometry, backend, threads=self.threads)
 
     def with_inertia(self, inertia: DeltaInertia | None) -> DeltaRobot:
         """The same robot with other inertial parameters (same backend)."""
         from dataclasses import replace
 
-        return type(self).from_geometry(replace(self.geometry, inertia=inertia), self.backend)
+        return type(self).from_geometry(
+            replace(self.geometry, inertia=inertia), self.backend, threads=self.threads
+        )
 
     def __repr__(self) -> str:
         g = self.geometry

@@ -38,6 +38,7 @@ from deltagen.inputs import (
     check_errors_mode,
 )
 from deltagen.model.serial import SerialDescription
+from deltagen.native.parallel import check_threads
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
 
@@ -92,18 +93,25 @@ class SerialRobot:
     _fd_single: Any
     _mass_single: Any
 
-    def __init__(self, description: SerialDescription, backend: Backend = "compiled") -> None:
+    def __init__(
+        self,
+        description: SerialDescription,
+        backend: Backend = "compiled",
+        *,
+        threads: int | None = None,
+    ) -> None:
         if not isinstance(description, SerialDescription):
             raise InputError("SerialRobot needs a SerialDescription (see from_dh, from_toml, load)")
         if backend not in _BACKENDS:
             raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
+        threads = check_threads(threads)
         self.description = description
         self.backend = backend
         self.n = description.n
         if backend == "compiled":
             from deltagen.native.serial import CompiledArm
 
-            self._core = CompiledArm(description)
+            self._core = CompiledArm(description, threads)
             self._fk_single = self._core.single("fk")
             self._jacobian_single = self._core.single("jacobian")
             self._ik_all_single = None  # made by ik_all when the arm has a C closed form
@@ -117,11 +125,27 @@ class SerialRobot:
             self._core = _ReferenceArm(reference, description)
             self._fk_single = self._jacobian_single = self._ik_all_single = None
             self._id_single = self._fd_single = self._mass_single = None
+        self._threads = threads
+
+    @property
+    def threads(self) -> int | None:
+        """Threads a batched call may use (compiled backend; batches of at least 2 x
+        native.parallel.MIN_ROWS_PER_THREAD rows are split into row chunks): a positive
+        integer, or None for DELTAGEN_THREADS, else every available core. Results do not
+        depend on it (bit for bit)."""
+        return self._threads
+
+    @threads.setter
+    def threads(self, threads: int | None) -> None:
+        self._threads = check_threads(threads)
+        self._core.threads = self._threads
 
     # -- construction ---------------------------------------------------------------
 
     @classmethod
-    def load(cls, name: str, backend: Backend = "compiled") -> SerialRobot:
+    def load(
+        cls, name: str, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> SerialRobot:
         """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
         if (
             not isinstance(name, str)
@@ -131,11 +155,15 @@ class SerialRobot:
             raise InputError(
                 f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}"
             )
-        return cls(SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend)
+        return cls(
+            SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend, threads=threads
+        )
 
     @classmethod
-    def from_toml(cls, path: PathLike, backend: Backend = "compiled") -> SerialRobot:
-        return cls(SerialDescription.from_toml(Path(path)), backend)
+    def from_toml(
+        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> SerialRobot:
+        return cls(SerialDescription.from_toml(Path(path)), backend, threads=threads)
 
     @classmethod
     def from_dh(
@@ -148,6 +176,7 @@ class SerialRobot:
         tool: ArrayLike | None = None,
         configurations: Mapping[str, Sequence[float]] | None = None,
         backend: Backend = "compiled",
+        threads: int | None = None,
     ) -> SerialRobot:
         """rows: dicts with a, alpha, d, offset, joint|type, qlim (and *_deg keys);
         convention "standard" or "modified" must be given (no silent default)."""
@@ -156,10 +185,10 @@ class SerialRobot:
         desc = SerialDescription.from_rows(
             rows, convention, name=name, base=base, tool=tool, configurations=configurations
         )
-        return cls(desc, backend)
+        return cls(desc, backend, threads=threads)
 
     def with_backend(self, backend: Backend) -> SerialRobot:
-        return type(self)(self.description, backend)
+        return type(self)(self.description, backend, threads=self.threads)
 
     def __repr__(self) -> str:
         d = self.description

@@ -33,9 +33,15 @@ each library call interleaved with the matching deltagen call, and prints the ra
 library / deltagen and their agreement. ``pip install deltagen[bench]`` brings both; they are
 skipped (and named as absent) otherwise, or on request (``DELTAGEN_BENCH_ORACLES=0``).
 
-Everything is single-threaded: the C core is a plain loop (``-fopenmp-simd`` only
-vectorises, it starts no threads) and the reference uses numpy ufuncs and batched 3x3
-solves, so OPENBLAS_NUM_THREADS / OMP_NUM_THREADS make no difference.
+The tables above are single-threaded: the robots are made with ``threads=1`` (the C core is
+a plain loop; ``-fopenmp-simd`` only vectorises, it starts no threads) and the reference
+uses numpy ufuncs and batched 3x3 solves, so OPENBLAS_NUM_THREADS / OMP_NUM_THREADS make no
+difference.
+
+All cores. A last section times delta fk, Puma560 fk and Puma560 jacobian through
+``robot._core`` with ``threads=1`` and with the default thread count (DELTAGEN_THREADS, else
+the available cores; native.parallel splits batches of at least 2 x MIN_ROWS_PER_THREAD
+rows into row chunks on a thread pool), round-robin, and prints the speedup.
 """
 
 from __future__ import annotations
@@ -782,7 +788,7 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
     """The serial-arm section (see the module docstring)."""
     from deltagen.api.serial import SerialRobot
 
-    compiled = SerialRobot.load(SERIAL_ROBOT, backend="compiled")
+    compiled = SerialRobot.load(SERIAL_ROBOT, backend="compiled", threads=1)
     reference = compiled.with_backend("reference")
     data = sample_serial(n, compiled, np.random.default_rng(SEED))
     throughput, sizes, agreement = _measure_serial_throughput(compiled, reference, data, repeats)
@@ -999,12 +1005,15 @@ def render(result: dict, markdown: bool) -> str:
         "Targets are checked against the compiled _core median."
     )
     out.append(
-        f"{bullet}single-threaded: the C loop starts no threads and the reference uses "
+        f"{bullet}single-threaded (threads=1; all cores: last section): the reference uses "
         "numpy ufuncs, so OPENBLAS/OMP thread settings are irrelevant"
     )
     if result.get("serial") is not None:
         out.append("")
         out += _render_serial(result["serial"], repeats, markdown)
+    if result.get("threads") is not None:
+        out.append("")
+        out += _render_threads(result["threads"], markdown)
     out.append(f"{bullet}total bench time {result['elapsed_s']:.1f} s")
     return "\n".join(out)
 
@@ -1159,6 +1168,68 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
     return out
 
 
+# ------------------------------------------------------------------------- all cores
+
+
+def run_threads(n: int, repeats: int) -> dict:
+    """threads=1 vs the default thread count on delta fk, Puma560 fk and jacobian (_core)."""
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.serial import SerialRobot
+    from deltagen.native import parallel
+
+    threads = parallel.resolve_threads(None)
+    rng = np.random.default_rng(SEED)
+    delta = {t: DeltaRobot.default(threads=t) for t in (1, threads)}
+    arm = {t: SerialRobot.load(SERIAL_ROBOT, threads=t) for t in (1, threads)}
+    q_delta = np.ascontiguousarray(rng.uniform(*Q_RANGE, (n, 3)))
+    lim = arm[1].qlim
+    q_arm = np.ascontiguousarray(lim[:, 0] + (lim[:, 1] - lim[:, 0]) * rng.random((n, arm[1].n)))
+    rows = []
+    for label, robots, fn, q in (
+        ("delta fk", delta, "fk", q_delta),
+        (f"{SERIAL_ROBOT} fk", arm, "fk", q_arm),
+        (f"{SERIAL_ROBOT} jacobian", arm, "jacobian", q_arm),
+    ):
+        calls = [getattr(robots[t]._core, fn) for t in (1, threads)]
+        for call in calls:
+            call(q)  # warm-up (and the pool's threads)
+        one, many = interleaved([batch_timer(c, (q,), n) for c in calls], repeats)
+        rows.append((label, one, many))
+    return {
+        "threads": threads,
+        "chunks": len(parallel.chunks(n, threads)),
+        "n": n,
+        "rows": rows,
+        "load": _load(),
+    }
+
+
+def _render_threads(result: dict, markdown: bool) -> list[str]:
+    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
+    bullet = "- " if markdown else "  "
+    k = result["threads"]
+    out = [h(f"All cores: threads=1 vs threads={k}, _core, ns per item"), ""]
+    header = ["quantity", "threads=1", f"threads={k}", "speedup"]
+    out += table(
+        header,
+        [
+            [label, _cell(one), _cell(many), _ratio(one, many)]
+            for label, one, many in result["rows"]
+        ],
+        markdown,
+    )
+    out.append("")
+    from deltagen.native import parallel
+
+    out.append(
+        f"{bullet}threads: DELTAGEN_THREADS, else the available cores = {k}; N = "
+        f"{result['n']:,} rows in {result['chunks']} chunk(s) (batches below "
+        f"{2 * parallel.MIN_ROWS_PER_THREAD:,} rows run in one call); load average (1 min) "
+        f"{result['load']} after this section"
+    )
+    return out
+
+
 # ------------------------------------------------------------------------- entry point
 
 
@@ -1173,7 +1244,7 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
         raise ValueError(f"--repeats must be at least 1, got {repeats}")
     t_start = time.perf_counter()
     load_before = _load()
-    compiled = DeltaRobot.default(backend="compiled")  # builds the C core if needed
+    compiled = DeltaRobot.default(backend="compiled", threads=1)  # builds the C core if needed
     reference = DeltaRobot.default(backend="reference")
     ref_n = min(n, REFERENCE_N)
 
@@ -1193,6 +1264,7 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
     )
     del poses
     serial_result = run_serial(n, repeats, oracles) if serial else None
+    threads_result = run_threads(n, repeats) if serial else None
     machine = machine_info(compiled)
     if serial_result is not None:
         machine.append(("C build (serial)", _build_name(serial_result["robot"])))
@@ -1213,6 +1285,7 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
         "latency": latency,
         "agreement": agreement,
         "serial": serial_result,
+        "threads": threads_result,
         "load_before": load_before,
         "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,

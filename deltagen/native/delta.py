@@ -10,6 +10,7 @@ import numpy as np
 from deltagen import status as st
 from deltagen.inputs import plain_row
 from deltagen.native.build import load
+from deltagen.native.parallel import run_rows
 
 
 class _Scratch(threading.local):
@@ -26,7 +27,8 @@ class _Scratch(threading.local):
 class CompiledDelta:
     """Batched calls into the C core; arrays are (N, 3|4) C-contiguous float64."""
 
-    def __init__(self, geometry):
+    def __init__(self, geometry, threads=None):
+        self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
         module = load("delta_kinematics", "deltagen_delta")
         self._ffi, self._lib = module.ffi, module.lib
         g = geometry
@@ -94,18 +96,24 @@ class CompiledDelta:
         return call
 
     def _run(self, fn, inputs, n_out, out_width=None):
+        """fn(geometry, rows, axes, *inputs, *outputs, status) over the batch, split into row
+        chunks across threads (native.parallel); inputs are (N, ...) C-contiguous."""
         n, axes = inputs[0].shape
-        fb = self._ffi.from_buffer
+        fb, geometry = self._ffi.from_buffer, self._geometry
         outs = [np.empty((n, out_width or axes)) for _ in range(n_out)]
         status = np.empty(n, dtype=np.int8)
-        rc = fn(
-            self._geometry,
-            n,
-            axes,
-            *(fb("double[]", a) for a in inputs),
-            *(fb("double[]", o, require_writable=True) for o in outs),
-            fb("int8_t[]", status, require_writable=True),
-        )
+
+        def call(lo, hi):
+            return fn(
+                geometry,
+                hi - lo,
+                axes,
+                *(fb("double[]", a[lo:hi]) for a in inputs),
+                *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
+                fb("int8_t[]", status[lo:hi], require_writable=True),
+            )
+
+        rc = run_rows(n, self.threads, call)
         if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
             raise RuntimeError(f"C core rejected its arguments (rc={rc})")
         return (*outs, status)
@@ -133,18 +141,4 @@ class CompiledDelta:
             if model == "exact"
             else self._lib.deltagen_delta_inverse_dynamics_simplified
         )
-        n, axes = q.shape
-        fb = self._ffi.from_buffer
-        tau = np.empty((n, axes))
-        status = np.empty(n, dtype=np.int8)
-        rc = fn(
-            self._geometry,
-            n,
-            axes,
-            *(fb("double[]", a) for a in (q, qd, qdd, payload)),
-            fb("double[]", tau, require_writable=True),
-            fb("int8_t[]", status, require_writable=True),
-        )
-        if rc != 0:
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return tau, status
+        return self._run(fn, [q, qd, qdd, payload], 1)

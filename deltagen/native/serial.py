@@ -21,6 +21,7 @@ from deltagen.codegen.serial import (
 )
 from deltagen.inputs import plain_pose, plain_row
 from deltagen.native.build import load, usable_cache_dir
+from deltagen.native.parallel import run_rows
 from deltagen.paths import generated_dir
 
 
@@ -78,8 +79,9 @@ class _DynamicsScratch(threading.local):
 class CompiledArm:
     """Batched calls into an arm's C module; q is (N, n) C-contiguous float64."""
 
-    def __init__(self, desc):
+    def __init__(self, desc, threads=None):
         self.desc = desc
+        self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
         self._prefix = c_prefix(desc)  # of the C functions: deltagen_<name>
         module = load(base_name(desc), self._prefix, source_dir(desc))
         self._ffi, self._lib = module.ffi, module.lib
@@ -88,7 +90,8 @@ class CompiledArm:
 
     def _run(self, name, inputs, *widths):
         """Call <prefix>_<name> on the input rows: one (N, width) output per width, then
-        the status. A width may be (width, "uint8_t") for a flag output."""
+        the status. A width may be (width, "uint8_t") for a flag output. The rows are split
+        into chunks across threads (native.parallel)."""
         n = inputs[0].shape[0]
         fb = self._ffi.from_buffer
         kinds = [w if isinstance(w, tuple) else (w, "double") for w in widths]
@@ -98,12 +101,17 @@ class CompiledArm:
         ]
         status = np.empty(n, dtype=np.int8)
         fn = getattr(self._lib, f"{self._prefix}_{name}")
-        rc = fn(
-            n,
-            *(fb("double[]", a) for a in inputs),
-            *(fb(f"{ctype}[]", out, require_writable=True) for out, (_, ctype) in zip(outs, kinds)),
-            fb("int8_t[]", status, require_writable=True),
-        )
+        ctypes = [f"{ctype}[]" for _, ctype in kinds]
+
+        def call(lo, hi):
+            return fn(
+                hi - lo,
+                *(fb("double[]", a[lo:hi]) for a in inputs),
+                *(fb(c, out[lo:hi], require_writable=True) for out, c in zip(outs, ctypes)),
+                fb("int8_t[]", status[lo:hi], require_writable=True),
+            )
+
+        rc = run_rows(n, self.threads, call)
         if rc != 0:
             raise RuntimeError(f"C core rejected its arguments (rc={rc})")
         return (*outs, status)
@@ -162,18 +170,23 @@ class CompiledArm:
         iterations = np.empty(N, dtype=np.int32)
         status = np.empty(N, dtype=np.int8)
         lim = self._ffi.NULL if qlim is None else fb("double[]", qlim)
-        rc = self._ik_newton(
-            N,
-            options,
-            fb("double[]", T),
-            fb("double[]", q0),
-            lim,
-            fb("double[]", q, require_writable=True),
-            fb("double[]", err_p, require_writable=True),
-            fb("double[]", err_r, require_writable=True),
-            fb("int32_t[]", iterations, require_writable=True),
-            fb("int8_t[]", status, require_writable=True),
-        )
+        fn = self._ik_newton
+
+        def call(lo, hi):  # rows are independent: a chunk's rows get the same answers
+            return fn(
+                hi - lo,
+                options,
+                fb("double[]", T[lo:hi]),
+                fb("double[]", q0[lo:hi]),
+                lim,
+                fb("double[]", q[lo:hi], require_writable=True),
+                fb("double[]", err_p[lo:hi], require_writable=True),
+                fb("double[]", err_r[lo:hi], require_writable=True),
+                fb("int32_t[]", iterations[lo:hi], require_writable=True),
+                fb("int8_t[]", status[lo:hi], require_writable=True),
+            )
+
+        rc = run_rows(N, self.threads, call)
         if rc != 0:
             raise RuntimeError(f"C core rejected the IK arguments (rc={rc})")
         return q, err_p, err_r, iterations, status

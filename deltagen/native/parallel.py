@@ -1,0 +1,148 @@
+"""All cores on batches: one batched C call split into contiguous row chunks that run on
+threads at once (issue 12, item 3).
+
+Why threads and not OpenMP: the generated C must stay standalone (C99, libm only,
+reentrant, no globals) for users who drop it into a motion controller; an OpenMP runtime
+(libgomp) would be a new dependency of that C and of every build. (``-fopenmp-simd``,
+used by the build for vector math, is a compile-time pragma only and links no runtime.)
+Instead the kernels stay single-threaded and the caller splits the rows: cffi's
+out-of-line API-mode modules (``native.build`` writes them with ``make_c_source``) wrap
+every C call in ``Py_BEGIN_ALLOW_THREADS`` / ``Py_END_ALLOW_THREADS``, so the chunks
+really run in parallel. Every kernel treats each row on its own (per-point status, no
+state between rows), so a chunk writes its own rows of the shared output buffers. For
+the result to be bit-for-bit the single-threaded one, every chunk but the last starts and
+ends on a multiple of :data:`ROW_ALIGN` rows: the kernels work in blocks of
+``<PREFIX>_BLOCK`` (64) rows, and within a block a row goes through the vector loop
+(libmvec's sin/cos/sqrt) or the scalar remainder (libm's), which may differ in the last
+bit; aligned chunks put every row at the same place of the same block as one call would.
+
+Threshold (:data:`MIN_ROWS_PER_THREAD`): a chunk must amortise the hand-off to a pool
+thread. Measured on the project's 2-core shared machine (load average 1.4): splitting a
+no-op call in two costs 55 us median (p90 99 us: submit, wake-up, join); delta fk costs
+9 ns/row on an idle core (README benchmark) and 45-60 ns/row with the other core busy, so
+a 20000-row chunk is 0.18-1.2 ms of work, 3-20x the hand-off. Splits of 2000-10000 rows
+measured 0.6-0.9x (slower) at that load; at 10^5-10^6 rows, 1.5-1.9x with the second
+core free and ~0.95x while another job held it (README, "All cores on batches"). A batch
+of N rows uses ``min(threads, N // MIN_ROWS_PER_THREAD)`` chunks, so splitting starts at
+40000 rows.
+
+How many threads: ``threads=`` on the robot (DeltaRobot / SerialRobot), else the
+``DELTAGEN_THREADS`` environment variable (a positive integer), else the cores this
+process may run on (``os.sched_getaffinity`` where present, else ``os.cpu_count()``).
+
+The pool is one per process, created on first use, shared by every robot and safe to
+call from several Python threads at once (the caller runs one chunk itself and waits for
+the others; pool threads only run C kernels and never submit work, so no call can wait
+on itself). After ``fork`` the child gets a fresh pool.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor, wait
+
+from deltagen.inputs import InputError
+
+MIN_ROWS_PER_THREAD = 20000
+# a multiple of every generated module's <PREFIX>_BLOCK (codegen.render.Unit.block, 64);
+# tests/test_threads.py checks it against generated/
+ROW_ALIGN = 256
+_MAX_POOL_THREADS = 64  # pool threads are started only when needed, up to this many
+
+_pool: ThreadPoolExecutor | None = None
+_pool_lock = threading.Lock()
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def check_threads(threads, source: str = "threads"):
+    """None (the default: DELTAGEN_THREADS or the available cores) or a positive int;
+    InputError otherwise. With None, DELTAGEN_THREADS is checked now too (a robot made
+    under a bad value fails at once, not at its first large batch)."""
+    if threads is None:
+        resolve_threads(None)
+        return None
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise InputError(
+            f"{source} must be a positive integer (or None for every available core), "
+            f"got {threads!r}"
+        )
+    return int(threads)
+
+
+def resolve_threads(threads: int | None) -> int:
+    """The thread count of one call: ``threads`` when given, else DELTAGEN_THREADS (checked:
+    a positive integer), else :func:`available_cores`."""
+    if threads is not None:
+        return threads
+    text = os.environ.get("DELTAGEN_THREADS")
+    if text is None or text.strip() == "":
+        return available_cores()
+    try:
+        value = int(text.strip(), 10)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise InputError(
+            f"DELTAGEN_THREADS must be a positive integer (the threads a batched call may "
+            f"use), got {text!r}; unset it to use every available core"
+        )
+    return value
+
+
+def _get_pool() -> ThreadPoolExecutor:
+    global _pool
+    pool = _pool
+    if pool is None:
+        with _pool_lock:
+            if _pool is None:
+                _pool = ThreadPoolExecutor(
+                    max_workers=_MAX_POOL_THREADS, thread_name_prefix="deltagen"
+                )
+            pool = _pool
+    return pool
+
+
+def _forget_pool_after_fork() -> None:  # the parent's threads do not exist in the child
+    global _pool, _pool_lock
+    _pool = None
+    _pool_lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool_after_fork)
+
+
+def chunks(n: int, threads: int | None) -> list[tuple[int, int]]:
+    """The contiguous row ranges [(lo, hi), ...] a batch of n rows is split into."""
+    count = max(1, min(resolve_threads(threads), n // MIN_ROWS_PER_THREAD))
+    inner = {n * i // count // ROW_ALIGN * ROW_ALIGN for i in range(1, count)}
+    bounds = [0, *sorted(inner - {0, n}), n]
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+def run_rows(n: int, threads: int | None, call: Callable[[int, int], int]) -> int:
+    """Run ``call(lo, hi)`` (one C kernel call on rows lo..hi of the batch's buffers; returns
+    the kernel's rc) over the whole batch, split across threads; the first nonzero rc, or
+    0. Small batches (and threads=1) make exactly one call, in the caller's thread."""
+    if n < 2 * MIN_ROWS_PER_THREAD or threads == 1:
+        return call(0, n)
+    parts = chunks(n, threads)
+    if len(parts) == 1:
+        return call(0, n)
+    pool = _get_pool()
+    futures = [pool.submit(call, lo, hi) for lo, hi in parts[1:]]
+    try:
+        rcs = [call(*parts[0])]
+    finally:  # every chunk is done with the buffers before the caller goes on
+        wait(futures)
+    rcs += [f.result() for f in futures]
+    return next((rc for rc in rcs if rc != 0), 0)
