@@ -338,3 +338,14 @@ def test_compiled_core_of_a_urdf_arm_matches_the_reference():
     np.testing.assert_allclose(compiled.jacobian(q), reference.jacobian(q), rtol=0, atol=1e-12)
     tau_c, tau_r = compiled.inverse_dynamics(q, qd, qdd), reference.inverse_dynamics(q, qd, qdd)
     assert np.abs(tau_c - tau_r).max() <= 1e-10 * np.abs(tau_r).max()
+
+
+def test_cli_reads_a_urdf(capsys):
+    """`deltagen fk arm.urdf ...` loads the chain (the position printed is from_urdf's)."""
+    from deltagen.cli import main
+
+    q = [0.1, -1.2, 1.4, -0.3, 1.5708, 0.2]
+    assert main(["fk", str(UR5), "--backend", "reference", *map(str, q)]) == 0
+    out = capsys.readouterr().out
+    p = SerialRobot.from_urdf(UR5, backend="reference").fk(np.array(q))[:3, 3]
+    assert f"x, y, z = [{p[0]:.9f}, {p[1]:.9f}, {p[2]:.9f}] m" in out
