@@ -157,7 +157,9 @@ def main(argv=None) -> int:
 
     g = sub.add_parser("generate", help="regenerate generated/ (deterministic)")
     g.add_argument(
-        "robot_file", nargs="?", help="a serial-arm TOML or URDF: generate, compile and cache its module"
+        "robot_file",
+        nargs="?",
+        help="a serial-arm TOML or URDF: generate, compile and cache its module",
     )
     g.add_argument(
         "--check", action="store_true", help="fail and show a diff if generated/ is stale"

@@ -236,9 +236,7 @@ _TWO = '<link name="a"/><link name="b"/>'
 
 
 def _joint(kind="revolute", inner="", name="j"):
-    return (
-        f'<joint name="{name}" type="{kind}"><parent link="a"/><child link="b"/>{inner}</joint>'
-    )
+    return f'<joint name="{name}" type="{kind}"><parent link="a"/><child link="b"/>{inner}</joint>'
 
 
 _LIMIT = '<limit lower="-1" upper="1"/>'
@@ -256,8 +254,7 @@ MALFORMED = {
         r"joint 'j': missing <parent link=...>",
     ),
     "undefined child": (
-        '<link name="a"/><joint name="j" type="fixed"><parent link="a"/><child link="zz"/>'
-        "</joint>",
+        '<link name="a"/><joint name="j" type="fixed"><parent link="a"/><child link="zz"/></joint>',
         r"joint 'j': <child> names link 'zz', which is not defined",
     ),
     "non-numeric origin": (

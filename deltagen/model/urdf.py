@@ -56,6 +56,7 @@ now; ``floating`` and ``planar`` joints are refused (a serial arm has one variab
 from __future__ import annotations
 
 import math
+import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
@@ -153,14 +154,14 @@ def _parse_link(element: ET.Element) -> _ULink:
     if mass < 0:
         raise GeometryError(f"{where} <mass>: must be >= 0 kg, got {mass!r}")
     E = _origin(inertial, f"{where} <inertial>")
-    I = np.zeros((3, 3))
+    Ic = np.zeros((3, 3))
     ine = inertial.find("inertia")
     if ine is not None:
         w = f"{where} <inertia>"
         xx, yy, zz = (_number(ine, k, w, 0.0) for k in ("ixx", "iyy", "izz"))
         xy, xz, yz = (_number(ine, k, w, 0.0) for k in ("ixy", "ixz", "iyz"))
-        I = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-    return _ULink(name, (mass, E, I))
+        Ic = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    return _ULink(name, (mass, E, Ic))
 
 
 def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
@@ -228,7 +229,9 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
         friction = _number(dyn, "friction", f"{where} <dynamics>", 0.0)
         if damping < 0 or friction < 0:
             raise GeometryError(f"{where} <dynamics>: damping and friction must be >= 0")
-    return _UJoint(name, kind, ends["parent"], ends["child"], origin, axis, limit, damping, friction)
+    return _UJoint(
+        name, kind, ends["parent"], ends["child"], origin, axis, limit, damping, friction
+    )
 
 
 def _parse(text: bytes, source: str) -> tuple[str, dict[str, _ULink], list[_UJoint]]:
@@ -315,17 +318,24 @@ def _inverse(T: Matrix) -> Matrix:
     return inv
 
 
-def _lump(parts: list[tuple[float, npt.NDArray[np.float64], Matrix]]):
-    """Total mass, COM and inertia about it of rigidly joined bodies (mass, com, I) given in
+def _lump(
+    parts: list[tuple[float, npt.NDArray[np.float64], Matrix]],
+) -> tuple[float, npt.NDArray[np.float64], Matrix]:
+    """Total mass, COM and inertia about it of rigidly joined bodies (mass, com, Ic) given in
     one frame (parallel-axis theorem)."""
-    mass = sum(m for m, _, _ in parts)
-    if mass == 0.0:
-        return 0.0, np.zeros(3), sum((I for _, _, I in parts), np.zeros((3, 3)))
-    com = sum(m * c for m, c, _ in parts) / mass
+    mass = float(sum(m for m, _, _ in parts))
     inertia = np.zeros((3, 3))
-    for m, c, I in parts:
+    if mass == 0.0:
+        for _, _, Ic in parts:
+            inertia += Ic
+        return 0.0, np.zeros(3), inertia
+    com = np.zeros(3)
+    for m, c, _ in parts:
+        com += m * c
+    com /= mass
+    for m, c, Ic in parts:
         d = c - com
-        inertia += I + m * (float(d @ d) * np.eye(3) - np.outer(d, d))
+        inertia += Ic + m * (float(d @ d) * np.eye(3) - np.outer(d, d))
     return mass, com, inertia
 
 
@@ -335,7 +345,7 @@ def _identifier(name: str) -> str:
 
 
 def description_from_urdf(
-    path: str | Path,
+    path: str | os.PathLike[str],
     base: str | None = None,
     tip: str | None = None,
     name: str | None = None,
@@ -355,7 +365,9 @@ def description_from_urdf(
         raise GeometryError(f"URDF {source}: {exc}") from None
 
 
-def _description(text, source, base, tip, name) -> SerialDescription:
+def _description(
+    text: bytes, source: str, base: str | None, tip: str | None, name: str | None
+) -> SerialDescription:
     robot_name, links, joints = _parse(text, source)
     root, by_child = _tree(links, joints)
     available = ", ".join(sorted(links))
@@ -405,9 +417,9 @@ def _description(text, source, base, tip, name) -> SerialDescription:
         if inertial is None or not parts:
             return
         any_inertial = True
-        mass, E, I = inertial
+        mass, E, Ic = inertial
         F = at @ E
-        parts[-1].append((mass, F[:3, 3].copy(), F[:3, :3] @ I @ F[:3, :3].T))
+        parts[-1].append((mass, F[:3, 3].copy(), F[:3, :3] @ Ic @ F[:3, :3].T))
 
     for j in chain:
         if j.type == "fixed":
@@ -423,11 +435,11 @@ def _description(text, source, base, tip, name) -> SerialDescription:
 
     n = len(movable)
     Rh = [_z_to(j.axis) for j in movable]
-    O = [j.origin for j in movable]
-    base_T = P[0] @ O[0] @ Rh[0]
+    Og = [j.origin for j in movable]
+    base_T = P[0] @ Og[0] @ Rh[0]
     tool_T = Rh[-1].T @ P[n]
-    C = [Rh[i].T @ P[i + 1] @ O[i + 1] @ Rh[i + 1] for i in range(n - 1)] + [np.eye(4)]
-    G = [P[i + 1] @ O[i + 1] @ Rh[i + 1] for i in range(n - 1)] + [Rh[-1]]
+    C = [Rh[i].T @ P[i + 1] @ Og[i + 1] @ Rh[i + 1] for i in range(n - 1)] + [np.eye(4)]
+    G = [P[i + 1] @ Og[i + 1] @ Rh[i + 1] for i in range(n - 1)] + [Rh[-1]]
 
     out: list[Joint] = []
     for i, j in enumerate(movable):
