@@ -346,3 +346,16 @@ def test_cli_reads_a_urdf(capsys):
     out = capsys.readouterr().out
     p = SerialRobot.from_urdf(UR5, backend="reference").fk(np.array(q))[:3, 3]
     assert f"x, y, z = [{p[0]:.9f}, {p[1]:.9f}, {p[2]:.9f}] m" in out
+
+
+def test_declarations_the_byte_check_cannot_read_are_refused_by_the_parser(tmp_path):
+    """A UTF-16 file hides '<!DOCTYPE' from a look at the bytes; expat's handlers refuse it."""
+    lol = (
+        '<?xml version="1.0" encoding="UTF-16"?>\n<!DOCTYPE robot [<!ENTITY lol "lol">]>\n'
+        '<robot name="&lol;"><link name="a"/></robot>\n'
+    )
+    path = tmp_path / "lol16.urdf"
+    path.write_bytes(lol.encode("utf-16"))
+    assert b"<!DOCTYPE" not in path.read_bytes()
+    with pytest.raises(GeometryError, match="DOCTYPE/ENTITY declarations are refused"):
+        description_from_urdf(path)

@@ -1,8 +1,10 @@
 """URDF import: the chain from a base link to a tip link as universal coordinates.
 
 Parsing: the standard library's ``xml.etree.ElementTree``. A URDF never needs a document type
-declaration, so any ``<!DOCTYPE`` or ``<!ENTITY`` is refused before parsing (the protection
-defusedxml gives against entity expansion, "billion laughs", and external entities).
+declaration, so any ``<!DOCTYPE`` or ``<!ENTITY`` is refused before the tree is built (the
+protection defusedxml gives against entity expansion, "billion laughs", and external
+entities): by a look at the bytes, then by a first expat pass whose DOCTYPE and entity
+handlers raise (which also sees declarations in encodings the byte look cannot read).
 
 The chain. URDF gives each joint J an ``origin`` O_J = Trans(xyz) Rot_z(y) Rot_y(p) Rot_x(r)
 (fixed-axis roll-pitch-yaw, the ``rpy`` of geometry/rotations.py) from the parent link frame
@@ -62,6 +64,7 @@ import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from xml.parsers import expat
 
 import numpy as np
 import numpy.typing as npt
@@ -234,15 +237,36 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
     )
 
 
+_REFUSAL = (
+    "DOCTYPE/ENTITY declarations are refused (a URDF needs none; they allow entity-expansion "
+    "attacks)"
+)
+
+
+class _Declaration(Exception):
+    """Raised from expat's handlers when the document declares a DTD or an entity."""
+
+
+def _refuse(*_args: object) -> None:
+    raise _Declaration
+
+
 def _parse(text: bytes, source: str) -> tuple[str, dict[str, _ULink], list[_UJoint]]:
+    # twice: a look at the bytes before expat sees them, and expat's own declaration
+    # handlers (which also catch what the byte look cannot read, e.g. a UTF-16 file)
     if _DECLARATION.search(text):
-        raise GeometryError(
-            f"{source}: DOCTYPE/ENTITY declarations are refused (a URDF needs none; they "
-            "allow entity-expansion attacks)"
-        )
+        raise GeometryError(f"{source}: {_REFUSAL}")
+    check = expat.ParserCreate()  # a first pass that builds nothing, with the handlers set
+    check.StartDoctypeDeclHandler = _refuse
+    check.EntityDeclHandler = _refuse
+    check.UnparsedEntityDeclHandler = _refuse
+    check.ExternalEntityRefHandler = _refuse
     try:
+        check.Parse(text, True)
         root = ET.fromstring(text)
-    except ET.ParseError as exc:
+    except _Declaration:
+        raise GeometryError(f"{source}: {_REFUSAL}") from None
+    except (expat.ExpatError, ET.ParseError) as exc:
         raise GeometryError(f"{source}: not well-formed XML: {exc}") from None
     if root.tag != "robot":
         raise GeometryError(f"{source}: the root element is <{root.tag}>, not <robot>")
