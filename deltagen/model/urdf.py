@@ -77,6 +77,7 @@ Matrix = npt.NDArray[np.float64]
 _MOVABLE = ("revolute", "continuous", "prismatic")
 _REFUSED = ("floating", "planar")
 _NOISE = 1e-15  # constant translations below this [m] are rounding noise of the regrouping
+_INERTIA_NOISE = 1e-14  # inertia entries below this fraction of the largest one: noise
 _DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 
 
@@ -257,10 +258,13 @@ def _parse(text: bytes, source: str) -> tuple[str, dict[str, _ULink], list[_UJoi
     if _DECLARATION.search(text):
         raise GeometryError(f"{source}: {_REFUSAL}")
     check = expat.ParserCreate()  # a first pass that builds nothing, with the handlers set
-    check.StartDoctypeDeclHandler = _refuse
-    check.EntityDeclHandler = _refuse
-    check.UnparsedEntityDeclHandler = _refuse
-    check.ExternalEntityRefHandler = _refuse
+    for handler in (
+        "StartDoctypeDeclHandler",
+        "EntityDeclHandler",
+        "UnparsedEntityDeclHandler",
+        "ExternalEntityRefHandler",
+    ):
+        setattr(check, handler, _refuse)
     try:
         check.Parse(text, True)
         root = ET.fromstring(text)
@@ -477,6 +481,11 @@ def _description(
             GR = G[i][:3, :3]
             I_u = GR.T @ I_w @ GR
             I_u = (I_u + I_u.T) / 2
+            # rounding noise of the regrouping (cos(pi/2) = 6e-17 in floats) is zeroed, so
+            # that the derivation sees exact zeros: com below _NOISE, inertia entries below
+            # _INERTIA_NOISE of the largest one
+            com = np.where(np.abs(com) < _NOISE, 0.0, com)
+            I_u = np.where(np.abs(I_u) < _INERTIA_NOISE * np.abs(I_u).max(), 0.0, I_u)
             inertial = Inertial(
                 mass=mass,
                 com=(float(com[0]), float(com[1]), float(com[2])),
