@@ -279,6 +279,20 @@ MALFORMED = {
         + _joint(inner=_LIMIT),
         r"link 'b' <mass> attribute 'value': 'nan' is not finite",
     ),
+    "indefinite inertia": (
+        '<link name="a"/><link name="b"><inertial><mass value="1"/>'
+        '<inertia ixx="1" iyy="1" izz="-1"/></inertial></link>' + _joint(inner=_LIMIT),
+        r"link 'b' <inertia>: not positive semidefinite",
+    ),
+    "negative mass": (
+        '<link name="a"/><link name="b"><inertial><mass value="-2"/></inertial></link>'
+        + _joint(inner=_LIMIT),
+        r"link 'b' <mass>: must be >= 0 kg",
+    ),
+    "limit upside down": (
+        _TWO + _joint(inner='<limit lower="1" upper="-1"/>'),
+        r"joint 'j' <limit>: lower 1.0 must be below upper -1.0",
+    ),
     "two parents": (
         '<link name="a"/><link name="b"/><link name="c"/>'
         + _joint("fixed")
@@ -332,6 +346,9 @@ def test_compiled_core_of_a_urdf_arm_matches_the_reference():
     q = _random_q(compiled, rng, 200)
     qd, qdd = rng.uniform(-2, 2, q.shape), rng.uniform(-2, 2, q.shape)
     np.testing.assert_allclose(compiled.fk(q), reference.fk(q), rtol=0, atol=1e-12)
+    from deltagen.apps.generate import generate_robot_file  # `deltagen generate arm.urdf`
+
+    assert (generate_robot_file(UR5) / "serial_ur5.c").is_file()
     np.testing.assert_allclose(compiled.jacobian(q), reference.jacobian(q), rtol=0, atol=1e-12)
     tau_c, tau_r = compiled.inverse_dynamics(q, qd, qdd), reference.inverse_dynamics(q, qd, qdd)
     assert np.abs(tau_c - tau_r).max() <= 1e-10 * np.abs(tau_r).max()

@@ -165,6 +165,11 @@ def _parse_link(element: ET.Element) -> _ULink:
         xx, yy, zz = (_number(ine, k, w, 0.0) for k in ("ixx", "iyy", "izz"))
         xy, xz, yz = (_number(ine, k, w, 0.0) for k in ("ixy", "ixz", "iyz"))
         Ic = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        smallest = float(np.linalg.eigvalsh(Ic)[0])
+        if smallest < -1e-12 * max(1.0, float(np.abs(Ic).max())):
+            raise GeometryError(
+                f"{w}: not positive semidefinite (smallest principal moment {smallest:.6g} kg m^2)"
+            )
     return _ULink(name, (mass, E, Ic))
 
 
