@@ -376,3 +376,27 @@ def test_declarations_the_byte_check_cannot_read_are_refused_by_the_parser(tmp_p
     assert b"<!DOCTYPE" not in path.read_bytes()
     with pytest.raises(GeometryError, match="DOCTYPE/ENTITY declarations are refused"):
         description_from_urdf(path)
+
+
+def test_joint_dynamics_become_viscous_and_coulomb_friction(tmp_path):
+    """<dynamics damping friction> adds damping qd + friction sign(qd) to that joint's
+    torque (model/urdf.py), and nothing elsewhere."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", URDFWarning)
+        path = tmp_path / "damped.urdf"
+        path.write_text(
+            ODD.replace(
+                '<axis xyz="0 -1 0"/>', '<axis xyz="0 -1 0"/><dynamics damping="0.7" friction="0.2"/>'
+            )
+        )
+        damped = SerialRobot.from_urdf(path, tip="tip", backend="reference")
+        odd = tmp_path / "odd.urdf"
+        odd.write_text(ODD)
+        free = SerialRobot.from_urdf(odd, tip="tip", backend="reference")
+    rng = np.random.default_rng(5)
+    q = _random_q(free, rng, 50)
+    qd, qdd = rng.uniform(-2, 2, q.shape), rng.uniform(-2, 2, q.shape)
+    extra = damped.inverse_dynamics(q, qd, qdd) - free.inverse_dynamics(q, qd, qdd)
+    expected = np.zeros_like(q)
+    expected[:, 4] = 0.7 * qd[:, 4] + 0.2 * np.sign(qd[:, 4])
+    np.testing.assert_allclose(extra, expected, rtol=0, atol=1e-12)
