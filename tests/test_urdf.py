@@ -386,7 +386,8 @@ def test_joint_dynamics_become_viscous_and_coulomb_friction(tmp_path):
         path = tmp_path / "damped.urdf"
         path.write_text(
             ODD.replace(
-                '<axis xyz="0 -1 0"/>', '<axis xyz="0 -1 0"/><dynamics damping="0.7" friction="0.2"/>'
+                '<axis xyz="0 -1 0"/>',
+                '<axis xyz="0 -1 0"/><dynamics damping="0.7" friction="0.2"/>',
             )
         )
         damped = SerialRobot.from_urdf(path, tip="tip", backend="reference")
