@@ -190,9 +190,10 @@ def test_ur5_urdf_equals_the_published_dh_table():
     np.testing.assert_allclose(urdf.fk(q), B @ dh.fk(q) @ E, rtol=0, atol=1e-12)
 
 
-def test_universal_frames_carry_the_inertials(odd_path):
-    """The lumped body of j2 (l2 + the plate fixed to it): total mass, and its COM lies where
-    pinocchio puts the body's COM in the world."""
+def test_links_fixed_to_a_moving_link_are_lumped_into_it(odd_path):
+    """The body of j2 is l2 plus the plate fixed to it (3.0 + 0.8 kg); the sensor link on
+    the side branch and the massless tip add nothing. (Its COM and inertia are checked
+    through pinocchio's rnea/crba in test_odd_arm_matches_pinocchio.)"""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", URDFWarning)
         desc = description_from_urdf(odd_path, tip="tip")
