@@ -402,3 +402,36 @@ def test_joint_dynamics_become_viscous_and_coulomb_friction(tmp_path):
     expected = np.zeros_like(q)
     expected[:, 4] = 0.7 * qd[:, 4] + 0.2 * np.sign(qd[:, 4])
     np.testing.assert_allclose(extra, expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("path_name", ["ur5", "odd"])
+def test_every_link_pose_matches_pinocchio(path_name, odd_path):
+    """fk of every link: the chain from the root to each link in turn (tip=link), against
+    pinocchio's frame of that link, on 200 random configurations of the whole arm."""
+    path = UR5 if path_name == "ur5" else odd_path
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", URDFWarning)
+        whole = SerialRobot.from_urdf(
+            path, tip="ee_link" if path_name == "ur5" else "tip", backend="reference"
+        )
+        names = [j.name for j in whole.description.joints]
+        q = _random_q(whole, np.random.default_rng(9), 200)
+        checked = 0
+        for frame in model.frames:
+            if frame.type != pin.FrameType.BODY:
+                continue
+            try:
+                part = SerialRobot.from_urdf(path, tip=frame.name, backend="reference")
+            except GeometryError as exc:  # the root and links fixed to it: no joint
+                assert "no movable joint" in str(exc)
+                continue
+            cols = [names.index(j.name) for j in part.description.joints]
+            T = part.fk(q[:, cols])
+            fid = model.getFrameId(frame.name)
+            for k in range(len(q)):
+                pin.framesForwardKinematics(model, data, _pin_q(model, q[k]))
+                np.testing.assert_allclose(T[k], data.oMf[fid].homogeneous, rtol=0, atol=1e-12)
+            checked += 1
+    assert checked == (6 if path_name == "ur5" else 7) + 1  # every moving link and the tip
