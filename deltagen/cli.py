@@ -28,7 +28,8 @@ def _robot_kind(path: Path) -> str:
 
 
 def _robot(args):
-    """'default' (the delta robot), a bundled serial arm's name, or a robot TOML file."""
+    """'default' (the delta robot), a bundled serial arm's name, a robot TOML file or a
+    URDF file (.urdf)."""
     from deltagen.api.delta import DeltaRobot
     from deltagen.api.serial import SerialRobot, bundled_robots
 
@@ -38,6 +39,8 @@ def _robot(args):
     if name in bundled_robots():
         return SerialRobot.load(name, backend=args.backend)
     path = Path(name)
+    if path.suffix.lower() == ".urdf":  # its chain from the root link to the single leaf
+        return SerialRobot.from_urdf(path, backend=args.backend)
     if path.suffix != ".toml" and not path.exists():
         raise ValueError(
             f"unknown robot {name!r}: use 'default', a bundled arm "
@@ -154,7 +157,9 @@ def main(argv=None) -> int:
 
     g = sub.add_parser("generate", help="regenerate generated/ (deterministic)")
     g.add_argument(
-        "robot_file", nargs="?", help="a serial-arm TOML: generate, compile and cache its module"
+        "robot_file",
+        nargs="?",
+        help="a serial-arm TOML or URDF: generate, compile and cache its module",
     )
     g.add_argument(
         "--check", action="store_true", help="fail and show a diff if generated/ is stale"

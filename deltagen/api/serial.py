@@ -187,6 +187,24 @@ class SerialRobot:
         )
         return cls(desc, backend, threads=threads)
 
+    @classmethod
+    def from_urdf(
+        cls,
+        path: PathLike,
+        base: str | None = None,
+        tip: str | None = None,
+        *,
+        name: str | None = None,
+        backend: Backend = "compiled",
+    ) -> SerialRobot:
+        """The chain of a URDF file from link ``base`` (default: the root link) to link
+        ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
+        mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
+        limits and inertials. The joint variables are the URDF's (same zero, same sign)."""
+        from deltagen.model.urdf import description_from_urdf
+
+        return cls(description_from_urdf(path, base=base, tip=tip, name=name), backend)
+
     def with_backend(self, backend: Backend) -> SerialRobot:
         return type(self)(self.description, backend, threads=self.threads)
 

@@ -23,12 +23,17 @@ def generated_files() -> dict[str, str]:
 
 
 def generate_robot_file(path) -> Path:
-    """`deltagen generate my_arm.toml`: render, compile and cache a user's robot module;
-    returns the folder holding its C sources."""
+    """`deltagen generate my_arm.toml` (or `arm.urdf`: its chain from the root link to the
+    single leaf, model/urdf.py): render, compile and cache a user's robot module; returns
+    the folder holding its C sources."""
     from deltagen.model.serial import SerialDescription
+    from deltagen.model.urdf import description_from_urdf
     from deltagen.native.serial import CompiledArm, source_dir
 
-    desc = SerialDescription.from_toml(path)
+    if str(path).lower().endswith(".urdf"):
+        desc = description_from_urdf(path)
+    else:
+        desc = SerialDescription.from_toml(path)
     CompiledArm(desc)  # builds (or finds) the cached module
     return source_dir(desc)
 

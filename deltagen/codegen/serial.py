@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import hashlib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from deltagen.codegen.lowering import lower
-from deltagen.codegen.render import Unit, render
-from deltagen.derive.serial.kernels import ArmKernels
 from deltagen.status import MASS_MATRIX_TOL
+
+if TYPE_CHECKING:
+    from deltagen.codegen.render import Unit
+
+# lowering, render and the derivation import SymPy (about 1 s): they are imported where a
+# module is rendered, so loading an arm whose module is already built does not pay for them
 
 
 def base_name(desc) -> str:
@@ -63,6 +67,8 @@ def generator_fingerprint() -> str:
 
 
 def arm_unit(desc) -> Unit:
+    from deltagen.codegen.render import Unit
+
     joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
     title = "kinematics" + (" and dynamics" if desc.has_inertia else "")
     return Unit(
@@ -94,4 +100,8 @@ def arm_unit(desc) -> Unit:
 
 
 def arm_sources(desc) -> dict[str, str]:
+    from deltagen.codegen.lowering import lower
+    from deltagen.codegen.render import render
+    from deltagen.derive.serial.kernels import ArmKernels
+
     return render(arm_unit(desc), [lower(k) for k in ArmKernels(desc).all()])

@@ -1,0 +1,530 @@
+"""URDF import: the chain from a base link to a tip link as universal coordinates.
+
+Parsing: the standard library's ``xml.etree.ElementTree``. A URDF never needs a document type
+declaration, so any ``<!DOCTYPE`` or ``<!ENTITY`` is refused before the tree is built (the
+protection defusedxml gives against entity expansion, "billion laughs", and external
+entities): by a look at the bytes, then by a first expat pass whose DOCTYPE and entity
+handlers raise (which also sees declarations in encodings the byte look cannot read).
+
+The chain. URDF gives each joint J an ``origin`` O_J = Trans(xyz) Rot_z(y) Rot_y(p) Rot_x(r)
+(fixed-axis roll-pitch-yaw, the ``rpy`` of geometry/rotations.py) from the parent link frame
+to the joint frame, and a motion M_J(q) about / along its unit ``axis`` a_J in the joint
+frame; the child link frame is the joint frame moved: parent -> child = O_J M_J(q_J).
+Going from ``base`` to ``tip`` through movable joints 1..n with fixed joints in between,
+
+    T(q) = P_0 O_1 M_1(q_1) P_1 O_2 M_2(q_2) ... O_n M_n(q_n) P_n,
+
+where P_0 is the product of the fixed joints' origins from the base link to the parent of
+joint 1, P_i (0 < i < n) of those from the child of joint i to the parent of joint i+1, and
+P_n of those from the child of joint n to the tip (identity where there are none).
+
+Axes of any direction. Let R_i be a constant rotation that takes z to the unit axis,
+R_i e_z = a_i (identity for +z, Rot_x(pi) for -z, else the shortest turn, Rodrigues about
+e_z x a_i), and hat R_i its 4x4 homogeneous form. A turn about a_i is a turn about z seen in
+the turned frame, M_i(q) = hat R_i Z(q) hat R_i^T, with Z(q) = Rot_z(q) (revolute) or
+Trans_z(q) (prismatic). Substituting and regrouping the constant factors:
+
+    T(q) = [P_0 O_1 hat R_1] Z(q_1) [hat R_1^T P_1 O_2 hat R_2] Z(q_2) ... Z(q_n) [hat R_n^T P_n]
+         = base  D_1(q_1) ... D_n(q_n)  tool,
+
+the universal-coordinate form of model/serial.py, D_i = Rot_z(q_i) C_i with axis "z" and the
+constant C_i = hat R_i^T P_i O_{i+1} hat R_{i+1} (i < n), C_n = identity, base = P_0 O_1
+hat R_1, tool = hat R_n^T P_n. Each C_i is written as Trans(tx, ty, tz) Rot_x(rx) Rot_y(ry)
+Rot_z(rz) (the X-Y-Z angles of its rotation; at cos ry = 0 the angle rz is set to 0). The
+joint variable is the URDF one: q_i = 0 where URDF's is 0, same sign, offset 0.
+
+Inertials. Universal link frame i, U_i = base D_1 ... D_i (serial.py's frame for com and
+inertia), relates to the URDF child link frame W_i of joint i by U_i = W_i G_i with
+G_i = P_i O_{i+1} hat R_{i+1} (i < n) and G_n = hat R_n. The link's ``<inertial>`` gives the
+mass m, the COM c and the frame of the inertia tensor, E = Trans(c) Rot(rpy), in W_i, and
+I = [[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]] about the COM in E's axes. In U_i:
+com = G_i^-1 c (a point), inertia = G_R^T R_E I R_E^T G_R (G_R, R_E the rotation parts).
+Links attached to link i by fixed joints on the chain (the P_i part) are rigid with it: their
+inertials are first carried into W_i and lumped with it (total mass, mass-weighted COM,
+parallel-axis theorem about the common COM). The base link and the links fixed to it
+(before joint 1) carry no joint and are ignored, as are branches off the chain (links that
+do not lie between base and tip; a gripper's fingers, a sensor mount) -- their mass is not
+in the dynamics. When no link of the chain has an ``<inertial>``, the description has no
+dynamics; when some have one, the others get mass 0.
+
+Limits. ``<limit lower upper>`` becomes qlim for revolute and prismatic joints (it is
+required there by the URDF specification); ``continuous`` joints are revolute without
+limits. ``velocity`` and ``effort`` are read and checked as numbers but not kept: the serial
+description has no place for them yet. ``<dynamics damping friction>`` maps to viscous and
+Coulomb friction ([friction, -friction]). ``<mimic>`` joints (couplings) are refused for
+now; ``floating`` and ``planar`` joints are refused (a serial arm has one variable per joint).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import warnings
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from xml.parsers import expat
+
+import numpy as np
+import numpy.typing as npt
+
+from deltagen.errors import GeometryError
+from deltagen.geometry.rotations import matrix_from_rpy
+from deltagen.model.serial import Inertial, Joint, SerialDescription
+
+Matrix = npt.NDArray[np.float64]
+_MOVABLE = ("revolute", "continuous", "prismatic")
+_REFUSED = ("floating", "planar")
+_NOISE = 1e-15  # constant translations below this [m] are rounding noise of the regrouping
+_INERTIA_NOISE = 1e-14  # inertia entries below this fraction of the largest one: noise
+_DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+
+
+class URDFWarning(UserWarning):
+    """A URDF that deltagen accepts after a correction (an axis that is not unit length)."""
+
+
+@dataclass(frozen=True)
+class _UJoint:
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin: Matrix
+    axis: npt.NDArray[np.float64]
+    limit: tuple[float, float] | None
+    damping: float
+    friction: float
+
+
+@dataclass(frozen=True)
+class _ULink:
+    name: str
+    inertial: tuple[float, Matrix, Matrix] | None  # mass, E (4x4), inertia (3x3) in E
+
+
+def _numbers(text: str | None, count: int, where: str, default: str | None = None) -> list[float]:
+    if text is None:
+        if default is None:
+            raise GeometryError(f"{where}: missing")
+        text = default
+    parts = text.split()
+    if len(parts) != count:
+        raise GeometryError(f"{where}: expected {count} numbers, got {text!r}")
+    values = []
+    for part in parts:
+        try:
+            v = float(part)
+        except ValueError:
+            raise GeometryError(f"{where}: {part!r} is not a number (in {text!r})") from None
+        if not math.isfinite(v):
+            raise GeometryError(f"{where}: {part!r} is not finite")
+        values.append(v)
+    return values
+
+
+def _number(element: ET.Element, attr: str, where: str, default: float | None = None) -> float:
+    raw = element.get(attr)
+    if raw is None and default is not None:
+        return default
+    return _numbers(raw, 1, f"{where} attribute {attr!r}")[0]
+
+
+def _origin(parent: ET.Element, where: str) -> Matrix:
+    T = np.eye(4)
+    origin = parent.find("origin")
+    if origin is None:
+        return T
+    xyz = _numbers(origin.get("xyz"), 3, f"{where} <origin xyz>", "0 0 0")
+    rpy = _numbers(origin.get("rpy"), 3, f"{where} <origin rpy>", "0 0 0")
+    T[:3, :3] = matrix_from_rpy(rpy)
+    T[:3, 3] = xyz
+    return T
+
+
+def _parse_link(element: ET.Element) -> _ULink:
+    name = element.get("name")
+    if not name:
+        raise GeometryError("<link> without a name attribute")
+    where = f"link {name!r}"
+    inertial = element.find("inertial")
+    if inertial is None:
+        return _ULink(name, None)
+    mass_el = inertial.find("mass")
+    if mass_el is None:
+        raise GeometryError(f"{where}: <inertial> without <mass>")
+    mass = _number(mass_el, "value", f"{where} <mass>")
+    if mass < 0:
+        raise GeometryError(f"{where} <mass>: must be >= 0 kg, got {mass!r}")
+    E = _origin(inertial, f"{where} <inertial>")
+    Ic = np.zeros((3, 3))
+    ine = inertial.find("inertia")
+    if ine is not None:
+        w = f"{where} <inertia>"
+        xx, yy, zz = (_number(ine, k, w, 0.0) for k in ("ixx", "iyy", "izz"))
+        xy, xz, yz = (_number(ine, k, w, 0.0) for k in ("ixy", "ixz", "iyz"))
+        Ic = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        smallest = float(np.linalg.eigvalsh(Ic)[0])
+        if smallest < -1e-12 * max(1.0, float(np.abs(Ic).max())):
+            raise GeometryError(
+                f"{w}: not positive semidefinite (smallest principal moment {smallest:.6g} kg m^2)"
+            )
+    return _ULink(name, (mass, E, Ic))
+
+
+def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
+    name = element.get("name")
+    if not name:
+        raise GeometryError("<joint> without a name attribute")
+    where = f"joint {name!r}"
+    kind = element.get("type")
+    if kind in _REFUSED:
+        raise GeometryError(
+            f"{where}: {kind} joints are not supported (a serial arm has one variable per joint)"
+        )
+    if kind not in _MOVABLE + ("fixed",):
+        raise GeometryError(
+            f"{where}: unknown joint type {kind!r}; use revolute, continuous, prismatic or fixed"
+        )
+    if element.find("mimic") is not None:
+        raise GeometryError(f"{where}: mimic joints are not supported yet")
+    ends = {}
+    for tag in ("parent", "child"):
+        el = element.find(tag)
+        link = None if el is None else el.get("link")
+        if not link:
+            raise GeometryError(f"{where}: missing <{tag} link=...>")
+        if link not in links:
+            raise GeometryError(f"{where}: <{tag}> names link {link!r}, which is not defined")
+        ends[tag] = link
+    origin = _origin(element, where)
+    axis = np.array([1.0, 0.0, 0.0])
+    if kind in _MOVABLE:
+        ax = element.find("axis")
+        if ax is not None:
+            axis = np.array(_numbers(ax.get("xyz"), 3, f"{where} <axis xyz>", "1 0 0"))
+        norm = float(np.linalg.norm(axis))
+        if norm < 1e-9:
+            raise GeometryError(f"{where} <axis>: zero vector {axis.tolist()}")
+        if abs(norm - 1.0) > 1e-9:
+            warnings.warn(
+                f"URDF {where}: axis {axis.tolist()} has length {norm:.6g}; normalised",
+                URDFWarning,
+                stacklevel=4,
+            )
+        axis = axis / norm
+    limit = None
+    lim = element.find("limit")
+    if kind in ("revolute", "prismatic"):
+        if lim is None:
+            raise GeometryError(
+                f"{where}: a {kind} joint needs <limit lower upper> (URDF specification; "
+                "use type continuous for a revolute joint without limits)"
+            )
+        lo = _number(lim, "lower", f"{where} <limit>", 0.0)
+        hi = _number(lim, "upper", f"{where} <limit>", 0.0)
+        if not lo < hi:
+            raise GeometryError(f"{where} <limit>: lower {lo!r} must be below upper {hi!r}")
+        limit = (lo, hi)
+    if lim is not None:  # checked as numbers, not kept (module docstring)
+        for attr in ("velocity", "effort"):
+            if lim.get(attr) is not None:
+                _number(lim, attr, f"{where} <limit>")
+    damping = friction = 0.0
+    dyn = element.find("dynamics")
+    if dyn is not None and kind in _MOVABLE:
+        damping = _number(dyn, "damping", f"{where} <dynamics>", 0.0)
+        friction = _number(dyn, "friction", f"{where} <dynamics>", 0.0)
+        if damping < 0 or friction < 0:
+            raise GeometryError(f"{where} <dynamics>: damping and friction must be >= 0")
+    return _UJoint(
+        name, kind, ends["parent"], ends["child"], origin, axis, limit, damping, friction
+    )
+
+
+_REFUSAL = (
+    "DOCTYPE/ENTITY declarations are refused (a URDF needs none; they allow entity-expansion "
+    "attacks)"
+)
+
+
+class _Declaration(Exception):
+    """Raised from expat's handlers when the document declares a DTD or an entity."""
+
+
+def _refuse(*_args: object) -> None:
+    raise _Declaration
+
+
+def _parse(text: bytes, source: str) -> tuple[str, dict[str, _ULink], list[_UJoint]]:
+    # twice: a look at the bytes before expat sees them, and expat's own declaration
+    # handlers (which also catch what the byte look cannot read, e.g. a UTF-16 file)
+    if _DECLARATION.search(text):
+        raise GeometryError(f"{source}: {_REFUSAL}")
+    check = expat.ParserCreate()  # a first pass that builds nothing, with the handlers set
+    for handler in (
+        "StartDoctypeDeclHandler",
+        "EntityDeclHandler",
+        "UnparsedEntityDeclHandler",
+        "ExternalEntityRefHandler",
+    ):
+        setattr(check, handler, _refuse)
+    try:
+        check.Parse(text, True)
+        root = ET.fromstring(text)
+    except _Declaration:
+        raise GeometryError(f"{source}: {_REFUSAL}") from None
+    except (expat.ExpatError, ET.ParseError) as exc:
+        raise GeometryError(f"{source}: not well-formed XML: {exc}") from None
+    if root.tag != "robot":
+        raise GeometryError(f"{source}: the root element is <{root.tag}>, not <robot>")
+    links: dict[str, _ULink] = {}
+    for el in root.findall("link"):
+        link = _parse_link(el)
+        if link.name in links:
+            raise GeometryError(f"link {link.name!r} is defined twice")
+        links[link.name] = link
+    joints = [_parse_joint(el, links) for el in root.findall("joint")]
+    names = [j.name for j in joints]
+    for n in names:
+        if names.count(n) > 1:
+            raise GeometryError(f"joint {n!r} is defined twice")
+    return root.get("name", "arm"), links, joints
+
+
+def _tree(links: dict[str, _ULink], joints: list[_UJoint]) -> tuple[str, dict[str, _UJoint]]:
+    """(root link, child link -> the joint that moves it), checking it is one tree."""
+    by_child: dict[str, _UJoint] = {}
+    for j in joints:
+        if j.child in by_child:
+            raise GeometryError(
+                f"joint {j.name!r}: link {j.child!r} is already the child of joint "
+                f"{by_child[j.child].name!r} (a link has one parent)"
+            )
+        by_child[j.child] = j
+    for j in joints:  # walk up from each joint; coming back means a cycle
+        seen = {j.child}
+        link = j.parent
+        while link in by_child:
+            if link in seen:
+                raise GeometryError(f"joint {j.name!r} lies on a cycle through link {link!r}")
+            seen.add(link)
+            link = by_child[link].parent
+    roots = [name for name in links if name not in by_child]
+    if len(roots) != 1:
+        raise GeometryError(
+            f"the links form {len(roots)} trees (roots {sorted(roots)}); a URDF has one root"
+        )
+    return roots[0], by_child
+
+
+def _z_to(axis: npt.NDArray[np.float64]) -> Matrix:
+    """4x4 rotation taking e_z to the unit vector ``axis`` (module docstring, R_i)."""
+    H = np.eye(4)
+    c = float(axis[2])
+    if c > 1.0 - 1e-15:
+        return H
+    if c < -1.0 + 1e-15:
+        H[:3, :3] = np.diag([1.0, -1.0, -1.0])  # Rot_x(pi)
+        return H
+    k = np.cross([0.0, 0.0, 1.0], axis)
+    s = float(np.linalg.norm(k))
+    k = k / s
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    H[:3, :3] = np.eye(3) + s * K + (1.0 - c) * (K @ K)
+    return H
+
+
+def _xyz_angles(R: Matrix) -> tuple[float, float, float]:
+    """(rx, ry, rz) with R = Rot_x(rx) Rot_y(ry) Rot_z(rz)."""
+    ry = math.atan2(R[0, 2], math.hypot(R[0, 0], R[0, 1]))
+    if math.hypot(R[0, 0], R[0, 1]) < 1e-12:  # cos ry = 0: rz = 0, rx from the rest
+        return math.atan2(R[2, 1], R[1, 1]), ry, 0.0
+    return math.atan2(-R[1, 2], R[2, 2]), ry, math.atan2(-R[0, 1], R[0, 0])
+
+
+def _inverse(T: Matrix) -> Matrix:
+    inv = np.eye(4)
+    inv[:3, :3] = T[:3, :3].T
+    inv[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return inv
+
+
+def _lump(
+    parts: list[tuple[float, npt.NDArray[np.float64], Matrix]],
+) -> tuple[float, npt.NDArray[np.float64], Matrix]:
+    """Total mass, COM and inertia about it of rigidly joined bodies (mass, com, Ic) given in
+    one frame (parallel-axis theorem)."""
+    mass = float(sum(m for m, _, _ in parts))
+    inertia = np.zeros((3, 3))
+    if mass == 0.0:
+        for _, _, Ic in parts:
+            inertia += Ic
+        return 0.0, np.zeros(3), inertia
+    com = np.zeros(3)
+    for m, c, _ in parts:
+        com += m * c
+    com /= mass
+    for m, c, Ic in parts:
+        d = c - com
+        inertia += Ic + m * (float(d @ d) * np.eye(3) - np.outer(d, d))
+    return mass, com, inertia
+
+
+def _identifier(name: str) -> str:
+    ident = re.sub(r"[^A-Za-z0-9_]", "_", name)[:64] or "arm"
+    return ident if not ident[0].isdigit() else f"urdf_{ident}"[:64]
+
+
+def description_from_urdf(
+    path: str | os.PathLike[str],
+    base: str | None = None,
+    tip: str | None = None,
+    name: str | None = None,
+) -> SerialDescription:
+    """The chain of the URDF file ``path`` from link ``base`` (default: the root link) to
+    link ``tip`` (default: the single leaf below ``base``) as universal coordinates (module
+    docstring). Joint names are kept; the robot's name defaults to the URDF's (made a C
+    identifier)."""
+    source = str(path)
+    try:
+        text = Path(path).read_bytes()
+    except OSError as exc:
+        raise GeometryError(f"cannot read URDF {source}: {exc}") from None
+    try:
+        return _description(text, source, base, tip, name)
+    except GeometryError as exc:
+        raise GeometryError(f"URDF {source}: {exc}") from None
+
+
+def _description(
+    text: bytes, source: str, base: str | None, tip: str | None, name: str | None
+) -> SerialDescription:
+    robot_name, links, joints = _parse(text, source)
+    root, by_child = _tree(links, joints)
+    available = ", ".join(sorted(links))
+    if base is None:
+        base = root
+    if base not in links:
+        raise GeometryError(f"base link {base!r} is not defined; links: {available}")
+    if tip is None:
+        parents = {j.parent for j in joints}
+        leaves = []
+        for link in links:  # leaves below base
+            if link in parents:
+                continue
+            up = link
+            while up != base and up in by_child:
+                up = by_child[up].parent
+            if up == base and link != base:
+                leaves.append(link)
+        if len(leaves) != 1:
+            raise GeometryError(
+                f"the tree below {base!r} has {len(leaves)} leaves ({', '.join(sorted(leaves))});"
+                " choose one with tip="
+            )
+        tip = leaves[0]
+    if tip not in links:
+        raise GeometryError(f"tip link {tip!r} is not defined; links: {available}")
+    chain: list[_UJoint] = []
+    link = tip
+    while link != base:
+        if link not in by_child:
+            raise GeometryError(f"tip link {tip!r} does not lie below base link {base!r}")
+        chain.append(by_child[link])
+        link = by_child[link].parent
+    chain.reverse()
+
+    # P_0 .. P_n and the movable joints (module docstring)
+    movable: list[_UJoint] = []
+    P: list[Matrix] = [np.eye(4)]
+    # inertial parts of each moving body, in its W_i frame: the child link of joint i and the
+    # links fixed to it along the chain (at transform P_partial from W_i)
+    parts: list[list[tuple[float, npt.NDArray[np.float64], Matrix]]] = []
+    any_inertial = False
+
+    def add_inertial(link_name: str, at: Matrix) -> None:
+        nonlocal any_inertial
+        inertial = links[link_name].inertial
+        if inertial is None or not parts:
+            return
+        any_inertial = True
+        mass, E, Ic = inertial
+        F = at @ E
+        parts[-1].append((mass, F[:3, 3].copy(), F[:3, :3] @ Ic @ F[:3, :3].T))
+
+    for j in chain:
+        if j.type == "fixed":
+            P[-1] = P[-1] @ j.origin
+            add_inertial(j.child, P[-1])
+        else:
+            movable.append(j)
+            P.append(np.eye(4))
+            parts.append([])
+            add_inertial(j.child, P[-1])
+    if not movable:
+        raise GeometryError(f"the chain from {base!r} to {tip!r} has no movable joint")
+
+    n = len(movable)
+    Rh = [_z_to(j.axis) for j in movable]
+    Og = [j.origin for j in movable]
+    base_T = P[0] @ Og[0] @ Rh[0]
+    tool_T = Rh[-1].T @ P[n]
+    C = [Rh[i].T @ P[i + 1] @ Og[i + 1] @ Rh[i + 1] for i in range(n - 1)] + [np.eye(4)]
+    G = [P[i + 1] @ Og[i + 1] @ Rh[i + 1] for i in range(n - 1)] + [Rh[-1]]
+
+    out: list[Joint] = []
+    for i, j in enumerate(movable):
+        t = [0.0 if abs(v) < _NOISE else float(v) for v in C[i][:3, 3]]
+        rx, ry, rz = _xyz_angles(C[i][:3, :3])
+        inertial = None
+        if any_inertial:
+            mass, com_w, I_w = _lump(parts[i])
+            Ginv = _inverse(G[i])
+            com = Ginv[:3, :3] @ com_w + Ginv[:3, 3]
+            GR = G[i][:3, :3]
+            I_u = GR.T @ I_w @ GR
+            I_u = (I_u + I_u.T) / 2
+            # rounding noise of the regrouping (cos(pi/2) = 6e-17 in floats) is zeroed, so
+            # that the derivation sees exact zeros: com below _NOISE, inertia entries below
+            # _INERTIA_NOISE of the largest one
+            com = np.where(np.abs(com) < _NOISE, 0.0, com)
+            I_u = np.where(np.abs(I_u) < _INERTIA_NOISE * np.abs(I_u).max(), 0.0, I_u)
+            inertial = Inertial(
+                mass=mass,
+                com=(float(com[0]), float(com[1]), float(com[2])),
+                inertia=(
+                    float(I_u[0, 0]),
+                    float(I_u[1, 1]),
+                    float(I_u[2, 2]),
+                    float(I_u[0, 1]),
+                    float(I_u[0, 2]),
+                    float(I_u[1, 2]),
+                ),
+                viscous=j.damping,
+                coulomb=(j.friction, -j.friction),
+            )
+        out.append(
+            Joint(
+                type="prismatic" if j.type == "prismatic" else "revolute",
+                tx=t[0],
+                ty=t[1],
+                tz=t[2],
+                rx=rx,
+                ry=ry,
+                rz=rz,
+                axis="z",
+                qlim=j.limit,
+                name=j.name,
+                inertial=inertial,
+            )
+        )
+    return SerialDescription(
+        name=name if name is not None else _identifier(robot_name),
+        convention="universal",
+        joints=tuple(out),
+        base=base_T,
+        tool=tool_T,
+        doc=f"from URDF {source}, chain {base} -> {tip}",
+    )
