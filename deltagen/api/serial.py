@@ -196,6 +196,7 @@ class SerialRobot:
         *,
         name: str | None = None,
         backend: Backend = "compiled",
+        threads: int | None = None,
     ) -> SerialRobot:
         """The chain of a URDF file from link ``base`` (default: the root link) to link
         ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
@@ -203,7 +204,8 @@ class SerialRobot:
         limits and inertials. The joint variables are the URDF's (same zero, same sign)."""
         from deltagen.model.urdf import description_from_urdf
 
-        return cls(description_from_urdf(path, base=base, tip=tip, name=name), backend)
+        desc = description_from_urdf(path, base=base, tip=tip, name=name)
+        return cls(desc, backend, threads=threads)
 
     def with_backend(self, backend: Backend) -> SerialRobot:
         return type(self)(self.description, backend, threads=self.threads)
