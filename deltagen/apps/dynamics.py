@@ -296,7 +296,7 @@ def serial_plot(t, q, qd, qdd, tau, path, title: str = "", marks=None) -> Path:
 
     plt = pyplot()
     path = Path(path)
-    fig, axes = plt.subplots(4, 1, figsize=(13, 12), sharex=True, layout="constrained")
+    fig, axes = plt.subplots(4, 1, figsize=(15, 12), sharex=True, layout="constrained")
     fig.suptitle(title or "joint torques", fontsize=13)
     valid = np.isfinite(tau).all(axis=1)
     table = joint_table(tau[valid], qd[valid])
@@ -316,7 +316,7 @@ def serial_plot(t, q, qd, qdd, tau, path, title: str = "", marks=None) -> Path:
             marks(ax)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8, ncol=min(values.shape[1], 4))
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside, not over
     axes[-1].set_xlabel("t [s]")
     fig.savefig(path, dpi=100)
     plt.close(fig)
