@@ -256,12 +256,14 @@ def main(argv=None) -> int:
 
     y = sub.add_parser(
         "dynamics",
-        help="motor torques of a delta robot along a trajectory file",
+        help="motor / joint torques of a delta robot or serial arm along a trajectory file",
         description="Feed-forward motor torques along a trajectory (CSV or NPY, columns by "
         "name): t,q1,q2,q3,qd1..qd3,qdd1..qdd3 or t,x,y,z,xd,yd,zd,xdd,ydd,zdd (rates given), "
         "or t,q1,q2,q3 / t,x,y,z (rates by second-order finite differences). Prints peak and "
         "RMS torque and peak power per drive and the simplified model's difference; writes "
-        "t,q..,qd..,qdd..,tau1..tau3,valid.",
+        "t,q..,qd..,qdd..,tau1..tau3,valid. A serial arm with inertial parameters reads "
+        "t,q1..qn[,qd1..qdn,qdd1..qddn] and writes t,q..,qd..,qdd..,tau1..taun,valid "
+        "(--payload and --model are for delta robots).",
     )
     y.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
     y.add_argument("--input", required=True, help="trajectory file (CSV or NPY)")

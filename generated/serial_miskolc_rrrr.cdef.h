@@ -11,7 +11,14 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *q, double *J, int8_t 
 int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 int deltagen_miskolc_rrrr_ik_all(size_t n, const double *T, double *q, uint8_t *valid, int8_t *status);
+int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau, int8_t *status);
+int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *q, double *M, int8_t *status);
+int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *q, double *g, int8_t *status);
+int deltagen_miskolc_rrrr_coriolis(size_t n, const double *q, const double *qd, double *C, int8_t *status);
+int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *q, const double *qd, double *h, int8_t *status);
 int deltagen_miskolc_rrrr_ik_newton(size_t n, const deltagen_ik_options *options,
     const double *T_target, const double *q0, const double *qlim,
     double *q, double *err_p, double *err_r,
     int32_t *iterations, int8_t *status);
+int deltagen_miskolc_rrrr_forward_dynamics(size_t n, const double *q, const double *qd,
+    const double *tau, double *qdd, int8_t *status);

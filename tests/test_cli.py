@@ -643,3 +643,82 @@ def test_end_to_end_round_trip_in_a_process(tmp_path):
         timeout=120,
     )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
+
+
+# -- `deltagen dynamics ARM --input traj.csv` (issue 11) --------------------------------------
+
+
+def _puma_sine(t):
+    """An analytic joint trajectory with its exact rates: q = q0 + a sin(w t + phi)."""
+    a = np.array([0.6, 0.4, 0.5, 0.8, 0.7, 0.9])
+    w = np.array([1.3, 2.1, 1.7, 2.9, 3.3, 2.5])
+    phi = np.array([0.0, 0.4, 1.1, 2.0, 0.3, 1.5])
+    q0 = np.array([0.1, -0.5, 0.4, 0.0, 0.6, -0.2])
+    arg = np.outer(t, w) + phi
+    return q0 + a * np.sin(arg), a * w * np.cos(arg), -a * w**2 * np.sin(arg)
+
+
+def _report_rows(text):
+    rows = {}
+    for key, label in (("peak", "peak |tau|"), ("rms", "RMS tau"), ("power", "peak power")):
+        line = next(line for line in text.splitlines() if line.strip().startswith(label))
+        rows[key] = np.array([float(v) for v in line.split()[len(label.split()) :][:6]])
+    return rows
+
+
+def test_dynamics_serial_arm_torques_and_report(tmp_path, capsys):
+    from deltagen import SerialRobot
+
+    arm = SerialRobot.load("puma560")
+    t = np.linspace(0.0, 2.0, 401)
+    q, qd, qdd = _puma_sine(t)
+    names = ["t"] + [f"{p}{i + 1}" for p in ("q", "qd", "qdd") for i in range(6)]
+    given = tmp_path / "puma.csv"
+    np.savetxt(
+        given,
+        np.column_stack((t, q, qd, qdd)),
+        delimiter=",",
+        header=",".join(names),
+        comments="",
+    )
+    out = tmp_path / "tau.csv"
+    plot = tmp_path / "tau.png"
+    args = ["dynamics", "puma560", "--input", str(given), "--output", str(out)]
+    assert cli.main([*args, "--plot", str(plot)]) == 0
+    text = capsys.readouterr().out
+    assert plot.stat().st_size > 10_000
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    tau = np.column_stack([table[f"tau{i}"] for i in range(1, 7)])
+    # independent path: the API on the analytic rates, one state at a time
+    want = np.array([arm.inverse_dynamics(q[k], qd[k], qdd[k]) for k in range(len(t))])
+    np.testing.assert_allclose(tau, want, rtol=1e-12, atol=1e-12)
+    assert table["valid"].all()
+    # the printed report, recomputed from the CSV by hand (4 significant digits printed)
+    rows = _report_rows(text)
+    qd_csv = np.column_stack([table[f"qd{i}"] for i in range(1, 7)])
+    np.testing.assert_allclose(rows["peak"], np.abs(tau).max(axis=0), rtol=1e-3)
+    np.testing.assert_allclose(rows["rms"], np.sqrt((tau**2).mean(axis=0)), rtol=1e-3)
+    np.testing.assert_allclose(rows["power"], np.abs(tau * qd_csv).max(axis=0), rtol=1e-3)
+
+    # angles only: rates by second-order differences, close to the analytic torques inside
+    angles = tmp_path / "q.csv"
+    np.savetxt(angles, np.column_stack((t, q)), delimiter=",")  # no header: positional
+    assert cli.main(["dynamics", "puma560", "--input", str(angles), "--output", str(out)]) == 0
+    capsys.readouterr()
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    tau_fd = np.column_stack([table[f"tau{i}"] for i in range(1, 7)])
+    inner = slice(3, -3)
+    err = np.abs(tau_fd[inner] - want[inner]).max(axis=0)
+    assert (err < 2e-3 * np.abs(want).max(axis=0)).all(), err
+
+    # delta-only options and a NaN row
+    assert cli.main([*args, "--payload", "0.5"]) == 2
+    assert "--payload is for delta robots" in capsys.readouterr().err
+    assert cli.main([*args, "--model", "simplified"]) == 2
+    q_bad = q.copy()
+    q_bad[7, 2] = np.nan
+    np.savetxt(angles, np.column_stack((t, q_bad)), delimiter=",")
+    assert cli.main(["dynamics", "puma560", "--input", str(angles), "--output", str(out)]) == 1
+    assert "rows" in capsys.readouterr().err
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    assert not table["valid"][7] and table["valid"][0]

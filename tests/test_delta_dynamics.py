@@ -423,7 +423,7 @@ def test_cli_dynamics_from_platform_samples_and_from_crank_samples(tmp_path, cap
     scale = np.abs(exact_simple).max()
     err = np.abs(data[inner] - exact_simple[inner]).max()
     assert err < 2e-3 * scale, err / scale
-    # serial arms and bad files: input errors (exit 2)
+    # a platform-motion file for a serial arm (it reads q columns) and bad files: exit 2
     assert cli_main(["dynamics", "puma560", "--input", str(given)]) == 2
     bad = tmp_path / "bad.csv"
     bad.write_text("t,x,y,z\n0,0,0,-0.8\n0,0,0,-0.8\n0,0,0,-0.8\n")

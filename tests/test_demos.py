@@ -129,12 +129,72 @@ def miskolc_run(tmp_path_factory):
 def test_demo_miskolc_exits_0_and_writes_pngs(miskolc_run):
     code, out, text = miskolc_run
     assert code == 0
-    for name in ("miskolc_joint_angles.png", "miskolc_arm_poses.png", "miskolc_rates.png"):
+    for name in (
+        "miskolc_joint_angles.png",
+        "miskolc_arm_poses.png",
+        "miskolc_rates.png",
+        "miskolc_torques.png",
+    ):
         data = (out / name).read_bytes()
         assert len(data) > 20_000 and data[:8] == b"\x89PNG\r\n\x1a\n", name
     csv = np.loadtxt(out / "miskolc_joint_trajectory.csv", delimiter=",", skiprows=1)
-    assert csv.shape[1] == 1 + 5 * 4 + 4 and csv.shape[0] > 1000
+    assert csv.shape[1] == 1 + 5 * 4 + 4 + 4 and csv.shape[0] > 1000
     assert "elbow up" in text and "O(h²)" in text
+
+
+def test_demo_miskolc_torques_are_the_arms_inverse_dynamics(miskolc_run):
+    """The CSV's tau1..tau4 are the inverse dynamics of the CSV's own q, qd, qdd (the numpy
+    reference backend, a second implementation), qd and qdd are the time derivatives of q
+    and qd (central differences), and the printed peak / RMS are those of the columns."""
+    code, out, text = miskolc_run
+    path = out / "miskolc_joint_trajectory.csv"
+    names = path.read_text().splitlines()[0].split(",")
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    col = {name: data[:, k] for k, name in enumerate(names)}
+
+    def block(prefix):
+        return np.column_stack([col[f"{prefix}{i}"] for i in range(1, 5)])
+
+    t, q, qd, qdd, tau = col["t"], block("q"), block("qd"), block("qdd"), block("tau")
+    arm = SerialRobot.load("miskolc_rrrr").with_backend("reference")
+    want = arm.inverse_dynamics(q, qd, qdd)
+    np.testing.assert_allclose(tau, want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+    assert np.abs(tau[:, 1]).max() > 5.0  # the shoulder carries the arm: torques not zero
+    # the rates fed to the dynamics are those of q (second-order central differences)
+    h = np.diff(t)
+    assert np.allclose(h, h[0], rtol=1e-6)
+    qd_fd = (q[2:] - q[:-2]) / (2 * h[0])
+    qdd_fd = (qd[2:] - qd[:-2]) / (2 * h[0])
+    # not across a segment joint, where the quintic's jerk jumps (O(h) there)
+    starts = demos.miskolc_trajectory(arm).starts
+    smooth = np.abs(t[1:-1, None] - np.asarray(starts)[None, :]).min(axis=1) > 1.5 * h[0]
+    assert smooth.sum() > 0.9 * smooth.size
+    assert np.abs(qd_fd - qd[1:-1])[smooth].max() < 1e-3 * np.abs(qd).max()
+    assert np.abs(qdd_fd - qdd[1:-1])[smooth].max() < 2e-3 * np.abs(qdd).max()
+    # printed peak and RMS per joint (3 significant digits)
+    line = next(line for line in text.splitlines() if "joint torques" in line)
+    for i in range(4):
+        peak = float(line.split(f"tau{i + 1} peak ")[1].split()[0])
+        rms = float(line.split(f"tau{i + 1} peak ")[1].split("RMS ")[1].split()[0].rstrip(","))
+        assert peak == pytest.approx(np.abs(tau[:, i]).max(), rel=5e-3, abs=1e-12)
+        assert rms == pytest.approx(np.sqrt((tau[:, i] ** 2).mean()), rel=5e-3, abs=1e-12)
+
+
+def test_miskolc_inertials_hold_the_arm_by_hand():
+    """The chosen aluminium links (robots/miskolc_rrrr.toml): at qz, both arms horizontal,
+    the static moments by hand: joint 2 holds m2 a2/2 + m3 (a2 + s4/2) + m4 (a2 + s4),
+    joint 3 holds m3 s4/2 + m4 s4 (times g)."""
+    arm = SerialRobot.load("miskolc_rrrr")
+    g = 9.81
+    m2, m3, m4, a2, s4 = 1.14, 0.95, 0.40, 0.60, 0.50
+    tau = arm.inverse_dynamics(np.zeros(4), np.zeros(4), np.zeros(4))
+    want = [
+        0.0,
+        g * (m2 * a2 / 2 + m3 * (a2 + s4 / 2) + m4 * (a2 + s4)),
+        g * (m3 * s4 / 2 + m4 * s4),
+        0.0,
+    ]
+    np.testing.assert_allclose(tau, want, atol=1e-9)
 
 
 @pytest.fixture(scope="module")

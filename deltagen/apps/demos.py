@@ -24,7 +24,10 @@
   conveyor); q1..q3 follow from the position by per-sample Newton IK.
   Writes into ``--out`` (default ``miskolc_pick_and_place``): joint angles over time (like
   the paper's figure 8), arm poses along the path (stick figures from ``robot.frames``,
-  like figure 9), exact vs numerical joint velocities and accelerations, and a CSV.
+  like figure 9), exact vs numerical joint velocities and accelerations, the joint torques
+  over time (inverse dynamics with the robot file's chosen aluminium-link masses and
+  inertias, exact q, qd, qdd; the paper's program computes joint torques from link masses
+  too) and a CSV of all of it (tau1..tau4 [N m] among its columns).
 """
 
 from __future__ import annotations
@@ -473,7 +476,13 @@ def _plot_rates(jt, jt_half, path):
     return path
 
 
-def _write_csv(jt, path):
+def miskolc_torques(arm, jt):
+    """Joint torques tau (N, 4) [N m] along the path: the arm's inverse dynamics at the
+    exact joint rates (J^+, Jdot) of every sample."""
+    return arm.inverse_dynamics(jt.q, jt.qd, jt.qdd)
+
+
+def _write_csv(jt, tau, path):
     n = jt.q.shape[1]
     cols = (
         ["t"]
@@ -483,9 +492,10 @@ def _write_csv(jt, path):
         + [f"qd{i + 1}_num" for i in range(n)]
         + [f"qdd{i + 1}_num" for i in range(n)]
         + ["x", "y", "z", "task_error"]
+        + [f"tau{i + 1}" for i in range(n)]
     )
     data = np.column_stack(
-        [jt.t, jt.q, jt.qd, jt.qdd, jt.qd_num, jt.qdd_num, jt.cartesian.p, jt.task_error]
+        [jt.t, jt.q, jt.qd, jt.qdd, jt.qd_num, jt.qdd_num, jt.cartesian.p, jt.task_error, tau]
     )
     np.savetxt(path, data, delimiter=",", header=",".join(cols), comments="", fmt="%.12g")
     return path
@@ -542,11 +552,34 @@ def run_miskolc(out=None, stream=None) -> int:
         f"(O(h) at the segment joints, where the quintic's jerk jumps)",
         file=stream,
     )
+    from deltagen.apps.dynamics import joint_table, serial_plot
+
+    tau = miskolc_torques(arm, jt)
+    table = joint_table(tau, jt.qd)
+    print(
+        "  joint torques (chosen aluminium links, robots/miskolc_rrrr.toml): "
+        + ", ".join(
+            f"tau{i + 1} peak {p:.3g} RMS {r:.3g}"
+            for i, (p, r) in enumerate(zip(table["peak"], table["rms"]))
+        )
+        + " N m",
+        file=stream,
+    )
     written = [
         _plot_joint_angles(jt, folder / "miskolc_joint_angles.png"),
         _plot_arm_poses(jt, folder / "miskolc_arm_poses.png"),
         _plot_rates(jt, jt_half, folder / "miskolc_rates.png"),
-        _write_csv(jt, folder / "miskolc_joint_trajectory.csv"),
+        serial_plot(
+            jt.t,
+            jt.q,
+            jt.qd,
+            jt.qdd,
+            tau,
+            folder / "miskolc_torques.png",
+            title="Miskolc RRRR pick and place: joint torques (chosen aluminium links, no payload)",
+            marks=lambda ax: _segment_marks(ax, jt.trajectory, labels=False),
+        ),
+        _write_csv(jt, tau, folder / "miskolc_joint_trajectory.csv"),
     ]
     for path in written:
         print(f"wrote {path}", file=stream)

@@ -1,8 +1,10 @@
 """Motor sizing along a trajectory: feed-forward torques of the delta robot (the purpose
 of the delta report, Figures 1-2), their peaks, RMS and mechanical power, the simplified
-model's difference from the exact one, and a plot of q, qdot, qddot and tau per drive.
+model's difference from the exact one, and a plot of q, qdot, qddot and tau per drive;
+the same for serial arms with inertial parameters (joint torques by recursive Newton-Euler).
 
-Used by `deltagen validate` (the report's trajectory, eqs. (40)-(42)).
+Used by `deltagen validate` (the report's trajectory, eqs. (40)-(42)), `deltagen dynamics`
+and the Miskolc demo.
 """
 
 from __future__ import annotations
@@ -34,15 +36,7 @@ class TorqueProfile:
     def drive_table(self) -> dict:
         """Per drive (4 columns): peak |tau|, RMS tau, peak |tau qdot| over the valid samples."""
         ok = self.ok
-        tau, qd = self.tau[ok], self.qd[ok]
-        if not ok.any():
-            nan = np.full(4, np.nan)
-            return {"peak": nan, "rms": nan, "power": nan}
-        return {
-            "peak": np.abs(tau).max(axis=0),
-            "rms": np.sqrt((tau**2).mean(axis=0)),
-            "power": np.abs(tau * qd).max(axis=0),
-        }
+        return joint_table(self.tau[ok], self.qd[ok])
 
     def model_difference(self) -> dict:
         """Simplified minus exact, per drive 1..3: peak and RMS of the difference [N m], and
@@ -53,6 +47,20 @@ class TorqueProfile:
         rms = np.sqrt((diff**2).mean(axis=0)) if ok.any() else np.full(3, np.nan)
         ref = self.drive_table()["peak"][:3]
         return {"peak": peak, "rms": rms, "peak_rel": peak / ref, "rms_rel": rms / ref}
+
+
+def joint_table(tau, qd) -> dict:
+    """Per joint: peak |tau|, RMS tau and peak mechanical power |tau qdot| over the rows
+    given (tau, qd (N, n)); NaN for no rows."""
+    tau, qd = np.asarray(tau, dtype=float), np.asarray(qd, dtype=float)
+    if tau.shape[0] == 0:
+        nan = np.full(tau.shape[1], np.nan)
+        return {"peak": nan, "rms": nan, "power": nan}
+    return {
+        "peak": np.abs(tau).max(axis=0),
+        "rms": np.sqrt((tau**2).mean(axis=0)),
+        "power": np.abs(tau * qd).max(axis=0),
+    }
 
 
 def torque_profile(robot, t, q, qd, qdd, payload: float = 0.0) -> TorqueProfile:
@@ -192,10 +200,7 @@ def main(args) -> int:
 
     robot = args.robot_object
     if not isinstance(robot, DeltaRobot):
-        raise InputError(
-            "deltagen dynamics takes a delta robot ('default' or a delta robot file with an "
-            "[inertia] table); serial-arm dynamics are not part of this command yet"
-        )
+        return serial_main(robot, args)
     t, q, qd, qdd, valid = load_trajectory(robot, args.input)
     if args.payload < 0 or not math.isfinite(args.payload):
         raise InputError(f"--payload must be a non-negative mass in kg, got {args.payload!r}")
@@ -217,6 +222,140 @@ def main(args) -> int:
             f"deltagen dynamics: no torques (unreachable, singular or non-finite) in rows "
             f"{rows_text(bad)}",
             file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+# -- serial arms: `deltagen dynamics ARM --input traj.csv` ------------------------------------
+
+
+def _serial_layouts(n: int):
+    from deltagen.apps.tables import Columns
+
+    q = tuple(f"q{i + 1}" for i in range(n))
+    qd = tuple(f"qd{i + 1}" for i in range(n))
+    qdd = tuple(f"qdd{i + 1}" for i in range(n))
+    return [
+        Columns(("t", *q, *qd, *qdd), positional=False),  # joint motion with its rates
+        Columns(("t", *q)),  # joint angles; rates by finite differences
+    ]
+
+
+def load_serial_trajectory(arm, path):
+    """(t, q, qd, qdd, valid) of a serial arm's trajectory file: columns t, q1..qn and
+    optionally qd1..qdn, qdd1..qddn (else rates by :func:`rates_by_differences`)."""
+    from deltagen.apps.tables import read_table
+    from deltagen.inputs import InputError
+
+    n = arm.n
+    data, layout, _ = read_table(path, _serial_layouts(n), f"dynamics of {arm.name}")
+    t = data[:, 0]
+    if t.size < 3 and layout == 1:
+        raise InputError(f"{path}: rates by finite differences need at least 3 samples")
+    if not (np.isfinite(t).all() and (np.diff(t) > 0).all()):
+        raise InputError(f"{path}: the t column must be finite and strictly increasing")
+    q = data[:, 1 : 1 + n]
+    if layout == 0:
+        qd, qdd = data[:, 1 + n : 1 + 2 * n], data[:, 1 + 2 * n : 1 + 3 * n]
+    else:
+        qd, qdd = rates_by_differences(t, q)
+    valid = np.isfinite(np.column_stack((q, qd, qdd))).all(axis=1)
+    return t, q, qd, qdd, valid
+
+
+def serial_torques(arm, q, qd, qdd):
+    """tau (N, n) of the arm's inverse dynamics, NaN in the rows that are not finite, and
+    the valid mask."""
+    tau, valid = arm.inverse_dynamics(q, qd, qdd, errors="nan")
+    valid = np.asarray(valid, dtype=bool) & np.isfinite(tau).all(axis=1)
+    return tau, valid
+
+
+def serial_report(t, qd, tau, valid, out=None, title="joint torques") -> dict:
+    """Print peak |tau|, RMS tau and peak power per joint over the valid rows; returns the
+    table."""
+    out = sys.stdout if out is None else out
+    table = joint_table(tau[valid], qd[valid])
+    n = tau.shape[1]
+    print(f"{title} ({int(valid.sum())} of {len(t)} samples):", file=out)
+    print("  joint      " + "".join(f"{i + 1:>10d} " for i in range(n)), file=out)
+    print("  peak |tau| " + "".join(f"{v:10.4g} " for v in table["peak"]) + " N m", file=out)
+    print("  RMS tau    " + "".join(f"{v:10.4g} " for v in table["rms"]) + " N m", file=out)
+    print(
+        "  peak power " + "".join(f"{v:10.4g} " for v in table["power"]) + " W  (max |tau qdot|)",
+        file=out,
+    )
+    return table
+
+
+def serial_plot(t, q, qd, qdd, tau, path, title: str = "", marks=None) -> Path:
+    """q, qdot, qddot and tau of each joint over time, one panel per quantity. ``marks``:
+    optional callable(ax) drawing e.g. segment boundaries."""
+    from deltagen.apps.plotting import pyplot
+
+    plt = pyplot()
+    path = Path(path)
+    fig, axes = plt.subplots(4, 1, figsize=(15, 12), sharex=True, layout="constrained")
+    fig.suptitle(title or "joint torques", fontsize=13)
+    valid = np.isfinite(tau).all(axis=1)
+    table = joint_table(tau[valid], qd[valid])
+    series = [
+        (q, "q [deg]", 180.0 / math.pi),
+        (qd, "q̇ [rad/s]", 1.0),
+        (qdd, "q̈ [rad/s²]", 1.0),
+        (tau, "τ [N m]", 1.0),
+    ]
+    for ax, (values, label, scale) in zip(axes, series):
+        for i in range(values.shape[1]):
+            extra = ""
+            if label.startswith("τ"):
+                extra = f" (peak {table['peak'][i]:.3g}, RMS {table['rms'][i]:.3g} N m)"
+            ax.plot(t, values[:, i] * scale, lw=0.7, label=f"joint {i + 1}{extra}")
+        if marks is not None:
+            marks(ax)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside, not over
+    axes[-1].set_xlabel("t [s]")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def serial_main(arm, args) -> int:
+    from deltagen.apps.tables import write_table
+    from deltagen.errors import rows_text
+    from deltagen.inputs import InputError
+
+    if args.payload != 0.0:
+        raise InputError(
+            f"--payload is for delta robots; give a serial arm's payload as the last link's "
+            f"mass in its robot file ({arm.name})"
+        )
+    if args.model != "exact":
+        raise InputError(
+            f"--model {args.model} is the delta robot's rod-mass split; a serial arm "
+            f"({arm.name}) has one model (recursive Newton-Euler)"
+        )
+    t, q, qd, qdd, valid = load_serial_trajectory(arm, args.input)
+    tau, ok = serial_torques(arm, q, qd, qdd)
+    ok &= valid
+    serial_report(t, qd, tau, ok, title=f"joint torques of {arm.name} along {args.input}")
+    n = arm.n
+    names = ["t", *(f"{p}{i + 1}" for p in ("q", "qd", "qdd", "tau") for i in range(n))]
+    table = np.column_stack((t, q, qd, qdd, tau))
+    table[~ok, 1:] = np.nan
+    write_table(args.output if args.output else sys.stdout, names, table, ok)
+    if args.output:
+        print(f"wrote {args.output}")
+    if args.plot:
+        title = f"joint torques of {arm.name} along {args.input}"
+        print(f"wrote {serial_plot(t, q, qd, qdd, tau, args.plot, title=title)}")
+    if not ok.all():
+        bad = np.flatnonzero(~ok)
+        print(
+            f"deltagen dynamics: no torques (non-finite) in rows {rows_text(bad)}", file=sys.stderr
         )
         return 1
     return 0
