@@ -39,6 +39,8 @@ outputs are NaN. OK otherwise.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from deltagen.geometry.rotations import euler_zyx, rpy  # noqa: F401 (public here)
@@ -385,6 +387,19 @@ def _finish(out, bad):
     return out, _status(bad)
 
 
+def _quiet(function):
+    """Huge finite inputs overflow inside the sums: such rows come out non-finite and are
+    INVALID by the finite-output rule (_finish), so numpy's warnings would only be noise."""
+
+    @functools.wraps(function)
+    def wrapped(*args, **kwargs):
+        with np.errstate(all="ignore"):
+            return function(*args, **kwargs)
+
+    return wrapped
+
+
+@_quiet
 def mass_matrix(desc, q):
     """(M (N, n, n), status): joint-space inertia matrix, armature on the diagonal."""
     bad, (qc,) = _dyn_inputs(desc, q)
@@ -396,6 +411,7 @@ def mass_matrix(desc, q):
     return _finish(M, bad)
 
 
+@_quiet
 def gravity_torque(desc, q):
     """(g (N, n), status): the joint torques that hold the arm against gravity."""
     bad, (qc,) = _dyn_inputs(desc, q)
@@ -416,6 +432,7 @@ def _coriolis(desc, qc, qdc):
     return C
 
 
+@_quiet
 def coriolis(desc, q, qd):
     """(C (N, n, n), status): the Christoffel-form Coriolis matrix (C qd: Coriolis and
     centrifugal torques; Mdot - 2C skew-symmetric)."""
@@ -423,6 +440,7 @@ def coriolis(desc, q, qd):
     return _finish(_coriolis(desc, qc, qdc), bad)
 
 
+@_quiet
 def nonlinear_effects(desc, q, qd):
     """(h (N, n), status): C qd + g + friction, the torque at qdd = 0."""
     bad, (qc, qdc) = _dyn_inputs(desc, q, qd)
@@ -431,6 +449,7 @@ def nonlinear_effects(desc, q, qd):
     return _finish(h, bad)
 
 
+@_quiet
 def inverse_dynamics(desc, q, qd, qdd):
     """(tau (N, n), status): M qdd + C qd + g + friction."""
     bad, (qc, qdc, qddc) = _dyn_inputs(desc, q, qd, qdd)
@@ -439,6 +458,7 @@ def inverse_dynamics(desc, q, qd, qdd):
     return _finish(tau, bad)
 
 
+@_quiet
 def forward_dynamics(desc, q, qd, tau):
     """(qdd (N, n), status): M^-1 (tau - h); SINGULAR where M is not positive definite
     (an eigenvalue not above MASS_MATRIX_TOL times the largest diagonal entry)."""
