@@ -297,9 +297,7 @@ class DeltaRobot:
         trailing = trailing or [o.shape[1:] for o in outs]
         # a non-finite result is never OK, whatever the status says (huge finite inputs
         # overflow inside the kernels)
-        finite = np.ones(status.shape, dtype=bool)
-        for o in outs:
-            finite &= np.isfinite(o).all(axis=tuple(range(1, o.ndim)))
+        finite = finite_rows(*outs)
         ok = (status == st.OK) & finite
         all_ok = bool(ok.all())
         if not all_ok:

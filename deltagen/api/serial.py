@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 from deltagen import status as st
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
 from deltagen.api.validity import finite_rows, invalid_message
-from deltagen.errors import GeometryError, KinematicsError, SingularityError, rows_text
+from deltagen.errors import GeometryError, SingularityError, rows_text
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
 from deltagen.inputs import (
@@ -272,7 +272,7 @@ class SerialRobot:
         J, status = self._core.jacobian(qf)
         if frame == "tool":
             J = self._to_tool(qf, J)
-        return self._finish(errors, lead, status, [J], ("q",), [qf], check=frame == "tool")
+        return self._finish(errors, lead, status, [J], ("q",), [qf])
 
     def jacobian_dot(
         self, q: ArrayLike, qd: ArrayLike, frame: Frame = "base", errors: Errors = "raise"
@@ -292,9 +292,7 @@ class SerialRobot:
                 W = skew(w)
                 corr = np.concatenate([W @ J[:, :3], W @ J[:, 3:]], axis=1)
                 Jd = self._to_tool(qf, Jd - corr)
-        return self._finish(
-            errors, lead, status, [Jd], ("q", "qd"), [qf, qdf], check=frame == "tool"
-        )
+        return self._finish(errors, lead, status, [Jd], ("q", "qd"), [qf, qdf])
 
     def euler(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """(..., 3): (psi, theta, phi) after Vukobratovic; see the module docstring."""
@@ -1066,23 +1064,12 @@ class SerialRobot:
         lead, _, flat = broadcast_rows(checked, widths=(self.n,))
         return lead, flat
 
-    def _finish(self, errors, lead, status, outs, names, inputs, check=False):
-        """Shape the kernel's outputs. The kernel's status already applies the
-        finite-output rule; ``check``: outputs were transformed here (the tool frame), so
-        their rows are checked again."""
-        if check:
-            status[(status == st.OK) & ~finite_rows(*outs)] = st.INVALID
+    def _finish(self, errors, lead, status, outs, names, inputs):
+        """Shape the outputs. The finite-output rule once more, for every call: the kernels
+        apply it themselves, but outputs transformed here (the tool frame) may overflow."""
+        status[(status == st.OK) & ~finite_rows(*outs)] = st.INVALID
         ok = status == st.OK
-        for o in outs:  # a non-finite result is never OK, whatever the status says
-            ok &= np.isfinite(o).all(axis=tuple(range(1, o.ndim)))
         if not ok.all():
-            overflow = np.flatnonzero(~ok & (status == st.OK))
-            if errors == "raise" and overflow.size:
-                raise KinematicsError(
-                    f"the result is not finite (the input is too large to evaluate) in rows "
-                    f"{rows_text(overflow)}",
-                    overflow,
-                )
             if errors == "raise":
                 bad = np.flatnonzero(~ok)
                 raise InputError(invalid_message(names, inputs, bad), bad)
