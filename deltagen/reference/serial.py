@@ -381,10 +381,8 @@ def _dyn_inputs(desc, *arrays):
 
 def _finish(out, bad):
     """NaN and INVALID for bad input rows and for rows whose result is not finite."""
-    axes = tuple(range(1, out.ndim))
-    bad = bad | ~np.all(np.isfinite(out), axis=axes)
     out[bad] = np.nan
-    return out, _status(bad)
+    return out, _status(bad, out)  # _status applies the finite-output rule
 
 
 def _quiet(function):
