@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup run test quick lint typecheck generate check bench clean
+.PHONY: setup sysdeps run test quick lint typecheck generate check bench clean
 
 setup: $(VENV)/.installed
 
@@ -14,11 +14,23 @@ $(VENV)/.installed: pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test,plot]'
 	touch $@
 
+# System tools some tests use, from Debian's packages where apt works (CI runs as root):
+# Chromium for the 3D workspace page, clang and arm-none-eabi-gcc for the exported C package.
+# Elsewhere nothing is installed and those tests skip, naming what is missing.
+SYSDEPS := chromium clang gcc-arm-none-eabi libnewlib-arm-none-eabi
+sysdeps:
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  missing=""; for p in $(SYSDEPS); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	  if [ -n "$$missing" ]; then echo "apt-get install$$missing"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null) \
+	    || echo "sysdeps: apt-get failed; the tests that need$$missing will skip"; fi; \
+	else echo "sysdeps: not root or no apt-get; tests needing $(SYSDEPS) skip where absent"; fi
+
 run: setup
 	$(BIN)/deltagen validate
 
 # every check of CI: lint, types, generated/ up to date, the test suite
-test: lint typecheck
+test: sysdeps lint typecheck
 	$(BIN)/deltagen generate --check
 	$(BIN)/python -m pytest -q
 
