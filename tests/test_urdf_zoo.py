@@ -1,0 +1,105 @@
+"""Real arms' URDF files, as their makers and the robotics community publish them
+(example-robot-data, the URDF collection pinocchio's developers maintain: Franka Panda,
+Kinova Jaco 2, UR3 and UR10, UFactory xArm7, Unitree Z1, SO-100), read by deltagen and by
+pinocchio's own URDF parser: the tool pose and the Jacobian on random configurations, and
+where the chain carries all of the arm's mass, the inverse dynamics (with the files' joint
+damping and friction) and the mass matrix.
+
+The reference backend (numpy) is used: the compiled core equals it (tests/test_compiled.py,
+tests/test_serial_dynamics.py), and compiling seven arms' dynamics would cost minutes."""
+
+from __future__ import annotations
+
+import math
+import sysconfig
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from deltagen import SerialRobot
+
+pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
+
+ROBOTS_DIR = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix/share/example-robot-data/robots"
+if not ROBOTS_DIR.is_dir():
+    pytest.skip(
+        "example-robot-data (test extra: pip install example-robot-data) is not installed",
+        allow_module_level=True,
+    )
+
+# name: (file under robots/, base link, tip link, whether the chain carries all the mass)
+ARMS = {
+    "ur3": ("ur_description/urdf/ur3_robot.urdf", "base_link", "tool0", True),
+    "ur10": ("ur_description/urdf/ur10_robot.urdf", "base_link", "tool0", True),
+    "xarm7": ("xarm_description/urdf/xarm7.urdf", None, None, True),
+    "z1": ("z1_description/urdf/z1.urdf", None, None, True),
+    "so100": ("so_arm_description/urdf/so100.urdf", None, None, True),
+    # a gripper's fingers hang off the chain: kinematics only
+    "kinova": ("kinova_description/robots/kinova.urdf", None, "j2s6s200_end_effector", False),
+}
+N = 200
+
+
+def _pin_chain(path, base, tip, robot):
+    """Pinocchio's model of the whole file, with every joint off the base-tip chain locked
+    at zero (buildReducedModel), and its joint order checked against deltagen's."""
+    full = pin.buildModelFromUrdf(str(path))
+    chain = [j.name for j in robot.description.joints]
+    lock = [k for k in range(1, full.njoints) if full.names[k] not in chain]
+    model = pin.buildReducedModel(full, lock, pin.neutral(full)) if lock else full
+    assert [model.names[k] for k in range(1, model.njoints)] == chain
+    return model
+
+
+def _pin_q(model, q):
+    out = np.zeros(model.nq)
+    for k in range(1, model.njoints):
+        j = model.joints[k]
+        if j.nq == 2:  # continuous joint: (cos q, sin q)
+            out[j.idx_q : j.idx_q + 2] = (math.cos(q[j.idx_v]), math.sin(q[j.idx_v]))
+        else:
+            out[j.idx_q] = q[j.idx_v]
+    return out
+
+
+@pytest.mark.parametrize("name", list(ARMS))
+def test_published_arm_matches_pinocchio(name):
+    file, base, tip, all_mass = ARMS[name]
+    path = ROBOTS_DIR / file
+    robot = SerialRobot.from_urdf(path, base, tip, backend="reference")
+    model = _pin_chain(path, base, tip, robot)
+    data = model.createData()
+    root = model.getFrameId(base) if base else 0
+    fid = model.getFrameId(tip or model.frames[-1].name)
+    rng = np.random.default_rng(3)
+    lim = np.clip(robot.qlim, -np.pi, np.pi)
+    q = rng.uniform(lim[:, 0], lim[:, 1], (N, robot.n))
+    qd = rng.uniform(-2, 2, q.shape)
+    qdd = rng.uniform(-3, 3, q.shape)
+    T = robot.fk(q)
+    J = robot.jacobian(q)
+    size = max(1.0, float(np.abs(T[:, :3, 3]).max()))
+    dynamics = all_mass and robot.description.has_inertia
+    if dynamics:
+        tau = robot.inverse_dynamics(q, qd, qdd)
+        M = robot.mass_matrix(q)
+    for k in range(N):
+        qp = _pin_q(model, q[k])
+        pin.framesForwardKinematics(model, data, qp)
+        Tb = data.oMf[root].homogeneous
+        Tp = np.linalg.solve(Tb, data.oMf[fid].homogeneous)
+        np.testing.assert_allclose(T[k], Tp, rtol=0, atol=1e-12 * size)
+        Jp = pin.computeFrameJacobian(model, data, qp, fid, pin.LOCAL_WORLD_ALIGNED)
+        Rb = Tb[:3, :3]  # pinocchio's world axes -> deltagen's base axes
+        Jp = np.vstack((Rb.T @ Jp[:3], Rb.T @ Jp[3:]))
+        np.testing.assert_allclose(J[k], Jp, rtol=0, atol=1e-12 * size)
+        if dynamics:
+            # joint friction from the file's <dynamics damping friction>, as pinocchio read
+            # it (its rnea leaves friction out)
+            taup = pin.rnea(model, data, qp, qd[k], qdd[k])
+            taup = taup + model.damping * qd[k] + model.friction * np.sign(qd[k])
+            assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
+            Mp = pin.crba(model, data, qp)
+            Mp = np.triu(Mp) + np.triu(Mp, 1).T
+            assert np.abs(M[k] - Mp).max() <= 1e-10 * np.abs(Mp).max()
