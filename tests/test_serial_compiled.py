@@ -322,3 +322,51 @@ def test_analytic_jacobian_raises_at_the_euler_singularity():
     if abs(np.cos(arm.euler(q)[1])) < 1e-12:
         with pytest.raises(SingularityError):
             arm.analytic_jacobian(q)
+
+
+# -- an arm's first use waits for no dynamics --------------------------------------------------
+
+
+@pytest.mark.slow  # two cold builds
+def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
+    """A new arm with inertials loads its kinematics alone (SymPy and the compiler do the
+    dynamics only on the first dynamics call); the lazily built full module gives the same
+    kinematics bit for bit and dynamics equal to the reference; a second robot of the same
+    description in the same cache gets the full module at once."""
+    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path))
+    rows = [
+        dict(
+            a=0.3,
+            alpha=0.4,
+            d=0.1,
+            mass=2.0,
+            com=(-0.1, 0.01, 0.0),
+            inertia=(0.02, 0.03, 0.02, 0.0, 0.0, 0.0),
+        ),
+        dict(
+            a=0.25,
+            alpha=-0.3,
+            d=0.0,
+            mass=1.5,
+            com=(-0.1, 0.0, 0.02),
+            inertia=(0.01, 0.01, 0.02, 0.0, 0.0, 0.0),
+        ),
+    ]
+    arm = SerialRobot.from_dh(rows, "standard", name="lazy_arm")
+    reference = arm.with_backend("reference")
+    core = arm._core
+    assert not core.dynamics_loaded
+    rng = np.random.default_rng(2)
+    q, qd, qdd = (rng.uniform(-2, 2, (50, 2)) for _ in range(3))
+    T = arm.fk(q)
+    np.testing.assert_allclose(T, reference.fk(q), rtol=0, atol=1e-14)
+    assert not core.dynamics_loaded
+    tau = arm.inverse_dynamics(q[0], qd[0], qdd[0])  # the one-state path, first
+    assert core.dynamics_loaded
+    np.testing.assert_allclose(
+        tau, reference.inverse_dynamics(q[0], qd[0], qdd[0]), rtol=1e-12, atol=1e-12
+    )
+    np.testing.assert_allclose(arm.mass_matrix(q), reference.mass_matrix(q), rtol=1e-12, atol=1e-12)
+    again = SerialRobot.from_dh(rows, "standard", name="lazy_arm")
+    assert again._core.dynamics_loaded  # built before: the full module at once
+    assert np.array_equal(again.fk(q), T)

@@ -92,6 +92,7 @@ class SerialRobot:
     _id_single: Any  # one-state inverse_dynamics / forward_dynamics (compiled, with inertia)
     _fd_single: Any
     _mass_single: Any
+    _dynamics_singles_pending: bool
 
     def __init__(
         self,
@@ -115,16 +116,17 @@ class SerialRobot:
             self._fk_single = self._core.single("fk")
             self._jacobian_single = self._core.single("jacobian")
             self._ik_all_single = None  # made by ik_all when the arm has a C closed form
-            dynamics = description.has_inertia
-            self._id_single = self._core.single_dynamics("inverse_dynamics") if dynamics else None
-            self._fd_single = self._core.single_dynamics("forward_dynamics") if dynamics else None
-            self._mass_single = self._core.single_mass_matrix() if dynamics else None
+            # the one-state dynamics paths are made on the first dynamics call: the core may
+            # defer building the dynamics until then (native.serial.CompiledArm)
+            self._id_single = self._fd_single = self._mass_single = None
+            self._dynamics_singles_pending = description.has_inertia
         else:
             from deltagen.reference import serial as reference
 
             self._core = _ReferenceArm(reference, description)
             self._fk_single = self._jacobian_single = self._ik_all_single = None
             self._id_single = self._fd_single = self._mass_single = None
+            self._dynamics_singles_pending = False
         self._threads = threads
 
     @property
@@ -417,6 +419,13 @@ class SerialRobot:
     # Newton-Euler in generated C (derive/serial/dynamics.py), or the Jacobian-form numpy
     # reference. Torques in N m (N for prismatic joints); gravity from the description.
 
+    def _make_dynamics_singles(self) -> None:
+        core = self._core
+        self._id_single = core.single_dynamics("inverse_dynamics")
+        self._fd_single = core.single_dynamics("forward_dynamics")
+        self._mass_single = core.single_mass_matrix()
+        self._dynamics_singles_pending = False
+
     def _dynamics(self):
         """The core, after checking that the arm has inertial parameters."""
         if not self.description.has_inertia:
@@ -432,6 +441,8 @@ class SerialRobot:
     ) -> Result:
         """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
         viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
+        if self._dynamics_singles_pending:
+            self._make_dynamics_singles()
         if self._id_single is not None and errors == "raise":
             tau = self._id_single(q, qd, qdd)
             if tau is not None:
@@ -446,6 +457,8 @@ class SerialRobot:
 
     def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
+        if self._dynamics_singles_pending:
+            self._make_dynamics_singles()
         if self._mass_single is not None and errors == "raise":
             M = self._mass_single(q)
             if M is not None:
@@ -484,6 +497,8 @@ class SerialRobot:
     ) -> Result:
         """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
         SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
+        if self._dynamics_singles_pending:
+            self._make_dynamics_singles()
         if self._fd_single is not None and errors == "raise":
             qdd = self._fd_single(q, qd, tau)
             if qdd is not None:

@@ -316,7 +316,7 @@ def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
     """A no-argument call of the arm's generated C function ``deltagen_<robot>_<name>`` with
     preallocated outputs, or None if the core is not the cffi one."""
     try:
-        ffi, lib = core._ffi, core._lib
+        ffi, fn = core.c_function(name)
         points, axes = inputs[0].shape
         out = np.empty((points, _serial_width(name, axes)))
         status = np.empty(points, dtype=np.int8)
@@ -327,7 +327,6 @@ def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
             fb("double[]", out, require_writable=True),
             fb("int8_t[]", status, require_writable=True),
         )
-        fn = getattr(lib, f"{core._prefix}_{name}")
         if fn(*cargs) != 0 or not (status == st.OK).all():
             return None
         keep = (inputs, out, status)  # the buffers must outlive the call object

@@ -34,8 +34,12 @@ def generate_robot_file(path) -> Path:
         desc = description_from_urdf(path)
     else:
         desc = SerialDescription.from_toml(path)
-    CompiledArm(desc)  # builds (or finds) the cached module
-    return source_dir(desc)
+    arm = CompiledArm(desc)  # builds (or finds) the cached module
+    if desc.has_inertia:
+        arm.load_dynamics()  # the full module, which a first use would otherwise defer
+    folder = source_dir(desc)
+    assert folder is not None
+    return folder
 
 
 def write(directory: Path | None = None) -> list[Path]:

@@ -217,6 +217,15 @@ class SerialDescription:
                 "it has no dynamics"
             )
 
+    def without_inertia(self) -> SerialDescription:
+        """The same arm without inertial parameters: its kinematics alone (what the compiled
+        backend builds first, so that an arm's first use waits for no dynamics)."""
+        from dataclasses import replace
+
+        if not self.has_inertia:
+            return self
+        return replace(self, joints=tuple(replace(j, inertial=None) for j in self.joints))
+
     def without_friction(self) -> SerialDescription:
         """The same arm with viscous and Coulomb friction set to zero."""
         from dataclasses import replace

@@ -131,10 +131,9 @@ def usable_cache_dir() -> Path:
     return root
 
 
-def load(base_name: str, prefix: str, directory: Path | None = None):
-    """Return the compiled cffi module (``.ffi``, ``.lib``) of <directory>/<base_name>.c
-    (generated/ by default) and the runtime C it includes (codegen/runtime/, compiled
-    beside it)."""
+def _module_inputs(base_name: str, prefix: str, directory: Path | None):
+    """Everything that shapes the binary of <directory>/<base_name>.c, and the cache's
+    module name keyed by it."""
     directory = Path(directory) if directory else generated_dir()
     files = {ext: directory / f"{base_name}{ext}" for ext in (".c", ".h", ".cdef.h")}
     for path in files.values():
@@ -158,7 +157,28 @@ def load(base_name: str, prefix: str, directory: Path | None = None):
         + [f.name + "\0" + text for f, text in runtime.items()]
     )
     key = hashlib.sha256(key_material.encode()).hexdigest()[:16]
-    module_name = f"_deltagen_{base_name}_{key}"
+    return f"_deltagen_{base_name}_{key}", texts, files, runtime, args, libraries
+
+
+def is_built(base_name: str, prefix: str, directory: Path | None = None) -> bool:
+    """True when :func:`load` would find the module compiled (loaded in this process or a
+    verified artifact in the cache): loading it costs no compiler run."""
+    module_name = _module_inputs(base_name, prefix, directory)[0]
+    with _GUARD:
+        if module_name in _LOADED:
+            return True
+    target = usable_cache_dir() / module_name
+    shared_object = target / f"{module_name}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
+    return _verified(target, shared_object)
+
+
+def load(base_name: str, prefix: str, directory: Path | None = None):
+    """Return the compiled cffi module (``.ffi``, ``.lib``) of <directory>/<base_name>.c
+    (generated/ by default) and the runtime C it includes (codegen/runtime/, compiled
+    beside it)."""
+    module_name, texts, files, runtime, args, libraries = _module_inputs(
+        base_name, prefix, directory
+    )
     with _GUARD:
         if module_name in _LOADED:
             return _LOADED[module_name]

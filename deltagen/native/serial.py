@@ -8,6 +8,7 @@ import hashlib
 import os
 import threading
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -20,15 +21,16 @@ from deltagen.codegen.serial import (
     generator_fingerprint,
 )
 from deltagen.inputs import plain_pose, plain_row
-from deltagen.native.build import load, usable_cache_dir
+from deltagen.native.build import is_built, load, usable_cache_dir
 from deltagen.native.parallel import run_rows
 from deltagen.paths import generated_dir
 
 
-def source_dir(desc) -> Path:
+def source_dir(desc, render: bool = True) -> Path | None:
     """generated/ when it holds this description's checked-in module (bundled robots; kept
     current by `deltagen generate --check`), else a cache folder keyed by the description
-    and the generator, rendered on first use."""
+    and the generator, rendered on first use (None instead when ``render`` is false and it
+    has not been rendered yet)."""
     name = base_name(desc)
     header = generated_dir() / f"{name}.h"
     stamp = f"Description fingerprint: {description_fingerprint(desc)}"
@@ -37,6 +39,8 @@ def source_dir(desc) -> Path:
     key = hashlib.sha256((desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
     folder = usable_cache_dir() / "sources" / f"{name}_{key}"
     if not (folder / f"{name}.cdef.h").is_file():
+        if not render:
+            return None
         folder.mkdir(parents=True, exist_ok=True)
         sources = arm_sources(desc)
         # the .cdef.h marks a complete folder, so it is written last
@@ -45,6 +49,32 @@ def source_dir(desc) -> Path:
             tmp.write_text(sources[file_name])
             tmp.replace(folder / file_name)
     return folder
+
+
+def module_ready(desc) -> bool:
+    """True when the description's module loads without SymPy or a compiler: checked in
+    under generated/, or rendered and compiled into the cache before."""
+    folder = source_dir(desc, render=False)
+    return folder is not None and is_built(base_name(desc), c_prefix(desc), folder)
+
+
+def _load(desc):
+    folder = source_dir(desc)
+    assert folder is not None
+    return load(base_name(desc), c_prefix(desc), folder)
+
+
+# kernels only the full module has
+_DYNAMICS = frozenset(
+    (
+        "inverse_dynamics",
+        "nonlinear_effects",
+        "gravity_torque",
+        "mass_matrix",
+        "coriolis",
+        "forward_dynamics",
+    )
+)
 
 
 class _Scratch(threading.local):
@@ -83,7 +113,17 @@ class CompiledArm:
         self.desc = desc
         self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
         self._prefix = c_prefix(desc)  # of the C functions: deltagen_<name>
-        module = load(base_name(desc), self._prefix, source_dir(desc))
+        # An arm with inertials whose module is not built yet (a new URDF or robot file)
+        # starts from its kinematics alone: deriving and compiling the dynamics is most of
+        # a cold load, so they are made on the first dynamics call (load_dynamics). The
+        # kinematic kernels of both modules come from the same derivation: same results.
+        self._dynamics_lock = threading.Lock()
+        self._dynamics: Any = None
+        if desc.has_inertia and not module_ready(desc):
+            module = _load(desc.without_inertia())
+        else:
+            module = _load(desc)
+            self._dynamics = module if desc.has_inertia else None
         self._ffi, self._lib = module.ffi, module.lib
         self._scratch = _Scratch(self._ffi, desc.n)
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
@@ -93,14 +133,14 @@ class CompiledArm:
         the status. A width may be (width, "uint8_t") for a flag output. The rows are split
         into chunks across threads (native.parallel)."""
         n = inputs[0].shape[0]
-        fb = self._ffi.from_buffer
+        ffi, fn = self.c_function(name)
+        fb = ffi.from_buffer
         kinds = [w if isinstance(w, tuple) else (w, "double") for w in widths]
         outs = [
             np.empty((n, width), dtype=np.uint8 if ctype == "uint8_t" else np.float64)
             for width, ctype in kinds
         ]
         status = np.empty(n, dtype=np.int8)
-        fn = getattr(self._lib, f"{self._prefix}_{name}")
         ctypes = [f"{ctype}[]" for _, ctype in kinds]
 
         def call(lo, hi):
@@ -197,6 +237,26 @@ class CompiledArm:
 
     # -- dynamics (arms with inertial parameters; the API checks has_inertia first) ------
 
+    def load_dynamics(self):
+        """The full module (kinematics and dynamics), rendered and compiled on first use
+        when the arm started from its kinematics alone."""
+        if self._dynamics is None:
+            with self._dynamics_lock:
+                if self._dynamics is None:
+                    self._dynamics = _load(self.desc)
+        return self._dynamics
+
+    @property
+    def dynamics_loaded(self) -> bool:
+        return self._dynamics is not None
+
+    def c_function(self, name: str):
+        """(ffi, function) of the generated C function <prefix>_<name>, from the module
+        that has it (for callers that time or drive the C directly)."""
+        module = self.load_dynamics() if name in _DYNAMICS else None
+        ffi, lib = (module.ffi, module.lib) if module else (self._ffi, self._lib)
+        return ffi, getattr(lib, f"{self._prefix}_{name}")
+
     def inverse_dynamics(self, q, qd, qdd):
         return self._run("inverse_dynamics", [q, qd, qdd], self.desc.n)
 
@@ -223,10 +283,11 @@ class CompiledArm:
         """Fast path for one state of inverse_dynamics or forward_dynamics (three (n,)
         C-contiguous float64 arrays): the (n,) result, or None when the general path must
         handle the call (other inputs, a status other than OK)."""
-        fn = getattr(self._lib, f"{self._prefix}_{name}")
-        scratch = _DynamicsScratch(self._ffi, self.desc.n)
+        module = self.load_dynamics()
+        fn = getattr(module.lib, f"{self._prefix}_{name}")
+        scratch = _DynamicsScratch(module.ffi, self.desc.n)
         n, nbytes = self.desc.n, 8 * self.desc.n
-        memmove = self._ffi.memmove
+        memmove = module.ffi.memmove
         ndarray, OK = np.ndarray, st.OK
 
         def plain(x):
@@ -254,10 +315,11 @@ class CompiledArm:
     def single_mass_matrix(self):
         """Fast path of mass_matrix for one (n,) C-contiguous float64 q: M (n, n), or None
         when the general path must handle the call."""
-        fn = getattr(self._lib, f"{self._prefix}_mass_matrix")
-        scratch = _DynamicsScratch(self._ffi, self.desc.n, self.desc.n**2)
+        module = self.load_dynamics()
+        fn = getattr(module.lib, f"{self._prefix}_mass_matrix")
+        scratch = _DynamicsScratch(module.ffi, self.desc.n, self.desc.n**2)
         n, nbytes = self.desc.n, 8 * self.desc.n
-        memmove = self._ffi.memmove
+        memmove = module.ffi.memmove
         ndarray, OK = np.ndarray, st.OK
 
         def call(q):
