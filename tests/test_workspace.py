@@ -198,3 +198,135 @@ def test_serial_workspace_with_orientation_reaches_what_fk_reaches():
     q, ok = arm.ik(T, errors="nan", singular="allow")
     assert ok.all()
     np.testing.assert_allclose(arm.fk(q)[:, :3, 3], pts, atol=1e-9)
+
+
+# -- pictures and the 3D page (deltagen.apps.workspace) ---------------------------------
+
+CHROMIUM = "/usr/bin/chromium"
+RECORDER = """<script>
+window.__errors = [];
+window.addEventListener("error", function (e) { window.__errors.push("error: " + e.message); });
+window.addEventListener("unhandledrejection", function (e) {
+  window.__errors.push("rejection: " + e.reason); });
+(function () { var orig = console.error; console.error = function () {
+  window.__errors.push("console.error: " + Array.prototype.join.call(arguments, " "));
+  return orig.apply(console, arguments); }; })();
+window.addEventListener("load", function () { setTimeout(function () {
+  var d = document.createElement("pre"); d.id = "deltagen-report";
+  d.textContent = "ERRORS=" + JSON.stringify(window.__errors) +
+    " PLOTS=" + document.querySelectorAll(".js-plotly-plot .main-svg").length;
+  document.body.appendChild(d); }, 500); });
+</script>"""
+
+
+def _chromium(page, tmp_path, screenshot=None):
+    """Load a page in headless Chromium with an error recorder injected first in <head>;
+    returns (errors list, number of plotly SVG layers, stderr)."""
+    import json
+    import re
+    import subprocess
+
+    text = page.read_text()
+    probe = tmp_path / ("probe_" + page.name)
+    probe.write_text(text.replace("<head>", "<head>" + RECORDER, 1))
+    base = [
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--enable-unsafe-swiftshader",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        f"--user-data-dir={tmp_path / 'chromium-profile'}",
+        "--virtual-time-budget=15000",
+        "--window-size=1000,700",
+    ]
+    run = subprocess.run(
+        base + ["--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=180
+    )
+    found = re.search(r"ERRORS=(\[.*?\]) PLOTS=(\d+)", run.stdout)
+    assert found, f"no report from the page; chromium stderr:\n{run.stderr[-2000:]}"
+    if screenshot is not None:
+        subprocess.run(
+            base + [f"--screenshot={screenshot}", page.as_uri()],
+            capture_output=True,
+            timeout=180,
+        )
+    return json.loads(found.group(1)), int(found.group(2)), run.stderr
+
+
+@pytest.fixture(scope="module")
+def pictures(robot, tmp_path_factory):
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("plotly")
+    from deltagen.apps import workspace as app
+
+    out = tmp_path_factory.mktemp("workspace")
+    ws = robot.workspace(0.05)
+    return (
+        out,
+        ws,
+        (
+            app.write_slices(ws, out / "slices.png"),
+            app.write_page(robot, ws, out / "page.html", title="test"),
+            app.write_summary(ws, out / "summary.csv", robot),
+        ),
+    )
+
+
+def test_pictures_are_written_and_not_empty(pictures):
+    out, ws, (png, html, summary) = pictures
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    text = html.read_text()
+    assert html.stat().st_size > 1_000_000  # plotly.js inlined
+    # self-contained: no script or stylesheet fetched from the network
+    import re
+
+    assert not re.search(r"<script[^>]+src=|<link[^>]+href=\"http", text)
+    rows = summary.read_text().splitlines()
+    assert rows[0].startswith("# deltagen ") and "volume_m3" in summary.read_text()
+
+
+def test_delta_skeleton_has_rods_of_length_l_b(robot):
+    from deltagen.apps.workspace import delta_skeleton
+
+    q = np.array([0.3, -0.2, 0.5])
+    s = delta_skeleton(robot, q)
+    pieces = np.split(s, np.flatnonzero(np.isnan(s[:, 0])))
+    chains = [c[~np.isnan(c[:, 0])] for c in pieces[1:4]]
+    g = robot.geometry
+    for A, B, C in chains:
+        assert np.linalg.norm(B - A) == pytest.approx(g.l_a, rel=1e-12)
+        assert np.linalg.norm(C - B) == pytest.approx(g.l_b, rel=1e-9)
+
+
+@pytest.mark.slow  # two browser starts, ~30 s on 2 busy cores
+def test_the_page_loads_in_headless_chromium_without_errors(pictures, tmp_path):
+    import os
+
+    if not os.path.exists(CHROMIUM):
+        pytest.skip(f"{CHROMIUM} is absent (make sysdeps installs Chromium where apt works)")
+    out, ws, (png, html, summary) = pictures
+    shot = tmp_path / "page.png"
+    errors, plots, _ = _chromium(html, tmp_path, screenshot=shot)
+    assert errors == []
+    assert plots >= 1  # plotly drew the figure
+    assert shot.exists() and shot.stat().st_size > 10_000
+    # the recorder can fail: a page with a script error is caught
+    bad = tmp_path / "bad.html"
+    bad.write_text("<html><head></head><body><script>no_such_function();</script></body></html>")
+    errors, _, _ = _chromium(bad, tmp_path)
+    assert errors and "no_such_function" in errors[0]
+
+
+def test_cli_workspace_writes_its_files(tmp_path):
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("plotly")
+    from deltagen.cli import main
+
+    code = main(["workspace", "default", "--out", str(tmp_path), "--step", "0.1", "--quiet"])
+    assert code == 0
+    for name in ("workspace_slices.png", "workspace.html", "workspace_summary.csv"):
+        assert (tmp_path / name).stat().st_size > 0
