@@ -293,6 +293,28 @@ def main(argv=None) -> int:
     w.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     w.set_defaults(func=_workspace)
 
+    s = sub.add_parser(
+        "sweep",
+        help="geometry sweep of a delta robot on Dask (local cluster by default)",
+        description="Score the designs of a sweep spec (TOML: design grid|sobol, n, seed, "
+        "[ranges] r_a r_b l_a l_b, [score], [move], [constraints], [inertia]; see "
+        "deltagen.api.sweep) by workspace volume, usable cylinder, worst condition number "
+        "and peak torque; write sweep.csv and pareto.png to --out. Runs on a local Dask "
+        "cluster (every core), or on the cluster at --scheduler / DASK_SCHEDULER_ADDRESS.",
+    )
+    s.add_argument("spec", help="sweep spec (TOML)")
+    s.add_argument(
+        "--scheduler",
+        default=None,
+        help="Dask scheduler address (tcp://host:port); 'inprocess' runs without Dask; "
+        "default: DASK_SCHEDULER_ADDRESS, else a local cluster",
+    )
+    s.add_argument("--workers", type=int, default=None, help="local cluster: worker processes")
+    s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--no-plot", action="store_true", help="skip the Pareto plot")
+    s.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    s.set_defaults(func=lambda a: _lazy("deltagen.apps.sweep", a))
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")

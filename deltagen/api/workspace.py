@@ -48,7 +48,7 @@ DEFAULT_Q_LIMITS = (-math.pi / 2, math.pi / 2)
 DEFAULT_MAX_CONDITION = 10.0
 
 
-def _progress(total: int, desc: str, show: bool | None):
+def _progress(total: int, desc: str, show: bool | None) -> Any:
     """A tqdm bar (or a silent stand-in): shown when ``show`` is True, or when None and
     stderr is a terminal."""
     import sys
@@ -345,7 +345,7 @@ def inscribed_envelopes(
 
 
 def delta_workspace(
-    robot,
+    robot: Any,
     step: float | None = None,
     *,
     box: tuple[tuple[float, float], ...] | None = None,
@@ -426,17 +426,19 @@ def delta_workspace(
         vgain[a:b] = sv[:, 0]
         with np.errstate(divide="ignore"):
             fgain[a:b] = 1.0 / sv[:, 2]
-        if peak is not None and np.any(ok):
+        if peak is not None and acceleration is not None and np.any(ok):
             peak[a:b] = _peak_torque(robot, P[a:b], ok, float(acceleration), payload)
         bar.update(b - a)
     bar.close()
     cyl = boxe = None
+    counted = [n]  # poses tested (voxels, then the envelope's rays)
     if envelope and np.any(usable):
         zu = zs[np.any(usable.reshape(shape), axis=(0, 1))]
         levels = np.linspace(zu.min() - step_eff, zu.max() + step_eff, envelope_levels)
         tol = 1e-4 * size
 
         def fn(pts):
+            counted[0] += len(pts)
             return delta_usable(robot, pts, (lo_q, hi_q), max_condition)[0]
 
         env = inscribed_envelopes(fn, levels, reach, tol=tol)
@@ -458,7 +460,7 @@ def delta_workspace(
         tol=1e-4 * size,
         peak_torque=None if peak is None else peak.reshape(shape),
         acceleration=acceleration,
-        settings={"step": step, "box": ((x0, x1), (y0, y1), (z0, z1))},
+        settings={"step": step, "box": ((x0, x1), (y0, y1), (z0, z1)), "poses": counted[0]},
     )
 
 
@@ -550,7 +552,7 @@ def _joint_box(arm):
 
 
 def serial_workspace(
-    arm,
+    arm: Any,
     step: float | None = None,
     *,
     orientation: Any = None,
