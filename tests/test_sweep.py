@@ -152,3 +152,23 @@ def test_sweep_on_a_local_dask_cluster_equals_in_process(in_process):
         np.testing.assert_array_equal(res.columns[key], in_process.columns[key], err_msg=key)
     assert np.array_equal(res.feasible, in_process.feasible)
     assert set(SCORES) <= set(res.columns)
+
+
+def test_cli_sweep_writes_csv_and_pareto(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    from deltagen.cli import main
+
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        'design = "grid"\nn = 2\nseed = 5\n[ranges]\nr_a = [0.18, 0.22]\nr_b = 0.045\n'
+        "l_a = 0.35\nl_b = 0.8\n[score]\nstep = 0.12\nenvelope_levels = 8\n"
+    )
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--scheduler", "inprocess", "--out", str(out)]) == 0
+    assert "2 designs" in capsys.readouterr().out
+    text = (out / "sweep.csv").read_text()
+    assert "# seed = 5" in text and (out / "pareto.png").stat().st_size > 0
+    bad = tmp_path / "bad.toml"
+    bad.write_text('design = "grid"\n')
+    assert main(["sweep", str(bad), "--scheduler", "inprocess", "--out", str(out)]) == 2
+    assert "[ranges] needs r_a" in capsys.readouterr().err
