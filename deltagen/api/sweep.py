@@ -420,7 +420,7 @@ def _bar(total, show):
         try:
             from tqdm import tqdm
 
-            return tqdm(total=total, desc="sweep", unit="design", leave=False)
+            return tqdm(total=total, desc="sweep", unit="design", leave=False, delay=1.0)
         except ImportError:
             pass
 

@@ -50,7 +50,7 @@ DEFAULT_MAX_CONDITION = 10.0
 
 def _progress(total: int, desc: str, show: bool | None) -> Any:
     """A tqdm bar (or a silent stand-in): shown when ``show`` is True, or when None and
-    stderr is a terminal."""
+    stderr is a terminal; it appears only once the job has run for a second."""
     import sys
 
     if show is None:
@@ -61,7 +61,7 @@ def _progress(total: int, desc: str, show: bool | None) -> Any:
         show = False
     if not show:
         return _Silent()
-    return tqdm(total=total, desc=desc, unit="pt", unit_scale=True, leave=False)
+    return tqdm(total=total, desc=desc, unit="pt", unit_scale=True, leave=False, delay=1.0)
 
 
 class _Silent:
