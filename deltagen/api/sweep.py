@@ -455,7 +455,7 @@ def _run_dask(spec, designs, scheduler, workers, task_seconds, progress):
             n_workers=workers or os.cpu_count() or 1,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",  # any free port: never clashes with a running cluster
         )
         client = Client(cluster)
     else:
