@@ -172,3 +172,18 @@ def test_cli_sweep_writes_csv_and_pareto(tmp_path, capsys):
     bad.write_text('design = "grid"\n')
     assert main(["sweep", str(bad), "--scheduler", "inprocess", "--out", str(out)]) == 2
     assert "[ranges] needs r_a" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # a 2-process Dask cluster started here, reached by its address
+def test_sweep_on_a_running_cluster_from_dask_scheduler_address(in_process, monkeypatch):
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as cluster:
+        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler_address)
+        res = deltagen.sweep(SPEC, task_seconds=1e-6, progress=False)
+        assert res.workers == 2
+        # the cluster outlives the sweep (it was not started by it)
+        assert len(cluster.scheduler_info["workers"]) == 2
+    for key in in_process.columns:
+        np.testing.assert_array_equal(res.columns[key], in_process.columns[key], err_msg=key)
