@@ -1,5 +1,5 @@
 # Each target does its own set-up: a virtual environment with the package (editable)
-# and its test and plot dependencies, rebuilt when pyproject.toml changes.
+# and its test, plot and design dependencies, rebuilt when pyproject.toml changes.
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -11,7 +11,7 @@ setup: $(VENV)/.installed
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,plot]'
+	$(BIN)/python -m pip install --quiet -e '.[test,plot,design]'
 	touch $@
 
 # System tools some tests use, from Debian's packages where apt works (CI runs as root):

@@ -2,6 +2,7 @@
 
 from deltagen.api.delta import DeltaInertia, DeltaRobot
 from deltagen.api.serial import SerialRobot
+from deltagen.api.sweep import SweepResult, SweepSpec, sweep
 from deltagen.errors import GeometryError, SingularityError, UnreachableError
 from deltagen.inputs import InputError
 
@@ -12,6 +13,9 @@ __all__ = [
     "InputError",
     "SerialRobot",
     "SingularityError",
+    "SweepResult",
+    "SweepSpec",
     "UnreachableError",
+    "sweep",
 ]
 __version__ = "0.1.0"

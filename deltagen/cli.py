@@ -1,4 +1,4 @@
-"""Command line: deltagen generate | validate | fk | ik | dynamics | bench."""
+"""Command line: deltagen generate | validate | fk | ik | dynamics | workspace | sweep | bench."""
 
 from __future__ import annotations
 
@@ -274,6 +274,47 @@ def main(argv=None) -> int:
     y.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     y.set_defaults(func=_dynamics)
 
+    w = sub.add_parser(
+        "workspace",
+        help="workspace and dexterity maps of a robot (PNG slices, 3D HTML page, summary)",
+        description="Usable workspace on a voxel grid (delta: ik over a box, crank limits "
+        "+-90 deg, condition number of J <= --max-condition; serial arm: position-only "
+        "reach by joint sampling), the largest inscribed cylinder and box (delta), and "
+        "pictures: workspace_slices.png, workspace.html (self-contained, plotly), "
+        "workspace_summary.csv in --out.",
+    )
+    w.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
+    w.add_argument("--out", default="workspace", help="output folder (default: workspace)")
+    w.add_argument("--step", type=float, default=None, help="voxel edge [m] (default: size/40)")
+    w.add_argument(
+        "--max-condition", type=float, default=10.0, help="delta: bound on cond(J) (default 10)"
+    )
+    w.add_argument("--quiet", action="store_true", help="no progress bars or summary")
+    w.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    w.set_defaults(func=_workspace)
+
+    s = sub.add_parser(
+        "sweep",
+        help="geometry sweep of a delta robot on Dask (local cluster by default)",
+        description="Score the designs of a sweep spec (TOML: design grid|sobol, n, seed, "
+        "[ranges] r_a r_b l_a l_b, [score], [move], [constraints], [inertia]; see "
+        "deltagen.api.sweep) by workspace volume, usable cylinder, worst condition number "
+        "and peak torque; write sweep.csv and pareto.png to --out. Runs on a local Dask "
+        "cluster (every core), or on the cluster at --scheduler / DASK_SCHEDULER_ADDRESS.",
+    )
+    s.add_argument("spec", help="sweep spec (TOML)")
+    s.add_argument(
+        "--scheduler",
+        default=None,
+        help="Dask scheduler address (tcp://host:port); 'inprocess' runs without Dask; "
+        "default: DASK_SCHEDULER_ADDRESS, else a local cluster",
+    )
+    s.add_argument("--workers", type=int, default=None, help="local cluster: worker processes")
+    s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--no-plot", action="store_true", help="skip the Pareto plot")
+    s.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    s.set_defaults(func=lambda a: _lazy("deltagen.apps.sweep", a))
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
@@ -311,6 +352,13 @@ def _dynamics(args) -> int:
 
     args.robot_object = _robot(args)
     return dynamics.main(args)
+
+
+def _workspace(args) -> int:
+    from deltagen.apps import workspace
+
+    args.robot_object = _robot(args)
+    return workspace.main(args)
 
 
 def _lazy(module: str, args) -> int:

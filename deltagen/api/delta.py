@@ -201,6 +201,13 @@ class DeltaRobot:
         Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
 
+    def workspace(self, step: float | None = None, **options: Any) -> Any:
+        """The usable workspace on a voxel grid, its dexterity maps and the largest
+        inscribed cylinder and box: deltagen.api.workspace.delta_workspace (options there)."""
+        from deltagen.api.workspace import delta_workspace
+
+        return delta_workspace(self, step, **options)
+
     # -- dynamics -----------------------------------------------------------------------
 
     @property

@@ -413,6 +413,13 @@ class SerialRobot:
             rep["valid"] = valid.reshape(lead) if lead else bool(valid[0])
         return rep
 
+    def workspace(self, step: float | None = None, **options: Any) -> Any:
+        """Reachability, manipulability and condition number over a voxel grid of tool
+        positions, singular surfaces located: deltagen.api.workspace.serial_workspace."""
+        from deltagen.api.workspace import serial_workspace
+
+        return serial_workspace(self, step, **options)
+
     # -- dynamics -----------------------------------------------------------------------
     #
     # Arms whose robot file gives inertial parameters (deltagen.model.serial): recursive
