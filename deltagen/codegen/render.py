@@ -168,6 +168,22 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
     """Return {file name: text} for the C source, the header and the cffi declarations, in
     the real type the kernels were lowered for (float: no ik_newton or forward_dynamics,
     whose runtime C is double)."""
+    env, context = render_context(unit, lowered)
+    header_name = context["header_name"]
+    files = {
+        header_name: ("header.h.j2", "restrict "),
+        f"{unit.base_name}.c": ("source.c.j2", "restrict "),
+        f"{unit.base_name}.cdef.h": ("cdef.h.j2", ""),
+    }
+    return {
+        name: env.get_template(template).render(template=template, restrict=restrict, **context)
+        for name, (template, restrict) in files.items()
+    }
+
+
+def render_context(unit: Unit, lowered: list) -> tuple[jinja2.Environment, dict]:
+    """The template environment (for the kernels' real type) and the context every module
+    template gets: the unit's layout facts and one dict per function."""
     real_type = lowered[0].real_type if lowered else "double"
     if real_type != "double" and (unit.newton or unit.dynamics):
         raise ValueError("the runtime C (ik_newton, forward_dynamics) is double only")
@@ -233,12 +249,4 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         cos=cos_name,
         sin=sin_name,
     )
-    files = {
-        header_name: ("header.h.j2", "restrict "),
-        f"{unit.base_name}.c": ("source.c.j2", "restrict "),
-        f"{unit.base_name}.cdef.h": ("cdef.h.j2", ""),
-    }
-    return {
-        name: env.get_template(template).render(template=template, restrict=restrict, **context)
-        for name, (template, restrict) in files.items()
-    }
+    return env, context
