@@ -17,6 +17,7 @@ from deltagen.codegen.render import Unit, environment, render, render_context
 from deltagen.model.naming import check_identifier
 
 _KERNELS: dict = {}  # derivations (seconds each) shared by the exports of one process
+_LOWERED: dict = {}  # their lowered statements per real type
 
 
 def delta_unit_kernels() -> tuple[Unit, tuple]:
@@ -114,7 +115,10 @@ def package_sources(
     """The C files of an export: the batched module (unless ``batch`` is false) and the
     single-point functions, in ``real_type`` ("double" or "float")."""
     unit = exported_unit(unit, prefix, real_type)
-    lowered = [lower(k, real_type) for k in kernels]
+    key = (tuple(id(k) for k in kernels), real_type)
+    if key not in _LOWERED:  # kernels are kept alive by _KERNELS, so their ids are stable
+        _LOWERED[key] = ([lower(k, real_type) for k in kernels], kernels)
+    lowered = _LOWERED[key][0]
     env, context = render_context(unit, lowered)
     module = render(unit, lowered)
     files: dict = {}
@@ -160,4 +164,4 @@ def render_extra(template: str, real_type: str, **context) -> str:
     """One of the package's other files (example.c, CMakeLists.txt, Makefile, README.md)
     from its template (templates/export/)."""
     env = environment(real_type)
-    return env.get_template(f"export/{template}.j2").render(real=real_type, **context)
+    return env.get_template(f"export/{template}.j2").render(**{"real": real_type, **context})
