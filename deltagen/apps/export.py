@@ -124,34 +124,33 @@ def _run(cmd, cwd, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600, **kwargs)
 
 
-def measure_stack(directory: Path, sources, cc: str, real: str) -> dict:
-    """{function: bytes} of every function in ``sources``: ``cc -O2 -fstack-usage``."""
-    flags = ["-std=c99", "-O2", "-fstack-usage", "-I", str(directory)]
+def build_and_measure(directory: Path, sources, cc: str) -> tuple[dict, str]:
+    """Compile the package's sources once with ``cc -std=c99 -O2 -fstack-usage``: the stack
+    use of every function ({function: (bytes, static|dynamic|bounded)}); then link the
+    example with those objects, run it and return its output."""
+    flags = ["-std=c99", "-O2", "-I", str(directory)]
     usage: dict = {}
-    with tempfile.TemporaryDirectory(prefix="deltagen-stack-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="deltagen-export-") as tmp:
+        objects = []
         for source in sources:
-            result = _run([*cc.split(), *flags, "-c", str(directory / source)], cwd=tmp)
+            obj = str(Path(tmp) / Path(source).with_suffix(".o"))
+            cmd = [*cc.split(), *flags, "-fstack-usage", "-c", str(directory / source), "-o", obj]
+            result = _run(cmd, cwd=tmp)
             if result.returncode != 0:
                 raise ExportError(f"{cc} could not compile {source}:\n{result.stderr[-2000:]}")
+            objects.append(obj)
         for su in Path(tmp).glob("*.su"):
             for line in su.read_text().splitlines():
                 # file.c:LINE:COL:function<TAB>bytes<TAB>static|dynamic|bounded
                 found = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
                 if found:
                     usage[found.group(1)] = (int(found.group(2)), found.group(3))
-    return usage
-
-
-def run_example(directory: Path, sources, cc: str) -> str:
-    """Build the example with the package's Makefile recipe (plain cc) and run it."""
-    with tempfile.TemporaryDirectory(prefix="deltagen-example-") as tmp:
-        exe = Path(tmp) / "example"
-        files = [str(directory / s) for s in (*sources, "example.c")]
-        built = _run([*cc.split(), "-std=c99", "-O2", "-o", str(exe), *files, "-lm"], cwd=tmp)
+        exe = str(Path(tmp) / "example")
+        example = str(directory / "example.c")
+        built = _run([*cc.split(), *flags, "-o", exe, example, *objects, "-lm"], cwd=tmp)
         if built.returncode != 0:
             raise ExportError(f"{cc} could not build the example:\n{built.stderr[-2000:]}")
-        ran = _run([str(exe)], cwd=tmp)
-        return ran.stdout
+        return usage, _run([exe], cwd=tmp).stdout
 
 
 def load_package(package, directory: Path, build_dir: Path, module_name: str):
@@ -387,8 +386,7 @@ def export(
     if cc is None:
         notes.append("no C compiler found: stack use, example output and accuracy not measured")
     else:
-        stack = measure_stack(out, sources, cc, real)
-        example_output = run_example(out, sources, cc)
+        stack, example_output = build_and_measure(out, [s for s in sources if s != "example.c"], cc)
         if float32:
             accuracy = _measure_float32(robot, kind, unit, kernels, prefix, out)
 

@@ -18,6 +18,9 @@ from sympy.printing.c import C99CodePrinter
 
 expand_small_powers = create_expand_pow_optimization(4)
 
+FLT_MIN = 1.1754943508222875e-38  # smallest normal binary32 (float.h's FLT_MIN)
+FLT_MAX = 3.4028234663852886e38
+
 
 class KernelPrinter(C99CodePrinter):
     def _print_AllFinite(self, expr):
@@ -65,6 +68,17 @@ class KernelPrinter(C99CodePrinter):
 
     def _print_Exp1(self, expr):
         return "2.718281828459045" + self._get_literal_suffix(real)
+
+    def _print_Float(self, expr):
+        # float: a constant below the smallest normal float (the 1e-300 floor of a
+        # division, derive/serial/ik_closed_form.py) would round to 0 (gcc: "floating
+        # constant truncated to zero"); it becomes FLT_MIN, the same floor in float.
+        if self._get_literal_suffix(real) and expr != 0:
+            if abs(float(expr)) < FLT_MIN:
+                return ("-" if expr < 0 else "") + "1.17549435e-38F"
+            if abs(float(expr)) > FLT_MAX:
+                raise ValueError(f"constant {expr} overflows float")
+        return super()._print_Float(expr)
 
     def _print_Integer(self, expr):
         return str(int(expr))
