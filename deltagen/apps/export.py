@@ -153,9 +153,12 @@ def build_and_measure(directory: Path, sources, cc: str) -> tuple[dict, str]:
         return usage, _run([exe], cwd=tmp).stdout
 
 
-def load_package(package, directory: Path, build_dir: Path, module_name: str):
+def load_package(
+    package, directory: Path, build_dir: Path, module_name: str, flags=None, libraries=None
+):
     """Compile the package's C (``package.files`` written in ``directory``) into a cffi
-    module and import it: for the float32 measurement and the tests."""
+    module and import it: for the float32 measurement and the tests (``flags`` and
+    ``libraries``: -std=c99 -O2 and libm unless given)."""
     import cffi
 
     ffi = cffi.FFI()
@@ -166,8 +169,8 @@ def load_package(package, directory: Path, build_dir: Path, module_name: str):
         "".join(f'#include "{h}"\n' for h in headers),
         sources=[str(directory / s) for s in package.sources],
         include_dirs=[str(directory)],
-        extra_compile_args=["-std=c99", "-O2"],
-        libraries=["m"],
+        extra_compile_args=list(flags or ["-std=c99", "-O2"]),
+        libraries=list(libraries or ["m"]),
     )
     build_dir.mkdir(parents=True, exist_ok=True)
     library = ffi.compile(tmpdir=str(build_dir), verbose=False)
