@@ -212,9 +212,7 @@ def delta_library_as_core(exports, tmp_path_factory):
     package = package_sources(unit, kernels)
     flags, libraries = compile_flags(unit.prefix)
     build = tmp_path_factory.mktemp("delta_cffi_core")
-    return ex.load_package(
-        package, result.out, build, "_test_export_delta_core", flags, libraries
-    )
+    return ex.load_package(package, result.out, build, "_test_export_delta_core", flags, libraries)
 
 
 def _bits(a):
@@ -271,9 +269,7 @@ def test_single_point_equals_batched_equals_python_bit_for_bit(
         point = [np.empty_like(e) for e in expected]
         point_fn = getattr(lib, f"deltagen_delta_{name}_point")
         for i in range(n):
-            row_in = [
-                float(a[i]) if a.ndim == 1 else ffi.new("double[]", list(a[i])) for a in args
-            ]
+            row_in = [float(a[i]) if a.ndim == 1 else ffi.new("double[]", list(a[i])) for a in args]
             bufs = [ffi.new(f"double[{e.shape[1]}]") for e in expected]
             assert point_fn(geometry, *row_in, *bufs) == st.OK
             for o, b, e in zip(point, bufs, expected):

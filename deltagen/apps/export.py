@@ -337,9 +337,8 @@ def export(
     what = {}
     for name in package.files:
         point = name.startswith(f"{unit.base_name}_point")
-        what[name] = (
-            ("single-point functions" if point else "batched functions")
-            + (": declarations and documentation" if name.endswith(".h") else "")
+        what[name] = ("single-point functions" if point else "batched functions") + (
+            ": declarations and documentation" if name.endswith(".h") else ""
         )
     runtime = runtime_files(package.files.values()) if batch and real == "double" else []
     for path in runtime:
@@ -405,8 +404,10 @@ def export(
         symbols.append((f"{unit.prefix}_forward_dynamics", "see header"))
     for symbol, ops in symbols:
         measured = stack.get(symbol) if stack else None
-        text = "-" if measured is None else f"{measured[0]}" + (
-            "" if measured[1] == "static" else f" ({measured[1]})"
+        text = (
+            "-"
+            if measured is None
+            else f"{measured[0]}" + ("" if measured[1] == "static" else f" ({measured[1]})")
         )
         function_rows.append(dict(symbol=symbol, ops=ops, stack=text))
     accuracy_context = None

@@ -17,7 +17,6 @@ from deltagen.codegen.lowering import LoweredKernel, keep_needed, lower_stage
 from deltagen.derive.kernel import Stage
 from deltagen.paths import runtime_dir, template_dir
 
-
 #: Per real type: (bytes, zero literal, cos, sin) as the templates print them.
 REAL_LAYOUT = {"double": (8, "0.0", "cos", "sin"), "float": (4, "0.0F", "cosf", "sinf")}
 
