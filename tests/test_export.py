@@ -33,10 +33,10 @@ needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (cc, gcc or clan
 # (robot, export options) of the session's packages
 # (measure=False: no stack, example run or accuracy, to keep the fixture short)
 EXPORTS = {
-    "delta": ("delta", {}),
+    "delta": ("delta", {"cortex_m": False}),
     "delta_f32": ("delta", {"float32": True}),
     "delta_lean": ("delta", {"batch": False, "prefix": "my_delta", "measure": False}),
-    "scara": ("lecture_scara", {}),
+    "scara": ("lecture_scara", {"cortex_m": False}),
     "scara_f32": ("lecture_scara", {"float32": True, "measure": False}),
 }
 
@@ -93,6 +93,26 @@ def test_package_contents(exports):
     readme = (result.out / "README.md").read_text()
     for needed in ("DELTAGEN_UNREACHABLE", "deltagen_delta_ik_point", "stack", "SI units"):
         assert needed in readme
+
+
+def test_readme_states_stack_per_function(exports):
+    """Every function of the float package has a measured stack in its README: the host's
+    (cc -fstack-usage) and, where arm-none-eabi-gcc is installed, the Cortex-M4F's."""
+    _, result = exports["delta_f32"]
+    if result.stack is None:
+        pytest.skip("no C compiler: stack not measured")
+    readme = (result.out / "README.md").read_text()
+    rows = [line for line in readme.splitlines() if line.startswith("| `deltagen_delta_")]
+    assert len(rows) == 14  # 7 kernels, batched and single-point
+    m4 = shutil.which("arm-none-eabi-gcc") is not None
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[2].isdigit() and int(cells[2]) > 0, row
+        if m4:
+            assert cells[3].isdigit() and int(cells[3]) > 0, row
+        # single-point functions keep no blocks: far below the batched ones
+        if cells[0].endswith("_point`"):
+            assert int(cells[2]) < 1024, row
 
 
 def test_no_batch_is_math_h_only(exports):

@@ -153,6 +153,37 @@ def build_and_measure(directory: Path, sources, cc: str) -> tuple[dict, str]:
         return usage, _run([exe], cwd=tmp).stdout
 
 
+#: The Cortex-M4F build the README's second stack column is measured with.
+CORTEX_M4 = (
+    "arm-none-eabi-gcc",
+    "-mcpu=cortex-m4",
+    "-mthumb",
+    "-mfloat-abi=hard",
+    "-mfpu=fpv4-sp-d16",
+)
+
+
+def stack_cortex_m4(directory: Path, sources) -> dict | None:
+    """{function: bytes} of ``arm-none-eabi-gcc -std=c99 -O2 -fstack-usage`` for a
+    Cortex-M4F, or None when that compiler is not installed."""
+    if shutil.which(CORTEX_M4[0]) is None:
+        return None
+    usage: dict = {}
+    with tempfile.TemporaryDirectory(prefix="deltagen-m4-") as tmp:
+        for source in sources:
+            obj = str(Path(tmp) / Path(source).with_suffix(".o"))
+            cmd = [*CORTEX_M4, "-std=c99", "-O2", "-fstack-usage", "-I", str(directory)]
+            result = _run([*cmd, "-c", str(directory / source), "-o", obj], cwd=tmp)
+            if result.returncode != 0:
+                raise ExportError(f"{CORTEX_M4[0]} could not compile {source}:\n{result.stderr}")
+        for su in Path(tmp).glob("*.su"):
+            for line in su.read_text().splitlines():
+                found = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
+                if found:
+                    usage[found.group(1)] = int(found.group(2))
+    return usage
+
+
 def load_package(
     package, directory: Path, build_dir: Path, module_name: str, flags=None, libraries=None
 ):
@@ -319,6 +350,7 @@ def export(
     batch: bool = True,
     robot_arg: str | None = None,
     measure: bool = True,
+    cortex_m: bool = True,
 ) -> ExportResult:
     """Write the package of ``robot`` (a DeltaRobot or SerialRobot) into the folder ``out``."""
     from deltagen.codegen.export import package_sources, render_extra
@@ -382,15 +414,18 @@ def export(
     for name, text in files.items():
         (out / name).write_text(text)
 
+    library_sources = [s for s in sources if s != "example.c"]
     cc = compiler() if measure else None
     notes = []
-    stack = example_output = accuracy = None
-    if cc is None:
+    stack = example_output = accuracy = stack_m4 = None
+    if cc is None and measure:
         notes.append("no C compiler found: stack use, example output and accuracy not measured")
     else:
-        stack, example_output = build_and_measure(out, [s for s in sources if s != "example.c"], cc)
+        stack, example_output = build_and_measure(out.resolve(), library_sources, cc)
         if float32:
             accuracy = _measure_float32(robot, kind, unit, kernels, prefix, out)
+    if measure and cortex_m:
+        stack_m4 = stack_cortex_m4(out.resolve(), library_sources)
 
     function_rows = []
     symbols = []
@@ -409,7 +444,8 @@ def export(
             if measured is None
             else f"{measured[0]}" + ("" if measured[1] == "static" else f" ({measured[1]})")
         )
-        function_rows.append(dict(symbol=symbol, ops=ops, stack=text))
+        m4 = stack_m4.get(symbol, "-") if stack_m4 else "-"
+        function_rows.append(dict(symbol=symbol, ops=ops, stack=text, stack_m4=m4))
     accuracy_context = None
     if accuracy is not None:
         accuracy_context = dict(
@@ -450,6 +486,8 @@ def export(
             else None
         ),
         function_rows=function_rows,
+        stack_m4=stack_m4 is not None,
+        cortex_m4=" ".join(CORTEX_M4),
         accuracy=accuracy_context,
     )
     (out / "README.md").write_text(files["README.md"])
