@@ -264,12 +264,13 @@ def test_single_point_equals_batched_equals_python_bit_for_bit(
     qdd = rng.normal(size=(n, 3))
     payload = rng.uniform(0, 2, n)
     geometry = ffi.new("deltagen_delta_geometry *", geometry_struct(robot.geometry))
-    python = {
+    p, pd, pdd = robot.fk_acc(q, qd, qdd)
+    python = {  # kernel: (its inputs, the Python API's outputs)
         "fk": (["q"], [robot.fk(q)]),
         "fk_vel": (["q", "qd"], list(robot.fk_vel(q, qd))),
         "fk_acc": (["q", "qd", "qdd"], list(robot.fk_acc(q, qd, qdd))),
         "jacobian": (["q"], [robot.jacobian(q).reshape(n, 9)]),
-        "ik": (["p"], [robot.ik(robot.fk(q))]),
+        "ik": (["p"], [robot.ik(p)]),
         "inverse_dynamics": (
             ["q", "qd", "qdd", "payload"],
             [robot.inverse_dynamics(q, qd, qdd, payload=payload)],
@@ -279,33 +280,39 @@ def test_single_point_equals_batched_equals_python_bit_for_bit(
             [robot.inverse_dynamics(q, qd, qdd, payload=payload, model="simplified")],
         ),
     }
-    inputs = {"q": q, "qd": qd, "qdd": qdd, "payload": payload, "p": robot.fk(q)}
+    inputs = {"q": q, "qd": qd, "qdd": qdd, "payload": payload, "p": p, "pd": pd, "pdd": pdd}
     _, kernels = delta_unit_kernels()
-    assert {k.name for k in kernels} == set(python)  # a new kernel needs a line above
-    for name, (in_names, expected) in python.items():
-        args = [np.ascontiguousarray(inputs[k]) for k in in_names]
-        outs = _batched(delta_library, name, robot.geometry, args, expected)
-        as_core = _batched(core, name, robot.geometry, args, expected)
-        point = [np.empty_like(e) for e in expected]
+    assert set(python) <= {k.name for k in kernels}
+    for kernel in kernels:  # every kernel the module has (a new one: point = batch at least)
+        name = kernel.name
+        args = [np.ascontiguousarray(inputs[port.name]) for port in kernel.inputs]
+        widths = [3 if port.width == "axes" else int(port.width) for port in kernel.outputs]
+        outs = _batched(delta_library, name, robot.geometry, args, widths)
+        point = [np.empty((n, w)) for w in widths]
         point_fn = getattr(lib, f"deltagen_delta_{name}_point")
         for i in range(n):
             row_in = [float(a[i]) if a.ndim == 1 else ffi.new("double[]", list(a[i])) for a in args]
-            bufs = [ffi.new(f"double[{e.shape[1]}]") for e in expected]
+            bufs = [ffi.new(f"double[{w}]") for w in widths]
             assert point_fn(geometry, *row_in, *bufs) == st.OK
-            for o, b, e in zip(point, bufs, expected):
-                o[i] = ffi.unpack(b, e.shape[1])
-        for e, b, c, pt in zip(expected, outs, as_core, point):
+            for o, b, w in zip(point, bufs, widths):
+                o[i] = ffi.unpack(b, w)
+        for b, pt in zip(outs, point):
             np.testing.assert_array_equal(_bits(pt), _bits(b), err_msg=f"{name}: point/batch")
+        if name not in python:
+            continue
+        expected = python[name][1]
+        as_core = _batched(core, name, robot.geometry, args, widths)
+        for e, b, c in zip(expected, outs, as_core):
             np.testing.assert_array_equal(_bits(c), _bits(e), err_msg=f"{name}: core/Python")
             np.testing.assert_allclose(b, e, rtol=1e-13, atol=1e-13 * np.abs(e).max(), err_msg=name)
 
 
-def _batched(module, name, delta_geometry, args, expected):
+def _batched(module, name, delta_geometry, args, widths):
     """The package's batched function on all rows (axes 3); asserts every row is OK."""
     ffi, lib = module.ffi, module.lib
     geometry = ffi.new("deltagen_delta_geometry *", geometry_struct(delta_geometry))
     n = len(args[0])
-    outs = [np.empty_like(e) for e in expected]
+    outs = [np.empty((n, w)) for w in widths]
     status = np.empty(n, dtype=np.int8)
     fb = ffi.from_buffer
     rc = getattr(lib, f"deltagen_delta_{name}")(
