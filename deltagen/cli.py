@@ -1,4 +1,4 @@
-"""Command line: deltagen generate | validate | fk | ik | dynamics | bench."""
+"""Command line: deltagen generate | validate | fk | ik | dynamics | demo | export | bench."""
 
 from __future__ import annotations
 

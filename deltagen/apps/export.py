@@ -418,8 +418,9 @@ def export(
     cc = compiler() if measure else None
     notes = []
     stack = example_output = accuracy = stack_m4 = None
-    if cc is None and measure:
-        notes.append("no C compiler found: stack use, example output and accuracy not measured")
+    if cc is None:
+        if measure:
+            notes.append("no C compiler: stack use, example output and accuracy not measured")
     else:
         stack, example_output = build_and_measure(out.resolve(), library_sources, cc)
         if float32:
