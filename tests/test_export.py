@@ -345,8 +345,14 @@ def test_single_point_status_and_null(delta_library, default_robot):
 
 
 def _float_library(result, unit, kernels, tmp, name, struct):
-    package = package_sources(unit, kernels, real_type="float")
-    module = ex.load_package(package, result.out, tmp, name)
+    """The float package's single-point functions alone (--no-batch: the same single-point
+    C as the exported package's, asserted; the batched C is not compiled again)."""
+    package = package_sources(unit, kernels, real_type="float", batch=False)
+    exported = (result.out / package.sources[0]).read_text()
+    assert package.files[package.sources[0]] == exported
+    for file, text in package.files.items():
+        (tmp / file).write_text(text)
+    module = ex.load_package(package, tmp, tmp / "build", name)
     return ex.PointLibrary(module, unit.prefix, "float", struct)
 
 
