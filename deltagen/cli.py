@@ -1,4 +1,5 @@
-"""Command line: deltagen generate | validate | fk | ik | dynamics | workspace | sweep | bench."""
+"""Command line: deltagen generate | validate | fk | ik | dynamics | workspace | sweep | demo |
+export | bench."""
 
 from __future__ import annotations
 
@@ -315,6 +316,27 @@ def main(argv=None) -> int:
     s.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     s.set_defaults(func=lambda a: _lazy("deltagen.apps.sweep", a))
 
+    x = sub.add_parser(
+        "export",
+        help="standalone C package of a robot for a controller (CMake, Makefile, example)",
+        description="Write a self-contained C99 package of the robot: its generated C "
+        "(batched and single-point functions), the runtime C it needs, CMakeLists.txt, a "
+        "Makefile, example.c and a README with units, status codes, cost, stack use and "
+        "(--float32) the accuracy against double.",
+    )
+    x.add_argument("robot", help="'delta' or " + ROBOT_HELP)
+    x.add_argument("--out", required=True, help="folder to write the package into")
+    x.add_argument(
+        "--float32",
+        action="store_true",
+        help="float arithmetic (sinf/cosf/sqrtf); the README states the accuracy against double",
+    )
+    x.add_argument("--prefix", help="C prefix of functions and files (default deltagen_<robot>)")
+    x.add_argument(
+        "--no-batch", action="store_true", help="single-point functions only (no batched ones)"
+    )
+    x.set_defaults(func=_export)
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
@@ -359,6 +381,17 @@ def _workspace(args) -> int:
 
     args.robot_object = _robot(args)
     return workspace.main(args)
+
+
+def _export(args) -> int:
+    from deltagen.apps import export
+
+    args.backend = "reference"  # only the description is needed: no compiled core
+    name = args.robot
+    args.robot = "default" if name == "delta" else name
+    args.robot_object = _robot(args)
+    args.robot = name
+    return export.main(args)
 
 
 def _lazy(module: str, args) -> int:

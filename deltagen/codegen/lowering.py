@@ -29,13 +29,13 @@ def _is_integer_code(expr) -> bool:
     return isinstance(expr, sp.Piecewise) and all(arg.expr.is_Integer for arg in expr.args)
 
 
-def _statement(sym, expr) -> Statement:
+def _statement(sym, expr, real_type: str = "double") -> Statement:
     boolean = (
         isinstance(expr, (Relational, BooleanFunction))
         or _is_integer_code(expr)
         or bool(sym.is_integer)  # a symbol declared integer (a 0/1 flag output)
     )
-    return Statement(str(sym), to_c(expr), "int" if boolean else "double")
+    return Statement(str(sym), to_c(expr, real_type), "int" if boolean else "double")
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,7 @@ class LoweredKernel:
     stages: tuple
     status: str
     operation_count: int
+    real_type: str = "double"  # the C type the statements were printed for
 
 
 def _dependency_order(assignments) -> list:
@@ -72,13 +73,15 @@ def _dependency_order(assignments) -> list:
     return ordered
 
 
-def lower_stage(index: int, stage, prefix: str) -> tuple[LoweredStage, int]:
+def lower_stage(
+    index: int, stage, prefix: str, real_type: str = "double"
+) -> tuple[LoweredStage, int]:
     names = [sym for sym, _ in stage.assignments]
     exprs = [sp.sympify(e) for _, e in stage.assignments]
     temporaries = sp.numbered_symbols(f"{prefix}{index}_")
     replacements, reduced = sp.cse(exprs, symbols=temporaries, order="canonical")
     ordered = _dependency_order(list(replacements) + list(zip(names, reduced)))
-    statements = [_statement(s, e) for s, e in ordered]
+    statements = [_statement(s, e, real_type) for s, e in ordered]
     ops = sum(sp.count_ops(e) for _, e in replacements) + sum(sp.count_ops(e) for e in reduced)
     return LoweredStage(stage.comment, tuple(statements)), int(ops)
 
@@ -201,11 +204,14 @@ def guard_outputs(kernel: Kernel) -> Kernel:
     )
 
 
-def lower(kernel: Kernel) -> LoweredKernel:
+def lower(kernel: Kernel, real_type: str = "double") -> LoweredKernel:
+    """The kernel's C statements, printed for ``real_type`` ("double", or "float" for
+    `deltagen export --float32`): the same CSE, only the printing differs. A statement's
+    ``ctype`` stays "double" for a floating value; the templates map it to the real type."""
     kernel = prune(guard_outputs(kernel))
     stages, total = [], 0
     for index, stage in enumerate(kernel.stages):
-        lowered, ops = lower_stage(index, stage, prefix="t")
+        lowered, ops = lower_stage(index, stage, prefix="t", real_type=real_type)
         stages.append(lowered)
         total += ops
-    return LoweredKernel(kernel, tuple(stages), to_c(kernel.status), total)
+    return LoweredKernel(kernel, tuple(stages), to_c(kernel.status, real_type), total, real_type)

@@ -12,10 +12,14 @@
 from __future__ import annotations
 
 import sympy as sp
+from sympy.codegen.ast import float32, real
 from sympy.codegen.rewriting import create_expand_pow_optimization
 from sympy.printing.c import C99CodePrinter
 
 expand_small_powers = create_expand_pow_optimization(4)
+
+FLT_MIN = 1.1754943508222875e-38  # smallest normal binary32 (float.h's FLT_MIN)
+FLT_MAX = 3.4028234663852886e38
 
 
 class KernelPrinter(C99CodePrinter):
@@ -31,7 +35,8 @@ class KernelPrinter(C99CodePrinter):
         return "(" + " & ".join(f"({self._print(a)})" for a in expr.args) + ")"
 
     def _print_CopySign(self, expr):
-        return f"copysign({self._print(expr.args[0])}, {self._print(expr.args[1])})"
+        name = "copysign" + self._get_func_suffix(real)
+        return f"{name}({self._print(expr.args[0])}, {self._print(expr.args[1])})"
 
     def _print_Not(self, expr):
         return f"!{self.parenthesize(expr.args[0], 100)}"
@@ -58,17 +63,39 @@ class KernelPrinter(C99CodePrinter):
         return f"({self._print(expr.lhs)} {expr.rel_op} {self._print(expr.rhs)})"
 
     def _print_Pi(self, expr):
-        # M_PI is POSIX, not C99: print the double nearest to pi.
-        return "3.141592653589793"
+        # M_PI is POSIX, not C99: print the double nearest to pi (float: with its suffix).
+        return "3.141592653589793" + self._get_literal_suffix(real)
 
     def _print_Exp1(self, expr):
-        return "2.718281828459045"
+        return "2.718281828459045" + self._get_literal_suffix(real)
+
+    def _print_Float(self, expr):
+        # float: a constant below the smallest normal float (the 1e-300 floor of a
+        # division, derive/serial/ik_closed_form.py) would round to 0 (gcc: "floating
+        # constant truncated to zero"); it becomes FLT_MIN, the same floor in float.
+        if self._get_literal_suffix(real) and expr != 0:
+            if abs(float(expr)) < FLT_MIN:
+                return ("-" if expr < 0 else "") + "1.17549435e-38F"
+            if abs(float(expr)) > FLT_MAX:
+                raise ValueError(f"constant {expr} overflows float")
+        return super()._print_Float(expr)
 
     def _print_Integer(self, expr):
         return str(int(expr))
 
 
-def to_c(expr) -> str:
+#: The C floating types a kernel can be printed in: "double" (the generated modules) or
+#: "float" (`deltagen export --float32`: sinf/cosf/sqrtf and F-suffixed literals, SymPy's
+#: own float32 printing).
+REAL_TYPES = ("double", "float")
+
+
+def to_c(expr, real_type: str = "double") -> str:
     """C99 text of one SymPy expression (small powers expanded first). No math macros
     (M_SQRT2 and friends are POSIX, not C99): constants print as expressions gcc folds."""
-    return KernelPrinter({"math_macros": {}}).doprint(expand_small_powers(sp.sympify(expr)))
+    if real_type not in REAL_TYPES:
+        raise ValueError(f"real_type must be one of {REAL_TYPES}, not {real_type!r}")
+    settings: dict = {"math_macros": {}}
+    if real_type == "float":
+        settings["type_aliases"] = {real: float32}
+    return KernelPrinter(settings).doprint(expand_small_powers(sp.sympify(expr)))

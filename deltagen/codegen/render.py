@@ -17,9 +17,14 @@ from deltagen.codegen.lowering import LoweredKernel, keep_needed, lower_stage
 from deltagen.derive.kernel import Stage
 from deltagen.paths import runtime_dir, template_dir
 
+#: Per real type: (bytes, zero literal, cos, sin) as the templates print them.
+REAL_LAYOUT = {"double": (8, "0.0", "cos", "sin"), "float": (4, "0.0F", "cosf", "sinf")}
 
-def environment() -> jinja2.Environment:
-    return jinja2.Environment(
+
+def environment(real_type: str = "double") -> jinja2.Environment:
+    """The template environment; its ``ctype`` filter maps a port's or statement's
+    "double" to the real type of the build (uint8_t flags and ints stay)."""
+    env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(template_dir())),
         undefined=jinja2.StrictUndefined,
         keep_trailing_newline=True,
@@ -27,6 +32,8 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
         autoescape=False,
     )
+    env.filters["ctype"] = lambda ctype: real_type if ctype == "double" else ctype
+    return env
 
 
 @dataclass(frozen=True)
@@ -70,16 +77,18 @@ def _kib(nbytes: int) -> str:
     return f"{nbytes} bytes ({nbytes / 1024:.1f} KiB)"
 
 
-def stack_use(fn: dict, block: int, block_macro: str) -> tuple[int, str]:
+def stack_use(fn: dict, block: int, block_macro: str, real_bytes: int = 8) -> tuple[int, str]:
     """(bytes, text) of a function's block arrays: the columns it gathers, the cosines and
-    sines, the status and the outputs, each of ``block`` points (8-byte double, 4-byte int)."""
+    sines, the status and the outputs, each of ``block`` points (8-byte double or 4-byte
+    float, 4-byte int)."""
+    real = "double" if real_bytes == 8 else "float"
     doubles = sum(1 for load in fn["loads"] if load["used"])
     doubles += sum(int(a["cos_used"]) + int(a["sin_used"]) for a in fn["angles"])
     ints = 1 + sum(1 for store in fn["stores"] if store["ctype"] != "double")
     doubles += sum(1 for store in fn["stores"] if store["ctype"] == "double")
-    nbytes = block * (8 * doubles + 4 * ints)
+    nbytes = block * (real_bytes * doubles + 4 * ints)
     return nbytes, (
-        f"{doubles + ints} block arrays ({doubles} double, {ints} int) of "
+        f"{doubles + ints} block arrays ({doubles} {real}, {ints} int) of "
         f"{block_macro} points,\n * {_kib(nbytes)} at {block}, plus scalars"
     )
 
@@ -106,7 +115,9 @@ def function_context(lk: LoweredKernel) -> dict:
     kept = keep_needed(needed, setup_assignments)
     setup = []
     if kept:
-        lowered, _ = lower_stage(0, Stage(k.setup[0].comment, tuple(kept)), prefix="g")
+        lowered, _ = lower_stage(
+            0, Stage(k.setup[0].comment, tuple(kept)), prefix="g", real_type=lk.real_type
+        )
         setup = [lowered]
     parameters = [
         dict(name=str(p.symbol), field=p.field, index="" if p.index is None else f"[{p.index}]")
@@ -153,13 +164,35 @@ def function_context(lk: LoweredKernel) -> dict:
 
 
 def render(unit: Unit, lowered: list) -> dict[str, str]:
-    """Return {file name: text} for the C source, the header and the cffi declarations."""
-    env = environment()
+    """Return {file name: text} for the C source, the header and the cffi declarations, in
+    the real type the kernels were lowered for (float: no ik_newton or forward_dynamics,
+    whose runtime C is double)."""
+    env, context = render_context(unit, lowered)
+    header_name = context["header_name"]
+    files = {
+        header_name: ("header.h.j2", "restrict "),
+        f"{unit.base_name}.c": ("source.c.j2", "restrict "),
+        f"{unit.base_name}.cdef.h": ("cdef.h.j2", ""),
+    }
+    return {
+        name: env.get_template(template).render(template=template, restrict=restrict, **context)
+        for name, (template, restrict) in files.items()
+    }
+
+
+def render_context(unit: Unit, lowered: list) -> tuple[jinja2.Environment, dict]:
+    """The template environment (for the kernels' real type) and the context every module
+    template gets: the unit's layout facts and one dict per function."""
+    real_type = lowered[0].real_type if lowered else "double"
+    if real_type != "double" and (unit.newton or unit.dynamics):
+        raise ValueError("the runtime C (ik_newton, forward_dynamics) is double only")
+    real_bytes, zero, cos_name, sin_name = REAL_LAYOUT[real_type]
+    env = environment(real_type)
     header_name = f"{unit.base_name}.h"
     block_macro = f"{unit.prefix.upper()}_BLOCK"
     functions = [function_context(lk) for lk in lowered]
     for fn in functions:
-        fn["stack_bytes"], fn["stack_doc"] = stack_use(fn, unit.block, block_macro)
+        fn["stack_bytes"], fn["stack_doc"] = stack_use(fn, unit.block, block_macro, real_bytes)
     newton = None
     if unit.newton:
         n = unit.newton["n"]
@@ -209,13 +242,10 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         block=unit.block,
         newton=newton,
         dynamics=dynamics,
+        real=real_type,
+        real_bytes=real_bytes,
+        zero=zero,
+        cos=cos_name,
+        sin=sin_name,
     )
-    files = {
-        header_name: ("header.h.j2", "restrict "),
-        f"{unit.base_name}.c": ("source.c.j2", "restrict "),
-        f"{unit.base_name}.cdef.h": ("cdef.h.j2", ""),
-    }
-    return {
-        name: env.get_template(template).render(template=template, restrict=restrict, **context)
-        for name, (template, restrict) in files.items()
-    }
+    return env, context

@@ -13,6 +13,36 @@ from deltagen.native.build import load
 from deltagen.native.parallel import run_rows
 
 
+def geometry_struct(g) -> dict:
+    """The fields of the C parameter struct (deltagen_delta_geometry) for a DeltaGeometry:
+    what the compiled core passes, and what `deltagen export` writes into its example.
+    Without inertia the dynamics fields are left out (zero): the API raises first."""
+    inertia = g.inertia
+    dynamics = (
+        {
+            "I_a": inertia.I_a,
+            "m_a": inertia.m_a,
+            "r_ca": inertia.r_ca,
+            "m_b": inertia.m_b,
+            "m_p": inertia.m_p,
+            "gravity": list(inertia.gravity),
+            "I_4": inertia.I_4,
+        }
+        if inertia is not None
+        else {}
+    )
+    return {
+        "r_a": g.r_a,
+        "r_b": g.r_b,
+        "l_a": g.l_a,
+        "l_b": g.l_b,
+        "cos_theta": [math.cos(t) for t in g.theta],
+        "sin_theta": [math.sin(t) for t in g.theta],
+        "singular_tol": g.singular_tol,
+        **dynamics,
+    }
+
+
 class _Scratch(threading.local):
     """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
 
@@ -31,35 +61,7 @@ class CompiledDelta:
         self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
         module = load("delta_kinematics", "deltagen_delta")
         self._ffi, self._lib = module.ffi, module.lib
-        g = geometry
-        inertia = g.inertia
-        # without inertia the dynamics kernels are never called (the API raises first)
-        dynamics = (
-            {
-                "I_a": inertia.I_a,
-                "m_a": inertia.m_a,
-                "r_ca": inertia.r_ca,
-                "m_b": inertia.m_b,
-                "m_p": inertia.m_p,
-                "gravity": list(inertia.gravity),
-                "I_4": inertia.I_4,
-            }
-            if inertia is not None
-            else {}
-        )
-        self._geometry = self._ffi.new(
-            "deltagen_delta_geometry *",
-            {
-                "r_a": g.r_a,
-                "r_b": g.r_b,
-                "l_a": g.l_a,
-                "l_b": g.l_b,
-                "cos_theta": [math.cos(t) for t in g.theta],
-                "sin_theta": [math.sin(t) for t in g.theta],
-                "singular_tol": g.singular_tol,
-                **dynamics,
-            },
-        )
+        self._geometry = self._ffi.new("deltagen_delta_geometry *", geometry_struct(geometry))
 
         self._scratch = _Scratch(self._ffi)
 

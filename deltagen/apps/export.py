@@ -1,0 +1,550 @@
+"""`deltagen export ROBOT --out DIR [--float32] [--prefix NAME] [--no-batch]`: a
+self-contained C package for a controller.
+
+The folder holds the robot's generated C (codegen/export.py: the batched module as in
+generated/ and the single-point functions, both from the same lowered statements), the
+runtime C it includes (codegen/runtime/), a CMakeLists.txt, a plain Makefile, an example.c
+that evaluates one pose and prints it, and a README with the units, conventions, status codes,
+cost and stack use of every function, the example's output and, for --float32, the accuracy
+against the double build.
+
+Measurements need a C compiler (``$CC``, else ``cc``); without one the README says what was
+not measured. Stack: ``-O2 -fstack-usage`` of the host compiler (the frame of each function;
+the batched ones at the default block of 64 points). float32 accuracy: the single-point
+functions of the float and of the double build, compiled side by side (cffi), on the delta
+report's trajectory (eqs. (40)-(42), 1 kHz for 10 s) or, for a serial arm, on random
+configurations within its joint limits.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from deltagen import status as st
+from deltagen.errors import DeltagenError
+
+#: Unit roundoff of IEEE binary32 (round to nearest): 2^-24.
+FLOAT32_ROUNDOFF = 2.0**-24
+
+STATUS_MEANINGS = {
+    st.OK: "success: every output finite",
+    st.UNREACHABLE: "the pose cannot be reached (fk: the rod spheres do not meet; ik: a target "
+    "out of a crank's reach, or no closed-form branch)",
+    st.SINGULAR: "a singular pose: outputs the singularity leaves undefined are NaN",
+    st.INVALID: "a non-finite input, or finite inputs so large that the arithmetic overflows: "
+    "all outputs NaN",
+}
+
+
+class ExportError(DeltagenError, ValueError):
+    """The export cannot be written (a bad option or output folder)."""
+
+
+@dataclass
+class ExportResult:
+    out: Path
+    files: list
+    stack: dict | None  # {function symbol: bytes} measured with -fstack-usage
+    example_output: str | None
+    accuracy: dict | None  # float32 only: {quantity: (max, rms)} in the units of its label
+    notes: list = field(default_factory=list)
+
+
+# ---------------------------------------------------------------- the robot
+
+
+def _robot_parts(robot):
+    """(kind, unit, kernels, description or geometry) of a DeltaRobot or SerialRobot."""
+    from deltagen.codegen.export import arm_unit_kernels, delta_unit_kernels
+
+    if hasattr(robot, "geometry"):
+        unit, kernels = delta_unit_kernels()
+        return "delta", unit, kernels
+    unit, kernels = arm_unit_kernels(robot.description)
+    return "serial", unit, kernels
+
+
+def _literal(value: float, real: str) -> str:
+    text = repr(float(value))
+    if real == "float":
+        text += "F" if ("." in text or "e" in text) else ".0F"
+    return text
+
+
+def _struct_values(robot, real: str) -> list:
+    from deltagen.native.delta import geometry_struct
+
+    values = []
+    for name, value in geometry_struct(robot.geometry).items():
+        if isinstance(value, (list, tuple)):
+            values.append((name, "{" + ", ".join(_literal(v, real) for v in value) + "}"))
+        else:
+            values.append((name, _literal(value, real)))
+    return values
+
+
+#: The delta example's pose: crank angles [rad] (inside the workspace of the default robot).
+DELTA_EXAMPLE_Q = (0.3, 0.5, 0.7)
+
+
+def _example_pose(robot, kind):
+    if kind == "delta":
+        return list(DELTA_EXAMPLE_Q), None
+    configurations = robot.configurations
+    for name in ("qn", "qr", *configurations):
+        if name in configurations:
+            return [float(v) for v in configurations[name]], name
+    return [0.0] * robot.n, None
+
+
+# ---------------------------------------------------------------- compiling
+
+
+def compiler() -> str | None:
+    """The host C compiler: $CC, else cc, gcc or clang on PATH (None if there is none)."""
+    candidates = [os.environ["CC"]] if os.environ.get("CC") else ["cc", "gcc", "clang"]
+    for name in candidates:
+        if shutil.which(name.split()[0]):
+            return name
+    return None
+
+
+def _run(cmd, cwd, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600, **kwargs)
+
+
+def build_and_measure(directory: Path, sources, cc: str) -> tuple[dict, str]:
+    """Compile the package's sources once with ``cc -std=c99 -O2 -fstack-usage``: the stack
+    use of every function ({function: (bytes, static|dynamic|bounded)}); then link the
+    example with those objects, run it and return its output."""
+    flags = ["-std=c99", "-O2", "-I", str(directory)]
+    usage: dict = {}
+    with tempfile.TemporaryDirectory(prefix="deltagen-export-") as tmp:
+        objects = []
+        for source in sources:
+            obj = str(Path(tmp) / Path(source).with_suffix(".o"))
+            cmd = [*cc.split(), *flags, "-fstack-usage", "-c", str(directory / source), "-o", obj]
+            result = _run(cmd, cwd=tmp)
+            if result.returncode != 0:
+                raise ExportError(f"{cc} could not compile {source}:\n{result.stderr[-2000:]}")
+            objects.append(obj)
+        for su in Path(tmp).glob("*.su"):
+            for line in su.read_text().splitlines():
+                # file.c:LINE:COL:function<TAB>bytes<TAB>static|dynamic|bounded
+                found = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
+                if found:
+                    usage[found.group(1)] = (int(found.group(2)), found.group(3))
+        exe = str(Path(tmp) / "example")
+        example = str(directory / "example.c")
+        built = _run([*cc.split(), *flags, "-o", exe, example, *objects, "-lm"], cwd=tmp)
+        if built.returncode != 0:
+            raise ExportError(f"{cc} could not build the example:\n{built.stderr[-2000:]}")
+        return usage, _run([exe], cwd=tmp).stdout
+
+
+#: The Cortex-M4F build the README's second stack column is measured with.
+CORTEX_M4 = (
+    "arm-none-eabi-gcc",
+    "-mcpu=cortex-m4",
+    "-mthumb",
+    "-mfloat-abi=hard",
+    "-mfpu=fpv4-sp-d16",
+)
+
+
+def stack_cortex_m4(directory: Path, sources) -> dict | None:
+    """{function: bytes} of ``arm-none-eabi-gcc -std=c99 -O2 -fstack-usage`` for a
+    Cortex-M4F, or None when that compiler is not installed."""
+    if shutil.which(CORTEX_M4[0]) is None:
+        return None
+    usage: dict = {}
+    with tempfile.TemporaryDirectory(prefix="deltagen-m4-") as tmp:
+        for source in sources:
+            obj = str(Path(tmp) / Path(source).with_suffix(".o"))
+            cmd = [*CORTEX_M4, "-std=c99", "-O2", "-fstack-usage", "-I", str(directory)]
+            result = _run([*cmd, "-c", str(directory / source), "-o", obj], cwd=tmp)
+            if result.returncode != 0:
+                raise ExportError(f"{CORTEX_M4[0]} could not compile {source}:\n{result.stderr}")
+        for su in Path(tmp).glob("*.su"):
+            for line in su.read_text().splitlines():
+                found = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
+                if found:
+                    usage[found.group(1)] = int(found.group(2))
+    return usage
+
+
+def load_package(
+    package, directory: Path, build_dir: Path, module_name: str, flags=None, libraries=None
+):
+    """Compile the package's C (``package.files`` written in ``directory``) into a cffi
+    module and import it: for the float32 measurement and the tests (``flags`` and
+    ``libraries``: -std=c99 -O2 and libm unless given)."""
+    import cffi
+
+    ffi = cffi.FFI()
+    ffi.cdef(package.cdef)
+    headers = [n for n in package.files if n.endswith(".h")]
+    ffi.set_source(
+        module_name,
+        "".join(f'#include "{h}"\n' for h in headers),
+        sources=[str(directory / s) for s in package.sources],
+        include_dirs=[str(directory)],
+        extra_compile_args=list(flags or ["-std=c99", "-O2"]),
+        libraries=list(libraries or ["m"]),
+    )
+    build_dir.mkdir(parents=True, exist_ok=True)
+    library = ffi.compile(tmpdir=str(build_dir), verbose=False)
+    spec = importlib.util.spec_from_file_location(module_name, library)
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return module
+
+
+class PointLibrary:
+    """Calls the single-point functions of a compiled package, point by point, in its real
+    type (inputs rounded to it by cffi, results returned as float64)."""
+
+    def __init__(self, module, prefix: str, real: str, struct: dict | None):
+        self.ffi, self.lib, self.prefix, self.real = module.ffi, module.lib, prefix, real
+        self.geometry = None
+        if struct is not None:
+            self.geometry = self.ffi.new(f"{prefix}_geometry *", struct)
+
+    def __call__(self, name: str, inputs, out_widths):
+        """Evaluate ``name`` on the rows of ``inputs`` (arrays (N, width)); returns the
+        outputs (N, width) float64 and the statuses (N,)."""
+        fn = getattr(self.lib, f"{self.prefix}_{name}_point")
+        n = len(inputs[0])
+        outs = [np.empty((n, w)) for w in out_widths]
+        status = np.empty(n, dtype=np.int64)
+        args_out = [self.ffi.new(f"{self.real}[{w}]") for w in out_widths]
+        for i in range(n):
+            args = [
+                float(a[i]) if np.ndim(a) == 1 else self.ffi.new(f"{self.real}[]", list(a[i]))
+                for a in inputs
+            ]
+            head = [self.geometry] if self.geometry is not None else []
+            status[i] = fn(*head, *args, *args_out)
+            for o, buf, w in zip(outs, args_out, out_widths):
+                o[i] = self.ffi.unpack(buf, w)
+        return (*outs, status)
+
+
+# ---------------------------------------------------------------- float32 accuracy
+
+
+def accuracy_points(robot, kind, n_random: int = 2000, seed: int = 0):
+    """The points the float32 build is measured on: the delta report's trajectory, eqs.
+    (40)-(42), 1 kHz for 10 s (positions p, (N, 3)); for a serial arm ``n_random`` joint
+    vectors uniform within its limits (+-pi where a revolute joint has none, +-1 m prismatic)."""
+    if kind == "delta":
+        from deltagen.apps.validate import sample_times, trajectory
+
+        p, _, _ = trajectory(sample_times(1000.0, 10.0))
+        return p[:, :3]
+    rng = np.random.default_rng(seed)
+    qlim = np.array(robot.qlim, dtype=float)
+    lo, hi = qlim[:, 0].copy(), qlim[:, 1].copy()
+    revolute = np.array([j.revolute for j in robot.description.joints])
+    bad = ~np.isfinite(lo) | ~np.isfinite(hi)
+    lo[bad] = np.where(revolute[bad], -math.pi, -1.0)
+    hi[bad] = np.where(revolute[bad], math.pi, 1.0)
+    return rng.uniform(lo, hi, size=(n_random, robot.n))
+
+
+def _stats(values) -> tuple[float, float]:
+    values = np.asarray(values, dtype=float)
+    return float(values.max()), float(math.sqrt(float(np.mean(values**2))))
+
+
+def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibrary) -> dict:
+    """{quantity label: (max, rms)} of the float32 single-point functions against the double
+    ones on :func:`accuracy_points` (rows OK in both builds)."""
+    points = accuracy_points(robot, kind)
+    if kind == "delta":
+        q_d, s_qd = double_lib("ik", [points], [3])
+        q_f, s_qf = float_lib("ik", [points], [3])
+        p_d, s_pd = double_lib("fk", [q_d], [3])
+        p_f, s_pf = float_lib("fk", [q_d], [3])  # q_d rounded to float by the call
+        p_back, s_back = double_lib("fk", [q_f], [3])  # where the float ik's angles put P
+        ok_ik = (s_qd == st.OK) & (s_qf == st.OK) & (s_back == st.OK)
+        ok_fk = (s_pd == st.OK) & (s_pf == st.OK)
+        return {
+            "n": int(len(points)),
+            "ok": int(np.count_nonzero(ok_ik & ok_fk)),
+            "fk position error [um]": _stats(1e6 * np.linalg.norm(p_f - p_d, axis=1)[ok_fk]),
+            "ik angle error [urad]": _stats(1e6 * np.abs(q_f - q_d).max(axis=1)[ok_ik]),
+            "ik position error, fk(ik(p)) - p [um]": _stats(
+                1e6 * np.linalg.norm(p_back - points, axis=1)[ok_ik]
+            ),
+        }
+    T_d, s_d = double_lib("fk", [points], [16])
+    T_f, s_f = float_lib("fk", [points], [16])
+    ok = (s_d == st.OK) & (s_f == st.OK)
+    R_d, R_f = T_d.reshape(-1, 4, 4)[:, :3, :3], T_f.reshape(-1, 4, 4)[:, :3, :3]
+    return {
+        "n": int(len(points)),
+        "ok": int(np.count_nonzero(ok)),
+        "fk position error [um]": _stats(
+            1e6 * np.linalg.norm(T_f[:, [3, 7, 11]] - T_d[:, [3, 7, 11]], axis=1)[ok]
+        ),
+        "fk rotation error, max |R_f - R_d| entry [urad]": _stats(
+            1e6 * np.abs(R_f - R_d).reshape(len(points), -1).max(axis=1)[ok]
+        ),
+    }
+
+
+def _accuracy_text(kind, result) -> str:
+    if kind == "delta":
+        where = (
+            f"the delta report's trajectory (eqs. (40)-(42), 1 kHz for 10 s: {result['n']} "
+            "positions)"
+        )
+        how = (
+            "ik of each position in float and in double; fk in float and in double of the "
+            "double ik's angles; and the double fk of the float ik's angles against the "
+            "position asked for"
+        )
+    else:
+        where = f"{result['n']} random joint vectors within the joint limits (seed 0)"
+        how = "fk in float and in double of the same joint vector"
+    return (
+        f"Measured when exported: the float build's single-point functions against the double "
+        f"build's, on {where}: {how} ({result['ok']} points OK in both). For scale: the "
+        f"unit roundoff of float is 2^-24 = {FLOAT32_ROUNDOFF:.2e}, i.e. "
+        f"{FLOAT32_ROUNDOFF * 1e6:.3f} um per m."
+    )
+
+
+# ---------------------------------------------------------------- the export
+
+
+def _command(robot_arg, out, float32, prefix, batch) -> str:
+    parts = ["deltagen export", str(robot_arg), "--out", str(out)]
+    if float32:
+        parts.append("--float32")
+    if prefix:
+        parts += ["--prefix", prefix]
+    if not batch:
+        parts.append("--no-batch")
+    return " ".join(parts)
+
+
+def export(
+    robot,
+    out,
+    *,
+    float32: bool = False,
+    prefix: str | None = None,
+    batch: bool = True,
+    robot_arg: str | None = None,
+    measure: bool = True,
+    cortex_m: bool = True,
+) -> ExportResult:
+    """Write the package of ``robot`` (a DeltaRobot or SerialRobot) into the folder ``out``."""
+    from deltagen.codegen.export import package_sources, render_extra
+    from deltagen.native.build import runtime_files
+
+    real = "float" if float32 else "double"
+    kind, unit, kernels = _robot_parts(robot)
+    package = package_sources(unit, kernels, real_type=real, prefix=prefix, batch=batch)
+    unit = package.unit
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ExportError(f"--out {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+
+    files: dict = dict(package.files)
+    what = {}
+    for name in package.files:
+        point = name.startswith(f"{unit.base_name}_point")
+        what[name] = ("single-point functions" if point else "batched functions") + (
+            ": declarations and documentation" if name.endswith(".h") else ""
+        )
+    runtime = runtime_files(package.files.values()) if batch and real == "double" else []
+    for path in runtime:
+        files[path.name] = path.read_text()
+        what[path.name] = "deltagen runtime C (hand-written), used by the batched module"
+    sources = [n for n in files if n.endswith(".c")]
+    library = unit.prefix
+    q, q_name = _example_pose(robot, kind)
+    has_dynamics = any(k.name == "inverse_dynamics" for k in kernels) and (
+        kind == "serial" or robot.inertia is not None
+    )
+    common = dict(
+        robot_name=(f"the delta robot '{robot.geometry.name}'" if kind == "delta" else robot.name),
+        library=library,
+        sources=sources,
+        prefix=unit.prefix,
+        header=package.header,
+        real=real,
+    )
+    files["example.c"] = render_extra(
+        "example.c",
+        real,
+        **common,
+        kind=kind,
+        struct_name=unit.struct_name,
+        struct_values=_struct_values(robot, real) if kind == "delta" else [],
+        has_inertia=kind == "delta" and robot.inertia is not None,
+        has_dynamics=has_dynamics,
+        q=[_literal(v, real) for v in q],
+        q_name=q_name,
+        n=len(q),
+        cast="(double)" if real == "float" else "",
+        zero="0.0F" if real == "float" else "0.0",
+        zeros3=", ".join(["0.0F" if real == "float" else "0.0"] * 3),
+    )
+    what["example.c"] = "evaluates one pose and prints it (`make && ./example`)"
+    files["CMakeLists.txt"] = render_extra("CMakeLists.txt", real, **common)
+    what["CMakeLists.txt"] = f"CMake: library target `{library}`, example `{library}_example`"
+    files["Makefile"] = render_extra("Makefile", real, **common)
+    what["Makefile"] = f"plain make: lib{library}.a and the example"
+    for name, text in files.items():
+        (out / name).write_text(text)
+
+    library_sources = [s for s in sources if s != "example.c"]
+    cc = compiler() if measure else None
+    notes = []
+    stack = example_output = accuracy = stack_m4 = None
+    if cc is None:
+        if measure:
+            notes.append("no C compiler: stack use, example output and accuracy not measured")
+    else:
+        stack, example_output = build_and_measure(out.resolve(), library_sources, cc)
+        if float32:
+            accuracy = _measure_float32(robot, kind, unit, kernels, prefix, out)
+    if measure and cortex_m:
+        stack_m4 = stack_cortex_m4(out.resolve(), library_sources)
+
+    function_rows = []
+    symbols = []
+    for fn in package.functions:
+        if batch:
+            symbols.append((f"{unit.prefix}_{fn['name']}", fn["operation_count"]))
+        symbols.append((f"{unit.prefix}_{fn['name']}_point", fn["operation_count"]))
+    if batch and unit.newton:
+        symbols.append((f"{unit.prefix}_ik_newton", "see header"))
+    if batch and unit.dynamics:
+        symbols.append((f"{unit.prefix}_forward_dynamics", "see header"))
+    for symbol, ops in symbols:
+        measured = stack.get(symbol) if stack else None
+        text = (
+            "-"
+            if measured is None
+            else f"{measured[0]}" + ("" if measured[1] == "static" else f" ({measured[1]})")
+        )
+        m4 = stack_m4.get(symbol, "-") if stack_m4 else "-"
+        function_rows.append(dict(symbol=symbol, ops=ops, stack=text, stack_m4=m4))
+    accuracy_context = None
+    if accuracy is not None:
+        accuracy_context = dict(
+            text=_accuracy_text(kind, accuracy),
+            rows=[
+                dict(what=k, max=f"{v[0]:.3g}", rms=f"{v[1]:.3g}")
+                for k, v in accuracy.items()
+                if isinstance(v, tuple)
+            ],
+        )
+    from deltagen import __version__
+
+    what["README.md"] = "this file"
+    files["README.md"] = render_extra(
+        "README.md",
+        real,
+        **common,
+        title=unit.title,
+        command=_command(robot_arg or robot.name, out.name, float32, prefix, batch),
+        version=__version__,
+        point_header=package.header,
+        files=[(n, what[n]) for n in [*files, "README.md"] if n in what],
+        folder=out.name,
+        compiler=cc,
+        example_output=example_output,
+        conventions=unit.conventions,
+        axes_choices=unit.axes_choices,
+        batch=batch,
+        status_codes=[
+            (code, name, STATUS_MEANINGS[code]) for code, name in sorted(st.STATUS_NAMES.items())
+        ],
+        stack_note=(
+            f"bytes of each function's frame, `{cc} -std=c99 -O2 -fstack-usage` on the host "
+            "(batched functions at the default block of 64 points; define "
+            f"{unit.prefix.upper()}_BLOCK smaller for small stacks; other compilers and targets "
+            "differ)"
+            if stack
+            else None
+        ),
+        function_rows=function_rows,
+        stack_m4=stack_m4 is not None,
+        cortex_m4=" ".join(CORTEX_M4),
+        accuracy=accuracy_context,
+    )
+    (out / "README.md").write_text(files["README.md"])
+    return ExportResult(
+        out=out,
+        files=sorted(files),
+        stack={k: v[0] for k, v in stack.items()} if stack else None,
+        example_output=example_output,
+        accuracy=accuracy,
+        notes=notes,
+    )
+
+
+def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
+    """Compile the float package just written and a double twin side by side and compare."""
+    from deltagen.codegen.export import package_sources
+
+    struct = None
+    if kind == "delta":
+        from deltagen.native.delta import geometry_struct
+
+        struct = geometry_struct(robot.geometry)
+    libraries = {}
+    with tempfile.TemporaryDirectory(prefix="deltagen-float32-") as tmp:
+        for real in ("double", "float"):
+            name = f"_deltagen_export_{real}_{os.getpid()}"
+            package = package_sources(
+                unit, kernels, real_type=real, prefix=f"m_{real}", batch=False
+            )
+            directory = Path(tmp) / real
+            directory.mkdir()
+            for file, text in package.files.items():
+                (directory / file).write_text(text)
+            module = load_package(package, directory, Path(tmp) / f"build_{real}", name)
+            libraries[real] = PointLibrary(module, f"m_{real}", real, struct)
+        return float32_accuracy(robot, kind, libraries["double"], libraries["float"])
+
+
+def main(args) -> int:
+    robot = args.robot_object
+    result = export(
+        robot,
+        args.out,
+        float32=args.float32,
+        prefix=args.prefix,
+        batch=not args.no_batch,
+        robot_arg=args.robot,
+    )
+    print(f"wrote {len(result.files)} files to {result.out}/: {', '.join(result.files)}")
+    for note in result.notes:
+        print(f"note: {note}", file=sys.stderr)
+    if result.example_output:
+        print("example output:")
+        print(result.example_output, end="")
+    if result.accuracy:
+        for key, value in result.accuracy.items():
+            if isinstance(value, tuple):
+                print(f"float32 {key}: max {value[0]:.3g}, rms {value[1]:.3g}")
+    return 0

@@ -1,0 +1,167 @@
+"""The C of `deltagen export`: a robot's batched module (as in generated/), its single-point
+functions and the files around them (example, CMakeLists.txt, Makefile, README), all through
+the templates.
+
+The single-point functions (``<prefix>_<kernel>_point``, templates/scalar.{c,h}.j2) print the
+same lowered statements as the batched ones: the kernels are derived once, lowered once per
+real type (codegen.lowering.lower), and both templates lay out those statements. In double
+the two therefore compute the same bits (tests/test_export.py holds them to it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from deltagen.codegen.lowering import lower
+from deltagen.codegen.render import Unit, environment, render, render_context
+from deltagen.model.naming import check_identifier
+
+_KERNELS: dict = {}  # derivations (seconds each) shared by the exports of one process
+_LOWERED: dict = {}  # their lowered statements per real type
+
+
+def delta_unit_kernels() -> tuple[Unit, tuple]:
+    """The delta core's unit and its derived kernels (every kernel the core has)."""
+    from deltagen.codegen.delta import UNIT
+    from deltagen.derive.delta.kernels import all_kernels
+
+    if "delta" not in _KERNELS:
+        _KERNELS["delta"] = tuple(all_kernels())
+    return UNIT, _KERNELS["delta"]
+
+
+def arm_unit_kernels(desc) -> tuple[Unit, tuple]:
+    """A serial arm's unit and its derived kernels."""
+    from deltagen.codegen.serial import arm_unit
+    from deltagen.derive.serial.kernels import ArmKernels
+
+    key = ("arm", desc.key())
+    if key not in _KERNELS:
+        _KERNELS[key] = tuple(ArmKernels(desc).all())
+    return arm_unit(desc), _KERNELS[key]
+
+
+@dataclass(frozen=True)
+class Package:
+    """The C files of an export and what the rest of the package needs to know of them."""
+
+    files: dict  # {file name: text}: module, single-point functions
+    cdef: str  # cffi declarations of everything in files (for measurements and tests)
+    unit: Unit  # the unit as exported (prefix, struct name, real type's omissions applied)
+    functions: tuple  # the template context of each kernel (name, ports, cost, ...)
+    real_type: str
+    batch: bool
+    header: str  # the header a user includes (the single-point one)
+    sources: tuple  # the .c files of the package's library (runtime C not included)
+
+
+def exported_unit(unit: Unit, prefix: str | None, real_type: str) -> Unit:
+    """The unit under the user's prefix (functions <prefix>_*, files <prefix>.{c,h},
+    struct <prefix>_geometry); in float without the runtime's double-only wrappers."""
+    if prefix is not None:
+        check_identifier(prefix, "prefix")
+        unit = replace(
+            unit,
+            prefix=prefix,
+            base_name=prefix,
+            struct_name=None if unit.struct_name is None else f"{prefix}_geometry",
+        )
+    if real_type != "double":
+        unit = replace(unit, newton=None, dynamics=None)
+    return unit
+
+
+def _point_width(width) -> int:
+    return 3 if width == "axes" else int(width)
+
+
+def _point_functions(functions: list, struct: bool) -> list:
+    """The function contexts with the fixed row length of one point (3 for the axes ports:
+    the single-point functions leave the fourth axis out)."""
+    out = []
+    for fn in functions:
+        fn = dict(fn)
+        fn["inputs"] = [
+            dict(port.__dict__, point_width=_point_width(port.width), point_shape=_shape(port))
+            for port in fn["inputs"]
+        ]
+        fn["outputs"] = [
+            dict(port.__dict__, point_width=_point_width(port.width), point_shape=_shape(port))
+            for port in fn["outputs"]
+        ]
+        pointers = ["geometry"] if struct else []
+        pointers += [p["name"] for p in fn["inputs"] if p["point_width"] > 1]
+        pointers += [p["name"] for p in fn["outputs"]]
+        fn["null_check"] = " || ".join(f"{name} == NULL" for name in pointers)
+        fn["loads"] = [dict(d, point_width=_point_width(d["width"])) for d in fn["loads"]]
+        fn["stores"] = [dict(d, point_width=_point_width(d["width"])) for d in fn["stores"]]
+        out.append(fn)
+    return out
+
+
+def _shape(port) -> str:
+    width = _point_width(port.width)
+    return "value" if width == 1 else f"[{width}]"
+
+
+def package_sources(
+    unit: Unit,
+    kernels,
+    *,
+    real_type: str = "double",
+    prefix: str | None = None,
+    batch: bool = True,
+) -> Package:
+    """The C files of an export: the batched module (unless ``batch`` is false) and the
+    single-point functions, in ``real_type`` ("double" or "float")."""
+    unit = exported_unit(unit, prefix, real_type)
+    key = (tuple(id(k) for k in kernels), real_type)
+    if key not in _LOWERED:  # kernels are kept alive by _KERNELS, so their ids are stable
+        _LOWERED[key] = ([lower(k, real_type) for k in kernels], kernels)
+    lowered = _LOWERED[key][0]
+    env, context = render_context(unit, lowered)
+    module = render(unit, lowered)
+    files: dict = {}
+    cdef_parts = []
+    if batch:
+        files[context["header_name"]] = module[context["header_name"]]
+        files[context["source_name"]] = module[context["source_name"]]
+        cdef_parts.append(module[context["cdef_name"]])
+    point = dict(
+        context,
+        functions=_point_functions(context["functions"], unit.struct_name is not None),
+        batched=batch,
+        scalar_header=f"{unit.base_name}_point.h",
+        scalar_source=f"{unit.base_name}_point.c",
+        scalar_guard=f"DELTAGEN_{unit.base_name.upper()}_POINT_H",
+    )
+    for name, template, cdef in (
+        (point["scalar_header"], "scalar.h.j2", False),
+        (point["scalar_source"], "scalar.c.j2", False),
+        (None, "scalar.h.j2", True),
+    ):
+        text = env.get_template(template).render(
+            template=template, restrict="", cdef=cdef, struct_in_cdef=not batch, **point
+        )
+        if name is None:
+            cdef_parts.append(text)
+        else:
+            files[name] = text
+    sources = tuple(n for n in files if n.endswith(".c"))
+    return Package(
+        files=files,
+        cdef="".join(cdef_parts),
+        unit=unit,
+        functions=tuple(point["functions"]),
+        real_type=real_type,
+        batch=batch,
+        header=point["scalar_header"],
+        sources=sources,
+    )
+
+
+def render_extra(template: str, real_type: str, **context) -> str:
+    """One of the package's other files (example.c, CMakeLists.txt, Makefile, README.md)
+    from its template (templates/export/)."""
+    env = environment(real_type)
+    return env.get_template(f"export/{template}.j2").render(**{"real": real_type, **context})
