@@ -168,7 +168,7 @@ def joint_axes(desc: SerialDescription) -> JointAxes:
     for i in range(n):
         k, c = axis_frame(desc, i)
         o[i] = F[0, k, :3, 3]
-        w[i] = F[0, k, :3, c]
+        w[i] = desc.joints[i].sign * F[0, k, :3, c]
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     T0 = np.ascontiguousarray(F[:, -1])[0].copy()
     pts = np.vstack([o, T0[:3, 3]])
