@@ -146,7 +146,18 @@ class SerialRobot:
     def load(
         cls, name: str, backend: Backend = "compiled", *, threads: int | None = None
     ) -> SerialRobot:
-        """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
+        """A bundled robot by name, e.g. "puma560" (see bundled_robots()), or a bundled URDF
+        (robots/<name>.urdf, e.g. "ur5")."""
+        if (
+            isinstance(name, str)
+            and name.isidentifier()
+            and not (robots_dir() / f"{name}.toml").exists()
+            and (robots_dir() / f"{name}.urdf").is_file()
+        ):
+            from deltagen.model.urdf import description_from_urdf
+
+            desc = description_from_urdf(robots_dir() / f"{name}.urdf", name=name)
+            return cls(desc, backend, threads=threads)
         if (
             not isinstance(name, str)
             or not name.isidentifier()
@@ -201,10 +212,16 @@ class SerialRobot:
         """The chain of a URDF file from link ``base`` (default: the root link) to link
         ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
-        limits and inertials. The joint variables are the URDF's (same zero, same sign)."""
-        from deltagen.model.urdf import description_from_urdf
+        limits and inertials. The joint variables are the URDF's (same zero, same sign).
+        A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
+        in the independent variables instead."""
+        from deltagen.model.urdf import chain_from_urdf
 
-        desc = description_from_urdf(path, base=base, tip=tip, name=name)
+        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name)
+        if coupling is not None:
+            from deltagen.api.coupled import CoupledArm
+
+            return CoupledArm(cls(desc, backend, threads=threads), coupling)  # type: ignore[return-value]
         return cls(desc, backend, threads=threads)
 
     def with_backend(self, backend: Backend) -> SerialRobot:
