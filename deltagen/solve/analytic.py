@@ -108,7 +108,7 @@ from deltagen.geometry.rotations import rotate as _rotv
 from deltagen.geometry.rotations import rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
-from deltagen.model.structure import PlanarArm, Structure, detect
+from deltagen.model.structure import ParallelTriple6R, PlanarArm, Structure, detect
 
 __all__ = ["AnalyticSolver", "analytic_solver", "solver_for", "WRIST_SINGULAR"]
 
@@ -416,13 +416,127 @@ class _ElbowSolver(AnalyticSolver):
         return q, okk.reshape(N, 8)
 
 
+def _cos_sin_eq(A, B, C, sigma):
+    """The angles x with A cos x + B sin x = C, one per sign sigma (+-1, broadcast):
+    atan2(B, A) + sigma arccos(C / hypot(A, B)), and ok (a real solution within 1e-9;
+    clipped onto the nearest real one otherwise). A = B = 0 (any x, when C = 0) gives x = 0."""
+    r = np.hypot(A, B)
+    ratio = np.where(r > 0.0, C / np.where(r > 0.0, r, 1.0), 0.0)
+    ok = np.abs(ratio) <= 1.0 + 1e-9
+    x = np.arctan2(B, A)[..., None] + sigma * np.arccos(np.clip(ratio, -1.0, 1.0))[..., None]
+    return x, np.broadcast_to(ok[..., None], x.shape)
+
+
+class _ParallelTripleSolver(AnalyticSolver):
+    """model.structure.ParallelTriple6R: axes 2, 3, 4 parallel (direction u), axes 5 and 6
+    meeting in P5 (the UR family). Pieper's solvable class of three consecutive axes meeting
+    at infinity; written here in the product of exponentials (module docstring),
+    G = e1 e2 e3 e4 e5 e6, e_i = exp(xi_i q_i). Rotations about axes parallel to u keep
+    the u component of every point and vector, and turn directions by the sum phi of their
+    angles about u. Hence, with M = e1^-1 G:
+
+    1. q1: P5 is fixed by e5 and e6, so G P5 = e1 e2 e3 e4 P5 and
+       u . (Rot(w1, -q1) (G P5 - o1)) = u . (P5 - o1): A cos q1 + B sin q1 = C, two roots
+       (``shoulder{p|m}``: + / - arccos).
+    2. q5: R_M w6 = Rot(u, phi) R5 w6, so u . Rot(w5, q5) w6 = u . R_M w6: two roots
+       (``wrist{p|m}``).
+    3. q6: Rot(w6, -q6) Rot(w5, -q5) u = R_M^T u (Paden-Kahan subproblem 1; 0 where both
+       sides lie along w6: the wrist singularity, q4 + q6 ... take the whole turn).
+    4. phi = angle about u of R_M R6^T R5^T; N = M e6^-1 e5^-1 = e2 e3 e4.
+    5. elbow: e2 e3 carry the point o4 of axis 4 to N o4 (planar 2R arm normal to u, law of
+       cosines, two bends ``elbow{p|m}``); then the angle of joint 4 about u is phi minus
+       those of joints 2 and 3. Joint i's angle is its angle about u times signs[i].
+
+    2 x 2 x 2 = 8 branches; every one is checked by the forward kinematics (solve)."""
+
+    def _solve(self, R_t, p_t, position_only):
+        s, ax = self.detected, self.axes
+        w, o = ax.directions, ax.points
+        u = s.u
+        N = R_t.shape[0]
+        R_G = R_t @ ax.R0.T
+        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        pm = np.array([1.0, -1.0])
+        # 1. q1 (N, 2)
+        v = np.einsum("nij,j->ni", R_G, s.wrist) + p_G - o[0]
+        w1 = w[0]
+        v_par = (v @ w1)[:, None] * w1
+        A = (v - v_par) @ u
+        B = -(_cross(np.broadcast_to(w1, v.shape), v) @ u)
+        C = (s.wrist - o[0]) @ u - (u @ w1) * (v @ w1)
+        q1, ok1 = _cos_sin_eq(A, B, C, pm)
+        # M = e1^-1 G: rotation R_M, translation (a point x maps to R_M x + t_M)
+        R1i = _rot_mats(w1, -q1)  # (N, 2, 3, 3)
+        R_M = R1i @ R_G[:, None]
+        # (a point x: e1^-1 (R_G x + p_G) = Rot(-q1)(R_G x + p_G - o1) + o1)
+        t_M = np.einsum("nkij,nj->nki", R1i, p_G - o[0]) + o[0]
+        # 2. q5 (N, 2, 2)
+        w5, w6 = w[4], w[5]
+        h = np.einsum("nkij,j->nki", R_M, w6) @ u
+        w6p = w6 - (w6 @ w5) * w5
+        q5, ok5 = _cos_sin_eq(
+            np.full(h.shape, w6p @ u),
+            np.full(h.shape, np.cross(w5, w6) @ u),
+            h - (u @ w5) * (w5 @ w6),
+            pm,
+        )
+        # 3. q6: Rot(w6, -q6) a = b, a = Rot(w5, -q5) u, b = R_M^T u
+        a = _rotv(w5, -q5, np.broadcast_to(u, q5.shape + (3,)))
+        b = np.einsum("nkji,j->nki", R_M, u)
+        b = np.broadcast_to(b[:, :, None, :], a.shape)
+        q6 = -_sp1(w6, a, b)
+        # 4. phi, N = M e6^-1 e5^-1
+        x = _rotv(w6, -q6, _rotv(w5, -q5, np.broadcast_to(s.ref, a.shape)))
+        x = np.einsum("nkij,nkmj->nkmi", R_M, x)
+        phi = _sp1(u, s.ref, x)
+        # N o4 = M (e6^-1 e5^-1 o4); e^-1 x = Rot(w, -q)(x - o) + o
+        o4 = o[3]
+        y = _rotv(w5, -q5, np.broadcast_to(o4 - o[4], a.shape)) + o[4]
+        y = _rotv(w6, -q6, y - o[5]) + o[5]
+        y = np.einsum("nkij,nkmj->nkmi", R_M, y) + t_M[:, :, None, :]
+        # 5. elbow: planar 2R about axes 2, 3 taking o4 to y (N, 2, 2, 2)
+        t = (y - o[1]) @ s.plane.T
+        t = np.broadcast_to(t[..., None, :], t.shape[:-1] + (2, 2))
+        th2, th3, ok23 = _two_link(s.upper, s.lower, t, pm)
+        th4 = phi[..., None] - th2 - th3
+        rep = lambda z: np.broadcast_to(z, th2.shape)  # noqa: E731
+        q = np.stack(
+            [
+                rep(q1[:, :, None, None]),
+                s.signs[0] * th2,
+                s.signs[1] * th3,
+                s.signs[2] * th4,
+                rep(q5[..., None]),
+                rep(q6[..., None]),
+            ],
+            axis=-1,
+        )  # (N, shoulder, wrist, elbow, 6)
+        ok = ok1[:, :, None, None] & ok5[..., None] & np.broadcast_to(ok23, th2.shape)
+        # branch order: shoulder, elbow, wrist (configs)
+        q = q.transpose(0, 1, 3, 2, 4).reshape(N, 8, 6)
+        ok = np.broadcast_to(ok, th2.shape).transpose(0, 1, 3, 2).reshape(N, 8)
+        return q, ok
+
+
+def _rot_mats(w, angle):
+    """Rotation matrices (..., 3, 3) about the unit axis w by ``angle`` (...) (Rodrigues)."""
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
 def solver_for(
     detected: Structure | None, description: SerialDescription | None = None
 ) -> AnalyticSolver | None:
     """The closed-form solver of a detected structure (None for None)."""
     if detected is None:
         return None
-    cls = _PlanarSolver if isinstance(detected, PlanarArm) else _ElbowSolver
+    if isinstance(detected, PlanarArm):
+        cls: type[AnalyticSolver] = _PlanarSolver
+    elif isinstance(detected, ParallelTriple6R):
+        cls = _ParallelTripleSolver
+    else:
+        cls = _ElbowSolver
     return cls(detected, description)
 
 
