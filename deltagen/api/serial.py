@@ -588,6 +588,16 @@ class SerialRobot:
                 self._combined_module = None
         return self._combined_module
 
+    def _general(self):
+        """(eliminations, complete) of deltagen.solve.general6r for a 6R arm, else None."""
+        if not hasattr(self, "_general_6r"):
+            self._general_6r = None
+            if self.n == 6 and all(j.revolute for j in self.description.joints):
+                from deltagen.solve import general6r
+
+                self._general_6r = general6r.eliminations(self.description)
+        return self._general_6r
+
     def _analytic(self):
         if not hasattr(self, "_analytic_solver"):
             from deltagen.solve.analytic import analytic_solver
@@ -595,11 +605,51 @@ class SerialRobot:
             self._analytic_solver = analytic_solver(self.description)
         return self._analytic_solver
 
-    def ik_all(self, T: ArrayLike) -> tuple[FloatArray, BoolArray]:
+    def ik_all(self, T: ArrayLike, method: str = "auto") -> tuple[FloatArray, BoolArray]:
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
         within the joint limits). Branch names: analytic_configs(). Rows of T that are not
-        finite rigid transforms come back NaN and invalid."""
+        finite rigid transforms come back NaN and invalid.
+
+        method: "auto" (the closed form where the structure has one; else, for a 6R arm, the
+        complete general solver when its elimination is regular, else the combined method
+        where it applies, else the general solver's best effort), "closed_form",
+        "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
+        first; for an arm whose elimination is singular the combined method's branches
+        join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
+        if method not in ("auto", "closed_form", "complete", "combined"):
+            raise InputError(
+                f'method must be "auto", "closed_form", "complete" or "combined", got {method!r}'
+            )
         solver = self._analytic()
+        if method == "auto" and solver is None and self._general() is not None:
+            eliminations, complete = self._general()
+            if complete or self._combined() is None:
+                method = "complete"
+        if method == "complete":
+            general = self._general()
+            if general is None:
+                raise InputError(f"{self.name}: the complete solver needs a 6R arm")
+            from deltagen.solve import general6r
+
+            lead, flat, finite, rigid = self._poses(T)
+            safe = flat.copy()
+            safe[~rigid] = np.eye(4)
+            extra = None
+            if not general[1] and self._combined() is not None:
+                # an incomplete (singular-pencil) elimination: the combined method's
+                # branches join the candidates
+                extra = self._combined().solve_all(self, safe)[0]
+            q, valid = general6r.solve(self, safe, general[0], extra=extra)
+            q[~rigid], valid[~rigid] = np.nan, False
+            k = q.shape[1]
+            return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
+        if method == "combined":
+            if self._combined() is None:
+                raise InputError(f"{self.name}: the combined method does not apply")
+            lead, flat, finite, rigid = self._poses(T)
+            return self._ik_all_rows(lead, flat, rigid, None, self._combined())
+        if method == "closed_form" and solver is None:
+            raise InputError(f"{self.name} has no closed-form inverse")
         combined = self._combined() if solver is None else None
         if solver is None and combined is None:
             raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")
