@@ -36,6 +36,8 @@ Structures (tolerances of :mod:`deltagen.geometry.axes`: parallel when ``|w_i x 
 :class:`ParallelTriple6R` (``parallel_triple_6r``) -- 6 revolute joints: axes 2, 3, 4 parallel
     and distinct, axis 1 and axis 5 not parallel to them, axes 5 and 6 meet in one point and
     are not parallel (UR3/5/10: shoulder, elbow and wrist 1 parallel, offset wrist).
+:class:`StanfordArm` (``stanford_rrp_6``) -- joints R R P R R R: axes 1 and 2 meet, joint 3
+    prismatic, axes 4, 5, 6 meet (central wrist): the Stanford arm.
 
 Each is a frozen dataclass of the precomputed quantities (arrays are read-only); the meaning
 of the branch names and the solution method are in :mod:`deltagen.solve.analytic`.
@@ -64,12 +66,14 @@ __all__ = [
     "Elbow4R",
     "SphericalWrist6R",
     "ParallelTriple6R",
+    "StanfordArm",
     "Structure",
     "joint_axes",
     "detect",
     "detect_planar",
     "detect_elbow",
     "detect_parallel_triple",
+    "detect_stanford",
     "parallel_pairs",
     "parallel_runs",
     "common_point_of",
@@ -321,7 +325,28 @@ class ParallelTriple6R(_Structure):
     position_only_ok: ClassVar[bool] = False
 
 
-Structure = PlanarArm | Elbow4R | SphericalWrist6R | ParallelTriple6R
+@dataclass(frozen=True, eq=False, repr=False)
+class StanfordArm(_Structure):
+    """6 joints R R P R R R: axes 1 and 2 meet in a point c (not parallel), joint 3 slides
+    along w3, axes 4, 5, 6 meet in W (central wrist; 4 not parallel to 5, 5 not parallel to
+    6): the Stanford arm (Scheinman). The closed form is in solve/analytic.py."""
+
+    kind: ClassVar[str] = "stanford_rrp_6"
+    configs: ClassVar[tuple] = tuple(
+        f"reach{a}_shoulder{b}_{c}" for a in "pm" for b in "pm" for c in ("noflip", "flip")
+    )
+    position_only_ok: ClassVar[bool] = False
+
+    axes: JointAxes
+    shoulder: np.ndarray  # (3,) [m] c, the common point of axes 1 and 2
+    wrist: np.ndarray  # (3,) [m] W at q = 0
+    wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
+    cos_45: float  # w4 . w5
+    cos_56: float  # w5 . w6
+    normal_45: np.ndarray  # (3,) w4 x w5
+
+
+Structure = PlanarArm | Elbow4R | SphericalWrist6R | ParallelTriple6R | StanfordArm
 
 
 # ------------------------------------------------------------------------- detection
@@ -481,6 +506,35 @@ def detect_parallel_triple(ax: JointAxes) -> ParallelTriple6R | None:
     )
 
 
+def detect_stanford(ax: JointAxes) -> StanfordArm | None:
+    """A :class:`StanfordArm` when the axes have that structure, else None."""
+    if ax.n != 6 or ax.revolute.tolist() != [True, True, False, True, True, True]:
+        return None
+    w, o = ax.directions, ax.points
+    tol = LENGTH_TOL * ax.scale
+    if not _clearly_skew(w[0], w[1]):
+        return None
+    c, dist = geo.common_point(o[0:2], w[0:2])
+    if dist > tol:
+        return None
+    if not (_clearly_skew(w[3], w[4]) and _clearly_skew(w[4], w[5])):
+        return None
+    W, dist = geo.common_point(o[3:6], w[3:6])
+    if dist > tol:
+        return None
+    ex = np.array([1.0, 0.0, 0.0])
+    ey = np.array([0.0, 1.0, 0.0])
+    return StanfordArm(
+        axes=ax,
+        shoulder=_frozen(c),
+        wrist=_frozen(W),
+        wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
+        cos_45=float(w[3] @ w[4]),
+        cos_56=float(w[4] @ w[5]),
+        normal_45=_frozen(np.cross(w[3], w[4])),
+    )
+
+
 def detect(desc: SerialDescription) -> Structure | None:
     """The structure of ``desc`` with a closed form (:class:`PlanarArm`, :class:`Elbow4R`,
     :class:`SphericalWrist6R`, :class:`ParallelTriple6R`), or None (no supported structure, or a description whose
@@ -491,7 +545,7 @@ def detect(desc: SerialDescription) -> Structure | None:
         return None
     if not ax.matches(desc):  # pragma: no cover - a convention the model misses
         return None
-    for find in (detect_planar, detect_elbow, detect_parallel_triple):
+    for find in (detect_planar, detect_elbow, detect_parallel_triple, detect_stanford):
         found = find(ax)
         if found is not None:
             return found
