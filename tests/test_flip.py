@@ -89,7 +89,9 @@ def test_mirror_identity_reference(convention):
     _mirror(convention, "reference")
 
 
-@pytest.mark.parametrize("convention", ["standard", "universal"])
+@pytest.mark.parametrize(
+    "convention", ["standard", pytest.param("universal", marks=pytest.mark.slow)]
+)
 def test_mirror_identity_compiled_small(convention):
     """The SymPy derivation (chain and RNEA) of reversed joints, on a 3-joint arm with a
     prismatic joint (a small, quick build)."""
