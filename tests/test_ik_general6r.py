@@ -130,26 +130,59 @@ def test_no_solution_is_missed_numeric_multistart():
             assert _wrapped(Q[p][valid[p]] - qn[p, s]).max(-1).min() < 1e-6
 
 
-def test_singular_pencil_arm_complete_contains_combined():
-    """rtb's Jaco (meeting / parallel neighbouring axes): both eliminations are singular,
-    ik_all(method="complete") is a best effort that includes the combined method's
-    branches; "auto" keeps the combined method's named branches."""
+def _jaco():
     rtb = pytest.importorskip("roboticstoolbox")
     rows = []
     for link in rtb.models.DH.Jaco().links:
         row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
         row.update(offset=float(link.offset), flip=bool(link.isflip))
         rows.append(row)
-    arm = SerialRobot.from_dh(rows, "standard", name="jaco_g", backend="reference")
-    eliminations, complete = arm._general()
-    assert not complete and not any(g.regular for g in eliminations)
-    q = np.random.default_rng(8).uniform(-np.pi, np.pi, (30, 6))
+    return SerialRobot.from_dh(rows, "standard", name="jaco_g", backend="reference")
+
+
+def test_jaco_complete_by_a_regular_arrangement():
+    """rtb's Jaco (meeting / parallel neighbouring axes): the forward elimination's pencil
+    is singular, a cyclic arrangement's is not; ik_all is complete by default and finds
+    everything the combined method finds (and the originals the combined method misses)."""
+    arm = _jaco()
+    assert not general6r.General6R(arm.description).regular
+    (elimination,), complete = arm._general()
+    assert (
+        complete
+        and elimination.regular
+        and (elimination.shift, elimination.reverse)
+        != (
+            0,
+            False,
+        )
+    )
+    q = np.random.default_rng(8).uniform(-np.pi, np.pi, (60, 6))
     T = arm.fk(q)
     Qa, Va = arm.ik_all(T)
-    assert Qa.shape == (30, 8, 6) and len(arm.analytic_configs()) == 8
-    Qc, Vc = arm.ik_all(T, method="complete")
+    assert Qa.shape == (60, 16, 6)
+    Qc, Vc = arm.ik_all(T, method="combined")
+    assert Qc.shape == (60, 8, 6) and len(arm.analytic_configs()) == 8
     fa, fc = _found(Qa, Va, q), _found(Qc, Vc, q)
-    assert np.all(fc | ~fa)  # complete finds whatever combined finds
+    assert fa.all() and np.all(fa | ~fc)
+    Tq = arm.fk(np.where(Va[..., None], Qa, 0.0))
+    assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[Va].max() < 1e-10
+
+
+def test_best_effort_path_of_singular_eliminations():
+    """With only singular eliminations (forced here: the Jaco's forward and reversed
+    chains), ik_all(method="complete") is a best effort that adds the combined branches:
+    nothing invalid is marked valid, and it finds whatever the combined method finds."""
+    arm = _jaco()
+    forced = [general6r.General6R(arm.description, reverse=r) for r in (False, True)]
+    assert not any(g.regular for g in forced)
+    arm._general_6r = (forced, False)
+    q = np.random.default_rng(9).uniform(-np.pi, np.pi, (20, 6))
+    T = arm.fk(q)
+    Qa, Va = arm.ik_all(T, method="complete")
+    Qc, Vc = arm.ik_all(T, method="combined")
+    assert np.all(_found(Qa, Va, q) | ~_found(Qc, Vc, q))
+    Tq = arm.fk(np.where(Va[..., None], Qa, 0.0))
+    assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[Va].max() < 1e-10
 
 
 def test_ik_all_methods_are_checked():

@@ -611,8 +611,10 @@ class SerialRobot:
         finite rigid transforms come back NaN and invalid.
 
         method: "auto" (the closed form where the structure has one; else, for a 6R arm, the
-        complete general solver when its elimination is regular, else the combined method
-        where it applies, else the general solver's best effort), "closed_form",
+        complete general solver when one of its eliminations is regular -- then the slots
+        are unnamed and analytic_configs() names the combined method's branches that
+        ik(config=...) uses --, else the combined method where it applies, else the general
+        solver's best effort), "closed_form",
         "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""

@@ -40,16 +40,17 @@ limits, and not a duplicate of an earlier slot.
 The eigen step uses LAPACK's QZ (scipy.linalg.eig(A, B), ggev), one 24 x 24 pencil per pose;
 everything else is batched numpy. Nothing of this solver is emitted as C.
 
-Degenerate arms. The pencil is *singular* (det M(x3) = 0 for every x3) for many industrial
-arms: consecutive axes that meet (a_i = 0) or are parallel make the 14 equations dependent.
-Then the eigenvalues include arbitrary ones and the true ones need not appear; the reversed
-chain (G^-1 = e6^-1 ... e1^-1, the same method on joints 6..1) is sometimes regular when the
-forward one is not. :func:`eliminations` picks a regular elimination when there is one
-(``complete`` True) and otherwise runs both as a best effort (``complete`` False: measured
-on rtb's Jaco and Puma 560 the original q was among the solutions for only ~72-74% of random
-poses). Arms with a closed form (model.structure) use it; the combined method
-(solve/combined.py) stays the better choice for nearly-central-wrist arms with a singular
-pencil. ``General6R.regular`` / ``pencil_margin`` report the check.
+Degenerate arms and arrangements. The pencil is *singular* (det M(x3) = 0 for every x3)
+for many industrial arms in the arrangement above: neighbouring axes that meet (a_i = 0) or
+are parallel make the 14 equations dependent, or Q rank deficient. The loop can be cut
+elsewhere: e_{k+1} ... e6 e'_1 ... e'_k = G with e'_i = G^-1 e_i G (shift k = 0..5; the
+pose's generic link moves to another place of the loop; the left side's coefficients then
+depend on the pose and are interpolated per pose), or reversed (G^-1 = e6^-1 ... e1^-1).
+:func:`eliminations` takes the first arrangement whose pencil and Q are clearly regular
+(checked at 4 random poses when the arm is loaded): for rtb's Jaco, Mico, Puma 560 and UR5 a
+shifted one is (the original q was found on 100% of 300 random poses each). Only if no
+arrangement is regular does it fall back to the forward and reversed chains as a best effort
+(``complete`` False), to which SerialRobot.ik_all adds the combined method's branches.
 """
 
 from __future__ import annotations
@@ -70,11 +71,10 @@ _SHIFT_SEED = 6016  # the fixed random shifts delta_3, delta_4, delta_5
 _HALF = np.array([[1.0, 0.0, 1.0], [1.0, 0.0, -1.0], [0.0, 2.0, 0.0]])
 
 
-def _rot(w, th):
-    """(..., 3, 3) rotations about the unit axis w (3,) by th (...) (Rodrigues)."""
-    Kw = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    c, s = np.cos(th)[..., None, None], np.sin(th)[..., None, None]
-    return np.eye(3) + s * Kw + (1.0 - c) * (Kw @ Kw)
+def _turn(w, th, v):
+    """Vectors v (..., 3) turned about unit axes w (..., 3) by th (...) (Rodrigues)."""
+    c, s = np.cos(th)[..., None], np.sin(th)[..., None]
+    return v * c + np.cross(w, v) * s + w * (np.sum(w * v, axis=-1)[..., None] * (1.0 - c))
 
 
 def _trig(th):
@@ -89,91 +89,139 @@ def _fourteen(p, line):
     return np.concatenate([p, line, pp, pl, np.cross(p, line), pp * line - 2.0 * pl * p], axis=-1)
 
 
-class General6R:
-    """The elimination of one 6R arm (module docstring): ``solve(arm, T)``."""
+def _grid(k):
+    return np.stack(np.meshgrid(*([_GRID] * k), indexing="ij"), axis=-1).reshape(-1, k)
 
-    def __init__(self, desc, reverse=False):
+
+def _basis(phi):
+    """(M, 3^k) products of (1, cos, sin) of the k angles phi (M, k)."""
+    out = _trig(phi[:, 0])
+    for i in range(1, phi.shape[1]):
+        out = np.einsum("ma,mb->mab", out, _trig(phi[:, i])).reshape(phi.shape[0], -1)
+    return out
+
+
+_B3_INV = np.linalg.inv(_basis(_grid(3)))
+_B2_INV = np.linalg.inv(_basis(_grid(2)))
+
+
+def _left(w, o, th):
+    """(N, M, 14) of theta 3, 4, 5 (M, 3) for per-pose axes w, o (N, 6, 3) (module
+    docstring: p = R3 (e4 e5 o6 - o3), l = R3 R4 R5 w6)."""
+    N, M = w.shape[0], th.shape[0]
+
+    def ax(i):
+        return np.broadcast_to(w[:, None, i], (N, M, 3))
+
+    def t(i):
+        return np.broadcast_to(th[None, :, i], (N, M))
+
+    pt = [o[:, None, i] for i in range(6)]
+    q5 = _turn(ax(4), t(2), np.broadcast_to(pt[5] - pt[4], (N, M, 3))) + pt[4]
+    q4 = _turn(ax(3), t(1), q5 - pt[3]) + pt[3]
+    p = _turn(ax(2), t(0), q4 - pt[2])
+    line = _turn(ax(2), t(0), _turn(ax(3), t(1), _turn(ax(4), t(2), ax(5))))
+    return _fourteen(p, line)
+
+
+def _right(w, o, G, th12):
+    """(N, M, 14) for poses G (N, 4, 4) and theta 1, 2 (M, 2) (module docstring:
+    p = e2^-1 e1^-1 (G o6) - o3, l = R2^T R1^T R_G w6)."""
+    N, M = w.shape[0], th12.shape[0]
+
+    def ax(i):
+        return np.broadcast_to(w[:, None, i], (N, M, 3))
+
+    def t(i):
+        return np.broadcast_to(th12[None, :, i], (N, M))
+
+    y = np.einsum("nij,nj->ni", G[:, :3, :3], o[:, 5]) + G[:, :3, 3]
+    v = np.einsum("nij,nj->ni", G[:, :3, :3], w[:, 5])
+    z = _turn(ax(0), -t(0), np.broadcast_to((y - o[:, 0])[:, None], (N, M, 3))) + o[:, None, 0]
+    z2 = _turn(ax(1), -t(1), z - o[:, None, 1]) + o[:, None, 1]
+    line = _turn(ax(1), -t(1), _turn(ax(0), -t(0), np.broadcast_to(v[:, None], (N, M, 3))))
+    return _fourteen(z2 - o[:, None, 2], line)
+
+
+class General6R:
+    """The elimination of one 6R arm in one arrangement of its loop (module docstring).
+
+    ``shift`` k = 0..5 and ``reverse``: the loop e1 ... e6 = G is solved as
+    e_{k+1} ... e6 e'_1 ... e'_k = G with e'_i = G^-1 e_i G (joint i's axis carried by G^-1,
+    the same angle), and, reversed, as the inverse chain (axes in reverse order, turning
+    backwards, target G^-1). Different arrangements put the pose's generic link at different
+    places of the loop; for arms whose neighbouring axes meet or are parallel some of them
+    make the pencil singular and others do not (:func:`eliminations` picks a regular one).
+    """
+
+    def __init__(self, desc, reverse=False, shift=0):
         if desc.n != 6 or not all(j.revolute for j in desc.joints):
             raise InputError(f"{desc.name}: the general 6R solver needs 6 revolute joints")
         self.ax = ax = joint_axes(desc)
-        self.w, self.o = ax.directions, ax.points
-        self.reverse = reverse
+        self.reverse, self.shift = bool(reverse), int(shift)
+        order = list(range(self.shift, 6)) + list(range(self.shift))
+        self.order = order[::-1] if self.reverse else order  # arranged joint j = order[j]
         self.slots = K
         self.imag_tol = 1e-6
-        if reverse:  # G^-1 = e6^-1 ... e1^-1: the axes in reverse order, turning backwards
-            self.w, self.o = -self.w[::-1].copy(), self.o[::-1].copy()
         self.delta = np.random.default_rng(_SHIFT_SEED).uniform(-np.pi, np.pi, 3)
-        # left coefficients C[a3, a4, a5, k] on the grid of phi = theta - delta
-        g = np.stack(np.meshgrid(_GRID, _GRID, _GRID, indexing="ij"), axis=-1).reshape(-1, 3)
-        values = self._left(g + self.delta)  # (27, 14)
-        basis = self._basis3(g)  # (27, 27)
-        self.C = np.linalg.solve(basis, values).reshape(3, 3, 3, 14)
-        g2 = np.stack(np.meshgrid(_GRID, _GRID, indexing="ij"), axis=-1).reshape(-1, 2)
-        self._grid2 = g2
-        self._basis2_inv = np.linalg.inv(
-            np.einsum("na,nb->nab", _trig(g2[:, 0]), _trig(g2[:, 1])).reshape(9, 9)
-        )
         rng = np.random.default_rng(1)
-        t = rng.uniform(-np.pi, np.pi, (64, 3))
-        fit = np.einsum("nk,km->nm", self._basis3(t - self.delta), self.C.reshape(27, 14))
-        self.fit_residual = float(np.max(np.abs(fit - self._left(t))))
-        # is the 12 x 12 pencil regular? (singular for every pose of many industrial arms:
-        # consecutive axes that meet or are parallel) -- its smallest relative singular value
-        # at a random x3 for 4 poses from random joint values
+        # the structure check of the interpolation and the pencil's regularity at 4 poses
         qr = rng.uniform(-np.pi, np.pi, (4, 6))
         R, p = ax.fk(qr)
         Tr = np.broadcast_to(np.eye(4), (4, 4, 4)).copy()
         Tr[:, :3, :3], Tr[:, :3, 3] = R, p
-        G = Tr @ np.linalg.inv(ax.T0)
-        if reverse:
-            G = np.linalg.inv(G)
-        M, _ = self._pencil(G)
+        w, o, G = self._arranged(Tr)
+        C = self._left_coefficients(w, o)
+        t = rng.uniform(-np.pi, np.pi, (64, 3))
+        fit = np.einsum("mk,nkj->nmj", _basis(t - self.delta), C.reshape(-1, 27, 14))
+        self.fit_residual = float(np.max(np.abs(fit - _left(w, o, t))))
+        M, (_, _, q_margin) = self._pencil(w, o, G, C)
         x = 0.3719
         sv = np.linalg.svd(M[:, 0] + M[:, 1] * x + M[:, 2] * x * x, compute_uv=False)
-        self.pencil_margin = float(np.min(sv[:, -1] / sv[:, 0]))
+        # the 12 x 12 pencil's smallest relative singular value at a random x3, and Q's
+        # rank margin (both must be clear of 0: a rank-deficient Q, e.g. two parallel axes
+        # on the right side, leaves too few equations)
+        self.pencil_margin = float(min(np.min(sv[:, -1] / sv[:, 0]), np.min(q_margin)))
         self.regular = self.pencil_margin > 1e-10
 
-    @staticmethod
-    def _basis3(phi):
-        t3, t4, t5 = _trig(phi[:, 0]), _trig(phi[:, 1]), _trig(phi[:, 2])
-        return np.einsum("na,nb,nc->nabc", t3, t4, t5).reshape(phi.shape[0], 27)
+    def __repr__(self):
+        return f"General6R({self.ax.name!r}, shift={self.shift}, reverse={self.reverse})"
 
-    def _left(self, th):
-        """(M, 14) of theta 3, 4, 5 (M, 3)."""
-        w, o = self.w, self.o
-        R3, R4, R5 = _rot(w[2], th[:, 0]), _rot(w[3], th[:, 1]), _rot(w[4], th[:, 2])
-        q5 = R5 @ (o[5] - o[4]) + o[4]
-        q4 = np.einsum("nij,nj->ni", R4, q5 - o[3]) + o[3]
-        p = np.einsum("nij,nj->ni", R3, q4 - o[2])
-        l_ = np.einsum("nij,nj->ni", R3 @ R4 @ R5, np.broadcast_to(w[5], p.shape))
-        return _fourteen(p, l_)
-
-    def _right(self, G, th12):
-        """(N, M, 14) for poses G (N, 4, 4) and theta 1, 2 (M, 2)."""
-        w, o = self.w, self.o
-        R1t = np.swapaxes(_rot(w[0], th12[:, 0]), -1, -2)  # (M, 3, 3)
-        R2t = np.swapaxes(_rot(w[1], th12[:, 1]), -1, -2)
-        y = G[:, :3, :3] @ o[5] + G[:, :3, 3]  # (N, 3)
-        v = G[:, :3, :3] @ w[5]
-        z = np.einsum("mij,nj->nmi", R1t, y - o[0]) + o[0]
-        z2 = np.einsum("mij,nmj->nmi", R2t, z - o[1]) + o[1]
-        p = z2 - o[2]
-        l_ = np.einsum("mij,nj->nmi", R2t @ R1t, v)
-        return _fourteen(p, l_)
-
-    def _pencil(self, G):
-        """(M (N, 3, 12, 12): M0, M1, M2 of the matrix polynomial, (C, Q, rank margin of Q))
-        for poses G (N, 4, 4) (module docstring)."""
+    def _arranged(self, T):
+        """Per-pose axes w, o (N, 6, 3) of the arrangement and its target G (N, 4, 4) for
+        tool poses T (N, 4, 4)."""
+        ax = self.ax
+        G = T @ np.linalg.inv(ax.T0)
         N = G.shape[0]
-        D = self._right(G, self._grid2)  # (N, 9, 14)
-        D = np.einsum("ab,nbk->nak", self._basis2_inv, D).reshape(N, 3, 3, 14)
-        C = np.broadcast_to(self.C, (N, 3, 3, 3, 14)).copy()
+        RGt = np.swapaxes(G[:, :3, :3], 1, 2)
+        w = np.broadcast_to(ax.directions, (N, 6, 3)).copy()
+        o = np.broadcast_to(ax.points, (N, 6, 3)).copy()
+        k = self.shift
+        if k:  # e'_i = G^-1 e_i G: the axis carried by G^-1
+            w[:, :k] = np.einsum("nij,nkj->nki", RGt, w[:, :k])
+            o[:, :k] = np.einsum("nij,nkj->nki", RGt, o[:, :k] - G[:, None, :3, 3])
+        order = list(range(k, 6)) + list(range(k))
+        w, o = w[:, order], o[:, order]
+        if self.reverse:
+            w, o, G = -w[:, ::-1], o[:, ::-1], np.linalg.inv(G)
+        return np.ascontiguousarray(w), np.ascontiguousarray(o), G
+
+    def _left_coefficients(self, w, o):
+        """C (N, 3, 3, 3, 14) of the left side on the grid of phi = theta - delta."""
+        values = _left(w, o, _grid(3) + self.delta)  # (N, 27, 14)
+        return np.einsum("ab,nbk->nak", _B3_INV, values).reshape(-1, 3, 3, 3, 14)
+
+    def _pencil(self, w, o, G, C):
+        """(M (N, 3, 12, 12): M0, M1, M2 of the matrix polynomial, (C with the right's
+        constant moved over, Q, rank margin of Q))."""
+        N = G.shape[0]
+        D = np.einsum("ab,nbk->nak", _B2_INV, _right(w, o, G, _grid(2))).reshape(N, 3, 3, 14)
+        C = C.copy()
         C[:, 0, 0, 0] -= D[:, 0, 0]
         Q = D.reshape(N, 9, 14)[:, 1:].transpose(0, 2, 1)  # (N, 14, 8)
         U, sv, _ = np.linalg.svd(Q, full_matrices=True)
         margin = sv[:, 7] / np.maximum(sv[:, 0], 1e-300)
-        Nul = U[:, :, 8:]  # (N, 14, 6)
-        A = np.einsum("nabck,nkr->nrabc", C, Nul)  # (N, 6, 3, 3, 3)
+        A = np.einsum("nabck,nkr->nrabc", C, U[:, :, 8:])  # (N, 6, 3, 3, 3)
         E = np.einsum("nrabc,ax,by,cz->nrxyz", A, _HALF, _HALF, _HALF)  # powers of x3, x4, x5
         M = np.zeros((N, 3, 12, 12))
         for s in range(2):  # the 6 equations, and the same times x4
@@ -183,12 +231,14 @@ class General6R:
                     M[:, :, s * 6 : s * 6 + 6, col] = E[:, :, :, p4, p5].transpose(0, 2, 1)
         return M, (C, Q, margin)
 
-    def candidates(self, G):
-        """Raw candidates for poses G (N, 4, 4) (G = T T(0)^-1): q (N, 16, 6) (NaN in unused
-        slots) and the rank margin of Q per pose (its 8th singular value / its 1st)."""
+    def starts(self, T):
+        """Candidates (N, 16, 6) in the arm's joint order for tool poses T (N, 4, 4) (NaN in
+        unused slots), and the rank margin of Q per pose."""
+        w, o, G = self._arranged(T)
+        C0 = self._left_coefficients(w, o)
+        M, (C, Q, margin) = self._pencil(w, o, G, C0)
         N = G.shape[0]
-        M, (C, Q, margin) = self._pencil(G)
-        q = np.full((N, self.slots, 6), np.nan)
+        qa = np.full((N, self.slots, 6), np.nan)
         Z0, I12 = np.zeros((12, 12)), np.eye(12)
         B0 = np.block([[I12, Z0], [Z0, Z0]])
         for n in range(N):
@@ -203,54 +253,46 @@ class General6R:
             real = np.flatnonzero(ok)
             if real.size == 0:
                 continue
+            r = np.arange(real.size)
             x3 = lam[real].real
             V = Zn[:12, real].T  # (r, 12) monomials x4^i x5^j, index 3 i + j
-            V = V / V[np.arange(len(real)), np.argmax(np.abs(V), axis=1)][:, None]
-            V = V.real
-            W = np.abs(V).reshape(-1, 4, 3)
-            i4 = np.argmax(W[:, :3, :].max(axis=2), axis=1)
-            j4 = np.argmax(W[np.arange(len(real)), i4], axis=1)
-            x4 = V[np.arange(len(real)), (i4 + 1) * 3 + j4] / V[np.arange(len(real)), i4 * 3 + j4]
-            j5 = np.argmax(W[:, :, :2].max(axis=1), axis=1)
-            i5 = np.argmax(W[np.arange(len(real)), :, j5], axis=1)
-            x5 = V[np.arange(len(real)), i5 * 3 + j5 + 1] / V[np.arange(len(real)), i5 * 3 + j5]
+            V = (V / V[r, np.argmax(np.abs(V), axis=1)][:, None]).real
+            Wv = np.abs(V).reshape(-1, 4, 3)
+            # x4, x5 as ratios of the largest neighbouring monomials (Manocha-Canny)
+            i4 = np.argmax(Wv[:, :3, :].max(axis=2), axis=1)
+            j4 = np.argmax(Wv[r, i4], axis=1)
+            x4 = V[r, (i4 + 1) * 3 + j4] / V[r, i4 * 3 + j4]
+            j5 = np.argmax(Wv[:, :, :2].max(axis=1), axis=1)
+            i5 = np.argmax(Wv[r, :, j5], axis=1)
+            x5 = V[r, i5 * 3 + j5 + 1] / V[r, i5 * 3 + j5]
             th = 2.0 * np.arctan(np.stack([x3, x4, x5], axis=1)) + self.delta  # (r, 3)
-            rhs = np.einsum("rk,kj->rj", self._basis3(th - self.delta), C[n].reshape(27, 14))
+            rhs = np.einsum("rk,kj->rj", _basis(th - self.delta), C[n].reshape(27, 14))
             sig2, *_ = np.linalg.lstsq(Q[n], rhs.T, rcond=None)  # (8, r)
             # Sigma2 order: (b1, b2) over {1, c, s}^2 without (1, 1)
-            c1, s1, c2, s2 = sig2[2], sig2[5], sig2[0], sig2[1]
-            th1, th2 = np.arctan2(s1, c1), np.arctan2(s2, c2)
-            th6 = self._theta6(G[n], th1, th2, th)
+            th1 = np.arctan2(sig2[5], sig2[2])
+            th2 = np.arctan2(sig2[1], sig2[0])
+            th6 = self._theta6(w[n], G[n], th1, th2, th)
             sol = np.stack([th1, th2, th[:, 0], th[:, 1], th[:, 2], th6], axis=1)
-            q[n, : min(self.slots, len(sol))] = sol[: self.slots]
+            qa[n, : min(self.slots, len(sol))] = sol[: self.slots]
+        q = np.empty_like(qa)
+        q[..., self.order] = qa
         return q, margin
 
-    def _theta6(self, G, th1, th2, th345):
-        w = self.w
-        R = (
-            _rot(w[0], th1)
-            @ _rot(w[1], th2)
-            @ _rot(w[2], th345[:, 0])
-            @ _rot(w[3], th345[:, 1])
-            @ _rot(w[4], th345[:, 2])
-        )
-        R6 = np.swapaxes(R, -1, -2) @ G[:3, :3]
+    @staticmethod
+    def _theta6(w, G, th1, th2, th345):
+        """The angle of the arranged joint 6: Rot(w6, th6) = (R1 ... R5)^T R_G, on a
+        reference normal to w6."""
         w6 = w[5]
         ref = np.cross(w6, [1.0, 0.0, 0.0])
         if np.linalg.norm(ref) < 0.1:
             ref = np.cross(w6, [0.0, 1.0, 0.0])
         ref = ref / np.linalg.norm(ref)
-        y = R6 @ ref
+        r = th1.shape[0]
+        y = np.broadcast_to(G[:3, :3] @ ref, (r, 3))
+        angles = [th1, th2, th345[:, 0], th345[:, 1], th345[:, 2]]
+        for i in range(5):  # (R1 ... R5)^T = R5^T ... R1^T: undo joint 1 first
+            y = _turn(np.broadcast_to(w[i], (r, 3)), -angles[i], y)
         return np.arctan2(np.cross(ref, y) @ w6, y @ ref)
-
-    def starts(self, T):
-        """Candidates (N, 16, 6) in the arm's joint order for tool poses T (N, 4, 4), and the
-        rank margin of Q."""
-        G = T @ np.linalg.inv(self.ax.T0)
-        if self.reverse:
-            G = np.linalg.inv(G)
-        q0, margin = self.candidates(G)
-        return (q0[..., ::-1] if self.reverse else q0), margin
 
 
 def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=True, info=False):
@@ -306,11 +348,19 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
 
 
 def eliminations(desc) -> tuple[list[General6R], bool]:
-    """The eliminations of a 6R description to use, and whether they are complete: the
-    forward chain and the reversed chain (G^-1 = e6^-1 ... e1^-1), those whose 12 x 12 pencil
-    is regular (complete: every isolated solution is an eigenvalue); if neither is regular
-    (many industrial arms: meeting or parallel neighbouring axes make it singular for every
-    pose), both, as a best effort (complete False: solutions can be missed)."""
-    both = [General6R(desc), General6R(desc, reverse=True)]
-    regular = [g for g in both if g.regular]
-    return (regular[:1], True) if regular else (both, False)
+    """The elimination(s) of a 6R description to use, and whether they are complete: the
+    first arrangement (shift, reverse) whose pencil is clearly regular (every isolated
+    solution is then an eigenvalue), else the most regular one; if none is regular, the
+    forward and reversed chains as a best effort (complete False: solutions can be
+    missed)."""
+    tried = []
+    for reverse in (False, True):
+        for shift in range(6):
+            g = General6R(desc, reverse=reverse, shift=shift)
+            if g.pencil_margin > 1e-6:
+                return [g], True
+            tried.append(g)
+    regular = [g for g in tried if g.regular]
+    if regular:
+        return [max(regular, key=lambda g: g.pencil_margin)], True
+    return [tried[0], tried[6]], False
