@@ -136,3 +136,24 @@ def test_detection_from_geometry_not_names():
     assert not isinstance(
         detect(SerialDescription.from_toml(robots_dir() / "puma560.toml")), ParallelTriple6R
     )
+
+
+@pytest.mark.slow
+def test_compiled_kernel_matches_the_numpy_solver():
+    """The generated C ik_all of a UR5 (derive/serial/ik_closed_form.py, the same steps as
+    the numpy solver) against the numpy solver: the same valid flags and joint values, the
+    original q among the branches, with limits (+-6.2 rad) checked in C."""
+    rows = _rows(rtb.models.DH.UR5())
+    for row in rows:
+        row["qlim"] = [-6.2, 6.2]
+    arm = SerialRobot.from_dh(rows, "standard", name="ur5_dh_c")
+    assert arm._core.has_ik_all
+    q = np.random.default_rng(0).uniform(-3, 3, (3000, 6))
+    T = arm.fk(q)
+    Qc, Vc = arm.ik_all(T)
+    Qn, Vn = analytic_solver(arm.description).solve(T)
+    assert np.array_equal(Vc, Vn)
+    assert np.abs(np.where(Vc[..., None], Qc - Qn, 0.0)).max() < 1e-10
+    assert (np.where(Vc, _wrapped(Qc - q[:, None]).max(-1), np.inf).min(-1) < 1e-7).all()
+    q1, v1 = arm.ik_all(T[0])  # the single-pose fast path
+    np.testing.assert_array_equal(v1, Vc[0])

@@ -462,7 +462,8 @@ class _ParallelTripleSolver(AnalyticSolver):
        cosines, two bends ``elbow{p|m}``); then the angle of joint 4 about u is phi minus
        those of joints 2 and 3. Joint i's angle is its angle about u times signs[i].
 
-    2 x 2 x 2 = 8 branches; every one is checked by the forward kinematics (solve)."""
+    2 x 2 x 2 = 8 branches; every one is checked by the forward kinematics (solve). The same
+    steps are emitted as C (derive/serial/ik_closed_form.py, IKKernelBuilder._parallel_triple)."""
 
     def _solve(self, R_t, p_t, position_only):
         s, ax = self.detected, self.axes
