@@ -44,7 +44,8 @@ def test_robot_file_loads(arm):
 
 def test_analytic_only_for_nearest_central_wrist(arm):
     assert analytic_solver(arm.description) is None
-    # SerialRobot.ik_all falls back to the combined method, with the same branch names
+    # SerialRobot.ik (config=) and ik_all(method="combined") use the combined method, with
+    # the same branch names
     assert arm.analytic_configs() == ik_combined.branch_names(arm)
     central = ik_combined.nearest_central_wrist(arm.description)
     assert central.joints[3].a == 0.0
@@ -117,7 +118,8 @@ def test_serial_robot_ik_all_uses_the_combined_method(arm):
     lim = arm.qlim
     q = rng.uniform(lim[:, 0], lim[:, 1], size=(50, 6))
     T = arm.fk(q)
-    q_all, valid = arm.ik_all(T)
+    # the combined method is an option; by default ik_all is complete (solve/general6r.py)
+    q_all, valid = arm.ik_all(T, method="combined")
     assert q_all.shape == (50, 8, 6) and valid.any(axis=1).mean() > 0.9
     np.testing.assert_allclose(
         arm.fk(q_all[valid]), np.repeat(T[:, None], 8, axis=1)[valid], atol=1e-10

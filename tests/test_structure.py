@@ -350,7 +350,8 @@ def test_other_refusals():
     assert st.detect(_rows([0.0, 0.3], [0, 0], [0.1, 0])) is None
     assert st.detect(_rows([0.1] * 5, [PI / 2] * 5, [0.1] * 5)) is None
     assert st.detect(_rows([0.3], [0.0], [0.0])) is None
-    assert st.detect(_ur5()) is None  # no central wrist
+    # no central wrist: not a SphericalWrist6R, but the UR structure (three parallel axes)
+    assert isinstance(st.detect(_ur5()), st.ParallelTriple6R)
 
 
 # -- general predicates --------------------------------------------------------------------

@@ -248,7 +248,7 @@ MALFORMED = {
     "unknown type": (_TWO + _joint("hinge"), r"joint 'j': unknown joint type 'hinge'"),
     "mimic": (
         _TWO + _joint(inner=_LIMIT + '<mimic joint="k"/>'),
-        r"joint 'j': mimic joints are not supported yet",
+        r"joint 'j': <mimic joint='k'> names a joint that is not a movable joint of the chain",
     ),
     "missing parent": (
         _TWO + '<joint name="j" type="fixed"><child link="b"/></joint>',

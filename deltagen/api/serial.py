@@ -148,7 +148,18 @@ class SerialRobot:
     def load(
         cls, name: str, backend: Backend = "compiled", *, threads: int | None = None
     ) -> SerialRobot:
-        """A bundled robot by name, e.g. "puma560" (see bundled_robots())."""
+        """A bundled robot by name, e.g. "puma560" (see bundled_robots()), or a bundled URDF
+        (robots/<name>.urdf, e.g. "ur5")."""
+        if (
+            isinstance(name, str)
+            and name.isidentifier()
+            and not (robots_dir() / f"{name}.toml").exists()
+            and (robots_dir() / f"{name}.urdf").is_file()
+        ):
+            from deltagen.model.urdf import description_from_urdf
+
+            desc = description_from_urdf(robots_dir() / f"{name}.urdf", name=name)
+            return cls(desc, backend, threads=threads)
         if (
             not isinstance(name, str)
             or not name.isidentifier()
@@ -203,10 +214,16 @@ class SerialRobot:
         """The chain of a URDF file from link ``base`` (default: the root link) to link
         ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
-        limits and inertials. The joint variables are the URDF's (same zero, same sign)."""
-        from deltagen.model.urdf import description_from_urdf
+        limits and inertials. The joint variables are the URDF's (same zero, same sign).
+        A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
+        in the independent variables instead."""
+        from deltagen.model.urdf import chain_from_urdf
 
-        desc = description_from_urdf(path, base=base, tip=tip, name=name)
+        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name)
+        if coupling is not None:
+            from deltagen.api.coupled import CoupledArm
+
+            return CoupledArm(cls(desc, backend, threads=threads), coupling)  # type: ignore[return-value]
         return cls(desc, backend, threads=threads)
 
     def with_backend(self, backend: Backend) -> SerialRobot:
@@ -593,6 +610,16 @@ class SerialRobot:
                 self._combined_module = None
         return self._combined_module
 
+    def _general(self):
+        """(eliminations, complete) of deltagen.solve.general6r for a 6R arm, else None."""
+        if not hasattr(self, "_general_6r"):
+            self._general_6r = None
+            if self.n == 6 and all(j.revolute for j in self.description.joints):
+                from deltagen.solve import general6r
+
+                self._general_6r = general6r.eliminations(self.description)
+        return self._general_6r
+
     def _analytic(self):
         if not hasattr(self, "_analytic_solver"):
             from deltagen.solve.analytic import analytic_solver
@@ -600,11 +627,53 @@ class SerialRobot:
             self._analytic_solver = analytic_solver(self.description)
         return self._analytic_solver
 
-    def ik_all(self, T: ArrayLike) -> tuple[FloatArray, BoolArray]:
+    def ik_all(self, T: ArrayLike, method: str = "auto") -> tuple[FloatArray, BoolArray]:
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
         within the joint limits). Branch names: analytic_configs(). Rows of T that are not
-        finite rigid transforms come back NaN and invalid."""
+        finite rigid transforms come back NaN and invalid.
+
+        method: "auto" (the closed form where the structure has one; else, for a 6R arm, the
+        complete general solver when one of its eliminations is regular -- then the slots
+        are unnamed and analytic_configs() names the combined method's branches that
+        ik(config=...) uses --, else the combined method where it applies, else the general
+        solver's best effort), "closed_form",
+        "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
+        first; for an arm whose elimination is singular the combined method's branches
+        join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
+        if method not in ("auto", "closed_form", "complete", "combined"):
+            raise InputError(
+                f'method must be "auto", "closed_form", "complete" or "combined", got {method!r}'
+            )
         solver = self._analytic()
+        if method == "auto" and solver is None and self._general() is not None:
+            eliminations, complete = self._general()
+            if complete or self._combined() is None:
+                method = "complete"
+        if method == "complete":
+            general = self._general()
+            if general is None:
+                raise InputError(f"{self.name}: the complete solver needs a 6R arm")
+            from deltagen.solve import general6r
+
+            lead, flat, finite, rigid = self._poses(T)
+            safe = flat.copy()
+            safe[~rigid] = np.eye(4)
+            extra = None
+            if not general[1] and self._combined() is not None:
+                # an incomplete (singular-pencil) elimination: the combined method's
+                # branches join the candidates
+                extra = self._combined().solve_all(self, safe)[0]
+            q, valid = general6r.solve(self, safe, general[0], extra=extra)
+            q[~rigid], valid[~rigid] = np.nan, False
+            k = q.shape[1]
+            return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
+        if method == "combined":
+            if self._combined() is None:
+                raise InputError(f"{self.name}: the combined method does not apply")
+            lead, flat, finite, rigid = self._poses(T)
+            return self._ik_all_rows(lead, flat, rigid, None, self._combined())
+        if method == "closed_form" and solver is None:
+            raise InputError(f"{self.name} has no closed-form inverse")
         combined = self._combined() if solver is None else None
         if solver is None and combined is None:
             raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")

@@ -541,7 +541,12 @@ def pinocchio_model(description):
         turn = joint.offset if joint.revolute else joint.theta
         shift = 0.0 if joint.revolute else joint.offset
         pre = pin.SE3(rot_axis("z", turn), np.array([0.0, 0.0, shift]))
-        kind = pin.JointModelRZ() if joint.revolute else pin.JointModelPZ()
+        if joint.sign == 1.0:
+            kind = pin.JointModelRZ() if joint.revolute else pin.JointModelPZ()
+        elif joint.revolute:  # a reversed joint turns / slides about -z
+            kind = pin.JointModelRevoluteUnaligned(np.array([0.0, 0.0, -1.0]))
+        else:
+            kind = pin.JointModelPrismaticUnaligned(np.array([0.0, 0.0, -1.0]))
         parent = model.addJoint(parent, kind, placement * pre, f"joint{i + 1}")
         placement = pin.SE3(
             rot_axis("x", joint.alpha), np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0])

@@ -9,7 +9,9 @@ Conventions (lecture slides 80-89, EASY-ROB paper eqs. (1)-(3)):
 * ``universal`` D_i = Rot_i(q_i) Trans_x(tx) Trans_y(ty) Trans_z(tz) Rot_x(rx) Rot_y(ry) Rot_z(rz)
   with Rot_i the joint's own motion about (or along) its ``axis`` x, y or z (paper eq. (3)).
 
-T(q) = base . A_1(q_1) ... A_n(q_n) . tool. The joint variable enters as q_i + offset_i.
+T(q) = base . A_1(q_1) ... A_n(q_n) . tool. The joint variable enters as q_i + offset_i, or
+as -q_i + offset_i for a reversed joint (``flip = true`` / ``sign = -1``, in every convention:
+the joint turns or slides the other way, as roboticstoolbox's Jaco/Mico models need).
 Lengths in metres, angles in radians; robot files may use ``*_deg`` keys instead.
 
 Robot files (TOML) state the convention explicitly; there is no default::
@@ -26,6 +28,8 @@ Robot files (TOML) state the convention explicitly; there is no default::
     alpha_deg = 90
     d = 0.67183
     qlim_deg = [-160, 160]           # optional; qlim = [...] in rad (m for prismatic)
+    flip = false                     # optional; true (or sign = -1): the joint turns / slides
+                                     # the other way, its variable enters as -q + offset
     [configurations]                 # optional named joint vectors (rad / m)
     qz = [0, 0, 0, 0, 0, 0]
 
@@ -102,6 +106,7 @@ class Joint:
     ry: float = 0.0
     rz: float = 0.0
     axis: str = "z"
+    sign: float = 1.0  # +1, or -1 for a reversed joint: the variable enters as sign q + offset
     qlim: tuple[float, float] | None = None
     name: str = ""
     inertial: Inertial | None = None
@@ -268,6 +273,7 @@ class SerialDescription:
                         j.ry,
                         j.rz,
                         j.axis,
+                        *(() if j.sign == 1.0 else ("flip",)),  # unflipped arms keep their key
                         # the closed-form ik_all checks the limits in C: two arms that
                         # differ only in limits must not share a compiled core
                         None if j.qlim is None else tuple(float(x) for x in j.qlim),
@@ -400,7 +406,7 @@ def link_transform(desc: SerialDescription, i: int, qi: Any) -> np.ndarray:
     convention (module docstring); the joint variable enters as q_i + offset_i."""
     j = desc.joints[i]
     qi = np.asarray(qi, dtype=np.float64)
-    var = qi + j.offset
+    var = j.sign * qi + j.offset
     const = np.full(qi.shape[0], 0.0)
     if desc.convention == "universal":
         ax = _AXIS[j.axis]
@@ -443,7 +449,8 @@ def axis_frame(desc: SerialDescription, i: int) -> tuple[int, int]:
     """(index into :func:`frames`' F, column) of the frame whose column is joint i's motion
     axis and whose origin lies on it: standard DH z of frame i-1 (F[:, i]); modified DH z of
     frame i (F[:, i+1]: for a revolute joint that origin is fixed in link i-1, since d_i is
-    constant); universal the joint's ``axis`` of base D_1 ... D_{i-1} (F[:, i])."""
+    constant); universal the joint's ``axis`` of base D_1 ... D_{i-1} (F[:, i]). A reversed
+    joint (``sign`` -1) moves about / along minus that column."""
     if desc.convention == "standard":
         return i, 2
     if desc.convention == "modified":
@@ -485,7 +492,7 @@ def _joint(row: object, convention: str, where: str) -> Joint:
         | set(angles)
         | {f"{a}_deg" for a in angles}
         | extra
-        | {"type", "joint", "qlim", "qlim_deg", "name"}
+        | {"type", "joint", "qlim", "qlim_deg", "name", "flip", "sign"}
         | set(INERTIAL_KEYS)
     )
     unknown = set(row) - allowed
@@ -525,7 +532,31 @@ def _joint(row: object, convention: str, where: str) -> Joint:
     name = row.get("name", "")
     if not isinstance(name, str):
         raise GeometryError(f"{where}: name must be text")
-    return Joint(type=kind, qlim=qlim, name=name, inertial=_inertial(row, where), **values)
+    return Joint(
+        type=kind,
+        qlim=qlim,
+        name=name,
+        sign=_sign(row, where),
+        inertial=_inertial(row, where),
+        **values,
+    )
+
+
+def _sign(row: Mapping[str, Any], where: str) -> float:
+    """The joint's direction: ``flip = true`` or ``sign = -1`` reverse it (the joint turns /
+    slides the other way: its variable enters as -q + offset); default +1."""
+    if "flip" in row and "sign" in row:
+        raise GeometryError(f"{where}: give flip or sign, not both")
+    if "flip" in row:
+        if not isinstance(row["flip"], bool):
+            raise GeometryError(f"{where}: flip must be true or false, got {row['flip']!r}")
+        return -1.0 if row["flip"] else 1.0
+    if "sign" in row:
+        raw = row["sign"]
+        if isinstance(raw, bool) or raw not in (1, -1):
+            raise GeometryError(f"{where}: sign must be 1 or -1, got {raw!r}")
+        return float(raw)
+    return 1.0
 
 
 def _vector(raw: Any, size: int, where: str) -> tuple:

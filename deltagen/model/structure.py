@@ -33,6 +33,12 @@ Structures (tolerances of :mod:`deltagen.geometry.axes`: parallel when ``|w_i x 
     to axis 2, axes 2 and 3 parallel and distinct, axes 4, 5, 6 through one point W (central
     wrist), 4 not parallel to 5, 5 not parallel to 6 (Puma 560, Motoman UP6, Manutec r15).
 
+:class:`ParallelTriple6R` (``parallel_triple_6r``) -- 6 revolute joints: axes 2, 3, 4 parallel
+    and distinct, axis 1 and axis 5 not parallel to them, axes 5 and 6 meet in one point and
+    are not parallel (UR3/5/10: shoulder, elbow and wrist 1 parallel, offset wrist).
+:class:`StanfordArm` (``stanford_rrp_6``) -- joints R R P R R R: axes 1 and 2 meet, joint 3
+    prismatic, axes 4, 5, 6 meet (central wrist): the Stanford arm.
+
 Each is a frozen dataclass of the precomputed quantities (arrays are read-only); the meaning
 of the branch names and the solution method are in :mod:`deltagen.solve.analytic`.
 
@@ -59,11 +65,15 @@ __all__ = [
     "ElbowArm",
     "Elbow4R",
     "SphericalWrist6R",
+    "ParallelTriple6R",
+    "StanfordArm",
     "Structure",
     "joint_axes",
     "detect",
     "detect_planar",
     "detect_elbow",
+    "detect_parallel_triple",
+    "detect_stanford",
     "parallel_pairs",
     "parallel_runs",
     "common_point_of",
@@ -168,7 +178,7 @@ def joint_axes(desc: SerialDescription) -> JointAxes:
     for i in range(n):
         k, c = axis_frame(desc, i)
         o[i] = F[0, k, :3, 3]
-        w[i] = F[0, k, :3, c]
+        w[i] = desc.joints[i].sign * F[0, k, :3, c]
     w = w / np.linalg.norm(w, axis=1, keepdims=True)
     T0 = np.ascontiguousarray(F[:, -1])[0].copy()
     pts = np.vstack([o, T0[:3, 3]])
@@ -292,7 +302,51 @@ class SphericalWrist6R(ElbowArm):
     normal_45: np.ndarray  # (3,) w4 x w5
 
 
-Structure = PlanarArm | Elbow4R | SphericalWrist6R
+@dataclass(frozen=True, eq=False, repr=False)
+class ParallelTriple6R(_Structure):
+    """6 revolute joints with axes 2, 3, 4 parallel (direction u; distinct lines), axis 1 not
+    parallel to u, axis 5 not parallel to u, axes 5 and 6 meeting in one point P5 and not
+    parallel: the UR family (UR3/5/10, their offset wrist included). Pieper's class of three
+    consecutive axes meeting at infinity; the closed form is in solve/analytic.py."""
+
+    kind: ClassVar[str] = "parallel_triple_6r"
+    configs: ClassVar[tuple] = tuple(
+        f"shoulder{a}_elbow{b}_wrist{c}" for a in "pm" for b in "pm" for c in "pm"
+    )
+
+    axes: JointAxes
+    u: np.ndarray  # (3,) unit direction of axis 2; w_i = signs[i] u for i = 1, 2, 3 (0-based)
+    signs: np.ndarray  # (3,) +-1 of axes 2, 3, 4
+    wrist: np.ndarray  # (3,) [m] P5: the common point of axes 5 and 6 (q = 0)
+    plane: np.ndarray  # (2, 3) e1, e2 = u x e1: coordinates normal to u
+    upper: np.ndarray  # (2,) [m] plane vector axis 2 -> axis 3
+    lower: np.ndarray  # (2,) [m] plane vector axis 3 -> axis 4
+    ref: np.ndarray  # (3,) unit vector normal to u (the reference of the angle about u)
+    position_only_ok: ClassVar[bool] = False
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class StanfordArm(_Structure):
+    """6 joints R R P R R R: axes 1 and 2 meet in a point c (not parallel), joint 3 slides
+    along w3, axes 4, 5, 6 meet in W (central wrist; 4 not parallel to 5, 5 not parallel to
+    6): the Stanford arm (Scheinman). The closed form is in solve/analytic.py."""
+
+    kind: ClassVar[str] = "stanford_rrp_6"
+    configs: ClassVar[tuple] = tuple(
+        f"reach{a}_shoulder{b}_{c}" for a in "pm" for b in "pm" for c in ("noflip", "flip")
+    )
+    position_only_ok: ClassVar[bool] = False
+
+    axes: JointAxes
+    shoulder: np.ndarray  # (3,) [m] c, the common point of axes 1 and 2
+    wrist: np.ndarray  # (3,) [m] W at q = 0
+    wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
+    cos_45: float  # w4 . w5
+    cos_56: float  # w5 . w6
+    normal_45: np.ndarray  # (3,) w4 x w5
+
+
+Structure = PlanarArm | Elbow4R | SphericalWrist6R | ParallelTriple6R | StanfordArm
 
 
 # ------------------------------------------------------------------------- detection
@@ -422,9 +476,68 @@ def detect_elbow(ax: JointAxes) -> Elbow4R | SphericalWrist6R | None:
     return Elbow4R(**common, roll_ref=_frozen(_reference_normal(w[3], ex, ey)))
 
 
+def detect_parallel_triple(ax: JointAxes) -> ParallelTriple6R | None:
+    """A :class:`ParallelTriple6R` when the axes have that structure, else None."""
+    if ax.n != 6 or not ax.revolute.all():
+        return None
+    w, o = ax.directions, ax.points
+    tol = LENGTH_TOL * ax.scale
+    u = w[1]
+    if not (geo.parallel(w[2], u, PARALLEL_TOL) and geo.parallel(w[3], u, PARALLEL_TOL)):
+        return None
+    if not (_clearly_skew(w[0], u) and _clearly_skew(w[4], u) and _clearly_skew(w[4], w[5])):
+        return None
+    if geo.line_distance(o[1], u, o[2], u) < tol or geo.line_distance(o[2], u, o[3], u) < tol:
+        return None
+    P5, dist = geo.common_point(o[4:6], w[4:6])
+    if dist > tol:
+        return None
+    e1 = geo.unit((o[2] - o[1]) - ((o[2] - o[1]) @ u) * u)
+    E = np.stack([e1, np.cross(u, e1)])
+    return ParallelTriple6R(
+        axes=ax,
+        u=_frozen(u),
+        signs=_frozen(np.sign(w[1:4] @ u)),
+        wrist=_frozen(P5),
+        plane=_frozen(E),
+        upper=_frozen(E @ (o[2] - o[1])),
+        lower=_frozen(E @ (o[3] - o[2])),
+        ref=_frozen(e1),
+    )
+
+
+def detect_stanford(ax: JointAxes) -> StanfordArm | None:
+    """A :class:`StanfordArm` when the axes have that structure, else None."""
+    if ax.n != 6 or ax.revolute.tolist() != [True, True, False, True, True, True]:
+        return None
+    w, o = ax.directions, ax.points
+    tol = LENGTH_TOL * ax.scale
+    if not _clearly_skew(w[0], w[1]):
+        return None
+    c, dist = geo.common_point(o[0:2], w[0:2])
+    if dist > tol:
+        return None
+    if not (_clearly_skew(w[3], w[4]) and _clearly_skew(w[4], w[5])):
+        return None
+    W, dist = geo.common_point(o[3:6], w[3:6])
+    if dist > tol:
+        return None
+    ex = np.array([1.0, 0.0, 0.0])
+    ey = np.array([0.0, 1.0, 0.0])
+    return StanfordArm(
+        axes=ax,
+        shoulder=_frozen(c),
+        wrist=_frozen(W),
+        wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
+        cos_45=float(w[3] @ w[4]),
+        cos_56=float(w[4] @ w[5]),
+        normal_45=_frozen(np.cross(w[3], w[4])),
+    )
+
+
 def detect(desc: SerialDescription) -> Structure | None:
     """The structure of ``desc`` with a closed form (:class:`PlanarArm`, :class:`Elbow4R`,
-    :class:`SphericalWrist6R`), or None (no supported structure, or a description whose
+    :class:`SphericalWrist6R`, :class:`ParallelTriple6R`), or None (no supported structure, or a description whose
     product-of-exponentials model does not match its transforms)."""
     try:
         ax = joint_axes(desc)
@@ -432,7 +545,7 @@ def detect(desc: SerialDescription) -> Structure | None:
         return None
     if not ax.matches(desc):  # pragma: no cover - a convention the model misses
         return None
-    for find in (detect_planar, detect_elbow):
+    for find in (detect_planar, detect_elbow, detect_parallel_triple, detect_stanford):
         found = find(ax)
         if found is not None:
             return found

@@ -51,8 +51,12 @@ Limits. ``<limit lower upper>`` becomes qlim for revolute and prismatic joints (
 required there by the URDF specification); ``continuous`` joints are revolute without
 limits. ``velocity`` and ``effort`` are read and checked as numbers but not kept: the serial
 description has no place for them yet. ``<dynamics damping friction>`` maps to viscous and
-Coulomb friction ([friction, -friction]). ``<mimic>`` joints (couplings) are refused for
-now; ``floating`` and ``planar`` joints are refused (a serial arm has one variable per joint).
+Coulomb friction ([friction, -friction]). ``<mimic joint multiplier offset>`` joints are
+couplings, q_j = multiplier q_i + offset (model/coupling.py): :func:`chain_from_urdf` returns
+the description of every movable joint and the :class:`Coupling` to the independent ones
+(the mimicked joint must be a movable joint of the chain; a mimic of a mimic is resolved;
+cycles are refused). ``floating`` and ``planar`` joints are refused (a serial arm has one
+variable per joint).
 """
 
 from __future__ import annotations
@@ -71,6 +75,7 @@ import numpy.typing as npt
 
 from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy
+from deltagen.model.coupling import Coupling
 from deltagen.model.serial import Inertial, Joint, SerialDescription
 
 Matrix = npt.NDArray[np.float64]
@@ -96,6 +101,7 @@ class _UJoint:
     limit: tuple[float, float] | None
     damping: float
     friction: float
+    mimic: tuple[str, float, float] | None = None  # (mimicked joint, multiplier, offset)
 
 
 @dataclass(frozen=True)
@@ -187,8 +193,21 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
         raise GeometryError(
             f"{where}: unknown joint type {kind!r}; use revolute, continuous, prismatic or fixed"
         )
-    if element.find("mimic") is not None:
-        raise GeometryError(f"{where}: mimic joints are not supported yet")
+    mimic = None
+    mim = element.find("mimic")
+    if mim is not None:
+        if kind not in _MOVABLE:
+            raise GeometryError(f"{where}: a {kind} joint cannot mimic another")
+        target = mim.get("joint")
+        if not target:
+            raise GeometryError(f"{where} <mimic>: missing joint attribute")
+        if target == name:
+            raise GeometryError(f"{where} <mimic>: a joint cannot mimic itself")
+        mimic = (
+            target,
+            _number(mim, "multiplier", f"{where} <mimic>", 1.0),
+            _number(mim, "offset", f"{where} <mimic>", 0.0),
+        )
     ends = {}
     for tag in ("parent", "child"):
         el = element.find(tag)
@@ -239,7 +258,7 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
         if damping < 0 or friction < 0:
             raise GeometryError(f"{where} <dynamics>: damping and friction must be >= 0")
     return _UJoint(
-        name, kind, ends["parent"], ends["child"], origin, axis, limit, damping, friction
+        name, kind, ends["parent"], ends["child"], origin, axis, limit, damping, friction, mimic
     )
 
 
@@ -386,7 +405,27 @@ def description_from_urdf(
     """The chain of the URDF file ``path`` from link ``base`` (default: the root link) to
     link ``tip`` (default: the single leaf below ``base``) as universal coordinates (module
     docstring). Joint names are kept; the robot's name defaults to the URDF's (made a C
-    identifier)."""
+    identifier). A chain with ``<mimic>`` joints is refused here (its description alone
+    would treat them as free): use :func:`chain_from_urdf`."""
+    desc, coupling = chain_from_urdf(path, base, tip, name)
+    if coupling is not None:
+        coupled = [desc.joints[i].name for i in range(desc.n) if i not in coupling.independent]
+        raise GeometryError(
+            f"URDF {path}: joints {', '.join(coupled)} mimic others; read the chain with "
+            "chain_from_urdf (description and coupling) or SerialRobot.from_urdf"
+        )
+    return desc
+
+
+def chain_from_urdf(
+    path: str | os.PathLike[str],
+    base: str | None = None,
+    tip: str | None = None,
+    name: str | None = None,
+) -> tuple[SerialDescription, Coupling | None]:
+    """(description of every movable joint of the chain, its :class:`Coupling` or None when
+    no joint of the chain has a ``<mimic>``): q_j = multiplier q_i + offset for a joint j
+    that mimics joint i (module docstring of model/coupling.py)."""
     source = str(path)
     try:
         text = Path(path).read_bytes()
@@ -400,7 +439,7 @@ def description_from_urdf(
 
 def _description(
     text: bytes, source: str, base: str | None, tip: str | None, name: str | None
-) -> SerialDescription:
+) -> tuple[SerialDescription, Coupling | None]:
     robot_name, links, joints = _parse(text, source)
     root, by_child = _tree(links, joints)
     available = ", ".join(sorted(links))
@@ -520,7 +559,7 @@ def _description(
                 inertial=inertial,
             )
         )
-    return SerialDescription(
+    desc = SerialDescription(
         name=name if name is not None else _identifier(robot_name),
         convention="universal",
         joints=tuple(out),
@@ -528,3 +567,7 @@ def _description(
         tool=tool_T,
         doc=f"from URDF {source}, chain {base} -> {tip}",
     )
+    mimics = {j.name: j.mimic for j in movable if j.mimic is not None}
+    if not mimics:
+        return desc, None
+    return desc, Coupling.from_mimics([j.name for j in movable], mimics)

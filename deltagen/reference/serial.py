@@ -14,7 +14,8 @@ one copy, which structure detection uses too): a plain product of elementary 4x4
   with ``Rot_i`` the joint's rotation about (revolute) or translation along (prismatic)
   its ``axis``.
 
-The joint variable enters as ``q_i + offset_i`` (revolute: theta / the axis rotation;
+The joint variable enters as ``sign_i q_i + offset_i`` (sign -1 for a reversed joint, whose
+motion axis is then minus the frame's column; revolute: theta / the axis rotation;
 prismatic: d / the translation along the axis) and ``T = base A_1 ... A_n tool``.
 
 Velocities use the geometric construction: every joint axis (unit direction ``w_i`` and,
@@ -159,7 +160,7 @@ def _axes_from_frames(desc, F: np.ndarray, qc: np.ndarray):
             M = F[:, i]
             c = _AXIS[j.axis]
         origins[:, i] = M[:, :3, 3]
-        axes[:, i] = M[:, :3, c]
+        axes[:, i] = j.sign * M[:, :3, c]  # a reversed joint moves about minus the column
     return origins, axes
 
 

@@ -108,7 +108,13 @@ from deltagen.geometry.rotations import rotate as _rotv
 from deltagen.geometry.rotations import rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
-from deltagen.model.structure import PlanarArm, Structure, detect
+from deltagen.model.structure import (
+    ParallelTriple6R,
+    PlanarArm,
+    StanfordArm,
+    Structure,
+    detect,
+)
 
 __all__ = ["AnalyticSolver", "analytic_solver", "solver_for", "WRIST_SINGULAR"]
 
@@ -383,37 +389,218 @@ class _ElbowSolver(AnalyticSolver):
 
         qv = undo(R_G @ w[5])  # R_w w6           (N, 4, 3)
         qx = undo(R_G @ s.wrist_ref)  # R_w x6
-        w4, w5, w6 = w[3], w[4], w[5]
-        c12 = s.cos_45
-        s2 = 1.0 - c12 * c12
-        a_q = qv @ w4
-        b_p = s.cos_56
-        alpha = (a_q - c12 * b_p) / s2
-        beta = (b_p - c12 * a_q) / s2
-        perp = _cross(qv, w4)
-        gam2 = np.sum(perp * perp, axis=-1) / s2 - beta * beta
-        okw = gam2 >= -1e-9
-        gam = np.sqrt(np.maximum(gam2, 0.0))
-        n45 = s.normal_45
-        sig = np.array([1.0, -1.0])  # noflip, flip: sin(q5 - q5s) has the sign of -sig
-        c = (
-            alpha[..., None, None] * w4
-            + beta[..., None, None] * w5
-            + (sig[:, None] * gam[..., None, None]) * n45
-        )  # (N, 4, 2, 3)
-        q5 = _sp1(w5, w6, c)
-        qv2 = np.broadcast_to(qv[:, :, None, :], c.shape)
-        q4 = _sp1(w4, c, qv2)
-        singular = np.linalg.norm(perp, axis=-1) < WRIST_SINGULAR
-        q4 = np.where(singular[..., None], 0.0, q4)
-        # q6: Rot(w6, q6) x6 = Rot(w5, -q5) Rot(w4, -q4) R_w x6
-        y = _rotv(w5, -q5, _rotv(w4, -q4, np.broadcast_to(qx[:, :, None, :], c.shape)))
-        q6 = _sp1(w6, s.wrist_ref, y)
+        q4, q5, q6, okw = _central_wrist(s, w, qv, qx)
         rep = lambda a: np.broadcast_to(a[..., None], q5.shape)  # noqa: E731
         q = np.stack([rep(q1), rep(th2), rep(s.sign3 * th3), q4, q5, q6], axis=-1)
         q = q.reshape(N, 8, 6)
-        okk = (ok & okw)[..., None] & np.ones(2, dtype=bool)
+        okk = (ok[..., None] & okw[..., None]) & np.ones(2, dtype=bool)
         return q, okk.reshape(N, 8)
+
+
+def _central_wrist(s, w, qv, qx):
+    """q4, q5, q6 (..., 2: noflip, flip) and ok (...) of a central wrist whose rotation R_w
+    (the part of the target rotation left to joints 4-6) takes w6 to qv and the reference
+    s.wrist_ref to qx (both (..., 3)); Paden-Kahan subproblem 2 for q4, q5, subproblem 1
+    for q6 (module docstring, spherical_wrist_6r)."""
+    w4, w5, w6 = w[3], w[4], w[5]
+    c12 = s.cos_45
+    s2 = 1.0 - c12 * c12
+    a_q = qv @ w4
+    b_p = s.cos_56
+    alpha = (a_q - c12 * b_p) / s2
+    beta = (b_p - c12 * a_q) / s2
+    perp = _cross(qv, w4)
+    gam2 = np.sum(perp * perp, axis=-1) / s2 - beta * beta
+    okw = gam2 >= -1e-9
+    gam = np.sqrt(np.maximum(gam2, 0.0))
+    n45 = s.normal_45
+    sig = np.array([1.0, -1.0])  # noflip, flip: sin(q5 - q5s) has the sign of -sig
+    c = (
+        alpha[..., None, None] * w4
+        + beta[..., None, None] * w5
+        + (sig[:, None] * gam[..., None, None]) * n45
+    )  # (N, 4, 2, 3)
+    q5 = _sp1(w5, w6, c)
+    qv2 = np.broadcast_to(qv[:, :, None, :], c.shape)
+    q4 = _sp1(w4, c, qv2)
+    singular = np.linalg.norm(perp, axis=-1) < WRIST_SINGULAR
+    q4 = np.where(singular[..., None], 0.0, q4)
+    # q6: Rot(w6, q6) x6 = Rot(w5, -q5) Rot(w4, -q4) R_w x6
+    y = _rotv(w5, -q5, _rotv(w4, -q4, np.broadcast_to(qx[:, :, None, :], c.shape)))
+    q6 = _sp1(w6, s.wrist_ref, y)
+    return q4, q5, q6, okw
+
+
+def _cos_sin_eq(A, B, C, sigma):
+    """The angles x with A cos x + B sin x = C, one per sign sigma (+-1, broadcast):
+    atan2(B, A) + sigma arccos(C / hypot(A, B)), and ok (a real solution within 1e-9;
+    clipped onto the nearest real one otherwise). A = B = 0 (any x, when C = 0) gives x = 0."""
+    r = np.hypot(A, B)
+    ratio = np.where(r > 0.0, C / np.where(r > 0.0, r, 1.0), 0.0)
+    ok = np.abs(ratio) <= 1.0 + 1e-9
+    x = np.arctan2(B, A)[..., None] + sigma * np.arccos(np.clip(ratio, -1.0, 1.0))[..., None]
+    return x, np.broadcast_to(ok[..., None], x.shape)
+
+
+class _ParallelTripleSolver(AnalyticSolver):
+    """model.structure.ParallelTriple6R: axes 2, 3, 4 parallel (direction u), axes 5 and 6
+    meeting in P5 (the UR family). Pieper's solvable class of three consecutive axes meeting
+    at infinity; written here in the product of exponentials (module docstring),
+    G = e1 e2 e3 e4 e5 e6, e_i = exp(xi_i q_i). Rotations about axes parallel to u keep
+    the u component of every point and vector, and turn directions by the sum phi of their
+    angles about u. Hence, with M = e1^-1 G:
+
+    1. q1: P5 is fixed by e5 and e6, so G P5 = e1 e2 e3 e4 P5 and
+       u . (Rot(w1, -q1) (G P5 - o1)) = u . (P5 - o1): A cos q1 + B sin q1 = C, two roots
+       (``shoulder{p|m}``: + / - arccos).
+    2. q5: R_M w6 = Rot(u, phi) R5 w6, so u . Rot(w5, q5) w6 = u . R_M w6: two roots
+       (``wrist{p|m}``).
+    3. q6: Rot(w6, -q6) Rot(w5, -q5) u = R_M^T u (Paden-Kahan subproblem 1; 0 where both
+       sides lie along w6: the wrist singularity, q4 + q6 ... take the whole turn).
+    4. phi = angle about u of R_M R6^T R5^T; N = M e6^-1 e5^-1 = e2 e3 e4.
+    5. elbow: e2 e3 carry the point o4 of axis 4 to N o4 (planar 2R arm normal to u, law of
+       cosines, two bends ``elbow{p|m}``); then the angle of joint 4 about u is phi minus
+       those of joints 2 and 3. Joint i's angle is its angle about u times signs[i].
+
+    2 x 2 x 2 = 8 branches; every one is checked by the forward kinematics (solve). The same
+    steps are emitted as C (derive/serial/ik_closed_form.py, IKKernelBuilder._parallel_triple)."""
+
+    def _solve(self, R_t, p_t, position_only):
+        s, ax = self.detected, self.axes
+        w, o = ax.directions, ax.points
+        u = s.u
+        N = R_t.shape[0]
+        R_G = R_t @ ax.R0.T
+        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        pm = np.array([1.0, -1.0])
+        # 1. q1 (N, 2)
+        v = np.einsum("nij,j->ni", R_G, s.wrist) + p_G - o[0]
+        w1 = w[0]
+        v_par = (v @ w1)[:, None] * w1
+        A = (v - v_par) @ u
+        B = -(_cross(np.broadcast_to(w1, v.shape), v) @ u)
+        C = (s.wrist - o[0]) @ u - (u @ w1) * (v @ w1)
+        q1, ok1 = _cos_sin_eq(A, B, C, pm)
+        # M = e1^-1 G: rotation R_M, translation (a point x maps to R_M x + t_M)
+        R1i = _rot_mats(w1, -q1)  # (N, 2, 3, 3)
+        R_M = R1i @ R_G[:, None]
+        # (a point x: e1^-1 (R_G x + p_G) = Rot(-q1)(R_G x + p_G - o1) + o1)
+        t_M = np.einsum("nkij,nj->nki", R1i, p_G - o[0]) + o[0]
+        # 2. q5 (N, 2, 2)
+        w5, w6 = w[4], w[5]
+        h = np.einsum("nkij,j->nki", R_M, w6) @ u
+        w6p = w6 - (w6 @ w5) * w5
+        q5, ok5 = _cos_sin_eq(
+            np.full(h.shape, w6p @ u),
+            np.full(h.shape, np.cross(w5, w6) @ u),
+            h - (u @ w5) * (w5 @ w6),
+            pm,
+        )
+        # 3. q6: Rot(w6, -q6) a = b, a = Rot(w5, -q5) u, b = R_M^T u
+        a = _rotv(w5, -q5, np.broadcast_to(u, q5.shape + (3,)))
+        b = np.einsum("nkji,j->nki", R_M, u)
+        b = np.broadcast_to(b[:, :, None, :], a.shape)
+        q6 = -_sp1(w6, a, b)
+        # 4. phi, N = M e6^-1 e5^-1
+        x = _rotv(w6, -q6, _rotv(w5, -q5, np.broadcast_to(s.ref, a.shape)))
+        x = np.einsum("nkij,nkmj->nkmi", R_M, x)
+        phi = _sp1(u, s.ref, x)
+        # N o4 = M (e6^-1 e5^-1 o4); e^-1 x = Rot(w, -q)(x - o) + o
+        o4 = o[3]
+        y = _rotv(w5, -q5, np.broadcast_to(o4 - o[4], a.shape)) + o[4]
+        y = _rotv(w6, -q6, y - o[5]) + o[5]
+        y = np.einsum("nkij,nkmj->nkmi", R_M, y) + t_M[:, :, None, :]
+        # 5. elbow: planar 2R about axes 2, 3 taking o4 to y (N, 2, 2, 2)
+        t = (y - o[1]) @ s.plane.T
+        t = np.broadcast_to(t[..., None, :], t.shape[:-1] + (2, 2))
+        th2, th3, ok23 = _two_link(s.upper, s.lower, t, pm)
+        th4 = phi[..., None] - th2 - th3
+        rep = lambda z: np.broadcast_to(z, th2.shape)  # noqa: E731
+        q = np.stack(
+            [
+                rep(q1[:, :, None, None]),
+                s.signs[0] * th2,
+                s.signs[1] * th3,
+                s.signs[2] * th4,
+                rep(q5[..., None]),
+                rep(q6[..., None]),
+            ],
+            axis=-1,
+        )  # (N, shoulder, wrist, elbow, 6)
+        ok = ok1[:, :, None, None] & ok5[..., None] & np.broadcast_to(ok23, th2.shape)
+        # branch order: shoulder, elbow, wrist (configs)
+        q = q.transpose(0, 1, 3, 2, 4).reshape(N, 8, 6)
+        ok = np.broadcast_to(ok, th2.shape).transpose(0, 1, 3, 2).reshape(N, 8)
+        return q, ok
+
+
+class _StanfordSolver(AnalyticSolver):
+    """model.structure.StanfordArm: R R P and a central wrist W (product of exponentials,
+    G = e1 e2 e3 e4 e5 e6). e4 e5 e6 fix W and e3 slides it by q3 w3, so G W = e1 e2 (W +
+    q3 w3); e1, e2 turn about axes through c and keep distances to c:
+
+    1. q3: |W + q3 w3 - c|^2 = |G W - c|^2, a quadratic (``reach{p|m}``: + / - root);
+    2. q1, q2: e1 e2 x = G W with x = W + q3 w3 (Paden-Kahan subproblem 2 about the
+       intersecting axes 1 and 2, two solutions ``shoulder{p|m}``);
+    3. q4, q5, q6: the central wrist of spherical_wrist_6r for R_w = (R1 R2)^T R_G
+       (``noflip`` / ``flip``).
+
+    2 x 2 x 2 = 8 branches, each checked by the forward kinematics (solve)."""
+
+    def _solve(self, R_t, p_t, position_only):
+        s, ax = self.detected, self.axes
+        w = ax.directions
+        N = R_t.shape[0]
+        R_G = R_t @ ax.R0.T
+        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        c = s.shoulder
+        W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
+        pm = np.array([1.0, -1.0])
+        # 1. q3 (N, 2)
+        b = w[2] @ (s.wrist - c)
+        disc = b * b - (s.wrist - c) @ (s.wrist - c) + np.sum((W_t - c) ** 2, axis=-1)
+        ok3 = disc >= -1e-9 * ax.scale**2
+        q3 = -b + pm * np.sqrt(np.maximum(disc, 0.0))[:, None]
+        # 2. subproblem 2: e1(q1) e2(q2) u = v about c, u = x - c, v = W_t - c
+        w1, w2 = w[0], w[1]
+        u = (s.wrist - c) + q3[..., None] * w[2]  # (N, 2, 3)
+        v = np.broadcast_to((W_t - c)[:, None, :], u.shape)
+        c12 = w1 @ w2
+        den = c12 * c12 - 1.0
+        alpha = (c12 * (w2 @ u.transpose(0, 2, 1)) - (v @ w1)) / den
+        beta = (c12 * (v @ w1) - (w2 @ u.transpose(0, 2, 1))) / den
+        n12 = np.cross(w1, w2)
+        g2 = (np.sum(u * u, axis=-1) - alpha**2 - beta**2 - 2 * alpha * beta * c12) / (n12 @ n12)
+        ok2 = g2 >= -1e-9
+        g = np.sqrt(np.maximum(g2, 0.0))
+        z = (
+            alpha[..., None, None] * w1
+            + beta[..., None, None] * w2
+            + (pm[:, None] * g[..., None, None]) * n12
+        )  # (N, reach, shoulder, 3)
+        q2 = _sp1(w2, np.broadcast_to(u[:, :, None, :], z.shape), z)
+        q1 = _sp1(w1, z, np.broadcast_to(v[:, :, None, :], z.shape))
+        # 3. wrist: R_w = R2^T R1^T R_G applied to w6 and the reference
+        q1f, q2f = q1.reshape(N, 4), q2.reshape(N, 4)
+
+        def undo(vec):
+            vec = np.broadcast_to(vec[:, None, :], (N, 4, 3))
+            return _rotv(w2, -q2f, _rotv(w1, -q1f, vec))
+
+        qv, qx = undo(R_G @ w[5]), undo(R_G @ s.wrist_ref)
+        q4, q5, q6, okw = _central_wrist(s, w, qv, qx)
+        rep = lambda a: np.broadcast_to(a[..., None], q5.shape)  # noqa: E731
+        q3f = np.repeat(q3, 2, axis=1)  # (N, 4): reach outer, shoulder inner
+        q = np.stack([rep(q1f), rep(q2f), rep(q3f), q4, q5, q6], axis=-1).reshape(N, 8, 6)
+        ok = np.repeat(ok3[:, None], 4, axis=1) & np.repeat(ok2, 2, axis=1) & okw
+        return q, (ok[..., None] & np.ones(2, dtype=bool)).reshape(N, 8)
+
+
+def _rot_mats(w, angle):
+    """Rotation matrices (..., 3, 3) about the unit axis w by ``angle`` (...) (Rodrigues)."""
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
 
 
 def solver_for(
@@ -422,7 +609,14 @@ def solver_for(
     """The closed-form solver of a detected structure (None for None)."""
     if detected is None:
         return None
-    cls = _PlanarSolver if isinstance(detected, PlanarArm) else _ElbowSolver
+    if isinstance(detected, PlanarArm):
+        cls: type[AnalyticSolver] = _PlanarSolver
+    elif isinstance(detected, ParallelTriple6R):
+        cls = _ParallelTripleSolver
+    elif isinstance(detected, StanfordArm):
+        cls = _StanfordSolver
+    else:
+        cls = _ElbowSolver
     return cls(detected, description)
 
 

@@ -200,6 +200,7 @@ def _geometric_jacobian(arm, q: np.ndarray) -> np.ndarray:
         cols = np.array([_AXIS[j.axis] for j in desc.joints])
     o = M[:, :, :3, 3]  # (N, n, 3) points on the axes
     w = np.einsum("nkij,kj->nki", M[:, :, :3, :], np.eye(4)[cols])  # (N, n, 3) directions
+    w = w * np.array([j.sign for j in desc.joints])[None, :, None]  # reversed joints
     p = F[:, -1, :3, 3]
     rev = np.array([j.revolute for j in desc.joints])
     J = np.empty((N, 6, n))

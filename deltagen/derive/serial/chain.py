@@ -86,12 +86,13 @@ class ArmSymbols:
 
 def joint_motion(joint, i: int, sym: ArmSymbols):
     """(cos, sin) of the joint angle (revolute) or the displacement (prismatic) of joint i,
-    with its offset folded in exactly."""
+    with its offset folded in exactly; a reversed joint (sign -1) enters as -q_i + offset_i
+    (cos(-q) = cos q, sin(-q) = -sin q)."""
     if joint.revolute:
         co, so = cos_sin(exact_angle(joint.offset))
-        c, s = sym.cos[i], sym.sin[i]
+        c, s = sym.cos[i], sym.sin[i] * int(joint.sign)
         return (sp.expand(c * co - s * so), sp.expand(s * co + c * so)), None
-    return None, sym.q[i] + exact_length(joint.offset)
+    return None, int(joint.sign) * sym.q[i] + exact_length(joint.offset)
 
 
 def link_transform(desc, i: int, sym: ArmSymbols):
@@ -164,7 +165,8 @@ class Chain:
             pre = prev * P
             col = "xyz".index(axis)
             # joint axis w_i and a point o_i on it, in the base frame
-            w = sp.Matrix([sp.expand(pre[r, col]) for r in range(3)])
+            # (a reversed joint moves about / along minus that column)
+            w = sp.Matrix([sp.expand(int(desc.joints[i].sign) * pre[r, col]) for r in range(3)])
             o = sp.Matrix([sp.expand(pre[r, 3]) for r in range(3)])
             self.axes.append(w)
             self.points.append(o)

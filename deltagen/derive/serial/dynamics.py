@@ -137,7 +137,8 @@ class Dynamics:
             self.R.append(A[:3, :3].applyfunc(sp.expand))
             self.p.append(A[:3, 3].applyfunc(sp.expand))
             post = post_transform(desc, i)
-            e = sp.Matrix([1 if axis == k else 0 for k in "xyz"])
+            # the motion axis; minus it for a reversed joint (sign -1: it moves by -q)
+            e = sp.Matrix([int(desc.joints[i].sign) if axis == k else 0 for k in "xyz"])
             Rt = post[:3, :3].T
             self.z.append((Rt * e).applyfunc(sp.expand))
             self.u_axis.append((-Rt * post[:3, 3]).applyfunc(sp.expand))

@@ -2,8 +2,9 @@
 
 The arm's structure and every constant of its closed form come from
 :func:`deltagen.model.structure.detect` (a :class:`~deltagen.model.structure.PlanarArm`,
-:class:`~deltagen.model.structure.Elbow4R` or
-:class:`~deltagen.model.structure.SphericalWrist6R`); the numpy solver of
+:class:`~deltagen.model.structure.Elbow4R`, :class:`~deltagen.model.structure.SphericalWrist6R`
+or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`; the Stanford arm
+has no C kernel yet); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
 every branch of a batch of poses in one call, like the forward kinematics. The steps and
@@ -51,11 +52,11 @@ from deltagen import status as st
 from deltagen.derive.functions import AllFinite
 from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
-from deltagen.model.structure import Elbow4R, PlanarArm, detect
+from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, detect
 
 TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
 WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
-SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar")
+SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
 
@@ -537,6 +538,95 @@ class IKKernelBuilder:
                 solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
         return solutions
 
+    # -- the UR family (solve.analytic._ParallelTripleSolver, same steps) ----------------
+
+    def _rotate_target_sym(self, v):
+        """R_G v = R_t R0^T v for a symbolic vector v."""
+        u = [sum(self.const(self.axes.R0[r, c]) * v[r] for r in range(3)) for c in range(3)]
+        return tuple(_dot(self.R_t[r], u) for r in range(3))
+
+    def _unrotate_target_sym(self, v):
+        """R_G^T v = R0 R_t^T v for a symbolic vector v."""
+        y = [sum(self.R_t[r][c] * v[r] for r in range(3)) for c in range(3)]
+        return tuple(sum(self.const(self.axes.R0[r, c]) * y[c] for c in range(3)) for r in range(3))
+
+    def _cos_sin_eq(self, name, A, B, C):
+        """A cos x + B sin x = C: (atan2(B, A), arccos(C / hypot(A, B)) as _Angles, ok)."""
+        tape = self.tape
+        base = _atan2(tape, f"{name}_base", B, A)
+        r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
+        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / sp.Max(r, _TINY), r > 0), (0, True)))
+        ok = tape.let(f"ok_{name}", sp.Abs(ratio) <= 1 + 1e-9)
+        kc = tape.let(f"{name}_kc", sp.Min(sp.Max(ratio, -1), 1))
+        ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
+        return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
+
+    def _parallel_triple(self):
+        s, ax, tape, K = self.s, self.axes, self.tape, self.const
+        w = [K.vec(x) for x in ax.directions]
+        o = [K.vec(x) for x in ax.points]
+        u, w1, w5, w6 = K.vec(s.u), w[0], w[4], w[5]
+        tape.stage("UR: q1 from u . Rot(w1, -q1) (G P5 - o1) = u . (P5 - o1)")
+        v = tape.vec("v_p5", _add(self._move_point(s.wrist), _scale(-1, o[0])))
+        w1v = tape.let("w1v", _dot(w1, v))
+        A = _dot(_add(v, _scale(-w1v, w1)), u)
+        B = -_dot(_cross(w1, v), u)
+        C = K(s.u @ (s.wrist - ax.points[0])) - K(s.u @ ax.directions[0]) * w1v
+        base1, acos1, ok1 = self._cos_sin_eq("q1eq", A, B, C)
+        w6n = ax.directions[5] - (ax.directions[5] @ ax.directions[4]) * ax.directions[4]
+        RGw6 = self._rotate_target(ax.directions[5])
+        solutions = {}
+        for sg1, a in ((1, "p"), (-1, "m")):
+            tag1 = f"s{a}"
+            tape.stage(f"UR: shoulder{a}: q1, and q5 from u . Rot(w5, q5) w6 = u . R_M w6")
+            q1 = _named(tape, f"q1_{tag1}", base1 + acos1.scaled(sg1))
+            h = _dot(u, _rotate(w1, q1.c, -q1.s, RGw6))
+            base5, acos5, ok5 = self._cos_sin_eq(
+                f"q5eq_{tag1}",
+                K(w6n @ s.u),
+                K(np.cross(ax.directions[4], ax.directions[5]) @ s.u),
+                h - K((s.u @ ax.directions[4]) * (ax.directions[4] @ ax.directions[5])),
+            )
+            b = tape.vec(f"b_{tag1}", self._unrotate_target_sym(_rotate(w1, q1.c, q1.s, u)))
+            for sg5, c5 in ((1, "p"), (-1, "m")):
+                tag = f"{tag1}w{c5}"
+                tape.stage(f"UR: shoulder{a} wrist{c5}: q5, q6 (Paden-Kahan 1), phi, N o4")
+                q5 = _named(tape, f"q5_{tag}", base5 + acos5.scaled(sg5))
+                avec = tape.vec(f"a_{tag}", _rotate(w5, q5.c, -q5.s, u))
+                q6 = _sp1(tape, f"mq6_{tag}", w6, avec, b).scaled(-1)
+                ref = K.vec(s.ref)
+                x = _rotate(w6, q6.c, -q6.s, _rotate(w5, q5.c, -q5.s, ref))
+                x = tape.vec(f"x_{tag}", _rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
+                phi = _sp1(tape, f"phi_{tag}", u, ref, x)
+                y = _add(_rotate(w5, q5.c, -q5.s, _add(o[3], _scale(-1, o[4]))), o[4])
+                y = _add(_rotate(w6, q6.c, -q6.s, _add(y, _scale(-1, o[5]))), o[5])
+                y = tape.vec(f"y_{tag}", y)
+                Gy = _add(self._rotate_target_sym(_add(y, _scale(-1, K.vec(ax.p0)))), self.p_t)
+                Ny = _add(_rotate(w1, q1.c, -q1.s, _add(Gy, _scale(-1, o[0]))), o[0])
+                d = _add(Ny, _scale(-1, o[1]))
+                t = (
+                    tape.let(f"t1_{tag}", _dot(d, K.vec(s.plane[0]))),
+                    tape.let(f"t2_{tag}", _dot(d, K.vec(s.plane[1]))),
+                )
+                kc, ks, bend, ok2 = self._cosine_law(tag, t, s.upper, s.lower)
+                for sg2, e in ((1, "p"), (-1, "m")):
+                    etag = f"{tag}e{e}"
+                    tape.stage(f"UR: shoulder{a} elbow{e} wrist{c5}: joints 2, 3, 4")
+                    th2, th3 = self._elbow(etag, t, kc, ks, bend, sg2, s.upper, s.lower)
+                    th4 = _named(tape, f"th4_{etag}", phi - th2 - th3)
+                    sign = [float(x) for x in s.signs]
+                    angles = (
+                        q1,
+                        th2.scaled(sign[0]),
+                        th3.scaled(sign[1]),
+                        th4.scaled(sign[2]),
+                        q5,
+                        q6,
+                    )
+                    ok = sp.And(ok1, ok5, ok2)
+                    solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = (angles, ok)
+        return solutions
+
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
         self._target()
@@ -544,6 +634,8 @@ class IKKernelBuilder:
         invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
         if isinstance(s, PlanarArm):
             solutions = self._planar()
+        elif isinstance(s, ParallelTriple6R):
+            solutions = self._parallel_triple()
         else:
             solutions = self._elbow_arm()
         q_out, valid_out, valid_flags = [], [], []

@@ -1,0 +1,203 @@
+"""Every solution of a general 6R arm (solve/general6r.py: Raghavan-Roth elimination,
+Manocha-Canny eigenproblem, Newton polish) and its use by SerialRobot.ik_all.
+
+Evidence: random 6R arms (random DH) and poses from the reference fk of random q (the
+original q must be among the valid solutions); every valid solution checked with the
+reference fk (DH matrices, not the solver's product of exponentials); the published arm with
+16 real solutions of Manocha & Canny, "Efficient inverse kinematics for general 6R
+manipulators", IEEE Trans. Robotics and Automation 10(5), 1994, Table I (DH) and Table III
+(the 16 solutions, degrees) -- problem 6 of Wampler & Morgan (1991), a variation of the arm of
+Manseur & Doty (1989); a numeric multi-start that finds no solution the solver missed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from deltagen import SerialRobot
+from deltagen.inputs import InputError
+from deltagen.solve import general6r
+from deltagen.solve import numeric as ik_numeric
+
+
+def _wrapped(a):
+    return np.abs((a + np.pi) % (2 * np.pi) - np.pi)
+
+
+def _random_arm(seed):
+    r = np.random.default_rng(seed)
+    rows = [
+        dict(
+            a=float(r.uniform(0.1, 0.8)),
+            alpha=float(r.uniform(-np.pi, np.pi)),
+            d=float(r.uniform(-0.5, 0.5)),
+            offset=float(r.uniform(-1, 1)),
+        )
+        for _ in range(6)
+    ]
+    return SerialRobot.from_dh(rows, "standard", name=f"random6r_{seed}", backend="reference")
+
+
+def _found(Q, valid, q, tol=1e-6):
+    return np.where(valid, _wrapped(Q - q[:, None]).max(-1), np.inf).min(-1) < tol
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_random_arms_every_solution(seed):
+    arm = _random_arm(seed)
+    (elimination,), complete = arm._general()
+    assert complete and elimination.regular
+    assert elimination.fit_residual < 1e-12  # Raghavan-Roth's structure holds
+    rng = np.random.default_rng(100 + seed)
+    q = rng.uniform(-np.pi, np.pi, (400, 6))
+    T = arm.fk(q)
+    Q, valid = arm.ik_all(T)  # auto: no closed form, a regular elimination -> complete
+    assert Q.shape == (400, 16, 6)
+    found = _found(Q, valid, q)
+    assert found.mean() >= 0.995, f"missed rows {np.flatnonzero(~found)}"
+    Tq = arm.fk(np.where(valid[..., None], Q, 0.0))
+    assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[valid].max() < 1e-10
+    # real solutions come in even numbers for a generic pose (complex roots pair up)
+    assert np.mean(valid.sum(-1) % 2 == 0) > 0.97
+    assert np.isnan(Q[~valid]).all()
+
+
+# Manocha & Canny (1994), Table I: a_i [m], d_i [m], alpha_i [deg]
+MC_ROWS = [
+    dict(a=0.3, d=0.0, alpha_deg=90.0),
+    dict(a=1.0, d=0.0, alpha_deg=1.0),
+    dict(a=0.0, d=0.2, alpha_deg=90.0),
+    dict(a=1.5, d=0.0, alpha_deg=1.0),
+    dict(a=0.0, d=0.0, alpha_deg=90.0),
+    dict(a=0.0, d=0.0, alpha_deg=1.0),
+]
+# Table III: the 16 solutions theta_1..theta_6 [deg] of their end-effector pose
+MC_TABLE_III = [
+    [-96.28, -6.27, 179.96, 38.48, 52.55, -39.40],
+    [-120.78, 172.33, -179.07, 31.33, -146.71, 142.82],
+    [88.67, -176.72, -176.72, -63.24, 157.19, 140.43],
+    [113.84, 5.30, -177.74, -55.92, -62.98, -43.37],
+    [-178.12, 108.19, -147.73, -5.69, -164.67, 179.58],
+    [168.32, -103.89, 146.60, -17.24, -171.87, 98.16],
+    [-12.94, -105.09, -114.97, 3.02, 7.41, -79.42],
+    [2.51, 108.07, 112.04, -10.52, 0.00, -0.10],
+    [2.51, 108.07, -67.95, -169.47, 179.99, 179.89],
+    [-12.94, -105.09, 65.02, 176.97, 172.58, 100.57],
+    [168.32, -103.89, -33.39, -162.75, -8.12, -81.83],
+    [-178.12, 108.19, 32.26, -174.30, -15.32, -0.41],
+    [88.67, -176.72, 3.27, -116.75, 22.80, -39.56],
+    [-96.28, -6.27, -0.03, 141.51, 127.44, 140.59],
+    [-120.78, 172.33, 0.92, 148.66, -33.28, -37.17],
+    [113.84, 5.30, 2.25, -124.07, -117.01, 136.62],
+]
+
+
+def test_manocha_canny_arm_has_16_real_solutions():
+    arm = SerialRobot.from_dh(MC_ROWS, "standard", name="manocha_canny", backend="reference")
+    table = np.radians(MC_TABLE_III)
+    T = arm.fk(table)
+    # the table's 16 solutions reach one pose (to its 2-decimal rounding)
+    assert np.abs(T - T[0]).max() < 1e-3
+    Q, valid = arm.ik_all(T[0])
+    assert valid.sum() == 16
+    ours = Q[valid]
+    d = np.degrees(_wrapped(ours[:, None] - table[None]).max(-1))
+    assert d.min(axis=0).max() < 0.05  # every published solution is one of ours
+    assert d.min(axis=1).max() < 0.05  # and every one of ours is published
+    assert np.abs(arm.fk(ours) - T[0]).max() < 1e-10
+
+
+def test_no_solution_is_missed_numeric_multistart():
+    arm = _random_arm(3)
+    rng = np.random.default_rng(4)
+    poses, seeds = 6, 64
+    T = arm.fk(rng.uniform(-np.pi, np.pi, (poses, 6)))
+    Q, valid = arm.ik_all(T, method="complete")
+    res = ik_numeric.solve(
+        arm,
+        np.repeat(T, seeds, axis=0),
+        rng.uniform(-np.pi, np.pi, (poses * seeds, 6)),
+        tol=1e-11,
+        max_iter=200,
+        respect_limits=False,
+    )
+    conv = res.converged.reshape(poses, seeds)
+    qn = res.q.reshape(poses, seeds, 6)
+    assert conv.mean() > 0.3
+    for p in range(poses):
+        for s in np.flatnonzero(conv[p]):
+            assert _wrapped(Q[p][valid[p]] - qn[p, s]).max(-1).min() < 1e-6
+
+
+def _jaco():
+    rtb = pytest.importorskip("roboticstoolbox")
+    rows = []
+    for link in rtb.models.DH.Jaco().links:
+        row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
+        row.update(offset=float(link.offset), flip=bool(link.isflip))
+        rows.append(row)
+    return SerialRobot.from_dh(rows, "standard", name="jaco_g", backend="reference")
+
+
+def test_jaco_complete_by_a_regular_arrangement():
+    """rtb's Jaco (meeting / parallel neighbouring axes): the forward elimination's pencil
+    is singular, a cyclic arrangement's is not; ik_all is complete by default and finds
+    everything the combined method finds (and the originals the combined method misses)."""
+    arm = _jaco()
+    assert not general6r.General6R(arm.description).regular
+    (elimination,), complete = arm._general()
+    assert (
+        complete
+        and elimination.regular
+        and (elimination.shift, elimination.reverse)
+        != (
+            0,
+            False,
+        )
+    )
+    q = np.random.default_rng(8).uniform(-np.pi, np.pi, (60, 6))
+    T = arm.fk(q)
+    Qa, Va = arm.ik_all(T)
+    assert Qa.shape == (60, 16, 6)
+    Qc, Vc = arm.ik_all(T, method="combined")
+    assert Qc.shape == (60, 8, 6) and len(arm.analytic_configs()) == 8
+    fa, fc = _found(Qa, Va, q), _found(Qc, Vc, q)
+    assert fa.all() and np.all(fa | ~fc)
+    Tq = arm.fk(np.where(Va[..., None], Qa, 0.0))
+    assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[Va].max() < 1e-10
+
+
+def test_best_effort_path_of_singular_eliminations():
+    """With only singular eliminations (forced here: the Jaco's forward and reversed
+    chains), ik_all(method="complete") is a best effort that adds the combined branches:
+    nothing invalid is marked valid, and it finds whatever the combined method finds."""
+    arm = _jaco()
+    forced = [general6r.General6R(arm.description, reverse=r) for r in (False, True)]
+    assert not any(g.regular for g in forced)
+    arm._general_6r = (forced, False)
+    q = np.random.default_rng(9).uniform(-np.pi, np.pi, (20, 6))
+    T = arm.fk(q)
+    Qa, Va = arm.ik_all(T, method="complete")
+    Qc, Vc = arm.ik_all(T, method="combined")
+    assert np.all(_found(Qa, Va, q) | ~_found(Qc, Vc, q))
+    Tq = arm.fk(np.where(Va[..., None], Qa, 0.0))
+    assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[Va].max() < 1e-10
+
+
+def test_ik_all_methods_are_checked():
+    arm = _random_arm(1)
+    T = arm.fk(np.zeros(6))
+    with pytest.raises(InputError, match="method must be"):
+        arm.ik_all(T, method="magic")
+    with pytest.raises(InputError, match="no closed-form inverse"):
+        arm.ik_all(T, method="closed_form")
+    with pytest.raises(InputError, match="combined method does not apply"):
+        arm.ik_all(T, method="combined")
+    scara = SerialRobot.load("lecture_scara", backend="reference")
+    with pytest.raises(InputError, match="needs a 6R arm"):
+        scara.ik_all(np.eye(4), method="complete")
+    q, valid = arm.ik_all(np.full((4, 4), np.nan))
+    assert not valid.any() and np.isnan(q).all()
+    with pytest.raises(InputError, match="6 revolute joints"):
+        general6r.General6R(scara.description)
