@@ -435,3 +435,24 @@ def test_every_link_pose_matches_pinocchio(path_name, odd_path):
                 np.testing.assert_allclose(T[k], data.oMf[fid].homogeneous, rtol=0, atol=1e-12)
             checked += 1
     assert checked == (6 if path_name == "ur5" else 7) + 1  # every moving link and the tip
+
+
+def test_quirks_of_published_files_are_read_with_a_warning(tmp_path):
+    """<limit lower="0" upper="0"> (the specification's defaults, in files that give only
+    effort and velocity) is no position limit, and <mimic> on a fixed joint is ignored
+    (urdfdom and pinocchio ignore it); both say so."""
+    path = tmp_path / "quirks.urdf"
+    path.write_text(
+        _robot(
+            '<link name="a"/><link name="b"/><link name="c"/>'
+            + _joint(inner='<limit lower="0" upper="0" effort="1" velocity="1"/>')
+            + '<joint name="k" type="fixed"><parent link="b"/><child link="c"/>'
+            '<mimic joint="j"/></joint>'
+        )
+    )
+    with pytest.warns(URDFWarning) as record:
+        desc = description_from_urdf(path)
+    messages = " | ".join(str(w.message) for w in record)
+    assert "lower = upper = 0.0, read as no position limits" in messages
+    assert "<mimic> on a fixed joint is ignored" in messages
+    assert desc.n == 1 and np.all(np.isinf(desc.qlim))

@@ -195,9 +195,14 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
         )
     mimic = None
     mim = element.find("mimic")
+    if mim is not None and kind not in _MOVABLE:
+        # a fixed joint has no variable to couple (robot vendors leave <mimic> in when they
+        # fix a gripper joint: TALOS' arm); ignored as urdfdom and pinocchio ignore it
+        warnings.warn(
+            f"URDF {where}: <mimic> on a {kind} joint is ignored", URDFWarning, stacklevel=4
+        )
+        mim = None
     if mim is not None:
-        if kind not in _MOVABLE:
-            raise GeometryError(f"{where}: a {kind} joint cannot mimic another")
         target = mim.get("joint")
         if not target:
             raise GeometryError(f"{where} <mimic>: missing joint attribute")
@@ -243,9 +248,19 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
             )
         lo = _number(lim, "lower", f"{where} <limit>", 0.0)
         hi = _number(lim, "upper", f"{where} <limit>", 0.0)
-        if not lo < hi:
+        if lo > hi:
             raise GeometryError(f"{where} <limit>: lower {lo!r} must be below upper {hi!r}")
-        limit = (lo, hi)
+        if lo == hi:
+            # lower and upper default to 0 in the specification: files that give a <limit>
+            # only for effort and velocity carry 0 = 0 (the double pendulum of
+            # example-robot-data). A joint that cannot move would be a fixed joint.
+            warnings.warn(
+                f"URDF {where}: <limit> lower = upper = {lo!r}, read as no position limits",
+                URDFWarning,
+                stacklevel=4,
+            )
+        else:
+            limit = (lo, hi)
     if lim is not None:  # checked as numbers, not kept (module docstring)
         for attr in ("velocity", "effort"):
             if lim.get(attr) is not None:
