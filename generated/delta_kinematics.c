@@ -1198,6 +1198,533 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     return 0;
 }
 
+int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, double *restrict q, double *restrict qd, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || q == NULL || qd == NULL) {
+        return -1;
+    }
+    const double r_a = geometry->r_a;
+    const double r_b = geometry->r_b;
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double r = r_a - r_b;
+    const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_DELTA_BLOCK];
+        double y_b[DELTAGEN_DELTA_BLOCK];
+        double z_b[DELTAGEN_DELTA_BLOCK];
+        double phi_b[DELTAGEN_DELTA_BLOCK];
+        double xd_b[DELTAGEN_DELTA_BLOCK];
+        double yd_b[DELTAGEN_DELTA_BLOCK];
+        double zd_b[DELTAGEN_DELTA_BLOCK];
+        double phid_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 3 + 0];
+                y_b[k] = p[(start + k) * 3 + 1];
+                z_b[k] = p[(start + k) * 3 + 2];
+                phi_b[k] = 0.0;  /* no fourth axis */
+                xd_b[k] = pd[(start + k) * 3 + 0];
+                yd_b[k] = pd[(start + k) * 3 + 1];
+                zd_b[k] = pd[(start + k) * 3 + 2];
+                phid_b[k] = 0.0;  /* no fourth axis */
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 4 + 0];
+                y_b[k] = p[(start + k) * 4 + 1];
+                z_b[k] = p[(start + k) * 4 + 2];
+                phi_b[k] = p[(start + k) * 4 + 3];
+                xd_b[k] = pd[(start + k) * 4 + 0];
+                yd_b[k] = pd[(start + k) * 4 + 1];
+                zd_b[k] = pd[(start + k) * 4 + 2];
+                phid_b[k] = pd[(start + k) * 4 + 3];
+            }
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd4_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double phi = phi_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            const double phid = phid_b[k];
+            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+            const double t0_0 = -r;
+            const double t0_1 = cos_theta1*x;
+            const double t0_2 = sin_theta1*y;
+            const double t0_3 = 2*l_a;
+            const double t0_4 = t0_3*z;
+            const double t0_5 = 2*r;
+            const double t0_6 = l_a*l_a - (l_b*l_b) + r*r + x*x + y*y + z*z;
+            const double t0_7 = cos_theta2*x;
+            const double t0_8 = sin_theta2*y;
+            const double t0_9 = cos_theta3*x;
+            const double t0_10 = sin_theta3*y;
+            const double E1 = -t0_3*(t0_0 + t0_1 + t0_2);
+            const double F1 = t0_4;
+            const double G1 = -t0_1*t0_5 - t0_2*t0_5 + t0_6;
+            const double E2 = -t0_3*(t0_0 + t0_7 + t0_8);
+            const double F2 = t0_4;
+            const double G2 = -t0_5*t0_7 - t0_5*t0_8 + t0_6;
+            const double E3 = -t0_3*(t0_0 + t0_10 + t0_9);
+            const double F3 = t0_4;
+            const double G3 = -t0_10*t0_5 - t0_5*t0_9 + t0_6;
+            /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+            const double disc1 = E1*E1 + F1*F1 - (G1*G1);
+            const double disc2 = E2*E2 + F2*F2 - (G2*G2);
+            const double disc3 = E3*E3 + F3*F3 - (G3*G3);
+            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+            const double t2_0 = sqrt(disc1);
+            const double t2_1 = sqrt(disc2);
+            const double t2_2 = sqrt(disc3);
+            const double ik_x1 = -E1*G1 - F1*t2_0;
+            const double ik_y1 = E1*t2_0 - F1*G1;
+            const double ik_x2 = -E2*G2 - F2*t2_1;
+            const double ik_y2 = E2*t2_1 - F2*G2;
+            const double ik_x3 = -E3*G3 - F3*t2_2;
+            const double ik_y3 = E3*t2_2 - F3*G3;
+            /* crank angles q = atan2(Y, X) in (-pi, pi] */
+            const double q1 = atan2(ik_y1, ik_x1);
+            const double q2 = atan2(ik_y2, ik_x2);
+            const double q3 = atan2(ik_y3, ik_x3);
+            /* cos q_i, sin q_i = (X, Y) / rho^2 */
+            const double inv_rho_sq1 = 1.0/(E1*E1 + F1*F1);
+            const double inv_rho_sq2 = 1.0/(E2*E2 + F2*F2);
+            const double inv_rho_sq3 = 1.0/(E3*E3 + F3*F3);
+            const double cos_q1 = ik_x1*inv_rho_sq1;
+            const double sin_q1 = ik_y1*inv_rho_sq1;
+            const double cos_q2 = ik_x2*inv_rho_sq2;
+            const double sin_q2 = ik_y2*inv_rho_sq2;
+            const double cos_q3 = ik_x3*inv_rho_sq3;
+            const double sin_q3 = ik_y3*inv_rho_sq3;
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t5_0 = cos_q1*l_a + r;
+            const double t5_1 = cos_q2*l_a + r;
+            const double t5_2 = cos_q3*l_a + r;
+            const double S_x1 = cos_theta1*t5_0;
+            const double S_y1 = sin_theta1*t5_0;
+            const double S_z1 = -l_a*sin_q1;
+            const double S_x2 = cos_theta2*t5_1;
+            const double S_y2 = sin_theta2*t5_1;
+            const double S_z2 = -l_a*sin_q2;
+            const double S_x3 = cos_theta3*t5_2;
+            const double S_y3 = sin_theta3*t5_2;
+            const double S_z3 = -l_a*sin_q3;
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t6_0 = -x;
+            const double t6_1 = -y;
+            const double t6_2 = -z;
+            const double D11 = -S_x1 - t6_0;
+            const double D12 = -S_y1 - t6_1;
+            const double D13 = -S_z1 - t6_2;
+            const double D21 = -S_x2 - t6_0;
+            const double D22 = -S_y2 - t6_1;
+            const double D23 = -S_z2 - t6_2;
+            const double D31 = -S_x3 - t6_0;
+            const double D32 = -S_y3 - t6_1;
+            const double D33 = -S_z3 - t6_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t7_0 = l_a*z;
+            const double t7_1 = l_a*sin_q1;
+            const double t7_2 = l_a*sin_q2;
+            const double t7_3 = l_a*sin_q3;
+            const double jq1 = -cos_q1*t7_0 - cos_theta1*t7_1*x + l_a*r*sin_q1 - sin_theta1*t7_1*y;
+            const double jq2 = -cos_q2*t7_0 - cos_theta2*t7_2*x + l_a*r*sin_q2 - sin_theta2*t7_2*y;
+            const double jq3 = -cos_q3*t7_0 - cos_theta3*t7_3*x + l_a*r*sin_q3 - sin_theta3*t7_3*y;
+            /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+            const double inv_jq1 = 1.0/jq1;
+            const double inv_jq2 = 1.0/jq2;
+            const double inv_jq3 = 1.0/jq3;
+            const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+            const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+            const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+            /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(phid));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            /* outputs (q NaN where unreachable, rates NaN unless OK) */
+            const int t10_0 = ((invalid) | (unreachable));
+            const int t10_1 = ((invalid) | (singular) | (unreachable));
+            const double out_q1 = ((t10_0) ? NAN : q1);
+            const double out_q2 = ((t10_0) ? NAN : q2);
+            const double out_q3 = ((t10_0) ? NAN : q3);
+            const double out_q4 = ((t10_0) ? NAN : phi);
+            const double out_qd1 = ((t10_1) ? NAN : qd1);
+            const double out_qd2 = ((t10_1) ? NAN : qd2);
+            const double out_qd3 = ((t10_1) ? NAN : qd3);
+            const double out_qd4 = ((t10_1) ? NAN : phid);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(out_qd1) & isfinite(out_qd2) & isfinite(out_qd3) & isfinite(out_qd4))))));
+            const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
+            const double out_q2_checked = ((nonfinite_output) ? NAN : out_q2);
+            const double out_q3_checked = ((nonfinite_output) ? NAN : out_q3);
+            const double out_q4_checked = ((nonfinite_output) ? NAN : out_q4);
+            const double out_qd1_checked = ((nonfinite_output) ? NAN : out_qd1);
+            const double out_qd2_checked = ((nonfinite_output) ? NAN : out_qd2);
+            const double out_qd3_checked = ((nonfinite_output) ? NAN : out_qd3);
+            const double out_qd4_checked = ((nonfinite_output) ? NAN : out_qd4);
+            out_q1_checked_b[k] = out_q1_checked;
+            out_q2_checked_b[k] = out_q2_checked;
+            out_q3_checked_b[k] = out_q3_checked;
+            out_q4_checked_b[k] = out_q4_checked;
+            out_qd1_checked_b[k] = out_qd1_checked;
+            out_qd2_checked_b[k] = out_qd2_checked;
+            out_qd3_checked_b[k] = out_qd3_checked;
+            out_qd4_checked_b[k] = out_qd4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
+                qd[(start + k) * 3 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 3 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 3 + 2] = out_qd3_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
+                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
+                qd[(start + k) * 4 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 4 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 4 + 2] = out_qd3_checked_b[k];
+                qd[(start + k) * 4 + 3] = out_qd4_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
+int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict q, double *restrict qd, double *restrict qdd, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || pdd == NULL || q == NULL || qd == NULL || qdd == NULL) {
+        return -1;
+    }
+    const double r_a = geometry->r_a;
+    const double r_b = geometry->r_b;
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double r = r_a - r_b;
+    const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_DELTA_BLOCK];
+        double y_b[DELTAGEN_DELTA_BLOCK];
+        double z_b[DELTAGEN_DELTA_BLOCK];
+        double phi_b[DELTAGEN_DELTA_BLOCK];
+        double xd_b[DELTAGEN_DELTA_BLOCK];
+        double yd_b[DELTAGEN_DELTA_BLOCK];
+        double zd_b[DELTAGEN_DELTA_BLOCK];
+        double phid_b[DELTAGEN_DELTA_BLOCK];
+        double xdd_b[DELTAGEN_DELTA_BLOCK];
+        double ydd_b[DELTAGEN_DELTA_BLOCK];
+        double zdd_b[DELTAGEN_DELTA_BLOCK];
+        double phidd_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 3 + 0];
+                y_b[k] = p[(start + k) * 3 + 1];
+                z_b[k] = p[(start + k) * 3 + 2];
+                phi_b[k] = 0.0;  /* no fourth axis */
+                xd_b[k] = pd[(start + k) * 3 + 0];
+                yd_b[k] = pd[(start + k) * 3 + 1];
+                zd_b[k] = pd[(start + k) * 3 + 2];
+                phid_b[k] = 0.0;  /* no fourth axis */
+                xdd_b[k] = pdd[(start + k) * 3 + 0];
+                ydd_b[k] = pdd[(start + k) * 3 + 1];
+                zdd_b[k] = pdd[(start + k) * 3 + 2];
+                phidd_b[k] = 0.0;  /* no fourth axis */
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 4 + 0];
+                y_b[k] = p[(start + k) * 4 + 1];
+                z_b[k] = p[(start + k) * 4 + 2];
+                phi_b[k] = p[(start + k) * 4 + 3];
+                xd_b[k] = pd[(start + k) * 4 + 0];
+                yd_b[k] = pd[(start + k) * 4 + 1];
+                zd_b[k] = pd[(start + k) * 4 + 2];
+                phid_b[k] = pd[(start + k) * 4 + 3];
+                xdd_b[k] = pdd[(start + k) * 4 + 0];
+                ydd_b[k] = pdd[(start + k) * 4 + 1];
+                zdd_b[k] = pdd[(start + k) * 4 + 2];
+                phidd_b[k] = pdd[(start + k) * 4 + 3];
+            }
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd4_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd4_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double phi = phi_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            const double phid = phid_b[k];
+            const double xdd = xdd_b[k];
+            const double ydd = ydd_b[k];
+            const double zdd = zdd_b[k];
+            const double phidd = phidd_b[k];
+            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+            const double t0_0 = -r;
+            const double t0_1 = cos_theta1*x;
+            const double t0_2 = sin_theta1*y;
+            const double t0_3 = 2*l_a;
+            const double t0_4 = t0_3*z;
+            const double t0_5 = 2*r;
+            const double t0_6 = l_a*l_a - (l_b*l_b) + r*r + x*x + y*y + z*z;
+            const double t0_7 = cos_theta2*x;
+            const double t0_8 = sin_theta2*y;
+            const double t0_9 = cos_theta3*x;
+            const double t0_10 = sin_theta3*y;
+            const double E1 = -t0_3*(t0_0 + t0_1 + t0_2);
+            const double F1 = t0_4;
+            const double G1 = -t0_1*t0_5 - t0_2*t0_5 + t0_6;
+            const double E2 = -t0_3*(t0_0 + t0_7 + t0_8);
+            const double F2 = t0_4;
+            const double G2 = -t0_5*t0_7 - t0_5*t0_8 + t0_6;
+            const double E3 = -t0_3*(t0_0 + t0_10 + t0_9);
+            const double F3 = t0_4;
+            const double G3 = -t0_10*t0_5 - t0_5*t0_9 + t0_6;
+            /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+            const double disc1 = E1*E1 + F1*F1 - (G1*G1);
+            const double disc2 = E2*E2 + F2*F2 - (G2*G2);
+            const double disc3 = E3*E3 + F3*F3 - (G3*G3);
+            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+            const double t2_0 = sqrt(disc1);
+            const double t2_1 = sqrt(disc2);
+            const double t2_2 = sqrt(disc3);
+            const double ik_x1 = -E1*G1 - F1*t2_0;
+            const double ik_y1 = E1*t2_0 - F1*G1;
+            const double ik_x2 = -E2*G2 - F2*t2_1;
+            const double ik_y2 = E2*t2_1 - F2*G2;
+            const double ik_x3 = -E3*G3 - F3*t2_2;
+            const double ik_y3 = E3*t2_2 - F3*G3;
+            /* crank angles q = atan2(Y, X) in (-pi, pi] */
+            const double q1 = atan2(ik_y1, ik_x1);
+            const double q2 = atan2(ik_y2, ik_x2);
+            const double q3 = atan2(ik_y3, ik_x3);
+            /* cos q_i, sin q_i = (X, Y) / rho^2 */
+            const double inv_rho_sq1 = 1.0/(E1*E1 + F1*F1);
+            const double inv_rho_sq2 = 1.0/(E2*E2 + F2*F2);
+            const double inv_rho_sq3 = 1.0/(E3*E3 + F3*F3);
+            const double cos_q1 = ik_x1*inv_rho_sq1;
+            const double sin_q1 = ik_y1*inv_rho_sq1;
+            const double cos_q2 = ik_x2*inv_rho_sq2;
+            const double sin_q2 = ik_y2*inv_rho_sq2;
+            const double cos_q3 = ik_x3*inv_rho_sq3;
+            const double sin_q3 = ik_y3*inv_rho_sq3;
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t5_0 = cos_q1*l_a + r;
+            const double t5_1 = cos_q2*l_a + r;
+            const double t5_2 = cos_q3*l_a + r;
+            const double S_x1 = cos_theta1*t5_0;
+            const double S_y1 = sin_theta1*t5_0;
+            const double S_z1 = -l_a*sin_q1;
+            const double S_x2 = cos_theta2*t5_1;
+            const double S_y2 = sin_theta2*t5_1;
+            const double S_z2 = -l_a*sin_q2;
+            const double S_x3 = cos_theta3*t5_2;
+            const double S_y3 = sin_theta3*t5_2;
+            const double S_z3 = -l_a*sin_q3;
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t6_0 = -x;
+            const double t6_1 = -y;
+            const double t6_2 = -z;
+            const double D11 = -S_x1 - t6_0;
+            const double D12 = -S_y1 - t6_1;
+            const double D13 = -S_z1 - t6_2;
+            const double D21 = -S_x2 - t6_0;
+            const double D22 = -S_y2 - t6_1;
+            const double D23 = -S_z2 - t6_2;
+            const double D31 = -S_x3 - t6_0;
+            const double D32 = -S_y3 - t6_1;
+            const double D33 = -S_z3 - t6_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t7_0 = l_a*z;
+            const double t7_1 = l_a*sin_q1;
+            const double t7_2 = l_a*sin_q2;
+            const double t7_3 = l_a*sin_q3;
+            const double jq1 = -cos_q1*t7_0 - cos_theta1*t7_1*x + l_a*r*sin_q1 - sin_theta1*t7_1*y;
+            const double jq2 = -cos_q2*t7_0 - cos_theta2*t7_2*x + l_a*r*sin_q2 - sin_theta2*t7_2*y;
+            const double jq3 = -cos_q3*t7_0 - cos_theta3*t7_3*x + l_a*r*sin_q3 - sin_theta3*t7_3*y;
+            /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+            const double inv_jq1 = 1.0/jq1;
+            const double inv_jq2 = 1.0/jq2;
+            const double inv_jq3 = 1.0/jq3;
+            const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+            const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+            const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+            /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
+            const double t9_0 = l_a*(qd1*qd1);
+            const double t9_1 = cos_q1*t9_0;
+            const double t9_2 = 2*l_a;
+            const double t9_3 = t9_2*zd;
+            const double t9_4 = t9_2*xd;
+            const double t9_5 = qd1*sin_q1;
+            const double t9_6 = t9_2*yd;
+            const double t9_7 = xd*xd + yd*yd + zd*zd;
+            const double t9_8 = l_a*(qd2*qd2);
+            const double t9_9 = cos_q2*t9_8;
+            const double t9_10 = qd2*sin_q2;
+            const double t9_11 = l_a*(qd3*qd3);
+            const double t9_12 = cos_q3*t9_11;
+            const double t9_13 = qd3*sin_q3;
+            const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd + cos_q1*qd1*t9_3 + cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - r*t9_1 - sin_q1*t9_0*z + sin_theta1*t9_1*y + sin_theta1*t9_5*t9_6 + t9_7);
+            const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd + cos_q2*qd2*t9_3 + cos_theta2*t9_10*t9_4 + cos_theta2*t9_9*x - r*t9_9 - sin_q2*t9_8*z + sin_theta2*t9_10*t9_6 + sin_theta2*t9_9*y + t9_7);
+            const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd + cos_q3*qd3*t9_3 + cos_theta3*t9_12*x + cos_theta3*t9_13*t9_4 - r*t9_12 - sin_q3*t9_11*z + sin_theta3*t9_12*y + sin_theta3*t9_13*t9_6 + t9_7);
+            /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) & isfinite(phidd));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            /* outputs (q NaN where unreachable, rates NaN unless OK) */
+            const int t11_0 = ((invalid) | (unreachable));
+            const int t11_1 = ((invalid) | (singular) | (unreachable));
+            const double out_q1 = ((t11_0) ? NAN : q1);
+            const double out_q2 = ((t11_0) ? NAN : q2);
+            const double out_q3 = ((t11_0) ? NAN : q3);
+            const double out_q4 = ((t11_0) ? NAN : phi);
+            const double out_qd1 = ((t11_1) ? NAN : qd1);
+            const double out_qd2 = ((t11_1) ? NAN : qd2);
+            const double out_qd3 = ((t11_1) ? NAN : qd3);
+            const double out_qd4 = ((t11_1) ? NAN : phid);
+            const double out_qdd1 = ((t11_1) ? NAN : qdd1);
+            const double out_qdd2 = ((t11_1) ? NAN : qdd2);
+            const double out_qdd3 = ((t11_1) ? NAN : qdd3);
+            const double out_qdd4 = ((t11_1) ? NAN : phidd);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(out_qd1) & isfinite(out_qd2) & isfinite(out_qd3) & isfinite(out_qd4) & isfinite(out_qdd1) & isfinite(out_qdd2) & isfinite(out_qdd3) & isfinite(out_qdd4))))));
+            const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
+            const double out_q2_checked = ((nonfinite_output) ? NAN : out_q2);
+            const double out_q3_checked = ((nonfinite_output) ? NAN : out_q3);
+            const double out_q4_checked = ((nonfinite_output) ? NAN : out_q4);
+            const double out_qd1_checked = ((nonfinite_output) ? NAN : out_qd1);
+            const double out_qd2_checked = ((nonfinite_output) ? NAN : out_qd2);
+            const double out_qd3_checked = ((nonfinite_output) ? NAN : out_qd3);
+            const double out_qd4_checked = ((nonfinite_output) ? NAN : out_qd4);
+            const double out_qdd1_checked = ((nonfinite_output) ? NAN : out_qdd1);
+            const double out_qdd2_checked = ((nonfinite_output) ? NAN : out_qdd2);
+            const double out_qdd3_checked = ((nonfinite_output) ? NAN : out_qdd3);
+            const double out_qdd4_checked = ((nonfinite_output) ? NAN : out_qdd4);
+            out_q1_checked_b[k] = out_q1_checked;
+            out_q2_checked_b[k] = out_q2_checked;
+            out_q3_checked_b[k] = out_q3_checked;
+            out_q4_checked_b[k] = out_q4_checked;
+            out_qd1_checked_b[k] = out_qd1_checked;
+            out_qd2_checked_b[k] = out_qd2_checked;
+            out_qd3_checked_b[k] = out_qd3_checked;
+            out_qd4_checked_b[k] = out_qd4_checked;
+            out_qdd1_checked_b[k] = out_qdd1_checked;
+            out_qdd2_checked_b[k] = out_qdd2_checked;
+            out_qdd3_checked_b[k] = out_qdd3_checked;
+            out_qdd4_checked_b[k] = out_qdd4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
+                qd[(start + k) * 3 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 3 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 3 + 2] = out_qd3_checked_b[k];
+                qdd[(start + k) * 3 + 0] = out_qdd1_checked_b[k];
+                qdd[(start + k) * 3 + 1] = out_qdd2_checked_b[k];
+                qdd[(start + k) * 3 + 2] = out_qdd3_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
+                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
+                qd[(start + k) * 4 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 4 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 4 + 2] = out_qd3_checked_b[k];
+                qd[(start + k) * 4 + 3] = out_qd4_checked_b[k];
+                qdd[(start + k) * 4 + 0] = out_qdd1_checked_b[k];
+                qdd[(start + k) * 4 + 1] = out_qdd2_checked_b[k];
+                qdd[(start + k) * 4 + 2] = out_qdd3_checked_b[k];
+                qdd[(start + k) * 4 + 3] = out_qdd4_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
 int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status)
 {
     if (axes != 3 && axes != 4) {

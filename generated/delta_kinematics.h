@@ -140,6 +140,42 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  */
 int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, double *restrict q, int8_t *restrict status);
 
+/* Inverse kinematics at velocity level (elbow-out): (p, pdot) -> (q, qdot), qdot = J_q^-1 J_p pdot, eqs. (28)-(35).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * p         in,  n x axes: platform position [m]; column 4: phi [rad]
+ * pd        in,  n x axes: platform velocity [m/s]; column 4: phidot [rad/s]
+ * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
+ * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 241 operations per point.
+ * Stack: 17 block arrays (16 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 8448 bytes (8.2 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, double *restrict q, double *restrict qd, int8_t *restrict status);
+
+/* Inverse kinematics at acceleration level (elbow-out): (p, pdot, pddot) -> (q, qdot, qddot), qdot = J_q^-1 J_p pdot and its time derivative, eqs. (28)-(39).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * p         in,  n x axes: platform position [m]; column 4: phi [rad]
+ * pd        in,  n x axes: platform velocity [m/s]; column 4: phidot [rad/s]
+ * pdd       in,  n x axes: platform acceleration [m/s^2]; column 4: phiddot [rad/s^2]
+ * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
+ * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
+ * qdd       out, n x axes: crank accelerations [rad/s^2]; column 4: qddot_4 = phiddot [rad/s^2]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 351 operations per point.
+ * Stack: 25 block arrays (24 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict q, double *restrict qd, double *restrict qdd, int8_t *restrict status);
+
 /* Inverse dynamics, exact rigid-body model (cranks, rod pairs as slender rods with their rotation, platform + payload): (q, qdot, qddot, payload) -> motor torques tau, by virtual work with J of eq. (30) and pddot of eq. (38) (deltagen/derive/delta/dynamics.py).
  *
  * geometry  robot geometry

@@ -127,6 +127,19 @@ class DeltaRobot:
     ) -> DeltaRobot:
         return cls.from_geometry(DeltaGeometry.from_toml(path), backend, threads=threads)
 
+    @classmethod
+    def from_klipper(
+        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> DeltaRobot:
+        """The rotary delta of a Klipper printer.cfg ([printer] kinematics: rotary_delta),
+        in deltagen's conventions: metres, q positive down (Klipper's arm angle is positive
+        up: q = -a), base frame in the shoulder plane (Klipper's z is above the bed:
+        z = z_klipper - shoulder_height). deltagen.model.klipper.read_klipper gives the
+        frame offset and the endstop heights too."""
+        from deltagen.model.klipper import read_klipper
+
+        return cls.from_geometry(read_klipper(path).geometry, backend, threads=threads)
+
     def with_backend(self, backend: Backend) -> DeltaRobot:
         return type(self).from_geometry(self.geometry, backend, threads=self.threads)
 
@@ -191,14 +204,16 @@ class DeltaRobot:
         return self._finish(errors, lead, status, [q], ("p",), [pf], allow_singular=True)
 
     def ik_vel(self, p: ArrayLike, pd: ArrayLike, errors: Errors = "raise") -> Result:
-        """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
+        """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J_q^-1 J_p pdot
+        (eq. (30); J_q is diagonal). Only a singular J_q (crank and rod in line) is an
+        error here: at a J_p singularity qdot is still defined."""
         return self._inverse_rates(errors, dict(p=p, pd=pd))
 
     def ik_acc(
         self, p: ArrayLike, pd: ArrayLike, pdd: ArrayLike, errors: Errors = "raise"
     ) -> Result:
-        """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
-        Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
+        """(q, qdot, qddot) from (p, pdot, pddot): qddot from the second time derivative
+        of constraint (1), eqs. (36)-(39), solved for qddot (J_q diagonal)."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
 
     # -- dynamics -----------------------------------------------------------------------
@@ -335,52 +350,14 @@ class DeltaRobot:
         raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
 
     def _inverse_rates(self, errors, arrays):
-        check_errors_mode(errors)
-        with_acceleration = "pdd" in arrays
-        lead, width, flat = broadcast_rows(arrays)
-        pf, pdf = flat[0], flat[1]
-        q, status = self._core.ik(pf)
-        bad_ik = status != st.OK  # here a J_q singularity is an error: qdot would be infinite
-        J, jstatus = self._core.jacobian(q)
-        finite_rates = np.isfinite(pdf).all(axis=1)
-        if with_acceleration:
-            finite_rates &= np.isfinite(flat[2]).all(axis=1)
-        status = np.where(bad_ik, status, jstatus).astype(np.int8)
-        status[(status == st.OK) & ~finite_rates] = st.INVALID
-        ok = status == st.OK
-        if errors == "raise" and not ok.all():
-            self._raise(status, ok, tuple(arrays), flat)
-        qd = np.full_like(pdf, np.nan)
-        Jok = J[ok]
-        with np.errstate(all="ignore"):  # overflow of huge rates: the finite check below
-            qd[ok, :3] = np.linalg.solve(Jok, pdf[ok, :3, None])[..., 0] if Jok.size else 0.0
-            if width == 4:
-                qd[ok, 3] = pdf[ok, 3]
-            outs = [q, qd]
-            if with_acceleration:
-                pddf = flat[2]
-                qdd = np.full_like(pddf, np.nan)
-                zero = np.zeros_like(pddf)
-                # Jdot qdot (pdd0) is NaN where huge rates overflow: qdd then fails the check
-                _, _, pdd0, _ = self._core.fk_acc(q, np.where(ok[:, None], qd, 0.0), zero)
-                rhs = pddf[ok, :3] - pdd0[ok, :3]
-                qdd[ok, :3] = np.linalg.solve(Jok, rhs[..., None])[..., 0] if Jok.size else 0.0
-                if width == 4:
-                    qdd[ok, 3] = pddf[ok, 3]
-                outs.append(qdd)
-        # the finite-output rule (deltagen.status): rates computed here are checked here
-        overflow = ok & ~finite_rows(*outs)
-        if overflow.any():
-            status[overflow] = st.INVALID
-            ok &= ~overflow
-            if errors == "raise":
-                self._raise(status, ok, tuple(arrays), flat)
-        for o in outs:
-            o[~ok] = np.nan
-        shaped = [o.reshape(lead + (width,)) for o in outs]
-        if errors == "nan":
-            return (*shaped, ok.reshape(lead))
-        return tuple(shaped)
+        """ik_vel / ik_acc: the kernels give q (kept where only J_q is singular) and the
+        rates (NaN unless OK); here J_q singular rows are errors, as qdot is infinite."""
+        lead, _, flat = self._prepare(errors, **arrays)
+        if len(flat) == 2:
+            *outs, status = self._core.ik_vel(*flat)
+        else:
+            *outs, status = self._core.ik_acc(*flat)
+        return self._finish(errors, lead, status, outs, tuple(arrays), flat)
 
 
 class _ReferenceCore:
@@ -403,6 +380,12 @@ class _ReferenceCore:
 
     def ik(self, p):
         return self._m.ik(self._g, p)
+
+    def ik_vel(self, p, pd):
+        return self._m.ik_vel(self._g, p, pd)
+
+    def ik_acc(self, p, pd, pdd):
+        return self._m.ik_acc(self._g, p, pd, pdd)
 
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
         return self._m.inverse_dynamics(self._g, self._g.inertia, q, qd, qdd, payload, model=model)

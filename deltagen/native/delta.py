@@ -134,6 +134,12 @@ class CompiledDelta:
     def ik(self, p):
         return self._run(self._lib.deltagen_delta_ik, [p], 1)
 
+    def ik_vel(self, p, pd):
+        return self._run(self._lib.deltagen_delta_ik_vel, [p, pd], 2)
+
+    def ik_acc(self, p, pd, pdd):
+        return self._run(self._lib.deltagen_delta_ik_acc, [p, pd, pdd], 3)
+
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
         """tau (N, axes) and status; ``payload`` is (N,) [kg], C-contiguous float64."""
         fn = (

@@ -30,6 +30,9 @@ with ``r = r_a - r_b``; z points up and the platform works at negative z.
   ``q = atan2(F, E) + atan2(sqrt(E^2 + F^2 - G^2), -G)``. On this branch
   ``E sin q - F cos q = 2 j_i >= 0``, i.e. ``j_i`` vanishes exactly where the two
   branches meet (rod and crank aligned).
+* Inverse rates: ``J_q`` is diagonal, so row i of the velocity relation gives
+  ``qd_i = D_i . pd / j_i`` and of the acceleration relation
+  ``qdd_i = (D_i . pdd - qd_i^2 D_i . S_i'' + |pd - Sd_i|^2) / j_i``.
 * A fourth input column (report eq. (43)) passes through unchanged.
 
 Status rules (per point, int8; see :mod:`deltagen.status`):
@@ -41,6 +44,8 @@ Status rules (per point, int8; see :mod:`deltagen.status`):
   before reachability); else UNREACHABLE if the spheres do not meet,
   ``l_b^2 - |u_0|^2 < 0`` (outputs NaN); else SINGULAR if
   ``|det D| / l_b^3 < tol`` (p is returned, pd / pdd / J are NaN); else OK.
+* ik_vel, ik_acc: the status of ik, with the rates NaN unless OK (a SINGULAR row has
+  an infinite qd); the finite-output rule covers q and the rates.
 * ik: UNREACHABLE if for any chain ``E^2 + F^2 - G^2 < 0`` (row NaN); else SINGULAR if
   for any chain ``|j_i| / (l_a l_b) < tol`` (q is returned); else OK.
 * Finite outputs (:mod:`deltagen.status`, the rule the generated C applies too): INVALID
@@ -63,6 +68,8 @@ __all__ = [
     "fk_acc",
     "jacobian",
     "ik",
+    "ik_vel",
+    "ik_acc",
     "inverse_dynamics",
     "mass_matrix",
     "forward_dynamics",
@@ -301,6 +308,48 @@ def ik(geom, p):
         status[bad] = INVALID
         q = _with_fourth(q3, p, bad | unreachable)
     return q, _finite_outputs(status, [(q, bad | unreachable)])
+
+
+def _inverse_rates(geom, p, pd, pdd=None):
+    p, pd = _as_batch(p), _as_batch(pd)
+    extra = () if pdd is None else (_as_batch(pdd),)
+    with np.errstate(all="ignore"):
+        bad_rates = _invalid_rows(pd, *extra)
+        q, status = ik(geom, np.where(bad_rates[:, None], np.nan, p))
+        no_q = (status == INVALID) | (status == UNREACHABLE)
+        q[status == INVALID] = np.nan  # a row with a non-finite rate has no q either
+        ok = status == OK
+        q3 = _sanitised(q, ~ok)
+        p3 = _sanitised(p, ~ok)
+        S, dS, d2S = _centres(geom, q3)
+        D = p3[:, None, :] - S
+        j = np.einsum("nci,nci->nc", D, dS)
+        j = np.where(ok[:, None], j, 1.0)
+        pd3 = _sanitised(pd, ~ok)
+        qd3 = np.einsum("nci,ni->nc", D, pd3) / j
+        outs = [q, _with_fourth(qd3, pd, ~ok)]
+        pairs = [(q, no_q), (outs[1], ~ok)]
+        if pdd is not None:
+            pdd3 = _sanitised(extra[0], ~ok)
+            rel_vel = pd3[:, None, :] - dS * qd3[:, :, None]
+            qdd3 = (
+                np.einsum("nci,ni->nc", D, pdd3)
+                - qd3**2 * np.einsum("nci,nci->nc", D, d2S)
+                + np.einsum("nci,nci->nc", rel_vel, rel_vel)
+            ) / j
+            outs.append(_with_fourth(qdd3, extra[0], ~ok))
+            pairs.append((outs[2], ~ok))
+    return (*outs, _finite_outputs(status, pairs))
+
+
+def ik_vel(geom, p, pd):
+    """Inverse rates: (p, pd) (N,3|4) -> (q, qd, status); qd NaN unless OK."""
+    return _inverse_rates(geom, p, pd)
+
+
+def ik_acc(geom, p, pd, pdd):
+    """Inverse rates: (p, pd, pdd) (N,3|4) -> (q, qd, qdd, status); rates NaN unless OK."""
+    return _inverse_rates(geom, p, pd, pdd)
 
 
 # ------------------------------------------------------------------------ dynamics
