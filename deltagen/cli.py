@@ -39,12 +39,15 @@ def _robot(args):
     if name in bundled_robots():
         return SerialRobot.load(name, backend=args.backend)
     path = Path(name)
+    if path.suffix.lower() == ".cfg":  # a Klipper printer.cfg (kinematics: rotary_delta)
+        return DeltaRobot.from_klipper(path, backend=args.backend)
     if path.suffix.lower() == ".urdf":  # its chain from the root link to the single leaf
         return SerialRobot.from_urdf(path, backend=args.backend)
     if path.suffix != ".toml" and not path.exists():
         raise ValueError(
             f"unknown robot {name!r}: use 'default', a bundled arm "
-            f"({', '.join(bundled_robots())}) or a robot .toml file"
+            f"({', '.join(bundled_robots())}), a robot .toml file, a .urdf or a Klipper "
+            "printer.cfg"
         )
     if _robot_kind(path) == "serial":
         return SerialRobot.from_toml(path, backend=args.backend)
@@ -127,7 +130,10 @@ exit status:
      generated/ (generate --check), a tolerance missed (validate)
   2  usage or input error (bad arguments, an unreadable or malformed file)"""
 
-ROBOT_HELP = "'default' (the delta robot), a bundled serial arm's name, or a robot TOML file"
+ROBOT_HELP = (
+    "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
+    "or a Klipper printer.cfg (kinematics: rotary_delta)"
+)
 
 
 class _Parser(argparse.ArgumentParser):
