@@ -1,4 +1,4 @@
-"""Command line: deltagen generate | validate | fk | ik | dynamics | bench."""
+"""Command line: deltagen generate | validate | fk | ik | dynamics | calibrate | bench."""
 
 from __future__ import annotations
 
@@ -280,6 +280,27 @@ def main(argv=None) -> int:
     y.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     y.set_defaults(func=_dynamics)
 
+    c = sub.add_parser(
+        "calibrate",
+        help="identify a built delta robot's geometry from measured (q, p) pairs",
+        description="Levenberg-Marquardt on fk(q) = p over per-chain parameters; prints "
+        "values, 1-sigma uncertainty, residuals before/after and what the data cannot "
+        "separate. DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
+    )
+    c.add_argument("data", help="CSV of measurements: q1,q2,q3,x,y,z")
+    c.add_argument("--robot", default="default", help="the nominal robot: " + ROBOT_HELP)
+    c.add_argument(
+        "--params",
+        default="r_a,l_a,l_b,theta,q_offset",
+        help="comma-separated: r_a, r_b, l_a, l_b, theta, q_offset (each per chain) or single "
+        "entries like l_a[0] (default r_a,l_a,l_b,theta,q_offset)",
+    )
+    c.add_argument("--sigma", type=float, help="measurement noise per coordinate [m] if known")
+    c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
+    c.add_argument("--out", help="write the calibrated robot file (TOML) here")
+    c.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    c.set_defaults(func=_calibrate)
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
@@ -317,6 +338,17 @@ def _dynamics(args) -> int:
 
     args.robot_object = _robot(args)
     return dynamics.main(args)
+
+
+def _calibrate(args) -> int:
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.apps import calibrate
+
+    robot = _robot(args)
+    if not isinstance(robot, DeltaRobot):
+        raise ValueError("calibrate: the robot must be a delta robot")
+    args.robot_object = robot
+    return calibrate.main(args)
 
 
 def _lazy(module: str, args) -> int:

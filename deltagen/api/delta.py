@@ -216,6 +216,29 @@ class DeltaRobot:
         of constraint (1), eqs. (36)-(39), solved for qddot (J_q diagonal)."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
 
+    def calibrate(
+        self,
+        q_measured: ArrayLike,
+        p_measured: ArrayLike,
+        params: tuple[str, ...] | str = ("r_a", "l_a", "l_b", "theta", "q_offset"),
+        **options: Any,
+    ):
+        """Identify geometry deviations of the robot as built from measured pairs: q (N, 3)
+        as the encoders read them [rad], p (N, 3) measured in the base frame [m]. ``params``:
+        families r_a, r_b, l_a, l_b, theta, q_offset (per chain, all three) or single
+        entries like "l_a[0]". Levenberg-Marquardt with the generated C Jacobian of fk with
+        respect to the parameters; see deltagen.solve.calibration (options: sigma, rcond,
+        max_iterations, tol). Returns a CalibrationResult: the calibrated geometry and
+        ``robot`` (same backend), values, uncertainty, residual RMS before/after,
+        singular values and the sets of parameters the data cannot separate."""
+        from dataclasses import replace
+
+        from deltagen.solve.calibration import calibrate
+
+        result = calibrate(self.geometry, q_measured, p_measured, params, **options)
+        robot = type(self).from_geometry(result.geometry, self.backend, threads=self.threads)
+        return replace(result, robot=robot)
+
     # -- dynamics -----------------------------------------------------------------------
 
     @property
@@ -271,6 +294,11 @@ class DeltaRobot:
     def _check_dynamics(self, model):
         if model not in _MODELS:
             raise InputError(f"model must be one of {_MODELS}, got {model!r}")
+        if not self.geometry.symmetric:
+            raise GeometryError(
+                "the dynamics are derived for the symmetric robot: this one has per-chain "
+                "lengths or encoder offsets (an asymmetric robot: kinematics only)"
+            )
         if self.geometry.inertia is None:
             raise GeometryError(
                 "this robot has no inertial parameters: give DeltaRobot(..., "

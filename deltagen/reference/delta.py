@@ -104,14 +104,40 @@ def _trig(geom):
     return np.cos(th), np.sin(th)
 
 
+def _chains(geom):
+    """Per-chain r_i = r_a,i - r_b,i, l_a,i, l_b,i as (3,) arrays (an asymmetric robot)."""
+    return (
+        np.asarray(geom.chain_r, dtype=np.float64),
+        np.asarray(geom.chain("l_a"), dtype=np.float64),
+        np.asarray(geom.chain("l_b"), dtype=np.float64),
+    )
+
+
+def _crank_angles(geom, q: np.ndarray) -> np.ndarray:
+    """Measured angles (N, 3|4) -> geometric crank angles: + the encoder offsets."""
+    if not any(geom.q_offset):
+        return q
+    out = np.array(q, dtype=np.float64, copy=True)
+    out[:, :3] += np.asarray(geom.q_offset)
+    return out
+
+
+def _measured_angles(geom, q: np.ndarray) -> np.ndarray:
+    """Geometric crank angles -> measured angles in (-pi, pi] (in place)."""
+    if any(geom.q_offset):
+        q[:, :3] = np.pi - np.mod(np.pi - (q[:, :3] - np.asarray(geom.q_offset)), 2.0 * np.pi)
+    return q
+
+
 def _centres(geom, q3: np.ndarray):
     """S_i, dS_i/dq_i and d^2S_i/dq_i^2 as (N, 3 chains, 3 coords) arrays."""
     c, s = _trig(geom)
+    r, l_a, _ = _chains(geom)
     cq, sq = np.cos(q3), np.sin(q3)
-    rho = geom.r + geom.l_a * cq
-    S = np.stack((rho * c, rho * s, -geom.l_a * sq), axis=-1)
-    dS = np.stack((-geom.l_a * sq * c, -geom.l_a * sq * s, -geom.l_a * cq), axis=-1)
-    d2S = np.stack((-geom.l_a * cq * c, -geom.l_a * cq * s, geom.l_a * sq), axis=-1)
+    rho = r + l_a * cq
+    S = np.stack((rho * c, rho * s, -l_a * sq), axis=-1)
+    dS = np.stack((-l_a * sq * c, -l_a * sq * s, -l_a * cq), axis=-1)
+    d2S = np.stack((-l_a * cq * c, -l_a * cq * s, l_a * sq), axis=-1)
     return S, dS, d2S
 
 
@@ -164,9 +190,10 @@ def _fk_core(geom, q: np.ndarray, *others: np.ndarray):
     """
     n = q.shape[0]
     bad = _invalid_rows(q, *others)
-    q3 = _sanitised(q, bad)
+    q3 = _sanitised(_crank_angles(geom, q), bad)
     S, dS, d2S = _centres(geom, q3)
-    l_b = geom.l_b
+    l_b = geom.l_b  # nominal: the scale of the thresholds
+    rod = _chains(geom)[2]
     tol = geom.singular_tol
 
     a = S[:, 1] - S[:, 0]
@@ -179,8 +206,11 @@ def _fk_core(geom, q: np.ndarray, *others: np.ndarray):
     safe_e2 = np.where(collinear, 1.0, e2)
     aa = np.einsum("ni,ni->n", a, a)
     bb = np.einsum("ni,ni->n", b, b)
+    # planes u.a = (|a|^2 + l_b1^2 - l_b2^2) / 2, u.b = (|b|^2 + l_b1^2 - l_b3^2) / 2
+    aa = aa + rod[0] ** 2 - rod[1] ** 2
+    bb = bb + rod[0] ** 2 - rod[2] ** 2
     u0 = (aa[:, None] * np.cross(b, e) + bb[:, None] * np.cross(e, a)) / (2.0 * safe_e2[:, None])
-    h = l_b**2 - np.einsum("ni,ni->n", u0, u0)
+    h = rod[0] ** 2 - np.einsum("ni,ni->n", u0, u0)
     unreachable = ~collinear & (h < 0.0)
 
     e_hat = e / np.where(collinear, 1.0, e_norm)[:, None]
@@ -286,7 +316,7 @@ def ik(geom, p):
         bad = _invalid_rows(p)
         p3 = _sanitised(p, bad)
         c, s = _trig(geom)
-        r, l_a, l_b = geom.r, geom.l_a, geom.l_b
+        r, l_a, l_b = _chains(geom)  # per chain, (3,)
         x_i = p3[:, 0:1] * c + p3[:, 1:2] * s  # (N, 3 chains)
         z = p3[:, 2:3]
         pp = np.einsum("ni,ni->n", p3, p3)[:, None]
@@ -300,13 +330,14 @@ def ik(geom, p):
 
         S, dS, _ = _centres(geom, q3)
         j = np.einsum("nci,nci->nc", p3[:, None, :] - S, dS)
-        singular = np.any((np.abs(j) / (l_a * l_b) < geom.singular_tol) | (j == 0.0), axis=1)
+        scale = geom.l_a * geom.l_b  # nominal
+        singular = np.any((np.abs(j) / scale < geom.singular_tol) | (j == 0.0), axis=1)
 
         status = np.full(n, OK, dtype=np.int8)
         status[singular] = SINGULAR
         status[unreachable] = UNREACHABLE
         status[bad] = INVALID
-        q = _with_fourth(q3, p, bad | unreachable)
+        q = _measured_angles(geom, _with_fourth(q3, p, bad | unreachable))
     return q, _finite_outputs(status, [(q, bad | unreachable)])
 
 
@@ -319,7 +350,7 @@ def _inverse_rates(geom, p, pd, pdd=None):
         no_q = (status == INVALID) | (status == UNREACHABLE)
         q[status == INVALID] = np.nan  # a row with a non-finite rate has no q either
         ok = status == OK
-        q3 = _sanitised(q, ~ok)
+        q3 = _sanitised(_crank_angles(geom, q), ~ok)
         p3 = _sanitised(p, ~ok)
         S, dS, d2S = _centres(geom, q3)
         D = p3[:, None, :] - S

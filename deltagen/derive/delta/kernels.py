@@ -20,6 +20,7 @@ import sympy as sp
 
 from deltagen import status as st
 from deltagen.derive.delta import acceleration as acc
+from deltagen.derive.delta import calibration as cal
 from deltagen.derive.delta import dynamics as dyn
 from deltagen.derive.delta import fk as fkd
 from deltagen.derive.delta import ik as ikd
@@ -39,6 +40,9 @@ PARAMETERS = (
     Parameter(s.l_a, "l_a"),
     Parameter(s.l_b, "l_b"),
     *(Parameter(s.cos_theta[i], "cos_theta", i) for i in range(3)),
+    *(Parameter(s.chain_r[i], "chain_r", i) for i in range(3)),
+    *(Parameter(s.chain_l_a[i], "chain_l_a", i) for i in range(3)),
+    *(Parameter(s.chain_l_b[i], "chain_l_b", i) for i in range(3)),
     *(Parameter(s.sin_theta[i], "sin_theta", i) for i in range(3)),
     Parameter(s.singular_tol, "singular_tol"),
     # inertia (read by the dynamics kernels only)
@@ -398,6 +402,45 @@ def ik_acc_kernel() -> Kernel:
     return _inverse_rates(True)
 
 
+@cache
+def fk_param_jacobian_kernel() -> Kernel:
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
+    ports, outputs = _outputs(no_p, no_rates, 1)
+    names = [str(sym) for sym in cal.dp]
+    G_out, G_stage = _masked(names, list(cal.dp), no_rates)
+    return Kernel(
+        name="fk_param_jacobian",
+        doc="Direct kinematics and the sensitivity of p to the chain parameters (calibration): "
+        "q -> p, dp/d(r_i, l_a,i, l_b,i, theta_i, q_i) by the implicit function theorem on "
+        "eq. (1) (deltagen/derive/delta/calibration.py).",
+        inputs=(_q_port(),),
+        outputs=(
+            *ports,
+            Port(
+                "G",
+                G_out,
+                "dp/dpi, 15 parameters x 3 coordinates per point: parameters r_1..3, "
+                "l_a,1..3, l_b,1..3 [m/m], theta_1..3, q_1..3 [m/rad]; r_i = r_a,i - r_b,i",
+                "m/m, m/rad",
+                width=45,
+            ),
+        ),
+        stages=tuple(fkd.fk_stages())
+        + (flags,)
+        + _rate_stages()
+        + (
+            cal.partials_stage(),
+            cal.sensitivity_stage(),
+            Stage("outputs (p as fk; G NaN unless OK)", outputs.assignments + G_stage),
+        ),
+        status=status,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; G is NaN unless OK",
+    )
+
+
 def _payload_port():
     return Port(
         "payload",
@@ -489,6 +532,7 @@ def all_kernels():
         ik_kernel(),
         ik_vel_kernel(),
         ik_acc_kernel(),
+        fk_param_jacobian_kernel(),
         inverse_dynamics_kernel(),
         inverse_dynamics_simplified_kernel(),
     )
