@@ -135,6 +135,9 @@ def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, fla
         "deltagen_delta_fk_acc",
         "deltagen_delta_jacobian",
         "deltagen_delta_ik",
+        "deltagen_delta_ik_vel",
+        "deltagen_delta_ik_acc",
+        "deltagen_delta_fk_param_jacobian",
         "deltagen_delta_inverse_dynamics",
         "deltagen_delta_inverse_dynamics_simplified",
     }
@@ -384,6 +387,9 @@ int main(void)
     for (int i = 0; i < 3; ++i) {
         g.cos_theta[i] = COS_THETA[i];
         g.sin_theta[i] = SIN_THETA[i];
+        g.chain_r[i] = g.r_a - g.r_b; /* a symmetric robot: every chain alike */
+        g.chain_l_a[i] = g.l_a;
+        g.chain_l_b[i] = g.l_b;
     }
     g.singular_tol = 1e-9;
     g.I_a = 0.037;

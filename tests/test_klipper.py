@@ -196,3 +196,23 @@ def test_cli_accepts_a_printer_cfg(example, repo_root):
     assert out.returncode == 0, out.stderr
     p = DeltaRobot.from_klipper(example).fk([0.3, 0.3, 0.3])
     assert f"{p[2]:.6f}"[:7] in out.stdout
+
+
+@pytest.mark.parametrize("backend", ["compiled", "reference"])
+def test_per_stepper_arm_lengths_give_an_asymmetric_robot(backend):
+    upper, lower = (170.0, 171.5, 169.0), (320.0, 318.0, 321.0)
+    text = EXAMPLE_CFG.replace(
+        "[stepper_b]\n", "[stepper_b]\nupper_arm_length: 171.5\nlower_arm_length: 318\n"
+    ).replace("[stepper_c]\n", "[stepper_c]\nupper_arm_length: 169\nlower_arm_length: 321\n")
+    k = klipper_from_text(text)
+    assert k.geometry.chain("l_a") == pytest.approx(np.array(upper) * 1e-3)
+    robot = DeltaRobot.from_geometry(k.geometry, backend)
+    xyz = _poses()
+    q = robot.ik(k.from_klipper_xyz(xyz))
+    a = np.array(
+        [
+            [klipper_arm_angle(i, row, upper=upper[i], lower=lower[i]) for i in range(3)]
+            for row in xyz
+        ]
+    )
+    np.testing.assert_allclose(q, -a, rtol=0, atol=1e-12)

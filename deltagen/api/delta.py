@@ -222,7 +222,7 @@ class DeltaRobot:
         p_measured: ArrayLike,
         params: tuple[str, ...] | str = ("r_a", "l_a", "l_b", "theta", "q_offset"),
         **options: Any,
-    ):
+    ) -> Any:
         """Identify geometry deviations of the robot as built from measured pairs: q (N, 3)
         as the encoders read them [rad], p (N, 3) measured in the base frame [m]. ``params``:
         families r_a, r_b, l_a, l_b, theta, q_offset (per chain, all three) or single

@@ -41,6 +41,7 @@ import configparser
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from deltagen.errors import GeometryError
 from deltagen.model.delta import DeltaGeometry
@@ -86,7 +87,7 @@ class KlipperRotaryDelta:
         """Klipper's arm angle (rad, positive up) -> deltagen's crank angle (positive down)."""
         return -a
 
-    def home_p(self, i: int):
+    def home_p(self, i: int) -> tuple[float, float, float]:
         """deltagen position of the homed effector for stepper i's endstop [m]."""
         return (0.0, 0.0, self.position_endstop[i] - self.shoulder_height)
 
@@ -152,7 +153,9 @@ def _number(config, section, key, source, default=None):
     return value
 
 
-def klipper_from_text(text: str, source: str = "printer.cfg", name: str = "klipper"):
+def klipper_from_text(
+    text: str, source: str = "printer.cfg", name: str = "klipper"
+) -> KlipperRotaryDelta:
     """Parse a Klipper config's text: a :class:`KlipperRotaryDelta`."""
     config = _parse(text, source)
     if not config.has_section("printer"):
@@ -183,7 +186,7 @@ def klipper_from_text(text: str, source: str = "printer.cfg", name: str = "klipp
     for key, values in (("upper_arm_length", upper), ("lower_arm_length", lower)):
         if min(values) <= 0.0:
             raise GeometryError(f"{source}: {key} must be > 0, got {values}")
-    kwargs = {}
+    kwargs: dict[str, Any] = {}
     if len(set(upper)) == 1 and len(set(lower)) == 1:
         kwargs.update(l_a=upper[0] * _MM, l_b=lower[0] * _MM)
     else:
@@ -205,18 +208,14 @@ def klipper_from_text(text: str, source: str = "printer.cfg", name: str = "klipp
     return KlipperRotaryDelta(
         geometry=geometry,
         shoulder_height=height * _MM,
-        position_endstop=tuple(e * _MM for e in endstops),  # type: ignore[arg-type]
+        position_endstop=(endstops[0] * _MM, endstops[1] * _MM, endstops[2] * _MM),
     )
 
 
-def _geometry(chains=None, **kwargs) -> DeltaGeometry:
-    if chains is not None:
-        if not hasattr(DeltaGeometry, "with_chains"):
-            raise GeometryError(
-                "the steppers' arm lengths differ; per-chain lengths are not supported"
-            )
-        return DeltaGeometry(**kwargs).with_chains(**chains)
-    return DeltaGeometry(**kwargs)
+def _geometry(chains: dict[str, Any] | None = None, **kwargs: Any) -> DeltaGeometry:
+    """The symmetric geometry, or with per-chain arm lengths where the steppers differ."""
+    geometry = DeltaGeometry(**kwargs)
+    return geometry if chains is None else geometry.with_chains(**chains)
 
 
 def read_klipper(path: PathLike, name: str = "klipper") -> KlipperRotaryDelta:
