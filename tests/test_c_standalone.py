@@ -794,6 +794,8 @@ ONE_PROGRAM = r"""
 int main(void)
 {
     deltagen_delta_geometry g = {%(r_a)s, %(r_b)s, %(l_a)s, %(l_b)s,
+                                 {%(r_a)s - %(r_b)s, %(r_a)s - %(r_b)s, %(r_a)s - %(r_b)s},
+                                 {%(l_a)s, %(l_a)s, %(l_a)s}, {%(l_b)s, %(l_b)s, %(l_b)s},
                                  {%(cos)s}, {%(sin)s}, 1e-9,
                                  0.037, 0.6, 0.15, 0.2, 0.5, {0.0, 0.0, -9.81}, 2e-4};
     double qd[3] = {0.1, 0.2, 0.3}, p[3], T[16], T6[16], J6[36], q6[6] = {0.1, -0.4, 0.3, 0.2, 0.5, -0.1};
