@@ -1,5 +1,5 @@
 """Command line: deltagen generate | validate | fk | ik | dynamics | workspace | sweep | demo |
-export | bench."""
+export | calibrate | bench."""
 
 from __future__ import annotations
 
@@ -40,12 +40,15 @@ def _robot(args):
     if name in bundled_robots():
         return SerialRobot.load(name, backend=args.backend)
     path = Path(name)
+    if path.suffix.lower() == ".cfg":  # a Klipper printer.cfg (kinematics: rotary_delta)
+        return DeltaRobot.from_klipper(path, backend=args.backend)
     if path.suffix.lower() == ".urdf":  # its chain from the root link to the single leaf
         return SerialRobot.from_urdf(path, backend=args.backend)
     if path.suffix != ".toml" and not path.exists():
         raise ValueError(
             f"unknown robot {name!r}: use 'default', a bundled arm "
-            f"({', '.join(bundled_robots())}) or a robot .toml file"
+            f"({', '.join(bundled_robots())}), a robot .toml file, a .urdf or a Klipper "
+            "printer.cfg"
         )
     if _robot_kind(path) == "serial":
         return SerialRobot.from_toml(path, backend=args.backend)
@@ -128,7 +131,10 @@ exit status:
      generated/ (generate --check), a tolerance missed (validate)
   2  usage or input error (bad arguments, an unreadable or malformed file)"""
 
-ROBOT_HELP = "'default' (the delta robot), a bundled serial arm's name, or a robot TOML file"
+ROBOT_HELP = (
+    "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
+    "or a Klipper printer.cfg (kinematics: rotary_delta)"
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -337,6 +343,27 @@ def main(argv=None) -> int:
     )
     x.set_defaults(func=_export)
 
+    c = sub.add_parser(
+        "calibrate",
+        help="identify a built delta robot's geometry from measured (q, p) pairs",
+        description="Levenberg-Marquardt on fk(q) = p over per-chain parameters; prints "
+        "values, 1-sigma uncertainty, residuals before/after and what the data cannot "
+        "separate. DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
+    )
+    c.add_argument("data", help="CSV of measurements: q1,q2,q3,x,y,z")
+    c.add_argument("--robot", default="default", help="the nominal robot: " + ROBOT_HELP)
+    c.add_argument(
+        "--params",
+        default="r_a,l_a,l_b,theta,q_offset",
+        help="comma-separated: r_a, r_b, l_a, l_b, theta, q_offset (each per chain) or single "
+        "entries like l_a[0] (default r_a,l_a,l_b,theta,q_offset)",
+    )
+    c.add_argument("--sigma", type=float, help="measurement noise per coordinate [m] if known")
+    c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
+    c.add_argument("--out", help="write the calibrated robot file (TOML) here")
+    c.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    c.set_defaults(func=_calibrate)
+
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
@@ -392,6 +419,17 @@ def _export(args) -> int:
     args.robot_object = _robot(args)
     args.robot = name
     return export.main(args)
+
+
+def _calibrate(args) -> int:
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.apps import calibrate
+
+    robot = _robot(args)
+    if not isinstance(robot, DeltaRobot):
+        raise ValueError("calibrate: the robot must be a delta robot")
+    args.robot_object = robot
+    return calibrate.main(args)
 
 
 def _lazy(module: str, args) -> int:

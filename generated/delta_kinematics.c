@@ -21,8 +21,8 @@ extern double sin(double);
 extern double atan2(double, double);
 #endif
 
-/* Points per block: each function keeps its block's columns on the stack (fk_acc
- * the most, 15616 bytes at 64 points; each function's comment in
+/* Points per block: each function keeps its block's columns on the stack (fk_param_jacobian
+ * the most, 30464 bytes at 64 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_DELTA_BLOCK
 #define DELTAGEN_DELTA_BLOCK 64
@@ -39,19 +39,24 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
     if (geometry == NULL || status == NULL || q == NULL || p == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
-    const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
     const double det_limit = singular_tol*(l_b*l_b*l_b);
 
@@ -119,18 +124,18 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = cos_q1*l_a + r;
-            const double t0_1 = cos_q2*l_a + r;
-            const double t0_2 = cos_q3*l_a + r;
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
             const double S_x1 = cos_theta1*t0_0;
             const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -l_a*sin_q1;
+            const double S_z1 = -chain_l_a1*sin_q1;
             const double S_x2 = cos_theta2*t0_1;
             const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -l_a*sin_q2;
+            const double S_z2 = -chain_l_a2*sin_q2;
             const double S_x3 = cos_theta3*t0_2;
             const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -l_a*sin_q3;
+            const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
             const double a_y = -S_y1 + S_y2;
@@ -147,15 +152,16 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
             const double t4_0 = 2*e_z;
-            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_2 = 2*e_y;
-            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
-            const double t4_4 = (1.0/4.0)*inv_e_sq;
-            const double t4_5 = 2*e_x;
-            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
-            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
-            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
-            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -221,19 +227,24 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
     if (geometry == NULL || status == NULL || q == NULL || qd == NULL || p == NULL || pd == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
-    const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
     const double det_limit = singular_tol*(l_b*l_b*l_b);
 
@@ -321,18 +332,18 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = cos_q1*l_a + r;
-            const double t0_1 = cos_q2*l_a + r;
-            const double t0_2 = cos_q3*l_a + r;
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
             const double S_x1 = cos_theta1*t0_0;
             const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -l_a*sin_q1;
+            const double S_z1 = -chain_l_a1*sin_q1;
             const double S_x2 = cos_theta2*t0_1;
             const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -l_a*sin_q2;
+            const double S_z2 = -chain_l_a2*sin_q2;
             const double S_x3 = cos_theta3*t0_2;
             const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -l_a*sin_q3;
+            const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
             const double a_y = -S_y1 + S_y2;
@@ -349,15 +360,16 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
             const double t4_0 = 2*e_z;
-            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_2 = 2*e_y;
-            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
-            const double t4_4 = (1.0/4.0)*inv_e_sq;
-            const double t4_5 = 2*e_x;
-            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
-            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
-            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
-            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -384,13 +396,12 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
             const double D32 = -S_y3 - t8_1;
             const double D33 = -S_z3 - t8_2;
             /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
-            const double t9_0 = l_a*z;
-            const double t9_1 = l_a*sin_q1;
-            const double t9_2 = l_a*sin_q2;
-            const double t9_3 = l_a*sin_q3;
-            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
-            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
-            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            const double t9_0 = chain_l_a1*sin_q1;
+            const double t9_1 = chain_l_a2*sin_q2;
+            const double t9_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t9_0*x - sin_theta1*t9_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t9_1*x - sin_theta2*t9_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t9_2*x - sin_theta3*t9_2*y;
             /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
             const double adjD11 = D22*D33 - D23*D32;
             const double adjD12 = -D12*D33 + D13*D32;
@@ -482,19 +493,24 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
     if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || p == NULL || pd == NULL || pdd == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
-    const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
     const double det_limit = singular_tol*(l_b*l_b*l_b);
 
@@ -602,18 +618,18 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = cos_q1*l_a + r;
-            const double t0_1 = cos_q2*l_a + r;
-            const double t0_2 = cos_q3*l_a + r;
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
             const double S_x1 = cos_theta1*t0_0;
             const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -l_a*sin_q1;
+            const double S_z1 = -chain_l_a1*sin_q1;
             const double S_x2 = cos_theta2*t0_1;
             const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -l_a*sin_q2;
+            const double S_z2 = -chain_l_a2*sin_q2;
             const double S_x3 = cos_theta3*t0_2;
             const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -l_a*sin_q3;
+            const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
             const double a_y = -S_y1 + S_y2;
@@ -630,15 +646,16 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
             const double t4_0 = 2*e_z;
-            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_2 = 2*e_y;
-            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
-            const double t4_4 = (1.0/4.0)*inv_e_sq;
-            const double t4_5 = 2*e_x;
-            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
-            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
-            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
-            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -665,13 +682,12 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             const double D32 = -S_y3 - t8_1;
             const double D33 = -S_z3 - t8_2;
             /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
-            const double t9_0 = l_a*z;
-            const double t9_1 = l_a*sin_q1;
-            const double t9_2 = l_a*sin_q2;
-            const double t9_3 = l_a*sin_q3;
-            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
-            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
-            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            const double t9_0 = chain_l_a1*sin_q1;
+            const double t9_1 = chain_l_a2*sin_q2;
+            const double t9_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t9_0*x - sin_theta1*t9_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t9_1*x - sin_theta2*t9_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t9_2*x - sin_theta3*t9_2*y;
             /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
             const double adjD11 = D22*D33 - D23*D32;
             const double adjD12 = -D12*D33 + D13*D32;
@@ -691,33 +707,34 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             const double yd = inv_det_D*(adjD21*t11_0 + adjD22*t11_1 + adjD23*t11_2);
             const double zd = inv_det_D*(adjD31*t11_0 + adjD32*t11_1 + adjD33*t11_2);
             /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39) */
-            const double t12_0 = l_a*z;
-            const double t12_1 = qd1*qd1;
-            const double t12_2 = 2*l_a;
-            const double t12_3 = t12_2*zd;
-            const double t12_4 = cos_q1*l_a*t12_1;
-            const double t12_5 = cos_theta1*x;
-            const double t12_6 = sin_theta1*y;
-            const double t12_7 = l_a*qdd1*sin_q1;
-            const double t12_8 = t12_2*xd;
-            const double t12_9 = qd1*sin_q1;
-            const double t12_10 = t12_2*yd;
-            const double t12_11 = xd*xd + yd*yd + zd*zd;
-            const double t12_12 = qd2*qd2;
-            const double t12_13 = cos_q2*l_a*t12_12;
+            const double t12_0 = qd1*qd1;
+            const double t12_1 = 2*zd;
+            const double t12_2 = chain_l_a1*qd1;
+            const double t12_3 = chain_l_a1*cos_q1*t12_0;
+            const double t12_4 = cos_theta1*x;
+            const double t12_5 = sin_theta1*y;
+            const double t12_6 = chain_l_a1*qdd1*sin_q1;
+            const double t12_7 = 2*xd;
+            const double t12_8 = sin_q1*t12_2;
+            const double t12_9 = 2*yd;
+            const double t12_10 = xd*xd + yd*yd + zd*zd;
+            const double t12_11 = qd2*qd2;
+            const double t12_12 = chain_l_a2*qd2;
+            const double t12_13 = chain_l_a2*cos_q2*t12_11;
             const double t12_14 = cos_theta2*x;
             const double t12_15 = sin_theta2*y;
-            const double t12_16 = l_a*qdd2*sin_q2;
-            const double t12_17 = qd2*sin_q2;
+            const double t12_16 = chain_l_a2*qdd2*sin_q2;
+            const double t12_17 = sin_q2*t12_12;
             const double t12_18 = qd3*qd3;
-            const double t12_19 = cos_q3*l_a*t12_18;
-            const double t12_20 = cos_theta3*x;
-            const double t12_21 = sin_theta3*y;
-            const double t12_22 = l_a*qdd3*sin_q3;
-            const double t12_23 = qd3*sin_q3;
-            const double h1 = cos_q1*l_a*r*t12_1 - cos_q1*qd1*t12_3 - cos_q1*qdd1*t12_0 - cos_theta1*t12_8*t12_9 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t12_1*z - sin_theta1*t12_10*t12_9 - t12_11 - t12_4*t12_5 - t12_4*t12_6 - t12_5*t12_7 - t12_6*t12_7;
-            const double h2 = cos_q2*l_a*r*t12_12 - cos_q2*qd2*t12_3 - cos_q2*qdd2*t12_0 - cos_theta2*t12_17*t12_8 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t12_12*z - sin_theta2*t12_10*t12_17 - t12_11 - t12_13*t12_14 - t12_13*t12_15 - t12_14*t12_16 - t12_15*t12_16;
-            const double h3 = cos_q3*l_a*r*t12_18 - cos_q3*qd3*t12_3 - cos_q3*qdd3*t12_0 - cos_theta3*t12_23*t12_8 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t12_18*z - sin_theta3*t12_10*t12_23 - t12_11 - t12_19*t12_20 - t12_19*t12_21 - t12_20*t12_22 - t12_21*t12_22;
+            const double t12_19 = chain_l_a3*qd3;
+            const double t12_20 = chain_l_a3*cos_q3*t12_18;
+            const double t12_21 = cos_theta3*x;
+            const double t12_22 = sin_theta3*y;
+            const double t12_23 = chain_l_a3*qdd3*sin_q3;
+            const double t12_24 = sin_q3*t12_19;
+            const double h1 = chain_l_a1*chain_r1*cos_q1*t12_0 + chain_l_a1*chain_r1*qdd1*sin_q1 - chain_l_a1*cos_q1*qdd1*z + chain_l_a1*sin_q1*t12_0*z - cos_q1*t12_1*t12_2 - cos_theta1*t12_7*t12_8 - sin_theta1*t12_8*t12_9 - t12_10 - t12_3*t12_4 - t12_3*t12_5 - t12_4*t12_6 - t12_5*t12_6;
+            const double h2 = chain_l_a2*chain_r2*cos_q2*t12_11 + chain_l_a2*chain_r2*qdd2*sin_q2 - chain_l_a2*cos_q2*qdd2*z + chain_l_a2*sin_q2*t12_11*z - cos_q2*t12_1*t12_12 - cos_theta2*t12_17*t12_7 - sin_theta2*t12_17*t12_9 - t12_10 - t12_13*t12_14 - t12_13*t12_15 - t12_14*t12_16 - t12_15*t12_16;
+            const double h3 = chain_l_a3*chain_r3*cos_q3*t12_18 + chain_l_a3*chain_r3*qdd3*sin_q3 - chain_l_a3*cos_q3*qdd3*z + chain_l_a3*sin_q3*t12_18*z - cos_q3*t12_1*t12_19 - cos_theta3*t12_24*t12_7 - sin_theta3*t12_24*t12_9 - t12_10 - t12_20*t12_21 - t12_20*t12_22 - t12_21*t12_23 - t12_22*t12_23;
             /* platform acceleration pddot = J_p^-1 h, eq. (38) */
             const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
             const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
@@ -814,19 +831,24 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
     if (geometry == NULL || status == NULL || q == NULL || J == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
-    const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
     const double det_limit = singular_tol*(l_b*l_b*l_b);
 
@@ -899,18 +921,18 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = cos_q1*l_a + r;
-            const double t0_1 = cos_q2*l_a + r;
-            const double t0_2 = cos_q3*l_a + r;
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
             const double S_x1 = cos_theta1*t0_0;
             const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -l_a*sin_q1;
+            const double S_z1 = -chain_l_a1*sin_q1;
             const double S_x2 = cos_theta2*t0_1;
             const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -l_a*sin_q2;
+            const double S_z2 = -chain_l_a2*sin_q2;
             const double S_x3 = cos_theta3*t0_2;
             const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -l_a*sin_q3;
+            const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
             const double a_y = -S_y1 + S_y2;
@@ -927,15 +949,16 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
             const double t4_0 = 2*e_z;
-            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_2 = 2*e_y;
-            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
-            const double t4_4 = (1.0/4.0)*inv_e_sq;
-            const double t4_5 = 2*e_x;
-            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
-            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
-            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
-            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -962,13 +985,12 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const double D32 = -S_y3 - t8_1;
             const double D33 = -S_z3 - t8_2;
             /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
-            const double t9_0 = l_a*z;
-            const double t9_1 = l_a*sin_q1;
-            const double t9_2 = l_a*sin_q2;
-            const double t9_3 = l_a*sin_q3;
-            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
-            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
-            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            const double t9_0 = chain_l_a1*sin_q1;
+            const double t9_1 = chain_l_a2*sin_q2;
+            const double t9_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t9_0*x - sin_theta1*t9_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t9_1*x - sin_theta2*t9_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t9_2*x - sin_theta3*t9_2*y;
             /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
             const double adjD11 = D22*D33 - D23*D32;
             const double adjD12 = -D12*D33 + D13*D32;
@@ -1072,19 +1094,25 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     if (geometry == NULL || status == NULL || p == NULL || q == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
     const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
@@ -1121,26 +1149,28 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
             const double z = z_b[k];
             const double phi = phi_b[k];
             /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
-            const double t0_0 = -r;
-            const double t0_1 = cos_theta1*x;
-            const double t0_2 = sin_theta1*y;
-            const double t0_3 = 2*l_a;
-            const double t0_4 = t0_3*z;
-            const double t0_5 = 2*r;
-            const double t0_6 = l_a*l_a - (l_b*l_b) + r*r + x*x + y*y + z*z;
-            const double t0_7 = cos_theta2*x;
-            const double t0_8 = sin_theta2*y;
+            const double t0_0 = cos_theta1*x;
+            const double t0_1 = sin_theta1*y;
+            const double t0_2 = 2*chain_l_a1;
+            const double t0_3 = 2*chain_r1;
+            const double t0_4 = x*x + y*y + z*z;
+            const double t0_5 = cos_theta2*x;
+            const double t0_6 = sin_theta2*y;
+            const double t0_7 = 2*chain_l_a2;
+            const double t0_8 = 2*chain_r2;
             const double t0_9 = cos_theta3*x;
             const double t0_10 = sin_theta3*y;
-            const double E1 = -t0_3*(t0_0 + t0_1 + t0_2);
-            const double F1 = t0_4;
-            const double G1 = -t0_1*t0_5 - t0_2*t0_5 + t0_6;
-            const double E2 = -t0_3*(t0_0 + t0_7 + t0_8);
-            const double F2 = t0_4;
-            const double G2 = -t0_5*t0_7 - t0_5*t0_8 + t0_6;
-            const double E3 = -t0_3*(t0_0 + t0_10 + t0_9);
-            const double F3 = t0_4;
-            const double G3 = -t0_10*t0_5 - t0_5*t0_9 + t0_6;
+            const double t0_11 = 2*chain_l_a3;
+            const double t0_12 = 2*chain_r3;
+            const double E1 = -t0_2*(-chain_r1 + t0_0 + t0_1);
+            const double F1 = t0_2*z;
+            const double G1 = -t0_0*t0_3 - t0_1*t0_3 + t0_4 + chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) + chain_r1*chain_r1;
+            const double E2 = -t0_7*(-chain_r2 + t0_5 + t0_6);
+            const double F2 = t0_7*z;
+            const double G2 = t0_4 - t0_5*t0_8 - t0_6*t0_8 + chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) + chain_r2*chain_r2;
+            const double E3 = -t0_11*(-chain_r3 + t0_10 + t0_9);
+            const double F3 = t0_11*z;
+            const double G3 = -t0_10*t0_12 - t0_12*t0_9 + t0_4 + chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) + chain_r3*chain_r3;
             /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
             const double disc1 = E1*E1 + F1*F1 - (G1*G1);
             const double disc2 = E2*E2 + F2*F2 - (G2*G2);
@@ -1198,6 +1228,1150 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     return 0;
 }
 
+int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, double *restrict q, double *restrict qd, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || q == NULL || qd == NULL) {
+        return -1;
+    }
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_DELTA_BLOCK];
+        double y_b[DELTAGEN_DELTA_BLOCK];
+        double z_b[DELTAGEN_DELTA_BLOCK];
+        double phi_b[DELTAGEN_DELTA_BLOCK];
+        double xd_b[DELTAGEN_DELTA_BLOCK];
+        double yd_b[DELTAGEN_DELTA_BLOCK];
+        double zd_b[DELTAGEN_DELTA_BLOCK];
+        double phid_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 3 + 0];
+                y_b[k] = p[(start + k) * 3 + 1];
+                z_b[k] = p[(start + k) * 3 + 2];
+                phi_b[k] = 0.0;  /* no fourth axis */
+                xd_b[k] = pd[(start + k) * 3 + 0];
+                yd_b[k] = pd[(start + k) * 3 + 1];
+                zd_b[k] = pd[(start + k) * 3 + 2];
+                phid_b[k] = 0.0;  /* no fourth axis */
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 4 + 0];
+                y_b[k] = p[(start + k) * 4 + 1];
+                z_b[k] = p[(start + k) * 4 + 2];
+                phi_b[k] = p[(start + k) * 4 + 3];
+                xd_b[k] = pd[(start + k) * 4 + 0];
+                yd_b[k] = pd[(start + k) * 4 + 1];
+                zd_b[k] = pd[(start + k) * 4 + 2];
+                phid_b[k] = pd[(start + k) * 4 + 3];
+            }
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd4_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double phi = phi_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            const double phid = phid_b[k];
+            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+            const double t0_0 = cos_theta1*x;
+            const double t0_1 = sin_theta1*y;
+            const double t0_2 = 2*chain_l_a1;
+            const double t0_3 = 2*chain_r1;
+            const double t0_4 = x*x + y*y + z*z;
+            const double t0_5 = cos_theta2*x;
+            const double t0_6 = sin_theta2*y;
+            const double t0_7 = 2*chain_l_a2;
+            const double t0_8 = 2*chain_r2;
+            const double t0_9 = cos_theta3*x;
+            const double t0_10 = sin_theta3*y;
+            const double t0_11 = 2*chain_l_a3;
+            const double t0_12 = 2*chain_r3;
+            const double E1 = -t0_2*(-chain_r1 + t0_0 + t0_1);
+            const double F1 = t0_2*z;
+            const double G1 = -t0_0*t0_3 - t0_1*t0_3 + t0_4 + chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) + chain_r1*chain_r1;
+            const double E2 = -t0_7*(-chain_r2 + t0_5 + t0_6);
+            const double F2 = t0_7*z;
+            const double G2 = t0_4 - t0_5*t0_8 - t0_6*t0_8 + chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) + chain_r2*chain_r2;
+            const double E3 = -t0_11*(-chain_r3 + t0_10 + t0_9);
+            const double F3 = t0_11*z;
+            const double G3 = -t0_10*t0_12 - t0_12*t0_9 + t0_4 + chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) + chain_r3*chain_r3;
+            /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+            const double disc1 = E1*E1 + F1*F1 - (G1*G1);
+            const double disc2 = E2*E2 + F2*F2 - (G2*G2);
+            const double disc3 = E3*E3 + F3*F3 - (G3*G3);
+            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+            const double t2_0 = sqrt(disc1);
+            const double t2_1 = sqrt(disc2);
+            const double t2_2 = sqrt(disc3);
+            const double ik_x1 = -E1*G1 - F1*t2_0;
+            const double ik_y1 = E1*t2_0 - F1*G1;
+            const double ik_x2 = -E2*G2 - F2*t2_1;
+            const double ik_y2 = E2*t2_1 - F2*G2;
+            const double ik_x3 = -E3*G3 - F3*t2_2;
+            const double ik_y3 = E3*t2_2 - F3*G3;
+            /* crank angles q = atan2(Y, X) in (-pi, pi] */
+            const double q1 = atan2(ik_y1, ik_x1);
+            const double q2 = atan2(ik_y2, ik_x2);
+            const double q3 = atan2(ik_y3, ik_x3);
+            /* cos q_i, sin q_i = (X, Y) / rho^2 */
+            const double inv_rho_sq1 = 1.0/(E1*E1 + F1*F1);
+            const double inv_rho_sq2 = 1.0/(E2*E2 + F2*F2);
+            const double inv_rho_sq3 = 1.0/(E3*E3 + F3*F3);
+            const double cos_q1 = ik_x1*inv_rho_sq1;
+            const double sin_q1 = ik_y1*inv_rho_sq1;
+            const double cos_q2 = ik_x2*inv_rho_sq2;
+            const double sin_q2 = ik_y2*inv_rho_sq2;
+            const double cos_q3 = ik_x3*inv_rho_sq3;
+            const double sin_q3 = ik_y3*inv_rho_sq3;
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+            const double S_x1 = cos_theta1*t5_0;
+            const double S_y1 = sin_theta1*t5_0;
+            const double S_z1 = -chain_l_a1*sin_q1;
+            const double S_x2 = cos_theta2*t5_1;
+            const double S_y2 = sin_theta2*t5_1;
+            const double S_z2 = -chain_l_a2*sin_q2;
+            const double S_x3 = cos_theta3*t5_2;
+            const double S_y3 = sin_theta3*t5_2;
+            const double S_z3 = -chain_l_a3*sin_q3;
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t6_0 = -x;
+            const double t6_1 = -y;
+            const double t6_2 = -z;
+            const double D11 = -S_x1 - t6_0;
+            const double D12 = -S_y1 - t6_1;
+            const double D13 = -S_z1 - t6_2;
+            const double D21 = -S_x2 - t6_0;
+            const double D22 = -S_y2 - t6_1;
+            const double D23 = -S_z2 - t6_2;
+            const double D31 = -S_x3 - t6_0;
+            const double D32 = -S_y3 - t6_1;
+            const double D33 = -S_z3 - t6_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t7_0 = chain_l_a1*sin_q1;
+            const double t7_1 = chain_l_a2*sin_q2;
+            const double t7_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t7_0*x - sin_theta1*t7_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t7_1*x - sin_theta2*t7_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t7_2*x - sin_theta3*t7_2*y;
+            /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+            const double inv_jq1 = 1.0/jq1;
+            const double inv_jq2 = 1.0/jq2;
+            const double inv_jq3 = 1.0/jq3;
+            const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+            const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+            const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+            /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(phid));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            /* outputs (q NaN where unreachable, rates NaN unless OK) */
+            const int t10_0 = ((invalid) | (unreachable));
+            const int t10_1 = ((invalid) | (singular) | (unreachable));
+            const double out_q1 = ((t10_0) ? NAN : q1);
+            const double out_q2 = ((t10_0) ? NAN : q2);
+            const double out_q3 = ((t10_0) ? NAN : q3);
+            const double out_q4 = ((t10_0) ? NAN : phi);
+            const double out_qd1 = ((t10_1) ? NAN : qd1);
+            const double out_qd2 = ((t10_1) ? NAN : qd2);
+            const double out_qd3 = ((t10_1) ? NAN : qd3);
+            const double out_qd4 = ((t10_1) ? NAN : phid);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(out_qd1) & isfinite(out_qd2) & isfinite(out_qd3) & isfinite(out_qd4))))));
+            const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
+            const double out_q2_checked = ((nonfinite_output) ? NAN : out_q2);
+            const double out_q3_checked = ((nonfinite_output) ? NAN : out_q3);
+            const double out_q4_checked = ((nonfinite_output) ? NAN : out_q4);
+            const double out_qd1_checked = ((nonfinite_output) ? NAN : out_qd1);
+            const double out_qd2_checked = ((nonfinite_output) ? NAN : out_qd2);
+            const double out_qd3_checked = ((nonfinite_output) ? NAN : out_qd3);
+            const double out_qd4_checked = ((nonfinite_output) ? NAN : out_qd4);
+            out_q1_checked_b[k] = out_q1_checked;
+            out_q2_checked_b[k] = out_q2_checked;
+            out_q3_checked_b[k] = out_q3_checked;
+            out_q4_checked_b[k] = out_q4_checked;
+            out_qd1_checked_b[k] = out_qd1_checked;
+            out_qd2_checked_b[k] = out_qd2_checked;
+            out_qd3_checked_b[k] = out_qd3_checked;
+            out_qd4_checked_b[k] = out_qd4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
+                qd[(start + k) * 3 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 3 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 3 + 2] = out_qd3_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
+                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
+                qd[(start + k) * 4 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 4 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 4 + 2] = out_qd3_checked_b[k];
+                qd[(start + k) * 4 + 3] = out_qd4_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
+int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict q, double *restrict qd, double *restrict qdd, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || pdd == NULL || q == NULL || qd == NULL || qdd == NULL) {
+        return -1;
+    }
+    const double l_a = geometry->l_a;
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_DELTA_BLOCK];
+        double y_b[DELTAGEN_DELTA_BLOCK];
+        double z_b[DELTAGEN_DELTA_BLOCK];
+        double phi_b[DELTAGEN_DELTA_BLOCK];
+        double xd_b[DELTAGEN_DELTA_BLOCK];
+        double yd_b[DELTAGEN_DELTA_BLOCK];
+        double zd_b[DELTAGEN_DELTA_BLOCK];
+        double phid_b[DELTAGEN_DELTA_BLOCK];
+        double xdd_b[DELTAGEN_DELTA_BLOCK];
+        double ydd_b[DELTAGEN_DELTA_BLOCK];
+        double zdd_b[DELTAGEN_DELTA_BLOCK];
+        double phidd_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 3 + 0];
+                y_b[k] = p[(start + k) * 3 + 1];
+                z_b[k] = p[(start + k) * 3 + 2];
+                phi_b[k] = 0.0;  /* no fourth axis */
+                xd_b[k] = pd[(start + k) * 3 + 0];
+                yd_b[k] = pd[(start + k) * 3 + 1];
+                zd_b[k] = pd[(start + k) * 3 + 2];
+                phid_b[k] = 0.0;  /* no fourth axis */
+                xdd_b[k] = pdd[(start + k) * 3 + 0];
+                ydd_b[k] = pdd[(start + k) * 3 + 1];
+                zdd_b[k] = pdd[(start + k) * 3 + 2];
+                phidd_b[k] = 0.0;  /* no fourth axis */
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                x_b[k] = p[(start + k) * 4 + 0];
+                y_b[k] = p[(start + k) * 4 + 1];
+                z_b[k] = p[(start + k) * 4 + 2];
+                phi_b[k] = p[(start + k) * 4 + 3];
+                xd_b[k] = pd[(start + k) * 4 + 0];
+                yd_b[k] = pd[(start + k) * 4 + 1];
+                zd_b[k] = pd[(start + k) * 4 + 2];
+                phid_b[k] = pd[(start + k) * 4 + 3];
+                xdd_b[k] = pdd[(start + k) * 4 + 0];
+                ydd_b[k] = pdd[(start + k) * 4 + 1];
+                zdd_b[k] = pdd[(start + k) * 4 + 2];
+                phidd_b[k] = pdd[(start + k) * 4 + 3];
+            }
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qd4_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd1_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd2_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd3_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_qdd4_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double phi = phi_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            const double phid = phid_b[k];
+            const double xdd = xdd_b[k];
+            const double ydd = ydd_b[k];
+            const double zdd = zdd_b[k];
+            const double phidd = phidd_b[k];
+            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+            const double t0_0 = cos_theta1*x;
+            const double t0_1 = sin_theta1*y;
+            const double t0_2 = 2*chain_l_a1;
+            const double t0_3 = 2*chain_r1;
+            const double t0_4 = x*x + y*y + z*z;
+            const double t0_5 = cos_theta2*x;
+            const double t0_6 = sin_theta2*y;
+            const double t0_7 = 2*chain_l_a2;
+            const double t0_8 = 2*chain_r2;
+            const double t0_9 = cos_theta3*x;
+            const double t0_10 = sin_theta3*y;
+            const double t0_11 = 2*chain_l_a3;
+            const double t0_12 = 2*chain_r3;
+            const double E1 = -t0_2*(-chain_r1 + t0_0 + t0_1);
+            const double F1 = t0_2*z;
+            const double G1 = -t0_0*t0_3 - t0_1*t0_3 + t0_4 + chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) + chain_r1*chain_r1;
+            const double E2 = -t0_7*(-chain_r2 + t0_5 + t0_6);
+            const double F2 = t0_7*z;
+            const double G2 = t0_4 - t0_5*t0_8 - t0_6*t0_8 + chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) + chain_r2*chain_r2;
+            const double E3 = -t0_11*(-chain_r3 + t0_10 + t0_9);
+            const double F3 = t0_11*z;
+            const double G3 = -t0_10*t0_12 - t0_12*t0_9 + t0_4 + chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) + chain_r3*chain_r3;
+            /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+            const double disc1 = E1*E1 + F1*F1 - (G1*G1);
+            const double disc2 = E2*E2 + F2*F2 - (G2*G2);
+            const double disc3 = E3*E3 + F3*F3 - (G3*G3);
+            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+            const double t2_0 = sqrt(disc1);
+            const double t2_1 = sqrt(disc2);
+            const double t2_2 = sqrt(disc3);
+            const double ik_x1 = -E1*G1 - F1*t2_0;
+            const double ik_y1 = E1*t2_0 - F1*G1;
+            const double ik_x2 = -E2*G2 - F2*t2_1;
+            const double ik_y2 = E2*t2_1 - F2*G2;
+            const double ik_x3 = -E3*G3 - F3*t2_2;
+            const double ik_y3 = E3*t2_2 - F3*G3;
+            /* crank angles q = atan2(Y, X) in (-pi, pi] */
+            const double q1 = atan2(ik_y1, ik_x1);
+            const double q2 = atan2(ik_y2, ik_x2);
+            const double q3 = atan2(ik_y3, ik_x3);
+            /* cos q_i, sin q_i = (X, Y) / rho^2 */
+            const double inv_rho_sq1 = 1.0/(E1*E1 + F1*F1);
+            const double inv_rho_sq2 = 1.0/(E2*E2 + F2*F2);
+            const double inv_rho_sq3 = 1.0/(E3*E3 + F3*F3);
+            const double cos_q1 = ik_x1*inv_rho_sq1;
+            const double sin_q1 = ik_y1*inv_rho_sq1;
+            const double cos_q2 = ik_x2*inv_rho_sq2;
+            const double sin_q2 = ik_y2*inv_rho_sq2;
+            const double cos_q3 = ik_x3*inv_rho_sq3;
+            const double sin_q3 = ik_y3*inv_rho_sq3;
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+            const double S_x1 = cos_theta1*t5_0;
+            const double S_y1 = sin_theta1*t5_0;
+            const double S_z1 = -chain_l_a1*sin_q1;
+            const double S_x2 = cos_theta2*t5_1;
+            const double S_y2 = sin_theta2*t5_1;
+            const double S_z2 = -chain_l_a2*sin_q2;
+            const double S_x3 = cos_theta3*t5_2;
+            const double S_y3 = sin_theta3*t5_2;
+            const double S_z3 = -chain_l_a3*sin_q3;
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t6_0 = -x;
+            const double t6_1 = -y;
+            const double t6_2 = -z;
+            const double D11 = -S_x1 - t6_0;
+            const double D12 = -S_y1 - t6_1;
+            const double D13 = -S_z1 - t6_2;
+            const double D21 = -S_x2 - t6_0;
+            const double D22 = -S_y2 - t6_1;
+            const double D23 = -S_z2 - t6_2;
+            const double D31 = -S_x3 - t6_0;
+            const double D32 = -S_y3 - t6_1;
+            const double D33 = -S_z3 - t6_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t7_0 = chain_l_a1*sin_q1;
+            const double t7_1 = chain_l_a2*sin_q2;
+            const double t7_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t7_0*x - sin_theta1*t7_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t7_1*x - sin_theta2*t7_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t7_2*x - sin_theta3*t7_2*y;
+            /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+            const double inv_jq1 = 1.0/jq1;
+            const double inv_jq2 = 1.0/jq2;
+            const double inv_jq3 = 1.0/jq3;
+            const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+            const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+            const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+            /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
+            const double t9_0 = chain_l_a1*(qd1*qd1);
+            const double t9_1 = cos_q1*t9_0;
+            const double t9_2 = 2*zd;
+            const double t9_3 = chain_l_a1*qd1;
+            const double t9_4 = 2*xd;
+            const double t9_5 = sin_q1*t9_3;
+            const double t9_6 = 2*yd;
+            const double t9_7 = xd*xd + yd*yd + zd*zd;
+            const double t9_8 = chain_l_a2*(qd2*qd2);
+            const double t9_9 = cos_q2*t9_8;
+            const double t9_10 = chain_l_a2*qd2;
+            const double t9_11 = sin_q2*t9_10;
+            const double t9_12 = chain_l_a3*(qd3*qd3);
+            const double t9_13 = cos_q3*t9_12;
+            const double t9_14 = chain_l_a3*qd3;
+            const double t9_15 = sin_q3*t9_14;
+            const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 + cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y + sin_theta1*t9_5*t9_6 + t9_7);
+            const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 + cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 + sin_theta2*t9_9*y + t9_7);
+            const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 + cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y + sin_theta3*t9_15*t9_6 + t9_7);
+            /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) & isfinite(phidd));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            /* outputs (q NaN where unreachable, rates NaN unless OK) */
+            const int t11_0 = ((invalid) | (unreachable));
+            const int t11_1 = ((invalid) | (singular) | (unreachable));
+            const double out_q1 = ((t11_0) ? NAN : q1);
+            const double out_q2 = ((t11_0) ? NAN : q2);
+            const double out_q3 = ((t11_0) ? NAN : q3);
+            const double out_q4 = ((t11_0) ? NAN : phi);
+            const double out_qd1 = ((t11_1) ? NAN : qd1);
+            const double out_qd2 = ((t11_1) ? NAN : qd2);
+            const double out_qd3 = ((t11_1) ? NAN : qd3);
+            const double out_qd4 = ((t11_1) ? NAN : phid);
+            const double out_qdd1 = ((t11_1) ? NAN : qdd1);
+            const double out_qdd2 = ((t11_1) ? NAN : qdd2);
+            const double out_qdd3 = ((t11_1) ? NAN : qdd3);
+            const double out_qdd4 = ((t11_1) ? NAN : phidd);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(out_qd1) & isfinite(out_qd2) & isfinite(out_qd3) & isfinite(out_qd4) & isfinite(out_qdd1) & isfinite(out_qdd2) & isfinite(out_qdd3) & isfinite(out_qdd4))))));
+            const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
+            const double out_q2_checked = ((nonfinite_output) ? NAN : out_q2);
+            const double out_q3_checked = ((nonfinite_output) ? NAN : out_q3);
+            const double out_q4_checked = ((nonfinite_output) ? NAN : out_q4);
+            const double out_qd1_checked = ((nonfinite_output) ? NAN : out_qd1);
+            const double out_qd2_checked = ((nonfinite_output) ? NAN : out_qd2);
+            const double out_qd3_checked = ((nonfinite_output) ? NAN : out_qd3);
+            const double out_qd4_checked = ((nonfinite_output) ? NAN : out_qd4);
+            const double out_qdd1_checked = ((nonfinite_output) ? NAN : out_qdd1);
+            const double out_qdd2_checked = ((nonfinite_output) ? NAN : out_qdd2);
+            const double out_qdd3_checked = ((nonfinite_output) ? NAN : out_qdd3);
+            const double out_qdd4_checked = ((nonfinite_output) ? NAN : out_qdd4);
+            out_q1_checked_b[k] = out_q1_checked;
+            out_q2_checked_b[k] = out_q2_checked;
+            out_q3_checked_b[k] = out_q3_checked;
+            out_q4_checked_b[k] = out_q4_checked;
+            out_qd1_checked_b[k] = out_qd1_checked;
+            out_qd2_checked_b[k] = out_qd2_checked;
+            out_qd3_checked_b[k] = out_qd3_checked;
+            out_qd4_checked_b[k] = out_qd4_checked;
+            out_qdd1_checked_b[k] = out_qdd1_checked;
+            out_qdd2_checked_b[k] = out_qdd2_checked;
+            out_qdd3_checked_b[k] = out_qdd3_checked;
+            out_qdd4_checked_b[k] = out_qdd4_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
+                qd[(start + k) * 3 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 3 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 3 + 2] = out_qd3_checked_b[k];
+                qdd[(start + k) * 3 + 0] = out_qdd1_checked_b[k];
+                qdd[(start + k) * 3 + 1] = out_qdd2_checked_b[k];
+                qdd[(start + k) * 3 + 2] = out_qdd3_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
+                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
+                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
+                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
+                qd[(start + k) * 4 + 0] = out_qd1_checked_b[k];
+                qd[(start + k) * 4 + 1] = out_qd2_checked_b[k];
+                qd[(start + k) * 4 + 2] = out_qd3_checked_b[k];
+                qd[(start + k) * 4 + 3] = out_qd4_checked_b[k];
+                qdd[(start + k) * 4 + 0] = out_qdd1_checked_b[k];
+                qdd[(start + k) * 4 + 1] = out_qdd2_checked_b[k];
+                qdd[(start + k) * 4 + 2] = out_qdd3_checked_b[k];
+                qdd[(start + k) * 4 + 3] = out_qdd4_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
+int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, double *restrict p, double *restrict G, int8_t *restrict status)
+{
+    if (axes != 3 && axes != 4) {
+        return -1;
+    }
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || q == NULL || p == NULL || G == NULL) {
+        return -1;
+    }
+    const double l_b = geometry->l_b;
+    const double cos_theta1 = geometry->cos_theta[0];
+    const double cos_theta2 = geometry->cos_theta[1];
+    const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
+    const double sin_theta1 = geometry->sin_theta[0];
+    const double sin_theta2 = geometry->sin_theta[1];
+    const double sin_theta3 = geometry->sin_theta[2];
+    const double singular_tol = geometry->singular_tol;
+    /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        double q4_b[DELTAGEN_DELTA_BLOCK];
+        if (axes == 3) {  /* constant strides let the compiler vectorise the copies */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 3 + 0];
+                q2_b[k] = q[(start + k) * 3 + 1];
+                q3_b[k] = q[(start + k) * 3 + 2];
+                q4_b[k] = 0.0;  /* no fourth axis */
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                q1_b[k] = q[(start + k) * 4 + 0];
+                q2_b[k] = q[(start + k) * 4 + 1];
+                q3_b[k] = q[(start + k) * 4 + 2];
+                q4_b[k] = q[(start + k) * 4 + 3];
+            }
+        }
+        double cos_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q1_b[k] = cos(q1_b[k]);
+        }
+        double sin_q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q1_b[k] = sin(q1_b[k]);
+        }
+        double cos_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q2_b[k] = cos(q2_b[k]);
+        }
+        double sin_q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q2_b[k] = sin(q2_b[k]);
+        }
+        double cos_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            cos_q3_b[k] = cos(q3_b[k]);
+        }
+        double sin_q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            sin_q3_b[k] = sin(q3_b[k]);
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_DELTA_BLOCK];
+        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r1_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r1_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r1_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r2_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r2_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r2_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r3_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r3_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_r3_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a1_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a1_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a1_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a2_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a2_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a2_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a3_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a3_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_a3_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b1_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b1_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b1_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b2_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b2_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b2_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b3_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b3_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_l_b3_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta1_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta1_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta1_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta2_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta2_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta2_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta3_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta3_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_theta3_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q1_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q1_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q1_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q2_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q2_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q2_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q3_x_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q3_y_checked_b[DELTAGEN_DELTA_BLOCK];
+        double out_dp_q3_z_checked_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            const double q1 = q1_b[k];
+            const double q2 = q2_b[k];
+            const double q3 = q3_b[k];
+            const double q4 = q4_b[k];
+            const double cos_q1 = cos_q1_b[k];
+            const double sin_q1 = sin_q1_b[k];
+            const double cos_q2 = cos_q2_b[k];
+            const double sin_q2 = sin_q2_b[k];
+            const double cos_q3 = cos_q3_b[k];
+            const double sin_q3 = sin_q3_b[k];
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+            const double S_x1 = cos_theta1*t0_0;
+            const double S_y1 = sin_theta1*t0_0;
+            const double S_z1 = -chain_l_a1*sin_q1;
+            const double S_x2 = cos_theta2*t0_1;
+            const double S_y2 = sin_theta2*t0_1;
+            const double S_z2 = -chain_l_a2*sin_q2;
+            const double S_x3 = cos_theta3*t0_2;
+            const double S_y3 = sin_theta3*t0_2;
+            const double S_z3 = -chain_l_a3*sin_q3;
+            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+            const double a_x = -S_x1 + S_x2;
+            const double a_y = -S_y1 + S_y2;
+            const double a_z = -S_z1 + S_z2;
+            const double b_x = -S_x1 + S_x3;
+            const double b_y = -S_y1 + S_y3;
+            const double b_z = -S_z1 + S_z3;
+            /* e = a x b, normal of the centre plane; its squared length */
+            const double e_x = a_y*b_z - a_z*b_y;
+            const double e_y = -a_x*b_z + a_z*b_x;
+            const double e_z = a_x*b_y - a_y*b_x;
+            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+            const double inv_e_sq = 1.0/e_sq;
+            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+            const double t4_0 = 2*e_z;
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            /* lower intersection with sphere 1, eqs. (22)-(26) */
+            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+            /* platform position p, eq. (27) */
+            const double x = S_x1 + e_x*lambda_ + x0_x;
+            const double y = S_y1 + e_y*lambda_ + x0_y;
+            const double z = S_z1 + e_z*lambda_ + x0_z;
+            const double det_D = e_sq*lambda_;
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
+            const int collinear = (e_sq <= collinear_limit);
+            const int unreachable = (h_sq < 0);
+            const int singular = (fabs(det_D) <= det_limit);
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t8_0 = -x;
+            const double t8_1 = -y;
+            const double t8_2 = -z;
+            const double D11 = -S_x1 - t8_0;
+            const double D12 = -S_y1 - t8_1;
+            const double D13 = -S_z1 - t8_2;
+            const double D21 = -S_x2 - t8_0;
+            const double D22 = -S_y2 - t8_1;
+            const double D23 = -S_z2 - t8_2;
+            const double D31 = -S_x3 - t8_0;
+            const double D32 = -S_y3 - t8_1;
+            const double D33 = -S_z3 - t8_2;
+            /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
+            const double t9_0 = chain_l_a1*sin_q1;
+            const double t9_1 = chain_l_a2*sin_q2;
+            const double t9_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t9_0*x - sin_theta1*t9_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t9_1*x - sin_theta2*t9_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t9_2*x - sin_theta3*t9_2*y;
+            /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
+            const double adjD11 = D22*D33 - D23*D32;
+            const double adjD12 = -D12*D33 + D13*D32;
+            const double adjD13 = D12*D23 - D13*D22;
+            const double adjD21 = -D21*D33 + D23*D31;
+            const double adjD22 = D11*D33 - D13*D31;
+            const double adjD23 = -D11*D23 + D13*D21;
+            const double adjD31 = D21*D32 - D22*D31;
+            const double adjD32 = -D11*D32 + D12*D31;
+            const double adjD33 = D11*D22 - D12*D21;
+            const double inv_det_D = 1.0/det_D;
+            /* closure partials df_i / d(r_i, l_a,i, l_b,i, theta_i) of eq. (1) */
+            const double t11_0 = 2*x;
+            const double t11_1 = cos_theta1*t11_0;
+            const double t11_2 = 2*y;
+            const double t11_3 = sin_theta1*t11_2;
+            const double t11_4 = cos_theta1*cos_theta1;
+            const double t11_5 = 2*chain_r1;
+            const double t11_6 = t11_4*t11_5;
+            const double t11_7 = sin_theta1*sin_theta1;
+            const double t11_8 = t11_5*t11_7;
+            const double t11_9 = 2*chain_l_a1;
+            const double t11_10 = cos_q1*t11_9;
+            const double t11_11 = 2*z;
+            const double t11_12 = t11_9*(cos_q1*cos_q1);
+            const double t11_13 = cos_theta1*t11_2;
+            const double t11_14 = cos_theta2*t11_0;
+            const double t11_15 = sin_theta2*t11_2;
+            const double t11_16 = cos_theta2*cos_theta2;
+            const double t11_17 = 2*chain_r2;
+            const double t11_18 = t11_16*t11_17;
+            const double t11_19 = sin_theta2*sin_theta2;
+            const double t11_20 = t11_17*t11_19;
+            const double t11_21 = 2*chain_l_a2;
+            const double t11_22 = cos_q2*t11_21;
+            const double t11_23 = t11_21*(cos_q2*cos_q2);
+            const double t11_24 = cos_theta2*t11_2;
+            const double t11_25 = cos_theta3*t11_0;
+            const double t11_26 = sin_theta3*t11_2;
+            const double t11_27 = cos_theta3*cos_theta3;
+            const double t11_28 = 2*chain_r3;
+            const double t11_29 = t11_27*t11_28;
+            const double t11_30 = sin_theta3*sin_theta3;
+            const double t11_31 = t11_28*t11_30;
+            const double t11_32 = 2*chain_l_a3;
+            const double t11_33 = cos_q3*t11_32;
+            const double t11_34 = t11_32*(cos_q3*cos_q3);
+            const double t11_35 = cos_theta3*t11_2;
+            const double df_r1 = -t11_1 + t11_10*t11_4 + t11_10*t11_7 - t11_3 + t11_6 + t11_8;
+            const double df_l_a1 = -cos_q1*t11_1 - cos_q1*t11_3 + cos_q1*t11_6 + cos_q1*t11_8 + sin_q1*t11_11 + t11_12*t11_4 + t11_12*t11_7 + t11_9*(sin_q1*sin_q1);
+            const double df_l_b1 = -2*chain_l_b1;
+            const double df_theta1 = 2*chain_l_a1*cos_q1*sin_theta1*x - chain_l_a1*cos_q1*t11_13 + 2*chain_r1*sin_theta1*x - chain_r1*t11_13;
+            const double df_r2 = -t11_14 - t11_15 + t11_16*t11_22 + t11_18 + t11_19*t11_22 + t11_20;
+            const double df_l_a2 = -cos_q2*t11_14 - cos_q2*t11_15 + cos_q2*t11_18 + cos_q2*t11_20 + sin_q2*t11_11 + t11_16*t11_23 + t11_19*t11_23 + t11_21*(sin_q2*sin_q2);
+            const double df_l_b2 = -2*chain_l_b2;
+            const double df_theta2 = 2*chain_l_a2*cos_q2*sin_theta2*x - chain_l_a2*cos_q2*t11_24 + 2*chain_r2*sin_theta2*x - chain_r2*t11_24;
+            const double df_r3 = -t11_25 - t11_26 + t11_27*t11_33 + t11_29 + t11_30*t11_33 + t11_31;
+            const double df_l_a3 = -cos_q3*t11_25 - cos_q3*t11_26 + cos_q3*t11_29 + cos_q3*t11_31 + sin_q3*t11_11 + t11_27*t11_34 + t11_30*t11_34 + t11_32*(sin_q3*sin_q3);
+            const double df_l_b3 = -2*chain_l_b3;
+            const double df_theta3 = 2*chain_l_a3*cos_q3*sin_theta3*x - chain_l_a3*cos_q3*t11_35 + 2*chain_r3*sin_theta3*x - chain_r3*t11_35;
+            /* dp / d(chain parameters) = -J_p^-1 e_i df_i/dpi (implicit function theorem) */
+            const double t12_0 = (1.0/2.0)*inv_det_D;
+            const double t12_1 = df_r1*t12_0;
+            const double t12_2 = df_r2*t12_0;
+            const double t12_3 = df_r3*t12_0;
+            const double t12_4 = df_l_a1*t12_0;
+            const double t12_5 = df_l_a2*t12_0;
+            const double t12_6 = df_l_a3*t12_0;
+            const double t12_7 = df_l_b1*t12_0;
+            const double t12_8 = df_l_b2*t12_0;
+            const double t12_9 = df_l_b3*t12_0;
+            const double t12_10 = df_theta1*t12_0;
+            const double t12_11 = df_theta2*t12_0;
+            const double t12_12 = df_theta3*t12_0;
+            const double t12_13 = inv_det_D*jq1;
+            const double t12_14 = inv_det_D*jq2;
+            const double t12_15 = inv_det_D*jq3;
+            const double dp_r1_x = -adjD11*t12_1;
+            const double dp_r1_y = -adjD21*t12_1;
+            const double dp_r1_z = -adjD31*t12_1;
+            const double dp_r2_x = -adjD12*t12_2;
+            const double dp_r2_y = -adjD22*t12_2;
+            const double dp_r2_z = -adjD32*t12_2;
+            const double dp_r3_x = -adjD13*t12_3;
+            const double dp_r3_y = -adjD23*t12_3;
+            const double dp_r3_z = -adjD33*t12_3;
+            const double dp_l_a1_x = -adjD11*t12_4;
+            const double dp_l_a1_y = -adjD21*t12_4;
+            const double dp_l_a1_z = -adjD31*t12_4;
+            const double dp_l_a2_x = -adjD12*t12_5;
+            const double dp_l_a2_y = -adjD22*t12_5;
+            const double dp_l_a2_z = -adjD32*t12_5;
+            const double dp_l_a3_x = -adjD13*t12_6;
+            const double dp_l_a3_y = -adjD23*t12_6;
+            const double dp_l_a3_z = -adjD33*t12_6;
+            const double dp_l_b1_x = -adjD11*t12_7;
+            const double dp_l_b1_y = -adjD21*t12_7;
+            const double dp_l_b1_z = -adjD31*t12_7;
+            const double dp_l_b2_x = -adjD12*t12_8;
+            const double dp_l_b2_y = -adjD22*t12_8;
+            const double dp_l_b2_z = -adjD32*t12_8;
+            const double dp_l_b3_x = -adjD13*t12_9;
+            const double dp_l_b3_y = -adjD23*t12_9;
+            const double dp_l_b3_z = -adjD33*t12_9;
+            const double dp_theta1_x = -adjD11*t12_10;
+            const double dp_theta1_y = -adjD21*t12_10;
+            const double dp_theta1_z = -adjD31*t12_10;
+            const double dp_theta2_x = -adjD12*t12_11;
+            const double dp_theta2_y = -adjD22*t12_11;
+            const double dp_theta2_z = -adjD32*t12_11;
+            const double dp_theta3_x = -adjD13*t12_12;
+            const double dp_theta3_y = -adjD23*t12_12;
+            const double dp_theta3_z = -adjD33*t12_12;
+            const double dp_q1_x = adjD11*t12_13;
+            const double dp_q1_y = adjD21*t12_13;
+            const double dp_q1_z = adjD31*t12_13;
+            const double dp_q2_x = adjD12*t12_14;
+            const double dp_q2_y = adjD22*t12_14;
+            const double dp_q2_z = adjD32*t12_14;
+            const double dp_q3_x = adjD13*t12_15;
+            const double dp_q3_y = adjD23*t12_15;
+            const double dp_q3_z = adjD33*t12_15;
+            /* outputs (p as fk; G NaN unless OK) */
+            const int t13_0 = ((collinear) | (invalid) | (unreachable));
+            const int t13_1 = ((collinear) | (invalid) | (singular) | (unreachable));
+            const double out_x = ((t13_0) ? NAN : x);
+            const double out_y = ((t13_0) ? NAN : y);
+            const double out_z = ((t13_0) ? NAN : z);
+            const double out_phi = ((t13_0) ? NAN : q4);
+            const double out_dp_r1_x = ((t13_1) ? NAN : dp_r1_x);
+            const double out_dp_r1_y = ((t13_1) ? NAN : dp_r1_y);
+            const double out_dp_r1_z = ((t13_1) ? NAN : dp_r1_z);
+            const double out_dp_r2_x = ((t13_1) ? NAN : dp_r2_x);
+            const double out_dp_r2_y = ((t13_1) ? NAN : dp_r2_y);
+            const double out_dp_r2_z = ((t13_1) ? NAN : dp_r2_z);
+            const double out_dp_r3_x = ((t13_1) ? NAN : dp_r3_x);
+            const double out_dp_r3_y = ((t13_1) ? NAN : dp_r3_y);
+            const double out_dp_r3_z = ((t13_1) ? NAN : dp_r3_z);
+            const double out_dp_l_a1_x = ((t13_1) ? NAN : dp_l_a1_x);
+            const double out_dp_l_a1_y = ((t13_1) ? NAN : dp_l_a1_y);
+            const double out_dp_l_a1_z = ((t13_1) ? NAN : dp_l_a1_z);
+            const double out_dp_l_a2_x = ((t13_1) ? NAN : dp_l_a2_x);
+            const double out_dp_l_a2_y = ((t13_1) ? NAN : dp_l_a2_y);
+            const double out_dp_l_a2_z = ((t13_1) ? NAN : dp_l_a2_z);
+            const double out_dp_l_a3_x = ((t13_1) ? NAN : dp_l_a3_x);
+            const double out_dp_l_a3_y = ((t13_1) ? NAN : dp_l_a3_y);
+            const double out_dp_l_a3_z = ((t13_1) ? NAN : dp_l_a3_z);
+            const double out_dp_l_b1_x = ((t13_1) ? NAN : dp_l_b1_x);
+            const double out_dp_l_b1_y = ((t13_1) ? NAN : dp_l_b1_y);
+            const double out_dp_l_b1_z = ((t13_1) ? NAN : dp_l_b1_z);
+            const double out_dp_l_b2_x = ((t13_1) ? NAN : dp_l_b2_x);
+            const double out_dp_l_b2_y = ((t13_1) ? NAN : dp_l_b2_y);
+            const double out_dp_l_b2_z = ((t13_1) ? NAN : dp_l_b2_z);
+            const double out_dp_l_b3_x = ((t13_1) ? NAN : dp_l_b3_x);
+            const double out_dp_l_b3_y = ((t13_1) ? NAN : dp_l_b3_y);
+            const double out_dp_l_b3_z = ((t13_1) ? NAN : dp_l_b3_z);
+            const double out_dp_theta1_x = ((t13_1) ? NAN : dp_theta1_x);
+            const double out_dp_theta1_y = ((t13_1) ? NAN : dp_theta1_y);
+            const double out_dp_theta1_z = ((t13_1) ? NAN : dp_theta1_z);
+            const double out_dp_theta2_x = ((t13_1) ? NAN : dp_theta2_x);
+            const double out_dp_theta2_y = ((t13_1) ? NAN : dp_theta2_y);
+            const double out_dp_theta2_z = ((t13_1) ? NAN : dp_theta2_z);
+            const double out_dp_theta3_x = ((t13_1) ? NAN : dp_theta3_x);
+            const double out_dp_theta3_y = ((t13_1) ? NAN : dp_theta3_y);
+            const double out_dp_theta3_z = ((t13_1) ? NAN : dp_theta3_z);
+            const double out_dp_q1_x = ((t13_1) ? NAN : dp_q1_x);
+            const double out_dp_q1_y = ((t13_1) ? NAN : dp_q1_y);
+            const double out_dp_q1_z = ((t13_1) ? NAN : dp_q1_z);
+            const double out_dp_q2_x = ((t13_1) ? NAN : dp_q2_x);
+            const double out_dp_q2_y = ((t13_1) ? NAN : dp_q2_y);
+            const double out_dp_q2_z = ((t13_1) ? NAN : dp_q2_z);
+            const double out_dp_q3_x = ((t13_1) ? NAN : dp_q3_x);
+            const double out_dp_q3_y = ((t13_1) ? NAN : dp_q3_y);
+            const double out_dp_q3_z = ((t13_1) ? NAN : dp_q3_z);
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(out_x) & isfinite(out_y) & isfinite(out_z) & isfinite(out_phi))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) & (!(isfinite(out_dp_r1_x) & isfinite(out_dp_r1_y) & isfinite(out_dp_r1_z) & isfinite(out_dp_r2_x) & isfinite(out_dp_r2_y) & isfinite(out_dp_r2_z) & isfinite(out_dp_r3_x) & isfinite(out_dp_r3_y) & isfinite(out_dp_r3_z) & isfinite(out_dp_l_a1_x) & isfinite(out_dp_l_a1_y) & isfinite(out_dp_l_a1_z) & isfinite(out_dp_l_a2_x) & isfinite(out_dp_l_a2_y) & isfinite(out_dp_l_a2_z) & isfinite(out_dp_l_a3_x) & isfinite(out_dp_l_a3_y) & isfinite(out_dp_l_a3_z) & isfinite(out_dp_l_b1_x) & isfinite(out_dp_l_b1_y) & isfinite(out_dp_l_b1_z) & isfinite(out_dp_l_b2_x) & isfinite(out_dp_l_b2_y) & isfinite(out_dp_l_b2_z) & isfinite(out_dp_l_b3_x) & isfinite(out_dp_l_b3_y) & isfinite(out_dp_l_b3_z) & isfinite(out_dp_theta1_x) & isfinite(out_dp_theta1_y) & isfinite(out_dp_theta1_z) & isfinite(out_dp_theta2_x) & isfinite(out_dp_theta2_y) & isfinite(out_dp_theta2_z) & isfinite(out_dp_theta3_x) & isfinite(out_dp_theta3_y) & isfinite(out_dp_theta3_z) & isfinite(out_dp_q1_x) & isfinite(out_dp_q1_y) & isfinite(out_dp_q1_z) & isfinite(out_dp_q2_x) & isfinite(out_dp_q2_y) & isfinite(out_dp_q2_z) & isfinite(out_dp_q3_x) & isfinite(out_dp_q3_y) & isfinite(out_dp_q3_z))))));
+            const double out_x_checked = ((nonfinite_output) ? NAN : out_x);
+            const double out_y_checked = ((nonfinite_output) ? NAN : out_y);
+            const double out_z_checked = ((nonfinite_output) ? NAN : out_z);
+            const double out_phi_checked = ((nonfinite_output) ? NAN : out_phi);
+            const double out_dp_r1_x_checked = ((nonfinite_output) ? NAN : out_dp_r1_x);
+            const double out_dp_r1_y_checked = ((nonfinite_output) ? NAN : out_dp_r1_y);
+            const double out_dp_r1_z_checked = ((nonfinite_output) ? NAN : out_dp_r1_z);
+            const double out_dp_r2_x_checked = ((nonfinite_output) ? NAN : out_dp_r2_x);
+            const double out_dp_r2_y_checked = ((nonfinite_output) ? NAN : out_dp_r2_y);
+            const double out_dp_r2_z_checked = ((nonfinite_output) ? NAN : out_dp_r2_z);
+            const double out_dp_r3_x_checked = ((nonfinite_output) ? NAN : out_dp_r3_x);
+            const double out_dp_r3_y_checked = ((nonfinite_output) ? NAN : out_dp_r3_y);
+            const double out_dp_r3_z_checked = ((nonfinite_output) ? NAN : out_dp_r3_z);
+            const double out_dp_l_a1_x_checked = ((nonfinite_output) ? NAN : out_dp_l_a1_x);
+            const double out_dp_l_a1_y_checked = ((nonfinite_output) ? NAN : out_dp_l_a1_y);
+            const double out_dp_l_a1_z_checked = ((nonfinite_output) ? NAN : out_dp_l_a1_z);
+            const double out_dp_l_a2_x_checked = ((nonfinite_output) ? NAN : out_dp_l_a2_x);
+            const double out_dp_l_a2_y_checked = ((nonfinite_output) ? NAN : out_dp_l_a2_y);
+            const double out_dp_l_a2_z_checked = ((nonfinite_output) ? NAN : out_dp_l_a2_z);
+            const double out_dp_l_a3_x_checked = ((nonfinite_output) ? NAN : out_dp_l_a3_x);
+            const double out_dp_l_a3_y_checked = ((nonfinite_output) ? NAN : out_dp_l_a3_y);
+            const double out_dp_l_a3_z_checked = ((nonfinite_output) ? NAN : out_dp_l_a3_z);
+            const double out_dp_l_b1_x_checked = ((nonfinite_output) ? NAN : out_dp_l_b1_x);
+            const double out_dp_l_b1_y_checked = ((nonfinite_output) ? NAN : out_dp_l_b1_y);
+            const double out_dp_l_b1_z_checked = ((nonfinite_output) ? NAN : out_dp_l_b1_z);
+            const double out_dp_l_b2_x_checked = ((nonfinite_output) ? NAN : out_dp_l_b2_x);
+            const double out_dp_l_b2_y_checked = ((nonfinite_output) ? NAN : out_dp_l_b2_y);
+            const double out_dp_l_b2_z_checked = ((nonfinite_output) ? NAN : out_dp_l_b2_z);
+            const double out_dp_l_b3_x_checked = ((nonfinite_output) ? NAN : out_dp_l_b3_x);
+            const double out_dp_l_b3_y_checked = ((nonfinite_output) ? NAN : out_dp_l_b3_y);
+            const double out_dp_l_b3_z_checked = ((nonfinite_output) ? NAN : out_dp_l_b3_z);
+            const double out_dp_theta1_x_checked = ((nonfinite_output) ? NAN : out_dp_theta1_x);
+            const double out_dp_theta1_y_checked = ((nonfinite_output) ? NAN : out_dp_theta1_y);
+            const double out_dp_theta1_z_checked = ((nonfinite_output) ? NAN : out_dp_theta1_z);
+            const double out_dp_theta2_x_checked = ((nonfinite_output) ? NAN : out_dp_theta2_x);
+            const double out_dp_theta2_y_checked = ((nonfinite_output) ? NAN : out_dp_theta2_y);
+            const double out_dp_theta2_z_checked = ((nonfinite_output) ? NAN : out_dp_theta2_z);
+            const double out_dp_theta3_x_checked = ((nonfinite_output) ? NAN : out_dp_theta3_x);
+            const double out_dp_theta3_y_checked = ((nonfinite_output) ? NAN : out_dp_theta3_y);
+            const double out_dp_theta3_z_checked = ((nonfinite_output) ? NAN : out_dp_theta3_z);
+            const double out_dp_q1_x_checked = ((nonfinite_output) ? NAN : out_dp_q1_x);
+            const double out_dp_q1_y_checked = ((nonfinite_output) ? NAN : out_dp_q1_y);
+            const double out_dp_q1_z_checked = ((nonfinite_output) ? NAN : out_dp_q1_z);
+            const double out_dp_q2_x_checked = ((nonfinite_output) ? NAN : out_dp_q2_x);
+            const double out_dp_q2_y_checked = ((nonfinite_output) ? NAN : out_dp_q2_y);
+            const double out_dp_q2_z_checked = ((nonfinite_output) ? NAN : out_dp_q2_z);
+            const double out_dp_q3_x_checked = ((nonfinite_output) ? NAN : out_dp_q3_x);
+            const double out_dp_q3_y_checked = ((nonfinite_output) ? NAN : out_dp_q3_y);
+            const double out_dp_q3_z_checked = ((nonfinite_output) ? NAN : out_dp_q3_z);
+            out_x_checked_b[k] = out_x_checked;
+            out_y_checked_b[k] = out_y_checked;
+            out_z_checked_b[k] = out_z_checked;
+            out_phi_checked_b[k] = out_phi_checked;
+            out_dp_r1_x_checked_b[k] = out_dp_r1_x_checked;
+            out_dp_r1_y_checked_b[k] = out_dp_r1_y_checked;
+            out_dp_r1_z_checked_b[k] = out_dp_r1_z_checked;
+            out_dp_r2_x_checked_b[k] = out_dp_r2_x_checked;
+            out_dp_r2_y_checked_b[k] = out_dp_r2_y_checked;
+            out_dp_r2_z_checked_b[k] = out_dp_r2_z_checked;
+            out_dp_r3_x_checked_b[k] = out_dp_r3_x_checked;
+            out_dp_r3_y_checked_b[k] = out_dp_r3_y_checked;
+            out_dp_r3_z_checked_b[k] = out_dp_r3_z_checked;
+            out_dp_l_a1_x_checked_b[k] = out_dp_l_a1_x_checked;
+            out_dp_l_a1_y_checked_b[k] = out_dp_l_a1_y_checked;
+            out_dp_l_a1_z_checked_b[k] = out_dp_l_a1_z_checked;
+            out_dp_l_a2_x_checked_b[k] = out_dp_l_a2_x_checked;
+            out_dp_l_a2_y_checked_b[k] = out_dp_l_a2_y_checked;
+            out_dp_l_a2_z_checked_b[k] = out_dp_l_a2_z_checked;
+            out_dp_l_a3_x_checked_b[k] = out_dp_l_a3_x_checked;
+            out_dp_l_a3_y_checked_b[k] = out_dp_l_a3_y_checked;
+            out_dp_l_a3_z_checked_b[k] = out_dp_l_a3_z_checked;
+            out_dp_l_b1_x_checked_b[k] = out_dp_l_b1_x_checked;
+            out_dp_l_b1_y_checked_b[k] = out_dp_l_b1_y_checked;
+            out_dp_l_b1_z_checked_b[k] = out_dp_l_b1_z_checked;
+            out_dp_l_b2_x_checked_b[k] = out_dp_l_b2_x_checked;
+            out_dp_l_b2_y_checked_b[k] = out_dp_l_b2_y_checked;
+            out_dp_l_b2_z_checked_b[k] = out_dp_l_b2_z_checked;
+            out_dp_l_b3_x_checked_b[k] = out_dp_l_b3_x_checked;
+            out_dp_l_b3_y_checked_b[k] = out_dp_l_b3_y_checked;
+            out_dp_l_b3_z_checked_b[k] = out_dp_l_b3_z_checked;
+            out_dp_theta1_x_checked_b[k] = out_dp_theta1_x_checked;
+            out_dp_theta1_y_checked_b[k] = out_dp_theta1_y_checked;
+            out_dp_theta1_z_checked_b[k] = out_dp_theta1_z_checked;
+            out_dp_theta2_x_checked_b[k] = out_dp_theta2_x_checked;
+            out_dp_theta2_y_checked_b[k] = out_dp_theta2_y_checked;
+            out_dp_theta2_z_checked_b[k] = out_dp_theta2_z_checked;
+            out_dp_theta3_x_checked_b[k] = out_dp_theta3_x_checked;
+            out_dp_theta3_y_checked_b[k] = out_dp_theta3_y_checked;
+            out_dp_theta3_z_checked_b[k] = out_dp_theta3_z_checked;
+            out_dp_q1_x_checked_b[k] = out_dp_q1_x_checked;
+            out_dp_q1_y_checked_b[k] = out_dp_q1_y_checked;
+            out_dp_q1_z_checked_b[k] = out_dp_q1_z_checked;
+            out_dp_q2_x_checked_b[k] = out_dp_q2_x_checked;
+            out_dp_q2_y_checked_b[k] = out_dp_q2_y_checked;
+            out_dp_q2_z_checked_b[k] = out_dp_q2_z_checked;
+            out_dp_q3_x_checked_b[k] = out_dp_q3_x_checked;
+            out_dp_q3_y_checked_b[k] = out_dp_q3_y_checked;
+            out_dp_q3_z_checked_b[k] = out_dp_q3_z_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {
+                p[(start + k) * 3 + 0] = out_x_checked_b[k];
+                p[(start + k) * 3 + 1] = out_y_checked_b[k];
+                p[(start + k) * 3 + 2] = out_z_checked_b[k];
+                G[(start + k) * 45 + 0] = out_dp_r1_x_checked_b[k];
+                G[(start + k) * 45 + 1] = out_dp_r1_y_checked_b[k];
+                G[(start + k) * 45 + 2] = out_dp_r1_z_checked_b[k];
+                G[(start + k) * 45 + 3] = out_dp_r2_x_checked_b[k];
+                G[(start + k) * 45 + 4] = out_dp_r2_y_checked_b[k];
+                G[(start + k) * 45 + 5] = out_dp_r2_z_checked_b[k];
+                G[(start + k) * 45 + 6] = out_dp_r3_x_checked_b[k];
+                G[(start + k) * 45 + 7] = out_dp_r3_y_checked_b[k];
+                G[(start + k) * 45 + 8] = out_dp_r3_z_checked_b[k];
+                G[(start + k) * 45 + 9] = out_dp_l_a1_x_checked_b[k];
+                G[(start + k) * 45 + 10] = out_dp_l_a1_y_checked_b[k];
+                G[(start + k) * 45 + 11] = out_dp_l_a1_z_checked_b[k];
+                G[(start + k) * 45 + 12] = out_dp_l_a2_x_checked_b[k];
+                G[(start + k) * 45 + 13] = out_dp_l_a2_y_checked_b[k];
+                G[(start + k) * 45 + 14] = out_dp_l_a2_z_checked_b[k];
+                G[(start + k) * 45 + 15] = out_dp_l_a3_x_checked_b[k];
+                G[(start + k) * 45 + 16] = out_dp_l_a3_y_checked_b[k];
+                G[(start + k) * 45 + 17] = out_dp_l_a3_z_checked_b[k];
+                G[(start + k) * 45 + 18] = out_dp_l_b1_x_checked_b[k];
+                G[(start + k) * 45 + 19] = out_dp_l_b1_y_checked_b[k];
+                G[(start + k) * 45 + 20] = out_dp_l_b1_z_checked_b[k];
+                G[(start + k) * 45 + 21] = out_dp_l_b2_x_checked_b[k];
+                G[(start + k) * 45 + 22] = out_dp_l_b2_y_checked_b[k];
+                G[(start + k) * 45 + 23] = out_dp_l_b2_z_checked_b[k];
+                G[(start + k) * 45 + 24] = out_dp_l_b3_x_checked_b[k];
+                G[(start + k) * 45 + 25] = out_dp_l_b3_y_checked_b[k];
+                G[(start + k) * 45 + 26] = out_dp_l_b3_z_checked_b[k];
+                G[(start + k) * 45 + 27] = out_dp_theta1_x_checked_b[k];
+                G[(start + k) * 45 + 28] = out_dp_theta1_y_checked_b[k];
+                G[(start + k) * 45 + 29] = out_dp_theta1_z_checked_b[k];
+                G[(start + k) * 45 + 30] = out_dp_theta2_x_checked_b[k];
+                G[(start + k) * 45 + 31] = out_dp_theta2_y_checked_b[k];
+                G[(start + k) * 45 + 32] = out_dp_theta2_z_checked_b[k];
+                G[(start + k) * 45 + 33] = out_dp_theta3_x_checked_b[k];
+                G[(start + k) * 45 + 34] = out_dp_theta3_y_checked_b[k];
+                G[(start + k) * 45 + 35] = out_dp_theta3_z_checked_b[k];
+                G[(start + k) * 45 + 36] = out_dp_q1_x_checked_b[k];
+                G[(start + k) * 45 + 37] = out_dp_q1_y_checked_b[k];
+                G[(start + k) * 45 + 38] = out_dp_q1_z_checked_b[k];
+                G[(start + k) * 45 + 39] = out_dp_q2_x_checked_b[k];
+                G[(start + k) * 45 + 40] = out_dp_q2_y_checked_b[k];
+                G[(start + k) * 45 + 41] = out_dp_q2_z_checked_b[k];
+                G[(start + k) * 45 + 42] = out_dp_q3_x_checked_b[k];
+                G[(start + k) * 45 + 43] = out_dp_q3_y_checked_b[k];
+                G[(start + k) * 45 + 44] = out_dp_q3_z_checked_b[k];
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {
+                p[(start + k) * 4 + 0] = out_x_checked_b[k];
+                p[(start + k) * 4 + 1] = out_y_checked_b[k];
+                p[(start + k) * 4 + 2] = out_z_checked_b[k];
+                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
+                G[(start + k) * 45 + 0] = out_dp_r1_x_checked_b[k];
+                G[(start + k) * 45 + 1] = out_dp_r1_y_checked_b[k];
+                G[(start + k) * 45 + 2] = out_dp_r1_z_checked_b[k];
+                G[(start + k) * 45 + 3] = out_dp_r2_x_checked_b[k];
+                G[(start + k) * 45 + 4] = out_dp_r2_y_checked_b[k];
+                G[(start + k) * 45 + 5] = out_dp_r2_z_checked_b[k];
+                G[(start + k) * 45 + 6] = out_dp_r3_x_checked_b[k];
+                G[(start + k) * 45 + 7] = out_dp_r3_y_checked_b[k];
+                G[(start + k) * 45 + 8] = out_dp_r3_z_checked_b[k];
+                G[(start + k) * 45 + 9] = out_dp_l_a1_x_checked_b[k];
+                G[(start + k) * 45 + 10] = out_dp_l_a1_y_checked_b[k];
+                G[(start + k) * 45 + 11] = out_dp_l_a1_z_checked_b[k];
+                G[(start + k) * 45 + 12] = out_dp_l_a2_x_checked_b[k];
+                G[(start + k) * 45 + 13] = out_dp_l_a2_y_checked_b[k];
+                G[(start + k) * 45 + 14] = out_dp_l_a2_z_checked_b[k];
+                G[(start + k) * 45 + 15] = out_dp_l_a3_x_checked_b[k];
+                G[(start + k) * 45 + 16] = out_dp_l_a3_y_checked_b[k];
+                G[(start + k) * 45 + 17] = out_dp_l_a3_z_checked_b[k];
+                G[(start + k) * 45 + 18] = out_dp_l_b1_x_checked_b[k];
+                G[(start + k) * 45 + 19] = out_dp_l_b1_y_checked_b[k];
+                G[(start + k) * 45 + 20] = out_dp_l_b1_z_checked_b[k];
+                G[(start + k) * 45 + 21] = out_dp_l_b2_x_checked_b[k];
+                G[(start + k) * 45 + 22] = out_dp_l_b2_y_checked_b[k];
+                G[(start + k) * 45 + 23] = out_dp_l_b2_z_checked_b[k];
+                G[(start + k) * 45 + 24] = out_dp_l_b3_x_checked_b[k];
+                G[(start + k) * 45 + 25] = out_dp_l_b3_y_checked_b[k];
+                G[(start + k) * 45 + 26] = out_dp_l_b3_z_checked_b[k];
+                G[(start + k) * 45 + 27] = out_dp_theta1_x_checked_b[k];
+                G[(start + k) * 45 + 28] = out_dp_theta1_y_checked_b[k];
+                G[(start + k) * 45 + 29] = out_dp_theta1_z_checked_b[k];
+                G[(start + k) * 45 + 30] = out_dp_theta2_x_checked_b[k];
+                G[(start + k) * 45 + 31] = out_dp_theta2_y_checked_b[k];
+                G[(start + k) * 45 + 32] = out_dp_theta2_z_checked_b[k];
+                G[(start + k) * 45 + 33] = out_dp_theta3_x_checked_b[k];
+                G[(start + k) * 45 + 34] = out_dp_theta3_y_checked_b[k];
+                G[(start + k) * 45 + 35] = out_dp_theta3_z_checked_b[k];
+                G[(start + k) * 45 + 36] = out_dp_q1_x_checked_b[k];
+                G[(start + k) * 45 + 37] = out_dp_q1_y_checked_b[k];
+                G[(start + k) * 45 + 38] = out_dp_q1_z_checked_b[k];
+                G[(start + k) * 45 + 39] = out_dp_q2_x_checked_b[k];
+                G[(start + k) * 45 + 40] = out_dp_q2_y_checked_b[k];
+                G[(start + k) * 45 + 41] = out_dp_q2_z_checked_b[k];
+                G[(start + k) * 45 + 42] = out_dp_q3_x_checked_b[k];
+                G[(start + k) * 45 + 43] = out_dp_q3_y_checked_b[k];
+                G[(start + k) * 45 + 44] = out_dp_q3_z_checked_b[k];
+            }
+        }
+    }
+    return 0;
+}
+
 int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, const double *restrict qd, const double *restrict qdd, const double *restrict payload, double *restrict tau, int8_t *restrict status)
 {
     if (axes != 3 && axes != 4) {
@@ -1209,13 +2383,20 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
     if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || payload == NULL || tau == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
     const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
@@ -1230,7 +2411,6 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
     const double g_z = geometry->gravity[2];
     const double I_4 = geometry->I_4;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
     const double det_limit = singular_tol*(l_b*l_b*l_b);
 
@@ -1334,18 +2514,18 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = cos_q1*l_a + r;
-            const double t0_1 = cos_q2*l_a + r;
-            const double t0_2 = cos_q3*l_a + r;
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
             const double S_x1 = cos_theta1*t0_0;
             const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -l_a*sin_q1;
+            const double S_z1 = -chain_l_a1*sin_q1;
             const double S_x2 = cos_theta2*t0_1;
             const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -l_a*sin_q2;
+            const double S_z2 = -chain_l_a2*sin_q2;
             const double S_x3 = cos_theta3*t0_2;
             const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -l_a*sin_q3;
+            const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
             const double a_y = -S_y1 + S_y2;
@@ -1362,15 +2542,16 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
             const double t4_0 = 2*e_z;
-            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_2 = 2*e_y;
-            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
-            const double t4_4 = (1.0/4.0)*inv_e_sq;
-            const double t4_5 = 2*e_x;
-            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
-            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
-            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
-            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -1397,13 +2578,12 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
             const double D32 = -S_y3 - t8_1;
             const double D33 = -S_z3 - t8_2;
             /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
-            const double t9_0 = l_a*z;
-            const double t9_1 = l_a*sin_q1;
-            const double t9_2 = l_a*sin_q2;
-            const double t9_3 = l_a*sin_q3;
-            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
-            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
-            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            const double t9_0 = chain_l_a1*sin_q1;
+            const double t9_1 = chain_l_a2*sin_q2;
+            const double t9_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t9_0*x - sin_theta1*t9_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t9_1*x - sin_theta2*t9_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t9_2*x - sin_theta3*t9_2*y;
             /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
             const double adjD11 = D22*D33 - D23*D32;
             const double adjD12 = -D12*D33 + D13*D32;
@@ -1423,68 +2603,70 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
             const double yd = inv_det_D*(adjD21*t11_0 + adjD22*t11_1 + adjD23*t11_2);
             const double zd = inv_det_D*(adjD31*t11_0 + adjD32*t11_1 + adjD33*t11_2);
             /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39); platform acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i and acceleration a_B_i */
-            const double t12_0 = cos_q1*l_a;
-            const double t12_1 = qdd1*t12_0;
-            const double t12_2 = qd1*qd1;
-            const double t12_3 = 2*zd;
-            const double t12_4 = t12_0*t12_2;
-            const double t12_5 = cos_theta1*t12_4;
-            const double t12_6 = sin_theta1*t12_4;
-            const double t12_7 = l_a*sin_q1;
-            const double t12_8 = cos_theta1*t12_7;
-            const double t12_9 = qdd1*t12_8;
-            const double t12_10 = sin_theta1*t12_7;
-            const double t12_11 = qdd1*t12_10;
-            const double t12_12 = 2*qd1;
-            const double t12_13 = xd*xd + yd*yd + zd*zd;
-            const double t12_14 = cos_q2*l_a;
-            const double t12_15 = qdd2*t12_14;
-            const double t12_16 = qd2*qd2;
-            const double t12_17 = t12_14*t12_16;
-            const double t12_18 = cos_theta2*t12_17;
-            const double t12_19 = sin_theta2*t12_17;
-            const double t12_20 = l_a*sin_q2;
-            const double t12_21 = cos_theta2*t12_20;
-            const double t12_22 = qdd2*t12_21;
-            const double t12_23 = sin_theta2*t12_20;
-            const double t12_24 = qdd2*t12_23;
-            const double t12_25 = 2*qd2;
-            const double t12_26 = cos_q3*l_a;
-            const double t12_27 = qdd3*t12_26;
-            const double t12_28 = qd3*qd3;
-            const double t12_29 = t12_26*t12_28;
-            const double t12_30 = cos_theta3*t12_29;
-            const double t12_31 = sin_theta3*t12_29;
-            const double t12_32 = l_a*sin_q3;
-            const double t12_33 = cos_theta3*t12_32;
-            const double t12_34 = qdd3*t12_33;
-            const double t12_35 = sin_theta3*t12_32;
-            const double t12_36 = qdd3*t12_35;
-            const double t12_37 = 2*qd3;
-            const double h1 = cos_q1*l_a*r*t12_2 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t12_2*z - qd1*t12_0*t12_3 - t12_1*z - t12_10*t12_12*yd - t12_11*y - t12_12*t12_8*xd - t12_13 - t12_5*x - t12_6*y - t12_9*x;
-            const double h2 = cos_q2*l_a*r*t12_16 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t12_16*z - qd2*t12_14*t12_3 - t12_13 - t12_15*z - t12_18*x - t12_19*y - t12_21*t12_25*xd - t12_22*x - t12_23*t12_25*yd - t12_24*y;
-            const double h3 = cos_q3*l_a*r*t12_28 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t12_28*z - qd3*t12_26*t12_3 - t12_13 - t12_27*z - t12_30*x - t12_31*y - t12_33*t12_37*xd - t12_34*x - t12_35*t12_37*yd - t12_36*y;
+            const double t12_0 = qd1*qd1;
+            const double t12_1 = 2*zd;
+            const double t12_2 = chain_l_a1*qd1;
+            const double t12_3 = chain_l_a1*cos_q1*t12_0;
+            const double t12_4 = cos_theta1*x;
+            const double t12_5 = sin_theta1*y;
+            const double t12_6 = chain_l_a1*qdd1*sin_q1;
+            const double t12_7 = 2*xd;
+            const double t12_8 = sin_q1*t12_2;
+            const double t12_9 = 2*yd;
+            const double t12_10 = xd*xd + yd*yd + zd*zd;
+            const double t12_11 = qd2*qd2;
+            const double t12_12 = chain_l_a2*qd2;
+            const double t12_13 = chain_l_a2*cos_q2*t12_11;
+            const double t12_14 = cos_theta2*x;
+            const double t12_15 = sin_theta2*y;
+            const double t12_16 = chain_l_a2*qdd2*sin_q2;
+            const double t12_17 = sin_q2*t12_12;
+            const double t12_18 = qd3*qd3;
+            const double t12_19 = chain_l_a3*qd3;
+            const double t12_20 = chain_l_a3*cos_q3*t12_18;
+            const double t12_21 = cos_theta3*x;
+            const double t12_22 = sin_theta3*y;
+            const double t12_23 = chain_l_a3*qdd3*sin_q3;
+            const double t12_24 = sin_q3*t12_19;
+            const double t12_25 = l_a*sin_q1;
+            const double t12_26 = cos_theta1*t12_25;
+            const double t12_27 = sin_theta1*t12_25;
+            const double t12_28 = cos_q1*l_a;
+            const double t12_29 = t12_0*t12_28;
+            const double t12_30 = l_a*sin_q2;
+            const double t12_31 = cos_theta2*t12_30;
+            const double t12_32 = sin_theta2*t12_30;
+            const double t12_33 = cos_q2*l_a;
+            const double t12_34 = t12_11*t12_33;
+            const double t12_35 = l_a*sin_q3;
+            const double t12_36 = cos_theta3*t12_35;
+            const double t12_37 = sin_theta3*t12_35;
+            const double t12_38 = cos_q3*l_a;
+            const double t12_39 = t12_18*t12_38;
+            const double h1 = chain_l_a1*chain_r1*cos_q1*t12_0 + chain_l_a1*chain_r1*qdd1*sin_q1 - chain_l_a1*cos_q1*qdd1*z + chain_l_a1*sin_q1*t12_0*z - cos_q1*t12_1*t12_2 - cos_theta1*t12_7*t12_8 - sin_theta1*t12_8*t12_9 - t12_10 - t12_3*t12_4 - t12_3*t12_5 - t12_4*t12_6 - t12_5*t12_6;
+            const double h2 = chain_l_a2*chain_r2*cos_q2*t12_11 + chain_l_a2*chain_r2*qdd2*sin_q2 - chain_l_a2*cos_q2*qdd2*z + chain_l_a2*sin_q2*t12_11*z - cos_q2*t12_1*t12_12 - cos_theta2*t12_17*t12_7 - sin_theta2*t12_17*t12_9 - t12_10 - t12_13*t12_14 - t12_13*t12_15 - t12_14*t12_16 - t12_15*t12_16;
+            const double h3 = chain_l_a3*chain_r3*cos_q3*t12_18 + chain_l_a3*chain_r3*qdd3*sin_q3 - chain_l_a3*cos_q3*qdd3*z + chain_l_a3*sin_q3*t12_18*z - cos_q3*t12_1*t12_19 - cos_theta3*t12_24*t12_7 - sin_theta3*t12_24*t12_9 - t12_10 - t12_20*t12_21 - t12_20*t12_22 - t12_21*t12_23 - t12_22*t12_23;
             const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
             const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
             const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
-            const double dB_x1 = -t12_8;
-            const double dB_y1 = -t12_10;
-            const double dB_z1 = -t12_0;
-            const double aB_x1 = -t12_5 - t12_9;
-            const double aB_y1 = -t12_11 - t12_6;
-            const double aB_z1 = l_a*sin_q1*t12_2 - t12_1;
-            const double dB_x2 = -t12_21;
-            const double dB_y2 = -t12_23;
-            const double dB_z2 = -t12_14;
-            const double aB_x2 = -t12_18 - t12_22;
-            const double aB_y2 = -t12_19 - t12_24;
-            const double aB_z2 = l_a*sin_q2*t12_16 - t12_15;
-            const double dB_x3 = -t12_33;
-            const double dB_y3 = -t12_35;
-            const double dB_z3 = -t12_26;
-            const double aB_x3 = -t12_30 - t12_34;
-            const double aB_y3 = -t12_31 - t12_36;
-            const double aB_z3 = l_a*sin_q3*t12_28 - t12_27;
+            const double dB_x1 = -t12_26;
+            const double dB_y1 = -t12_27;
+            const double dB_z1 = -t12_28;
+            const double aB_x1 = -cos_theta1*t12_29 - qdd1*t12_26;
+            const double aB_y1 = -qdd1*t12_27 - sin_theta1*t12_29;
+            const double aB_z1 = l_a*sin_q1*t12_0 - qdd1*t12_28;
+            const double dB_x2 = -t12_31;
+            const double dB_y2 = -t12_32;
+            const double dB_z2 = -t12_33;
+            const double aB_x2 = -cos_theta2*t12_34 - qdd2*t12_31;
+            const double aB_y2 = -qdd2*t12_32 - sin_theta2*t12_34;
+            const double aB_z2 = l_a*sin_q2*t12_11 - qdd2*t12_33;
+            const double dB_x3 = -t12_36;
+            const double dB_y3 = -t12_37;
+            const double dB_z3 = -t12_38;
+            const double aB_x3 = -cos_theta3*t12_39 - qdd3*t12_36;
+            const double aB_y3 = -qdd3*t12_37 - sin_theta3*t12_39;
+            const double aB_z3 = l_a*sin_q3*t12_18 - qdd3*t12_38;
             /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
             const double t13_0 = (1.0/6.0)*m_b;
             const double t13_1 = m_b + m_p + payload;
@@ -1570,13 +2752,20 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
     if (geometry == NULL || status == NULL || q == NULL || qd == NULL || qdd == NULL || payload == NULL || tau == NULL) {
         return -1;
     }
-    const double r_a = geometry->r_a;
-    const double r_b = geometry->r_b;
     const double l_a = geometry->l_a;
     const double l_b = geometry->l_b;
     const double cos_theta1 = geometry->cos_theta[0];
     const double cos_theta2 = geometry->cos_theta[1];
     const double cos_theta3 = geometry->cos_theta[2];
+    const double chain_r1 = geometry->chain_r[0];
+    const double chain_r2 = geometry->chain_r[1];
+    const double chain_r3 = geometry->chain_r[2];
+    const double chain_l_a1 = geometry->chain_l_a[0];
+    const double chain_l_a2 = geometry->chain_l_a[1];
+    const double chain_l_a3 = geometry->chain_l_a[2];
+    const double chain_l_b1 = geometry->chain_l_b[0];
+    const double chain_l_b2 = geometry->chain_l_b[1];
+    const double chain_l_b3 = geometry->chain_l_b[2];
     const double sin_theta1 = geometry->sin_theta[0];
     const double sin_theta2 = geometry->sin_theta[1];
     const double sin_theta3 = geometry->sin_theta[2];
@@ -1591,7 +2780,6 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
     const double g_z = geometry->gravity[2];
     const double I_4 = geometry->I_4;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
-    const double r = r_a - r_b;
     const double collinear_limit = (singular_tol*singular_tol)*(l_b*l_b*l_b*l_b);
     const double det_limit = singular_tol*(l_b*l_b*l_b);
 
@@ -1695,18 +2883,18 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = cos_q1*l_a + r;
-            const double t0_1 = cos_q2*l_a + r;
-            const double t0_2 = cos_q3*l_a + r;
+            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
             const double S_x1 = cos_theta1*t0_0;
             const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -l_a*sin_q1;
+            const double S_z1 = -chain_l_a1*sin_q1;
             const double S_x2 = cos_theta2*t0_1;
             const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -l_a*sin_q2;
+            const double S_z2 = -chain_l_a2*sin_q2;
             const double S_x3 = cos_theta3*t0_2;
             const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -l_a*sin_q3;
+            const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
             const double a_y = -S_y1 + S_y2;
@@ -1723,15 +2911,16 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
             const double t4_0 = 2*e_z;
-            const double t4_1 = b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_2 = 2*e_y;
-            const double t4_3 = a_x*a_x + a_y*a_y + a_z*a_z;
-            const double t4_4 = (1.0/4.0)*inv_e_sq;
-            const double t4_5 = 2*e_x;
-            const double x0_x = t4_4*(t4_1*(-a_y*t4_0 + 2*a_z*e_y) + t4_3*(b_y*t4_0 - b_z*t4_2));
-            const double x0_y = t4_4*(t4_1*(a_x*t4_0 - a_z*t4_5) + t4_3*(-b_x*t4_0 + 2*b_z*e_x));
-            const double x0_z = t4_4*(t4_1*(-a_x*t4_2 + 2*a_y*e_x) + t4_3*(b_x*t4_2 - b_y*t4_5));
-            const double h_sq = l_b*l_b - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t4_1 = chain_l_b1*chain_l_b1;
+            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_3 = 2*e_y;
+            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
+            const double t4_5 = (1.0/4.0)*inv_e_sq;
+            const double t4_6 = 2*e_x;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -1758,13 +2947,12 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
             const double D32 = -S_y3 - t8_1;
             const double D33 = -S_z3 - t8_2;
             /* J_q,ii / 2, eq. (34) corrected (sign of the r term) */
-            const double t9_0 = l_a*z;
-            const double t9_1 = l_a*sin_q1;
-            const double t9_2 = l_a*sin_q2;
-            const double t9_3 = l_a*sin_q3;
-            const double jq1 = -cos_q1*t9_0 - cos_theta1*t9_1*x + l_a*r*sin_q1 - sin_theta1*t9_1*y;
-            const double jq2 = -cos_q2*t9_0 - cos_theta2*t9_2*x + l_a*r*sin_q2 - sin_theta2*t9_2*y;
-            const double jq3 = -cos_q3*t9_0 - cos_theta3*t9_3*x + l_a*r*sin_q3 - sin_theta3*t9_3*y;
+            const double t9_0 = chain_l_a1*sin_q1;
+            const double t9_1 = chain_l_a2*sin_q2;
+            const double t9_2 = chain_l_a3*sin_q3;
+            const double jq1 = chain_l_a1*chain_r1*sin_q1 - chain_l_a1*cos_q1*z - cos_theta1*t9_0*x - sin_theta1*t9_0*y;
+            const double jq2 = chain_l_a2*chain_r2*sin_q2 - chain_l_a2*cos_q2*z - cos_theta2*t9_1*x - sin_theta2*t9_1*y;
+            const double jq3 = chain_l_a3*chain_r3*sin_q3 - chain_l_a3*cos_q3*z - cos_theta3*t9_2*x - sin_theta3*t9_2*y;
             /* adjugate of D and 1 / det D for Cramer's rule, eq. (30) */
             const double adjD11 = D22*D33 - D23*D32;
             const double adjD12 = -D12*D33 + D13*D32;
@@ -1784,68 +2972,70 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
             const double yd = inv_det_D*(adjD21*t11_0 + adjD22*t11_1 + adjD23*t11_2);
             const double zd = inv_det_D*(adjD31*t11_0 + adjD32*t11_1 + adjD33*t11_2);
             /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39); platform acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i and acceleration a_B_i */
-            const double t12_0 = cos_q1*l_a;
-            const double t12_1 = qdd1*t12_0;
-            const double t12_2 = qd1*qd1;
-            const double t12_3 = 2*zd;
-            const double t12_4 = t12_0*t12_2;
-            const double t12_5 = cos_theta1*t12_4;
-            const double t12_6 = sin_theta1*t12_4;
-            const double t12_7 = l_a*sin_q1;
-            const double t12_8 = cos_theta1*t12_7;
-            const double t12_9 = qdd1*t12_8;
-            const double t12_10 = sin_theta1*t12_7;
-            const double t12_11 = qdd1*t12_10;
-            const double t12_12 = 2*qd1;
-            const double t12_13 = xd*xd + yd*yd + zd*zd;
-            const double t12_14 = cos_q2*l_a;
-            const double t12_15 = qdd2*t12_14;
-            const double t12_16 = qd2*qd2;
-            const double t12_17 = t12_14*t12_16;
-            const double t12_18 = cos_theta2*t12_17;
-            const double t12_19 = sin_theta2*t12_17;
-            const double t12_20 = l_a*sin_q2;
-            const double t12_21 = cos_theta2*t12_20;
-            const double t12_22 = qdd2*t12_21;
-            const double t12_23 = sin_theta2*t12_20;
-            const double t12_24 = qdd2*t12_23;
-            const double t12_25 = 2*qd2;
-            const double t12_26 = cos_q3*l_a;
-            const double t12_27 = qdd3*t12_26;
-            const double t12_28 = qd3*qd3;
-            const double t12_29 = t12_26*t12_28;
-            const double t12_30 = cos_theta3*t12_29;
-            const double t12_31 = sin_theta3*t12_29;
-            const double t12_32 = l_a*sin_q3;
-            const double t12_33 = cos_theta3*t12_32;
-            const double t12_34 = qdd3*t12_33;
-            const double t12_35 = sin_theta3*t12_32;
-            const double t12_36 = qdd3*t12_35;
-            const double t12_37 = 2*qd3;
-            const double h1 = cos_q1*l_a*r*t12_2 + l_a*qdd1*r*sin_q1 + l_a*sin_q1*t12_2*z - qd1*t12_0*t12_3 - t12_1*z - t12_10*t12_12*yd - t12_11*y - t12_12*t12_8*xd - t12_13 - t12_5*x - t12_6*y - t12_9*x;
-            const double h2 = cos_q2*l_a*r*t12_16 + l_a*qdd2*r*sin_q2 + l_a*sin_q2*t12_16*z - qd2*t12_14*t12_3 - t12_13 - t12_15*z - t12_18*x - t12_19*y - t12_21*t12_25*xd - t12_22*x - t12_23*t12_25*yd - t12_24*y;
-            const double h3 = cos_q3*l_a*r*t12_28 + l_a*qdd3*r*sin_q3 + l_a*sin_q3*t12_28*z - qd3*t12_26*t12_3 - t12_13 - t12_27*z - t12_30*x - t12_31*y - t12_33*t12_37*xd - t12_34*x - t12_35*t12_37*yd - t12_36*y;
+            const double t12_0 = qd1*qd1;
+            const double t12_1 = 2*zd;
+            const double t12_2 = chain_l_a1*qd1;
+            const double t12_3 = chain_l_a1*cos_q1*t12_0;
+            const double t12_4 = cos_theta1*x;
+            const double t12_5 = sin_theta1*y;
+            const double t12_6 = chain_l_a1*qdd1*sin_q1;
+            const double t12_7 = 2*xd;
+            const double t12_8 = sin_q1*t12_2;
+            const double t12_9 = 2*yd;
+            const double t12_10 = xd*xd + yd*yd + zd*zd;
+            const double t12_11 = qd2*qd2;
+            const double t12_12 = chain_l_a2*qd2;
+            const double t12_13 = chain_l_a2*cos_q2*t12_11;
+            const double t12_14 = cos_theta2*x;
+            const double t12_15 = sin_theta2*y;
+            const double t12_16 = chain_l_a2*qdd2*sin_q2;
+            const double t12_17 = sin_q2*t12_12;
+            const double t12_18 = qd3*qd3;
+            const double t12_19 = chain_l_a3*qd3;
+            const double t12_20 = chain_l_a3*cos_q3*t12_18;
+            const double t12_21 = cos_theta3*x;
+            const double t12_22 = sin_theta3*y;
+            const double t12_23 = chain_l_a3*qdd3*sin_q3;
+            const double t12_24 = sin_q3*t12_19;
+            const double t12_25 = l_a*sin_q1;
+            const double t12_26 = cos_theta1*t12_25;
+            const double t12_27 = sin_theta1*t12_25;
+            const double t12_28 = cos_q1*l_a;
+            const double t12_29 = t12_0*t12_28;
+            const double t12_30 = l_a*sin_q2;
+            const double t12_31 = cos_theta2*t12_30;
+            const double t12_32 = sin_theta2*t12_30;
+            const double t12_33 = cos_q2*l_a;
+            const double t12_34 = t12_11*t12_33;
+            const double t12_35 = l_a*sin_q3;
+            const double t12_36 = cos_theta3*t12_35;
+            const double t12_37 = sin_theta3*t12_35;
+            const double t12_38 = cos_q3*l_a;
+            const double t12_39 = t12_18*t12_38;
+            const double h1 = chain_l_a1*chain_r1*cos_q1*t12_0 + chain_l_a1*chain_r1*qdd1*sin_q1 - chain_l_a1*cos_q1*qdd1*z + chain_l_a1*sin_q1*t12_0*z - cos_q1*t12_1*t12_2 - cos_theta1*t12_7*t12_8 - sin_theta1*t12_8*t12_9 - t12_10 - t12_3*t12_4 - t12_3*t12_5 - t12_4*t12_6 - t12_5*t12_6;
+            const double h2 = chain_l_a2*chain_r2*cos_q2*t12_11 + chain_l_a2*chain_r2*qdd2*sin_q2 - chain_l_a2*cos_q2*qdd2*z + chain_l_a2*sin_q2*t12_11*z - cos_q2*t12_1*t12_12 - cos_theta2*t12_17*t12_7 - sin_theta2*t12_17*t12_9 - t12_10 - t12_13*t12_14 - t12_13*t12_15 - t12_14*t12_16 - t12_15*t12_16;
+            const double h3 = chain_l_a3*chain_r3*cos_q3*t12_18 + chain_l_a3*chain_r3*qdd3*sin_q3 - chain_l_a3*cos_q3*qdd3*z + chain_l_a3*sin_q3*t12_18*z - cos_q3*t12_1*t12_19 - cos_theta3*t12_24*t12_7 - sin_theta3*t12_24*t12_9 - t12_10 - t12_20*t12_21 - t12_20*t12_22 - t12_21*t12_23 - t12_22*t12_23;
             const double xdd = inv_det_D*(adjD11*h1 + adjD12*h2 + adjD13*h3);
             const double ydd = inv_det_D*(adjD21*h1 + adjD22*h2 + adjD23*h3);
             const double zdd = inv_det_D*(adjD31*h1 + adjD32*h2 + adjD33*h3);
-            const double dB_x1 = -t12_8;
-            const double dB_y1 = -t12_10;
-            const double dB_z1 = -t12_0;
-            const double aB_x1 = -t12_5 - t12_9;
-            const double aB_y1 = -t12_11 - t12_6;
-            const double aB_z1 = l_a*sin_q1*t12_2 - t12_1;
-            const double dB_x2 = -t12_21;
-            const double dB_y2 = -t12_23;
-            const double dB_z2 = -t12_14;
-            const double aB_x2 = -t12_18 - t12_22;
-            const double aB_y2 = -t12_19 - t12_24;
-            const double aB_z2 = l_a*sin_q2*t12_16 - t12_15;
-            const double dB_x3 = -t12_33;
-            const double dB_y3 = -t12_35;
-            const double dB_z3 = -t12_26;
-            const double aB_x3 = -t12_30 - t12_34;
-            const double aB_y3 = -t12_31 - t12_36;
-            const double aB_z3 = l_a*sin_q3*t12_28 - t12_27;
+            const double dB_x1 = -t12_26;
+            const double dB_y1 = -t12_27;
+            const double dB_z1 = -t12_28;
+            const double aB_x1 = -cos_theta1*t12_29 - qdd1*t12_26;
+            const double aB_y1 = -qdd1*t12_27 - sin_theta1*t12_29;
+            const double aB_z1 = l_a*sin_q1*t12_0 - qdd1*t12_28;
+            const double dB_x2 = -t12_31;
+            const double dB_y2 = -t12_32;
+            const double dB_z2 = -t12_33;
+            const double aB_x2 = -cos_theta2*t12_34 - qdd2*t12_31;
+            const double aB_y2 = -qdd2*t12_32 - sin_theta2*t12_34;
+            const double aB_z2 = l_a*sin_q2*t12_11 - qdd2*t12_33;
+            const double dB_x3 = -t12_36;
+            const double dB_y3 = -t12_37;
+            const double dB_z3 = -t12_38;
+            const double aB_x3 = -cos_theta3*t12_39 - qdd3*t12_36;
+            const double aB_y3 = -qdd3*t12_37 - sin_theta3*t12_39;
+            const double aB_z3 = l_a*sin_q3*t12_18 - qdd3*t12_38;
             /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
             const double t13_0 = 3*m_b + 2*m_p + 2*payload;
             const double t13_1 = (1.0/2.0)*t13_0;

@@ -41,12 +41,15 @@ extern "C" {
 #define DELTAGEN_INVALID 3
 #endif
 
-/* Geometry of the robot (report, Figure 4) and its inertia (for the dynamics). */
+/* Geometry of the robot (report, Figure 4) and its inertia (for the dynamics). The kinematics use the per-chain chain_r, chain_l_a, chain_l_b (an asymmetric robot); r_a, r_b, l_a, l_b are the nominal values: they scale the singularity thresholds and enter the dynamics, derived for the symmetric robot. */
 typedef struct deltagen_delta_geometry {
     double r_a; /* base radius, O to a drive axis [m] */
     double r_b; /* platform radius, P to a joint C_i [m] */
     double l_a; /* crank length [m] */
     double l_b; /* parallelogram rod length [m] */
+    double chain_r[3]; /* per chain r_a,i - r_b,i [m] (symmetric: r_a - r_b) */
+    double chain_l_a[3]; /* per-chain crank length [m] (symmetric: l_a) */
+    double chain_l_b[3]; /* per-chain rod length [m] (symmetric: l_b) */
     double cos_theta[3]; /* cos of the drive positions theta_i */
     double sin_theta[3]; /* sin of the drive positions theta_i */
     double singular_tol; /* relative singularity threshold, e.g. 1e-9 */
@@ -68,7 +71,7 @@ typedef struct deltagen_delta_geometry {
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); p is still given where only det J_p is small; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 128 operations per point.
+ * Cost: 134 operations per point.
  * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 7424 bytes (7.2 KiB) at 64, plus scalars.
  */
@@ -85,7 +88,7 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
  * pd        out, n x axes: platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 247 operations per point.
+ * Cost: 255 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -104,7 +107,7 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
  * pdd       out, n x axes: platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd and pdd are NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 403 operations per point.
+ * Cost: 415 operations per point.
  * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */
@@ -119,7 +122,7 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
  * J         out, n x 9: Jacobian d p / d q, row-major 3x3 [m/rad]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); J is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 233 operations per point.
+ * Cost: 241 operations per point.
  * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9984 bytes (9.8 KiB) at 64, plus scalars.
  */
@@ -134,11 +137,63 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 114 operations per point.
+ * Cost: 131 operations per point.
  * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 4352 bytes (4.2 KiB) at 64, plus scalars.
  */
 int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, double *restrict q, int8_t *restrict status);
+
+/* Inverse kinematics at velocity level (elbow-out): (p, pdot) -> (q, qdot), qdot = J_q^-1 J_p pdot, eqs. (28)-(35).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * p         in,  n x axes: platform position [m]; column 4: phi [rad]
+ * pd        in,  n x axes: platform velocity [m/s]; column 4: phidot [rad/s]
+ * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
+ * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 260 operations per point.
+ * Stack: 17 block arrays (16 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 8448 bytes (8.2 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, double *restrict q, double *restrict qd, int8_t *restrict status);
+
+/* Inverse kinematics at acceleration level (elbow-out): (p, pdot, pddot) -> (q, qdot, qddot), qdot = J_q^-1 J_p pdot and its time derivative, eqs. (28)-(39).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * p         in,  n x axes: platform position [m]; column 4: phi [rad]
+ * pd        in,  n x axes: platform velocity [m/s]; column 4: phidot [rad/s]
+ * pdd       in,  n x axes: platform acceleration [m/s^2]; column 4: phiddot [rad/s^2]
+ * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
+ * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
+ * qdd       out, n x axes: crank accelerations [rad/s^2]; column 4: qddot_4 = phiddot [rad/s^2]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 372 operations per point.
+ * Stack: 25 block arrays (24 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict q, double *restrict qd, double *restrict qdd, int8_t *restrict status);
+
+/* Direct kinematics and the sensitivity of p to the chain parameters (calibration): q -> p, dp/d(r_i, l_a,i, l_b,i, theta_i, q_i) by the implicit function theorem on eq. (1) (deltagen/derive/delta/calibration.py).
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * axes      3, or 4 with the fourth axis in the last column
+ * q         in,  n x axes: crank angles q_1..q_3 (eq. (1), positive = crank down) [rad]; column 4: fourth-axis angle q_4 [rad]
+ * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
+ * G         out, n x 45: dp/dpi, 15 parameters x 3 coordinates per point: parameters r_1..3, l_a,1..3, l_b,1..3 [m/m], theta_1..3, q_1..3 [m/rad]; r_i = r_a,i - r_b,i
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); G is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 566 operations per point.
+ * Stack: 60 block arrays (59 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 30464 bytes (29.8 KiB) at 64, plus scalars.
+ */
+int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes, const double *restrict q, double *restrict p, double *restrict G, int8_t *restrict status);
 
 /* Inverse dynamics, exact rigid-body model (cranks, rod pairs as slender rods with their rotation, platform + payload): (q, qdot, qddot, payload) -> motor torques tau, by virtual work with J of eq. (30) and pddot of eq. (38) (deltagen/derive/delta/dynamics.py).
  *
@@ -152,7 +207,7 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 553 operations per point.
+ * Cost: 590 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -170,7 +225,7 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
  * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 533 operations per point.
+ * Cost: 570 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */

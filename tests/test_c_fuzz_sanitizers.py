@@ -123,7 +123,9 @@ int main(int argc, char **argv)
     int8_t *st = malloc(n ? n : 1);
     int rc = 0;
 
-    deltagen_delta_geometry g = {%(r_a)s, %(r_b)s, %(l_a)s, %(l_b)s, {%(cos)s}, {%(sin)s}, 1e-9,
+    deltagen_delta_geometry g = {%(r_a)s, %(r_b)s, %(l_a)s, %(l_b)s,
+        {%(r_a)s - %(r_b)s, %(r_a)s - %(r_b)s, %(r_a)s - %(r_b)s},  /* per chain: symmetric */
+        {%(l_a)s, %(l_a)s, %(l_a)s}, {%(l_b)s, %(l_b)s, %(l_b)s}, {%(cos)s}, {%(sin)s}, 1e-9,
         0.01, 1.0, 0.1, 0.2, 0.5, {0.0, 0.0, -9.81}, 0.0};  /* inertia: unused here */
     for (size_t axes = 3; axes <= 4; ++axes) {
         double *q = narrow(q4, n, axes), *qd = narrow(qd4, n, axes), *qdd = narrow(qdd4, n, axes);

@@ -135,6 +135,9 @@ def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, fla
         "deltagen_delta_fk_acc",
         "deltagen_delta_jacobian",
         "deltagen_delta_ik",
+        "deltagen_delta_ik_vel",
+        "deltagen_delta_ik_acc",
+        "deltagen_delta_fk_param_jacobian",
         "deltagen_delta_inverse_dynamics",
         "deltagen_delta_inverse_dynamics_simplified",
     }
@@ -384,6 +387,9 @@ int main(void)
     for (int i = 0; i < 3; ++i) {
         g.cos_theta[i] = COS_THETA[i];
         g.sin_theta[i] = SIN_THETA[i];
+        g.chain_r[i] = g.r_a - g.r_b; /* a symmetric robot: every chain alike */
+        g.chain_l_a[i] = g.l_a;
+        g.chain_l_b[i] = g.l_b;
     }
     g.singular_tol = 1e-9;
     g.I_a = 0.037;
@@ -788,6 +794,8 @@ ONE_PROGRAM = r"""
 int main(void)
 {
     deltagen_delta_geometry g = {%(r_a)s, %(r_b)s, %(l_a)s, %(l_b)s,
+                                 {%(r_a)s - %(r_b)s, %(r_a)s - %(r_b)s, %(r_a)s - %(r_b)s},
+                                 {%(l_a)s, %(l_a)s, %(l_a)s}, {%(l_b)s, %(l_b)s, %(l_b)s},
                                  {%(cos)s}, {%(sin)s}, 1e-9,
                                  0.037, 0.6, 0.15, 0.2, 0.5, {0.0, 0.0, -9.81}, 2e-4};
     double qd[3] = {0.1, 0.2, 0.3}, p[3], T[16], T6[16], J6[36], q6[6] = {0.1, -0.4, 0.3, 0.2, 0.5, -0.1};

@@ -24,6 +24,22 @@ from deltagen.derive.delta.ik import crank_equation
 from deltagen.derive.delta.velocity import constraint_rate
 from deltagen.model.delta import DeltaGeometry
 
+
+def _symmetric(derivation):
+    """The derivations use each chain's own r_i, l_a,i, l_b,i (an asymmetric robot); the
+    report's printed equations are for equal chains: compare with those substituted."""
+
+    def symmetric_derivation(*args, **kwargs):
+        out = derivation(*args, **kwargs)
+        return tuple(s.symmetric(o) for o in out) if isinstance(out, tuple) else s.symmetric(out)
+
+    return symmetric_derivation
+
+
+constraint_rate = _symmetric(constraint_rate)
+constraint_acceleration = _symmetric(constraint_acceleration)
+crank_equation = _symmetric(crank_equation)
+
 CHAINS = (0, 1, 2)
 DEFAULT = DeltaGeometry.default()
 SEED = Path(__file__).resolve().parents[2] / "shared" / "seeds" / "000_e75353eb064fd002.txt"
@@ -95,7 +111,7 @@ def trajectory(n):
 def test_eq1_constraint_and_CB_vector(i):
     q = s.q[i]
     printed = P.eq1_constraint(i, sp.cos(q), sp.sin(q))
-    assert sp.expand(printed - s.constraint(i)) == 0
+    assert sp.expand(printed - s.symmetric(s.constraint(i))) == 0
     # the two printed forms of C_i B_i agree with r = r_a - r_b, and |C_i B_i|^2 - l_b^2 = (1)
     a = P.vector_CB(i, first_form=True)
     b = P.vector_CB(i).subs(s.r, s.r_a - s.r_b)
@@ -106,7 +122,7 @@ def test_eq1_constraint_and_CB_vector(i):
 @pytest.mark.parametrize("i", CHAINS)
 def test_eq2_to_5_sphere_centres(i):
     centre = P.eq3_5_centre(i)
-    assert sp.expand(centre - s.sphere_centre(i)) == sp.zeros(3, 1)
+    assert sp.expand(centre - s.symmetric(s.sphere_centre(i))) == sp.zeros(3, 1)
     sphere = P.eq2_sphere(i).subs(dict(zip(P.S[i], centre)))
     assert sp.expand(sphere - P.eq1_constraint(i)) == 0
 

@@ -127,6 +127,19 @@ class DeltaRobot:
     ) -> DeltaRobot:
         return cls.from_geometry(DeltaGeometry.from_toml(path), backend, threads=threads)
 
+    @classmethod
+    def from_klipper(
+        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> DeltaRobot:
+        """The rotary delta of a Klipper printer.cfg ([printer] kinematics: rotary_delta),
+        in deltagen's conventions: metres, q positive down (Klipper's arm angle is positive
+        up: q = -a), base frame in the shoulder plane (Klipper's z is above the bed:
+        z = z_klipper - shoulder_height). deltagen.model.klipper.read_klipper gives the
+        frame offset and the endstop heights too."""
+        from deltagen.model.klipper import read_klipper
+
+        return cls.from_geometry(read_klipper(path).geometry, backend, threads=threads)
+
     def with_backend(self, backend: Backend) -> DeltaRobot:
         return type(self).from_geometry(self.geometry, backend, threads=self.threads)
 
@@ -191,14 +204,16 @@ class DeltaRobot:
         return self._finish(errors, lead, status, [q], ("p",), [pf], allow_singular=True)
 
     def ik_vel(self, p: ArrayLike, pd: ArrayLike, errors: Errors = "raise") -> Result:
-        """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J^-1 pdot."""
+        """(q, qdot) from (p, pdot): inverse kinematics, then qdot = J_q^-1 J_p pdot
+        (eq. (30); J_q is diagonal). Only a singular J_q (crank and rod in line) is an
+        error here: at a J_p singularity qdot is still defined."""
         return self._inverse_rates(errors, dict(p=p, pd=pd))
 
     def ik_acc(
         self, p: ArrayLike, pd: ArrayLike, pdd: ArrayLike, errors: Errors = "raise"
     ) -> Result:
-        """(q, qdot, qddot) from (p, pdot, pddot): qddot = J^-1 (pddot - Jdot qdot), where
-        Jdot qdot is the platform acceleration of fk_acc at qddot = 0."""
+        """(q, qdot, qddot) from (p, pdot, pddot): qddot from the second time derivative
+        of constraint (1), eqs. (36)-(39), solved for qddot (J_q diagonal)."""
         return self._inverse_rates(errors, dict(p=p, pd=pd, pdd=pdd))
 
     def workspace(self, step: float | None = None, **options: Any) -> Any:
@@ -207,6 +222,29 @@ class DeltaRobot:
         from deltagen.api.workspace import delta_workspace
 
         return delta_workspace(self, step, **options)
+
+    def calibrate(
+        self,
+        q_measured: ArrayLike,
+        p_measured: ArrayLike,
+        params: tuple[str, ...] | str = ("r_a", "l_a", "l_b", "theta", "q_offset"),
+        **options: Any,
+    ) -> Any:
+        """Identify geometry deviations of the robot as built from measured pairs: q (N, 3)
+        as the encoders read them [rad], p (N, 3) measured in the base frame [m]. ``params``:
+        families r_a, r_b, l_a, l_b, theta, q_offset (per chain, all three) or single
+        entries like "l_a[0]". Levenberg-Marquardt with the generated C Jacobian of fk with
+        respect to the parameters; see deltagen.solve.calibration (options: sigma, rcond,
+        max_iterations, tol). Returns a CalibrationResult: the calibrated geometry and
+        ``robot`` (same backend), values, uncertainty, residual RMS before/after,
+        singular values and the sets of parameters the data cannot separate."""
+        from dataclasses import replace
+
+        from deltagen.solve.calibration import calibrate
+
+        result = calibrate(self.geometry, q_measured, p_measured, params, **options)
+        robot = type(self).from_geometry(result.geometry, self.backend, threads=self.threads)
+        return replace(result, robot=robot)
 
     # -- dynamics -----------------------------------------------------------------------
 
@@ -263,6 +301,11 @@ class DeltaRobot:
     def _check_dynamics(self, model):
         if model not in _MODELS:
             raise InputError(f"model must be one of {_MODELS}, got {model!r}")
+        if not self.geometry.symmetric:
+            raise GeometryError(
+                "the dynamics are derived for the symmetric robot: this one has per-chain "
+                "lengths or encoder offsets (an asymmetric robot: kinematics only)"
+            )
         if self.geometry.inertia is None:
             raise GeometryError(
                 "this robot has no inertial parameters: give DeltaRobot(..., "
@@ -342,52 +385,14 @@ class DeltaRobot:
         raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
 
     def _inverse_rates(self, errors, arrays):
-        check_errors_mode(errors)
-        with_acceleration = "pdd" in arrays
-        lead, width, flat = broadcast_rows(arrays)
-        pf, pdf = flat[0], flat[1]
-        q, status = self._core.ik(pf)
-        bad_ik = status != st.OK  # here a J_q singularity is an error: qdot would be infinite
-        J, jstatus = self._core.jacobian(q)
-        finite_rates = np.isfinite(pdf).all(axis=1)
-        if with_acceleration:
-            finite_rates &= np.isfinite(flat[2]).all(axis=1)
-        status = np.where(bad_ik, status, jstatus).astype(np.int8)
-        status[(status == st.OK) & ~finite_rates] = st.INVALID
-        ok = status == st.OK
-        if errors == "raise" and not ok.all():
-            self._raise(status, ok, tuple(arrays), flat)
-        qd = np.full_like(pdf, np.nan)
-        Jok = J[ok]
-        with np.errstate(all="ignore"):  # overflow of huge rates: the finite check below
-            qd[ok, :3] = np.linalg.solve(Jok, pdf[ok, :3, None])[..., 0] if Jok.size else 0.0
-            if width == 4:
-                qd[ok, 3] = pdf[ok, 3]
-            outs = [q, qd]
-            if with_acceleration:
-                pddf = flat[2]
-                qdd = np.full_like(pddf, np.nan)
-                zero = np.zeros_like(pddf)
-                # Jdot qdot (pdd0) is NaN where huge rates overflow: qdd then fails the check
-                _, _, pdd0, _ = self._core.fk_acc(q, np.where(ok[:, None], qd, 0.0), zero)
-                rhs = pddf[ok, :3] - pdd0[ok, :3]
-                qdd[ok, :3] = np.linalg.solve(Jok, rhs[..., None])[..., 0] if Jok.size else 0.0
-                if width == 4:
-                    qdd[ok, 3] = pddf[ok, 3]
-                outs.append(qdd)
-        # the finite-output rule (deltagen.status): rates computed here are checked here
-        overflow = ok & ~finite_rows(*outs)
-        if overflow.any():
-            status[overflow] = st.INVALID
-            ok &= ~overflow
-            if errors == "raise":
-                self._raise(status, ok, tuple(arrays), flat)
-        for o in outs:
-            o[~ok] = np.nan
-        shaped = [o.reshape(lead + (width,)) for o in outs]
-        if errors == "nan":
-            return (*shaped, ok.reshape(lead))
-        return tuple(shaped)
+        """ik_vel / ik_acc: the kernels give q (kept where only J_q is singular) and the
+        rates (NaN unless OK); here J_q singular rows are errors, as qdot is infinite."""
+        lead, _, flat = self._prepare(errors, **arrays)
+        if len(flat) == 2:
+            *outs, status = self._core.ik_vel(*flat)
+        else:
+            *outs, status = self._core.ik_acc(*flat)
+        return self._finish(errors, lead, status, outs, tuple(arrays), flat)
 
 
 class _ReferenceCore:
@@ -410,6 +415,12 @@ class _ReferenceCore:
 
     def ik(self, p):
         return self._m.ik(self._g, p)
+
+    def ik_vel(self, p, pd):
+        return self._m.ik_vel(self._g, p, pd)
+
+    def ik_acc(self, p, pd, pdd):
+        return self._m.ik_acc(self._g, p, pd, pdd)
 
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
         return self._m.inverse_dynamics(self._g, self._g.inertia, q, qd, qdd, payload, model=model)

@@ -12,7 +12,10 @@ UNIT = Unit(
     title="kinematics of the rotary delta robot",
     source="the delta report of docs/sources.md (2008, direct kinematics of a delta robot)",
     struct_name="deltagen_delta_geometry",
-    struct_doc="Geometry of the robot (report, Figure 4) and its inertia (for the dynamics).",
+    struct_doc="Geometry of the robot (report, Figure 4) and its inertia (for the dynamics). "
+    "The kinematics use the per-chain chain_r, chain_l_a, chain_l_b (an asymmetric robot); "
+    "r_a, r_b, l_a, l_b are the nominal values: they scale the singularity thresholds and "
+    "enter the dynamics, derived for the symmetric robot.",
     conventions=(
         "Conventions: SI units (m, rad, s). Arrays are row-major and contiguous, one row per",
         "point. `axes` is 3, or 4 when the last column carries the independent fourth axis",
@@ -25,6 +28,11 @@ UNIT = Unit(
         StructField("r_b", "double", "", "platform radius, P to a joint C_i [m]"),
         StructField("l_a", "double", "", "crank length [m]"),
         StructField("l_b", "double", "", "parallelogram rod length [m]"),
+        StructField(
+            "chain_r", "double", "[3]", "per chain r_a,i - r_b,i [m] (symmetric: r_a - r_b)"
+        ),
+        StructField("chain_l_a", "double", "[3]", "per-chain crank length [m] (symmetric: l_a)"),
+        StructField("chain_l_b", "double", "[3]", "per-chain rod length [m] (symmetric: l_b)"),
         StructField("cos_theta", "double", "[3]", "cos of the drive positions theta_i"),
         StructField("sin_theta", "double", "[3]", "sin of the drive positions theta_i"),
         StructField("singular_tol", "double", "", "relative singularity threshold, e.g. 1e-9"),

@@ -24,6 +24,17 @@ Robot files are TOML::
     gravity = [0, 0, -9.81]    # in the base frame O, z up [m/s^2]
     I_4 = 0.0                  # fourth-axis inertia about its own axis [kg m^2]
 
+Asymmetric robots (a robot as built, e.g. after calibration): every chain i may have its
+own r_a_i, r_b_i, l_a_i, l_b_i (``chain_r_a`` ... ``chain_l_b``, 3 values each; None: the
+symmetric value) and an encoder offset q_offset_i [rad]: the geometric crank angle is
+q_i + q_offset_i for the reading q_i every API call takes and returns (the measured
+angle). The scalar r_a, r_b, l_a, l_b stay the nominal values: they scale the singularity
+thresholds and give the dynamics, which are derived for the symmetric robot only. In a
+robot file (optional keys of [delta])::
+
+    chain_l_a = [0.35, 0.351, 0.3495]   # likewise chain_r_a, chain_r_b, chain_l_b [m]
+    q_offset = [0.0, 0.001, -0.002]     # or q_offset_deg [deg]
+
 Dynamics (``DeltaInertia``): each crank turns about its fixed drive axis (inertia I_a,
 mass m_a at r_ca along the crank for gravity). Each parallelogram is two slender rods of
 length l_b moving in parallel (the report, Figure 4, lumps them into one rod): their pair
@@ -45,12 +56,24 @@ from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
 _LENGTHS = ("r_a", "r_b", "l_a", "l_b")
-_DELTA_KEYS = set(_LENGTHS) | {"theta", "theta_deg", "singular_tol"}
+_CHAIN_KEYS = tuple(f"chain_{k}" for k in _LENGTHS)
+_DELTA_KEYS = (
+    set(_LENGTHS)
+    | {"theta", "theta_deg", "singular_tol", "q_offset", "q_offset_deg"}
+    | set(_CHAIN_KEYS)
+)
 _TOP_KEYS = {"name", "delta", "inertia"}
 _INERTIA_KEYS = ("I_a", "m_a", "r_ca", "m_b", "m_p", "I_4")
 STANDARD_GRAVITY = (0.0, 0.0, -9.81)
 #: Smallest angular separation of two drives still called distinct [rad].
 MIN_DRIVE_SEPARATION = 1e-6
+
+
+def _triple(values: Any, key: str) -> tuple[float, float, float]:
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) != 3:
+        raise GeometryError(f"{key} must hold 3 numbers (one per chain), got {values!r}")
+    a, b, c = (real(v, f"{key}[{i}]") for i, v in enumerate(values))
+    return (a, b, c)
 
 
 @dataclass(frozen=True)
@@ -120,6 +143,12 @@ class DeltaGeometry:
     name: str = "delta"
     singular_tol: float = SINGULAR_TOL
     inertia: DeltaInertia | None = None  # needed only for the dynamics
+    # per-chain values of an asymmetric robot (None: the symmetric r_a, r_b, l_a, l_b)
+    chain_r_a: tuple[float, ...] | None = None
+    chain_r_b: tuple[float, ...] | None = None
+    chain_l_a: tuple[float, ...] | None = None
+    chain_l_b: tuple[float, ...] | None = None
+    q_offset: tuple[float, ...] = (0.0, 0.0, 0.0)  # encoder offsets [rad]
 
     def __post_init__(self) -> None:
         if self.inertia is not None and not isinstance(self.inertia, DeltaInertia):
@@ -153,6 +182,25 @@ class DeltaGeometry:
                 f"rods too short: |r_a - r_b| = {abs(self.r):g} m exceeds l_a + l_b = "
                 f"{self.l_a + self.l_b:g} m, so the chains close nowhere"
             )
+        for key in _CHAIN_KEYS:
+            values = getattr(self, key)
+            if values is None:
+                continue
+            values = _triple(values, key)
+            low = 0.0 if key == "chain_r_b" else None
+            for i, v in enumerate(values):
+                if (v < 0.0) if low is not None else (v <= 0.0):
+                    raise GeometryError(
+                        f"{key}[{i}] must be {'non-negative' if low is not None else 'positive'}, got {v!r}"
+                    )
+            object.__setattr__(self, key, values)
+        object.__setattr__(self, "q_offset", _triple(self.q_offset, "q_offset"))
+        for i in range(3):
+            r_i = self.chain("r_a")[i] - self.chain("r_b")[i]
+            if abs(r_i) > self.chain("l_a")[i] + self.chain("l_b")[i]:
+                raise GeometryError(
+                    f"chain {i + 1}: rods too short: |r_a - r_b| = {abs(r_i):g} m exceeds l_a + l_b"
+                )
         check_identifier(self.name)
         tol = real(self.singular_tol, "singular_tol")
         if not 0.0 <= tol < 1.0:
@@ -163,6 +211,41 @@ class DeltaGeometry:
     def r(self) -> float:
         """r = r_a - r_b, the radius of the sphere-centre circles' axis (report, eq. (1))."""
         return self.r_a - self.r_b
+
+    def chain(self, key: str) -> tuple[float, float, float]:
+        """Per-chain values of r_a, r_b, l_a or l_b (the symmetric value thrice if the chains
+        do not differ)."""
+        values = getattr(self, f"chain_{key}")
+        if values is None:
+            v = getattr(self, key)
+            return (v, v, v)
+        return values
+
+    @property
+    def chain_r(self) -> tuple[float, float, float]:
+        """r_i = r_a_i - r_b_i per chain (eq. (1))."""
+        a, b = self.chain("r_a"), self.chain("r_b")
+        return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+    @property
+    def symmetric(self) -> bool:
+        """No per-chain lengths and no encoder offsets."""
+        return all(getattr(self, k) is None for k in _CHAIN_KEYS) and not any(self.q_offset)
+
+    def with_chains(self, **values: Any) -> DeltaGeometry:
+        """A copy with per-chain values: chain keys r_a, r_b, l_a, l_b (3 numbers each),
+        theta (3 angles) or q_offset (3 offsets) [m, rad]."""
+        from dataclasses import replace
+
+        kwargs: dict[str, Any] = {}
+        for key, v in values.items():
+            if key in _LENGTHS:
+                kwargs[f"chain_{key}"] = tuple(v)
+            elif key in ("theta", "q_offset"):
+                kwargs[key] = tuple(v)
+            else:
+                raise GeometryError(f"unknown per-chain key {key!r}")
+        return replace(self, **kwargs)
 
     @property
     def size(self) -> float:
@@ -216,6 +299,23 @@ class DeltaGeometry:
         kwargs = {k: delta[k] for k in _LENGTHS}
         if "singular_tol" in delta:
             kwargs["singular_tol"] = delta["singular_tol"]
+        for k in _CHAIN_KEYS:
+            if k in delta:
+                kwargs[k] = delta[k]
+        if "q_offset" in delta and "q_offset_deg" in delta:
+            raise GeometryError(f"{source}: give q_offset (rad) or q_offset_deg (deg), not both")
+        if "q_offset" in delta:
+            kwargs["q_offset"] = delta["q_offset"]
+        if "q_offset_deg" in delta:
+            raw_offset = delta["q_offset_deg"]
+            if not isinstance(raw_offset, list) or len(raw_offset) != 3:
+                raise GeometryError(f"{source}: q_offset_deg must be a list of 3 numbers")
+            try:
+                kwargs["q_offset"] = tuple(
+                    math.radians(real(v, f"q_offset_deg[{i}]")) for i, v in enumerate(raw_offset)
+                )
+            except GeometryError as exc:
+                raise GeometryError(f"{source}: {exc}") from None
         if "inertia" in data:
             kwargs["inertia"] = DeltaInertia.from_mapping(data["inertia"], source)
         try:

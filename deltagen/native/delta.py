@@ -36,6 +36,9 @@ def geometry_struct(g) -> dict:
         "r_b": g.r_b,
         "l_a": g.l_a,
         "l_b": g.l_b,
+        "chain_r": list(g.chain_r),
+        "chain_l_a": list(g.chain("l_a")),
+        "chain_l_b": list(g.chain("l_b")),
         "cos_theta": [math.cos(t) for t in g.theta],
         "sin_theta": [math.sin(t) for t in g.theta],
         "singular_tol": g.singular_tol,
@@ -64,12 +67,31 @@ class CompiledDelta:
         self._geometry = self._ffi.new("deltagen_delta_geometry *", geometry_struct(geometry))
 
         self._scratch = _Scratch(self._ffi)
+        # encoder offsets (an asymmetric robot as built): the kernels take geometric crank
+        # angles q + q_offset; None when there are none (no copies)
+        self._offset = np.array(geometry.q_offset) if any(geometry.q_offset) else None
+
+    def _to_crank(self, q):
+        """Measured angles (N, 3|4) -> the kernels' geometric crank angles."""
+        if self._offset is None:
+            return q
+        out = q.copy()
+        out[:, :3] += self._offset
+        return out
+
+    def _from_crank(self, q):
+        """The kernels' crank angles -> measured angles, wrapped to (-pi, pi] (in place)."""
+        if self._offset is not None:
+            q[:, :3] = np.pi - np.mod(np.pi - (q[:, :3] - self._offset), 2.0 * np.pi)
+        return q
 
     def single(self, name):
         """A fast function for one pose: what inputs.plain_row(pose, 3) accepts (a (3,)
         float64 array or a list/tuple of 3 Python floats/ints) in, the (3,) result out, or
         None when the general path must handle the call (other inputs, whose checks it
         makes, or a status to report). Same C function, same numbers."""
+        if self._offset is not None:  # the general path applies the offsets
+            return None
         fn = self._lib.deltagen_delta_fk if name == "fk" else self._lib.deltagen_delta_ik
         geometry, scratch, memmove = self._geometry, self._scratch, self._ffi.memmove
         ndarray, OK, SINGULAR, isfinite = np.ndarray, st.OK, st.SINGULAR, math.isfinite
@@ -97,12 +119,13 @@ class CompiledDelta:
 
         return call
 
-    def _run(self, fn, inputs, n_out, out_width=None):
+    def _run(self, fn, inputs, n_out, out_width=None, widths=None):
         """fn(geometry, rows, axes, *inputs, *outputs, status) over the batch, split into row
         chunks across threads (native.parallel); inputs are (N, ...) C-contiguous."""
         n, axes = inputs[0].shape
         fb, geometry = self._ffi.from_buffer, self._geometry
-        outs = [np.empty((n, out_width or axes)) for _ in range(n_out)]
+        widths = widths or (out_width,) * n_out
+        outs = [np.empty((n, w or axes)) for w in widths]
         status = np.empty(n, dtype=np.int8)
 
         def call(lo, hi):
@@ -121,20 +144,43 @@ class CompiledDelta:
         return (*outs, status)
 
     def fk(self, q):
-        return self._run(self._lib.deltagen_delta_fk, [q], 1)
+        return self._run(self._lib.deltagen_delta_fk, [self._to_crank(q)], 1)
 
     def fk_vel(self, q, qd):
-        return self._run(self._lib.deltagen_delta_fk_vel, [q, qd], 2)
+        return self._run(self._lib.deltagen_delta_fk_vel, [self._to_crank(q), qd], 2)
 
     def fk_acc(self, q, qd, qdd):
-        return self._run(self._lib.deltagen_delta_fk_acc, [q, qd, qdd], 3)
+        return self._run(self._lib.deltagen_delta_fk_acc, [self._to_crank(q), qd, qdd], 3)
 
     def jacobian(self, q):
-        J, status = self._run(self._lib.deltagen_delta_jacobian, [q], 1, out_width=9)
+        J, status = self._run(
+            self._lib.deltagen_delta_jacobian, [self._to_crank(q)], 1, out_width=9
+        )
         return J.reshape(-1, 3, 3), status
 
     def ik(self, p):
-        return self._run(self._lib.deltagen_delta_ik, [p], 1)
+        q, status = self._run(self._lib.deltagen_delta_ik, [p], 1)
+        return self._from_crank(q), status
+
+    def ik_vel(self, p, pd):
+        q, qd, status = self._run(self._lib.deltagen_delta_ik_vel, [p, pd], 2)
+        return self._from_crank(q), qd, status
+
+    def ik_acc(self, p, pd, pdd):
+        q, qd, qdd, status = self._run(self._lib.deltagen_delta_ik_acc, [p, pd, pdd], 3)
+        return self._from_crank(q), qd, qdd, status
+
+    def fk_param_jacobian(self, q):
+        """p (N, 3) and dp/d(chain parameters) (N, 3, 15): columns r_i, l_a,i, l_b,i,
+        theta_i, q_i for i = 1..3 (generated/delta_kinematics.h)."""
+        p, G, status = self._run(
+            self._lib.deltagen_delta_fk_param_jacobian,
+            [self._to_crank(q)],
+            2,
+            out_width=None,
+            widths=(None, 45),
+        )
+        return p, G.reshape(-1, 15, 3).transpose(0, 2, 1), status
 
     def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
         """tau (N, axes) and status; ``payload`` is (N,) [kg], C-contiguous float64."""
@@ -143,4 +189,4 @@ class CompiledDelta:
             if model == "exact"
             else self._lib.deltagen_delta_inverse_dynamics_simplified
         )
-        return self._run(fn, [q, qd, qdd, payload], 1)
+        return self._run(fn, [self._to_crank(q), qd, qdd, payload], 1)

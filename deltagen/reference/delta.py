@@ -30,6 +30,9 @@ with ``r = r_a - r_b``; z points up and the platform works at negative z.
   ``q = atan2(F, E) + atan2(sqrt(E^2 + F^2 - G^2), -G)``. On this branch
   ``E sin q - F cos q = 2 j_i >= 0``, i.e. ``j_i`` vanishes exactly where the two
   branches meet (rod and crank aligned).
+* Inverse rates: ``J_q`` is diagonal, so row i of the velocity relation gives
+  ``qd_i = D_i . pd / j_i`` and of the acceleration relation
+  ``qdd_i = (D_i . pdd - qd_i^2 D_i . S_i'' + |pd - Sd_i|^2) / j_i``.
 * A fourth input column (report eq. (43)) passes through unchanged.
 
 Status rules (per point, int8; see :mod:`deltagen.status`):
@@ -41,6 +44,8 @@ Status rules (per point, int8; see :mod:`deltagen.status`):
   before reachability); else UNREACHABLE if the spheres do not meet,
   ``l_b^2 - |u_0|^2 < 0`` (outputs NaN); else SINGULAR if
   ``|det D| / l_b^3 < tol`` (p is returned, pd / pdd / J are NaN); else OK.
+* ik_vel, ik_acc: the status of ik, with the rates NaN unless OK (a SINGULAR row has
+  an infinite qd); the finite-output rule covers q and the rates.
 * ik: UNREACHABLE if for any chain ``E^2 + F^2 - G^2 < 0`` (row NaN); else SINGULAR if
   for any chain ``|j_i| / (l_a l_b) < tol`` (q is returned); else OK.
 * Finite outputs (:mod:`deltagen.status`, the rule the generated C applies too): INVALID
@@ -63,6 +68,8 @@ __all__ = [
     "fk_acc",
     "jacobian",
     "ik",
+    "ik_vel",
+    "ik_acc",
     "inverse_dynamics",
     "mass_matrix",
     "forward_dynamics",
@@ -97,14 +104,40 @@ def _trig(geom):
     return np.cos(th), np.sin(th)
 
 
+def _chains(geom):
+    """Per-chain r_i = r_a,i - r_b,i, l_a,i, l_b,i as (3,) arrays (an asymmetric robot)."""
+    return (
+        np.asarray(geom.chain_r, dtype=np.float64),
+        np.asarray(geom.chain("l_a"), dtype=np.float64),
+        np.asarray(geom.chain("l_b"), dtype=np.float64),
+    )
+
+
+def _crank_angles(geom, q: np.ndarray) -> np.ndarray:
+    """Measured angles (N, 3|4) -> geometric crank angles: + the encoder offsets."""
+    if not any(geom.q_offset):
+        return q
+    out = np.array(q, dtype=np.float64, copy=True)
+    out[:, :3] += np.asarray(geom.q_offset)
+    return out
+
+
+def _measured_angles(geom, q: np.ndarray) -> np.ndarray:
+    """Geometric crank angles -> measured angles in (-pi, pi] (in place)."""
+    if any(geom.q_offset):
+        q[:, :3] = np.pi - np.mod(np.pi - (q[:, :3] - np.asarray(geom.q_offset)), 2.0 * np.pi)
+    return q
+
+
 def _centres(geom, q3: np.ndarray):
     """S_i, dS_i/dq_i and d^2S_i/dq_i^2 as (N, 3 chains, 3 coords) arrays."""
     c, s = _trig(geom)
+    r, l_a, _ = _chains(geom)
     cq, sq = np.cos(q3), np.sin(q3)
-    rho = geom.r + geom.l_a * cq
-    S = np.stack((rho * c, rho * s, -geom.l_a * sq), axis=-1)
-    dS = np.stack((-geom.l_a * sq * c, -geom.l_a * sq * s, -geom.l_a * cq), axis=-1)
-    d2S = np.stack((-geom.l_a * cq * c, -geom.l_a * cq * s, geom.l_a * sq), axis=-1)
+    rho = r + l_a * cq
+    S = np.stack((rho * c, rho * s, -l_a * sq), axis=-1)
+    dS = np.stack((-l_a * sq * c, -l_a * sq * s, -l_a * cq), axis=-1)
+    d2S = np.stack((-l_a * cq * c, -l_a * cq * s, l_a * sq), axis=-1)
     return S, dS, d2S
 
 
@@ -157,9 +190,10 @@ def _fk_core(geom, q: np.ndarray, *others: np.ndarray):
     """
     n = q.shape[0]
     bad = _invalid_rows(q, *others)
-    q3 = _sanitised(q, bad)
+    q3 = _sanitised(_crank_angles(geom, q), bad)
     S, dS, d2S = _centres(geom, q3)
-    l_b = geom.l_b
+    l_b = geom.l_b  # nominal: the scale of the thresholds
+    rod = _chains(geom)[2]
     tol = geom.singular_tol
 
     a = S[:, 1] - S[:, 0]
@@ -172,8 +206,11 @@ def _fk_core(geom, q: np.ndarray, *others: np.ndarray):
     safe_e2 = np.where(collinear, 1.0, e2)
     aa = np.einsum("ni,ni->n", a, a)
     bb = np.einsum("ni,ni->n", b, b)
+    # planes u.a = (|a|^2 + l_b1^2 - l_b2^2) / 2, u.b = (|b|^2 + l_b1^2 - l_b3^2) / 2
+    aa = aa + rod[0] ** 2 - rod[1] ** 2
+    bb = bb + rod[0] ** 2 - rod[2] ** 2
     u0 = (aa[:, None] * np.cross(b, e) + bb[:, None] * np.cross(e, a)) / (2.0 * safe_e2[:, None])
-    h = l_b**2 - np.einsum("ni,ni->n", u0, u0)
+    h = rod[0] ** 2 - np.einsum("ni,ni->n", u0, u0)
     unreachable = ~collinear & (h < 0.0)
 
     e_hat = e / np.where(collinear, 1.0, e_norm)[:, None]
@@ -279,7 +316,7 @@ def ik(geom, p):
         bad = _invalid_rows(p)
         p3 = _sanitised(p, bad)
         c, s = _trig(geom)
-        r, l_a, l_b = geom.r, geom.l_a, geom.l_b
+        r, l_a, l_b = _chains(geom)  # per chain, (3,)
         x_i = p3[:, 0:1] * c + p3[:, 1:2] * s  # (N, 3 chains)
         z = p3[:, 2:3]
         pp = np.einsum("ni,ni->n", p3, p3)[:, None]
@@ -293,14 +330,57 @@ def ik(geom, p):
 
         S, dS, _ = _centres(geom, q3)
         j = np.einsum("nci,nci->nc", p3[:, None, :] - S, dS)
-        singular = np.any((np.abs(j) / (l_a * l_b) < geom.singular_tol) | (j == 0.0), axis=1)
+        scale = geom.l_a * geom.l_b  # nominal
+        singular = np.any((np.abs(j) / scale < geom.singular_tol) | (j == 0.0), axis=1)
 
         status = np.full(n, OK, dtype=np.int8)
         status[singular] = SINGULAR
         status[unreachable] = UNREACHABLE
         status[bad] = INVALID
-        q = _with_fourth(q3, p, bad | unreachable)
+        q = _measured_angles(geom, _with_fourth(q3, p, bad | unreachable))
     return q, _finite_outputs(status, [(q, bad | unreachable)])
+
+
+def _inverse_rates(geom, p, pd, pdd=None):
+    p, pd = _as_batch(p), _as_batch(pd)
+    extra = () if pdd is None else (_as_batch(pdd),)
+    with np.errstate(all="ignore"):
+        bad_rates = _invalid_rows(pd, *extra)
+        q, status = ik(geom, np.where(bad_rates[:, None], np.nan, p))
+        no_q = (status == INVALID) | (status == UNREACHABLE)
+        q[status == INVALID] = np.nan  # a row with a non-finite rate has no q either
+        ok = status == OK
+        q3 = _sanitised(_crank_angles(geom, q), ~ok)
+        p3 = _sanitised(p, ~ok)
+        S, dS, d2S = _centres(geom, q3)
+        D = p3[:, None, :] - S
+        j = np.einsum("nci,nci->nc", D, dS)
+        j = np.where(ok[:, None], j, 1.0)
+        pd3 = _sanitised(pd, ~ok)
+        qd3 = np.einsum("nci,ni->nc", D, pd3) / j
+        outs = [q, _with_fourth(qd3, pd, ~ok)]
+        pairs = [(q, no_q), (outs[1], ~ok)]
+        if pdd is not None:
+            pdd3 = _sanitised(extra[0], ~ok)
+            rel_vel = pd3[:, None, :] - dS * qd3[:, :, None]
+            qdd3 = (
+                np.einsum("nci,ni->nc", D, pdd3)
+                - qd3**2 * np.einsum("nci,nci->nc", D, d2S)
+                + np.einsum("nci,nci->nc", rel_vel, rel_vel)
+            ) / j
+            outs.append(_with_fourth(qdd3, extra[0], ~ok))
+            pairs.append((outs[2], ~ok))
+    return (*outs, _finite_outputs(status, pairs))
+
+
+def ik_vel(geom, p, pd):
+    """Inverse rates: (p, pd) (N,3|4) -> (q, qd, status); qd NaN unless OK."""
+    return _inverse_rates(geom, p, pd)
+
+
+def ik_acc(geom, p, pd, pdd):
+    """Inverse rates: (p, pd, pdd) (N,3|4) -> (q, qd, qdd, status); rates NaN unless OK."""
+    return _inverse_rates(geom, p, pd, pdd)
 
 
 # ------------------------------------------------------------------------ dynamics

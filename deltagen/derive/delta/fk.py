@@ -20,12 +20,14 @@ from deltagen.derive.functions import CopySign
 from deltagen.derive.kernel import Stage
 
 
-def spheres(px=s.x, py=s.y, pz=s.z, centres=None):
-    """varsigma_i of eq. (2) about the centres S_i (symbols S_x_i... if not given)."""
+def spheres(px=s.x, py=s.y, pz=s.z, centres=None, radii=(s.l_b, s.l_b, s.l_b)):
+    """varsigma_i of eq. (2) about the centres S_i (symbols S_x_i... if not given), radius
+    l_b (the report's equal rods) or the given per-chain radii."""
     if centres is None:
         centres = [sp.Matrix(sp.symbols(f"S_x{i} S_y{i} S_z{i}", real=True)) for i in (1, 2, 3)]
     return [
-        (px - c[0]) ** 2 + (py - c[1]) ** 2 + (pz - c[2]) ** 2 - s.l_b**2 for c in centres
+        (px - c[0]) ** 2 + (py - c[1]) ** 2 + (pz - c[2]) ** 2 - rad**2
+        for c, rad in zip(centres, radii)
     ], centres
 
 
@@ -81,9 +83,10 @@ det_D = sp.Symbol("det_D", real=True)  # det of the rows p - S_i (= det J_p / 8)
 
 def _centred_planes():
     """Planes of eqs. (6), (7) in coordinates xi = p - S_1: subtracting sphere 1 from
-    spheres 2, 3 leaves 2 a.xi = |a|^2 and 2 b.xi = |b|^2 (derived, not asserted)."""
+    spheres 2, 3 leaves 2 a.xi = |a|^2 + l_b1^2 - l_b2^2 and 2 b.xi = |b|^2 + l_b1^2 - l_b3^2
+    (derived, not asserted; the rod terms cancel for equal rods)."""
     xi = sp.Matrix(sp.symbols("xi_x xi_y xi_z", real=True))
-    sig, _ = spheres(*xi, centres=[sp.zeros(3, 1), a, b])
+    sig, _ = spheres(*xi, centres=[sp.zeros(3, 1), a, b], radii=s.chain_l_b)
     planes = []
     for other in (1, 2):
         plane = sp.Poly(sp.expand(sig[0] - sig[other]), *xi)
@@ -109,7 +112,7 @@ def fk_stages():
     det_M = sp.factor(M.det().subs({e[0]: a.cross(b)[0], e[1]: a.cross(b)[1], e[2]: a.cross(b)[2]}))
     assert sp.simplify(det_M - 4 * (a.cross(b)).dot(a.cross(b))) == 0
     foot = M.adjugate() * rhs * inv_e_sq / 4
-    foot_point = list(zip(x0, foot)) + [(h_sq, s.l_b**2 - x0.dot(x0))]
+    foot_point = list(zip(x0, foot)) + [(h_sq, s.chain_l_b[0] ** 2 - x0.dot(x0))]
     # xi = x0 + lambda e with |xi| = l_b and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
     # Lower intersection: lambda * e_z < 0 (eq. (26) takes the minimum z).
     line = [(lam, -CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]

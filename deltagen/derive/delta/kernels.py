@@ -20,9 +20,11 @@ import sympy as sp
 
 from deltagen import status as st
 from deltagen.derive.delta import acceleration as acc
+from deltagen.derive.delta import calibration as cal
 from deltagen.derive.delta import dynamics as dyn
 from deltagen.derive.delta import fk as fkd
 from deltagen.derive.delta import ik as ikd
+from deltagen.derive.delta import inverse_rates as irs
 from deltagen.derive.delta import symbols as s
 from deltagen.derive.delta import velocity as vel
 from deltagen.derive.functions import AllFinite
@@ -38,6 +40,9 @@ PARAMETERS = (
     Parameter(s.l_a, "l_a"),
     Parameter(s.l_b, "l_b"),
     *(Parameter(s.cos_theta[i], "cos_theta", i) for i in range(3)),
+    *(Parameter(s.chain_r[i], "chain_r", i) for i in range(3)),
+    *(Parameter(s.chain_l_a[i], "chain_l_a", i) for i in range(3)),
+    *(Parameter(s.chain_l_b[i], "chain_l_b", i) for i in range(3)),
     *(Parameter(s.sin_theta[i], "sin_theta", i) for i in range(3)),
     Parameter(s.singular_tol, "singular_tol"),
     # inertia (read by the dynamics kernels only)
@@ -288,6 +293,154 @@ def ik_kernel() -> Kernel:
     )
 
 
+def _inverse_rates(with_acceleration: bool) -> Kernel:
+    """ik_vel / ik_acc: (p, pdot[, pddot]) -> (q, qdot[, qddot]), eqs. (28)-(39)."""
+    phid, phidd = sp.symbols("phid phidd", real=True)
+    inputs = [
+        Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m", fourth=phi),
+        Port(
+            "pd",
+            (s.xd, s.yd, s.zd),
+            "platform velocity [m/s]; column 4: phidot [rad/s]",
+            "m/s",
+            fourth=phid,
+        ),
+    ]
+    finite = [s.x, s.y, s.z, phi, s.xd, s.yd, s.zd, phid]
+    if with_acceleration:
+        inputs.append(
+            Port(
+                "pdd",
+                (s.xdd, s.ydd, s.zdd),
+                "platform acceleration [m/s^2]; column 4: phiddot [rad/s^2]",
+                "m/s^2",
+                fourth=phidd,
+            )
+        )
+        finite += [s.xdd, s.ydd, s.zdd, phidd]
+    flags = Stage(
+        "status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod "
+        "in line)",
+        (
+            (invalid, sp.Not(AllFinite(*finite))),
+            (unreachable, sp.Or(*(ikd.disc[i] < 0 for i in range(3)))),
+            (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
+        ),
+    )
+    status = sp.Piecewise(
+        (st.INVALID, invalid),
+        (st.UNREACHABLE, unreachable),
+        (st.SINGULAR, singular),
+        (st.OK, True),
+    )
+    no_q = sp.Or(invalid, unreachable)
+    no_rates = sp.Or(no_q, singular)
+    q_out, q_stage = _masked(("q1", "q2", "q3", "q4"), (*s.q, phi), no_q)
+    qd_out, qd_stage = _masked(("qd1", "qd2", "qd3", "qd4"), (*s.qd, phid), no_rates)
+    outputs = [
+        Port(
+            "q",
+            q_out[:3],
+            "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
+            "rad",
+            fourth=q_out[3],
+        ),
+        Port(
+            "qd",
+            qd_out[:3],
+            "crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]",
+            "rad/s",
+            fourth=qd_out[3],
+        ),
+    ]
+    out_stage = q_stage + qd_stage
+    if with_acceleration:
+        qdd_out, qdd_stage = _masked(("qdd1", "qdd2", "qdd3", "qdd4"), (*s.qdd, phidd), no_rates)
+        outputs.append(
+            Port(
+                "qdd",
+                qdd_out[:3],
+                "crank accelerations [rad/s^2]; column 4: qddot_4 = phiddot [rad/s^2]",
+                "rad/s^2",
+                fourth=qdd_out[3],
+            )
+        )
+        out_stage += qdd_stage
+    stages = irs.rate_stages(with_acceleration)
+    # the flags need only the discriminants: place them after the inverse's first stages
+    return Kernel(
+        name="ik_acc" if with_acceleration else "ik_vel",
+        doc=(
+            "Inverse kinematics at acceleration level (elbow-out): (p, pdot, pddot) -> "
+            "(q, qdot, qddot), qdot = J_q^-1 J_p pdot and its time derivative, eqs. (28)-(39)."
+            if with_acceleration
+            else "Inverse kinematics at velocity level (elbow-out): (p, pdot) -> (q, qdot), "
+            "qdot = J_q^-1 J_p pdot, eqs. (28)-(35)."
+        ),
+        inputs=tuple(inputs),
+        outputs=tuple(outputs),
+        stages=(
+            *stages,
+            flags,
+            Stage("outputs (q NaN where unreachable, rates NaN unless OK)", out_stage),
+        ),
+        status=status,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "
+        "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN)",
+    )
+
+
+@cache
+def ik_vel_kernel() -> Kernel:
+    return _inverse_rates(False)
+
+
+@cache
+def ik_acc_kernel() -> Kernel:
+    return _inverse_rates(True)
+
+
+@cache
+def fk_param_jacobian_kernel() -> Kernel:
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
+    ports, outputs = _outputs(no_p, no_rates, 1)
+    names = [str(sym) for sym in cal.dp]
+    G_out, G_stage = _masked(names, list(cal.dp), no_rates)
+    return Kernel(
+        name="fk_param_jacobian",
+        doc="Direct kinematics and the sensitivity of p to the chain parameters (calibration): "
+        "q -> p, dp/d(r_i, l_a,i, l_b,i, theta_i, q_i) by the implicit function theorem on "
+        "eq. (1) (deltagen/derive/delta/calibration.py).",
+        inputs=(_q_port(),),
+        outputs=(
+            *ports,
+            Port(
+                "G",
+                G_out,
+                "dp/dpi, 15 parameters x 3 coordinates per point: parameters r_1..3, "
+                "l_a,1..3, l_b,1..3 [m/m], theta_1..3, q_1..3 [m/rad]; r_i = r_a,i - r_b,i",
+                "m/m, m/rad",
+                width=45,
+            ),
+        ),
+        stages=tuple(fkd.fk_stages())
+        + (flags,)
+        + _rate_stages()
+        + (
+            cal.partials_stage(),
+            cal.sensitivity_stage(),
+            Stage("outputs (p as fk; G NaN unless OK)", outputs.assignments + G_stage),
+        ),
+        status=status,
+        parameters=PARAMETERS,
+        setup=SETUP,
+        angles=ANGLES,
+        status_doc=_FK_STATUS_DOC + "; G is NaN unless OK",
+    )
+
+
 def _payload_port():
     return Port(
         "payload",
@@ -377,6 +530,9 @@ def all_kernels():
         fk_acc_kernel(),
         jacobian_kernel(),
         ik_kernel(),
+        ik_vel_kernel(),
+        ik_acc_kernel(),
+        fk_param_jacobian_kernel(),
         inverse_dynamics_kernel(),
         inverse_dynamics_simplified_kernel(),
     )

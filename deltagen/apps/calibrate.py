@@ -1,0 +1,86 @@
+"""deltagen calibrate DATA.csv: identify the geometry of a built delta robot from measured
+pairs (see deltagen.solve.calibration), print the report, optionally write the calibrated
+robot file.
+
+DATA.csv: one measurement per row, columns q1, q2, q3 (encoder readings [rad], or deg
+with --degrees) and x, y, z (measured platform position in the base frame [m]); an
+optional header line.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from deltagen.errors import DeltagenError
+from deltagen.inputs import InputError
+
+
+def read_measurements(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {path}: {exc}") from None
+    rows = []
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        fields = [f.strip() for f in text.replace(";", ",").split(",")]
+        try:
+            values = [float(f) for f in fields]
+        except ValueError:
+            if not rows and number == 1:  # a header
+                continue
+            raise InputError(f"{path}: line {number} is not 6 numbers: {text!r}") from None
+        if len(values) != 6:
+            raise InputError(
+                f"{path}: line {number} has {len(values)} values, expected 6 (q1 q2 q3 x y z)"
+            )
+        rows.append(values)
+    if not rows:
+        raise InputError(f"{path}: no measurements")
+    data = np.array(rows)
+    return data[:, :3], data[:, 3:]
+
+
+def geometry_toml(g) -> str:
+    """A robot file for the (possibly asymmetric) geometry, without the inertia."""
+
+    def numbers(values):
+        return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+    lines = [
+        f'name = "{g.name}"',
+        "[delta]",
+        f"r_a = {g.r_a!r}",
+        f"r_b = {g.r_b!r}",
+        f"l_a = {g.l_a!r}",
+        f"l_b = {g.l_b!r}",
+        f"theta = {numbers(g.theta)}",
+    ]
+    for key in ("r_a", "r_b", "l_a", "l_b"):
+        if getattr(g, f"chain_{key}") is not None:
+            lines.append(f"chain_{key} = {numbers(g.chain(key))}")
+    if any(g.q_offset):
+        lines.append(f"q_offset = {numbers(g.q_offset)}")
+    return "\n".join(lines) + "\n"
+
+
+def main(args) -> int:
+    robot = args.robot_object
+    q, p = read_measurements(Path(args.data))
+    if args.degrees:
+        q = np.radians(q)
+    params = tuple(s for s in args.params.split(",") if s.strip())
+    result = robot.calibrate(q, p, params=params, sigma=args.sigma)
+    print(f"deltagen calibrate: {len(q)} measurements, robot {robot.geometry.name!r}")
+    print(result.report())
+    if args.out:
+        Path(args.out).write_text(geometry_toml(result.geometry))
+        print(f"wrote {args.out}")
+    if not math.isfinite(result.rms_after):
+        raise DeltagenError("calibration failed: the residual is not finite")
+    return 0

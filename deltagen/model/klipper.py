@@ -1,0 +1,228 @@
+"""Klipper rotary-delta configurations (printer.cfg) as deltagen delta geometries.
+
+Klipper (the 3D-printer firmware) describes a rotary delta in ``[printer]`` with
+``kinematics: rotary_delta`` and in the sections ``[stepper_a]``, ``[stepper_b]``,
+``[stepper_c]``. Keys read here, in Klipper's units (mm, degrees):
+
+    [printer]    shoulder_radius   horizontal radius of the shoulder joints minus that of the
+                                   effector joints                       -> r_a (r_b = 0)
+                 shoulder_height   height of the shoulder joints above the bed
+    [stepper_X]  upper_arm_length  shoulder to elbow                     -> l_a
+                 lower_arm_length  elbow to effector                     -> l_b
+                 angle             the arm's position about z, degrees
+                                   (default 30, 150, 270 for a, b, c)    -> theta_i
+                 position_endstop  the z (above the bed) of the effector at x = y = 0 when
+                                   the arm's endstop triggers: the homed pose
+    (lengths of stepper_b and stepper_c default to stepper_a's, as in Klipper)
+
+The mapping (Klipper's formulas: an elbow sits at
+((shoulder_radius + upper_arm cos a) cos angle, (...) sin angle, shoulder_height +
+upper_arm sin a); the effector is where the three lower-arm spheres meet):
+
+* lengths: mm -> m;  r_a = shoulder_radius, r_b = 0 (Klipper folds the effector radius
+  into shoulder_radius), l_a = upper_arm_length, l_b = lower_arm_length,
+  theta_i = angle_i.
+* arm angle: Klipper's a is positive up (elbow above the shoulder for a > 0); deltagen's q
+  is positive down (B_z = -l_a sin q): q = -a.
+* z origin: Klipper's z = 0 is the bed; deltagen's base frame O lies in the plane of the
+  shoulder (drive) axes: z_deltagen = z_klipper - shoulder_height; x, y are the same.
+
+The homed pose is p = (0, 0, position_endstop - shoulder_height) in deltagen's frame;
+:meth:`KlipperRotaryDelta.home_q` gives its crank angles. Arm lengths that differ
+between the steppers give per-chain lengths (an asymmetric robot). ``[include ...]``
+sections are rejected (a clear error: pass the file that holds the printer). Klipper's
+SAVE_CONFIG block at the end of printer.cfg (lines ``#*# ...``) overrides the sections
+above it, as in Klipper.
+"""
+
+from __future__ import annotations
+
+import configparser
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from deltagen.errors import GeometryError
+from deltagen.model.delta import DeltaGeometry
+from deltagen.model.robot_file import PathLike
+
+#: Klipper's default arm positions of stepper_a, _b, _c [deg].
+KLIPPER_DEFAULT_ANGLES = (30.0, 150.0, 270.0)
+_MM = 1e-3
+_AUTOSAVE = "#*#"
+
+
+@dataclass(frozen=True)
+class KlipperRotaryDelta:
+    """A parsed Klipper rotary delta: the deltagen geometry and Klipper's frame offsets.
+
+    geometry          the equivalent DeltaGeometry (SI units, deltagen conventions)
+    shoulder_height   z of deltagen's base frame above Klipper's bed [m]
+    position_endstop  Klipper's endstop heights of steppers a, b, c [m above the bed]
+    """
+
+    geometry: DeltaGeometry
+    shoulder_height: float
+    position_endstop: tuple[float, float, float]
+
+    def to_klipper_xyz(self, p):
+        """deltagen platform positions (..., 3) [m] -> Klipper toolhead x, y, z [mm]."""
+        import numpy as np
+
+        out = np.array(p, dtype=float, copy=True)
+        out[..., 2] += self.shoulder_height
+        return out / _MM
+
+    def from_klipper_xyz(self, xyz_mm):
+        """Klipper toolhead x, y, z [mm] (z above the bed) -> deltagen positions [m]."""
+        import numpy as np
+
+        out = np.array(xyz_mm, dtype=float, copy=True) * _MM
+        out[..., 2] -= self.shoulder_height
+        return out
+
+    @staticmethod
+    def arm_angle_to_q(a):
+        """Klipper's arm angle (rad, positive up) -> deltagen's crank angle (positive down)."""
+        return -a
+
+    def home_p(self, i: int) -> tuple[float, float, float]:
+        """deltagen position of the homed effector for stepper i's endstop [m]."""
+        return (0.0, 0.0, self.position_endstop[i] - self.shoulder_height)
+
+
+def _parse(text: str, source: str) -> configparser.ConfigParser:
+    """Klipper's ini dialect: ``key: value`` or ``key = value``, ``#`` and ``;`` comments
+    (also after a value), later definitions override earlier ones, and the SAVE_CONFIG
+    block (``#*# ...`` lines) overrides everything above it."""
+    main, autosave = [], []
+    for line in text.splitlines():
+        if line.startswith(_AUTOSAVE):
+            autosave.append(line[len(_AUTOSAVE) :].lstrip(" ") if len(line) > 3 else "")
+        else:
+            main.append(line)
+
+    def parser():
+        return configparser.ConfigParser(
+            comment_prefixes=("#", ";"),
+            inline_comment_prefixes=("#", ";"),
+            strict=False,
+            interpolation=None,
+            delimiters=(":", "="),
+        )
+
+    config = parser()
+    try:
+        config.read_string("\n".join(main), source=source)
+        if autosave:
+            saved = parser()
+            # the block's header lines (the marker, "DO NOT EDIT ...") precede its sections
+            first = next((k for k, line in enumerate(autosave) if line.startswith("[")), None)
+            saved.read_string(
+                "\n".join(autosave[first:] if first is not None else []), source=source
+            )
+            for section in saved.sections():
+                if not config.has_section(section):
+                    config.add_section(section)
+                for key, value in saved.items(section):
+                    config.set(section, key, value)
+    except configparser.Error as exc:
+        raise GeometryError(f"{source}: not a readable Klipper config: {exc}") from None
+    includes = [s for s in config.sections() if s.split()[0].lower() == "include"]
+    if includes:
+        raise GeometryError(
+            f"{source}: [{includes[0]}] - included files are not read; pass the config file "
+            "that holds [printer] and [stepper_a..c] (or merge the includes into it)"
+        )
+    return config
+
+
+def _number(config, section, key, source, default=None):
+    if not config.has_option(section, key):
+        if default is None:
+            raise GeometryError(f"{source}: [{section}] needs {key}")
+        return default
+    raw = config.get(section, key)
+    try:
+        value = float(raw)
+    except ValueError:
+        raise GeometryError(f"{source}: [{section}] {key}: {raw!r} is not a number") from None
+    if not math.isfinite(value):
+        raise GeometryError(f"{source}: [{section}] {key}: {raw!r} is not finite")
+    return value
+
+
+def klipper_from_text(
+    text: str, source: str = "printer.cfg", name: str = "klipper"
+) -> KlipperRotaryDelta:
+    """Parse a Klipper config's text: a :class:`KlipperRotaryDelta`."""
+    config = _parse(text, source)
+    if not config.has_section("printer"):
+        raise GeometryError(f"{source}: no [printer] section")
+    kinematics = config.get("printer", "kinematics", fallback="").strip()
+    if kinematics != "rotary_delta":
+        raise GeometryError(
+            f"{source}: [printer] kinematics is {kinematics or 'missing'!r}; only "
+            "'rotary_delta' describes a rotary delta robot (a linear delta's towers do not map)"
+        )
+    steppers = [f"stepper_{a}" for a in "abc"]
+    for section in steppers:
+        if not config.has_section(section):
+            raise GeometryError(f"{source}: no [{section}] section")
+    radius = _number(config, "printer", "shoulder_radius", source)
+    height = _number(config, "printer", "shoulder_height", source)
+    if radius <= 0.0 or height <= 0.0:
+        raise GeometryError(f"{source}: [printer] shoulder_radius and shoulder_height must be > 0")
+    upper_a = _number(config, "stepper_a", "upper_arm_length", source)
+    lower_a = _number(config, "stepper_a", "lower_arm_length", source)
+    upper = [_number(config, s, "upper_arm_length", source, upper_a) for s in steppers]
+    lower = [_number(config, s, "lower_arm_length", source, lower_a) for s in steppers]
+    angles = [
+        _number(config, s, "angle", source, d) for s, d in zip(steppers, KLIPPER_DEFAULT_ANGLES)
+    ]
+    endstop_a = _number(config, "stepper_a", "position_endstop", source)
+    endstops = [_number(config, s, "position_endstop", source, endstop_a) for s in steppers]
+    for key, values in (("upper_arm_length", upper), ("lower_arm_length", lower)):
+        if min(values) <= 0.0:
+            raise GeometryError(f"{source}: {key} must be > 0, got {values}")
+    kwargs: dict[str, Any] = {}
+    if len(set(upper)) == 1 and len(set(lower)) == 1:
+        kwargs.update(l_a=upper[0] * _MM, l_b=lower[0] * _MM)
+    else:
+        kwargs.update(
+            l_a=upper[0] * _MM,
+            l_b=lower[0] * _MM,
+            chains=dict(l_a=tuple(u * _MM for u in upper), l_b=tuple(v * _MM for v in lower)),
+        )
+    try:
+        geometry = _geometry(
+            r_a=radius * _MM,
+            r_b=0.0,
+            theta=tuple(math.radians(a) for a in angles),
+            name=name,
+            **kwargs,
+        )
+    except GeometryError as exc:
+        raise GeometryError(f"{source}: {exc}") from None
+    return KlipperRotaryDelta(
+        geometry=geometry,
+        shoulder_height=height * _MM,
+        position_endstop=(endstops[0] * _MM, endstops[1] * _MM, endstops[2] * _MM),
+    )
+
+
+def _geometry(chains: dict[str, Any] | None = None, **kwargs: Any) -> DeltaGeometry:
+    """The symmetric geometry, or with per-chain arm lengths where the steppers differ."""
+    geometry = DeltaGeometry(**kwargs)
+    return geometry if chains is None else geometry.with_chains(**chains)
+
+
+def read_klipper(path: PathLike, name: str = "klipper") -> KlipperRotaryDelta:
+    """Read a Klipper printer.cfg (see the module docstring for the mapping)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise GeometryError(f"cannot read Klipper config {path}: {exc}") from None
+    return klipper_from_text(text, source=str(path), name=name)
