@@ -30,7 +30,10 @@ import numpy as np
 __all__ = ["TWO_PI", "LIMIT_TOL", "SHIFTS", "wrap_to_pi", "fit_limits", "shift_into_limits"]
 
 TWO_PI = 2.0 * math.pi
-LIMIT_TOL = 1e-12  # [rad or m] a value this close outside a limit is clipped onto it
+# [rad or m] a value this close outside a limit is clipped onto it: above the closed forms'
+# rounding near a singular pose (a Puma pose with q4 exactly at its limit came back 1.04e-12
+# below it and lost its branch), far below any joint's travel
+LIMIT_TOL = 1e-10
 SHIFTS = (1, -1, 2, -2)  # multiples of 2 pi tried by fit_limits, in this order
 
 

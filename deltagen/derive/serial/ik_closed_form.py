@@ -21,7 +21,7 @@ point is how they become straight-line code:
   ``TOL`` (the numpy solver's default);
 * the joint-limit fit is :func:`deltagen.geometry.limits.fit_limits` written in SymPy, with
   its constants (``LIMIT_TOL``, ``SHIFTS``): wrap into [-pi, pi), shift by +-2 pi, +-4 pi
-  where that fits the range, clip a value within 1e-12 of a limit onto it.
+  where that fits the range, clip a value within LIMIT_TOL (1e-10) of a limit onto it.
 
 Constants (joint axes, the wrist centre, the arm frame) are those of the structure object,
 rounded to 13 significant digits, values below 1e-13 of the arm's size to zero, so that the
