@@ -1113,6 +1113,7 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
@@ -1175,23 +1176,69 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
             const double disc1 = E1*E1 + F1*F1 - (G1*G1);
             const double disc2 = E2*E2 + F2*F2 - (G2*G2);
             const double disc3 = E3*E3 + F3*F3 - (G3*G3);
-            /* elbow-out crank angles atan2(F) + atan2(sqrt(disc), -G) as one atan2 */
+            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
             const double t2_0 = sqrt(disc1);
             const double t2_1 = sqrt(disc2);
             const double t2_2 = sqrt(disc3);
-            const double q1 = atan2(E1*t2_0 - F1*G1, -E1*G1 - F1*t2_0);
-            const double q2 = atan2(E2*t2_1 - F2*G2, -E2*G2 - F2*t2_1);
-            const double q3 = atan2(E3*t2_2 - F3*G3, -E3*G3 - F3*t2_2);
-            /* status flags: non-finite input, a crank cannot reach, a crank at its reach limit */
+            const double ik_x1 = -E1*G1 - F1*t2_0;
+            const double ik_y1 = E1*t2_0 - F1*G1;
+            const double ik_x2 = -E2*G2 - F2*t2_1;
+            const double ik_y2 = E2*t2_1 - F2*G2;
+            const double ik_x3 = -E3*G3 - F3*t2_2;
+            const double ik_y3 = E3*t2_2 - F3*G3;
+            /* crank angles q = atan2(Y, X) in (-pi, pi] */
+            const double q1 = atan2(ik_y1, ik_x1);
+            const double q2 = atan2(ik_y2, ik_x2);
+            const double q3 = atan2(ik_y3, ik_x3);
+            /* cos q_i, sin q_i = (X, Y) / rho^2 */
+            const double inv_rho_sq1 = 1.0/(E1*E1 + F1*F1);
+            const double inv_rho_sq2 = 1.0/(E2*E2 + F2*F2);
+            const double inv_rho_sq3 = 1.0/(E3*E3 + F3*F3);
+            const double cos_q1 = ik_x1*inv_rho_sq1;
+            const double sin_q1 = ik_y1*inv_rho_sq1;
+            const double cos_q2 = ik_x2*inv_rho_sq2;
+            const double sin_q2 = ik_y2*inv_rho_sq2;
+            const double cos_q3 = ik_x3*inv_rho_sq3;
+            const double sin_q3 = ik_y3*inv_rho_sq3;
+            /* sphere centres S_i, eqs. (3)-(5) */
+            const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+            const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+            const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+            const double S_x1 = cos_theta1*t5_0;
+            const double S_y1 = sin_theta1*t5_0;
+            const double S_z1 = -chain_l_a1*sin_q1;
+            const double S_x2 = cos_theta2*t5_1;
+            const double S_y2 = sin_theta2*t5_1;
+            const double S_z2 = -chain_l_a2*sin_q2;
+            const double S_x3 = cos_theta3*t5_2;
+            const double S_y3 = sin_theta3*t5_2;
+            const double S_z3 = -chain_l_a3*sin_q3;
+            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+            const double t6_0 = -x;
+            const double t6_1 = -y;
+            const double t6_2 = -z;
+            const double D11 = -S_x1 - t6_0;
+            const double D12 = -S_y1 - t6_1;
+            const double D13 = -S_z1 - t6_2;
+            const double D21 = -S_x2 - t6_0;
+            const double D22 = -S_y2 - t6_1;
+            const double D23 = -S_z2 - t6_2;
+            const double D31 = -S_x3 - t6_0;
+            const double D32 = -S_y3 - t6_1;
+            const double D33 = -S_z3 - t6_2;
+            /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
+            /* status flags: non-finite input, a crank cannot reach or the target lies in the other assembly mode, a crank at its reach limit */
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((fabs(det_D) > det_limit)) & ((centre_normal_z*det_D > 0)))));
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
             /* outputs (NaN where unreachable) */
-            const int t4_0 = ((invalid) | (unreachable));
-            const double out_q1 = ((t4_0) ? NAN : q1);
-            const double out_q2 = ((t4_0) ? NAN : q2);
-            const double out_q3 = ((t4_0) ? NAN : q3);
-            const double out_q4 = ((t4_0) ? NAN : phi);
+            const int t9_0 = ((invalid) | (unreachable));
+            const double out_q1 = ((t9_0) ? NAN : q1);
+            const double out_q2 = ((t9_0) ? NAN : q2);
+            const double out_q3 = ((t9_0) ? NAN : q3);
+            const double out_q4 = ((t9_0) ? NAN : phi);
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))));
             const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
@@ -1258,6 +1305,7 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
@@ -1404,21 +1452,24 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
             const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
             const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
             const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+            /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
             /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(phid));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((fabs(det_D) > det_limit)) & ((centre_normal_z*det_D > 0)))));
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
             /* outputs (q NaN where unreachable, rates NaN unless OK) */
-            const int t10_0 = ((invalid) | (unreachable));
-            const int t10_1 = ((invalid) | (singular) | (unreachable));
-            const double out_q1 = ((t10_0) ? NAN : q1);
-            const double out_q2 = ((t10_0) ? NAN : q2);
-            const double out_q3 = ((t10_0) ? NAN : q3);
-            const double out_q4 = ((t10_0) ? NAN : phi);
-            const double out_qd1 = ((t10_1) ? NAN : qd1);
-            const double out_qd2 = ((t10_1) ? NAN : qd2);
-            const double out_qd3 = ((t10_1) ? NAN : qd3);
-            const double out_qd4 = ((t10_1) ? NAN : phid);
+            const int t11_0 = ((invalid) | (unreachable));
+            const int t11_1 = ((invalid) | (singular) | (unreachable));
+            const double out_q1 = ((t11_0) ? NAN : q1);
+            const double out_q2 = ((t11_0) ? NAN : q2);
+            const double out_q3 = ((t11_0) ? NAN : q3);
+            const double out_q4 = ((t11_0) ? NAN : phi);
+            const double out_qd1 = ((t11_1) ? NAN : qd1);
+            const double out_qd2 = ((t11_1) ? NAN : qd2);
+            const double out_qd3 = ((t11_1) ? NAN : qd3);
+            const double out_qd4 = ((t11_1) ? NAN : phid);
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(out_qd1) & isfinite(out_qd2) & isfinite(out_qd3) & isfinite(out_qd4))))));
             const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);
@@ -1500,6 +1551,7 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
     const double sin_theta3 = geometry->sin_theta[2];
     const double singular_tol = geometry->singular_tol;
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
+    const double det_limit = singular_tol*(l_b*l_b*l_b);
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
@@ -1686,25 +1738,28 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
             const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 + cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y + sin_theta1*t9_5*t9_6 + t9_7);
             const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 + cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 + sin_theta2*t9_9*y + t9_7);
             const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 + cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y + sin_theta3*t9_15*t9_6 + t9_7);
+            /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
             /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) & isfinite(phidd));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((fabs(det_D) > det_limit)) & ((centre_normal_z*det_D > 0)))));
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
             /* outputs (q NaN where unreachable, rates NaN unless OK) */
-            const int t11_0 = ((invalid) | (unreachable));
-            const int t11_1 = ((invalid) | (singular) | (unreachable));
-            const double out_q1 = ((t11_0) ? NAN : q1);
-            const double out_q2 = ((t11_0) ? NAN : q2);
-            const double out_q3 = ((t11_0) ? NAN : q3);
-            const double out_q4 = ((t11_0) ? NAN : phi);
-            const double out_qd1 = ((t11_1) ? NAN : qd1);
-            const double out_qd2 = ((t11_1) ? NAN : qd2);
-            const double out_qd3 = ((t11_1) ? NAN : qd3);
-            const double out_qd4 = ((t11_1) ? NAN : phid);
-            const double out_qdd1 = ((t11_1) ? NAN : qdd1);
-            const double out_qdd2 = ((t11_1) ? NAN : qdd2);
-            const double out_qdd3 = ((t11_1) ? NAN : qdd3);
-            const double out_qdd4 = ((t11_1) ? NAN : phidd);
+            const int t12_0 = ((invalid) | (unreachable));
+            const int t12_1 = ((invalid) | (singular) | (unreachable));
+            const double out_q1 = ((t12_0) ? NAN : q1);
+            const double out_q2 = ((t12_0) ? NAN : q2);
+            const double out_q3 = ((t12_0) ? NAN : q3);
+            const double out_q4 = ((t12_0) ? NAN : phi);
+            const double out_qd1 = ((t12_1) ? NAN : qd1);
+            const double out_qd2 = ((t12_1) ? NAN : qd2);
+            const double out_qd3 = ((t12_1) ? NAN : qd3);
+            const double out_qd4 = ((t12_1) ? NAN : phid);
+            const double out_qdd1 = ((t12_1) ? NAN : qdd1);
+            const double out_qdd2 = ((t12_1) ? NAN : qdd2);
+            const double out_qdd3 = ((t12_1) ? NAN : qdd3);
+            const double out_qdd4 = ((t12_1) ? NAN : phidd);
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(out_q1) & isfinite(out_q2) & isfinite(out_q3) & isfinite(out_q4))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(out_qd1) & isfinite(out_qd2) & isfinite(out_qd3) & isfinite(out_qd4) & isfinite(out_qdd1) & isfinite(out_qdd2) & isfinite(out_qdd3) & isfinite(out_qdd4))))));
             const double out_q1_checked = ((nonfinite_output) ? NAN : out_q1);

@@ -135,9 +135,9 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  * axes      3, or 4 with the fourth axis in the last column
  * p         in,  n x axes: platform position [m]; column 4: phi [rad]
  * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform above the centre plane of the spheres, where the direct kinematics would not return p); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 131 operations per point.
+ * Cost: 217 operations per point.
  * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 4352 bytes (4.2 KiB) at 64, plus scalars.
  */
@@ -152,9 +152,9 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  * pd        in,  n x axes: platform velocity [m/s]; column 4: phidot [rad/s]
  * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
  * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform above the centre plane of the spheres, where the direct kinematics would not return p); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 260 operations per point.
+ * Cost: 289 operations per point.
  * Stack: 17 block arrays (16 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 8448 bytes (8.2 KiB) at 64, plus scalars.
  */
@@ -171,9 +171,9 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
  * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
  * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
  * qdd       out, n x axes: crank accelerations [rad/s^2]; column 4: qddot_4 = phiddot [rad/s^2]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform above the centre plane of the spheres, where the direct kinematics would not return p); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 372 operations per point.
+ * Cost: 401 operations per point.
  * Stack: 25 block arrays (24 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */

@@ -378,7 +378,12 @@ class DeltaRobot:
             )
         unreachable = bad[status[bad] == st.UNREACHABLE]
         if unreachable.size:
-            what = "crank cannot reach the target" if names == ("p",) else "spheres do not meet"
+            what = (
+                "a crank cannot reach the target, or only in the other assembly mode with the "
+                "platform above the rods' sphere centres"
+                if names[0] == "p"
+                else "spheres do not meet"
+            )
             raise UnreachableError(
                 f"unreachable pose ({what}) in rows {rows_text(unreachable)}", unreachable
             )

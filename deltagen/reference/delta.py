@@ -332,6 +332,13 @@ def ik(geom, p):
         j = np.einsum("nci,nci->nc", p3[:, None, :] - S, dS)
         scale = geom.l_a * geom.l_b  # nominal
         singular = np.any((np.abs(j) / scale < geom.singular_tol) | (j == 0.0), axis=1)
+        # the assembly mode: fk returns the intersection below the centre plane (against its
+        # normal's z); a target above it is reached only in the other mode, through a
+        # parallel singularity, and fk(q) would be its mirror image: unreachable here
+        det = _det3(p3[:, None, :] - S)
+        normal_z = np.cross(S[:, 1] - S[:, 0], S[:, 2] - S[:, 0])[:, 2]
+        above = (det * normal_z > 0.0) & (np.abs(det) / geom.l_b**3 > geom.singular_tol)
+        unreachable |= above & ~bad
 
         status = np.full(n, OK, dtype=np.int8)
         status[singular] = SINGULAR

@@ -7,7 +7,9 @@ Status rules (identical in the numpy reference, see deltagen/status.py):
   SINGULAR     centres S_i collinear: |e| < tol l_b^2  (no output)
   UNREACHABLE  the spheres do not meet: h^2 < 0          (no output)
   SINGULAR     |det D| < tol l_b^3, D rows p - S_i        (p given, derivatives NaN)
-  (ik) UNREACHABLE if a chain's rho^2 - G^2 < 0; SINGULAR if rho^2 - G^2 < (2 tol l_a l_b)^2
+  (ik) UNREACHABLE if a chain's rho^2 - G^2 < 0, or if the target lies in the other assembly
+       mode (det D e_z > 0 with |det D| > tol l_b^3: fk would return the mirror point);
+       SINGULAR if rho^2 - G^2 < (2 tol l_a l_b)^2
   INVALID      (every kernel, added by codegen.lowering.guard_outputs) an output the status
                gives is not finite: finite inputs that overflow; the row is all NaN
 """
@@ -249,14 +251,52 @@ def fk_acc_kernel() -> Kernel:
     )
 
 
+centre_normal_z = sp.Symbol("centre_normal_z", real=True)
+
+
+def _assembly_stage() -> Stage:
+    """The side of the sphere-centre plane the target lies on, from the crank angles the
+    inverse found: det_D = det of the rows p - S_i (D of rows_stage) and the z component of
+    the plane's normal e = (S_2 - S_1) x (S_3 - S_1). The direct kinematics takes the
+    intersection with det_D e_z < 0 (derive/delta/fk.py, eq. (26): the lower one)."""
+    a = fkd.S[1] - fkd.S[0]
+    b = fkd.S[2] - fkd.S[0]
+    return Stage(
+        "assembly mode: det of the rows p - S_i and the centre plane's normal (z)",
+        (
+            (fkd.det_D, vel.D.det()),
+            (centre_normal_z, a[0] * b[1] - a[1] * b[0]),
+        ),
+    )
+
+
+def _other_assembly_mode():
+    """True where every crank reaches the target but the platform would sit on the other
+    side of the centre plane (the other assembly mode, beyond a parallel singularity): the
+    direct kinematics would not return the target, so the inverse has no solution in the
+    robot's working mode. Within det_limit of the plane (the singularity) it counts as
+    reachable: both intersections meet there."""
+    return sp.And(fkd.det_D * centre_normal_z > 0, sp.Abs(fkd.det_D) > det_limit)
+
+
+_IK_UNREACHABLE_DOC = (
+    "UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform "
+    "above the centre plane of the spheres, where the direct kinematics would not return p)"
+)
+
+
 @cache
 def ik_kernel() -> Kernel:
     finite = AllFinite(s.x, s.y, s.z, phi)
     flags = Stage(
-        "status flags: non-finite input, a crank cannot reach, a crank at its reach limit",
+        "status flags: non-finite input, a crank cannot reach or the target lies in the other "
+        "assembly mode, a crank at its reach limit",
         (
             (invalid, sp.Not(finite)),
-            (unreachable, sp.Or(*(ikd.disc[i] < 0 for i in range(3)))),
+            (
+                unreachable,
+                sp.Or(*(ikd.disc[i] < 0 for i in range(3)), _other_assembly_mode()),
+            ),
             (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
         ),
     )
@@ -284,11 +324,18 @@ def ik_kernel() -> Kernel:
                 fourth=q_out[3],
             ),
         ),
-        stages=tuple(ikd.ik_stages()) + (flags, Stage("outputs (NaN where unreachable)", q_stage)),
+        stages=(
+            *irs.ik_stages_with_trig(),
+            irs.centres_stage(),
+            vel.rows_stage(),
+            _assembly_stage(),
+            flags,
+            Stage("outputs (NaN where unreachable)", q_stage),
+        ),
         status=status,
         parameters=PARAMETERS,
         setup=SETUP,
-        status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "
+        status_doc=f"OK; INVALID (non-finite input); {_IK_UNREACHABLE_DOC}; "
         "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)",
     )
 
@@ -323,7 +370,10 @@ def _inverse_rates(with_acceleration: bool) -> Kernel:
         "in line)",
         (
             (invalid, sp.Not(AllFinite(*finite))),
-            (unreachable, sp.Or(*(ikd.disc[i] < 0 for i in range(3)))),
+            (
+                unreachable,
+                sp.Or(*(ikd.disc[i] < 0 for i in range(3)), _other_assembly_mode()),
+            ),
             (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
         ),
     )
@@ -381,13 +431,14 @@ def _inverse_rates(with_acceleration: bool) -> Kernel:
         outputs=tuple(outputs),
         stages=(
             *stages,
+            _assembly_stage(),
             flags,
             Stage("outputs (q NaN where unreachable, rates NaN unless OK)", out_stage),
         ),
         status=status,
         parameters=PARAMETERS,
         setup=SETUP,
-        status_doc="OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach); "
+        status_doc=f"OK; INVALID (non-finite input); {_IK_UNREACHABLE_DOC}; "
         "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN)",
     )
 
