@@ -706,9 +706,7 @@ class SerialRobot:
             and options.keys() <= {"restarts", "seed"}
             and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
         ):
-            q = self._numeric_single(
-                flat[0], q0a, options.get("restarts", 0), options.get("seed", 0)
-            )
+            q = self._numeric_single(flat[0], q0a, options.get("restarts"), options.get("seed", 0))
             if q is not None and self._fits_tool() and not self._reaches_fully(q[None], flat)[0]:
                 q = None  # the general path names the pose the arm cannot take
             if q is not None and (singular == "allow" or not self._singular_one(q)):
@@ -736,6 +734,9 @@ class SerialRobot:
 
             if start is None:
                 start = self._start(None, (flat.shape[0],))
+            with np.errstate(all="ignore"):  # huge targets: the distances overflow to inf
+                dist, reach = self._reach_of(flat)
+            good = good & ~(dist > reach)  # beyond the reach: no attempt (and no restarts)
             safe = flat.copy()
             safe[~good] = np.eye(4)
             result = ik_numeric.solve(self, safe, start, **options)
@@ -827,7 +828,9 @@ class SerialRobot:
             cause[(cause == "") & oriented & ~far] = "orientation not reachable"
         elif not analytic:
             max_iter = options.get("max_iter", 100)
-            restarts = options.get("restarts", 0)
+            from deltagen.solve.numeric import RESTARTS
+
+            restarts = options.get("restarts", RESTARTS)
             fitted = np.isin(bad, unfit) if unfit is not None else np.zeros(bad.size, bool)
             cause[fitted & tilt] = "orientation not reachable: tilted"
             cause[fitted & ~tilt] = "pose not reachable: fitted"
@@ -937,6 +940,8 @@ class SerialRobot:
             solver = self._numeric_solver = single_solver(self)
             self._mid_range = np.ascontiguousarray(self._start(None, (1,))[0])
         start = self._mid_range if q0 is None else np.ascontiguousarray(q0)
+        if restarts is None:
+            return solver(T, start, seed=seed)
         return solver(T, start, int(restarts), seed)
 
     def _singular_one(self, q):

@@ -803,6 +803,7 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
         repeats,
         analytic_n=min(n, bench_ik.IK_ANALYTIC_N),
         numeric_n=bench_ik.IK_NUMERIC_N if n >= 100_000 else 20,
+        peers=oracles,
     )
     return {
         "robot": compiled,

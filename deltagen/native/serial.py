@@ -151,7 +151,7 @@ class CompiledArm:
             ctype = types[name].type
             if ctype.kind == "array":  # the mask: 0/1 flags
                 values[name] = [int(bool(v)) for v in value]
-            elif ctype.cname.startswith("int"):
+            elif ctype.cname.startswith(("int", "uint")):
                 values[name] = int(value)
             else:
                 values[name] = float(value)
