@@ -77,28 +77,38 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -271,28 +281,42 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 qd4_b[k] = qd[(start + k) * 4 + 3];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -544,28 +568,46 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 qdd4_b[k] = qdd[(start + k) * 4 + 3];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+            qdd1_b[k] = 0.0;
+            qdd2_b[k] = 0.0;
+            qdd3_b[k] = 0.0;
+            qdd4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -852,28 +894,38 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1109,13 +1161,23 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                 phi_b[k] = p[(start + k) * 4 + 3];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            x_b[k] = 0.0;
+            y_b[k] = 0.0;
+            z_b[k] = 0.0;
+            phi_b[k] = 0.0;
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
         double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
         double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
         double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
         double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             const double x = x_b[k];
             const double y = y_b[k];
             const double z = z_b[k];
@@ -1283,28 +1345,47 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 payload_b[k] = payload[(start + k) * 1 + 0];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+            qdd1_b[k] = 0.0;
+            qdd2_b[k] = 0.0;
+            qdd3_b[k] = 0.0;
+            qdd4_b[k] = 0.0;
+            payload_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1644,28 +1725,47 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 payload_b[k] = payload[(start + k) * 1 + 0];
             }
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+            qdd1_b[k] = 0.0;
+            qdd2_b[k] = 0.0;
+            qdd3_b[k] = 0.0;
+            qdd4_b[k] = 0.0;
+            payload_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */

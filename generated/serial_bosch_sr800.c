@@ -50,28 +50,38 @@ int deltagen_bosch_sr800_fk(size_t n, const double *restrict q, double *restrict
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_BOSCH_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -232,28 +242,38 @@ int deltagen_bosch_sr800_frames(size_t n, const double *restrict q, double *rest
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_BOSCH_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -829,20 +849,30 @@ int deltagen_bosch_sr800_jacobian(size_t n, const double *restrict q, double *re
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_BOSCH_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1051,28 +1081,38 @@ int deltagen_bosch_sr800_fk_jacobian(size_t n, const double *restrict q, double 
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_BOSCH_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1387,20 +1427,34 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_BOSCH_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1640,6 +1694,24 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             Tt33_b[k] = T[(start + k) * 16 + 10];
             Tt34_b[k] = T[(start + k) * 16 + 11];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_BOSCH_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            Tt11_b[k] = 0.0;
+            Tt12_b[k] = 0.0;
+            Tt13_b[k] = 0.0;
+            Tt14_b[k] = 0.0;
+            Tt21_b[k] = 0.0;
+            Tt22_b[k] = 0.0;
+            Tt23_b[k] = 0.0;
+            Tt24_b[k] = 0.0;
+            Tt31_b[k] = 0.0;
+            Tt32_b[k] = 0.0;
+            Tt33_b[k] = 0.0;
+            Tt34_b[k] = 0.0;
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double out_q1_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
@@ -1652,7 +1724,7 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
         double out_q4_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

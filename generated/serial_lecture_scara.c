@@ -46,20 +46,28 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -206,20 +214,28 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -613,20 +629,28 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -757,20 +781,28 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -995,20 +1027,30 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             qd1_b[k] = qd[(start + k) * 2 + 0];
             qd2_b[k] = qd[(start + k) * 2 + 1];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1168,6 +1210,24 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             Tt33_b[k] = T[(start + k) * 16 + 10];
             Tt34_b[k] = T[(start + k) * 16 + 11];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            Tt11_b[k] = 0.0;
+            Tt12_b[k] = 0.0;
+            Tt13_b[k] = 0.0;
+            Tt14_b[k] = 0.0;
+            Tt21_b[k] = 0.0;
+            Tt22_b[k] = 0.0;
+            Tt23_b[k] = 0.0;
+            Tt24_b[k] = 0.0;
+            Tt31_b[k] = 0.0;
+            Tt32_b[k] = 0.0;
+            Tt33_b[k] = 0.0;
+            Tt34_b[k] = 0.0;
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_q1_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
@@ -1176,7 +1236,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
         double out_q2_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

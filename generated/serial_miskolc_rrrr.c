@@ -52,36 +52,46 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -248,36 +258,46 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -862,28 +882,38 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1109,36 +1139,46 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1464,28 +1504,42 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1763,6 +1817,24 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             Tt33_b[k] = T[(start + k) * 16 + 10];
             Tt34_b[k] = T[(start + k) * 16 + 11];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            Tt11_b[k] = 0.0;
+            Tt12_b[k] = 0.0;
+            Tt13_b[k] = 0.0;
+            Tt14_b[k] = 0.0;
+            Tt21_b[k] = 0.0;
+            Tt22_b[k] = 0.0;
+            Tt23_b[k] = 0.0;
+            Tt24_b[k] = 0.0;
+            Tt31_b[k] = 0.0;
+            Tt32_b[k] = 0.0;
+            Tt33_b[k] = 0.0;
+            Tt34_b[k] = 0.0;
+        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
         double out_q1_front_up_checked_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
@@ -1785,7 +1857,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
         int out_valid_front_down_checked_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
         int out_valid_back_up_checked_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
         int out_valid_back_down_checked_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];
@@ -2548,28 +2620,46 @@ int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, c
             qdd3_b[k] = qdd[(start + k) * 4 + 2];
             qdd4_b[k] = qdd[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+            qdd1_b[k] = 0.0;
+            qdd2_b[k] = 0.0;
+            qdd3_b[k] = 0.0;
+            qdd4_b[k] = 0.0;
+        }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -2733,28 +2823,38 @@ int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -2967,28 +3067,38 @@ int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, dou
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+        }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3105,28 +3215,42 @@ int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const dou
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+        }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3499,28 +3623,42 @@ int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, 
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+        }
         double cos_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MISKOLC_RRRR_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */

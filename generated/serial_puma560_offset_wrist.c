@@ -54,52 +54,64 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            q5_b[k] = 0.0;
+            q6_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -304,52 +316,64 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            q5_b[k] = 0.0;
+            q6_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1133,44 +1157,56 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            q5_b[k] = 0.0;
+            q6_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1508,52 +1544,64 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            q5_b[k] = 0.0;
+            q6_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1996,44 +2044,62 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
+        /* rows m .. m_v - 1 pad the vector-math loops (cos, sin, atan2) to whole vectors of
+         * up to 8 lanes: every point gets these from the same vector code whatever its place
+         * in the batch, so a point alone gets the bits it gets in any batch */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = 0.0;
+            q2_b[k] = 0.0;
+            q3_b[k] = 0.0;
+            q4_b[k] = 0.0;
+            q5_b[k] = 0.0;
+            q6_b[k] = 0.0;
+            qd1_b[k] = 0.0;
+            qd2_b[k] = 0.0;
+            qd3_b[k] = 0.0;
+            qd4_b[k] = 0.0;
+            qd5_b[k] = 0.0;
+            qd6_b[k] = 0.0;
+        }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */

@@ -45,6 +45,7 @@ from deltagen.status import SINGULAR_TOL
 _BACKENDS = ("compiled", "reference")
 _IK_METHODS = ("auto", "analytic", "numeric")
 _EYE3 = np.eye(3)
+_F64 = np.dtype(np.float64)  # native byte order
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # SerialRobot._poses: what counts as a rigid transform
 
@@ -244,9 +245,8 @@ class SerialRobot:
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Tool pose T (..., 4, 4) = base A_1(q_1) ... A_n(q_n) tool."""
-        check_errors_mode(errors)  # every call, before the fast path
-        if self._fk_single is not None and errors == "raise":
-            T = self._fk_single(q)
+        if type(errors) is str and errors == "raise" and self._fk_single is not None:
+            T = self._fk_single(q)  # one configuration: the lean path (None: general path)
             if T is not None:
                 return T
         lead, qf = self._prepare(errors, q)
@@ -262,12 +262,18 @@ class SerialRobot:
     def jacobian(self, q: ArrayLike, frame: Frame = "base", errors: Errors = "raise") -> Result:
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
         base frame (default) or the tool frame (frame="tool")."""
-        frame = self._check_frame(frame)  # every call, before the fast path
-        check_errors_mode(errors)
-        if self._jacobian_single is not None and frame == "base" and errors == "raise":
-            J = self._jacobian_single(q)
+        if (
+            type(errors) is str
+            and errors == "raise"
+            and type(frame) is str
+            and frame == "base"
+            and self._jacobian_single is not None
+        ):
+            J = self._jacobian_single(q)  # one configuration: the lean path
             if J is not None:
                 return J
+        frame = self._check_frame(frame)
+        check_errors_mode(errors)
         lead, qf = self._prepare(errors, q)
         J, status = self._core.jacobian(qf)
         if frame == "tool":
@@ -586,9 +592,16 @@ class SerialRobot:
         combined = self._combined() if solver is None else None
         if solver is None and combined is None:
             raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")
+        single = self._ik_all_single
+        if single is not None and type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64:
+            # one pose: the lean path, after the same check as _poses'
+            if _check_one_pose(T.ravel().tolist())[1]:
+                result = single(T)
+                if result is not None:
+                    return result
         lead, flat, finite, rigid = self._poses(T)  # every call, whichever path follows
-        if self._ik_all_single is not None and flat.shape[0] == 1 and rigid[0]:
-            result = self._ik_all_single(flat[0])
+        if single is not None and flat.shape[0] == 1 and rigid[0]:
+            result = single(flat[0])
             if result is not None:
                 q1, valid1 = result
                 return q1.reshape(lead + q1.shape), valid1.reshape(lead + valid1.shape)
@@ -650,7 +663,8 @@ class SerialRobot:
                     f"this call uses {self.name}'s closed form (method={method!r})"
                 )
         else:
-            checked = ik_numeric.check_options(self, **options)  # max_iter >= 1 here
+            # max_iter >= 1 here; no options: the defaults, which pass
+            checked = ik_numeric.check_options(self, **options) if options else None
         if q0 is not None:
             if not (type(q0) is np.ndarray and q0.dtype.char == "d"):
                 q0 = as_float_array(q0, "q0", f"(..., {self.n})")

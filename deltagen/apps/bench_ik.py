@@ -34,7 +34,7 @@ IK_TOL = 1e-10
 IK_SEED = 20081208
 TARGETS = {
     "analytic_batch_ns": 2000.0,
-    "analytic_single_ns": 5000.0,
+    "analytic_single_ns": 2000.0,
     "numeric_median_ns": 8000.0,
     "numeric_p95_ns": 40000.0,
 }
@@ -283,7 +283,7 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
         [
             "all branches, `arm.ik_all(T)`, one pose per call",
             _us(a["single"]["api"]),
-            f"<= 5 {verdict(a['single']['api'].median, TARGETS['analytic_single_ns'])}",
+            f"<= 2 {verdict(a['single']['api'].median, TARGETS['analytic_single_ns'])}",
         ],
         ["all branches, numpy solver, one pose per call", _us(a["single"]["numpy"]), "-"],
         [
