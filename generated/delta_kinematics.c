@@ -77,16 +77,18 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -282,20 +284,18 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 qd4_b[k] = qd[(start + k) * 4 + 3];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -570,24 +570,18 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 qdd4_b[k] = qdd[(start + k) * 4 + 3];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd1_b[k] = qdd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd2_b[k] = qdd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd3_b[k] = qdd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd4_b[k] = qdd4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -897,16 +891,18 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1165,24 +1161,13 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                 phi_b[k] = p[(start + k) * 4 + 3];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            x_b[k] = x_b[0];  /* not 0.0: gcc makes that a memset call */
-            y_b[k] = y_b[0];  /* not 0.0: gcc makes that a memset call */
-            z_b[k] = z_b[0];  /* not 0.0: gcc makes that a memset call */
-            phi_b[k] = phi_b[0];  /* not 0.0: gcc makes that a memset call */
-        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_DELTA_BLOCK];
         double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
         double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
         double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
         double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m; ++k) {
             const double x = x_b[k];
             const double y = y_b[k];
             const double z = z_b[k];
@@ -1350,25 +1335,18 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 payload_b[k] = payload[(start + k) * 1 + 0];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd1_b[k] = qdd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd2_b[k] = qdd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd3_b[k] = qdd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd4_b[k] = qdd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            payload_b[k] = payload_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1731,25 +1709,18 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 payload_b[k] = payload[(start + k) * 1 + 0];
             }
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd1_b[k] = qdd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd2_b[k] = qdd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd3_b[k] = qdd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qdd4_b[k] = qdd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            payload_b[k] = payload_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {

@@ -48,15 +48,16 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
             q2_b[k] = q[(start + k) * 3 + 1];
             q3_b[k] = q[(start + k) * 3 + 2];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_PRP_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -199,15 +200,16 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
             q2_b[k] = q[(start + k) * 3 + 1];
             q3_b[k] = q[(start + k) * 3 + 2];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_PRP_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -675,15 +677,16 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
             q2_b[k] = q[(start + k) * 3 + 1];
             q3_b[k] = q[(start + k) * 3 + 2];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_PRP_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -852,15 +855,16 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
             q2_b[k] = q[(start + k) * 3 + 1];
             q3_b[k] = q[(start + k) * 3 + 2];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_PRP_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1118,18 +1122,16 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
             qd2_b[k] = qd[(start + k) * 3 + 1];
             qd3_b[k] = qd[(start + k) * 3 + 2];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_PRP_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {

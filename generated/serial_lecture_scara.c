@@ -46,10 +46,13 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -215,10 +218,13 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -631,10 +637,13 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -784,10 +793,13 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1031,16 +1043,17 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             qd1_b[k] = qd[(start + k) * 2 + 0];
             qd2_b[k] = qd[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1215,25 +1228,6 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             Tt33_b[k] = T[(start + k) * 16 + 10];
             Tt34_b[k] = T[(start + k) * 16 + 11];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            Tt11_b[k] = Tt11_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt12_b[k] = Tt12_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt13_b[k] = Tt13_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt14_b[k] = Tt14_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt21_b[k] = Tt21_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt22_b[k] = Tt22_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt23_b[k] = Tt23_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt24_b[k] = Tt24_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt31_b[k] = Tt31_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt32_b[k] = Tt32_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt33_b[k] = Tt33_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt34_b[k] = Tt34_b[0];  /* not 0.0: gcc makes that a memset call */
-        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_q1_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
@@ -1242,7 +1236,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
         double out_q2_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m; ++k) {
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

@@ -50,13 +50,15 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -243,13 +245,15 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -845,16 +849,17 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1078,13 +1083,15 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1425,20 +1432,17 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1693,25 +1697,6 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             Tt33_b[k] = T[(start + k) * 16 + 10];
             Tt34_b[k] = T[(start + k) * 16 + 11];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            Tt11_b[k] = Tt11_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt12_b[k] = Tt12_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt13_b[k] = Tt13_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt14_b[k] = Tt14_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt21_b[k] = Tt21_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt22_b[k] = Tt22_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt23_b[k] = Tt23_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt24_b[k] = Tt24_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt31_b[k] = Tt31_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt32_b[k] = Tt32_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt33_b[k] = Tt33_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt34_b[k] = Tt34_b[0];  /* not 0.0: gcc makes that a memset call */
-        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_q1_elbow_up_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
@@ -1724,7 +1709,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
         double out_q4_elbow_down_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m; ++k) {
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

@@ -54,10 +54,13 @@ int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -326,10 +329,13 @@ int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *rest
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1182,10 +1188,13 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1193,7 +1202,6 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1579,10 +1587,13 @@ int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double 
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2089,10 +2100,13 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2100,13 +2114,6 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd5_b[k] = qd5_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd6_b[k] = qd6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -2578,25 +2585,6 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             Tt33_b[k] = T[(start + k) * 16 + 10];
             Tt34_b[k] = T[(start + k) * 16 + 11];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            Tt11_b[k] = Tt11_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt12_b[k] = Tt12_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt13_b[k] = Tt13_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt14_b[k] = Tt14_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt21_b[k] = Tt21_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt22_b[k] = Tt22_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt23_b[k] = Tt23_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt24_b[k] = Tt24_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt31_b[k] = Tt31_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt32_b[k] = Tt32_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt33_b[k] = Tt33_b[0];  /* not 0.0: gcc makes that a memset call */
-            Tt34_b[k] = Tt34_b[0];  /* not 0.0: gcc makes that a memset call */
-        }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_q1_front_up_noflip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
@@ -2655,7 +2643,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
         int out_valid_back_up_flip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         int out_valid_back_down_noflip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         int out_valid_back_down_flip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m; ++k) {
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

@@ -54,10 +54,13 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -317,10 +320,13 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1159,10 +1165,13 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1170,7 +1179,6 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
@@ -1547,10 +1555,13 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2048,10 +2059,13 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the vector-math loops
-         * (cos, sin, atan2) to whole vectors of up to 8 lanes: every point gets these from
-         * the same vector code whatever its place in the batch, so a point alone gets the
-         * bits it gets in any batch */
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2059,13 +2073,6 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd1_b[k] = qd1_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd2_b[k] = qd2_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd3_b[k] = qd3_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd4_b[k] = qd4_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd5_b[k] = qd5_b[0];  /* not 0.0: gcc makes that a memset call */
-            qd6_b[k] = qd6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         for (size_t k = 0; k < m_v; ++k) {
