@@ -49,7 +49,8 @@ generate: setup
 	$(BIN)/deltagen generate
 
 bench: setup
-	$(BIN)/deltagen bench
+	$(BIN)/python -m pip install --quiet -e '.[test,plot,bench]'
+	$(BIN)/deltagen bench --markdown --json bench.json --png bench.png
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info validation .pytest_cache .hypothesis .mypy_cache .ruff_cache

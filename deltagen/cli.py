@@ -368,6 +368,15 @@ def main(argv=None) -> int:
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
     b.add_argument("--repeats", type=int, default=7, help="repeats per measurement (median)")
     b.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    b.add_argument("--json", metavar="FILE", help="write the whole result as JSON")
+    b.add_argument(
+        "--png", metavar="FILE", help="bar chart, deltagen vs peers, log ns per item (matplotlib)"
+    )
+    b.add_argument(
+        "--readme",
+        metavar="FILE",
+        help="replace FILE's <!-- bench:begin --> ... <!-- bench:end --> section with the run",
+    )
     b.set_defaults(func=lambda a: _lazy("deltagen.apps.bench", a))
 
     argv = list(sys.argv[1:] if argv is None else argv)

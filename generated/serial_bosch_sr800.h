@@ -146,7 +146,7 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
  * n > 0 (then nothing is written).
  *
- * Stack: 2032 bytes of solver scratch memory in this frame (248 doubles, 12 ints),
+ * Stack: 2128 bytes of solver scratch memory in this frame (260 doubles, 12 ints),
  * plus fk_jacobian's 25856 bytes (25.2 KiB) at 64 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */

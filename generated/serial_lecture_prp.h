@@ -132,7 +132,7 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
  * n > 0 (then nothing is written).
  *
- * Stack: 1564 bytes of solver scratch memory in this frame (191 doubles, 9 ints),
+ * Stack: 1636 bytes of solver scratch memory in this frame (200 doubles, 9 ints),
  * plus fk_jacobian's 20224 bytes (19.8 KiB) at 64 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */

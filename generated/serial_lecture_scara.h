@@ -146,7 +146,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
  * n > 0 (then nothing is written).
  *
- * Stack: 1144 bytes of solver scratch memory in this frame (140 doubles, 6 ints),
+ * Stack: 1192 bytes of solver scratch memory in this frame (146 doubles, 6 ints),
  * plus fk_jacobian's 17664 bytes (17.2 KiB) at 64 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */

@@ -218,7 +218,7 @@ int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, 
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
  * n > 0 (then nothing is written).
  *
- * Stack: 2032 bytes of solver scratch memory in this frame (248 doubles, 12 ints),
+ * Stack: 2128 bytes of solver scratch memory in this frame (260 doubles, 12 ints),
  * plus fk_jacobian's 26880 bytes (26.2 KiB) at 64 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */

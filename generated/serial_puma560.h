@@ -218,7 +218,7 @@ int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const
  * Return value: 0, or -1 if options are invalid or a pointer other than qlim is NULL while
  * n > 0 (then nothing is written).
  *
- * Stack: 3112 bytes of solver scratch memory in this frame (380 doubles, 18 ints),
+ * Stack: 3256 bytes of solver scratch memory in this frame (398 doubles, 18 ints),
  * plus fk_jacobian's 36096 bytes (35.2 KiB) at 64 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */

@@ -33,11 +33,29 @@ def _rows(text: str) -> dict[str, str]:
 
 
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
-def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
+def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_path):
     monkeypatch.setenv("DELTAGEN_BENCH_ORACLES", "0")
     argv = ["bench", "--n", "2000", "--repeats", "2"] + (["--markdown"] if markdown else [])
+    files = {k: tmp_path / f"bench.{k}" for k in ("json", "png")}
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n\n<!-- bench:begin -->\nold\n<!-- bench:end -->\n\ntail\n")
+    if markdown:  # the files: JSON, PNG, the README section
+        argv += ["--json", str(files["json"]), "--png", str(files["png"]), "--readme", str(readme)]
     assert main(argv) == 0
     out = capsys.readouterr().out
+    if markdown:
+        import json
+
+        data = json.loads(files["json"].read_text())
+        assert data["n"] == 2000 and data["markdown"].strip() == out.strip()
+        assert data["throughput"]["fk"]["core"]["median"] > 0
+        numeric = data["serial"]["ik"]["numeric"]["deltagen"]
+        assert numeric["success"] == 1.0 and numeric["median_ns"] > 0
+        assert data["serial"]["ik"]["numeric_7axis"]["deltagen"]["success"] == 1.0
+        assert files["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        text = readme.read_text()
+        assert "old" not in text and text.startswith("# x") and text.endswith("tail\n")
+        assert out.strip() in text
     delta_part, _, serial_part = out.partition("Serial arm: puma560")
     assert serial_part, "no serial-arm section"
     rows = _rows(delta_part)
@@ -65,7 +83,7 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
         "robot._core.ik(p)",
     ):
         assert call in out
-    for target in ("<= 12", "<= 18", "<= 25", "<= 20", "<= 1.5"):
+    for target in ("<= 12", "<= 16", "<= 20", "<= 30", "<= 1.5", "<= 0.6"):
         assert target in out
     for fact in (
         "CPU",
@@ -98,7 +116,7 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown):
         "robot._core.jacobian(q), q (1, 6)",
     ):
         assert call in serial_part
-    for target in ("<= 30", "<= 50", "<= 1 "):
+    for target in ("<= 30", "<= 50", "<= 0.6 ", "<= 0.5 "):
         assert target in serial_part
     for fact in (
         "ns per configuration",

@@ -167,7 +167,7 @@ int main(int argc, char **argv)
     }
     put_status(st, n);
 
-    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 50, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
+    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 50, 0, 1, 1, {1, 1, 1, 1, 1, 1}, 0, 0};
     const double qlim[2 * NJ] = {-3, 3, -3, 3, -3, 3, -3, 3, -3, 3, -3, 3};
     double *q_ik = fresh(NJ * n), *ep = fresh(n), *er = fresh(n);
     int32_t *it = malloc(n ? n * sizeof(int32_t) : 1);

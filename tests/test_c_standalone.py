@@ -657,7 +657,7 @@ static int8_t st[N], st2[N];
 
 int main(void)
 {
-    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}};
+    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}, 0, 0};
     CHECK(deltagen_%(name)s_ik_newton(N, &o, TT, Q0, QLIM, q, ep, er, it, st) == 0, "rc");
     CHECK(deltagen_%(name)s_fk(N, q, T, st2) == 0, "fk rc");
     int ok = 0;
@@ -811,7 +811,7 @@ int main(void)
     for (int i = 0; i < 6; ++i) {
         q0[i] = q6[i] + 0.01;
     }
-    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 0, 0, {1, 1, 1, 1, 1, 1}};
+    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 0, 0, {1, 1, 1, 1, 1, 1}, 0, 0};
     failures += deltagen_puma560_ik_newton(1, &o, T6, q0, NULL, q, &ep, &er, &it, &s) != 0
         || s != DELTAGEN_OK || fabs(q[0] - q6[0]) > 1e-8;
     printf("%%d failures\n", failures);

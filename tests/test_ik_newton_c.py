@@ -167,7 +167,7 @@ def test_redundant_seven_axis(rng):
     # (C: Cholesky) equals the numpy engine's (damped SVD), and pinv(J) dx computed here up
     # to the small damping lambda^2 = 0.1 |dx|^2
     q0 = q_true[:50] + 1e-4 * rng.standard_normal((50, 7))
-    kw = dict(max_iter=1, step_limit=None, respect_limits=False)
+    kw = dict(max_iter=1, restarts=0, step_limit=None, respect_limits=False)
     one = ikn.solve(arm, T[:50], q0, engine="c", **kw)
     one_np = ikn.solve(arm, T[:50], q0, engine="numpy", **kw)
     assert np.allclose(one.q, one_np.q, rtol=0, atol=1e-12)
@@ -214,6 +214,8 @@ def test_non_finite_rows_are_invalid(arms, rng):
         respect_limits=True,
         free_first=True,
         mask=[1] * 6,
+        restarts=0,
+        seed=0,
     )
     q, ep, er, it, status = core.ik_newton(
         opts,
@@ -270,6 +272,8 @@ def test_engine_selection_and_bad_options(arms):
         respect_limits=True,
         free_first=True,
         mask=[1] * 6,
+        restarts=0,
+        seed=0,
     )
     args = (np.ascontiguousarray(T.reshape(1, 4, 4)), np.zeros((1, 6)), None)
     for bad in (
@@ -280,6 +284,7 @@ def test_engine_selection_and_bad_options(arms):
         dict(base_damping=math.inf),
         dict(max_iter=-1),
         dict(stall_window=-3),
+        dict(restarts=-1),
         dict(mask=[0] * 6),
     ):
         with pytest.raises(RuntimeError):

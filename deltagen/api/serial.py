@@ -45,6 +45,7 @@ from deltagen.status import SINGULAR_TOL
 _BACKENDS = ("compiled", "reference")
 _IK_METHODS = ("auto", "analytic", "numeric")
 _EYE3 = np.eye(3)
+_F64 = np.dtype(np.float64)  # native byte order
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # SerialRobot._poses: what counts as a rigid transform
 
@@ -263,9 +264,8 @@ class SerialRobot:
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Tool pose T (..., 4, 4) = base A_1(q_1) ... A_n(q_n) tool."""
-        check_errors_mode(errors)  # every call, before the fast path
-        if self._fk_single is not None and errors == "raise":
-            T = self._fk_single(q)
+        if type(errors) is str and errors == "raise" and self._fk_single is not None:
+            T = self._fk_single(q)  # one configuration: the lean path (None: general path)
             if T is not None:
                 return T
         lead, qf = self._prepare(errors, q)
@@ -281,12 +281,18 @@ class SerialRobot:
     def jacobian(self, q: ArrayLike, frame: Frame = "base", errors: Errors = "raise") -> Result:
         """Geometric Jacobian (..., 6, n) of the tool point; rows vx vy vz wx wy wz, in the
         base frame (default) or the tool frame (frame="tool")."""
-        frame = self._check_frame(frame)  # every call, before the fast path
-        check_errors_mode(errors)
-        if self._jacobian_single is not None and frame == "base" and errors == "raise":
-            J = self._jacobian_single(q)
+        if (
+            type(errors) is str
+            and errors == "raise"
+            and type(frame) is str
+            and frame == "base"
+            and self._jacobian_single is not None
+        ):
+            J = self._jacobian_single(q)  # one configuration: the lean path
             if J is not None:
                 return J
+        frame = self._check_frame(frame)
+        check_errors_mode(errors)
         lead, qf = self._prepare(errors, q)
         J, status = self._core.jacobian(qf)
         if frame == "tool":
@@ -677,9 +683,16 @@ class SerialRobot:
         combined = self._combined() if solver is None else None
         if solver is None and combined is None:
             raise InputError(f"{self.name} has no closed-form inverse; use ik(T, method='numeric')")
+        single = self._ik_all_single
+        if single is not None and type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64:
+            # one pose: the lean path, after the same check as _poses'
+            if _check_one_pose(T.ravel().tolist())[1]:
+                result = single(T)
+                if result is not None:
+                    return result
         lead, flat, finite, rigid = self._poses(T)  # every call, whichever path follows
-        if self._ik_all_single is not None and flat.shape[0] == 1 and rigid[0]:
-            result = self._ik_all_single(flat[0])
+        if single is not None and flat.shape[0] == 1 and rigid[0]:
+            result = single(flat[0])
             if result is not None:
                 q1, valid1 = result
                 return q1.reshape(lead + q1.shape), valid1.reshape(lead + valid1.shape)
@@ -741,7 +754,8 @@ class SerialRobot:
                     f"this call uses {self.name}'s closed form (method={method!r})"
                 )
         else:
-            checked = ik_numeric.check_options(self, **options)  # max_iter >= 1 here
+            # max_iter >= 1 here; no options: the defaults, which pass
+            checked = ik_numeric.check_options(self, **options) if options else None
         if q0 is not None:
             if not (type(q0) is np.ndarray and q0.dtype.char == "d"):
                 q0 = as_float_array(q0, "q0", f"(..., {self.n})")
@@ -797,9 +811,7 @@ class SerialRobot:
             and options.keys() <= {"restarts", "seed"}
             and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
         ):
-            q = self._numeric_single(
-                flat[0], q0a, options.get("restarts", 0), options.get("seed", 0)
-            )
+            q = self._numeric_single(flat[0], q0a, options.get("restarts"), options.get("seed", 0))
             if q is not None and self._fits_tool() and not self._reaches_fully(q[None], flat)[0]:
                 q = None  # the general path names the pose the arm cannot take
             if q is not None and (singular == "allow" or not self._singular_one(q)):
@@ -827,6 +839,9 @@ class SerialRobot:
 
             if start is None:
                 start = self._start(None, (flat.shape[0],))
+            with np.errstate(all="ignore"):  # huge targets: the distances overflow to inf
+                dist, reach = self._reach_of(flat)
+            good = good & ~(dist > reach)  # beyond the reach: no attempt (and no restarts)
             safe = flat.copy()
             safe[~good] = np.eye(4)
             result = ik_numeric.solve(self, safe, start, **options)
@@ -918,7 +933,9 @@ class SerialRobot:
             cause[(cause == "") & oriented & ~far] = "orientation not reachable"
         elif not analytic:
             max_iter = options.get("max_iter", 100)
-            restarts = options.get("restarts", 0)
+            from deltagen.solve.numeric import RESTARTS
+
+            restarts = options.get("restarts", RESTARTS)
             fitted = np.isin(bad, unfit) if unfit is not None else np.zeros(bad.size, bool)
             cause[fitted & tilt] = "orientation not reachable: tilted"
             cause[fitted & ~tilt] = "pose not reachable: fitted"
@@ -1028,6 +1045,8 @@ class SerialRobot:
             solver = self._numeric_solver = single_solver(self)
             self._mid_range = np.ascontiguousarray(self._start(None, (1,))[0])
         start = self._mid_range if q0 is None else np.ascontiguousarray(q0)
+        if restarts is None:
+            return solver(T, start, seed=seed)
         return solver(T, start, int(restarts), seed)
 
     def _singular_one(self, q):

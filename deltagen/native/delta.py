@@ -47,14 +47,39 @@ def geometry_struct(g) -> dict:
 
 
 class _Scratch(threading.local):
-    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
+    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls): up to
+    four inputs (three axes; the payload) and the status."""
 
     def __init__(self, ffi):
-        self.inp = ffi.new("double[4]")
-        self.out = ffi.new("double[4]")
+        self.inputs = [ffi.new("double[4]") for _ in range(4)]
         self.status = ffi.new("int8_t[1]")
-        self.inp_np = np.frombuffer(ffi.buffer(self.inp), dtype=np.float64)
-        self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
+
+
+def _putter(memmove):
+    """put(buffer, x): copy one pose x into a double[] buffer when x is what
+    inputs.plain_row(x, 3) accepts -- a (3,) float64 ndarray in native byte order
+    (non-contiguous views make memmove raise) or a list/tuple of 3 Python floats/ints --
+    and return True; else False (the general path, whose checks decide, takes the call)."""
+    ndarray, f64 = np.ndarray, np.dtype(np.float64)
+
+    def put(buffer, x):
+        if type(x) is ndarray:
+            if x.shape != (3,) or x.dtype is not f64:
+                return False
+            try:
+                memmove(buffer, x, 24)
+            except (TypeError, ValueError, BufferError):
+                return False
+            return True
+        if not plain_row(x, 3):
+            return False
+        try:
+            buffer[0:3] = x
+        except (TypeError, ValueError, OverflowError):
+            return False
+        return True
+
+    return put
 
 
 class CompiledDelta:
@@ -85,39 +110,89 @@ class CompiledDelta:
             q[:, :3] = np.pi - np.mod(np.pi - (q[:, :3] - self._offset), 2.0 * np.pi)
         return q
 
+    #: the single-pose functions: C function, inputs, outputs, output shape
+    _SINGLE = {
+        "fk": ("deltagen_delta_fk", 1, 1, (3,)),
+        "ik": ("deltagen_delta_ik", 1, 1, (3,)),
+        "fk_vel": ("deltagen_delta_fk_vel", 2, 2, (3,)),
+        "fk_acc": ("deltagen_delta_fk_acc", 3, 3, (3,)),
+        "jacobian": ("deltagen_delta_jacobian", 1, 1, (3, 3)),
+        "inverse_dynamics": ("deltagen_delta_inverse_dynamics", 4, 1, (3,)),
+        "inverse_dynamics_simplified": ("deltagen_delta_inverse_dynamics_simplified", 4, 1, (3,)),
+    }
+
     def single(self, name):
-        """A fast function for one pose: what inputs.plain_row(pose, 3) accepts (a (3,)
-        float64 array or a list/tuple of 3 Python floats/ints) in, the (3,) result out, or
-        None when the general path must handle the call (other inputs, whose checks it
-        makes, or a status to report). Same C function, same numbers."""
-        if self._offset is not None:  # the general path applies the offsets
+        """A lean function for one pose of ``name`` (a key of _SINGLE): its inputs as
+        what inputs.plain_row(x, 3) accepts (a (3,) float64 array, or a list/tuple of 3
+        Python floats/ints; the dynamics' payload a Python float or int >= 0) in, the
+        result (a fresh array, or a tuple of them) out -- or None when the general path
+        must handle the call: other inputs, whose checks it makes, or a status other than
+        OK (INVALID input, a singular or unreachable pose: the general path reports it,
+        or returns fk's and ik's singular but finite poses). The kernel's status is OK only
+        when every output is finite (deltagen/status.py), so no check is repeated here.
+        Same C function on the same numbers as the batch path: the same bits."""
+        if self._offset is not None:  # the general path applies the encoder offsets
             return None
-        fn = self._lib.deltagen_delta_fk if name == "fk" else self._lib.deltagen_delta_ik
-        geometry, scratch, memmove = self._geometry, self._scratch, self._ffi.memmove
-        ndarray, OK, SINGULAR, isfinite = np.ndarray, st.OK, st.SINGULAR, math.isfinite
+        c_name, n_in, n_out, shape = self._SINGLE[name]
+        fn = getattr(self._lib, c_name)
+        geometry, scratch, fb = self._geometry, self._scratch, self._ffi.from_buffer
+        put = _putter(self._ffi.memmove)
+        empty, OK = np.empty, st.OK
 
-        def call(pose):
-            if not plain_row(pose, 3):
-                return None
+        if n_in == 1:
+
+            def call(x):
+                sc = scratch
+                inp = sc.inputs[0]
+                if not put(inp, x):
+                    return None
+                out = empty(shape)
+                status = sc.status
+                fn(geometry, 1, 3, inp, fb("double[]", out, require_writable=True), status)
+                return out if status[0] == OK else None
+
+            return call
+
+        if n_in == 4:  # inverse dynamics: q, qd, qdd, payload
+
+            def dynamics(q, qd, qdd, payload):
+                sc = scratch
+                a, b, c, d = sc.inputs
+                kind = type(payload)
+                if not (kind is float or kind is int) or not payload >= 0.0:
+                    return None
+                if not (put(a, q) and put(b, qd) and put(c, qdd)):
+                    return None
+                try:
+                    d[0] = payload
+                except OverflowError:  # an int too large for a double
+                    return None
+                out = empty(shape)
+                status = sc.status
+                fn(geometry, 1, 3, a, b, c, d, fb("double[]", out, require_writable=True), status)
+                return out if status[0] == OK else None
+
+            return dynamics
+
+        def rates(*args):  # fk_vel (q, qd), fk_acc (q, qd, qdd)
             sc = scratch
-            try:
-                if type(pose) is ndarray:
-                    memmove(sc.inp, pose, 24)  # non-contiguous views raise: general path
-                else:
-                    sc.inp[0:3] = pose
-            except (TypeError, ValueError, BufferError, OverflowError):
-                return None
-            fn(geometry, 1, 3, sc.inp, sc.out, sc.status)
-            code, out = sc.status[0], sc.out
-            # a result is OK (or a singular pose) only when all of it is finite, as in the
-            # general path's DeltaRobot._finish; anything else is reported there
-            if (code != OK and code != SINGULAR) or not (
-                isfinite(out[0]) and isfinite(out[1]) and isfinite(out[2])
-            ):
-                return None
-            return sc.out_np[:3].copy()
+            buffers = sc.inputs[:n_in]
+            for buffer, x in zip(buffers, args):
+                if not put(buffer, x):
+                    return None
+            outs = [empty(shape) for _ in range(n_out)]
+            status = sc.status
+            fn(
+                geometry,
+                1,
+                3,
+                *buffers,
+                *(fb("double[]", o, require_writable=True) for o in outs),
+                status,
+            )
+            return tuple(outs) if status[0] == OK else None
 
-        return call
+        return rates
 
     def _run(self, fn, inputs, n_out, out_width=None, widths=None):
         """fn(geometry, rows, axes, *inputs, *outputs, status) over the batch, split into row

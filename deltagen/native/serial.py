@@ -191,7 +191,7 @@ class CompiledArm:
             ctype = types[name].type
             if ctype.kind == "array":  # the mask: 0/1 flags
                 values[name] = [int(bool(v)) for v in value]
-            elif ctype.cname.startswith("int"):
+            elif ctype.cname.startswith(("int", "uint")):
                 values[name] = int(value)
             else:
                 values[name] = float(value)
@@ -350,51 +350,78 @@ class CompiledArm:
         return q.reshape(-1, k, self.desc.n), valid != 0, status
 
     def single_ik_all(self, k):
-        """Fast path of ik_all for one pose ((4, 4) C-contiguous float64 array with the
-        bottom row 0 0 0 1): (q (k, n), valid (k,)), or None when the general path must
-        handle the call (other input types, non-finite values)."""
+        """Lean path of ik_all for one pose: a (4, 4) C-contiguous float64 array with the
+        bottom row 0 0 0 1 (the caller has checked that it is a finite rigid transform) in,
+        fresh (q (k, n), valid (k,) bool) out, or None when the general path must handle the
+        call (other inputs; a status other than OK)."""
         if not self.has_ik_all:
             return None
         fn = getattr(self._lib, f"{self._prefix}_ik_all")
-        scratch, memmove, ffi, n = self._scratch, self._ffi.memmove, self._ffi, self.desc.n
-        INVALID = st.INVALID
+        scratch, memmove, fb, n = (
+            self._scratch,
+            self._ffi.memmove,
+            self._ffi.from_buffer,
+            self.desc.n,
+        )
+        empty, OK = np.empty, st.OK
 
         def call(T):
             if not plain_pose(T):
                 return None
             sc = scratch
-            if sc.ik_q is None:
-                sc.make_ik_buffers(ffi, k, n)
             memmove(sc.T, T, 128)
-            fn(1, sc.T, sc.ik_q, sc.ik_valid, sc.status)
-            if sc.status[0] == INVALID:
-                return None
-            return sc.ik_q_np.copy(), sc.ik_valid_np.astype(bool)  # uint8 flags, 1 or 0
+            q = empty((k, n))
+            valid = empty(k, dtype=np.bool_)  # the kernel writes uint8 flags, 1 or 0
+            status = sc.status
+            fn(
+                1,
+                sc.T,
+                fb("double[]", q, require_writable=True),
+                fb("uint8_t[]", valid, require_writable=True),
+                status,
+            )
+            return (q, valid) if status[0] == OK else None
 
         return call
 
     def single(self, name):
-        """Fast path for one configuration of fk or jacobian: what inputs.plain_row(q, n)
-        accepts in, the result out, or None when the general path must handle the call."""
+        """Lean path for one configuration of fk or jacobian: what inputs.plain_row(q, n)
+        accepts in (a (n,) float64 array in native byte order -- a non-contiguous view makes
+        memmove raise -- or a list/tuple of n Python floats/ints), a fresh result array out,
+        or None when the general path must handle the call (other inputs, whose checks it
+        makes, or a status other than OK: the kernel's status is OK only when every output is
+        finite, deltagen/status.py). Same C function, same numbers as the batch path."""
         fn = getattr(self._lib, f"{self._prefix}_{name}")
-        scratch, memmove, n = self._scratch, self._ffi.memmove, self.desc.n
-        ndarray, OK = np.ndarray, st.OK
-        out_name = "T" if name == "fk" else "J"
+        scratch, memmove, fb, n = (
+            self._scratch,
+            self._ffi.memmove,
+            self._ffi.from_buffer,
+            self.desc.n,
+        )
+        ndarray, f64, empty, OK = np.ndarray, np.dtype(np.float64), np.empty, st.OK
+        shape_in, nbytes = (n,), 8 * n
+        shape = (4, 4) if name == "fk" else (6, n)
 
         def call(q):
-            if not plain_row(q, n):
-                return None
             sc = scratch
-            try:
-                if type(q) is ndarray:
-                    memmove(sc.q, q, 8 * n)
-                else:
-                    sc.q[0:n] = q
-            except (TypeError, ValueError, BufferError, OverflowError):
+            buffer = sc.q
+            if type(q) is ndarray:
+                if q.shape != shape_in or q.dtype is not f64:
+                    return None
+                try:
+                    memmove(buffer, q, nbytes)
+                except (TypeError, ValueError, BufferError):
+                    return None
+            elif plain_row(q, n):
+                try:
+                    buffer[0:n] = q
+                except (TypeError, ValueError, OverflowError):
+                    return None
+            else:
                 return None
-            fn(1, sc.q, getattr(sc, out_name), sc.status)
-            if sc.status[0] != OK:  # OK only when every output is finite (deltagen.status)
-                return None
-            return getattr(sc, out_name + "_np").copy()
+            out = empty(shape)
+            status = sc.status
+            fn(1, buffer, fb("double[]", out, require_writable=True), status)
+            return out if status[0] == OK else None
 
         return call

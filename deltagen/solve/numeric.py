@@ -79,10 +79,12 @@ Joint limits (``respect_limits=True``; the result is always within arm.qlim):
 * a row that is stuck ends its attempt: mu above 1e12 (no step is accepted any more),
   or, when a restart is left, |dx| not halved over 8 steps (24 in the attempt from the
   caller's q0, usually the informed one: a slow but converging start near a singularity
-  is not given up early) -- at a limit or in a local minimum. With ``restarts`` > 0 it
-  starts again from a random q, uniform in qlim (unlimited revolute joints in
-  [-pi, pi], unlimited prismatic ones in [-1, 1] m), drawn from
-  ``np.random.default_rng(seed)``. Each attempt has at most ``max_iter`` steps; rows still
+  is not given up early) -- at a limit or in a local minimum. With ``restarts`` > 0
+  (default ``RESTARTS`` = 100) it starts again from another q in the box of the limits
+  (unlimited revolute joints in [-pi, pi], unlimited prismatic ones in [-1, 1] m): the
+  compiled engine takes the points of a deterministic additive-recurrence sequence spread
+  evenly over the box (codegen/runtime/deltagen_ik_newton.c, the whole loop in C), the
+  numpy engine draws them uniformly from ``np.random.default_rng(seed)``. Each attempt has at most ``max_iter`` steps; rows still
   unconverged after the last attempt return the best in-limit q found, converged False.
 
 A 6-axis arm has up to 8 (16) isolated solutions and often only one or two lie inside the
@@ -139,6 +141,11 @@ ETA = 0.95  # non-monotone acceptance weight (Zhang-Hager); 0: monotone
 PHASE2_FROM_START = True  # the limited phase restarts from the attempt's start point
 FREE_CHECK = 1e-9  # free phase: limits checked once |dx| <= max(tol, this)
 FREE_FIRST = True  # each attempt starts with the limits unenforced (module docstring)
+#: default number of restarts: enough for every reachable in-limit target of the Puma 560
+#: and of a 7-axis arm in the tests and in `deltagen bench` (apps/bench_ik.py); a target
+#: the first attempt solves costs nothing more, an unreachable one at most this many short
+#: (stalled) attempts
+RESTARTS = 100
 _RCOND = 1e-12
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
@@ -365,7 +372,7 @@ def check_options(
     damping="auto",
     step_limit=0.5,
     respect_limits=True,
-    restarts=0,
+    restarts=RESTARTS,
     seed=0,
     null_space=0.0,
     engine="auto",
@@ -440,7 +447,7 @@ def solve(
     damping="auto",
     step_limit=0.5,
     respect_limits=True,
-    restarts=0,
+    restarts=RESTARTS,
     seed=0,
     null_space=0.0,
     engine="auto",
@@ -458,10 +465,12 @@ def solve(
     damping: "auto" | float >= 0 (the Nakamura-Hanafusa weight K) | None (plain Newton).
     step_limit: max |dq_i| per step [rad or m] (None: unlimited).
     respect_limits: keep q in arm.qlim (always True for the returned q then).
-    restarts: extra attempts from random in-limit starts for unconverged rows; seed: their
-    random generator's seed (results are reproducible).
+    restarts: extra attempts for unconverged rows (default RESTARTS); the C engine starts
+    them from a deterministic sequence spread over the limits, the numpy engine from random
+    in-limit draws; seed: the sequence's offset, or the numpy generator's seed (results are
+    reproducible for an integer seed).
     null_space: gain of the pull towards mid-range (redundant case n > k only).
-    engine: "c" (the compiled Newton routine deltagen_<arm>_ik_newton; restarts drawn here), "numpy"
+    engine: "c" (the compiled Newton routine deltagen_<arm>_ik_newton, restarts included), "numpy"
     (the batched numpy iteration), or "auto": "c" when it applies -- the compiled
     backend, jacobian="symbolic", damping not None, null_space == 0 -- else "numpy".
 
@@ -640,50 +649,42 @@ class _SingleBuffers(threading.local):
 
 
 def single_solver(arm):
-    """Fast path of :func:`solve` for one target with the default options on the compiled
-    backend: ``call(T, q0, restarts)`` with T a (4, 4) and q0 an (n,) C-contiguous float64
-    array returns the q of the first attempt if it converged, else None (the caller then
-    runs solve(), whose first attempt is exactly this one: same options, same start)."""
+    """Fast path of :func:`solve` for one target with default options but ``restarts`` and
+    ``seed`` on the compiled backend: ``call(T, q0, restarts, seed)`` with T a (4, 4) and q0
+    an (n,) C-contiguous float64 array returns q if the C routine converged (the same call
+    as solve()'s: every attempt in C), else None (the caller then runs the general path)."""
     core = arm._core
     ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
     # solve()'s defaults: tol 1e-10, max_iter 100, damping "auto", step_limit 0.5, limits
     options = _c_options(core, 1e-10, 1e-10, 100, 1.0, BASE_DAMPING, 0.5, True, default_mask(arm))
-    # the first attempt's stall window depends on whether restarts follow (_iterate_c)
-    with_restarts, alone = options(FIRST_WINDOW_FACTOR * STALL_WINDOW), options(0)
-    later = options(STALL_WINDOW)
+    made: dict = {}  # (restarts, seed) -> options struct
     qlim = ffi.new("double[]", [float(x) for x in np.asarray(arm.qlim).reshape(-1)])
-    box_lo, box_hi = _restart_box(arm, True)
     scratch = _SingleBuffers(ffi, n)
     fn, OK = core._ik_newton, st.OK
 
-    def attempt(b, opts):
-        fn(1, opts, b.T, b.q0, qlim, b.q, b.ep, b.er, b.it, b.status)
-        return b.status[0] == OK
-
-    def call(T, q0, restarts, seed=0):
+    def call(T, q0, restarts=RESTARTS, seed=0):
+        if not _is_count(seed):  # a Generator is consumed by its draw: the general path
+            return None
+        key = (restarts, seed)
+        opts = made.get(key)
+        if opts is None:
+            if len(made) > 64:
+                made.clear()
+            opts = made[key] = options(STALL_WINDOW, restarts, _seed_offset(seed))
         b = scratch
         memmove(b.T, T, 128)
         memmove(b.q0, q0, 8 * n)
-        if attempt(b, with_restarts if restarts else alone):
-            return b.q_np.copy()
-        if type(seed) is not int:  # a Generator would be consumed twice: general path
-            return None
-        # the restarts of _iterate_c for one row: the same generator, draws and options
-        rng = np.random.default_rng(seed)
-        for k in range(1, restarts + 1):
-            start = box_lo + (box_hi - box_lo) * rng.random((1, n))[0]
-            memmove(b.q0, np.ascontiguousarray(start), 8 * n)
-            if attempt(b, later if k < restarts else alone):
-                return b.q_np.copy()
-        return None
+        fn(1, opts, b.T, b.q0, qlim, b.q, b.ep, b.er, b.it, b.status)
+        return b.q_np.copy() if b.status[0] == OK else None
 
     return call
 
 
 def _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask):
-    """options(stall_window): the deltagen_ik_options struct of these settings."""
+    """options(stall_window, restarts=0, seed=0): the deltagen_ik_options struct of these
+    settings."""
 
-    def options(window):
+    def options(window, restarts=0, seed=0):
         return core.ik_options(
             tol_p=tol_p,
             tol_r=tol_r,
@@ -695,54 +696,34 @@ def _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask
             respect_limits=respect,
             free_first=respect and FREE_FIRST,
             mask=mask,
+            restarts=restarts,
+            seed=seed,
         )
 
     return options
 
 
-def _restart_box(arm, respect):
-    """The box random restarts are drawn from (_sample_box, inside the limits if respected)."""
-    box_lo, box_hi = _sample_box(arm)
-    if respect:
-        box_lo, box_hi = np.maximum(box_lo, arm.qlim[:, 0]), np.minimum(box_hi, arm.qlim[:, 1])
-    return box_lo, box_hi
-
-
 def _iterate_c(
     arm, Tt, q0, mask, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, restarts, seed
 ):
-    """The compiled engine: one C call per attempt (deltagen_<arm>_ik_newton, the iteration of the
-    module docstring for one attempt), restarts for the unconverged rows drawn here with
-    the numpy engine's rules (same box, same generator, same stall windows)."""
+    """The compiled engine: one C call (deltagen_<arm>_ik_newton) runs every attempt of
+    every row -- the attempt from q0 and the restarts from its deterministic sequence spread
+    over the joint box (codegen/runtime/deltagen_ik_newton.c), with the numpy engine's
+    stall windows."""
     core = arm._core
-    N, n = q0.shape
-    rng = np.random.default_rng(seed)
-    box_lo, box_hi = _restart_box(arm, respect)
     qlim = np.ascontiguousarray(arm.qlim, dtype=float)
     options = _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask)
+    opts = options(STALL_WINDOW, restarts, _seed_offset(seed))
+    q, ep, er, it, status = core.ik_newton(opts, Tt, np.ascontiguousarray(q0), qlim)
+    return q, status == st.OK, it.astype(np.int64), ep, er
 
-    # stall windows as in the numpy engine: only while a restart is left
-    first = options(FIRST_WINDOW_FACTOR * STALL_WINDOW if restarts else 0)
-    q, ep, er, it, status = core.ik_newton(first, Tt, np.ascontiguousarray(q0), qlim)
-    it = it.astype(np.int64)
-    conv = status == st.OK
-    best = np.hypot(ep, er)  # the unconverged rows' q is their best in-limit q
-    later = options(STALL_WINDOW)
-    for attempt in range(1, restarts + 1):
-        rows = np.flatnonzero(~conv)
-        if rows.size == 0:
-            break
-        start = box_lo + (box_hi - box_lo) * rng.random((rows.size, n))
-        opts = later if attempt < restarts else options(0)
-        qa, epa, era, ita, sa = core.ik_newton(opts, np.ascontiguousarray(Tt[rows]), start, qlim)
-        it[rows] += ita
-        ca = sa == st.OK
-        better = ca | (np.hypot(epa, era) < best[rows])
-        take = rows[better]
-        q[take], ep[take], er[take] = qa[better], epa[better], era[better]
-        best[take] = np.hypot(epa[better], era[better])
-        conv[rows[ca]] = True
-    return q, conv, it, ep, er
+
+def _seed_offset(seed) -> int:
+    """The C engine's restart-sequence offset (uint32) for solve()'s ``seed``: an integer
+    as it is (mod 2^32); a Generator or SeedSequence gives one draw, None a fresh one."""
+    if _is_count(seed):
+        return int(seed) % 2**32
+    return int(np.random.default_rng(seed).integers(2**32))
 
 
 def _iterate(

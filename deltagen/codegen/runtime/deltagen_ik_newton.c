@@ -3,7 +3,7 @@
  * Hand-written C, part of deltagen; C99, reentrant, no heap, no globals, libm only.
  *
  * The same iteration as deltagen/solve/numeric.py (its docstring is the full description;
- * restarts from random starts are the caller's business):
+ * its numpy engine draws its restarts from numpy's generator instead of the sequence here):
  *
  *   error    dx = [p* - p; w], w the rotation vector of R* R^T (axis * angle, exact up to
  *            pi), components outside the mask set to 0; |dx| = hypot(|dp|, |w|);
@@ -29,10 +29,18 @@
  *   accept   non-monotone (Zhang-Hager, eta = 0.95): a step is taken if the new |dx| is
  *            below the running average C of the accepted errors; mu -> mu / 10 (below
  *            1e-2: 0) on acceptance, max(10 mu, 1e-2) on rejection;
- *   stop     converged when |dp| <= tol_p and |w| <= tol_r within the limits; given up
- *            after max_iter steps, when mu > 1e12, or (stall_window > 0) when |dx| did not
- *            halve over stall_window steps. Unconverged targets return the best in-limit
- *            q seen (the start clamped into the limits included).
+ *   stop     converged when |dp| <= tol_p and |w| <= tol_r within the limits; an attempt
+ *            is given up after max_iter steps, when mu > 1e12, or (window > 0) when |dx|
+ *            did not halve over window steps;
+ *   restarts a target the attempt from q0 did not solve gets up to ``restarts`` more
+ *            attempts, from the points of an additive-recurrence (Kronecker) sequence in
+ *            the joint box (ikn_sequence_point): deterministic and spread evenly over the
+ *            limits. Stall windows while a restart is left: 3 stall_window for the attempt
+ *            from q0 (usually an informed start: a slow but converging start near a
+ *            singularity is not given up early), stall_window for the others; the last
+ *            attempt runs to max_iter. (Without restarts the one attempt uses stall_window.)
+ *            Unconverged targets return the best in-limit q seen over all attempts (the
+ *            starts clamped into the limits included).
  *
  * Every array sized by the joint count N lives in the caller's work/iwork (see the header
  * for their sizes); the frames of these functions hold only scalars and 3x3 blocks.
@@ -228,6 +236,54 @@ static int ikn_set(const deltagen_ik_arm *arm, const double *qv, const double *T
     return rc;
 }
 
+/* The box restarts are drawn from (numeric.py's _sample_box): the joint limits where finite
+ * (and respected); an unlimited revolute joint [-pi, pi] (or a 2 pi wide range beside its
+ * one finite limit), an unlimited prismatic one [-1, 1] m (or 2 m beside its finite limit). */
+static void ikn_restart_box(const deltagen_ik_arm *arm, const double *lo, const double *hi,
+                            int respect, double *box_lo, double *box_hi)
+{
+    for (size_t i = 0; i < arm->joints; ++i) {
+        const double width = arm->revolute[i] ? 6.283185307179586 : 2.0;
+        const double l = respect ? lo[i] : -INFINITY, h = respect ? hi[i] : INFINITY;
+        const int lf = isfinite(l) != 0, hf = isfinite(h) != 0;
+        box_lo[i] = lf ? l : (hf ? h - width : -0.5 * width);
+        box_hi[i] = hf ? h : box_lo[i] + width;
+    }
+}
+
+/* The steps alpha_i = 1 / phi^(i+1), i = 0 .. N-1, of the additive recurrence (Kronecker)
+ * sequence u_k = frac(u_0 + k alpha) in N dimensions, phi the real root > 1 of
+ * x^(N+1) = x + 1 (Roberts' R_N sequence, the "generalised golden ratio": N = 1 gives the
+ * golden ratio). Its points cover the unit cube evenly for every prefix length, so the
+ * first restarts are already spread over the whole joint box (no clustering as with
+ * random draws). */
+static void ikn_sequence_steps(size_t N, double *alpha)
+{
+    double phi = 2.0;
+    for (int i = 0; i < 60; ++i) {  /* fixed-point iteration phi = (1 + phi)^(1/(N+1)) */
+        phi = pow(1.0 + phi, 1.0 / (double)(N + 1));
+    }
+    double a = 1.0;
+    for (size_t i = 0; i < N; ++i) {
+        a /= phi;
+        alpha[i] = a;
+    }
+}
+
+/* Restart k (k >= 1) of the sequence for ``seed``: q_i = lo_i + (hi_i - lo_i) u_i with
+ * u = frac(1/2 + (seed * 7919 + k) alpha) (the seed selects a later stretch of the same
+ * sequence; the 7919 keeps two seeds' stretches of a few thousand restarts apart). */
+static void ikn_sequence_point(size_t N, const double *alpha, uint32_t seed, int32_t k,
+                               const double *box_lo, const double *box_hi, double *qv)
+{
+    const double index = (double)seed * 7919.0 + (double)k;
+    for (size_t i = 0; i < N; ++i) {
+        double u = 0.5 + index * alpha[i];
+        u -= floor(u);
+        qv[i] = box_lo[i] + (box_hi[i] - box_lo[i]) * u;
+    }
+}
+
 int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, size_t n,
                        const deltagen_ik_options *restrict options,
                        const double *restrict T_target, const double *restrict q0,
@@ -257,7 +313,8 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
     }
     if (k == 0 || !(o.tol_p >= 0.0) || !(o.tol_r >= 0.0) || !(o.step_limit > 0.0)
         || !(o.damping >= 0.0) || !isfinite(o.damping) || !(o.base_damping >= 0.0)
-        || !isfinite(o.base_damping) || o.max_iter < 0 || o.stall_window < 0) {
+        || !isfinite(o.base_damping) || o.max_iter < 0 || o.stall_window < 0
+        || o.restarts < 0) {
         return -1;
     }
     /* the scratch memory, DELTAGEN_IK_NEWTON_WORK_DOUBLES(N) and _INTS(N) */
@@ -276,6 +333,8 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
         next = points[i].e + 6;
     }
     double *scratch = next;                                             /* 2 N^2 + 2 N */
+    double *box_lo = scratch + 2 * N * N + 2 * N, *box_hi = box_lo + N;
+    double *alpha = box_hi + N;                                         /* 3 N */
     int *wraps = iwork, *fixed = iwork + N, *zeros = iwork + 2 * N;     /* 3 N */
 
     const int respect = o.respect_limits != 0 && qlim != NULL;
@@ -287,6 +346,10 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
     }
     const double check_p = o.tol_p > FREE_CHECK ? o.tol_p : FREE_CHECK;
     const double check_r = o.tol_r > FREE_CHECK ? o.tol_r : FREE_CHECK;
+    if (o.restarts > 0) {
+        ikn_restart_box(arm, lo, hi, respect, box_lo, box_hi);
+        ikn_sequence_steps(N, alpha);
+    }
 
     for (size_t row = 0; row < n; ++row) {
         const double *Tt = T_target + 16 * row;
@@ -307,143 +370,164 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
             status[row] = DELTAGEN_INVALID;
             continue;
         }
-        int free_phase = respect && o.free_first;
-        for (size_t i = 0; i < N; ++i) {
-            start[i] = q0[N * row + i];
-        }
-        ikn_limit(start, N, lo, hi, wraps, !free_phase);
         ikn_point *cur = &points[0], *trial = &points[1];
-        int stuck = ikn_set(arm, start, Tt, o.mask, cur) != 0;
-        /* the best in-limit q seen: at first the start clamped into the limits */
-        double best_ep = cur->ep, best_er = cur->er, best_err = cur->err;
-        for (size_t i = 0; i < N; ++i) {
-            best_q[i] = start[i];
-        }
-        ikn_limit(best_q, N, lo, hi, wraps, 1);
-        if (!ikn_inside(start, N, lo, hi)) {
-            stuck |= ikn_set(arm, best_q, Tt, o.mask, trial) != 0;
-            best_ep = trial->ep;
-            best_er = trial->er;
-            best_err = trial->err;
-        }
-        double mu = 0.0, cref = cur->err, qz = 1.0, chk = cur->err, s_prev = 0.0;
+        double best_ep = INFINITY, best_er = INFINITY, best_err = INFINITY;
         int32_t it = 0;
         int converged = 0;
-        for (;;) {
-            const int inside = ikn_inside(cur->q, N, lo, hi);
-            if (cur->ep <= o.tol_p && cur->er <= o.tol_r && inside) {
-                converged = 1;
-                break;
-            }
-            if (free_phase && !inside && cur->ep <= check_p && cur->er <= check_r) {
-                /* a solution outside the limits: again from the start, limits enforced */
-                free_phase = 0;
-                ikn_limit(start, N, lo, hi, wraps, 1);
-                stuck = ikn_set(arm, start, Tt, o.mask, cur) != 0;
-                mu = 0.0;
-                cref = chk = cur->err;
-                qz = 1.0;
-                s_prev = 0.0;
-                continue;
-            }
-            if (it >= o.max_iter || stuck) {
-                break;
-            }
-            /* the matched rows of J and dx */
-            size_t kk = 0;
-            for (size_t c = 0; c < 6; ++c) {
-                if (o.mask[c]) {
-                    for (size_t i = 0; i < N; ++i) {
-                        A[kk * N + i] = cur->J[c * N + i];
-                    }
-                    r[kk++] = cur->e[c];
-                }
-            }
-            const double err2 = cur->err * cur->err;
-            /* damping; a square, well-conditioned row whose damping is negligible keeps the
-             * previous sigma_min estimate (x2 safety) and goes straight to Gauss */
-            double s = s_prev, lam2 = 0.0;
-            size_t s0 = 0;
-            int gauss = 0, have_gram = 0;
-            if ((size_t)k == N && s >= 2.0 * S_WELL) {
-                lam2 = (mu + o.base_damping) * err2;
-                gauss = lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s);
-            }
-            if (!gauss) {  /* one Gram matrix serves the estimate and the damped step */
-                s0 = deltagen_gram(A, (size_t)k, N, zeros, G0);
-                have_gram = 1;
-                s = deltagen_sigma_min_of(G0, s0, scratch);
-                double nh = 1.0 - (s / S_WELL) * (s / S_WELL);
-                nh = nh > 0.0 ? nh : 0.0;
-                lam2 = (mu + o.base_damping + o.damping * nh) * err2;
-                gauss = (size_t)k == N && lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s) && s >= S_WELL;
-            }
-            s_prev = s;
-            for (size_t i = 0; i < N; ++i) {
-                fixed[i] = 0;
-            }
-            ikn_solve(A, (size_t)k, N, r, fixed, lam2, gauss, have_gram ? G0 : NULL, s0, dq,
-                      scratch);
-            ikn_limit_step(dq, N, o.step_limit);
-            for (size_t i = 0; i < N; ++i) {
-                target[i] = cur->q[i] + dq[i];
-            }
-            if (respect && !free_phase) {
-                /* active set: joints pushed beyond a limit go onto it, the others solve for
-                 * the rest of dx */
-                int any = 0;
+        for (int32_t attempt = 0; attempt <= o.restarts && !converged; ++attempt) {
+            /* the attempt's start: q0, then the restart sequence; its stall window */
+            if (attempt == 0) {
                 for (size_t i = 0; i < N; ++i) {
-                    const double w = ikn_wrap(target[i], lo[i], hi[i], wraps[i]);
-                    const double c = w < lo[i] ? lo[i] : (w > hi[i] ? hi[i] : w);
-                    fixed[i] = c != w;
-                    moved[i] = fixed[i] ? c - cur->q[i] : 0.0;
-                    any |= fixed[i];
-                }
-                if (any) {
-                    for (size_t c = 0; c < (size_t)k; ++c) {
-                        rf[c] = r[c];
-                        for (size_t i = 0; i < N; ++i) {
-                            rf[c] -= A[c * N + i] * moved[i];
-                            Af[c * N + i] = fixed[i] ? 0.0 : A[c * N + i];
-                        }
-                    }
-                    const double sf = ikn_sigma_min(Af, (size_t)k, N, zeros, scratch);
-                    double nh = 1.0 - (sf / S_WELL) * (sf / S_WELL);
-                    nh = nh > 0.0 ? nh : 0.0;
-                    const double lam2f = (mu + o.base_damping + o.damping * nh) * err2;
-                    ikn_solve(Af, (size_t)k, N, rf, fixed, lam2f, 0, NULL, 0, dq2, scratch);
-                    ikn_limit_step(dq2, N, o.step_limit);
-                    for (size_t i = 0; i < N; ++i) {
-                        target[i] = cur->q[i] + (fixed[i] ? moved[i] : dq2[i]);
-                    }
-                }
-            }
-            ikn_limit(target, N, lo, hi, wraps, !free_phase);
-            const int good = ikn_set(arm, target, Tt, o.mask, trial) == 0;
-            ++it;
-            if (good && trial->err < cref) {  /* non-monotone acceptance (Zhang-Hager) */
-                const double qz_new = ETA * qz + 1.0;
-                cref = (ETA * qz * cref + trial->err) / qz_new;
-                qz = qz_new;
-                ikn_point *t = cur;
-                cur = trial;
-                trial = t;
-                mu = mu / 10.0 < MU_START ? 0.0 : mu / 10.0;
-                if (cur->err < best_err && ikn_inside(cur->q, N, lo, hi)) {
-                    for (size_t i = 0; i < N; ++i) {
-                        best_q[i] = cur->q[i];
-                    }
-                    best_ep = cur->ep;
-                    best_er = cur->er;
-                    best_err = cur->err;
+                    start[i] = q0[N * row + i];
                 }
             } else {
-                mu = mu * 10.0 > MU_START ? mu * 10.0 : MU_START;
+                ikn_sequence_point(N, alpha, o.seed, attempt, box_lo, box_hi, start);
             }
-            stuck = mu > MU_MAX;
-            if (o.stall_window > 0 && it % o.stall_window == 0) {
-                stuck |= cur->err > 0.5 * chk;
-                chk = cur->err;
+            int32_t window = o.stall_window;
+            if (o.restarts > 0) {
+                window = attempt == o.restarts ? 0 : (attempt == 0 ? 3 * window : window);
+            }
+            int free_phase = respect && o.free_first;
+            ikn_limit(start, N, lo, hi, wraps, !free_phase);
+            int stuck = ikn_set(arm, start, Tt, o.mask, cur) != 0;
+            /* the best in-limit q seen: the start clamped into the limits counts */
+            for (size_t i = 0; i < N; ++i) {
+                moved[i] = start[i];
+            }
+            ikn_limit(moved, N, lo, hi, wraps, 1);
+            const ikn_point *clamped = cur;
+            if (!ikn_inside(start, N, lo, hi)) {
+                stuck |= ikn_set(arm, moved, Tt, o.mask, trial) != 0;
+                clamped = trial;
+            }
+            if (attempt == 0 || clamped->err < best_err) {
+                for (size_t i = 0; i < N; ++i) {
+                    best_q[i] = moved[i];
+                }
+                best_ep = clamped->ep;
+                best_er = clamped->er;
+                best_err = clamped->err;
+            }
+            double mu = 0.0, cref = cur->err, qz = 1.0, chk = cur->err, s_prev = 0.0;
+            int32_t it_att = 0;
+            for (;;) {
+                const int inside = ikn_inside(cur->q, N, lo, hi);
+                if (cur->ep <= o.tol_p && cur->er <= o.tol_r && inside) {
+                    converged = 1;
+                    break;
+                }
+                if (free_phase && !inside && cur->ep <= check_p && cur->er <= check_r) {
+                    /* a solution outside the limits: again from the start, limits enforced */
+                    free_phase = 0;
+                    ikn_limit(start, N, lo, hi, wraps, 1);
+                    stuck = ikn_set(arm, start, Tt, o.mask, cur) != 0;
+                    mu = 0.0;
+                    cref = chk = cur->err;
+                    qz = 1.0;
+                    s_prev = 0.0;
+                    continue;
+                }
+                if (it_att >= o.max_iter || stuck) {
+                    break;
+                }
+                /* the matched rows of J and dx */
+                size_t kk = 0;
+                for (size_t c = 0; c < 6; ++c) {
+                    if (o.mask[c]) {
+                        for (size_t i = 0; i < N; ++i) {
+                            A[kk * N + i] = cur->J[c * N + i];
+                        }
+                        r[kk++] = cur->e[c];
+                    }
+                }
+                const double err2 = cur->err * cur->err;
+                /* damping; a square, well-conditioned row whose damping is negligible keeps
+                 * the previous sigma_min estimate (x2 safety) and goes straight to Gauss */
+                double s = s_prev, lam2 = 0.0;
+                size_t s0 = 0;
+                int gauss = 0, have_gram = 0;
+                if ((size_t)k == N && s >= 2.0 * S_WELL) {
+                    lam2 = (mu + o.base_damping) * err2;
+                    gauss = lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s);
+                }
+                if (!gauss) {  /* one Gram matrix serves the estimate and the damped step */
+                    s0 = deltagen_gram(A, (size_t)k, N, zeros, G0);
+                    have_gram = 1;
+                    s = deltagen_sigma_min_of(G0, s0, scratch);
+                    double nh = 1.0 - (s / S_WELL) * (s / S_WELL);
+                    nh = nh > 0.0 ? nh : 0.0;
+                    lam2 = (mu + o.base_damping + o.damping * nh) * err2;
+                    gauss = (size_t)k == N && lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s)
+                            && s >= S_WELL;
+                }
+                s_prev = s;
+                for (size_t i = 0; i < N; ++i) {
+                    fixed[i] = 0;
+                }
+                ikn_solve(A, (size_t)k, N, r, fixed, lam2, gauss, have_gram ? G0 : NULL, s0,
+                          dq, scratch);
+                ikn_limit_step(dq, N, o.step_limit);
+                for (size_t i = 0; i < N; ++i) {
+                    target[i] = cur->q[i] + dq[i];
+                }
+                if (respect && !free_phase) {
+                    /* active set: joints pushed beyond a limit go onto it, the others solve
+                     * for the rest of dx */
+                    int any = 0;
+                    for (size_t i = 0; i < N; ++i) {
+                        const double w = ikn_wrap(target[i], lo[i], hi[i], wraps[i]);
+                        const double c = w < lo[i] ? lo[i] : (w > hi[i] ? hi[i] : w);
+                        fixed[i] = c != w;
+                        moved[i] = fixed[i] ? c - cur->q[i] : 0.0;
+                        any |= fixed[i];
+                    }
+                    if (any) {
+                        for (size_t c = 0; c < (size_t)k; ++c) {
+                            rf[c] = r[c];
+                            for (size_t i = 0; i < N; ++i) {
+                                rf[c] -= A[c * N + i] * moved[i];
+                                Af[c * N + i] = fixed[i] ? 0.0 : A[c * N + i];
+                            }
+                        }
+                        const double sf = ikn_sigma_min(Af, (size_t)k, N, zeros, scratch);
+                        double nh = 1.0 - (sf / S_WELL) * (sf / S_WELL);
+                        nh = nh > 0.0 ? nh : 0.0;
+                        const double lam2f = (mu + o.base_damping + o.damping * nh) * err2;
+                        ikn_solve(Af, (size_t)k, N, rf, fixed, lam2f, 0, NULL, 0, dq2, scratch);
+                        ikn_limit_step(dq2, N, o.step_limit);
+                        for (size_t i = 0; i < N; ++i) {
+                            target[i] = cur->q[i] + (fixed[i] ? moved[i] : dq2[i]);
+                        }
+                    }
+                }
+                ikn_limit(target, N, lo, hi, wraps, !free_phase);
+                const int good = ikn_set(arm, target, Tt, o.mask, trial) == 0;
+                ++it;
+                ++it_att;
+                if (good && trial->err < cref) {  /* non-monotone acceptance (Zhang-Hager) */
+                    const double qz_new = ETA * qz + 1.0;
+                    cref = (ETA * qz * cref + trial->err) / qz_new;
+                    qz = qz_new;
+                    ikn_point *t = cur;
+                    cur = trial;
+                    trial = t;
+                    mu = mu / 10.0 < MU_START ? 0.0 : mu / 10.0;
+                    if (cur->err < best_err && ikn_inside(cur->q, N, lo, hi)) {
+                        for (size_t i = 0; i < N; ++i) {
+                            best_q[i] = cur->q[i];
+                        }
+                        best_ep = cur->ep;
+                        best_er = cur->er;
+                        best_err = cur->err;
+                    }
+                } else {
+                    mu = mu * 10.0 > MU_START ? mu * 10.0 : MU_START;
+                }
+                stuck = mu > MU_MAX;
+                if (window > 0 && it_att % window == 0) {
+                    stuck |= cur->err > 0.5 * chk;
+                    chk = cur->err;
+                }
             }
         }
         const double *q_res = converged ? cur->q : best_q;

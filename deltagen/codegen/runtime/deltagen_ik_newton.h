@@ -36,10 +36,16 @@ typedef struct deltagen_ik_options {
     double damping;          /* K >= 0: weight of the singularity term of the damping */
     double base_damping;     /* c0 >= 0: damping always present, times |dx|^2 */
     int32_t max_iter;        /* Newton steps per target, >= 0 */
-    int32_t stall_window;    /* stop when |dx| did not halve over this many steps (0: never) */
+    int32_t stall_window;    /* stop an attempt when |dx| did not halve over this many steps
+                                (0: never); with restarts: only attempts with a restart
+                                left stop so, the one from q0 after 3x as many steps */
     int32_t respect_limits;  /* 1: the result stays within qlim; 0: qlim is ignored */
     int32_t free_first;      /* 1: iterate without clamping first (see the source) */
     int32_t mask[6];         /* pose components to match, vx vy vz wx wy wz: 0 or 1 */
+    int32_t restarts;        /* >= 0: further attempts for a target the attempt from q0 did
+                                not solve, from start points spread over the limits (see
+                                deltagen_ik_newton.c, "restarts"); 0: one attempt */
+    uint32_t seed;           /* which part of the restart sequence is used (deterministic) */
 } deltagen_ik_options;
 /* cffi: end */
 
@@ -57,10 +63,11 @@ typedef struct deltagen_ik_arm {
 } deltagen_ik_arm;
 
 /* Scratch memory of deltagen_ik_newton for an arm of n joints: doubles and ints. */
-#define DELTAGEN_IK_NEWTON_WORK_DOUBLES(n) (3 * (n) * (n) + 36 * (n) + 56)
+#define DELTAGEN_IK_NEWTON_WORK_DOUBLES(n) (3 * (n) * (n) + 39 * (n) + 56)
 #define DELTAGEN_IK_NEWTON_WORK_INTS(n) (3 * (n))
 
-/* Numerical inverse kinematics of n target poses, one damped Newton attempt per target
+/* Numerical inverse kinematics of n target poses, damped Newton attempts per target: from
+ * q0, then up to options->restarts more from start points spread over the limits
  * (Levenberg-Marquardt with error-scaled damping, non-monotone acceptance, step limiting,
  * 2 pi wrapping and clamping into the joint limits; the algorithm is described in
  * deltagen/solve/numeric.py and at the top of deltagen_ik_newton.c).
@@ -73,10 +80,11 @@ typedef struct deltagen_ik_arm {
  * T_target    in,  n x 16: target poses, 4x4 row-major (the rotation block and the position)
  * q0          in,  n x joints: start configurations
  * qlim        in,  joints x 2: joint limits [lower, upper] (+-INFINITY: none), or NULL
- * q           out, n x joints: the solution, or the best in-limit q seen if not converged
+ * q           out, n x joints: the solution, or the best in-limit q seen (over all attempts)
+ *             if not converged
  * err_p       out, n: |p* - p| of q [m] (matched components)
  * err_r       out, n: rotation error of q [rad] (matched components of the rotation vector)
- * iterations  out, n: Newton steps taken
+ * iterations  out, n: Newton steps taken (all attempts)
  * status      out, n: DELTAGEN_OK (converged), DELTAGEN_UNREACHABLE (not converged within
  *             max_iter or stuck), DELTAGEN_INVALID (a non-finite value in the row's T_target
  *             or q0; q, err_p, err_r NaN, iterations 0; or, by the finite-output rule, a
