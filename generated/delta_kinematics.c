@@ -1932,28 +1932,41 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
                 q4_b[k] = q[(start + k) * 4 + 3];
             }
         }
+        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
+         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
+         * same vector code whatever its place in the batch, so a point alone gets the bits
+         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
+         * the inverse kinematics -- padding would multiply a single point's cost by up to
+         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
+         * by the last bits of atan2.) */
+        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_DELTA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+        for (size_t k = m; k < m_v; ++k) {
+            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
+            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
+        }
         double cos_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
