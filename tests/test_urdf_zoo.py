@@ -11,13 +11,13 @@ tests/test_serial_dynamics.py), and compiling seven arms' dynamics would cost mi
 
 from __future__ import annotations
 
-import math
 import sysconfig
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+from test_urdf import _pin_q, _random_q
 
 from deltagen import SerialRobot
 from deltagen.model.urdf import URDFWarning
@@ -66,17 +66,6 @@ def _pin_chain(path, base, tip, robot):
     return model
 
 
-def _pin_q(model, q):
-    out = np.zeros(model.nq)
-    for k in range(1, model.njoints):
-        j = model.joints[k]
-        if j.nq == 2:  # continuous joint: (cos q, sin q)
-            out[j.idx_q : j.idx_q + 2] = (math.cos(q[j.idx_v]), math.sin(q[j.idx_v]))
-        else:
-            out[j.idx_q] = q[j.idx_v]
-    return out
-
-
 @pytest.mark.parametrize("name", list(ARMS))
 def test_published_arm_matches_pinocchio(name):
     file, base, tip, all_mass = ARMS[name]
@@ -89,8 +78,7 @@ def test_published_arm_matches_pinocchio(name):
     root = model.getFrameId(base) if base else 0
     fid = model.getFrameId(tip or model.frames[-1].name)
     rng = np.random.default_rng(3)
-    lim = np.clip(robot.qlim, -np.pi, np.pi)
-    q = rng.uniform(lim[:, 0], lim[:, 1], (N, robot.n))
+    q = _random_q(robot, rng, N)
     qd = rng.uniform(-2, 2, q.shape)
     qdd = rng.uniform(-3, 3, q.shape)
     T = robot.fk(q)
