@@ -761,7 +761,8 @@ def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
         _gcc([*STRICT, "-O1", "-c", module, "-o", "module.o"], cwd=tmp_path)
         module = "module.o"
     _gcc(
-        [*STRICT, "-O1", *sanitizers, "driver.c", module, *RUNTIME_SOURCES, "-o", "driver", "-lm"],
+        # -O0: an instrumented module compiles ~3x faster than at -O1 (same checks at run time)
+        [*STRICT, "-O0", *sanitizers, "driver.c", module, *RUNTIME_SOURCES, "-o", "driver", "-lm"],
         cwd=tmp_path,
     )
     env = dict(

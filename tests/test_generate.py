@@ -173,13 +173,31 @@ def test_write_into_an_empty_directory(tmp_path, rendered, render_once):
         assert (tmp_path / "out" / name).read_text() == rendered[name]
 
 
+# The fresh interpreters render the delta core and two arms (the closed-form Puma with its
+# dynamics, the offset-wrist Puma with the combined method): every kind of derivation, at a
+# quarter of a full render's cost; the whole set is compared with generated/ in-process above
+# and by `deltagen generate --check` in `make test`.
+DETERMINISM_ARMS = ("puma560", "puma560_offset_wrist")
+
+
 @pytest.mark.slow
 def test_rendering_is_deterministic_across_processes(tmp_path):
     """Two fresh interpreters with different hash seeds render byte-identical files."""
     script = textwrap.dedent("""
         import sys
-        from deltagen.apps import generate
-        generate.write(sys.argv[1])
+        from pathlib import Path
+        from deltagen.codegen.delta import delta_sources
+        from deltagen.codegen.serial import arm_sources
+        from deltagen.model.serial import SerialDescription
+        from deltagen.paths import robots_dir
+
+        files = dict(delta_sources())
+        for name in sys.argv[2:]:
+            files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
+        out = Path(sys.argv[1])
+        out.mkdir(parents=True)
+        for name, text in files.items():
+            (out / name).write_text(text)
     """)
     procs = []
     for seed in ("1", "4242"):
@@ -189,7 +207,7 @@ def test_rendering_is_deterministic_across_processes(tmp_path):
             (
                 out,
                 subprocess.Popen(
-                    [sys.executable, "-c", script, str(out)],
+                    [sys.executable, "-c", script, str(out), *DETERMINISM_ARMS],
                     env=env,
                     cwd=str(paths.generated_dir().parent),
                     stdout=subprocess.PIPE,
@@ -201,7 +219,9 @@ def test_rendering_is_deterministic_across_processes(tmp_path):
         stdout, stderr = proc.communicate(timeout=300)
         assert proc.returncode == 0, stderr.decode()
     (a, _), (b, _) = procs
-    for name in NAMES:
+    names = sorted(p.name for p in a.iterdir())
+    assert len(names) == 3 * (1 + len(DETERMINISM_ARMS)), names
+    for name in names:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
         assert (a / name).read_bytes() == (paths.generated_dir() / name).read_bytes(), name
 

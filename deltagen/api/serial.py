@@ -842,10 +842,11 @@ class SerialRobot:
             with np.errstate(all="ignore"):  # huge targets: the distances overflow to inf
                 dist, reach = self._reach_of(flat)
             good = good & ~(dist > reach)  # beyond the reach: no attempt (and no restarts)
-            safe = flat.copy()
-            safe[~good] = np.eye(4)
-            result = ik_numeric.solve(self, safe, start, **options)
-            q, ok = result.q, result.converged & good
+            q = np.full((flat.shape[0], self.n), np.nan)
+            ok = np.zeros(flat.shape[0], dtype=bool)
+            if np.any(good):  # only these rows: a placeholder target would cost its restarts
+                result = ik_numeric.solve(self, flat[good], start[good], **options)
+                q[good], ok[good] = result.q, result.converged
             unfit = np.zeros_like(ok)
             if "mask" not in options and self._fits_tool() and np.any(ok):
                 # the default mask of an arm with fewer than 6 joints matches what it can
