@@ -11,6 +11,7 @@ solver work on free joints); ``ik`` raises saying so.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
@@ -39,6 +40,7 @@ class CoupledArm:
         tip: str | None = None,
         *,
         name: str | None = None,
+        locked: Mapping[str, float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> CoupledArm:
@@ -46,7 +48,7 @@ class CoupledArm:
         identity coupling)."""
         from deltagen.model.urdf import chain_from_urdf
 
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name)
+        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
         if coupling is None:
             coupling = Coupling.from_mimics([j.name for j in desc.joints], {})
         return cls(SerialRobot(desc, backend, threads=threads), coupling)

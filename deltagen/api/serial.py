@@ -209,18 +209,20 @@ class SerialRobot:
         tip: str | None = None,
         *,
         name: str | None = None,
+        locked: Mapping[str, float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> SerialRobot:
         """The chain of a URDF file from link ``base`` (default: the root link) to link
         ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
-        limits and inertials. The joint variables are the URDF's (same zero, same sign).
+        limits and inertials (the links off the chain folded in, movable joints there locked
+        at 0 or at ``locked[name]``). The joint variables are the URDF's (same zero, same sign).
         A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
         in the independent variables instead."""
         from deltagen.model.urdf import chain_from_urdf
 
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name)
+        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
         if coupling is not None:
             from deltagen.api.coupled import CoupledArm
 
