@@ -85,6 +85,12 @@ def bundled_robots() -> list[str]:
     return [path.stem for path in sorted(robots_dir().glob("*.toml")) if _is_arm_file(path)]
 
 
+def bundled_urdfs() -> list[str]:
+    """Names of the bundled URDF arms (robots/*.urdf: SerialRobot.load(name) reads the chain
+    from the root link to the single leaf, under the file's name)."""
+    return [path.stem for path in sorted(robots_dir().glob("*.urdf"))]
+
+
 class SerialRobot:
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
@@ -167,7 +173,8 @@ class SerialRobot:
             or not _is_arm_file(robots_dir() / f"{name}.toml")
         ):
             raise InputError(
-                f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}"
+                f"no bundled serial robot {name!r}; bundled: "
+                f"{', '.join(bundled_robots() + bundled_urdfs())}"
             )
         return cls(
             SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend, threads=threads
