@@ -60,12 +60,22 @@ def test_scara_equals_its_dh_table():
 def test_bundled_urdf_ik_round_trips():
     rng = np.random.default_rng(3)
     for name in ("panda", "scara_sr800"):
-        robot = SerialRobot.load(name)
-        q = _random_q(robot, rng, 50)
+        robot = SerialRobot.load(name, backend="reference")
+        q = _random_q(robot, rng, 30)
         T = robot.fk(q)
         q_ik = robot.ik(T, method="numeric")
         np.testing.assert_allclose(robot.fk(q_ik), T, rtol=0, atol=1e-10, err_msg=name)
         assert robot.within_limits(q_ik).all()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["panda", "scara_sr800"])
+def test_the_checked_in_c_of_the_bundled_urdfs_equals_the_reference(name):
+    compiled = SerialRobot.load(name)
+    reference = compiled.with_backend("reference")
+    q = _random_q(compiled, np.random.default_rng(6), N)
+    np.testing.assert_allclose(compiled.fk(q), reference.fk(q), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(compiled.jacobian(q), reference.jacobian(q), rtol=0, atol=1e-12)
 
 
 pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")

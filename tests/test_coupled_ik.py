@@ -102,9 +102,7 @@ def test_ik_of_the_mimic_of_a_mimic_chain(tmp_path):
 def test_unreachable_targets_and_unsupported_requests_say_so(double_elbow):
     far = np.eye(4)
     far[:3, 3] = (3.0, 0.0, 0.3)
-    r, ok = double_elbow.ik(
-        np.stack([double_elbow.fk(np.zeros(6)), far]), errors="nan", restarts=3
-    )
+    r, ok = double_elbow.ik(np.stack([double_elbow.fk(np.zeros(6)), far]), errors="nan", restarts=3)
     assert ok.tolist() == [True, False] and np.isnan(r[1]).all()
     with pytest.raises(UnreachableError, match=r"no solution found in rows \[0\]"):
         double_elbow.ik(far, restarts=3)

@@ -31,8 +31,9 @@ M3, C3, RPY3 = 0.7, (0.03, 0.01, 0.06), (-0.5, 0.2, 0.9)
 I3 = np.array([[0.004, 0.0002, 0.0], [0.0002, 0.006, -0.0004], [0.0, -0.0004, 0.005]])
 
 
-def _inertial(mass, xyz, rpy, I):
-    mass, xyz, rpy, I = float(mass), [float(v) for v in xyz], [float(v) for v in rpy], I.tolist()
+def _inertial(mass, xyz, rpy, inertia):
+    mass, xyz, rpy = float(mass), [float(v) for v in xyz], [float(v) for v in rpy]
+    I = inertia.tolist()  # noqa: E741 (the inertia tensor's usual name)
     return (
         f'<inertial><origin xyz="{xyz[0]!r} {xyz[1]!r} {xyz[2]!r}" '
         f'rpy="{rpy[0]!r} {rpy[1]!r} {rpy[2]!r}"/><mass value="{mass!r}"/>'
@@ -192,6 +193,14 @@ def test_locking_a_joint_that_is_not_off_the_chain_is_refused():
     with pytest.raises(GeometryError, match=r"locked: 'panda_joint3' is not a movable joint off"):
         SerialRobot.from_urdf(
             PANDA, "panda_link0", "panda_link8", locked={"panda_joint3": 0.1}, backend="reference"
+        )
+    with pytest.raises(GeometryError, match=r"locked\['panda_finger_joint1'\]: nan is not finite"):
+        SerialRobot.from_urdf(
+            PANDA,
+            "panda_link0",
+            "panda_link8",
+            locked={"panda_finger_joint1": float("nan")},
+            backend="reference",
         )
     with pytest.raises(GeometryError, match=r"locked: 'nope'"):
         SerialRobot.from_urdf(

@@ -348,9 +348,7 @@ class _ReducedChain:
         wraps = []
         for col in range(arm.n):
             rows = np.flatnonzero(E[:, col])
-            wraps.append(
-                all(joints[j].revolute and float(E[j, col]).is_integer() for j in rows)
-            )
+            wraps.append(all(joints[j].revolute and float(E[j, col]).is_integer() for j in rows))
         self.description = _ReducedDescription(
             [_ReducedJoint(name, w) for name, w in zip(arm.joint_names, wraps, strict=True)]
         )

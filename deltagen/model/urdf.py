@@ -438,14 +438,19 @@ class _OffChain:
             if j.name not in on_chain:
                 self.below.setdefault(j.parent, []).append(j)
         self.on_chain = on_chain
-        self.locked = dict(locked or {})
-        for key in self.locked:
-            j = self.by_name.get(key)
-            if j is None or j.name in on_chain or j.type not in _MOVABLE:
+        self.locked: dict[str, float] = {}
+        for key, value in (locked or {}).items():
+            found = self.by_name.get(key)
+            if found is None or found.name in on_chain or found.type not in _MOVABLE:
                 raise GeometryError(
                     f"locked: {key!r} is not a movable joint off the chain (those are locked "
                     "where their links' mass is folded in)"
                 )
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+                raise GeometryError(f"locked[{key!r}]: {value!r} is not a number")
+            if not math.isfinite(float(value)):
+                raise GeometryError(f"locked[{key!r}]: {value!r} is not finite")
+            self.locked[key] = float(value)
         self.used: dict[str, float] = {}  # every locked joint's value
         self.defaulted: set[str] = set()  # those the caller's ``locked`` does not determine
 
