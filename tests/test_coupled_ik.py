@@ -118,3 +118,19 @@ def test_unreachable_targets_and_unsupported_requests_say_so(double_elbow):
     bad[0, 0] = 2.0
     with pytest.raises(InputError, match="not a rigid transform"):
         double_elbow.ik(bad)
+
+
+def test_an_identity_coupling_hands_ik_to_the_full_chains_closed_form():
+    from deltagen.paths import robots_dir
+
+    arm = CoupledArm.from_urdf(robots_dir() / "scara_sr800.urdf", backend="reference")
+    assert arm.is_free
+    q = _random_r(arm, np.random.default_rng(4), 20)
+    T = arm.fk(q)
+    q_all, valid = arm.ik_all(T)
+    assert valid.any(axis=1).all()
+    for k in range(len(q)):
+        np.testing.assert_allclose(
+            arm.fk(q_all[k][valid[k]]), T[k][None].repeat(valid[k].sum(), 0), rtol=0, atol=1e-10
+        )
+    np.testing.assert_allclose(arm.fk(arm.ik(T)), T, rtol=0, atol=1e-10)
