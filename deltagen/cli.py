@@ -32,12 +32,12 @@ def _robot(args):
     """'default' (the delta robot), a bundled serial arm's name, a robot TOML file or a
     URDF file (.urdf)."""
     from deltagen.api.delta import DeltaRobot
-    from deltagen.api.serial import SerialRobot, bundled_robots
+    from deltagen.api.serial import SerialRobot, bundled_robots, bundled_urdfs
 
     name = args.robot
     if name in (None, "default"):
         return DeltaRobot.default(backend=args.backend)
-    if name in bundled_robots():
+    if name in bundled_robots() or name in bundled_urdfs():
         return SerialRobot.load(name, backend=args.backend)
     path = Path(name)
     if path.suffix.lower() == ".cfg":  # a Klipper printer.cfg (kinematics: rotary_delta)
@@ -47,7 +47,7 @@ def _robot(args):
     if path.suffix != ".toml" and not path.exists():
         raise ValueError(
             f"unknown robot {name!r}: use 'default', a bundled arm "
-            f"({', '.join(bundled_robots())}), a robot .toml file, a .urdf or a Klipper "
+            f"({', '.join(bundled_robots() + bundled_urdfs())}), a robot .toml file, a .urdf or a Klipper "
             "printer.cfg"
         )
     if _robot_kind(path) == "serial":

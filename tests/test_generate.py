@@ -14,13 +14,15 @@ import textwrap
 import pytest
 
 from deltagen import cli, paths
-from deltagen.api.serial import bundled_robots
+from deltagen.api.serial import bundled_robots, bundled_urdfs
 from deltagen.apps import generate
 
 DELTA = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
-# the delta core plus one C module per bundled serial arm
+# the delta core plus one C module per bundled serial arm (TOML and URDF)
 NAMES = DELTA + tuple(
-    f"serial_{name}{ext}" for name in bundled_robots() for ext in (".c", ".h", ".cdef.h")
+    f"serial_{name}{ext}"
+    for name in bundled_robots() + bundled_urdfs()
+    for ext in (".c", ".h", ".cdef.h")
 )
 
 

@@ -38,12 +38,13 @@ ARMS = {
     "xarm7": ("xarm_description/urdf/xarm7.urdf", None, None, True),
     "z1": ("z1_description/urdf/z1.urdf", None, None, True),
     "so100": ("so_arm_description/urdf/so100.urdf", None, None, True),
-    # the hand and its fingers (mimic joints) lie beyond the tip: their mass is not in
-    # deltagen's dynamics (model/urdf.py), so kinematics only
-    "panda": ("panda_description/urdf/panda.urdf", "panda_link0", "panda_link8", False),
-    "kinova": ("kinova_description/robots/kinova.urdf", None, "j2s6s200_end_effector", False),
+    # the hand and its fingers (a mimic pair) lie beyond the tip: folded into link 7 with the
+    # fingers locked at 0 (model/urdf.py), as pinocchio's buildReducedModel locks them
+    "panda": ("panda_description/urdf/panda.urdf", "panda_link0", "panda_link8", True),
+    "panda_hand": ("panda_description/urdf/panda.urdf", "panda_link0", "panda_hand", True),
+    "kinova": ("kinova_description/robots/kinova.urdf", None, "j2s6s200_end_effector", True),
     # a gripper with <mimic> on fixed joints (ignored with a warning) hangs off the chain
-    "talos_left_arm": ("talos_data/robots/talos_left_arm.urdf", None, "arm_left_7_link", False),
+    "talos_left_arm": ("talos_data/robots/talos_left_arm.urdf", None, "arm_left_7_link", True),
     # <limit lower="0" upper="0"> (the specification's defaults): no position limits
     "double_pendulum": (
         "double_pendulum_description/urdf/double_pendulum.urdf",

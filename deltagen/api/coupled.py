@@ -5,12 +5,15 @@ Every quantity is the full chain's (a :class:`SerialRobot` of all n physical joi
 q = E r + c, mapped back by the chain rule and virtual work (model/coupling.py):
 J_r = J E, Jdot_r = Jdot(q, E rd) E, tau_r = E^T tau(q, E rd, E rdd), M_r = E^T M E,
 g_r = E^T g. ``errors="nan"`` works as in SerialRobot (the full chain's mask, per row of r).
-Inverse kinematics of a coupled chain is not offered yet (the closed forms and the numeric
-solver work on free joints); ``ik`` raises saying so.
+Inverse kinematics: numeric, on r (the solver of solve/numeric.py with J_r and fk(E r + c),
+in the box of r that keeps every coupled joint within its limits); the closed forms
+(``ik_all``, ``method="analytic"``) assume free joints and are offered only for an identity
+coupling.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
@@ -18,6 +21,7 @@ from numpy.typing import ArrayLike
 
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
 from deltagen.api.serial import SerialRobot
+from deltagen.errors import rows_text
 from deltagen.inputs import InputError, as_float_array, check_errors_mode
 from deltagen.model.coupling import Coupling
 
@@ -39,6 +43,7 @@ class CoupledArm:
         tip: str | None = None,
         *,
         name: str | None = None,
+        locked: Mapping[str, float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> CoupledArm:
@@ -46,7 +51,7 @@ class CoupledArm:
         identity coupling)."""
         from deltagen.model.urdf import chain_from_urdf
 
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name)
+        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
         if coupling is None:
             coupling = Coupling.from_mimics([j.name for j in desc.joints], {})
         return cls(SerialRobot(desc, backend, threads=threads), coupling)
@@ -161,10 +166,193 @@ class CoupledArm:
         E = self.coupling.matrix
         return self._map(errors, self.full.gravity_torque(self.expand(q), errors), lambda g: g @ E)
 
-    def ik(self, *_args: Any, **_kwargs: Any) -> Result:
+    # -- inverse kinematics ---------------------------------------------------------
+
+    @property
+    def is_free(self) -> bool:
+        """True when the coupling is the identity (no joint mimics another): every
+        closed form of the full chain applies."""
+        E, c = self.coupling.matrix, self.coupling.offset
+        return E.shape[0] == E.shape[1] and bool(np.all(E == np.eye(self.n)) and not c.any())
+
+    def independent_limits(self) -> FloatArray:
+        """(k, 2) box of r in which every physical joint is within its limits: for joint j
+        coupled to r_c, lo_j <= m_j r_c + c_j <= hi_j bounds r_c (each row of E has one
+        entry, model/coupling.py), intersected over the joints of r_c."""
+        E, c = self.coupling.matrix, self.coupling.offset
+        qlim = np.asarray(self.full.qlim, dtype=float)
+        box = np.tile([-np.inf, np.inf], (self.n, 1))
+        for j in range(self.coupling.n):
+            (cols,) = np.nonzero(E[j])
+            if cols.size == 0:
+                continue
+            col, m = int(cols[0]), float(E[j, cols[0]])
+            with np.errstate(invalid="ignore"):
+                ends = (qlim[j] - c[j]) / m
+            lo, hi = min(ends), max(ends)
+            box[col] = (max(box[col, 0], lo), min(box[col, 1], hi))
+        empty = np.flatnonzero(box[:, 0] > box[:, 1])
+        if empty.size:
+            names = ", ".join(self.joint_names[i] for i in empty)
+            raise InputError(
+                f"{self.name}: the limits of the joints coupled to {names} leave no common range"
+            )
+        return box
+
+    def ik(
+        self,
+        T: ArrayLike,
+        config: str | None = None,
+        q0: ArrayLike | None = None,
+        method: Literal["auto", "analytic", "numeric"] = "auto",
+        errors: Errors = "raise",
+        **options: Any,
+    ) -> Result:
+        """Independent variables r (..., k) reaching the tool pose(s) T (..., 4, 4).
+
+        A coupled chain (k < n, or offsets): the numeric solver (solve/numeric.py, its numpy
+        engine; ``options`` go there) on the independent variables, with the Jacobian
+        J_r = J E and fk(E r + c), in the box of :meth:`independent_limits` (so every
+        physical joint, independent or coupled, stays within its limits). Starts at q0
+        (k,) or (..., k), default the middle of that box. The closed forms assume free
+        joints: ``method="analytic"`` and ``config`` are refused for a coupled chain.
+        An identity coupling (no mimic) hands the call to the full chain's ik.
+        errors="raise" raises UnreachableError naming the unsolved rows; "nan" returns
+        (r, valid)."""
+        check_errors_mode(errors)
+        if self.is_free:
+            return self.full.ik(T, config=config, q0=q0, method=method, errors=errors, **options)
+        if method not in ("auto", "analytic", "numeric"):
+            raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
+        if method == "analytic" or config is not None:
+            raise InputError(
+                f"{self.name} has coupled (mimic) joints: closed-form inverse kinematics "
+                "(method='analytic', config=) assumes free joints; use method='numeric'"
+            )
+        for key, allowed in (("engine", ("auto", "numpy")), ("jacobian", ("symbolic", "fd"))):
+            if key in options and options[key] not in allowed:
+                raise InputError(
+                    f"{key}={options[key]!r} is not available for a coupled chain "
+                    f"(allowed: {', '.join(map(repr, allowed))})"
+                )
+        from deltagen.errors import UnreachableError
+        from deltagen.solve import numeric as ik_numeric
+
+        lead, flat, finite, rigid = self.full._poses(T)
+        if errors == "raise" and not np.all(rigid):
+            self.full._raise_bad_poses(finite, rigid)
+        reduced = _ReducedChain(self)
+        if q0 is None:
+            start = np.broadcast_to(reduced.middle, (flat.shape[0], self.n))
+        else:
+            start = self._r(q0, "q0")
+            try:
+                start = np.broadcast_to(start, lead + (self.n,)).reshape(-1, self.n)
+            except ValueError:
+                raise InputError(
+                    f"q0 of shape {start.shape} does not broadcast to the targets' {lead}"
+                ) from None
+        good = rigid & np.all(np.isfinite(start), axis=1)
+        if errors == "raise" and not np.all(good):
+            bad = np.flatnonzero(~good)
+            raise InputError(f"q0 contains NaN or infinite values in rows {rows_text(bad)}", bad)
+        safe = flat.copy()
+        safe[~good] = np.eye(4)
+        options = {**options, "engine": "numpy"}
+        result = ik_numeric.solve(reduced, safe, np.where(good[:, None], start, 0.0), **options)
+        r, ok = result.q.copy(), result.converged & good
+        if np.any(ok):
+            # the whole pose (a chain of fewer than 6 variables fits the components it can
+            # move: a target it cannot take is not reached) and every physical joint's limits
+            q = self.coupling.expand(r[ok])
+            Tq, _ = self.full._core.fk(np.ascontiguousarray(q))
+            err = ik_numeric.pose_error(Tq, flat[ok])
+            fits = (np.linalg.norm(err[:, :3], axis=1) <= 1e-8) & (
+                np.linalg.norm(err[:, 3:], axis=1) <= 1e-8
+            )
+            ok[ok] = fits & np.asarray(self.full.within_limits(q))
+        r[~ok] = np.nan
+        if errors == "raise":
+            if not np.all(ok):
+                bad = np.flatnonzero(~ok)
+                raise UnreachableError(
+                    f"{self.name}: no solution found in rows {rows_text(bad)} (out of reach, "
+                    "outside the limits of a joint or of the joints coupled to it, or no "
+                    "convergence: try restarts= or another q0)",
+                    bad,
+                )
+            return r.reshape(lead + (self.n,))
+        return r.reshape(lead + (self.n,)), ok.reshape(lead)
+
+    def ik_all(self, T: ArrayLike, method: str = "auto") -> tuple[FloatArray, BoolArray]:
+        """Every closed-form branch, where the chain is free (identity coupling: the full
+        chain's ik_all). A coupled chain has no closed form here: InputError."""
+        if self.is_free:
+            return self.full.ik_all(T, method=method)
+        coupled = [
+            self.full.description.joints[i].name
+            for i in range(self.coupling.n)
+            if i not in self.coupling.independent
+        ]
         raise InputError(
-            f"{self.name} has coupled (mimic) joints: inverse kinematics of coupled chains is "
-            "not supported yet (use the full chain, CoupledArm.full, and check the coupling)"
+            f"{self.name}: ik_all (every closed-form branch) is not available for a chain with "
+            f"coupled joints ({', '.join(coupled)} mimic others); the closed forms assume "
+            "free joints. Use ik(T) (numeric, in the independent variables)"
         )
 
-    ik_all = ik
+
+class _ReducedJoint:
+    """What the numeric solver reads of a joint: whether a 2 pi shift of it is the same
+    pose (every physical joint coupled to it revolute, with an integer multiplier)."""
+
+    def __init__(self, name: str, revolute: bool):
+        self.name = name
+        self.revolute = revolute
+        self.sign = 1.0
+        self.axis = "z"
+
+
+class _ReducedDescription:
+    def __init__(self, joints: list[_ReducedJoint]):
+        self.joints = tuple(joints)
+        self.convention = "reduced"
+
+
+class _ReducedCore:
+    """fk and the Jacobian J E of the full chain's core at q = E r + c."""
+
+    def __init__(self, arm: CoupledArm):
+        self._full = arm.full._core
+        self._coupling = arm.coupling
+
+    def fk(self, r: FloatArray) -> Any:
+        return self._full.fk(np.ascontiguousarray(self._coupling.expand(r)))
+
+    def jacobian(self, r: FloatArray) -> Any:
+        J, status = self._full.jacobian(np.ascontiguousarray(self._coupling.expand(r)))
+        return np.ascontiguousarray(J @ self._coupling.matrix), status
+
+
+class _ReducedChain:
+    """The coupled chain as the numeric solver sees an arm (solve/numeric.py reads name, n,
+    qlim, description.joints, configurations, backend and _core)."""
+
+    backend = "reference"  # the compiled Newton routine is the full chain's: numpy engine
+
+    def __init__(self, arm: CoupledArm):
+        self.name = arm.name
+        self.n = arm.n
+        self.qlim = arm.independent_limits()
+        E = arm.coupling.matrix
+        joints = arm.full.description.joints
+        wraps = []
+        for col in range(arm.n):
+            rows = np.flatnonzero(E[:, col])
+            wraps.append(all(joints[j].revolute and float(E[j, col]).is_integer() for j in rows))
+        self.description = _ReducedDescription(
+            [_ReducedJoint(name, w) for name, w in zip(arm.joint_names, wraps, strict=True)]
+        )
+        finite = np.isfinite(self.qlim)
+        self.middle = np.where(finite.all(axis=1), self.qlim.mean(axis=1), 0.0)
+        self.configurations = {"qz": self.middle}
+        self._core = _ReducedCore(arm)

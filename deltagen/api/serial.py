@@ -85,6 +85,12 @@ def bundled_robots() -> list[str]:
     return [path.stem for path in sorted(robots_dir().glob("*.toml")) if _is_arm_file(path)]
 
 
+def bundled_urdfs() -> list[str]:
+    """Names of the bundled URDF arms (robots/*.urdf: SerialRobot.load(name) reads the chain
+    from the root link to the single leaf, under the file's name)."""
+    return [path.stem for path in sorted(robots_dir().glob("*.urdf"))]
+
+
 class SerialRobot:
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
@@ -167,7 +173,8 @@ class SerialRobot:
             or not _is_arm_file(robots_dir() / f"{name}.toml")
         ):
             raise InputError(
-                f"no bundled serial robot {name!r}; bundled: {', '.join(bundled_robots())}"
+                f"no bundled serial robot {name!r}; bundled: "
+                f"{', '.join(bundled_robots() + bundled_urdfs())}"
             )
         return cls(
             SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend, threads=threads
@@ -209,18 +216,20 @@ class SerialRobot:
         tip: str | None = None,
         *,
         name: str | None = None,
+        locked: Mapping[str, float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> SerialRobot:
         """The chain of a URDF file from link ``base`` (default: the root link) to link
         ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
-        limits and inertials. The joint variables are the URDF's (same zero, same sign).
+        limits and inertials (the links off the chain folded in, movable joints there locked
+        at 0 or at ``locked[name]``). The joint variables are the URDF's (same zero, same sign).
         A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
         in the independent variables instead."""
         from deltagen.model.urdf import chain_from_urdf
 
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name)
+        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
         if coupling is not None:
             from deltagen.api.coupled import CoupledArm
 

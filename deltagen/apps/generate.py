@@ -9,16 +9,20 @@ from deltagen.paths import generated_dir
 
 
 def generated_files() -> dict[str, str]:
-    """Every checked-in generated file, by name: the delta core and each bundled arm."""
-    from deltagen.api.serial import bundled_robots
+    """Every checked-in generated file, by name: the delta core and each bundled arm (the
+    TOML ones and the URDF ones, robots/*.urdf read as SerialRobot.load reads them)."""
+    from deltagen.api.serial import bundled_robots, bundled_urdfs
     from deltagen.codegen.delta import delta_sources
     from deltagen.codegen.serial import arm_sources
     from deltagen.model.serial import SerialDescription
+    from deltagen.model.urdf import description_from_urdf
     from deltagen.paths import robots_dir
 
     files = dict(delta_sources())
     for name in bundled_robots():
         files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
+    for name in bundled_urdfs():
+        files.update(arm_sources(description_from_urdf(robots_dir() / f"{name}.urdf", name=name)))
     return files
 
 

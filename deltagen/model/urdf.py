@@ -41,11 +41,16 @@ I = [[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]] about the COM in E's axe
 com = G_i^-1 c (a point), inertia = G_R^T R_E I R_E^T G_R (G_R, R_E the rotation parts).
 Links attached to link i by fixed joints on the chain (the P_i part) are rigid with it: their
 inertials are first carried into W_i and lumped with it (total mass, mass-weighted COM,
-parallel-axis theorem about the common COM). The base link and the links fixed to it
-(before joint 1) carry no joint and are ignored, as are branches off the chain (links that
-do not lie between base and tip; a gripper's fingers, a sensor mount) -- their mass is not
-in the dynamics. When no link of the chain has an ``<inertial>``, the description has no
-dynamics; when some have one, the others get mass 0.
+parallel-axis theorem about the common COM). So are the links hanging off the chain below a
+moving link: the links beyond the tip and the branches (a hand, a gripper's fingers, a
+sensor mount). Each is carried into W_i along its joints, a fixed joint by its origin O_J, a
+movable one locked at O_J M_J(q_lock): q_lock = the caller's ``locked[name]``, else
+multiplier q_lock(leader) + offset for a ``<mimic>`` (its leader must be off the chain too),
+else 0 (the joint's zero; the URDFWarning names every joint so locked). This is pinocchio's
+buildReducedModel with those joints locked at that configuration. The base link and the links
+fixed to it (before joint 1), with whatever hangs off them, carry no joint and are ignored.
+When no link of the chain has an ``<inertial>``, the description has no dynamics; when some
+have one, the others get mass 0.
 
 Limits. ``<limit lower upper>`` becomes qlim for revolute and prismatic joints (it is
 required there by the URDF specification); ``continuous`` joints are revolute without
@@ -66,6 +71,7 @@ import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from xml.parsers import expat
@@ -406,6 +412,97 @@ def _lump(
     return mass, com, inertia
 
 
+def _motion(j: _UJoint, q: float) -> Matrix:
+    """M_J(q): the joint's motion about / along its unit axis (module docstring)."""
+    M = np.eye(4)
+    a = j.axis
+    if j.type == "prismatic":
+        M[:3, 3] = q * a
+        return M
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    M[:3, :3] = np.eye(3) + math.sin(q) * K + (1.0 - math.cos(q)) * (K @ K)  # Rodrigues
+    return M
+
+
+class _OffChain:
+    """The links hanging off the base-tip chain (branches and the links beyond the tip), each
+    with its pose relative to the chain link it hangs from: fixed joints by their origin,
+    movable ones locked (module docstring, "Inertials")."""
+
+    def __init__(
+        self, joints: list[_UJoint], on_chain: set[str], locked: Mapping[str, float] | None
+    ):
+        self.below: dict[str, list[_UJoint]] = {}
+        self.by_name = {j.name: j for j in joints}
+        for j in joints:
+            if j.name not in on_chain:
+                self.below.setdefault(j.parent, []).append(j)
+        self.on_chain = on_chain
+        self.locked: dict[str, float] = {}
+        for key, value in (locked or {}).items():
+            found = self.by_name.get(key)
+            if found is None or found.name in on_chain or found.type not in _MOVABLE:
+                raise GeometryError(
+                    f"locked: {key!r} is not a movable joint off the chain (those are locked "
+                    "where their links' mass is folded in)"
+                )
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+                raise GeometryError(f"locked[{key!r}]: {value!r} is not a number")
+            if not math.isfinite(float(value)):
+                raise GeometryError(f"locked[{key!r}]: {value!r} is not finite")
+            self.locked[key] = float(value)
+        self.used: dict[str, float] = {}  # every locked joint's value
+        self.defaulted: set[str] = set()  # those the caller's ``locked`` does not determine
+
+    def value(self, j: _UJoint, seen: tuple[str, ...] = ()) -> float:
+        """The locked value of an off-chain movable joint: ``locked`` if given, else
+        multiplier q + offset of the joint it mimics, else 0 (the joint's zero)."""
+        if j.name in self.locked:
+            return float(self.locked[j.name])
+        if j.mimic is not None:
+            target, mult, offset = j.mimic
+            leader = self.by_name.get(target)
+            if leader is None or leader.type not in _MOVABLE or j.name in seen:
+                raise GeometryError(
+                    f"joint {j.name!r}: <mimic joint={target!r}> names no movable joint"
+                )
+            if leader.name in self.on_chain:
+                raise GeometryError(
+                    f"joint {j.name!r} off the chain mimics joint {target!r} of the chain: its "
+                    "links would move with the chain, which a folded inertial cannot follow"
+                )
+            value = mult * self.value(leader, (*seen, j.name)) + offset
+            if leader.name in self.defaulted:
+                self.defaulted.add(j.name)
+            return value
+        self.defaulted.add(j.name)
+        return 0.0
+
+    def subtree(self, link: str, at: Matrix) -> Iterator[tuple[str, Matrix]]:
+        """(link, its pose in the frame where ``link`` is at ``at``) for every link below
+        ``link`` off the chain, depth first."""
+        for j in self.below.get(link, []):
+            T = at @ j.origin
+            if j.type in _MOVABLE:
+                self.used[j.name] = self.value(j)
+                T = T @ _motion(j, self.used[j.name])
+            yield j.child, T
+            yield from self.subtree(j.child, T)
+
+    def finish(self, tip: str) -> None:
+        defaulted = {k: v for k, v in self.used.items() if k in self.defaulted}
+        if defaulted:
+            names = ", ".join(f"{k} = {v:g}" for k, v in sorted(defaulted.items()))
+            warnings.warn(
+                f"movable joints off the chain (beyond {tip!r} or on a branch) are locked at "
+                f"{names} (their zero, or their <mimic> of it; pass locked={{name: value}} "
+                "for another configuration); their links' inertials are folded into the chain "
+                "link they hang from",
+                URDFWarning,
+                stacklevel=5,
+            )
+
+
 def _identifier(name: str) -> str:
     ident = re.sub(r"[^A-Za-z0-9_]", "_", name)[:64] or "arm"
     return ident if not ident[0].isdigit() else f"urdf_{ident}"[:64]
@@ -416,13 +513,15 @@ def description_from_urdf(
     base: str | None = None,
     tip: str | None = None,
     name: str | None = None,
+    locked: Mapping[str, float] | None = None,
 ) -> SerialDescription:
     """The chain of the URDF file ``path`` from link ``base`` (default: the root link) to
     link ``tip`` (default: the single leaf below ``base``) as universal coordinates (module
     docstring). Joint names are kept; the robot's name defaults to the URDF's (made a C
     identifier). A chain with ``<mimic>`` joints is refused here (its description alone
-    would treat them as free): use :func:`chain_from_urdf`."""
-    desc, coupling = chain_from_urdf(path, base, tip, name)
+    would treat them as free): use :func:`chain_from_urdf`. ``locked``: values [rad or m] of
+    movable joints off the chain, where their links' mass is folded in (module docstring)."""
+    desc, coupling = chain_from_urdf(path, base, tip, name, locked)
     if coupling is not None:
         coupled = [desc.joints[i].name for i in range(desc.n) if i not in coupling.independent]
         raise GeometryError(
@@ -437,6 +536,7 @@ def chain_from_urdf(
     base: str | None = None,
     tip: str | None = None,
     name: str | None = None,
+    locked: Mapping[str, float] | None = None,
 ) -> tuple[SerialDescription, Coupling | None]:
     """(description of every movable joint of the chain, its :class:`Coupling` or None when
     no joint of the chain has a ``<mimic>``): q_j = multiplier q_i + offset for a joint j
@@ -447,13 +547,18 @@ def chain_from_urdf(
     except OSError as exc:
         raise GeometryError(f"cannot read URDF {source}: {exc}") from None
     try:
-        return _description(text, source, base, tip, name)
+        return _description(text, source, base, tip, name, locked)
     except GeometryError as exc:
         raise GeometryError(f"URDF {source}: {exc}") from None
 
 
 def _description(
-    text: bytes, source: str, base: str | None, tip: str | None, name: str | None
+    text: bytes,
+    source: str,
+    base: str | None,
+    tip: str | None,
+    name: str | None,
+    locked: Mapping[str, float] | None = None,
 ) -> tuple[SerialDescription, Coupling | None]:
     robot_name, links, joints = _parse(text, source)
     root, by_child = _tree(links, joints)
@@ -508,15 +613,27 @@ def _description(
         F = at @ E
         parts[-1].append((mass, F[:3, 3].copy(), F[:3, :3] @ Ic @ F[:3, :3].T))
 
+    on_chain = {j.name for j in chain}
+    off_chain = _OffChain(joints, on_chain, locked)
+
+    def add_subtree(link_name: str, at: Matrix) -> None:
+        """The link's inertial and those of every link hanging off the chain below it."""
+        add_inertial(link_name, at)
+        if not parts:  # fixed to the base: carries no joint
+            return
+        for child, T in off_chain.subtree(link_name, at):
+            add_inertial(child, T)
+
     for j in chain:
         if j.type == "fixed":
             P[-1] = P[-1] @ j.origin
-            add_inertial(j.child, P[-1])
+            add_subtree(j.child, P[-1])
         else:
             movable.append(j)
             P.append(np.eye(4))
             parts.append([])
-            add_inertial(j.child, P[-1])
+            add_subtree(j.child, P[-1])
+    off_chain.finish(tip)
     if not movable:
         raise GeometryError(f"the chain from {base!r} to {tip!r} has no movable joint")
 
