@@ -102,6 +102,16 @@ def _basis(phi):
 
 
 _B3_INV = np.linalg.inv(_basis(_grid(3)))
+_HALF3 = np.kron(np.kron(_HALF, _HALF), _HALF)  # (1, c, s)^3 -> powers of x3, x4, x5
+#: M's layout: the 6 equations (rows r) with monomials x4^p4 x5^p5 (E's column 3 p4 + p5),
+#: and the same times x4 (rows 6 + r, monomial x4^(p4 + 1) x5^p5)
+_E_R, _E_K = (a.ravel() for a in np.meshgrid(np.arange(6), np.arange(9), indexing="ij"))
+_M_ROWS = np.concatenate([_E_R, 6 + _E_R])
+_M_COLS = np.concatenate([_E_K, _E_K + 3])
+_E_R, _E_K = np.tile(_E_R, 2), np.tile(_E_K, 2)
+#: the companion form is used where M2's 1-norm condition number is at most this; QZ on
+#: the pencil elsewhere
+COND_STANDARD = 1e7
 _B2_INV = np.linalg.inv(_basis(_grid(2)))
 
 
@@ -143,6 +153,25 @@ def _right(w, o, G, th12):
     return _fourteen(z2 - o[:, None, 2], line)
 
 
+def _null_vectors(Mx):
+    """Unit null vectors (r, 12) of nearly singular matrices Mx (r, 12, 12) (at an
+    eigenvalue): two steps of inverse iteration from a fixed start, batched; the smallest
+    right singular vector where a matrix is exactly singular in floating point."""
+    b = np.broadcast_to(_START, Mx.shape[:2])
+    with np.errstate(all="ignore"):
+        try:
+            v = np.linalg.solve(Mx, b[..., None])[..., 0]
+            v /= np.linalg.norm(v, axis=1)[:, None]
+            v = np.linalg.solve(Mx, v[..., None])[..., 0]
+            v /= np.linalg.norm(v, axis=1)[:, None]
+        except np.linalg.LinAlgError:
+            v = np.linalg.svd(Mx)[2][:, -1]
+    return v
+
+
+_START = np.random.default_rng(12).standard_normal(12)
+
+
 class General6R:
     """The elimination of one 6R arm in one arrangement of its loop (module docstring).
 
@@ -164,6 +193,15 @@ class General6R:
         self.slots = K
         self.imag_tol = 1e-6
         self.delta = np.random.default_rng(_SHIFT_SEED).uniform(-np.pi, np.pi, 3)
+        # which arranged axes are carried by G^-1 (the shifted joints), and the left's
+        # coefficients for the axes fixed in the base (cached: the left is that, or its
+        # rigid motion by G^-1, when its four axes are all fixed or all carried)
+        carried = np.array([j < self.shift for j in order])
+        self._carried = carried[::-1] if self.reverse else carried
+        w_fixed, o_fixed = ax.directions[order], ax.points[order]
+        if self.reverse:
+            w_fixed, o_fixed = -w_fixed[::-1], o_fixed[::-1]
+        self._left_fixed = self._left_coefficients(w_fixed[None], o_fixed[None])[0]
         rng = np.random.default_rng(1)
         # the structure check of the interpolation and the pencil's regularity at 4 poses
         qr = rng.uniform(-np.pi, np.pi, (4, 6))
@@ -211,88 +249,197 @@ class General6R:
         values = _left(w, o, _grid(3) + self.delta)  # (N, 27, 14)
         return np.einsum("ab,nbk->nak", _B3_INV, values).reshape(-1, 3, 3, 3, 14)
 
-    def _pencil(self, w, o, G, C):
+    def _pencil(self, w, o, G, C, with_pinv=False):
         """(M (N, 3, 12, 12): M0, M1, M2 of the matrix polynomial, (C with the right's
-        constant moved over, Q, rank margin of Q))."""
+        constant moved over, Q, rank margin of Q)[, Q's pseudo-inverse (N, 8, 14)])."""
         N = G.shape[0]
-        D = np.einsum("ab,nbk->nak", _B2_INV, _right(w, o, G, _grid(2))).reshape(N, 3, 3, 14)
-        C = C.copy()
-        C[:, 0, 0, 0] -= D[:, 0, 0]
-        Q = D.reshape(N, 9, 14)[:, 1:].transpose(0, 2, 1)  # (N, 14, 8)
-        U, sv, _ = np.linalg.svd(Q, full_matrices=True)
+        D = np.einsum("ab,nbk->nak", _B2_INV, _right(w, o, G, _grid(2))).reshape(N, 9, 14)
+        C = np.array(C, dtype=float).reshape(N, 27, 14)
+        C[:, 0] -= D[:, 0]
+        Q = D[:, 1:].transpose(0, 2, 1)  # (N, 14, 8)
+        U, sv, Vh = np.linalg.svd(Q, full_matrices=True)
         margin = sv[:, 7] / np.maximum(sv[:, 0], 1e-300)
-        A = np.einsum("nabck,nkr->nrabc", C, U[:, :, 8:])  # (N, 6, 3, 3, 3)
-        E = np.einsum("nrabc,ax,by,cz->nrxyz", A, _HALF, _HALF, _HALF)  # powers of x3, x4, x5
+        # the 6 left null vectors of Q eliminate it: A (N, 6, 27), then powers of x3, x4, x5
+        E = (np.swapaxes(U[:, :, 8:], 1, 2) @ np.swapaxes(C, 1, 2)) @ _HALF3  # (N, 6, 27)
+        E = E.reshape(N, 6, 3, 9).transpose(0, 2, 1, 3)  # (N, x3 power, r, 3 p4 + p5)
         M = np.zeros((N, 3, 12, 12))
-        for s in range(2):  # the 6 equations, and the same times x4
-            for p4 in range(3):
-                for p5 in range(3):
-                    col = (p4 + s) * 3 + p5
-                    M[:, :, s * 6 : s * 6 + 6, col] = E[:, :, :, p4, p5].transpose(0, 2, 1)
-        return M, (C, Q, margin)
+        M[:, :, _M_ROWS, _M_COLS] = E[:, :, _E_R, _E_K]
+        C = C.reshape(N, 3, 3, 3, 14)
+        if not with_pinv:
+            return M, (C, Q, margin)
+        # lstsq's cut (rcond = eps max(14, 8)) on the small singular values
+        cut = sv > 14.0 * np.finfo(float).eps * sv[:, :1]
+        inv_s = np.where(cut, 1.0 / np.where(cut, sv, 1.0), 0.0)
+        pinv = np.swapaxes(Vh, 1, 2) @ (inv_s[:, :, None] * np.swapaxes(U[:, :, :8], 1, 2))
+        return M, (C, Q, margin), pinv
+
+    def _carry_rotation(self, G):
+        """R_G^T (N, 3, 3) of the original target, from the arranged target G."""
+        RG = G[:, :3, :3]
+        return RG if self.reverse else np.swapaxes(RG, 1, 2)
+
+    def _left_batch(self, w, o, G):
+        """C (N, 3, 3, 3, 14) of the left side for the arranged axes w, o (N, 6, 3).
+
+        When the left's four axes (arranged joints 3..6) are all fixed in the base, C is
+        the arm's constant (interpolated once, cached); when they are all carried by the
+        same G^-1 (the shifted joints), the left chain is that rigid motion of the fixed
+        one: p and l (and p x l, (p.p) l - 2 (p.l) p) turn by R_G^T, p.p and p.l stay
+        (Raghavan-Roth's 14 quantities are vectors and scalars of one frame); otherwise
+        it is interpolated per pose."""
+        carried = self._carried[2:]
+        if carried.any() and not carried.all():
+            return self._left_coefficients(w, o)
+        N = w.shape[0]
+        if not carried.any():
+            return np.broadcast_to(self._left_fixed, (N, 3, 3, 3, 14))
+        Rt = self._carry_rotation(G)  # (N, 3, 3): the rotation that carried the axes
+        C0 = self._left_fixed.reshape(27, 14)
+        out = np.empty((N, 27, 14))
+        out[:, :, 6:8] = C0[:, 6:8]
+        for a in (0, 3, 8, 11):
+            out[:, :, a : a + 3] = np.einsum("nij,kj->nki", Rt, C0[:, a : a + 3])
+        return out.reshape(N, 3, 3, 3, 14)
 
     def starts(self, T):
         """Candidates (N, 16, 6) in the arm's joint order for tool poses T (N, 4, 4) (NaN in
-        unused slots), and the rank margin of Q per pose."""
+        unused slots), and the rank margin of Q per pose. Batched over the poses; the
+        eigen step is the standard eigenproblem of the 24 x 24 companion matrix (stacked
+        ``np.linalg.eigvals``) where M2 is well conditioned, LAPACK's QZ per pose where it
+        is not (module docstring)."""
         w, o, G = self._arranged(T)
-        C0 = self._left_coefficients(w, o)
-        M, (C, Q, margin) = self._pencil(w, o, G, C0)
+        C0 = self._left_batch(w, o, G)
+        M, (C, Q, margin), pinv = self._pencil(w, o, G, C0, with_pinv=True)
         N = G.shape[0]
         qa = np.full((N, self.slots, 6), np.nan)
+        idx, x3, V = self._eigen(M)
+        if idx.size:
+            th = self._angles345(x3, V)
+            # (c1, s1, c2, s2) from Q Sigma2 = P Sigma1, by Q's pseudo-inverse (its SVD)
+            rhs = np.einsum("rk,rkj->rj", _basis(th - self.delta), C[idx].reshape(-1, 27, 14))
+            sig2 = np.einsum("rij,rj->ri", pinv[idx], rhs)  # Sigma2 (r, 8)
+            # Sigma2 order: (b1, b2) over {1, c, s}^2 without (1, 1)
+            th1 = np.arctan2(sig2[:, 5], sig2[:, 2])
+            th2 = np.arctan2(sig2[:, 1], sig2[:, 0])
+            th6 = self._theta6(w[idx], G[idx], th1, th2, th)
+            sol = np.stack([th1, th2, th[:, 0], th[:, 1], th[:, 2], th6], axis=1)
+            # the slot of each root: its rank among its pose's real roots (first 16 kept)
+            first = np.searchsorted(idx, idx, side="left")
+            slot = np.arange(idx.size) - first
+            keep = slot < self.slots
+            qa[idx[keep], slot[keep]] = sol[keep]
+        q = np.empty_like(qa)
+        q[..., self.order] = qa
+        return q, margin
+
+    def _eigen(self, M):
+        """The real eigenvalues x3 of (M0 + M1 x + M2 x^2) v = 0 for every pose, with their
+        eigenvectors v (12 monomials): (pose index (r,), x3 (r,), v (r, 12)), sorted by
+        pose. Where M2 is well conditioned (1-norm condition <= COND_STANDARD) the
+        companion matrix of M2^-1 M(x) (stacked eigvals) and v by one step of inverse
+        iteration on M(x3); elsewhere (and where that fails) QZ on the pencil per pose
+        (LAPACK ggev), which copes with a singular M2 (eigenvalues at infinity)."""
+        N = M.shape[0]
+        M2 = M[:, 2]
+        std = np.zeros(N, dtype=bool)
+        inv = np.zeros((N, 12, 12))
+        with np.errstate(all="ignore"):
+            n1 = np.abs(M2).sum(axis=1).max(axis=1)
+            try:
+                inv[:] = np.linalg.inv(M2)
+                ok = np.all(np.isfinite(inv), axis=(1, 2))
+            except np.linalg.LinAlgError:  # an exactly singular M2 in the batch: one by one
+                ok = np.zeros(N, dtype=bool)
+                for n in range(N):
+                    try:
+                        inv[n] = np.linalg.inv(M2[n])
+                        ok[n] = np.all(np.isfinite(inv[n]))
+                    except np.linalg.LinAlgError:
+                        pass
+            cond = n1 * np.abs(inv).sum(axis=1).max(axis=1)
+        std = ok & (cond <= COND_STANDARD)
+        idx_parts, x_parts, v_parts = [], [], []
+        rows = np.flatnonzero(std)
+        if rows.size:
+            comp = np.zeros((rows.size, 24, 24))
+            comp[:, :12, 12:] = np.eye(12)
+            comp[:, 12:, :12] = -inv[rows] @ M[rows, 0]
+            comp[:, 12:, 12:] = -inv[rows] @ M[rows, 1]
+            lam = np.linalg.eigvals(comp)
+            real = np.isfinite(lam) & (
+                np.abs(lam.imag) <= self.imag_tol * (1.0 + np.abs(lam.real))
+            )
+            pr, er = np.nonzero(real)
+            x = lam[pr, er].real
+            Mx = M[rows[pr], 0] + M[rows[pr], 1] * x[:, None, None] + M[rows[pr], 2] * (
+                x * x
+            )[:, None, None]
+            v = _null_vectors(Mx)
+            good = np.all(np.isfinite(v), axis=1)
+            idx_parts.append(rows[pr[good]])
+            x_parts.append(x[good])
+            v_parts.append(v[good])
+            std[rows[pr[~good]]] = False  # inverse iteration failed: QZ for that pose
+            if (~good).any():
+                drop = np.isin(idx_parts[-1], rows[pr[~good]])
+                idx_parts[-1], x_parts[-1], v_parts[-1] = (
+                    idx_parts[-1][~drop],
+                    x_parts[-1][~drop],
+                    v_parts[-1][~drop],
+                )
         Z0, I12 = np.zeros((12, 12)), np.eye(12)
-        B0 = np.block([[I12, Z0], [Z0, Z0]])
-        for n in range(N):
-            # (M0 + M1 x + M2 x^2) v = 0 as A z = x B z, z = (v, x v): QZ (LAPACK ggev),
-            # which also copes with a singular M2 (eigenvalues at infinity)
+        for n in np.flatnonzero(~std):
+            # (M0 + M1 x + M2 x^2) v = 0 as A z = x B z, z = (v, x v)
             A_ = np.block([[Z0, I12], [-M[n, 0], -M[n, 1]]])
-            B_ = B0.copy()
-            B_[12:, 12:] = M[n, 2]
+            B_ = np.block([[I12, Z0], [Z0, M[n, 2]]])
             with np.errstate(all="ignore"):
                 lam, Zn = scipy.linalg.eig(A_, B_)
             ok = np.isfinite(lam) & (np.abs(lam.imag) <= self.imag_tol * (1.0 + np.abs(lam.real)))
             real = np.flatnonzero(ok)
             if real.size == 0:
                 continue
-            r = np.arange(real.size)
-            x3 = lam[real].real
-            V = Zn[:12, real].T  # (r, 12) monomials x4^i x5^j, index 3 i + j
-            V = (V / V[r, np.argmax(np.abs(V), axis=1)][:, None]).real
-            Wv = np.abs(V).reshape(-1, 4, 3)
-            # x4, x5 as ratios of the largest neighbouring monomials (Manocha-Canny)
-            i4 = np.argmax(Wv[:, :3, :].max(axis=2), axis=1)
-            j4 = np.argmax(Wv[r, i4], axis=1)
-            x4 = V[r, (i4 + 1) * 3 + j4] / V[r, i4 * 3 + j4]
-            j5 = np.argmax(Wv[:, :, :2].max(axis=1), axis=1)
-            i5 = np.argmax(Wv[r, :, j5], axis=1)
-            x5 = V[r, i5 * 3 + j5 + 1] / V[r, i5 * 3 + j5]
-            th = 2.0 * np.arctan(np.stack([x3, x4, x5], axis=1)) + self.delta  # (r, 3)
-            rhs = np.einsum("rk,kj->rj", _basis(th - self.delta), C[n].reshape(27, 14))
-            sig2, *_ = np.linalg.lstsq(Q[n], rhs.T, rcond=None)  # (8, r)
-            # Sigma2 order: (b1, b2) over {1, c, s}^2 without (1, 1)
-            th1 = np.arctan2(sig2[5], sig2[2])
-            th2 = np.arctan2(sig2[1], sig2[0])
-            th6 = self._theta6(w[n], G[n], th1, th2, th)
-            sol = np.stack([th1, th2, th[:, 0], th[:, 1], th[:, 2], th6], axis=1)
-            qa[n, : min(self.slots, len(sol))] = sol[: self.slots]
-        q = np.empty_like(qa)
-        q[..., self.order] = qa
-        return q, margin
+            V = Zn[:12, real].T
+            V = V / V[np.arange(real.size), np.argmax(np.abs(V), axis=1)][:, None]
+            idx_parts.append(np.full(real.size, n))
+            x_parts.append(lam[real].real)
+            v_parts.append(V.real)
+        if not idx_parts:
+            return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12))
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
+
+    def _angles345(self, x3, V):
+        """theta 3, 4, 5 (r, 3) from the eigenvalues x3 (r,) and eigenvectors V (r, 12) of
+        monomials x4^i x5^j (index 3 i + j): x4 and x5 as ratios of the largest
+        neighbouring monomials (Manocha-Canny)."""
+        r = np.arange(x3.size)
+        V = V / V[r, np.argmax(np.abs(V), axis=1)][:, None]
+        Wv = np.abs(V).reshape(-1, 4, 3)
+        i4 = np.argmax(Wv[:, :3, :].max(axis=2), axis=1)
+        j4 = np.argmax(Wv[r, i4], axis=1)
+        x4 = V[r, (i4 + 1) * 3 + j4] / V[r, i4 * 3 + j4]
+        j5 = np.argmax(Wv[:, :, :2].max(axis=1), axis=1)
+        i5 = np.argmax(Wv[r, :, j5], axis=1)
+        x5 = V[r, i5 * 3 + j5 + 1] / V[r, i5 * 3 + j5]
+        return 2.0 * np.arctan(np.stack([x3, x4, x5], axis=1)) + self.delta
 
     @staticmethod
     def _theta6(w, G, th1, th2, th345):
-        """The angle of the arranged joint 6: Rot(w6, th6) = (R1 ... R5)^T R_G, on a
-        reference normal to w6."""
-        w6 = w[5]
+        """The angle of the arranged joint 6 for r candidates (per-candidate axes w (r, 6,
+        3), targets G (r, 4, 4)): Rot(w6, th6) = (R1 ... R5)^T R_G, on a reference normal
+        to w6."""
+        w6 = w[:, 5]
         ref = np.cross(w6, [1.0, 0.0, 0.0])
-        if np.linalg.norm(ref) < 0.1:
-            ref = np.cross(w6, [0.0, 1.0, 0.0])
-        ref = ref / np.linalg.norm(ref)
-        r = th1.shape[0]
-        y = np.broadcast_to(G[:3, :3] @ ref, (r, 3))
+        alt = np.cross(w6, [0.0, 1.0, 0.0])
+        small = np.linalg.norm(ref, axis=1) < 0.1
+        ref[small] = alt[small]
+        ref /= np.linalg.norm(ref, axis=1)[:, None]
+        y = np.einsum("rij,rj->ri", G[:, :3, :3], ref)
         angles = [th1, th2, th345[:, 0], th345[:, 1], th345[:, 2]]
         for i in range(5):  # (R1 ... R5)^T = R5^T ... R1^T: undo joint 1 first
-            y = _turn(np.broadcast_to(w[i], (r, 3)), -angles[i], y)
-        return np.arctan2(np.cross(ref, y) @ w6, y @ ref)
+            y = _turn(w[:, i], -angles[i], y)
+        return np.arctan2(np.sum(np.cross(ref, y) * w6, axis=1), np.sum(y * ref, axis=1))
 
 
 def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=True, info=False):
@@ -328,19 +475,21 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
     with np.errstate(invalid="ignore"):
         qs, inside = fit_limits(qs, ax.qlim, ax.revolute)
     # distinct solutions in order (a double root, or two candidates Newton pulled together,
-    # are one): compact them into the first slots
+    # are one: a candidate within 1e-7 rad of an earlier converged one is dropped): compact
+    # them into the first slots, at most K
+    d = qs[:, :, None] - qs[:, None, :]  # (N, S, S, 6)
+    with np.errstate(invalid="ignore"):
+        d = np.abs((d + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
+        near = (d < 1e-7) & conv[:, None, :] & np.tri(S, S, -1, dtype=bool)
+    take = conv & ~near.any(axis=2)
+    rank = np.cumsum(take, axis=1) - 1
+    take &= rank < K
+    n_idx, s_idx = np.nonzero(take)
     q = np.full((N, K, 6), np.nan)
     valid = np.zeros((N, K), dtype=bool)
-    count = np.zeros(N, dtype=int)
-    for a in range(S):
-        d = q - qs[:, a : a + 1]
-        d = np.abs((d + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
-        dup = np.any(np.isfinite(d) & (d < 1e-7), axis=1)
-        take = conv[:, a] & ~dup & (count < K)
-        idx = np.flatnonzero(take)
-        q[idx, count[idx]] = qs[idx, a]
-        valid[idx, count[idx]] = inside[idx, a] if limits else True
-        count[idx] += 1
+    q[n_idx, rank[n_idx, s_idx]] = qs[n_idx, s_idx]
+    valid[n_idx, rank[n_idx, s_idx]] = inside[n_idx, s_idx] if limits else True
+    count = take.sum(axis=1)
     if info:
         margin = np.min(np.stack([p[1] for p in parts]), axis=0)
         return q, valid, {"candidates": q0, "rank_margin": margin, "found": count}
