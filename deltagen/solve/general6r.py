@@ -109,6 +109,8 @@ _E_R, _E_K = (a.ravel() for a in np.meshgrid(np.arange(6), np.arange(9), indexin
 _M_ROWS = np.concatenate([_E_R, 6 + _E_R])
 _M_COLS = np.concatenate([_E_K, _E_K + 3])
 _E_R, _E_K = np.tile(_E_R, 2), np.tile(_E_K, 2)
+#: the vector components of the 14 (p, l, p x l, (p.p) l - 2 (p.l) p)
+_VECTORS = np.r_[0:6, 8:14]
 #: the companion form is used where M2's 1-norm condition number is at most this; QZ on
 #: the pencil elsewhere
 COND_STANDARD = 1e7
@@ -155,18 +157,22 @@ def _right(w, o, G, th12):
 
 def _null_vectors(Mx):
     """Unit null vectors (r, 12) of nearly singular matrices Mx (r, 12, 12) (at an
-    eigenvalue): two steps of inverse iteration from a fixed start, batched; the smallest
-    right singular vector where a matrix is exactly singular in floating point."""
-    b = np.broadcast_to(_START, Mx.shape[:2])
+    eigenvalue): two steps of inverse iteration from a fixed start, batched, on Mx shifted
+    by 1e-13 of its largest entry (a matrix that is exactly singular in floating point,
+    which happens at accurate eigenvalues, would stop LAPACK's solve; a shift at the
+    level of rounding changes the null vector by as little); the smallest right singular
+    vector if a shifted matrix is still exactly singular."""
+    b = np.broadcast_to(_START, Mx.shape[:2])[..., None]
+    scale = np.abs(Mx).max(axis=(1, 2))
+    shifted = Mx + (1e-13 * scale)[:, None, None] * np.eye(12)
     with np.errstate(all="ignore"):
         try:
-            v = np.linalg.solve(Mx, b[..., None])[..., 0]
-            v /= np.linalg.norm(v, axis=1)[:, None]
-            v = np.linalg.solve(Mx, v[..., None])[..., 0]
-            v /= np.linalg.norm(v, axis=1)[:, None]
+            v = np.linalg.solve(shifted, b)
+            v /= np.linalg.norm(v, axis=1, keepdims=True)
+            v = np.linalg.solve(shifted, v)[..., 0]
+            return v / np.linalg.norm(v, axis=1, keepdims=True)
         except np.linalg.LinAlgError:
-            v = np.linalg.svd(Mx)[2][:, -1]
-    return v
+            return np.linalg.svd(Mx)[2][:, -1]
 
 
 _START = np.random.default_rng(12).standard_normal(12)
@@ -257,8 +263,29 @@ class General6R:
         C = np.array(C, dtype=float).reshape(N, 27, 14)
         C[:, 0] -= D[:, 0]
         Q = D[:, 1:].transpose(0, 2, 1)  # (N, 14, 8)
-        U, sv, Vh = np.linalg.svd(Q, full_matrices=True)
-        margin = sv[:, 7] / np.maximum(sv[:, 0], 1e-300)
+        if with_pinv:
+            # per pose (starts): Q's complete QR gives its left null space and its
+            # least-squares solution (a third of the SVD's time); the SVD where R's
+            # diagonal shows Q (nearly) rank deficient
+            U, R = np.linalg.qr(Q, mode="complete")
+            dR = np.abs(np.diagonal(R[:, :8], axis1=1, axis2=2))
+            margin = dR.min(axis=1) / np.maximum(dR.max(axis=1), 1e-300)
+            pinv = np.zeros((N, 8, 14))
+            fine = margin > 1e-8
+            if fine.any():
+                pinv[fine] = np.linalg.solve(R[fine, :8], np.swapaxes(U[fine, :, :8], 1, 2))
+            if not fine.all():
+                U_s, sv_s, Vh_s = np.linalg.svd(Q[~fine], full_matrices=True)
+                U[~fine], margin[~fine] = U_s, sv_s[:, 7] / np.maximum(sv_s[:, 0], 1e-300)
+                # lstsq's cut (rcond = eps max(14, 8)) on the small singular values
+                cut = sv_s > 14.0 * np.finfo(float).eps * sv_s[:, :1]
+                inv_s = np.where(cut, 1.0 / np.where(cut, sv_s, 1.0), 0.0)
+                pinv[~fine] = np.swapaxes(Vh_s, 1, 2) @ (
+                    inv_s[:, :, None] * np.swapaxes(U_s[:, :, :8], 1, 2)
+                )
+        else:
+            U, sv, _ = np.linalg.svd(Q, full_matrices=True)
+            margin = sv[:, 7] / np.maximum(sv[:, 0], 1e-300)
         # the 6 left null vectors of Q eliminate it: A (N, 6, 27), then powers of x3, x4, x5
         E = (np.swapaxes(U[:, :, 8:], 1, 2) @ np.swapaxes(C, 1, 2)) @ _HALF3  # (N, 6, 27)
         E = E.reshape(N, 6, 3, 9).transpose(0, 2, 1, 3)  # (N, x3 power, r, 3 p4 + p5)
@@ -267,10 +294,6 @@ class General6R:
         C = C.reshape(N, 3, 3, 3, 14)
         if not with_pinv:
             return M, (C, Q, margin)
-        # lstsq's cut (rcond = eps max(14, 8)) on the small singular values
-        cut = sv > 14.0 * np.finfo(float).eps * sv[:, :1]
-        inv_s = np.where(cut, 1.0 / np.where(cut, sv, 1.0), 0.0)
-        pinv = np.swapaxes(Vh, 1, 2) @ (inv_s[:, :, None] * np.swapaxes(U[:, :, :8], 1, 2))
         return M, (C, Q, margin), pinv
 
     def _carry_rotation(self, G):
@@ -297,8 +320,8 @@ class General6R:
         C0 = self._left_fixed.reshape(27, 14)
         out = np.empty((N, 27, 14))
         out[:, :, 6:8] = C0[:, 6:8]
-        for a in (0, 3, 8, 11):
-            out[:, :, a : a + 3] = np.einsum("nij,kj->nki", Rt, C0[:, a : a + 3])
+        vectors = C0[:, _VECTORS].reshape(108, 3) @ np.swapaxes(Rt, 1, 2)  # (N, 108, 3)
+        out[:, :, _VECTORS] = vectors.reshape(N, 27, 12)
         return out.reshape(N, 3, 3, 3, 14)
 
     def starts(self, T):
