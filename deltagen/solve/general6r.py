@@ -71,10 +71,19 @@ _SHIFT_SEED = 6016  # the fixed random shifts delta_3, delta_4, delta_5
 _HALF = np.array([[1.0, 0.0, 1.0], [1.0, 0.0, -1.0], [0.0, 2.0, 0.0]])
 
 
+def _cross(a, b):
+    """a x b over the last axis (3) (np.cross's axis handling costs more than the product
+    on the small arrays here)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _turn(w, th, v):
     """Vectors v (..., 3) turned about unit axes w (..., 3) by th (...) (Rodrigues)."""
     c, s = np.cos(th)[..., None], np.sin(th)[..., None]
-    return v * c + np.cross(w, v) * s + w * (np.sum(w * v, axis=-1)[..., None] * (1.0 - c))
+    wv = (w * v).sum(axis=-1)[..., None]
+    return v * c + _cross(w, v) * s + w * (wv * (1.0 - c))
 
 
 def _trig(th):
@@ -86,11 +95,18 @@ def _fourteen(p, line):
     """(..., 14): p, l, p.p, p.l, p x l, (p.p) l - 2 (p.l) p (Raghavan-Roth), l = line."""
     pp = np.sum(p * p, axis=-1, keepdims=True)
     pl = np.sum(p * line, axis=-1, keepdims=True)
-    return np.concatenate([p, line, pp, pl, np.cross(p, line), pp * line - 2.0 * pl * p], axis=-1)
+    return np.concatenate([p, line, pp, pl, _cross(p, line), pp * line - 2.0 * pl * p], axis=-1)
 
 
 def _grid(k):
+    return _GRIDS[k]
+
+
+def _make_grid(k):
     return np.stack(np.meshgrid(*([_GRID] * k), indexing="ij"), axis=-1).reshape(-1, k)
+
+
+_GRIDS = {2: _make_grid(2), 3: _make_grid(3)}
 
 
 def _basis(phi):
@@ -465,8 +481,8 @@ class General6R:
         3), targets G (r, 4, 4)): Rot(w6, th6) = (R1 ... R5)^T R_G, on a reference normal
         to w6."""
         w6 = w[:, 5]
-        ref = np.cross(w6, [1.0, 0.0, 0.0])
-        alt = np.cross(w6, [0.0, 1.0, 0.0])
+        ref = _cross(w6, np.array([1.0, 0.0, 0.0]))
+        alt = _cross(w6, np.array([0.0, 1.0, 0.0]))
         small = np.linalg.norm(ref, axis=1) < 0.1
         ref[small] = alt[small]
         ref /= np.linalg.norm(ref, axis=1)[:, None]
@@ -474,7 +490,7 @@ class General6R:
         angles = [th1, th2, th345[:, 0], th345[:, 1], th345[:, 2]]
         for i in range(5):  # (R1 ... R5)^T = R5^T ... R1^T: undo joint 1 first
             y = _turn(w[:, i], -angles[i], y)
-        return np.arctan2(np.sum(np.cross(ref, y) * w6, axis=1), np.sum(y * ref, axis=1))
+        return np.arctan2((_cross(ref, y) * w6).sum(axis=1), (y * ref).sum(axis=1))
 
 
 def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=True, info=False):
