@@ -6,7 +6,8 @@ unshifted Raghavan-Roth arrangement) and the bundled UR5 forced onto the complet
 (``method="complete"``: a shifted arrangement whose left side is the rigid motion of a
 fixed one), both compiled. Poses fk(q), q uniform within the limits. Calls:
 ``arm.ik_all(T, method="complete")`` (solve/general6r.py: every solution, 16 slots) on a
-batch (us per pose) and on one (4, 4) pose per call (us per call), timed round-robin;
+batch (us per pose) and on one (4, 4) pose per call (us per call), timed round-robin, wall
+clock and process CPU time (the targets are judged on the wall clock's median);
 the share of poses whose q is among the valid solutions and the largest fk residual of a
 valid one; and, where roboticstoolbox-python is installed, its C++ ``ETS.ik_LM`` (one
 solution per call, its own restarts, tol for 1e-10) on the same targets for scale.
@@ -19,10 +20,25 @@ matrices, QZ per pose where M2 is ill conditioned).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
+
+def _cpu_timer(fn, calls: int, points: int):
+    """A timer: ``fn()`` called ``calls`` times -> process CPU ns per point (leaves out
+    the time the process waits for a core on a loaded machine)."""
+
+    def timer():
+        t0 = time.process_time_ns()
+        for _ in range(calls):
+            fn()
+        return (time.process_time_ns() - t0) / (calls * points)
+
+    return timer
+
 
 G6R_N = 2000
 G6R_SEED = 616
@@ -78,7 +94,12 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
             return arm.ik_all(T1, method="complete")
 
         Q, valid = batch()  # warm-up: eliminations chosen, cores built
-        timers = [batch_timer(batch, (), n), loop_timer(single)]
+        timers = [
+            batch_timer(batch, (), n),
+            loop_timer(single),
+            _cpu_timer(batch, 1, n),
+            _cpu_timer(single, 20, 1),
+        ]
         robot = None
         if peers:
             from deltagen.apps.bench_ik import rtb_model
@@ -97,6 +118,8 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
             "n": n,
             "batch": stats[0],
             "single": stats[1],
+            "batch_cpu": stats[2],
+            "single_cpu": stats[3],
             "found": float(found.mean()),
             "valid_per_pose": float(valid.sum(axis=1).mean()),
             "max_residual": float(res.max()) if res.size else float("nan"),
@@ -104,7 +127,7 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
         if robot is not None:
             import roboticstoolbox as rtb
 
-            row["rtb_ik_LM"], row["rtb_version"] = stats[2], rtb.__version__
+            row["rtb_ik_LM"], row["rtb_version"] = stats[4], rtb.__version__
         out[arm.name] = row
     return out
 
@@ -126,6 +149,7 @@ def render(result: dict, markdown: bool) -> list[str]:
                     name,
                     f"general 6R `ik_all(T, method='complete')`, all 16, {label}",
                     _us(r[key]),
+                    f"{r[key + '_cpu'].median / 1000:.4g}",
                     f"<= {TARGETS_US[key]:g} " + ("met" if met else "MISSED"),
                 ]
             )
@@ -136,6 +160,7 @@ def render(result: dict, markdown: bool) -> list[str]:
                     f"rtb {r['rtb_version']} `ETS.ik_LM(T, tol=5e-21)` (C++), one solution",
                     _us(r["rtb_ik_LM"]),
                     "-",
+                    "-",
                 ]
             )
     bullet = "- " if markdown else "  "
@@ -144,7 +169,8 @@ def render(result: dict, markdown: bool) -> list[str]:
         "the 24 x 24 eigenproblem by LAPACK through numpy, Newton polish in C):",
         "",
     ]
-    out += table(["arm", "call", "us per pose, median [min, max]", "target"], rows, markdown)
+    header = ["arm", "call", "us per pose, median [min, max]", "CPU us, median", "target"]
+    out += table(header, rows, markdown)
     for name, r in result.items():
         out.append(
             f"{bullet}{name}: original q among the valid solutions on "
