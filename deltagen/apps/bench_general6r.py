@@ -27,6 +27,7 @@ import numpy as np
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
 
+
 def _cpu_timer(fn, calls: int, points: int):
     """A timer: ``fn()`` called ``calls`` times -> process CPU ns per point (leaves out
     the time the process waits for a core on a loaded machine)."""

@@ -46,7 +46,7 @@ split"). Everything is batched over the poses, no Python loop per pose:
   the fixed ones: turned by R_G^T), else interpolated per pose;
 - LAPACK through numpy: where M2's 1-norm condition number is <= ``COND_STANDARD`` the
   standard eigenproblem of the 24 x 24 companion matrix [[0, I], [-M2^-1 M0, -M2^-1 M1]],
-  all poses in one stacked ``np.linalg.eigvals`` (geev), and the null vectors by two steps
+  all poses in one stacked ``np.linalg.eigvals`` (geev), and the null vectors by one step
   of batched inverse iteration (``np.linalg.solve``); elsewhere QZ on the pencil per pose
   (``scipy.linalg.eig(A, B)``, ggev, which copes with a singular M2). No pose is solved
   by the companion form when M2 is ill conditioned;
@@ -192,7 +192,7 @@ def _right(w, o, G, th12):
 
 def _null_vectors(Mx):
     """Unit null vectors (r, 12) of nearly singular matrices Mx (r, 12, 12) (at an
-    eigenvalue): two steps of inverse iteration from a fixed start, batched, on Mx shifted
+    eigenvalue): one step of inverse iteration from a fixed start, batched, on Mx shifted
     by 1e-13 of its largest entry (a matrix that is exactly singular in floating point,
     which happens at accurate eigenvalues, would stop LAPACK's solve; a shift at the
     level of rounding changes the null vector by as little); the smallest right singular
@@ -202,9 +202,7 @@ def _null_vectors(Mx):
     shifted = Mx + (1e-13 * scale)[:, None, None] * np.eye(12)
     with np.errstate(all="ignore"):
         try:
-            v = np.linalg.solve(shifted, b)
-            v /= np.linalg.norm(v, axis=1, keepdims=True)
-            v = np.linalg.solve(shifted, v)[..., 0]
+            v = np.linalg.solve(shifted, b)[..., 0]
             return v / np.linalg.norm(v, axis=1, keepdims=True)
         except np.linalg.LinAlgError:
             return np.linalg.svd(Mx)[2][:, -1]
@@ -524,8 +522,10 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
     N = T.shape[0]
     parts = [g.starts(T) for g in eliminations]
     q0 = np.concatenate([p[0] for p in parts] + ([] if extra is None else [extra]), axis=1)
-    S = q0.shape[1]
     has = np.all(np.isfinite(q0), axis=-1)
+    used = has.any(axis=0)  # slots that hold a candidate for some pose (order kept)
+    q0, has = q0[:, used], has[:, used]
+    S = q0.shape[1]
     qs = np.full((N, S, 6), np.nan)
     conv = np.zeros((N, S), dtype=bool)
     rows = np.flatnonzero(has.reshape(-1))
