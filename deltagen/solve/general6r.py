@@ -52,10 +52,10 @@ split"). Everything is batched over the poses, no Python loop per pose:
   by the companion form when M2 is ill conditioned;
 - generated C: the Newton polish (deltagen.solve.numeric's C engine, batched over every
   candidate of every pose) on a compiled arm; numpy on the reference backend.
-The eigen step is the floor: ``eigvals`` of one 24 x 24 matrix costs ~130-400 us on the
-2-core development machine (measured under load), the rest ~100-200 us per pose batched;
-one pose per call is dominated by numpy's per-call overhead (~200 numpy calls). The
-pose-dependent algebra is not emitted as C (yet).
+The eigen step is the floor: ``eigvals`` of one 24 x 24 matrix costs ~75-150 us of CPU on
+the 2-core development machine (measured under load), the whole ~270-330 us of CPU per
+pose batched; one pose per call is dominated by numpy's per-call overhead (~200 numpy
+calls, ~4.5 ms of CPU there). The pose-dependent algebra is not emitted as C (yet).
 
 Degenerate arms and arrangements. The pencil is *singular* (det M(x3) = 0 for every x3)
 for many industrial arms in the arrangement above: neighbouring axes that meet (a_i = 0) or
