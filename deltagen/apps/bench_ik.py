@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 
+from deltagen.apps import bench_general6r
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
 
@@ -247,6 +248,12 @@ def run(
         "analytic": measure_analytic(compiled, reference, repeats, n=analytic_n),
         "numeric": measure_numeric(compiled, n=numeric_n, peers=peers),
         "numeric_7axis": measure_numeric(panda_like(), n=numeric_n, peers=peers),
+        "general6r": bench_general6r.measure(
+            repeats,
+            n=bench_general6r.G6R_N if numeric_n >= IK_NUMERIC_N else 20,
+            peers=peers,
+            generic=numeric_n >= IK_NUMERIC_N,
+        ),
     }
 
 
@@ -308,6 +315,7 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
     out.append("")
     out += render_numeric(result, markdown, name)
     out.append("")
+    out += bench_general6r.render(result.get("general6r") or {}, markdown)
     return out
 
 

@@ -25,20 +25,37 @@ checks the structure at random angles (it is ~1e-15 for every arm).
 Elimination. Moving the right's constant term to the left: P(theta3) Sigma1 = Q Sigma2, with
 Sigma1 the 9 products of (1, c4, s4) and (1, c5, s5) and Sigma2 the 8 non-constant ones of
 angles 1 and 2; Q (14 x 8, per pose) is eliminated with the 6 left null vectors of Q
-(SVD): A(theta3) Sigma1 = 0, 6 x 9. With x = tan(phi/2) for the shifted angles phi_i =
+(its complete QR): A(theta3) Sigma1 = 0, 6 x 9. With x = tan(phi/2) for the shifted angles phi_i =
 theta_i - delta_i (random fixed shifts keep phi = pi, x = infinity, away) and the equations
 times (1 + x3^2)(1 + x4^2)(1 + x5^2), the 6 equations and the same times x4 are 12 equations
 in the 12 monomials x4^i x5^j (i <= 3, j <= 2): (M0 + M1 x3 + M2 x3^2) v = 0. Its real
-eigenvalues x3 (of the 24 x 24 companion matrix; numpy/LAPACK ``geev`` -- this eigen step is
-the only part that is not closed-form numpy, and it is not emitted as C) give theta3, the
-eigenvector v gives x4 and x5, the least-squares solution of Q Sigma2 = P Sigma1 gives
+eigenvalues x3 (8 of the 24 are always +-i, from the (1 + x3^2) factor) give theta3, the
+null vector v of M(x3) gives x4 and x5, the least-squares solution of Q Sigma2 = P Sigma1 gives
 (c1, s1, c2, s2), and theta6 is the remaining rotation about axis 6. Each candidate is then
 polished by damped Newton on the arm's own kinematics (deltagen.solve.numeric, restarts=0)
 and is valid when Newton converges (fk = T to ``tol``), the solution is finite, within
 limits, and not a duplicate of an earlier slot.
 
-The eigen step uses LAPACK's QZ (scipy.linalg.eig(A, B), ggev), one 24 x 24 pencil per pose;
-everything else is batched numpy. Nothing of this solver is emitted as C.
+Performance split (issue 10: "LAPACK through numpy for the eigenvalue step; state the
+split"). Everything is batched over the poses, no Python loop per pose:
+- numpy, per pose: the arranged axes, the right side's coefficients (interpolated on 9
+  grid points), Q's complete QR (its left null space; its least squares for Sigma2), M0,
+  M1, M2 (fixed index maps), the extraction of theta 1..6;
+- cached per arm (``General6R``): the left side's coefficients when its four axes are
+  fixed in the base (shift 0) or all carried by G^-1 (then they are the rigid motion of
+  the fixed ones: turned by R_G^T), else interpolated per pose;
+- LAPACK through numpy: where M2's 1-norm condition number is <= ``COND_STANDARD`` the
+  standard eigenproblem of the 24 x 24 companion matrix [[0, I], [-M2^-1 M0, -M2^-1 M1]],
+  all poses in one stacked ``np.linalg.eigvals`` (geev), and the null vectors by one step
+  of batched inverse iteration (``np.linalg.solve``); elsewhere QZ on the pencil per pose
+  (``scipy.linalg.eig(A, B)``, ggev, which copes with a singular M2). No pose is solved
+  by the companion form when M2 is ill conditioned;
+- generated C: the Newton polish (deltagen.solve.numeric's C engine, batched over every
+  candidate of every pose) on a compiled arm; numpy on the reference backend.
+The eigen step is the floor: ``eigvals`` of one 24 x 24 matrix costs ~75-150 us of CPU on
+the 2-core development machine (measured under load), the whole ~270-330 us of CPU per
+pose batched; one pose per call is dominated by numpy's per-call overhead (~200 numpy
+calls, ~4.5 ms of CPU there). The pose-dependent algebra is not emitted as C (yet).
 
 Degenerate arms and arrangements. The pencil is *singular* (det M(x3) = 0 for every x3)
 for many industrial arms in the arrangement above: neighbouring axes that meet (a_i = 0) or
@@ -47,8 +64,10 @@ elsewhere: e_{k+1} ... e6 e'_1 ... e'_k = G with e'_i = G^-1 e_i G (shift k = 0.
 pose's generic link moves to another place of the loop; the left side's coefficients then
 depend on the pose and are interpolated per pose), or reversed (G^-1 = e6^-1 ... e1^-1).
 :func:`eliminations` takes the first arrangement whose pencil and Q are clearly regular
-(checked at 4 random poses when the arm is loaded): for rtb's Jaco, Mico, Puma 560 and UR5 a
-shifted one is (the original q was found on 100% of 300 random poses each). Only if no
+(checked at 4 random poses when the arm is loaded) and whose candidates contain the q of 8
+further random poses (``recovered``; the margins alone can pass on rounding noise): for
+rtb's Jaco, Mico, the Puma 560 and the UR5 a shifted one is (tests/test_ik_general6r.py:
+the original q found on 100% of 400-500 in-limit poses each). Only if no
 arrangement is regular does it fall back to the forward and reversed chains as a best effort
 (``complete`` False), to which SerialRobot.ik_all adds the combined method's branches.
 """
@@ -71,10 +90,19 @@ _SHIFT_SEED = 6016  # the fixed random shifts delta_3, delta_4, delta_5
 _HALF = np.array([[1.0, 0.0, 1.0], [1.0, 0.0, -1.0], [0.0, 2.0, 0.0]])
 
 
+def _cross(a, b):
+    """a x b over the last axis (3) (np.cross's axis handling costs more than the product
+    on the small arrays here)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _turn(w, th, v):
     """Vectors v (..., 3) turned about unit axes w (..., 3) by th (...) (Rodrigues)."""
     c, s = np.cos(th)[..., None], np.sin(th)[..., None]
-    return v * c + np.cross(w, v) * s + w * (np.sum(w * v, axis=-1)[..., None] * (1.0 - c))
+    wv = (w * v).sum(axis=-1)[..., None]
+    return v * c + _cross(w, v) * s + w * (wv * (1.0 - c))
 
 
 def _trig(th):
@@ -86,11 +114,18 @@ def _fourteen(p, line):
     """(..., 14): p, l, p.p, p.l, p x l, (p.p) l - 2 (p.l) p (Raghavan-Roth), l = line."""
     pp = np.sum(p * p, axis=-1, keepdims=True)
     pl = np.sum(p * line, axis=-1, keepdims=True)
-    return np.concatenate([p, line, pp, pl, np.cross(p, line), pp * line - 2.0 * pl * p], axis=-1)
+    return np.concatenate([p, line, pp, pl, _cross(p, line), pp * line - 2.0 * pl * p], axis=-1)
 
 
 def _grid(k):
+    return _GRIDS[k]
+
+
+def _make_grid(k):
     return np.stack(np.meshgrid(*([_GRID] * k), indexing="ij"), axis=-1).reshape(-1, k)
+
+
+_GRIDS = {2: _make_grid(2), 3: _make_grid(3)}
 
 
 def _basis(phi):
@@ -102,6 +137,18 @@ def _basis(phi):
 
 
 _B3_INV = np.linalg.inv(_basis(_grid(3)))
+_HALF3 = np.kron(np.kron(_HALF, _HALF), _HALF)  # (1, c, s)^3 -> powers of x3, x4, x5
+#: M's layout: the 6 equations (rows r) with monomials x4^p4 x5^p5 (E's column 3 p4 + p5),
+#: and the same times x4 (rows 6 + r, monomial x4^(p4 + 1) x5^p5)
+_E_R, _E_K = (a.ravel() for a in np.meshgrid(np.arange(6), np.arange(9), indexing="ij"))
+_M_ROWS = np.concatenate([_E_R, 6 + _E_R])
+_M_COLS = np.concatenate([_E_K, _E_K + 3])
+_E_R, _E_K = np.tile(_E_R, 2), np.tile(_E_K, 2)
+#: the vector components of the 14 (p, l, p x l, (p.p) l - 2 (p.l) p)
+_VECTORS = np.r_[0:6, 8:14]
+#: the companion form is used where M2's 1-norm condition number is at most this; QZ on
+#: the pencil elsewhere
+COND_STANDARD = 1e7
 _B2_INV = np.linalg.inv(_basis(_grid(2)))
 
 
@@ -143,6 +190,27 @@ def _right(w, o, G, th12):
     return _fourteen(z2 - o[:, None, 2], line)
 
 
+def _null_vectors(Mx):
+    """Unit null vectors (r, 12) of nearly singular matrices Mx (r, 12, 12) (at an
+    eigenvalue): one step of inverse iteration from a fixed start, batched, on Mx shifted
+    by 1e-13 of its largest entry (a matrix that is exactly singular in floating point,
+    which happens at accurate eigenvalues, would stop LAPACK's solve; a shift at the
+    level of rounding changes the null vector by as little); the smallest right singular
+    vector if a shifted matrix is still exactly singular."""
+    b = np.broadcast_to(_START, Mx.shape[:2])[..., None]
+    scale = np.abs(Mx).max(axis=(1, 2))
+    shifted = Mx + (1e-13 * scale)[:, None, None] * np.eye(12)
+    with np.errstate(all="ignore"):
+        try:
+            v = np.linalg.solve(shifted, b)[..., 0]
+            return v / np.linalg.norm(v, axis=1, keepdims=True)
+        except np.linalg.LinAlgError:
+            return np.linalg.svd(Mx)[2][:, -1]
+
+
+_START = np.random.default_rng(12).standard_normal(12)
+
+
 class General6R:
     """The elimination of one 6R arm in one arrangement of its loop (module docstring).
 
@@ -164,6 +232,15 @@ class General6R:
         self.slots = K
         self.imag_tol = 1e-6
         self.delta = np.random.default_rng(_SHIFT_SEED).uniform(-np.pi, np.pi, 3)
+        # which arranged axes are carried by G^-1 (the shifted joints), and the left's
+        # coefficients for the axes fixed in the base (cached: the left is that, or its
+        # rigid motion by G^-1, when its four axes are all fixed or all carried)
+        carried = np.array([j < self.shift for j in order])
+        self._carried = carried[::-1] if self.reverse else carried
+        w_fixed, o_fixed = ax.directions[order], ax.points[order]
+        if self.reverse:
+            w_fixed, o_fixed = -w_fixed[::-1], o_fixed[::-1]
+        self._left_fixed = self._left_coefficients(w_fixed[None], o_fixed[None])[0]
         rng = np.random.default_rng(1)
         # the structure check of the interpolation and the pencil's regularity at 4 poses
         qr = rng.uniform(-np.pi, np.pi, (4, 6))
@@ -182,7 +259,19 @@ class General6R:
         # rank margin (both must be clear of 0: a rank-deficient Q, e.g. two parallel axes
         # on the right side, leaves too few equations)
         self.pencil_margin = float(min(np.min(sv[:, -1] / sv[:, 0]), np.min(q_margin)))
-        self.regular = self.pencil_margin > 1e-10
+        # the elimination's own test: the candidates (before Newton) of 8 random poses
+        # contain the q they came from. A pencil can pass the margin test on rounding
+        # noise and still lose solutions (every arrangement of the Puma 560's: spherical
+        # wrist and parallel shoulder and elbow; margins ~1e-5, 5-19 % of the q found)
+        qc = rng.uniform(-np.pi, np.pi, (8, 6))
+        Rc, pc = ax.fk(qc)
+        Tc = np.broadcast_to(np.eye(4), (8, 4, 4)).copy()
+        Tc[:, :3, :3], Tc[:, :3, 3] = Rc, pc
+        cand, _ = self.starts(Tc)
+        with np.errstate(invalid="ignore"):
+            d = np.abs((cand - qc[:, None] + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
+        self.recovered = int(np.sum(np.any(d < 1e-4, axis=1)))
+        self.regular = self.pencil_margin > 1e-10 and self.recovered >= 7
 
     def __repr__(self):
         return f"General6R({self.ax.name!r}, shift={self.shift}, reverse={self.reverse})"
@@ -211,88 +300,214 @@ class General6R:
         values = _left(w, o, _grid(3) + self.delta)  # (N, 27, 14)
         return np.einsum("ab,nbk->nak", _B3_INV, values).reshape(-1, 3, 3, 3, 14)
 
-    def _pencil(self, w, o, G, C):
+    def _pencil(self, w, o, G, C, with_pinv=False):
         """(M (N, 3, 12, 12): M0, M1, M2 of the matrix polynomial, (C with the right's
-        constant moved over, Q, rank margin of Q))."""
+        constant moved over, Q, rank margin of Q)[, Q's pseudo-inverse (N, 8, 14)])."""
         N = G.shape[0]
-        D = np.einsum("ab,nbk->nak", _B2_INV, _right(w, o, G, _grid(2))).reshape(N, 3, 3, 14)
-        C = C.copy()
-        C[:, 0, 0, 0] -= D[:, 0, 0]
-        Q = D.reshape(N, 9, 14)[:, 1:].transpose(0, 2, 1)  # (N, 14, 8)
-        U, sv, _ = np.linalg.svd(Q, full_matrices=True)
-        margin = sv[:, 7] / np.maximum(sv[:, 0], 1e-300)
-        A = np.einsum("nabck,nkr->nrabc", C, U[:, :, 8:])  # (N, 6, 3, 3, 3)
-        E = np.einsum("nrabc,ax,by,cz->nrxyz", A, _HALF, _HALF, _HALF)  # powers of x3, x4, x5
+        D = np.einsum("ab,nbk->nak", _B2_INV, _right(w, o, G, _grid(2))).reshape(N, 9, 14)
+        C = np.array(C, dtype=float).reshape(N, 27, 14)
+        C[:, 0] -= D[:, 0]
+        Q = D[:, 1:].transpose(0, 2, 1)  # (N, 14, 8)
+        if with_pinv:
+            # per pose (starts): Q's complete QR gives its left null space and its
+            # least-squares solution (a third of the SVD's time); the SVD where R's
+            # diagonal shows Q (nearly) rank deficient
+            U, R = np.linalg.qr(Q, mode="complete")
+            dR = np.abs(np.diagonal(R[:, :8], axis1=1, axis2=2))
+            margin = dR.min(axis=1) / np.maximum(dR.max(axis=1), 1e-300)
+            pinv = np.zeros((N, 8, 14))
+            fine = margin > 1e-8
+            if fine.any():
+                pinv[fine] = np.linalg.solve(R[fine, :8], np.swapaxes(U[fine, :, :8], 1, 2))
+            if not fine.all():
+                U_s, sv_s, Vh_s = np.linalg.svd(Q[~fine], full_matrices=True)
+                U[~fine], margin[~fine] = U_s, sv_s[:, 7] / np.maximum(sv_s[:, 0], 1e-300)
+                # lstsq's cut (rcond = eps max(14, 8)) on the small singular values
+                cut = sv_s > 14.0 * np.finfo(float).eps * sv_s[:, :1]
+                inv_s = np.where(cut, 1.0 / np.where(cut, sv_s, 1.0), 0.0)
+                pinv[~fine] = np.swapaxes(Vh_s, 1, 2) @ (
+                    inv_s[:, :, None] * np.swapaxes(U_s[:, :, :8], 1, 2)
+                )
+        else:
+            U, sv, _ = np.linalg.svd(Q, full_matrices=True)
+            margin = sv[:, 7] / np.maximum(sv[:, 0], 1e-300)
+        # the 6 left null vectors of Q eliminate it: A (N, 6, 27), then powers of x3, x4, x5
+        E = (np.swapaxes(U[:, :, 8:], 1, 2) @ np.swapaxes(C, 1, 2)) @ _HALF3  # (N, 6, 27)
+        E = E.reshape(N, 6, 3, 9).transpose(0, 2, 1, 3)  # (N, x3 power, r, 3 p4 + p5)
         M = np.zeros((N, 3, 12, 12))
-        for s in range(2):  # the 6 equations, and the same times x4
-            for p4 in range(3):
-                for p5 in range(3):
-                    col = (p4 + s) * 3 + p5
-                    M[:, :, s * 6 : s * 6 + 6, col] = E[:, :, :, p4, p5].transpose(0, 2, 1)
-        return M, (C, Q, margin)
+        M[:, :, _M_ROWS, _M_COLS] = E[:, :, _E_R, _E_K]
+        C = C.reshape(N, 3, 3, 3, 14)
+        if not with_pinv:
+            return M, (C, Q, margin)
+        return M, (C, Q, margin), pinv
+
+    def _carry_rotation(self, G):
+        """R_G^T (N, 3, 3) of the original target, from the arranged target G."""
+        RG = G[:, :3, :3]
+        return RG if self.reverse else np.swapaxes(RG, 1, 2)
+
+    def _left_batch(self, w, o, G):
+        """C (N, 3, 3, 3, 14) of the left side for the arranged axes w, o (N, 6, 3).
+
+        When the left's four axes (arranged joints 3..6) are all fixed in the base, C is
+        the arm's constant (interpolated once, cached); when they are all carried by the
+        same G^-1 (the shifted joints), the left chain is that rigid motion of the fixed
+        one: p and l (and p x l, (p.p) l - 2 (p.l) p) turn by R_G^T, p.p and p.l stay
+        (Raghavan-Roth's 14 quantities are vectors and scalars of one frame); otherwise
+        it is interpolated per pose."""
+        carried = self._carried[2:]
+        if carried.any() and not carried.all():
+            return self._left_coefficients(w, o)
+        N = w.shape[0]
+        if not carried.any():
+            return np.broadcast_to(self._left_fixed, (N, 3, 3, 3, 14))
+        Rt = self._carry_rotation(G)  # (N, 3, 3): the rotation that carried the axes
+        C0 = self._left_fixed.reshape(27, 14)
+        out = np.empty((N, 27, 14))
+        out[:, :, 6:8] = C0[:, 6:8]
+        vectors = C0[:, _VECTORS].reshape(108, 3) @ np.swapaxes(Rt, 1, 2)  # (N, 108, 3)
+        out[:, :, _VECTORS] = vectors.reshape(N, 27, 12)
+        return out.reshape(N, 3, 3, 3, 14)
 
     def starts(self, T):
         """Candidates (N, 16, 6) in the arm's joint order for tool poses T (N, 4, 4) (NaN in
-        unused slots), and the rank margin of Q per pose."""
+        unused slots), and the rank margin of Q per pose. Batched over the poses; the
+        eigen step is the standard eigenproblem of the 24 x 24 companion matrix (stacked
+        ``np.linalg.eigvals``) where M2 is well conditioned, LAPACK's QZ per pose where it
+        is not (module docstring)."""
         w, o, G = self._arranged(T)
-        C0 = self._left_coefficients(w, o)
-        M, (C, Q, margin) = self._pencil(w, o, G, C0)
+        C0 = self._left_batch(w, o, G)
+        M, (C, Q, margin), pinv = self._pencil(w, o, G, C0, with_pinv=True)
         N = G.shape[0]
         qa = np.full((N, self.slots, 6), np.nan)
+        idx, x3, V = self._eigen(M)
+        if idx.size:
+            th = self._angles345(x3, V)
+            # (c1, s1, c2, s2) from Q Sigma2 = P Sigma1, by Q's pseudo-inverse (its SVD)
+            rhs = np.einsum("rk,rkj->rj", _basis(th - self.delta), C[idx].reshape(-1, 27, 14))
+            sig2 = np.einsum("rij,rj->ri", pinv[idx], rhs)  # Sigma2 (r, 8)
+            # Sigma2 order: (b1, b2) over {1, c, s}^2 without (1, 1)
+            th1 = np.arctan2(sig2[:, 5], sig2[:, 2])
+            th2 = np.arctan2(sig2[:, 1], sig2[:, 0])
+            th6 = self._theta6(w[idx], G[idx], th1, th2, th)
+            sol = np.stack([th1, th2, th[:, 0], th[:, 1], th[:, 2], th6], axis=1)
+            # the slot of each root: its rank among its pose's real roots (first 16 kept)
+            first = np.searchsorted(idx, idx, side="left")
+            slot = np.arange(idx.size) - first
+            keep = slot < self.slots
+            qa[idx[keep], slot[keep]] = sol[keep]
+        q = np.empty_like(qa)
+        q[..., self.order] = qa
+        return q, margin
+
+    def _eigen(self, M):
+        """The real eigenvalues x3 of (M0 + M1 x + M2 x^2) v = 0 for every pose, with their
+        eigenvectors v (12 monomials): (pose index (r,), x3 (r,), v (r, 12)), sorted by
+        pose. Where M2 is well conditioned (1-norm condition <= COND_STANDARD) the
+        companion matrix of M2^-1 M(x) (stacked eigvals) and v by one step of inverse
+        iteration on M(x3); elsewhere (and where that fails) QZ on the pencil per pose
+        (LAPACK ggev), which copes with a singular M2 (eigenvalues at infinity)."""
+        N = M.shape[0]
+        M2 = M[:, 2]
+        std = np.zeros(N, dtype=bool)
+        inv = np.zeros((N, 12, 12))
+        with np.errstate(all="ignore"):
+            n1 = np.abs(M2).sum(axis=1).max(axis=1)
+            try:
+                inv[:] = np.linalg.inv(M2)
+                ok = np.all(np.isfinite(inv), axis=(1, 2))
+            except np.linalg.LinAlgError:  # an exactly singular M2 in the batch: one by one
+                ok = np.zeros(N, dtype=bool)
+                for n in range(N):
+                    try:
+                        inv[n] = np.linalg.inv(M2[n])
+                        ok[n] = np.all(np.isfinite(inv[n]))
+                    except np.linalg.LinAlgError:
+                        pass
+            cond = n1 * np.abs(inv).sum(axis=1).max(axis=1)
+        std = ok & (cond <= COND_STANDARD)
+        idx_parts, x_parts, v_parts = [], [], []
+        rows = np.flatnonzero(std)
+        if rows.size:
+            comp = np.zeros((rows.size, 24, 24))
+            comp[:, :12, 12:] = np.eye(12)
+            comp[:, 12:, :12] = -inv[rows] @ M[rows, 0]
+            comp[:, 12:, 12:] = -inv[rows] @ M[rows, 1]
+            lam = np.linalg.eigvals(comp)
+            real = np.isfinite(lam) & (np.abs(lam.imag) <= self.imag_tol * (1.0 + np.abs(lam.real)))
+            pr, er = np.nonzero(real)
+            x = lam[pr, er].real
+            Mx = (
+                M[rows[pr], 0]
+                + M[rows[pr], 1] * x[:, None, None]
+                + M[rows[pr], 2] * (x * x)[:, None, None]
+            )
+            v = _null_vectors(Mx)
+            good = np.all(np.isfinite(v), axis=1)
+            idx_parts.append(rows[pr[good]])
+            x_parts.append(x[good])
+            v_parts.append(v[good])
+            std[rows[pr[~good]]] = False  # inverse iteration failed: QZ for that pose
+            if (~good).any():
+                drop = np.isin(idx_parts[-1], rows[pr[~good]])
+                idx_parts[-1], x_parts[-1], v_parts[-1] = (
+                    idx_parts[-1][~drop],
+                    x_parts[-1][~drop],
+                    v_parts[-1][~drop],
+                )
         Z0, I12 = np.zeros((12, 12)), np.eye(12)
-        B0 = np.block([[I12, Z0], [Z0, Z0]])
-        for n in range(N):
-            # (M0 + M1 x + M2 x^2) v = 0 as A z = x B z, z = (v, x v): QZ (LAPACK ggev),
-            # which also copes with a singular M2 (eigenvalues at infinity)
+        for n in np.flatnonzero(~std):
+            # (M0 + M1 x + M2 x^2) v = 0 as A z = x B z, z = (v, x v)
             A_ = np.block([[Z0, I12], [-M[n, 0], -M[n, 1]]])
-            B_ = B0.copy()
-            B_[12:, 12:] = M[n, 2]
+            B_ = np.block([[I12, Z0], [Z0, M[n, 2]]])
             with np.errstate(all="ignore"):
                 lam, Zn = scipy.linalg.eig(A_, B_)
             ok = np.isfinite(lam) & (np.abs(lam.imag) <= self.imag_tol * (1.0 + np.abs(lam.real)))
             real = np.flatnonzero(ok)
             if real.size == 0:
                 continue
-            r = np.arange(real.size)
-            x3 = lam[real].real
-            V = Zn[:12, real].T  # (r, 12) monomials x4^i x5^j, index 3 i + j
-            V = (V / V[r, np.argmax(np.abs(V), axis=1)][:, None]).real
-            Wv = np.abs(V).reshape(-1, 4, 3)
-            # x4, x5 as ratios of the largest neighbouring monomials (Manocha-Canny)
-            i4 = np.argmax(Wv[:, :3, :].max(axis=2), axis=1)
-            j4 = np.argmax(Wv[r, i4], axis=1)
-            x4 = V[r, (i4 + 1) * 3 + j4] / V[r, i4 * 3 + j4]
-            j5 = np.argmax(Wv[:, :, :2].max(axis=1), axis=1)
-            i5 = np.argmax(Wv[r, :, j5], axis=1)
-            x5 = V[r, i5 * 3 + j5 + 1] / V[r, i5 * 3 + j5]
-            th = 2.0 * np.arctan(np.stack([x3, x4, x5], axis=1)) + self.delta  # (r, 3)
-            rhs = np.einsum("rk,kj->rj", _basis(th - self.delta), C[n].reshape(27, 14))
-            sig2, *_ = np.linalg.lstsq(Q[n], rhs.T, rcond=None)  # (8, r)
-            # Sigma2 order: (b1, b2) over {1, c, s}^2 without (1, 1)
-            th1 = np.arctan2(sig2[5], sig2[2])
-            th2 = np.arctan2(sig2[1], sig2[0])
-            th6 = self._theta6(w[n], G[n], th1, th2, th)
-            sol = np.stack([th1, th2, th[:, 0], th[:, 1], th[:, 2], th6], axis=1)
-            qa[n, : min(self.slots, len(sol))] = sol[: self.slots]
-        q = np.empty_like(qa)
-        q[..., self.order] = qa
-        return q, margin
+            V = Zn[:12, real].T
+            V = V / V[np.arange(real.size), np.argmax(np.abs(V), axis=1)][:, None]
+            idx_parts.append(np.full(real.size, n))
+            x_parts.append(lam[real].real)
+            v_parts.append(V.real)
+        if not idx_parts:
+            return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12))
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
+
+    def _angles345(self, x3, V):
+        """theta 3, 4, 5 (r, 3) from the eigenvalues x3 (r,) and eigenvectors V (r, 12) of
+        monomials x4^i x5^j (index 3 i + j): x4 and x5 as ratios of the largest
+        neighbouring monomials (Manocha-Canny)."""
+        r = np.arange(x3.size)
+        V = V / V[r, np.argmax(np.abs(V), axis=1)][:, None]
+        Wv = np.abs(V).reshape(-1, 4, 3)
+        i4 = np.argmax(Wv[:, :3, :].max(axis=2), axis=1)
+        j4 = np.argmax(Wv[r, i4], axis=1)
+        x4 = V[r, (i4 + 1) * 3 + j4] / V[r, i4 * 3 + j4]
+        j5 = np.argmax(Wv[:, :, :2].max(axis=1), axis=1)
+        i5 = np.argmax(Wv[r, :, j5], axis=1)
+        x5 = V[r, i5 * 3 + j5 + 1] / V[r, i5 * 3 + j5]
+        return 2.0 * np.arctan(np.stack([x3, x4, x5], axis=1)) + self.delta
 
     @staticmethod
     def _theta6(w, G, th1, th2, th345):
-        """The angle of the arranged joint 6: Rot(w6, th6) = (R1 ... R5)^T R_G, on a
-        reference normal to w6."""
-        w6 = w[5]
-        ref = np.cross(w6, [1.0, 0.0, 0.0])
-        if np.linalg.norm(ref) < 0.1:
-            ref = np.cross(w6, [0.0, 1.0, 0.0])
-        ref = ref / np.linalg.norm(ref)
-        r = th1.shape[0]
-        y = np.broadcast_to(G[:3, :3] @ ref, (r, 3))
+        """The angle of the arranged joint 6 for r candidates (per-candidate axes w (r, 6,
+        3), targets G (r, 4, 4)): Rot(w6, th6) = (R1 ... R5)^T R_G, on a reference normal
+        to w6."""
+        w6 = w[:, 5]
+        ref = _cross(w6, np.array([1.0, 0.0, 0.0]))
+        alt = _cross(w6, np.array([0.0, 1.0, 0.0]))
+        small = np.linalg.norm(ref, axis=1) < 0.1
+        ref[small] = alt[small]
+        ref /= np.linalg.norm(ref, axis=1)[:, None]
+        y = np.einsum("rij,rj->ri", G[:, :3, :3], ref)
         angles = [th1, th2, th345[:, 0], th345[:, 1], th345[:, 2]]
         for i in range(5):  # (R1 ... R5)^T = R5^T ... R1^T: undo joint 1 first
-            y = _turn(np.broadcast_to(w[i], (r, 3)), -angles[i], y)
-        return np.arctan2(np.cross(ref, y) @ w6, y @ ref)
+            y = _turn(w[:, i], -angles[i], y)
+        return np.arctan2((_cross(ref, y) * w6).sum(axis=1), (y * ref).sum(axis=1))
 
 
 def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=True, info=False):
@@ -307,8 +522,10 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
     N = T.shape[0]
     parts = [g.starts(T) for g in eliminations]
     q0 = np.concatenate([p[0] for p in parts] + ([] if extra is None else [extra]), axis=1)
-    S = q0.shape[1]
     has = np.all(np.isfinite(q0), axis=-1)
+    used = has.any(axis=0)  # slots that hold a candidate for some pose (order kept)
+    q0, has = q0[:, used], has[:, used]
+    S = q0.shape[1]
     qs = np.full((N, S, 6), np.nan)
     conv = np.zeros((N, S), dtype=bool)
     rows = np.flatnonzero(has.reshape(-1))
@@ -328,19 +545,21 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
     with np.errstate(invalid="ignore"):
         qs, inside = fit_limits(qs, ax.qlim, ax.revolute)
     # distinct solutions in order (a double root, or two candidates Newton pulled together,
-    # are one): compact them into the first slots
+    # are one: a candidate within 1e-7 rad of an earlier converged one is dropped): compact
+    # them into the first slots, at most K
+    d = qs[:, :, None] - qs[:, None, :]  # (N, S, S, 6)
+    with np.errstate(invalid="ignore"):
+        d = np.abs((d + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
+        near = (d < 1e-7) & conv[:, None, :] & np.tri(S, S, -1, dtype=bool)
+    take = conv & ~near.any(axis=2)
+    rank = np.cumsum(take, axis=1) - 1
+    take &= rank < K
+    n_idx, s_idx = np.nonzero(take)
     q = np.full((N, K, 6), np.nan)
     valid = np.zeros((N, K), dtype=bool)
-    count = np.zeros(N, dtype=int)
-    for a in range(S):
-        d = q - qs[:, a : a + 1]
-        d = np.abs((d + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
-        dup = np.any(np.isfinite(d) & (d < 1e-7), axis=1)
-        take = conv[:, a] & ~dup & (count < K)
-        idx = np.flatnonzero(take)
-        q[idx, count[idx]] = qs[idx, a]
-        valid[idx, count[idx]] = inside[idx, a] if limits else True
-        count[idx] += 1
+    q[n_idx, rank[n_idx, s_idx]] = qs[n_idx, s_idx]
+    valid[n_idx, rank[n_idx, s_idx]] = inside[n_idx, s_idx] if limits else True
+    count = take.sum(axis=1)
     if info:
         margin = np.min(np.stack([p[1] for p in parts]), axis=0)
         return q, valid, {"candidates": q0, "rank_margin": margin, "found": count}
@@ -357,10 +576,10 @@ def eliminations(desc) -> tuple[list[General6R], bool]:
     for reverse in (False, True):
         for shift in range(6):
             g = General6R(desc, reverse=reverse, shift=shift)
-            if g.pencil_margin > 1e-6:
+            if g.pencil_margin > 1e-6 and g.recovered == 8:
                 return [g], True
             tried.append(g)
     regular = [g for g in tried if g.regular]
     if regular:
-        return [max(regular, key=lambda g: g.pencil_margin)], True
+        return [max(regular, key=lambda g: (g.recovered, g.pencil_margin))], True
     return [tried[0], tried[6]], False
