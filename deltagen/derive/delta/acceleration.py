@@ -3,6 +3,11 @@
 d^2 f_i / dt^2 = J_p,i pddot + (terms in pdot, qdot_i, qddot_i) (eq. (36)), so
 J_p pddot = h with h_i = -(those terms) (eqs. (38), (39)). The C core solves
 D pddot = h / 2 with the adjugate of D already formed for the velocity level.
+
+Evaluated as h_i / 2 = D_i . Sddot_i - |pdot - Sdot_i|^2 (the second time derivative of
+|p - S_i|^2 = l_b^2), with Sddot_i = dS_i/dq_i qddot_i + d^2S_i/dq_i^2 qdot_i^2, so that
+D_i . dS_i/dq_i = J_q,ii / 2 and the rod's radial component rho_i come from the velocity
+level; checked against the coefficients SymPy reads off eq. (36) where the stage is built.
 """
 
 from __future__ import annotations
@@ -10,7 +15,16 @@ from __future__ import annotations
 import sympy as sp
 
 from deltagen.derive.delta import symbols as s
-from deltagen.derive.delta.velocity import adjD, inv_det, time_functions
+from deltagen.derive.delta.fk import S
+from deltagen.derive.delta.velocity import (
+    D,
+    centre_rates,
+    constraint_rate,
+    jq,
+    rho,
+    solve,
+    time_functions,
+)
 from deltagen.derive.kernel import Stage
 
 hh = sp.symbols("h1:4", real=True)  # h_i / 2
@@ -36,17 +50,35 @@ def constraint_acceleration(i: int):
     return jp_row, -rest
 
 
+def half_h(i: int) -> sp.Expr:
+    """h_i / 2 = D_i . Sddot_i - |pdot - Sdot_i|^2 in terms of the staged D_i, rho_i, jq_i."""
+    d_radius, d_height, dd_radius, dd_height = centre_rates(i)
+    radial = sp.Matrix([s.cos_theta[i], s.sin_theta[i], 0])
+    rel = s.pd - s.qd[i] * (d_radius * radial + d_height * sp.Matrix([0, 0, 1]))
+    curvature = dd_radius * rho[i] + dd_height * D[i, 2]  # D_i . d^2 S_i / dq_i^2
+    return jq[i] * s.qdd[i] + s.qd[i] ** 2 * curvature - rel.dot(rel)
+
+
+def _check_half_h(i: int) -> None:
+    """half_h(i) with D_i = p - S_i, rho_i, jq_i substituted equals eq. (36)'s h_i / 2."""
+    on_p = {D[i, k]: (s.x, s.y, s.z)[k] - S[i][k] for k in range(3)}
+    rho_i = s.cos_theta[i] * D[i, 0] + s.sin_theta[i] * D[i, 1]
+    expr = half_h(i).subs(jq[i], constraint_rate(i)[1] / 2).subs(rho[i], rho_i).subs(on_p)
+    expr = expr.subs(dict(zip(S[i], s.sphere_centre(i))))
+    assert s.on_unit_circle(expr - constraint_acceleration(i)[1] / 2) == 0, "h_i / 2"
+
+
 def h_stage() -> Stage:
+    for i in range(3):
+        _check_half_h(i)
     return Stage(
-        "right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39)",
-        tuple((hh[i], constraint_acceleration(i)[1] / 2) for i in range(3)),
+        "right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2",
+        tuple((hh[i], half_h(i)) for i in range(3)),
     )
 
 
 def acceleration_stage() -> Stage:
-    adj = sp.Matrix(adjD)
-    h = sp.Matrix(hh)
     return Stage(
         "platform acceleration pddot = J_p^-1 h, eq. (38)",
-        tuple((v, (adj * h)[k] * inv_det) for k, v in enumerate((s.xdd, s.ydd, s.zdd))),
+        tuple((v, solve(hh)[k]) for k, v in enumerate((s.xdd, s.ydd, s.zdd))),
     )

@@ -77,6 +77,7 @@ a = sp.Matrix(sp.symbols("a_x a_y a_z", real=True))  # S_2 - S_1
 b = sp.Matrix(sp.symbols("b_x b_y b_z", real=True))  # S_3 - S_1
 e = sp.Matrix(sp.symbols("e_x e_y e_z", real=True))  # a x b, direction of the planes' line
 x0 = sp.Matrix(sp.symbols("x0_x x0_y x0_z", real=True))  # foot point of the line, from S_1
+xi = sp.Matrix(sp.symbols("xi_x xi_y xi_z", real=True))  # p - S_1: rod 1 (row 1 of J_p / 2)
 e_sq, inv_e_sq, h_sq, lam = sp.symbols("e_sq inv_e_sq h_sq lambda_", real=True)
 det_D = sp.Symbol("det_D", real=True)  # det of the rows p - S_i (= det J_p / 8)
 
@@ -85,7 +86,6 @@ def _centred_planes():
     """Planes of eqs. (6), (7) in coordinates xi = p - S_1: subtracting sphere 1 from
     spheres 2, 3 leaves 2 a.xi = |a|^2 + l_b1^2 - l_b2^2 and 2 b.xi = |b|^2 + l_b1^2 - l_b3^2
     (derived, not asserted; the rod terms cancel for equal rods)."""
-    xi = sp.Matrix(sp.symbols("xi_x xi_y xi_z", real=True))
     sig, _ = spheres(*xi, centres=[sp.zeros(3, 1), a, b], radii=s.chain_l_b)
     planes = []
     for other in (1, 2):
@@ -116,7 +116,9 @@ def fk_stages():
     # xi = x0 + lambda e with |xi| = l_b and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
     # Lower intersection: lambda * e_z < 0 (eq. (26) takes the minimum z).
     line = [(lam, -CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]
-    position = [(sym, S[0][k] + x0[k] + lam * e[k]) for k, sym in enumerate((s.x, s.y, s.z))]
+    # xi = p - S_1 is rod 1's vector C_1 - B_1; the rate kernels build J_p's rows from it
+    rod = [(xi[k], x0[k] + lam * e[k]) for k in range(3)]
+    position = rod + [(sym, S[0][k] + xi[k]) for k, sym in enumerate((s.x, s.y, s.z))]
     # det of rows (p - S_i) = xi.(a x b) = lambda |e|^2 (rows xi, xi - a, xi - b).
     det_rows = [(det_D, lam * e_sq)]
     return [

@@ -185,7 +185,7 @@ def fk_kernel() -> Kernel:
 
 
 def _rate_stages(with_jacobian=False):
-    stages = (vel.rows_stage(), vel.jq_stage(), vel.inverse_stage())
+    stages = (vel.rod_rows_stage(), vel.jq_stage(), vel.inverse_stage())
     return stages + ((vel.jacobian_stage(),) if with_jacobian else ())
 
 
