@@ -49,7 +49,7 @@ import numpy as np
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.derive.functions import AllFinite
+from deltagen.derive.functions import AllFinite, Fabs, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
 from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
 from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, detect
@@ -59,6 +59,13 @@ WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
 SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
+
+
+# Comparisons, Max, Min, Abs and floor of the kernel's values are derive.functions'
+# unevaluated classes: the values are symbols SymPy cannot order, and asking it to try (on
+# every construction, and again in every rebuild of the CSE) was most of the kernel's
+# derivation and lowering time (cProfile, UR5: _fit_limits alone 16 s of 26). Same C.
+_ge, _le, _gt, _lt, _max, _min = Ge, Le, Gt, Lt, Fmax, Fmin
 
 
 def compiled_structure(desc):
@@ -135,9 +142,9 @@ def _direction(tape, name, y, x):
     h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
     # the division is done whatever h is, so the selection below is a plain blend (a
     # division inside a ternary would be a branch)
-    inv = tape.let(f"{name}_inv", 1 / sp.Max(h, _TINY))
-    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, h > 0), (1, True)))
-    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, h > 0), (0, True)))
+    inv = tape.let(f"{name}_inv", 1 / _max(h, _TINY))
+    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
+    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
     return c, s
 
 
@@ -249,9 +256,9 @@ class IKKernelBuilder:
         pz = tape.let("pz", _dot(d, K.vec(s.ez)))
         yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
         rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", rad >= -1e-9 * ax.scale**2)
-        r = tape.let("xV", sp.sqrt(sp.Max(rad, 0)))
-        on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ax.scale) ** 2)
+        ok1 = tape.let("ok_reach", _ge(rad, -1e-9 * ax.scale**2))
+        r = tape.let("xV", sp.sqrt(_max(rad, 0)))
+        on_axis = tape.let("on_axis", _lt(px * px + py * py, (1e-12 * ax.scale) ** 2))
         a = _Angle(0, *_direction(tape, "phi_p", py, px))
         uu, vv = s.upper, s.lower
         branches = []
@@ -314,7 +321,7 @@ class IKKernelBuilder:
         th3 = _named(tape, f"paul3_{tag}", tot - th2)
         c = math.atan2(vv[1], vv[0]) - a_uu
         sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
-        mine = tape.let(f"mine_{tag}", sin_bend >= 0 if sigma > 0 else sin_bend < 0)
+        mine = tape.let(f"mine_{tag}", _ge(sin_bend, 0) if sigma > 0 else _lt(sin_bend, 0))
         ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
         tape.stage(f"roll, branch {tag}: q4 about axis 4")
         y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s.roll_ref)))
@@ -350,7 +357,9 @@ class IKKernelBuilder:
                 - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
             )
             p2 = _named(tape, "paul2", yaw - p1)
-            down = tape.let("elbow_down", p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)) >= 0)
+            down = tape.let(
+                "elbow_down", _ge(p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)), 0)
+            )
             for config, sigma in zip(s.configs, s.bend_signs):
                 mine = down if sigma > 0 else sp.Not(down)
                 branches[config] = (p1, p2, None, mine)
@@ -383,8 +392,8 @@ class IKKernelBuilder:
         kappa = tape.let(
             f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
         )
-        ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
-        kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
+        ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + 1e-9))
+        kc = tape.let(f"kc_{tag}", _min(_max(kappa, -1), 1))
         ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
         bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
         return kc, ks, bend, ok2
@@ -428,9 +437,9 @@ class IKKernelBuilder:
         perp = _cross(qv, w4)
         perp2 = tape.let(f"perp2_{tag}", _dot(perp, perp))
         gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
-        okw = tape.let(f"ok_wrist_{tag}", gam2 >= -1e-9)
-        gam = tape.let(f"gam_{tag}", sp.sqrt(sp.Max(gam2, 0)))
-        singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR**2)
+        okw = tape.let(f"ok_wrist_{tag}", _ge(gam2, -1e-9))
+        gam = tape.let(f"gam_{tag}", sp.sqrt(_max(gam2, 0)))
+        singular = tape.let(f"wrist_singular_{tag}", _lt(perp2, WRIST_SINGULAR**2))
         n45 = K.vec(s.normal_45)
         out = []
         for sig, flip in ((1, "noflip"), (-1, "flip")):
@@ -466,7 +475,7 @@ class IKKernelBuilder:
         revolute = isinstance(a, _Angle)
         if revolute:
             two_pi = 2 * sp.pi
-            x = tape.let(f"{name}_w", a.theta - two_pi * sp.floor((a.theta + sp.pi) / two_pi))
+            x = tape.let(f"{name}_w", a.theta - two_pi * Floor((a.theta + sp.pi) / two_pi))
         else:
             x = tape.let(f"{name}_d", a)
         if not (math.isfinite(lo) or math.isfinite(hi)):
@@ -475,9 +484,9 @@ class IKKernelBuilder:
         def inside(v):
             conds = []
             if math.isfinite(lo):
-                conds.append(v >= sp.Float(repr(lo - LIMIT_TOL), 17))
+                conds.append(_ge(v, sp.Float(repr(lo - LIMIT_TOL), 17)))
             if math.isfinite(hi):
-                conds.append(v <= sp.Float(repr(hi + LIMIT_TOL), 17))
+                conds.append(_le(v, sp.Float(repr(hi + LIMIT_TOL), 17)))
             return sp.And(*conds)
 
         x0 = x
@@ -490,9 +499,9 @@ class IKKernelBuilder:
                 fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
         clipped = x
         if math.isfinite(lo):
-            clipped = sp.Max(clipped, sp.Float(repr(lo), 17))
+            clipped = _max(clipped, sp.Float(repr(lo), 17))
         if math.isfinite(hi):
-            clipped = sp.Min(clipped, sp.Float(repr(hi), 17))
+            clipped = _min(clipped, sp.Float(repr(hi), 17))
         return tape.let(name, sp.Piecewise((clipped, fits), (x, True))), fits
 
     def _reproduces(self, name, angles):
@@ -516,8 +525,8 @@ class IKKernelBuilder:
         conds = []
         for r in range(3):
             for c in range(3):
-                conds.append(sp.Abs(T[r, c] - self.R_t[r][c]) <= TOL)
-            conds.append(sp.Abs(T[r, 3] - self.p_t[r]) <= TOL * scale)
+                conds.append(_le(Fabs(T[r, c] - self.R_t[r][c]), TOL))
+            conds.append(_le(Fabs(T[r, 3] - self.p_t[r]), TOL * scale))
         return tape.let(f"hit_{name}", sp.And(*conds))
 
     # -- the kernel ----------------------------------------------------------------
@@ -555,9 +564,9 @@ class IKKernelBuilder:
         tape = self.tape
         base = _atan2(tape, f"{name}_base", B, A)
         r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
-        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / sp.Max(r, _TINY), r > 0), (0, True)))
-        ok = tape.let(f"ok_{name}", sp.Abs(ratio) <= 1 + 1e-9)
-        kc = tape.let(f"{name}_kc", sp.Min(sp.Max(ratio, -1), 1))
+        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / _max(r, _TINY), _gt(r, 0)), (0, True)))
+        ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + 1e-9))
+        kc = tape.let(f"{name}_kc", _min(_max(ratio, -1), 1))
         ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
         return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
 
