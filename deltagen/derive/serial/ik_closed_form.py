@@ -3,8 +3,8 @@
 The arm's structure and every constant of its closed form come from
 :func:`deltagen.model.structure.detect` (a :class:`~deltagen.model.structure.PlanarArm`,
 :class:`~deltagen.model.structure.Elbow4R`, :class:`~deltagen.model.structure.SphericalWrist6R`
-or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`; the Stanford arm
-has no C kernel yet); the numpy solver of
+or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`, or the Stanford
+arm's :class:`~deltagen.model.structure.StanfordArm`); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
 every branch of a batch of poses in one call, like the forward kinematics. The steps and
@@ -35,7 +35,8 @@ valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVA
 non-finite input (all outputs NaN / 0).
 
 Supported: every structure of model.structure with the full pose given (the numpy solver's
-``solve`` default): ``spherical_wrist_6r`` (8 branches), ``elbow_4r`` (Paul's method for
+``solve`` default): ``spherical_wrist_6r``, ``parallel_triple_6r`` (the UR family) and
+``stanford_rrp_6`` (8 branches each), ``elbow_4r`` (Paul's method for
 q2 + q3, 4 branches) and ``planar`` (2 branches; Paul's method for the 2R arm).
 ``position_only`` and other tolerances stay with the numpy solver.
 """
@@ -52,11 +53,11 @@ from deltagen import status as st
 from deltagen.derive.functions import AllFinite, Fabs, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
 from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
-from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, detect
+from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, StanfordArm, detect
 
 TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
 WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
-SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r")
+SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r", "stanford_rrp_6")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
 
@@ -417,12 +418,15 @@ class IKKernelBuilder:
         v = _rotate(w[0], q1.c, -q1.s, v)
         return _rotate(w[1], tot.c, -tot.s, v)
 
-    def _wrist(self, tag, q1, th2, th3):
-        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions."""
+    def _wrist(self, tag, q1, th2, th3=None):
+        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions,
+        for the rotation left after turning about axis 1 by q1 and about axis 2 by th2 +
+        th3 (the elbow arm's parallel axes 2 and 3) or, without th3, by th2 (the Stanford
+        arm's joint 2)."""
         s, tape, K = self.s, self.tape, self.const
         w = [K.vec(x) for x in self.axes.directions]
         tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
-        tot = _named(tape, f"tot_{tag}", th2 + th3)
+        tot = th2 if th3 is None else _named(tape, f"tot_{tag}", th2 + th3)
         qv = tape.vec(
             f"qv_{tag}", self._undo(q1, tot, self._rotate_target(self.axes.directions[5]))
         )
@@ -636,6 +640,53 @@ class IKKernelBuilder:
                     solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = (angles, ok)
         return solutions
 
+    # -- the Stanford arm (solve.analytic._StanfordSolver, same steps) --------------
+
+    def _stanford(self):
+        """q3 from the distance of the wrist centre to the shoulder point c, q1 and q2 by
+        Paden-Kahan subproblem 2 about the meeting axes 1 and 2, then the central wrist."""
+        s, ax, tape, K = self.s, self.axes, self.tape, self.const
+        w = [K.vec(x) for x in ax.directions]
+        w1, w2, w3 = w[0], w[1], w[2]
+        c = K.vec(s.shoulder)
+        W0 = np.asarray(s.wrist, dtype=float) - np.asarray(s.shoulder, dtype=float)
+        tape.stage("Stanford: wrist centre W_t = G W, v = W_t - c; q3 from |W + q3 w3 - c| = |v|")
+        v = tape.vec("v_wc", _add(self._move_point(s.wrist), _scale(-1, c)))
+        b = float(ax.directions[2] @ W0)
+        disc = tape.let("disc3", K(b * b - W0 @ W0) + _dot(v, v))
+        ok3 = tape.let("ok_reach", _ge(disc, -1e-9 * ax.scale**2))
+        root = tape.let("root3", sp.sqrt(_max(disc, 0)))
+        c12 = float(ax.directions[0] @ ax.directions[1])
+        n12 = np.cross(ax.directions[0], ax.directions[1])
+        n12v, den, nn = K.vec(n12), K(c12 * c12 - 1.0), K(float(n12 @ n12))
+        vw1 = tape.let("v_w1", _dot(v, w1))
+        solutions = {}
+        for sg3, a in ((1, "p"), (-1, "m")):
+            tape.stage(f"Stanford: reach{a}: q3, then subproblem 2 about axes 1 and 2")
+            q3 = tape.let(f"q3_reach{a}", K(-b) + sg3 * root)
+            u = tape.vec(f"u_reach{a}", _add(K.vec(W0), _scale(q3, w3)))
+            w2u = _dot(w2, u)
+            alpha = tape.let(f"alpha12_reach{a}", (K(c12) * w2u - vw1) / den)
+            beta = tape.let(f"beta12_reach{a}", (K(c12) * vw1 - w2u) / den)
+            g2 = tape.let(
+                f"g2_reach{a}",
+                (_dot(u, u) - alpha * alpha - beta * beta - 2 * K(c12) * alpha * beta) / nn,
+            )
+            ok2 = tape.let(f"ok_shoulder_reach{a}", _ge(g2, -1e-9))
+            g = tape.let(f"g_reach{a}", sp.sqrt(_max(g2, 0)))
+            for sg2, e in ((1, "p"), (-1, "m")):
+                tag = f"reach{a}_shoulder{e}"
+                tape.stage(f"Stanford: {tag}: q2, q1 (Paden-Kahan 1 each)")
+                z = tape.vec(
+                    f"z_{tag}",
+                    _add(_add(_scale(alpha, w1), _scale(beta, w2)), _scale(sg2 * g, n12v)),
+                )
+                q2 = _sp1(tape, f"q2_{tag}", w2, u, z)
+                q1 = _sp1(tape, f"q1_{tag}", w1, z, v)
+                for name, okw, q4, q5, q6 in self._wrist(tag, q1, q2):
+                    solutions[name] = ((q1, q2, q3, q4, q5, q6), sp.And(ok3, ok2, okw))
+        return solutions
+
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
         self._target()
@@ -645,6 +696,8 @@ class IKKernelBuilder:
             solutions = self._planar()
         elif isinstance(s, ParallelTriple6R):
             solutions = self._parallel_triple()
+        elif isinstance(s, StanfordArm):
+            solutions = self._stanford()
         else:
             solutions = self._elbow_arm()
         q_out, valid_out, valid_flags = [], [], []
