@@ -112,3 +112,15 @@ class Floor(sp.floor):
     @classmethod
     def eval(cls, arg):
         return None
+
+
+class FitAngle(sp.Function):
+    """A revolute joint's value fitted into its limits, (angle, lo, hi, lo - LIMIT_TOL,
+    hi + LIMIT_TOL): the hand-written C deltagen_fit_angle (codegen/runtime/
+    deltagen_limits.h; geometry.limits.fit_limits for one joint). Never evaluated."""
+
+    nargs = 5
+
+    @classmethod
+    def eval(cls, *args):
+        return None

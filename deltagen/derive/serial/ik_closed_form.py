@@ -19,7 +19,8 @@ point is how they become straight-line code:
   not the product-of-exponentials model the solver is built on) with those cosines and
   sines, and compares it with the target: rotation entries and position / arm size within
   ``TOL`` (the numpy solver's default);
-* the joint-limit fit is :func:`deltagen.geometry.limits.fit_limits` written in SymPy, with
+* the joint-limit fit is :func:`deltagen.geometry.limits.fit_limits` (for a revolute joint the
+  runtime's deltagen_fit_angle, codegen/runtime/deltagen_limits.h), with
   its constants (``LIMIT_TOL``, ``SHIFTS``): wrap into [-pi, pi), shift by +-2 pi, +-4 pi
   where that fits the range, clip a value within LIMIT_TOL (1e-10) of a limit onto it.
 
@@ -50,9 +51,9 @@ import numpy as np
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.derive.functions import AllFinite, Fabs, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
+from deltagen.derive.functions import AllFinite, Fabs, FitAngle, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
 from deltagen.derive.kernel import Kernel, Port, Stage
-from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
+from deltagen.geometry.limits import LIMIT_TOL, SHIFTS  # noqa: F401 (SHIFTS: in deltagen_limits.h)
 from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, StanfordArm, detect
 
 TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
@@ -470,42 +471,50 @@ class IKKernelBuilder:
         return out
 
     def _fit_limits(self, name, i, a):
-        """geometry.limits.fit_limits for joint i, in SymPy: (value, inside). A revolute
-        joint (a an _Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of
-        2 pi (+-2 pi, +-4 pi) where that fits its range; a prismatic one (a its displacement)
-        is only checked. Either is clipped onto a limit it passes by at most LIMIT_TOL."""
+        """geometry.limits.fit_limits for joint i: (value, inside). A revolute joint (a an
+        _Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of 2 pi (+-2 pi,
+        +-4 pi) where that fits its range: one call of the runtime's deltagen_fit_angle
+        (codegen/runtime/deltagen_limits.h; 130 statements per branch of the UR5 when written
+        out here, half of the kernel: its SymPy and compile time); a prismatic one (a its
+        displacement) is only checked. Either is clipped onto a limit it passes by at most
+        LIMIT_TOL."""
         tape = self.tape
         lo, hi = (float(x) for x in self.s.qlim[i])
         revolute = isinstance(a, _Angle)
-        if revolute:
-            two_pi = 2 * sp.pi
-            x = tape.let(f"{name}_w", a.theta - two_pi * Floor((a.theta + sp.pi) / two_pi))
-        else:
-            x = tape.let(f"{name}_d", a)
+        two_pi = 2 * sp.pi
         if not (math.isfinite(lo) or math.isfinite(hi)):
-            return x, sp.true
+            if revolute:
+                return tape.let(name, a.theta - two_pi * Floor((a.theta + sp.pi) / two_pi)), sp.true
+            return tape.let(f"{name}_d", a), sp.true
+
+        def const(v):
+            return sp.Float(repr(v), 17) if math.isfinite(v) else (sp.oo if v > 0 else -sp.oo)
+
+        lo_tol, hi_tol = lo - LIMIT_TOL, hi + LIMIT_TOL
 
         def inside(v):
             conds = []
             if math.isfinite(lo):
-                conds.append(_ge(v, sp.Float(repr(lo - LIMIT_TOL), 17)))
+                conds.append(_ge(v, const(lo_tol)))
             if math.isfinite(hi):
-                conds.append(_le(v, sp.Float(repr(hi + LIMIT_TOL), 17)))
+                conds.append(_le(v, const(hi_tol)))
             return sp.And(*conds)
 
-        x0 = x
-        fits = tape.let(f"{name}_in0", inside(x))
         if revolute:
-            for k, shift in enumerate(SHIFTS, start=1):
-                y = x0 + shift * two_pi
-                fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
-                x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
-                fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
+            # the hand-written deltagen_fit_angle (codegen/runtime/deltagen_limits.h), the
+            # statements below for one revolute joint; the value it returns is inside the
+            # limits (to LIMIT_TOL) exactly when it fitted
+            value = tape.let(
+                name, FitAngle(a.theta, const(lo), const(hi), const(lo_tol), const(hi_tol))
+            )
+            return value, tape.let(f"{name}_in", inside(value))
+        x = tape.let(f"{name}_d", a)
+        fits = tape.let(f"{name}_in0", inside(x))
         clipped = x
         if math.isfinite(lo):
-            clipped = _max(clipped, sp.Float(repr(lo), 17))
+            clipped = _max(clipped, const(lo))
         if math.isfinite(hi):
-            clipped = _min(clipped, sp.Float(repr(hi), 17))
+            clipped = _min(clipped, const(hi))
         return tape.let(name, sp.Piecewise((clipped, fits), (x, True))), fits
 
     def _reproduces(self, name, angles):
