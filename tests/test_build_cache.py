@@ -354,7 +354,9 @@ def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, cache):
     o2 = build.load("tiny", "tiny", tiny, opt="-O2")
     assert o3 is not o2 and o2.lib.tiny_add(2, 3) == 5
     commands = sorted(
-        (p / "manifest.json").read_text() for p in cache.iterdir() if p.name.startswith("_deltagen_")
+        (p / "manifest.json").read_text()
+        for p in cache.iterdir()
+        if p.name.startswith("_deltagen_")
     )
     assert len(commands) == 2
     assert sum("-O2" in c for c in commands) == 1 and sum("-O3" in c for c in commands) == 1
@@ -383,27 +385,29 @@ def test_o2_and_o3_give_the_same_bits(tmp_path, monkeypatch):
     q = rng.uniform(-3, 3, (n, 6))
     qd, qdd = rng.uniform(-2, 2, (2, n, 6))
     T = arm.fk(q)
-    results = []
-    for module in modules:
-        ffi, lib = module.ffi, module.lib
-        out = {}
 
-        def call(name, inputs, widths, flags=()):
-            outs = [np.zeros((n, w)) for w in widths] + [np.zeros((n, w), np.uint8) for w in flags]
-            status = np.zeros(n, np.int8)
-            args = [ffi.from_buffer("double[]", np.ascontiguousarray(x)) for x in inputs]
-            args += [ffi.from_buffer("double[]", o) for o in outs[: len(widths)]]
-            args += [ffi.from_buffer("uint8_t[]", o) for o in outs[len(widths) :]]
-            getattr(lib, f"deltagen_puma560_{name}")(n, *args, ffi.from_buffer("int8_t[]", status))
-            out[name] = [*outs, status]
+    def call(module, name, inputs, widths, flags=()):
+        ffi = module.ffi
+        outs = [np.zeros((n, w)) for w in widths] + [np.zeros((n, w), np.uint8) for w in flags]
+        status = np.zeros(n, np.int8)
+        args = [ffi.from_buffer("double[]", np.ascontiguousarray(x)) for x in inputs]
+        args += [ffi.from_buffer("double[]", o) for o in outs[: len(widths)]]
+        args += [ffi.from_buffer("uint8_t[]", o) for o in outs[len(widths) :]]
+        fn = getattr(module.lib, f"deltagen_puma560_{name}")
+        fn(n, *args, ffi.from_buffer("int8_t[]", status))
+        return [*outs, status]
 
-        call("fk", [q], [16])
-        call("jacobian", [q], [36])
-        call("jacobian_dot", [q, qd], [36])
-        call("ik_all", [T.reshape(n, 16)], [k * 6], [k])
-        call("inverse_dynamics", [q, qd, qdd], [6])
-        call("mass_matrix", [q], [36])
-        results.append(out)
+    results = [
+        {
+            "fk": call(m, "fk", [q], [16]),
+            "jacobian": call(m, "jacobian", [q], [36]),
+            "jacobian_dot": call(m, "jacobian_dot", [q, qd], [36]),
+            "ik_all": call(m, "ik_all", [T.reshape(n, 16)], [k * 6], [k]),
+            "inverse_dynamics": call(m, "inverse_dynamics", [q, qd, qdd], [6]),
+            "mass_matrix": call(m, "mass_matrix", [q], [36]),
+        }
+        for m in modules
+    ]
     for name, values in results[0].items():
         for a, b in zip(values, results[1][name]):
             assert np.array_equal(a, b, equal_nan=True), name
