@@ -10,6 +10,8 @@
 
 #include <math.h>
 
+#include "deltagen_limits.h"  /* deltagen_fit_angle: ik_all */
+
 #if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
 /* glibc declares its vector cos/sin/atan2 (libmvec) only under -ffast-math; declaring them
  * here lets gcc -fopenmp-simd vectorise the trig loops with IEEE semantics kept. */
@@ -1286,17 +1288,17 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double F2_21_elbow_up = t3_4;
             const double F2_22_elbow_up = t3_2;
             const double F2_24_elbow_up = F1_24_elbow_up + paul2_c*t3_5 + 3.0*t3_3;
-            const int hit_elbow_up = (((fabs(Tt13) <= 1.0e-8)) & ((fabs(Tt23) <= 1.0e-8)) & ((fabs(Tt31) <= 1.0e-8)) & ((fabs(Tt32) <= 1.0e-8)) & ((fabs(Tt34) <= 7.0000000000000005e-8)) & ((fabs(Tt33 - 1) <= 1.0e-8)) & ((fabs(F2_11_elbow_up - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_up - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_up - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_up - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_up - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_up - Tt24) <= 7.0000000000000005e-8)));
+            const int hit_elbow_up = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(-Tt34) <= 7.0000000000000005e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F2_11_elbow_up - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_up - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_up - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_up - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_up - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_up - Tt24) <= 7.0000000000000005e-8)));
             /* joint limits and outputs, branch elbow_up */
             const double t4_0 = 1.0*phi_b;
             const double t4_1 = (1.0/2.0)/3.141592653589793;
             const double t4_2 = 2*3.141592653589793;
             const double t4_3 = 1.0*paul2;
-            const double fit_q1_elbow_up_w = t4_0 - t4_2*floor(t4_1*(t4_0 + 3.141592653589793));
-            const double fit_q2_elbow_up_w = -t4_2*floor(t4_1*(t4_3 + 3.141592653589793)) + t4_3;
-            const int ok_elbow_up = ((hit_elbow_up) & (!elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_up_w) & isfinite(fit_q2_elbow_up_w))));
-            const double out_q1_elbow_up = ((ok_elbow_up) ? fit_q1_elbow_up_w : NAN);
-            const double out_q2_elbow_up = ((ok_elbow_up) ? fit_q2_elbow_up_w : NAN);
+            const double fit_q1_elbow_up = t4_0 - t4_2*floor(t4_1*(t4_0 + 3.141592653589793));
+            const double fit_q2_elbow_up = -t4_2*floor(t4_1*(t4_3 + 3.141592653589793)) + t4_3;
+            const int ok_elbow_up = ((hit_elbow_up) & (!elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_up) & isfinite(fit_q2_elbow_up))));
+            const double out_q1_elbow_up = ((ok_elbow_up) ? fit_q1_elbow_up : NAN);
+            const double out_q2_elbow_up = ((ok_elbow_up) ? fit_q2_elbow_up : NAN);
             const int out_valid_elbow_up = (ok_elbow_up);
             /* check, branch elbow_down: forward kinematics at the solution */
             const double t5_0 = paul2_c*phi_b_c;
@@ -1313,17 +1315,17 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double F2_21_elbow_down = t5_4;
             const double F2_22_elbow_down = t5_2;
             const double F2_24_elbow_down = F1_24_elbow_down + paul2_c*t5_5 + 3.0*t5_3;
-            const int hit_elbow_down = (((fabs(Tt13) <= 1.0e-8)) & ((fabs(Tt23) <= 1.0e-8)) & ((fabs(Tt31) <= 1.0e-8)) & ((fabs(Tt32) <= 1.0e-8)) & ((fabs(Tt34) <= 7.0000000000000005e-8)) & ((fabs(Tt33 - 1) <= 1.0e-8)) & ((fabs(F2_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <= 7.0000000000000005e-8)));
+            const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(-Tt34) <= 7.0000000000000005e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F2_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <= 7.0000000000000005e-8)));
             /* joint limits and outputs, branch elbow_down */
             const double t6_0 = 1.0*phi_b;
             const double t6_1 = (1.0/2.0)/3.141592653589793;
             const double t6_2 = 2*3.141592653589793;
             const double t6_3 = 1.0*paul2;
-            const double fit_q1_elbow_down_w = t6_0 - t6_2*floor(t6_1*(t6_0 + 3.141592653589793));
-            const double fit_q2_elbow_down_w = -t6_2*floor(t6_1*(t6_3 + 3.141592653589793)) + t6_3;
-            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_down_w) & isfinite(fit_q2_elbow_down_w))));
-            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down_w : NAN);
-            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down_w : NAN);
+            const double fit_q1_elbow_down = t6_0 - t6_2*floor(t6_1*(t6_0 + 3.141592653589793));
+            const double fit_q2_elbow_down = -t6_2*floor(t6_1*(t6_3 + 3.141592653589793)) + t6_3;
+            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down))));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
+            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
             const int out_valid_elbow_down = (ok_elbow_down);
             /* status */
             const int any_valid = ((ok_elbow_down) | (ok_elbow_up));

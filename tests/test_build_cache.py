@@ -345,3 +345,69 @@ def test_compiled_api_names_a_read_only_cache_in_a_fresh_process(tmp_path):
     assert float(lines[1].split()[-1]) < 1e-12
     assert "Traceback" not in proc.stderr
     assert list(cache.iterdir()) == []
+
+
+def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, cache):
+    """-O3 (default) and -O2 (modules rendered at run time, native/serial.py) are two
+    artifacts, each built with its own level; anything else is refused."""
+    o3 = build.load("tiny", "tiny", tiny)
+    o2 = build.load("tiny", "tiny", tiny, opt="-O2")
+    assert o3 is not o2 and o2.lib.tiny_add(2, 3) == 5
+    commands = sorted(
+        (p / "manifest.json").read_text()
+        for p in cache.iterdir()
+        if p.name.startswith("_deltagen_")
+    )
+    assert len(commands) == 2
+    assert sum("-O2" in c for c in commands) == 1 and sum("-O3" in c for c in commands) == 1
+    with pytest.raises(ValueError, match="opt"):
+        build.compile_flags("tiny", "-Ofast")
+
+
+@pytest.mark.slow
+def test_o2_and_o3_give_the_same_bits(tmp_path, monkeypatch):
+    """The Puma 560's checked-in module (kinematics, closed-form and numerical IK, dynamics)
+    built at -O2 gives the same doubles as at -O3 (the level of modules rendered at run
+    time, native/serial.py: no level may change a floating-point result without
+    -ffast-math and with FMA contraction off under -std=c99)."""
+    import numpy as np
+
+    from deltagen import SerialRobot
+    from deltagen.native import serial as native_serial
+
+    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
+    arm = SerialRobot.load("puma560", threads=1)
+    modules = [arm._core.load_dynamics()]
+    monkeypatch.setattr(native_serial, "_opt", lambda folder: "-O2")
+    modules.append(native_serial._load(arm.description))
+    rng = np.random.default_rng(4)
+    n, k = 2000, 8
+    q = rng.uniform(-3, 3, (n, 6))
+    qd, qdd = rng.uniform(-2, 2, (2, n, 6))
+    T = arm.fk(q)
+
+    def call(module, name, inputs, widths, flags=()):
+        ffi = module.ffi
+        outs = [np.zeros((n, w)) for w in widths] + [np.zeros((n, w), np.uint8) for w in flags]
+        status = np.zeros(n, np.int8)
+        args = [ffi.from_buffer("double[]", np.ascontiguousarray(x)) for x in inputs]
+        args += [ffi.from_buffer("double[]", o) for o in outs[: len(widths)]]
+        args += [ffi.from_buffer("uint8_t[]", o) for o in outs[len(widths) :]]
+        fn = getattr(module.lib, f"deltagen_puma560_{name}")
+        fn(n, *args, ffi.from_buffer("int8_t[]", status))
+        return [*outs, status]
+
+    results = [
+        {
+            "fk": call(m, "fk", [q], [16]),
+            "jacobian": call(m, "jacobian", [q], [36]),
+            "jacobian_dot": call(m, "jacobian_dot", [q, qd], [36]),
+            "ik_all": call(m, "ik_all", [T.reshape(n, 16)], [k * 6], [k]),
+            "inverse_dynamics": call(m, "inverse_dynamics", [q, qd, qdd], [6]),
+            "mass_matrix": call(m, "mass_matrix", [q], [36]),
+        }
+        for m in modules
+    ]
+    for name, values in results[0].items():
+        for a, b in zip(values, results[1][name]):
+            assert np.array_equal(a, b, equal_nan=True), name

@@ -64,3 +64,52 @@ def test_stanford_detection_needs_meeting_axes():
     joints = list(arm.description.joints)
     joints[4] = dataclasses.replace(joints[4], a=0.02)  # axes 5 and 6 no longer meet W
     assert detect(dataclasses.replace(arm.description, joints=tuple(joints))) is None
+
+
+@pytest.fixture(scope="module")
+def stanford_c():
+    """The Stanford arm with the compiled backend: its ik_all is generated C
+    (derive/serial/ik_closed_form.py, IKKernelBuilder._stanford)."""
+    model, arm = _stanford()
+    return arm.with_backend("compiled")
+
+
+def test_stanford_c_equals_numpy_closed_form_and_fk(stanford_c):
+    """The C ik_all against the numpy solver (written on the same structure object but
+    vectorised over branches in numpy): same valid flags, same joint values; every valid
+    branch reproduces T through the forward kinematics (DH matrices); the original q is
+    among the valid branches; the single-pose path equals the batch."""
+    arm = stanford_c
+    assert arm._core.has_ik_all
+    rng = np.random.default_rng(5)
+    lim = arm.qlim
+    q = rng.uniform(lim[:, 0], lim[:, 1], (2000, 6))
+    T = arm.fk(q)
+    Qc, Vc = arm.ik_all(T)
+    Qn, Vn = analytic_solver(arm.description).solve(T)
+    assert Vc.any(axis=1).all()
+    assert np.array_equal(Vc, Vn)
+    assert np.abs(np.where(Vc[..., None], Qc - Qn, 0.0)).max() < 1e-10
+    assert np.isnan(Qc[~Vc & np.isnan(Qn).any(-1)]).all()
+    Tq = arm.fk(np.where(Vc[..., None], Qc, 0.0))
+    assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[Vc].max() < 1e-12
+    revolute = np.array([True, True, False, True, True, True])
+    found = np.where(Vc, _diff(Qc, q, revolute), np.inf).min(-1) < 1e-7
+    assert found.all()
+    for i in range(5):  # the single-pose path: the same C function, one row
+        q1, v1 = arm.ik_all(T[i])
+        np.testing.assert_array_equal(v1, Vc[i])
+        np.testing.assert_array_equal(q1[v1], Qc[i][Vc[i]])
+
+
+def test_stanford_c_statuses(stanford_c):
+    """Out of reach (q3 beyond its limits): no valid branch; a non-finite pose: all NaN."""
+    arm = stanford_c
+    T = arm.fk(arm.qlim.mean(axis=1))
+    far = T.copy()
+    far[:3, 3] *= 100.0
+    bad = T.copy()
+    bad[0, 3] = np.nan
+    Q, V = arm.ik_all(np.stack([T, far, bad]))
+    assert V[0].any() and not V[1].any() and not V[2].any()
+    assert np.isnan(Q[2]).all()

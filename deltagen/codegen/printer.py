@@ -5,6 +5,9 @@
 * ``CopySign(a, b)`` prints C99 ``copysign(a, b)``.
 * Piecewise prints as one-line nested ternaries (the stock printer spreads them over lines),
   or, when every branch is an integer constant, as branch-free 0/1 arithmetic.
+* derive.functions' unevaluated Ge, Le, Gt, Lt, Fmax, Fmin, Fabs, Floor print as
+  SymPy's relationals, Max, Min, Abs and floor.
+* ``FitAngle(a, lo, hi, lo_tol, hi_tol)`` prints the runtime's ``deltagen_fit_angle``.
 * Small integer powers are expanded to products (``pow(x, 3)`` is not folded by gcc
   without -ffast-math).
 """
@@ -23,6 +26,24 @@ FLT_MAX = 3.4028234663852886e38
 
 
 class KernelPrinter(C99CodePrinter):
+    def __init__(self, settings=None):
+        super().__init__(settings)
+        # derive.functions' unevaluated Max, Min, Abs, floor print as SymPy's own (the C
+        # printer looks math functions, and which take a float suffix, up by class name)
+        self._kf = dict(self._kf)
+        for name, parent in (("Fmax", "Max"), ("Fmin", "Min"), ("Fabs", "Abs"), ("Floor", "floor")):
+            self.known_functions[name] = self.known_functions[parent]
+            self._kf[name] = self._kf[parent]
+
+    def _print_Fabs(self, expr):
+        return self._print_math_func(expr)
+
+    def _print_Floor(self, expr):
+        return self._print_math_func(expr)
+
+    def _print_FitAngle(self, expr):
+        return "deltagen_fit_angle(" + ", ".join(self._print(a) for a in expr.args) + ")"
+
     def _print_AllFinite(self, expr):
         return "(" + " & ".join(f"isfinite({self._print(a)})" for a in expr.args) + ")"
 

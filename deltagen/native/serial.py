@@ -51,17 +51,25 @@ def source_dir(desc, render: bool = True) -> Path | None:
     return folder
 
 
+def _opt(folder: Path) -> str:
+    """The optimisation level of a module: -O3 for the checked-in ones (generated/), -O2 for
+    those rendered at run time (a new URDF or robot file): less than half the compile time
+    of a cold load, the same results bit for bit and the same speed (native/build.py,
+    OPT_LEVELS)."""
+    return "-O3" if folder == generated_dir() else "-O2"
+
+
 def module_ready(desc) -> bool:
     """True when the description's module loads without SymPy or a compiler: checked in
     under generated/, or rendered and compiled into the cache before."""
     folder = source_dir(desc, render=False)
-    return folder is not None and is_built(base_name(desc), c_prefix(desc), folder)
+    return folder is not None and is_built(base_name(desc), c_prefix(desc), folder, _opt(folder))
 
 
 def _load(desc):
     folder = source_dir(desc)
     assert folder is not None
-    return load(base_name(desc), c_prefix(desc), folder)
+    return load(base_name(desc), c_prefix(desc), folder, _opt(folder))
 
 
 # kernels only the full module has

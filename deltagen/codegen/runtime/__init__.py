@@ -1,7 +1,9 @@
 """Hand-written C, written once and compiled beside each generated module (native/build.py
 finds it through ``deltagen.paths.runtime_dir()``): ``deltagen_linalg`` (small dense linear
 algebra and the rotation logarithm) and ``deltagen_ik_newton`` (the damped Newton solver of
-numerical IK, called by each arm's generated ``deltagen_<arm>_ik_newton`` wrapper).
+numerical IK, called by each arm's generated ``deltagen_<arm>_ik_newton`` wrapper) and
+``deltagen_limits.h`` (header only: a revolute joint's value fitted into its limits, called
+by the generated closed-form ``deltagen_<arm>_ik_all``).
 
 Generated code calls runtime code, never the other way. No Python lives here.
 """

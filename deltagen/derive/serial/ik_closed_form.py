@@ -3,8 +3,8 @@
 The arm's structure and every constant of its closed form come from
 :func:`deltagen.model.structure.detect` (a :class:`~deltagen.model.structure.PlanarArm`,
 :class:`~deltagen.model.structure.Elbow4R`, :class:`~deltagen.model.structure.SphericalWrist6R`
-or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`; the Stanford arm
-has no C kernel yet); the numpy solver of
+or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`, or the Stanford
+arm's :class:`~deltagen.model.structure.StanfordArm`); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
 every branch of a batch of poses in one call, like the forward kinematics. The steps and
@@ -19,7 +19,8 @@ point is how they become straight-line code:
   not the product-of-exponentials model the solver is built on) with those cosines and
   sines, and compares it with the target: rotation entries and position / arm size within
   ``TOL`` (the numpy solver's default);
-* the joint-limit fit is :func:`deltagen.geometry.limits.fit_limits` written in SymPy, with
+* the joint-limit fit is :func:`deltagen.geometry.limits.fit_limits` (for a revolute joint the
+  runtime's deltagen_fit_angle, codegen/runtime/deltagen_limits.h), with
   its constants (``LIMIT_TOL``, ``SHIFTS``): wrap into [-pi, pi), shift by +-2 pi, +-4 pi
   where that fits the range, clip a value within LIMIT_TOL (1e-10) of a limit onto it.
 
@@ -35,7 +36,8 @@ valid, UNREACHABLE when none is (out of reach, or only outside the limits), INVA
 non-finite input (all outputs NaN / 0).
 
 Supported: every structure of model.structure with the full pose given (the numpy solver's
-``solve`` default): ``spherical_wrist_6r`` (8 branches), ``elbow_4r`` (Paul's method for
+``solve`` default): ``spherical_wrist_6r``, ``parallel_triple_6r`` (the UR family) and
+``stanford_rrp_6`` (8 branches each), ``elbow_4r`` (Paul's method for
 q2 + q3, 4 branches) and ``planar`` (2 branches; Paul's method for the 2R arm).
 ``position_only`` and other tolerances stay with the numpy solver.
 """
@@ -49,16 +51,23 @@ import numpy as np
 import sympy as sp
 
 from deltagen import status as st
-from deltagen.derive.functions import AllFinite
+from deltagen.derive.functions import AllFinite, Fabs, FitAngle, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
 from deltagen.derive.kernel import Kernel, Port, Stage
-from deltagen.geometry.limits import LIMIT_TOL, SHIFTS
-from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, detect
+from deltagen.geometry.limits import LIMIT_TOL, SHIFTS  # noqa: F401 (SHIFTS: in deltagen_limits.h)
+from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, StanfordArm, detect
 
 TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
 WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
-SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r")
+SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r", "stanford_rrp_6")
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
+
+
+# Comparisons, Max, Min, Abs and floor of the kernel's values are derive.functions'
+# unevaluated classes: the values are symbols SymPy cannot order, and asking it to try (on
+# every construction, and again in every rebuild of the CSE) was most of the kernel's
+# derivation and lowering time (cProfile, UR5: _fit_limits alone 16 s of 26). Same C.
+_ge, _le, _gt, _lt, _max, _min = Ge, Le, Gt, Lt, Fmax, Fmin
 
 
 def compiled_structure(desc):
@@ -135,9 +144,9 @@ def _direction(tape, name, y, x):
     h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
     # the division is done whatever h is, so the selection below is a plain blend (a
     # division inside a ternary would be a branch)
-    inv = tape.let(f"{name}_inv", 1 / sp.Max(h, _TINY))
-    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, h > 0), (1, True)))
-    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, h > 0), (0, True)))
+    inv = tape.let(f"{name}_inv", 1 / _max(h, _TINY))
+    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
+    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
     return c, s
 
 
@@ -249,9 +258,9 @@ class IKKernelBuilder:
         pz = tape.let("pz", _dot(d, K.vec(s.ez)))
         yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
         rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", rad >= -1e-9 * ax.scale**2)
-        r = tape.let("xV", sp.sqrt(sp.Max(rad, 0)))
-        on_axis = tape.let("on_axis", px * px + py * py < (1e-12 * ax.scale) ** 2)
+        ok1 = tape.let("ok_reach", _ge(rad, -1e-9 * ax.scale**2))
+        r = tape.let("xV", sp.sqrt(_max(rad, 0)))
+        on_axis = tape.let("on_axis", _lt(px * px + py * py, (1e-12 * ax.scale) ** 2))
         a = _Angle(0, *_direction(tape, "phi_p", py, px))
         uu, vv = s.upper, s.lower
         branches = []
@@ -314,7 +323,7 @@ class IKKernelBuilder:
         th3 = _named(tape, f"paul3_{tag}", tot - th2)
         c = math.atan2(vv[1], vv[0]) - a_uu
         sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
-        mine = tape.let(f"mine_{tag}", sin_bend >= 0 if sigma > 0 else sin_bend < 0)
+        mine = tape.let(f"mine_{tag}", _ge(sin_bend, 0) if sigma > 0 else _lt(sin_bend, 0))
         ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
         tape.stage(f"roll, branch {tag}: q4 about axis 4")
         y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s.roll_ref)))
@@ -350,7 +359,9 @@ class IKKernelBuilder:
                 - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
             )
             p2 = _named(tape, "paul2", yaw - p1)
-            down = tape.let("elbow_down", p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)) >= 0)
+            down = tape.let(
+                "elbow_down", _ge(p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)), 0)
+            )
             for config, sigma in zip(s.configs, s.bend_signs):
                 mine = down if sigma > 0 else sp.Not(down)
                 branches[config] = (p1, p2, None, mine)
@@ -383,8 +394,8 @@ class IKKernelBuilder:
         kappa = tape.let(
             f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
         )
-        ok2 = tape.let(f"ok_elbow_{tag}", sp.Abs(kappa) <= 1 + 1e-9)
-        kc = tape.let(f"kc_{tag}", sp.Min(sp.Max(kappa, -1), 1))
+        ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + 1e-9))
+        kc = tape.let(f"kc_{tag}", _min(_max(kappa, -1), 1))
         ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
         bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
         return kc, ks, bend, ok2
@@ -408,12 +419,15 @@ class IKKernelBuilder:
         v = _rotate(w[0], q1.c, -q1.s, v)
         return _rotate(w[1], tot.c, -tot.s, v)
 
-    def _wrist(self, tag, q1, th2, th3):
-        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions."""
+    def _wrist(self, tag, q1, th2, th3=None):
+        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions,
+        for the rotation left after turning about axis 1 by q1 and about axis 2 by th2 +
+        th3 (the elbow arm's parallel axes 2 and 3) or, without th3, by th2 (the Stanford
+        arm's joint 2)."""
         s, tape, K = self.s, self.tape, self.const
         w = [K.vec(x) for x in self.axes.directions]
         tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
-        tot = _named(tape, f"tot_{tag}", th2 + th3)
+        tot = th2 if th3 is None else _named(tape, f"tot_{tag}", th2 + th3)
         qv = tape.vec(
             f"qv_{tag}", self._undo(q1, tot, self._rotate_target(self.axes.directions[5]))
         )
@@ -428,9 +442,9 @@ class IKKernelBuilder:
         perp = _cross(qv, w4)
         perp2 = tape.let(f"perp2_{tag}", _dot(perp, perp))
         gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
-        okw = tape.let(f"ok_wrist_{tag}", gam2 >= -1e-9)
-        gam = tape.let(f"gam_{tag}", sp.sqrt(sp.Max(gam2, 0)))
-        singular = tape.let(f"wrist_singular_{tag}", perp2 < WRIST_SINGULAR**2)
+        okw = tape.let(f"ok_wrist_{tag}", _ge(gam2, -1e-9))
+        gam = tape.let(f"gam_{tag}", sp.sqrt(_max(gam2, 0)))
+        singular = tape.let(f"wrist_singular_{tag}", _lt(perp2, WRIST_SINGULAR**2))
         n45 = K.vec(s.normal_45)
         out = []
         for sig, flip in ((1, "noflip"), (-1, "flip")):
@@ -457,42 +471,50 @@ class IKKernelBuilder:
         return out
 
     def _fit_limits(self, name, i, a):
-        """geometry.limits.fit_limits for joint i, in SymPy: (value, inside). A revolute
-        joint (a an _Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of
-        2 pi (+-2 pi, +-4 pi) where that fits its range; a prismatic one (a its displacement)
-        is only checked. Either is clipped onto a limit it passes by at most LIMIT_TOL."""
+        """geometry.limits.fit_limits for joint i: (value, inside). A revolute joint (a an
+        _Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of 2 pi (+-2 pi,
+        +-4 pi) where that fits its range: one call of the runtime's deltagen_fit_angle
+        (codegen/runtime/deltagen_limits.h; 130 statements per branch of the UR5 when written
+        out here, half of the kernel: its SymPy and compile time); a prismatic one (a its
+        displacement) is only checked. Either is clipped onto a limit it passes by at most
+        LIMIT_TOL."""
         tape = self.tape
         lo, hi = (float(x) for x in self.s.qlim[i])
         revolute = isinstance(a, _Angle)
-        if revolute:
-            two_pi = 2 * sp.pi
-            x = tape.let(f"{name}_w", a.theta - two_pi * sp.floor((a.theta + sp.pi) / two_pi))
-        else:
-            x = tape.let(f"{name}_d", a)
+        two_pi = 2 * sp.pi
         if not (math.isfinite(lo) or math.isfinite(hi)):
-            return x, sp.true
+            if revolute:
+                return tape.let(name, a.theta - two_pi * Floor((a.theta + sp.pi) / two_pi)), sp.true
+            return tape.let(f"{name}_d", a), sp.true
+
+        def const(v):
+            return sp.Float(repr(v), 17) if math.isfinite(v) else (sp.oo if v > 0 else -sp.oo)
+
+        lo_tol, hi_tol = lo - LIMIT_TOL, hi + LIMIT_TOL
 
         def inside(v):
             conds = []
             if math.isfinite(lo):
-                conds.append(v >= sp.Float(repr(lo - LIMIT_TOL), 17))
+                conds.append(_ge(v, const(lo_tol)))
             if math.isfinite(hi):
-                conds.append(v <= sp.Float(repr(hi + LIMIT_TOL), 17))
+                conds.append(_le(v, const(hi_tol)))
             return sp.And(*conds)
 
-        x0 = x
-        fits = tape.let(f"{name}_in0", inside(x))
         if revolute:
-            for k, shift in enumerate(SHIFTS, start=1):
-                y = x0 + shift * two_pi
-                fy = tape.let(f"{name}_fy{k}", sp.And(inside(y), sp.Not(fits)))
-                x = tape.let(f"{name}_x{k}", sp.Piecewise((y, fy), (x, True)))
-                fits = tape.let(f"{name}_in{k}", sp.Or(fits, fy))
+            # the hand-written deltagen_fit_angle (codegen/runtime/deltagen_limits.h), the
+            # statements below for one revolute joint; the value it returns is inside the
+            # limits (to LIMIT_TOL) exactly when it fitted
+            value = tape.let(
+                name, FitAngle(a.theta, const(lo), const(hi), const(lo_tol), const(hi_tol))
+            )
+            return value, tape.let(f"{name}_in", inside(value))
+        x = tape.let(f"{name}_d", a)
+        fits = tape.let(f"{name}_in0", inside(x))
         clipped = x
         if math.isfinite(lo):
-            clipped = sp.Max(clipped, sp.Float(repr(lo), 17))
+            clipped = _max(clipped, const(lo))
         if math.isfinite(hi):
-            clipped = sp.Min(clipped, sp.Float(repr(hi), 17))
+            clipped = _min(clipped, const(hi))
         return tape.let(name, sp.Piecewise((clipped, fits), (x, True))), fits
 
     def _reproduces(self, name, angles):
@@ -516,8 +538,8 @@ class IKKernelBuilder:
         conds = []
         for r in range(3):
             for c in range(3):
-                conds.append(sp.Abs(T[r, c] - self.R_t[r][c]) <= TOL)
-            conds.append(sp.Abs(T[r, 3] - self.p_t[r]) <= TOL * scale)
+                conds.append(_le(Fabs(T[r, c] - self.R_t[r][c]), TOL))
+            conds.append(_le(Fabs(T[r, 3] - self.p_t[r]), TOL * scale))
         return tape.let(f"hit_{name}", sp.And(*conds))
 
     # -- the kernel ----------------------------------------------------------------
@@ -555,9 +577,9 @@ class IKKernelBuilder:
         tape = self.tape
         base = _atan2(tape, f"{name}_base", B, A)
         r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
-        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / sp.Max(r, _TINY), r > 0), (0, True)))
-        ok = tape.let(f"ok_{name}", sp.Abs(ratio) <= 1 + 1e-9)
-        kc = tape.let(f"{name}_kc", sp.Min(sp.Max(ratio, -1), 1))
+        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / _max(r, _TINY), _gt(r, 0)), (0, True)))
+        ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + 1e-9))
+        kc = tape.let(f"{name}_kc", _min(_max(ratio, -1), 1))
         ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
         return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
 
@@ -627,6 +649,53 @@ class IKKernelBuilder:
                     solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = (angles, ok)
         return solutions
 
+    # -- the Stanford arm (solve.analytic._StanfordSolver, same steps) --------------
+
+    def _stanford(self):
+        """q3 from the distance of the wrist centre to the shoulder point c, q1 and q2 by
+        Paden-Kahan subproblem 2 about the meeting axes 1 and 2, then the central wrist."""
+        s, ax, tape, K = self.s, self.axes, self.tape, self.const
+        w = [K.vec(x) for x in ax.directions]
+        w1, w2, w3 = w[0], w[1], w[2]
+        c = K.vec(s.shoulder)
+        W0 = np.asarray(s.wrist, dtype=float) - np.asarray(s.shoulder, dtype=float)
+        tape.stage("Stanford: wrist centre W_t = G W, v = W_t - c; q3 from |W + q3 w3 - c| = |v|")
+        v = tape.vec("v_wc", _add(self._move_point(s.wrist), _scale(-1, c)))
+        b = float(ax.directions[2] @ W0)
+        disc = tape.let("disc3", K(b * b - W0 @ W0) + _dot(v, v))
+        ok3 = tape.let("ok_reach", _ge(disc, -1e-9 * ax.scale**2))
+        root = tape.let("root3", sp.sqrt(_max(disc, 0)))
+        c12 = float(ax.directions[0] @ ax.directions[1])
+        n12 = np.cross(ax.directions[0], ax.directions[1])
+        n12v, den, nn = K.vec(n12), K(c12 * c12 - 1.0), K(float(n12 @ n12))
+        vw1 = tape.let("v_w1", _dot(v, w1))
+        solutions = {}
+        for sg3, a in ((1, "p"), (-1, "m")):
+            tape.stage(f"Stanford: reach{a}: q3, then subproblem 2 about axes 1 and 2")
+            q3 = tape.let(f"q3_reach{a}", K(-b) + sg3 * root)
+            u = tape.vec(f"u_reach{a}", _add(K.vec(W0), _scale(q3, w3)))
+            w2u = _dot(w2, u)
+            alpha = tape.let(f"alpha12_reach{a}", (K(c12) * w2u - vw1) / den)
+            beta = tape.let(f"beta12_reach{a}", (K(c12) * vw1 - w2u) / den)
+            g2 = tape.let(
+                f"g2_reach{a}",
+                (_dot(u, u) - alpha * alpha - beta * beta - 2 * K(c12) * alpha * beta) / nn,
+            )
+            ok2 = tape.let(f"ok_shoulder_reach{a}", _ge(g2, -1e-9))
+            g = tape.let(f"g_reach{a}", sp.sqrt(_max(g2, 0)))
+            for sg2, e in ((1, "p"), (-1, "m")):
+                tag = f"reach{a}_shoulder{e}"
+                tape.stage(f"Stanford: {tag}: q2, q1 (Paden-Kahan 1 each)")
+                z = tape.vec(
+                    f"z_{tag}",
+                    _add(_add(_scale(alpha, w1), _scale(beta, w2)), _scale(sg2 * g, n12v)),
+                )
+                q2 = _sp1(tape, f"q2_{tag}", w2, u, z)
+                q1 = _sp1(tape, f"q1_{tag}", w1, z, v)
+                for name, okw, q4, q5, q6 in self._wrist(tag, q1, q2):
+                    solutions[name] = ((q1, q2, q3, q4, q5, q6), sp.And(ok3, ok2, okw))
+        return solutions
+
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
         self._target()
@@ -636,6 +705,8 @@ class IKKernelBuilder:
             solutions = self._planar()
         elif isinstance(s, ParallelTriple6R):
             solutions = self._parallel_triple()
+        elif isinstance(s, StanfordArm):
+            solutions = self._stanford()
         else:
             solutions = self._elbow_arm()
         q_out, valid_out, valid_flags = [], [], []
