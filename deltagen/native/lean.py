@@ -90,6 +90,7 @@ class _Buffers(threading.local):
             for o, (shape, ctype) in zip(outs, outputs)
         )
         self.b = (ins, outs, views, ffi.new("int8_t[1]"))
+        self.b1 = (ins[0], outs[0], views[0], self.b[3])  # one input, one output
 
 
 def single_call(ffi, fn, lead, rows, outputs):
@@ -106,8 +107,11 @@ def single_call(ffi, fn, lead, rows, outputs):
     buffers = _Buffers(ffi, sizes, outputs)
     ndarray, f64 = np.ndarray, _F64
 
+    # The common cases are written out below, with the leading arguments (an arm's (1,),
+    # the delta's (geometry, 1, axes)) passed one by one: no argument tuple per call.
+    a0 = lead[0]
     if len(rows) == 1 and len(outputs) == 1 and rows[0] != "scalar":
-        # the common case (fk, ik, jacobian, mass_matrix, ...), written out
+        # fk, ik, jacobian, mass_matrix, ...
         if rows[0] == "pose":
             put_pose = _put_pose(memmove)
 
@@ -123,8 +127,26 @@ def single_call(ffi, fn, lead, rows, outputs):
         shape_in, nbytes = (n,), 8 * n
         put = row_putter(memmove, n)
 
-        def one(q):
-            (x,), (o,), (view,), status = buffers.b
+        if len(lead) == 1:
+
+            def one(q):
+                x, o, view, status = buffers.b1
+                if type(q) is ndarray and q.dtype is f64 and q.shape == shape_in:
+                    try:
+                        memmove(x, q, nbytes)
+                    except (TypeError, ValueError, BufferError):
+                        return None
+                elif not put(x, q):
+                    return None
+                fn(a0, x, o, status)
+                return view.copy() if status[0] == OK else None
+
+            return one
+
+        g, a1, a2 = lead
+
+        def one_geometry(q):
+            x, o, view, status = buffers.b1
             if type(q) is ndarray and q.dtype is f64 and q.shape == shape_in:
                 try:
                     memmove(x, q, nbytes)
@@ -132,10 +154,42 @@ def single_call(ffi, fn, lead, rows, outputs):
                     return None
             elif not put(x, q):
                 return None
-            fn(*lead, x, o, status)
+            fn(g, a1, a2, x, o, status)
             return view.copy() if status[0] == OK else None
 
-        return one
+        return one_geometry
+
+    if len(lead) == 1 and len(outputs) == 1 and len(set(rows)) == 1 and len(rows) == 3:
+        # one-state dynamics of an arm (inverse_dynamics, forward_dynamics), written out
+        n = rows[0]
+        shape_in, nbytes = (n,), 8 * n
+        put = row_putter(memmove, n)
+
+        def three(a, b, c):
+            (xa, xb, xc), (o,), (view,), status = buffers.b
+            if (
+                type(a) is ndarray
+                and type(b) is ndarray
+                and type(c) is ndarray
+                and a.dtype is f64
+                and b.dtype is f64
+                and c.dtype is f64
+                and a.shape == shape_in
+                and b.shape == shape_in
+                and c.shape == shape_in
+            ):
+                try:
+                    memmove(xa, a, nbytes)
+                    memmove(xb, b, nbytes)
+                    memmove(xc, c, nbytes)
+                except (TypeError, ValueError, BufferError):
+                    return None
+            elif not (put(xa, a) and put(xb, b) and put(xc, c)):
+                return None
+            fn(a0, xa, xb, xc, o, status)
+            return view.copy() if status[0] == OK else None
+
+        return three
 
     def put_scalar(buffer, value):
         kind = type(value)
