@@ -33,7 +33,7 @@ import threading
 import numpy as np
 
 from deltagen import status as st
-from deltagen.inputs import plain_pose, plain_row
+from deltagen.inputs import plain_row
 
 _F64 = np.dtype(np.float64)
 
@@ -65,13 +65,19 @@ def row_putter(memmove, n: int):
 
 
 def _put_pose(memmove):
-    """put(buffer, T) for a (4, 4) pose: inputs.plain_pose (C-contiguous float64, bottom
-    row exactly 0 0 0 1; the caller has checked the rest of the rigid transform)."""
+    """put(buffer, T) for a (4, 4) float64 pose in native byte order (C-contiguous:
+    memmove raises for other layouts). The caller has checked that T is a finite rigid
+    transform (SerialRobot._poses' rule); the kernel reads the same 16 numbers as the
+    batch path does."""
+    ndarray, f64, shape = np.ndarray, _F64, (4, 4)
 
     def put(buffer, T):
-        if not plain_pose(T):
+        if type(T) is not ndarray or T.dtype is not f64 or T.shape != shape:
             return False
-        memmove(buffer, T, 128)
+        try:
+            memmove(buffer, T, 128)
+        except (TypeError, ValueError, BufferError):  # not contiguous
+            return False
         return True
 
     return put
@@ -98,7 +104,7 @@ def single_call(ffi, fn, lead, rows, outputs):
 
     lead: the leading C arguments (the delta's (geometry, 1, axes), an arm's (1,));
     rows: one entry per input: an int n (a row of n numbers, inputs.plain_row), "pose"
-    (a (4, 4) transform, inputs.plain_pose) or "scalar" (a Python float or int >= 0, e.g.
+    (a (4, 4) float64 transform the caller has checked, see _put_pose) or "scalar" (a Python float or int >= 0, e.g.
     a payload [kg]); outputs: one (shape, ctype) per output, ctype "double" or "uint8_t"
     (0/1 flags, returned as bool). Returns call(*args) -> a fresh array (one output) or
     a tuple of them, or None when the general path must answer (see the module doc)."""
@@ -158,6 +164,18 @@ def single_call(ffi, fn, lead, rows, outputs):
             return view.copy() if status[0] == OK else None
 
         return one_geometry
+
+    if rows == ["pose"] and len(outputs) == 2:  # ik_all: q and the valid flags
+        put_pose = _put_pose(memmove)
+
+        def pose_pair(T):
+            (x,), (o1, o2), (v1, v2), status = buffers.b
+            if not put_pose(x, T):
+                return None
+            fn(*lead, x, o1, o2, status)
+            return (v1.copy(), v2.copy()) if status[0] == OK else None
+
+        return pose_pair
 
     if len(lead) == 1 and len(outputs) == 1 and len(set(rows)) == 1 and len(rows) == 3:
         # one-state dynamics of an arm (inverse_dynamics, forward_dynamics), written out
