@@ -182,3 +182,17 @@ def test_serial_inputs_the_lean_path_leaves_to_the_general_one(puma):
     assert np.array_equal(puma.jacobian(q[2].astype(">f8")), puma.jacobian(q)[2])
     Tf = np.asfortranarray(T[0])
     assert np.array_equal(puma.ik_all(Tf)[0], puma.ik_all(T)[0][0], equal_nan=True)
+
+
+def test_delta_payload_given_as_an_array_goes_the_general_way(delta):
+    """A (3,) array as one pose's payload is not a scalar: the lean path leaves it to the
+    general path, which refuses it (the payload broadcasts against the leading shape ());
+    a scalar payload gives the batch row's torques."""
+    from deltagen.inputs import InputError
+
+    rng = np.random.default_rng(23)
+    q, qd, qdd = (rng.uniform(-0.3, 0.9, 3) for _ in range(3))
+    with pytest.raises(InputError, match="payload"):
+        delta.inverse_dynamics(q, qd, qdd, np.array([0.1, 0.2, 0.3]))
+    tau = delta.inverse_dynamics(q[None], qd, qdd, payload=0.3)[0]
+    assert np.array_equal(delta.inverse_dynamics(q, qd, qdd, 0.3), tau)

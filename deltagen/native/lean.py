@@ -87,7 +87,7 @@ class _Buffers(threading.local):
     """Per-thread cffi buffers of one lean function: ``b`` = (inputs, outputs, numpy views
     of the outputs, status), one tuple so that a call reads the thread-local once."""
 
-    def __init__(self, ffi, sizes, outputs):
+    def __init__(self, ffi, sizes, outputs, leading):
         ins = tuple(ffi.new(f"double[{size}]") for size in sizes)
         outs = tuple(ffi.new(f"{ctype}[{int(np.prod(shape))}]") for shape, ctype in outputs)
         views = tuple(
@@ -97,6 +97,7 @@ class _Buffers(threading.local):
         )
         self.b = (ins, outs, views, ffi.new("int8_t[1]"))
         self.b1 = (ins[0], outs[0], views[0], self.b[3])  # one input, one output
+        self.b2 = (ins[:leading], ins, outs, views, self.b[3])  # rows before a scalar
 
 
 def single_call(ffi, fn, lead, rows, outputs):
@@ -110,7 +111,7 @@ def single_call(ffi, fn, lead, rows, outputs):
     a tuple of them, or None when the general path must answer (see the module doc)."""
     memmove, OK = ffi.memmove, st.OK
     sizes = [16 if r == "pose" else 1 if r == "scalar" else r for r in rows]
-    buffers = _Buffers(ffi, sizes, outputs)
+    buffers = _Buffers(ffi, sizes, outputs, sum(1 for r in rows if r != "scalar"))
     ndarray, f64 = np.ndarray, _F64
 
     # The common cases are written out below, with the leading arguments (an arm's (1,),
@@ -218,6 +219,46 @@ def single_call(ffi, fn, lead, rows, outputs):
         except OverflowError:  # an int too large for a double
             return False
         return True
+
+    numeric_rows = [r for r in rows if r != "scalar"]
+    scalar_last = rows[-1] == "scalar" and rows.count("scalar") == 1
+    if (
+        numeric_rows
+        and "pose" not in rows
+        and len(set(numeric_rows)) == 1
+        and (scalar_last or "scalar" not in rows)
+        and len(outputs) <= 3
+    ):
+        # several rows of one width (the delta's fk_vel, fk_acc; its dynamics with the
+        # payload last), written out: no put() call per ndarray row, no generator
+        n = numeric_rows[0]
+        shape_in, nbytes, count, k = (n,), 8 * n, len(rows), len(outputs)
+        put = row_putter(memmove, n)
+
+        def rows_call(*args):
+            row_ins, ins, outs, views, status = buffers.b2
+            if len(args) != count:
+                return None
+            for buffer, x in zip(row_ins, args):  # the rows; the scalar, if any, below
+                if type(x) is ndarray and x.dtype is f64 and x.shape == shape_in:
+                    try:
+                        memmove(buffer, x, nbytes)
+                    except (TypeError, ValueError, BufferError):
+                        return None
+                elif not put(buffer, x):
+                    return None
+            if scalar_last and not put_scalar(ins[-1], args[-1]):
+                return None
+            fn(*lead, *ins, *outs, status)
+            if status[0] != OK:
+                return None
+            if k == 1:
+                return views[0].copy()
+            if k == 2:
+                return views[0].copy(), views[1].copy()
+            return views[0].copy(), views[1].copy(), views[2].copy()
+
+        return rows_call
 
     putters = [
         _put_pose(memmove)
