@@ -50,6 +50,17 @@ _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # SerialRobot._poses: what counts as a rigid transform
 
 
+try:  # np.linalg.det's LAPACK gufunc without its errstate context (a third of the cost
+    # of one-pose ik's singularity check; J is finite there, its status was OK)
+    from numpy.linalg import _umath_linalg
+
+    def _det(J):
+        return _umath_linalg.det(J, signature="d->d")
+
+except ImportError:  # pragma: no cover - a numpy without the module
+    _det = np.linalg.det
+
+
 def _check_one_pose(v):
     """(finite, rigid) of one pose given as its 16 entries (row by row, a Python list):
     SerialRobot._poses's rule for a batch, in Python floats (a few us instead of ~20)."""
@@ -1077,7 +1088,7 @@ class SerialRobot:
             return bool(self._singular_rows(q[None])[0])
         flat = J.reshape(-1)
         bound = SINGULAR_TOL * math.sqrt(float(flat @ flat)) ** J.shape[0]
-        if abs(float(np.linalg.det(J))) >= bound:
+        if abs(float(_det(J))) >= bound:
             return False
         return bool(self._singular_rows(q[None])[0])
 
