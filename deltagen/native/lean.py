@@ -91,8 +91,9 @@ class _Buffers(threading.local):
         ins = tuple(ffi.new(f"double[{size}]") for size in sizes)
         outs = tuple(ffi.new(f"{ctype}[{int(np.prod(shape))}]") for shape, ctype in outputs)
         views = tuple(
-            np.frombuffer(ffi.buffer(o), dtype=np.bool_ if ctype == "uint8_t" else np.float64)
-            .reshape(shape)
+            np.frombuffer(
+                ffi.buffer(o), dtype=np.bool_ if ctype == "uint8_t" else np.float64
+            ).reshape(shape)
             for o, (shape, ctype) in zip(outs, outputs)
         )
         self.b = (ins, outs, views, ffi.new("int8_t[1]"))

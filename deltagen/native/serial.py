@@ -282,9 +282,7 @@ class CompiledArm:
             return None
         fn = getattr(self._lib, f"{self._prefix}_ik_all")
         n = self.desc.n
-        return single_call(
-            self._ffi, fn, (1,), ["pose"], [((k, n), "double"), ((k,), "uint8_t")]
-        )
+        return single_call(self._ffi, fn, (1,), ["pose"], [((k, n), "double"), ((k,), "uint8_t")])
 
     def single(self, name):
         """Lean path (native.lean) for one configuration of fk or jacobian: what
