@@ -108,15 +108,3 @@ def plain_row(value, n: int) -> bool:
                 return False
         return True
     return False
-
-
-def plain_pose(T) -> bool:
-    """True for what the single-pose fast paths take: a (4, 4) C-contiguous float64 array
-    whose bottom row is exactly 0 0 0 1 (anything else goes the general, checking path)."""
-    return (
-        type(T) is np.ndarray
-        and T.shape == (4, 4)
-        and T.dtype.char == "d"
-        and T.flags.c_contiguous
-        and T[3].tolist() == [0.0, 0.0, 0.0, 1.0]
-    )

@@ -114,6 +114,8 @@ def test_serial_one_configuration_equals_the_batch_row(puma, monkeypatch):
     assert np.abs(np.where(valid[..., None], q_all - q_long, 0.0)).max() <= 1e-12
     q_ik = np.array([puma.ik(T[i : i + 1], singular="allow")[0] for i in range(ROWS)])
     tau = puma.inverse_dynamics(q, qd, qdd)
+    M = puma.mass_matrix(q)
+    qdd_fd = puma.forward_dynamics(q, qd, tau)
     puma.ik_all(T[0])  # makes the closed form's one-pose path
     _no_batch(monkeypatch, puma._core)
     for i in range(ROWS):
@@ -124,7 +126,50 @@ def test_serial_one_configuration_equals_the_batch_row(puma, monkeypatch):
         assert va.dtype == np.bool_
         assert np.array_equal(puma.ik(T[i], singular="allow"), q_ik[i])
         assert np.array_equal(puma.inverse_dynamics(q[i], qd[i], qdd[i]), tau[i])
+        assert np.array_equal(puma.mass_matrix(q[i]), M[i])
+        assert np.array_equal(puma.forward_dynamics(q[i], qd[i], tau[i]), qdd_fd[i])
     assert np.array_equal(puma.fk(tuple(q[5].tolist())), T[5])
+    lists = (q[4].tolist(), qd[4].tolist(), tuple(qdd[4].tolist()))
+    assert np.array_equal(puma.inverse_dynamics(*lists), tau[4])
+
+
+def test_lean_results_are_fresh_arrays(delta, puma):
+    """The lean paths write into per-thread buffers and return copies: a result is not
+    changed by the next call and shares no memory with it."""
+    rng = np.random.default_rng(21)
+    q6, q3 = rng.uniform(-1, 1, (2, 6)), rng.uniform(-0.3, 0.9, (2, 3))
+    T0 = puma.fk(q6[0])
+    keep = T0.copy()
+    T1 = puma.fk(q6[1])
+    assert np.array_equal(T0, keep) and not np.shares_memory(T0, T1)
+    assert T0.flags.writeable and T0.flags.owndata
+    qa, va = puma.ik_all(T0)
+    qa_keep, va_keep = qa.copy(), va.copy()
+    puma.ik_all(T1)
+    assert np.array_equal(qa, qa_keep, equal_nan=True) and np.array_equal(va, va_keep)
+    p0, pd0 = delta.fk_vel(q3[0], q3[1])
+    p_keep = p0.copy()
+    delta.fk_vel(q3[1], q3[0])
+    assert np.array_equal(p0, p_keep) and not np.shares_memory(p0, pd0)
+
+
+def test_lean_paths_from_threads_give_each_thread_its_rows(puma):
+    """The buffers are per thread: concurrent one-pose calls get their own results."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    rng = np.random.default_rng(22)
+    q = rng.uniform(-1, 1, (400, 6))
+    T = puma.fk(q)
+    J = puma.jacobian(q)
+
+    def rows(lo):
+        return all(
+            np.array_equal(puma.fk(q[i]), T[i]) and np.array_equal(puma.jacobian(q[i]), J[i])
+            for i in range(lo, 400, 4)
+        )
+
+    with ThreadPoolExecutor(4) as pool:
+        assert all(pool.map(rows, range(4)))
 
 
 def test_serial_inputs_the_lean_path_leaves_to_the_general_one(puma):
@@ -137,3 +182,17 @@ def test_serial_inputs_the_lean_path_leaves_to_the_general_one(puma):
     assert np.array_equal(puma.jacobian(q[2].astype(">f8")), puma.jacobian(q)[2])
     Tf = np.asfortranarray(T[0])
     assert np.array_equal(puma.ik_all(Tf)[0], puma.ik_all(T)[0][0], equal_nan=True)
+
+
+def test_delta_payload_given_as_an_array_goes_the_general_way(delta):
+    """A (3,) array as one pose's payload is not a scalar: the lean path leaves it to the
+    general path, which refuses it (the payload broadcasts against the leading shape ());
+    a scalar payload gives the batch row's torques."""
+    from deltagen.inputs import InputError
+
+    rng = np.random.default_rng(23)
+    q, qd, qdd = (rng.uniform(-0.3, 0.9, 3) for _ in range(3))
+    with pytest.raises(InputError, match="payload"):
+        delta.inverse_dynamics(q, qd, qdd, np.array([0.1, 0.2, 0.3]))
+    tau = delta.inverse_dynamics(q[None], qd, qdd, payload=0.3)[0]
+    assert np.array_equal(delta.inverse_dynamics(q, qd, qdd, 0.3), tau)

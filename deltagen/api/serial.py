@@ -50,6 +50,17 @@ _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # SerialRobot._poses: what counts as a rigid transform
 
 
+try:  # np.linalg.det's LAPACK gufunc without its errstate context (a third of the cost
+    # of one-pose ik's singularity check; J is finite there, its status was OK)
+    from numpy.linalg import _umath_linalg
+
+    def _det(J):
+        return _umath_linalg.det(J, signature="d->d")
+
+except ImportError:  # pragma: no cover - a numpy without the module
+    _det = np.linalg.det
+
+
 def _check_one_pose(v):
     """(finite, rigid) of one pose given as its 16 entries (row by row, a Python list):
     SerialRobot._poses's rule for a batch, in Python floats (a few us instead of ~20)."""
@@ -806,25 +817,18 @@ class SerialRobot:
         UnreachableError naming the cause per row (out of reach, orientation not reachable
         by this structure, outside the joint limits, no convergence)."""
         analytic, q0a, checked = self._ik_request(config, q0, method, errors, singular, options)
-        lead, flat, finite, rigid = self._poses(T)
-        single = flat.shape[0] == 1 and not lead and rigid[0]
-        if single and errors == "raise" and q0a is None and analytic:
-            if self._ik_all_single is not None:
-                q = self._ik_single(flat[0], config)
-                if q is not None and (singular == "allow" or not self._singular_one(q)):
+        if type(T) is np.ndarray and T.dtype is _F64 and T.shape == (4, 4) and T.flags.c_contiguous:
+            # one pose as a plain array: _poses' rule in Python floats, and the lean paths
+            # (None: the general path below answers, after its own check of T)
+            if _check_one_pose(T.ravel().tolist())[1]:
+                q = self._ik_one(T, config, q0a, analytic, errors, singular, options)
+                if q is not None:
                     return q
-        elif (
-            single
-            and not analytic
-            and self.backend == "compiled"
-            and options.keys() <= {"restarts", "seed"}
-            and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
-        ):
-            q = self._numeric_single(flat[0], q0a, options.get("restarts"), options.get("seed", 0))
-            if q is not None and self._fits_tool() and not self._reaches_fully(q[None], flat)[0]:
-                q = None  # the general path names the pose the arm cannot take
-            if q is not None and (singular == "allow" or not self._singular_one(q)):
-                return q if errors == "raise" else (q, np.array(True))
+        lead, flat, finite, rigid = self._poses(T)
+        if flat.shape[0] == 1 and not lead and rigid[0]:
+            q = self._ik_one(flat[0], config, q0a, analytic, errors, singular, options)
+            if q is not None:
+                return q
         good = rigid
         if errors == "raise" and not np.all(good):
             self._raise_bad_poses(finite, rigid)
@@ -1028,6 +1032,34 @@ class SerialRobot:
         Rrel = T[:, :3, :3] @ R0.T
         return np.linalg.norm(Rrel[:, :, 2] - [0.0, 0.0, 1.0], axis=1) > 1e-8
 
+    def _ik_one(self, T, config, q0a, analytic, errors, singular, options):
+        """ik's lean paths for one checked rigid pose T (4, 4) C-contiguous: the C closed
+        form's branch, or the C numeric solver (every attempt in C) -- ik's result, or None
+        when the general path must answer (it then raises or reports the errors)."""
+        if analytic:
+            if errors == "raise" and q0a is None and self._ik_all_single is not None:
+                q = self._ik_single(T, config)
+                if q is not None and (singular == "allow" or not self._singular_one(q)):
+                    return q
+            return None
+        if not (
+            self.backend == "compiled"
+            and (not options or options.keys() <= {"restarts", "seed"})
+            and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
+        ):
+            return None
+        if options:
+            q = self._numeric_single(T, q0a, options.get("restarts"), options.get("seed", 0))
+        else:
+            q = self._numeric_single(T, q0a, None, 0)
+        if q is None:
+            return None
+        if self._fits_tool() and not self._reaches_fully(q[None], T[None])[0]:
+            return None  # the general path names the pose the arm cannot take
+        if singular == "allow" or not self._singular_one(q):
+            return q if errors == "raise" else (q, np.array(True))
+        return None
+
     def _singular_rows(self, q):
         """Rows of finite q (M, n) whose Jacobian is singular: sigma_min / sigma_max <
         SINGULAR_TOL. For square J, |det J| / |J|_F^n bounds the ratio from below (|J|_F >=
@@ -1064,8 +1096,9 @@ class SerialRobot:
         J = self._jacobian_single(q)
         if J is None or J.shape[0] != J.shape[1]:
             return bool(self._singular_rows(q[None])[0])
-        bound = SINGULAR_TOL * float(np.sqrt(np.vdot(J, J))) ** J.shape[0]
-        if abs(float(np.linalg.det(J))) >= bound:
+        flat = J.reshape(-1)
+        bound = SINGULAR_TOL * math.sqrt(float(flat @ flat)) ** J.shape[0]
+        if abs(float(_det(J))) >= bound:
             return False
         return bool(self._singular_rows(q[None])[0])
 

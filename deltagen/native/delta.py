@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
-from deltagen import status as st
-from deltagen.inputs import plain_row
 from deltagen.native.build import load
+from deltagen.native.lean import single_call
 from deltagen.native.parallel import run_rows
 
 
@@ -46,42 +44,6 @@ def geometry_struct(g) -> dict:
     }
 
 
-class _Scratch(threading.local):
-    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls): up to
-    four inputs (three axes; the payload) and the status."""
-
-    def __init__(self, ffi):
-        self.inputs = [ffi.new("double[4]") for _ in range(4)]
-        self.status = ffi.new("int8_t[1]")
-
-
-def _putter(memmove):
-    """put(buffer, x): copy one pose x into a double[] buffer when x is what
-    inputs.plain_row(x, 3) accepts -- a (3,) float64 ndarray in native byte order
-    (non-contiguous views make memmove raise) or a list/tuple of 3 Python floats/ints --
-    and return True; else False (the general path, whose checks decide, takes the call)."""
-    ndarray, f64 = np.ndarray, np.dtype(np.float64)
-
-    def put(buffer, x):
-        if type(x) is ndarray:
-            if x.shape != (3,) or x.dtype is not f64:
-                return False
-            try:
-                memmove(buffer, x, 24)
-            except (TypeError, ValueError, BufferError):
-                return False
-            return True
-        if not plain_row(x, 3):
-            return False
-        try:
-            buffer[0:3] = x
-        except (TypeError, ValueError, OverflowError):
-            return False
-        return True
-
-    return put
-
-
 class CompiledDelta:
     """Batched calls into the C core; arrays are (N, 3|4) C-contiguous float64."""
 
@@ -90,8 +52,6 @@ class CompiledDelta:
         module = load("delta_kinematics", "deltagen_delta")
         self._ffi, self._lib = module.ffi, module.lib
         self._geometry = self._ffi.new("deltagen_delta_geometry *", geometry_struct(geometry))
-
-        self._scratch = _Scratch(self._ffi)
         # encoder offsets (an asymmetric robot as built): the kernels take geometric crank
         # angles q + q_offset; None when there are none (no copies)
         self._offset = np.array(geometry.q_offset) if any(geometry.q_offset) else None
@@ -122,77 +82,23 @@ class CompiledDelta:
     }
 
     def single(self, name):
-        """A lean function for one pose of ``name`` (a key of _SINGLE): its inputs as
-        what inputs.plain_row(x, 3) accepts (a (3,) float64 array, or a list/tuple of 3
-        Python floats/ints; the dynamics' payload a Python float or int >= 0) in, the
-        result (a fresh array, or a tuple of them) out -- or None when the general path
-        must handle the call: other inputs, whose checks it makes, or a status other than
-        OK (INVALID input, a singular or unreachable pose: the general path reports it,
-        or returns fk's and ik's singular but finite poses). The kernel's status is OK only
-        when every output is finite (deltagen/status.py), so no check is repeated here.
-        Same C function on the same numbers as the batch path: the same bits."""
+        """A lean function for one pose of ``name`` (a key of _SINGLE), native.lean: its
+        inputs as what inputs.plain_row(x, 3) accepts (a (3,) float64 array, or a
+        list/tuple of 3 Python floats/ints; the dynamics' payload a Python float or int
+        >= 0) in, the result (a fresh array, or a tuple of them) out -- or None when the
+        general path must handle the call: other inputs, whose checks it makes, or a status
+        other than OK (INVALID input, a singular or unreachable pose: the general path
+        reports it, or returns fk's and ik's singular but finite poses). The kernel's
+        status is OK only when every output is finite (deltagen/status.py), so no check is
+        repeated here. Same C function on the same numbers as the batch path: the same bits."""
         if self._offset is not None:  # the general path applies the encoder offsets
             return None
         c_name, n_in, n_out, shape = self._SINGLE[name]
-        fn = getattr(self._lib, c_name)
-        geometry, scratch, fb = self._geometry, self._scratch, self._ffi.from_buffer
-        put = _putter(self._ffi.memmove)
-        empty, OK = np.empty, st.OK
-
-        if n_in == 1:
-
-            def call(x):
-                sc = scratch
-                inp = sc.inputs[0]
-                if not put(inp, x):
-                    return None
-                out = empty(shape)
-                status = sc.status
-                fn(geometry, 1, 3, inp, fb("double[]", out, require_writable=True), status)
-                return out if status[0] == OK else None
-
-            return call
-
-        if n_in == 4:  # inverse dynamics: q, qd, qdd, payload
-
-            def dynamics(q, qd, qdd, payload):
-                sc = scratch
-                a, b, c, d = sc.inputs
-                kind = type(payload)
-                if not (kind is float or kind is int) or not payload >= 0.0:
-                    return None
-                if not (put(a, q) and put(b, qd) and put(c, qdd)):
-                    return None
-                try:
-                    d[0] = payload
-                except OverflowError:  # an int too large for a double
-                    return None
-                out = empty(shape)
-                status = sc.status
-                fn(geometry, 1, 3, a, b, c, d, fb("double[]", out, require_writable=True), status)
-                return out if status[0] == OK else None
-
-            return dynamics
-
-        def rates(*args):  # fk_vel (q, qd), fk_acc (q, qd, qdd)
-            sc = scratch
-            buffers = sc.inputs[:n_in]
-            for buffer, x in zip(buffers, args):
-                if not put(buffer, x):
-                    return None
-            outs = [empty(shape) for _ in range(n_out)]
-            status = sc.status
-            fn(
-                geometry,
-                1,
-                3,
-                *buffers,
-                *(fb("double[]", o, require_writable=True) for o in outs),
-                status,
-            )
-            return tuple(outs) if status[0] == OK else None
-
-        return rates
+        rows = [3, 3, 3, "scalar"][:n_in]
+        outputs = [(shape, "double")] * n_out
+        return single_call(
+            self._ffi, getattr(self._lib, c_name), (self._geometry, 1, 3), rows, outputs
+        )
 
     def _run(self, fn, inputs, n_out, out_width=None, widths=None):
         """fn(geometry, rows, axes, *inputs, *outputs, status) over the batch, split into row

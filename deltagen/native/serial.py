@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from deltagen import status as st
 from deltagen.codegen.serial import (
     arm_sources,
     base_name,
@@ -20,8 +19,8 @@ from deltagen.codegen.serial import (
     description_fingerprint,
     generator_fingerprint,
 )
-from deltagen.inputs import plain_pose, plain_row
 from deltagen.native.build import is_built, load, usable_cache_dir
+from deltagen.native.lean import single_call
 from deltagen.native.parallel import run_rows
 from deltagen.paths import generated_dir
 
@@ -85,35 +84,6 @@ _DYNAMICS = frozenset(
 )
 
 
-class _Scratch(threading.local):
-    """Per-thread buffers for single-pose calls (cffi releases the GIL during calls)."""
-
-    def __init__(self, ffi, n):
-        self.q = ffi.new(f"double[{n}]")
-        self.T = ffi.new("double[16]")
-        self.J = ffi.new(f"double[{6 * n}]")
-        self.status = ffi.new("int8_t[1]")
-        self.T_np = np.frombuffer(ffi.buffer(self.T), dtype=np.float64).reshape(4, 4)
-        self.J_np = np.frombuffer(ffi.buffer(self.J), dtype=np.float64).reshape(6, n)
-        self.ik_q = self.ik_valid = None  # ik_all buffers, made on first use
-
-    def make_ik_buffers(self, ffi, k, n):
-        self.ik_q = ffi.new(f"double[{k * n}]")
-        self.ik_valid = ffi.new(f"uint8_t[{k}]")
-        self.ik_q_np = np.frombuffer(ffi.buffer(self.ik_q), dtype=np.float64).reshape(k, n)
-        self.ik_valid_np = np.frombuffer(ffi.buffer(self.ik_valid), dtype=np.uint8)
-
-
-class _DynamicsScratch(threading.local):
-    """Per-thread buffers of the single-state dynamics calls (three inputs, one output)."""
-
-    def __init__(self, ffi, n, out_size=None):
-        self.a, self.b, self.c = (ffi.new(f"double[{n}]") for _ in range(3))
-        self.out = ffi.new(f"double[{out_size or n}]")
-        self.status = ffi.new("int8_t[1]")
-        self.out_np = np.frombuffer(ffi.buffer(self.out), dtype=np.float64)
-
-
 class CompiledArm:
     """Batched calls into an arm's C module; q is (N, n) C-contiguous float64."""
 
@@ -133,7 +103,6 @@ class CompiledArm:
             module = _load(desc)
             self._dynamics = module if desc.has_inertia else None
         self._ffi, self._lib = module.ffi, module.lib
-        self._scratch = _Scratch(self._ffi, desc.n)
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
     def _run(self, name, inputs, *widths):
@@ -288,64 +257,19 @@ class CompiledArm:
         return self._run("forward_dynamics", [q, qd, tau], self.desc.n)
 
     def single_dynamics(self, name):
-        """Fast path for one state of inverse_dynamics or forward_dynamics (three (n,)
-        C-contiguous float64 arrays): the (n,) result, or None when the general path must
-        handle the call (other inputs, a status other than OK)."""
-        module = self.load_dynamics()
+        """Lean path (native.lean) for one state of inverse_dynamics or forward_dynamics:
+        three rows of n numbers (inputs.plain_row) in, the (n,) result out, or None when
+        the general path must handle the call (other inputs, a status other than OK)."""
+        module, n = self.load_dynamics(), self.desc.n
         fn = getattr(module.lib, f"{self._prefix}_{name}")
-        scratch = _DynamicsScratch(module.ffi, self.desc.n)
-        n, nbytes = self.desc.n, 8 * self.desc.n
-        memmove = module.ffi.memmove
-        ndarray, OK = np.ndarray, st.OK
-
-        def plain(x):
-            return (
-                type(x) is ndarray
-                and x.shape == (n,)
-                and x.dtype.char == "d"
-                and x.flags.c_contiguous
-            )
-
-        def call(a, b, c):
-            if not (plain(a) and plain(b) and plain(c)):
-                return None
-            sc = scratch
-            memmove(sc.a, a, nbytes)
-            memmove(sc.b, b, nbytes)
-            memmove(sc.c, c, nbytes)
-            fn(1, sc.a, sc.b, sc.c, sc.out, sc.status)
-            if sc.status[0] != OK:
-                return None
-            return sc.out_np.copy()
-
-        return call
+        return single_call(module.ffi, fn, (1,), [n, n, n], [((n,), "double")])
 
     def single_mass_matrix(self):
-        """Fast path of mass_matrix for one (n,) C-contiguous float64 q: M (n, n), or None
-        when the general path must handle the call."""
-        module = self.load_dynamics()
+        """Lean path of mass_matrix for one q (inputs.plain_row): M (n, n), or None when the
+        general path must handle the call."""
+        module, n = self.load_dynamics(), self.desc.n
         fn = getattr(module.lib, f"{self._prefix}_mass_matrix")
-        scratch = _DynamicsScratch(module.ffi, self.desc.n, self.desc.n**2)
-        n, nbytes = self.desc.n, 8 * self.desc.n
-        memmove = module.ffi.memmove
-        ndarray, OK = np.ndarray, st.OK
-
-        def call(q):
-            if not (
-                type(q) is ndarray
-                and q.shape == (n,)
-                and q.dtype.char == "d"
-                and q.flags.c_contiguous
-            ):
-                return None
-            sc = scratch
-            memmove(sc.a, q, nbytes)
-            fn(1, sc.a, sc.out, sc.status)
-            if sc.status[0] != OK:
-                return None
-            return sc.out_np.reshape(n, n).copy()
-
-        return call
+        return single_call(module.ffi, fn, (1,), [n], [((n, n), "double")])
 
     @property
     def has_ik_all(self) -> bool:
@@ -365,71 +289,17 @@ class CompiledArm:
         if not self.has_ik_all:
             return None
         fn = getattr(self._lib, f"{self._prefix}_ik_all")
-        scratch, memmove, fb, n = (
-            self._scratch,
-            self._ffi.memmove,
-            self._ffi.from_buffer,
-            self.desc.n,
-        )
-        empty, OK = np.empty, st.OK
-
-        def call(T):
-            if not plain_pose(T):
-                return None
-            sc = scratch
-            memmove(sc.T, T, 128)
-            q = empty((k, n))
-            valid = empty(k, dtype=np.bool_)  # the kernel writes uint8 flags, 1 or 0
-            status = sc.status
-            fn(
-                1,
-                sc.T,
-                fb("double[]", q, require_writable=True),
-                fb("uint8_t[]", valid, require_writable=True),
-                status,
-            )
-            return (q, valid) if status[0] == OK else None
-
-        return call
+        n = self.desc.n
+        return single_call(self._ffi, fn, (1,), ["pose"], [((k, n), "double"), ((k,), "uint8_t")])
 
     def single(self, name):
-        """Lean path for one configuration of fk or jacobian: what inputs.plain_row(q, n)
-        accepts in (a (n,) float64 array in native byte order -- a non-contiguous view makes
-        memmove raise -- or a list/tuple of n Python floats/ints), a fresh result array out,
-        or None when the general path must handle the call (other inputs, whose checks it
-        makes, or a status other than OK: the kernel's status is OK only when every output is
-        finite, deltagen/status.py). Same C function, same numbers as the batch path."""
-        fn = getattr(self._lib, f"{self._prefix}_{name}")
-        scratch, memmove, fb, n = (
-            self._scratch,
-            self._ffi.memmove,
-            self._ffi.from_buffer,
-            self.desc.n,
-        )
-        ndarray, f64, empty, OK = np.ndarray, np.dtype(np.float64), np.empty, st.OK
-        shape_in, nbytes = (n,), 8 * n
+        """Lean path (native.lean) for one configuration of fk or jacobian: what
+        inputs.plain_row(q, n) accepts in (a (n,) float64 array in native byte order, or a
+        list/tuple of n Python floats/ints), a fresh result array out, or None when the
+        general path must handle the call (other inputs, whose checks it makes, or a status
+        other than OK: the kernel's status is OK only when every output is finite,
+        deltagen/status.py). Same C function, same numbers as the batch path."""
+        n = self.desc.n
         shape = (4, 4) if name == "fk" else (6, n)
-
-        def call(q):
-            sc = scratch
-            buffer = sc.q
-            if type(q) is ndarray:
-                if q.shape != shape_in or q.dtype is not f64:
-                    return None
-                try:
-                    memmove(buffer, q, nbytes)
-                except (TypeError, ValueError, BufferError):
-                    return None
-            elif plain_row(q, n):
-                try:
-                    buffer[0:n] = q
-                except (TypeError, ValueError, OverflowError):
-                    return None
-            else:
-                return None
-            out = empty(shape)
-            status = sc.status
-            fn(1, buffer, fb("double[]", out, require_writable=True), status)
-            return out if status[0] == OK else None
-
-        return call
+        fn = getattr(self._lib, f"{self._prefix}_{name}")
+        return single_call(self._ffi, fn, (1,), [n], [(shape, "double")])
