@@ -3,6 +3,9 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+# pytest workers: the cores this process may use, at most 4 (each worker compiles C)
+JOBS ?= $(shell $(PYTHON) -c "import os; print(min(4, len(os.sched_getaffinity(0))) if hasattr(os, 'sched_getaffinity') else 2)")
+PYTEST := $(BIN)/python -m pytest -q -n $(JOBS) --dist loadfile
 
 .PHONY: setup sysdeps run test quick lint typecheck generate check bench clean
 
@@ -32,11 +35,11 @@ run: setup
 # every check of CI: lint, types, generated/ up to date, the test suite
 test: sysdeps lint typecheck
 	$(BIN)/deltagen generate --check
-	$(BIN)/python -m pytest -q
+	$(PYTEST)
 
 # the suite without the tests marked slow (sanitizer builds, fresh interpreters)
 quick: setup
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
 
 lint: setup
 	$(BIN)/ruff check deltagen tests

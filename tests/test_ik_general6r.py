@@ -108,10 +108,9 @@ def test_manocha_canny_arm_has_16_real_solutions():
     assert np.abs(arm.fk(ours) - T[0]).max() < 1e-10
 
 
-def test_no_solution_is_missed_numeric_multistart():
-    arm = _random_arm(3)
-    rng = np.random.default_rng(4)
-    poses, seeds = 6, 64
+def _complete_and_multistart(arm, rng, poses, seeds=64):
+    """Random poses, the complete solver's slots for them, and a numeric multi-start from
+    `seeds` random starts per pose (joint limits ignored): (T, Q, valid, converged, q)."""
     T = arm.fk(rng.uniform(-np.pi, np.pi, (poses, 6)))
     Q, valid = arm.ik_all(T, method="complete")
     res = ik_numeric.solve(
@@ -123,9 +122,14 @@ def test_no_solution_is_missed_numeric_multistart():
         respect_limits=False,
     )
     conv = res.converged.reshape(poses, seeds)
-    qn = res.q.reshape(poses, seeds, 6)
     assert conv.mean() > 0.3
-    for p in range(poses):
+    return T, Q, valid, conv, res.q.reshape(poses, seeds, 6)
+
+
+def test_no_solution_is_missed_numeric_multistart():
+    arm = _random_arm(3)
+    T, Q, valid, conv, qn = _complete_and_multistart(arm, np.random.default_rng(4), 6)
+    for p in range(len(T)):
         for s in np.flatnonzero(conv[p]):
             assert _wrapped(Q[p][valid[p]] - qn[p, s]).max(-1).min() < 1e-6
 
@@ -310,26 +314,9 @@ def test_no_solution_is_missed_on_industrial_arms(name):
     """The independent count check on shifted arrangements: a numeric multi-start (64
     random seeds per pose) converges to no solution that the complete solver missed."""
     arm = _jaco() if name == "jaco" else _ur5()
-    rng = np.random.default_rng(31)
-    poses, seeds = 3, 64
-    T = arm.fk(rng.uniform(-np.pi, np.pi, (poses, 6)))
-    Q, valid = arm.ik_all(
-        T,
-        method="complete",
-    )
-    res = ik_numeric.solve(
-        arm,
-        np.repeat(T, seeds, axis=0),
-        rng.uniform(-np.pi, np.pi, (poses * seeds, 6)),
-        tol=1e-11,
-        max_iter=200,
-        respect_limits=False,
-    )
-    conv = res.converged.reshape(poses, seeds)
-    qn = res.q.reshape(poses, seeds, 6)
-    assert conv.mean() > 0.3
+    T, Q, valid, conv, qn = _complete_and_multistart(arm, np.random.default_rng(31), 3)
     # every converged slot (valid or outside the limits) counts: the multi-start ignores them
     have = np.isfinite(Q).all(-1)
-    for p in range(poses):
+    for p in range(len(T)):
         for s_ in np.flatnonzero(conv[p]):
             assert _wrapped(Q[p][have[p]] - qn[p, s_]).max(-1).min() < 1e-6, (p, s_)

@@ -113,6 +113,19 @@ def _pin_q(model, q):
     return out
 
 
+def _assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M):
+    """deltagen's tau (N, n) and M (N, n, n) at q, qd, qdd equal pinocchio's rnea (plus the
+    file's damping and Coulomb friction, which rnea leaves out) and crba, to 1e-10 relative."""
+    for k in range(len(q)):
+        qp = _pin_q(model, q[k])
+        taup = pin.rnea(model, data, qp, qd[k], qdd[k])
+        taup = taup + model.damping * qd[k] + model.friction * np.sign(qd[k])
+        assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
+        Mp = pin.crba(model, data, qp)
+        Mp = np.triu(Mp) + np.triu(Mp, 1).T
+        assert np.abs(M[k] - Mp).max() <= 1e-10 * np.abs(Mp).max()
+
+
 def _random_q(robot, rng, count=N_CONFIGS):
     lim = np.clip(robot.qlim, -np.pi, np.pi)
     return rng.uniform(lim[:, 0], lim[:, 1], (count, robot.n))

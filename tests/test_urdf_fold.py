@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_urdf import _pin_q, _random_q
+from test_urdf import _assert_dynamics_as_pinocchio, _random_q
 
 from deltagen import SerialRobot
 from deltagen.errors import GeometryError
@@ -174,14 +174,7 @@ def test_panda_fingers_locked_open_match_pinocchio_reduced_model(tip):
     qdd = rng.uniform(-3, 3, q.shape)
     tau = robot.inverse_dynamics(q, qd, qdd)
     M = robot.mass_matrix(q)
-    for k in range(len(q)):
-        qp = _pin_q(model, q[k])
-        taup = pin.rnea(model, data, qp, qd[k], qdd[k])
-        taup = taup + model.damping * qd[k] + model.friction * np.sign(qd[k])
-        assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
-        Mp = pin.crba(model, data, qp)
-        Mp = np.triu(Mp) + np.triu(Mp, 1).T
-        assert np.abs(M[k] - Mp).max() <= 1e-10 * np.abs(Mp).max()
+    _assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M)
     # the fingers' 2 x 15 g matter: locked closed, the mass matrix differs
     with pytest.warns(URDFWarning, match=r"panda_finger_joint1 = 0, panda_finger_joint2 = 0"):
         closed = SerialRobot.from_urdf(PANDA, "panda_link0", tip, backend="reference")

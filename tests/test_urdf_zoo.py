@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_urdf import _pin_q, _random_q
+from test_urdf import _assert_dynamics_as_pinocchio, _pin_q, _random_q
 
 from deltagen import SerialRobot
 from deltagen.model.urdf import URDFWarning
@@ -99,12 +99,6 @@ def test_published_arm_matches_pinocchio(name):
         Rb = Tb[:3, :3]  # pinocchio's world axes -> deltagen's base axes
         Jp = np.vstack((Rb.T @ Jp[:3], Rb.T @ Jp[3:]))
         np.testing.assert_allclose(J[k], Jp, rtol=0, atol=1e-12 * size)
-        if dynamics:
-            # joint friction from the file's <dynamics damping friction>, as pinocchio read
-            # it (its rnea leaves friction out)
-            taup = pin.rnea(model, data, qp, qd[k], qdd[k])
-            taup = taup + model.damping * qd[k] + model.friction * np.sign(qd[k])
-            assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
-            Mp = pin.crba(model, data, qp)
-            Mp = np.triu(Mp) + np.triu(Mp, 1).T
-            assert np.abs(M[k] - Mp).max() <= 1e-10 * np.abs(Mp).max()
+    if dynamics:
+        # joint friction from the file's <dynamics damping friction>, as pinocchio read it
+        _assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M)
