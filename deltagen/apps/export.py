@@ -372,7 +372,9 @@ def export(
         what[name] = ("single-point functions" if point else "batched functions") + (
             ": declarations and documentation" if name.endswith(".h") else ""
         )
-    runtime = runtime_files(package.files.values()) if batch and real == "double" else []
+    runtime = runtime_files(package.files.values())
+    if not (batch and real == "double"):  # only the header-only runtime (the joint-limit fit)
+        runtime = [p for p in runtime if p.suffix == ".h" and not p.with_suffix(".c").is_file()]
     for path in runtime:
         files[path.name] = path.read_text()
         what[path.name] = "deltagen runtime C (hand-written), used by the batched module"

@@ -7,7 +7,8 @@
   or, when every branch is an integer constant, as branch-free 0/1 arithmetic.
 * derive.functions' unevaluated Ge, Le, Gt, Lt, Fmax, Fmin, Fabs, Floor print as
   SymPy's relationals, Max, Min, Abs and floor.
-* ``FitAngle(a, lo, hi, lo_tol, hi_tol)`` prints the runtime's ``deltagen_fit_angle``.
+* ``FitAngle(a, lo, hi, lo_tol, hi_tol)`` prints the runtime's ``deltagen_fit_angle`` (its
+  float twin ``deltagen_fit_anglef`` in float).
 * Small integer powers are expanded to products (``pow(x, 3)`` is not folded by gcc
   without -ffast-math).
 """
@@ -42,7 +43,8 @@ class KernelPrinter(C99CodePrinter):
         return self._print_math_func(expr)
 
     def _print_FitAngle(self, expr):
-        return "deltagen_fit_angle(" + ", ".join(self._print(a) for a in expr.args) + ")"
+        name = "deltagen_fit_angle" + self._get_func_suffix(real)  # deltagen_fit_anglef in float
+        return name + "(" + ", ".join(self._print(a) for a in expr.args) + ")"
 
     def _print_AllFinite(self, expr):
         return "(" + " & ".join(f"isfinite({self._print(a)})" for a in expr.args) + ")"

@@ -5,7 +5,8 @@
  * +2, -2 turns), operation for operation as the SymPy statements it replaces printed
  * (derive/serial/ik_closed_form.py, IKKernelBuilder._fit_limits): the same doubles.
  *
- * C99, header only (static inline), no globals; link with libm.
+ * C99, header only (static inline), no globals; link with libm. deltagen_fit_anglef is the
+ * float version for --float32 exports.
  */
 #ifndef DELTAGEN_LIMITS_H
 #define DELTAGEN_LIMITS_H
@@ -34,6 +35,24 @@ static inline double deltagen_fit_angle(double a, double lo, double hi, double l
         fits = fits | fy;
     }
     return fits ? fmin(hi, fmax(lo, x)) : x;
+}
+
+/* The same in float (exports with --float32): the same operations in binary32. */
+static inline float deltagen_fit_anglef(float a, float lo, float hi, float lo_tol, float hi_tol)
+{
+    const float two_pi = 2 * 3.141592653589793f;
+    const float inv_two_pi = (1.0f / 2.0f) / 3.141592653589793f;
+    const float shifts[4] = {two_pi, -two_pi, 4 * 3.141592653589793f, -(4 * 3.141592653589793f)};
+    const float x0 = a - two_pi * floorf(inv_two_pi * (a + 3.141592653589793f));
+    int fits = (x0 >= lo_tol) & (x0 <= hi_tol);
+    float x = x0;
+    for (int k = 0; k < 4; ++k) {
+        const float y = x0 + shifts[k];
+        const int fy = (y >= lo_tol) & (y <= hi_tol) & !fits;
+        x = fy ? y : x;
+        fits = fits | fy;
+    }
+    return fits ? fminf(hi, fmaxf(lo, x)) : x;
 }
 
 #endif /* DELTAGEN_LIMITS_H */
