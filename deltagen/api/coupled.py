@@ -256,20 +256,17 @@ class CoupledArm:
         if errors == "raise" and not np.all(good):
             bad = np.flatnonzero(~good)
             raise InputError(f"q0 contains NaN or infinite values in rows {rows_text(bad)}", bad)
-        safe = flat.copy()
-        safe[~good] = np.eye(4)
-        options = {**options, "engine": "numpy"}
-        result = ik_numeric.solve(reduced, safe, np.where(good[:, None], start, 0.0), **options)
-        r, ok = result.q.copy(), result.converged & good
+        r = np.full((flat.shape[0], self.n), np.nan)
+        ok = np.zeros(flat.shape[0], dtype=bool)
+        if np.any(good):  # only these rows: a placeholder target would cost its restarts
+            options = {**options, "engine": "numpy"}
+            result = ik_numeric.solve(reduced, flat[good], start[good], **options)
+            r[good], ok[good] = result.q, result.converged
         if np.any(ok):
             # the whole pose (a chain of fewer than 6 variables fits the components it can
             # move: a target it cannot take is not reached) and every physical joint's limits
             q = self.coupling.expand(r[ok])
-            Tq, _ = self.full._core.fk(np.ascontiguousarray(q))
-            err = ik_numeric.pose_error(Tq, flat[ok])
-            fits = (np.linalg.norm(err[:, :3], axis=1) <= 1e-8) & (
-                np.linalg.norm(err[:, 3:], axis=1) <= 1e-8
-            )
+            fits = self.full._reaches_fully(q, flat[ok])
             ok[ok] = fits & np.asarray(self.full.within_limits(q))
         r[~ok] = np.nan
         if errors == "raise":

@@ -1050,10 +1050,7 @@ class SerialRobot:
             and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
         ):
             return None
-        if options:
-            q = self._numeric_single(T, q0a, options.get("restarts"), options.get("seed", 0))
-        else:
-            q = self._numeric_single(T, q0a, None, 0)
+        q = self._numeric_single(T, q0a, options.get("restarts"), options.get("seed", 0))
         if q is None:
             return None
         if self._fits_tool() and not self._reaches_fully(q[None], T[None])[0]:

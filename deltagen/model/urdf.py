@@ -80,7 +80,7 @@ import numpy as np
 import numpy.typing as npt
 
 from deltagen.errors import GeometryError
-from deltagen.geometry.rotations import matrix_from_rpy
+from deltagen.geometry.rotations import matrix_from_rpy, skew
 from deltagen.model.coupling import Coupling
 from deltagen.model.serial import Inertial, Joint, SerialDescription
 
@@ -419,7 +419,7 @@ def _motion(j: _UJoint, q: float) -> Matrix:
     if j.type == "prismatic":
         M[:3, 3] = q * a
         return M
-    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    K = skew(a)
     M[:3, :3] = np.eye(3) + math.sin(q) * K + (1.0 - math.cos(q)) * (K @ K)  # Rodrigues
     return M
 

@@ -118,19 +118,8 @@ def single_call(ffi, fn, lead, rows, outputs):
     # The common cases are written out below, with the leading arguments (an arm's (1,),
     # the delta's (geometry, 1, axes)) passed one by one: no argument tuple per call.
     a0 = lead[0]
-    if len(rows) == 1 and len(outputs) == 1 and rows[0] != "scalar":
+    if len(rows) == 1 and len(outputs) == 1 and rows[0] not in ("scalar", "pose"):
         # fk, ik, jacobian, mass_matrix, ...
-        if rows[0] == "pose":
-            put_pose = _put_pose(memmove)
-
-            def pose_call(T):
-                (x,), (o,), (view,), status = buffers.b
-                if not put_pose(x, T):
-                    return None
-                fn(*lead, x, o, status)
-                return view.copy() if status[0] == OK else None
-
-            return pose_call
         n = rows[0]
         shape_in, nbytes = (n,), 8 * n
         put = row_putter(memmove, n)
