@@ -10,7 +10,14 @@ int deltagen_panda_frames(size_t n, const double *q, double *F, int8_t *status);
 int deltagen_panda_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int deltagen_panda_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int deltagen_panda_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
+int deltagen_panda_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau, int8_t *status);
+int deltagen_panda_mass_matrix(size_t n, const double *q, double *M, int8_t *status);
+int deltagen_panda_gravity_torque(size_t n, const double *q, double *g, int8_t *status);
+int deltagen_panda_coriolis(size_t n, const double *q, const double *qd, double *C, int8_t *status);
+int deltagen_panda_nonlinear_effects(size_t n, const double *q, const double *qd, double *h, int8_t *status);
 int deltagen_panda_ik_newton(size_t n, const deltagen_ik_options *options,
     const double *T_target, const double *q0, const double *qlim,
     double *q, double *err_p, double *err_r,
     int32_t *iterations, int8_t *status);
+int deltagen_panda_forward_dynamics(size_t n, const double *q, const double *qd,
+    const double *tau, double *qdd, int8_t *status);

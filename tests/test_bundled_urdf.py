@@ -45,7 +45,24 @@ def test_panda_equals_frankas_modified_dh_table():
     tool = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0.107 + 0.1034], [0, 0, 0, 1]])
     q = _random_q(urdf, np.random.default_rng(1), N)
     np.testing.assert_allclose(urdf.fk(q), mdh.fk(q) @ tool, rtol=0, atol=1e-12)
-    assert urdf.description.has_inertia is False  # kinematics only, as the file says
+
+
+def test_panda_inertials_are_physically_feasible():
+    """Gaz et al. 2019 retrieve a *feasible* set (their paper's point): positive masses, each
+    inertia about its centre of mass positive definite
+    with the triangle inequalities I_xx + I_yy >= I_zz (cyclic) of its principal moments. A
+    mistyped value (a sign, a decimal place) breaks some of these."""
+    robot = SerialRobot.load("panda", backend="reference")
+    joints = robot.description.joints
+    assert robot.description.has_inertia and len(joints) == 7
+    for j in joints:
+        inertial = j.inertial
+        assert 0.5 < inertial.mass < 5.0, j.name
+        ixx, iyy, izz, ixy, ixz, iyz = inertial.inertia
+        tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        moments = np.linalg.eigvalsh(tensor)
+        assert moments.min() > 0, j.name
+        assert 2 * moments.max() <= moments.sum(), j.name  # largest <= sum of the other two
 
 
 def test_scara_equals_its_dh_table():
@@ -76,6 +93,16 @@ def test_the_checked_in_c_of_the_bundled_urdfs_equals_the_reference(name):
     q = _random_q(compiled, np.random.default_rng(6), N)
     np.testing.assert_allclose(compiled.fk(q), reference.fk(q), rtol=0, atol=1e-12)
     np.testing.assert_allclose(compiled.jacobian(q), reference.jacobian(q), rtol=0, atol=1e-12)
+    if name == "panda":  # the only one with inertials; its C holds the dynamics kernels
+        rng = np.random.default_rng(7)
+        qd, qdd = rng.normal(size=(2, N, compiled.n))
+        tau = compiled.inverse_dynamics(q, qd, qdd)
+        np.testing.assert_allclose(
+            tau, reference.inverse_dynamics(q, qd, qdd), rtol=1e-12, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            compiled.mass_matrix(q), reference.mass_matrix(q), rtol=1e-12, atol=1e-14
+        )
 
 
 pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
@@ -115,3 +142,13 @@ def test_panda_matches_example_robot_data_through_pinocchio():
             np.testing.assert_allclose(F[k, i - 1] @ turn, link, rtol=0, atol=1e-12)
         Jp = pin.computeFrameJacobian(model, data, q[k], tcp, pin.LOCAL_WORLD_ALIGNED)
         np.testing.assert_allclose(J[k], Jp, rtol=0, atol=1e-12)
+
+
+def test_panda_dynamics_match_pinocchio_on_the_same_file():
+    """The bundled Panda's inertials (Gaz et al. 2019) through deltagen's derivation and through
+    pinocchio's rnea/crba reading the same file, to 1e-10 relative."""
+    from test_urdf import _compare_with_pinocchio
+
+    path = Path(__file__).resolve().parents[1] / "robots" / "panda.urdf"
+    robot = SerialRobot.load("panda", backend="reference")
+    _compare_with_pinocchio(robot, path, "panda_hand_tcp")
