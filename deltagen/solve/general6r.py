@@ -81,7 +81,7 @@ from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
 from deltagen.model.structure import joint_axes
 
-__all__ = ["General6R", "K", "eliminations", "solve"]
+__all__ = ["General6R", "K", "eigen_engine", "eliminations", "solve"]
 
 K = 16  # solution slots
 _GRID = np.array([0.0, 2.0 * np.pi / 3.0, 4.0 * np.pi / 3.0])
@@ -369,18 +369,19 @@ class General6R:
         out[:, :, _VECTORS] = vectors.reshape(N, 27, 12)
         return out.reshape(N, 3, 3, 3, 14)
 
-    def starts(self, T):
+    def starts(self, T, engine="numpy"):
         """Candidates (N, 16, 6) in the arm's joint order for tool poses T (N, 4, 4) (NaN in
         unused slots), and the rank margin of Q per pose. Batched over the poses; the
         eigen step is the standard eigenproblem of the 24 x 24 companion matrix (stacked
         ``np.linalg.eigvals``) where M2 is well conditioned, LAPACK's QZ per pose where it
-        is not (module docstring)."""
+        is not (module docstring); ``engine`` of the standard eigen step: "numpy" or "c"
+        (:meth:`_eigen`)."""
         w, o, G = self._arranged(T)
         C0 = self._left_batch(w, o, G)
         M, (C, Q, margin), pinv = self._pencil(w, o, G, C0, with_pinv=True)
         N = G.shape[0]
         qa = np.full((N, self.slots, 6), np.nan)
-        idx, x3, V = self._eigen(M)
+        idx, x3, V = self._eigen(M, engine)
         if idx.size:
             th = self._angles345(x3, V)
             # (c1, s1, c2, s2) from Q Sigma2 = P Sigma1, by Q's pseudo-inverse (its SVD)
@@ -400,13 +401,17 @@ class General6R:
         q[..., self.order] = qa
         return q, margin
 
-    def _eigen(self, M):
+    def _eigen(self, M, engine="numpy"):
         """The real eigenvalues x3 of (M0 + M1 x + M2 x^2) v = 0 for every pose, with their
         eigenvectors v (12 monomials): (pose index (r,), x3 (r,), v (r, 12)), sorted by
         pose. Where M2 is well conditioned (1-norm condition <= COND_STANDARD) the
         companion matrix of M2^-1 M(x) (stacked eigvals) and v by one step of inverse
         iteration on M(x3); elsewhere (and where that fails) QZ on the pencil per pose
-        (LAPACK ggev), which copes with a singular M2 (eigenvalues at infinity)."""
+        (LAPACK ggev), which copes with a singular M2 (eigenvalues at infinity).
+        ``engine``: "numpy" (LAPACK geev through numpy, the reference) or "c" (the same
+        steps in hand-written C, :meth:`_eigen_c`)."""
+        if engine == "c":
+            return self._eigen_c(M)
         N = M.shape[0]
         M2 = M[:, 2]
         std = np.zeros(N, dtype=bool)
@@ -455,8 +460,34 @@ class General6R:
                     x_parts[-1][~drop],
                     v_parts[-1][~drop],
                 )
+        self._eigen_qz(M, np.flatnonzero(~std), idx_parts, x_parts, v_parts)
+        if not idx_parts:
+            return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12))
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
+
+    def _eigen_c(self, M):
+        """_eigen by the compiled eigen step (native/general6r.py: the companion matrix,
+        its eigenvalues by the hand-written Hessenberg + Francis QR of
+        codegen/runtime/deltagen_eigen.c, the null vectors by the same inverse iteration),
+        QZ per pose where it reports a status (M2 ill conditioned, or a failure)."""
+        from deltagen.native import general6r as native_g6r
+
+        status, nreal, x, V = native_g6r.eigen(M, COND_STANDARD, self.imag_tol, _START)
+        have = np.arange(24)[None, :] < nreal[:, None]
+        pr, er = np.nonzero(have)
+        idx_parts, x_parts, v_parts = [pr], [x[pr, er]], [V[pr, er]]
+        self._eigen_qz(M, np.flatnonzero(status != 0), idx_parts, x_parts, v_parts)
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
+
+    def _eigen_qz(self, M, rows, idx_parts, x_parts, v_parts):
+        """QZ on the pencil (scipy.linalg.eig, LAPACK ggev) for the poses ``rows``; their
+        real eigenvalues and eigenvectors appended to the parts."""
         Z0, I12 = np.zeros((12, 12)), np.eye(12)
-        for n in np.flatnonzero(~std):
+        for n in rows:
             # (M0 + M1 x + M2 x^2) v = 0 as A z = x B z, z = (v, x v)
             A_ = np.block([[Z0, I12], [-M[n, 0], -M[n, 1]]])
             B_ = np.block([[I12, Z0], [Z0, M[n, 2]]])
@@ -471,11 +502,6 @@ class General6R:
             idx_parts.append(np.full(real.size, n))
             x_parts.append(lam[real].real)
             v_parts.append(V.real)
-        if not idx_parts:
-            return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12))
-        idx = np.concatenate(idx_parts)
-        order = np.argsort(idx, kind="stable")
-        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
 
     def _angles345(self, x3, V):
         """theta 3, 4, 5 (r, 3) from the eigenvalues x3 (r,) and eigenvectors V (r, 12) of
@@ -510,17 +536,45 @@ class General6R:
         return np.arctan2((_cross(ref, y) * w6).sum(axis=1), (y * ref).sum(axis=1))
 
 
-def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=True, info=False):
+def eigen_engine(arm, engine="auto") -> str:
+    """The eigen step's engine for ``arm``: "numpy" or "c" as asked; "auto": "c" on the
+    compiled backend when the module builds (native/general6r.py), else "numpy" (the
+    reference backend stays pure numpy, like its Newton polish)."""
+    if engine not in ("auto", "c", "numpy"):
+        raise InputError(f'engine must be "auto", "c" or "numpy", not {engine!r}')
+    if engine != "auto":
+        return engine
+    if getattr(arm, "backend", None) != "compiled":
+        return "numpy"
+    from deltagen.native import general6r as native_g6r
+
+    return "c" if native_g6r.available() else "numpy"
+
+
+def solve(
+    arm,
+    T,
+    eliminations,
+    *,
+    extra=None,
+    tol=1e-10,
+    max_iter=30,
+    limits=True,
+    info=False,
+    engine="auto",
+):
     """All solutions for poses T (N, 4, 4) of ``arm`` (a SerialRobot): the candidates of
     every :class:`General6R` in ``eliminations`` (e.g. the chain forwards and reversed) and
     the optional ``extra`` starts (N, S', 6) (e.g. the combined method's branches), each
     polished by Newton; converged, distinct solutions fill the first of the 16 slots.
+    ``engine``: the eigen step's (:func:`eigen_engine`).
     Returns q (N, 16, 6), valid (N, 16) (module docstring)."""
     from deltagen.solve import numeric as ik_numeric
 
     T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
     N = T.shape[0]
-    parts = [g.starts(T) for g in eliminations]
+    engine = eigen_engine(arm, engine)
+    parts = [g.starts(T, engine) for g in eliminations]
     q0 = np.concatenate([p[0] for p in parts] + ([] if extra is None else [extra]), axis=1)
     has = np.all(np.isfinite(q0), axis=-1)
     used = has.any(axis=0)  # slots that hold a candidate for some pose (order kept)

@@ -1,0 +1,46 @@
+/* deltagen_general6r.h: the eigen step of the general 6R inverse kinematics
+ * (deltagen/solve/general6r.py), batched over poses (hand-written, part of deltagen; one
+ * arm-independent module, compiled once: deltagen/native/general6r.py).
+ *
+ * Per pose, the 12 x 12 quadratic matrix polynomial M(x) = M0 + M1 x + M2 x^2 of the
+ * Raghavan-Roth elimination (Raghavan & Roth 1993; Manocha & Canny 1994, the companion
+ * linearisation): its real eigenvalues x (x = tan(phi3 / 2)) and null vectors v of M(x),
+ * where M2 is well conditioned; a status code where it is not (the caller solves that pose
+ * by QZ on the pencil). C99, reentrant, no heap, no globals, libm only.
+ */
+#ifndef DELTAGEN_GENERAL6R_H
+#define DELTAGEN_GENERAL6R_H
+
+#include "deltagen_eigen.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* cffi: begin (deltagen/native/build.py hands this part to cffi's cdef) */
+
+/* Real eigenvalues of the companion form, per pose.
+ *   M        (count, 3, 12, 12) row-major: M0, M1, M2 of each pose (dimensionless)
+ *   cond_limit  the largest 1-norm condition number of M2 solved here (the companion
+ *            matrix [[0, I], [-M2^-1 M0, -M2^-1 M1]] is formed with M2^-1)
+ *   imag_tol an eigenvalue is real when |Im| <= imag_tol (1 + |Re|)
+ *   start    (12,) the start vector of the inverse iteration for the null vectors
+ * Outputs, per pose n:
+ *   status   (count,): 0 solved; 1 M2 singular or its condition above cond_limit;
+ *            2 the QR iteration failed or a non-finite entry; 3 a null vector failed
+ *            (for status != 0 nreal is 0: solve the pose another way)
+ *   nreal    (count,): number of real eigenvalues, r <= 24
+ *   x        (count, 24): the real eigenvalues in slots 0..r-1 (NaN after)
+ *   V        (count, 24, 12): unit null vectors of M(x) (one step of inverse iteration on
+ *            M(x) + 1e-13 max|M(x)| I from `start`) in the same slots (NaN after) */
+void deltagen_general6r_eigen(const double *M, int count, double cond_limit, double imag_tol,
+                              const double *start, int *status, int *nreal, double *x,
+                              double *V);
+
+/* cffi: end */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DELTAGEN_GENERAL6R_H */

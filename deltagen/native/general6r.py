@@ -1,0 +1,98 @@
+"""The compiled eigen step of the general 6R inverse kinematics (deltagen/solve/general6r.py):
+one arm-independent cffi module of hand-written C (codegen/runtime/deltagen_general6r.c and
+deltagen_eigen.c: a Hessenberg + Francis double-shift QR eigen-solver), built once per
+machine into the build cache (native/build.py: keyed, locked, verified) and shared by every
+arm -- no compile per arm, so a newly loaded arm pays nothing for it.
+
+The module's own translation unit is a stub (written into the cache): build.load compiles a
+<name>.c/.h/.cdef.h triple and the runtime C they include; the declarations come from the
+runtime header's ``cffi: begin``/``end`` part.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from deltagen.native.build import BuildError, load, usable_cache_dir
+
+__all__ = ["eigen", "eigvals", "available"]
+
+_NAME = "deltagen_general6r_core"
+_STUB = {
+    ".h": '/* stub: the general 6R eigen step lives in the runtime */\n#include "deltagen_general6r.h"\n',
+    ".c": f'#include "{_NAME}.h"\n',
+    ".cdef.h": "\n",
+}
+_LOCK = threading.Lock()
+_MODULE: list = []
+
+
+def _module():
+    if _MODULE:
+        return _MODULE[0]
+    with _LOCK:
+        if not _MODULE:
+            folder = usable_cache_dir() / "general6r_src"
+            folder.mkdir(exist_ok=True)
+            for ext, text in _STUB.items():
+                path = folder / f"{_NAME}{ext}"
+                if not path.is_file() or path.read_text() != text:
+                    path.write_text(text)
+            _MODULE.append(load(_NAME, "deltagen_general6r", folder))
+    return _MODULE[0]
+
+
+def available() -> bool:
+    """True when the module builds (a C compiler) or is in the cache."""
+    try:
+        _module()
+    except BuildError:
+        return False
+    return True
+
+
+def _ptr(ffi, a, kind="double *"):
+    return ffi.cast(kind, ffi.from_buffer(a))
+
+
+def eigvals(A):
+    """Eigenvalues (count, n) complex and status (count,) of real matrices A (count, n, n),
+    n <= 64, by deltagen_eigvals_batch (NaN where status != 0)."""
+    mod = _module()
+    A = np.array(A, dtype=np.float64, order="C", copy=True)
+    count, n = A.shape[0], A.shape[1]
+    wr, wi = np.empty((count, n)), np.empty((count, n))
+    status = np.empty(count, dtype=np.int32)
+    ffi = mod.ffi
+    mod.lib.deltagen_eigvals_batch(
+        _ptr(ffi, A), count, n, _ptr(ffi, wr), _ptr(ffi, wi), _ptr(ffi, status, "int *")
+    )
+    return wr + 1j * wi, status
+
+
+def eigen(M, cond_limit: float, imag_tol: float, start):
+    """deltagen_general6r_eigen on M (N, 3, 12, 12): (status (N,), nreal (N,), x (N, 24),
+    V (N, 24, 12)) (the header documents each)."""
+    mod = _module()
+    M = np.ascontiguousarray(M, dtype=np.float64)
+    start = np.ascontiguousarray(start, dtype=np.float64)
+    N = M.shape[0]
+    status = np.empty(N, dtype=np.int32)
+    nreal = np.empty(N, dtype=np.int32)
+    x = np.empty((N, 24))
+    V = np.empty((N, 24, 12))
+    ffi = mod.ffi
+    mod.lib.deltagen_general6r_eigen(
+        _ptr(ffi, M),
+        N,
+        float(cond_limit),
+        float(imag_tol),
+        _ptr(ffi, start),
+        _ptr(ffi, status, "int *"),
+        _ptr(ffi, nreal, "int *"),
+        _ptr(ffi, x),
+        _ptr(ffi, V),
+    )
+    return status, nreal, x, V
