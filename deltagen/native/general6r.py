@@ -17,7 +17,7 @@ import numpy as np
 
 from deltagen.native.build import BuildError, load, usable_cache_dir
 
-__all__ = ["eigen", "eigvals", "available"]
+__all__ = ["Arm", "available", "eigen", "eigvals", "starts"]
 
 _NAME = "deltagen_general6r_core"
 _STUB = {
@@ -96,3 +96,68 @@ def eigen(M, cond_limit: float, imag_tol: float, start):
         _ptr(ffi, V),
     )
     return status, nreal, x, V
+
+
+class Arm:
+    """The per-arm data of one arrangement (deltagen_general6r_arm, the header documents
+    each field), packed once; ``starts`` runs deltagen_general6r_starts with it."""
+
+    def __init__(
+        self,
+        *,
+        T0inv,
+        w,
+        o,
+        order,
+        shift,
+        reverse,
+        left_mode,
+        left_fixed,
+        delta,
+        B2inv,
+        B3inv,
+        half3,
+    ):
+        mod = _module()
+        self._ffi, self._lib = mod.ffi, mod.lib
+        self.struct = self._ffi.new("deltagen_general6r_arm *")
+        st = self.struct
+        for name, value, size in (
+            ("T0inv", T0inv, 16),
+            ("w", w, 18),
+            ("o", o, 18),
+            ("left_fixed", left_fixed, 378),
+            ("delta", delta, 3),
+            ("B2inv", B2inv, 81),
+            ("B3inv", B3inv, 729),
+            ("half3", half3, 729),
+        ):
+            flat = np.ascontiguousarray(value, dtype=np.float64).reshape(-1)
+            if flat.size != size:
+                raise ValueError(f"{name}: {flat.size} values, expected {size}")
+            self._ffi.memmove(getattr(st, name), self._ffi.from_buffer(flat), 8 * size)
+        for j in range(6):
+            st.order[j] = int(order[j])
+        st.shift, st.reverse, st.left_mode = int(shift), int(reverse), int(left_mode)
+
+    def starts(self, T, cond_limit: float, imag_tol: float, start):
+        """(q (N, 16, 6), margin (N,), status (N,)) for tool poses T (N, 4, 4)."""
+        T = np.ascontiguousarray(T, dtype=np.float64)
+        start = np.ascontiguousarray(start, dtype=np.float64)
+        N = T.shape[0]
+        q = np.empty((N, 16, 6))
+        margin = np.empty(N)
+        status = np.empty(N, dtype=np.int32)
+        ffi = self._ffi
+        self._lib.deltagen_general6r_starts(
+            _ptr(ffi, T),
+            N,
+            self.struct,
+            float(cond_limit),
+            float(imag_tol),
+            _ptr(ffi, start),
+            _ptr(ffi, q),
+            _ptr(ffi, margin),
+            _ptr(ffi, status, "int *"),
+        )
+        return q, margin, status

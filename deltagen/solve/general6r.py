@@ -376,6 +376,8 @@ class General6R:
         ``np.linalg.eigvals``) where M2 is well conditioned, LAPACK's QZ per pose where it
         is not (module docstring); ``engine`` of the standard eigen step: "numpy" or "c"
         (:meth:`_eigen`)."""
+        if engine == "c":
+            return self._starts_c(T)
         w, o, G = self._arranged(T)
         C0 = self._left_batch(w, o, G)
         M, (C, Q, margin), pinv = self._pencil(w, o, G, C0, with_pinv=True)
@@ -399,6 +401,40 @@ class General6R:
             qa[idx[keep], slot[keep]] = sol[keep]
         q = np.empty_like(qa)
         q[..., self.order] = qa
+        return q, margin
+
+    def _native(self):
+        """The arrangement's data for the C path (native.general6r.Arm), packed once."""
+        if getattr(self, "_native_arm", None) is None:
+            from deltagen.native import general6r as native_g6r
+
+            carried = self._carried[2:]
+            mode = 2 if carried.any() and not carried.all() else int(carried.all())
+            self._native_arm = native_g6r.Arm(
+                T0inv=np.linalg.inv(self.ax.T0),
+                w=self.ax.directions,
+                o=self.ax.points,
+                order=self.order,
+                shift=self.shift,
+                reverse=self.reverse,
+                left_mode=mode,
+                left_fixed=self._left_fixed,
+                delta=self.delta,
+                B2inv=_B2_INV,
+                B3inv=_B3_INV,
+                half3=_HALF3,
+            )
+        return self._native_arm
+
+    def _starts_c(self, T):
+        """:meth:`starts` in C (native/general6r.py: the arranged axes, both sides'
+        coefficients, Q's QR, the pencil, the eigen step, theta 1..6, per pose in one
+        call); the poses it declines (Q nearly rank deficient, M2 ill conditioned, a
+        failure) by the numpy path."""
+        q, margin, status = self._native().starts(T, COND_STANDARD, self.imag_tol, _START)
+        redo = np.flatnonzero(status != 0)
+        if redo.size:
+            q[redo], margin[redo] = self.starts(T[redo], "numpy")
         return q, margin
 
     def _eigen(self, M, engine="numpy"):

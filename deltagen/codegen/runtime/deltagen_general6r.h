@@ -37,6 +37,33 @@ void deltagen_general6r_eigen(const double *M, int count, double cond_limit, dou
                               const double *start, int *status, int *nreal, double *x,
                               double *V);
 
+/* The per-arm data of one arrangement of the loop (general6r.General6R): the arm's joint
+ * axes, the arrangement, the cached left side and the fixed interpolation matrices. */
+typedef struct {
+    double T0inv[16];        /* inverse of the tool pose at q = 0 (4 x 4) */
+    double w[18], o[18];     /* joint axes: unit directions, points (6 x 3, base frame, m) */
+    int order[6];            /* arranged joint j is the arm's joint order[j] */
+    int shift, reverse;      /* the arrangement (General6R.shift, .reverse) */
+    int left_mode;           /* 0 left side fixed, 1 carried by G^-1, 2 interpolated per pose */
+    double left_fixed[378];  /* (27, 14) left coefficients of the fixed axes (modes 0, 1) */
+    double delta[3];         /* the fixed shifts of theta 3, 4, 5 (rad) */
+    double B2inv[81], B3inv[729], half3[729]; /* interpolation and half-angle maps */
+} deltagen_general6r_arm;
+
+#define DELTAGEN_GENERAL6R_SLOTS 16
+
+/* Candidates of every pose (General6R.starts, the standard eigen path, batched in C).
+ *   T        (count, 4, 4) tool poses (m)
+ *   q        (count, 16, 6) out: candidates in the arm's joint order (rad), NaN in unused
+ *            slots (not yet polished: Newton follows)
+ *   margin   (count,) out: Q's rank margin (min / max |diag R| of its QR)
+ *   status   (count,) out: 0 done; 1-3 the eigen step's status (deltagen_general6r_eigen);
+ *            4 Q nearly rank deficient (margin <= 1e-8); 5 a non-finite T. For status != 0
+ *            q is NaN: the caller solves the pose by the numpy path (SVD, QZ). */
+void deltagen_general6r_starts(const double *T, int count, const deltagen_general6r_arm *arm,
+                               double cond_limit, double imag_tol, const double *start, double *q,
+                               double *margin, int *status);
+
 /* cffi: end */
 
 #ifdef __cplusplus
