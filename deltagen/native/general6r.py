@@ -17,7 +17,7 @@ import numpy as np
 
 from deltagen.native.build import BuildError, load, usable_cache_dir
 
-__all__ = ["Arm", "available", "eigen", "eigvals", "starts"]
+__all__ = ["Arm", "available", "eigen", "eigvals"]
 
 _NAME = "deltagen_general6r_core"
 _STUB = {
