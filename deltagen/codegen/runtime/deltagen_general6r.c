@@ -209,10 +209,20 @@ static double dot3(const double *a, const double *b)
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
+/* cos and sin of th. Read through a volatile: gcc would otherwise fuse the pair into GNU
+ * sincos, which is not C99 (the runtime needs only C99 libm: tests/test_c_standalone.py) */
+static void cos_sin(double th, double *c, double *s)
+{
+    volatile double angle = th;
+    *c = cos(angle);
+    *s = sin(angle);
+}
+
 /* out = v turned about the unit axis w by th (Rodrigues); out may be v */
 static void turn(const double *w, double th, const double *v, double *out)
 {
-    const double c = cos(th), s = sin(th);
+    double c, s;
+    cos_sin(th, &c, &s);
     double wxv[3];
     cross3(w, v, wxv);
     const double k = dot3(w, v) * (1.0 - c);
@@ -569,10 +579,8 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
         /* (c1, s1, c2, s2) from Q Sigma2 = P Sigma1: Sigma2 = pinv (basis C) */
         double b[3][3], rhs[14], sig2[8];
         for (int a = 0; a < 3; ++a) {
-            const double phi = th[2 + a] - arm->delta[a];
             b[a][0] = 1.0;
-            b[a][1] = cos(phi);
-            b[a][2] = sin(phi);
+            cos_sin(th[2 + a] - arm->delta[a], &b[a][1], &b[a][2]);
         }
         for (int j = 0; j < 14; ++j) {
             double s = 0.0;
