@@ -309,3 +309,29 @@ def test_starts_c_equals_numpy(name):
     Tbad[1, 0, 0] = np.nan
     qc, _, st = g._native().starts(Tbad, general6r.COND_STANDARD, g.imag_tol, general6r._START)
     assert st[1] == 5 and np.isnan(qc[1]).all()
+
+
+def test_finish_c_equals_numpy():
+    """deltagen_general6r_finish against general6r.distinct on constructed Newton results:
+    exact and near duplicates (also across +-pi), a chain of near ones, unconverged and
+    NaN slots, values outside the limits and more than 16 distinct ones."""
+    rng = np.random.default_rng(15)
+    N, S = 200, 40
+    qs = rng.uniform(-np.pi, np.pi, (N, S, 6))
+    src = rng.integers(0, S, (N, S))
+    dup = rng.random((N, S)) < 0.4
+    qs[dup] = qs[np.nonzero(dup)[0], src[dup]]  # copies of other slots
+    qs += np.where(rng.random((N, S, 1)) < 0.3, rng.normal(0, 3e-8, (N, S, 6)), 0.0)
+    qs[:, :3] += np.array([0.0, 2 * np.pi, -2 * np.pi])[None, :, None] * (
+        rng.random((N, 1, 1)) < 0.3
+    )
+    qs[rng.random((N, S)) < 0.05] = np.nan
+    conv = (rng.random((N, S)) < rng.uniform(0.05, 0.9, (N, 1))) & np.isfinite(qs).all(-1)
+    qlim = np.array([[-2.5, 2.5], [-np.inf, np.inf], [-3.0, 1.0]] + [[-np.pi, np.pi]] * 3)
+    for limits in (True, False):
+        qa, va, fa = general6r.distinct(qs, conv, qlim, np.ones(6, bool), limits)
+        qb, vb, fb = native_g6r.finish(qs, conv, qlim, limits)
+        assert np.array_equal(fa, fb) and np.array_equal(va, vb)
+        assert np.array_equal(np.isnan(qa), np.isnan(qb))
+        assert np.nanmax(np.abs(qa - qb)) < 1e-12
+    assert (fa == 16).any() and (fa < 16).any() and not vb.all()

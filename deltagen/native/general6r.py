@@ -17,7 +17,7 @@ import numpy as np
 
 from deltagen.native.build import BuildError, load, usable_cache_dir
 
-__all__ = ["Arm", "available", "eigen", "eigvals"]
+__all__ = ["Arm", "available", "eigen", "eigvals", "finish"]
 
 _NAME = "deltagen_general6r_core"
 _STUB = {
@@ -161,3 +161,31 @@ class Arm:
             _ptr(ffi, status, "int *"),
         )
         return q, margin, status
+
+
+def finish(qs, conv, qlim, limits: bool):
+    """deltagen_general6r_finish: (q (N, 16, 6), valid (N, 16) bool, found (N,)) from
+    Newton's results qs (N, S, 6) and their convergence conv (N, S)."""
+    mod = _module()
+    ffi = mod.ffi
+    qs = np.ascontiguousarray(qs, dtype=np.float64)
+    conv = np.ascontiguousarray(conv, dtype=np.uint8)
+    qlim = np.ascontiguousarray(qlim, dtype=np.float64)
+    N, S = conv.shape
+    q = np.empty((N, 16, 6))
+    valid = np.empty((N, 16), dtype=np.uint8)
+    found = np.empty(N, dtype=np.int32)
+    fitted = np.empty((N, S, 6))
+    mod.lib.deltagen_general6r_finish(
+        _ptr(ffi, qs),
+        _ptr(ffi, conv, "unsigned char *"),
+        N,
+        S,
+        _ptr(ffi, qlim),
+        int(bool(limits)),
+        _ptr(ffi, fitted),
+        _ptr(ffi, q),
+        _ptr(ffi, valid, "unsigned char *"),
+        _ptr(ffi, found, "int *"),
+    )
+    return q, valid.view(bool), found

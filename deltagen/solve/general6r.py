@@ -81,7 +81,7 @@ from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
 from deltagen.model.structure import joint_axes
 
-__all__ = ["General6R", "K", "eigen_engine", "eliminations", "solve"]
+__all__ = ["General6R", "K", "distinct", "eigen_engine", "eliminations", "solve"]
 
 K = 16  # solution slots
 _GRID = np.array([0.0, 2.0 * np.pi / 3.0, 4.0 * np.pi / 3.0])
@@ -632,11 +632,28 @@ def solve(
         qs.reshape(-1, 6)[rows] = res.q
         conv.reshape(-1)[rows] = res.converged & np.all(np.isfinite(res.q), axis=-1)
     ax = eliminations[0].ax
+    if engine == "c":  # the same steps in C (deltagen_general6r_finish)
+        from deltagen.native import general6r as native_g6r
+
+        q, valid, count = native_g6r.finish(qs, conv, ax.qlim, limits)
+    else:
+        q, valid, count = distinct(qs, conv, ax.qlim, ax.revolute, limits)
+    if info:
+        margin = np.min(np.stack([p[1] for p in parts]), axis=0)
+        return q, valid, {"candidates": q0, "rank_margin": margin, "found": count}
+    return q, valid
+
+
+def distinct(qs, conv, qlim, revolute, limits=True):
+    """The distinct solutions among Newton's results qs (N, S, 6) (converged where conv
+    (N, S)), in order: each fitted into the limits (geometry/limits.py); a double root, or
+    two candidates Newton pulled together, are one (a candidate within 1e-7 rad of an
+    earlier converged one is dropped); compacted into the first of K slots.
+    Returns q (N, K, 6) (NaN in unused slots), valid (N, K) (within the limits, or every
+    solution when ``limits`` is False), found (N,). The C twin: deltagen_general6r_finish."""
+    N, S = conv.shape
     with np.errstate(invalid="ignore"):
-        qs, inside = fit_limits(qs, ax.qlim, ax.revolute)
-    # distinct solutions in order (a double root, or two candidates Newton pulled together,
-    # are one: a candidate within 1e-7 rad of an earlier converged one is dropped): compact
-    # them into the first slots, at most K
+        qs, inside = fit_limits(qs, qlim, revolute)
     d = qs[:, :, None] - qs[:, None, :]  # (N, S, S, 6)
     with np.errstate(invalid="ignore"):
         d = np.abs((d + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
@@ -649,11 +666,7 @@ def solve(
     valid = np.zeros((N, K), dtype=bool)
     q[n_idx, rank[n_idx, s_idx]] = qs[n_idx, s_idx]
     valid[n_idx, rank[n_idx, s_idx]] = inside[n_idx, s_idx] if limits else True
-    count = take.sum(axis=1)
-    if info:
-        margin = np.min(np.stack([p[1] for p in parts]), axis=0)
-        return q, valid, {"candidates": q0, "rank_margin": margin, "found": count}
-    return q, valid
+    return q, valid, take.sum(axis=1)
 
 
 def eliminations(desc) -> tuple[list[General6R], bool]:

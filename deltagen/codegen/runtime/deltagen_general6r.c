@@ -4,6 +4,8 @@
  * tests/test_general6r_c.py compares this with. */
 #include "deltagen_general6r.h"
 
+#include "deltagen_limits.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -648,5 +650,65 @@ void deltagen_general6r_starts(const double *T, int count, const deltagen_genera
                 qn[k] = NAN;
             }
         }
+    }
+}
+
+/* ------------------------------------------------------------------ distinct solutions */
+
+void deltagen_general6r_finish(const double *qs, const unsigned char *conv, int count, int S,
+                               const double *qlim, int limits, double *fitted, double *q,
+                               unsigned char *valid, int *found)
+{
+    const double two_pi = 2 * 3.141592653589793;
+    for (int n = 0; n < count; ++n) {
+        double *qn = q + (size_t)n * DELTAGEN_GENERAL6R_SLOTS * 6;
+        unsigned char *vn = valid + (size_t)n * DELTAGEN_GENERAL6R_SLOTS;
+        double *fn = fitted + (size_t)n * (size_t)S * 6;
+        const unsigned char *cn = conv + (size_t)n * (size_t)S;
+        for (int k = 0; k < DELTAGEN_GENERAL6R_SLOTS * 6; ++k) {
+            qn[k] = NAN;
+        }
+        for (int k = 0; k < DELTAGEN_GENERAL6R_SLOTS; ++k) {
+            vn[k] = 0;
+        }
+        int taken = 0;
+        for (int s = 0; s < S; ++s) {
+            /* geometry/limits.py fit_limits, joint by joint (deltagen_limits.h) */
+            int inside = 1;
+            for (int j = 0; j < 6; ++j) {
+                const double lo = qlim[2 * j], hi = qlim[2 * j + 1];
+                const double x = deltagen_fit_angle(qs[((size_t)n * (size_t)S + (size_t)s) * 6 + j],
+                                                    lo, hi, lo - 1e-10, hi + 1e-10);
+                fn[6 * s + j] = x;
+                inside &= (x >= lo - 1e-10) & (x <= hi + 1e-10);
+            }
+            if (!cn[s] || taken >= DELTAGEN_GENERAL6R_SLOTS) {
+                continue;
+            }
+            /* a duplicate: within 1e-7 rad in every joint (wrapped) of an earlier converged
+             * candidate (a double root, or two candidates Newton pulled together) */
+            int duplicate = 0;
+            for (int t = 0; t < s && !duplicate; ++t) {
+                if (!cn[t]) {
+                    continue;
+                }
+                double d = 0.0;
+                for (int j = 0; j < 6; ++j) {
+                    const double x = fn[6 * s + j] - fn[6 * t + j];
+                    const double w = fabs(x - two_pi * floor((x + 3.141592653589793) / two_pi));
+                    d = w > d ? w : d;
+                }
+                duplicate = d < 1e-7;
+            }
+            if (duplicate) {
+                continue;
+            }
+            for (int j = 0; j < 6; ++j) {
+                qn[6 * taken + j] = fn[6 * s + j];
+            }
+            vn[taken] = (unsigned char)(limits ? inside : 1);
+            ++taken;
+        }
+        found[n] = taken;
     }
 }

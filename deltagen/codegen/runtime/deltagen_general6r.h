@@ -64,6 +64,20 @@ void deltagen_general6r_starts(const double *T, int count, const deltagen_genera
                                double cond_limit, double imag_tol, const double *start, double *q,
                                double *margin, int *status);
 
+/* The distinct solutions of every pose (general6r.solve after Newton): each converged
+ * candidate fitted into the limits (geometry/limits.py fit_limits, deltagen_limits.h);
+ * one within 1e-7 rad (every joint, wrapped) of an earlier converged candidate is dropped;
+ * the rest fill the first of the 16 slots in candidate order.
+ *   qs       (count, S, 6) Newton's results (rad); conv (count, S): 1 where converged
+ *   qlim     (6, 2) joint limits (rad; +-INFINITY where none); limits: 0 ignores them
+ *   fitted   (count, S, 6) out: every candidate fitted into the limits (scratch)
+ *   q        (count, 16, 6) out: the solutions, NaN in unused slots
+ *   valid    (count, 16) out: 1 where a solution is within the limits (or limits == 0)
+ *   found    (count,) out: the number of distinct solutions */
+void deltagen_general6r_finish(const double *qs, const unsigned char *conv, int count, int S,
+                               const double *qlim, int limits, double *fitted, double *q,
+                               unsigned char *valid, int *found);
+
 /* cffi: end */
 
 #ifdef __cplusplus
