@@ -335,3 +335,21 @@ def test_finish_c_equals_numpy():
         assert np.array_equal(np.isnan(qa), np.isnan(qb))
         assert np.nanmax(np.abs(qa - qb)) < 1e-12
     assert (fa == 16).any() and (fa < 16).any() and not vb.all()
+
+
+def test_polisher_is_numeric_solve():
+    """numeric.polisher (the general solver's lean Newton call) gives the bits of
+    numeric.solve with the same options on the compiled engine."""
+    from deltagen.solve import numeric as ik_numeric
+
+    arm = SerialRobot.load("ur5", backend="compiled")
+    rng = np.random.default_rng(16)
+    q = rng.uniform(-np.pi, np.pi, (64, 6))
+    T = arm.fk(q)
+    q0 = q + rng.normal(0, 0.05, q.shape)
+    q0[::7] = rng.uniform(-np.pi, np.pi, (len(q0[::7]), 6))  # some that do not converge
+    res = ik_numeric.solve(arm, T, q0, tol=1e-10, max_iter=30, restarts=0, respect_limits=False)
+    qp, conv = ik_numeric.polisher(arm, 1e-10, 30)(T, q0)
+    assert np.array_equal(conv, res.converged)
+    assert np.array_equal(qp[conv], res.q[conv])
+    assert ik_numeric.polisher(SerialRobot.load("ur5", backend="reference")) is None

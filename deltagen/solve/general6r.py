@@ -74,6 +74,8 @@ arrangement is regular does it fall back to the forward and reversed chains as a
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.linalg
 
@@ -572,6 +574,24 @@ class General6R:
         return np.arctan2((_cross(ref, y) * w6).sum(axis=1), (y * ref).sum(axis=1))
 
 
+_POLISHERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _polisher(arm, tol, max_iter):
+    """numeric.polisher(arm, tol, max_iter), cached per arm (None: the compiled Newton
+    engine does not apply; solve() then calls numeric.solve)."""
+    from deltagen.solve import numeric as ik_numeric
+
+    try:
+        cached = _POLISHERS.setdefault(arm, {})
+    except TypeError:  # not weakly referenceable: no cache
+        cached = {}
+    key = (float(tol), int(max_iter))
+    if key not in cached:
+        cached[key] = ik_numeric.polisher(arm, tol, max_iter)
+    return cached[key]
+
+
 def eigen_engine(arm, engine="auto") -> str:
     """The eigen step's engine for ``arm``: "numpy" or "c" as asked; "auto": "c" on the
     compiled backend when the module builds (native/general6r.py), else "numpy" (the
@@ -619,7 +639,12 @@ def solve(
     qs = np.full((N, S, 6), np.nan)
     conv = np.zeros((N, S), dtype=bool)
     rows = np.flatnonzero(has.reshape(-1))
-    if rows.size:
+    polish = _polisher(arm, tol, max_iter) if engine == "c" else None
+    if rows.size and polish is not None:  # the same C call as ik_numeric.solve's, lean
+        qs.reshape(-1, 6)[rows], conv.reshape(-1)[rows] = polish(
+            T[rows // S], q0.reshape(-1, 6)[rows]
+        )
+    elif rows.size:
         res = ik_numeric.solve(
             arm,
             T[rows // S],
