@@ -37,25 +37,30 @@ and is valid when Newton converges (fk = T to ``tol``), the solution is finite, 
 limits, and not a duplicate of an earlier slot.
 
 Performance split (issue 10: "LAPACK through numpy for the eigenvalue step; state the
-split"). Everything is batched over the poses, no Python loop per pose:
-- numpy, per pose: the arranged axes, the right side's coefficients (interpolated on 9
-  grid points), Q's complete QR (its left null space; its least squares for Sigma2), M0,
-  M1, M2 (fixed index maps), the extraction of theta 1..6;
-- cached per arm (``General6R``): the left side's coefficients when its four axes are
-  fixed in the base (shift 0) or all carried by G^-1 (then they are the rigid motion of
-  the fixed ones: turned by R_G^T), else interpolated per pose;
-- LAPACK through numpy: where M2's 1-norm condition number is <= ``COND_STANDARD`` the
-  standard eigenproblem of the 24 x 24 companion matrix [[0, I], [-M2^-1 M0, -M2^-1 M1]],
-  all poses in one stacked ``np.linalg.eigvals`` (geev), and the null vectors by one step
-  of batched inverse iteration (``np.linalg.solve``); elsewhere QZ on the pencil per pose
-  (``scipy.linalg.eig(A, B)``, ggev, which copes with a singular M2). No pose is solved
-  by the companion form when M2 is ill conditioned;
-- generated C: the Newton polish (deltagen.solve.numeric's C engine, batched over every
-  candidate of every pose) on a compiled arm; numpy on the reference backend.
-The eigen step is the floor: ``eigvals`` of one 24 x 24 matrix costs ~75-150 us of CPU on
-the 2-core development machine (measured under load), the whole ~270-330 us of CPU per
-pose batched; one pose per call is dominated by numpy's per-call overhead (~200 numpy
-calls, ~4.5 ms of CPU there). The pose-dependent algebra is not emitted as C (yet).
+split"). Two engines compute the same steps (``engine``, :func:`eigen_engine`):
+- "c", on a compiled arm: hand-written C in one arm-independent cffi module
+  (native/general6r.py; codegen/runtime/deltagen_general6r.c and deltagen_eigen.c), built
+  once per machine, no compile per arm: per pose the arranged axes, both sides'
+  coefficients, Q's complete QR (Householder), the pencil, the companion matrix and its
+  eigenvalues by a hand-written balancing + Hessenberg reduction + Francis double-shift QR
+  (Golub & Van Loan, Alg. 7.4.2, 7.5.1, 7.5.2; eigenvalues only), the null vectors by the
+  same inverse iteration, theta 1..6 (``deltagen_general6r_starts``); the Newton polish by
+  the arm's generated C (numeric.polisher: solve()'s call, options packed once); the
+  limits fit and the duplicates (``deltagen_general6r_finish``). Poses the C path
+  declines (Q nearly rank deficient: SVD; M2's 1-norm condition > ``COND_STANDARD``:
+  QZ; a failure) go through the numpy path, pose by pose;
+- "numpy", the reference (and the reference backend's): batched numpy, the eigen step by
+  LAPACK through numpy (stacked ``np.linalg.eigvals`` of the 24 x 24 companion matrices,
+  geev, where M2 is well conditioned; QZ per pose, ``scipy.linalg.eig(A, B)``, ggev,
+  elsewhere), the null vectors by one step of batched inverse iteration. The left side's
+  coefficients are cached per arm (``General6R``) when its four axes are fixed in the base
+  (shift 0) or all carried by G^-1 (then they are the rigid motion of the fixed ones:
+  turned by R_G^T), else interpolated per pose (both engines).
+Of the 24 eigenvalues 8 (a generic arm) or 16 (the UR5) are +-i, from the half-angle
+substitution; they are not deflated ahead (deltagen_general6r.c says why: 4- and 8-fold,
+ill conditioned, and exact +-i shifts did not save QR steps). The eigen step is the floor:
+~50 us of CPU per 24 x 24 matrix in C on the 2-core development machine (LAPACK through
+numpy: ~120-150 us there); tests/test_general6r_c.py compares the engines.
 
 Degenerate arms and arrangements. The pencil is *singular* (det M(x3) = 0 for every x3)
 for many industrial arms in the arrangement above: neighbouring axes that meet (a_i = 0) or
