@@ -11,6 +11,7 @@ runtime header's ``cffi: begin``/``end`` part.
 
 from __future__ import annotations
 
+import os
 import threading
 
 import numpy as np
@@ -39,7 +40,10 @@ def _module():
             for ext, text in _STUB.items():
                 path = folder / f"{_NAME}{ext}"
                 if not path.is_file() or path.read_text() != text:
-                    path.write_text(text)
+                    # atomic: another process may be reading it (os.replace)
+                    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+                    tmp.write_text(text)
+                    os.replace(tmp, path)
             _MODULE.append(load(_NAME, "deltagen_general6r", folder))
     return _MODULE[0]
 
