@@ -48,11 +48,20 @@ def _module():
     return _MODULE[0]
 
 
+_FAILED: list = []
+
+
 def available() -> bool:
-    """True when the module builds (a C compiler) or is in the cache."""
+    """True when the module builds (a C compiler) or is in the cache; a failed build is
+    not retried in this process (the numpy engine serves)."""
+    if _MODULE:
+        return True
+    if _FAILED:
+        return False
     try:
         _module()
     except BuildError:
+        _FAILED.append(True)
         return False
     return True
 
