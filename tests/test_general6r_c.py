@@ -353,3 +353,15 @@ def test_polisher_is_numeric_solve():
     assert np.array_equal(conv, res.converged)
     assert np.array_equal(qp[conv], res.q[conv])
     assert ik_numeric.polisher(SerialRobot.load("ur5", backend="reference")) is None
+
+
+def test_without_the_c_module_the_numpy_engine_serves(monkeypatch):
+    """No C compiler (the module does not build): a compiled arm's complete ik_all runs
+    the numpy engine and still answers."""
+    arm = SerialRobot.load("ur5", backend="compiled")
+    monkeypatch.setattr(native_g6r, "available", lambda: False)
+    assert general6r.eigen_engine(arm) == "numpy"
+    q = np.random.default_rng(19).uniform(-np.pi, np.pi, (5, 6))
+    Q, valid = arm.ik_all(arm.fk(q), method="complete")
+    err = np.abs((Q - q[:, None] + np.pi) % (2 * np.pi) - np.pi).max(-1)
+    assert (np.where(valid, err, np.inf).min(-1) < 1e-6).all()
