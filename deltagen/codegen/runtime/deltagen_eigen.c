@@ -83,15 +83,22 @@ void deltagen_hessenberg(double *A, int n)
         for (int i = k + 2; i < n; ++i) {
             u[i] /= p;
         }
-        /* left: rows k+1..n-1, columns k..n-1 */
+        /* left: rows k+1..n-1, columns k..n-1; s = tau u^T A accumulated row by row (the
+         * inner loops run along rows: contiguous) */
+        double srow[64];
         for (int j = k; j < n; ++j) {
-            double s = 0.0;
-            for (int i = k + 1; i < n; ++i) {
-                s += u[i] * AT(A, n, i, j);
+            srow[j] = 0.0;
+        }
+        for (int i = k + 1; i < n; ++i) {
+            const double ui = u[i];
+            for (int j = k; j < n; ++j) {
+                srow[j] += ui * AT(A, n, i, j);
             }
-            s *= tau;
-            for (int i = k + 1; i < n; ++i) {
-                AT(A, n, i, j) -= s * u[i];
+        }
+        for (int i = k + 1; i < n; ++i) {
+            const double ui = tau * u[i];
+            for (int j = k; j < n; ++j) {
+                AT(A, n, i, j) -= ui * srow[j];
             }
         }
         /* right: columns k+1..n-1, every row */
