@@ -12,10 +12,13 @@ the share of poses whose q is among the valid solutions and the largest fk resid
 valid one; and, where roboticstoolbox-python is installed, its C++ ``ETS.ik_LM`` (one
 solution per call, its own restarts, tol for 1e-10) on the same targets for scale.
 
-The split (module docstring of solve/general6r.py): the per-pose matrices, the
-extraction of the angles and the Newton polish are batched numpy and generated C; the
-eigen step is LAPACK through numpy (stacked ``eigvals`` of the 24 x 24 companion
-matrices, QZ per pose where M2 is ill conditioned).
+The split (module docstring of solve/general6r.py): on a compiled arm the per-pose
+algebra and the eigen step are hand-written C (codegen/runtime/deltagen_general6r.c, one
+arm-independent module; its 24 x 24 eigenvalues by deltagen_eigen.c's Hessenberg + Francis
+QR), the Newton polish is the arm's generated C, and the rest (limits, duplicates, the
+poses the C path declines: QZ per pose where M2 is ill conditioned) batched numpy. Beside
+each arm's ``ik_all`` rows, the same solver with the numpy/LAPACK engine (``engine=
+"numpy"``: the path before the C one, still the reference backend's) in the same run.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import numpy as np
 
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
+from deltagen.solve import general6r
 
 
 def _cpu_timer(fn, calls: int, points: int):
@@ -65,11 +69,32 @@ def generic_arm(threads=1):
     )
 
 
+def jaco_arm(threads=1):
+    """roboticstoolbox's DH model of the Kinova Jaco (reversed joints; its neighbouring
+    axes meet, so a shifted arrangement of the elimination), compiled; None without rtb."""
+    try:
+        import roboticstoolbox as rtb
+    except ImportError:
+        return None
+    from deltagen.api.serial import SerialRobot
+
+    rows = []
+    for link in rtb.models.DH.Jaco().links:
+        row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
+        row.update(offset=float(link.offset), flip=bool(link.isflip))
+        if link.qlim is not None:
+            row["qlim"] = (float(link.qlim[0]), float(link.qlim[1]))
+        rows.append(row)
+    return SerialRobot.from_dh(rows, "standard", name="jaco", threads=threads)
+
+
 def _arms(generic: bool):
     from deltagen.api.serial import SerialRobot
 
     ur5 = SerialRobot.load("ur5", backend="compiled", threads=1)
-    return [generic_arm(), ur5] if generic else [ur5]
+    if not generic:
+        return [ur5]
+    return [a for a in (generic_arm(), ur5, jaco_arm()) if a is not None]
 
 
 def _poses(arm, n):
@@ -95,17 +120,31 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
             return arm.ik_all(T1, method="complete")
 
         Q, valid = batch()  # warm-up: eliminations chosen, cores built
+        elim = arm._general()[0]
+
+        def batch_np(T=T, arm=arm, elim=elim):
+            return general6r.solve(arm, T, elim, engine="numpy")
+
+        def single_np(T1=T1[None], arm=arm, elim=elim):
+            return general6r.solve(arm, T1, elim, engine="numpy")
+
         timers = [
             batch_timer(batch, (), n),
             loop_timer(single),
             _cpu_timer(batch, 1, n),
             _cpu_timer(single, 20, 1),
+            _cpu_timer(batch_np, 1, n),
+            _cpu_timer(single_np, 5, 1),
         ]
         robot = None
         if peers:
             from deltagen.apps.bench_ik import rtb_model
 
-            robot = rtb_model(arm)
+            robot = rtb_model(arm)  # (None for an arm with reversed joints: Jaco's own below)
+            if arm.name == "jaco":
+                import roboticstoolbox as rtb
+
+                robot = rtb.models.DH.Jaco()
         if robot is not None:
             ets = robot.ets()
             kw = dict(tol=5e-21, joint_limits=True)
@@ -121,6 +160,9 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
             "single": stats[1],
             "batch_cpu": stats[2],
             "single_cpu": stats[3],
+            "engine": general6r.eigen_engine(arm),
+            "batch_cpu_numpy": stats[4],
+            "single_cpu_numpy": stats[5],
             "found": float(found.mean()),
             "valid_per_pose": float(valid.sum(axis=1).mean()),
             "max_residual": float(res.max()) if res.size else float("nan"),
@@ -128,7 +170,7 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
         if robot is not None:
             import roboticstoolbox as rtb
 
-            row["rtb_ik_LM"], row["rtb_version"] = stats[4], rtb.__version__
+            row["rtb_ik_LM"], row["rtb_version"] = stats[6], rtb.__version__
         out[arm.name] = row
     return out
 
@@ -154,6 +196,17 @@ def render(result: dict, markdown: bool) -> list[str]:
                     f"<= {TARGETS_US[key]:g} " + ("met" if met else "MISSED"),
                 ]
             )
+        for key, label in (("batch", f"batch of {r['n']:,}"), ("single", "one pose per call")):
+            if key + "_cpu_numpy" in r:
+                rows.append(
+                    [
+                        name,
+                        f"  the same, numpy/LAPACK engine (before the C path), {label}",
+                        "-",
+                        f"{r[key + '_cpu_numpy'].median / 1000:.4g}",
+                        "-",
+                    ]
+                )
         if "rtb_ik_LM" in r:
             rows.append(
                 [
@@ -166,8 +219,9 @@ def render(result: dict, markdown: bool) -> list[str]:
             )
     bullet = "- " if markdown else "  "
     out = [
-        "General 6R, every solution (solve/general6r.py: Raghavan-Roth elimination, "
-        "the 24 x 24 eigenproblem by LAPACK through numpy, Newton polish in C):",
+        "General 6R, every solution (solve/general6r.py: Raghavan-Roth elimination; "
+        "per-pose algebra and the 24 x 24 eigenproblem in hand-written C "
+        "(Hessenberg + Francis QR), Newton polish in the arm's C):",
         "",
     ]
     header = ["arm", "call", "us per pose, median [min, max]", "CPU us, median", "target"]

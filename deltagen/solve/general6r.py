@@ -37,25 +37,30 @@ and is valid when Newton converges (fk = T to ``tol``), the solution is finite, 
 limits, and not a duplicate of an earlier slot.
 
 Performance split (issue 10: "LAPACK through numpy for the eigenvalue step; state the
-split"). Everything is batched over the poses, no Python loop per pose:
-- numpy, per pose: the arranged axes, the right side's coefficients (interpolated on 9
-  grid points), Q's complete QR (its left null space; its least squares for Sigma2), M0,
-  M1, M2 (fixed index maps), the extraction of theta 1..6;
-- cached per arm (``General6R``): the left side's coefficients when its four axes are
-  fixed in the base (shift 0) or all carried by G^-1 (then they are the rigid motion of
-  the fixed ones: turned by R_G^T), else interpolated per pose;
-- LAPACK through numpy: where M2's 1-norm condition number is <= ``COND_STANDARD`` the
-  standard eigenproblem of the 24 x 24 companion matrix [[0, I], [-M2^-1 M0, -M2^-1 M1]],
-  all poses in one stacked ``np.linalg.eigvals`` (geev), and the null vectors by one step
-  of batched inverse iteration (``np.linalg.solve``); elsewhere QZ on the pencil per pose
-  (``scipy.linalg.eig(A, B)``, ggev, which copes with a singular M2). No pose is solved
-  by the companion form when M2 is ill conditioned;
-- generated C: the Newton polish (deltagen.solve.numeric's C engine, batched over every
-  candidate of every pose) on a compiled arm; numpy on the reference backend.
-The eigen step is the floor: ``eigvals`` of one 24 x 24 matrix costs ~75-150 us of CPU on
-the 2-core development machine (measured under load), the whole ~270-330 us of CPU per
-pose batched; one pose per call is dominated by numpy's per-call overhead (~200 numpy
-calls, ~4.5 ms of CPU there). The pose-dependent algebra is not emitted as C (yet).
+split"). Two engines compute the same steps (``engine``, :func:`eigen_engine`):
+- "c", on a compiled arm: hand-written C in one arm-independent cffi module
+  (native/general6r.py; codegen/runtime/deltagen_general6r.c and deltagen_eigen.c), built
+  once per machine, no compile per arm: per pose the arranged axes, both sides'
+  coefficients, Q's complete QR (Householder), the pencil, the companion matrix and its
+  eigenvalues by a hand-written balancing + Hessenberg reduction + Francis double-shift QR
+  (Golub & Van Loan, Alg. 7.4.2, 7.5.1, 7.5.2; eigenvalues only), the null vectors by the
+  same inverse iteration, theta 1..6 (``deltagen_general6r_starts``); the Newton polish by
+  the arm's generated C (numeric.polisher: solve()'s call, options packed once); the
+  limits fit and the duplicates (``deltagen_general6r_finish``). Poses the C path
+  declines (Q nearly rank deficient: SVD; M2's 1-norm condition > ``COND_STANDARD``:
+  QZ; a failure) go through the numpy path, pose by pose;
+- "numpy", the reference (and the reference backend's): batched numpy, the eigen step by
+  LAPACK through numpy (stacked ``np.linalg.eigvals`` of the 24 x 24 companion matrices,
+  geev, where M2 is well conditioned; QZ per pose, ``scipy.linalg.eig(A, B)``, ggev,
+  elsewhere), the null vectors by one step of batched inverse iteration. The left side's
+  coefficients are cached per arm (``General6R``) when its four axes are fixed in the base
+  (shift 0) or all carried by G^-1 (then they are the rigid motion of the fixed ones:
+  turned by R_G^T), else interpolated per pose (both engines).
+Of the 24 eigenvalues 8 (a generic arm) or 16 (the UR5) are +-i, from the half-angle
+substitution; they are not deflated ahead (deltagen_general6r.c says why: 4- and 8-fold,
+ill conditioned, and exact +-i shifts did not save QR steps). The eigen step is the floor:
+~50 us of CPU per 24 x 24 matrix in C on the 2-core development machine (LAPACK through
+numpy: ~120-150 us there); tests/test_general6r_c.py compares the engines.
 
 Degenerate arms and arrangements. The pencil is *singular* (det M(x3) = 0 for every x3)
 for many industrial arms in the arrangement above: neighbouring axes that meet (a_i = 0) or
@@ -74,6 +79,8 @@ arrangement is regular does it fall back to the forward and reversed chains as a
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.linalg
 
@@ -81,7 +88,7 @@ from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
 from deltagen.model.structure import joint_axes
 
-__all__ = ["General6R", "K", "eliminations", "solve"]
+__all__ = ["General6R", "K", "distinct", "eigen_engine", "eliminations", "solve"]
 
 K = 16  # solution slots
 _GRID = np.array([0.0, 2.0 * np.pi / 3.0, 4.0 * np.pi / 3.0])
@@ -369,18 +376,21 @@ class General6R:
         out[:, :, _VECTORS] = vectors.reshape(N, 27, 12)
         return out.reshape(N, 3, 3, 3, 14)
 
-    def starts(self, T):
+    def starts(self, T, engine="numpy"):
         """Candidates (N, 16, 6) in the arm's joint order for tool poses T (N, 4, 4) (NaN in
         unused slots), and the rank margin of Q per pose. Batched over the poses; the
         eigen step is the standard eigenproblem of the 24 x 24 companion matrix (stacked
         ``np.linalg.eigvals``) where M2 is well conditioned, LAPACK's QZ per pose where it
-        is not (module docstring)."""
+        is not (module docstring); ``engine`` of the standard eigen step: "numpy" or "c"
+        (:meth:`_eigen`)."""
+        if engine == "c":
+            return self._starts_c(T)
         w, o, G = self._arranged(T)
         C0 = self._left_batch(w, o, G)
         M, (C, Q, margin), pinv = self._pencil(w, o, G, C0, with_pinv=True)
         N = G.shape[0]
         qa = np.full((N, self.slots, 6), np.nan)
-        idx, x3, V = self._eigen(M)
+        idx, x3, V = self._eigen(M, engine)
         if idx.size:
             th = self._angles345(x3, V)
             # (c1, s1, c2, s2) from Q Sigma2 = P Sigma1, by Q's pseudo-inverse (its SVD)
@@ -400,13 +410,51 @@ class General6R:
         q[..., self.order] = qa
         return q, margin
 
-    def _eigen(self, M):
+    def _native(self):
+        """The arrangement's data for the C path (native.general6r.Arm), packed once."""
+        if getattr(self, "_native_arm", None) is None:
+            from deltagen.native import general6r as native_g6r
+
+            carried = self._carried[2:]
+            mode = 2 if carried.any() and not carried.all() else int(carried.all())
+            self._native_arm = native_g6r.Arm(
+                T0inv=np.linalg.inv(self.ax.T0),
+                w=self.ax.directions,
+                o=self.ax.points,
+                order=self.order,
+                shift=self.shift,
+                reverse=self.reverse,
+                left_mode=mode,
+                left_fixed=self._left_fixed,
+                delta=self.delta,
+                B2inv=_B2_INV,
+                B3inv=_B3_INV,
+                half3=_HALF3,
+            )
+        return self._native_arm
+
+    def _starts_c(self, T):
+        """:meth:`starts` in C (native/general6r.py: the arranged axes, both sides'
+        coefficients, Q's QR, the pencil, the eigen step, theta 1..6, per pose in one
+        call); the poses it declines (Q nearly rank deficient, M2 ill conditioned, a
+        failure) by the numpy path."""
+        q, margin, status = self._native().starts(T, COND_STANDARD, self.imag_tol, _START)
+        redo = np.flatnonzero(status != 0)
+        if redo.size:
+            q[redo], margin[redo] = self.starts(T[redo], "numpy")
+        return q, margin
+
+    def _eigen(self, M, engine="numpy"):
         """The real eigenvalues x3 of (M0 + M1 x + M2 x^2) v = 0 for every pose, with their
         eigenvectors v (12 monomials): (pose index (r,), x3 (r,), v (r, 12)), sorted by
         pose. Where M2 is well conditioned (1-norm condition <= COND_STANDARD) the
         companion matrix of M2^-1 M(x) (stacked eigvals) and v by one step of inverse
         iteration on M(x3); elsewhere (and where that fails) QZ on the pencil per pose
-        (LAPACK ggev), which copes with a singular M2 (eigenvalues at infinity)."""
+        (LAPACK ggev), which copes with a singular M2 (eigenvalues at infinity).
+        ``engine``: "numpy" (LAPACK geev through numpy, the reference) or "c" (the same
+        steps in hand-written C, :meth:`_eigen_c`)."""
+        if engine == "c":
+            return self._eigen_c(M)
         N = M.shape[0]
         M2 = M[:, 2]
         std = np.zeros(N, dtype=bool)
@@ -455,8 +503,34 @@ class General6R:
                     x_parts[-1][~drop],
                     v_parts[-1][~drop],
                 )
+        self._eigen_qz(M, np.flatnonzero(~std), idx_parts, x_parts, v_parts)
+        if not idx_parts:
+            return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12))
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
+
+    def _eigen_c(self, M):
+        """_eigen by the compiled eigen step (native/general6r.py: the companion matrix,
+        its eigenvalues by the hand-written Hessenberg + Francis QR of
+        codegen/runtime/deltagen_eigen.c, the null vectors by the same inverse iteration),
+        QZ per pose where it reports a status (M2 ill conditioned, or a failure)."""
+        from deltagen.native import general6r as native_g6r
+
+        status, nreal, x, V = native_g6r.eigen(M, COND_STANDARD, self.imag_tol, _START)
+        have = np.arange(24)[None, :] < nreal[:, None]
+        pr, er = np.nonzero(have)
+        idx_parts, x_parts, v_parts = [pr], [x[pr, er]], [V[pr, er]]
+        self._eigen_qz(M, np.flatnonzero(status != 0), idx_parts, x_parts, v_parts)
+        idx = np.concatenate(idx_parts)
+        order = np.argsort(idx, kind="stable")
+        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
+
+    def _eigen_qz(self, M, rows, idx_parts, x_parts, v_parts):
+        """QZ on the pencil (scipy.linalg.eig, LAPACK ggev) for the poses ``rows``; their
+        real eigenvalues and eigenvectors appended to the parts."""
         Z0, I12 = np.zeros((12, 12)), np.eye(12)
-        for n in np.flatnonzero(~std):
+        for n in rows:
             # (M0 + M1 x + M2 x^2) v = 0 as A z = x B z, z = (v, x v)
             A_ = np.block([[Z0, I12], [-M[n, 0], -M[n, 1]]])
             B_ = np.block([[I12, Z0], [Z0, M[n, 2]]])
@@ -471,11 +545,6 @@ class General6R:
             idx_parts.append(np.full(real.size, n))
             x_parts.append(lam[real].real)
             v_parts.append(V.real)
-        if not idx_parts:
-            return np.zeros(0, dtype=int), np.zeros(0), np.zeros((0, 12))
-        idx = np.concatenate(idx_parts)
-        order = np.argsort(idx, kind="stable")
-        return idx[order], np.concatenate(x_parts)[order], np.concatenate(v_parts)[order]
 
     def _angles345(self, x3, V):
         """theta 3, 4, 5 (r, 3) from the eigenvalues x3 (r,) and eigenvectors V (r, 12) of
@@ -510,17 +579,63 @@ class General6R:
         return np.arctan2((_cross(ref, y) * w6).sum(axis=1), (y * ref).sum(axis=1))
 
 
-def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=True, info=False):
+_POLISHERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _polisher(arm, tol, max_iter):
+    """numeric.polisher(arm, tol, max_iter), cached per arm (None: the compiled Newton
+    engine does not apply; solve() then calls numeric.solve)."""
+    from deltagen.solve import numeric as ik_numeric
+
+    try:
+        cached = _POLISHERS.setdefault(arm, {})
+    except TypeError:  # not weakly referenceable: no cache
+        cached = {}
+    key = (float(tol), int(max_iter))
+    if key not in cached:
+        cached[key] = ik_numeric.polisher(arm, tol, max_iter)
+    return cached[key]
+
+
+def eigen_engine(arm, engine="auto") -> str:
+    """The eigen step's engine for ``arm``: "numpy" or "c" as asked; "auto": "c" on the
+    compiled backend when the module builds (native/general6r.py), else "numpy" (the
+    reference backend stays pure numpy, like its Newton polish)."""
+    if engine not in ("auto", "c", "numpy"):
+        raise InputError(f'engine must be "auto", "c" or "numpy", not {engine!r}')
+    if engine != "auto":
+        return engine
+    if getattr(arm, "backend", None) != "compiled":
+        return "numpy"
+    from deltagen.native import general6r as native_g6r
+
+    return "c" if native_g6r.available() else "numpy"
+
+
+def solve(
+    arm,
+    T,
+    eliminations,
+    *,
+    extra=None,
+    tol=1e-10,
+    max_iter=30,
+    limits=True,
+    info=False,
+    engine="auto",
+):
     """All solutions for poses T (N, 4, 4) of ``arm`` (a SerialRobot): the candidates of
     every :class:`General6R` in ``eliminations`` (e.g. the chain forwards and reversed) and
     the optional ``extra`` starts (N, S', 6) (e.g. the combined method's branches), each
     polished by Newton; converged, distinct solutions fill the first of the 16 slots.
+    ``engine``: the eigen step's (:func:`eigen_engine`).
     Returns q (N, 16, 6), valid (N, 16) (module docstring)."""
     from deltagen.solve import numeric as ik_numeric
 
     T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
     N = T.shape[0]
-    parts = [g.starts(T) for g in eliminations]
+    engine = eigen_engine(arm, engine)
+    parts = [g.starts(T, engine) for g in eliminations]
     q0 = np.concatenate([p[0] for p in parts] + ([] if extra is None else [extra]), axis=1)
     has = np.all(np.isfinite(q0), axis=-1)
     used = has.any(axis=0)  # slots that hold a candidate for some pose (order kept)
@@ -529,7 +644,12 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
     qs = np.full((N, S, 6), np.nan)
     conv = np.zeros((N, S), dtype=bool)
     rows = np.flatnonzero(has.reshape(-1))
-    if rows.size:
+    polish = _polisher(arm, tol, max_iter) if engine == "c" else None
+    if rows.size and polish is not None:  # the same C call as ik_numeric.solve's, lean
+        qs.reshape(-1, 6)[rows], conv.reshape(-1)[rows] = polish(
+            T[rows // S], q0.reshape(-1, 6)[rows]
+        )
+    elif rows.size:
         res = ik_numeric.solve(
             arm,
             T[rows // S],
@@ -542,11 +662,28 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
         qs.reshape(-1, 6)[rows] = res.q
         conv.reshape(-1)[rows] = res.converged & np.all(np.isfinite(res.q), axis=-1)
     ax = eliminations[0].ax
+    if engine == "c":  # the same steps in C (deltagen_general6r_finish)
+        from deltagen.native import general6r as native_g6r
+
+        q, valid, count = native_g6r.finish(qs, conv, ax.qlim, limits)
+    else:
+        q, valid, count = distinct(qs, conv, ax.qlim, ax.revolute, limits)
+    if info:
+        margin = np.min(np.stack([p[1] for p in parts]), axis=0)
+        return q, valid, {"candidates": q0, "rank_margin": margin, "found": count}
+    return q, valid
+
+
+def distinct(qs, conv, qlim, revolute, limits=True):
+    """The distinct solutions among Newton's results qs (N, S, 6) (converged where conv
+    (N, S)), in order: each fitted into the limits (geometry/limits.py); a double root, or
+    two candidates Newton pulled together, are one (a candidate within 1e-7 rad of an
+    earlier converged one is dropped); compacted into the first of K slots.
+    Returns q (N, K, 6) (NaN in unused slots), valid (N, K) (within the limits, or every
+    solution when ``limits`` is False), found (N,). The C twin: deltagen_general6r_finish."""
+    N, S = conv.shape
     with np.errstate(invalid="ignore"):
-        qs, inside = fit_limits(qs, ax.qlim, ax.revolute)
-    # distinct solutions in order (a double root, or two candidates Newton pulled together,
-    # are one: a candidate within 1e-7 rad of an earlier converged one is dropped): compact
-    # them into the first slots, at most K
+        qs, inside = fit_limits(qs, qlim, revolute)
     d = qs[:, :, None] - qs[:, None, :]  # (N, S, S, 6)
     with np.errstate(invalid="ignore"):
         d = np.abs((d + np.pi) % (2.0 * np.pi) - np.pi).max(axis=-1)
@@ -559,11 +696,7 @@ def solve(arm, T, eliminations, *, extra=None, tol=1e-10, max_iter=30, limits=Tr
     valid = np.zeros((N, K), dtype=bool)
     q[n_idx, rank[n_idx, s_idx]] = qs[n_idx, s_idx]
     valid[n_idx, rank[n_idx, s_idx]] = inside[n_idx, s_idx] if limits else True
-    count = take.sum(axis=1)
-    if info:
-        margin = np.min(np.stack([p[1] for p in parts]), axis=0)
-        return q, valid, {"candidates": q0, "rank_margin": margin, "found": count}
-    return q, valid
+    return q, valid, take.sum(axis=1)
 
 
 def eliminations(desc) -> tuple[list[General6R], bool]:

@@ -902,3 +902,46 @@ def _iterate(
 
     q_res = np.where(conv[:, None], q, best_q)
     return q_res, conv, it, np.where(conv, ep, best_ep), np.where(conv, er, best_er)
+
+
+def polisher(arm, tol=1e-10, max_iter=30):
+    """A lean form of ``solve(arm, T, q0, tol=tol, max_iter=max_iter, restarts=0,
+    respect_limits=False)`` on the compiled engine, its options checked and packed once:
+    ``call(T (k, 4, 4), q0 (k, n))`` -> (q (k, n), converged (k,)) for finite rows, the
+    same C call with the same options as solve()'s (the same bits), without its per-call
+    checks (the general 6R solver's Newton polish of its candidates calls it once per
+    batch). None where the compiled engine does not apply."""
+    opts = check_options(
+        arm,
+        tol=tol,
+        max_iter=max_iter,
+        mask=None,
+        jacobian="symbolic",
+        damping="auto",
+        step_limit=0.5,
+        respect_limits=False,
+        restarts=0,
+        seed=0,
+        null_space=0.0,
+        engine="auto",
+        min_iter=0,
+    )
+    if not opts["c_ok"]:
+        return None
+    tol_p, tol_r = opts["tol"]
+    k_nh, c0, _ = opts["damping"]
+    core = arm._core
+    mask = default_mask(arm, "symbolic")
+    packed = _c_options(core, tol_p, tol_r, int(max_iter), k_nh, c0, 0.5, False, mask)(
+        STALL_WINDOW, 0, _seed_offset(0)
+    )
+    qlim = np.ascontiguousarray(arm.qlim, dtype=float)
+
+    def call(T, q0):
+        q, ep, er, _, status = core.ik_newton(
+            packed, np.ascontiguousarray(T), np.ascontiguousarray(q0, dtype=float), qlim
+        )
+        ok = (status == st.OK) & np.all(np.isfinite(q), axis=1)
+        return q, ok & np.isfinite(ep) & np.isfinite(er)
+
+    return call
