@@ -33,7 +33,7 @@ through the numpy C API, the kernel writes into the fresh output array, and the 
 above are made in C with the same outcome (accepted: what plain_row accepts, with any
 strides; else None, and the general path raises). Callgrind, Puma 560 inverse_dynamics
 through SerialRobot: ~17 500 instructions per call on the cffi path, see
-tests/native/test_lean_ext.py and the report of issue 11 for the numbers with it. One
+tests/test_lean_ext.py and the report of issue 11 for the numbers with it. One
 extension serves every module: it takes the kernel's address. Where it cannot be built
 (no Python.h, no compiler) the Python code below serves, unchanged; DELTAGEN_LEAN_EXT=0
 chooses it too.
