@@ -192,6 +192,18 @@ def load(base_name: str, prefix: str, directory: Path | None = None, opt: str = 
     module_name, texts, files, runtime, args, libraries = _module_inputs(
         base_name, prefix, directory, opt
     )
+    return _load_cached(
+        module_name,
+        lambda target, so_name: _build(
+            module_name, target, so_name, texts, files, runtime, args, libraries
+        ),
+    )
+
+
+def _load_cached(module_name: str, build):
+    """The module of a cache key: loaded in this process already, else imported from a
+    verified artifact in the cache, else built first by ``build(target, so_name)`` -- one
+    build per key at a time across threads and processes (the module doc)."""
     with _GUARD:
         if module_name in _LOADED:
             return _LOADED[module_name]
@@ -206,9 +218,7 @@ def load(base_name: str, prefix: str, directory: Path | None = None, opt: str = 
         with _process_lock(root, module_name):
             if not _verified(target, shared_object):
                 _discard(target)
-                _build(
-                    module_name, target, shared_object.name, texts, files, runtime, args, libraries
-                )
+                build(target, shared_object.name)
             module = _import(module_name, shared_object)
         with _GUARD:
             _LOADED[module_name] = module
@@ -335,37 +345,104 @@ def _build(module_name, target: Path, so_name: str, texts, files, runtime, args,
             + ["-o", str(out / so_name)]
             + [f"-l{lib}" for lib in libraries]
         )
-        try:
-            proc = subprocess.run(
-                command,
-                cwd=work,
-                capture_output=True,
-                text=True,
-                timeout=_BUILD_TIMEOUT_S,
-                stdin=subprocess.DEVNULL,
-            )
-        except FileNotFoundError as exc:
-            raise BuildError(
-                f"no C compiler: {command[0]!r} was not found (set CC, or use "
-                "backend='reference', which needs none)"
-            ) from exc
-        except subprocess.TimeoutExpired as exc:
-            raise BuildError(
-                f"compiling {files['.c'].name} took over {_BUILD_TIMEOUT_S} s; gave up"
-            ) from exc
-        if proc.returncode != 0:
-            text = (proc.stderr or proc.stdout or "").strip()
-            raise BuildError(
-                f"compiling {files['.c'].name} failed (exit {proc.returncode}):\n"
-                f"{shlex.join(command)}\n{text[-4000:]}"
-            )
-        built = out / so_name
-        manifest = {
-            "size": built.stat().st_size,
-            "sha256": _digest(built),
-            "command": shlex.join(command),
-        }
-        (out / _MANIFEST).write_text(json.dumps(manifest, indent=1))
-        os.replace(out, target)  # atomic: a reader sees the whole folder or none
+        _compile(command, work, out / so_name, target, files[".c"].name)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _compile(command: list[str], work: Path, built: Path, target: Path, source_name: str) -> None:
+    """Run the compiler command (in ``work``), then write the manifest of ``built`` beside it
+    and rename its folder to ``target`` in one atomic step; BuildError with the compiler's
+    text when it fails."""
+    try:
+        proc = subprocess.run(
+            command,
+            cwd=work,
+            capture_output=True,
+            text=True,
+            timeout=_BUILD_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
+    except FileNotFoundError as exc:
+        raise BuildError(
+            f"no C compiler: {command[0]!r} was not found (set CC, or use "
+            "backend='reference', which needs none)"
+        ) from exc
+    except subprocess.TimeoutExpired as exc:
+        raise BuildError(
+            f"compiling {source_name} took over {_BUILD_TIMEOUT_S} s; gave up"
+        ) from exc
+    if proc.returncode != 0:
+        text = (proc.stderr or proc.stdout or "").strip()
+        raise BuildError(
+            f"compiling {source_name} failed (exit {proc.returncode}):\n"
+            f"{shlex.join(command)}\n{text[-4000:]}"
+        )
+    manifest = {
+        "size": built.stat().st_size,
+        "sha256": _digest(built),
+        "command": shlex.join(command),
+    }
+    (built.parent / _MANIFEST).write_text(json.dumps(manifest, indent=1))
+    os.replace(built.parent, target)  # atomic: a reader sees the whole folder or none
+
+
+def _numpy_include() -> tuple[str, str]:
+    import numpy
+
+    return numpy.get_include(), numpy.__version__
+
+
+def load_extension(source: Path, base_name: str):
+    """Compile and import a hand-written CPython extension (one .c file using Python.h and
+    the numpy C API, e.g. native/lean_ext.c), cached and verified like the generated
+    modules: the key covers its text, the flags, the interpreter, numpy and the compiler.
+    The module's init function is named by the build (``-DDELTAGEN_LEAN_INIT=PyInit_<name>``
+    and ``DELTAGEN_LEAN_NAME``), so each key's module has its own name. BuildError when
+    it cannot be built (no compiler, no Python.h) or loaded."""
+    text = Path(source).read_text()
+    numpy_include, numpy_version = _numpy_include()
+    python_include = sysconfig.get_paths()["include"]
+    args = ["-std=c99", "-O2", "-Wall", "-Wextra"]
+    key_material = "\0".join(
+        [
+            text,
+            " ".join(args),
+            sys.version,
+            sysconfig.get_platform(),
+            numpy_version,
+            numpy_include,
+            python_include,
+            _compiler_identity(),
+        ]
+    )
+    module_name = f"_{base_name}_{hashlib.sha256(key_material.encode()).hexdigest()[:16]}"
+    name = Path(source).name
+
+    def build(target: Path, so_name: str) -> None:
+        work = Path(tempfile.mkdtemp(prefix=f"{module_name}.", dir=target.parent))
+        try:
+            (work / name).write_text(text)  # the compiled text is the hashed text
+            out = work / "out"
+            out.mkdir()
+            ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
+            command = (
+                _compiler_command()
+                + ccshared
+                + ["-fwrapv", "-DNDEBUG"]
+                + args
+                + [
+                    f"-DDELTAGEN_LEAN_INIT=PyInit_{module_name}",
+                    f'-DDELTAGEN_LEAN_NAME="{module_name}"',
+                    f"-I{python_include}",
+                    f"-I{numpy_include}",
+                    str(work / name),
+                    "-o",
+                    str(out / so_name),
+                ]
+            )
+            _compile(command, work, out / so_name, target, name)
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+
+    return _load_cached(module_name, build)

@@ -24,18 +24,92 @@ Python floats/ints. Anything else, and every status other than OK, returns None:
 general path then makes its checks and raises its errors, so both paths refuse the same
 input the same way. Same C function on the same numbers as the batch path: the same bits.
 The buffers are per thread (cffi releases the GIL during the call).
+
+The CPython-extension entry (native/lean_ext.c). Where it builds, the rows-in,
+float64-arrays-out forms (every arm's fk, jacobian, mass_matrix, inverse and forward
+dynamics; the delta's fk, ik, their rates, jacobian and dynamics) are served by one C
+function per kernel instead of the Python code below: the inputs are read in place
+through the numpy C API, the kernel writes into the fresh output array, and the checks
+above are made in C with the same outcome (accepted: what plain_row accepts, with any
+strides; else None, and the general path raises). Callgrind, instructions per call from
+Python (README "Dynamics"): Puma 560 inverse_dynamics through SerialRobot 18 278 on the
+cffi path below, 5 314 through the extension (pinocchio's rnea on the UR5: 10 088);
+tests/test_lean_ext.py guards it. One
+extension serves every module: it takes the kernel's address. Where it cannot be built
+(no Python.h, no compiler) the Python code below serves, unchanged; DELTAGEN_LEAN_EXT=0
+chooses it too.
 """
 
 from __future__ import annotations
 
+import os
 import threading
+from pathlib import Path
 
 import numpy as np
 
 from deltagen import status as st
 from deltagen.inputs import plain_row
+from deltagen.native.build import BuildError, load_extension
 
 _F64 = np.dtype(np.float64)
+
+
+_EXT_LOCK = threading.Lock()
+_EXT: list = []  # [module or None] once tried
+
+
+def extension():
+    """The compiled native/lean_ext.c (its ``kernel`` factory), or None where it cannot be
+    built or DELTAGEN_LEAN_EXT=0: the Python lean path serves then. Tried once per
+    process."""
+    if os.environ.get("DELTAGEN_LEAN_EXT", "1") == "0":
+        return None
+    if not _EXT:
+        with _EXT_LOCK:
+            if not _EXT:
+                try:
+                    module = load_extension(
+                        Path(__file__).with_name("lean_ext.c"), "deltagen_lean_ext"
+                    )
+                except (BuildError, ImportError):
+                    module = None  # no headers or compiler: the Python lean path
+                _EXT.append(module)
+    return _EXT[0]
+
+
+def _extension_call(ffi, fn, lead, rows, outputs):
+    """The C entry of single_call's function, or None when the extension is missing or
+    does not serve this form (a pose, flag outputs, > 64 joints, ...)."""
+    module = extension()
+    if module is None or not outputs or any(ctype != "double" for _, ctype in outputs):
+        return None
+    widths = [r for r in rows if r != "scalar"]
+    scalar = len(rows) - len(widths)
+    if not widths or any(not isinstance(w, int) or w != widths[0] for w in widths):
+        return None
+    if scalar > 1 or (scalar and rows[-1] != "scalar"):
+        return None
+    if len(lead) == 1 and lead[0] == 1:
+        form, geometry, keep = 0, 0, (ffi, fn)
+    elif len(lead) == 3 and lead[1] == 1 and lead[2] == widths[0]:
+        form, geometry, keep = 1, int(ffi.cast("uintptr_t", lead[0])), (ffi, fn, lead[0])
+    else:
+        return None
+    try:
+        return module.kernel(
+            int(ffi.cast("uintptr_t", fn)),
+            form,
+            geometry,
+            widths[0],
+            len(widths),
+            scalar,
+            tuple(tuple(int(d) for d in shape) for shape, _ in outputs),
+            st.OK,
+            keep,
+        )
+    except ValueError:  # a form the C entry does not serve
+        return None
 
 
 def row_putter(memmove, n: int):
@@ -110,6 +184,9 @@ def single_call(ffi, fn, lead, rows, outputs):
     a payload [kg]); outputs: one (shape, ctype) per output, ctype "double" or "uint8_t"
     (0/1 flags, returned as bool). Returns call(*args) -> a fresh array (one output) or
     a tuple of them, or None when the general path must answer (see the module doc)."""
+    fast = _extension_call(ffi, fn, lead, rows, outputs)
+    if fast is not None:
+        return fast
     memmove, OK = ffi.memmove, st.OK
     sizes = [16 if r == "pose" else 1 if r == "scalar" else r for r in rows]
     buffers = _Buffers(ffi, sizes, outputs, sum(1 for r in rows if r != "scalar"))

@@ -1,0 +1,328 @@
+/* deltagen/native/lean_ext.c: the CPython-extension entry of the single-row calls
+ * (native/lean.py), one extension for every generated module, delta and serial.
+ *
+ * Why it exists (issue 11, "a single call faster than pinocchio's rnea from Python"): a
+ * cffi call of a kernel costs ~3 300 instructions, each (n,) input copied in through cffi
+ * ~1 700 and the fresh output array ~2 300 (callgrind, Puma 560). Here the inputs are read
+ * in place through the numpy C API, the kernel writes straight into the fresh output
+ * array, and the only Python-level work left is the method call itself.
+ *
+ * kernel(fn, lead, geometry, n, inputs, scalar, out_shapes, ok, keep) -> a callable
+ *   fn         the generated C function's address (cffi: int(ffi.cast("uintptr_t", f)))
+ *   lead       0: an arm's  int fn(size_t rows, in..., out..., int8_t *status)
+ *              1: the delta's int fn(const geometry *, size_t rows, size_t axes, in...,
+ *                 out..., int8_t *status), called with axes = n
+ *   geometry   the delta's geometry struct address (0 for an arm)
+ *   n          the width of every input row (joints / drives)
+ *   inputs     the number of (n,) rows (1..4)
+ *   scalar     1: one more input, a Python float or int >= 0 (the delta's payload [kg]),
+ *              passed as a const double * to one number
+ *   out_shapes one shape (a tuple of at most 3 ints) per double output (1..3)
+ *   ok         the status code of a row whose outputs are all finite (deltagen/status.py)
+ *   keep       any object the function pointers depend on (the cffi module, the geometry
+ *              struct's owner): held as long as the callable lives
+ *
+ * The callable takes the rows (and the scalar) positionally and returns a fresh float64
+ * array (one output) or a tuple of them, or None when the general Python path must answer.
+ * It accepts exactly what native/lean.py accepts (inputs.plain_row): a (n,) float64 ndarray
+ * (exactly numpy.ndarray, native byte order; any strides: a strided or unaligned row is
+ * gathered into a local buffer, as the general path's np.ascontiguousarray would) or a
+ * list/tuple of n exact Python floats/ints. Anything else -- another shape, dtype or type,
+ * an int beyond the float range, a wrong argument count, a negative or NaN scalar -- and
+ * any status other than `ok` (a non-finite input is INVALID) returns None: the general
+ * path then makes its checks and raises its errors, so both paths refuse the same input in
+ * the same way. The same C function on the same numbers as the batch path: the same bits.
+ *
+ * The call keeps the GIL (a kernel of one row runs ~1 us; releasing and taking the GIL
+ * back would cost more than it could give) and keeps no state between calls: every buffer
+ * is on the C stack, so concurrent threads cannot see each other's numbers.
+ *
+ * Calling through a cast function pointer: the kernels' parameters are size_t, const
+ * double *, double * and int8_t * (the delta's first one a pointer to its geometry struct);
+ * the typedefs below spell exactly those, with the geometry as const void *.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+
+#include <stdint.h>
+#include <string.h>
+
+#ifndef DELTAGEN_LEAN_INIT /* the build names the init function after the cache key */
+#define DELTAGEN_LEAN_INIT PyInit_deltagen_lean_ext
+#define DELTAGEN_LEAN_NAME "deltagen_lean_ext"
+#endif
+
+#define MAX_WIDTH 64 /* joints per row: wider arms keep the Python lean path */
+#define MAX_INPUTS 4
+#define MAX_OUTPUTS 3
+#define MAX_NDIM 3
+
+typedef const double *In;
+typedef double *Out;
+typedef int8_t *Status;
+typedef const void *Geometry;
+
+typedef struct {
+    PyObject_HEAD
+    uintptr_t fn;
+    int lead;
+    Geometry geometry;
+    Py_ssize_t n;
+    int inputs;
+    int scalar;
+    int outputs;
+    int ndim[MAX_OUTPUTS];
+    npy_intp dims[MAX_OUTPUTS][MAX_NDIM];
+    int ok;
+    PyObject *keep;
+} Spec;
+
+static void spec_dealloc(Spec *self)
+{
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject SpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.Spec",
+    .tp_basicsize = sizeof(Spec),
+    .tp_dealloc = (destructor)spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what a lean kernel call needs (function, shapes, status code)",
+};
+
+/* A row of n numbers from x: a pointer into x's own data when it is contiguous and
+ * aligned, else the numbers gathered into buf. NULL when x is not what plain_row accepts
+ * (no Python error is left set). */
+static const double *read_row(PyObject *x, Py_ssize_t n, double *buf)
+{
+    if (Py_TYPE(x) == &PyArray_Type) {
+        PyArrayObject *a = (PyArrayObject *)x;
+        if (PyArray_NDIM(a) != 1 || PyArray_DIM(a, 0) != n || PyArray_TYPE(a) != NPY_DOUBLE
+            || !PyArray_ISNOTSWAPPED(a))
+            return NULL;
+        const char *data = PyArray_BYTES(a);
+        npy_intp stride = PyArray_STRIDE(a, 0);
+        if (stride == (npy_intp)sizeof(double) && PyArray_ISALIGNED(a))
+            return (const double *)data;
+        for (Py_ssize_t i = 0; i < n; i++)
+            memcpy(&buf[i], data + i * stride, sizeof(double));
+        return buf;
+    }
+    if (PyList_CheckExact(x) || PyTuple_CheckExact(x)) {
+        if (PySequence_Fast_GET_SIZE(x) != n)
+            return NULL;
+        PyObject **items = PySequence_Fast_ITEMS(x);
+        for (Py_ssize_t i = 0; i < n; i++) {
+            PyObject *v = items[i];
+            if (PyFloat_CheckExact(v)) {
+                buf[i] = PyFloat_AS_DOUBLE(v);
+            } else if (PyLong_CheckExact(v)) { /* not bool: PyBool is a subtype */
+                buf[i] = PyLong_AsDouble(v);
+                if (buf[i] == -1.0 && PyErr_Occurred()) { /* beyond the float range */
+                    PyErr_Clear();
+                    return NULL;
+                }
+            } else {
+                return NULL;
+            }
+        }
+        return buf;
+    }
+    return NULL;
+}
+
+/* The scalar input (the delta's payload): an exact Python float or int >= 0. */
+static int read_scalar(PyObject *x, double *value)
+{
+    if (PyFloat_CheckExact(x)) {
+        *value = PyFloat_AS_DOUBLE(x);
+    } else if (PyLong_CheckExact(x)) {
+        *value = PyLong_AsDouble(x);
+        if (*value == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();
+            return 0;
+        }
+    } else {
+        return 0;
+    }
+    return *value >= 0.0; /* false for NaN too */
+}
+
+/* fn(lead..., in[0..k), out[0..m), status) for the k inputs and m outputs a kernel has. */
+#define ARM_FN(...) ((int (*)(size_t, __VA_ARGS__, Status))spec->fn)
+#define DELTA_FN(...) ((int (*)(Geometry, size_t, size_t, __VA_ARGS__, Status))spec->fn)
+#define KM(k, m) ((k) * 8 + (m))
+
+static int call_arm(const Spec *spec, int k, In *in, Out *out, Status status)
+{
+    switch (KM(k, spec->outputs)) {
+    case KM(1, 1): return ARM_FN(In, Out)(1, in[0], out[0], status);
+    case KM(2, 1): return ARM_FN(In, In, Out)(1, in[0], in[1], out[0], status);
+    case KM(3, 1): return ARM_FN(In, In, In, Out)(1, in[0], in[1], in[2], out[0], status);
+    case KM(4, 1):
+        return ARM_FN(In, In, In, In, Out)(1, in[0], in[1], in[2], in[3], out[0], status);
+    case KM(1, 2): return ARM_FN(In, Out, Out)(1, in[0], out[0], out[1], status);
+    case KM(2, 2): return ARM_FN(In, In, Out, Out)(1, in[0], in[1], out[0], out[1], status);
+    default: return -1;
+    }
+}
+
+static int call_delta(const Spec *spec, int k, In *in, Out *out, Status status)
+{
+    Geometry g = spec->geometry;
+    size_t axes = (size_t)spec->n;
+    switch (KM(k, spec->outputs)) {
+    case KM(1, 1): return DELTA_FN(In, Out)(g, 1, axes, in[0], out[0], status);
+    case KM(1, 2): return DELTA_FN(In, Out, Out)(g, 1, axes, in[0], out[0], out[1], status);
+    case KM(2, 2):
+        return DELTA_FN(In, In, Out, Out)(g, 1, axes, in[0], in[1], out[0], out[1], status);
+    case KM(3, 3):
+        return DELTA_FN(In, In, In, Out, Out, Out)(
+            g, 1, axes, in[0], in[1], in[2], out[0], out[1], out[2], status);
+    case KM(4, 1):
+        return DELTA_FN(In, In, In, In, Out)(
+            g, 1, axes, in[0], in[1], in[2], in[3], out[0], status);
+    default: return -1;
+    }
+}
+
+static int supported(int lead, int k, int m)
+{
+    if (lead == 0)
+        return KM(k, m) == KM(1, 1) || KM(k, m) == KM(2, 1) || KM(k, m) == KM(3, 1)
+               || KM(k, m) == KM(4, 1) || KM(k, m) == KM(1, 2) || KM(k, m) == KM(2, 2);
+    return KM(k, m) == KM(1, 1) || KM(k, m) == KM(1, 2) || KM(k, m) == KM(2, 2)
+           || KM(k, m) == KM(3, 3) || KM(k, m) == KM(4, 1);
+}
+
+static PyObject *lean_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const Spec *spec = (const Spec *)self;
+    const Py_ssize_t n = spec->n;
+    const int k = spec->inputs + spec->scalar;
+    if (nargs != k)
+        Py_RETURN_NONE;
+    double buf[MAX_INPUTS][MAX_WIDTH];
+    double scalar;
+    In in[MAX_INPUTS];
+    for (int i = 0; i < spec->inputs; i++) {
+        in[i] = read_row(args[i], n, buf[i]);
+        if (in[i] == NULL)
+            Py_RETURN_NONE;
+    }
+    if (spec->scalar) {
+        if (!read_scalar(args[spec->inputs], &scalar))
+            Py_RETURN_NONE;
+        in[spec->inputs] = &scalar;
+    }
+    PyObject *result[MAX_OUTPUTS] = {NULL, NULL, NULL};
+    Out out[MAX_OUTPUTS];
+    for (int j = 0; j < spec->outputs; j++) {
+        result[j] = PyArray_SimpleNew(spec->ndim[j], (npy_intp *)spec->dims[j], NPY_DOUBLE);
+        if (result[j] == NULL)
+            goto fail;
+        out[j] = (Out)PyArray_DATA((PyArrayObject *)result[j]);
+    }
+    int8_t status = -1;
+    int rc = spec->lead == 0 ? call_arm(spec, k, in, out, &status)
+                             : call_delta(spec, k, in, out, &status);
+    if (rc != 0 || status != spec->ok) { /* the general path reports it */
+        for (int j = 0; j < spec->outputs; j++)
+            Py_DECREF(result[j]);
+        Py_RETURN_NONE;
+    }
+    if (spec->outputs == 1)
+        return result[0];
+    PyObject *tuple = PyTuple_New(spec->outputs);
+    if (tuple == NULL)
+        goto fail;
+    for (int j = 0; j < spec->outputs; j++)
+        PyTuple_SET_ITEM(tuple, j, result[j]); /* steals the reference */
+    return tuple;
+fail:
+    for (int j = 0; j < spec->outputs; j++)
+        Py_XDECREF(result[j]);
+    return NULL;
+}
+
+static PyMethodDef call_def = {"lean_call", (PyCFunction)(void (*)(void))lean_call, METH_FASTCALL,
+                               "one row of a generated kernel (deltagen/native/lean_ext.c)"};
+
+static PyObject *kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    unsigned long long fn, geometry;
+    int lead, inputs, scalar, ok;
+    Py_ssize_t n;
+    PyObject *shapes, *keep;
+    if (!PyArg_ParseTuple(args, "KiKniiO!iO", &fn, &lead, &geometry, &n, &inputs, &scalar,
+                          &PyTuple_Type, &shapes, &ok, &keep))
+        return NULL;
+    Py_ssize_t m = PyTuple_GET_SIZE(shapes);
+    if (fn == 0 || (lead != 0 && lead != 1) || (lead == 1 && geometry == 0) || n < 1
+        || n > MAX_WIDTH || inputs < 1 || scalar < 0 || scalar > 1
+        || inputs + scalar > MAX_INPUTS || m < 1 || m > MAX_OUTPUTS
+        || !supported(lead, inputs + scalar, (int)m)) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.kernel: a kernel form it does not serve");
+        return NULL;
+    }
+    Spec *spec = PyObject_New(Spec, &SpecType);
+    if (spec == NULL)
+        return NULL;
+    spec->fn = (uintptr_t)fn;
+    spec->lead = lead;
+    spec->geometry = (Geometry)(uintptr_t)geometry;
+    spec->n = n;
+    spec->inputs = inputs;
+    spec->scalar = scalar;
+    spec->outputs = (int)m;
+    spec->ok = ok;
+    Py_INCREF(keep);
+    spec->keep = keep;
+    for (Py_ssize_t j = 0; j < m; j++) {
+        PyObject *shape = PyTuple_GET_ITEM(shapes, j);
+        Py_ssize_t ndim = PyTuple_Check(shape) ? PyTuple_GET_SIZE(shape) : -1;
+        if (ndim < 1 || ndim > MAX_NDIM) {
+            PyErr_SetString(PyExc_ValueError, "lean_ext.kernel: each shape is 1 to 3 ints");
+            Py_DECREF(spec);
+            return NULL;
+        }
+        spec->ndim[j] = (int)ndim;
+        for (Py_ssize_t d = 0; d < ndim; d++) {
+            spec->dims[j][d] = (npy_intp)PyLong_AsSsize_t(PyTuple_GET_ITEM(shape, d));
+            if (spec->dims[j][d] < 1) {
+                if (!PyErr_Occurred())
+                    PyErr_SetString(PyExc_ValueError, "lean_ext.kernel: a dimension < 1");
+                Py_DECREF(spec);
+                return NULL;
+            }
+        }
+    }
+    PyObject *call = PyCFunction_NewEx(&call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
+static PyMethodDef methods[] = {
+    {"kernel", kernel, METH_VARARGS,
+     "kernel(fn, lead, geometry, n, inputs, scalar, out_shapes, ok, keep) -> callable"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module_def = {
+    PyModuleDef_HEAD_INIT, DELTAGEN_LEAN_NAME,
+    "single-row entry of the generated kernels (deltagen/native/lean_ext.c)", -1, methods,
+    NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC DELTAGEN_LEAN_INIT(void)
+{
+    import_array();
+    if (PyType_Ready(&SpecType) < 0)
+        return NULL;
+    return PyModule_Create(&module_def);
+}
