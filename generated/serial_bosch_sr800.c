@@ -1848,16 +1848,13 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const int fit_q1_elbow_down_in = (((fit_q1_elbow_down >= -2.2689280276926285)) & ((fit_q1_elbow_down <= 2.2689280276926285)));
             const double fit_q2_elbow_down = deltagen_fit_angle(1.0*th3_elbow_down, -2.530727415391778, 2.530727415391778, -2.530727415491778, 2.530727415491778);
             const int fit_q2_elbow_down_in = (((fit_q2_elbow_down >= -2.530727415491778)) & ((fit_q2_elbow_down <= 2.530727415491778)));
-            const double fit_q3_elbow_down_d = -travel;
-            const int fit_q3_elbow_down_in0 = (((fit_q3_elbow_down_d >= -1.0e-10)) & ((fit_q3_elbow_down_d <= 0.3000000001)));
-            const double fit_q3_elbow_down = ((fit_q3_elbow_down_in0) ? fmin(0.3, fmax(0.0, fit_q3_elbow_down_d)) : fit_q3_elbow_down_d);
             const double fit_q4_elbow_down = deltagen_fit_angle(-1.0*roll_elbow_down, -3.141592653589793, 3.141592653589793, -3.141592653689793, 3.141592653689793);
             const int fit_q4_elbow_down_in = (((fit_q4_elbow_down >= -3.141592653689793)) & ((fit_q4_elbow_down <= 3.141592653689793)));
-            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
-            const int valid_elbow_down = ((fit_q1_elbow_down_in) & (fit_q2_elbow_down_in) & (fit_q3_elbow_down_in0) & (fit_q4_elbow_down_in) & (ok_elbow_down));
+            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_up) & isfinite(fit_q4_elbow_down))));
+            const int valid_elbow_down = ((fit_q1_elbow_down_in) & (fit_q2_elbow_down_in) & (fit_q3_elbow_up_in0) & (fit_q4_elbow_down_in) & (ok_elbow_down));
             const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
             const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
-            const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_down : NAN);
+            const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_up : NAN);
             const double out_q4_elbow_down = ((ok_elbow_down) ? fit_q4_elbow_down : NAN);
             const int out_valid_elbow_down = (valid_elbow_down);
             /* status */

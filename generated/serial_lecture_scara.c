@@ -1317,15 +1317,9 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double F2_24_elbow_down = F1_24_elbow_down + paul2_c*t5_5 + 3.0*t5_3;
             const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(-Tt34) <= 7.0000000000000005e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F2_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <= 7.0000000000000005e-8)));
             /* joint limits and outputs, branch elbow_down */
-            const double t6_0 = 1.0*phi_b;
-            const double t6_1 = (1.0/2.0)/3.141592653589793;
-            const double t6_2 = 2*3.141592653589793;
-            const double t6_3 = 1.0*paul2;
-            const double fit_q1_elbow_down = t6_0 - t6_2*floor(t6_1*(t6_0 + 3.141592653589793));
-            const double fit_q2_elbow_down = -t6_2*floor(t6_1*(t6_3 + 3.141592653589793)) + t6_3;
-            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down))));
-            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
-            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
+            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_up) & isfinite(fit_q2_elbow_up))));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_up : NAN);
+            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_up : NAN);
             const int out_valid_elbow_down = (ok_elbow_down);
             /* status */
             const int any_valid = ((ok_elbow_down) | (ok_elbow_up));

@@ -1837,17 +1837,15 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double F4_34_elbow_down = travel - 0.1;
             const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F3_14_elbow_down - Tt14) <= 1.0e-8)) & ((fabs(F3_24_elbow_down - Tt24) <= 1.0e-8)) & ((fabs(F4_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F4_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F4_34_elbow_down - Tt34) <= 1.0e-8)));
             /* joint limits and outputs, branch elbow_down */
-            const int fit_q1_elbow_down_in0 = (((travel >= 0.1999999999)) & ((travel <= 0.5000000001)));
-            const double fit_q1_elbow_down = ((fit_q1_elbow_down_in0) ? fmin(0.5, fmax(0.2, travel)) : travel);
             const double fit_q2_elbow_down = deltagen_fit_angle(1.0*th2_elbow_down, -2.2689280275926285, 2.2689280275926285, -2.2689280276926285, 2.2689280276926285);
             const int fit_q2_elbow_down_in = (((fit_q2_elbow_down >= -2.2689280276926285)) & ((fit_q2_elbow_down <= 2.2689280276926285)));
             const double fit_q3_elbow_down = deltagen_fit_angle(1.0*th3_elbow_down, -2.530727415391778, 2.530727415391778, -2.530727415491778, 2.530727415491778);
             const int fit_q3_elbow_down_in = (((fit_q3_elbow_down >= -2.530727415491778)) & ((fit_q3_elbow_down <= 2.530727415491778)));
             const double fit_q4_elbow_down = deltagen_fit_angle(1.0*roll_elbow_down, -3.141592653589793, 3.141592653589793, -3.141592653689793, 3.141592653689793);
             const int fit_q4_elbow_down_in = (((fit_q4_elbow_down >= -3.141592653689793)) & ((fit_q4_elbow_down <= 3.141592653689793)));
-            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
-            const int valid_elbow_down = ((fit_q1_elbow_down_in0) & (fit_q2_elbow_down_in) & (fit_q3_elbow_down_in) & (fit_q4_elbow_down_in) & (ok_elbow_down));
-            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
+            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_up) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
+            const int valid_elbow_down = ((fit_q1_elbow_up_in0) & (fit_q2_elbow_down_in) & (fit_q3_elbow_down_in) & (fit_q4_elbow_down_in) & (ok_elbow_down));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_up : NAN);
             const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
             const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_down : NAN);
             const double out_q4_elbow_down = ((ok_elbow_down) ? fit_q4_elbow_down : NAN);

@@ -2105,17 +2105,15 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double F4_34_front_down = F2_34_front_down + 0.5*F3_33_front_down;
             const int hit_front_down = (((fabs(F3_13_front_down - Tt13) <= 1.0e-8)) & ((fabs(F3_23_front_down - Tt23) <= 1.0e-8)) & ((fabs(F3_33_front_down - Tt33) <= 1.0e-8)) & ((fabs(F4_11_front_down - Tt11) <= 1.0e-8)) & ((fabs(F4_12_front_down - Tt12) <= 1.0e-8)) & ((fabs(F4_14_front_down - Tt14) <= 1.2083045973594573e-8)) & ((fabs(F4_21_front_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_front_down - Tt22) <= 1.0e-8)) & ((fabs(F4_24_front_down - Tt24) <= 1.2083045973594573e-8)) & ((fabs(F4_31_front_down - Tt31) <= 1.0e-8)) & ((fabs(F4_32_front_down - Tt32) <= 1.0e-8)) & ((fabs(F4_34_front_down - Tt34) <= 1.2083045973594573e-8)));
             /* joint limits and outputs, branch front_down */
-            const double fit_q1_front_down = deltagen_fit_angle(q1_front, -2.356194490192345, 2.356194490192345, -2.356194490292345, 2.356194490292345);
-            const int fit_q1_front_down_in = (((fit_q1_front_down >= -2.356194490292345)) & ((fit_q1_front_down <= 2.356194490292345)));
             const double fit_q2_front_down = deltagen_fit_angle(phi2_front_down, 0.0, 1.5707963267948966, -1.0e-10, 1.5707963268948966);
             const int fit_q2_front_down_in = (((fit_q2_front_down >= -1.0e-10)) & ((fit_q2_front_down <= 1.5707963268948966)));
             const double fit_q3_front_down = deltagen_fit_angle(1.0*paul3_front_down, -1.5707963267948966, 0.0, -1.5707963268948966, 1.0e-10);
             const int fit_q3_front_down_in = (((fit_q3_front_down >= -1.5707963268948966)) & ((fit_q3_front_down <= 1.0e-10)));
             const double fit_q4_front_down = deltagen_fit_angle(q4_front_down, -3.141592653589793, 3.141592653589793, -3.141592653689793, 3.141592653689793);
             const int fit_q4_front_down_in = (((fit_q4_front_down >= -3.141592653689793)) & ((fit_q4_front_down <= 3.141592653689793)));
-            const int ok_front_down = ((hit_front_down) & (ok_paul_front_down) & (!invalid) & ((isfinite(fit_q1_front_down) & isfinite(fit_q2_front_down) & isfinite(fit_q3_front_down) & isfinite(fit_q4_front_down))));
-            const int valid_front_down = ((fit_q1_front_down_in) & (fit_q2_front_down_in) & (fit_q3_front_down_in) & (fit_q4_front_down_in) & (ok_front_down));
-            const double out_q1_front_down = ((ok_front_down) ? fit_q1_front_down : NAN);
+            const int ok_front_down = ((hit_front_down) & (ok_paul_front_down) & (!invalid) & ((isfinite(fit_q1_front_up) & isfinite(fit_q2_front_down) & isfinite(fit_q3_front_down) & isfinite(fit_q4_front_down))));
+            const int valid_front_down = ((fit_q1_front_up_in) & (fit_q2_front_down_in) & (fit_q3_front_down_in) & (fit_q4_front_down_in) & (ok_front_down));
+            const double out_q1_front_down = ((ok_front_down) ? fit_q1_front_up : NAN);
             const double out_q2_front_down = ((ok_front_down) ? fit_q2_front_down : NAN);
             const double out_q3_front_down = ((ok_front_down) ? fit_q3_front_down : NAN);
             const double out_q4_front_down = ((ok_front_down) ? fit_q4_front_down : NAN);
@@ -2191,17 +2189,15 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double F4_34_back_down = F2_34_back_down + 0.5*F3_33_back_down;
             const int hit_back_down = (((fabs(F3_13_back_down - Tt13) <= 1.0e-8)) & ((fabs(F3_23_back_down - Tt23) <= 1.0e-8)) & ((fabs(F3_33_back_down - Tt33) <= 1.0e-8)) & ((fabs(F4_11_back_down - Tt11) <= 1.0e-8)) & ((fabs(F4_12_back_down - Tt12) <= 1.0e-8)) & ((fabs(F4_14_back_down - Tt14) <= 1.2083045973594573e-8)) & ((fabs(F4_21_back_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_back_down - Tt22) <= 1.0e-8)) & ((fabs(F4_24_back_down - Tt24) <= 1.2083045973594573e-8)) & ((fabs(F4_31_back_down - Tt31) <= 1.0e-8)) & ((fabs(F4_32_back_down - Tt32) <= 1.0e-8)) & ((fabs(F4_34_back_down - Tt34) <= 1.2083045973594573e-8)));
             /* joint limits and outputs, branch back_down */
-            const double fit_q1_back_down = deltagen_fit_angle(q1_back, -2.356194490192345, 2.356194490192345, -2.356194490292345, 2.356194490292345);
-            const int fit_q1_back_down_in = (((fit_q1_back_down >= -2.356194490292345)) & ((fit_q1_back_down <= 2.356194490292345)));
             const double fit_q2_back_down = deltagen_fit_angle(phi2_back_down, 0.0, 1.5707963267948966, -1.0e-10, 1.5707963268948966);
             const int fit_q2_back_down_in = (((fit_q2_back_down >= -1.0e-10)) & ((fit_q2_back_down <= 1.5707963268948966)));
             const double fit_q3_back_down = deltagen_fit_angle(1.0*paul3_back_down, -1.5707963267948966, 0.0, -1.5707963268948966, 1.0e-10);
             const int fit_q3_back_down_in = (((fit_q3_back_down >= -1.5707963268948966)) & ((fit_q3_back_down <= 1.0e-10)));
             const double fit_q4_back_down = deltagen_fit_angle(q4_back_down, -3.141592653589793, 3.141592653589793, -3.141592653689793, 3.141592653689793);
             const int fit_q4_back_down_in = (((fit_q4_back_down >= -3.141592653689793)) & ((fit_q4_back_down <= 3.141592653689793)));
-            const int ok_back_down = ((hit_back_down) & (ok_paul_back_down) & (!invalid) & ((isfinite(fit_q1_back_down) & isfinite(fit_q2_back_down) & isfinite(fit_q3_back_down) & isfinite(fit_q4_back_down))));
-            const int valid_back_down = ((fit_q1_back_down_in) & (fit_q2_back_down_in) & (fit_q3_back_down_in) & (fit_q4_back_down_in) & (ok_back_down));
-            const double out_q1_back_down = ((ok_back_down) ? fit_q1_back_down : NAN);
+            const int ok_back_down = ((hit_back_down) & (ok_paul_back_down) & (!invalid) & ((isfinite(fit_q1_back_up) & isfinite(fit_q2_back_down) & isfinite(fit_q3_back_down) & isfinite(fit_q4_back_down))));
+            const int valid_back_down = ((fit_q1_back_up_in) & (fit_q2_back_down_in) & (fit_q3_back_down_in) & (fit_q4_back_down_in) & (ok_back_down));
+            const double out_q1_back_down = ((ok_back_down) ? fit_q1_back_up : NAN);
             const double out_q2_back_down = ((ok_back_down) ? fit_q2_back_down : NAN);
             const double out_q3_back_down = ((ok_back_down) ? fit_q3_back_down : NAN);
             const double out_q4_back_down = ((ok_back_down) ? fit_q4_back_down : NAN);

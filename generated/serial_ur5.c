@@ -3124,8 +3124,6 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double T_34_shoulderp_elbowp_wristm = 0.0823*F5_33_shoulderp_elbowp_wristm + F5_34_shoulderp_elbowp_wristm;
             const int hit_shoulderp_elbowp_wristm = (((fabs(F5_13_shoulderp_elbowp_wristm - Tt11) <= 1.0e-8)) & ((fabs(F5_23_shoulderp_elbowp_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowp_wristm - Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowp_wristm - Tt14) <= 1.0e-8)) & ((fabs(T_24_shoulderp_elbowp_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowp_wristm - Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowp_wristm - Tt12) <= 1.0e-8)) & ((fabs(-F6_12_shoulderp_elbowp_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowp_wristm - Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowp_wristm - Tt23) <= 1.0e-8)) & ((fabs(-F6_31_shoulderp_elbowp_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowp_wristm - Tt33) <= 1.0e-8)));
             /* joint limits and outputs, branch shoulderp_elbowp_wristm */
-            const double fit_q1_shoulderp_elbowp_wristm = deltagen_fit_angle(q1_sp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q1_shoulderp_elbowp_wristm_in = (((fit_q1_shoulderp_elbowp_wristm >= -6.283185307279586)) & ((fit_q1_shoulderp_elbowp_wristm <= 6.283185307279586)));
             const double fit_q2_shoulderp_elbowp_wristm = deltagen_fit_angle(1.0*th2_spwmep, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q2_shoulderp_elbowp_wristm_in = (((fit_q2_shoulderp_elbowp_wristm >= -6.283185307279586)) & ((fit_q2_shoulderp_elbowp_wristm <= 6.283185307279586)));
             const double fit_q3_shoulderp_elbowp_wristm = deltagen_fit_angle(1.0*bend_spwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3136,9 +3134,9 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const int fit_q5_shoulderp_elbowp_wristm_in = (((fit_q5_shoulderp_elbowp_wristm >= -6.283185307279586)) & ((fit_q5_shoulderp_elbowp_wristm <= 6.283185307279586)));
             const double fit_q6_shoulderp_elbowp_wristm = deltagen_fit_angle(-mq6_spwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q6_shoulderp_elbowp_wristm_in = (((fit_q6_shoulderp_elbowp_wristm >= -6.283185307279586)) & ((fit_q6_shoulderp_elbowp_wristm <= 6.283185307279586)));
-            const int ok_shoulderp_elbowp_wristm = ((hit_shoulderp_elbowp_wristm) & (ok_elbow_spwm) & (ok_q1eq) & (ok_q5eq_sp) & (!invalid) & ((isfinite(fit_q1_shoulderp_elbowp_wristm) & isfinite(fit_q2_shoulderp_elbowp_wristm) & isfinite(fit_q3_shoulderp_elbowp_wristm) & isfinite(fit_q4_shoulderp_elbowp_wristm) & isfinite(fit_q5_shoulderp_elbowp_wristm) & isfinite(fit_q6_shoulderp_elbowp_wristm))));
-            const int valid_shoulderp_elbowp_wristm = ((fit_q1_shoulderp_elbowp_wristm_in) & (fit_q2_shoulderp_elbowp_wristm_in) & (fit_q3_shoulderp_elbowp_wristm_in) & (fit_q4_shoulderp_elbowp_wristm_in) & (fit_q5_shoulderp_elbowp_wristm_in) & (fit_q6_shoulderp_elbowp_wristm_in) & (ok_shoulderp_elbowp_wristm));
-            const double out_q1_shoulderp_elbowp_wristm = ((ok_shoulderp_elbowp_wristm) ? fit_q1_shoulderp_elbowp_wristm : NAN);
+            const int ok_shoulderp_elbowp_wristm = ((hit_shoulderp_elbowp_wristm) & (ok_elbow_spwm) & (ok_q1eq) & (ok_q5eq_sp) & (!invalid) & ((isfinite(fit_q1_shoulderp_elbowp_wristp) & isfinite(fit_q2_shoulderp_elbowp_wristm) & isfinite(fit_q3_shoulderp_elbowp_wristm) & isfinite(fit_q4_shoulderp_elbowp_wristm) & isfinite(fit_q5_shoulderp_elbowp_wristm) & isfinite(fit_q6_shoulderp_elbowp_wristm))));
+            const int valid_shoulderp_elbowp_wristm = ((fit_q1_shoulderp_elbowp_wristp_in) & (fit_q2_shoulderp_elbowp_wristm_in) & (fit_q3_shoulderp_elbowp_wristm_in) & (fit_q4_shoulderp_elbowp_wristm_in) & (fit_q5_shoulderp_elbowp_wristm_in) & (fit_q6_shoulderp_elbowp_wristm_in) & (ok_shoulderp_elbowp_wristm));
+            const double out_q1_shoulderp_elbowp_wristm = ((ok_shoulderp_elbowp_wristm) ? fit_q1_shoulderp_elbowp_wristp : NAN);
             const double out_q2_shoulderp_elbowp_wristm = ((ok_shoulderp_elbowp_wristm) ? fit_q2_shoulderp_elbowp_wristm : NAN);
             const double out_q3_shoulderp_elbowp_wristm = ((ok_shoulderp_elbowp_wristm) ? fit_q3_shoulderp_elbowp_wristm : NAN);
             const double out_q4_shoulderp_elbowp_wristm = ((ok_shoulderp_elbowp_wristm) ? fit_q4_shoulderp_elbowp_wristm : NAN);
@@ -3198,26 +3196,20 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double T_34_shoulderp_elbowm_wristp = 0.0823*F5_33_shoulderp_elbowm_wristp + F5_34_shoulderp_elbowm_wristp;
             const int hit_shoulderp_elbowm_wristp = (((fabs(F5_13_shoulderp_elbowm_wristp - Tt11) <= 1.0e-8)) & ((fabs(F5_23_shoulderp_elbowm_wristp - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowm_wristp - Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowm_wristp - Tt14) <= 1.0e-8)) & ((fabs(T_24_shoulderp_elbowm_wristp - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowm_wristp - Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowm_wristp - Tt12) <= 1.0e-8)) & ((fabs(-F6_12_shoulderp_elbowm_wristp - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowm_wristp - Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowm_wristp - Tt23) <= 1.0e-8)) & ((fabs(-F6_31_shoulderp_elbowm_wristp - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowm_wristp - Tt33) <= 1.0e-8)));
             /* joint limits and outputs, branch shoulderp_elbowm_wristp */
-            const double fit_q1_shoulderp_elbowm_wristp = deltagen_fit_angle(q1_sp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q1_shoulderp_elbowm_wristp_in = (((fit_q1_shoulderp_elbowm_wristp >= -6.283185307279586)) & ((fit_q1_shoulderp_elbowm_wristp <= 6.283185307279586)));
             const double fit_q2_shoulderp_elbowm_wristp = deltagen_fit_angle(1.0*th2_spwpem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q2_shoulderp_elbowm_wristp_in = (((fit_q2_shoulderp_elbowm_wristp >= -6.283185307279586)) & ((fit_q2_shoulderp_elbowm_wristp <= 6.283185307279586)));
             const double fit_q3_shoulderp_elbowm_wristp = deltagen_fit_angle(1.0*th3_spwpem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q3_shoulderp_elbowm_wristp_in = (((fit_q3_shoulderp_elbowm_wristp >= -6.283185307279586)) & ((fit_q3_shoulderp_elbowm_wristp <= 6.283185307279586)));
             const double fit_q4_shoulderp_elbowm_wristp = deltagen_fit_angle(1.0*th4_spwpem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q4_shoulderp_elbowm_wristp_in = (((fit_q4_shoulderp_elbowm_wristp >= -6.283185307279586)) & ((fit_q4_shoulderp_elbowm_wristp <= 6.283185307279586)));
-            const double fit_q5_shoulderp_elbowm_wristp = deltagen_fit_angle(q5_spwp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q5_shoulderp_elbowm_wristp_in = (((fit_q5_shoulderp_elbowm_wristp >= -6.283185307279586)) & ((fit_q5_shoulderp_elbowm_wristp <= 6.283185307279586)));
-            const double fit_q6_shoulderp_elbowm_wristp = deltagen_fit_angle(-mq6_spwp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q6_shoulderp_elbowm_wristp_in = (((fit_q6_shoulderp_elbowm_wristp >= -6.283185307279586)) & ((fit_q6_shoulderp_elbowm_wristp <= 6.283185307279586)));
-            const int ok_shoulderp_elbowm_wristp = ((hit_shoulderp_elbowm_wristp) & (ok_elbow_spwp) & (ok_q1eq) & (ok_q5eq_sp) & (!invalid) & ((isfinite(fit_q1_shoulderp_elbowm_wristp) & isfinite(fit_q2_shoulderp_elbowm_wristp) & isfinite(fit_q3_shoulderp_elbowm_wristp) & isfinite(fit_q4_shoulderp_elbowm_wristp) & isfinite(fit_q5_shoulderp_elbowm_wristp) & isfinite(fit_q6_shoulderp_elbowm_wristp))));
-            const int valid_shoulderp_elbowm_wristp = ((fit_q1_shoulderp_elbowm_wristp_in) & (fit_q2_shoulderp_elbowm_wristp_in) & (fit_q3_shoulderp_elbowm_wristp_in) & (fit_q4_shoulderp_elbowm_wristp_in) & (fit_q5_shoulderp_elbowm_wristp_in) & (fit_q6_shoulderp_elbowm_wristp_in) & (ok_shoulderp_elbowm_wristp));
-            const double out_q1_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q1_shoulderp_elbowm_wristp : NAN);
+            const int ok_shoulderp_elbowm_wristp = ((hit_shoulderp_elbowm_wristp) & (ok_elbow_spwp) & (ok_q1eq) & (ok_q5eq_sp) & (!invalid) & ((isfinite(fit_q1_shoulderp_elbowp_wristp) & isfinite(fit_q2_shoulderp_elbowm_wristp) & isfinite(fit_q3_shoulderp_elbowm_wristp) & isfinite(fit_q4_shoulderp_elbowm_wristp) & isfinite(fit_q5_shoulderp_elbowp_wristp) & isfinite(fit_q6_shoulderp_elbowp_wristp))));
+            const int valid_shoulderp_elbowm_wristp = ((fit_q1_shoulderp_elbowp_wristp_in) & (fit_q2_shoulderp_elbowm_wristp_in) & (fit_q3_shoulderp_elbowm_wristp_in) & (fit_q4_shoulderp_elbowm_wristp_in) & (fit_q5_shoulderp_elbowp_wristp_in) & (fit_q6_shoulderp_elbowp_wristp_in) & (ok_shoulderp_elbowm_wristp));
+            const double out_q1_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q1_shoulderp_elbowp_wristp : NAN);
             const double out_q2_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q2_shoulderp_elbowm_wristp : NAN);
             const double out_q3_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q3_shoulderp_elbowm_wristp : NAN);
             const double out_q4_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q4_shoulderp_elbowm_wristp : NAN);
-            const double out_q5_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q5_shoulderp_elbowm_wristp : NAN);
-            const double out_q6_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q6_shoulderp_elbowm_wristp : NAN);
+            const double out_q5_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q5_shoulderp_elbowp_wristp : NAN);
+            const double out_q6_shoulderp_elbowm_wristp = ((ok_shoulderp_elbowm_wristp) ? fit_q6_shoulderp_elbowp_wristp : NAN);
             const int out_valid_shoulderp_elbowm_wristp = (valid_shoulderp_elbowm_wristp);
             /* check, branch shoulderp_elbowm_wristm: forward kinematics at the solution */
             const double t22_0 = 1.0*th2_spwmem_s;
@@ -3272,26 +3264,20 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double T_34_shoulderp_elbowm_wristm = 0.0823*F5_33_shoulderp_elbowm_wristm + F5_34_shoulderp_elbowm_wristm;
             const int hit_shoulderp_elbowm_wristm = (((fabs(F5_13_shoulderp_elbowm_wristm - Tt11) <= 1.0e-8)) & ((fabs(F5_23_shoulderp_elbowm_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowm_wristm - Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowm_wristm - Tt14) <= 1.0e-8)) & ((fabs(T_24_shoulderp_elbowm_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowm_wristm - Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowm_wristm - Tt12) <= 1.0e-8)) & ((fabs(-F6_12_shoulderp_elbowm_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowm_wristm - Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowm_wristm - Tt23) <= 1.0e-8)) & ((fabs(-F6_31_shoulderp_elbowm_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowm_wristm - Tt33) <= 1.0e-8)));
             /* joint limits and outputs, branch shoulderp_elbowm_wristm */
-            const double fit_q1_shoulderp_elbowm_wristm = deltagen_fit_angle(q1_sp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q1_shoulderp_elbowm_wristm_in = (((fit_q1_shoulderp_elbowm_wristm >= -6.283185307279586)) & ((fit_q1_shoulderp_elbowm_wristm <= 6.283185307279586)));
             const double fit_q2_shoulderp_elbowm_wristm = deltagen_fit_angle(1.0*th2_spwmem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q2_shoulderp_elbowm_wristm_in = (((fit_q2_shoulderp_elbowm_wristm >= -6.283185307279586)) & ((fit_q2_shoulderp_elbowm_wristm <= 6.283185307279586)));
             const double fit_q3_shoulderp_elbowm_wristm = deltagen_fit_angle(1.0*th3_spwmem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q3_shoulderp_elbowm_wristm_in = (((fit_q3_shoulderp_elbowm_wristm >= -6.283185307279586)) & ((fit_q3_shoulderp_elbowm_wristm <= 6.283185307279586)));
             const double fit_q4_shoulderp_elbowm_wristm = deltagen_fit_angle(1.0*th4_spwmem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q4_shoulderp_elbowm_wristm_in = (((fit_q4_shoulderp_elbowm_wristm >= -6.283185307279586)) & ((fit_q4_shoulderp_elbowm_wristm <= 6.283185307279586)));
-            const double fit_q5_shoulderp_elbowm_wristm = deltagen_fit_angle(q5_spwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q5_shoulderp_elbowm_wristm_in = (((fit_q5_shoulderp_elbowm_wristm >= -6.283185307279586)) & ((fit_q5_shoulderp_elbowm_wristm <= 6.283185307279586)));
-            const double fit_q6_shoulderp_elbowm_wristm = deltagen_fit_angle(-mq6_spwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q6_shoulderp_elbowm_wristm_in = (((fit_q6_shoulderp_elbowm_wristm >= -6.283185307279586)) & ((fit_q6_shoulderp_elbowm_wristm <= 6.283185307279586)));
-            const int ok_shoulderp_elbowm_wristm = ((hit_shoulderp_elbowm_wristm) & (ok_elbow_spwm) & (ok_q1eq) & (ok_q5eq_sp) & (!invalid) & ((isfinite(fit_q1_shoulderp_elbowm_wristm) & isfinite(fit_q2_shoulderp_elbowm_wristm) & isfinite(fit_q3_shoulderp_elbowm_wristm) & isfinite(fit_q4_shoulderp_elbowm_wristm) & isfinite(fit_q5_shoulderp_elbowm_wristm) & isfinite(fit_q6_shoulderp_elbowm_wristm))));
-            const int valid_shoulderp_elbowm_wristm = ((fit_q1_shoulderp_elbowm_wristm_in) & (fit_q2_shoulderp_elbowm_wristm_in) & (fit_q3_shoulderp_elbowm_wristm_in) & (fit_q4_shoulderp_elbowm_wristm_in) & (fit_q5_shoulderp_elbowm_wristm_in) & (fit_q6_shoulderp_elbowm_wristm_in) & (ok_shoulderp_elbowm_wristm));
-            const double out_q1_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q1_shoulderp_elbowm_wristm : NAN);
+            const int ok_shoulderp_elbowm_wristm = ((hit_shoulderp_elbowm_wristm) & (ok_elbow_spwm) & (ok_q1eq) & (ok_q5eq_sp) & (!invalid) & ((isfinite(fit_q1_shoulderp_elbowp_wristp) & isfinite(fit_q2_shoulderp_elbowm_wristm) & isfinite(fit_q3_shoulderp_elbowm_wristm) & isfinite(fit_q4_shoulderp_elbowm_wristm) & isfinite(fit_q5_shoulderp_elbowp_wristm) & isfinite(fit_q6_shoulderp_elbowp_wristm))));
+            const int valid_shoulderp_elbowm_wristm = ((fit_q1_shoulderp_elbowp_wristp_in) & (fit_q2_shoulderp_elbowm_wristm_in) & (fit_q3_shoulderp_elbowm_wristm_in) & (fit_q4_shoulderp_elbowm_wristm_in) & (fit_q5_shoulderp_elbowp_wristm_in) & (fit_q6_shoulderp_elbowp_wristm_in) & (ok_shoulderp_elbowm_wristm));
+            const double out_q1_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q1_shoulderp_elbowp_wristp : NAN);
             const double out_q2_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q2_shoulderp_elbowm_wristm : NAN);
             const double out_q3_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q3_shoulderp_elbowm_wristm : NAN);
             const double out_q4_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q4_shoulderp_elbowm_wristm : NAN);
-            const double out_q5_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q5_shoulderp_elbowm_wristm : NAN);
-            const double out_q6_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q6_shoulderp_elbowm_wristm : NAN);
+            const double out_q5_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q5_shoulderp_elbowp_wristm : NAN);
+            const double out_q6_shoulderp_elbowm_wristm = ((ok_shoulderp_elbowm_wristm) ? fit_q6_shoulderp_elbowp_wristm : NAN);
             const int out_valid_shoulderp_elbowm_wristm = (valid_shoulderp_elbowm_wristm);
             /* check, branch shoulderm_elbowp_wristp: forward kinematics at the solution */
             const double t24_0 = 1.0*th2_smwpep_s;
@@ -3420,8 +3406,6 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double T_34_shoulderm_elbowp_wristm = 0.0823*F5_33_shoulderm_elbowp_wristm + F5_34_shoulderm_elbowp_wristm;
             const int hit_shoulderm_elbowp_wristm = (((fabs(F5_13_shoulderm_elbowp_wristm - Tt11) <= 1.0e-8)) & ((fabs(F5_23_shoulderm_elbowp_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowp_wristm - Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowp_wristm - Tt14) <= 1.0e-8)) & ((fabs(T_24_shoulderm_elbowp_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowp_wristm - Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowp_wristm - Tt12) <= 1.0e-8)) & ((fabs(-F6_12_shoulderm_elbowp_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowp_wristm - Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowp_wristm - Tt23) <= 1.0e-8)) & ((fabs(-F6_31_shoulderm_elbowp_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowp_wristm - Tt33) <= 1.0e-8)));
             /* joint limits and outputs, branch shoulderm_elbowp_wristm */
-            const double fit_q1_shoulderm_elbowp_wristm = deltagen_fit_angle(q1_sm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q1_shoulderm_elbowp_wristm_in = (((fit_q1_shoulderm_elbowp_wristm >= -6.283185307279586)) & ((fit_q1_shoulderm_elbowp_wristm <= 6.283185307279586)));
             const double fit_q2_shoulderm_elbowp_wristm = deltagen_fit_angle(1.0*th2_smwmep, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q2_shoulderm_elbowp_wristm_in = (((fit_q2_shoulderm_elbowp_wristm >= -6.283185307279586)) & ((fit_q2_shoulderm_elbowp_wristm <= 6.283185307279586)));
             const double fit_q3_shoulderm_elbowp_wristm = deltagen_fit_angle(1.0*bend_smwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3432,9 +3416,9 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const int fit_q5_shoulderm_elbowp_wristm_in = (((fit_q5_shoulderm_elbowp_wristm >= -6.283185307279586)) & ((fit_q5_shoulderm_elbowp_wristm <= 6.283185307279586)));
             const double fit_q6_shoulderm_elbowp_wristm = deltagen_fit_angle(-mq6_smwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q6_shoulderm_elbowp_wristm_in = (((fit_q6_shoulderm_elbowp_wristm >= -6.283185307279586)) & ((fit_q6_shoulderm_elbowp_wristm <= 6.283185307279586)));
-            const int ok_shoulderm_elbowp_wristm = ((hit_shoulderm_elbowp_wristm) & (ok_elbow_smwm) & (ok_q1eq) & (ok_q5eq_sm) & (!invalid) & ((isfinite(fit_q1_shoulderm_elbowp_wristm) & isfinite(fit_q2_shoulderm_elbowp_wristm) & isfinite(fit_q3_shoulderm_elbowp_wristm) & isfinite(fit_q4_shoulderm_elbowp_wristm) & isfinite(fit_q5_shoulderm_elbowp_wristm) & isfinite(fit_q6_shoulderm_elbowp_wristm))));
-            const int valid_shoulderm_elbowp_wristm = ((fit_q1_shoulderm_elbowp_wristm_in) & (fit_q2_shoulderm_elbowp_wristm_in) & (fit_q3_shoulderm_elbowp_wristm_in) & (fit_q4_shoulderm_elbowp_wristm_in) & (fit_q5_shoulderm_elbowp_wristm_in) & (fit_q6_shoulderm_elbowp_wristm_in) & (ok_shoulderm_elbowp_wristm));
-            const double out_q1_shoulderm_elbowp_wristm = ((ok_shoulderm_elbowp_wristm) ? fit_q1_shoulderm_elbowp_wristm : NAN);
+            const int ok_shoulderm_elbowp_wristm = ((hit_shoulderm_elbowp_wristm) & (ok_elbow_smwm) & (ok_q1eq) & (ok_q5eq_sm) & (!invalid) & ((isfinite(fit_q1_shoulderm_elbowp_wristp) & isfinite(fit_q2_shoulderm_elbowp_wristm) & isfinite(fit_q3_shoulderm_elbowp_wristm) & isfinite(fit_q4_shoulderm_elbowp_wristm) & isfinite(fit_q5_shoulderm_elbowp_wristm) & isfinite(fit_q6_shoulderm_elbowp_wristm))));
+            const int valid_shoulderm_elbowp_wristm = ((fit_q1_shoulderm_elbowp_wristp_in) & (fit_q2_shoulderm_elbowp_wristm_in) & (fit_q3_shoulderm_elbowp_wristm_in) & (fit_q4_shoulderm_elbowp_wristm_in) & (fit_q5_shoulderm_elbowp_wristm_in) & (fit_q6_shoulderm_elbowp_wristm_in) & (ok_shoulderm_elbowp_wristm));
+            const double out_q1_shoulderm_elbowp_wristm = ((ok_shoulderm_elbowp_wristm) ? fit_q1_shoulderm_elbowp_wristp : NAN);
             const double out_q2_shoulderm_elbowp_wristm = ((ok_shoulderm_elbowp_wristm) ? fit_q2_shoulderm_elbowp_wristm : NAN);
             const double out_q3_shoulderm_elbowp_wristm = ((ok_shoulderm_elbowp_wristm) ? fit_q3_shoulderm_elbowp_wristm : NAN);
             const double out_q4_shoulderm_elbowp_wristm = ((ok_shoulderm_elbowp_wristm) ? fit_q4_shoulderm_elbowp_wristm : NAN);
@@ -3494,26 +3478,20 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double T_34_shoulderm_elbowm_wristp = 0.0823*F5_33_shoulderm_elbowm_wristp + F5_34_shoulderm_elbowm_wristp;
             const int hit_shoulderm_elbowm_wristp = (((fabs(F5_13_shoulderm_elbowm_wristp - Tt11) <= 1.0e-8)) & ((fabs(F5_23_shoulderm_elbowm_wristp - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowm_wristp - Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowm_wristp - Tt14) <= 1.0e-8)) & ((fabs(T_24_shoulderm_elbowm_wristp - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowm_wristp - Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowm_wristp - Tt12) <= 1.0e-8)) & ((fabs(-F6_12_shoulderm_elbowm_wristp - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowm_wristp - Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowm_wristp - Tt23) <= 1.0e-8)) & ((fabs(-F6_31_shoulderm_elbowm_wristp - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowm_wristp - Tt33) <= 1.0e-8)));
             /* joint limits and outputs, branch shoulderm_elbowm_wristp */
-            const double fit_q1_shoulderm_elbowm_wristp = deltagen_fit_angle(q1_sm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q1_shoulderm_elbowm_wristp_in = (((fit_q1_shoulderm_elbowm_wristp >= -6.283185307279586)) & ((fit_q1_shoulderm_elbowm_wristp <= 6.283185307279586)));
             const double fit_q2_shoulderm_elbowm_wristp = deltagen_fit_angle(1.0*th2_smwpem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q2_shoulderm_elbowm_wristp_in = (((fit_q2_shoulderm_elbowm_wristp >= -6.283185307279586)) & ((fit_q2_shoulderm_elbowm_wristp <= 6.283185307279586)));
             const double fit_q3_shoulderm_elbowm_wristp = deltagen_fit_angle(1.0*th3_smwpem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q3_shoulderm_elbowm_wristp_in = (((fit_q3_shoulderm_elbowm_wristp >= -6.283185307279586)) & ((fit_q3_shoulderm_elbowm_wristp <= 6.283185307279586)));
             const double fit_q4_shoulderm_elbowm_wristp = deltagen_fit_angle(1.0*th4_smwpem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q4_shoulderm_elbowm_wristp_in = (((fit_q4_shoulderm_elbowm_wristp >= -6.283185307279586)) & ((fit_q4_shoulderm_elbowm_wristp <= 6.283185307279586)));
-            const double fit_q5_shoulderm_elbowm_wristp = deltagen_fit_angle(q5_smwp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q5_shoulderm_elbowm_wristp_in = (((fit_q5_shoulderm_elbowm_wristp >= -6.283185307279586)) & ((fit_q5_shoulderm_elbowm_wristp <= 6.283185307279586)));
-            const double fit_q6_shoulderm_elbowm_wristp = deltagen_fit_angle(-mq6_smwp, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q6_shoulderm_elbowm_wristp_in = (((fit_q6_shoulderm_elbowm_wristp >= -6.283185307279586)) & ((fit_q6_shoulderm_elbowm_wristp <= 6.283185307279586)));
-            const int ok_shoulderm_elbowm_wristp = ((hit_shoulderm_elbowm_wristp) & (ok_elbow_smwp) & (ok_q1eq) & (ok_q5eq_sm) & (!invalid) & ((isfinite(fit_q1_shoulderm_elbowm_wristp) & isfinite(fit_q2_shoulderm_elbowm_wristp) & isfinite(fit_q3_shoulderm_elbowm_wristp) & isfinite(fit_q4_shoulderm_elbowm_wristp) & isfinite(fit_q5_shoulderm_elbowm_wristp) & isfinite(fit_q6_shoulderm_elbowm_wristp))));
-            const int valid_shoulderm_elbowm_wristp = ((fit_q1_shoulderm_elbowm_wristp_in) & (fit_q2_shoulderm_elbowm_wristp_in) & (fit_q3_shoulderm_elbowm_wristp_in) & (fit_q4_shoulderm_elbowm_wristp_in) & (fit_q5_shoulderm_elbowm_wristp_in) & (fit_q6_shoulderm_elbowm_wristp_in) & (ok_shoulderm_elbowm_wristp));
-            const double out_q1_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q1_shoulderm_elbowm_wristp : NAN);
+            const int ok_shoulderm_elbowm_wristp = ((hit_shoulderm_elbowm_wristp) & (ok_elbow_smwp) & (ok_q1eq) & (ok_q5eq_sm) & (!invalid) & ((isfinite(fit_q1_shoulderm_elbowp_wristp) & isfinite(fit_q2_shoulderm_elbowm_wristp) & isfinite(fit_q3_shoulderm_elbowm_wristp) & isfinite(fit_q4_shoulderm_elbowm_wristp) & isfinite(fit_q5_shoulderm_elbowp_wristp) & isfinite(fit_q6_shoulderm_elbowp_wristp))));
+            const int valid_shoulderm_elbowm_wristp = ((fit_q1_shoulderm_elbowp_wristp_in) & (fit_q2_shoulderm_elbowm_wristp_in) & (fit_q3_shoulderm_elbowm_wristp_in) & (fit_q4_shoulderm_elbowm_wristp_in) & (fit_q5_shoulderm_elbowp_wristp_in) & (fit_q6_shoulderm_elbowp_wristp_in) & (ok_shoulderm_elbowm_wristp));
+            const double out_q1_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q1_shoulderm_elbowp_wristp : NAN);
             const double out_q2_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q2_shoulderm_elbowm_wristp : NAN);
             const double out_q3_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q3_shoulderm_elbowm_wristp : NAN);
             const double out_q4_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q4_shoulderm_elbowm_wristp : NAN);
-            const double out_q5_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q5_shoulderm_elbowm_wristp : NAN);
-            const double out_q6_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q6_shoulderm_elbowm_wristp : NAN);
+            const double out_q5_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q5_shoulderm_elbowp_wristp : NAN);
+            const double out_q6_shoulderm_elbowm_wristp = ((ok_shoulderm_elbowm_wristp) ? fit_q6_shoulderm_elbowp_wristp : NAN);
             const int out_valid_shoulderm_elbowm_wristp = (valid_shoulderm_elbowm_wristp);
             /* check, branch shoulderm_elbowm_wristm: forward kinematics at the solution */
             const double t30_0 = 1.0*th2_smwmem_s;
@@ -3568,26 +3546,20 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double T_34_shoulderm_elbowm_wristm = 0.0823*F5_33_shoulderm_elbowm_wristm + F5_34_shoulderm_elbowm_wristm;
             const int hit_shoulderm_elbowm_wristm = (((fabs(F5_13_shoulderm_elbowm_wristm - Tt11) <= 1.0e-8)) & ((fabs(F5_23_shoulderm_elbowm_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowm_wristm - Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowm_wristm - Tt14) <= 1.0e-8)) & ((fabs(T_24_shoulderm_elbowm_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowm_wristm - Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowm_wristm - Tt12) <= 1.0e-8)) & ((fabs(-F6_12_shoulderm_elbowm_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowm_wristm - Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowm_wristm - Tt23) <= 1.0e-8)) & ((fabs(-F6_31_shoulderm_elbowm_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowm_wristm - Tt33) <= 1.0e-8)));
             /* joint limits and outputs, branch shoulderm_elbowm_wristm */
-            const double fit_q1_shoulderm_elbowm_wristm = deltagen_fit_angle(q1_sm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q1_shoulderm_elbowm_wristm_in = (((fit_q1_shoulderm_elbowm_wristm >= -6.283185307279586)) & ((fit_q1_shoulderm_elbowm_wristm <= 6.283185307279586)));
             const double fit_q2_shoulderm_elbowm_wristm = deltagen_fit_angle(1.0*th2_smwmem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q2_shoulderm_elbowm_wristm_in = (((fit_q2_shoulderm_elbowm_wristm >= -6.283185307279586)) & ((fit_q2_shoulderm_elbowm_wristm <= 6.283185307279586)));
             const double fit_q3_shoulderm_elbowm_wristm = deltagen_fit_angle(1.0*th3_smwmem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q3_shoulderm_elbowm_wristm_in = (((fit_q3_shoulderm_elbowm_wristm >= -6.283185307279586)) & ((fit_q3_shoulderm_elbowm_wristm <= 6.283185307279586)));
             const double fit_q4_shoulderm_elbowm_wristm = deltagen_fit_angle(1.0*th4_smwmem, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
             const int fit_q4_shoulderm_elbowm_wristm_in = (((fit_q4_shoulderm_elbowm_wristm >= -6.283185307279586)) & ((fit_q4_shoulderm_elbowm_wristm <= 6.283185307279586)));
-            const double fit_q5_shoulderm_elbowm_wristm = deltagen_fit_angle(q5_smwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q5_shoulderm_elbowm_wristm_in = (((fit_q5_shoulderm_elbowm_wristm >= -6.283185307279586)) & ((fit_q5_shoulderm_elbowm_wristm <= 6.283185307279586)));
-            const double fit_q6_shoulderm_elbowm_wristm = deltagen_fit_angle(-mq6_smwm, -6.283185307179586, 6.283185307179586, -6.283185307279586, 6.283185307279586);
-            const int fit_q6_shoulderm_elbowm_wristm_in = (((fit_q6_shoulderm_elbowm_wristm >= -6.283185307279586)) & ((fit_q6_shoulderm_elbowm_wristm <= 6.283185307279586)));
-            const int ok_shoulderm_elbowm_wristm = ((hit_shoulderm_elbowm_wristm) & (ok_elbow_smwm) & (ok_q1eq) & (ok_q5eq_sm) & (!invalid) & ((isfinite(fit_q1_shoulderm_elbowm_wristm) & isfinite(fit_q2_shoulderm_elbowm_wristm) & isfinite(fit_q3_shoulderm_elbowm_wristm) & isfinite(fit_q4_shoulderm_elbowm_wristm) & isfinite(fit_q5_shoulderm_elbowm_wristm) & isfinite(fit_q6_shoulderm_elbowm_wristm))));
-            const int valid_shoulderm_elbowm_wristm = ((fit_q1_shoulderm_elbowm_wristm_in) & (fit_q2_shoulderm_elbowm_wristm_in) & (fit_q3_shoulderm_elbowm_wristm_in) & (fit_q4_shoulderm_elbowm_wristm_in) & (fit_q5_shoulderm_elbowm_wristm_in) & (fit_q6_shoulderm_elbowm_wristm_in) & (ok_shoulderm_elbowm_wristm));
-            const double out_q1_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q1_shoulderm_elbowm_wristm : NAN);
+            const int ok_shoulderm_elbowm_wristm = ((hit_shoulderm_elbowm_wristm) & (ok_elbow_smwm) & (ok_q1eq) & (ok_q5eq_sm) & (!invalid) & ((isfinite(fit_q1_shoulderm_elbowp_wristp) & isfinite(fit_q2_shoulderm_elbowm_wristm) & isfinite(fit_q3_shoulderm_elbowm_wristm) & isfinite(fit_q4_shoulderm_elbowm_wristm) & isfinite(fit_q5_shoulderm_elbowp_wristm) & isfinite(fit_q6_shoulderm_elbowp_wristm))));
+            const int valid_shoulderm_elbowm_wristm = ((fit_q1_shoulderm_elbowp_wristp_in) & (fit_q2_shoulderm_elbowm_wristm_in) & (fit_q3_shoulderm_elbowm_wristm_in) & (fit_q4_shoulderm_elbowm_wristm_in) & (fit_q5_shoulderm_elbowp_wristm_in) & (fit_q6_shoulderm_elbowp_wristm_in) & (ok_shoulderm_elbowm_wristm));
+            const double out_q1_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q1_shoulderm_elbowp_wristp : NAN);
             const double out_q2_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q2_shoulderm_elbowm_wristm : NAN);
             const double out_q3_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q3_shoulderm_elbowm_wristm : NAN);
             const double out_q4_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q4_shoulderm_elbowm_wristm : NAN);
-            const double out_q5_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q5_shoulderm_elbowm_wristm : NAN);
-            const double out_q6_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q6_shoulderm_elbowm_wristm : NAN);
+            const double out_q5_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q5_shoulderm_elbowp_wristm : NAN);
+            const double out_q6_shoulderm_elbowm_wristm = ((ok_shoulderm_elbowm_wristm) ? fit_q6_shoulderm_elbowp_wristm : NAN);
             const int out_valid_shoulderm_elbowm_wristm = (valid_shoulderm_elbowm_wristm);
             /* status */
             const int any_valid = ((valid_shoulderm_elbowm_wristm) | (valid_shoulderm_elbowm_wristp) | (valid_shoulderm_elbowp_wristm) | (valid_shoulderm_elbowp_wristp) | (valid_shoulderp_elbowm_wristm) | (valid_shoulderp_elbowm_wristp) | (valid_shoulderp_elbowp_wristm) | (valid_shoulderp_elbowp_wristp));

@@ -229,6 +229,7 @@ class IKKernelBuilder:
             sp.Symbol(f"Tt{r + 1}{c + 1}", real=True) for r in range(4) for c in range(4)
         )
         self.invalid = sp.Symbol("invalid")
+        self._fits = {}  # (joint, value) -> _fit_limits' (value, inside)
 
     # -- shared steps --------------------------------------------------------------
 
@@ -481,6 +482,15 @@ class IKKernelBuilder:
         tape = self.tape
         lo, hi = (float(x) for x in self.s.qlim[i])
         revolute = isinstance(a, _Angle)
+        # branches sharing a joint value (the UR family's q1 in four branches, q5 and q6 in
+        # two) share its fit: one deltagen_fit_angle call per distinct value
+        key = (i, a.theta if revolute else sp.sympify(a))
+        if key not in self._fits:
+            self._fits[key] = self._fit_one(name, i, a, lo, hi, revolute)
+        return self._fits[key]
+
+    def _fit_one(self, name, i, a, lo, hi, revolute):
+        tape = self.tape
         two_pi = 2 * sp.pi
         if not (math.isfinite(lo) or math.isfinite(hi)):
             if revolute:
