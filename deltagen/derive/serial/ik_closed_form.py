@@ -139,21 +139,26 @@ class _Angle:
         return _Angle(sign * self.theta, self.c, sign * self.s)
 
 
-def _direction(tape, name, y, x):
-    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0, as atan2)."""
+def _direction(tape, name, y, x, with_h=False):
+    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0); with
+    ``with_h`` also h = hypot(x, y)."""
     h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
     # the division is done whatever h is, so the selection below is a plain blend (a
     # division inside a ternary would be a branch)
     inv = tape.let(f"{name}_inv", 1 / _max(h, _TINY))
     c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
     s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
-    return c, s
+    return (c, s, h) if with_h else (c, s)
 
 
 def _atan2(tape, name, y, x) -> _Angle:
-    """atan2(y, x) with its cosine and sine (_direction)."""
-    c, s = _direction(tape, name, y, x)
-    return _Angle(tape.let(name, sp.atan2(y, x)), c, s)
+    """atan2(y, x) with its cosine and sine (_direction). Where x = y = 0 the angle is 0,
+    as its cosine and sine (1, 0) say: atan2 of signed zeros gives 0 or +-pi, and at
+    the UR's exact wrist singularity (q6 from two zero components) an output of pi with
+    the cosine and sine of 0 used by the rest of the branch and its check was returned
+    as valid while missing the pose by up to 2 m."""
+    c, s, h = _direction(tape, name, y, x, with_h=True)
+    return _Angle(tape.let(name, sp.Piecewise((sp.atan2(y, x), _gt(h, 0)), (0, True))), c, s)
 
 
 def _named(tape, name, a: _Angle) -> _Angle:
