@@ -196,6 +196,34 @@ def _sp1(tape, name, w, a, b) -> _Angle:
     return _atan2(tape, name, _dot(_cross(a, b), w), _dot(a, b))
 
 
+_PI = sp.Float(repr(math.pi), 17)
+
+
+def _turned_by_pi(tape, name, a: _Angle, turned) -> _Angle:
+    """a + pi where ``turned`` holds, else a: the angle, cosine and sine negated, with no
+    atan2, sqrt or division (the joint-limit fit wraps the angle). For a subproblem-1
+    angle whose two components the caller has shown to be negated, atan2(-y, -x) =
+    atan2(y, x) + pi."""
+    return _Angle(
+        tape.let(f"{name}_pi", sp.Piecewise((a.theta + _PI, turned), (a.theta, True))),
+        tape.let(f"{name}_pi_c", sp.Piecewise((-a.c, turned), (a.c, True))),
+        tape.let(f"{name}_pi_s", sp.Piecewise((-a.s, turned), (a.s, True))),
+    )
+
+
+def _odd_under(vector, flip) -> bool:
+    """Whether every component e of ``vector`` (polynomials in cosines and sines) has
+    e(flip) = -e, coefficients equal to 1e-15 (the constants are rounded to 13 digits)."""
+    for e in vector:
+        total = sp.expand(e + sp.sympify(e).xreplace(flip))
+        if total == 0:
+            continue
+        gens = sorted(total.free_symbols, key=str)
+        if max(abs(float(c)) for c in sp.Poly(total, *gens).coeffs()) > 1e-15:
+            return False
+    return True
+
+
 class _Constants:
     """Rounds the structure's numpy constants (module docstring)."""
 
@@ -484,7 +512,6 @@ class IKKernelBuilder:
         out here, half of the kernel: its SymPy and compile time); a prismatic one (a its
         displacement) is only checked. Either is clipped onto a limit it passes by at most
         LIMIT_TOL."""
-        tape = self.tape
         lo, hi = (float(x) for x in self.s.qlim[i])
         revolute = isinstance(a, _Angle)
         # branches sharing a joint value (the UR family's q1 in four branches, q5 and q6 in
@@ -598,6 +625,31 @@ class IKKernelBuilder:
         ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
         return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
 
+    def _wrist_flip(self, w5, w6, u, ref, B) -> bool:
+        """Whether the second wrist branch is the first turned by pi in q6 and phi, with
+        no atan2 of its own (UR arms: 2 of the 4 q6 and 2 of the 4 phi atan2 calls per
+        pose). Shown here, from the arm's constants, for every q5 and q6 at once:
+
+        * B = u . (w5 x w6) = 0: the q5 equation's base angle is 0 or pi, so the second
+          root has the cosine of the first and the sine negated (q5 -> -q5 about it);
+        * the part of a = Rot(w5, -q5) u normal to w6 is odd in sin q5: then both vectors
+          subproblem 1 turns into each other for q6 (a and b, b independent of q5) give
+          negated components, and atan2(-y, -x) = atan2(y, x) + pi;
+        * Rot(w6, -q6) Rot(w5, -q5) ref is odd under (sin q5, cos q6, sin q6) ->
+          (-sin q5, -cos q6, -sin q6), i.e. under q5 -> -q5 with q6 -> q6 + pi: phi's
+          subproblem 1 (about u, ref against that vector, rotated by constant and q1
+          rotations, linear) gets negated components too.
+        """
+        if B != 0:
+            return False
+        c5, s5, c6, s6 = sp.symbols("c5 s5 c6 s6", real=True)
+        a = _rotate(w5, c5, -s5, u)
+        normal = _add(a, _scale(-_dot(a, w6), w6))
+        if not _odd_under(normal, {s5: -s5}):
+            return False
+        x = _rotate(w6, c6, -s6, _rotate(w5, c5, -s5, ref))
+        return _odd_under(x, {s5: -s5, c6: -c6, s6: -s6})
+
     def _parallel_triple(self):
         s, ax, tape, K = self.s, self.axes, self.tape, self.const
         w = [K.vec(x) for x in ax.directions]
@@ -612,6 +664,9 @@ class IKKernelBuilder:
         base1, acos1, ok1 = self._cos_sin_eq("q1eq", A, B, C)
         w6n = ax.directions[5] - (ax.directions[5] @ ax.directions[4]) * ax.directions[4]
         RGw6 = self._rotate_target(ax.directions[5])
+        flip = self._wrist_flip(
+            w5, w6, u, K.vec(s.ref), K(np.cross(ax.directions[4], ax.directions[5]) @ s.u)
+        )
         solutions = {}
         for sg1, a in ((1, "p"), (-1, "m")):
             tag1 = f"s{a}"
@@ -625,16 +680,30 @@ class IKKernelBuilder:
                 h - K((s.u @ ax.directions[4]) * (ax.directions[4] @ ax.directions[5])),
             )
             b = tape.vec(f"b_{tag1}", self._unrotate_target_sym(_rotate(w1, q1.c, q1.s, u)))
+            ref = K.vec(s.ref)
+            first = None
             for sg5, c5 in ((1, "p"), (-1, "m")):
                 tag = f"{tag1}w{c5}"
                 tape.stage(f"UR: shoulder{a} wrist{c5}: q5, q6 (Paden-Kahan 1), phi, N o4")
                 q5 = _named(tape, f"q5_{tag}", base5 + acos5.scaled(sg5))
-                avec = tape.vec(f"a_{tag}", _rotate(w5, q5.c, -q5.s, u))
-                q6 = _sp1(tape, f"mq6_{tag}", w6, avec, b).scaled(-1)
-                ref = K.vec(s.ref)
-                x = _rotate(w6, q6.c, -q6.s, _rotate(w5, q5.c, -q5.s, ref))
-                x = tape.vec(f"x_{tag}", _rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
-                phi = _sp1(tape, f"phi_{tag}", u, ref, x)
+                if first is not None and flip:
+                    # the wrist flip (q5 -> -q5) turns q6 and phi by pi (_wrist_flip);
+                    # where q6's two components vanish (the exact wrist singularity,
+                    # sin q5 = 0) _atan2 gives (0, 1, 0) for either sign and the vector
+                    # phi is taken from is the same for both q5: neither is turned, as
+                    # the second branch's own atan2 calls would have had it
+                    turned = _gt(sp.Symbol(f"mq6_{first[0]}_h", real=True), 0)
+                    mq6 = _turned_by_pi(tape, f"mq6_{first[0]}", first[1], turned)
+                    q6 = mq6.scaled(-1)
+                    phi = _turned_by_pi(tape, f"phi_{first[0]}", first[2], turned)
+                else:
+                    avec = tape.vec(f"a_{tag}", _rotate(w5, q5.c, -q5.s, u))
+                    mq6 = _sp1(tape, f"mq6_{tag}", w6, avec, b)
+                    q6 = mq6.scaled(-1)
+                    x = _rotate(w6, q6.c, -q6.s, _rotate(w5, q5.c, -q5.s, ref))
+                    x = tape.vec(f"x_{tag}", _rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
+                    phi = _sp1(tape, f"phi_{tag}", u, ref, x)
+                    first = (tag, mq6, phi)
                 y = _add(_rotate(w5, q5.c, -q5.s, _add(o[3], _scale(-1, o[4]))), o[4])
                 y = _add(_rotate(w6, q6.c, -q6.s, _add(y, _scale(-1, o[5]))), o[5])
                 y = tape.vec(f"y_{tag}", y)
