@@ -2644,11 +2644,14 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double v_p5_y = -0.0823*Tt21 + Tt24;
             const double t1_0 = sqrt(v_p5_x*v_p5_x + v_p5_y*v_p5_y);
             const double q1eq_base_h = t1_0;
-            const double q1eq_base_inv = 1.0/fmax(1.0e-300, q1eq_base_h);
+            const double q1eq_base_den = (((q1eq_base_h > 1.0e-300)) ? q1eq_base_h : 1.0e-300);
+            const double q1eq_base_inv = 1.0/q1eq_base_den;
             const double q1eq_r = t1_0;
-            const double q1eq_ratio = (((q1eq_r > 0)) ? 0.10915/fmax(1.0e-300, q1eq_r) : 0);
+            const double q1eq_den = (((q1eq_r > 1.0e-300)) ? q1eq_r : 1.0e-300);
+            const double q1eq_ratio = (((q1eq_r > 0)) ? 0.10915*1.0/q1eq_den : 0);
             const int ok_q1eq = (fabs(q1eq_ratio) <= 1.0000000010000001);
-            const double q1eq_kc = fmin(1, fmax(-1, q1eq_ratio));
+            const double q1eq_kc0 = (((q1eq_ratio > -1)) ? q1eq_ratio : -1);
+            const double q1eq_kc = (((q1eq_kc0 < 1)) ? q1eq_kc0 : 1);
             const double q1eq_ks = sqrt(1 - (q1eq_kc*q1eq_kc));
             const double q1eq_acos = atan2(q1eq_ks, q1eq_kc);
             const int t1_1 = (q1eq_base_h > 0);
@@ -2660,14 +2663,17 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double q1_sp_c = q1eq_base_c*q1eq_kc - q1eq_base_s*q1eq_ks;
             const double q1_sp_s = q1eq_base_c*q1eq_ks + q1eq_base_s*q1eq_kc;
             const double q5eq_sp_base_h = 1;
-            const double q5eq_sp_base_inv = 1.0/fmax(1.0e-300, q5eq_sp_base_h);
+            const double q5eq_sp_base_den = (((q5eq_sp_base_h > 1.0e-300)) ? q5eq_sp_base_h : 1.0e-300);
+            const double q5eq_sp_base_inv = 1.0/q5eq_sp_base_den;
             const double q5eq_sp_base_c = (((q5eq_sp_base_h > 0)) ? q5eq_sp_base_inv : 1);
             const double q5eq_sp_base_s = 0;
             const double q5eq_sp_base = 0;
             const double q5eq_sp_r = 1;
-            const double q5eq_sp_ratio = (((q5eq_sp_r > 0)) ? (-Tt11*q1_sp_s + Tt21*q1_sp_c)/fmax(1.0e-300, q5eq_sp_r) : 0);
+            const double q5eq_sp_den = (((q5eq_sp_r > 1.0e-300)) ? q5eq_sp_r : 1.0e-300);
+            const double q5eq_sp_ratio = (((q5eq_sp_r > 0)) ? (-Tt11*q1_sp_s + Tt21*q1_sp_c)*1.0/q5eq_sp_den : 0);
             const int ok_q5eq_sp = (fabs(q5eq_sp_ratio) <= 1.0000000010000001);
-            const double q5eq_sp_kc = fmin(1, fmax(-1, q5eq_sp_ratio));
+            const double q5eq_sp_kc0 = (((q5eq_sp_ratio > -1)) ? q5eq_sp_ratio : -1);
+            const double q5eq_sp_kc = (((q5eq_sp_kc0 < 1)) ? q5eq_sp_kc0 : 1);
             const double q5eq_sp_ks = sqrt(1 - (q5eq_sp_kc*q5eq_sp_kc));
             const double q5eq_sp_acos = atan2(q5eq_sp_ks, q5eq_sp_kc);
             const double b_sp_x = -Tt12*q1_sp_s + Tt22*q1_sp_c;
@@ -2682,7 +2688,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t3_0 = a_spwp_x*b_sp_x + a_spwp_z*b_sp_z;
             const double t3_1 = -a_spwp_x*b_sp_z + a_spwp_z*b_sp_x;
             const double mq6_spwp_h = sqrt(t3_0*t3_0 + t3_1*t3_1);
-            const double mq6_spwp_inv = 1.0/fmax(1.0e-300, mq6_spwp_h);
+            const double mq6_spwp_den = (((mq6_spwp_h > 1.0e-300)) ? mq6_spwp_h : 1.0e-300);
+            const double mq6_spwp_inv = 1.0/mq6_spwp_den;
             const int t3_2 = (mq6_spwp_h > 0);
             const double mq6_spwp_c = ((t3_2) ? mq6_spwp_inv*t3_0 : 1);
             const double mq6_spwp_s = ((t3_2) ? mq6_spwp_inv*t3_1 : 0);
@@ -2698,7 +2705,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double x_spwp_x = q1_sp_c*(Tt11*t3_7 + Tt12*t3_3 + Tt13*t3_4) - q1_sp_s*(-Tt21*t3_7 - Tt22*t3_3 - Tt23*t3_4);
             const double x_spwp_z = q1_sp_c*t3_8 + t3_8*t3_9;
             const double phi_spwp_h = sqrt(x_spwp_x*x_spwp_x + x_spwp_z*x_spwp_z);
-            const double phi_spwp_inv = 1.0/fmax(1.0e-300, phi_spwp_h);
+            const double phi_spwp_den = (((phi_spwp_h > 1.0e-300)) ? phi_spwp_h : 1.0e-300);
+            const double phi_spwp_inv = 1.0/phi_spwp_den;
             const double y_spwp_x = 0.09465*mq6_spwp_s + 0.093*t3_5 + 0.81725;
             const double y_spwp_y = -0.093*q5_spwp_c*t3_6 - 0.093*t3_3 + 0.10915;
             const int t3_10 = (phi_spwp_h > 0);
@@ -2712,7 +2720,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_spwp = -q1_sp_c*t3_14 - t3_14*t3_9;
             const double kappa_spwp = -1.0032169234806733 + 2.9992876691785701*(t1_spwp*t1_spwp) + 2.9992876691785701*(t2_spwp*t2_spwp);
             const int ok_elbow_spwp = (fabs(kappa_spwp) <= 1.0000000010000001);
-            const double kc_spwp = fmin(1, fmax(-1, kappa_spwp));
+            const double kc0_spwp = (((kappa_spwp > -1)) ? kappa_spwp : -1);
+            const double kc_spwp = (((kc0_spwp < 1)) ? kc0_spwp : 1);
             const double ks_spwp = sqrt(1 - (kc_spwp*kc_spwp));
             const double bend_spwp = atan2(ks_spwp, kc_spwp);
             /* UR: shoulderp elbowp wristp: joints 2, 3, 4 */
@@ -2721,7 +2730,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t4_2 = -t1_spwp*t4_0 + t2_spwp*t4_1;
             const double t4_3 = t1_spwp*t4_1 + t2_spwp*t4_0;
             const double th2_spwpep_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_spwpep_inv = 1.0/fmax(1.0e-300, th2_spwpep_h);
+            const double th2_spwpep_den = (((th2_spwpep_h > 1.0e-300)) ? th2_spwpep_h : 1.0e-300);
+            const double th2_spwpep_inv = 1.0/th2_spwpep_den;
             const int t4_4 = (th2_spwpep_h > 0);
             const double th2_spwpep_c = ((t4_4) ? t4_3*th2_spwpep_inv : 1);
             const double th2_spwpep_s = ((t4_4) ? t4_2*th2_spwpep_inv : 0);
@@ -2739,7 +2749,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t5_2 = -t1_spwp*t5_0 + t2_spwp*t5_1;
             const double t5_3 = t1_spwp*t5_1 + t2_spwp*t5_0;
             const double th2_spwpem_h = sqrt(t5_2*t5_2 + t5_3*t5_3);
-            const double th2_spwpem_inv = 1.0/fmax(1.0e-300, th2_spwpem_h);
+            const double th2_spwpem_den = (((th2_spwpem_h > 1.0e-300)) ? th2_spwpem_h : 1.0e-300);
+            const double th2_spwpem_inv = 1.0/th2_spwpem_den;
             const int t5_4 = (th2_spwpem_h > 0);
             const double th2_spwpem_c = ((t5_4) ? t5_3*th2_spwpem_inv : 1);
             const double th2_spwpem_s = ((t5_4) ? t5_2*th2_spwpem_inv : 0);
@@ -2772,7 +2783,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_spwm = -q1_sp_c*t6_5 - t6_5*(1 - q1_sp_c);
             const double kappa_spwm = -1.0032169234806733 + 2.9992876691785701*(t1_spwm*t1_spwm) + 2.9992876691785701*(t2_spwm*t2_spwm);
             const int ok_elbow_spwm = (fabs(kappa_spwm) <= 1.0000000010000001);
-            const double kc_spwm = fmin(1, fmax(-1, kappa_spwm));
+            const double kc0_spwm = (((kappa_spwm > -1)) ? kappa_spwm : -1);
+            const double kc_spwm = (((kc0_spwm < 1)) ? kc0_spwm : 1);
             const double ks_spwm = sqrt(1 - (kc_spwm*kc_spwm));
             const double bend_spwm = atan2(ks_spwm, kc_spwm);
             /* UR: shoulderp elbowp wristm: joints 2, 3, 4 */
@@ -2781,7 +2793,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t7_2 = -t1_spwm*t7_0 + t2_spwm*t7_1;
             const double t7_3 = t1_spwm*t7_1 + t2_spwm*t7_0;
             const double th2_spwmep_h = sqrt(t7_2*t7_2 + t7_3*t7_3);
-            const double th2_spwmep_inv = 1.0/fmax(1.0e-300, th2_spwmep_h);
+            const double th2_spwmep_den = (((th2_spwmep_h > 1.0e-300)) ? th2_spwmep_h : 1.0e-300);
+            const double th2_spwmep_inv = 1.0/th2_spwmep_den;
             const int t7_4 = (th2_spwmep_h > 0);
             const double th2_spwmep_c = ((t7_4) ? t7_3*th2_spwmep_inv : 1);
             const double th2_spwmep_s = ((t7_4) ? t7_2*th2_spwmep_inv : 0);
@@ -2799,7 +2812,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t8_2 = -t1_spwm*t8_0 + t2_spwm*t8_1;
             const double t8_3 = t1_spwm*t8_1 + t2_spwm*t8_0;
             const double th2_spwmem_h = sqrt(t8_2*t8_2 + t8_3*t8_3);
-            const double th2_spwmem_inv = 1.0/fmax(1.0e-300, th2_spwmem_h);
+            const double th2_spwmem_den = (((th2_spwmem_h > 1.0e-300)) ? th2_spwmem_h : 1.0e-300);
+            const double th2_spwmem_inv = 1.0/th2_spwmem_den;
             const int t8_4 = (th2_spwmem_h > 0);
             const double th2_spwmem_c = ((t8_4) ? t8_3*th2_spwmem_inv : 1);
             const double th2_spwmem_s = ((t8_4) ? t8_2*th2_spwmem_inv : 0);
@@ -2814,14 +2828,17 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double q1_sm_c = q1eq_base_c*q1eq_kc + q1eq_base_s*q1eq_ks;
             const double q1_sm_s = -q1eq_base_c*q1eq_ks + q1eq_base_s*q1eq_kc;
             const double q5eq_sm_base_h = 1;
-            const double q5eq_sm_base_inv = 1.0/fmax(1.0e-300, q5eq_sm_base_h);
+            const double q5eq_sm_base_den = (((q5eq_sm_base_h > 1.0e-300)) ? q5eq_sm_base_h : 1.0e-300);
+            const double q5eq_sm_base_inv = 1.0/q5eq_sm_base_den;
             const double q5eq_sm_base_c = (((q5eq_sm_base_h > 0)) ? q5eq_sm_base_inv : 1);
             const double q5eq_sm_base_s = 0;
             const double q5eq_sm_base = 0;
             const double q5eq_sm_r = 1;
-            const double q5eq_sm_ratio = (((q5eq_sm_r > 0)) ? (-Tt11*q1_sm_s + Tt21*q1_sm_c)/fmax(1.0e-300, q5eq_sm_r) : 0);
+            const double q5eq_sm_den = (((q5eq_sm_r > 1.0e-300)) ? q5eq_sm_r : 1.0e-300);
+            const double q5eq_sm_ratio = (((q5eq_sm_r > 0)) ? (-Tt11*q1_sm_s + Tt21*q1_sm_c)*1.0/q5eq_sm_den : 0);
             const int ok_q5eq_sm = (fabs(q5eq_sm_ratio) <= 1.0000000010000001);
-            const double q5eq_sm_kc = fmin(1, fmax(-1, q5eq_sm_ratio));
+            const double q5eq_sm_kc0 = (((q5eq_sm_ratio > -1)) ? q5eq_sm_ratio : -1);
+            const double q5eq_sm_kc = (((q5eq_sm_kc0 < 1)) ? q5eq_sm_kc0 : 1);
             const double q5eq_sm_ks = sqrt(1 - (q5eq_sm_kc*q5eq_sm_kc));
             const double q5eq_sm_acos = atan2(q5eq_sm_ks, q5eq_sm_kc);
             const double b_sm_x = -Tt12*q1_sm_s + Tt22*q1_sm_c;
@@ -2836,7 +2853,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t10_0 = a_smwp_x*b_sm_x + a_smwp_z*b_sm_z;
             const double t10_1 = -a_smwp_x*b_sm_z + a_smwp_z*b_sm_x;
             const double mq6_smwp_h = sqrt(t10_0*t10_0 + t10_1*t10_1);
-            const double mq6_smwp_inv = 1.0/fmax(1.0e-300, mq6_smwp_h);
+            const double mq6_smwp_den = (((mq6_smwp_h > 1.0e-300)) ? mq6_smwp_h : 1.0e-300);
+            const double mq6_smwp_inv = 1.0/mq6_smwp_den;
             const int t10_2 = (mq6_smwp_h > 0);
             const double mq6_smwp_c = ((t10_2) ? mq6_smwp_inv*t10_0 : 1);
             const double mq6_smwp_s = ((t10_2) ? mq6_smwp_inv*t10_1 : 0);
@@ -2852,7 +2870,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double x_smwp_x = q1_sm_c*(Tt11*t10_7 + Tt12*t10_3 + Tt13*t10_4) - q1_sm_s*(-Tt21*t10_7 - Tt22*t10_3 - Tt23*t10_4);
             const double x_smwp_z = q1_sm_c*t10_8 + t10_8*t10_9;
             const double phi_smwp_h = sqrt(x_smwp_x*x_smwp_x + x_smwp_z*x_smwp_z);
-            const double phi_smwp_inv = 1.0/fmax(1.0e-300, phi_smwp_h);
+            const double phi_smwp_den = (((phi_smwp_h > 1.0e-300)) ? phi_smwp_h : 1.0e-300);
+            const double phi_smwp_inv = 1.0/phi_smwp_den;
             const double y_smwp_x = 0.09465*mq6_smwp_s + 0.093*t10_5 + 0.81725;
             const double y_smwp_y = -0.093*q5_smwp_c*t10_6 - 0.093*t10_3 + 0.10915;
             const int t10_10 = (phi_smwp_h > 0);
@@ -2866,7 +2885,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_smwp = -q1_sm_c*t10_14 - t10_14*t10_9;
             const double kappa_smwp = -1.0032169234806733 + 2.9992876691785701*(t1_smwp*t1_smwp) + 2.9992876691785701*(t2_smwp*t2_smwp);
             const int ok_elbow_smwp = (fabs(kappa_smwp) <= 1.0000000010000001);
-            const double kc_smwp = fmin(1, fmax(-1, kappa_smwp));
+            const double kc0_smwp = (((kappa_smwp > -1)) ? kappa_smwp : -1);
+            const double kc_smwp = (((kc0_smwp < 1)) ? kc0_smwp : 1);
             const double ks_smwp = sqrt(1 - (kc_smwp*kc_smwp));
             const double bend_smwp = atan2(ks_smwp, kc_smwp);
             /* UR: shoulderm elbowp wristp: joints 2, 3, 4 */
@@ -2875,7 +2895,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t11_2 = -t11_0*t1_smwp + t11_1*t2_smwp;
             const double t11_3 = t11_0*t2_smwp + t11_1*t1_smwp;
             const double th2_smwpep_h = sqrt(t11_2*t11_2 + t11_3*t11_3);
-            const double th2_smwpep_inv = 1.0/fmax(1.0e-300, th2_smwpep_h);
+            const double th2_smwpep_den = (((th2_smwpep_h > 1.0e-300)) ? th2_smwpep_h : 1.0e-300);
+            const double th2_smwpep_inv = 1.0/th2_smwpep_den;
             const int t11_4 = (th2_smwpep_h > 0);
             const double th2_smwpep_c = ((t11_4) ? t11_3*th2_smwpep_inv : 1);
             const double th2_smwpep_s = ((t11_4) ? t11_2*th2_smwpep_inv : 0);
@@ -2893,7 +2914,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t12_2 = -t12_0*t1_smwp + t12_1*t2_smwp;
             const double t12_3 = t12_0*t2_smwp + t12_1*t1_smwp;
             const double th2_smwpem_h = sqrt(t12_2*t12_2 + t12_3*t12_3);
-            const double th2_smwpem_inv = 1.0/fmax(1.0e-300, th2_smwpem_h);
+            const double th2_smwpem_den = (((th2_smwpem_h > 1.0e-300)) ? th2_smwpem_h : 1.0e-300);
+            const double th2_smwpem_inv = 1.0/th2_smwpem_den;
             const int t12_4 = (th2_smwpem_h > 0);
             const double th2_smwpem_c = ((t12_4) ? t12_3*th2_smwpem_inv : 1);
             const double th2_smwpem_s = ((t12_4) ? t12_2*th2_smwpem_inv : 0);
@@ -2926,7 +2948,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_smwm = -q1_sm_c*t13_5 - t13_5*(1 - q1_sm_c);
             const double kappa_smwm = -1.0032169234806733 + 2.9992876691785701*(t1_smwm*t1_smwm) + 2.9992876691785701*(t2_smwm*t2_smwm);
             const int ok_elbow_smwm = (fabs(kappa_smwm) <= 1.0000000010000001);
-            const double kc_smwm = fmin(1, fmax(-1, kappa_smwm));
+            const double kc0_smwm = (((kappa_smwm > -1)) ? kappa_smwm : -1);
+            const double kc_smwm = (((kc0_smwm < 1)) ? kc0_smwm : 1);
             const double ks_smwm = sqrt(1 - (kc_smwm*kc_smwm));
             const double bend_smwm = atan2(ks_smwm, kc_smwm);
             /* UR: shoulderm elbowp wristm: joints 2, 3, 4 */
@@ -2935,7 +2958,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t14_2 = -t14_0*t1_smwm + t14_1*t2_smwm;
             const double t14_3 = t14_0*t2_smwm + t14_1*t1_smwm;
             const double th2_smwmep_h = sqrt(t14_2*t14_2 + t14_3*t14_3);
-            const double th2_smwmep_inv = 1.0/fmax(1.0e-300, th2_smwmep_h);
+            const double th2_smwmep_den = (((th2_smwmep_h > 1.0e-300)) ? th2_smwmep_h : 1.0e-300);
+            const double th2_smwmep_inv = 1.0/th2_smwmep_den;
             const int t14_4 = (th2_smwmep_h > 0);
             const double th2_smwmep_c = ((t14_4) ? t14_3*th2_smwmep_inv : 1);
             const double th2_smwmep_s = ((t14_4) ? t14_2*th2_smwmep_inv : 0);
@@ -2953,7 +2977,8 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t15_2 = -t15_0*t1_smwm + t15_1*t2_smwm;
             const double t15_3 = t15_0*t2_smwm + t15_1*t1_smwm;
             const double th2_smwmem_h = sqrt(t15_2*t15_2 + t15_3*t15_3);
-            const double th2_smwmem_inv = 1.0/fmax(1.0e-300, th2_smwmem_h);
+            const double th2_smwmem_den = (((th2_smwmem_h > 1.0e-300)) ? th2_smwmem_h : 1.0e-300);
+            const double th2_smwmem_inv = 1.0/th2_smwmem_den;
             const int t15_4 = (th2_smwmem_h > 0);
             const double th2_smwmem_c = ((t15_4) ? t15_3*th2_smwmem_inv : 1);
             const double th2_smwmem_s = ((t15_4) ? t15_2*th2_smwmem_inv : 0);

@@ -70,6 +70,21 @@ _TINY = sp.Float("1e-300")
 _ge, _le, _gt, _lt, _max, _min = Ge, Le, Gt, Lt, Fmax, Fmin
 
 
+# fmax / fmin against a nonzero constant as selects: the same value for every x (NaN
+# gives the constant, as C99 fmax / fmin; x equal to the constant gives that value; the
+# constant is nonzero, so no signed-zero choice arises), but gcc without -ffast-math calls
+# libm's fmax / fmin for the functions (callgrind, UR5 ik_all: ~500 instructions per pose)
+# and compiles the selects to maxsd / minsd.
+def _at_least(x, c):
+    """fmax(x, c) for a nonzero constant c."""
+    return sp.Piecewise((x, _gt(x, c)), (c, True))
+
+
+def _at_most(x, c):
+    """fmin(x, c) for a nonzero constant c."""
+    return sp.Piecewise((x, _lt(x, c)), (c, True))
+
+
 def compiled_structure(desc):
     """The detected structure of ``desc`` (model.structure.detect) when it has a C kernel,
     else None."""
@@ -145,7 +160,7 @@ def _direction(tape, name, y, x, with_h=False):
     h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
     # the division is done whatever h is, so the selection below is a plain blend (a
     # division inside a ternary would be a branch)
-    inv = tape.let(f"{name}_inv", 1 / _max(h, _TINY))
+    inv = tape.let(f"{name}_inv", 1 / tape.let(f"{name}_den", _at_least(h, _TINY)))
     c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
     s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
     return (c, s, h) if with_h else (c, s)
@@ -429,7 +444,7 @@ class IKKernelBuilder:
             f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
         )
         ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + 1e-9))
-        kc = tape.let(f"kc_{tag}", _min(_max(kappa, -1), 1))
+        kc = tape.let(f"kc_{tag}", _at_most(tape.let(f"kc0_{tag}", _at_least(kappa, -1)), 1))
         ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
         bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
         return kc, ks, bend, ok2
@@ -619,9 +634,12 @@ class IKKernelBuilder:
         tape = self.tape
         base = _atan2(tape, f"{name}_base", B, A)
         r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
-        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / _max(r, _TINY), _gt(r, 0)), (0, True)))
+        ratio = tape.let(
+            f"{name}_ratio",
+            sp.Piecewise((C / tape.let(f"{name}_den", _at_least(r, _TINY)), _gt(r, 0)), (0, True)),
+        )
         ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + 1e-9))
-        kc = tape.let(f"{name}_kc", _min(_max(ratio, -1), 1))
+        kc = tape.let(f"{name}_kc", _at_most(tape.let(f"{name}_kc0", _at_least(ratio, -1)), 1))
         ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
         return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
 
