@@ -177,3 +177,82 @@ def test_fit_shortcut_is_the_general_path_bit_for_bit(tmp_path, limit):
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     ok = ~np.isnan(want)
     assert np.array_equal(got[ok].view(np.int64), want[ok].view(np.int64))
+
+
+def _skewed(rows, **change):
+    out = [dict(r) for r in rows]
+    for key, (joint, value) in change.items():
+        out[joint][key] = value
+    return out
+
+
+def _flip_decision(desc):
+    from deltagen.derive.serial.ik_closed_form import IKKernelBuilder
+    from deltagen.model.structure import detect
+
+    s = detect(desc)
+    assert s is not None and s.kind == "parallel_triple_6r"
+    b = IKKernelBuilder(s, None)
+    K, ax = b.const, s.axes
+    w = [K.vec(x) for x in ax.directions]
+    B = K(np.cross(ax.directions[4], ax.directions[5]) @ s.u)
+    return b._wrist_flip(w[4], w[5], K.vec(s.u), K.vec(s.ref), B)
+
+
+def _flip_holds_in_numpy(arm):
+    """Whether the numpy solver's wrist branches are q5 -> -q5, q6 -> q6 + pi,
+    q2 + q3 + q4 -> + pi on random poses (to 1e-9)."""
+    q = np.random.default_rng(9).uniform(-3, 3, (300, 6))
+    Q, V = analytic_solver(arm.description).solve(arm.fk(q), limits=False)
+    gaps = []
+    for p in range(0, 8, 2):  # configs: ..._wristp, ..._wristm in pairs
+        both = V[:, p] & V[:, p + 1]
+        a, b = Q[both, p], Q[both, p + 1]
+        gaps += [
+            _wrapped(a[:, 4] + b[:, 4]),
+            _wrapped(b[:, 5] - a[:, 5] - math.pi),
+            _wrapped(b[:, 1:4].sum(-1) - a[:, 1:4].sum(-1) - math.pi),
+        ]
+    return bool(max(g.max() for g in gaps) < 1e-9)
+
+
+def test_wrist_flip_shortcut_is_taken_exactly_where_the_numpy_branches_show_it():
+    """IKKernelBuilder._wrist_flip (a symbolic identity on the arm's constants) against
+    the numpy solver's own wrist branches: the UR3 / UR5 / UR10 have the symmetry and the
+    shortcut; the same arms with a skewed wrist twist or a q5 offset have neither."""
+    rtb = pytest.importorskip("roboticstoolbox", reason="roboticstoolbox (test extra) is missing")
+    from tests.test_ik_parallel_triple import _rows
+
+    for name in ("UR3", "UR5", "UR10"):
+        rows = _rows(getattr(rtb.models.DH, name)())
+        for variant, expected in (
+            (rows, True),
+            (_skewed(rows, alpha=(4, 1.2)), False),
+            (_skewed(rows, alpha=(3, 1.3)), False),
+            (_skewed(rows, offset=(4, 0.4)), False),
+        ):
+            arm = SerialRobot.from_dh(variant, "standard", name="ur_x", backend="reference")
+            assert _flip_decision(arm.description) is expected, (name, variant)
+            assert _flip_holds_in_numpy(arm) is expected, (name, variant)
+    assert _flip_decision(SerialRobot.load("ur5", backend="reference").description)
+
+
+@pytest.mark.slow
+def test_compiled_kernel_without_the_shortcut_matches_the_numpy_solver():
+    """A UR5 with a skewed wrist (alpha5 = 1.2 rad): no wrist-flip shortcut; its C ik_all,
+    built here, against the numpy solver."""
+    rtb = pytest.importorskip("roboticstoolbox", reason="roboticstoolbox (test extra) is missing")
+    from tests.test_ik_parallel_triple import _rows
+
+    rows = _skewed(_rows(rtb.models.DH.UR5()), alpha=(4, 1.2))
+    for row in rows:
+        row["qlim"] = [-6.2, 6.2]
+    arm = SerialRobot.from_dh(rows, "standard", name="ur5_skewed_c")
+    assert arm._core.has_ik_all and not _flip_decision(arm.description)
+    q = np.random.default_rng(4).uniform(-3, 3, (3000, 6))
+    T = arm.fk(q)
+    Qc, Vc = arm.ik_all(T)
+    Qn, Vn = analytic_solver(arm.description).solve(T)
+    assert np.array_equal(Vc, Vn)
+    assert _wrapped(Qc - Qn)[Vc].max() < 1e-10  # as for the UR5 (test_ik_parallel_triple)
+    assert (np.where(Vc, _wrapped(Qc - q[:, None]).max(-1), np.inf).min(-1) < 1e-7).all()
