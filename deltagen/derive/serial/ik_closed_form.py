@@ -14,7 +14,14 @@ point is how they become straight-line code:
 * every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
   ``y / h`` (h = hypot(x, y)) instead of calling cos and sin on the result, and sums and
   differences of angles use the addition theorems. The rotations that undo q1 and q2 + q3,
-  and the forward-kinematics check of every branch, then need no trigonometric calls;
+  and the forward-kinematics check of every branch, then need no trigonometric calls.
+  Where x = y = 0 the angle is 0 with cosine 1 and sine 0 (not atan2's 0 or +-pi of
+  signed zeros), so that the value returned is the one the branch and its check used;
+* each output angle takes one atan2 unless it is a sum, a negation or a turn by pi of
+  others: for the UR family, where IKKernelBuilder._wrist_flip shows it from the arm's
+  constants, the second wrist branch's q6 and phi (q2 + q3 + q4) are the first's + pi,
+  so the UR5 kernel calls atan2 20 times per pose (q1 2, q5 2, q6 2, phi 2, the elbow
+  bend 4 and q2 8; q3 = +-bend, q4 = phi - q2 - q3 and q5 = +-acos need none);
 * the check evaluates the symbolic forward kinematics of the description (derive.Chain,
   not the product-of-exponentials model the solver is built on) with those cosines and
   sines, and compares it with the target: rotation entries and position / arm size within
