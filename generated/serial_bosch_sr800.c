@@ -1735,15 +1735,17 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             /* planar arm: the point P, the travel along u and the yaw about u */
             const double travel = Tt34 - 0.5;
             const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
-            const double yaw_inv = 1.0/fmax(1.0e-300, yaw_h);
-            const double yaw = atan2(Tt21, Tt11);
+            const double yaw_den = (((yaw_h > 1.0e-300)) ? yaw_h : 1.0e-300);
+            const double yaw_inv = 1.0/yaw_den;
             const int t1_0 = (yaw_h > 0);
             const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
             const double yaw_s = ((t1_0) ? Tt21*yaw_inv : 0);
+            const double yaw = ((t1_0) ? atan2(Tt21, Tt11) : 0);
             /* planar arm: law of cosines */
             const double kappa_planar = -1.0317460317460317 + 3.1746031746031746*(Tt14*Tt14) + 3.1746031746031746*(Tt24*Tt24);
             const int ok_elbow_planar = (fabs(kappa_planar) <= 1.0000000010000001);
-            const double kc_planar = fmin(1, fmax(-1, kappa_planar));
+            const double kc0_planar = (((kappa_planar > -1)) ? kappa_planar : -1);
+            const double kc_planar = (((kc0_planar < 1)) ? kc0_planar : 1);
             const double ks_planar = sqrt(1 - (kc_planar*kc_planar));
             const double bend_planar = atan2(ks_planar, kc_planar);
             /* planar arm, elbow_up */
@@ -1754,12 +1756,13 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double t3_2 = -Tt14*t3_0 + Tt24*t3_1;
             const double t3_3 = Tt14*t3_1 + Tt24*t3_0;
             const double th2_elbow_up_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
-            const double th2_elbow_up_inv = 1.0/fmax(1.0e-300, th2_elbow_up_h);
-            const double th2_elbow_up = atan2(t3_2, t3_3);
-            const double roll_elbow_up = -th2_elbow_up - th3_elbow_up + yaw;
+            const double th2_elbow_up_den = (((th2_elbow_up_h > 1.0e-300)) ? th2_elbow_up_h : 1.0e-300);
+            const double th2_elbow_up_inv = 1.0/th2_elbow_up_den;
             const int t3_4 = (th2_elbow_up_h > 0);
             const double th2_elbow_up_c = ((t3_4) ? t3_3*th2_elbow_up_inv : 1);
             const double th2_elbow_up_s = ((t3_4) ? t3_2*th2_elbow_up_inv : 0);
+            const double th2_elbow_up = ((t3_4) ? atan2(t3_2, t3_3) : 0);
+            const double roll_elbow_up = -th2_elbow_up - th3_elbow_up + yaw;
             const double t3_5 = th2_elbow_up_c*yaw_c + th2_elbow_up_s*yaw_s;
             const double t3_6 = th2_elbow_up_c*yaw_s - th2_elbow_up_s*yaw_c;
             const double roll_elbow_up_c = kc_planar*t3_5 + t3_6*th3_elbow_up_s;
@@ -1772,12 +1775,13 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double t4_2 = -Tt14*t4_0 + Tt24*t4_1;
             const double t4_3 = Tt14*t4_1 + Tt24*t4_0;
             const double th2_elbow_down_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_elbow_down_inv = 1.0/fmax(1.0e-300, th2_elbow_down_h);
-            const double th2_elbow_down = atan2(t4_2, t4_3);
-            const double roll_elbow_down = -th2_elbow_down - th3_elbow_down + yaw;
+            const double th2_elbow_down_den = (((th2_elbow_down_h > 1.0e-300)) ? th2_elbow_down_h : 1.0e-300);
+            const double th2_elbow_down_inv = 1.0/th2_elbow_down_den;
             const int t4_4 = (th2_elbow_down_h > 0);
             const double th2_elbow_down_c = ((t4_4) ? t4_3*th2_elbow_down_inv : 1);
             const double th2_elbow_down_s = ((t4_4) ? t4_2*th2_elbow_down_inv : 0);
+            const double th2_elbow_down = ((t4_4) ? atan2(t4_2, t4_3) : 0);
+            const double roll_elbow_down = -th2_elbow_down - th3_elbow_down + yaw;
             const double t4_5 = th2_elbow_down_c*yaw_c + th2_elbow_down_s*yaw_s;
             const double t4_6 = th2_elbow_down_c*yaw_s - th2_elbow_down_s*yaw_c;
             const double roll_elbow_down_c = kc_planar*t4_5 + t4_6*th3_elbow_down_s;
@@ -1848,16 +1852,13 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const int fit_q1_elbow_down_in = (((fit_q1_elbow_down >= -2.2689280276926285)) & ((fit_q1_elbow_down <= 2.2689280276926285)));
             const double fit_q2_elbow_down = deltagen_fit_angle(1.0*th3_elbow_down, -2.530727415391778, 2.530727415391778, -2.530727415491778, 2.530727415491778);
             const int fit_q2_elbow_down_in = (((fit_q2_elbow_down >= -2.530727415491778)) & ((fit_q2_elbow_down <= 2.530727415491778)));
-            const double fit_q3_elbow_down_d = -travel;
-            const int fit_q3_elbow_down_in0 = (((fit_q3_elbow_down_d >= -1.0e-10)) & ((fit_q3_elbow_down_d <= 0.3000000001)));
-            const double fit_q3_elbow_down = ((fit_q3_elbow_down_in0) ? fmin(0.3, fmax(0.0, fit_q3_elbow_down_d)) : fit_q3_elbow_down_d);
             const double fit_q4_elbow_down = deltagen_fit_angle(-1.0*roll_elbow_down, -3.141592653589793, 3.141592653589793, -3.141592653689793, 3.141592653689793);
             const int fit_q4_elbow_down_in = (((fit_q4_elbow_down >= -3.141592653689793)) & ((fit_q4_elbow_down <= 3.141592653689793)));
-            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
-            const int valid_elbow_down = ((fit_q1_elbow_down_in) & (fit_q2_elbow_down_in) & (fit_q3_elbow_down_in0) & (fit_q4_elbow_down_in) & (ok_elbow_down));
+            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_up) & isfinite(fit_q4_elbow_down))));
+            const int valid_elbow_down = ((fit_q1_elbow_down_in) & (fit_q2_elbow_down_in) & (fit_q3_elbow_up_in0) & (fit_q4_elbow_down_in) & (ok_elbow_down));
             const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
             const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
-            const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_down : NAN);
+            const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_up : NAN);
             const double out_q4_elbow_down = ((ok_elbow_down) ? fit_q4_elbow_down : NAN);
             const int out_valid_elbow_down = (valid_elbow_down);
             /* status */

@@ -1255,21 +1255,23 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const int invalid = !(isfinite(Tt11) & isfinite(Tt12) & isfinite(Tt13) & isfinite(Tt14) & isfinite(Tt21) & isfinite(Tt22) & isfinite(Tt23) & isfinite(Tt24) & isfinite(Tt31) & isfinite(Tt32) & isfinite(Tt33) & isfinite(Tt34));
             /* planar arm: the point P, the travel along u and the yaw about u */
             const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
-            const double yaw_inv = 1.0/fmax(1.0e-300, yaw_h);
-            const double yaw = atan2(Tt21, Tt11);
+            const double yaw_den = (((yaw_h > 1.0e-300)) ? yaw_h : 1.0e-300);
+            const double yaw_inv = 1.0/yaw_den;
             const int t1_0 = (yaw_h > 0);
             const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
             const double yaw_s = ((t1_0) ? Tt21*yaw_inv : 0);
+            const double yaw = ((t1_0) ? atan2(Tt21, Tt11) : 0);
             /* Paul's method (slides 103-105): psi from the rotation, q1 from joint 2 */
             const double t2_0 = -3.0*Tt11 + Tt14;
             const double t2_1 = -3.0*Tt21 + Tt24;
             const double phi_b_h = sqrt(t2_0*t2_0 + t2_1*t2_1);
-            const double phi_b_inv = 1.0/fmax(1.0e-300, phi_b_h);
-            const double phi_b = atan2(t2_1, t2_0);
-            const double paul2 = -phi_b + yaw;
+            const double phi_b_den = (((phi_b_h > 1.0e-300)) ? phi_b_h : 1.0e-300);
+            const double phi_b_inv = 1.0/phi_b_den;
             const int t2_2 = (phi_b_h > 0);
             const double phi_b_c = ((t2_2) ? phi_b_inv*t2_0 : 1);
             const double phi_b_s = ((t2_2) ? phi_b_inv*t2_1 : 0);
+            const double phi_b = ((t2_2) ? atan2(t2_1, t2_0) : 0);
+            const double paul2 = -phi_b + yaw;
             const double paul2_c = phi_b_c*yaw_c + phi_b_s*yaw_s;
             const double paul2_s = phi_b_c*yaw_s - phi_b_s*yaw_c;
             const int elbow_down = (paul2_s >= 0);
@@ -1317,15 +1319,9 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double F2_24_elbow_down = F1_24_elbow_down + paul2_c*t5_5 + 3.0*t5_3;
             const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(-Tt34) <= 7.0000000000000005e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F2_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <= 7.0000000000000005e-8)));
             /* joint limits and outputs, branch elbow_down */
-            const double t6_0 = 1.0*phi_b;
-            const double t6_1 = (1.0/2.0)/3.141592653589793;
-            const double t6_2 = 2*3.141592653589793;
-            const double t6_3 = 1.0*paul2;
-            const double fit_q1_elbow_down = t6_0 - t6_2*floor(t6_1*(t6_0 + 3.141592653589793));
-            const double fit_q2_elbow_down = -t6_2*floor(t6_1*(t6_3 + 3.141592653589793)) + t6_3;
-            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down))));
-            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
-            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
+            const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_up) & isfinite(fit_q2_elbow_up))));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_up : NAN);
+            const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_up : NAN);
             const int out_valid_elbow_down = (ok_elbow_down);
             /* status */
             const int any_valid = ((ok_elbow_down) | (ok_elbow_up));

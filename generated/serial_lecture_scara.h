@@ -121,7 +121,7 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 211 operations per point.
+ * Cost: 198 operations per point.
  * Stack: 19 block arrays (16 double, 3 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 8960 bytes (8.8 KiB) at 64, plus scalars.
  */

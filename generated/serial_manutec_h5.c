@@ -1729,15 +1729,17 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             /* planar arm: the point P, the travel along u and the yaw about u */
             const double travel = Tt34 + 0.1;
             const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
-            const double yaw_inv = 1.0/fmax(1.0e-300, yaw_h);
-            const double yaw = atan2(Tt21, Tt11);
+            const double yaw_den = (((yaw_h > 1.0e-300)) ? yaw_h : 1.0e-300);
+            const double yaw_inv = 1.0/yaw_den;
             const int t1_0 = (yaw_h > 0);
             const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
             const double yaw_s = ((t1_0) ? Tt21*yaw_inv : 0);
+            const double yaw = ((t1_0) ? atan2(Tt21, Tt11) : 0);
             /* planar arm: law of cosines */
             const double kappa_planar = -1.0416666666666667 + 4.1666666666666667*(Tt14*Tt14) + 4.1666666666666667*(Tt24*Tt24);
             const int ok_elbow_planar = (fabs(kappa_planar) <= 1.0000000010000001);
-            const double kc_planar = fmin(1, fmax(-1, kappa_planar));
+            const double kc0_planar = (((kappa_planar > -1)) ? kappa_planar : -1);
+            const double kc_planar = (((kc0_planar < 1)) ? kc0_planar : 1);
             const double ks_planar = sqrt(1 - (kc_planar*kc_planar));
             const double bend_planar = atan2(ks_planar, kc_planar);
             /* planar arm, elbow_up */
@@ -1748,12 +1750,13 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double t3_2 = -Tt14*t3_0 + Tt24*t3_1;
             const double t3_3 = Tt14*t3_1 + Tt24*t3_0;
             const double th2_elbow_up_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
-            const double th2_elbow_up_inv = 1.0/fmax(1.0e-300, th2_elbow_up_h);
-            const double th2_elbow_up = atan2(t3_2, t3_3);
-            const double roll_elbow_up = -th2_elbow_up - th3_elbow_up + yaw;
+            const double th2_elbow_up_den = (((th2_elbow_up_h > 1.0e-300)) ? th2_elbow_up_h : 1.0e-300);
+            const double th2_elbow_up_inv = 1.0/th2_elbow_up_den;
             const int t3_4 = (th2_elbow_up_h > 0);
             const double th2_elbow_up_c = ((t3_4) ? t3_3*th2_elbow_up_inv : 1);
             const double th2_elbow_up_s = ((t3_4) ? t3_2*th2_elbow_up_inv : 0);
+            const double th2_elbow_up = ((t3_4) ? atan2(t3_2, t3_3) : 0);
+            const double roll_elbow_up = -th2_elbow_up - th3_elbow_up + yaw;
             const double t3_5 = th2_elbow_up_c*yaw_c + th2_elbow_up_s*yaw_s;
             const double t3_6 = th2_elbow_up_c*yaw_s - th2_elbow_up_s*yaw_c;
             const double roll_elbow_up_c = kc_planar*t3_5 + t3_6*th3_elbow_up_s;
@@ -1766,12 +1769,13 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double t4_2 = -Tt14*t4_0 + Tt24*t4_1;
             const double t4_3 = Tt14*t4_1 + Tt24*t4_0;
             const double th2_elbow_down_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_elbow_down_inv = 1.0/fmax(1.0e-300, th2_elbow_down_h);
-            const double th2_elbow_down = atan2(t4_2, t4_3);
-            const double roll_elbow_down = -th2_elbow_down - th3_elbow_down + yaw;
+            const double th2_elbow_down_den = (((th2_elbow_down_h > 1.0e-300)) ? th2_elbow_down_h : 1.0e-300);
+            const double th2_elbow_down_inv = 1.0/th2_elbow_down_den;
             const int t4_4 = (th2_elbow_down_h > 0);
             const double th2_elbow_down_c = ((t4_4) ? t4_3*th2_elbow_down_inv : 1);
             const double th2_elbow_down_s = ((t4_4) ? t4_2*th2_elbow_down_inv : 0);
+            const double th2_elbow_down = ((t4_4) ? atan2(t4_2, t4_3) : 0);
+            const double roll_elbow_down = -th2_elbow_down - th3_elbow_down + yaw;
             const double t4_5 = th2_elbow_down_c*yaw_c + th2_elbow_down_s*yaw_s;
             const double t4_6 = th2_elbow_down_c*yaw_s - th2_elbow_down_s*yaw_c;
             const double roll_elbow_down_c = kc_planar*t4_5 + t4_6*th3_elbow_down_s;
@@ -1837,17 +1841,15 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double F4_34_elbow_down = travel - 0.1;
             const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F3_14_elbow_down - Tt14) <= 1.0e-8)) & ((fabs(F3_24_elbow_down - Tt24) <= 1.0e-8)) & ((fabs(F4_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F4_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F4_34_elbow_down - Tt34) <= 1.0e-8)));
             /* joint limits and outputs, branch elbow_down */
-            const int fit_q1_elbow_down_in0 = (((travel >= 0.1999999999)) & ((travel <= 0.5000000001)));
-            const double fit_q1_elbow_down = ((fit_q1_elbow_down_in0) ? fmin(0.5, fmax(0.2, travel)) : travel);
             const double fit_q2_elbow_down = deltagen_fit_angle(1.0*th2_elbow_down, -2.2689280275926285, 2.2689280275926285, -2.2689280276926285, 2.2689280276926285);
             const int fit_q2_elbow_down_in = (((fit_q2_elbow_down >= -2.2689280276926285)) & ((fit_q2_elbow_down <= 2.2689280276926285)));
             const double fit_q3_elbow_down = deltagen_fit_angle(1.0*th3_elbow_down, -2.530727415391778, 2.530727415391778, -2.530727415491778, 2.530727415491778);
             const int fit_q3_elbow_down_in = (((fit_q3_elbow_down >= -2.530727415491778)) & ((fit_q3_elbow_down <= 2.530727415491778)));
             const double fit_q4_elbow_down = deltagen_fit_angle(1.0*roll_elbow_down, -3.141592653589793, 3.141592653589793, -3.141592653689793, 3.141592653689793);
             const int fit_q4_elbow_down_in = (((fit_q4_elbow_down >= -3.141592653689793)) & ((fit_q4_elbow_down <= 3.141592653689793)));
-            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_down) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
-            const int valid_elbow_down = ((fit_q1_elbow_down_in0) & (fit_q2_elbow_down_in) & (fit_q3_elbow_down_in) & (fit_q4_elbow_down_in) & (ok_elbow_down));
-            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_down : NAN);
+            const int ok_elbow_down = ((hit_elbow_down) & (ok_elbow_planar) & (!invalid) & ((isfinite(fit_q1_elbow_up) & isfinite(fit_q2_elbow_down) & isfinite(fit_q3_elbow_down) & isfinite(fit_q4_elbow_down))));
+            const int valid_elbow_down = ((fit_q1_elbow_up_in0) & (fit_q2_elbow_down_in) & (fit_q3_elbow_down_in) & (fit_q4_elbow_down_in) & (ok_elbow_down));
+            const double out_q1_elbow_down = ((ok_elbow_down) ? fit_q1_elbow_up : NAN);
             const double out_q2_elbow_down = ((ok_elbow_down) ? fit_q2_elbow_down : NAN);
             const double out_q3_elbow_down = ((ok_elbow_down) ? fit_q3_elbow_down : NAN);
             const double out_q4_elbow_down = ((ok_elbow_down) ? fit_q4_elbow_down : NAN);

@@ -121,7 +121,7 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 330 operations per point.
+ * Cost: 328 operations per point.
  * Stack: 23 block arrays (20 double, 3 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 11008 bytes (10.8 KiB) at 64, plus scalars.
  */

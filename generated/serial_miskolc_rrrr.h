@@ -124,7 +124,7 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
  * valid     out, n x 4 (uint8_t): 4 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 876 operations per point.
+ * Cost: 880 operations per point.
  * Stack: 33 block arrays (28 double, 5 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */

@@ -121,7 +121,7 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
  * valid     out, n x 8 (uint8_t): 8 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 2672 operations per point.
+ * Cost: 2642 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars.
  */

@@ -593,11 +593,19 @@ class SerialRobot:
         if flat.shape[0] == 1:
             finite, rigid = _check_one_pose(flat.ravel().tolist())
             return lead, flat, np.array([finite]), np.array([rigid])
-        finite = np.isfinite(flat).all(axis=(1, 2))
-        R = flat[:, :3, :3]
+        m = np.ascontiguousarray(flat.reshape(-1, 16).T)  # (16, N): contiguous columns
+        finite = np.isfinite(m).all(axis=0)
+        # R R^T entry by entry on columns of the batch (its 6 distinct entries: the (i, j)
+        # and (j, i) sums are the same products in the same order): a batched 3 x 3 matmul
+        # was ~0.7 us per pose, a third of the UR5's whole ik_all
+        rows = [[m[4 * i + k] for k in range(3)] for i in range(3)]
         with np.errstate(all="ignore"):
-            rigid = (np.abs(R @ np.swapaxes(R, -1, -2) - _EYE3) < _RIGID_TOL).all(axis=(1, 2))
-            rigid &= (np.abs(flat[:, 3] - _BOTTOM) < _BOTTOM_TOL).all(axis=1)
+            rigid = (np.abs(m[12:] - _BOTTOM[:, None]) < _BOTTOM_TOL).all(axis=0)
+            for i in range(3):
+                for j in range(i, 3):
+                    a, b = rows[i], rows[j]
+                    g = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+                    rigid &= np.abs(g - _EYE3[i, j]) < _RIGID_TOL
         return lead, flat, finite, rigid & finite
 
     @staticmethod

@@ -38,7 +38,10 @@ TARGETS = {
     "analytic_single_ns": 2000.0,
     "numeric_median_ns": 8000.0,
     "numeric_p95_ns": 40000.0,
+    "ur5_batch_ns": 2000.0,  # issue 10: UR5 closed form, all 8, <= 2 us per pose batched
 }
+#: The UR family's closed form (three parallel axes, offset wrist): the bundled UR5.
+UR_ROBOT = "ur5"
 
 
 def _in_limit_q(arm, count, rng):
@@ -244,8 +247,12 @@ def measure_numeric(compiled, n=IK_NUMERIC_N, peers=True):
 def run(
     compiled, reference, repeats, analytic_n=IK_ANALYTIC_N, numeric_n=IK_NUMERIC_N, peers=True
 ) -> dict:
+    from deltagen.api.serial import SerialRobot
+
+    ur = SerialRobot.load(UR_ROBOT, backend="compiled", threads=1)
     return {
         "analytic": measure_analytic(compiled, reference, repeats, n=analytic_n),
+        "analytic_ur": measure_analytic(ur, ur.with_backend("reference"), repeats, n=analytic_n),
         "numeric": measure_numeric(compiled, n=numeric_n, peers=peers),
         "numeric_7axis": measure_numeric(panda_like(), n=numeric_n, peers=peers),
         "general6r": bench_general6r.measure(
@@ -313,9 +320,46 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
         f"{a['max_residual']:.1e}"
     )
     out.append("")
+    if result.get("analytic_ur"):
+        out += render_ur(result["analytic_ur"], markdown)
+        out.append("")
     out += render_numeric(result, markdown, name)
     out.append("")
     out += bench_general6r.render(result.get("general6r") or {}, markdown)
+    return out
+
+
+def render_ur(a: dict, markdown: bool) -> list[str]:
+    """Lines of the UR closed-form rows (issue 10's target: all 8 branches <= 2 us per
+    pose, batched)."""
+    bullet = "- " if markdown else "  "
+    met = a["batch"]["api"].median <= TARGETS["ur5_batch_ns"]
+    rows = [
+        [
+            f"{UR_ROBOT}: all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, "
+            f"batch of {a['n']:,}",
+            _us(a["batch"]["kernel"]),
+            "-",
+        ],
+        [
+            f"{UR_ROBOT}: all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}",
+            _us(a["batch"]["api"]),
+            "<= 2 " + ("met" if met else "MISSED"),
+        ],
+        [
+            f"{UR_ROBOT}: numpy solver (reference backend), batch of {a['ref_n']:,}",
+            _us(a["batch"]["numpy"]),
+            "-",
+        ],
+        [f"{UR_ROBOT}: `arm.ik_all(T)`, one pose per call", _us(a["single"]["api"]), "-"],
+    ]
+    out = table(["call", "us per pose, median [min, max]", "target"], rows, markdown)
+    out.append("")
+    out.append(
+        f"{bullet}UR closed form: the original q among the valid branches for "
+        f"{100 * a['found']:.3f} % of the poses ({a['valid_per_pose']:.2f} valid branches per "
+        f"pose); largest fk residual of a valid branch {a['max_residual']:.1e}"
+    )
     return out
 
 

@@ -14,7 +14,14 @@ point is how they become straight-line code:
 * every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
   ``y / h`` (h = hypot(x, y)) instead of calling cos and sin on the result, and sums and
   differences of angles use the addition theorems. The rotations that undo q1 and q2 + q3,
-  and the forward-kinematics check of every branch, then need no trigonometric calls;
+  and the forward-kinematics check of every branch, then need no trigonometric calls.
+  Where x = y = 0 the angle is 0 with cosine 1 and sine 0 (not atan2's 0 or +-pi of
+  signed zeros), so that the value returned is the one the branch and its check used;
+* each output angle takes one atan2 unless it is a sum, a negation or a turn by pi of
+  others: for the UR family, where IKKernelBuilder._wrist_flip shows it from the arm's
+  constants, the second wrist branch's q6 and phi (q2 + q3 + q4) are the first's + pi,
+  so the UR5 kernel calls atan2 20 times per pose (q1 2, q5 2, q6 2, phi 2, the elbow
+  bend 4 and q2 8; q3 = +-bend, q4 = phi - q2 - q3 and q5 = +-acos need none);
 * the check evaluates the symbolic forward kinematics of the description (derive.Chain,
   not the product-of-exponentials model the solver is built on) with those cosines and
   sines, and compares it with the target: rotation entries and position / arm size within
@@ -68,6 +75,21 @@ _TINY = sp.Float("1e-300")
 # every construction, and again in every rebuild of the CSE) was most of the kernel's
 # derivation and lowering time (cProfile, UR5: _fit_limits alone 16 s of 26). Same C.
 _ge, _le, _gt, _lt, _max, _min = Ge, Le, Gt, Lt, Fmax, Fmin
+
+
+# fmax / fmin against a nonzero constant as selects: the same value for every x (NaN
+# gives the constant, as C99 fmax / fmin; x equal to the constant gives that value; the
+# constant is nonzero, so no signed-zero choice arises), but gcc without -ffast-math calls
+# libm's fmax / fmin for the functions (callgrind, UR5 ik_all: ~500 instructions per pose)
+# and compiles the selects to maxsd / minsd.
+def _at_least(x, c):
+    """fmax(x, c) for a nonzero constant c."""
+    return sp.Piecewise((x, _gt(x, c)), (c, True))
+
+
+def _at_most(x, c):
+    """fmin(x, c) for a nonzero constant c."""
+    return sp.Piecewise((x, _lt(x, c)), (c, True))
 
 
 def compiled_structure(desc):
@@ -139,21 +161,26 @@ class _Angle:
         return _Angle(sign * self.theta, self.c, sign * self.s)
 
 
-def _direction(tape, name, y, x):
-    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0, as atan2)."""
+def _direction(tape, name, y, x, with_h=False):
+    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0); with
+    ``with_h`` also h = hypot(x, y)."""
     h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
     # the division is done whatever h is, so the selection below is a plain blend (a
     # division inside a ternary would be a branch)
-    inv = tape.let(f"{name}_inv", 1 / _max(h, _TINY))
+    inv = tape.let(f"{name}_inv", 1 / tape.let(f"{name}_den", _at_least(h, _TINY)))
     c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
     s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
-    return c, s
+    return (c, s, h) if with_h else (c, s)
 
 
 def _atan2(tape, name, y, x) -> _Angle:
-    """atan2(y, x) with its cosine and sine (_direction)."""
-    c, s = _direction(tape, name, y, x)
-    return _Angle(tape.let(name, sp.atan2(y, x)), c, s)
+    """atan2(y, x) with its cosine and sine (_direction). Where x = y = 0 the angle is 0,
+    as its cosine and sine (1, 0) say: atan2 of signed zeros gives 0 or +-pi, and at
+    the UR's exact wrist singularity (q6 from two zero components) an output of pi with
+    the cosine and sine of 0 used by the rest of the branch and its check was returned
+    as valid while missing the pose by up to 2 m."""
+    c, s, h = _direction(tape, name, y, x, with_h=True)
+    return _Angle(tape.let(name, sp.Piecewise((sp.atan2(y, x), _gt(h, 0)), (0, True))), c, s)
 
 
 def _named(tape, name, a: _Angle) -> _Angle:
@@ -189,6 +216,34 @@ def _sp1(tape, name, w, a, b) -> _Angle:
     a = _add(a, _scale(-_dot(a, w), w))
     b = _add(b, _scale(-_dot(b, w), w))
     return _atan2(tape, name, _dot(_cross(a, b), w), _dot(a, b))
+
+
+_PI = sp.Float(repr(math.pi), 17)
+
+
+def _turned_by_pi(tape, name, a: _Angle, turned) -> _Angle:
+    """a + pi where ``turned`` holds, else a: the angle, cosine and sine negated, with no
+    atan2, sqrt or division (the joint-limit fit wraps the angle). For a subproblem-1
+    angle whose two components the caller has shown to be negated, atan2(-y, -x) =
+    atan2(y, x) + pi."""
+    return _Angle(
+        tape.let(f"{name}_pi", sp.Piecewise((a.theta + _PI, turned), (a.theta, True))),
+        tape.let(f"{name}_pi_c", sp.Piecewise((-a.c, turned), (a.c, True))),
+        tape.let(f"{name}_pi_s", sp.Piecewise((-a.s, turned), (a.s, True))),
+    )
+
+
+def _odd_under(vector, flip) -> bool:
+    """Whether every component e of ``vector`` (polynomials in cosines and sines) has
+    e(flip) = -e, coefficients equal to 1e-15 (the constants are rounded to 13 digits)."""
+    for e in vector:
+        total = sp.expand(e + sp.sympify(e).xreplace(flip))
+        if total == 0:
+            continue
+        gens = sorted(total.free_symbols, key=str)
+        if max(abs(float(c)) for c in sp.Poly(total, *gens).coeffs()) > 1e-15:
+            return False
+    return True
 
 
 class _Constants:
@@ -229,6 +284,7 @@ class IKKernelBuilder:
             sp.Symbol(f"Tt{r + 1}{c + 1}", real=True) for r in range(4) for c in range(4)
         )
         self.invalid = sp.Symbol("invalid")
+        self._fits = {}  # (joint, value) -> _fit_limits' (value, inside)
 
     # -- shared steps --------------------------------------------------------------
 
@@ -395,7 +451,7 @@ class IKKernelBuilder:
             f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
         )
         ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + 1e-9))
-        kc = tape.let(f"kc_{tag}", _min(_max(kappa, -1), 1))
+        kc = tape.let(f"kc_{tag}", _at_most(tape.let(f"kc0_{tag}", _at_least(kappa, -1)), 1))
         ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
         bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
         return kc, ks, bend, ok2
@@ -478,9 +534,17 @@ class IKKernelBuilder:
         out here, half of the kernel: its SymPy and compile time); a prismatic one (a its
         displacement) is only checked. Either is clipped onto a limit it passes by at most
         LIMIT_TOL."""
-        tape = self.tape
         lo, hi = (float(x) for x in self.s.qlim[i])
         revolute = isinstance(a, _Angle)
+        # branches sharing a joint value (the UR family's q1 in four branches, q5 and q6 in
+        # two) share its fit: one deltagen_fit_angle call per distinct value
+        key = (i, a.theta if revolute else sp.sympify(a))
+        if key not in self._fits:
+            self._fits[key] = self._fit_one(name, i, a, lo, hi, revolute)
+        return self._fits[key]
+
+    def _fit_one(self, name, i, a, lo, hi, revolute):
+        tape = self.tape
         two_pi = 2 * sp.pi
         if not (math.isfinite(lo) or math.isfinite(hi)):
             if revolute:
@@ -577,11 +641,39 @@ class IKKernelBuilder:
         tape = self.tape
         base = _atan2(tape, f"{name}_base", B, A)
         r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
-        ratio = tape.let(f"{name}_ratio", sp.Piecewise((C / _max(r, _TINY), _gt(r, 0)), (0, True)))
+        ratio = tape.let(
+            f"{name}_ratio",
+            sp.Piecewise((C / tape.let(f"{name}_den", _at_least(r, _TINY)), _gt(r, 0)), (0, True)),
+        )
         ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + 1e-9))
-        kc = tape.let(f"{name}_kc", _min(_max(ratio, -1), 1))
+        kc = tape.let(f"{name}_kc", _at_most(tape.let(f"{name}_kc0", _at_least(ratio, -1)), 1))
         ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
         return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
+
+    def _wrist_flip(self, w5, w6, u, ref, B) -> bool:
+        """Whether the second wrist branch is the first turned by pi in q6 and phi, with
+        no atan2 of its own (UR arms: 2 of the 4 q6 and 2 of the 4 phi atan2 calls per
+        pose). Shown here, from the arm's constants, for every q5 and q6 at once:
+
+        * B = u . (w5 x w6) = 0: the q5 equation's base angle is 0 or pi, so the second
+          root has the cosine of the first and the sine negated (q5 -> -q5 about it);
+        * the part of a = Rot(w5, -q5) u normal to w6 is odd in sin q5: then both vectors
+          subproblem 1 turns into each other for q6 (a and b, b independent of q5) give
+          negated components, and atan2(-y, -x) = atan2(y, x) + pi;
+        * Rot(w6, -q6) Rot(w5, -q5) ref is odd under (sin q5, cos q6, sin q6) ->
+          (-sin q5, -cos q6, -sin q6), i.e. under q5 -> -q5 with q6 -> q6 + pi: phi's
+          subproblem 1 (about u, ref against that vector, rotated by constant and q1
+          rotations, linear) gets negated components too.
+        """
+        if B != 0:
+            return False
+        c5, s5, c6, s6 = sp.symbols("c5 s5 c6 s6", real=True)
+        a = _rotate(w5, c5, -s5, u)
+        normal = _add(a, _scale(-_dot(a, w6), w6))
+        if not _odd_under(normal, {s5: -s5}):
+            return False
+        x = _rotate(w6, c6, -s6, _rotate(w5, c5, -s5, ref))
+        return _odd_under(x, {s5: -s5, c6: -c6, s6: -s6})
 
     def _parallel_triple(self):
         s, ax, tape, K = self.s, self.axes, self.tape, self.const
@@ -597,6 +689,9 @@ class IKKernelBuilder:
         base1, acos1, ok1 = self._cos_sin_eq("q1eq", A, B, C)
         w6n = ax.directions[5] - (ax.directions[5] @ ax.directions[4]) * ax.directions[4]
         RGw6 = self._rotate_target(ax.directions[5])
+        flip = self._wrist_flip(
+            w5, w6, u, K.vec(s.ref), K(np.cross(ax.directions[4], ax.directions[5]) @ s.u)
+        )
         solutions = {}
         for sg1, a in ((1, "p"), (-1, "m")):
             tag1 = f"s{a}"
@@ -610,16 +705,30 @@ class IKKernelBuilder:
                 h - K((s.u @ ax.directions[4]) * (ax.directions[4] @ ax.directions[5])),
             )
             b = tape.vec(f"b_{tag1}", self._unrotate_target_sym(_rotate(w1, q1.c, q1.s, u)))
+            ref = K.vec(s.ref)
+            first = None
             for sg5, c5 in ((1, "p"), (-1, "m")):
                 tag = f"{tag1}w{c5}"
                 tape.stage(f"UR: shoulder{a} wrist{c5}: q5, q6 (Paden-Kahan 1), phi, N o4")
                 q5 = _named(tape, f"q5_{tag}", base5 + acos5.scaled(sg5))
-                avec = tape.vec(f"a_{tag}", _rotate(w5, q5.c, -q5.s, u))
-                q6 = _sp1(tape, f"mq6_{tag}", w6, avec, b).scaled(-1)
-                ref = K.vec(s.ref)
-                x = _rotate(w6, q6.c, -q6.s, _rotate(w5, q5.c, -q5.s, ref))
-                x = tape.vec(f"x_{tag}", _rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
-                phi = _sp1(tape, f"phi_{tag}", u, ref, x)
+                if first is not None and flip:
+                    # the wrist flip (q5 -> -q5) turns q6 and phi by pi (_wrist_flip);
+                    # where q6's two components vanish (the exact wrist singularity,
+                    # sin q5 = 0) _atan2 gives (0, 1, 0) for either sign and the vector
+                    # phi is taken from is the same for both q5: neither is turned, as
+                    # the second branch's own atan2 calls would have had it
+                    turned = _gt(sp.Symbol(f"mq6_{first[0]}_h", real=True), 0)
+                    mq6 = _turned_by_pi(tape, f"mq6_{first[0]}", first[1], turned)
+                    q6 = mq6.scaled(-1)
+                    phi = _turned_by_pi(tape, f"phi_{first[0]}", first[2], turned)
+                else:
+                    avec = tape.vec(f"a_{tag}", _rotate(w5, q5.c, -q5.s, u))
+                    mq6 = _sp1(tape, f"mq6_{tag}", w6, avec, b)
+                    q6 = mq6.scaled(-1)
+                    x = _rotate(w6, q6.c, -q6.s, _rotate(w5, q5.c, -q5.s, ref))
+                    x = tape.vec(f"x_{tag}", _rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
+                    phi = _sp1(tape, f"phi_{tag}", u, ref, x)
+                    first = (tag, mq6, phi)
                 y = _add(_rotate(w5, q5.c, -q5.s, _add(o[3], _scale(-1, o[4]))), o[4])
                 y = _add(_rotate(w6, q6.c, -q6.s, _add(y, _scale(-1, o[5]))), o[5])
                 y = tape.vec(f"y_{tag}", y)
