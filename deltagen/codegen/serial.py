@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -54,10 +55,12 @@ def generator_files() -> list[Path]:
     return sorted(files)
 
 
+@functools.lru_cache(maxsize=1)
 def generator_fingerprint() -> str:
     """Hash of the code, templates and runtime C that turn a description into C: a user
     robot's cached sources are keyed by it, so a changed generator never reuses stale
-    sources."""
+    sources. Computed once per process (the Python of the generator is loaded once too;
+    a warm load asks for it up to three times, 10 ms each)."""
     package = Path(__file__).resolve().parent.parent
     digest = hashlib.sha256()
     for path in generator_files():

@@ -34,7 +34,7 @@ How the cache stays sound (issue "Reliability", class 1):
 from __future__ import annotations
 
 import contextlib
-import ctypes.util
+import functools
 import hashlib
 import importlib.machinery
 import importlib.util
@@ -66,7 +66,12 @@ class BuildError(DeltagenError, RuntimeError):
     """The C core could not be built or loaded; backend="reference" still works."""
 
 
+@functools.lru_cache(maxsize=1)
 def _vector_math_available() -> bool:
+    """libmvec present (asked once per process: ctypes.util imports and runs a subprocess,
+    a third of a warm load)."""
+    import ctypes.util
+
     return (
         sys.platform.startswith("linux")
         and platform.machine() in ("x86_64", "AMD64")
