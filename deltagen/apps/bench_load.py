@@ -106,10 +106,49 @@ def measure(arm: str, env_extra: dict | None = None) -> dict:
     }
 
 
+def _median(values):
+    values = sorted(values)
+    return values[len(values) // 2]
+
+
+def table(results: list[dict]) -> str:
+    """Markdown: per arm, the median [min, max] of its runs, seconds (cold) and ms (warm)."""
+    lines = [
+        "| arm | cold CPU s | cold wall s | warm 1st load CPU ms | warm 1st wall ms "
+        "| 2nd load CPU ms | 2nd wall ms | runs | load avg |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for arm in dict.fromkeys(r["arm"] for r in results):
+        runs = [r for r in results if r["arm"] == arm]
+
+        def cell(key, scale, digits, runs=runs):
+            v = [r[key] * scale for r in runs]
+            return f"{_median(v):.{digits}f} [{min(v):.{digits}f}, {max(v):.{digits}f}]"
+
+        lines.append(
+            f"| {arm} | {cell('cold_cpu', 1, 1)} | {cell('cold_wall', 1, 1)} "
+            f"| {cell('warm_first_cpu', 1e3, 0)} | {cell('warm_first_wall', 1e3, 0)} "
+            f"| {cell('warm_second_cpu', 1e3, 0)} | {cell('warm_second_wall', 1e3, 0)} "
+            f"| {len(runs)} | {min(r['load_avg'] for r in runs):.1f}-"
+            f"{max(r['load_avg'] for r in runs):.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def main(argv=None) -> None:
-    arms = (argv or sys.argv[1:]) or list(ARMS)
-    for arm in arms:
-        print(json.dumps(measure(arm)), flush=True)
+    """``python -m deltagen.apps.bench_load [--repeats R] [ARM ...]``: JSON lines per
+    measurement (arms round-robin, R rounds), then the Markdown table."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    repeats = 1
+    if args[:1] == ["--repeats"]:
+        repeats, args = int(args[1]), args[2:]
+    arms = args or list(ARMS)
+    results = []
+    for _ in range(repeats):
+        for arm in arms:
+            results.append(measure(arm))
+            print(json.dumps(results[-1]), flush=True)
+    print(table(results))
 
 
 if __name__ == "__main__":
