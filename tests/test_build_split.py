@@ -212,3 +212,16 @@ def test_split_puma_gives_the_bits_of_the_single_unit_build(tmp_path, monkeypatc
             assert a.dtype == b.dtype and a.shape == b.shape, name
             assert np.array_equal(a, b, equal_nan=True), name
         assert np.isfinite(np.asarray(values[0], dtype=float)).any(), name  # not all NaN
+
+
+def test_build_jobs_follow_the_usable_cores_and_the_cap(monkeypatch):
+    cores = len(os.sched_getaffinity(0))
+    monkeypatch.delenv("DELTAGEN_BUILD_JOBS", raising=False)
+    assert build._build_jobs() == cores
+    monkeypatch.setenv("DELTAGEN_BUILD_JOBS", "1")
+    assert build._build_jobs() == 1
+    monkeypatch.setenv("DELTAGEN_BUILD_JOBS", str(cores + 5))
+    assert build._build_jobs() == cores  # a cap, never more compilers than cores
+    for bad in ("0", "-2", "many", ""):
+        monkeypatch.setenv("DELTAGEN_BUILD_JOBS", bad)
+        assert build._build_jobs() == cores
