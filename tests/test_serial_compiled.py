@@ -370,3 +370,48 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     again = SerialRobot.from_dh(rows, "standard", name="lazy_arm")
     assert again._core.dynamics_loaded  # built before: the full module at once
     assert np.array_equal(again.fk(q), T)
+
+
+@pytest.mark.slow  # two cold builds
+def test_jacobian_dot_and_ik_all_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
+    """A new arm loads fk, frames, jacobian, fk_jacobian and ik_newton alone (issue 10,
+    cold load: a UR5's closed-form ik_all was half of it); its first ik_all or
+    jacobian_dot builds the complete kinematics module, whose results equal the reference
+    backend's and whose fk is the first module's bit for bit; a second robot of the same
+    description gets the complete module at once."""
+    import dataclasses
+
+    from deltagen.model.serial import SerialDescription
+    from deltagen.paths import robots_dir
+
+    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path))
+    puma = SerialDescription.from_toml(robots_dir() / "puma560.toml")
+    desc = dataclasses.replace(puma.without_inertia(), name="lazy_puma")
+    arm = SerialRobot(desc)
+    reference = arm.with_backend("reference")
+    core = arm._core
+    prefix = "deltagen_lazy_puma"
+    assert core._kinematics is None
+    assert not hasattr(core._lib, f"{prefix}_ik_all")
+    assert not hasattr(core._lib, f"{prefix}_jacobian_dot")
+    rng = np.random.default_rng(12)
+    lo, hi = arm.qlim[:, 0], arm.qlim[:, 1]
+    q = rng.uniform(lo, hi, (300, 6))
+    qd = rng.uniform(-2, 2, (300, 6))
+    T = arm.fk(q)
+    np.testing.assert_allclose(T, reference.fk(q), rtol=0, atol=1e-13)
+    q_ik, _ = arm.ik(T[:20], q0=q[:20] + 0.03, method="numeric", errors="nan")  # ik_newton
+    np.testing.assert_allclose(reference.fk(q_ik), T[:20], rtol=0, atol=1e-9)
+    assert core._kinematics is None  # the numerical IK needs no more than the first module
+    Q, valid = arm.ik_all(T)
+    assert core._kinematics is not None and hasattr(core._kinematics.lib, f"{prefix}_ik_all")
+    Q_ref, valid_ref = reference.ik_all(T)
+    assert np.array_equal(valid, valid_ref)
+    np.testing.assert_allclose(Q[valid], Q_ref[valid], rtol=0, atol=1e-9)
+    assert valid.any(axis=1).all()  # every pose fk(q) has a valid branch
+    np.testing.assert_allclose(
+        arm.jacobian_dot(q, qd), reference.jacobian_dot(q, qd), rtol=1e-12, atol=1e-12
+    )
+    again = SerialRobot(desc)
+    assert again._core._kinematics is not None  # built before: the complete module at once
+    assert np.array_equal(again.fk(q), T)

@@ -32,15 +32,13 @@ def generate_robot_file(path) -> Path:
     the folder holding its C sources."""
     from deltagen.model.serial import SerialDescription
     from deltagen.model.urdf import description_from_urdf
-    from deltagen.native.serial import CompiledArm, source_dir
+    from deltagen.native.serial import complete_module, source_dir
 
     if str(path).lower().endswith(".urdf"):
         desc = description_from_urdf(path)
     else:
         desc = SerialDescription.from_toml(path)
-    arm = CompiledArm(desc)  # builds (or finds) the cached module
-    if desc.has_inertia:
-        arm.load_dynamics()  # the full module, which a first use would otherwise defer
+    complete_module(desc)  # builds (or finds) the cached module with every kernel
     folder = source_dir(desc)
     assert folder is not None
     return folder

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -54,10 +55,12 @@ def generator_files() -> list[Path]:
     return sorted(files)
 
 
+@functools.lru_cache(maxsize=1)
 def generator_fingerprint() -> str:
     """Hash of the code, templates and runtime C that turn a description into C: a user
     robot's cached sources are keyed by it, so a changed generator never reuses stale
-    sources."""
+    sources. Computed once per process (the Python of the generator is loaded once too;
+    a warm load asks for it up to three times, 10 ms each)."""
     package = Path(__file__).resolve().parent.parent
     digest = hashlib.sha256()
     for path in generator_files():
@@ -66,11 +69,15 @@ def generator_fingerprint() -> str:
     return digest.hexdigest()[:16]
 
 
-def arm_unit(desc) -> Unit:
+def arm_unit(desc, first: bool = False) -> Unit:
+    """The module's frame; ``first``: the module a new arm loads with (ArmKernels.first:
+    fk, frames, jacobian, fk_jacobian and the numerical IK, no dynamics)."""
     from deltagen.codegen.render import Unit
 
     joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
-    title = "kinematics" + (" and dynamics" if desc.has_inertia else "")
+    title = "kinematics" + (" and dynamics" if desc.has_inertia and not first else "")
+    if first:
+        title = "first-load kinematics (fk, frames, jacobian, fk_jacobian, ik_newton)"
     return Unit(
         prefix=c_prefix(desc),
         base_name=base_name(desc),
@@ -89,19 +96,26 @@ def arm_unit(desc) -> Unit:
                     f"gravity {list(desc.gravity)} m/s^2 in the base frame; inertial parameters",
                     "compiled in (link frame i = the frame after A_i).",
                 )
-                if desc.has_inertia
+                if desc.has_inertia and not first
                 else ()
             ),
             f"Description fingerprint: {description_fingerprint(desc)}",
         ),
         newton=dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints]),
-        dynamics=dict(n=desc.n, tol=repr(MASS_MATRIX_TOL)) if desc.has_inertia else None,
+        dynamics=(
+            dict(n=desc.n, tol=repr(MASS_MATRIX_TOL)) if desc.has_inertia and not first else None
+        ),
     )
 
 
-def arm_sources(desc) -> dict[str, str]:
+def arm_sources(desc, first: bool = False) -> dict[str, str]:
+    """The arm's C module: every kernel (what `deltagen generate` writes), or with
+    ``first`` only those a new arm loads with (ArmKernels.first; native/serial.py builds
+    the complete module on the first call of another kernel)."""
     from deltagen.codegen.lowering import lower
     from deltagen.codegen.render import render
     from deltagen.derive.serial.kernels import ArmKernels
 
-    return render(arm_unit(desc), [lower(k) for k in ArmKernels(desc).all()])
+    kernels = ArmKernels(desc)
+    chosen = kernels.first() if first else kernels.all()
+    return render(arm_unit(desc, first), [lower(k) for k in chosen])

@@ -18,12 +18,23 @@ How the cache stays sound (issue "Reliability", class 1):
 * **Clear errors**: a failed build raises :class:`BuildError` with the compiler's own error
   text; a successful build's warnings never reach the user's terminal. A cache path that is
   not a directory or is not writable gets an error naming the path.
+* **Parallel translation units** (issue 10, cold load): a module's C is split at build time
+  at its top-level function definitions (one kernel per unit, :func:`split_units`), each
+  unit being the file's preamble (includes, declarations, macros) and one kernel behind a
+  ``#line`` directive, so a compiler message names the module's own file and line. The
+  units, cffi's wrapper and the runtime .c files compile to objects on every core the
+  process may use (``os.sched_getaffinity``; ``DELTAGEN_BUILD_JOBS`` caps it), largest
+  first, then link into one shared object. No flag changes and no unit sees another's
+  code: with FMA contraction off (-std=c99, no -ffast-math) a kernel gives the same bits
+  in its own unit as in the whole file (tests/test_build_split.py). A file whose layout
+  the splitter does not recognise (a ``static`` definition, a preprocessor line or other
+  file-scope code between kernels) is compiled as one unit.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes.util
+import functools
 import hashlib
 import importlib.machinery
 import importlib.util
@@ -32,16 +43,16 @@ import os
 import platform
 import re
 import shlex
-import shutil
-import subprocess
 import sys
 import sysconfig
-import tempfile
 import threading
 from pathlib import Path
 
 from deltagen.errors import DeltagenError
 from deltagen.paths import cache_dir, generated_dir, runtime_dir
+
+# cffi, shutil, subprocess, tempfile and concurrent.futures are imported where a build
+# runs: a warm load needs none of them (25 ms of imports)
 
 _LOADED: dict[str, object] = {}
 _GUARD = threading.Lock()  # guards _KEY_LOCKS and _LOADED
@@ -54,12 +65,22 @@ class BuildError(DeltagenError, RuntimeError):
     """The C core could not be built or loaded; backend="reference" still works."""
 
 
+@functools.lru_cache(maxsize=1)
 def _vector_math_available() -> bool:
-    return (
-        sys.platform.startswith("linux")
-        and platform.machine() in ("x86_64", "AMD64")
-        and ctypes.util.find_library("mvec") is not None
-    )
+    """glibc's vector math library (libmvec) is present: asked once per process, first by
+    loading it (the dynamic loader searches what ldconfig lists), else by
+    ctypes.util.find_library, whose import and ldconfig run cost a warm load 15 ms."""
+    if not (sys.platform.startswith("linux") and platform.machine() in ("x86_64", "AMD64")):
+        return False
+    import ctypes
+
+    try:
+        ctypes.CDLL("libmvec.so.1")
+        return True
+    except OSError:
+        import ctypes.util
+
+        return ctypes.util.find_library("mvec") is not None
 
 
 #: Optimisation levels a module may be built with: -O3 (checked-in modules, the default) and
@@ -144,9 +165,67 @@ def usable_cache_dir() -> Path:
     return root
 
 
-def _module_inputs(base_name: str, prefix: str, directory: Path | None, opt: str = "-O3"):
+#: a top-level function definition: the start of a kernel (generated C puts return type,
+#: name and "(" at column 0 and indents everything inside a function)
+_DEFINITION = re.compile(r"^(?!(?:static|extern|typedef)\b)[A-Za-z_][A-Za-z0-9_ *]*?\b\w+\s*\(")
+
+
+def split_units(text: str) -> tuple[list[str], list[tuple[int, list[str]]]] | None:
+    """The preamble of a C file (its lines before the first top-level function definition)
+    and its kernels as (first line number, lines), each running to the next definition;
+    None when the file's layout is not one the split can keep exact: no definition, a
+    ``static`` one (invisible to the other units), a preprocessor line or other file-scope
+    code at column 0 between the kernels (only definitions, ``{``/``}``, comments and
+    blank lines may start there)."""
+    lines = text.split("\n")
+    starts = [i for i, line in enumerate(lines) if _DEFINITION.match(line)]
+    if len(starts) < 2:
+        return None
+    in_comment = False
+    for i in range(starts[0], len(lines)):
+        line = lines[i]
+        if in_comment:
+            in_comment = "*/" not in line
+            continue
+        if not line or line[0] in " \t{}" or i in starts:
+            continue
+        if line.startswith("/*"):
+            in_comment = "*/" not in line
+            continue
+        if line.startswith("//"):
+            continue
+        return None
+    bounds = [*starts, len(lines)]
+    kernels = [(start + 1, lines[start:end]) for start, end in zip(bounds, bounds[1:])]
+    return lines[: starts[0]], kernels
+
+
+def _unit_text(source: Path, preamble: list[str], kernel: tuple[int, list[str]]) -> str:
+    """One translation unit: the preamble and one kernel, each behind a ``#line`` naming
+    the whole file's path and line (so diagnostics read as they would for the whole file)."""
+    name = json.dumps(str(source))  # a C string literal: quotes and backslashes escaped
+    first, body = kernel
+    return "\n".join([f"#line 1 {name}", *preamble, f"#line {first} {name}", *body]) + "\n"
+
+
+def _build_jobs() -> int:
+    """How many compilers run at once: the cores this process may use, at most
+    DELTAGEN_BUILD_JOBS when that is set to a positive integer."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    raw = os.environ.get("DELTAGEN_BUILD_JOBS", "").strip()
+    if raw.isdigit() and int(raw) > 0:
+        return min(cores, int(raw))
+    return max(1, cores)
+
+
+def _module_inputs(
+    base_name: str, prefix: str, directory: Path | None, opt: str = "-O3", split: bool = True
+):
     """Everything that shapes the binary of <directory>/<base_name>.c, and the cache's
-    module name keyed by it."""
+    module name keyed by it (``split``: the module's kernels compiled as separate units)."""
     directory = Path(directory) if directory else generated_dir()
     files = {ext: directory / f"{base_name}{ext}" for ext in (".c", ".h", ".cdef.h")}
     for path in files.values():
@@ -166,6 +245,7 @@ def _module_inputs(base_name: str, prefix: str, directory: Path | None, opt: str
             sysconfig.get_platform(),
             _cffi_version(),
             _compiler_identity(),
+            "units: per kernel" if split else "units: one",
         ]
         + [f.name + "\0" + text for f, text in runtime.items()]
     )
@@ -173,10 +253,16 @@ def _module_inputs(base_name: str, prefix: str, directory: Path | None, opt: str
     return f"_deltagen_{base_name}_{key}", texts, files, runtime, args, libraries
 
 
-def is_built(base_name: str, prefix: str, directory: Path | None = None, opt: str = "-O3") -> bool:
+def is_built(
+    base_name: str,
+    prefix: str,
+    directory: Path | None = None,
+    opt: str = "-O3",
+    split: bool = True,
+) -> bool:
     """True when :func:`load` would find the module compiled (loaded in this process or a
     verified artifact in the cache): loading it costs no compiler run."""
-    module_name = _module_inputs(base_name, prefix, directory, opt)[0]
+    module_name = _module_inputs(base_name, prefix, directory, opt, split)[0]
     with _GUARD:
         if module_name in _LOADED:
             return True
@@ -185,17 +271,25 @@ def is_built(base_name: str, prefix: str, directory: Path | None = None, opt: st
     return _verified(target, shared_object)
 
 
-def load(base_name: str, prefix: str, directory: Path | None = None, opt: str = "-O3"):
+def load(
+    base_name: str,
+    prefix: str,
+    directory: Path | None = None,
+    opt: str = "-O3",
+    split: bool = True,
+):
     """Return the compiled cffi module (``.ffi``, ``.lib``) of <directory>/<base_name>.c
     (generated/ by default) and the runtime C it includes (codegen/runtime/, compiled
-    beside it), built with the optimisation level ``opt`` (OPT_LEVELS)."""
+    beside it), built with the optimisation level ``opt`` (OPT_LEVELS); ``split``: one
+    translation unit per kernel, compiled in parallel (False: the file as one unit; the
+    same results bit for bit, two cache entries)."""
     module_name, texts, files, runtime, args, libraries = _module_inputs(
-        base_name, prefix, directory, opt
+        base_name, prefix, directory, opt, split
     )
     return _load_cached(
         module_name,
         lambda target, so_name: _build(
-            module_name, target, so_name, texts, files, runtime, args, libraries
+            module_name, target, so_name, texts, files, runtime, args, libraries, split
         ),
     )
 
@@ -288,6 +382,8 @@ def _discard(target: Path) -> None:
     except OSError:
         trash = target
     if trash.is_dir() and not trash.is_symlink():
+        import shutil
+
         shutil.rmtree(trash, ignore_errors=True)
     else:
         with contextlib.suppress(OSError):
@@ -295,9 +391,11 @@ def _discard(target: Path) -> None:
 
 
 def _cffi_version() -> str:
-    import cffi
+    # the C backend's version: cffi refuses to import with any other, and the backend is
+    # loaded anyway with the module (importing cffi itself costs a warm load 9 ms)
+    import _cffi_backend
 
-    return cffi.__version__
+    return _cffi_backend.__version__
 
 
 def _compiler_command() -> list[str]:
@@ -314,7 +412,34 @@ def _compiler_identity() -> str:
     return " ".join(_compiler_command())
 
 
-def _build(module_name, target: Path, so_name: str, texts, files, runtime, args, libraries) -> None:
+def _run_compiler(command: list[str], work: Path, what: str):
+    import subprocess
+
+    try:
+        return subprocess.run(
+            command,
+            cwd=work,
+            capture_output=True,
+            text=True,
+            timeout=_BUILD_TIMEOUT_S,
+            stdin=subprocess.DEVNULL,
+        )
+    except FileNotFoundError as exc:
+        raise BuildError(
+            f"no C compiler: {command[0]!r} was not found (set CC, or use "
+            "backend='reference', which needs none)"
+        ) from exc
+    except subprocess.TimeoutExpired as exc:
+        raise BuildError(f"compiling {what} took over {_BUILD_TIMEOUT_S} s; gave up") from exc
+
+
+def _build(
+    module_name, target: Path, so_name: str, texts, files, runtime, args, libraries, split=True
+) -> None:
+    import shutil
+    import tempfile
+    from concurrent.futures import ThreadPoolExecutor
+
     import cffi
     from cffi.recompiler import make_c_source
 
@@ -335,56 +460,75 @@ def _build(module_name, target: Path, so_name: str, texts, files, runtime, args,
         # what an extension build of this interpreter adds (-fwrapv, -DNDEBUG), minus -g
         ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
         ccshared += ["-fwrapv", "-DNDEBUG"]
-        command = (
+        module_c = work / files[".c"].name
+        units = split_units(texts[".c"]) if split else None
+        sources = [wrapper]
+        if units is None:
+            sources.append(module_c)
+        else:
+            preamble, kernels = units
+            for k, kernel in enumerate(kernels):
+                unit = work / f"{module_c.stem}.unit{k:03d}.c"
+                unit.write_text(_unit_text(module_c, preamble, kernel))
+                sources.append(unit)
+        sources += [work / f.name for f in runtime if f.suffix == ".c"]
+        objects = {src: work / f"{src.stem}.o" for src in sources}
+        compiler = _compiler_command() + ccshared + args + include
+        commands = {src: compiler + ["-c", str(src), "-o", str(objects[src])] for src in sources}
+        # largest first: the longest compile starts at once, the small ones fill the gaps
+        order = sorted(sources, key=lambda src: -src.stat().st_size)
+        with ThreadPoolExecutor(max_workers=_build_jobs()) as pool:
+            procs = dict(
+                zip(
+                    order,
+                    pool.map(lambda src: _run_compiler(commands[src], work, src.name), order),
+                )
+            )
+        failed = [src for src in sources if procs[src].returncode != 0]
+        if failed:
+            first = procs[failed[0]]
+            # each distinct message once (an error in the preamble is every unit's)
+            texts_failed = "\n".join(
+                dict.fromkeys(
+                    (procs[src].stderr or procs[src].stdout or "").strip() for src in failed
+                )
+            )
+            raise BuildError(
+                f"compiling {files['.c'].name} failed (exit {first.returncode}):\n"
+                f"{shlex.join(commands[failed[0]])}\n{texts_failed[-4000:]}"
+            )
+        link = (
             _compiler_command()
             + ccshared
             + args
-            + include
-            + [str(wrapper), str(work / files[".c"].name)]
-            + [str(work / f.name) for f in runtime if f.suffix == ".c"]
+            + [str(objects[src]) for src in sources]
             + ["-o", str(out / so_name)]
             + [f"-l{lib}" for lib in libraries]
         )
-        _compile(command, work, out / so_name, target, files[".c"].name)
+        proc = _run_compiler(link, work, so_name)
+        if proc.returncode != 0:
+            text = (proc.stderr or proc.stdout or "").strip()
+            raise BuildError(
+                f"linking {files['.c'].name} failed (exit {proc.returncode}):\n"
+                f"{shlex.join(link)}\n{text[-4000:]}"
+            )
+        _publish(out / so_name, target, link, [commands[src] for src in sources])
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
 
-def _compile(command: list[str], work: Path, built: Path, target: Path, source_name: str) -> None:
-    """Run the compiler command (in ``work``), then write the manifest of ``built`` beside it
-    and rename its folder to ``target`` in one atomic step; BuildError with the compiler's
-    text when it fails."""
-    try:
-        proc = subprocess.run(
-            command,
-            cwd=work,
-            capture_output=True,
-            text=True,
-            timeout=_BUILD_TIMEOUT_S,
-            stdin=subprocess.DEVNULL,
-        )
-    except FileNotFoundError as exc:
-        raise BuildError(
-            f"no C compiler: {command[0]!r} was not found (set CC, or use "
-            "backend='reference', which needs none)"
-        ) from exc
-    except subprocess.TimeoutExpired as exc:
-        raise BuildError(
-            f"compiling {source_name} took over {_BUILD_TIMEOUT_S} s; gave up"
-        ) from exc
-    if proc.returncode != 0:
-        text = (proc.stderr or proc.stdout or "").strip()
-        raise BuildError(
-            f"compiling {source_name} failed (exit {proc.returncode}):\n"
-            f"{shlex.join(command)}\n{text[-4000:]}"
-        )
+def _publish(built: Path, target: Path, command: list[str], compile_commands=()) -> None:
+    """Write the manifest of ``built`` (size, SHA-256, the commands) beside it and rename its
+    folder to ``target`` in one atomic step: a reader sees the whole folder or none."""
     manifest = {
         "size": built.stat().st_size,
         "sha256": _digest(built),
         "command": shlex.join(command),
     }
+    if compile_commands:
+        manifest["compile"] = [shlex.join(c) for c in compile_commands]
     (built.parent / _MANIFEST).write_text(json.dumps(manifest, indent=1))
-    os.replace(built.parent, target)  # atomic: a reader sees the whole folder or none
+    os.replace(built.parent, target)
 
 
 def _numpy_include() -> tuple[str, str]:
@@ -420,6 +564,9 @@ def load_extension(source: Path, base_name: str):
     name = Path(source).name
 
     def build(target: Path, so_name: str) -> None:
+        import shutil
+        import tempfile
+
         work = Path(tempfile.mkdtemp(prefix=f"{module_name}.", dir=target.parent))
         try:
             (work / name).write_text(text)  # the compiled text is the hashed text
@@ -441,7 +588,14 @@ def load_extension(source: Path, base_name: str):
                     str(out / so_name),
                 ]
             )
-            _compile(command, work, out / so_name, target, name)
+            proc = _run_compiler(command, work, name)
+            if proc.returncode != 0:
+                message = (proc.stderr or proc.stdout or "").strip()
+                raise BuildError(
+                    f"compiling {name} failed (exit {proc.returncode}):\n"
+                    f"{shlex.join(command)}\n{message[-4000:]}"
+                )
+            _publish(out / so_name, target, command)
         finally:
             shutil.rmtree(work, ignore_errors=True)
 

@@ -25,23 +25,26 @@ from deltagen.native.parallel import run_rows
 from deltagen.paths import generated_dir
 
 
-def source_dir(desc, render: bool = True) -> Path | None:
+def source_dir(desc, render: bool = True, first: bool = False) -> Path | None:
     """generated/ when it holds this description's checked-in module (bundled robots; kept
     current by `deltagen generate --check`), else a cache folder keyed by the description
     and the generator, rendered on first use (None instead when ``render`` is false and it
-    has not been rendered yet)."""
+    has not been rendered yet). ``first``: the first-load module (codegen.serial.arm_sources),
+    never checked in."""
     name = base_name(desc)
-    header = generated_dir() / f"{name}.h"
-    stamp = f"Description fingerprint: {description_fingerprint(desc)}"
-    if header.is_file() and stamp in header.read_text():
-        return generated_dir()
-    key = hashlib.sha256((desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
-    folder = usable_cache_dir() / "sources" / f"{name}_{key}"
+    if not first:
+        header = generated_dir() / f"{name}.h"
+        stamp = f"Description fingerprint: {description_fingerprint(desc)}"
+        if header.is_file() and stamp in header.read_text():
+            return generated_dir()
+    part = "first\0" if first else ""
+    key = hashlib.sha256((part + desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
+    folder = usable_cache_dir() / "sources" / f"{name}_{'first_' if first else ''}{key}"
     if not (folder / f"{name}.cdef.h").is_file():
         if not render:
             return None
         folder.mkdir(parents=True, exist_ok=True)
-        sources = arm_sources(desc)
+        sources = arm_sources(desc, first)
         # the .cdef.h marks a complete folder, so it is written last
         for file_name in sorted(sources, key=lambda f: f.endswith(".cdef.h")):
             tmp = folder / f".{file_name}.{os.getpid()}.{threading.get_ident()}.tmp"
@@ -58,17 +61,28 @@ def _opt(folder: Path) -> str:
     return "-O3" if folder == generated_dir() else "-O2"
 
 
-def module_ready(desc) -> bool:
+def module_ready(desc, first: bool = False) -> bool:
     """True when the description's module loads without SymPy or a compiler: checked in
     under generated/, or rendered and compiled into the cache before."""
-    folder = source_dir(desc, render=False)
+    folder = source_dir(desc, render=False, first=first)
     return folder is not None and is_built(base_name(desc), c_prefix(desc), folder, _opt(folder))
 
 
-def _load(desc):
-    folder = source_dir(desc)
+def _load(desc, first: bool = False):
+    folder = source_dir(desc, first=first)
     assert folder is not None
     return load(base_name(desc), c_prefix(desc), folder, _opt(folder))
+
+
+def complete_module(desc):
+    """The description's module with every kernel (kinematics, ik_all, dynamics when it has
+    inertials), built if needed: what `deltagen generate ROBOT_FILE` leaves in the cache."""
+    return _load(desc)
+
+
+# kernels the first-load module of a new arm leaves out (codegen.serial.arm_sources): built
+# with the complete kinematics module on their first call
+_LATER_KINEMATICS = frozenset(("jacobian_dot", "ik_all"))
 
 
 # kernels only the full module has
@@ -91,17 +105,25 @@ class CompiledArm:
         self.desc = desc
         self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
         self._prefix = c_prefix(desc)  # of the C functions: deltagen_<name>
-        # An arm with inertials whose module is not built yet (a new URDF or robot file)
-        # starts from its kinematics alone: deriving and compiling the dynamics is most of
-        # a cold load, so they are made on the first dynamics call (load_dynamics). The
-        # kinematic kernels of both modules come from the same derivation: same results.
+        # An arm whose module is not built yet (a new URDF or robot file) starts from the
+        # kernels most calls need (fk, frames, jacobian, fk_jacobian, ik_newton: the
+        # first-load module): jacobian_dot, the closed-form ik_all (SymPy and the compiler
+        # spend half of a UR5's cold load on it) and the dynamics are derived and compiled
+        # on their first call, the kinematics (load_kinematics) apart from the dynamics
+        # (load_dynamics). Every module's kernels come from the same derivation: same
+        # results. A module built before is loaded at once, the most complete one first.
         self._dynamics_lock = threading.Lock()
         self._dynamics: Any = None
-        if desc.has_inertia and not module_ready(desc):
-            module = _load(desc.without_inertia())
-        else:
+        self._kinematics: Any = None
+        self._kinematics_desc = desc.without_inertia() if desc.has_inertia else desc
+        if module_ready(desc):
             module = _load(desc)
+            self._kinematics = module
             self._dynamics = module if desc.has_inertia else None
+        elif desc.has_inertia and module_ready(self._kinematics_desc):
+            module = self._kinematics = _load(self._kinematics_desc)
+        else:
+            module = _load(self._kinematics_desc, first=True)
         self._ffi, self._lib = module.ffi, module.lib
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
@@ -223,6 +245,19 @@ class CompiledArm:
                     self._dynamics = _load(self.desc)
         return self._dynamics
 
+    def load_kinematics(self):
+        """The module with every kinematic kernel (jacobian_dot, ik_all too): the one loaded
+        at first when it was built before, else rendered and compiled on first use."""
+        if self._kinematics is None:
+            with self._dynamics_lock:
+                if self._kinematics is None:
+                    self._kinematics = (
+                        self._dynamics
+                        if self._dynamics is not None
+                        else _load(self._kinematics_desc)
+                    )
+        return self._kinematics
+
     @property
     def dynamics_loaded(self) -> bool:
         return self._dynamics is not None
@@ -230,7 +265,12 @@ class CompiledArm:
     def c_function(self, name: str):
         """(ffi, function) of the generated C function <prefix>_<name>, from the module
         that has it (for callers that time or drive the C directly)."""
-        module = self.load_dynamics() if name in _DYNAMICS else None
+        if name in _DYNAMICS:
+            module = self.load_dynamics()
+        elif name in _LATER_KINEMATICS:
+            module = self.load_kinematics()
+        else:
+            module = None
         ffi, lib = (module.ffi, module.lib) if module else (self._ffi, self._lib)
         return ffi, getattr(lib, f"{self._prefix}_{name}")
 
@@ -273,7 +313,10 @@ class CompiledArm:
 
     @property
     def has_ik_all(self) -> bool:
-        return hasattr(self._lib, f"{self._prefix}_ik_all")
+        """True when the arm's C has a closed-form ik_all (asking builds the complete
+        kinematics module of a new arm: whether a closed form exists is found by deriving
+        it)."""
+        return hasattr(self.load_kinematics().lib, f"{self._prefix}_ik_all")
 
     def ik_all(self, T, k):
         """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
@@ -288,9 +331,10 @@ class CompiledArm:
         call (other inputs; a status other than OK)."""
         if not self.has_ik_all:
             return None
-        fn = getattr(self._lib, f"{self._prefix}_ik_all")
+        module = self.load_kinematics()
+        fn = getattr(module.lib, f"{self._prefix}_ik_all")
         n = self.desc.n
-        return single_call(self._ffi, fn, (1,), ["pose"], [((k, n), "double"), ((k,), "uint8_t")])
+        return single_call(module.ffi, fn, (1,), ["pose"], [((k, n), "double"), ((k,), "uint8_t")])
 
     def single(self, name):
         """Lean path (native.lean) for one configuration of fk or jacobian: what

@@ -330,6 +330,12 @@ class ArmKernels:
             self.nonlinear_effects(),
         )
 
+    def first(self) -> tuple:
+        """The kernels a new arm loads with (fk, frames, jacobian, fk_jacobian: what the
+        numerical IK and the single calls use); jacobian_dot, ik_all and the dynamics are
+        rendered and compiled on their first use (native/serial.py)."""
+        return (self.fk(), self.frames(), self.jacobian(), self.fk_jacobian())
+
     def all(self):
         kernels = [
             self.fk(),
