@@ -175,6 +175,59 @@ class Arm:
         )
         return q, margin, status
 
+    def solver(self, cond_limit: float, imag_tol: float, start, newton, qlim, limits: bool):
+        """A one-call solve (deltagen_general6r_solve) with everything but the poses packed
+        once: ``call(T (N, 4, 4) float64 C-contiguous)`` -> (q (N, 16, 6), valid (N, 16)
+        bool, status (N,)). ``newton``: (function address, options address, limits (6, 2)
+        or None, keep-alive) of the arm's Newton kernel (numeric.polisher's ``kernel``);
+        ``qlim`` (6, 2): the limits of the fit."""
+        ffi, lib = self._ffi, self._lib
+        fn_addr, opt_addr, newton_qlim, keep = newton
+        fn = ffi.cast("deltagen_general6r_newton_fn", fn_addr)
+        opts = ffi.cast("const struct deltagen_ik_options *", opt_addr)
+        start = np.ascontiguousarray(start, dtype=np.float64)
+        qlim = np.ascontiguousarray(qlim, dtype=np.float64)
+        if qlim.shape != (6, 2):
+            raise ValueError(f"qlim: shape {qlim.shape}, expected (6, 2)")
+        nq = ffi.NULL
+        if newton_qlim is not None:
+            newton_qlim = np.ascontiguousarray(newton_qlim, dtype=np.float64)
+            nq = ffi.cast("double *", ffi.from_buffer(newton_qlim))
+        p_start = ffi.cast("double *", ffi.from_buffer(start))
+        p_qlim = ffi.cast("double *", ffi.from_buffer(qlim))
+        struct, run = self.struct, lib.deltagen_general6r_solve
+        cond_limit, imag_tol, lim = float(cond_limit), float(imag_tol), int(bool(limits))
+        fb = ffi.from_buffer
+        empty = np.empty
+
+        def call(T):
+            N = T.shape[0]
+            q = empty((N, 16, 6))
+            valid = empty((N, 16), dtype=np.bool_)
+            found = empty(N, dtype=np.int32)
+            status = empty(N, dtype=np.int32)
+            run(
+                fb("double[]", T),
+                N,
+                struct,
+                cond_limit,
+                imag_tol,
+                p_start,
+                fn,
+                opts,
+                nq,
+                p_qlim,
+                lim,
+                fb("double[]", q, require_writable=True),
+                fb("unsigned char[]", valid, require_writable=True),
+                fb("int[]", found, require_writable=True),
+                fb("int[]", status, require_writable=True),
+            )
+            return q, valid, status
+
+        call.keep = (keep, start, qlim, newton_qlim, fn, opts)  # alive with the closure
+        return call
+
 
 def finish(qs, conv, qlim, limits: bool):
     """deltagen_general6r_finish: (q (N, 16, 6), valid (N, 16) bool, found (N,)) from

@@ -630,11 +630,47 @@ def solve(
     polished by Newton; converged, distinct solutions fill the first of the 16 slots.
     ``engine``: the eigen step's (:func:`eigen_engine`).
     Returns q (N, 16, 6), valid (N, 16) (module docstring)."""
+    T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
+    engine = eigen_engine(arm, engine)
+    if engine == "c" and len(eliminations) == 1 and extra is None and not info:
+        one = _one_call(arm, eliminations[0], tol, max_iter, limits)
+        if one is not None:  # starts, Newton and finish in one C call
+            q, valid, status = one(T if T.flags.c_contiguous else np.ascontiguousarray(T))
+            redo = np.flatnonzero(status)
+            if redo.size:  # declined poses: the staged path (numpy starts), pose by pose
+                q[redo], valid[redo] = _solve_staged(
+                    arm, T[redo], eliminations, None, tol, max_iter, limits, False, engine
+                )
+            return q, valid
+    return _solve_staged(arm, T, eliminations, extra, tol, max_iter, limits, info, engine)
+
+
+def _one_call(arm, g, tol, max_iter, limits):
+    """The one-call C solve (native.general6r.Arm.solver: deltagen_general6r_solve) of
+    elimination ``g`` with the arm's own Newton kernel (numeric.polisher's), cached per
+    arm; None where the compiled Newton engine does not apply."""
+    polish = _polisher(arm, tol, max_iter)
+    kernel = getattr(polish, "kernel", None)
+    if kernel is None:
+        return None
+    try:
+        cached = _POLISHERS.setdefault(arm, {})
+    except TypeError:
+        cached = {}
+    key = ("one_call", g, float(tol), int(max_iter), bool(limits))
+    if key not in cached:
+        cached[key] = g._native().solver(
+            COND_STANDARD, g.imag_tol, _START, kernel, g.ax.qlim, limits
+        )
+    return cached[key]
+
+
+def _solve_staged(arm, T, eliminations, extra, tol, max_iter, limits, info, engine):
+    """solve() in stages: the candidates of every elimination (C or numpy), Newton on all
+    of them in one call, the distinct solutions."""
     from deltagen.solve import numeric as ik_numeric
 
-    T = np.asarray(T, dtype=float).reshape(-1, 4, 4)
     N = T.shape[0]
-    engine = eigen_engine(arm, engine)
     parts = [g.starts(T, engine) for g in eliminations]
     q0 = np.concatenate([p[0] for p in parts] + ([] if extra is None else [extra]), axis=1)
     has = np.all(np.isfinite(q0), axis=-1)

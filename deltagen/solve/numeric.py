@@ -944,4 +944,13 @@ def polisher(arm, tol=1e-10, max_iter=30):
         ok = (status == st.OK) & np.all(np.isfinite(q), axis=1)
         return q, ok & np.isfinite(ep) & np.isfinite(er)
 
+    # the same kernel and options for a C caller (the general 6R solver's one-call path,
+    # native/general6r.py): (function address, options address, qlim, keep-alive)
+    ffi = core._ffi
+    call.kernel = (
+        int(ffi.cast("uintptr_t", core._ik_newton)),
+        int(ffi.cast("uintptr_t", packed)),
+        qlim,
+        packed,
+    )
     return call

@@ -712,3 +712,70 @@ void deltagen_general6r_finish(const double *qs, const unsigned char *conv, int 
         found[n] = taken;
     }
 }
+
+/* ------------------------------------------------------------------ the whole solve */
+
+void deltagen_general6r_solve(const double *T, int count, const deltagen_general6r_arm *arm,
+                              double cond_limit, double imag_tol, const double *start,
+                              deltagen_general6r_newton_fn newton,
+                              const struct deltagen_ik_options *newton_options,
+                              const double *newton_qlim, const double *qlim, int limits,
+                              double *q, unsigned char *valid, int *found, int *status)
+{
+    enum { S = DELTAGEN_GENERAL6R_SLOTS };
+    for (int n = 0; n < count; ++n) {
+        const double *Tn = T + 16 * (size_t)n;
+        double *qn = q + (size_t)n * S * 6;
+        unsigned char *vn = valid + (size_t)n * S;
+        /* the candidates (deltagen_general6r_starts on one pose) */
+        double cand[S * 6], margin;
+        int stn = 0;
+        deltagen_general6r_starts(Tn, 1, arm, cond_limit, imag_tol, start, cand, &margin, &stn);
+        /* Newton on the finite candidates, in slot order (general6r.solve's rows) */
+        double Tk[S * 16], q0[S * 6], qk[S * 6], err_p[S], err_r[S];
+        int32_t iterations[S];
+        int8_t st[S];
+        int slot[S], k = 0;
+        if (stn == 0) {
+            for (int s = 0; s < S; ++s) {
+                int finite = 1;
+                for (int j = 0; j < 6; ++j) {
+                    finite &= isfinite(cand[6 * s + j]) != 0;
+                }
+                if (finite) {
+                    memcpy(Tk + 16 * k, Tn, 16 * sizeof(double));
+                    memcpy(q0 + 6 * k, cand + 6 * s, 6 * sizeof(double));
+                    slot[k++] = s;
+                }
+            }
+            if (k > 0 && newton((size_t)k, newton_options, Tk, q0, newton_qlim, qk, err_p, err_r,
+                                iterations, st) != 0) {
+                stn = 6;
+            }
+        }
+        status[n] = stn;
+        if (stn != 0) {
+            for (int i = 0; i < S * 6; ++i) {
+                qn[i] = NAN;
+            }
+            memset(vn, 0, S);
+            found[n] = 0;
+            continue;
+        }
+        double qs[S * 6], fitted[S * 6];
+        unsigned char conv[S];
+        for (int i = 0; i < S * 6; ++i) {
+            qs[i] = NAN;
+        }
+        memset(conv, 0, S);
+        for (int i = 0; i < k; ++i) {
+            int ok = st[i] == 0 && isfinite(err_p[i]) && isfinite(err_r[i]);
+            for (int j = 0; j < 6; ++j) {
+                qs[6 * slot[i] + j] = qk[6 * i + j];
+                ok &= isfinite(qk[6 * i + j]) != 0;
+            }
+            conv[slot[i]] = (unsigned char)ok;
+        }
+        deltagen_general6r_finish(qs, conv, 1, S, qlim, limits, fitted, qn, vn, found + n);
+    }
+}

@@ -13,6 +13,9 @@
 
 #include "deltagen_eigen.h"
 
+#include <stddef.h>
+#include <stdint.h>
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -77,6 +80,39 @@ void deltagen_general6r_starts(const double *T, int count, const deltagen_genera
 void deltagen_general6r_finish(const double *qs, const unsigned char *conv, int count, int S,
                                const double *qlim, int limits, double *fitted, double *q,
                                unsigned char *valid, int *found);
+
+/* An arm's damped Newton kernel (the generated deltagen_<arm>_ik_newton: its header documents
+ * every argument; the options struct is the runtime's deltagen_ik_newton.h, opaque here).
+ * The general 6R module is arm-independent: the arm's kernel comes in as a pointer. */
+struct deltagen_ik_options;
+typedef int (*deltagen_general6r_newton_fn)(size_t n, const struct deltagen_ik_options *options,
+                                            const double *T_target, const double *q0,
+                                            const double *qlim, double *q, double *err_p,
+                                            double *err_r, int32_t *iterations,
+                                            int8_t *status);
+
+/* Every solution of every pose in one call (general6r.solve on the C path): per pose the
+ * candidates (deltagen_general6r_starts), each polished by the arm's Newton kernel (one
+ * call per pose on its finite candidates; converged: status DELTAGEN_OK and q, err_p, err_r
+ * finite), then the limits fit and the duplicates (deltagen_general6r_finish, S = 16).
+ * Every pose is independent of the others: a batch gives each pose the bits it gets alone.
+ *   T        (count, 4, 4) tool poses (m)
+ *   arm, cond_limit, imag_tol, start: as deltagen_general6r_starts
+ *   newton, newton_options: the arm's Newton kernel and its options (restarts 0)
+ *   newton_qlim (6, 2) the limits handed to the Newton kernel (rad), or NULL
+ *   qlim, limits: as deltagen_general6r_finish
+ *   q        (count, 16, 6) out: the solutions (rad), NaN in unused slots
+ *   valid    (count, 16) out: 1 where a solution is valid (deltagen_general6r_finish)
+ *   found    (count,) out: the number of distinct solutions
+ *   status   (count,) out: 0 done; 1-5 deltagen_general6r_starts' status; 6 the Newton
+ *            kernel rejected its arguments. For status != 0 q is NaN, valid 0, found 0: the
+ *            caller solves the pose another way (the numpy path). */
+void deltagen_general6r_solve(const double *T, int count, const deltagen_general6r_arm *arm,
+                              double cond_limit, double imag_tol, const double *start,
+                              deltagen_general6r_newton_fn newton,
+                              const struct deltagen_ik_options *newton_options,
+                              const double *newton_qlim, const double *qlim, int limits,
+                              double *q, unsigned char *valid, int *found, int *status);
 
 /* cffi: end */
 
