@@ -365,3 +365,47 @@ def test_without_the_c_module_the_numpy_engine_serves(monkeypatch):
     Q, valid = arm.ik_all(arm.fk(q), method="complete")
     err = np.abs((Q - q[:, None] + np.pi) % (2 * np.pi) - np.pi).max(-1)
     assert (np.where(valid, err, np.inf).min(-1) < 1e-6).all()
+
+
+def _compiled(name):
+    if name == "ur5":
+        return SerialRobot.load("ur5", backend="compiled", threads=1)
+    ref = _arm(name)
+    return SerialRobot(ref.description, backend="compiled", threads=1)
+
+
+@pytest.mark.parametrize(
+    "name", ["ur5", pytest.param("jaco", marks=pytest.mark.slow), pytest.param("random", marks=pytest.mark.slow)]
+)
+def test_one_call_equals_the_staged_c_path(name, monkeypatch):
+    """deltagen_general6r_solve (starts, Newton through the arm's kernel pointer, finish in
+    one C call) against the staged C path (three C calls with Python between, written
+    apart): the same bits for every pose; one pose at a time (general6r.solve and
+    ik_all's single-pose path) the same bits as the batch; poses the one call declines
+    (here all of them: a condition limit of 1) get the staged path's answer."""
+    arm = _compiled(name)
+    elim, complete = arm._general()
+    assert complete and general6r.eigen_engine(arm) == "c"
+    q = np.random.default_rng(21).uniform(-np.pi, np.pi, (120, 6))
+    T = np.ascontiguousarray(arm.fk(q))
+    staged = general6r._solve_staged(arm, T, elim, None, 1e-10, 30, True, False, "c")
+    one = general6r.solve(arm, T, elim)
+    api = arm.ik_all(T, method="complete")
+    for a, b in ((staged, one), (one, api)):
+        assert np.array_equal(a[0], b[0], equal_nan=True) and np.array_equal(a[1], b[1])
+    assert one[1].sum() > 2 * T.shape[0]  # solutions were found at all
+    for i in range(0, T.shape[0], 5):
+        Qi, Vi = arm.ik_all(T[i], method="complete")
+        assert Qi.shape == (16, 6) and Vi.dtype == bool
+        assert np.array_equal(Qi, one[0][i], equal_nan=True) and np.array_equal(Vi, one[1][i])
+        Qs, Vs = general6r.solve(arm, T[i], elim)
+        assert np.array_equal(Qs[0], one[0][i], equal_nan=True)
+    # every pose declined by the one call: the staged path answers, the same bits
+    monkeypatch.setattr(general6r, "COND_STANDARD", 1.0)
+    fresh = _compiled(name) if name != "ur5" else SerialRobot.load("ur5", backend="compiled")
+    (g,), _ = fresh._general()
+    status = general6r._one_call(fresh, g, 1e-10, 30, True)(T[:10])[2]
+    assert (status != 0).all()
+    a = general6r._solve_staged(fresh, T[:10], [g], None, 1e-10, 30, True, False, "c")
+    b = general6r.solve(fresh, T[:10], [g])
+    assert np.array_equal(a[0], b[0], equal_nan=True) and np.array_equal(a[1], b[1])

@@ -109,6 +109,7 @@ class SerialRobot:
 
     _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
     _ik_all_single: Any  # the C closed form's one-pose path, once ik_all has made it
+    _general_single: Any  # the complete solver's one-pose path (None: not made yet)
     _id_single: Any  # one-state inverse_dynamics / forward_dynamics (compiled, with inertia)
     _fd_single: Any
     _mass_single: Any
@@ -136,6 +137,7 @@ class SerialRobot:
             self._fk_single = self._core.single("fk")
             self._jacobian_single = self._core.single("jacobian")
             self._ik_all_single = None  # made by ik_all when the arm has a C closed form
+            self._general_single = None  # the complete solver's one-pose path (ik_all)
             # the one-state dynamics paths are made on the first dynamics call: the core may
             # defer building the dynamics until then (native.serial.CompiledArm)
             self._id_single = self._fd_single = self._mass_single = None
@@ -145,6 +147,7 @@ class SerialRobot:
 
             self._core = _ReferenceArm(reference, description)
             self._fk_single = self._jacobian_single = self._ik_all_single = None
+            self._general_single = False  # numpy engine: the general path
             self._id_single = self._fd_single = self._mass_single = None
             self._dynamics_singles_pending = False
         self._threads = threads
@@ -691,6 +694,13 @@ class SerialRobot:
                 raise InputError(f"{self.name}: the complete solver needs a 6R arm")
             from deltagen.solve import general6r
 
+            if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64 and general[1]:
+                # one pose: one C call (general6r.single), after the same check as _poses'
+                one = self._general_single
+                if one is None:
+                    one = self._general_single = general6r.single(self, general[0]) or False
+                if one and _check_one_pose(T.ravel().tolist())[1]:
+                    return one(T if T.flags.c_contiguous else np.ascontiguousarray(T))
             lead, flat, finite, rigid = self._poses(T)
             safe = flat.copy()
             safe[~rigid] = np.eye(4)

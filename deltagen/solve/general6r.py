@@ -88,7 +88,7 @@ from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
 from deltagen.model.structure import joint_axes
 
-__all__ = ["General6R", "K", "distinct", "eigen_engine", "eliminations", "solve"]
+__all__ = ["General6R", "K", "distinct", "eigen_engine", "eliminations", "single", "solve"]
 
 K = 16  # solution slots
 _GRID = np.array([0.0, 2.0 * np.pi / 3.0, 4.0 * np.pi / 3.0])
@@ -643,6 +643,30 @@ def solve(
                 )
             return q, valid
     return _solve_staged(arm, T, eliminations, extra, tol, max_iter, limits, info, engine)
+
+
+def single(arm, eliminations, *, tol=1e-10, max_iter=30, limits=True):
+    """A one-pose form of :func:`solve` for SerialRobot.ik_all's single-pose path:
+    ``call(T (4, 4) float64 C-contiguous, a finite rigid transform)`` -> (q (16, 6),
+    valid (16,)), the bits solve() gives that pose (the same C call; a declined pose goes
+    through solve()'s staged path). None where the one-call C path does not apply (not
+    the compiled engine, or more than one elimination)."""
+    if len(eliminations) != 1 or eigen_engine(arm) != "c":
+        return None
+    one = _one_call(arm, eliminations[0], tol, max_iter, limits)
+    if one is None:
+        return None
+
+    def call(T):
+        T1 = T.reshape(1, 4, 4)
+        q, valid, status = one(T1)
+        if status[0]:
+            q, valid = _solve_staged(
+                arm, T1, eliminations, None, tol, max_iter, limits, False, "c"
+            )
+        return q[0], valid[0]
+
+    return call
 
 
 def _one_call(arm, g, tol, max_iter, limits):
