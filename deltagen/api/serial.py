@@ -679,6 +679,16 @@ class SerialRobot:
         "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
+        one = self._general_single
+        if (
+            one
+            and type(T) is np.ndarray
+            and T.shape == (4, 4)
+            and T.dtype is _F64
+            and (method == "complete" or (method == "auto" and one.auto))
+            and _check_one_pose(T.ravel().tolist())[1]
+        ):  # one pose, complete solver: one C call (general6r.single), after _poses' check
+            return one(T if T.flags.c_contiguous else np.ascontiguousarray(T))
         if method not in ("auto", "closed_form", "complete", "combined"):
             raise InputError(
                 f'method must be "auto", "closed_form", "complete" or "combined", got {method!r}'
@@ -694,13 +704,12 @@ class SerialRobot:
                 raise InputError(f"{self.name}: the complete solver needs a 6R arm")
             from deltagen.solve import general6r
 
-            if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64 and general[1]:
-                # one pose: one C call (general6r.single), after the same check as _poses'
-                one = self._general_single
-                if one is None:
-                    one = self._general_single = general6r.single(self, general[0]) or False
-                if one and _check_one_pose(T.ravel().tolist())[1]:
-                    return one(T if T.flags.c_contiguous else np.ascontiguousarray(T))
+            if one is None and general[1]:  # made once: the fast path above from now on
+                one = self._general_single = general6r.single(self, general[0]) or False
+                if one:
+                    one.auto = solver is None  # "auto" is "complete" here (checked above)
+                    if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64:
+                        return self.ik_all(T, method)
             lead, flat, finite, rigid = self._poses(T)
             safe = flat.copy()
             safe[~rigid] = np.eye(4)

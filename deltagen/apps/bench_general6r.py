@@ -15,8 +15,10 @@ solution per call, its own restarts, tol for 1e-10) on the same targets for scal
 The split (module docstring of solve/general6r.py): on a compiled arm the per-pose
 algebra and the eigen step are hand-written C (codegen/runtime/deltagen_general6r.c, one
 arm-independent module; its 24 x 24 eigenvalues by deltagen_eigen.c's Hessenberg + Francis
-QR), the Newton polish is the arm's generated C, and the rest (limits, duplicates, the
-poses the C path declines: QZ per pose where M2 is ill conditioned) batched numpy. Beside
+QR), the Newton polish is the arm's generated C (called from there through a function
+pointer), the limits fit and the duplicates C too: one C call per batch, or per pose
+(deltagen_general6r_solve); only the poses the C path declines (QZ per pose where M2 is
+ill conditioned) go through numpy. Beside
 each arm's ``ik_all`` rows, the same solver with the numpy/LAPACK engine (``engine=
 "numpy"``: the path before the C one, still the reference backend's) in the same run.
 """

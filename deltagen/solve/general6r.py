@@ -46,7 +46,12 @@ split"). Two engines compute the same steps (``engine``, :func:`eigen_engine`):
   (Golub & Van Loan, Alg. 7.4.2, 7.5.1, 7.5.2; eigenvalues only), the null vectors by the
   same inverse iteration, theta 1..6 (``deltagen_general6r_starts``); the Newton polish by
   the arm's generated C (numeric.polisher: solve()'s call, options packed once); the
-  limits fit and the duplicates (``deltagen_general6r_finish``). Poses the C path
+  limits fit and the duplicates (``deltagen_general6r_finish``). All of it is one C call
+  (``deltagen_general6r_solve``, :func:`_one_call`; the arm's Newton kernel passed in as a
+  function pointer, the module stays arm-independent) for a batch of any size, and
+  :func:`single` is SerialRobot.ik_all's one-pose path around it (~5 us of Python); the
+  staged form (three C calls, :func:`_solve_staged`) serves the declined poses, several
+  eliminations, extra starts and ``info``. Poses the C path
   declines (Q nearly rank deficient: SVD; M2's 1-norm condition > ``COND_STANDARD``:
   QZ; a failure) go through the numpy path, pose by pose;
 - "numpy", the reference (and the reference backend's): batched numpy, the eigen step by
