@@ -375,7 +375,12 @@ def _compiled(name):
 
 
 @pytest.mark.parametrize(
-    "name", ["ur5", pytest.param("jaco", marks=pytest.mark.slow), pytest.param("random", marks=pytest.mark.slow)]
+    "name",
+    [
+        "ur5",
+        pytest.param("jaco", marks=pytest.mark.slow),
+        pytest.param("random", marks=pytest.mark.slow),
+    ],
 )
 def test_one_call_equals_the_staged_c_path(name, monkeypatch):
     """deltagen_general6r_solve (starts, Newton through the arm's kernel pointer, finish in
@@ -400,6 +405,12 @@ def test_one_call_equals_the_staged_c_path(name, monkeypatch):
         assert np.array_equal(Qi, one[0][i], equal_nan=True) and np.array_equal(Vi, one[1][i])
         Qs, Vs = general6r.solve(arm, T[i], elim)
         assert np.array_equal(Qs[0], one[0][i], equal_nan=True)
+    # a non-contiguous pose: the same bits; a non-rigid or NaN one: NaN, nothing valid
+    Qf, Vf = arm.ik_all(np.asfortranarray(T[3]), method="complete")
+    assert np.array_equal(Qf, one[0][3], equal_nan=True) and np.array_equal(Vf, one[1][3])
+    for bad in (T[3] * 1.5, np.where(np.eye(4, dtype=bool), np.nan, T[3])):
+        Qb, Vb = arm.ik_all(bad, method="complete")
+        assert Qb.shape == (16, 6) and np.isnan(Qb).all() and not Vb.any()
     # every pose declined by the one call: the staged path answers, the same bits
     monkeypatch.setattr(general6r, "COND_STANDARD", 1.0)
     fresh = _compiled(name) if name != "ur5" else SerialRobot.load("ur5", backend="compiled")

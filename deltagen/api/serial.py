@@ -705,9 +705,10 @@ class SerialRobot:
             from deltagen.solve import general6r
 
             if one is None and general[1]:  # made once: the fast path above from now on
-                one = self._general_single = general6r.single(self, general[0]) or False
-                if one:
-                    one.auto = solver is None  # "auto" is "complete" here (checked above)
+                made = general6r.single(self, general[0])
+                self._general_single = made if made is not None else False
+                if made is not None:
+                    made.auto = solver is None  # "auto" is "complete" here (checked above)
                     if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64:
                         return self.ik_all(T, method)
             lead, flat, finite, rigid = self._poses(T)

@@ -666,9 +666,7 @@ def single(arm, eliminations, *, tol=1e-10, max_iter=30, limits=True):
         T1 = T.reshape(1, 4, 4)
         q, valid, status = one(T1)
         if status[0]:
-            q, valid = _solve_staged(
-                arm, T1, eliminations, None, tol, max_iter, limits, False, "c"
-            )
+            q, valid = _solve_staged(arm, T1, eliminations, None, tol, max_iter, limits, False, "c")
         return q[0], valid[0]
 
     return call
