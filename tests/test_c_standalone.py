@@ -17,7 +17,7 @@ import pytest
 from delta_oracles import DEFAULT, KLIPPER, random_q, well_conditioned
 
 from deltagen import paths
-from deltagen.native.build import compile_flags
+from deltagen.native.build import compile_flags, runtime_files
 from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, UNREACHABLE
 
@@ -559,8 +559,8 @@ def _copy_runtime(dest):
         shutil.copy(path, dest)
 
 
-def _check_symbols(objects, cwd):
-    """Only libm symbols undefined (besides the objects' own), no global data."""
+def _check_symbols(objects, cwd, allowed=LIBM):
+    """Only libm symbols (``allowed``) undefined besides the objects' own, no global data."""
     nm = shutil.which("nm")
     if nm is None:
         return
@@ -576,7 +576,7 @@ def _check_symbols(objects, cwd):
             elif len(parts) == 3:
                 defined.add(parts[2])
                 kinds.add(parts[1])
-    assert undefined - defined <= LIBM, sorted(undefined - defined - LIBM)
+    assert undefined - defined <= allowed, sorted(undefined - defined - allowed)
     assert not kinds & set("DdBbCGgSsVv")
 
 
@@ -589,13 +589,35 @@ def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
     _copy_runtime(tmp_path)
     prefix = "deltagen_" + name[len("serial_") : -2]
     args, _ = compile_flags(prefix)
+    texts = [(tmp_path / name.replace(".c", ext)).read_text() for ext in (".c", ".h")]
+    # the runtime C the module includes (what build.py compiles beside it and an export ships)
+    runtime = sorted(f.name for f in runtime_files(texts) if f.suffix == ".c")
+    assert "deltagen_linalg.c" in runtime
     objects = []
-    for source in [name, *RUNTIME_SOURCES]:
+    for source in [name, *runtime]:
         obj = source.replace(".c", ".o")
         _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
         _gcc([*args, "-pedantic", "-Werror", "-c", source, "-o", "v_" + obj], cwd=tmp_path)
         objects.append(obj)
     _check_symbols(objects, tmp_path)
+
+
+#: what GCC requires of every environment, freestanding ones included ("GCC requires the
+#: freestanding environment provide memcpy, memmove, memset and memcmp", GCC manual,
+#: "C Language"): it may call them for copies and zero fills the C never names
+GCC_REQUIRED = {"memcpy", "memmove", "memset", "memcmp"}
+
+
+def test_general6r_runtime_compiles_strict(tmp_path):
+    """The general-6R solver's C (host side, one module for every arm; no arm module or
+    export includes it): strict C99 warning-free, no global data, libm and GCC's four."""
+    _copy_runtime(tmp_path)
+    objects = []
+    for source in ("deltagen_eigen.c", "deltagen_general6r.c"):
+        obj = source.replace(".c", ".o")
+        _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
+        objects.append(obj)
+    _check_symbols(objects, tmp_path, allowed=LIBM | GCC_REQUIRED)
 
 
 def _long_arm(n_joints):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
+from test_ik_general6r import _random_arm
 
 from deltagen import SerialRobot
 from deltagen.solve import general6r
@@ -141,17 +142,7 @@ def _arm(name):
             row.update(offset=float(link.offset), flip=bool(link.isflip))
             rows.append(row)
         return SerialRobot.from_dh(rows, "standard", name="jaco_c", backend="reference")
-    r = np.random.default_rng(11)
-    rows = [
-        dict(
-            a=float(r.uniform(0.1, 0.8)),
-            alpha=float(r.uniform(-np.pi, np.pi)),
-            d=float(r.uniform(-0.5, 0.5)),
-            offset=float(r.uniform(-1, 1)),
-        )
-        for _ in range(6)
-    ]
-    return SerialRobot.from_dh(rows, "standard", name="random6r_c", backend="reference")
+    return _random_arm(11, "random6r_c")
 
 
 def _pencils(arm, n, seed):

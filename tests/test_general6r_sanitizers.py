@@ -14,6 +14,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from test_ik_general6r import _random_arm
 
 from deltagen import SerialRobot, paths
 from deltagen.solve import general6r
@@ -164,17 +165,7 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
     if which == "ur5":
         arm = SerialRobot.load("ur5", backend="reference")
     else:
-        r = np.random.default_rng(17)
-        rows = [
-            dict(
-                a=float(r.uniform(0.1, 0.8)),
-                alpha=float(r.uniform(-np.pi, np.pi)),
-                d=float(r.uniform(-0.5, 0.5)),
-                offset=float(r.uniform(-1, 1)),
-            )
-            for _ in range(6)
-        ]
-        arm = SerialRobot.from_dh(rows, "standard", name="san6r", backend="reference")
+        arm = _random_arm(17, "san6r")
     (g,), _ = arm._general()
     rng = np.random.default_rng(18)
     T = arm.fk(rng.uniform(-np.pi, np.pi, (24, 6)))

@@ -25,7 +25,8 @@ def _wrapped(a):
     return np.abs((a + np.pi) % (2 * np.pi) - np.pi)
 
 
-def _random_arm(seed):
+def _random_arm(seed, name=None):
+    """A 6R arm with random DH rows (seeded): no two axes parallel or meeting, in general."""
     r = np.random.default_rng(seed)
     rows = [
         dict(
@@ -36,7 +37,8 @@ def _random_arm(seed):
         )
         for _ in range(6)
     ]
-    return SerialRobot.from_dh(rows, "standard", name=f"random6r_{seed}", backend="reference")
+    name = name or f"random6r_{seed}"
+    return SerialRobot.from_dh(rows, "standard", name=name, backend="reference")
 
 
 def _found(Q, valid, q, tol=1e-6):
