@@ -330,10 +330,12 @@ def test_analytic_jacobian_raises_at_the_euler_singularity():
 @pytest.mark.slow  # two cold builds
 def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     """A new arm with inertials loads its kinematics alone (SymPy and the compiler do the
-    dynamics only on the first dynamics call, and then only the dynamics part: no
-    kinematics, no ik_all, no Coriolis matrix); the first call of each dynamics kernel
-    gives the reference's values; the Coriolis part is built on its own first call; a
-    second robot of the same description in the same cache builds nothing."""
+    dynamics only on the first dynamics call, and then only the part of that kernel: the
+    first inverse_dynamics derives and compiles inverse_dynamics and gravity_torque alone,
+    no kinematics, no ik_all, no M, h or Coriolis matrix); the first call of each dynamics
+    kernel gives the reference's values; the "mass" and "coriolis" parts are built on
+    their own first calls; a second robot of the same description in the same cache
+    builds nothing."""
     from deltagen.native.serial import module_ready
 
     monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path))
@@ -368,17 +370,23 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     assert core.dynamics_loaded
     dynamics_lib = core.load_dynamics().lib
     prefix = "deltagen_lazy_arm"
-    for kernel in ("inverse_dynamics", "mass_matrix", "gravity_torque", "nonlinear_effects"):
+    for kernel in ("inverse_dynamics", "gravity_torque"):
         assert hasattr(dynamics_lib, f"{prefix}_{kernel}")
-    for kernel in ("fk", "jacobian", "ik_newton", "jacobian_dot", "coriolis"):
+    for kernel in ("fk", "jacobian", "ik_newton", "jacobian_dot", "mass_matrix", "coriolis"):
         assert not hasattr(dynamics_lib, f"{prefix}_{kernel}")  # not derived nor compiled
-    assert "coriolis" not in core._parts and "later" not in core._parts
+    assert set(core._parts) == {"dynamics"}
     np.testing.assert_allclose(
         tau, reference.inverse_dynamics(q[0], qd[0], qdd[0]), rtol=1e-12, atol=1e-12
     )
     tol = dict(rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(arm.mass_matrix(q), reference.mass_matrix(q), **tol)
     np.testing.assert_allclose(arm.gravity_torque(q), reference.gravity_torque(q), **tol)
+    assert set(core._parts) == {"dynamics"}
+    # the one-state forward dynamics first: the "mass" part (M, h and the C wrapper)
+    np.testing.assert_allclose(
+        arm.forward_dynamics(q[1], qd[1], tau), reference.forward_dynamics(q[1], qd[1], tau), **tol
+    )
+    assert set(core._parts) == {"dynamics", "mass"}
+    np.testing.assert_allclose(arm.mass_matrix(q), reference.mass_matrix(q), **tol)
     np.testing.assert_allclose(
         arm.nonlinear_effects(q, qd), reference.nonlinear_effects(q, qd), **tol
     )
@@ -387,7 +395,7 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     )
     np.testing.assert_allclose(arm.coriolis(q, qd), reference.coriolis(q, qd), **tol)
     assert "coriolis" in core._parts
-    for part in ("first", "dynamics", "coriolis"):
+    for part in ("first", "dynamics", "mass", "coriolis"):
         desc = arm.description if part != "first" else arm.description.without_inertia()
         assert module_ready(desc, part=part)
     assert not module_ready(arm.description)  # the complete module was never built

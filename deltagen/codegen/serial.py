@@ -73,17 +73,17 @@ def arm_unit(desc, part: str = "all") -> Unit:
     """The module's frame; ``part``: "all" (every kernel) or one of the parts a new arm's
     module is built in (derive.serial.kernels.PARTS): "first" (fk, frames, jacobian,
     fk_jacobian and the numerical IK), "later" (jacobian_dot, ik_all), "dynamics" (inverse
-    dynamics, M, g, h and the forward dynamics), "coriolis"."""
+    dynamics, g), "mass" (M, h and the forward dynamics), "coriolis"."""
     from deltagen.codegen.render import Unit
 
     joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
-    dynamics = desc.has_inertia and part in ("all", "dynamics", "coriolis")
+    dynamics = desc.has_inertia and part in ("all", "dynamics", "mass", "coriolis")
     title = {
         "all": "kinematics" + (" and dynamics" if desc.has_inertia else ""),
         "first": "first-load kinematics (fk, frames, jacobian, fk_jacobian, ik_newton)",
         "later": "deferred kinematics (jacobian_dot, closed-form ik_all)",
-        "dynamics": "dynamics (inverse_dynamics, mass_matrix, gravity_torque, "
-        "nonlinear_effects, forward_dynamics)",
+        "dynamics": "inverse dynamics and gravity torque",
+        "mass": "mass matrix, nonlinear effects and forward dynamics",
         "coriolis": "Coriolis matrix",
     }[part]
     return Unit(
@@ -116,7 +116,7 @@ def arm_unit(desc, part: str = "all") -> Unit:
         ),
         dynamics=(
             dict(n=desc.n, tol=repr(MASS_MATRIX_TOL))
-            if desc.has_inertia and part in ("all", "dynamics")
+            if desc.has_inertia and part in ("all", "mass")
             else None
         ),
     )

@@ -83,15 +83,15 @@ def complete_module(desc):
 
 
 # the part of a new arm's module (derive.serial.kernels.PARTS) that holds each kernel the
-# first-load module leaves out; forward_dynamics is the C wrapper of the "dynamics" part
+# first-load module leaves out; forward_dynamics is the C wrapper of the "mass" part
 _PART_OF = {
     "jacobian_dot": "later",
     "ik_all": "later",
     "inverse_dynamics": "dynamics",
-    "nonlinear_effects": "dynamics",
     "gravity_torque": "dynamics",
-    "mass_matrix": "dynamics",
-    "forward_dynamics": "dynamics",
+    "nonlinear_effects": "mass",
+    "mass_matrix": "mass",
+    "forward_dynamics": "mass",
     "coriolis": "coriolis",
 }
 
@@ -108,8 +108,8 @@ class CompiledArm:
         # "first" part); the other parts (derive.serial.kernels.PARTS) are derived and
         # compiled on the first call of one of their kernels, each alone (part_module):
         # "later" (jacobian_dot and the closed-form ik_all: SymPy and the compiler spend
-        # half of a UR5's cold load on it), "dynamics" (inverse/forward dynamics, M, g, h)
-        # and "coriolis". No part derives or compiles another's kernels. Every part's
+        # half of a UR5's cold load on it), "dynamics" (inverse dynamics and g), "mass" (M,
+        # h and the forward dynamics) and "coriolis". No part derives or compiles another's kernels. Every part's
         # kernels come from the same derivation code as the complete module's: same C
         # text per kernel, same results. A complete module built before (`deltagen
         # generate`, a bundled robot) is loaded at once and serves every kernel.
@@ -118,9 +118,10 @@ class CompiledArm:
         self._kinematics_desc = desc.without_inertia() if desc.has_inertia else desc
         if module_ready(desc):
             module = _load(desc)
-            self._parts = dict.fromkeys(("later", "dynamics", "coriolis"), module)
+            self._parts = dict.fromkeys(("later", "dynamics", "mass", "coriolis"), module)
             if not desc.has_inertia:
-                del self._parts["dynamics"], self._parts["coriolis"]
+                for part in ("dynamics", "mass", "coriolis"):
+                    del self._parts[part]
         elif desc.has_inertia and module_ready(self._kinematics_desc):
             module = self._parts["later"] = _load(self._kinematics_desc)
         else:
@@ -239,7 +240,7 @@ class CompiledArm:
 
     def part_module(self, part: str):
         """The module holding ``part``'s kernels (derive.serial.kernels.PARTS: "later",
-        "dynamics" or "coriolis"): the complete module when it was loaded at first, else
+        "dynamics", "mass" or "coriolis"): the complete module when it was loaded at first, else
         that part alone, loaded from the cache or rendered and compiled on first use."""
         module = self._parts.get(part)
         if module is None:
@@ -251,8 +252,8 @@ class CompiledArm:
         return module
 
     def load_dynamics(self):
-        """The module of inverse_dynamics, mass_matrix, gravity_torque, nonlinear_effects
-        and forward_dynamics, built on first use for a new arm."""
+        """The module of inverse_dynamics and gravity_torque, built on first use for a new
+        arm (the complete module when it was built before)."""
         return self.part_module("dynamics")
 
     def load_kinematics(self):
@@ -297,14 +298,14 @@ class CompiledArm:
         """Lean path (native.lean) for one state of inverse_dynamics or forward_dynamics:
         three rows of n numbers (inputs.plain_row) in, the (n,) result out, or None when
         the general path must handle the call (other inputs, a status other than OK)."""
-        module, n = self.load_dynamics(), self.desc.n
+        module, n = self.part_module(_PART_OF[name]), self.desc.n
         fn = getattr(module.lib, f"{self._prefix}_{name}")
         return single_call(module.ffi, fn, (1,), [n, n, n], [((n,), "double")])
 
     def single_mass_matrix(self):
         """Lean path of mass_matrix for one q (inputs.plain_row): M (n, n), or None when the
         general path must handle the call."""
-        module, n = self.load_dynamics(), self.desc.n
+        module, n = self.part_module("mass"), self.desc.n
         fn = getattr(module.lib, f"{self._prefix}_mass_matrix")
         return single_call(module.ffi, fn, (1,), [n], [((n, n), "double")])
 
