@@ -330,9 +330,14 @@ def test_analytic_jacobian_raises_at_the_euler_singularity():
 @pytest.mark.slow  # two cold builds
 def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     """A new arm with inertials loads its kinematics alone (SymPy and the compiler do the
-    dynamics only on the first dynamics call); the lazily built full module gives the same
-    kinematics bit for bit and dynamics equal to the reference; a second robot of the same
-    description in the same cache gets the full module at once."""
+    dynamics only on the first dynamics call, and then only the part of that kernel: the
+    first inverse_dynamics derives and compiles inverse_dynamics and gravity_torque alone,
+    no kinematics, no ik_all, no M, h or Coriolis matrix); the first call of each dynamics
+    kernel gives the reference's values; the "mass" and "coriolis" parts are built on
+    their own first calls; a second robot of the same description in the same cache
+    builds nothing."""
+    from deltagen.native.serial import module_ready
+
     monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path))
     rows = [
         dict(
@@ -363,22 +368,50 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     assert not core.dynamics_loaded
     tau = arm.inverse_dynamics(q[0], qd[0], qdd[0])  # the one-state path, first
     assert core.dynamics_loaded
+    dynamics_lib = core.load_dynamics().lib
+    prefix = "deltagen_lazy_arm"
+    for kernel in ("inverse_dynamics", "gravity_torque"):
+        assert hasattr(dynamics_lib, f"{prefix}_{kernel}")
+    for kernel in ("fk", "jacobian", "ik_newton", "jacobian_dot", "mass_matrix", "coriolis"):
+        assert not hasattr(dynamics_lib, f"{prefix}_{kernel}")  # not derived nor compiled
+    assert set(core._parts) == {"dynamics"}
     np.testing.assert_allclose(
         tau, reference.inverse_dynamics(q[0], qd[0], qdd[0]), rtol=1e-12, atol=1e-12
     )
-    np.testing.assert_allclose(arm.mass_matrix(q), reference.mass_matrix(q), rtol=1e-12, atol=1e-12)
+    tol = dict(rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(arm.gravity_torque(q), reference.gravity_torque(q), **tol)
+    assert set(core._parts) == {"dynamics"}
+    # the one-state forward dynamics first: the "mass" part (M, h and the C wrapper)
+    np.testing.assert_allclose(
+        arm.forward_dynamics(q[1], qd[1], tau), reference.forward_dynamics(q[1], qd[1], tau), **tol
+    )
+    assert set(core._parts) == {"dynamics", "mass"}
+    np.testing.assert_allclose(arm.mass_matrix(q), reference.mass_matrix(q), **tol)
+    np.testing.assert_allclose(
+        arm.nonlinear_effects(q, qd), reference.nonlinear_effects(q, qd), **tol
+    )
+    np.testing.assert_allclose(
+        arm.forward_dynamics(q, qd, tau), reference.forward_dynamics(q, qd, tau), **tol
+    )
+    np.testing.assert_allclose(arm.coriolis(q, qd), reference.coriolis(q, qd), **tol)
+    assert "coriolis" in core._parts
+    for part in ("first", "dynamics", "mass", "coriolis"):
+        desc = arm.description if part != "first" else arm.description.without_inertia()
+        assert module_ready(desc, part=part)
+    assert not module_ready(arm.description)  # the complete module was never built
     again = SerialRobot.from_dh(rows, "standard", name="lazy_arm")
-    assert again._core.dynamics_loaded  # built before: the full module at once
+    assert not again._core.dynamics_loaded
     assert np.array_equal(again.fk(q), T)
+    assert np.array_equal(again.inverse_dynamics(q, qd, qdd), arm.inverse_dynamics(q, qd, qdd))
 
 
 @pytest.mark.slow  # two cold builds
 def test_jacobian_dot_and_ik_all_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     """A new arm loads fk, frames, jacobian, fk_jacobian and ik_newton alone (issue 10,
     cold load: a UR5's closed-form ik_all was half of it); its first ik_all or
-    jacobian_dot builds the complete kinematics module, whose results equal the reference
-    backend's and whose fk is the first module's bit for bit; a second robot of the same
-    description gets the complete module at once."""
+    jacobian_dot builds the "later" part alone (jacobian_dot and ik_all, not the kernels
+    already built), whose results equal the reference backend's; a second robot of the
+    same description loads that part from the cache."""
     import dataclasses
 
     from deltagen.model.serial import SerialDescription
@@ -391,7 +424,7 @@ def test_jacobian_dot_and_ik_all_are_built_on_first_use_and_agree(tmp_path, monk
     reference = arm.with_backend("reference")
     core = arm._core
     prefix = "deltagen_lazy_puma"
-    assert core._kinematics is None
+    assert "later" not in core._parts
     assert not hasattr(core._lib, f"{prefix}_ik_all")
     assert not hasattr(core._lib, f"{prefix}_jacobian_dot")
     rng = np.random.default_rng(12)
@@ -402,9 +435,12 @@ def test_jacobian_dot_and_ik_all_are_built_on_first_use_and_agree(tmp_path, monk
     np.testing.assert_allclose(T, reference.fk(q), rtol=0, atol=1e-13)
     q_ik, _ = arm.ik(T[:20], q0=q[:20] + 0.03, method="numeric", errors="nan")  # ik_newton
     np.testing.assert_allclose(reference.fk(q_ik), T[:20], rtol=0, atol=1e-9)
-    assert core._kinematics is None  # the numerical IK needs no more than the first module
+    assert "later" not in core._parts  # the numerical IK needs no more than the first module
     Q, valid = arm.ik_all(T)
-    assert core._kinematics is not None and hasattr(core._kinematics.lib, f"{prefix}_ik_all")
+    later = core._parts["later"].lib
+    assert hasattr(later, f"{prefix}_ik_all") and hasattr(later, f"{prefix}_jacobian_dot")
+    for kernel in ("fk", "frames", "jacobian", "fk_jacobian", "ik_newton"):
+        assert not hasattr(later, f"{prefix}_{kernel}")  # built once, in the first module
     Q_ref, valid_ref = reference.ik_all(T)
     assert np.array_equal(valid, valid_ref)
     np.testing.assert_allclose(Q[valid], Q_ref[valid], rtol=0, atol=1e-9)
@@ -413,5 +449,9 @@ def test_jacobian_dot_and_ik_all_are_built_on_first_use_and_agree(tmp_path, monk
         arm.jacobian_dot(q, qd), reference.jacobian_dot(q, qd), rtol=1e-12, atol=1e-12
     )
     again = SerialRobot(desc)
-    assert again._core._kinematics is not None  # built before: the complete module at once
+    from deltagen.native.serial import module_ready
+
+    assert module_ready(desc, part="later")  # its first ik_all builds nothing
     assert np.array_equal(again.fk(q), T)
+    Q2, valid2 = again.ik_all(T)
+    assert np.array_equal(valid2, valid) and np.array_equal(Q2[valid], Q[valid])

@@ -104,16 +104,20 @@ def bundled_urdfs() -> list[str]:
     return [path.stem for path in sorted(robots_dir().glob("*.urdf"))]
 
 
+_PENDING = object()  # a one-state path not made yet
+
+
 class SerialRobot:
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
     _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
     _ik_all_single: Any  # the C closed form's one-pose path, once ik_all has made it
     _general_single: Any  # the complete solver's one-pose path (None: not made yet)
-    _id_single: Any  # one-state inverse_dynamics / forward_dynamics (compiled, with inertia)
+    # one-state inverse_dynamics / forward_dynamics / mass_matrix (compiled, with inertia):
+    # _PENDING until the first call of that kernel
+    _id_single: Any
     _fd_single: Any
     _mass_single: Any
-    _dynamics_singles_pending: bool
 
     def __init__(
         self,
@@ -138,10 +142,10 @@ class SerialRobot:
             self._jacobian_single = self._core.single("jacobian")
             self._ik_all_single = None  # made by ik_all when the arm has a C closed form
             self._general_single = None  # the complete solver's one-pose path (ik_all)
-            # the one-state dynamics paths are made on the first dynamics call: the core may
-            # defer building the dynamics until then (native.serial.CompiledArm)
-            self._id_single = self._fd_single = self._mass_single = None
-            self._dynamics_singles_pending = description.has_inertia
+            # each one-state dynamics path is made on the first call of its kernel: the core
+            # may defer building that kernel until then (native.serial.CompiledArm)
+            pending = _PENDING if description.has_inertia else None
+            self._id_single = self._fd_single = self._mass_single = pending
         else:
             from deltagen.reference import serial as reference
 
@@ -149,7 +153,6 @@ class SerialRobot:
             self._fk_single = self._jacobian_single = self._ik_all_single = None
             self._general_single = False  # numpy engine: the general path
             self._id_single = self._fd_single = self._mass_single = None
-            self._dynamics_singles_pending = False
         self._threads = threads
 
     @property
@@ -474,12 +477,20 @@ class SerialRobot:
     # Newton-Euler in generated C (derive/serial/dynamics.py), or the Jacobian-form numpy
     # reference. Torques in N m (N for prismatic joints); gravity from the description.
 
-    def _make_dynamics_singles(self) -> None:
-        core = self._core
-        self._id_single = core.single_dynamics("inverse_dynamics")
-        self._fd_single = core.single_dynamics("forward_dynamics")
-        self._mass_single = core.single_mass_matrix()
-        self._dynamics_singles_pending = False
+    def _dynamics_single(self, name: str) -> Any:
+        """The one-state path of ``name`` (inverse_dynamics, forward_dynamics,
+        mass_matrix), made on its first call; None when there is none."""
+        attr = {"inverse_dynamics": "_id_single", "forward_dynamics": "_fd_single"}.get(
+            name, "_mass_single"
+        )
+        single = getattr(self, attr)
+        if single is _PENDING:
+            core = self._core
+            single = (
+                core.single_mass_matrix() if attr == "_mass_single" else core.single_dynamics(name)
+            )
+            setattr(self, attr, single)
+        return single
 
     def _dynamics(self):
         """The core, after checking that the arm has inertial parameters."""
@@ -496,10 +507,9 @@ class SerialRobot:
     ) -> Result:
         """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
         viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
-        if self._dynamics_singles_pending:
-            self._make_dynamics_singles()
-        if self._id_single is not None and errors == "raise":
-            tau = self._id_single(q, qd, qdd)
+        id_single = self._dynamics_single("inverse_dynamics")
+        if id_single is not None and errors == "raise":
+            tau = id_single(q, qd, qdd)
             if tau is not None:
                 return tau
         core = self._dynamics()
@@ -512,10 +522,9 @@ class SerialRobot:
 
     def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
-        if self._dynamics_singles_pending:
-            self._make_dynamics_singles()
-        if self._mass_single is not None and errors == "raise":
-            M = self._mass_single(q)
+        mass_single = self._dynamics_single("mass_matrix")
+        if mass_single is not None and errors == "raise":
+            M = mass_single(q)
             if M is not None:
                 return M
         core = self._dynamics()
@@ -552,10 +561,9 @@ class SerialRobot:
     ) -> Result:
         """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
         SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
-        if self._dynamics_singles_pending:
-            self._make_dynamics_singles()
-        if self._fd_single is not None and errors == "raise":
-            qdd = self._fd_single(q, qd, tau)
+        fd_single = self._dynamics_single("forward_dynamics")
+        if fd_single is not None and errors == "raise":
+            qdd = fd_single(q, qd, tau)
             if qdd is not None:
                 return qdd
         core = self._dynamics()

@@ -16,6 +16,11 @@ used (PYTHONDONTWRITEBYTECODE is dropped), as for an installed package. Arms: th
 ``robots/ur5.urdf`` (6 axes) and ``robots/panda.urdf`` (7 axes) loaded under a name of their
 own (``name="<stem>_new"``: not the checked-in module of the bundled robot, so the load is a
 new arm's) and CHAIN20, a 20-joint standard-DH chain.
+
+``--call KERNEL`` (inverse_dynamics, forward_dynamics, mass_matrix, coriolis, ik_all or
+jacobian_dot) also times the first call of that kernel after the cold load, in the cold
+process (a new arm derives and compiles the part of its module that holds the kernel on
+its first call, native/serial.py): ``call_cpu`` / ``call_wall``.
 """
 
 from __future__ import annotations
@@ -63,14 +68,26 @@ def load():
     return SerialRobot.from_urdf(path, name=path.stem + "_new")
 arm = load()
 w2, c2 = time.perf_counter(), usage()
+call = sys.argv[2] if len(sys.argv) > 2 else ""
+call_wall = call_cpu = 0.0
+if call:
+    import numpy as np
+    q = np.full(arm.n, 0.3)
+    args = {"inverse_dynamics": (q, q, q), "forward_dynamics": (q, q, q), "coriolis": (q, q),
+            "jacobian_dot": (q, q), "ik_all": (arm.fk(q),)}.get(call, (q,))
+    wa, ca = time.perf_counter(), usage()
+    getattr(arm, call)(*args)
+    call_wall, call_cpu = time.perf_counter() - wa, usage() - ca
+w2b, c2b = time.perf_counter(), usage()
 arm = load()
 w3, c3 = time.perf_counter(), usage()
 print(json.dumps(dict(import_wall=w1 - w0, import_cpu=c1 - c0, first_wall=w2 - w1,
-                      first_cpu=c2 - c1, second_wall=w3 - w2, second_cpu=c3 - c2)))
+                      first_cpu=c2 - c1, second_wall=w3 - w2b, second_cpu=c3 - c2b,
+                      call_wall=call_wall, call_cpu=call_cpu)))
 """
 
 
-def _run(arm: str, cache: Path, env_extra: dict | None = None) -> dict:
+def _run(arm: str, cache: Path, env_extra: dict | None = None, call: str = "") -> dict:
     env = dict(os.environ, DELTAGEN_CACHE=str(cache))
     # an installed package has its bytecode: without it every import compiles the source
     # (70 ms of a warm load)
@@ -80,16 +97,21 @@ def _run(arm: str, cache: Path, env_extra: dict | None = None) -> dict:
     root = Path(__file__).resolve().parents[2]
     env["PYTHONPATH"] = str(root) + os.pathsep + env.get("PYTHONPATH", "")
     out = subprocess.run(
-        [sys.executable, "-c", _CHILD, arm], env=env, capture_output=True, text=True, check=True
+        [sys.executable, "-c", _CHILD, arm, call],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
     )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def measure(arm: str, env_extra: dict | None = None) -> dict:
-    """One cold load (fresh cache) and one warm process on that cache: seconds."""
+def measure(arm: str, env_extra: dict | None = None, call: str = "") -> dict:
+    """One cold load (fresh cache) and one warm process on that cache: seconds. ``call``:
+    a kernel whose first call after the cold load is timed too (call_cpu, call_wall)."""
     cache = Path(tempfile.mkdtemp(prefix="deltagen-load-"))
     try:
-        cold = _run(arm, cache, env_extra)
+        cold = _run(arm, cache, env_extra, call)
         warm = _run(arm, cache, env_extra)
     finally:
         shutil.rmtree(cache, ignore_errors=True)
@@ -102,6 +124,11 @@ def measure(arm: str, env_extra: dict | None = None) -> dict:
         "warm_second_cpu": warm["second_cpu"],
         "warm_second_wall": warm["second_wall"],
         "import_wall": warm["import_wall"],
+        **(
+            {"call": call, "call_cpu": cold["call_cpu"], "call_wall": cold["call_wall"]}
+            if call
+            else {}
+        ),
         "load_avg": os.getloadavg()[0],
     }
 
@@ -136,19 +163,32 @@ def table(results: list[dict]) -> str:
 
 
 def main(argv=None) -> None:
-    """``python -m deltagen.apps.bench_load [--repeats R] [ARM ...]``: JSON lines per
-    measurement (arms round-robin, R rounds), then the Markdown table."""
+    """``python -m deltagen.apps.bench_load [--repeats R] [--call KERNEL] [ARM ...]``: JSON
+    lines per measurement (arms round-robin, R rounds), then the Markdown table."""
     args = list(sys.argv[1:] if argv is None else argv)
-    repeats = 1
-    if args[:1] == ["--repeats"]:
-        repeats, args = int(args[1]), args[2:]
+    repeats, call = 1, ""
+    while args[:1] in (["--repeats"], ["--call"]):
+        if args[0] == "--repeats":
+            repeats = int(args[1])
+        else:
+            call = args[1]
+        args = args[2:]
     arms = args or list(ARMS)
     results = []
     for _ in range(repeats):
         for arm in arms:
-            results.append(measure(arm))
+            results.append(measure(arm, call=call))
             print(json.dumps(results[-1]), flush=True)
     print(table(results))
+    if call:
+        for arm in arms:
+            cpu = [r["call_cpu"] for r in results if r["arm"] == arm]
+            wall = [r["call_wall"] for r in results if r["arm"] == arm]
+            print(
+                f"first {call} after the cold load of {arm}: CPU {_median(cpu):.1f} s "
+                f"[{min(cpu):.1f}, {max(cpu):.1f}], wall {_median(wall):.1f} s "
+                f"[{min(wall):.1f}, {max(wall):.1f}]"
+            )
 
 
 if __name__ == "__main__":

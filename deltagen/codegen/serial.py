@@ -69,15 +69,23 @@ def generator_fingerprint() -> str:
     return digest.hexdigest()[:16]
 
 
-def arm_unit(desc, first: bool = False) -> Unit:
-    """The module's frame; ``first``: the module a new arm loads with (ArmKernels.first:
-    fk, frames, jacobian, fk_jacobian and the numerical IK, no dynamics)."""
+def arm_unit(desc, part: str = "all") -> Unit:
+    """The module's frame; ``part``: "all" (every kernel) or one of the parts a new arm's
+    module is built in (derive.serial.kernels.PARTS): "first" (fk, frames, jacobian,
+    fk_jacobian and the numerical IK), "later" (jacobian_dot, ik_all), "dynamics" (inverse
+    dynamics, g), "mass" (M, h and the forward dynamics), "coriolis"."""
     from deltagen.codegen.render import Unit
 
     joints = ", ".join(f"{'R' if j.revolute else 'P'}" for j in desc.joints)
-    title = "kinematics" + (" and dynamics" if desc.has_inertia and not first else "")
-    if first:
-        title = "first-load kinematics (fk, frames, jacobian, fk_jacobian, ik_newton)"
+    dynamics = desc.has_inertia and part in ("all", "dynamics", "mass", "coriolis")
+    title = {
+        "all": "kinematics" + (" and dynamics" if desc.has_inertia else ""),
+        "first": "first-load kinematics (fk, frames, jacobian, fk_jacobian, ik_newton)",
+        "later": "deferred kinematics (jacobian_dot, closed-form ik_all)",
+        "dynamics": "inverse dynamics and gravity torque",
+        "mass": "mass matrix, nonlinear effects and forward dynamics",
+        "coriolis": "Coriolis matrix",
+    }[part]
     return Unit(
         prefix=c_prefix(desc),
         base_name=base_name(desc),
@@ -96,26 +104,32 @@ def arm_unit(desc, first: bool = False) -> Unit:
                     f"gravity {list(desc.gravity)} m/s^2 in the base frame; inertial parameters",
                     "compiled in (link frame i = the frame after A_i).",
                 )
-                if desc.has_inertia and not first
+                if dynamics
                 else ()
             ),
             f"Description fingerprint: {description_fingerprint(desc)}",
         ),
-        newton=dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints]),
+        newton=(
+            dict(n=desc.n, revolute=[int(j.revolute) for j in desc.joints])
+            if part in ("all", "first")
+            else None
+        ),
         dynamics=(
-            dict(n=desc.n, tol=repr(MASS_MATRIX_TOL)) if desc.has_inertia and not first else None
+            dict(n=desc.n, tol=repr(MASS_MATRIX_TOL))
+            if desc.has_inertia and part in ("all", "mass")
+            else None
         ),
     )
 
 
-def arm_sources(desc, first: bool = False) -> dict[str, str]:
-    """The arm's C module: every kernel (what `deltagen generate` writes), or with
-    ``first`` only those a new arm loads with (ArmKernels.first; native/serial.py builds
-    the complete module on the first call of another kernel)."""
+def arm_sources(desc, part: str = "all") -> dict[str, str]:
+    """The arm's C module: every kernel (``part="all"``: what `deltagen generate` writes),
+    or one part of it (derive.serial.kernels.PARTS; native/serial.py builds a new arm's
+    module part by part, each on the first call of one of its kernels): only that part's
+    kernels are derived, lowered and compiled."""
     from deltagen.codegen.lowering import lower
     from deltagen.codegen.render import render
     from deltagen.derive.serial.kernels import ArmKernels
 
-    kernels = ArmKernels(desc)
-    chosen = kernels.first() if first else kernels.all()
-    return render(arm_unit(desc, first), [lower(k) for k in chosen])
+    chosen = ArmKernels(desc).part(part)
+    return render(arm_unit(desc, part), [lower(k) for k in chosen])

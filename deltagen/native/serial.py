@@ -25,26 +25,28 @@ from deltagen.native.parallel import run_rows
 from deltagen.paths import generated_dir
 
 
-def source_dir(desc, render: bool = True, first: bool = False) -> Path | None:
+def source_dir(desc, render: bool = True, part: str = "all") -> Path | None:
     """generated/ when it holds this description's checked-in module (bundled robots; kept
-    current by `deltagen generate --check`), else a cache folder keyed by the description
-    and the generator, rendered on first use (None instead when ``render`` is false and it
-    has not been rendered yet). ``first``: the first-load module (codegen.serial.arm_sources),
-    never checked in."""
+    current by `deltagen generate --check`), else a cache folder keyed by the description,
+    the part and the generator, rendered on first use (None instead when ``render`` is
+    false and it has not been rendered yet). ``part``: "all" (every kernel) or one part of
+    a new arm's module (derive.serial.kernels.PARTS; codegen.serial.arm_sources), never
+    checked in."""
     name = base_name(desc)
-    if not first:
+    if part == "all":
         header = generated_dir() / f"{name}.h"
         stamp = f"Description fingerprint: {description_fingerprint(desc)}"
         if header.is_file() and stamp in header.read_text():
             return generated_dir()
-    part = "first\0" if first else ""
-    key = hashlib.sha256((part + desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
-    folder = usable_cache_dir() / "sources" / f"{name}_{'first_' if first else ''}{key}"
+    tag = "" if part == "all" else part + "\0"
+    key = hashlib.sha256((tag + desc.key() + generator_fingerprint()).encode()).hexdigest()[:16]
+    label = "" if part == "all" else part + "_"
+    folder = usable_cache_dir() / "sources" / f"{name}_{label}{key}"
     if not (folder / f"{name}.cdef.h").is_file():
         if not render:
             return None
         folder.mkdir(parents=True, exist_ok=True)
-        sources = arm_sources(desc, first)
+        sources = arm_sources(desc, part)
         # the .cdef.h marks a complete folder, so it is written last
         for file_name in sorted(sources, key=lambda f: f.endswith(".cdef.h")):
             tmp = folder / f".{file_name}.{os.getpid()}.{threading.get_ident()}.tmp"
@@ -61,15 +63,15 @@ def _opt(folder: Path) -> str:
     return "-O3" if folder == generated_dir() else "-O2"
 
 
-def module_ready(desc, first: bool = False) -> bool:
-    """True when the description's module loads without SymPy or a compiler: checked in
-    under generated/, or rendered and compiled into the cache before."""
-    folder = source_dir(desc, render=False, first=first)
+def module_ready(desc, part: str = "all") -> bool:
+    """True when the description's module (or ``part`` of it) loads without SymPy or a
+    compiler: checked in under generated/, or rendered and compiled into the cache before."""
+    folder = source_dir(desc, render=False, part=part)
     return folder is not None and is_built(base_name(desc), c_prefix(desc), folder, _opt(folder))
 
 
-def _load(desc, first: bool = False):
-    folder = source_dir(desc, first=first)
+def _load(desc, part: str = "all"):
+    folder = source_dir(desc, part=part)
     assert folder is not None
     return load(base_name(desc), c_prefix(desc), folder, _opt(folder))
 
@@ -80,22 +82,18 @@ def complete_module(desc):
     return _load(desc)
 
 
-# kernels the first-load module of a new arm leaves out (codegen.serial.arm_sources): built
-# with the complete kinematics module on their first call
-_LATER_KINEMATICS = frozenset(("jacobian_dot", "ik_all"))
-
-
-# kernels only the full module has
-_DYNAMICS = frozenset(
-    (
-        "inverse_dynamics",
-        "nonlinear_effects",
-        "gravity_torque",
-        "mass_matrix",
-        "coriolis",
-        "forward_dynamics",
-    )
-)
+# the part of a new arm's module (derive.serial.kernels.PARTS) that holds each kernel the
+# first-load module leaves out; forward_dynamics is the C wrapper of the "mass" part
+_PART_OF = {
+    "jacobian_dot": "later",
+    "ik_all": "later",
+    "inverse_dynamics": "dynamics",
+    "gravity_torque": "dynamics",
+    "nonlinear_effects": "mass",
+    "mass_matrix": "mass",
+    "forward_dynamics": "mass",
+    "coriolis": "coriolis",
+}
 
 
 class CompiledArm:
@@ -107,23 +105,27 @@ class CompiledArm:
         self._prefix = c_prefix(desc)  # of the C functions: deltagen_<name>
         # An arm whose module is not built yet (a new URDF or robot file) starts from the
         # kernels most calls need (fk, frames, jacobian, fk_jacobian, ik_newton: the
-        # first-load module): jacobian_dot, the closed-form ik_all (SymPy and the compiler
-        # spend half of a UR5's cold load on it) and the dynamics are derived and compiled
-        # on their first call, the kinematics (load_kinematics) apart from the dynamics
-        # (load_dynamics). Every module's kernels come from the same derivation: same
-        # results. A module built before is loaded at once, the most complete one first.
-        self._dynamics_lock = threading.Lock()
-        self._dynamics: Any = None
-        self._kinematics: Any = None
+        # "first" part); the other parts (derive.serial.kernels.PARTS) are derived and
+        # compiled on the first call of one of their kernels, each alone (part_module):
+        # "later" (jacobian_dot and the closed-form ik_all: SymPy and the compiler spend
+        # half of a UR5's cold load on it), "dynamics" (inverse dynamics and g), "mass" (M,
+        # h and the forward dynamics) and "coriolis". No part derives or compiles another's kernels. Every part's
+        # kernels come from the same derivation code as the complete module's: same C
+        # text per kernel, same results. A complete module built before (`deltagen
+        # generate`, a bundled robot) is loaded at once and serves every kernel.
+        self._lock = threading.Lock()
+        self._parts: dict[str, Any] = {}
         self._kinematics_desc = desc.without_inertia() if desc.has_inertia else desc
         if module_ready(desc):
             module = _load(desc)
-            self._kinematics = module
-            self._dynamics = module if desc.has_inertia else None
+            self._parts = dict.fromkeys(("later", "dynamics", "mass", "coriolis"), module)
+            if not desc.has_inertia:
+                for part in ("dynamics", "mass", "coriolis"):
+                    del self._parts[part]
         elif desc.has_inertia and module_ready(self._kinematics_desc):
-            module = self._kinematics = _load(self._kinematics_desc)
+            module = self._parts["later"] = _load(self._kinematics_desc)
         else:
-            module = _load(self._kinematics_desc, first=True)
+            module = _load(self._kinematics_desc, part="first")
         self._ffi, self._lib = module.ffi, module.lib
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
@@ -236,41 +238,37 @@ class CompiledArm:
 
     # -- dynamics (arms with inertial parameters; the API checks has_inertia first) ------
 
+    def part_module(self, part: str):
+        """The module holding ``part``'s kernels (derive.serial.kernels.PARTS: "later",
+        "dynamics", "mass" or "coriolis"): the complete module when it was loaded at first, else
+        that part alone, loaded from the cache or rendered and compiled on first use."""
+        module = self._parts.get(part)
+        if module is None:
+            with self._lock:
+                module = self._parts.get(part)
+                if module is None:
+                    desc = self._kinematics_desc if part == "later" else self.desc
+                    module = self._parts[part] = _load(desc, part=part)
+        return module
+
     def load_dynamics(self):
-        """The full module (kinematics and dynamics), rendered and compiled on first use
-        when the arm started from its kinematics alone."""
-        if self._dynamics is None:
-            with self._dynamics_lock:
-                if self._dynamics is None:
-                    self._dynamics = _load(self.desc)
-        return self._dynamics
+        """The module of inverse_dynamics and gravity_torque, built on first use for a new
+        arm (the complete module when it was built before)."""
+        return self.part_module("dynamics")
 
     def load_kinematics(self):
-        """The module with every kinematic kernel (jacobian_dot, ik_all too): the one loaded
-        at first when it was built before, else rendered and compiled on first use."""
-        if self._kinematics is None:
-            with self._dynamics_lock:
-                if self._kinematics is None:
-                    self._kinematics = (
-                        self._dynamics
-                        if self._dynamics is not None
-                        else _load(self._kinematics_desc)
-                    )
-        return self._kinematics
+        """The module of jacobian_dot and ik_all, built on first use for a new arm."""
+        return self.part_module("later")
 
     @property
     def dynamics_loaded(self) -> bool:
-        return self._dynamics is not None
+        return "dynamics" in self._parts
 
     def c_function(self, name: str):
         """(ffi, function) of the generated C function <prefix>_<name>, from the module
         that has it (for callers that time or drive the C directly)."""
-        if name in _DYNAMICS:
-            module = self.load_dynamics()
-        elif name in _LATER_KINEMATICS:
-            module = self.load_kinematics()
-        else:
-            module = None
+        part = _PART_OF.get(name)
+        module = self.part_module(part) if part else None
         ffi, lib = (module.ffi, module.lib) if module else (self._ffi, self._lib)
         return ffi, getattr(lib, f"{self._prefix}_{name}")
 
@@ -300,14 +298,14 @@ class CompiledArm:
         """Lean path (native.lean) for one state of inverse_dynamics or forward_dynamics:
         three rows of n numbers (inputs.plain_row) in, the (n,) result out, or None when
         the general path must handle the call (other inputs, a status other than OK)."""
-        module, n = self.load_dynamics(), self.desc.n
+        module, n = self.part_module(_PART_OF[name]), self.desc.n
         fn = getattr(module.lib, f"{self._prefix}_{name}")
         return single_call(module.ffi, fn, (1,), [n, n, n], [((n,), "double")])
 
     def single_mass_matrix(self):
         """Lean path of mass_matrix for one q (inputs.plain_row): M (n, n), or None when the
         general path must handle the call."""
-        module, n = self.load_dynamics(), self.desc.n
+        module, n = self.part_module("mass"), self.desc.n
         fn = getattr(module.lib, f"{self._prefix}_mass_matrix")
         return single_call(module.ffi, fn, (1,), [n], [((n, n), "double")])
 

@@ -38,6 +38,24 @@ def _status():
     return sp.Piecewise((st.INVALID, invalid), (st.OK, True))
 
 
+#: The parts a new arm's module is built in (native/serial.py; issue 10, cold load): each
+#: is rendered and compiled on the first call of one of its kernels, and derives only its
+#: own kernels. "first": what a new arm loads with (the numerical IK's evaluation too);
+#: "later": the rest of the kinematics (a UR5's closed-form ik_all is most of it);
+#: "dynamics": the torques of a motion (inverse dynamics) and of gravity, a fifth of the
+#: dynamics' SymPy for a Panda; "mass": M and h and the forward dynamics (its C wrapper
+#: calls mass_matrix and nonlinear_effects of the same module); "coriolis": the
+#: Christoffel matrix, as much SymPy as the other four together. ``all`` (what
+#: `deltagen generate` writes) has every kernel in its own order (ArmKernels.all).
+PARTS = {
+    "first": ("fk", "frames", "jacobian", "fk_jacobian"),
+    "later": ("jacobian_dot", "ik_all"),
+    "dynamics": ("inverse_dynamics", "gravity_torque"),
+    "mass": ("mass_matrix", "nonlinear_effects"),
+    "coriolis": ("coriolis",),
+}
+
+
 class ArmKernels:
     """Builds the kernels of ``desc`` (a SerialDescription) from one Chain derivation."""
 
@@ -334,7 +352,14 @@ class ArmKernels:
         """The kernels a new arm loads with (fk, frames, jacobian, fk_jacobian: what the
         numerical IK and the single calls use); jacobian_dot, ik_all and the dynamics are
         rendered and compiled on their first use (native/serial.py)."""
-        return (self.fk(), self.frames(), self.jacobian(), self.fk_jacobian())
+        return self.part("first")
+
+    def part(self, part: str) -> tuple:
+        """The kernels of one part of the module (PARTS): only they are derived."""
+        if part == "all":
+            return self.all()
+        kernels = [getattr(self, name)() for name in PARTS[part]]
+        return tuple(k for k in kernels if k is not None)
 
     def all(self):
         kernels = [

@@ -1,0 +1,68 @@
+"""A new arm's module is built in parts (derive.serial.kernels.PARTS, native/serial.py):
+each part's C holds exactly its own kernels, every kernel of the complete module (what
+`deltagen generate` writes) is in exactly one part, and its C text there is the complete
+module's, so a kernel built on demand gives the complete module's results bit for bit."""
+
+from __future__ import annotations
+
+import re
+
+from deltagen import SerialRobot
+from deltagen.codegen.serial import arm_sources
+from deltagen.derive.serial.kernels import PARTS
+from deltagen.native.build import _DEFINITION
+
+ROWS = [
+    dict(
+        a=0.3,
+        alpha=0.4,
+        d=0.1,
+        mass=2.0,
+        com=(-0.1, 0.01, 0.0),
+        inertia=(0.02, 0.03, 0.02, 0, 0, 0),
+    ),
+    dict(
+        a=0.25,
+        alpha=-0.3,
+        d=0.0,
+        mass=1.5,
+        com=(-0.1, 0.0, 0.02),
+        inertia=(0.01, 0.01, 0.02, 0, 0, 0),
+    ),
+    dict(
+        a=0.0, alpha=1.2, d=0.2, mass=0.5, com=(0.0, 0.0, 0.05), inertia=(0.01, 0.01, 0.01, 0, 0, 0)
+    ),
+]
+
+
+def _functions(sources: dict[str, str]) -> dict[str, list[str]]:
+    """C function name -> its definition's lines (to the closing brace at column 0)."""
+    (text,) = [t for f, t in sources.items() if f.endswith(".c")]
+    lines = text.split("\n")
+    out = {}
+    for i, line in enumerate(lines):
+        if _DEFINITION.match(line):  # a top-level definition, as the build splits them
+            name = re.match(r"^[^(]*?\b(\w+)\s*\(", line).group(1)
+            out[name] = lines[i : lines.index("}", i) + 1]
+    return out
+
+
+def test_every_kernel_is_in_one_part_with_the_complete_modules_c():
+    desc = SerialRobot.from_dh(ROWS, "standard", name="parts_arm", backend="reference").description
+    complete = _functions(arm_sources(desc))
+    seen: dict[str, str] = {}
+    for part, kernels in PARTS.items():
+        part_desc = desc.without_inertia() if part in ("first", "later") else desc
+        functions = _functions(arm_sources(part_desc, part))
+        expected = {f"deltagen_parts_arm_{k}" for k in kernels}
+        if part == "first":
+            expected.add("deltagen_parts_arm_ik_newton")
+        if part == "mass":
+            expected.add("deltagen_parts_arm_forward_dynamics")
+        expected &= set(complete)  # ik_all: only where a closed form exists
+        assert set(functions) == expected, part
+        for name, lines in functions.items():
+            assert name not in seen, (name, part, seen.get(name))
+            seen[name] = part
+            assert lines == complete[name], name  # the same C, so the same bits
+    assert set(seen) == set(complete)
