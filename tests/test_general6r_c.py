@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
-from test_ik_general6r import _random_arm
+from test_ik_general6r import _jaco, _random_arm
 
 from deltagen import SerialRobot
 from deltagen.solve import general6r
@@ -135,13 +135,7 @@ def _arm(name):
     if name == "ur5":
         return SerialRobot.load("ur5", backend="reference")
     if name == "jaco":
-        rtb = pytest.importorskip("roboticstoolbox")
-        rows = []
-        for link in rtb.models.DH.Jaco().links:
-            row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
-            row.update(offset=float(link.offset), flip=bool(link.isflip))
-            rows.append(row)
-        return SerialRobot.from_dh(rows, "standard", name="jaco_c", backend="reference")
+        return _jaco("jaco_c")
     return _random_arm(11, "random6r_c")
 
 

@@ -136,14 +136,15 @@ def test_no_solution_is_missed_numeric_multistart():
             assert _wrapped(Q[p][valid[p]] - qn[p, s]).max(-1).min() < 1e-6
 
 
-def _jaco():
+def _jaco(name="jaco_g"):
+    """roboticstoolbox's DH model of the Kinova Jaco (reversed joints as flip)."""
     rtb = pytest.importorskip("roboticstoolbox")
     rows = []
     for link in rtb.models.DH.Jaco().links:
         row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
         row.update(offset=float(link.offset), flip=bool(link.isflip))
         rows.append(row)
-    return SerialRobot.from_dh(rows, "standard", name="jaco_g", backend="reference")
+    return SerialRobot.from_dh(rows, "standard", name=name, backend="reference")
 
 
 def test_jaco_complete_by_a_regular_arrangement():

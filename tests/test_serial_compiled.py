@@ -339,24 +339,9 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     from deltagen.native.serial import module_ready
 
     monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path))
-    rows = [
-        dict(
-            a=0.3,
-            alpha=0.4,
-            d=0.1,
-            mass=2.0,
-            com=(-0.1, 0.01, 0.0),
-            inertia=(0.02, 0.03, 0.02, 0.0, 0.0, 0.0),
-        ),
-        dict(
-            a=0.25,
-            alpha=-0.3,
-            d=0.0,
-            mass=1.5,
-            com=(-0.1, 0.0, 0.02),
-            inertia=(0.01, 0.01, 0.02, 0.0, 0.0, 0.0),
-        ),
-    ]
+    from test_serial_parts import ROWS
+
+    rows = ROWS[:2]  # two links with inertia
     arm = SerialRobot.from_dh(rows, "standard", name="lazy_arm")
     reference = arm.with_backend("reference")
     core = arm._core
