@@ -62,7 +62,10 @@ def _is_ext(f) -> bool:
 def test_single_calls_use_the_extension(puma, delta, puma_python_lean):
     assert lean.extension() is not None
     zero = np.zeros(6)
+    # each one-state function is made on its kernel's first call (api/serial.py)
     puma.inverse_dynamics(zero, zero, zero)
+    puma.forward_dynamics(zero, zero, zero)
+    puma.mass_matrix(zero)
     for f in (puma._fk_single, puma._jacobian_single, puma._id_single, puma._fd_single):
         assert _is_ext(f), f
     assert _is_ext(puma._mass_single)
