@@ -14,6 +14,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from test_c_fuzz_sanitizers import FLAGS
 from test_ik_general6r import _random_arm
 
 from deltagen import SerialRobot, paths
@@ -23,17 +24,6 @@ GCC = shutil.which("gcc")
 pytestmark = [pytest.mark.skipif(GCC is None, reason="gcc not installed"), pytest.mark.slow]
 native_g6r = pytest.importorskip("deltagen.native.general6r")
 
-FLAGS = [
-    "-std=c99",
-    "-pedantic",
-    "-Wall",
-    "-Wextra",
-    "-Werror",
-    "-O0",
-    "-fsanitize=address,undefined",
-    "-fno-sanitize-recover=all",
-    "-fno-omit-frame-pointer",
-]
 
 DRIVER = r"""
 #include <stdio.h>

@@ -192,34 +192,15 @@ def single_call(ffi, fn, lead, rows, outputs):
     buffers = _Buffers(ffi, sizes, outputs, sum(1 for r in rows if r != "scalar"))
     ndarray, f64 = np.ndarray, _F64
 
-    # The common cases are written out below, with the leading arguments (an arm's (1,),
-    # the delta's (geometry, 1, axes)) passed one by one: no argument tuple per call.
-    a0 = lead[0]
+    # The common cases are written out below (the leading arguments: an arm's (1,), the
+    # delta's (geometry, 1, axes)); where the extension is built it serves them instead.
     if len(rows) == 1 and len(outputs) == 1 and rows[0] not in ("scalar", "pose"):
         # fk, ik, jacobian, mass_matrix, ...
         n = rows[0]
         shape_in, nbytes = (n,), 8 * n
         put = row_putter(memmove, n)
 
-        if len(lead) == 1:
-
-            def one(q):
-                x, o, view, status = buffers.b1
-                if type(q) is ndarray and q.dtype is f64 and q.shape == shape_in:
-                    try:
-                        memmove(x, q, nbytes)
-                    except (TypeError, ValueError, BufferError):
-                        return None
-                elif not put(x, q):
-                    return None
-                fn(a0, x, o, status)
-                return view.copy() if status[0] == OK else None
-
-            return one
-
-        g, a1, a2 = lead
-
-        def one_geometry(q):
+        def one(q):
             x, o, view, status = buffers.b1
             if type(q) is ndarray and q.dtype is f64 and q.shape == shape_in:
                 try:
@@ -228,10 +209,10 @@ def single_call(ffi, fn, lead, rows, outputs):
                     return None
             elif not put(x, q):
                 return None
-            fn(g, a1, a2, x, o, status)
+            fn(*lead, x, o, status)
             return view.copy() if status[0] == OK else None
 
-        return one_geometry
+        return one
 
     if rows == ["pose"] and len(outputs) == 2:  # ik_all: q and the valid flags
         put_pose = _put_pose(memmove)
@@ -272,7 +253,7 @@ def single_call(ffi, fn, lead, rows, outputs):
                     return None
             elif not (put(xa, a) and put(xb, b) and put(xc, c)):
                 return None
-            fn(a0, xa, xb, xc, o, status)
+            fn(*lead, xa, xb, xc, o, status)
             return view.copy() if status[0] == OK else None
 
         return three
