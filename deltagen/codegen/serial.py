@@ -71,7 +71,7 @@ def generator_fingerprint() -> str:
 
 def arm_unit(desc, part: str = "all") -> Unit:
     """The module's frame; ``part``: "all" (every kernel) or one of the parts a new arm's
-    module is built in (derive.serial.kernels.PARTS): "first" (fk, frames, jacobian,
+    module is built in (derive.serial.parts.PARTS): "first" (fk, frames, jacobian,
     fk_jacobian and the numerical IK), "later" (jacobian_dot, ik_all), "dynamics" (inverse
     dynamics, g), "mass" (M, h and the forward dynamics), "coriolis"."""
     from deltagen.codegen.render import Unit
@@ -124,7 +124,7 @@ def arm_unit(desc, part: str = "all") -> Unit:
 
 def arm_sources(desc, part: str = "all") -> dict[str, str]:
     """The arm's C module: every kernel (``part="all"``: what `deltagen generate` writes),
-    or one part of it (derive.serial.kernels.PARTS; native/serial.py builds a new arm's
+    or one part of it (derive.serial.parts.PARTS; native/serial.py builds a new arm's
     module part by part, each on the first call of one of its kernels): only that part's
     kernels are derived, lowered and compiled."""
     from deltagen.codegen.lowering import lower

@@ -19,6 +19,7 @@ from deltagen.codegen.serial import (
     description_fingerprint,
     generator_fingerprint,
 )
+from deltagen.derive.serial.parts import PARTS
 from deltagen.native.build import is_built, load, usable_cache_dir
 from deltagen.native.lean import single_call
 from deltagen.native.parallel import run_rows
@@ -30,7 +31,7 @@ def source_dir(desc, render: bool = True, part: str = "all") -> Path | None:
     current by `deltagen generate --check`), else a cache folder keyed by the description,
     the part and the generator, rendered on first use (None instead when ``render`` is
     false and it has not been rendered yet). ``part``: "all" (every kernel) or one part of
-    a new arm's module (derive.serial.kernels.PARTS; codegen.serial.arm_sources), never
+    a new arm's module (derive.serial.parts.PARTS; codegen.serial.arm_sources), never
     checked in."""
     name = base_name(desc)
     if part == "all":
@@ -82,18 +83,12 @@ def complete_module(desc):
     return _load(desc)
 
 
-# the part of a new arm's module (derive.serial.kernels.PARTS) that holds each kernel the
+# the part of a new arm's module (derive.serial.parts.PARTS) that holds each kernel the
 # first-load module leaves out; forward_dynamics is the C wrapper of the "mass" part
 _PART_OF = {
-    "jacobian_dot": "later",
-    "ik_all": "later",
-    "inverse_dynamics": "dynamics",
-    "gravity_torque": "dynamics",
-    "nonlinear_effects": "mass",
-    "mass_matrix": "mass",
-    "forward_dynamics": "mass",
-    "coriolis": "coriolis",
+    kernel: part for part, kernels in PARTS.items() if part != "first" for kernel in kernels
 }
+_PART_OF["forward_dynamics"] = "mass"
 
 
 class CompiledArm:
@@ -105,7 +100,7 @@ class CompiledArm:
         self._prefix = c_prefix(desc)  # of the C functions: deltagen_<name>
         # An arm whose module is not built yet (a new URDF or robot file) starts from the
         # kernels most calls need (fk, frames, jacobian, fk_jacobian, ik_newton: the
-        # "first" part); the other parts (derive.serial.kernels.PARTS) are derived and
+        # "first" part); the other parts (derive.serial.parts.PARTS) are derived and
         # compiled on the first call of one of their kernels, each alone (part_module):
         # "later" (jacobian_dot and the closed-form ik_all: SymPy and the compiler spend
         # half of a UR5's cold load on it), "dynamics" (inverse dynamics and g), "mass" (M,
@@ -239,7 +234,7 @@ class CompiledArm:
     # -- dynamics (arms with inertial parameters; the API checks has_inertia first) ------
 
     def part_module(self, part: str):
-        """The module holding ``part``'s kernels (derive.serial.kernels.PARTS: "later",
+        """The module holding ``part``'s kernels (derive.serial.parts.PARTS: "later",
         "dynamics", "mass" or "coriolis"): the complete module when it was loaded at first, else
         that part alone, loaded from the cache or rendered and compiled on first use."""
         module = self._parts.get(part)
