@@ -71,7 +71,7 @@ typedef struct deltagen_delta_geometry {
  * p         out, n x axes: platform position x, y, z of P in the base frame O [m]; column 4: fourth-axis angle phi = q_4, eq. (43) [rad]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); p is still given where only det J_p is small; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 134 operations per point.
+ * Cost: 130 operations per point.
  * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 7424 bytes (7.2 KiB) at 64, plus scalars.
  */
@@ -88,7 +88,7 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
  * pd        out, n x axes: platform velocity [m/s]; column 4: phidot = qdot_4 [rad/s]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 233 operations per point.
+ * Cost: 225 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -107,7 +107,7 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
  * pdd       out, n x axes: platform acceleration [m/s^2]; column 4: phiddot = qddot_4 [rad/s^2]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); pd and pdd are NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 327 operations per point.
+ * Cost: 315 operations per point.
  * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */
@@ -122,7 +122,7 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
  * J         out, n x 9: Jacobian d p / d q, row-major 3x3 [m/rad]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); J is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 220 operations per point.
+ * Cost: 211 operations per point.
  * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9984 bytes (9.8 KiB) at 64, plus scalars.
  */
@@ -137,7 +137,7 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  * q         out, n x axes: crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform above the centre plane of the spheres, where the direct kinematics would not return p); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 217 operations per point.
+ * Cost: 213 operations per point.
  * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 4352 bytes (4.2 KiB) at 64, plus scalars.
  */
@@ -154,7 +154,7 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  * qd        out, n x axes: crank rates [rad/s]; column 4: qdot_4 = phidot [rad/s]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform above the centre plane of the spheres, where the direct kinematics would not return p); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 280 operations per point.
+ * Cost: 272 operations per point.
  * Stack: 17 block arrays (16 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 8448 bytes (8.2 KiB) at 64, plus scalars.
  */
@@ -173,7 +173,7 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
  * qdd       out, n x axes: crank accelerations [rad/s^2]; column 4: qddot_4 = phiddot [rad/s^2]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform above the centre plane of the spheres, where the direct kinematics would not return p); SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol: q is given, the rates are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 392 operations per point.
+ * Cost: 380 operations per point.
  * Stack: 25 block arrays (24 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
@@ -189,7 +189,7 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
  * G         out, n x 45: dp/dpi, 15 parameters x 3 coordinates per point: parameters r_1..3, l_a,1..3, l_b,1..3 [m/m], theta_1..3, q_1..3 [m/rad]; r_i = r_a,i - r_b,i
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); G is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 548 operations per point.
+ * Cost: 499 operations per point.
  * Stack: 60 block arrays (59 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 30464 bytes (29.8 KiB) at 64, plus scalars.
  */
@@ -207,7 +207,7 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
  * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 505 operations per point.
+ * Cost: 501 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -225,7 +225,7 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
  * tau       out, n x axes: motor torques about the drive axes, positive turning the crank down [N m]; column 4: fourth-axis torque [N m]
  * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (spheres do not meet); SINGULAR (|det J_p| / (8 l_b^3) <= singular_tol, or collinear sphere centres (no output)); tau is NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 485 operations per point.
+ * Cost: 481 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */

@@ -53,7 +53,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 33 operations per point.
+ * Cost: 18 operations per point.
  * Stack: 22 block arrays (21 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 11008 bytes (10.8 KiB) at 64, plus scalars.
  */
@@ -66,7 +66,7 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
  * F         out, n x 80: 5 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 97 operations per point.
+ * Cost: 18 operations per point.
  * Stack: 86 block arrays (85 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 43776 bytes (42.8 KiB) at 64, plus scalars.
  */
@@ -79,7 +79,7 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
  * J         out, n x 18: 6 x 3 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 45 operations per point.
+ * Cost: 28 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -93,7 +93,7 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
  * J         out, n x 18: 6 x 3 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 70 operations per point.
+ * Cost: 37 operations per point.
  * Stack: 40 block arrays (39 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 20224 bytes (19.8 KiB) at 64, plus scalars.
  */
@@ -107,7 +107,7 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
  * Jd        out, n x 18: 6 x 3 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 59 operations per point.
+ * Cost: 42 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
  * 13568 bytes (13.2 KiB) at 64, plus scalars.
  */

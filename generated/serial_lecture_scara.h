@@ -53,7 +53,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 47 operations per point.
+ * Cost: 32 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -66,7 +66,7 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
  * F         out, n x 64: 4 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 101 operations per point.
+ * Cost: 38 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -79,7 +79,7 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
  * J         out, n x 12: 6 x 2 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 45 operations per point.
+ * Cost: 34 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -93,7 +93,7 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
  * J         out, n x 12: 6 x 2 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 74 operations per point.
+ * Cost: 47 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -107,7 +107,7 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
  * Jd        out, n x 12: 6 x 2 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 56 operations per point.
+ * Cost: 45 operations per point.
  * Stack: 21 block arrays (20 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 10496 bytes (10.2 KiB) at 64, plus scalars.
  */
@@ -121,7 +121,7 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 198 operations per point.
+ * Cost: 196 operations per point.
  * Stack: 19 block arrays (16 double, 3 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 8960 bytes (8.8 KiB) at 64, plus scalars.
  */

@@ -53,7 +53,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 61 operations per point.
+ * Cost: 46 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 13568 bytes (13.2 KiB) at 64, plus scalars.
  */
@@ -66,7 +66,7 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
  * F         out, n x 96: 6 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 152 operations per point.
+ * Cost: 57 operations per point.
  * Stack: 107 block arrays (106 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 54528 bytes (53.2 KiB) at 64, plus scalars.
  */
@@ -79,7 +79,7 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 69 operations per point.
+ * Cost: 46 operations per point.
  * Stack: 33 block arrays (32 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 16640 bytes (16.2 KiB) at 64, plus scalars.
  */
@@ -93,7 +93,7 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 112 operations per point.
+ * Cost: 73 operations per point.
  * Stack: 51 block arrays (50 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 25856 bytes (25.2 KiB) at 64, plus scalars.
  */
@@ -107,7 +107,7 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
  * Jd        out, n x 24: 6 x 4 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 98 operations per point.
+ * Cost: 75 operations per point.
  * Stack: 37 block arrays (36 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 18688 bytes (18.2 KiB) at 64, plus scalars.
  */
@@ -121,7 +121,7 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 328 operations per point.
+ * Cost: 324 operations per point.
  * Stack: 23 block arrays (20 double, 3 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
  * 11008 bytes (10.8 KiB) at 64, plus scalars.
  */

@@ -53,7 +53,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 130 operations per point.
+ * Cost: 115 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -66,7 +66,7 @@ int deltagen_manutec_r15_fk(size_t n, const double *restrict q, double *restrict
  * F         out, n x 128: 8 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 286 operations per point.
+ * Cost: 159 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 75008 bytes (73.2 KiB) at 64, plus scalars.
  */
@@ -79,7 +79,7 @@ int deltagen_manutec_r15_frames(size_t n, const double *restrict q, double *rest
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 198 operations per point.
+ * Cost: 163 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -93,7 +93,7 @@ int deltagen_manutec_r15_jacobian(size_t n, const double *restrict q, double *re
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 258 operations per point.
+ * Cost: 207 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -107,7 +107,7 @@ int deltagen_manutec_r15_fk_jacobian(size_t n, const double *restrict q, double 
  * Jd        out, n x 36: 6 x 6 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 449 operations per point.
+ * Cost: 414 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */
@@ -121,7 +121,7 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
  * valid     out, n x 8 (uint8_t): 8 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 2384 operations per point.
+ * Cost: 2352 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars.
  */

@@ -56,7 +56,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 86 operations per point.
+ * Cost: 71 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 14592 bytes (14.2 KiB) at 64, plus scalars.
  */
@@ -69,7 +69,7 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
  * F         out, n x 96: 6 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 183 operations per point.
+ * Cost: 88 operations per point.
  * Stack: 109 block arrays (108 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 55552 bytes (54.2 KiB) at 64, plus scalars.
  */
@@ -82,7 +82,7 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 109 operations per point.
+ * Cost: 86 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -96,7 +96,7 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
  * J         out, n x 24: 6 x 4 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 164 operations per point.
+ * Cost: 125 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -110,7 +110,7 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
  * Jd        out, n x 24: 6 x 4 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 217 operations per point.
+ * Cost: 194 operations per point.
  * Stack: 39 block arrays (38 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 19712 bytes (19.2 KiB) at 64, plus scalars.
  */
@@ -124,7 +124,7 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
  * valid     out, n x 4 (uint8_t): 4 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 880 operations per point.
+ * Cost: 872 operations per point.
  * Stack: 33 block arrays (28 double, 5 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */
@@ -139,7 +139,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
  * tau       out, n x 4: joint torques tau_1..tau_4 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 219 operations per point.
+ * Cost: 216 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -152,7 +152,7 @@ int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, c
  * M         out, n x 16: 4 x 4 row-major [kg m^2 | kg m | kg]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 158 operations per point.
+ * Cost: 143 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 13568 bytes (13.2 KiB) at 64, plus scalars.
  */
@@ -165,7 +165,7 @@ int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double
  * g         out, n x 4: joint torques tau_1..tau_4 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 65 operations per point.
+ * Cost: 62 operations per point.
  * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 7424 bytes (7.2 KiB) at 64, plus scalars.
  */
@@ -179,7 +179,7 @@ int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, dou
  * C         out, n x 16: 4 x 4 row-major [kg m^2/s | ...]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 527 operations per point.
+ * Cost: 512 operations per point.
  * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars.
  */
@@ -193,7 +193,7 @@ int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const dou
  * h         out, n x 4: joint torques tau_1..tau_4 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 199 operations per point.
+ * Cost: 196 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */

@@ -56,7 +56,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 205 operations per point.
+ * Cost: 190 operations per point.
  * Stack: 38 block arrays (37 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 19200 bytes (18.8 KiB) at 64, plus scalars.
  */
@@ -69,7 +69,7 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
  * F         out, n x 144: 9 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 392 operations per point.
+ * Cost: 249 operations per point.
  * Stack: 166 block arrays (165 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 84736 bytes (82.8 KiB) at 64, plus scalars.
  */
@@ -82,7 +82,7 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
  * J         out, n x 42: 6 x 7 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 296 operations per point.
+ * Cost: 255 operations per point.
  * Stack: 62 block arrays (61 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 31488 bytes (30.8 KiB) at 64, plus scalars.
  */
@@ -96,7 +96,7 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
  * J         out, n x 42: 6 x 7 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 369 operations per point.
+ * Cost: 312 operations per point.
  * Stack: 80 block arrays (79 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 40704 bytes (39.8 KiB) at 64, plus scalars.
  */
@@ -110,7 +110,7 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
  * Jd        out, n x 42: 6 x 7 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 763 operations per point.
+ * Cost: 722 operations per point.
  * Stack: 69 block arrays (68 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 35072 bytes (34.2 KiB) at 64, plus scalars.
  */
@@ -125,7 +125,7 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
  * tau       out, n x 7: joint torques tau_1..tau_7 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 1043 operations per point.
+ * Cost: 1037 operations per point.
  * Stack: 41 block arrays (40 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 20736 bytes (20.2 KiB) at 64, plus scalars.
  */
@@ -138,7 +138,7 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
  * M         out, n x 49: 7 x 7 row-major [kg m^2 | kg m | kg]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 1544 operations per point.
+ * Cost: 1496 operations per point.
  * Stack: 69 block arrays (68 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 35072 bytes (34.2 KiB) at 64, plus scalars.
  */
@@ -151,7 +151,7 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
  * g         out, n x 7: joint torques tau_1..tau_7 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 271 operations per point.
+ * Cost: 265 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 13568 bytes (13.2 KiB) at 64, plus scalars.
  */
@@ -165,7 +165,7 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
  * C         out, n x 49: 7 x 7 row-major [kg m^2/s | ...]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 5142 operations per point.
+ * Cost: 5094 operations per point.
  * Stack: 76 block arrays (75 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 38656 bytes (37.8 KiB) at 64, plus scalars.
  */
@@ -179,7 +179,7 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
  * h         out, n x 7: joint torques tau_1..tau_7 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 1009 operations per point.
+ * Cost: 1003 operations per point.
  * Stack: 34 block arrays (33 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
  * 17152 bytes (16.8 KiB) at 64, plus scalars.
  */

@@ -56,7 +56,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 139 operations per point.
+ * Cost: 124 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -69,7 +69,7 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
  * F         out, n x 128: 8 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 291 operations per point.
+ * Cost: 164 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 75008 bytes (73.2 KiB) at 64, plus scalars.
  */
@@ -82,7 +82,7 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 191 operations per point.
+ * Cost: 156 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -96,7 +96,7 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 251 operations per point.
+ * Cost: 200 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -110,7 +110,7 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
  * Jd        out, n x 36: 6 x 6 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 437 operations per point.
+ * Cost: 402 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */
@@ -124,7 +124,7 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
  * valid     out, n x 8 (uint8_t): 8 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 2498 operations per point.
+ * Cost: 2466 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_PUMA560_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars.
  */
@@ -139,7 +139,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
  * tau       out, n x 6: joint torques tau_1..tau_6 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 549 operations per point.
+ * Cost: 544 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -152,7 +152,7 @@ int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const 
  * M         out, n x 36: 6 x 6 row-major [kg m^2 | kg m | kg]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 589 operations per point.
+ * Cost: 554 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -165,7 +165,7 @@ int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *res
  * g         out, n x 6: joint torques tau_1..tau_6 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 172 operations per point.
+ * Cost: 167 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -179,7 +179,7 @@ int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *
  * C         out, n x 36: 6 x 6 row-major [kg m^2/s | ...]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 1858 operations per point.
+ * Cost: 1823 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */
@@ -193,7 +193,7 @@ int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *
  * h         out, n x 6: joint torques tau_1..tau_6 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 508 operations per point.
+ * Cost: 503 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
  * 14592 bytes (14.2 KiB) at 64, plus scalars.
  */

@@ -53,7 +53,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 149 operations per point.
+ * Cost: 134 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -66,7 +66,7 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
  * F         out, n x 128: 8 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 301 operations per point.
+ * Cost: 174 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK points,
  * 75008 bytes (73.2 KiB) at 64, plus scalars.
  */
@@ -79,7 +79,7 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 201 operations per point.
+ * Cost: 166 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -93,7 +93,7 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 261 operations per point.
+ * Cost: 210 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -107,7 +107,7 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
  * Jd        out, n x 36: 6 x 6 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 447 operations per point.
+ * Cost: 412 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */

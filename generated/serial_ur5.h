@@ -56,7 +56,7 @@ extern "C" {
  * T         out, n x 16: tool pose, 4x4 row-major [rotation | position m]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 168 operations per point.
+ * Cost: 153 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -69,7 +69,7 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
  * F         out, n x 128: 8 frames x 4x4 row-major, base to tool
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 335 operations per point.
+ * Cost: 208 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 75008 bytes (73.2 KiB) at 64, plus scalars.
  */
@@ -82,7 +82,7 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 243 operations per point.
+ * Cost: 208 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -96,7 +96,7 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
  * J         out, n x 36: 6 x 6 row-major [m/rad, 1 (prismatic) | rad/rad]
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 307 operations per point.
+ * Cost: 256 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 36096 bytes (35.2 KiB) at 64, plus scalars.
  */
@@ -110,7 +110,7 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
  * Jd        out, n x 36: 6 x 6 row-major, per second
  * status    out, n: OK; INVALID (a non-finite input; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 602 operations per point.
+ * Cost: 567 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */
@@ -124,7 +124,7 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
  * valid     out, n x 8 (uint8_t): 8 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 2548 operations per point.
+ * Cost: 2516 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_UR5_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars.
  */
@@ -139,7 +139,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
  * tau       out, n x 6: joint torques tau_1..tau_6 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 500 operations per point.
+ * Cost: 495 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 17664 bytes (17.2 KiB) at 64, plus scalars.
  */
@@ -152,7 +152,7 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
  * M         out, n x 36: 6 x 6 row-major [kg m^2 | kg m | kg]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 531 operations per point.
+ * Cost: 496 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 26880 bytes (26.2 KiB) at 64, plus scalars.
  */
@@ -165,7 +165,7 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
  * g         out, n x 6: joint torques tau_1..tau_6 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 168 operations per point.
+ * Cost: 163 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 11520 bytes (11.2 KiB) at 64, plus scalars.
  */
@@ -179,7 +179,7 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
  * C         out, n x 36: 6 x 6 row-major [kg m^2/s | ...]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 1704 operations per point.
+ * Cost: 1669 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 29952 bytes (29.2 KiB) at 64, plus scalars.
  */
@@ -193,7 +193,7 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
  * h         out, n x 6: joint torques tau_1..tau_6 [N m (revolute) or N (prismatic)]
  * status    out, n: OK; INVALID (a non-finite input or result; the row's outputs are NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 462 operations per point.
+ * Cost: 457 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_UR5_BLOCK points,
  * 14592 bytes (14.2 KiB) at 64, plus scalars.
  */

@@ -316,8 +316,13 @@ def test_lowering_guards_any_kernel():
     )
     guarded = guard_outputs(kernel)
     (nonfinite, rule), *checked = guarded.stages[-1].assignments
-    assert rule == sp.Or(sp.And(sp.Not(bad), sp.Not(AllFinite(a))), sp.Not(AllFinite(b)))
+    # the test reads the raw values (the Piecewise without its NaN branch), so that the
+    # per-point loop vectorises; each checked output is one select
+    assert rule == sp.Or(sp.And(sp.Not(bad), sp.Not(AllFinite(x * y))), sp.Not(AllFinite(b)))
     assert [str(s) for s, _ in checked] == ["a_checked", "b_checked", "c_checked"]
+    assert dict(checked)[sp.Symbol("a_checked")] == sp.Piecewise(
+        (sp.nan, sp.Or(bad, nonfinite)), (x * y, True)
+    )
     assert guarded.status.args[0] == (INVALID, nonfinite)
     assert "nonfinite_output" in lower(kernel).status
 
