@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike
 
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
 from deltagen.api.serial import SerialRobot
+from deltagen.api.validity import mark_nonfinite
 from deltagen.errors import rows_text
 from deltagen.inputs import InputError, as_float_array, check_errors_mode
 from deltagen.model.coupling import Coupling
@@ -327,7 +328,8 @@ class _ReducedCore:
 
     def jacobian(self, r: FloatArray) -> Any:
         J, status = self._full.jacobian(np.ascontiguousarray(self._coupling.expand(r)))
-        return np.ascontiguousarray(J @ self._coupling.matrix), status
+        JE = np.ascontiguousarray(J @ self._coupling.matrix)
+        return JE, mark_nonfinite(status, JE)
 
 
 class _ReducedChain:

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from deltagen import status as st
 from deltagen.errors import rows_text
 
 
@@ -19,6 +20,15 @@ def finite_rows(*arrays: np.ndarray) -> np.ndarray:
     for a in arrays:
         ok &= np.all(np.isfinite(a.reshape(n, int(np.prod(a.shape[1:])))), axis=1)
     return ok
+
+
+def mark_nonfinite(status: np.ndarray, *outs: np.ndarray) -> np.ndarray:
+    """The finite-output rule for outputs transformed in Python after a kernel (a tool-frame
+    Jacobian, a coupled chain's J E): OK rows whose transformed values are not all finite
+    become INVALID (in place; returned). Outputs straight from a kernel need no such pass:
+    its status already applies the rule."""
+    status[(status == st.OK) & ~finite_rows(*outs)] = st.INVALID
+    return status
 
 
 def invalid_message(names: Sequence[str], inputs: Sequence[np.ndarray], rows: ArrayLike) -> str:
