@@ -48,14 +48,20 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -204,14 +210,20 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -560,14 +572,20 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -704,14 +722,20 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             q1_b[k] = q[(start + k) * 2 + 0];
             q2_b[k] = q[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -926,14 +950,20 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             qd1_b[k] = qd[(start + k) * 2 + 0];
             qd2_b[k] = qd[(start + k) * 2 + 1];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

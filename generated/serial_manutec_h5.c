@@ -52,14 +52,20 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -231,14 +237,20 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -740,14 +752,20 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -950,14 +968,20 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1259,14 +1283,20 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */

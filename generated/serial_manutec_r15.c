@@ -56,14 +56,20 @@ int deltagen_manutec_r15_fk(size_t n, const double *restrict q, double *restrict
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -295,14 +301,20 @@ int deltagen_manutec_r15_frames(size_t n, const double *restrict q, double *rest
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1014,14 +1026,20 @@ int deltagen_manutec_r15_jacobian(size_t n, const double *restrict q, double *re
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1360,14 +1378,20 @@ int deltagen_manutec_r15_fk_jacobian(size_t n, const double *restrict q, double 
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1803,14 +1827,20 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

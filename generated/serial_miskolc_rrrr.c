@@ -54,14 +54,20 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -248,14 +254,20 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -781,14 +793,20 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1017,14 +1035,20 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1346,14 +1370,20 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2122,14 +2152,20 @@ int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, c
             qdd3_b[k] = qdd[(start + k) * 4 + 2];
             qdd4_b[k] = qdd[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2316,14 +2352,20 @@ int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2547,14 +2589,20 @@ int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, dou
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2694,14 +2742,20 @@ int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const dou
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3085,14 +3139,20 @@ int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, 
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */

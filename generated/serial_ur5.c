@@ -58,14 +58,20 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -316,14 +322,20 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1039,14 +1051,20 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1398,14 +1416,20 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1861,14 +1885,20 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3504,14 +3534,20 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
             qdd5_b[k] = qdd[(start + k) * 6 + 4];
             qdd6_b[k] = qdd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3819,14 +3855,20 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4318,14 +4360,20 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
             q5_b[k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4539,14 +4587,20 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -5424,14 +5478,20 @@ int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const dou
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* rows m .. m_v - 1 (copies of the block's first point) pad the cos/sin loops to
-         * whole vectors of up to 8 lanes: every point gets its cosines and sines from the
-         * same vector code whatever its place in the batch, so a point alone gets the bits
-         * it gets in any batch. (The kinematics loop is not padded: where it calls atan2 --
-         * the inverse kinematics -- padding would multiply a single point's cost by up to
-         * 8, so a point in a batch's scalar remainder may differ from one in a vector lane
-         * by the last bits of atan2.) */
+        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
+         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * sines from the same vector code whatever its place in the batch, so a point alone
+         * gets the bits it gets in any batch. Without it every point takes the scalar libm
+         * path anyway, and padding would only multiply a single point's trig calls by 8.
+         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
+         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
+         * in a batch's scalar remainder may differ from one in a vector lane by the last
+         * bits of atan2.) */
+#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
         const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
+#else
+        const size_t m_v = m;
+#endif
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
