@@ -60,11 +60,11 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -85,7 +85,7 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
         double out_T13_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_T14_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_T15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -197,11 +197,11 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -286,7 +286,7 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
         double out_F77_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_F78_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_F79_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -595,11 +595,11 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -622,7 +622,7 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
         double out_J15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J16_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J17_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -755,11 +755,11 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -798,7 +798,7 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
         double out_J15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J16_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J17_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -989,11 +989,11 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1016,7 +1016,7 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
         double out_Jd15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_Jd16_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_Jd17_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
