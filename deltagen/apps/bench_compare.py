@@ -116,10 +116,9 @@ class CompareError(DeltagenError, RuntimeError):
 
 
 def this_tree() -> Path:
-    """The folder whose ``deltagen`` package this process imported."""
-    import deltagen
-
-    return Path(deltagen.__file__).resolve().parent.parent
+    """The folder whose ``deltagen`` package this process imported (this file is
+    deltagen/apps/bench_compare.py in it)."""
+    return Path(__file__).resolve().parents[2]
 
 
 def _git(args: list[str], cwd: Path) -> str:
