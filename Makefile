@@ -18,9 +18,10 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 # System tools some tests use, from Debian's packages where apt works (CI runs as root):
-# Chromium for the 3D workspace page, clang and arm-none-eabi-gcc for the exported C package.
+# Chromium for the 3D workspace page, clang and arm-none-eabi-gcc for the exported C package,
+# valgrind (callgrind and valgrind/callgrind.h) for the instruction counts of the kernels.
 # Elsewhere nothing is installed and those tests skip, naming what is missing.
-SYSDEPS := chromium clang gcc-arm-none-eabi libnewlib-arm-none-eabi
+SYSDEPS := chromium clang gcc-arm-none-eabi libnewlib-arm-none-eabi valgrind
 sysdeps:
 	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
 	  missing=""; for p in $(SYSDEPS); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \

@@ -377,6 +377,16 @@ def main(argv=None) -> int:
         metavar="FILE",
         help="replace FILE's <!-- bench:begin --> ... <!-- bench:end --> section with the run",
     )
+    b.add_argument(
+        "--compare",
+        metavar="REF",
+        help="instead: this tree's batched throughput beside REF's, a git commit (measured "
+        "from a temporary worktree, fresh processes, alternating rounds) or a `bench --json` "
+        "file; prints measure / ref / this / this/ref",
+    )
+    b.add_argument(
+        "--rounds", type=int, default=4, help="with --compare: processes per side (median)"
+    )
     b.set_defaults(func=lambda a: _lazy("deltagen.apps.bench", a))
 
     argv = list(sys.argv[1:] if argv is None else argv)

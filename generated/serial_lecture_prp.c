@@ -66,11 +66,11 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -91,7 +91,7 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
         double out_T13_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_T14_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_T15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -209,11 +209,11 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -298,7 +298,7 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
         double out_F77_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_F78_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_F79_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -613,11 +613,11 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -640,7 +640,7 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
         double out_J15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J16_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J17_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -779,11 +779,11 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -822,7 +822,7 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
         double out_J15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J16_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_J17_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1019,11 +1019,11 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1046,7 +1046,7 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
         double out_Jd15_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_Jd16_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
         double out_Jd17_checked_b[DELTAGEN_LECTURE_PRP_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];

@@ -67,19 +67,19 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -100,7 +100,7 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
         double out_T13_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_T14_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_T15_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double cos_q1 = cos_q1_b[k];
@@ -229,19 +229,19 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -310,7 +310,7 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
         double out_F61_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_F62_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_F63_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double cos_q1 = cos_q1_b[k];
@@ -591,19 +591,19 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -620,7 +620,7 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
         double out_J9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_J10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_J11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double cos_q1 = cos_q1_b[k];
@@ -741,19 +741,19 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -786,7 +786,7 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
         double out_J9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_J10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_J11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double cos_q1 = cos_q1_b[k];
@@ -969,19 +969,19 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -998,7 +998,7 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
         double out_Jd9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_Jd10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double out_Jd11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double qd1 = qd1_b[k];
@@ -1137,7 +1137,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
         double out_q2_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

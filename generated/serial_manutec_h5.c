@@ -72,27 +72,27 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -113,7 +113,7 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
         double out_T13_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_T14_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_T15_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -257,27 +257,27 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -378,7 +378,7 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
         double out_F93_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_F94_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_F95_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -771,19 +771,19 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -812,7 +812,7 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
         double out_J21_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_J22_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_J23_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -988,27 +988,27 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1053,7 +1053,7 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
         double out_J21_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_J22_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_J23_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1302,19 +1302,19 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1343,7 +1343,7 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
         double out_Jd21_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_Jd22_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         double out_Jd23_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1542,7 +1542,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
         double out_q4_elbow_down_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_MANUTEC_H5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

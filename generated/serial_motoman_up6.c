@@ -79,51 +79,51 @@ int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -144,7 +144,7 @@ int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict
         double out_T13_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_T14_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_T15_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -344,51 +344,51 @@ int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *rest
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -521,7 +521,7 @@ int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *rest
         double out_F125_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_F126_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_F127_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1082,43 +1082,43 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1159,7 +1159,7 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
         double out_J33_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_J34_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_J35_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1452,51 +1452,51 @@ int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double 
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1553,7 +1553,7 @@ int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double 
         double out_J33_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_J34_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_J35_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1918,43 +1918,43 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1995,7 +1995,7 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
         double out_Jd33_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_Jd34_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         double out_Jd35_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -2409,7 +2409,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
         int out_valid_back_up_flip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         int out_valid_back_down_noflip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
         int out_valid_back_down_flip_checked_b[DELTAGEN_MOTOMAN_UP6_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

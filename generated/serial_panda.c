@@ -82,59 +82,59 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -155,7 +155,7 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
         double out_T13_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_T14_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_T15_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -381,59 +381,59 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -582,7 +582,7 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
         double out_F141_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_F142_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_F143_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1218,51 +1218,51 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1309,7 +1309,7 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
         double out_J39_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_J40_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_J41_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1649,59 +1649,59 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1764,7 +1764,7 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
         double out_J39_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_J40_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_J41_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -2188,51 +2188,51 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -2279,7 +2279,7 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
         double out_Jd39_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_Jd40_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_Jd41_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -2765,51 +2765,51 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -2821,7 +2821,7 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
         double out_tau4_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_tau5_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_tau6_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -3149,51 +3149,51 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3247,7 +3247,7 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
         double out_M46_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_M47_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_M48_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -3875,51 +3875,51 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3931,7 +3931,7 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
         double out_g4_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_g5_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_g6_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -4136,51 +4136,51 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -4234,7 +4234,7 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
         double out_C46_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_C47_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_C48_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -5535,51 +5535,51 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
             q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q7_b[k] = cos(q7_b[k]);
         }
         double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q7_b[k] = sin(q7_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -5591,7 +5591,7 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
         double out_h4_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_h5_checked_b[DELTAGEN_PANDA_BLOCK];
         double out_h6_checked_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];

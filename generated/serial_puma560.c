@@ -81,51 +81,51 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -146,7 +146,7 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
         double out_T13_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_T14_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_T15_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -332,51 +332,51 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -509,7 +509,7 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
         double out_F125_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_F126_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_F127_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1054,43 +1054,43 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1131,7 +1131,7 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
         double out_J33_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_J34_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_J35_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1410,51 +1410,51 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1511,7 +1511,7 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
         double out_J33_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_J34_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_J35_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1862,43 +1862,43 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1939,7 +1939,7 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
         double out_Jd33_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_Jd34_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_Jd35_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -2332,7 +2332,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
         int out_valid_back_up_flip_checked_b[DELTAGEN_PUMA560_BLOCK];
         int out_valid_back_down_noflip_checked_b[DELTAGEN_PUMA560_BLOCK];
         int out_valid_back_down_flip_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];
@@ -3540,43 +3540,43 @@ int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const 
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3587,7 +3587,7 @@ int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const 
         double out_tau3_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_tau4_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_tau5_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -3852,43 +3852,43 @@ int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *res
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3929,7 +3929,7 @@ int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *res
         double out_M33_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_M34_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_M35_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -4368,43 +4368,43 @@ int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -4415,7 +4415,7 @@ int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *
         double out_g3_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_g4_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_g5_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -4590,43 +4590,43 @@ int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -4667,7 +4667,7 @@ int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *
         double out_C33_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_C34_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_C35_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -5498,43 +5498,43 @@ int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -5545,7 +5545,7 @@ int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const
         double out_h3_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_h4_checked_b[DELTAGEN_PUMA560_BLOCK];
         double out_h5_checked_b[DELTAGEN_PUMA560_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];

@@ -77,51 +77,51 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -142,7 +142,7 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
         double out_T13_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_T14_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_T15_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -333,51 +333,51 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -510,7 +510,7 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
         double out_F125_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_F126_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_F127_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1060,43 +1060,43 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1137,7 +1137,7 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
         double out_J33_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_J34_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_J35_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1421,51 +1421,51 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1522,7 +1522,7 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
         double out_J33_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_J34_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_J35_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1878,43 +1878,43 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1955,7 +1955,7 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
         double out_Jd33_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_Jd34_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
         double out_Jd35_checked_b[DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];

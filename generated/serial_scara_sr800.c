@@ -72,27 +72,27 @@ int deltagen_scara_sr800_fk(size_t n, const double *restrict q, double *restrict
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q4_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -113,7 +113,7 @@ int deltagen_scara_sr800_fk(size_t n, const double *restrict q, double *restrict
         double out_T13_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_T14_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_T15_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -257,27 +257,27 @@ int deltagen_scara_sr800_frames(size_t n, const double *restrict q, double *rest
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q4_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -378,7 +378,7 @@ int deltagen_scara_sr800_frames(size_t n, const double *restrict q, double *rest
         double out_F93_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_F94_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_F95_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -777,19 +777,19 @@ int deltagen_scara_sr800_jacobian(size_t n, const double *restrict q, double *re
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -818,7 +818,7 @@ int deltagen_scara_sr800_jacobian(size_t n, const double *restrict q, double *re
         double out_J21_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_J22_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_J23_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -994,27 +994,27 @@ int deltagen_scara_sr800_fk_jacobian(size_t n, const double *restrict q, double 
             q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q4_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1059,7 +1059,7 @@ int deltagen_scara_sr800_fk_jacobian(size_t n, const double *restrict q, double 
         double out_J21_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_J22_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_J23_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1308,19 +1308,19 @@ int deltagen_scara_sr800_jacobian_dot(size_t n, const double *restrict q, const 
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1349,7 +1349,7 @@ int deltagen_scara_sr800_jacobian_dot(size_t n, const double *restrict q, const 
         double out_Jd21_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_Jd22_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         double out_Jd23_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1548,7 +1548,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
         double out_q4_elbow_down_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         int out_valid_elbow_up_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_SCARA_SR800_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];

@@ -81,51 +81,51 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -146,7 +146,7 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
         double out_T13_checked_b[DELTAGEN_UR5_BLOCK];
         double out_T14_checked_b[DELTAGEN_UR5_BLOCK];
         double out_T15_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -345,51 +345,51 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -522,7 +522,7 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
         double out_F125_checked_b[DELTAGEN_UR5_BLOCK];
         double out_F126_checked_b[DELTAGEN_UR5_BLOCK];
         double out_F127_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1073,43 +1073,43 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1150,7 +1150,7 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
         double out_J33_checked_b[DELTAGEN_UR5_BLOCK];
         double out_J34_checked_b[DELTAGEN_UR5_BLOCK];
         double out_J35_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1439,51 +1439,51 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1540,7 +1540,7 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
         double out_J33_checked_b[DELTAGEN_UR5_BLOCK];
         double out_J34_checked_b[DELTAGEN_UR5_BLOCK];
         double out_J35_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -1907,43 +1907,43 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
             q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q1_b[k] = cos(q1_b[k]);
         }
         double sin_q1_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q1_b[k] = sin(q1_b[k]);
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -1984,7 +1984,7 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
         double out_Jd33_checked_b[DELTAGEN_UR5_BLOCK];
         double out_Jd34_checked_b[DELTAGEN_UR5_BLOCK];
         double out_Jd35_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -2410,7 +2410,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
         int out_valid_shoulderm_elbowp_wristm_checked_b[DELTAGEN_UR5_BLOCK];
         int out_valid_shoulderm_elbowm_wristp_checked_b[DELTAGEN_UR5_BLOCK];
         int out_valid_shoulderm_elbowm_wristm_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double Tt11 = Tt11_b[k];
             const double Tt12 = Tt12_b[k];
             const double Tt13 = Tt13_b[k];
@@ -3556,43 +3556,43 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3603,7 +3603,7 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
         double out_tau3_checked_b[DELTAGEN_UR5_BLOCK];
         double out_tau4_checked_b[DELTAGEN_UR5_BLOCK];
         double out_tau5_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -3877,43 +3877,43 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -3954,7 +3954,7 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
         double out_M33_checked_b[DELTAGEN_UR5_BLOCK];
         double out_M34_checked_b[DELTAGEN_UR5_BLOCK];
         double out_M35_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -4382,43 +4382,43 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -4429,7 +4429,7 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
         double out_g3_checked_b[DELTAGEN_UR5_BLOCK];
         double out_g4_checked_b[DELTAGEN_UR5_BLOCK];
         double out_g5_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -4609,43 +4609,43 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -4686,7 +4686,7 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
         double out_C33_checked_b[DELTAGEN_UR5_BLOCK];
         double out_C34_checked_b[DELTAGEN_UR5_BLOCK];
         double out_C35_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
@@ -5500,43 +5500,43 @@ int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const dou
             q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
         }
         double cos_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q2_b[k] = cos(q2_b[k]);
         }
         double sin_q2_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q2_b[k] = sin(q2_b[k]);
         }
         double cos_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q3_b[k] = cos(q3_b[k]);
         }
         double sin_q3_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
         double cos_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q4_b[k] = cos(q4_b[k]);
         }
         double sin_q4_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q4_b[k] = sin(q4_b[k]);
         }
         double cos_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q5_b[k] = cos(q5_b[k]);
         }
         double sin_q5_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q5_b[k] = sin(q5_b[k]);
         }
         double cos_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
             cos_q6_b[k] = cos(q6_b[k]);
         }
         double sin_q6_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {
+        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q6_b[k] = sin(q6_b[k]);
         }
         /* kinematics, one point per iteration */
@@ -5547,7 +5547,7 @@ int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const dou
         double out_h3_checked_b[DELTAGEN_UR5_BLOCK];
         double out_h4_checked_b[DELTAGEN_UR5_BLOCK];
         double out_h5_checked_b[DELTAGEN_UR5_BLOCK];
-        for (size_t k = 0; k < m; ++k) {
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];

@@ -28,6 +28,16 @@ from deltagen import DeltaRobot  # noqa: E402 - after the sys.path set-up above
 REPO = TESTS.parent
 
 
+def pytest_addoption(parser):
+    parser.addoption(
+        "--update-baselines",
+        action="store_true",
+        default=False,
+        help="rewrite tests/baselines/ from this run (as DELTAGEN_UPDATE_BASELINES=1 does) "
+        "instead of comparing with it",
+    )
+
+
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return REPO

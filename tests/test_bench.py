@@ -12,7 +12,7 @@ import importlib.util
 
 import pytest
 
-from deltagen.apps import bench, timing
+from deltagen.apps import bench, bench_compare, timing
 from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
@@ -48,6 +48,9 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_
 
         data = json.loads(files["json"].read_text())
         assert data["n"] == 2000 and data["markdown"].strip() == out.strip()
+        # `bench --compare FILE` reads every measure it shows from such a file
+        stored = bench_compare.from_json(files["json"])
+        assert all(v is not None and v > 0 for v in stored.values()), stored
         assert data["throughput"]["fk"]["core"]["median"] > 0
         numeric = data["serial"]["ik"]["numeric"]["deltagen"]
         assert numeric["success"] == 1.0 and numeric["median_ns"] > 0

@@ -1313,6 +1313,10 @@ def _oracles_wanted(args) -> bool:
 
 
 def main(args) -> int:
+    if getattr(args, "compare", None):
+        from deltagen.apps import bench_compare
+
+        return bench_compare.main(args)
     result = run(n=args.n, repeats=args.repeats, oracles=_oracles_wanted(args))
     print(render(result, markdown=bool(getattr(args, "markdown", False))))
     sys.stdout.flush()

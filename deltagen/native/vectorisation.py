@@ -1,0 +1,278 @@
+"""Which loops of a generated C module gcc vectorises, read from gcc's own report.
+
+The batched kernels are fast because gcc turns their per-point loops into vector code; a
+change to the generated C (or to the compiler) that stops it costs a factor of several in
+speed while every result stays the same. This module makes that visible:
+
+* The template (codegen/templates/source.c.j2) names the loops that must vectorise by a
+  comment on their ``for`` line: ``/* loop: cos */``, ``/* loop: sin */`` and
+  ``/* loop: points */`` (the kinematics, one point per iteration). :func:`marked_loops`
+  finds them and the kernel (top-level function) each belongs to.
+* :func:`vector_report` compiles the module as the build does (native/build.py: the same
+  flags from :func:`~deltagen.native.build.compile_flags`, one translation unit per kernel
+  behind a ``#line`` directive so gcc names the module's own lines, the units in
+  parallel) with ``-fopt-info-vec-optimized-missed`` added, and returns gcc's remarks. gcc
+  reports a vectorised loop as ``file:line:column: optimized: loop vectorized using N byte
+  vectors`` at the line of its ``for`` (GCC manual, "Developer Options", -fopt-info).
+  Reports are cached under the build cache, keyed by the unit's text, the flags and the
+  compiler's version.
+* :func:`check` compares the two: every marked loop must have a "loop vectorized" remark;
+  a kernel with no marked loop, or a marked loop that is not vectorised, is a problem
+  unless the caller exempts it by name (with a reason), and an exemption that is not
+  needed is a problem too, so the list stays exact.
+
+Only gcc writes this report; :func:`unavailable` says why a check cannot run here.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+import re
+import shlex
+import subprocess
+import sysconfig
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from deltagen.native import build
+
+#: the comment that names a loop the vectoriser must handle, on the loop's ``for`` line
+MARKER = re.compile(r"^(?P<indent>\s*)for \(.*\{\s*/\* loop: (?P<role>[a-z_]+) \*/\s*$")
+_REMARK = re.compile(
+    r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<column>\d+): (?P<kind>optimized|missed|note): "
+    r"(?P<message>.*)$",
+    re.MULTILINE,
+)
+_FUNCTION_NAME = re.compile(r"\b(\w+)\s*\(")
+_PREFIX = re.compile(r"defined\((\w+)_VECTOR_MATH\)")
+REPORT_FLAG = "-fopt-info-vec-optimized-missed"
+VECTORISED = "loop vectorized"
+
+
+@dataclass(frozen=True)
+class Loop:
+    """A marked loop: its kernel (function name without the module's prefix), its role
+    (the marker's word), the line of its ``for`` and of its closing brace (1-based)."""
+
+    kernel: str
+    role: str
+    line: int
+    end: int
+
+
+@dataclass(frozen=True)
+class Remark:
+    line: int
+    column: int
+    kind: str  # "optimized" or "missed"
+    message: str
+
+
+def module_prefix(text: str) -> str:
+    """The C prefix of a generated module (``deltagen_delta``), read from its
+    ``<PREFIX>_VECTOR_MATH`` guard."""
+    found = _PREFIX.search(text)
+    if found is None:
+        raise ValueError("not a generated module: no <PREFIX>_VECTOR_MATH guard")
+    return found.group(1).lower()
+
+
+def kernels(text: str, prefix: str) -> list[tuple[str, int, int]]:
+    """(kernel name without ``prefix_``, first line, last line) of every top-level function
+    definition of a generated module, in order (the layout build.split_units reads)."""
+    units = build.split_units(text)
+    if units is None:
+        raise ValueError("the module's layout is not one build.split_units recognises")
+    out = []
+    for first, lines in units[1]:
+        name = _FUNCTION_NAME.search(lines[0])
+        assert name is not None  # split_units starts a kernel at "name("
+        short = name.group(1).removeprefix(prefix + "_")
+        out.append((short, first, first + len(lines) - 1))
+    return out
+
+
+def marked_loops(text: str, prefix: str) -> list[Loop]:
+    """Every loop carrying a ``/* loop: <role> */`` comment, with its kernel and extent."""
+    lines = text.split("\n")
+    spans = kernels(text, prefix)
+    loops = []
+    for i, line in enumerate(lines):
+        found = MARKER.match(line)
+        if not found:
+            continue
+        number = i + 1
+        kernel = next((k for k, a, b in spans if a <= number <= b), None)
+        if kernel is None:
+            raise ValueError(f"line {number}: a marked loop outside every kernel")
+        close = found.group("indent") + "}"
+        end = next((j + 1 for j in range(i + 1, len(lines)) if lines[j] == close), None)
+        if end is None:
+            raise ValueError(f"line {number}: no closing brace at the loop's indentation")
+        loops.append(Loop(kernel, found.group("role"), number, end))
+    return loops
+
+
+def unavailable() -> str | None:
+    """Why gcc's vectoriser report cannot be had here (None when it can): the report is
+    gcc's, and the flags and expectations are those of x86-64."""
+    if platform.machine() not in ("x86_64", "AMD64"):
+        return f"the vectorisation check covers x86-64 builds; this machine is {platform.machine()}"
+    try:
+        version = _compiler_version()
+    except (OSError, subprocess.SubprocessError) as exc:
+        return f"no C compiler to ask ({exc})"
+    if "gcc" not in version.lower() and "free software foundation" not in version.lower():
+        return f"the compiler is not gcc ({version.splitlines()[0]!r}): no -fopt-info report"
+    if not build._vector_math_available():
+        return "no libmvec here: the build compiles scalar cos/sin, which cannot vectorise"
+    return None
+
+
+def _compiler_version() -> str:
+    command = build._compiler_command()
+    proc = subprocess.run(
+        [command[0], "--version"], capture_output=True, text=True, timeout=60, check=True
+    )
+    return proc.stdout
+
+
+def _report_command(prefix: str, directory: Path, opt: str) -> list[str]:
+    args, _ = build.compile_flags(prefix, opt)
+    ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
+    include = [f"-I{directory}", f"-I{build.runtime_dir()}"]
+    # -fsyntax-only would stop before the optimisers run: compile to an object, discard it
+    return (
+        build._compiler_command()
+        + ccshared
+        + ["-fwrapv", "-DNDEBUG"]
+        + args
+        + include
+        + [REPORT_FLAG]
+    )
+
+
+def vector_report(
+    text: str, source: str | Path, prefix: str | None = None, opt: str = "-O3"
+) -> list[Remark]:
+    """gcc's vectoriser remarks (optimized and missed) on the lines of ``text``, the C of a
+    generated module whose header and the files it includes are in ``source``'s folder
+    (``source``: the module's path; only its folder and name are used), compiled one
+    kernel per unit as native/build.py compiles it."""
+    import tempfile
+    from concurrent.futures import ThreadPoolExecutor
+
+    source = Path(source).resolve()
+    prefix = prefix or module_prefix(text)
+    units = build.split_units(text)
+    if units is None:
+        raise ValueError(f"{source.name}: layout not recognised by build.split_units")
+    preamble, pieces = units
+    command = _report_command(prefix, source.parent, opt)
+    version = _compiler_version()
+    cache = build.usable_cache_dir() / "vector-reports"
+    cache.mkdir(exist_ok=True)
+
+    def one(piece) -> str:
+        unit = build._unit_text(source, preamble, piece)
+        key = hashlib.sha256("\0".join([unit, shlex.join(command), version]).encode())
+        stored = cache / f"{key.hexdigest()[:24]}.txt"
+        if stored.is_file():
+            return stored.read_text()
+        with tempfile.TemporaryDirectory(prefix="deltagen-vec.") as work:
+            path = Path(work) / f"{source.stem}.unit.c"
+            path.write_text(unit)
+            proc = subprocess.run(
+                command + ["-c", str(path), "-o", str(Path(work) / "unit.o")],
+                capture_output=True,
+                text=True,
+                timeout=build._BUILD_TIMEOUT_S,
+                stdin=subprocess.DEVNULL,
+            )
+        if proc.returncode != 0:
+            raise build.BuildError(
+                f"compiling {source.name} (line {piece[0]}) for its vectoriser report "
+                f"failed (exit {proc.returncode}):\n{proc.stderr[-4000:]}"
+            )
+        partial = stored.with_suffix(f".{id(piece)}.tmp")
+        partial.write_text(proc.stderr)
+        partial.replace(stored)  # whole or absent: a reader never sees half a report
+        return proc.stderr
+
+    order = sorted(pieces, key=lambda piece: -sum(map(len, piece[1])))  # largest first
+    with ThreadPoolExecutor(max_workers=build._build_jobs()) as pool:
+        outputs = list(pool.map(one, order))
+    remarks = set()
+    for output in outputs:
+        for found in _REMARK.finditer(output):
+            if Path(found.group("file")).name != source.name or found.group("kind") == "note":
+                continue  # remarks on the runtime headers' inline functions
+            remarks.add(
+                Remark(
+                    int(found.group("line")),
+                    int(found.group("column")),
+                    found.group("kind"),
+                    found.group("message").strip(),
+                )
+            )
+    return sorted(remarks, key=lambda r: (r.line, r.column, r.kind, r.message))
+
+
+def check(
+    text: str,
+    remarks: list[Remark],
+    prefix: str | None = None,
+    exempt: Mapping[str, str] | None = None,
+    used: set[str] | None = None,
+) -> list[str]:
+    """Problems of one module (empty: every kernel vectorises where it must). ``exempt``
+    maps ``"<kernel>"`` (a kernel with no marked loop: not a per-point kernel) or
+    ``"<kernel>/<role>"`` (a marked loop gcc may leave scalar) to the reason; the keys this
+    module needed are added to ``used`` (the caller reports keys no module needed). An
+    exempt loop that is vectorised is a problem: its exemption is stale."""
+    prefix = prefix or module_prefix(text)
+    exempt = exempt or {}
+    used = set() if used is None else used
+    vectorised = {r.line for r in remarks if r.kind == "optimized" and VECTORISED in r.message}
+    loops = marked_loops(text, prefix)
+    problems = []
+    for kernel, first, _ in kernels(text, prefix):
+        if any(loop.kernel == kernel for loop in loops):
+            continue
+        if kernel in exempt:
+            used.add(kernel)
+        else:
+            problems.append(
+                f"{prefix}_{kernel} (line {first}) has no loop marked `/* loop: ... */`: a "
+                "batched kernel's per-point loop must carry the marker (the template "
+                "source.c.j2 writes it), or the kernel must be exempted with a reason"
+            )
+    for loop in loops:
+        key = f"{loop.kernel}/{loop.role}"
+        name = f"{prefix}_{loop.kernel}"
+        if loop.line in vectorised:
+            if key in exempt:
+                used.add(key)
+                problems.append(
+                    f"{name}: the {loop.role} loop at line {loop.line} is vectorised but "
+                    f"exempted as {key!r} ({exempt[key]}): remove the stale exemption"
+                )
+            continue
+        if key in exempt:
+            used.add(key)
+            continue
+        reasons = [
+            f"line {r.line}: {r.message}"
+            for r in remarks
+            if r.kind == "missed"
+            and loop.line <= r.line <= loop.end
+            and ("not vectorized" in r.message or "couldn't vectorize" in r.message)
+        ]
+        reasons = list(dict.fromkeys(reasons))[:4]
+        problems.append(
+            f"{name}: the {loop.role} loop at line {loop.line} is not vectorised"
+            + (f" (gcc: {'; '.join(reasons)})" if reasons else " (gcc gave no reason)")
+        )
+    return problems

@@ -1,0 +1,111 @@
+"""`deltagen bench --compare REF`: this tree's batched throughput beside a stored
+`bench --json` run (fast) and beside a git commit (slow: the commit's modules are built in
+a worktree of their own). No timing is asserted: the tests check that every measure is
+measured on each side, that the ratio column is this / ref, and the errors."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+
+import pytest
+
+from deltagen.apps import bench_compare
+from deltagen.cli import main
+
+SMALL = ["--n", "300", "--repeats", "1", "--rounds", "1"]
+
+
+def _stored_run(path, delta_ns=10.0, arm_ns=100.0):
+    """A `bench --json` file's shape (apps/bench_report.plain), the parts --compare reads."""
+    stat = lambda v: {"median": v, "min": v, "max": v, "values": [v]}  # noqa: E731
+    data = {
+        "n": 1000,
+        "throughput": {
+            q: {"core": stat(1.0), "api": stat(delta_ns)}
+            for q in ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
+        },
+        "serial": {
+            "throughput": {
+                q: {"core": stat(1.0), "api": stat(arm_ns)}
+                for q in ("fk", "frames", "jacobian", "jacobian_dot", "inverse_dynamics")
+            }
+        },
+    }
+    path.write_text(json.dumps(data))
+    return path
+
+
+def _table(out: str) -> dict[str, list[str]]:
+    rows = {}
+    for line in out.splitlines():
+        cells = line.split()
+        if len(cells) == 5 and cells[0] in ("delta", "puma560"):
+            rows[f"{cells[0]} {cells[1]}"] = cells[2:]
+    return rows
+
+
+def test_compare_with_a_stored_run(tmp_path, capsys):
+    ref = _stored_run(tmp_path / "bench.json")
+    assert main(["bench", "--compare", str(ref), *SMALL]) == 0
+    out = capsys.readouterr().out
+    assert f"ref: {ref} (stored run)" in out and "this/ref" in out
+    rows = _table(out)
+    assert set(rows) == set(bench_compare.MEASURES)
+    for label, (ref_cell, this_cell, ratio) in rows.items():
+        assert this_cell != "n/a", f"{label} was not measured on this tree"
+        if label in ("puma560 mass_matrix", "puma560 forward_dynamics"):
+            assert ref_cell == "n/a" and ratio == "n/a"  # not in the stored run
+            continue
+        expected = 10.0 if label.startswith("delta") else 100.0
+        assert float(ref_cell) == expected
+        assert float(ratio) == pytest.approx(float(this_cell) / expected, abs=0.006)
+
+
+def test_stored_run_errors(tmp_path, capsys):
+    missing = tmp_path / "none.json"
+    assert main(["bench", "--compare", str(missing), *SMALL]) == 2
+    assert "not a readable `deltagen bench --json` file" in capsys.readouterr().err
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"rows": []}))
+    assert main(["bench", "--compare", str(other), *SMALL]) == 2
+    assert "no 'throughput' section" in capsys.readouterr().err
+
+
+def test_unknown_commit(capsys):
+    if shutil.which("git") is None or not (bench_compare.this_tree() / ".git").exists():
+        pytest.skip("this tree is not a git checkout")
+    assert main(["bench", "--compare", "no-such-ref-anywhere", *SMALL]) == 2
+    assert "git rev-parse" in capsys.readouterr().err
+
+
+def test_render_marks_missing_cells():
+    rows = {label: (None, None) for label in bench_compare.MEASURES}
+    rows["delta fk"] = (20.0, 10.0)
+    text = bench_compare.render(
+        {"ref": "r", "this": "t", "n": 10, "repeats": 1, "rounds": 1, "rows": rows}
+    )
+    table = _table(text)
+    assert table["delta fk"] == ["20.00", "10.00", "0.50"]
+    assert table["delta ik"] == ["n/a", "n/a", "n/a"]
+
+
+@pytest.mark.slow
+def test_compare_with_a_commit(capsys):
+    """HEAD measured from a temporary worktree beside this tree: every measure on both
+    sides, and the worktree is gone afterwards."""
+    tree = bench_compare.this_tree()
+    if shutil.which("git") is None or not (tree / ".git").exists():
+        pytest.skip("this tree is not a git checkout")
+    assert main(["bench", "--compare", "HEAD", *SMALL]) == 0
+    out = capsys.readouterr().out
+    assert "ref: HEAD (" in out
+    rows = _table(out)
+    assert set(rows) == set(bench_compare.MEASURES)
+    for label, cells in rows.items():
+        assert "n/a" not in cells, (label, cells)
+    listed = subprocess.run(
+        ["git", "worktree", "list"], cwd=tree, capture_output=True, text=True
+    ).stdout
+    assert "deltagen-ref-" not in listed

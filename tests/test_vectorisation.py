@@ -1,0 +1,183 @@
+"""gcc vectorises the batched kernels' loops: the per-point loop of every kernel and its
+cos/sin loops, in the delta core and every bundled arm (generated/*.c), compiled with the
+build's own flags (native/build.py compile_flags, -O3) and read from gcc's
+-fopt-info report (native/vectorisation.py).
+
+Why a test: when gcc stops vectorising a per-point loop every result stays the same and
+the kernel gets several times slower; nothing else in the suite notices. The template
+marks the loops that must vectorise (``/* loop: points */``, ``/* loop: cos */``,
+``/* loop: sin */``); a kernel without a marked loop, or a marked loop gcc leaves scalar,
+fails here unless it is in EXEMPT with its reason.
+
+The negative tests inject into the delta module the constructs that stop the vectoriser
+(a non-finite guard on values already selected to NaN -- the form gcc 12 rejected with
+"no vectype for stmt" -- and an early exit) and check the checker reports them; the
+injections keep every line number, so the unchanged kernels' reports come from the cache.
+The arms' modules take gcc 10-60 s of CPU each at -O3 (reports are cached in
+DELTAGEN_CACHE), so they are marked slow; the delta core is not.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from deltagen.native import vectorisation
+from deltagen.paths import generated_dir
+
+#: kernels (or "kernel/loop") gcc may leave scalar, and why
+EXEMPT = {
+    "ik_all/points": (
+        "the closed-form IK keeps or drops each of its branches' solutions under conditions "
+        "(gcc: 'control flow in loop'); its cos/sin loops still vectorise"
+    ),
+    "ik_newton": (
+        "not a per-point kernel: a wrapper handing fk_jacobian to the runtime's iterative "
+        "damped-Newton solver (codegen/runtime/deltagen_ik_newton.c), which converges per point"
+    ),
+    "forward_dynamics": (
+        "a wrapper: the mass_matrix and nonlinear_effects kernels it calls are checked here; "
+        "it then calls the runtime's Cholesky solver (deltagen_linalg.c) once per point"
+    ),
+}
+
+MODULES = sorted(p.name for p in generated_dir().glob("*.c"))
+SLOW_UNLESS = {"delta_kinematics.c"}
+REASON = vectorisation.unavailable()
+needs_gcc = pytest.mark.skipif(REASON is not None, reason=str(REASON))
+
+
+def _module(name: str) -> tuple[str, object]:
+    path = generated_dir() / name
+    return path.read_text(), path
+
+
+def test_every_bundled_module_is_covered():
+    assert "delta_kinematics.c" in MODULES
+    assert {"serial_puma560.c", "serial_ur5.c"} <= set(MODULES)
+
+
+def test_exemptions_name_real_kernels():
+    """Each exemption names a kernel (and marked loop) some bundled module has: a renamed
+    kernel cannot leave a dead exemption behind."""
+    found = set()
+    for name in MODULES:
+        text, _ = _module(name)
+        prefix = vectorisation.module_prefix(text)
+        found |= {k for k, _, _ in vectorisation.kernels(text, prefix)}
+        found |= {f"{loop.kernel}/{loop.role}" for loop in vectorisation.marked_loops(text, prefix)}
+    assert set(EXEMPT) <= found, sorted(set(EXEMPT) - found)
+
+
+def test_marked_loops_of_the_delta_core():
+    """The markers the check relies on: every delta kernel has one points loop, fk has a
+    cos and a sin loop per crank angle, and each loop's extent is its body."""
+    text, _ = _module("delta_kinematics.c")
+    loops = vectorisation.marked_loops(text, "deltagen_delta")
+    kernels = [k for k, _, _ in vectorisation.kernels(text, "deltagen_delta")]
+    assert "fk" in kernels and "ik" in kernels and "inverse_dynamics" in kernels
+    for kernel in kernels:
+        assert [lp.role for lp in loops if lp.kernel == kernel].count("points") == 1, kernel
+    fk = [lp for lp in loops if lp.kernel == "fk"]
+    assert sorted(lp.role for lp in fk) == ["cos"] * 3 + ["points"] + ["sin"] * 3
+    lines = text.split("\n")
+    for lp in loops:
+        assert lines[lp.line - 1].lstrip().startswith("for (size_t k = 0;")
+        assert lines[lp.end - 1].strip() == "}" and lp.end > lp.line + 1
+
+
+def test_a_kernel_without_a_marked_loop_fails_by_default():
+    """A new kernel whose loop lost (or never had) the marker is a problem unless exempted;
+    no compiler needed: the report is empty."""
+    text, _ = _module("delta_kinematics.c")
+    unmarked = re.sub(r"  /\* loop: \w+ \*/", "", text)
+    problems = vectorisation.check(unmarked, [], exempt=EXEMPT)
+    assert len(problems) == 10 and all("has no loop marked" in p for p in problems)
+    assert any(p.startswith("deltagen_delta_fk ") for p in problems)
+
+
+def test_a_stale_exemption_fails():
+    """An exempt loop that gcc does vectorise is reported, so EXEMPT stays exact."""
+    text, _ = _module("delta_kinematics.c")
+    loops = vectorisation.marked_loops(text, "deltagen_delta")
+    remarks = [
+        vectorisation.Remark(lp.line, 30, "optimized", "loop vectorized using 32 byte vectors")
+        for lp in loops
+    ]
+    assert vectorisation.check(text, remarks, exempt=EXEMPT) == []
+    problems = vectorisation.check(text, remarks, exempt={"ik/points": "pretend"})
+    assert len(problems) == 1 and "stale exemption" in problems[0] and "_ik:" in problems[0]
+    # and without the remark for fk's points loop, that loop is reported
+    fk_points = next(lp for lp in loops if lp.kernel == "fk" and lp.role == "points")
+    problems = vectorisation.check(text, [r for r in remarks if r.line != fk_points.line])
+    assert problems == [
+        f"deltagen_delta_fk: the points loop at line {fk_points.line} is not vectorised "
+        "(gcc gave no reason)"
+    ]
+
+
+@needs_gcc
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=() if n in SLOW_UNLESS else pytest.mark.slow, id=n.removesuffix(".c"))
+        for n in MODULES
+    ],
+)
+def test_batched_kernels_vectorise(name):
+    text, path = _module(name)
+    remarks = vectorisation.vector_report(text, path)
+    assert any(r.kind == "optimized" for r in remarks), "gcc wrote no report: flags not applied?"
+    problems = vectorisation.check(text, remarks, exempt=EXEMPT)
+    assert not problems, f"{name}: gcc does not vectorise where it must:\n" + "\n".join(problems)
+
+
+def _inject(text: str, kernel: str, find: str, change) -> str:
+    """``text`` with ``change(line)`` applied to the first line of the ``kernel``'s points
+    loop that contains ``find`` (same number of lines: other kernels' units are unchanged)."""
+    loops = vectorisation.marked_loops(text, "deltagen_delta")
+    loop = next(lp for lp in loops if lp.kernel == kernel and lp.role == "points")
+    lines = text.split("\n")
+    i = next(i for i in range(loop.line, loop.end) if find in lines[i])
+    lines[i] = change(lines[i])
+    return "\n".join(lines)
+
+
+@needs_gcc
+def test_the_old_finite_guard_is_caught():
+    """The guard form that stopped gcc 12 (isfinite of an output already selected to NaN,
+    DESIGN.md's finite-output rule before it was rewritten) injected into fk's points loop:
+    the check names fk's points loop and gcc's reason; the other kernels still pass."""
+    text, path = _module("delta_kinematics.c")
+    old = "isfinite((((collinear) | (invalid) | (unreachable)) ? NAN : {}))"
+    bad = _inject(
+        text,
+        "fk",
+        "const int nonfinite_output",
+        lambda line: re.sub(r"isfinite\((x|y|z)\)", lambda m: old.format(m.group(1)), line),
+    )
+    assert bad != text and bad.count("\n") == text.count("\n")
+    problems = vectorisation.check(bad, vectorisation.vector_report(bad, path), exempt=EXEMPT)
+    assert len(problems) == 1, problems
+    assert problems[0].startswith("deltagen_delta_fk: the points loop at line")
+    assert "not vectorised (gcc:" in problems[0]
+
+
+@needs_gcc
+def test_an_early_exit_is_caught():
+    """A data-dependent ``break`` in ik's points loop and in one of fk's cos loops."""
+    text, path = _module("delta_kinematics.c")
+    bad = _inject(text, "ik", "const double x = ", lambda line: line + " if (x > 1e300) break;")
+    lines = bad.split("\n")
+    cos_loop = next(
+        lp
+        for lp in vectorisation.marked_loops(bad, "deltagen_delta")
+        if lp.kernel == "fk_vel" and lp.role == "cos"
+    )
+    lines[cos_loop.line] += " if (q1_b[k] > 1e300) break;"
+    bad = "\n".join(lines)
+    problems = vectorisation.check(bad, vectorisation.vector_report(bad, path), exempt=EXEMPT)
+    assert len(problems) == 2, problems
+    assert problems[0].startswith(f"deltagen_delta_fk_vel: the cos loop at line {cos_loop.line}")
+    assert problems[1].startswith("deltagen_delta_ik: the points loop at line")
