@@ -21,6 +21,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_LECTURE_SCARA_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_LECTURE_SCARA_TRIG_LANES
+#define DELTAGEN_LECTURE_SCARA_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -49,7 +54,7 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             q2_b[k] = q[(start + k) * 2 + 1];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -57,11 +62,8 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -211,7 +213,7 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             q2_b[k] = q[(start + k) * 2 + 1];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -219,11 +221,8 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -573,7 +572,7 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             q2_b[k] = q[(start + k) * 2 + 1];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -581,11 +580,8 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -723,7 +719,7 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             q2_b[k] = q[(start + k) * 2 + 1];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -731,11 +727,8 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -951,7 +944,7 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             qd2_b[k] = qd[(start + k) * 2 + 1];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -959,11 +952,8 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_LECTURE_SCARA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

@@ -21,6 +21,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_MANUTEC_H5_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_MANUTEC_H5_TRIG_LANES
+#define DELTAGEN_MANUTEC_H5_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -53,7 +58,7 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -61,11 +66,8 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_H5_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -238,7 +240,7 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -246,11 +248,8 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_H5_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -753,7 +752,7 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -761,11 +760,8 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_H5_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -969,7 +965,7 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -977,11 +973,8 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_H5_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1284,7 +1277,7 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1292,11 +1285,8 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_H5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_H5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_H5_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_H5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_H5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */

@@ -21,6 +21,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_MANUTEC_R15_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_MANUTEC_R15_TRIG_LANES
+#define DELTAGEN_MANUTEC_R15_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -57,7 +62,7 @@ int deltagen_manutec_r15_fk(size_t n, const double *restrict q, double *restrict
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -65,11 +70,8 @@ int deltagen_manutec_r15_fk(size_t n, const double *restrict q, double *restrict
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_R15_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -302,7 +304,7 @@ int deltagen_manutec_r15_frames(size_t n, const double *restrict q, double *rest
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -310,11 +312,8 @@ int deltagen_manutec_r15_frames(size_t n, const double *restrict q, double *rest
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_R15_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1027,7 +1026,7 @@ int deltagen_manutec_r15_jacobian(size_t n, const double *restrict q, double *re
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1035,11 +1034,8 @@ int deltagen_manutec_r15_jacobian(size_t n, const double *restrict q, double *re
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_R15_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1379,7 +1375,7 @@ int deltagen_manutec_r15_fk_jacobian(size_t n, const double *restrict q, double 
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1387,11 +1383,8 @@ int deltagen_manutec_r15_fk_jacobian(size_t n, const double *restrict q, double 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_R15_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1828,7 +1821,7 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1836,11 +1829,8 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MANUTEC_R15_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MANUTEC_R15_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) <= DELTAGEN_MANUTEC_R15_BLOCK
+            ? ((m + DELTAGEN_MANUTEC_R15_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MANUTEC_R15_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

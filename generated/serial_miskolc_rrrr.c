@@ -23,6 +23,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_MISKOLC_RRRR_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_MISKOLC_RRRR_TRIG_LANES
+#define DELTAGEN_MISKOLC_RRRR_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -55,7 +60,7 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -63,11 +68,8 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -255,7 +257,7 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -263,11 +265,8 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -794,7 +793,7 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -802,11 +801,8 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1036,7 +1032,7 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1044,11 +1040,8 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1371,7 +1364,7 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1379,11 +1372,8 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2153,7 +2143,7 @@ int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, c
             qdd4_b[k] = qdd[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -2161,11 +2151,8 @@ int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, c
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2353,7 +2340,7 @@ int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -2361,11 +2348,8 @@ int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2590,7 +2574,7 @@ int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, dou
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -2598,11 +2582,8 @@ int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, dou
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2743,7 +2724,7 @@ int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const dou
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -2751,11 +2732,8 @@ int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const dou
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3140,7 +3118,7 @@ int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, 
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3148,11 +3126,8 @@ int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MISKOLC_RRRR_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MISKOLC_RRRR_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) <= DELTAGEN_MISKOLC_RRRR_BLOCK
+            ? ((m + DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MISKOLC_RRRR_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */

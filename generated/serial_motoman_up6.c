@@ -21,6 +21,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_MOTOMAN_UP6_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_MOTOMAN_UP6_TRIG_LANES
+#define DELTAGEN_MOTOMAN_UP6_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -57,7 +62,7 @@ int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -65,11 +70,8 @@ int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MOTOMAN_UP6_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) <= DELTAGEN_MOTOMAN_UP6_BLOCK
+            ? ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -322,7 +324,7 @@ int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *rest
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -330,11 +332,8 @@ int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *rest
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MOTOMAN_UP6_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) <= DELTAGEN_MOTOMAN_UP6_BLOCK
+            ? ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1061,7 +1060,7 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1069,11 +1068,8 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MOTOMAN_UP6_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) <= DELTAGEN_MOTOMAN_UP6_BLOCK
+            ? ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1430,7 +1426,7 @@ int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double 
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1438,11 +1434,8 @@ int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MOTOMAN_UP6_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) <= DELTAGEN_MOTOMAN_UP6_BLOCK
+            ? ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1897,7 +1890,7 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1905,11 +1898,8 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_MOTOMAN_UP6_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_MOTOMAN_UP6_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) <= DELTAGEN_MOTOMAN_UP6_BLOCK
+            ? ((m + DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_MOTOMAN_UP6_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

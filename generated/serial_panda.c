@@ -21,6 +21,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_PANDA_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_PANDA_TRIG_LANES
+#define DELTAGEN_PANDA_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -59,7 +64,7 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
             q7_b[k] = q[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -67,11 +72,8 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -358,7 +360,7 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
             q7_b[k] = q[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -366,11 +368,8 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1196,7 +1195,7 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
             q7_b[k] = q[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1204,11 +1203,8 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1626,7 +1622,7 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
             q7_b[k] = q[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1634,11 +1630,8 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2166,7 +2159,7 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
             qd7_b[k] = qd[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -2174,11 +2167,8 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -2743,7 +2733,7 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
             qdd7_b[k] = qdd[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -2751,11 +2741,8 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3127,7 +3114,7 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
             q7_b[k] = q[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3135,11 +3122,8 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3853,7 +3837,7 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
             q7_b[k] = q[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3861,11 +3845,8 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4114,7 +4095,7 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
             qd7_b[k] = qd[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -4122,11 +4103,8 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -5513,7 +5491,7 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
             qd7_b[k] = qd[(start + k) * 7 + 6];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -5521,11 +5499,8 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PANDA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PANDA_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= DELTAGEN_PANDA_BLOCK
+            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */

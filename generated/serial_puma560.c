@@ -23,6 +23,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_PUMA560_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_PUMA560_TRIG_LANES
+#define DELTAGEN_PUMA560_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -59,7 +64,7 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -67,11 +72,8 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -310,7 +312,7 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -318,11 +320,8 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1033,7 +1032,7 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1041,11 +1040,8 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1388,7 +1384,7 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1396,11 +1392,8 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1841,7 +1834,7 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1849,11 +1842,8 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3519,7 +3509,7 @@ int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const 
             qdd6_b[k] = qdd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3527,11 +3517,8 @@ int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3831,7 +3818,7 @@ int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *res
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3839,11 +3826,8 @@ int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *res
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4347,7 +4331,7 @@ int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -4355,11 +4339,8 @@ int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4569,7 +4550,7 @@ int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -4577,11 +4558,8 @@ int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -5477,7 +5455,7 @@ int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -5485,11 +5463,8 @@ int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_BLOCK
+            ? ((m + DELTAGEN_PUMA560_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */

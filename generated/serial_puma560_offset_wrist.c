@@ -19,6 +19,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES
+#define DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -55,7 +60,7 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -63,11 +68,8 @@ int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_OFFSET_WRIST_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK
+            ? ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -311,7 +313,7 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -319,11 +321,8 @@ int deltagen_puma560_offset_wrist_frames(size_t n, const double *restrict q, dou
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_OFFSET_WRIST_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK
+            ? ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1039,7 +1038,7 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1047,11 +1046,8 @@ int deltagen_puma560_offset_wrist_jacobian(size_t n, const double *restrict q, d
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_OFFSET_WRIST_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK
+            ? ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1399,7 +1395,7 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1407,11 +1403,8 @@ int deltagen_puma560_offset_wrist_fk_jacobian(size_t n, const double *restrict q
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_OFFSET_WRIST_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK
+            ? ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1857,7 +1850,7 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1865,11 +1858,8 @@ int deltagen_puma560_offset_wrist_jacobian_dot(size_t n, const double *restrict 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_PUMA560_OFFSET_WRIST_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) <= DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK
+            ? ((m + DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PUMA560_OFFSET_WRIST_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

@@ -21,6 +21,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_SCARA_SR800_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_SCARA_SR800_TRIG_LANES
+#define DELTAGEN_SCARA_SR800_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -53,7 +58,7 @@ int deltagen_scara_sr800_fk(size_t n, const double *restrict q, double *restrict
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -61,11 +66,8 @@ int deltagen_scara_sr800_fk(size_t n, const double *restrict q, double *restrict
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_SCARA_SR800_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_SCARA_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) <= DELTAGEN_SCARA_SR800_BLOCK
+            ? ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -238,7 +240,7 @@ int deltagen_scara_sr800_frames(size_t n, const double *restrict q, double *rest
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -246,11 +248,8 @@ int deltagen_scara_sr800_frames(size_t n, const double *restrict q, double *rest
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_SCARA_SR800_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_SCARA_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) <= DELTAGEN_SCARA_SR800_BLOCK
+            ? ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -759,7 +758,7 @@ int deltagen_scara_sr800_jacobian(size_t n, const double *restrict q, double *re
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -767,11 +766,8 @@ int deltagen_scara_sr800_jacobian(size_t n, const double *restrict q, double *re
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_SCARA_SR800_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_SCARA_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) <= DELTAGEN_SCARA_SR800_BLOCK
+            ? ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -975,7 +971,7 @@ int deltagen_scara_sr800_fk_jacobian(size_t n, const double *restrict q, double 
             q4_b[k] = q[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -983,11 +979,8 @@ int deltagen_scara_sr800_fk_jacobian(size_t n, const double *restrict q, double 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_SCARA_SR800_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_SCARA_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) <= DELTAGEN_SCARA_SR800_BLOCK
+            ? ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1290,7 +1283,7 @@ int deltagen_scara_sr800_jacobian_dot(size_t n, const double *restrict q, const 
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1298,11 +1291,8 @@ int deltagen_scara_sr800_jacobian_dot(size_t n, const double *restrict q, const 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_SCARA_SR800_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_SCARA_SR800_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) <= DELTAGEN_SCARA_SR800_BLOCK
+            ? ((m + DELTAGEN_SCARA_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_SCARA_SR800_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */

@@ -23,6 +23,11 @@ extern double cos(double);
 extern double sin(double);
 #pragma omp declare simd notinbranch
 extern double atan2(double, double);
+/* lanes the cos/sin loops are padded to (see the kernels' gather) */
+#define DELTAGEN_UR5_TRIG_LANES 8
+#endif
+#ifndef DELTAGEN_UR5_TRIG_LANES
+#define DELTAGEN_UR5_TRIG_LANES 1  /* scalar libm: no padding */
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
@@ -59,7 +64,7 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -67,11 +72,8 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -323,7 +325,7 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -331,11 +333,8 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1052,7 +1051,7 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1060,11 +1059,8 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1417,7 +1413,7 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1425,11 +1421,8 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -1886,7 +1879,7 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -1894,11 +1887,8 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3535,7 +3525,7 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
             qdd6_b[k] = qdd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3543,11 +3533,8 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -3856,7 +3843,7 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -3864,11 +3851,8 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4361,7 +4345,7 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
             q6_b[k] = q[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -4369,11 +4353,8 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -4588,7 +4569,7 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -4596,11 +4577,8 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
@@ -5479,7 +5457,7 @@ int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const dou
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
         /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of up to 8 lanes: every point gets its cosines and
+         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
@@ -5487,11 +5465,8 @@ int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const dou
          * kinematics -- padding would multiply a single point's cost by up to 8, so a point
          * in a batch's scalar remainder may differ from one in a vector lane by the last
          * bits of atan2.) */
-#if defined(DELTAGEN_UR5_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
-        const size_t m_v = ((m + 7) & ~(size_t)7) <= DELTAGEN_UR5_BLOCK ? ((m + 7) & ~(size_t)7) : m;
-#else
-        const size_t m_v = m;
-#endif
+        const size_t m_v = ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) <= DELTAGEN_UR5_BLOCK
+            ? ((m + DELTAGEN_UR5_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_UR5_TRIG_LANES - 1)) : m;
         for (size_t k = m; k < m_v; ++k) {
             q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
             q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
