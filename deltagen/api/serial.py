@@ -37,7 +37,7 @@ from deltagen.inputs import (
     broadcast_rows,
     check_errors_mode,
 )
-from deltagen.model.serial import SerialDescription
+from deltagen.model.serial import DEFAULT_GRAVITY, SerialDescription
 from deltagen.native.parallel import check_threads
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
@@ -215,15 +215,23 @@ class SerialRobot:
         base: ArrayLike | None = None,
         tool: ArrayLike | None = None,
         configurations: Mapping[str, Sequence[float]] | None = None,
+        gravity: Sequence[float] = DEFAULT_GRAVITY,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> SerialRobot:
         """rows: dicts with a, alpha, d, offset, joint|type, qlim (and *_deg keys);
-        convention "standard" or "modified" must be given (no silent default)."""
+        convention "standard" or "modified" must be given (no silent default). ``gravity``
+        [m/s^2] is in the frame the poses are given in (the one ``base`` is given in)."""
         if convention not in ("standard", "modified"):
             raise InputError('from_dh needs convention="standard" or convention="modified"')
         desc = SerialDescription.from_rows(
-            rows, convention, name=name, base=base, tool=tool, configurations=configurations
+            rows,
+            convention,
+            name=name,
+            base=base,
+            tool=tool,
+            configurations=configurations,
+            gravity=gravity,
         )
         return cls(desc, backend, threads=threads)
 
@@ -236,6 +244,7 @@ class SerialRobot:
         *,
         name: str | None = None,
         locked: Mapping[str, float] | None = None,
+        gravity: Sequence[float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> SerialRobot:
@@ -244,11 +253,16 @@ class SerialRobot:
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
         limits and inertials (the links off the chain folded in, movable joints there locked
         at 0 or at ``locked[name]``). The joint variables are the URDF's (same zero, same sign).
+        ``gravity`` [m/s^2] is in the URDF's root (world) frame (default (0, 0, -9.81)) and
+        is turned into the base link's frame through the joints above it (those movable
+        locked like the ones off the chain).
         A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
         in the independent variables instead."""
         from deltagen.model.urdf import chain_from_urdf
 
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
+        desc, coupling = chain_from_urdf(
+            path, base=base, tip=tip, name=name, locked=locked, gravity=gravity
+        )
         if coupling is not None:
             from deltagen.api.coupled import CoupledArm
 
