@@ -95,7 +95,7 @@ import numpy as np
 import numpy.typing as npt
 
 from deltagen.errors import GeometryError
-from deltagen.geometry.rotations import matrix_from_rpy, skew
+from deltagen.geometry.rotations import matrix_from_rpy, skew, xyz_angles
 from deltagen.model.coupling import Coupling
 from deltagen.model.serial import DEFAULT_GRAVITY, Inertial, Joint, SerialDescription
 
@@ -415,14 +415,6 @@ def _z_to(axis: npt.NDArray[np.float64]) -> Matrix:
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     H[:3, :3] = np.eye(3) + s * K + (1.0 - c) * (K @ K)
     return H
-
-
-def _xyz_angles(R: Matrix) -> tuple[float, float, float]:
-    """(rx, ry, rz) with R = Rot_x(rx) Rot_y(ry) Rot_z(rz)."""
-    ry = math.atan2(R[0, 2], math.hypot(R[0, 0], R[0, 1]))
-    if math.hypot(R[0, 0], R[0, 1]) < 1e-12:  # cos ry = 0: rz = 0, rx from the rest
-        return math.atan2(R[2, 1], R[1, 1]), ry, 0.0
-    return math.atan2(-R[1, 2], R[2, 2]), ry, math.atan2(-R[0, 1], R[0, 0])
 
 
 def _inverse(T: Matrix) -> Matrix:
@@ -756,7 +748,7 @@ def _description(
     out: list[Joint] = []
     for i, j in enumerate(movable):
         t = [0.0 if abs(v) < _NOISE else float(v) for v in C[i][:3, 3]]
-        rx, ry, rz = _xyz_angles(C[i][:3, :3])
+        rx, ry, rz = xyz_angles(C[i][:3, :3])
         inertial = None
         if any_inertial:
             mass, com_w, I_w = _lump(parts[i])
