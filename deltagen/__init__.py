@@ -3,13 +3,19 @@
 from deltagen.api.delta import DeltaInertia, DeltaRobot
 from deltagen.api.serial import SerialRobot
 from deltagen.api.sweep import SweepResult, SweepSpec, sweep
-from deltagen.errors import GeometryError, SingularityError, UnreachableError
+from deltagen.errors import (
+    GeometryError,
+    IncompleteSolutionsWarning,
+    SingularityError,
+    UnreachableError,
+)
 from deltagen.inputs import InputError
 
 __all__ = [
     "DeltaInertia",
     "DeltaRobot",
     "GeometryError",
+    "IncompleteSolutionsWarning",
     "InputError",
     "SerialRobot",
     "SingularityError",

@@ -36,3 +36,8 @@ class UnreachableError(KinematicsError):
 
 class SingularityError(KinematicsError):
     """The pose is singular: det J_p ~ 0, a J_q diagonal entry ~ 0, or collinear centres."""
+
+
+class IncompleteSolutionsWarning(UserWarning):
+    """ik_all answered with a method that may miss solutions (its result's ``complete`` is
+    False): a pose without a valid solution may still be reachable."""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from deltagen import SerialRobot
+from deltagen import IncompleteSolutionsWarning, SerialRobot
 from deltagen.inputs import InputError
 from deltagen.solve import general6r
 from deltagen.solve import numeric as ik_numeric
@@ -54,7 +54,9 @@ def test_random_arms_every_solution(seed):
     rng = np.random.default_rng(100 + seed)
     q = rng.uniform(-np.pi, np.pi, (400, 6))
     T = arm.fk(q)
-    Q, valid = arm.ik_all(T)  # auto: no closed form, a regular elimination -> complete
+    result = arm.ik_all(T)  # auto: no closed form, a regular elimination -> complete
+    assert result.complete
+    Q, valid = result
     assert Q.shape == (400, 16, 6)
     found = _found(Q, valid, q)
     assert found.mean() >= 0.995, f"missed rows {np.flatnonzero(~found)}"
@@ -167,7 +169,8 @@ def test_jaco_complete_by_a_regular_arrangement():
     T = arm.fk(q)
     Qa, Va = arm.ik_all(T)
     assert Qa.shape == (60, 16, 6)
-    Qc, Vc = arm.ik_all(T, method="combined")
+    with pytest.warns(IncompleteSolutionsWarning):
+        Qc, Vc = arm.ik_all(T, method="combined")
     assert Qc.shape == (60, 8, 6) and len(arm.analytic_configs()) == 8
     fa, fc = _found(Qa, Va, q), _found(Qc, Vc, q)
     assert fa.all() and np.all(fa | ~fc)
@@ -185,8 +188,12 @@ def test_best_effort_path_of_singular_eliminations():
     arm._general_6r = (forced, False)
     q = np.random.default_rng(9).uniform(-np.pi, np.pi, (20, 6))
     T = arm.fk(q)
-    Qa, Va = arm.ik_all(T, method="complete")
-    Qc, Vc = arm.ik_all(T, method="combined")
+    with pytest.warns(IncompleteSolutionsWarning, match=r"method='complete'\) is not complete"):
+        best = arm.ik_all(T, method="complete")
+    Qa, Va = best
+    assert best.complete is False  # an empty answer here need not mean unreachable
+    with pytest.warns(IncompleteSolutionsWarning, match=r"method='combined'\) is not complete"):
+        Qc, Vc = arm.ik_all(T, method="combined")
     assert np.all(_found(Qa, Va, q) | ~_found(Qc, Vc, q))
     Tq = arm.fk(np.where(Va[..., None], Qa, 0.0))
     assert np.abs(Tq - T[:, None]).max(axis=(-1, -2))[Va].max() < 1e-10

@@ -18,9 +18,10 @@ Orientation conventions (spelled out because they are the usual source of confus
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -28,7 +29,12 @@ from numpy.typing import ArrayLike
 from deltagen import status as st
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
 from deltagen.api.validity import invalid_message, mark_nonfinite
-from deltagen.errors import GeometryError, SingularityError, rows_text
+from deltagen.errors import (
+    GeometryError,
+    IncompleteSolutionsWarning,
+    SingularityError,
+    rows_text,
+)
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
 from deltagen.inputs import (
@@ -37,7 +43,7 @@ from deltagen.inputs import (
     broadcast_rows,
     check_errors_mode,
 )
-from deltagen.model.serial import SerialDescription
+from deltagen.model.serial import DEFAULT_GRAVITY, SerialDescription
 from deltagen.native.parallel import check_threads
 from deltagen.paths import robots_dir
 from deltagen.status import SINGULAR_TOL
@@ -46,6 +52,32 @@ _BACKENDS = ("compiled", "reference")
 _IK_METHODS = ("auto", "analytic", "numeric")
 _EYE3 = np.eye(3)
 _F64 = np.dtype(np.float64)  # native byte order
+
+if TYPE_CHECKING:
+    from deltagen.solve.analytic import ReversedSolver
+
+
+class IKSolutions(tuple):
+    """What ik_all returns: unpacks as ``q, valid`` (also ``.q``, ``.valid``), and
+    ``.complete``: True when the method used finds every solution of the arm, so that a pose
+    without a valid one is unreachable within the joint limits (SerialRobot.ik_all)."""
+
+    complete: bool
+
+    def __new__(cls, q: FloatArray, valid: BoolArray, complete: bool) -> IKSolutions:
+        self = super().__new__(cls, (q, valid))
+        self.complete = complete
+        return self
+
+    @property
+    def q(self) -> FloatArray:
+        return self[0]
+
+    @property
+    def valid(self) -> BoolArray:
+        return self[1]
+
+
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # SerialRobot._poses: what counts as a rigid transform
 
@@ -134,6 +166,7 @@ class SerialRobot:
         self.description = description
         self.backend = backend
         self.n = description.n
+        self._incomplete_said: set[str] = set()  # ik_all methods warned about (ik_all)
         if backend == "compiled":
             from deltagen.native.serial import CompiledArm
 
@@ -215,15 +248,23 @@ class SerialRobot:
         base: ArrayLike | None = None,
         tool: ArrayLike | None = None,
         configurations: Mapping[str, Sequence[float]] | None = None,
+        gravity: Sequence[float] = DEFAULT_GRAVITY,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> SerialRobot:
         """rows: dicts with a, alpha, d, offset, joint|type, qlim (and *_deg keys);
-        convention "standard" or "modified" must be given (no silent default)."""
+        convention "standard" or "modified" must be given (no silent default). ``gravity``
+        [m/s^2] is in the frame the poses are given in (the one ``base`` is given in)."""
         if convention not in ("standard", "modified"):
             raise InputError('from_dh needs convention="standard" or convention="modified"')
         desc = SerialDescription.from_rows(
-            rows, convention, name=name, base=base, tool=tool, configurations=configurations
+            rows,
+            convention,
+            name=name,
+            base=base,
+            tool=tool,
+            configurations=configurations,
+            gravity=gravity,
         )
         return cls(desc, backend, threads=threads)
 
@@ -236,6 +277,7 @@ class SerialRobot:
         *,
         name: str | None = None,
         locked: Mapping[str, float] | None = None,
+        gravity: Sequence[float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
     ) -> SerialRobot:
@@ -244,11 +286,16 @@ class SerialRobot:
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
         limits and inertials (the links off the chain folded in, movable joints there locked
         at 0 or at ``locked[name]``). The joint variables are the URDF's (same zero, same sign).
+        ``gravity`` [m/s^2] is in the URDF's root (world) frame (default (0, 0, -9.81)) and
+        is turned into the base link's frame through the joints above it (those movable
+        locked like the ones off the chain).
         A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
         in the independent variables instead."""
         from deltagen.model.urdf import chain_from_urdf
 
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
+        desc, coupling = chain_from_urdf(
+            path, base=base, tip=tip, name=name, locked=locked, gravity=gravity
+        )
         if coupling is not None:
             from deltagen.api.coupled import CoupledArm
 
@@ -676,10 +723,18 @@ class SerialRobot:
             self._analytic_solver = analytic_solver(self.description)
         return self._analytic_solver
 
-    def ik_all(self, T: ArrayLike, method: str = "auto") -> tuple[FloatArray, BoolArray]:
+    def ik_all(self, T: ArrayLike, method: str = "auto") -> IKSolutions:
         """Every analytic branch: q (..., k, n) and valid (..., k) (reachable, finite,
         within the joint limits). Branch names: analytic_configs(). Rows of T that are not
         finite rigid transforms come back NaN and invalid.
+
+        The result unpacks as ``q, valid`` and says in ``.complete`` whether the method
+        used finds every solution: True for the closed forms (those of model/structure.py,
+        including a 6R chain whose first three axes meet, solved backwards) and for the
+        general 6R solver where its elimination is regular; then a pose without a valid
+        solution is unreachable within the joint limits. False (with an
+        IncompleteSolutionsWarning, once per arm and method) for the combined method and the
+        general solver's best effort: a pose without a valid solution may be reachable.
 
         method: "auto" (the closed form where the structure has one; else, for a 6R arm, the
         complete general solver when one of its eliminations is regular -- then the slots
@@ -689,6 +744,39 @@ class SerialRobot:
         "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
+        q, valid = self._ik_all(T, method)
+        complete = self._ik_all_complete(method)
+        if not complete and method not in self._incomplete_said:
+            self._incomplete_said.add(method)
+            why = (
+                "the combined method (the nearest central-wrist arm's branches, refined by "
+                "Newton) may miss solutions"
+                if method == "combined" or (method == "auto" and self._combined() is not None)
+                else "the general 6R solver's eliminations are singular for this arm (no "
+                "closed form either): its answer is a best effort"
+            )
+            warnings.warn(
+                f"ik_all of {self.name} (method={method!r}) is not complete: {why}; a pose "
+                "without a valid solution may still be reachable (result.complete is False)",
+                IncompleteSolutionsWarning,
+                stacklevel=2,
+            )
+        return IKSolutions(q, valid, complete)
+
+    def _ik_all_complete(self, method: str) -> bool:
+        """Whether ik_all's ``method`` finds every solution of this arm (ik_all's docstring):
+        the same choice of path as _ik_all's."""
+        if method == "combined":
+            return False
+        solver = self._analytic()
+        if solver is not None and method in ("auto", "closed_form"):
+            return True
+        # "complete", or "auto" without a closed form: the general solver, complete when its
+        # elimination is regular (else its best effort, or the combined method)
+        general = self._general()
+        return general is not None and bool(general[1])
+
+    def _ik_all(self, T: ArrayLike, method: str) -> tuple[FloatArray, BoolArray]:
         one = self._general_single
         if (
             one
@@ -720,7 +808,7 @@ class SerialRobot:
                 if made is not None:
                     made.auto = solver is None  # "auto" is "complete" here (checked above)
                     if type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64:
-                        return self.ik_all(T, method)
+                        return self._ik_all(T, method)
             lead, flat, finite, rigid = self._poses(T)
             safe = flat.copy()
             safe[~rigid] = np.eye(4)
@@ -758,13 +846,29 @@ class SerialRobot:
                 return q1.reshape(lead + q1.shape), valid1.reshape(lead + valid1.shape)
         return self._ik_all_rows(lead, flat, rigid, solver, combined)
 
+    def _reversed_arm(self, solver: ReversedSolver) -> SerialRobot:
+        """The reversed chain (model/structure.py reversed_description) as an arm of this
+        backend, made once: its compiled closed form serves ik_all (built on first use)."""
+        if getattr(self, "_reversed", None) is None:
+            self._reversed = type(self)(
+                solver.reversed_description, self.backend, threads=self.threads
+            )
+        return self._reversed
+
     def _ik_all_rows(self, lead, flat, good, solver, combined):
         """ik_all's general path for checked poses (good: finite rigid rows)."""
         bad = ~good
         safe = flat.copy()
         safe[bad] = np.eye(4)
         k = len(self.analytic_configs())
-        if solver is not None and self.backend == "compiled" and self._core.has_ik_all:
+        from deltagen.solve.analytic import ReversedSolver, invert
+
+        if isinstance(solver, ReversedSolver) and self.backend == "compiled":
+            # solved backwards: the reversed chain's own compiled closed form for T^-1
+            back = self._reversed_arm(solver)
+            q, valid = back._ik_all(invert(safe), "closed_form")
+            q = np.ascontiguousarray(q[..., ::-1])
+        elif solver is not None and self.backend == "compiled" and self._core.has_ik_all:
             q, valid, _ = self._core.ik_all(safe, k)  # the generated C (ik_kernel.py)
             if self._ik_all_single is None:
                 self._ik_all_single = self._core.single_ik_all(k)

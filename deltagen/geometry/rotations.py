@@ -235,6 +235,16 @@ def matrix_from_euler_zyx(angles) -> np.ndarray:
     return matrix_from_rpy(angles[..., ::-1])
 
 
+def xyz_angles(R) -> tuple[float, float, float]:
+    """(rx, ry, rz) with R = Rot_x(rx) Rot_y(ry) Rot_z(rz) for one rotation matrix (the
+    fixed part of a universal-coordinate joint, model/serial.py); at cos ry = 0 the angle rz
+    is set to 0."""
+    ry = math.atan2(R[0, 2], math.hypot(R[0, 0], R[0, 1]))
+    if math.hypot(R[0, 0], R[0, 1]) < 1e-12:  # cos ry = 0: rz = 0, rx from the rest
+        return math.atan2(R[2, 1], R[1, 1]), ry, 0.0
+    return math.atan2(-R[1, 2], R[2, 2]), ry, math.atan2(-R[0, 1], R[0, 0])
+
+
 def rpy(R) -> np.ndarray:
     """(..., 3, 3) -> (..., 3) (roll, pitch, yaw) with R = Rot_z(yaw) Rot_y(pitch) Rot_x(roll),
     i.e. :func:`euler_zyx` reversed."""

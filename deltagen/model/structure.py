@@ -38,6 +38,10 @@ Structures (tolerances of :mod:`deltagen.geometry.axes`: parallel when ``|w_i x 
     are not parallel (UR3/5/10: shoulder, elbow and wrist 1 parallel, offset wrist).
 :class:`StanfordArm` (``stanford_rrp_6``) -- joints R R P R R R: axes 1 and 2 meet, joint 3
     prismatic, axes 4, 5, 6 meet (central wrist): the Stanford arm.
+:class:`ReversedChain` (``reversed``) -- 6 revolute joints whose chain read backwards
+    (:func:`reversed_description`, T'(q_6, ..., q_1) = T(q)^-1) is a ``spherical_wrist_6r``
+    or a ``parallel_triple_6r``: Pieper's other case, the first three axes meeting in a point
+    (a humanoid's hip; TALOS' legs), solved backwards.
 
 Each is a frozen dataclass of the precomputed quantities (arrays are read-only); the meaning
 of the branch names and the solution method are in :mod:`deltagen.solve.analytic`.
@@ -67,6 +71,7 @@ __all__ = [
     "SphericalWrist6R",
     "ParallelTriple6R",
     "StanfordArm",
+    "ReversedChain",
     "Structure",
     "joint_axes",
     "detect",
@@ -74,6 +79,8 @@ __all__ = [
     "detect_elbow",
     "detect_parallel_triple",
     "detect_stanford",
+    "detect_reversed",
+    "reversed_description",
     "parallel_pairs",
     "parallel_runs",
     "common_point_of",
@@ -346,7 +353,30 @@ class StanfordArm(_Structure):
     normal_45: np.ndarray  # (3,) w4 x w5
 
 
-Structure = PlanarArm | Elbow4R | SphericalWrist6R | ParallelTriple6R | StanfordArm
+@dataclass(frozen=True, eq=False, repr=False)
+class ReversedChain(_Structure):
+    """A 6R chain whose reversed chain has a closed form: Pieper's other case, the first
+    three axes meeting in a point (a humanoid's hip), or the first two meeting and axes 3, 4,
+    5 parallel. Read backwards -- the tool frame as the base, joint 6 first -- the chain has
+    its three meeting axes at the end (a central wrist) and ``inner`` is that chain's
+    structure. Since T(q)^-1 = T'(q_6, ..., q_1) (:func:`reversed_description`), every
+    solution of the reversed chain for T^-1, its joints read backwards, is one of the chain
+    for T, and the reversed closed form is complete, so is this one (solve/analytic.py)."""
+
+    kind: ClassVar[str] = "reversed"
+    position_only_ok: ClassVar[bool] = False
+
+    axes: JointAxes  # the chain's own axes (its limits, its name)
+    inner: Any  # the reversed chain's structure (SphericalWrist6R, ParallelTriple6R, ...)
+    description: SerialDescription  # the reversed chain (reversed_description)
+
+    @property
+    def configs(self) -> tuple:
+        """The branch names of the reversed chain's closed form."""
+        return tuple(self.inner.configs)
+
+
+Structure = PlanarArm | Elbow4R | SphericalWrist6R | ParallelTriple6R | StanfordArm | ReversedChain
 
 
 # ------------------------------------------------------------------------- detection
@@ -549,7 +579,90 @@ def detect(desc: SerialDescription) -> Structure | None:
         found = find(ax)
         if found is not None:
             return found
+    return detect_reversed(ax, desc)
+
+
+def detect_reversed(ax: JointAxes, desc: SerialDescription) -> ReversedChain | None:
+    """A :class:`ReversedChain` when ``desc`` is a 6R chain whose reversed chain has a 6R
+    closed form (detected like any arm), else None."""
+    if ax.n != 6 or not ax.revolute.all():
+        return None
+    back = reversed_description(desc, ax)
+    back_axes = joint_axes(back)
+    if not back_axes.matches(back):  # pragma: no cover - the reversal is exact algebra
+        return None
+    for find in (detect_elbow, detect_parallel_triple):
+        inner = find(back_axes)
+        if inner is not None and inner.axes.n == 6:
+            return ReversedChain(axes=ax, inner=inner, description=back)
     return None
+
+
+def reversed_description(desc: SerialDescription, ax: JointAxes | None = None) -> SerialDescription:
+    """The chain read backwards, T'(q_n, ..., q_1) = T(q)^-1, as universal coordinates.
+
+    From the product of exponentials (module docstring),
+    T(q)^-1 = T(0)^-1 exp(-xi_n q_n) ... exp(-xi_1 q_1) = exp(-xi'_n q_n) ... exp(-xi'_1 q_1)
+    T(0)^-1 with xi' = Ad(T(0)^-1) xi: joint k of the reversed chain is joint n + 1 - k,
+    its axis carried into the tool frame (point T(0)^-1 o, direction -R(0)^T w), its variable
+    the same q, its limits the same; the zero pose is T(0)^-1. Each joint gets a frame F_k
+    (origin on its axis, z along it), and D_k = Rot_z(q_k) C_k with C_k = F_k^-1 F_{k+1}
+    (C_n = identity), base = F_1, tool = F_n^-1 T(0)^-1 (model/serial.py's universal form)."""
+    from dataclasses import replace
+
+    from deltagen.geometry.rotations import xyz_angles
+
+    ax = joint_axes(desc) if ax is None else ax
+    n = ax.n
+    T0 = np.asarray(ax.T0, dtype=float)
+    inv = np.eye(4)
+    inv[:3, :3] = T0[:3, :3].T
+    inv[:3, 3] = -T0[:3, :3].T @ T0[:3, 3]
+    frames_k = []
+    for k in range(n):
+        i = n - 1 - k
+        w = -(inv[:3, :3] @ ax.directions[i])
+        o = inv[:3, :3] @ ax.points[i] + inv[:3, 3]
+        helper = np.eye(3)[int(np.argmin(np.abs(w)))]
+        x = geo.unit(np.cross(helper, w))
+        F = np.eye(4)
+        F[:3, :3] = np.column_stack([x, np.cross(w, x), w])
+        F[:3, 3] = o
+        frames_k.append(F)
+    joints = []
+    for k in range(n):
+        C = np.linalg.solve(frames_k[k], frames_k[k + 1]) if k + 1 < n else np.eye(4)
+        rx, ry, rz = xyz_angles(C[:3, :3])
+        original = desc.joints[n - 1 - k]
+        joints.append(
+            replace(
+                original,
+                a=0.0,
+                alpha=0.0,
+                d=0.0,
+                theta=0.0,
+                offset=0.0,
+                tx=float(C[0, 3]),
+                ty=float(C[1, 3]),
+                tz=float(C[2, 3]),
+                rx=rx,
+                ry=ry,
+                rz=rz,
+                axis="z",
+                sign=1.0,
+                qlim=None if not np.all(np.isfinite(ax.qlim[n - 1 - k])) else original.qlim,
+                inertial=None,
+            )
+        )
+    tool = np.asarray(np.linalg.solve(frames_k[-1], inv), dtype=np.float64)
+    return SerialDescription(
+        name=f"{desc.name}_reversed"[:64],
+        convention="universal",
+        joints=tuple(joints),
+        base=frames_k[0],
+        tool=tool,
+        doc=f"{desc.name} read backwards: T'(q_n, ..., q_1) = T(q)^-1",
+    )
 
 
 # -------------------------------------------------------------- general predicates

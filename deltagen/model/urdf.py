@@ -50,7 +50,22 @@ else 0 (the joint's zero; the URDFWarning names every joint so locked). This is 
 buildReducedModel with those joints locked at that configuration. The base link and the links
 fixed to it (before joint 1), with whatever hangs off them, carry no joint and are ignored.
 When no link of the chain has an ``<inertial>``, the description has no dynamics; when some
-have one, the others get mass 0.
+have one, the others get mass 0. An ``<inertial>`` is checked where its mass is used: a
+defect (a negative mass, a number that is not one, an inertia that is not positive
+semidefinite) in a link that does not reach the chain (above the base, on another branch,
+fixed to the base) never blocks it. An inertia indefinite by the rounding of its printed
+digits -- smallest principal moment negative by at most 1e-6 of the trace or 1e-9 kg m^2
+(TIAGo's 1 mg antenna: -3.5e-8 kg m^2) -- is clamped (negative principal moments set to 0)
+with a URDFWarning naming the link; a larger defect is an error naming it.
+
+Gravity. The URDF's root link is the world: ``gravity`` (default (0, 0, -9.81) m/s^2) is
+given in its frame, as pinocchio and the simulators read a URDF. The chain's base link may
+be turned in that world (iCub's ``chest`` has its z axis horizontal), so the description
+holds g_base = R^T g, R the rotation root -> base through the joints above the base: fixed
+ones by their origin, movable ones locked like those off the chain (``locked``, a
+``<mimic>``, else 0 with a URDFWarning naming them when the chain has inertials). The
+dynamics then equal those of the whole tree with the joints outside the chain locked
+(pinocchio's buildReducedModel) under the world's gravity.
 
 Limits. ``<limit lower upper>`` becomes qlim for revolute and prismatic joints (it is
 required there by the URDF specification); ``continuous`` joints are revolute without
@@ -71,7 +86,7 @@ import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from xml.parsers import expat
@@ -80,15 +95,19 @@ import numpy as np
 import numpy.typing as npt
 
 from deltagen.errors import GeometryError
-from deltagen.geometry.rotations import matrix_from_rpy, skew
+from deltagen.geometry.rotations import matrix_from_rpy, skew, xyz_angles
 from deltagen.model.coupling import Coupling
-from deltagen.model.serial import Inertial, Joint, SerialDescription
+from deltagen.model.serial import DEFAULT_GRAVITY, Inertial, Joint, SerialDescription
 
 Matrix = npt.NDArray[np.float64]
 _MOVABLE = ("revolute", "continuous", "prismatic")
 _REFUSED = ("floating", "planar")
 _NOISE = 1e-15  # constant translations below this [m] are rounding noise of the regrouping
 _INERTIA_NOISE = 1e-14  # inertia entries below this fraction of the largest one: noise
+# an inertia whose smallest principal moment is negative by at most this fraction of its
+# trace, or by this much [kg m^2], is rounding of the file's digits (module docstring)
+_INDEFINITE_REL = 1e-6
+_INDEFINITE_ABS = 1e-9
 _DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 
 
@@ -114,6 +133,10 @@ class _UJoint:
 class _ULink:
     name: str
     inertial: tuple[float, Matrix, Matrix] | None  # mass, E (4x4), inertia (3x3) in E
+    # a defect of the <inertial> block, raised only when the link's mass is used (a link
+    # that does not reach the chain never blocks it), and a correction, warned then
+    problem: str | None = None
+    correction: str | None = None
 
 
 def _numbers(text: str | None, count: int, where: str, default: str | None = None) -> list[float]:
@@ -159,10 +182,17 @@ def _parse_link(element: ET.Element) -> _ULink:
     name = element.get("name")
     if not name:
         raise GeometryError("<link> without a name attribute")
-    where = f"link {name!r}"
     inertial = element.find("inertial")
     if inertial is None:
         return _ULink(name, None)
+    try:
+        return _parse_inertial(name, inertial)
+    except GeometryError as exc:  # raised where the link's mass is used (module docstring)
+        return _ULink(name, None, problem=str(exc))
+
+
+def _parse_inertial(name: str, inertial: ET.Element) -> _ULink:
+    where = f"link {name!r}"
     mass_el = inertial.find("mass")
     if mass_el is None:
         raise GeometryError(f"{where}: <inertial> without <mass>")
@@ -171,18 +201,29 @@ def _parse_link(element: ET.Element) -> _ULink:
         raise GeometryError(f"{where} <mass>: must be >= 0 kg, got {mass!r}")
     E = _origin(inertial, f"{where} <inertial>")
     Ic = np.zeros((3, 3))
+    correction = None
     ine = inertial.find("inertia")
     if ine is not None:
         w = f"{where} <inertia>"
         xx, yy, zz = (_number(ine, k, w, 0.0) for k in ("ixx", "iyy", "izz"))
         xy, xz, yz = (_number(ine, k, w, 0.0) for k in ("ixy", "ixz", "iyz"))
         Ic = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        smallest = float(np.linalg.eigvalsh(Ic)[0])
+        lam, V = np.linalg.eigh(Ic)
+        smallest = float(lam[0])
         if smallest < -1e-12 * max(1.0, float(np.abs(Ic).max())):
-            raise GeometryError(
-                f"{w}: not positive semidefinite (smallest principal moment {smallest:.6g} kg m^2)"
+            trace = float(np.trace(Ic))
+            if -smallest > max(_INDEFINITE_REL * trace, _INDEFINITE_ABS):
+                raise GeometryError(
+                    f"{w}: not positive semidefinite (smallest principal moment "
+                    f"{smallest:.6g} kg m^2, trace {trace:.6g} kg m^2: more than rounding)"
+                )
+            # indefinite by the rounding of the printed digits: clamped
+            Ic = (V * np.maximum(lam, 0.0)) @ V.T
+            correction = (
+                f"URDF {w}: smallest principal moment {smallest:.6g} kg m^2 (trace "
+                f"{trace:.6g}) is rounding of the printed digits; clamped to 0"
             )
-    return _ULink(name, (mass, E, Ic))
+    return _ULink(name, (mass, E, Ic), correction=correction)
 
 
 def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
@@ -376,14 +417,6 @@ def _z_to(axis: npt.NDArray[np.float64]) -> Matrix:
     return H
 
 
-def _xyz_angles(R: Matrix) -> tuple[float, float, float]:
-    """(rx, ry, rz) with R = Rot_x(rx) Rot_y(ry) Rot_z(rz)."""
-    ry = math.atan2(R[0, 2], math.hypot(R[0, 0], R[0, 1]))
-    if math.hypot(R[0, 0], R[0, 1]) < 1e-12:  # cos ry = 0: rz = 0, rx from the rest
-        return math.atan2(R[2, 1], R[1, 1]), ry, 0.0
-    return math.atan2(-R[1, 2], R[2, 2]), ry, math.atan2(-R[0, 1], R[0, 0])
-
-
 def _inverse(T: Matrix) -> Matrix:
     inv = np.eye(4)
     inv[:3, :3] = T[:3, :3].T
@@ -503,6 +536,53 @@ class _OffChain:
             )
 
 
+def _base_gravity(
+    base: str,
+    root: str,
+    by_child: dict[str, _UJoint],
+    off_chain: _OffChain,
+    gravity: Sequence[float],
+    warn: bool,
+) -> tuple[float, float, float]:
+    """Gravity [m/s^2] given in the root link's (world) frame, turned into the base link's
+    frame: g_base = R^T g with R the rotation of root -> base through the joints above the
+    base, fixed ones by their origin, movable ones locked (module docstring, "Gravity")."""
+    try:
+        g = np.array([float(v) for v in gravity], dtype=float)
+    except (TypeError, ValueError):
+        raise GeometryError(f"gravity must be 3 finite numbers [m/s^2], got {gravity!r}") from None
+    if g.shape != (3,) or not np.all(np.isfinite(g)):
+        raise GeometryError(f"gravity must be 3 finite numbers [m/s^2], got {gravity!r}")
+    above: list[_UJoint] = []
+    link = base
+    while link != root:
+        above.append(by_child[link])
+        link = by_child[link].parent
+    R = np.eye(3)
+    held: dict[str, float] = {}
+    defaulted = []
+    for j in reversed(above):  # root first
+        R = R @ j.origin[:3, :3]
+        if j.type in _MOVABLE:
+            held[j.name] = off_chain.value(j)
+            if j.name in off_chain.defaulted:
+                defaulted.append(j.name)
+            R = R @ _motion(j, held[j.name])[:3, :3]
+    out = R.T @ g
+    # rounding of the turns (cos(pi/2) = 6e-17 in floats) is zeroed
+    out = np.where(np.abs(out) < _NOISE * float(np.linalg.norm(g)), 0.0, out)
+    if warn and defaulted:
+        names = ", ".join(f"{k} = {held[k]:g}" for k in defaulted)
+        warnings.warn(
+            f"gravity is turned from the URDF's root link {root!r} into the chain's base "
+            f"{base!r} with the movable joints above the base at {names} (their zero, or "
+            "their <mimic> of it; pass locked={name: value} for another posture)",
+            URDFWarning,
+            stacklevel=5,
+        )
+    return float(out[0]), float(out[1]), float(out[2])
+
+
 def _identifier(name: str) -> str:
     ident = re.sub(r"[^A-Za-z0-9_]", "_", name)[:64] or "arm"
     return ident if not ident[0].isdigit() else f"urdf_{ident}"[:64]
@@ -514,14 +594,17 @@ def description_from_urdf(
     tip: str | None = None,
     name: str | None = None,
     locked: Mapping[str, float] | None = None,
+    gravity: Sequence[float] | None = None,
 ) -> SerialDescription:
     """The chain of the URDF file ``path`` from link ``base`` (default: the root link) to
     link ``tip`` (default: the single leaf below ``base``) as universal coordinates (module
     docstring). Joint names are kept; the robot's name defaults to the URDF's (made a C
     identifier). A chain with ``<mimic>`` joints is refused here (its description alone
     would treat them as free): use :func:`chain_from_urdf`. ``locked``: values [rad or m] of
-    movable joints off the chain, where their links' mass is folded in (module docstring)."""
-    desc, coupling = chain_from_urdf(path, base, tip, name, locked)
+    movable joints off the chain, where their links' mass is folded in, and of those above
+    ``base`` (module docstring). ``gravity``: [m/s^2] in the URDF's root (world) frame,
+    default (0, 0, -9.81); the description holds it turned into the base link's frame."""
+    desc, coupling = chain_from_urdf(path, base, tip, name, locked, gravity)
     if coupling is not None:
         coupled = [desc.joints[i].name for i in range(desc.n) if i not in coupling.independent]
         raise GeometryError(
@@ -537,6 +620,7 @@ def chain_from_urdf(
     tip: str | None = None,
     name: str | None = None,
     locked: Mapping[str, float] | None = None,
+    gravity: Sequence[float] | None = None,
 ) -> tuple[SerialDescription, Coupling | None]:
     """(description of every movable joint of the chain, its :class:`Coupling` or None when
     no joint of the chain has a ``<mimic>``): q_j = multiplier q_i + offset for a joint j
@@ -547,7 +631,7 @@ def chain_from_urdf(
     except OSError as exc:
         raise GeometryError(f"cannot read URDF {source}: {exc}") from None
     try:
-        return _description(text, source, base, tip, name, locked)
+        return _description(text, source, base, tip, name, locked, gravity)
     except GeometryError as exc:
         raise GeometryError(f"URDF {source}: {exc}") from None
 
@@ -559,6 +643,7 @@ def _description(
     tip: str | None,
     name: str | None,
     locked: Mapping[str, float] | None = None,
+    gravity: Sequence[float] | None = None,
 ) -> tuple[SerialDescription, Coupling | None]:
     robot_name, links, joints = _parse(text, source)
     root, by_child = _tree(links, joints)
@@ -605,8 +690,15 @@ def _description(
 
     def add_inertial(link_name: str, at: Matrix) -> None:
         nonlocal any_inertial
-        inertial = links[link_name].inertial
-        if inertial is None or not parts:
+        link = links[link_name]
+        if not parts:
+            return
+        if link.problem is not None:
+            raise GeometryError(link.problem)
+        if link.correction is not None:
+            warnings.warn(link.correction, URDFWarning, stacklevel=6)
+        inertial = link.inertial
+        if inertial is None:
             return
         any_inertial = True
         mass, E, Ic = inertial
@@ -634,6 +726,14 @@ def _description(
             parts.append([])
             add_subtree(j.child, P[-1])
     off_chain.finish(tip)
+    g_base = _base_gravity(
+        base,
+        root,
+        by_child,
+        off_chain,
+        DEFAULT_GRAVITY if gravity is None else gravity,
+        any_inertial,
+    )
     if not movable:
         raise GeometryError(f"the chain from {base!r} to {tip!r} has no movable joint")
 
@@ -648,7 +748,7 @@ def _description(
     out: list[Joint] = []
     for i, j in enumerate(movable):
         t = [0.0 if abs(v) < _NOISE else float(v) for v in C[i][:3, 3]]
-        rx, ry, rz = _xyz_angles(C[i][:3, :3])
+        rx, ry, rz = xyz_angles(C[i][:3, :3])
         inertial = None
         if any_inertial:
             mass, com_w, I_w = _lump(parts[i])
@@ -698,6 +798,7 @@ def _description(
         base=base_T,
         tool=tool_T,
         doc=f"from URDF {source}, chain {base} -> {tip}",
+        gravity=g_base,
     )
     mimics = {j.name: j.mimic for j in movable if j.mimic is not None}
     if not mimics:

@@ -59,6 +59,13 @@ Supported structures
     rotation (R1 R2 R3)^T R_G (eq. 13) gives q4, q5 (Paden-Kahan subproblem 2, two solutions:
     the wrist flip) and q6. Eight configurations ``{front|back}_{up|down}_{noflip|flip}``.
 
+``reversed_spherical_wrist_6r`` / ``reversed_parallel_triple_6r`` -- a 6R chain whose first
+    three axes meet (a humanoid's hip) or whose first two meet and axes 3, 4, 5 are parallel:
+    read backwards (model/structure.py ``reversed_description``: T'(q_6, ..., q_1) = T(q)^-1)
+    it is one of the structures above, solved for T^-1 (:class:`ReversedSolver`); its joints
+    read backwards are the solutions for T, as many as the reversed closed form has (all of
+    them). Branch names are those of the reversed chain, whose base is this chain's tool.
+
 Configuration names of the elbow arms: ``front`` has the wrist centre in front of axis 1 in
 the arm's own frame (same side as at q = 0), ``back`` reaches over behind it (for the Puma 560
 with Corke's parameters, front = "right-handed", back = "left-handed"). ``up``: the elbow lies
@@ -111,12 +118,13 @@ from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import (
     ParallelTriple6R,
     PlanarArm,
+    ReversedChain,
     StanfordArm,
     Structure,
     detect,
 )
 
-__all__ = ["AnalyticSolver", "analytic_solver", "solver_for", "WRIST_SINGULAR"]
+__all__ = ["AnalyticSolver", "ReversedSolver", "analytic_solver", "solver_for", "WRIST_SINGULAR"]
 
 WRIST_SINGULAR = 1e-12  # wrist singular when |(R_w w6) x w4| is below this
 _CHUNK = 8192  # poses per pass (keeps the temporaries in cache)
@@ -596,6 +604,52 @@ class _StanfordSolver(AnalyticSolver):
         return q, (ok[..., None] & np.ones(2, dtype=bool)).reshape(N, 8)
 
 
+class ReversedSolver(AnalyticSolver):
+    """The closed form of a chain read backwards (``reversed_*`` structures; model/structure.py
+    :class:`~deltagen.model.structure.ReversedChain`: the first three axes meet, as in a
+    humanoid's hip): the reversed chain's solver for T^-1, its joints read backwards. Branch
+    names are the reversed chain's (its base is this chain's tool). ``inner``: that solver;
+    its forward-kinematics check is of the reversed chain, T'(q_6, ..., q_1) = T(q)^-1."""
+
+    def __init__(self, detected: ReversedChain, description: SerialDescription | None = None):
+        super().__init__(detected, description)
+        inner = solver_for(detected.inner, detected.description)
+        assert inner is not None
+        self.inner = inner
+        self.reversed_description = detected.description
+        self.structure = f"reversed_{inner.structure}"
+
+    def solve(self, T, *, position_only=False, limits=True, tol=1e-8, check=True):
+        if position_only:
+            raise InputError(
+                f"{self.axes.name}: position_only does not apply to a 6R chain solved backwards"
+            )
+        T = as_float_array(T, "T", "(..., 4, 4)")
+        if T.ndim < 2 or T.shape[-2:] != (4, 4):
+            raise InputError(f"T must have shape (..., 4, 4), got {T.shape}")
+        q, valid = self.inner.solve(invert(T), limits=limits, tol=tol, check=check)
+        return np.ascontiguousarray(q[..., ::-1]), valid
+
+    def closed_form(self, R_t, p_t, position_only: bool = False):
+        R_b = np.swapaxes(R_t, -1, -2)
+        p_b = -np.einsum("...ij,...j->...i", R_b, p_t)
+        q, ok = self.inner.closed_form(R_b, p_b)
+        return np.ascontiguousarray(q[..., ::-1]), ok
+
+
+def invert(T):
+    """T^-1 of homogeneous transforms (..., 4, 4) taken as rigid: [R^T, -R^T p] (a row that
+    is not a rigid transform stays one that is not: its R^T is not orthonormal either)."""
+    out = np.zeros_like(T)
+    R = np.swapaxes(T[..., :3, :3], -1, -2)
+    out[..., :3, :3] = R
+    with np.errstate(all="ignore"):
+        out[..., :3, 3] = -np.einsum("...ij,...j->...i", R, T[..., :3, 3])
+    out[..., 3, :3] = T[..., 3, :3]  # a bottom row that is not [0 0 0 1] stays so
+    out[..., 3, 3] = T[..., 3, 3]
+    return out
+
+
 def _rot_mats(w, angle):
     """Rotation matrices (..., 3, 3) about the unit axis w by ``angle`` (...) (Rodrigues)."""
     K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
@@ -609,6 +663,8 @@ def solver_for(
     """The closed-form solver of a detected structure (None for None)."""
     if detected is None:
         return None
+    if isinstance(detected, ReversedChain):
+        return ReversedSolver(detected, description)
     if isinstance(detected, PlanarArm):
         cls: type[AnalyticSolver] = _PlanarSolver
     elif isinstance(detected, ParallelTriple6R):

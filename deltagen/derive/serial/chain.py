@@ -2,8 +2,9 @@
 
 T(q) = base . A_1(q_1) ... A_n(q_n) . tool (lecture slide 88, EASY-ROB eq. (1)), with the
 link transforms of the description's convention (see description.py). The geometry is
-compiled in as exact numbers where it can be: angles that are multiples of 15 degrees
-become exact multiples of pi, so alpha = 0 / +-90 deg and zero lengths drop out of the
+compiled in as exact numbers where it is one: angles that are multiples of 15 degrees (up to
+the rounding of a float, not of a file's printed digits) become exact multiples of pi, so
+alpha = 0 / +-90 deg and zero lengths drop out of the
 products before CSE sees them. Joint angles enter only through cos q_i and sin q_i
 (cos(q + offset) is expanded with the offset's exact cosine and sine).
 
@@ -20,18 +21,32 @@ w_i, their points o_i and the tool point p (vector formulas, not symbolic deriva
 from __future__ import annotations
 
 import math
+import sys
 
 import sympy as sp
 
 from deltagen.derive.kernel import Stage
 
-_SNAP = 1e-12
+# A constant is replaced by an exact value only when it is that value up to the rounding of
+# a float (a few units in the last place): the float math.pi / 2, or cos(pi / 2) = 6e-17
+# left by turning a frame in floats, is exact by construction. A file's rounded digits are
+# kept as written: pi printed as 3.14159265359 (2e-13 from pi) stays that number, so that
+# the compiled core computes what the reference backend and other libraries compute from
+# the same file. The structure detection (model/structure.py) never relied on this: it
+# reads the geometry with its own tolerances.
+_ROUNDING = 4 * sys.float_info.epsilon
+
+
+def _is(value: float, exact: float) -> bool:
+    """``value`` equals the float ``exact`` up to a few units in the last place."""
+    return abs(value - exact) <= _ROUNDING * max(1.0, abs(exact))
 
 
 def exact_angle(value: float) -> sp.Expr:
-    """Multiples of pi/12 (15 deg) become exact; other angles stay floats."""
+    """Multiples of pi/12 (15 deg) become exact when ``value`` is one up to float rounding;
+    other angles stay floats."""
     k = round(value / (math.pi / 12))
-    if abs(value - k * math.pi / 12) < _SNAP:
+    if _is(value, k * math.pi / 12):
         return sp.pi * sp.Rational(k, 12)
     return sp.Float(repr(value), 17)
 
@@ -43,9 +58,10 @@ def exact_length(value: float) -> sp.Expr:
 
 
 def exact_number(value: float) -> sp.Expr:
-    """Entries of base/tool matrices: 0, +-1 and +-1/2 exact, else floats."""
+    """Entries of base/tool matrices: 0, +-1 and +-1/2 exact up to float rounding, else
+    floats."""
     for candidate in (0, 1, -1, sp.Rational(1, 2), -sp.Rational(1, 2)):
-        if abs(value - float(candidate)) < _SNAP:
+        if _is(value, float(candidate)):
             return sp.sympify(candidate)
     return sp.Float(repr(float(value)), 17)
 
