@@ -133,6 +133,17 @@ def test_batched_kernels_vectorise(name):
     assert not problems, f"{name}: gcc does not vectorise where it must:\n" + "\n".join(problems)
 
 
+@needs_gcc
+def test_a_run_time_arm_module_vectorises_at_its_level():
+    """Arms rendered at run time (URDF, DH files) are built at -O2 (native/serial.py);
+    gcc 12's -O2 cost model alone left all their per-point loops scalar. The smallest
+    bundled arm stands for them here, at that level."""
+    text, path = _module("serial_lecture_scara.c")
+    remarks = vectorisation.vector_report(text, path, opt="-O2")
+    problems = vectorisation.check(text, remarks, exempt=EXEMPT)
+    assert not problems, "at -O2:\n" + "\n".join(problems)
+
+
 def _inject(text: str, kernel: str, find: str, change) -> str:
     """``text`` with ``change(line)`` applied to the first line of the ``kernel``'s points
     loop that contains ``find`` (same number of lines: other kernels' units are unchanged)."""
