@@ -6,7 +6,13 @@ generated/ and the single-point functions, both from the same lowered statements
 runtime C it includes (codegen/runtime/), a CMakeLists.txt, a plain Makefile, an example.c
 that evaluates one pose and prints it, and a README with the units, conventions, status codes,
 cost and stack use of every function, the example's output and, for --float32, the accuracy
-against the double build.
+against the double build. A delta robot with encoder offsets (q_offset) also gets wrappers
+taking and returning encoder readings (<base>_robot.{c,h}), which the example uses.
+
+The package is written and measured in a folder beside --out and moved into place when
+complete. --out may be a new folder or one whose files of the package's names an earlier
+export wrote (recorded in its .deltagen-export); other files of those names are refused
+without --force. --prefix may not name deltagen's runtime C or the package's other files.
 
 Measurements need a C compiler (``$CC``, else ``cc``); without one the README says what was
 not measured. Stack: ``-O2 -fstack-usage`` of the host compiler (the frame of each function;
@@ -657,7 +663,13 @@ def _write_and_measure(
         real,
         **common,
         title=unit.title,
-        command=_command(robot_arg or robot.name, out.name, float32, prefix, batch),
+        command=_command(
+            robot_arg or (robot.geometry.name if kind == "delta" else robot.name),
+            out.name,
+            float32,
+            prefix,
+            batch,
+        ),
         version=__version__,
         point_header=package.header,
         robot_header=package.robot_header,
