@@ -341,6 +341,12 @@ def main(argv=None) -> int:
     x.add_argument(
         "--no-batch", action="store_true", help="single-point functions only (no batched ones)"
     )
+    x.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite files in --out that an earlier export did not write (e.g. your own "
+        "Makefile); without it such a folder is refused",
+    )
     x.set_defaults(func=_export)
 
     c = sub.add_parser(

@@ -10,8 +10,6 @@
 
 #include <math.h>
 
-#include "deltagen_limits.h"  /* deltagen_fit_angle: ik_all */
-
 #if defined(DELTAGEN_LECTURE_SCARA_VECTOR_MATH) && defined(__GNUC__) && defined(__x86_64__) && !defined(__FAST_MATH__)
 /* glibc declares its vector cos/sin/atan2 (libmvec) only under -ffast-math; declaring them
  * here lets gcc -fopenmp-simd vectorise the trig loops with IEEE semantics kept. */

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
+import tempfile
 import zlib
 from pathlib import Path
 
@@ -18,6 +20,25 @@ settings.register_profile("explore", deadline=None, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 TESTS = Path(__file__).resolve().parent
+
+
+def suite_cache_dir() -> Path:
+    """The build cache of the test run, never the user's (~/.cache/deltagen or their own
+    DELTAGEN_CACHE, which may hold modules of another deltagen or another CPU):
+    $DELTAGEN_TEST_CACHE when set (e.g. a fresh folder in CI), else this checkout's own
+    folder under the system's temporary directory, shared by the pytest-xdist workers and
+    kept between runs (a module's key covers everything that shapes it, native/build.py)."""
+    raw = os.environ.get("DELTAGEN_TEST_CACHE")
+    if raw:
+        return Path(os.path.abspath(os.path.expanduser(raw)))
+    checkout = hashlib.sha256(str(TESTS.parent).encode()).hexdigest()[:12]
+    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+    return Path(tempfile.gettempdir()) / f"deltagen-test-cache-{user}-{checkout}"
+
+
+# Set before deltagen is imported, so nothing can resolve the user's cache first; every
+# subprocess a test starts inherits it.
+os.environ["DELTAGEN_CACHE"] = str(suite_cache_dir())
 if str(TESTS) not in sys.path:  # delta_oracles is importable under any --import-mode
     sys.path.insert(0, str(TESTS))
 

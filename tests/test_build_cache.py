@@ -377,7 +377,9 @@ def test_o2_and_o3_give_the_same_bits(tmp_path, monkeypatch):
 
     monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
     arm = SerialRobot.load("puma560", threads=1)
-    modules = [arm._core.load_dynamics()]
+    # the checked-in module as a whole (on a cold cache the arm itself starts from its
+    # parts, native/serial.py: load_dynamics would be the dynamics part, without fk)
+    modules = [native_serial.complete_module(arm.description)]
     monkeypatch.setattr(native_serial, "_opt", lambda folder: "-O2")
     modules.append(native_serial._load(arm.description))
     rng = np.random.default_rng(4)
@@ -411,3 +413,33 @@ def test_o2_and_o3_give_the_same_bits(tmp_path, monkeypatch):
     for name, values in results[0].items():
         for a, b in zip(values, results[1][name]):
             assert np.array_equal(a, b, equal_nan=True), name
+
+
+def test_the_suite_never_uses_the_users_cache():
+    """tests/conftest.py points DELTAGEN_CACHE at the suite's own folder before deltagen is
+    imported: the cache resolves there, not to the user's ~/.cache/deltagen, and no module
+    this process has loaded came from the user's cache."""
+    from deltagen import paths
+
+    home_cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    users = Path(home_cache, "deltagen").resolve()
+    root = paths.cache_dir().resolve()
+    assert root == Path(os.environ["DELTAGEN_CACHE"]).resolve()
+    assert root != users and users not in root.parents
+    for module in list(build._LOADED.values()):
+        assert users not in Path(module.__file__).resolve().parents, module.__file__
+
+
+def test_the_cache_follows_a_later_change_of_deltagen_cache(tiny, tmp_path, monkeypatch):
+    """DELTAGEN_CACHE is read at every build, not once per process: a test (or a user) that
+    changes it gets the new folder, and the module is built there."""
+    from deltagen import paths
+
+    for name in ("first", "second"):
+        folder = tmp_path / name
+        monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
+        assert paths.cache_dir() == folder
+    module = build.load("tiny", "tiny", tiny)
+    assert module.lib.tiny_add(2, 3) == 5
+    assert Path(module.__file__).parent.parent == tmp_path / "second"
+    assert not (tmp_path / "first").exists()

@@ -451,3 +451,85 @@ def test_readme_shows_the_real_example_output(exports):
     section = text.split("## Running it on a controller", 1)[1].split("\n## ", 1)[0]
     for line in result.example_output.splitlines():
         assert line in section, line
+
+
+# ------------------------------------------------------------------ names and folders
+
+
+@pytest.mark.parametrize(
+    "prefix, says",
+    [
+        ("example", "example.c"),  # would overwrite the demo (or be overwritten by it)
+        ("Example", "example.c"),  # the same file on a case-insensitive file system
+        ("deltagen", "runtime C"),  # the runtime's own names
+        ("deltagen_ik", "deltagen_ik_newton"),
+        ("DELTAGEN_FIT", "deltagen_fit_angle"),
+        ("limits", "DELTAGEN_LIMITS_H"),  # the header guard of deltagen_limits.h
+        ("all", "CMake"),
+    ],
+)
+def test_cli_refuses_a_prefix_that_collides(tmp_path, capsys, prefix, says):
+    """A prefix naming the package's other files or deltagen's runtime symbols: exit 2, a
+    message naming the prefix and what it collides with, no folder written."""
+    from deltagen.cli import main
+
+    out = tmp_path / "pkg"
+    assert main(["export", "lecture_prp", "--out", str(out), "--prefix", prefix]) == 2
+    err = capsys.readouterr().err
+    assert f"--prefix {prefix!r}" in err and says.lower() in err.lower(), err
+    assert "Traceback" not in err
+    assert not out.exists()
+
+
+@needs_cc
+def test_a_prefix_that_is_fine_builds(tmp_path, capsys):
+    """Not over-eager: a prefix of the user's own namespace (even one containing
+    'deltagen') exports and its example builds and runs."""
+    from deltagen.cli import main
+
+    out = tmp_path / "pkg"
+    assert main(["export", "lecture_prp", "--out", str(out), "--prefix", "my_deltagen"]) == 0
+    assert "example output:" in capsys.readouterr().out
+    assert (out / "my_deltagen.c").is_file() and (out / "example.c").is_file()
+
+
+def test_out_with_the_users_files_needs_force(tmp_path, capsys):
+    """--out on a folder holding the user's own Makefile: refused (exit 2, the file named,
+    nothing touched) without --force; with --force overwritten, the user's other files
+    kept. A folder an earlier export wrote is exported into again without --force."""
+    from deltagen.cli import main
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "Makefile").write_text("my makefile\n")
+    (out / "notes.txt").write_text("my notes\n")
+    args = ["export", "lecture_prp", "--out", str(out), "--no-batch"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "Makefile" in err and "--force" in err and "Traceback" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["Makefile", "notes.txt"]
+    assert (out / "Makefile").read_text() == "my makefile\n"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".mine")]  # no leftovers
+    assert main([*args, "--force"]) == 0
+    assert "deltagen export" in (out / "Makefile").read_text()
+    assert (out / "notes.txt").read_text() == "my notes\n"
+    assert main(args) == 0  # its own earlier export: no --force needed
+    capsys.readouterr()
+
+
+def test_a_failed_export_leaves_no_folder(tmp_path, monkeypatch, capsys):
+    """A compiler that fails while the export measures its package: exit 2 naming the
+    failure, and neither the folder nor a temporary one beside it is left."""
+    from deltagen.cli import main
+
+    fail = tmp_path / "bin" / "failcc"
+    fail.parent.mkdir()
+    fail.write_text("#!/bin/sh\necho 'failcc: no' >&2\nexit 1\n")
+    fail.chmod(0o755)
+    monkeypatch.setenv("CC", str(fail))
+    out = tmp_path / "work" / "pkg"
+    assert main(["export", "lecture_prp", "--out", str(out), "--no-batch"]) == 2
+    err = capsys.readouterr().err
+    assert "could not compile" in err and "Traceback" not in err
+    assert not out.exists()
+    assert list(out.parent.iterdir()) == []

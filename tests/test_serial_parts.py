@@ -66,3 +66,28 @@ def test_every_kernel_is_in_one_part_with_the_complete_modules_c():
             seen[name] = part
             assert lines == complete[name], name  # the same C, so the same bits
     assert set(seen) == set(complete)
+
+
+def test_a_part_is_never_served_as_the_whole_module():
+    """The cache keys and names which part a module holds (native/build.py): the same
+    folder loaded as a part and as the whole module are two entries, and a new arm's
+    first-part module, loaded first, never answers a request for the complete module,
+    which has every kernel."""
+    from deltagen.codegen.serial import base_name, c_prefix
+    from deltagen.native import build
+    from deltagen.native import serial as native_serial
+
+    desc = SerialRobot.from_dh(
+        ROWS[:2], "standard", name="partkey_arm", backend="reference"
+    ).description.without_inertia()
+    folder = native_serial.source_dir(desc, part="first")
+    name, prefix = base_name(desc), c_prefix(desc)
+    as_whole = build._module_inputs(name, prefix, folder, "-O2")[0]
+    as_first = build._module_inputs(name, prefix, folder, "-O2", part="first")[0]
+    assert as_first != as_whole and as_first.startswith(f"_deltagen_{name}_first_")
+    first = native_serial._load(desc, part="first")
+    assert not hasattr(first.lib, f"{prefix}_jacobian_dot")  # a part: not every kernel
+    complete = native_serial.complete_module(desc)
+    assert complete is not first
+    for kernel in (*PARTS["first"], "jacobian_dot"):  # (no closed form: no ik_all)
+        assert hasattr(complete.lib, f"{prefix}_{kernel}"), kernel

@@ -6,7 +6,13 @@ generated/ and the single-point functions, both from the same lowered statements
 runtime C it includes (codegen/runtime/), a CMakeLists.txt, a plain Makefile, an example.c
 that evaluates one pose and prints it, and a README with the units, conventions, status codes,
 cost and stack use of every function, the example's output and, for --float32, the accuracy
-against the double build.
+against the double build. A delta robot with encoder offsets (q_offset) also gets wrappers
+taking and returning encoder readings (<base>_robot.{c,h}), which the example uses.
+
+The package is written and measured in a folder beside --out and moved into place when
+complete. --out may be a new folder or one whose files of the package's names an earlier
+export wrote (recorded in its .deltagen-export); other files of those names are refused
+without --force. --prefix may not name deltagen's runtime C or the package's other files.
 
 Measurements need a C compiler (``$CC``, else ``cc``); without one the README says what was
 not measured. Stack: ``-O2 -fstack-usage`` of the host compiler (the frame of each function;
@@ -341,6 +347,129 @@ def _command(robot_arg, out, float32, prefix, batch) -> str:
     return " ".join(parts)
 
 
+#: Target names CMake reserves (policy CMP0037 and the targets of its generators and of
+#: CTest/CPack): a library target of that name does not configure.
+CMAKE_RESERVED = frozenset(
+    ("all", "all_build", "clean", "help", "install", "preinstall", "edit_cache",
+     "rebuild_cache", "zero_check", "test", "run_tests", "package", "package_source")
+)  # fmt: skip
+
+#: Files of every package besides the generated C and the runtime (lower case: a
+#: case-insensitive file system holds one of Example.c and example.c)
+FIXED_FILES = ("example.c", "CMakeLists.txt", "Makefile", "README.md")
+
+#: The record of what an export wrote into its folder: a later export may replace those
+#: files, never others (without --force).
+MANIFEST = ".deltagen-export"
+
+_RUNTIME_NAME = re.compile(r"\b(?:deltagen|DELTAGEN)_\w+")
+
+
+def runtime_identifiers() -> set:
+    """Every global name of deltagen's runtime C, lower case (a prefix differing only in
+    case still clashes with the macros): its functions, types, macros and include guards
+    (codegen/runtime/), and the status codes every module defines."""
+    from deltagen.paths import runtime_dir
+
+    names = {f"deltagen_{name.lower()}" for name in st.STATUS_NAMES.values()}
+    for path in runtime_dir().glob("deltagen_*.[ch]"):
+        names.update(n.lower() for n in _RUNTIME_NAME.findall(path.read_text()))
+        names.add(path.stem.lower())
+    return names
+
+
+def check_prefix(prefix: str) -> str:
+    """``prefix`` as --prefix: a C identifier whose names (<prefix>_*, the headers' guards
+    DELTAGEN_<PREFIX>_H, the files <prefix>*.c|h, the CMake target) cannot be those of
+    deltagen's runtime C or of the package's other files; ExportError naming it otherwise."""
+    from deltagen.errors import GeometryError
+    from deltagen.model.naming import check_identifier
+
+    try:
+        check_identifier(prefix, "prefix")
+    except GeometryError as exc:
+        raise ExportError(str(exc)) from None
+    low = prefix.lower()
+    runtime = runtime_identifiers()
+    guards = [f"deltagen_{low}{part}_h" for part in ("", "_point", "_robot")]
+    clashes = sorted(n for n in runtime if n == low or n.startswith(low + "_") or n in guards)
+    if clashes:
+        shown = ", ".join(clashes[:4]) + (" ..." if len(clashes) > 4 else "")
+        raise ExportError(
+            f"--prefix {prefix!r} collides with deltagen's runtime C, which the package "
+            f"includes ({shown}): choose a prefix that is not deltagen's"
+        )
+    if low == "example":
+        raise ExportError(
+            f"--prefix {prefix!r} would name the library's source {prefix}.c, which is the "
+            "package's example.c: choose another prefix"
+        )
+    if low in CMAKE_RESERVED:
+        raise ExportError(
+            f"--prefix {prefix!r} would name the CMake library target {prefix!r}, which CMake "
+            "reserves: choose another prefix"
+        )
+    return prefix
+
+
+def _previous_export(out: Path) -> set:
+    """The files a previous export recorded in ``out`` (its MANIFEST), lower case."""
+    import json
+
+    try:
+        record = json.loads((out / MANIFEST).read_text())
+        return {str(name).lower() for name in record["files"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+
+
+def check_out(out: Path, names, force: bool) -> None:
+    """``out`` may take the files ``names``: it does not exist, or is a folder where each of
+    them is missing or was written by an earlier export (or ``force``)."""
+    if out.exists() and not out.is_dir():
+        raise ExportError(f"--out {out} exists and is not a folder")
+    if not out.is_dir() or force:
+        return
+    ours = _previous_export(out)
+    present = {p.name.lower(): p.name for p in out.iterdir()}
+    theirs = sorted(
+        present[n.lower()] for n in names if n.lower() in present and n.lower() not in ours
+    )
+    if theirs:
+        raise ExportError(
+            f"--out {out} holds files the export would overwrite that no earlier export wrote "
+            f"({', '.join(theirs)}): choose another folder, or add --force to overwrite them"
+        )
+
+
+def _publish(tmp: Path, out: Path, names) -> None:
+    """Move the finished package from ``tmp`` (beside ``out``) into place: one rename when
+    ``out`` does not exist, else file by file (each an atomic replace), its other files left."""
+    import json
+
+    (tmp / MANIFEST).write_text(json.dumps({"files": sorted(names)}, indent=1) + "\n")
+    if not out.exists():
+        os.rename(tmp, out)
+        return
+    for name in [*names, MANIFEST]:
+        os.replace(tmp / name, out / name)
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _encoder_kernels(robot, kind, kernels) -> tuple:
+    """The kernels wrapped for encoder readings (a delta robot with encoder offsets): those
+    with crank angles among their ports, but not the dynamics, which the API refuses on a
+    robot with offsets (api/delta.py: derived for the symmetric robot)."""
+    if kind != "delta" or not any(robot.geometry.q_offset):
+        return ()
+    return tuple(
+        k.name
+        for k in kernels
+        if not k.name.startswith("inverse_dynamics")
+        and any(port.name == "q" for port in (*k.inputs, *k.outputs))
+    )
+
+
 def export(
     robot,
     out,
@@ -351,70 +480,136 @@ def export(
     robot_arg: str | None = None,
     measure: bool = True,
     cortex_m: bool = True,
+    force: bool = False,
 ) -> ExportResult:
-    """Write the package of ``robot`` (a DeltaRobot or SerialRobot) into the folder ``out``."""
+    """Write the package of ``robot`` (a DeltaRobot or SerialRobot) into the folder ``out``:
+    a new folder, or one whose files of the same names an earlier export wrote (``force``:
+    any). The package is written and measured in a folder beside ``out`` and moved into
+    place when complete: a failed export leaves ``out`` as it was."""
     from deltagen.codegen.export import package_sources, render_extra
     from deltagen.native.build import runtime_files
 
+    if prefix is not None:
+        check_prefix(prefix)
     real = "float" if float32 else "double"
     kind, unit, kernels = _robot_parts(robot)
-    package = package_sources(unit, kernels, real_type=real, prefix=prefix, batch=batch)
-    unit = package.unit
+    encoder = _encoder_kernels(robot, kind, kernels)
     out = Path(out)
-    if out.exists() and not out.is_dir():
+    if out.exists() and not out.is_dir():  # before seconds of derivation
         raise ExportError(f"--out {out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    package = package_sources(
+        unit, kernels, real_type=real, prefix=prefix, batch=batch, encoder=encoder
+    )
+    unit = package.unit
 
-    files: dict = dict(package.files)
-    what = {}
-    for name in package.files:
+    files: dict = {}
+    what: dict = {}
+    owner: dict = {}  # lower-case file name -> what produced it (one producer per name)
+
+    def add(name: str, text: str, description: str, source: str) -> None:
+        if name.lower() in owner:
+            cause = f"--prefix {prefix!r}: " if prefix else ""
+            raise ExportError(
+                f"{cause}the package's {source} and {owner[name.lower()]} would both be "
+                f"written to {name}; choose another prefix"
+            )
+        owner[name.lower()] = source
+        files[name] = text
+        what[name] = description
+
+    for name, text in package.files.items():
         point = name.startswith(f"{unit.base_name}_point")
-        what[name] = ("single-point functions" if point else "batched functions") + (
-            ": declarations and documentation" if name.endswith(".h") else ""
-        )
+        if name == package.robot_header or name == f"{unit.base_name}_robot.c":
+            description = "the functions on encoder readings (this robot's q_offset)"
+        else:
+            description = "single-point functions" if point else "batched functions"
+        if name.endswith(".h"):
+            description += ": declarations and documentation"
+        add(name, text, description, "generated C")
     runtime = runtime_files(package.files.values())
     if not (batch and real == "double"):  # only the header-only runtime (the joint-limit fit)
         runtime = [p for p in runtime if p.suffix == ".h" and not p.with_suffix(".c").is_file()]
     for path in runtime:
-        files[path.name] = path.read_text()
-        what[path.name] = "deltagen runtime C (hand-written), used by the batched module"
+        add(
+            path.name,
+            path.read_text(),
+            "deltagen runtime C (hand-written), used by the generated C",
+            "runtime C",
+        )
     sources = [n for n in files if n.endswith(".c")]
     library = unit.prefix
     q, q_name = _example_pose(robot, kind)
+    symmetric = kind == "serial" or robot.geometry.symmetric
     has_dynamics = any(k.name == "inverse_dynamics" for k in kernels) and (
-        kind == "serial" or robot.inertia is not None
+        kind == "serial" or (robot.inertia is not None and symmetric)
     )
     common = dict(
         robot_name=(f"the delta robot '{robot.geometry.name}'" if kind == "delta" else robot.name),
         library=library,
         sources=sources,
         prefix=unit.prefix,
-        header=package.header,
+        header=package.robot_header or package.header,
         real=real,
     )
-    files["example.c"] = render_extra(
+    add(
         "example.c",
-        real,
-        **common,
-        kind=kind,
-        struct_name=unit.struct_name,
-        struct_values=_struct_values(robot, real) if kind == "delta" else [],
-        has_inertia=kind == "delta" and robot.inertia is not None,
-        has_dynamics=has_dynamics,
-        q=[_literal(v, real) for v in q],
-        q_name=q_name,
-        n=len(q),
-        cast="(double)" if real == "float" else "",
-        zero="0.0F" if real == "float" else "0.0",
-        zeros3=", ".join(["0.0F" if real == "float" else "0.0"] * 3),
+        render_extra(
+            "example.c",
+            real,
+            **common,
+            kind=kind,
+            struct_name=unit.struct_name,
+            struct_values=_struct_values(robot, real) if kind == "delta" else [],
+            has_inertia=kind == "delta" and robot.inertia is not None,
+            has_dynamics=has_dynamics,
+            encoder=bool(encoder),
+            q_offset=[_literal(v, real) for v in robot.geometry.q_offset] if encoder else [],
+            q=[_literal(v, real) for v in q],
+            q_name=q_name,
+            n=len(q),
+            cast="(double)" if real == "float" else "",
+            zero="0.0F" if real == "float" else "0.0",
+            zeros3=", ".join(["0.0F" if real == "float" else "0.0"] * 3),
+        ),
+        "evaluates one pose and prints it (`make && ./example`)",
+        "example",
     )
-    what["example.c"] = "evaluates one pose and prints it (`make && ./example`)"
-    files["CMakeLists.txt"] = render_extra("CMakeLists.txt", real, **common)
-    what["CMakeLists.txt"] = f"CMake: library target `{library}`, example `{library}_example`"
-    files["Makefile"] = render_extra("Makefile", real, **common)
-    what["Makefile"] = f"plain make: lib{library}.a and the example"
+    add(
+        "CMakeLists.txt",
+        render_extra("CMakeLists.txt", real, **common),
+        f"CMake: library target `{library}`, example `{library}_example`",
+        "CMakeLists.txt",
+    )
+    add(
+        "Makefile",
+        render_extra("Makefile", real, **common),
+        f"plain make: lib{library}.a and the example",
+        "Makefile",
+    )
+    names = [*files, "README.md"]
+    check_out(out, names, force)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        result = _write_and_measure(
+            robot, kind, unit, kernels, package, files, what, tmp, out, common,
+            real=real, float32=float32, prefix=prefix, batch=batch, robot_arg=robot_arg,
+            measure=measure, cortex_m=cortex_m, sources=sources, encoder=encoder,
+        )  # fmt: skip
+        _publish(tmp, out, names)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return result
+
+
+def _write_and_measure(
+    robot, kind, unit, kernels, package, files, what, tmp, out, common, *, real, float32,
+    prefix, batch, robot_arg, measure, cortex_m, sources, encoder,
+) -> ExportResult:  # fmt: skip
+    """Write ``files`` into ``tmp``, build and measure them there, and add the README."""
     for name, text in files.items():
-        (out / name).write_text(text)
+        (tmp / name).write_text(text)
 
     library_sources = [s for s in sources if s != "example.c"]
     cc = compiler() if measure else None
@@ -424,11 +619,11 @@ def export(
         if measure:
             notes.append("no C compiler: stack use, example output and accuracy not measured")
     else:
-        stack, example_output = build_and_measure(out.resolve(), library_sources, cc)
+        stack, example_output = build_and_measure(tmp.resolve(), library_sources, cc)
         if float32:
-            accuracy = _measure_float32(robot, kind, unit, kernels, prefix, out)
+            accuracy = _measure_float32(robot, kind, unit, kernels, prefix, tmp)
     if measure and cortex_m:
-        stack_m4 = stack_cortex_m4(out.resolve(), library_sources)
+        stack_m4 = stack_cortex_m4(tmp.resolve(), library_sources)
 
     function_rows = []
     symbols = []
@@ -460,6 +655,7 @@ def export(
             ],
         )
     from deltagen import __version__
+    from deltagen.codegen.export import render_extra
 
     what["README.md"] = "this file"
     files["README.md"] = render_extra(
@@ -467,9 +663,17 @@ def export(
         real,
         **common,
         title=unit.title,
-        command=_command(robot_arg or robot.name, out.name, float32, prefix, batch),
+        command=_command(
+            robot_arg or (robot.geometry.name if kind == "delta" else robot.name),
+            out.name,
+            float32,
+            prefix,
+            batch,
+        ),
         version=__version__,
         point_header=package.header,
+        robot_header=package.robot_header,
+        q_offset=list(robot.geometry.q_offset) if encoder else None,
         files=[(n, what[n]) for n in [*files, "README.md"] if n in what],
         folder=out.name,
         compiler=cc,
@@ -493,7 +697,7 @@ def export(
         cortex_m4=" ".join(CORTEX_M4),
         accuracy=accuracy_context,
     )
-    (out / "README.md").write_text(files["README.md"])
+    (tmp / "README.md").write_text(files["README.md"])
     return ExportResult(
         out=out,
         files=sorted(files),
@@ -538,6 +742,7 @@ def main(args) -> int:
         prefix=args.prefix,
         batch=not args.no_batch,
         robot_arg=args.robot,
+        force=args.force,
     )
     print(f"wrote {len(result.files)} files to {result.out}/: {', '.join(result.files)}")
     for note in result.notes:

@@ -52,6 +52,7 @@ class Package:
     real_type: str
     batch: bool
     header: str  # the header a user includes (the single-point one)
+    robot_header: str | None  # the encoder wrappers' header, when there are wrappers
     sources: tuple  # the .c files of the package's library (runtime C not included)
 
 
@@ -99,6 +100,11 @@ def _point_functions(functions: list, struct: bool) -> list:
     return out
 
 
+def _has_q(ports) -> bool:
+    """A port of crank angles (named q, 3 per point) among ``ports`` (point contexts)."""
+    return any(port["name"] == "q" and port["point_width"] == 3 for port in ports)
+
+
 def _shape(port) -> str:
     width = _point_width(port.width)
     return "value" if width == 1 else f"[{width}]"
@@ -111,9 +117,12 @@ def package_sources(
     real_type: str = "double",
     prefix: str | None = None,
     batch: bool = True,
+    encoder: tuple = (),
 ) -> Package:
     """The C files of an export: the batched module (unless ``batch`` is false) and the
-    single-point functions, in ``real_type`` ("double" or "float")."""
+    single-point functions, in ``real_type`` ("double" or "float"); ``encoder``: the kernels
+    (names) to wrap for a delta robot with encoder offsets (<prefix>_robot_<kernel>: readings
+    in and out, templates/robot.{h,c}.j2), none by default."""
     unit = exported_unit(unit, prefix, real_type)
     key = (tuple(id(k) for k in kernels), real_type)
     if key not in _LOWERED:  # kernels are kept alive by _KERNELS, so their ids are stable
@@ -147,6 +156,27 @@ def package_sources(
             cdef_parts.append(text)
         else:
             files[name] = text
+    if encoder:
+        if unit.struct_name is None:
+            raise ValueError("encoder wrappers need a geometry struct (the delta robot)")
+        robot = dict(
+            point,
+            functions=[
+                dict(fn, q_in=_has_q(fn["inputs"]), q_out=_has_q(fn["outputs"]))
+                for fn in point["functions"]
+                if fn["name"] in encoder
+            ],
+            robot_struct=f"{unit.prefix}_robot",
+            robot_header=f"{unit.base_name}_robot.h",
+            robot_source=f"{unit.base_name}_robot.c",
+            robot_guard=f"DELTAGEN_{unit.base_name.upper()}_ROBOT_H",
+            suffix="f" if real_type == "float" else "",
+        )
+        for name, template in (
+            (robot["robot_header"], "robot.h.j2"),
+            (robot["robot_source"], "robot.c.j2"),
+        ):
+            files[name] = env.get_template(template).render(template=template, **robot)
     sources = tuple(n for n in files if n.endswith(".c"))
     return Package(
         files=files,
@@ -156,6 +186,7 @@ def package_sources(
         real_type=real_type,
         batch=batch,
         header=point["scalar_header"],
+        robot_header=f"{unit.base_name}_robot.h" if encoder else None,
         sources=sources,
     )
 

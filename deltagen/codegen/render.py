@@ -6,6 +6,7 @@ and stores); the templates only lay it out.
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -102,6 +103,43 @@ def runtime_macro(name: str, **values) -> int:
             arg, body = found.groups()
             return int(eval(body, {"__builtins__": {}}, {arg: values[arg]}))  # digits, + * ( )
     raise KeyError(f"no macro {name} in {runtime_dir()}")
+
+
+#: a function the runtime headers declare or define: return type, then the name at the start
+#: of a line (``int deltagen_cholesky(``, ``static inline double deltagen_fit_angle(``)
+_RUNTIME_FUNCTION = re.compile(r"^[A-Za-z_][\w \t]*?[ \t*](deltagen_\w+)\s*\(", re.MULTILINE)
+_CALL = re.compile(r"\b(deltagen_\w+)\s*\(")
+
+
+@functools.lru_cache(maxsize=1)
+def runtime_functions() -> dict[str, str]:
+    """{function: header} of the hand-written runtime (codegen/runtime/*.h): the headers are
+    the one list of what the runtime offers, and of where each function is declared."""
+    found: dict[str, str] = {}
+    for header in sorted(runtime_dir().glob("*.h")):
+        for name in _RUNTIME_FUNCTION.findall(header.read_text()):
+            found.setdefault(name, header.name)
+    return found
+
+
+def runtime_includes(functions: list) -> list[dict]:
+    """The runtime headers the lowered statements of ``functions`` (function contexts) call
+    into, each with the runtime functions called and the kernels calling them: a file
+    that prints those statements includes exactly these (a template cannot forget one)."""
+    table = runtime_functions()
+    used: dict[str, dict] = {}
+    for fn in functions:
+        texts = [st.expr for stage in [*fn["setup"], *fn["stages"]] for st in stage.statements]
+        for text in [*texts, fn["status"]]:
+            for name in _CALL.findall(text):
+                if name in table:
+                    entry = used.setdefault(table[name], {"symbols": {}, "kernels": {}})
+                    entry["symbols"][name] = None
+                    entry["kernels"][fn["name"]] = None
+    return [
+        dict(header=header, symbols=list(entry["symbols"]), kernels=list(entry["kernels"]))
+        for header, entry in sorted(used.items())
+    ]
 
 
 def function_context(lk: LoweredKernel) -> dict:
@@ -238,6 +276,7 @@ def render_context(unit: Unit, lowered: list) -> tuple[jinja2.Environment, dict]
         axes_doc=unit.axes_doc,
         status_codes=sorted(st.STATUS_NAMES.items()),
         functions=functions,
+        runtime_includes=runtime_includes(functions),
         largest=max(functions, key=lambda fn: fn["stack_bytes"]),
         block=unit.block,
         newton=newton,

@@ -181,7 +181,9 @@ def rot_log(R) -> np.ndarray:
 
 def _rot_log_one(R):
     """rot_log of one matrix with theta <= pi/2 by the same operations on Python floats
-    (a tenth of the time of the array path, same numbers); None where theta > pi/2."""
+    (a tenth of the time of the array path); None where theta > pi/2. Not bit for bit the
+    array path's: math.atan2 is the C library's and np.arctan2 may be numpy's own SIMD
+    routine (on AVX-512 CPUs the two differ by an ulp), so the results agree to a few ulp."""
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
     c = min(max(0.5 * (r00 + r11 + r22 - 1.0), -1.0), 1.0)
     if not c >= 0.0:  # also NaN: the array path

@@ -227,10 +227,17 @@ def _build_jobs() -> int:
 
 
 def _module_inputs(
-    base_name: str, prefix: str, directory: Path | None, opt: str = "-O3", split: bool = True
+    base_name: str,
+    prefix: str,
+    directory: Path | None,
+    opt: str = "-O3",
+    split: bool = True,
+    part: str = "all",
 ):
     """Everything that shapes the binary of <directory>/<base_name>.c, and the cache's
-    module name keyed by it (``split``: the module's kernels compiled as separate units)."""
+    module name keyed by it (``split``: the module's kernels compiled as separate units;
+    ``part``: "all", or which part of a module built in parts the folder holds -- in the
+    key and the name, so a part is never the module asked for as a whole)."""
     directory = Path(directory) if directory else generated_dir()
     files = {ext: directory / f"{base_name}{ext}" for ext in (".c", ".h", ".cdef.h")}
     for path in files.values():
@@ -253,9 +260,11 @@ def _module_inputs(
             "units: per kernel" if split else "units: one",
         ]
         + [f.name + "\0" + text for f, text in runtime.items()]
+        + ([] if part == "all" else [f"part: {part}"])
     )
     key = hashlib.sha256(key_material.encode()).hexdigest()[:16]
-    return f"_deltagen_{base_name}_{key}", texts, files, runtime, args, libraries
+    label = "" if part == "all" else f"{part}_"
+    return f"_deltagen_{base_name}_{label}{key}", texts, files, runtime, args, libraries
 
 
 def is_built(
@@ -264,10 +273,11 @@ def is_built(
     directory: Path | None = None,
     opt: str = "-O3",
     split: bool = True,
+    part: str = "all",
 ) -> bool:
     """True when :func:`load` would find the module compiled (loaded in this process or a
     verified artifact in the cache): loading it costs no compiler run."""
-    module_name = _module_inputs(base_name, prefix, directory, opt, split)[0]
+    module_name = _module_inputs(base_name, prefix, directory, opt, split, part)[0]
     with _GUARD:
         if module_name in _LOADED:
             return True
@@ -282,14 +292,16 @@ def load(
     directory: Path | None = None,
     opt: str = "-O3",
     split: bool = True,
+    part: str = "all",
 ):
     """Return the compiled cffi module (``.ffi``, ``.lib``) of <directory>/<base_name>.c
     (generated/ by default) and the runtime C it includes (codegen/runtime/, compiled
     beside it), built with the optimisation level ``opt`` (OPT_LEVELS); ``split``: one
     translation unit per kernel, compiled in parallel (False: the file as one unit; the
-    same results bit for bit, two cache entries)."""
+    same results bit for bit, two cache entries); ``part``: which part of a module built
+    in parts the folder holds ("all": the whole module), its own cache entry."""
     module_name, texts, files, runtime, args, libraries = _module_inputs(
-        base_name, prefix, directory, opt, split
+        base_name, prefix, directory, opt, split, part
     )
     return _load_cached(
         module_name,

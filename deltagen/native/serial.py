@@ -68,13 +68,15 @@ def module_ready(desc, part: str = "all") -> bool:
     """True when the description's module (or ``part`` of it) loads without SymPy or a
     compiler: checked in under generated/, or rendered and compiled into the cache before."""
     folder = source_dir(desc, render=False, part=part)
-    return folder is not None and is_built(base_name(desc), c_prefix(desc), folder, _opt(folder))
+    return folder is not None and is_built(
+        base_name(desc), c_prefix(desc), folder, _opt(folder), part=part
+    )
 
 
 def _load(desc, part: str = "all"):
     folder = source_dir(desc, part=part)
     assert folder is not None
-    return load(base_name(desc), c_prefix(desc), folder, _opt(folder))
+    return load(base_name(desc), c_prefix(desc), folder, _opt(folder), part=part)
 
 
 def complete_module(desc):
