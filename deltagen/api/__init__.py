@@ -1,5 +1,8 @@
 """The public robot classes: ``DeltaRobot`` (``delta``) and ``SerialRobot``
 (``serial``): input checking, errors, dispatch to the compiled or the reference backend;
+``coupled`` (``CoupledArm``, a serial arm with URDF ``<mimic>`` joints, in its independent
+variables); ``validity`` (the finite-output rule at the API: which rows are valid and what an
+INVALID row's error says); ``hints`` (the type aliases of the public API);
 ``workspace`` (the numbers of robot.workspace) and ``sweep`` (deltagen.sweep, on Dask).
 
 May import: ``solve``, ``plan``, and everything below them.

@@ -1,8 +1,9 @@
 """SymPy derivations: expressions only, no C text and no numerical solver.
 
-``derive.delta`` holds the rotary delta robot of the delta report (fk, velocity,
-acceleration, ik, and the printed equations for the errata); ``derive.serial`` holds serial
-chains (the chain and its Jacobians, the closed-form IK statements). ``kernel`` declares the
+``delta`` (``derive.delta``) holds the rotary delta robot of the delta report (fk,
+velocity, acceleration, ik, dynamics, and the printed equations for the errata); ``serial``
+(``derive.serial``) holds serial chains (the chain and its Jacobians, the closed-form IK
+statements, dynamics). ``kernel`` declares the
 data a derivation hands on (a kernel's ports, stages and status); ``functions`` the few
 SymPy functions beyond SymPy's own.
 

@@ -3,7 +3,9 @@
 Holds the delta geometry (``delta``), serial chains in DH / modified DH / universal
 coordinates (``serial``), TOML robot files (``robot_file``), names that reach C identifiers
 (``naming``) and structure detection of a chain (``structure``: central wrist, parallel
-axes, planar arms), which both the derivation and the solvers read.
+axes, planar arms), which both the derivation and the solvers read. Imports into these:
+``urdf`` (a URDF chain as universal coordinates), ``coupling`` (URDF ``<mimic>`` joints,
+q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delta geometry).
 
 May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
 ``inputs``, ``paths``). Nothing else of deltagen.

@@ -1,5 +1,10 @@
 """The compiled cores: cffi build and cache (``build``), and the Python wrappers of
-the delta core (``delta``) and of each serial arm's module (``serial``).
+the delta core (``delta``) and of each serial arm's module (``serial``); ``parallel``
+(a batched call split across threads), ``lean`` (the one-pose fast path, with its
+CPython-extension entry ``lean_ext.c``) and ``general6r`` (the compiled eigen step of the
+general-6R inverse kinematics, one module for every arm). The speed guards' measures:
+``vectorisation`` (which loops gcc vectorises, from its own report) and ``instructions``
+(instructions per point under callgrind).
 
 May import: ``codegen``, ``derive``, ``model``, ``geometry``, the foundation modules.
 """

@@ -5,7 +5,8 @@ numerical IK, called by each arm's generated ``deltagen_<arm>_ik_newton`` wrappe
 ``deltagen_limits.h`` (header only: a revolute joint's value fitted into its limits, called
 by the generated closed-form ``deltagen_<arm>_ik_all``) and ``deltagen_encoder.h`` (header
 only: encoder readings <-> crank angles of a delta robot with encoder offsets, called by the
-wrappers of `deltagen export`, templates/robot.c.j2).
+wrappers of `deltagen export`, templates/robot.c.j2), and ``deltagen_general6r`` with
+``deltagen_eigen`` (the eigen step of the general-6R inverse kinematics, native/general6r.py).
 
 Generated code calls runtime code, never the other way. No Python lives here.
 """
