@@ -1,14 +1,14 @@
-"""Checks that do not depend on the path a call takes, and errors that name their cause
-(issue "Reliability", classes 3 and 5).
+"""Checks that do not depend on the path a call takes, and errors that name their cause.
 
-Class 3: SerialRobot.ik / ik_all and DeltaRobot.fk / ik have single-pose fast paths next to
-the batched one, and some of them only exist after a first call. Every bad call below is
+The same checks on every path: SerialRobot.ik / ik_all and DeltaRobot.fk / ik have
+single-pose fast paths next to the batched one, and some of them only exist after a first
+call. Every bad call below is
 made as a single pose, a batch of one and a batch (the bad row first), on a fresh robot
 (first call) and on one whose fast paths are warm (later call), on both backends; the
 error class and message (rows text aside) must be the same everywhere.
 
-Class 5: each error names the actual cause (out of reach, an orientation the structure
-cannot reach, the joint limits, invalid q0, max_iter, the arm's own shape) and the rows;
+The cause named: each error names the actual cause (out of reach, an orientation the
+structure cannot reach, the joint limits, invalid q0, max_iter, the arm's own shape) and the rows;
 the evidence for "the cause is X" is a second call that differs in X only and succeeds.
 """
 
@@ -236,7 +236,7 @@ def test_misspelt_errors_mode_is_refused_by_every_method(backend):
                 call(bad)
 
 
-# -- class 5: the cause named ---------------------------------------------------------------
+# -- the cause named ------------------------------------------------------------------------
 
 
 def _planar(backend="compiled", qlim2=None):

@@ -61,7 +61,7 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_
         assert out.strip() in text
     delta_part, _, serial_part = out.partition("Serial arm: puma560")
     assert serial_part, "no serial-arm section"
-    # issue 10's UR closed-form row: per-pose batched time against its 2 us target
+    # the UR closed-form row: per-pose batched time against its 2 us target
     ur_row = next(line for line in serial_part.splitlines() if "ur5: all 8 branches" in line)
     assert "<= 2 " in ur_row
     rows = _rows(delta_part)

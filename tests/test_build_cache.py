@@ -1,6 +1,6 @@
-"""The build cache under faults (issue "Reliability", class 1): concurrent cold builds from
-threads and processes, corrupted / truncated / missing artifacts, relative, non-directory
-and unusable cache paths, compiler errors and warnings.
+"""The build cache under faults (native/build.py, "How the cache stays sound"): concurrent
+cold builds from threads and processes, corrupted / truncated / missing artifacts,
+relative, non-directory and unusable cache paths, compiler errors and warnings.
 
 A tiny C module (one function) stands in for a robot core, so each cold build takes a
 fraction of a second; one test builds a real robot core from a relative cache path.

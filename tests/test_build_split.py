@@ -1,7 +1,7 @@
-"""A module split into translation units at build time (native/build.py, issue 10 item 4:
-the kernels compile in parallel): the split is exact, gives the same doubles as the whole
-file, names the module's own file and line in a compiler error, and two processes loading
-the same cold module still build it once."""
+"""A module split into translation units at build time (native/build.py: the kernels
+compile in parallel, for a short cold load): the split is exact, gives the same doubles as
+the whole file, names the module's own file and line in a compiler error, and two processes
+loading the same cold module still build it once."""
 
 from __future__ import annotations
 

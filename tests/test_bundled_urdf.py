@@ -1,4 +1,4 @@
-"""The bundled URDF arms (robots/*.urdf, item 5 of issue 10): loadable by name, their C
+"""The bundled URDF arms (robots/*.urdf): loadable by name, their C
 checked in under generated/, and each against independent evidence -- the Panda against
 pinocchio's reading of example-robot-data's Panda (franka_description's file, written by
 others) and against Franka's modified-DH table through deltagen's DH path; the SCARA against

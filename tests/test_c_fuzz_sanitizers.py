@@ -1,5 +1,5 @@
-"""The generated C under AddressSanitizer and UndefinedBehaviorSanitizer with fuzzed inputs
-(issue 9): one driver program links the delta core, the Puma 560 module and the runtime
+"""The generated C under AddressSanitizer and UndefinedBehaviorSanitizer with fuzzed inputs:
+one driver program links the delta core, the Puma 560 module and the runtime
 (generated/*.c, codegen/runtime/*.c), built with -fsanitize=address,undefined
 -fno-sanitize-recover=all -Wall -Wextra -Werror, and is run on random batches -- ordinary
 values mixed with NaN, +-inf, huge (1e155, 1e300, 1.7e308), subnormal and -0.0 entries --

@@ -234,7 +234,7 @@ def test_real_process_reports_errors_without_traceback(tmp_path):
     assert _numbers(ok.stdout)[-1] == pytest.approx(Z0, abs=1e-11)
 
 
-# ------------------------------------------------------- issue 9, class 4: the CLI's files
+# ----------------------------------------------------------- the CLI's files: CSV and NPY
 
 
 def _read(path):
@@ -645,7 +645,7 @@ def test_end_to_end_round_trip_in_a_process(tmp_path):
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
 
 
-# -- `deltagen dynamics ARM --input traj.csv` (issue 11) --------------------------------------
+# -- `deltagen dynamics ARM --input traj.csv` ---------------------------------------------------
 
 
 def _puma_sine(t):

@@ -1,5 +1,4 @@
-"""Delta robot inverse dynamics (issue 11): the derived C kernels against independent
-evidence.
+"""Delta robot inverse dynamics: the derived C kernels against independent evidence.
 
 * the reference's Newton-Euler formulation (every body with its reaction forces, a 21 x 21
   solve per state; deltagen/reference/delta.py) written without the derivation;

@@ -1,5 +1,5 @@
 """The delta robot's exact inverse dynamics against MuJoCo, a multibody engine that knows
-nothing of the derivation (issue 11, "a multibody simulation written independently").
+nothing of the derivation (a multibody simulation written independently of deltagen).
 
 The closed chain is built here from MuJoCo bodies: three cranks on hinges about their drive
 axes, three rod pairs (each a slender rod of mass m_b on a universal joint at the crank tip:

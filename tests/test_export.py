@@ -1,4 +1,4 @@
-"""`deltagen export` (issue 14 items 1 and 5): the standalone C package.
+"""`deltagen export`: the standalone C package.
 
 One session fixture exports the default delta robot (double, float32, and double
 --no-batch --prefix) and the lecture's SCARA (double and float32); the tests build the

@@ -1,4 +1,4 @@
-"""Fuzzing of the inverse-kinematics surfaces and the CLI (issue "Reliability").
+"""Fuzzing of the inverse-kinematics surfaces and the CLI.
 
 SerialRobot.ik / ik_all with fuzzed targets (valid poses, NaN/inf/huge/subnormal entries,
 non-rigid rotations, wrong shapes and dtypes, lists) and fuzzed options (method, config,

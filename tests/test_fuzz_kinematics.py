@@ -1,4 +1,4 @@
-"""Fuzzing the kinematics methods (issue 9): arbitrary shapes (0-d to 3-d batches, empty
+"""Fuzzing the kinematics methods: arbitrary shapes (0-d to 3-d batches, empty
 batches), dtypes, memory layouts, magnitudes (1e+-300, subnormals, -0.0) and NaN / inf
 placements go into DeltaRobot and SerialRobot. The property: the compiled backend either
 

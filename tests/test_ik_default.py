@@ -1,4 +1,4 @@
-"""Numerical IK with default options solves every reachable in-limit target (issue 12 item 2).
+"""Numerical IK with default options solves every reachable in-limit target.
 
 Evidence independent of the solver: the targets are fk(q) of q drawn within the limits
 (so a solution exists), and each answer is checked with the numpy reference's fk (written

@@ -217,7 +217,7 @@ def test_ik_all_methods_are_checked():
         general6r.General6R(scara.description)
 
 
-# ---------------------------------------------------------------- batched solver (issue 10)
+# ---------------------------------------------------------------------- batched solver
 
 
 def _solution_set_equal(Qa, Va, Qb, Vb, tol=1e-9):
@@ -258,7 +258,7 @@ def _nonsingular(arm, q, sigma=1e-3):
     return np.linalg.svd(arm.jacobian(q), compute_uv=False)[:, -1] > sigma
 
 
-# (arm, poses): 2100 poses in total across five arms (issue 10's >= 2000)
+# (arm, poses): 2100 poses in total across five arms (the completeness check asks >= 2000)
 COMPLETENESS = [("jaco", 500), ("ur5", 400), ("puma560", 400), ("random7", 400), ("random8", 400)]
 
 

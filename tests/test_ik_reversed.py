@@ -150,7 +150,7 @@ def test_talos_legs_every_solution_as_pinocchio(side):
         warnings.simplefilter("ignore", URDFWarning)
         leg = SerialRobot.from_urdf(path, base, tip, backend="reference")
     assert detect(leg.description).kind == "reversed"
-    # the pose of the report: in limits, sigma_min / sigma_max 0.10
+    # a pose that once failed: in limits, sigma_min / sigma_max 0.10
     if side == "right":
         q = np.array([-0.25, -0.12, -1.72, 1.89, -0.25, -0.2])
         Q, valid = leg.ik_all(leg.fk(q))

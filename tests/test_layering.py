@@ -1,5 +1,5 @@
-"""The layering rule of DESIGN.md "Architecture": imports go down the stages, never back up,
-and no module imports a private name of another package.
+"""The layering rule of docs/architecture.md ("Layout") and CONTRIBUTING.md: imports go down
+the stages, never back up, and no module imports a private name of another package.
 
 The imports are read from the source (every ``import`` and ``from ... import`` anywhere in
 a module, including those inside functions), so a lazy import that goes back up fails too.

@@ -1,4 +1,4 @@
-"""The CPython-extension entry of the single-row calls (deltagen/native/lean_ext.c, issue 11).
+"""The CPython-extension entry of the single-row calls (deltagen/native/lean_ext.c).
 
 Evidence: (1) the one-row call through the extension equals the batch kernel's row bit for
 bit (a second caller of the same C function, through cffi and numpy); (2) for every input

@@ -1,4 +1,4 @@
-"""The README's Python examples run verbatim (issue "Reliability", class 6).
+"""The README's Python examples run verbatim.
 
 Every ```python block is executed, in the order of the README, in one namespace: a reader
 who types them in one session gets what the README shows. A block that fails names its

@@ -392,7 +392,7 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
 
 @pytest.mark.slow  # two cold builds
 def test_jacobian_dot_and_ik_all_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
-    """A new arm loads fk, frames, jacobian, fk_jacobian and ik_newton alone (issue 10,
+    """A new arm loads fk, frames, jacobian, fk_jacobian and ik_newton alone (a short
     cold load: a UR5's closed-form ik_all was half of it); its first ik_all or
     jacobian_dot builds the "later" part alone (jacobian_dot and ik_all, not the kernels
     already built), whose results equal the reference backend's; a second robot of the

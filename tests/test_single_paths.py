@@ -1,4 +1,4 @@
-"""The lean one-pose paths (issue 12 item 1) give the batch path's numbers bit for bit.
+"""The lean one-pose paths (native/lean.py) give the batch path's numbers bit for bit.
 
 Each quantity is evaluated for a batch of random states (the kernels' SIMD loop) and then
 row by row through the one-pose call, which must be taken (the batch machinery is made to

@@ -1,4 +1,4 @@
-"""Geometry sweeps (issue 13): deltagen.sweep in-process and on a Dask cluster.
+"""Geometry sweeps: deltagen.sweep in-process and on a Dask cluster.
 
 * the designs of a grid and of a Sobol spec (bounds, count, the seed reproduces them);
 * one design's scores equal DeltaRobot.workspace of that robot, and the peak torque on the

@@ -157,9 +157,10 @@ def _inject(text: str, kernel: str, find: str, change) -> str:
 
 @needs_gcc
 def test_the_old_finite_guard_is_caught():
-    """The guard form that stopped gcc 12 (isfinite of an output already selected to NaN,
-    DESIGN.md's finite-output rule before it was rewritten) injected into fk's points loop:
-    the check names fk's points loop and gcc's reason; the other kernels still pass."""
+    """The guard form that stopped gcc 12 (isfinite of an output already selected to NaN:
+    the finite-output rule before it was rewritten; docs/architecture.md, "The finite-output
+    guard") injected into fk's points loop: the check names fk's points loop and gcc's
+    reason; the other kernels still pass."""
     text, path = _module("delta_kinematics.c")
     old = "isfinite((((collinear) | (invalid) | (unreachable)) ? NAN : {}))"
     bad = _inject(

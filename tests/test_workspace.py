@@ -1,4 +1,4 @@
-"""Workspace and dexterity (issue 13): deltagen.api.workspace against independent evidence.
+"""Workspace and dexterity: deltagen.api.workspace against independent evidence.
 
 * the delta's usable volume (ik over a voxel grid, compiled core) against a Monte-Carlo
   integral over joint space by fk (numpy reference): V = int |det J(q)| dq over the crank

@@ -1,4 +1,4 @@
-"""DeltaRobot: the Python API of the delta kinematics (see DESIGN.md, "Public Python API").
+"""DeltaRobot: the Python API of the delta kinematics (docs/architecture.md traces fk through it).
 
 Every method takes one pose (shape (3,) or (4,) with the fourth axis) or a batch with any
 leading dimensions (..., 3|4), and returns arrays of the same leading shape.

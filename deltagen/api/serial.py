@@ -1,4 +1,4 @@
-"""SerialRobot: the Python API of serial-arm kinematics (DESIGN.md, "Serial-arm details").
+"""SerialRobot: the Python API of serial-arm kinematics (README, "Serial arms").
 
 Joint vectors are (..., n) arrays (any leading shape); poses are (..., 4, 4). Angles in
 radians, lengths in metres. ``errors="raise"`` raises on bad rows; ``errors="nan"`` returns

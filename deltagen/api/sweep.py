@@ -1,4 +1,4 @@
-"""Geometry sweeps of a delta robot (issue 13): ``deltagen.sweep(spec)``.
+"""Geometry sweeps of a delta robot: ``deltagen.sweep(spec)``.
 
 A design is one set of lengths r_a, r_b, l_a, l_b [m] (report Figure 4); the spec gives a
 range (low, high) or a fixed value for each, and the design of experiments: ``grid``

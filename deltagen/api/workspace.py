@@ -1,4 +1,4 @@
-"""Workspace and dexterity of a delta robot and a serial arm (issue 13, DESIGN.md "apps").
+"""Workspace and dexterity of a delta robot and a serial arm: the numbers.
 
 The numbers live here, beside the robots whose methods they use (``DeltaRobot.workspace``,
 ``SerialRobot.workspace`` delegate to :func:`delta_workspace` and :func:`serial_workspace`);

@@ -8,7 +8,7 @@ every row checked OK so no call raises). Each quantity is timed at three levels:
 * ``C kernel``: the generated C function called directly with preallocated outputs
   (the core's own loop, no numpy allocation); a diagnostic column.
 * ``_core``: the raw batched backend ``robot._core.<fn>`` ((N, 3) float64 C-contiguous in,
-  fresh output arrays out); the issue's targets are checked against this column.
+  fresh output arrays out); the throughput targets are checked against this column.
 * ``API``: the public method ``robot.<fn>`` with argument validation and status checks.
 
 The reference runs on the first ``min(N, 200 000)`` of the same poses (it is tens of times slower)
@@ -60,10 +60,9 @@ from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, tab
 from deltagen.geometry.rotations import rot_axis
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
-#: The issues' throughput targets for the compiled core [ns per point].
+#: The throughput targets for the compiled core [ns per point].
 TARGETS_NS = {"fk": 12.0, "fk_vel": 12.0, "fk_acc": 16.0, "ik": 20.0, "inverse_dynamics": 30.0}
-#: The issues' targets for one single-pose call from Python [ns]: fk (issue 12), ik (the
-#: first performance issue).
+#: The targets for one single-pose call from Python [ns]: fk and ik.
 SINGLE_TARGET_NS = {"fk": 600.0, "ik": 1500.0}
 REFERENCE_N = 200_000
 Q_RANGE = (-0.3, 0.9)  # rad; well inside the default robot's workspace
@@ -252,9 +251,9 @@ SERIAL_QUANTITIES = (
     "mass_matrix",
     "forward_dynamics",
 )
-#: The issue's serial-arm targets for the compiled core [ns per configuration].
+#: The serial-arm throughput targets for the compiled core [ns per configuration].
 SERIAL_TARGETS_NS = {"fk": 30.0, "jacobian": 50.0, "inverse_dynamics": 150.0}
-#: The targets for one single-pose serial call from Python [ns] (issue 12).
+#: The targets for one single-pose serial call from Python [ns].
 SERIAL_SINGLE_TARGET_NS = {"fk": 600.0, "jacobian": 500.0}
 SERIAL_REFERENCE_N = 100_000
 #: frames (n + 2 matrices, 1 KiB per configuration) and jacobian_dot run on fewer points

@@ -1,5 +1,5 @@
-"""The general-6R rows of ``deltagen bench`` (issue 10: "General 6R, all 16: report us per
-pose, target <= 50 us batched, <= 100 us single").
+"""The general-6R rows of ``deltagen bench``: all (up to 16) solutions of a general 6R arm,
+reported in us per pose, against the targets <= 50 us batched and <= 100 us single.
 
 Arms: a generic 6R arm (GENERIC_DH: a standard-DH table, no closed form; the
 unshifted Raghavan-Roth arrangement) and the bundled UR5 forced onto the complete solver

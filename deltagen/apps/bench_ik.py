@@ -1,4 +1,4 @@
-"""The inverse-kinematics section of ``deltagen bench``: the Puma 560 (issue 4's targets).
+"""The inverse-kinematics section of ``deltagen bench``: the Puma 560 (targets: ``TARGETS``).
 
 Analytic: poses fk(q) of q uniform within the joint limits; every branch (8) per pose,
 through the generated C (``_core.ik_all``), the API (``arm.ik_all``) and the numpy solver
@@ -38,7 +38,7 @@ TARGETS = {
     "analytic_single_ns": 2000.0,
     "numeric_median_ns": 8000.0,
     "numeric_p95_ns": 40000.0,
-    "ur5_batch_ns": 2000.0,  # issue 10: UR5 closed form, all 8, <= 2 us per pose batched
+    "ur5_batch_ns": 2000.0,  # UR5 closed form, all 8 branches, <= 2 us per pose batched
 }
 #: The UR family's closed form (three parallel axes, offset wrist): the bundled UR5.
 UR_ROBOT = "ur5"
@@ -330,8 +330,8 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
 
 
 def render_ur(a: dict, markdown: bool) -> list[str]:
-    """Lines of the UR closed-form rows (issue 10's target: all 8 branches <= 2 us per
-    pose, batched)."""
+    """Lines of the UR closed-form rows (the target: all 8 branches <= 2 us per pose,
+    batched)."""
     bullet = "- " if markdown else "  "
     met = a["batch"]["api"].median <= TARGETS["ur5_batch_ns"]
     rows = [

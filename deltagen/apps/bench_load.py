@@ -1,5 +1,5 @@
-"""Cold and warm load of an arm (issue 10 item 4: "loading a new 6- or 7-axis URDF (derive,
-emit, compile) takes <= 10 s, a warm load <= 50 ms; 20 joints <= 20 s").
+"""Cold and warm load of an arm, against the load targets: loading a new 6- or 7-axis URDF
+(derive, emit, compile) takes <= 10 s, a warm load <= 50 ms; 20 joints <= 20 s.
 
 Each measurement runs in a fresh interpreter (``python -c``) so nothing of an earlier load
 is in memory:
@@ -34,7 +34,7 @@ import tempfile
 from pathlib import Path
 
 #: a 20-joint standard-DH chain (revolute, alternating twists, no special structure beyond
-#: that): the "20 joints" arm of the issue's target
+#: that): the arm of the 20-joint load target
 CHAIN20 = tuple(
     dict(
         a=0.05 + 0.01 * (i % 5),

@@ -1,4 +1,4 @@
-"""``deltagen sweep SPEC [--scheduler ADDR] [--out DIR]``: a geometry sweep (issue 13).
+"""``deltagen sweep SPEC [--scheduler ADDR] [--out DIR]``: a geometry sweep.
 
 Runs deltagen.sweep (deltagen.api.sweep: the spec, the scores, Dask) and writes into
 --out: ``sweep.csv`` (one design per row, the provenance in '# ' header lines) and

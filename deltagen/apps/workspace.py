@@ -1,4 +1,4 @@
-"""``deltagen workspace ROBOT --out DIR``: workspace and dexterity pictures (issue 13).
+"""``deltagen workspace ROBOT --out DIR``: workspace and dexterity pictures.
 
 The numbers come from ``robot.workspace(...)`` (deltagen.api.workspace); this module draws
 

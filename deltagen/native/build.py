@@ -1,7 +1,7 @@
 """Build stage: compile a generated C module (and the runtime C it needs) into a cffi
 extension module, cached on disk under a key of everything that shapes the binary.
 
-How the cache stays sound (issue "Reliability", class 1):
+How the cache stays sound (tests/test_build_cache.py puts each point under faults):
 
 * **One build per key at a time**, from threads and processes alike: a lock per key, a
   ``threading.Lock`` inside the process and an exclusive ``flock`` on a lock file across
@@ -18,7 +18,7 @@ How the cache stays sound (issue "Reliability", class 1):
 * **Clear errors**: a failed build raises :class:`BuildError` with the compiler's own error
   text; a successful build's warnings never reach the user's terminal. A cache path that is
   not a directory or is not writable gets an error naming the path.
-* **Parallel translation units** (issue 10, cold load): a module's C is split at build time
+* **Parallel translation units** (a new arm's cold load): a module's C is split at build time
   at its top-level function definitions (one kernel per unit, :func:`split_units`), each
   unit being the file's preamble (includes, declarations, macros) and one kernel behind a
   ``#line`` directive, so a compiler message names the module's own file and line. The

@@ -1,7 +1,7 @@
 /* deltagen/native/lean_ext.c: the CPython-extension entry of the single-row calls
  * (native/lean.py), one extension for every generated module, delta and serial.
  *
- * Why it exists (issue 11, "a single call faster than pinocchio's rnea from Python"): a
+ * Why it exists (the target: one call from Python faster than pinocchio's rnea): a
  * cffi call of a kernel costs ~3 300 instructions, each (n,) input copied in through cffi
  * ~1 700 and the fresh output array ~2 300 (callgrind, Puma 560). Here the inputs are read
  * in place through the numpy C API, the kernel writes straight into the fresh output

@@ -1,5 +1,5 @@
 """All cores on batches: one batched C call split into contiguous row chunks that run on
-threads at once (issue 12, item 3).
+threads at once.
 
 Why threads and not OpenMP: the generated C must stay standalone (C99, libm only,
 reentrant, no globals) for users who drop it into a motion controller; an OpenMP runtime

@@ -36,8 +36,8 @@ polished by damped Newton on the arm's own kinematics (deltagen.solve.numeric, r
 and is valid when Newton converges (fk = T to ``tol``), the solution is finite, within
 limits, and not a duplicate of an earlier slot.
 
-Performance split (issue 10: "LAPACK through numpy for the eigenvalue step; state the
-split"). Two engines compute the same steps (``engine``, :func:`eigen_engine`):
+Performance split (the eigenvalue step may use LAPACK through numpy; where the time goes
+is stated here). Two engines compute the same steps (``engine``, :func:`eigen_engine`):
 - "c", on a compiled arm: hand-written C in one arm-independent cffi module
   (native/general6r.py; codegen/runtime/deltagen_general6r.c and deltagen_eigen.c), built
   once per machine, no compile per arm: per pose the arranged axes, both sides'

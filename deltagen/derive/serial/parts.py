@@ -1,7 +1,7 @@
 """Which kernels each part of a new arm's module holds: data only (no SymPy), so the
 build stage (native/serial.py) reads it without importing the derivations."""
 
-#: The parts a new arm's module is built in (native/serial.py; issue 10, cold load): each
+#: The parts a new arm's module is built in (native/serial.py; for a short cold load): each
 #: is rendered and compiled on the first call of one of its kernels, and derives only its
 #: own kernels. "first": what a new arm loads with (the numerical IK's evaluation too);
 #: "later": the rest of the kinematics (a UR5's closed-form ik_all is most of it);
