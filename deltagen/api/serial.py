@@ -60,14 +60,16 @@ if TYPE_CHECKING:
 class IKSolutions(tuple):
     """What ik_all returns: unpacks as ``q, valid`` (also ``.q``, ``.valid``), and
     ``.complete``: True when the method used finds every solution of the arm, so that a pose
-    without a valid one is unreachable within the joint limits (SerialRobot.ik_all)."""
+    without a valid one is unreachable within the joint limits (SerialRobot.ik_all).
+    ``IKSolutions.of(q, valid, complete)`` makes one; ``complete`` is a class attribute of
+    the two subclasses, so that no Python ``__new__`` runs on the one-pose path (a third of
+    its Python time)."""
 
-    complete: bool
+    complete: bool = False
 
-    def __new__(cls, q: FloatArray, valid: BoolArray, complete: bool) -> IKSolutions:
-        self = super().__new__(cls, (q, valid))
-        self.complete = complete
-        return self
+    @staticmethod
+    def of(q: FloatArray, valid: BoolArray, complete: bool) -> IKSolutions:
+        return (_CompleteIKSolutions if complete else _IncompleteIKSolutions)((q, valid))
 
     @property
     def q(self) -> FloatArray:
@@ -76,6 +78,14 @@ class IKSolutions(tuple):
     @property
     def valid(self) -> BoolArray:
         return self[1]
+
+
+class _CompleteIKSolutions(IKSolutions):
+    complete = True
+
+
+class _IncompleteIKSolutions(IKSolutions):
+    complete = False
 
 
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
@@ -761,7 +771,7 @@ class SerialRobot:
                 IncompleteSolutionsWarning,
                 stacklevel=2,
             )
-        return IKSolutions(q, valid, complete)
+        return IKSolutions.of(q, valid, complete)
 
     def _ik_all_complete(self, method: str) -> bool:
         """Whether ik_all's ``method`` finds every solution of this arm (ik_all's docstring):
