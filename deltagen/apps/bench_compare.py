@@ -34,28 +34,16 @@ import sys
 import tempfile
 from pathlib import Path
 
+from deltagen.apps.bench import QUANTITIES, SERIAL_QUANTITIES, SERIAL_ROBOT, SERIAL_SMALL_N
 from deltagen.errors import DeltagenError
 
-#: measures (label) -> (robot, method, JSON section, JSON quantity)
+#: measures (label) -> (robot, method, JSON section, JSON quantity): the batched quantities
+#: of ``deltagen bench`` (apps/bench.py), so that a stored JSON has every one
 MEASURES = {
-    **{
-        f"delta {q}": ("delta", q, "throughput", q)
-        for q in ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
-    },
-    **{
-        f"puma560 {q}": ("puma560", q, "serial", q)
-        for q in (
-            "fk",
-            "frames",
-            "jacobian",
-            "jacobian_dot",
-            "inverse_dynamics",
-            "mass_matrix",
-            "forward_dynamics",
-        )
-    },
+    **{f"delta {q}": ("delta", q, "throughput", q) for q in QUANTITIES},
+    **{f"{SERIAL_ROBOT} {q}": (SERIAL_ROBOT, q, "serial", q) for q in SERIAL_QUANTITIES},
 }
-SMALL_N = 250_000  # frames, jacobian_dot and the arm's dynamics (as apps/bench.py)
+SMALL_N = SERIAL_SMALL_N  # frames, jacobian_dot and the arm's dynamics
 
 # Runs in a fresh interpreter whose sys.path starts with the measured tree: public API
 # only, one JSON line {label: ns per point or null} on stdout.

@@ -213,6 +213,22 @@ def _unit_text(source: Path, preamble: list[str], kernel: tuple[int, list[str]])
     return "\n".join([f"#line 1 {name}", *preamble, f"#line {first} {name}", *body]) + "\n"
 
 
+def write_units(source: Path, text: str, work: Path, split: bool = True) -> list[Path]:
+    """The translation units of the C file ``source`` (its ``text``) to compile: one per
+    kernel (split_units), written into ``work`` behind ``#line``s naming ``source``; or
+    ``source`` itself when ``split`` is False or the layout cannot be split."""
+    units = split_units(text) if split else None
+    if units is None:
+        return [source]
+    preamble, kernels = units
+    written = []
+    for k, kernel in enumerate(kernels):
+        unit = work / f"{source.stem}.unit{k:03d}.c"
+        unit.write_text(_unit_text(source, preamble, kernel))
+        written.append(unit)
+    return written
+
+
 def _build_jobs() -> int:
     """How many compilers run at once: the cores this process may use, at most
     DELTAGEN_BUILD_JOBS when that is set to a positive integer."""
@@ -478,16 +494,7 @@ def _build(
         ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
         ccshared += ["-fwrapv", "-DNDEBUG"]
         module_c = work / files[".c"].name
-        units = split_units(texts[".c"]) if split else None
-        sources = [wrapper]
-        if units is None:
-            sources.append(module_c)
-        else:
-            preamble, kernels = units
-            for k, kernel in enumerate(kernels):
-                unit = work / f"{module_c.stem}.unit{k:03d}.c"
-                unit.write_text(_unit_text(module_c, preamble, kernel))
-                sources.append(unit)
+        sources = [wrapper, *write_units(module_c, texts[".c"], work, split)]
         sources += [work / f.name for f in runtime if f.suffix == ".c"]
         objects = {src: work / f"{src.stem}.o" for src in sources}
         compiler = _compiler_command() + ccshared + args + include

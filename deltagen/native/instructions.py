@@ -254,16 +254,7 @@ def build_driver(source: Path, prefix: str, driver: str) -> Path:
 
     work = Path(tempfile.mkdtemp(prefix=f"{source.stem}.", dir=target.parent))
     try:
-        units = build.split_units(text)
-        sources = []
-        if units is None:
-            sources.append(source)
-        else:
-            preamble, pieces = units
-            for k, piece in enumerate(pieces):
-                unit = work / f"{source.stem}.unit{k:03d}.c"
-                unit.write_text(build._unit_text(source, preamble, piece))
-                sources.append(unit)
+        sources = build.write_units(source, text, work)
         (work / "driver.c").write_text(driver)
         sources += [work / "driver.c"] + [f for f in runtime if f.suffix == ".c"]
         include = [f"-I{source.parent}", f"-I{build.runtime_dir()}"]
