@@ -7,67 +7,65 @@ import argparse
 import os
 import re
 import sys
-from pathlib import Path
 
 
-def _robot_kind(path: Path) -> str:
-    """ "serial" or "delta" for a robot file: serial-arm files state a convention and list
-    [[joint]] tables; delta files have a [delta] table."""
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError):
-        return "delta"  # its loader reports the unreadable file
-    try:
-        import tomllib
+def _robot(args, spec=None, command=None, kinds=None):
+    """The robot of a command (deltagen.apps.robots.load_robot: 'default', a bundled arm's
+    name, a delta or serial-arm TOML, a Klipper printer.cfg or a URDF, with the URDF
+    options --base, --tip, --locked); refused (exit status 2) when ``command`` serves only
+    ``kinds``."""
+    from deltagen.apps.robots import load_robot, parse_locked
 
-        data = tomllib.loads(text)
-    except Exception:  # malformed: the loader named by a plain look reports it
-        return "serial" if "convention" in text and "[delta]" not in text else "delta"
-    if "delta" not in data and ("convention" in data or "joint" in data):
-        return "serial"
-    return "delta"
+    return load_robot(
+        args.robot if spec is None else spec,
+        getattr(args, "backend", None) or "compiled",
+        base=getattr(args, "base", None),
+        tip=getattr(args, "tip", None),
+        locked=parse_locked(getattr(args, "locked", None)),
+        command=command or args.command,
+        kinds=kinds,
+    )
 
 
-def _robot(args):
-    """'default' (the delta robot), a bundled serial arm's name, a robot TOML file or a
-    URDF file (.urdf)."""
-    from deltagen.api.delta import DeltaRobot
-    from deltagen.api.serial import SerialRobot, bundled_robots, bundled_urdfs
-
-    name = args.robot
-    if name in (None, "default"):
-        return DeltaRobot.default(backend=args.backend)
-    if name in bundled_robots() or name in bundled_urdfs():
-        return SerialRobot.load(name, backend=args.backend)
-    path = Path(name)
-    if path.suffix.lower() == ".cfg":  # a Klipper printer.cfg (kinematics: rotary_delta)
-        return DeltaRobot.from_klipper(path, backend=args.backend)
-    if path.suffix.lower() == ".urdf":  # its chain from the root link to the single leaf
-        return SerialRobot.from_urdf(path, backend=args.backend)
-    if path.suffix != ".toml" and not path.exists():
-        raise ValueError(
-            f"unknown robot {name!r}: use 'default', a bundled arm "
-            f"({', '.join(bundled_robots() + bundled_urdfs())}), a robot .toml file, a .urdf or a Klipper "
-            "printer.cfg"
-        )
-    if _robot_kind(path) == "serial":
-        return SerialRobot.from_toml(path, backend=args.backend)
-    return DeltaRobot.from_toml(path, backend=args.backend)
+def _add_urdf_options(p) -> None:
+    """--base, --tip, --locked: the chain of a URDF robot (SerialRobot.from_urdf)."""
+    p.add_argument(
+        "--base", metavar="LINK", help="URDF: the chain's first link (default: the root)"
+    )
+    p.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: the chain's last link (default: the single leaf; needed when the tree "
+        "branches, e.g. an arm with a two-finger gripper)",
+    )
+    p.add_argument(
+        "--locked",
+        metavar="NAME=VALUE",
+        action="append",
+        help="URDF: the value [rad or m] of a movable joint off the chain (or above --base), "
+        "where its link's mass is folded in (default 0); repeatable",
+    )
 
 
 def cmd_generate(args) -> int:
     from deltagen.apps import generate
+    from deltagen.inputs import InputError
 
     if args.robot_file:
-        path = Path(args.robot_file)
-        if path.is_file() and _robot_kind(path) == "delta":
-            raise ValueError(
-                f"{path} describes a delta robot; `deltagen generate ROBOT_FILE` takes a "
-                "serial-arm file (a `convention` key and [[joint]] tables). The delta core is "
-                "generic (`deltagen generate` writes it; the geometry is read at run time), so "
-                f"use the file directly: `deltagen fk {path} ...`"
+        from deltagen.apps.robots import COUPLED, SERIAL, kind_of
+
+        args.backend = "reference"  # the module is built below, once
+        robot = _robot(args, args.robot_file)
+        if kind_of(robot) not in (SERIAL, COUPLED):
+            raise InputError(
+                "`deltagen generate ROBOT_FILE` takes a serial arm: a serial-arm file (a "
+                "`convention` key and [[joint]] tables), a URDF or a bundled arm's name; "
+                f"{args.robot_file} "
+                "describes a delta robot, whose core is generic (`deltagen generate` writes it; "
+                f"the geometry is read at run time), so use the file directly: "
+                f"`deltagen fk {args.robot_file} ...`"
             )
-        folder = generate.generate_robot_file(args.robot_file)
+        folder = generate.generate_robot(robot)
         from deltagen.paths import runtime_dir
 
         print(
@@ -96,12 +94,6 @@ def cmd_generate(args) -> int:
             file=sys.stderr,
         )
     return 0
-
-
-def _evaluate(args, forward: bool) -> int:
-    from deltagen.apps import kinematics
-
-    return kinematics.run(_robot(args), forward, args)
 
 
 EXIT_STATUS = """\
@@ -166,8 +158,10 @@ def main(argv=None) -> int:
     g.add_argument(
         "robot_file",
         nargs="?",
-        help="a serial-arm TOML or URDF: generate, compile and cache its module",
+        help="a serial-arm TOML, a URDF or a bundled arm's name: generate, compile and "
+        "cache its module",
     )
+    _add_urdf_options(g)
     g.add_argument(
         "--check", action="store_true", help="fail and show a diff if generated/ is stale"
     )
@@ -235,19 +229,23 @@ def main(argv=None) -> int:
                 help="serial arm, --method numeric: random restarts when a start does not converge",
             )
         e.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+        _add_urdf_options(e)
         e.set_defaults(
             func=lambda a, f=forward: _evaluate(a, f), q0=None, method=None, restarts=None
         )
 
     v = sub.add_parser("validate", help="the report's validation trajectory, eqs. (40)-(42)")
-    v.add_argument("--robot", default="default", help="'default' or a robot TOML file")
+    v.add_argument(
+        "--robot", default="default", help="a delta robot: 'default', a TOML or a printer.cfg"
+    )
     v.add_argument("--rate", type=float, default=1000.0, help="sample rate [Hz] (default 1000)")
     v.add_argument("--duration", type=float, default=10.0, help="duration [s] (default 10)")
     v.add_argument("--out", default="validation", help="folder for the CSV and PNG")
     v.add_argument("--no-plot", action="store_true", help="skip the PNG figure")
     v.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     v.add_argument("--quiet", action="store_true", help="no progress output")
-    v.set_defaults(func=lambda a: _lazy("deltagen.apps.validate", a))
+    _add_urdf_options(v)
+    v.set_defaults(func=_validate)
 
     d = sub.add_parser(
         "demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place"
@@ -279,6 +277,7 @@ def main(argv=None) -> int:
     y.add_argument("--model", choices=("exact", "simplified"), default="exact")
     y.add_argument("--plot", help="PNG of q, qd, qdd and tau per drive")
     y.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    _add_urdf_options(y)
     y.set_defaults(func=_dynamics)
 
     w = sub.add_parser(
@@ -298,6 +297,7 @@ def main(argv=None) -> int:
     )
     w.add_argument("--quiet", action="store_true", help="no progress bars or summary")
     w.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    _add_urdf_options(w)
     w.set_defaults(func=_workspace)
 
     s = sub.add_parser(
@@ -347,6 +347,7 @@ def main(argv=None) -> int:
         help="overwrite files in --out that an earlier export did not write (e.g. your own "
         "Makefile); without it such a folder is refused",
     )
+    _add_urdf_options(x)
     x.set_defaults(func=_export)
 
     c = sub.add_parser(
@@ -368,6 +369,7 @@ def main(argv=None) -> int:
     c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
     c.add_argument("--out", help="write the calibrated robot file (TOML) here")
     c.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    _add_urdf_options(c)
     c.set_defaults(func=_calibrate)
 
     b = sub.add_parser("bench", help="throughput and latency, compiled vs reference")
@@ -421,40 +423,53 @@ def main(argv=None) -> int:
         return 2
 
 
+def _evaluate(args, forward: bool) -> int:
+    from deltagen.apps import kinematics
+    from deltagen.apps.robots import COUPLED, DELTA, SERIAL
+
+    return kinematics.run(_robot(args, kinds=(DELTA, SERIAL, COUPLED)), forward, args)
+
+
 def _dynamics(args) -> int:
     from deltagen.apps import dynamics
+    from deltagen.apps.robots import COUPLED, DELTA, SERIAL
 
-    args.robot_object = _robot(args)
+    args.robot_object = _robot(args, kinds=(DELTA, SERIAL, COUPLED))
     return dynamics.main(args)
 
 
 def _workspace(args) -> int:
     from deltagen.apps import workspace
+    from deltagen.apps.robots import DELTA, SERIAL
 
-    args.robot_object = _robot(args)
+    args.robot_object = _robot(args, kinds=(DELTA, SERIAL))
     return workspace.main(args)
 
 
 def _export(args) -> int:
     from deltagen.apps import export
+    from deltagen.apps.robots import DELTA, SERIAL
 
     args.backend = "reference"  # only the description is needed: no compiled core
     name = args.robot
-    args.robot = "default" if name == "delta" else name
-    args.robot_object = _robot(args)
-    args.robot = name
+    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=(DELTA, SERIAL))
     return export.main(args)
 
 
 def _calibrate(args) -> int:
-    from deltagen.api.delta import DeltaRobot
     from deltagen.apps import calibrate
+    from deltagen.apps.robots import DELTA
 
-    robot = _robot(args)
-    if not isinstance(robot, DeltaRobot):
-        raise ValueError("calibrate: the robot must be a delta robot")
-    args.robot_object = robot
+    args.robot_object = _robot(args, kinds=(DELTA,))
     return calibrate.main(args)
+
+
+def _validate(args) -> int:
+    from deltagen.apps import validate
+    from deltagen.apps.robots import DELTA
+
+    args.robot_object = _robot(args, kinds=(DELTA,))
+    return validate.main(args)
 
 
 def _lazy(module: str, args) -> int:

@@ -44,6 +44,19 @@ def generate_robot_file(path) -> Path:
     return folder
 
 
+def generate_robot(robot) -> Path:
+    """Render, compile and cache the module of a loaded serial arm (SerialRobot, or a
+    CoupledArm: the module of its full chain, the one it evaluates); returns the folder
+    holding its C sources."""
+    from deltagen.native.serial import complete_module, source_dir
+
+    desc = robot.full.description if hasattr(robot, "coupling") else robot.description
+    complete_module(desc)
+    folder = source_dir(desc)
+    assert folder is not None
+    return folder
+
+
 def write(directory: Path | None = None) -> list[Path]:
     directory = Path(directory) if directory else generated_dir()
     directory.mkdir(parents=True, exist_ok=True)

@@ -139,9 +139,9 @@ class Job:
 
 
 def make_job(robot, forward: bool, args) -> Job:
-    from deltagen.api.serial import SerialRobot
+    from deltagen.api.delta import DeltaRobot
 
-    serial = isinstance(robot, SerialRobot)
+    serial = not isinstance(robot, DeltaRobot)  # a SerialRobot or a CoupledArm
     if not serial:
         for flag, value in (
             ("--config", args.config),
@@ -161,7 +161,7 @@ def make_job(robot, forward: bool, args) -> Job:
             [joints if forward else pose],
             revolute=np.ones(4, dtype=bool),
         )
-    revolute = np.array([j.revolute for j in robot.description.joints])
+    revolute = _revolute(robot)
     joints = Columns(tuple(f"q{i + 1}" for i in range(robot.n)))
     if forward:
         for flag, value in (
@@ -175,7 +175,7 @@ def make_job(robot, forward: bool, args) -> Job:
     layouts = [Columns(TRANSFORM, TRANSFORM_LAST, positional=False), Columns(SERIAL_POSE)]
     options = {}
     if args.config is not None:
-        configs = robot.analytic_configs()
+        configs = robot.analytic_configs() if hasattr(robot, "analytic_configs") else ()
         if args.config not in configs:
             known = ", ".join(configs) if configs else "none: it has no closed-form inverse"
             raise InputError(
@@ -201,13 +201,33 @@ def make_job(robot, forward: bool, args) -> Job:
     return Job(robot, True, False, args.degrees, layouts, revolute=revolute, options=options)
 
 
+def _revolute(robot) -> np.ndarray:
+    """Per joint variable of a serial arm: revolute (converted by --degrees)? A CoupledArm's
+    variables are its independent joints."""
+    if hasattr(robot, "coupling"):
+        joints = robot.full.description.joints
+        return np.array([joints[i].revolute for i in robot.coupling.independent])
+    return np.array([j.revolute for j in robot.description.joints])
+
+
+def _configurations(robot) -> dict:
+    """The named joint configurations of a serial arm's robot file (none for a CoupledArm)."""
+    return getattr(robot, "configurations", {})
+
+
+def _configuration(robot, name) -> np.ndarray:
+    if hasattr(robot, "configuration"):
+        return robot.configuration(name)
+    raise InputError(f"{robot.name} has no configuration {name!r} (known: none)")
+
+
 def _parse_q0(robot, text, degrees, revolute) -> np.ndarray:
-    if text in robot.description.configurations:
-        return robot.configuration(text)
+    if text in _configurations(robot):
+        return _configuration(robot, text)
     try:
         values = [float(t) for t in text.replace(",", " ").split()]
     except ValueError:
-        known = ", ".join(robot.description.configurations) or "none"
+        known = ", ".join(_configurations(robot)) or "none"
         raise InputError(
             f"--q0 {text!r}: give {robot.n} numbers separated by commas, or a "
             f"configuration of {robot.name} (known: {known})"
@@ -261,7 +281,7 @@ def _single(job, args) -> int:
     if job.forward and job.serial and args.config is not None:
         if values:
             raise InputError("give either joint values or --config NAME, not both")
-        q = robot.configuration(args.config)[None]  # radians, as in the robot file
+        q = _configuration(robot, args.config)[None]  # radians, as in the robot file
         x = q
     else:
         if not values:

@@ -674,7 +674,7 @@ def main(args) -> int:
         from deltagen.apps.plotting import pyplot
 
         pyplot()  # before the run: without matplotlib, say so now (or use --no-plot)
-    robot = _load_robot(args)
+    robot = getattr(args, "robot_object", None) or _load_robot(args)
     rate = getattr(args, "rate", 1000.0)
     duration = getattr(args, "duration", 10.0)
 

@@ -588,6 +588,16 @@ def _identifier(name: str) -> str:
     return ident if not ident[0].isdigit() else f"urdf_{ident}"[:64]
 
 
+class TipChoiceError(GeometryError):
+    """No tip given and the tree below the base link has no single leaf: ``leaves`` lists
+    the candidates (for a caller that names its own way of choosing one)."""
+
+    def __init__(self, message: str, base: str, leaves: list[str]):
+        super().__init__(message)
+        self.base = base
+        self.leaves = leaves
+
+
 def description_from_urdf(
     path: str | os.PathLike[str],
     base: str | None = None,
@@ -632,6 +642,8 @@ def chain_from_urdf(
         raise GeometryError(f"cannot read URDF {source}: {exc}") from None
     try:
         return _description(text, source, base, tip, name, locked, gravity)
+    except TipChoiceError as exc:
+        raise TipChoiceError(f"URDF {source}: {exc}", exc.base, exc.leaves) from None
     except GeometryError as exc:
         raise GeometryError(f"URDF {source}: {exc}") from None
 
@@ -664,9 +676,11 @@ def _description(
             if up == base and link != base:
                 leaves.append(link)
         if len(leaves) != 1:
-            raise GeometryError(
+            raise TipChoiceError(
                 f"the tree below {base!r} has {len(leaves)} leaves ({', '.join(sorted(leaves))});"
-                " choose one with tip="
+                " choose one with tip=",
+                base,
+                sorted(leaves),
             )
         tip = leaves[0]
     if tip not in links:

@@ -1,0 +1,184 @@
+"""The command line's one robot loader: what a robot argument names (a delta robot, a serial
+arm or a serial arm with coupled joints), read from the file itself, and the refusal of a
+command that cannot serve that kind.
+
+A robot argument is 'default' (the delta robot of robots/default_delta.toml), a bundled arm's
+name (robots/<name>.toml or robots/<name>.urdf), or a file: a URDF (its content is XML,
+whatever its extension), a Klipper printer.cfg (kinematics: rotary_delta), a delta robot TOML
+(a [delta] table) or a serial-arm TOML (a `convention` key and [[joint]] tables). A URDF gives
+a SerialRobot, or a CoupledArm when its chain has ``<mimic>`` joints; ``base``, ``tip`` and
+``locked`` (the CLI's --base, --tip, --locked) choose its chain (SerialRobot.from_urdf)."""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from deltagen.inputs import InputError
+
+DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+
+#: How messages name each kind (with an article).
+KIND_NAMES = {
+    DELTA: "a delta robot",
+    SERIAL: "a serial arm",
+    COUPLED: "a serial arm with coupled (URDF <mimic>) joints",
+}
+
+
+def kind_of(robot: Any) -> str:
+    """DELTA, SERIAL or COUPLED for a loaded robot."""
+    from deltagen.api.coupled import CoupledArm
+    from deltagen.api.delta import DeltaRobot
+
+    if isinstance(robot, DeltaRobot):
+        return DELTA
+    if isinstance(robot, CoupledArm):
+        return COUPLED
+    return SERIAL
+
+
+def require(command: str, robot: Any, kinds: Sequence[str]) -> None:
+    """Refuse (InputError, exit status 2) a robot whose kind ``command`` does not serve."""
+    _require(command, kind_of(robot), getattr(robot, "name", ""), kinds)
+
+
+def _require(command: str, kind: str, name: str, kinds: Sequence[str] | None) -> None:
+    if kinds is None or kind in kinds:
+        return
+    served = " or ".join(KIND_NAMES[k] for k in kinds)
+    shown = f" ({name})" if name else ""
+    raise InputError(
+        f"`deltagen {command}` takes {served}; the robot given is {KIND_NAMES[kind]}{shown}"
+    )
+
+
+def parse_locked(items: Sequence[str] | None) -> dict[str, float] | None:
+    """--locked NAME=VALUE (repeated) -> {NAME: VALUE}."""
+    if not items:
+        return None
+    locked: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        try:
+            number = float(value) if sep and name else None
+        except ValueError:
+            number = None
+        if number is None:
+            raise InputError(f"--locked {item!r}: give NAME=VALUE, e.g. --locked finger_joint=0.02")
+        locked[name] = number
+    return locked
+
+
+def file_kind(path: Path) -> str:
+    """ "urdf", "klipper", "serial" or "delta" for a robot file, from its content (the
+    extension decides only for .urdf and .cfg, and for a file that cannot be read)."""
+    suffix = path.suffix.lower()
+    if suffix == ".urdf":
+        return "urdf"
+    if suffix == ".cfg":
+        return "klipper"
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError):
+        return "delta"  # its loader reports the unreadable file
+    if text.lstrip().startswith("<"):
+        return "urdf"
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError:  # malformed: the loader named by a plain look reports it
+        if "kinematics:" in text and "[printer]" in text:
+            return "klipper"
+        return "serial" if "convention" in text and "[delta]" not in text else "delta"
+    if "delta" not in data and ("convention" in data or "joint" in data):
+        return "serial"
+    return "delta"
+
+
+def load_robot(
+    spec: str | None,
+    backend: Any = "compiled",
+    *,
+    base: str | None = None,
+    tip: str | None = None,
+    locked: Mapping[str, float] | None = None,
+    command: str = "",
+    kinds: Sequence[str] | None = None,
+) -> Any:
+    """The robot a robot argument names (module docstring). With ``kinds``: refused
+    (InputError naming ``command`` and the robot's kind) unless it is of one of them, before
+    any compiled core is built."""
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.serial import SerialRobot, bundled_robots, bundled_urdfs
+    from deltagen.paths import robots_dir
+
+    urdf_options = [
+        flag
+        for flag, value in (("--base", base), ("--tip", tip), ("--locked", locked))
+        if value is not None
+    ]
+    name = spec if spec is not None else "default"
+    path = Path(name)
+    if name == "default":
+        kind, path = "delta", robots_dir() / "default_delta.toml"
+    elif name in bundled_urdfs() and name not in bundled_robots():
+        kind, path = "bundled-urdf", robots_dir() / f"{name}.urdf"
+    elif name in bundled_robots():
+        kind = "bundled"
+    elif not path.exists() and path.suffix.lower() not in (".toml", ".urdf", ".cfg"):
+        raise InputError(
+            f"unknown robot {name!r}: use 'default', a bundled arm "
+            f"({', '.join(bundled_robots() + bundled_urdfs())}), a robot .toml file, a .urdf or "
+            "a Klipper printer.cfg"
+        )
+    else:
+        kind = file_kind(path)
+    if urdf_options and kind not in ("urdf", "bundled-urdf"):
+        raise InputError(
+            f"{' and '.join(urdf_options)} {'chooses' if len(urdf_options) == 1 else 'choose'} "
+            f"the chain of a URDF; {name} is not a URDF"
+        )
+    if kind in ("urdf", "bundled-urdf"):  # read without a core: serial or coupled
+        if kind == "bundled-urdf" and not urdf_options:
+            robot = SerialRobot.load(name, backend="reference")  # under the bundled name
+        else:
+            robot = _from_urdf(path, base, tip, locked, "reference")
+        _require(command, kind_of(robot), robot.name, kinds)
+        if backend == "reference":
+            return robot
+        if hasattr(robot, "coupling"):
+            return type(robot)(robot.full.with_backend(backend), robot.coupling)
+        return robot.with_backend(backend)
+    serial = kind in ("bundled", "serial")
+    _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
+    if kind == "bundled":
+        return SerialRobot.load(name, backend=backend)
+    if kind == "klipper":
+        return DeltaRobot.from_klipper(path, backend=backend)
+    if kind == "serial":
+        return SerialRobot.from_toml(path, backend=backend)
+    if name == "default":
+        return DeltaRobot.default(backend=backend)
+    return DeltaRobot.from_toml(path, backend=backend)
+
+
+def _from_urdf(path, base, tip, locked, backend):
+    from deltagen.api.serial import SerialRobot
+    from deltagen.model.urdf import TipChoiceError
+
+    try:
+        return SerialRobot.from_urdf(path, base, tip, locked=locked, backend=backend)
+    except TipChoiceError as exc:
+        if not exc.leaves:  # the base link is itself a leaf
+            raise InputError(
+                f"URDF {path}: no link lies below link {exc.base!r}; choose the chain with "
+                "--base NAME and --tip NAME"
+            ) from None
+        raise InputError(
+            f"URDF {path}: the tree below link {exc.base!r} has {len(exc.leaves)} leaves "
+            f"({', '.join(exc.leaves)}); choose the chain's end with --tip NAME "
+            f"(e.g. --tip {exc.leaves[0]})"
+        ) from None
