@@ -248,3 +248,22 @@ def test_a_file_is_read_as_what_it_holds_whatever_its_extension(robots, tmp_path
     xml.write_text(MIMIC)
     assert main(["fk", str(xml), "0", "0", "0", "--backend", "reference"]) == 0
     assert "mimic_arm" in capsys.readouterr().out
+
+
+def test_a_refused_kind_in_a_real_process_has_no_traceback(robots, tmp_path, repo_root):
+    """The process's stderr (what a user sees): the refusal, not an AttributeError."""
+    import subprocess
+    import sys
+
+    path = robots["mimic_urdf"][0][0]
+    argv = ["workspace", path, "--out", str(tmp_path / "ws"), "--quiet"]
+    done = subprocess.run(
+        [sys.executable, "-m", "deltagen", *argv],
+        capture_output=True,
+        text=True,
+        cwd=repo_root,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    assert "deltagen workspace" in done.stderr and "coupled" in done.stderr
