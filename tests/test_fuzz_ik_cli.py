@@ -121,11 +121,11 @@ def _q0(arm, how):
     }[how]
 
 
-def _reproduces(arm, q, T):
-    """fk(q) reproduces the whole target T to 1e-9 (also for the arms with fewer than 6
+def _reproduces(arm, q, T, atol=1e-9):
+    """fk(q) reproduces the whole target T to ``atol`` (also for the arms with fewer than 6
     joints: ik refuses what they cannot take instead of fitting it, unless mask= is given)."""
     Tq = arm.with_backend("reference").fk(q)
-    return np.allclose(Tq, T, rtol=0, atol=1e-9)
+    return np.allclose(Tq, T, rtol=0, atol=atol)
 
 
 def _check_error(exc, n_rows):
@@ -164,17 +164,18 @@ def test_fuzz_serial_ik(arms, data):
         return
     event(f"{kind}: solved")
     Ta = np.asarray(T, dtype=float)
+    atol = 1e-6 if np.asarray(T).dtype == np.float32 else 1e-9  # as in test_fuzz_serial_ik_all
     if options.get("errors", "raise") == "nan":
         q, ok = result
         assert q.shape == Ta.shape[:-2] + (arm.n,) and ok.shape == Ta.shape[:-2]
         assert np.all(np.isfinite(q[ok])) and np.all(np.isnan(q[~ok]))
         if np.any(ok):
-            assert _reproduces(arm, q[ok], Ta[ok]), (kind, options)
+            assert _reproduces(arm, q[ok], Ta[ok], atol), (kind, options)
     else:
         q = result
         assert q.shape == Ta.shape[:-2] + (arm.n,)
         assert np.all(np.isfinite(q))
-        assert _reproduces(arm, q, Ta), (kind, options)
+        assert _reproduces(arm, q, Ta, atol), (kind, options)
     assert kind not in ("shape", "dtype") or Ta.shape[-2:] == (4, 4)
 
 
@@ -197,7 +198,11 @@ def test_fuzz_serial_ik_all(arms, data):
     assert np.all(np.isfinite(q[valid]))
     if np.any(valid):
         Tk = np.broadcast_to(Ta[..., None, :, :], valid.shape + (4, 4))
-        assert _reproduces(arm, q[valid], Tk[valid]), kind
+        # a float32 target is a pose rounded to 6e-8 relative: an arm with fewer than 6
+        # joints reaches it only to that (SCARA: 2.6e-8 m on a 4 m pose), within ik_all's
+        # tolerance for the components it cannot set
+        float32 = np.asarray(T).dtype == np.float32
+        assert _reproduces(arm, q[valid], Tk[valid], 1e-6 if float32 else 1e-9), kind
     if kind in ("scaled", "entry"):  # a non-rigid or non-finite row has no valid branch
         flat = Ta.reshape(-1, 4, 4)
         R = flat[:, :3, :3]
