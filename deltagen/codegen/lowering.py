@@ -123,24 +123,18 @@ NONFINITE_DOC = (
 def _split_nan(expr):
     """(mask, raw) of an output's assignment: ``mask`` is the condition under which its
     Piecewise takes a NaN branch (false when it has none) -- the NaNs the status explains,
-    any other non-finite value is an overflow -- and ``raw`` the value it takes elsewhere
-    (the Piecewise without its NaN branches)."""
+    any other non-finite value is an overflow -- and ``raw`` the one value it takes
+    elsewhere, or None where there is no NaN branch or several other branches."""
     if not isinstance(expr, sp.Piecewise):
-        return sp.false, expr
+        return sp.false, None
     earlier, conditions, kept = sp.false, [], []
     for value, cond in expr.args:
         if value is sp.nan:
             conditions.append(sp.And(cond, sp.Not(earlier)))
         else:
-            kept.append((value, cond))
+            kept.append(value)
         earlier = sp.Or(earlier, cond)
-    if not conditions:
-        return sp.false, expr
-    if len(kept) == 1:
-        raw = kept[0][0]
-    else:
-        raw = sp.Piecewise(*kept[:-1], (kept[-1][0], True))
-    return sp.Or(*conditions), raw
+    return sp.Or(*conditions), (kept[0] if conditions and len(kept) == 1 else None)
 
 
 def _finite_by_construction(expr) -> bool:
@@ -166,8 +160,8 @@ def guard_outputs(kernel: Kernel) -> Kernel:
     NaN-selected one, and each checked output is one select, ``(mask | nonfinite_output) ?
     NAN : raw``. Testing the selected values (isfinite of ``c ? NAN : x``) or selecting twice
     made gcc 12 give up on the whole loop ("no vectype"): delta fk 13 -> 39 ns per point,
-    ik 13 -> 94. The results are the same bits:
-    where the mask holds the output was NaN either way, elsewhere raw is the output."""
+    ik 13 -> 94. The results are the same bits: where the mask holds the output was NaN
+    either way, elsewhere raw is the output."""
     assignments = {sym: sp.sympify(e) for stage in kernel.stages for sym, e in stage.assignments}
     by_mask: dict = {}
     split: dict = {}
@@ -177,18 +171,15 @@ def guard_outputs(kernel: Kernel) -> Kernel:
         for sym in (*port.symbols, *(() if port.fourth is None else (port.fourth,))):
             expr = assignments.get(sym, sym)
             mask, raw = _split_nan(expr)
-            if mask is sp.false:
-                raw = sym  # no NaN branch: test and pass the output itself
-            elif isinstance(raw, sp.Piecewise):
-                # several other branches: test the output where its NaN branch is not taken,
-                # and select from it (two selects; no bundled kernel has such an output)
-                by_mask.setdefault(mask, []).append(sym)
+            if raw is None:  # test the output itself where no NaN branch is taken, and
+                # select from it (two selects where it has several other branches; no
+                # bundled kernel has such an output)
                 split[sym] = (sp.false, sym)
-                continue
-            split[sym] = (mask, raw)
+            else:
+                split[sym] = (mask, raw)
             if _finite_by_construction(expr):
                 continue
-            by_mask.setdefault(mask, []).append(raw)
+            by_mask.setdefault(mask, []).append(sym if raw is None else raw)
     if not by_mask:
         return kernel
     nonfinite = sp.Symbol("nonfinite_output")
