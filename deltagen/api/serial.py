@@ -176,7 +176,8 @@ class SerialRobot:
         self.description = description
         self.backend = backend
         self.n = description.n
-        self._incomplete_said: set[str] = set()  # ik_all methods warned about (ik_all)
+        # ik_all: whether each method used so far is complete (warned once where it is not)
+        self._ik_all_completeness: dict[str, bool] = {}
         if backend == "compiled":
             from deltagen.native.serial import CompiledArm
 
@@ -755,23 +756,28 @@ class SerialRobot:
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
         q, valid = self._ik_all(T, method)
-        complete = self._ik_all_complete(method)
-        if not complete and method not in self._incomplete_said:
-            self._incomplete_said.add(method)
-            why = (
-                "the combined method (the nearest central-wrist arm's branches, refined by "
-                "Newton) may miss solutions"
-                if method == "combined" or (method == "auto" and self._combined() is not None)
-                else "the general 6R solver's eliminations are singular for this arm (no "
-                "closed form either): its answer is a best effort"
-            )
-            warnings.warn(
-                f"ik_all of {self.name} (method={method!r}) is not complete: {why}; a pose "
-                "without a valid solution may still be reachable (result.complete is False)",
-                IncompleteSolutionsWarning,
-                stacklevel=2,
-            )
+        complete = self._ik_all_completeness.get(method)
+        if complete is None:
+            complete = self._ik_all_completeness[method] = self._ik_all_complete(method)
+            if not complete:
+                self._warn_incomplete(method)
         return IKSolutions.of(q, valid, complete)
+
+    def _warn_incomplete(self, method: str) -> None:
+        """The IncompleteSolutionsWarning of ik_all (stacklevel: the caller of ik_all)."""
+        why = (
+            "the combined method (the nearest central-wrist arm's branches, refined by "
+            "Newton) may miss solutions"
+            if method == "combined" or (method == "auto" and self._combined() is not None)
+            else "the general 6R solver's eliminations are singular for this arm (no "
+            "closed form either): its answer is a best effort"
+        )
+        warnings.warn(
+            f"ik_all of {self.name} (method={method!r}) is not complete: {why}; a pose "
+            "without a valid solution may still be reachable (result.complete is False)",
+            IncompleteSolutionsWarning,
+            stacklevel=3,
+        )
 
     def _ik_all_complete(self, method: str) -> bool:
         """Whether ik_all's ``method`` finds every solution of this arm (ik_all's docstring):
