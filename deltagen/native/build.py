@@ -431,6 +431,13 @@ def _cffi_version() -> str:
     return _cffi_backend.__version__
 
 
+def extension_flags() -> list[str]:
+    """What an extension build of this interpreter adds to every compile (CCSHARED, -fwrapv,
+    -DNDEBUG), minus -g: the module build, the lean extension and the native/ checks that
+    compile a module as the build does."""
+    return [*shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC"), "-fwrapv", "-DNDEBUG"]
+
+
 def _compiler_command() -> list[str]:
     """The interpreter's own shared-object link command (compile and link in one step)."""
     command = os.environ.get("LDSHARED") or sysconfig.get_config_var("LDSHARED") or "cc -shared"
@@ -490,9 +497,7 @@ def _build(
         out = work / "out"
         out.mkdir()
         include = [f"-I{work}", f"-I{sysconfig.get_paths()['include']}"]
-        # what an extension build of this interpreter adds (-fwrapv, -DNDEBUG), minus -g
-        ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
-        ccshared += ["-fwrapv", "-DNDEBUG"]
+        ccshared = extension_flags()
         module_c = work / files[".c"].name
         sources = [wrapper, *write_units(module_c, texts[".c"], work, split)]
         sources += [work / f.name for f in runtime if f.suffix == ".c"]
@@ -596,11 +601,9 @@ def load_extension(source: Path, base_name: str):
             (work / name).write_text(text)  # the compiled text is the hashed text
             out = work / "out"
             out.mkdir()
-            ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
             command = (
                 _compiler_command()
-                + ccshared
-                + ["-fwrapv", "-DNDEBUG"]
+                + extension_flags()
                 + args
                 + [
                     f"-DDELTAGEN_LEAN_INIT=PyInit_{module_name}",

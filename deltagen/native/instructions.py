@@ -29,7 +29,6 @@ import re
 import shlex
 import shutil
 import subprocess
-import sysconfig
 from pathlib import Path
 
 from deltagen.native import build
@@ -92,8 +91,7 @@ def toolchain() -> dict[str, str]:
 def _flags(prefix: str) -> tuple[list[str], list[str]]:
     args, libraries = build.compile_flags(prefix, "-O3")
     args = [a for a in args if not a.startswith("-march=")] + [MARCH]
-    ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
-    return ccshared + ["-fwrapv", "-DNDEBUG"] + args, libraries
+    return build.extension_flags() + args, libraries
 
 
 def signatures(cdef: str, prefix: str) -> dict[str, list[tuple[str, str]]]:

@@ -31,7 +31,6 @@ import platform
 import re
 import shlex
 import subprocess
-import sysconfig
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -141,17 +140,9 @@ def _compiler_version() -> str:
 
 def _report_command(prefix: str, directory: Path, opt: str) -> list[str]:
     args, _ = build.compile_flags(prefix, opt)
-    ccshared = shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC")
     include = [f"-I{directory}", f"-I{build.runtime_dir()}"]
     # -fsyntax-only would stop before the optimisers run: compile to an object, discard it
-    return (
-        build._compiler_command()
-        + ccshared
-        + ["-fwrapv", "-DNDEBUG"]
-        + args
-        + include
-        + [REPORT_FLAG]
-    )
+    return build._compiler_command() + build.extension_flags() + args + include + [REPORT_FLAG]
 
 
 def vector_report(
