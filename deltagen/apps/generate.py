@@ -32,25 +32,25 @@ def generate_robot_file(path) -> Path:
     the folder holding its C sources."""
     from deltagen.model.serial import SerialDescription
     from deltagen.model.urdf import description_from_urdf
-    from deltagen.native.serial import complete_module, source_dir
 
     if str(path).lower().endswith(".urdf"):
-        desc = description_from_urdf(path)
-    else:
-        desc = SerialDescription.from_toml(path)
-    complete_module(desc)  # builds (or finds) the cached module with every kernel
-    folder = source_dir(desc)
-    assert folder is not None
-    return folder
+        return _module_folder(description_from_urdf(path))
+    return _module_folder(SerialDescription.from_toml(path))
 
 
 def generate_robot(robot) -> Path:
     """Render, compile and cache the module of a loaded serial arm (SerialRobot, or a
     CoupledArm: the module of its full chain, the one it evaluates); returns the folder
     holding its C sources."""
+    return _module_folder(
+        robot.full.description if hasattr(robot, "coupling") else robot.description
+    )
+
+
+def _module_folder(desc) -> Path:
+    """The folder of the C sources of ``desc``'s complete module, built (or found) first."""
     from deltagen.native.serial import complete_module, source_dir
 
-    desc = robot.full.description if hasattr(robot, "coupling") else robot.description
     complete_module(desc)
     folder = source_dir(desc)
     assert folder is not None
