@@ -25,13 +25,23 @@ typedef struct deltagen_delta_geometry {
     double I_4;
 } deltagen_delta_geometry;
 
-int deltagen_delta_fk(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *p, int8_t *status);
-int deltagen_delta_fk_vel(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, double *p, double *pd, int8_t *status);
-int deltagen_delta_fk_acc(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, const double *qdd, double *p, double *pd, double *pdd, int8_t *status);
-int deltagen_delta_jacobian(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *J, int8_t *status);
-int deltagen_delta_ik(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p, double *q, int8_t *status);
-int deltagen_delta_ik_vel(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p, const double *pd, double *q, double *qd, int8_t *status);
-int deltagen_delta_ik_acc(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p, const double *pd, const double *pdd, double *q, double *qd, double *qdd, int8_t *status);
-int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *p, double *G, int8_t *status);
-int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, const double *qdd, const double *payload, double *tau, int8_t *status);
-int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, const double *qd, const double *qdd, const double *payload, double *tau, int8_t *status);
+int deltagen_delta_fk(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *p,
+        int8_t *status);
+int deltagen_delta_fk_vel(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q,
+        const double *qd, double *p, double *pd, int8_t *status);
+int deltagen_delta_fk_acc(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q,
+        const double *qd, const double *qdd, double *p, double *pd, double *pdd, int8_t *status);
+int deltagen_delta_jacobian(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q, double *J,
+        int8_t *status);
+int deltagen_delta_ik(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p, double *q,
+        int8_t *status);
+int deltagen_delta_ik_vel(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p,
+        const double *pd, double *q, double *qd, int8_t *status);
+int deltagen_delta_ik_acc(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *p,
+        const double *pd, const double *pdd, double *q, double *qd, double *qdd, int8_t *status);
+int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q,
+        double *p, double *G, int8_t *status);
+int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *geometry, size_t n, size_t axes, const double *q,
+        const double *qd, const double *qdd, const double *payload, double *tau, int8_t *status);
+int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *geometry, size_t n, size_t axes,
+        const double *q, const double *qd, const double *qdd, const double *payload, double *tau, int8_t *status);

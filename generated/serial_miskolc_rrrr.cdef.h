@@ -11,7 +11,8 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *q, double *J, int8_t 
 int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 int deltagen_miskolc_rrrr_ik_all(size_t n, const double *T, double *q, uint8_t *valid, int8_t *status);
-int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau, int8_t *status);
+int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau,
+        int8_t *status);
 int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *q, double *M, int8_t *status);
 int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *q, double *g, int8_t *status);
 int deltagen_miskolc_rrrr_coriolis(size_t n, const double *q, const double *qd, double *C, int8_t *status);

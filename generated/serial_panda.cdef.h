@@ -10,7 +10,8 @@ int deltagen_panda_frames(size_t n, const double *q, double *F, int8_t *status);
 int deltagen_panda_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int deltagen_panda_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int deltagen_panda_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
-int deltagen_panda_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau, int8_t *status);
+int deltagen_panda_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau,
+        int8_t *status);
 int deltagen_panda_mass_matrix(size_t n, const double *q, double *M, int8_t *status);
 int deltagen_panda_gravity_torque(size_t n, const double *q, double *g, int8_t *status);
 int deltagen_panda_coriolis(size_t n, const double *q, const double *qd, double *C, int8_t *status);

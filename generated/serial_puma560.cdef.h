@@ -11,7 +11,8 @@ int deltagen_puma560_jacobian(size_t n, const double *q, double *J, int8_t *stat
 int deltagen_puma560_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int deltagen_puma560_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 int deltagen_puma560_ik_all(size_t n, const double *T, double *q, uint8_t *valid, int8_t *status);
-int deltagen_puma560_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau, int8_t *status);
+int deltagen_puma560_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau,
+        int8_t *status);
 int deltagen_puma560_mass_matrix(size_t n, const double *q, double *M, int8_t *status);
 int deltagen_puma560_gravity_torque(size_t n, const double *q, double *g, int8_t *status);
 int deltagen_puma560_coriolis(size_t n, const double *q, const double *qd, double *C, int8_t *status);

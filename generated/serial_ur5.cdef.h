@@ -11,7 +11,8 @@ int deltagen_ur5_jacobian(size_t n, const double *q, double *J, int8_t *status);
 int deltagen_ur5_fk_jacobian(size_t n, const double *q, double *T, double *J, int8_t *status);
 int deltagen_ur5_jacobian_dot(size_t n, const double *q, const double *qd, double *Jd, int8_t *status);
 int deltagen_ur5_ik_all(size_t n, const double *T, double *q, uint8_t *valid, int8_t *status);
-int deltagen_ur5_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau, int8_t *status);
+int deltagen_ur5_inverse_dynamics(size_t n, const double *q, const double *qd, const double *qdd, double *tau,
+        int8_t *status);
 int deltagen_ur5_mass_matrix(size_t n, const double *q, double *M, int8_t *status);
 int deltagen_ur5_gravity_torque(size_t n, const double *q, double *g, int8_t *status);
 int deltagen_ur5_coriolis(size_t n, const double *q, const double *qd, double *C, int8_t *status);

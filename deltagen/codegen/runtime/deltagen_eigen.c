@@ -8,6 +8,10 @@
 #include <float.h>
 #include <math.h>
 
+#ifdef __FAST_MATH__
+#error "deltagen's C needs IEEE arithmetic (NaN outputs, isfinite, per-point status): compile without -ffast-math"
+#endif
+
 #define AT(M, n, i, j) ((M)[(size_t)(i) * (size_t)(n) + (size_t)(j)])
 
 void deltagen_balance(double *A, int n)

@@ -7,6 +7,10 @@
 #include "deltagen_limits.h"
 
 #include <math.h>
+
+#ifdef __FAST_MATH__
+#error "deltagen's C needs IEEE arithmetic (NaN outputs, isfinite, per-point status): compile without -ffast-math"
+#endif
 #include <string.h>
 
 #define N12 12

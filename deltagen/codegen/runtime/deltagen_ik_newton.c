@@ -49,6 +49,10 @@
 
 #include <math.h>
 
+#ifdef __FAST_MATH__
+#error "deltagen's C needs IEEE arithmetic (NaN outputs, isfinite, per-point status): compile without -ffast-math"
+#endif
+
 #include "deltagen_linalg.h"
 
 #if defined(__GNUC__) && !defined(__clang__)

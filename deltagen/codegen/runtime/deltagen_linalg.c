@@ -4,6 +4,10 @@
 
 #include <math.h>
 
+#ifdef __FAST_MATH__
+#error "deltagen's C needs IEEE arithmetic (NaN outputs, isfinite, per-point status): compile without -ffast-math"
+#endif
+
 void deltagen_rotation_log(const double R[9], double w[3])
 {
     const double v[3] = {0.5 * (R[7] - R[5]), 0.5 * (R[2] - R[6]), 0.5 * (R[3] - R[1])};

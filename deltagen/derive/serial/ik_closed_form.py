@@ -183,6 +183,18 @@ def _atan2(tape, name, y, x) -> _Angle:
     return _Angle(tape.let(name, sp.Piecewise((sp.atan2(y, x), _gt(h, 0)), (0, True))), c, s)
 
 
+def _branch_legend(configs) -> str:
+    """The key to the short branch tags of the C statement names, for arms whose configurations
+    are named shoulder{p,m}_elbow{p,m}_wrist{p,m} (the UR solver: ``spwmep`` is shoulderp,
+    wristm, elbowp)."""
+    if not any(c.startswith("shoulderp") for c in configs):
+        return ""
+    return (
+        " Statement names carry short branch tags: s, e, w = shoulder, elbow, wrist, each"
+        " followed by p (the + root) or m (the - root); spwmep is shoulderp_elbowp_wristm."
+    )
+
+
 def _named(tape, name, a: _Angle) -> _Angle:
     return _Angle(tape.let(name, a.theta), tape.let(f"{name}_c", a.c), tape.let(f"{name}_s", a.s))
 
@@ -852,6 +864,7 @@ class IKKernelBuilder:
             doc=(
                 f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
                 "configurations " + ", ".join(self.configs) + " (in this order)."
+                + _branch_legend(self.configs)
             ),
             inputs=(
                 Port(
