@@ -19,7 +19,9 @@ GCC = shutil.which("gcc")
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is needed to measure frames")
 
 #: "Stack: ... \n * <bytes> bytes (...) at <block>, plus scalars ..." then the signature.
-_FIGURE = re.compile(r"\* Stack: [^\n]*\n \* (\d+) bytes [^\n]*allow (\d+) % more\.\n \*/\n\w+ (\w+)\(")
+_FIGURE = re.compile(
+    r"\* Stack: [^\n]*\n \* (\d+) bytes [^\n]*allow (\d+) % more\.\n \*/\n\w+ (\w+)\("
+)
 
 
 def _frames(source, tmp_path) -> dict[str, int]:

@@ -108,7 +108,9 @@ def _pieces(code: str, room: int, first: re.Pattern) -> list[str]:
     ``(``."""
     pieces = [code]
     for where in (first, _SPACE, _INNER_BREAK):
-        pieces = [p for piece in pieces for p in (_split(piece, where) if len(piece) > room else [piece])]
+        pieces = [
+            p for piece in pieces for p in (_split(piece, where) if len(piece) > room else [piece])
+        ]
     return pieces
 
 

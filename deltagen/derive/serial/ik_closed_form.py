@@ -863,7 +863,9 @@ class IKKernelBuilder:
             name="ik_all",
             doc=(
                 f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
-                "configurations " + ", ".join(self.configs) + " (in this order)."
+                "configurations "
+                + ", ".join(self.configs)
+                + " (in this order)."
                 + _branch_legend(self.configs)
             ),
             inputs=(
