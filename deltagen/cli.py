@@ -355,7 +355,8 @@ def main(argv=None) -> int:
         help="identify a built delta robot's geometry from measured (q, p) pairs",
         description="Levenberg-Marquardt on fk(q) = p over per-chain parameters; prints "
         "values, 1-sigma uncertainty, residuals before/after and what the data cannot "
-        "separate. DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
+        "separate, and whether the fit is valid (exit 0; 1: not valid, no file written without "
+        "--force; 2: bad input). DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
     )
     c.add_argument("data", help="CSV of measurements: q1,q2,q3,x,y,z")
     c.add_argument("--robot", default="default", help="the nominal robot: " + ROBOT_HELP)
@@ -367,7 +368,14 @@ def main(argv=None) -> int:
     )
     c.add_argument("--sigma", type=float, help="measurement noise per coordinate [m] if known")
     c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
-    c.add_argument("--out", help="write the calibrated robot file (TOML) here")
+    c.add_argument(
+        "--out", help="write the calibrated robot file (TOML) here (only for a valid fit)"
+    )
+    c.add_argument(
+        "--force",
+        action="store_true",
+        help="write --out even when the fit is not valid (the exit status stays 1)",
+    )
     c.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     _add_urdf_options(c)
     c.set_defaults(func=_calibrate)
