@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from deltagen import DeltaRobot
+from deltagen.errors import KinematicsError
 from deltagen.inputs import InputError
 from deltagen.model.delta import DeltaGeometry
 from deltagen.solve.calibration import _values, parameter_names
@@ -98,6 +99,14 @@ def test_swapped_columns_are_an_invalid_fit_with_a_hint(nominal):
     result = nominal.calibrate(p, q, params=ALL)
     assert not result.valid
     assert len(result.hints) == 1 and "swapped" in result.hints[0]
+
+
+def test_q_in_degrees_that_the_model_cannot_reach_name_degrees(nominal):
+    """Readings in degrees put some poses out of the nominal robot's reach: the error names
+    the rows and the likely cause."""
+    q, p = measure(spread_poses(50))
+    with pytest.raises(KinematicsError, match=r"at measurements \[.*hint: q look like degrees"):
+        nominal.calibrate(np.degrees(q), p, params=ALL)
 
 
 def test_a_fit_that_leaves_its_bounds_is_invalid(nominal):

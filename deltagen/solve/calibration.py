@@ -414,10 +414,15 @@ def calibrate(
     unc = np.sqrt(np.maximum(np.diag(cov), 0.0))
     unc[unseen] = np.inf
     weak_param = ~(unc <= half / NOISE_DETECTION)
-    weak_dirs = Vt[s_full < NOISE_DETECTION]
-    P = weak_dirs.T @ weak_dirs if weak_dirs.size else np.zeros((k, k))
-    if null.size:  # exactly unseen directions couple their parameters too
-        P = P + null.T @ null
+    # sets: parameters sharing an exactly unseen direction (its projector couples them), or
+    # correlated through the noise-weak directions (their part of the covariance)
+    coupled = np.abs(null.T @ null) > 1e-2 if null.size else np.zeros((k, k), dtype=bool)
+    weak_dir = (s_full < NOISE_DETECTION) & keep
+    if weak_dir.any():
+        V = Vt[weak_dir]
+        C = (V.T / s_full[weak_dir] ** 2) @ V
+        d = np.sqrt(np.maximum(np.diag(C), 1e-300))
+        coupled |= np.abs(C / np.outer(d, d)) > 0.3
     groups: list[tuple[str, ...]] = []
     seen: set[int] = set()
     for j in np.flatnonzero(weak_param):
@@ -426,7 +431,7 @@ def calibrate(
         members, todo = {int(j)}, [int(j)]
         while todo:
             a = todo.pop()
-            for b in np.flatnonzero((np.abs(P[a]) > 1e-2) & weak_param):
+            for b in np.flatnonzero(coupled[a] & weak_param):
                 if int(b) not in members:
                     members.add(int(b))
                     todo.append(int(b))
