@@ -91,7 +91,12 @@ def main(args) -> int:
         print(f"wrote {args.out}{'' if result.valid else ' (--force: the fit is NOT valid)'}")
     if result.valid:
         return 0
-    why = "; ".join(result.problems + tuple(f"hint: {h}" for h in result.hints))
+    # the first problem (a residual far above the noise comes first) and the hints; the
+    # report above lists every problem
+    why = "; ".join(result.problems[:1] + tuple(f"hint: {h}" for h in result.hints))
+    more = len(result.problems) - 1
+    if more:
+        why += f" (and {more} more: see FIT NOT VALID above)"
     unwritten = (
         f"; {args.out} not written (--force writes it)" if args.out and not args.force else ""
     )

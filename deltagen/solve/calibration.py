@@ -442,9 +442,7 @@ def calibrate(
     span = box[:, 1] - box[:, 0]
     on_bound = (x - box[:, 0] <= 1e-9 * span) | (box[:, 1] - x <= 1e-9 * span)
     at_bound = tuple(nm for nm, b in zip(names, on_bound) if b)
-    problems: list[str] = []
-    if not converged:
-        problems.append(f"the iteration did not converge in {max_iterations} iterations")
+    problems: list[str] = []  # root causes first: residual, identifiability, bounds
     rms_coordinate = math.sqrt(cost / r.size)
     residual_bad = False
     if sigma is not None:
@@ -474,6 +472,8 @@ def calibrate(
             f"ended on the bound (nominal +- {length_bound:.3g} m or +- {angle_bound:.3g} rad): "
             f"{', '.join(at_bound)} - the nominal robot or the data are not this robot's"
         )
+    if not converged:  # often a consequence of the above
+        problems.append(f"the iteration did not converge in {max_iterations} iterations")
     hints: tuple[str, ...] = ()
     if residual_bad:
         hints = unit_hints(geometry, q, p)
