@@ -366,7 +366,12 @@ def main(argv=None) -> int:
         help="comma-separated: r_a, r_b, l_a, l_b, theta, q_offset (each per chain) or single "
         "entries like l_a[0] (default r_a,l_a,l_b,theta,q_offset)",
     )
-    c.add_argument("--sigma", type=float, help="measurement noise per coordinate [m] if known")
+    c.add_argument(
+        "--sigma",
+        type=float,
+        help="measurement noise per coordinate [m] if known: the residual is then "
+        "chi-square tested against it (else sigma is estimated from the residual)",
+    )
     c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
     c.add_argument(
         "--out", help="write the calibrated robot file (TOML) here (only for a valid fit)"
