@@ -121,7 +121,9 @@ exit status:
   0  success
   1  ran, but the result is not valid: fk/ik rows without a valid result, a stale
      generated/ (generate --check), a tolerance missed (validate)
-  2  usage or input error (bad arguments, an unreadable or malformed file)"""
+  2  usage or input error (bad arguments, an unreadable or malformed file, a grid or
+     sweep larger than DELTAGEN_MAX_MEMORY, an input file larger than DELTAGEN_MAX_INPUT)
+  130  interrupted (Ctrl-C)"""
 
 ROBOT_HELP = (
     "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
@@ -421,6 +423,9 @@ def main(argv=None) -> int:
     except (DeltagenError, ValueError, OSError) as exc:
         print(f"deltagen {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: the shell's 128 + SIGINT, no traceback
+        print(f"deltagen {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 def _evaluate(args, forward: bool) -> int:

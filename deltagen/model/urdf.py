@@ -88,7 +88,6 @@ import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from xml.parsers import expat
 
 import numpy as np
@@ -96,6 +95,7 @@ import numpy.typing as npt
 
 from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy, skew, xyz_angles
+from deltagen.inputs import InputError, read_regular_file
 from deltagen.model.coupling import Coupling
 from deltagen.model.serial import DEFAULT_GRAVITY, Inertial, Joint, SerialDescription
 
@@ -637,9 +637,9 @@ def chain_from_urdf(
     that mimics joint i (module docstring of model/coupling.py)."""
     source = str(path)
     try:
-        text = Path(path).read_bytes()
-    except OSError as exc:
-        raise GeometryError(f"cannot read URDF {source}: {exc}") from None
+        text = read_regular_file(path, "URDF")
+    except InputError as exc:
+        raise GeometryError(str(exc)) from None
     try:
         return _description(text, source, base, tip, name, locked, gravity)
     except TipChoiceError as exc:
