@@ -116,7 +116,11 @@ class SweepSpec:
     def from_mapping(cls, data: dict[str, Any], source: str = "sweep spec") -> SweepSpec:
         """The spec checked against the schema (_SCHEMA: every key's type, shape and range,
         the key named in the message) and against the memory budget."""
-        checked = _table(_SCHEMA, required=("ranges",), top=True)(data, source)
+        if isinstance(data, dict) and "ranges" not in data:
+            raise SweepError(
+                f"{source}: [ranges] needs {', '.join(LENGTHS)} ([low, high] or a value, m)"
+            )
+        checked = _table(_SCHEMA, top=True)(data, source)
         if "move" in checked and "inertia" not in checked:
             raise SweepError(f"{source}: [move] (peak torque) needs an [inertia] table")
         spec = cls(
@@ -265,7 +269,7 @@ def _table(fields: dict[str, Check], required: tuple[str, ...] = (), top: bool =
             )
         for key in required:
             if key not in v:
-                raise SweepError(f"{where}: missing {key}")
+                raise SweepError(f"{where} needs {key}")
         return {k: fields[k](x, f"{where}: {k}" if top else f"{where}.{k}") for k, x in v.items()}
 
     return check
