@@ -58,6 +58,7 @@ import numpy as np
 from deltagen import status as st
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.rotations import rot_axis
+from deltagen.inputs import env_flag
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
 #: The throughput targets for the compiled core [ns per point].
@@ -1303,11 +1304,8 @@ def _oracles_wanted(args) -> bool:
     line offers it) or DELTAGEN_BENCH_ORACLES=0."""
     if getattr(args, "no_oracles", False):
         return False
-    return os.environ.get("DELTAGEN_BENCH_ORACLES", "1").strip().lower() not in (
-        "0",
-        "no",
-        "false",
-        "off",
+    return env_flag(
+        "DELTAGEN_BENCH_ORACLES", True, "off: roboticstoolbox-python and pinocchio not timed"
     )
 
 
