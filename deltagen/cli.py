@@ -148,6 +148,16 @@ def _protect_negative_numbers(argv):
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C: the shell's 128 + SIGINT, no traceback
+        name = (list(sys.argv[1:] if argv is None else argv) or [""])[0]
+        command = f"deltagen {name}" if not str(name).startswith("-") and name else "deltagen"
+        print(f"{command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv=None) -> int:
     parser = _Parser(
         prog="deltagen",
         description=__doc__,
@@ -423,9 +433,6 @@ def main(argv=None) -> int:
     except (DeltagenError, ValueError, OSError) as exc:
         print(f"deltagen {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C: the shell's 128 + SIGINT, no traceback
-        print(f"deltagen {args.command}: interrupted", file=sys.stderr)
-        return 130
 
 
 def _evaluate(args, forward: bool) -> int:
