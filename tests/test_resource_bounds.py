@@ -291,3 +291,9 @@ def test_numpy_grid_of_the_estimate_is_the_one_allocated():
     )
     assert held < DELTA_BYTES_PER_VOXEL
     assert np.all(ws.usable.shape == (ws.x.size, ws.y.size, ws.z.size))
+
+
+def test_bench_batch_beyond_the_budget_is_refused(capsys):
+    assert cli.main(["bench", "--n", str(10**12)]) == 2
+    err = capsys.readouterr().err
+    assert "--n = 1000000000000" in err and "TiB" in err and "Traceback" not in err

@@ -19,6 +19,13 @@ in which chunk it was computed. The compiled delta core takes the geometry at ru
 so each worker process compiles (or loads from the cache) one core and reuses it for
 every design.
 
+Checks before anything runs: every key of the spec against one schema (``_SCHEMA``: its
+type, shape and range; the message names the key, e.g. "score.q_limits_deg"), the design
+table and one design's workspace grid against the memory budget (deltagen.inputs,
+DELTAGEN_MAX_MEMORY), ``workers`` (a positive integer), and a scheduler address by a probe
+(probe_scheduler: it must answer like a Dask scheduler within DASK_CONNECT_TIMEOUT, default
+10 s) before Dask connects with the same timeout.
+
 The result (SweepResult) is a table of numpy columns; to_csv writes it with the spec, the
 seed and the deltagen version in its header lines.
 

@@ -377,13 +377,14 @@ def delta_default_box(
     return ((-reach, reach), (-reach, reach), (-size - l_a, l_a))
 
 
-def voxel_counts(box, step: float) -> tuple[float, float, float]:
+def voxel_counts(box: Any, step: float) -> tuple[float, float, float]:
     """Voxels per axis of ``box`` at edge ``step`` (floats, so that a tiny step gives a
     huge count rather than an allocation)."""
-    return tuple(max(math.floor((b - a) / step), 1.0) for a, b in box)  # type: ignore[return-value]
+    nx, ny, nz = (max(float(math.floor((b - a) / step)), 1.0) for a, b in box)
+    return nx, ny, nz
 
 
-def check_delta_grid(box, step: float, option: str = "step", source: str = "") -> float:
+def check_delta_grid(box: Any, step: float, option: str = "step", source: str = "") -> float:
     """The voxel count of a delta workspace grid; InputError (naming ``option``, after
     ``source``) when its arrays would exceed the memory budget (deltagen.inputs.memory_limit)."""
     nx, ny, nz = voxel_counts(box, step)
