@@ -270,7 +270,7 @@ def test_ctrl_c_ends_a_sweep_with_130_and_no_traceback(tmp_path):
     )
     try:
         assert proc.stdout.readline().strip() == "ready"
-        time.sleep(2.0)  # let the sweep get under way (4096 designs take minutes)
+        time.sleep(1.0)  # let the sweep get under way (4096 designs take minutes)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
     finally:
