@@ -15,9 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from deltagen import DeltaInertia, DeltaRobot, InputError, SerialRobot, cli
+from deltagen import DeltaInertia, DeltaRobot, InputError, SerialRobot, cli, inputs
 from deltagen.api.sweep import SweepError, SweepSpec
-from deltagen.inputs import env_flag, env_positive_int
 
 BASE = {
     "design": "sobol",
@@ -248,7 +247,7 @@ def test_build_jobs_caps_the_cores(monkeypatch):
     assert _build_jobs() == 1
     monkeypatch.setenv("DELTAGEN_BUILD_JOBS", " +1 ")
     assert _build_jobs() == 1
-    assert env_positive_int("DELTAGEN_UNSET_FOR_TEST", "x", "y") is None
+    assert inputs.env_positive_int("DELTAGEN_UNSET_FOR_TEST", "x", "y") is None
 
 
 @pytest.mark.parametrize(
@@ -258,7 +257,7 @@ def test_build_jobs_caps_the_cores(monkeypatch):
 )
 def test_flags_read_the_usual_words(monkeypatch, value, expected):
     monkeypatch.setenv("DELTAGEN_LEAN_EXT", value)
-    assert env_flag("DELTAGEN_LEAN_EXT", True, "x") is expected
+    assert inputs.env_flag("DELTAGEN_LEAN_EXT", True, "x") is expected
 
 
 @pytest.mark.parametrize("name", ["DELTAGEN_LEAN_EXT", "DELTAGEN_NATIVE", "DELTAGEN_BENCH_ORACLES"])
@@ -267,7 +266,7 @@ def test_a_flag_that_is_no_flag_is_refused(monkeypatch, name):
     with pytest.raises(
         InputError, match=f"{name} must be one of 1, true, yes, on, 0, false, no, off"
     ):
-        env_flag(name, True, "x")
+        inputs.env_flag(name, True, "x")
 
 
 def test_lean_extension_is_off_for_any_off_word(monkeypatch):

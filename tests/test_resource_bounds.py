@@ -3,7 +3,9 @@ budget (DELTAGEN_MAX_MEMORY) is refused with a message naming the option and the
 input files are read only as regular files of bounded size (DELTAGEN_MAX_INPUT); a
 ``--scheduler`` address that is not a Dask scheduler is refused quickly; Ctrl-C ends a
 sweep with exit status 130. Cases that would allocate without bound or hang on an
-unguarded build run in a subprocess with an address-space rlimit or a timeout."""
+unguarded build run in a subprocess with an address-space rlimit or a timeout. Names this
+change adds are looked up as module attributes when a test runs, so that on a tree without
+them the other tests still run and fail one by one."""
 
 from __future__ import annotations
 
@@ -20,10 +22,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from deltagen import DeltaRobot, InputError, cli
-from deltagen.api.sweep import SweepError, SweepSpec, probe_scheduler
-from deltagen.api.workspace import DELTA_BYTES_PER_VOXEL, delta_default_box, voxel_counts
-from deltagen.inputs import check_memory, memory_limit, read_regular_file
+from deltagen import DeltaRobot, InputError, cli, inputs
+from deltagen.api import sweep as api_sweep
+from deltagen.api import workspace as api_workspace
+from deltagen.api.sweep import SweepError, SweepSpec
 
 REPO = Path(__file__).resolve().parent.parent
 ADDRESS_SPACE = 3 << 30  # rlimit of the subprocesses: far above what they need, far below
@@ -63,16 +65,16 @@ def _run(capsys, *argv):
 
 def test_memory_budget_is_configurable_and_checked(monkeypatch):
     monkeypatch.setenv("DELTAGEN_MAX_MEMORY", "2M")
-    assert memory_limit() == 2 << 20
-    check_memory(2 << 20, "a plan", "a smaller one")  # at the limit: allowed
+    assert inputs.memory_limit() == 2 << 20
+    inputs.check_memory(2 << 20, "a plan", "a smaller one")  # at the limit: allowed
     with pytest.raises(InputError, match=r"a plan needs about 2 MiB .* 2 MiB allowed; smaller"):
-        check_memory((2 << 20) + 1, "a plan", "smaller")
+        inputs.check_memory((2 << 20) + 1, "a plan", "smaller")
     for bad in ("lots", "-1G", "0", "1.5X"):
         monkeypatch.setenv("DELTAGEN_MAX_MEMORY", bad)
         with pytest.raises(InputError, match="DELTAGEN_MAX_MEMORY must be a size"):
-            memory_limit()
+            inputs.memory_limit()
     monkeypatch.delenv("DELTAGEN_MAX_MEMORY")
-    assert memory_limit() >= 256 << 20
+    assert inputs.memory_limit() >= 256 << 20
 
 
 def test_voxel_counts_are_the_grid_the_workspace_builds():
@@ -82,16 +84,20 @@ def test_voxel_counts_are_the_grid_the_workspace_builds():
     g = robot.geometry
     for step in (0.09, 0.13):
         ws = robot.workspace(step, envelope=False, progress=False)
-        box = delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b)
-        assert voxel_counts(box, step) == (ws.x.size, ws.y.size, ws.z.size)
+        box = api_workspace.delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b)
+        assert api_workspace.voxel_counts(box, step) == (ws.x.size, ws.y.size, ws.z.size)
 
 
 def test_workspace_grid_beyond_the_budget_names_step_and_size(monkeypatch):
     robot = DeltaRobot.default(backend="reference")
     monkeypatch.setenv("DELTAGEN_MAX_MEMORY", "64M")
     g = robot.geometry
-    nx, ny, nz = voxel_counts(delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b), 0.005)
-    assert nx * ny * nz * DELTA_BYTES_PER_VOXEL > 64 << 20  # the case is over the budget
+    nx, ny, nz = api_workspace.voxel_counts(
+        api_workspace.delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b), 0.005
+    )
+    assert (
+        nx * ny * nz * api_workspace.DELTA_BYTES_PER_VOXEL > 64 << 20
+    )  # the case is over the budget
     with pytest.raises(InputError, match=r"step = 0.005 m .* needs about [0-9.]+ GiB"):
         robot.workspace(0.005, progress=False)
     arm = pytest.importorskip("deltagen").SerialRobot.load("puma560", backend="reference")
@@ -138,7 +144,7 @@ def test_sweep_beyond_the_budget_is_refused_before_the_designs_are_made(change, 
 def test_input_files_are_regular_files_of_bounded_size(tmp_path, monkeypatch, capsys):
     good = tmp_path / "q.csv"
     good.write_text("q1,q2,q3\n" + "0.1,0.2,0.3\n" * 20)
-    assert read_regular_file(good) == good.read_bytes()
+    assert inputs.read_regular_file(good) == good.read_bytes()
     monkeypatch.setenv("DELTAGEN_MAX_INPUT", "100")
     code, _, err = _run(capsys, "fk", "default", "--backend", "reference", "--input", str(good))
     assert code == 2 and "larger than the 100 B allowed" in err and "DELTAGEN_MAX_INPUT" in err
@@ -212,9 +218,9 @@ def test_probe_refuses_what_is_not_a_dask_scheduler(monkeypatch):
     silent = _Server(None)
     try:
         with pytest.raises(SweepError, match="not as a Dask scheduler"):
-            probe_scheduler(banner.address, 5.0)
+            api_sweep.probe_scheduler(banner.address, 5.0)
         with pytest.raises(SweepError, match="within 0.5 s"):
-            probe_scheduler(silent.address, 0.5)
+            api_sweep.probe_scheduler(silent.address, 0.5)
     finally:
         banner.close()
         silent.close()
@@ -222,9 +228,9 @@ def test_probe_refuses_what_is_not_a_dask_scheduler(monkeypatch):
     port = closed.getsockname()[1]
     closed.close()
     with pytest.raises(SweepError, match="cannot connect"):
-        probe_scheduler(f"tcp://127.0.0.1:{port}", 2.0)
+        api_sweep.probe_scheduler(f"tcp://127.0.0.1:{port}", 2.0)
     with pytest.raises(SweepError, match="tcp://host:port"):
-        probe_scheduler("tcp://nohostport", 1.0)
+        api_sweep.probe_scheduler("tcp://nohostport", 1.0)
     monkeypatch.setenv("DASK_CONNECT_TIMEOUT", "soon")
     with pytest.raises(SweepError, match="DASK_CONNECT_TIMEOUT"):
         from deltagen.api.sweep import connect
@@ -289,7 +295,7 @@ def test_numpy_grid_of_the_estimate_is_the_one_allocated():
         getattr(ws, k).nbytes // ws.usable.size
         for k in ("usable", "condition", "velocity_gain", "force_gain", "q")
     )
-    assert held < DELTA_BYTES_PER_VOXEL
+    assert held < api_workspace.DELTA_BYTES_PER_VOXEL
     assert np.all(ws.usable.shape == (ws.x.size, ws.y.size, ws.z.size))
 
 
