@@ -121,7 +121,9 @@ exit status:
   0  success
   1  ran, but the result is not valid: fk/ik rows without a valid result, a stale
      generated/ (generate --check), a tolerance missed (validate)
-  2  usage or input error (bad arguments, an unreadable or malformed file)"""
+  2  usage or input error (bad arguments, an unreadable or malformed file, a grid or
+     sweep larger than DELTAGEN_MAX_MEMORY, an input file larger than DELTAGEN_MAX_INPUT)
+  130  interrupted (Ctrl-C)"""
 
 ROBOT_HELP = (
     "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
@@ -146,6 +148,16 @@ def _protect_negative_numbers(argv):
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C: the shell's 128 + SIGINT, no traceback
+        name = (list(sys.argv[1:] if argv is None else argv) or [""])[0]
+        command = f"deltagen {name}" if not str(name).startswith("-") and name else "deltagen"
+        print(f"{command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv=None) -> int:
     parser = _Parser(
         prog="deltagen",
         description=__doc__,

@@ -21,13 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from deltagen.errors import DeltagenError
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, read_regular_file
 
 
 def read_measurements(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
-        lines = path.read_text().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
+        lines = read_regular_file(path, "measurements").decode("utf-8").splitlines()
+    except UnicodeDecodeError as exc:
         raise InputError(f"cannot read {path}: {exc}") from None
     rows = []
     for number, line in enumerate(lines, start=1):

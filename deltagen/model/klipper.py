@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from deltagen.errors import GeometryError
+from deltagen.inputs import InputError, read_regular_file
 from deltagen.model.delta import MAX_LENGTH, MIN_LENGTH, DeltaGeometry
 from deltagen.model.robot_file import PathLike
 
@@ -240,7 +241,9 @@ def read_klipper(path: PathLike, name: str = "klipper") -> KlipperRotaryDelta:
     """Read a Klipper printer.cfg (see the module docstring for the mapping)."""
     path = Path(path)
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_regular_file(path, "Klipper config").decode("utf-8")
+    except InputError as exc:
+        raise GeometryError(str(exc)) from None
+    except UnicodeDecodeError as exc:
         raise GeometryError(f"cannot read Klipper config {path}: {exc}") from None
     return klipper_from_text(text, source=str(path), name=name)
