@@ -531,6 +531,19 @@ class SerialRobot:
 
         return serial_workspace(self, step, **options)
 
+    def follow_path(self, trajectory: Any, q0: Any, **options: Any) -> Any:
+        """Follow a Cartesian trajectory (position and orientation; built with
+        deltagen.plan.trajectory.PathBuilder) from the joints q0, seeing singular regions
+        ahead (lecture slides 112-114): ``remedy="stop"`` (default) raises
+        SingularPathError naming the segment, times and kind; ``"wrist"`` (SingArea/Wrist)
+        interpolates the wrist joints across a wrist region with the TCP kept on the path;
+        ``"freeze"`` holds axis ``freeze_axis`` (4 or 6) there. ``qd_max``, ``qdd_max``
+        time-scale the motion into the joint limits. See
+        deltagen.plan.singular_path.follow_path; returns its SingularPathResult."""
+        from deltagen.plan.singular_path import follow_path
+
+        return follow_path(self, trajectory, q0, **options)
+
     # -- dynamics -----------------------------------------------------------------------
     #
     # Arms whose robot file gives inertial parameters (deltagen.model.serial): recursive
