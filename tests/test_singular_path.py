@@ -362,6 +362,10 @@ def test_wrist_remedies_refuse_other_kinds(puma, puma_line, monkeypatch):
         ({"threshold": 0.0}, "threshold"),
         ({"freeze_axis": 5}, "freeze_axis must be 4 or 6"),
         ({"limits": "maybe"}, "limits must be"),
+        ({"ramp": -0.1}, "ramp must be"),
+        ({"ramp": float("nan")}, "ramp must be"),
+        ({"max_step": 0}, "max_step must be"),
+        ({"dt": 0.0}, "time step must be positive"),
     ],
 )
 def test_bad_options(puma, puma_line, options, match):
@@ -378,3 +382,18 @@ def test_bad_arm_and_path(puma, puma_line):
         SerialRobot.load("lecture_scara").follow_path(traj, [0.1, 0.2])
     with pytest.raises(InputError, match="q0"):
         puma.follow_path(traj, [0.0] * 5)
+
+
+def test_a_path_that_starts_or_ends_in_a_singular_region(puma, puma_line):
+    """Nothing to enter from or exit to: a clear error whatever the remedy."""
+    q_mid = np.array(PUMA_MID)
+    T = puma.fk(q_mid)
+    R, pm = T[:3, :3], T[:3, 3]
+    d = _puma_direction(puma, PUMA_MID)
+    away = PathBuilder(pm, R=R).line(pm + 0.1 * d / np.linalg.norm(d), 1.0).build()
+    with pytest.raises(sp.SingularPathError, match="starts in a singular region"):
+        puma.follow_path(away, q_mid, remedy="wrist", dt=DT)
+    _, q0, p0, p1, _ = puma_line
+    to_middle = PathBuilder(p0, R=R).line((p0 + p1) / 2, 1.0).build()  # ends at q5 = 0
+    with pytest.raises(sp.SingularPathError, match="ends in a singular region"):
+        puma.follow_path(to_middle, q0, remedy="wrist", dt=DT)
