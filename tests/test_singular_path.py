@@ -397,3 +397,18 @@ def test_a_path_that_starts_or_ends_in_a_singular_region(puma, puma_line):
     to_middle = PathBuilder(p0, R=R).line((p0 + p1) / 2, 1.0).build()  # ends at q5 = 0
     with pytest.raises(sp.SingularPathError, match="ends in a singular region"):
         puma.follow_path(to_middle, q0, remedy="wrist", dt=DT)
+
+
+def test_follow_is_follow_path_with_the_design_names(puma, puma_near):
+    """SerialRobot.follow(path, singularity="stop" | "joint" | "freeze"): the same planner;
+    q0 None starts from the arm's ik at the start pose."""
+    traj, q0, *_ = puma_near
+    a = puma.follow(traj, q0, singularity="joint", dt=DT)
+    b = puma.follow_path(traj, q0, remedy="wrist", dt=DT)
+    np.testing.assert_array_equal(a.q, b.q)
+    assert a.report.remedy == "wrist"
+    with pytest.raises(sp.SingularPathError, match="wrist singularity"):
+        puma.follow(traj, dt=DT)
+    start = puma.ik(puma.fk(q0))
+    c = puma.follow(traj, singularity="freeze", dt=DT)
+    np.testing.assert_allclose(c.q[0], start, atol=1e-9)

@@ -352,7 +352,7 @@ def _scaled(trajectory, k):
 def follow_path(
     robot: Any,
     trajectory: CartesianTrajectory,
-    q0: Any,
+    q0: Any = None,
     *,
     remedy: str = "stop",
     threshold: float = 0.02,
@@ -367,11 +367,14 @@ def follow_path(
     max_iter: int = 30,
 ) -> SingularPathResult:
     """Follow ``trajectory`` (position and orientation) with a six-axis arm from the joints
-    ``q0`` (a vector or a configuration name: it picks the branch), through singular regions
-    as ``remedy`` says (module docstring). Returns a :class:`SingularPathResult`; its
+    ``q0`` (a vector or a configuration name: it picks the branch; None: the arm's ``ik`` at
+    the start pose), through singular regions as ``remedy`` says (module docstring; "joint"
+    is another name of "wrist"). Returns a :class:`SingularPathResult`; its
     ``report`` lists every region."""
+    if remedy == "joint":  # the wrist switches to joint interpolation
+        remedy = "wrist"
     if remedy not in REMEDIES:
-        raise InputError(f"remedy must be one of {REMEDIES}, got {remedy!r}")
+        raise InputError(f"remedy must be one of {REMEDIES} ('joint' = 'wrist'), got {remedy!r}")
     if robot.n != 6:
         raise InputError(f"follow_path handles six-axis arms; {robot.name} has {robot.n} joints")
     if not isinstance(trajectory, CartesianTrajectory):
@@ -400,7 +403,12 @@ def follow_path(
         raise InputError(f"follow_path needs revolute wrist joints 4-6; {robot.name} has others")
     vmax = _limits(qd_max, n, "qd_max")
     amax = _limits(qdd_max, n, "qdd_max")
-    if isinstance(q0, str):
+    if q0 is None:  # the arm's own IK at the start pose (its first valid branch)
+        start = np.eye(4)
+        start[:3, :3] = trajectory.segments[0].R0
+        start[:3, 3] = trajectory.segments[0].path.start
+        q0 = robot.ik(start)
+    elif isinstance(q0, str):
         q0 = robot.configuration(q0)
     q0 = np.asarray(q0, dtype=float)
     if q0.shape != (n,) or not np.all(np.isfinite(q0)):
@@ -503,8 +511,8 @@ def follow_path(
         )
         if remedy == "stop":
             raise SingularPathError(
-                f"{region.describe()} (threshold {threshold:g}); remedy='wrist' (SingArea/Wrist) "
-                "or remedy='freeze' passes a wrist singularity",
+                f"{region.describe()} (threshold {threshold:g}); the remedies 'wrist' "
+                "(SingArea/Wrist) and 'freeze' pass a wrist singularity",
                 np.arange(i_in + 1, i_out),
                 region,
             )
