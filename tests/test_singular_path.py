@@ -412,3 +412,27 @@ def test_follow_is_follow_path_with_the_design_names(puma, puma_near):
     start = puma.ik(puma.fk(q0))
     c = puma.follow(traj, singularity="freeze", dt=DT)
     np.testing.assert_allclose(c.q[0], start, atol=1e-9)
+
+
+@pytest.mark.parametrize("remedy", ["wrist", "freeze"])
+def test_there_and_back_two_regions(puma, puma_ref, puma_near, remedy):
+    """Past the wrist and back on a second segment: two regions, each named by its segment,
+    each passed; the TCP on both lines."""
+    _, q0, p0, p1, R = puma_near
+    traj = PathBuilder(p0, R=R).line(p1, 1.0, label="there").line(p0, 1.0, label="back").build()
+    res = puma.follow_path(traj, q0, remedy=remedy, qd_max=QD_MAX, qdd_max=QDD_MAX, dt=DT)
+    assert [(r.segment, r.segment_label, r.kind) for r in res.regions] == [
+        (0, "there", "wrist"),
+        (1, "back", "wrist"),
+    ]
+    scale = res.report.time_scale
+    first = _path_at(res.t, scale, p0, p1)
+    second = _path_at(res.t - scale, scale, p1, p0)
+    p = np.where((res.t <= scale)[:, None], first, second)
+    Tq = puma_ref.fk(res.q)
+    assert np.linalg.norm(Tq[:, :3, 3] - p, axis=1).max() < 1e-9
+    np.testing.assert_allclose(res.orientation_deviation, _angle(R, Tq[:, :3, :3]), atol=1e-9)
+    assert np.all(np.abs(res.qd) <= QD_MAX * (1 + 1e-12))
+    assert np.max(np.abs(np.diff(res.q, axis=0))) < 0.05
+    # the arm comes back to where it started (same branch, no wrist turn left over)
+    np.testing.assert_allclose(res.q[-1], res.q[0], atol=1e-9)
