@@ -23,9 +23,11 @@ any motion (it sees each region ahead) and offers the three behaviours as ``reme
     at the region's entry for the whole region, and the other joints keep the TCP position on
     the path exactly while turning the tool as close to the path's orientation as they can
     (least squares on the orientation error: the partner axis takes the frozen axis's
-    motion). Ramps of ``ramp`` seconds before and after the region bring the frozen axis to
-    rest and back onto the path solution (quintics matching q, qd, qdd), so the joints stay
-    continuous; the orientation deviation (ramps included) is reported.
+    motion). Ramps of ``ramp`` seconds (default half the region's duration; shortened where
+    the path's start or end or a neighbouring region is nearer) before and after the region
+    bring the frozen axis to rest and back onto the path solution (quintics matching q, qd,
+    qdd), so the joints stay continuous; the orientation deviation (ramps included) is
+    reported.
 
 Detection: at every sample the 6 x 6 geometric Jacobian's ``sigma_min / sigma_max`` (metres
 and radians mixed as the Jacobian has them) is compared with ``threshold``; a region is a run
