@@ -260,13 +260,16 @@ def _main(argv=None) -> int:
     v.set_defaults(func=_validate)
 
     d = sub.add_parser(
-        "demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place"
+        "demo",
+        help="worked examples: the lecture's SCARA table, the Miskolc pick and place, a "
+        "path past a wrist singularity",
     )
-    d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place"))
+    d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place", "singular-path"))
     d.add_argument(
         "--out",
         default=None,
         help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
+        "singular-path: singular_path; "
         "lecture-scara writes its plot only when given)",
     )
     d.set_defaults(func=lambda a: _lazy("deltagen.apps.demos", a))
