@@ -636,6 +636,7 @@ def detect_gantry(ax: JointAxes) -> GantryArm | None:
         return None
     ex, ey = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
     zero3 = np.zeros(3)
+    configs: tuple[str, ...]
     if n == 6:
         if not (_clearly_skew(w[3], w[4]) and _clearly_skew(w[4], w[5])):
             return None
