@@ -342,6 +342,23 @@ def test_urdf_gantry_is_detected_and_solved(tmp_path):
     assert _round_trip(arm) < 1e-12
 
 
+def test_standard_dh_gantry_is_detected_and_solved():
+    """A Cartesian arm in standard DH rows (slides along z0, then x, then y; a wrist whose
+    axes 4 and 6 are parallel, Z-X-Z like): the same structure, found in that convention."""
+    rows = [
+        dict(type="prismatic", theta=-PI / 2, alpha=-PI / 2, a=0.1),
+        dict(type="prismatic", theta=-PI / 2, alpha=PI / 2, a=0.05),
+        dict(type="prismatic", theta=0.0, alpha=0.0),
+        dict(type="revolute", alpha=-PI / 2, d=0.2),
+        dict(type="revolute", alpha=PI / 2),
+        dict(type="revolute", d=0.1),
+    ]
+    desc = SerialDescription.from_rows(rows, "standard", name="dh_gantry")
+    found = st.detect(desc)
+    assert type(found) is st.GantryArm and found.kind == "gantry_wrist_3r"
+    assert _round_trip(SerialRobot(desc, backend="reference")) < 1e-12
+
+
 def _universal(slide_tilt=0.0, wrist_offset=0.0, first="prismatic", w5="y", tool=("x", PI), n=6):
     rows = [
         dict(type=first, axis="x", tz=2.0),
