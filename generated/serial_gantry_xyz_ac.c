@@ -1725,23 +1725,25 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const double q4_g_noflip_c = ((wrist_singular_g) ? 1 : q4r_g_noflip_c);
             const double q4_g_noflip_s = ((wrist_singular_g) ? 0 : q4r_g_noflip_s);
             /* wrist, branch g_flip: q5, q4 (Paden-Kahan 2), q6 */
+            const double t3_0 = Tt33*Tt33;
             const double cw_g_flip_y = -gam_g;
-            const double q5_g_flip_h = sqrt(Tt33*Tt33 + cw_g_flip_y*cw_g_flip_y);
+            const double q5_g_flip_h = sqrt(t3_0 + cw_g_flip_y*cw_g_flip_y);
             const double q5_g_flip_den = (((q5_g_flip_h > 1.0e-300)) ? q5_g_flip_h : 1.0e-300);
             const double q5_g_flip_inv = 1.0/q5_g_flip_den;
-            const int t3_0 = (q5_g_flip_h > 0);
-            const double t3_1 = Tt13*beta_g + Tt23*cw_g_flip_y;
-            const double t3_2 = -Tt13*cw_g_flip_y + Tt23*beta_g;
-            const double q5_g_flip_c = ((t3_0) ? -Tt33*q5_g_flip_inv : 1);
-            const double q5_g_flip_s = ((t3_0) ? cw_g_flip_y*q5_g_flip_inv : 0);
-            const double q5_g_flip = ((t3_0) ? atan2(cw_g_flip_y, -Tt33) : 0);
-            const double q4r_g_flip_h = sqrt(t3_1*t3_1 + t3_2*t3_2);
+            const int rigid_target = (((fabs(Tt11*Tt12 + Tt21*Tt22 + Tt31*Tt32) <= 1.0e-8)) & ((fabs(Tt11*Tt13 + Tt21*Tt23 + Tt31*Tt33) <= 1.0e-8)) & ((fabs(Tt12*Tt13 + Tt22*Tt23 + Tt32*Tt33) <= 1.0e-8)) & ((fabs(-Tt13 + Tt21*Tt32 - Tt22*Tt31) <= 1.0e-8)) & ((fabs(Tt11*Tt22 - Tt12*Tt21 - Tt33) <= 1.0e-8)) & ((fabs(-Tt11*Tt32 + Tt12*Tt31 - Tt23) <= 1.0e-8)) & ((fabs(t3_0 - 1 + Tt13*Tt13 + Tt23*Tt23) <= 1.0e-8)) & ((fabs(-1 + Tt11*Tt11 + Tt21*Tt21 + Tt31*Tt31) <= 1.0e-8)) & ((fabs(-1 + Tt12*Tt12 + Tt22*Tt22 + Tt32*Tt32) <= 1.0e-8)));
+            const int t3_1 = (q5_g_flip_h > 0);
+            const double t3_2 = Tt13*beta_g + Tt23*cw_g_flip_y;
+            const double t3_3 = -Tt13*cw_g_flip_y + Tt23*beta_g;
+            const double q5_g_flip_c = ((t3_1) ? -Tt33*q5_g_flip_inv : 1);
+            const double q5_g_flip_s = ((t3_1) ? cw_g_flip_y*q5_g_flip_inv : 0);
+            const double q5_g_flip = ((t3_1) ? atan2(cw_g_flip_y, -Tt33) : 0);
+            const double q4r_g_flip_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
             const double q4r_g_flip_den = (((q4r_g_flip_h > 1.0e-300)) ? q4r_g_flip_h : 1.0e-300);
             const double q4r_g_flip_inv = 1.0/q4r_g_flip_den;
-            const int t3_3 = (q4r_g_flip_h > 0);
-            const double q4r_g_flip_c = ((t3_3) ? q4r_g_flip_inv*t3_1 : 1);
-            const double q4r_g_flip_s = ((t3_3) ? q4r_g_flip_inv*t3_2 : 0);
-            const double q4r_g_flip = ((t3_3) ? atan2(t3_2, t3_1) : 0);
+            const int t3_4 = (q4r_g_flip_h > 0);
+            const double q4r_g_flip_c = ((t3_4) ? q4r_g_flip_inv*t3_2 : 1);
+            const double q4r_g_flip_s = ((t3_4) ? q4r_g_flip_inv*t3_3 : 0);
+            const double q4r_g_flip = ((t3_4) ? atan2(t3_3, t3_2) : 0);
             const double q4_g_flip = ((wrist_singular_g) ? 0 : q4r_g_flip);
             const double q4_g_flip_c = ((wrist_singular_g) ? 1 : q4r_g_flip_c);
             const double q4_g_flip_s = ((wrist_singular_g) ? 0 : q4r_g_flip_s);
@@ -1785,7 +1787,7 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const int fit_q4_noflip_in = (((fit_q4_noflip >= -6.283185307279586)) & ((fit_q4_noflip <= 6.283185307279586)));
             const double fit_q5_noflip = deltagen_fit_angle(q5_g_noflip, -1.9198621771937625, 1.9198621771937625, -1.9198621772937625, 1.9198621772937625);
             const int fit_q5_noflip_in = (((fit_q5_noflip >= -1.9198621772937625)) & ((fit_q5_noflip <= 1.9198621772937625)));
-            const int ok_noflip = ((hit_noflip) & (ok_wrist_g) & (!invalid) & ((isfinite(fit_q1_noflip) & isfinite(fit_q2_noflip) & isfinite(fit_q3_noflip) & isfinite(fit_q4_noflip) & isfinite(fit_q5_noflip))));
+            const int ok_noflip = ((hit_noflip) & (ok_wrist_g) & (rigid_target) & (!invalid) & ((isfinite(fit_q1_noflip) & isfinite(fit_q2_noflip) & isfinite(fit_q3_noflip) & isfinite(fit_q4_noflip) & isfinite(fit_q5_noflip))));
             const int valid_noflip = ((fit_q1_noflip_in0) & (fit_q2_noflip_in0) & (fit_q3_noflip_in0) & (fit_q4_noflip_in) & (fit_q5_noflip_in) & (ok_noflip));
             const int out_valid_noflip = (valid_noflip);
             /* check, branch flip: forward kinematics at the solution */
@@ -1810,7 +1812,7 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const int fit_q4_flip_in = (((fit_q4_flip >= -6.283185307279586)) & ((fit_q4_flip <= 6.283185307279586)));
             const double fit_q5_flip = deltagen_fit_angle(q5_g_flip, -1.9198621771937625, 1.9198621771937625, -1.9198621772937625, 1.9198621772937625);
             const int fit_q5_flip_in = (((fit_q5_flip >= -1.9198621772937625)) & ((fit_q5_flip <= 1.9198621772937625)));
-            const int ok_flip = ((hit_flip) & (ok_wrist_g) & (!invalid) & ((isfinite(fit_q1_flip) & isfinite(fit_q2_flip) & isfinite(fit_q3_flip) & isfinite(fit_q4_flip) & isfinite(fit_q5_flip))));
+            const int ok_flip = ((hit_flip) & (ok_wrist_g) & (rigid_target) & (!invalid) & ((isfinite(fit_q1_flip) & isfinite(fit_q2_flip) & isfinite(fit_q3_flip) & isfinite(fit_q4_flip) & isfinite(fit_q5_flip))));
             const int valid_flip = ((fit_q1_flip_in0) & (fit_q2_flip_in0) & (fit_q3_flip_in0) & (fit_q4_flip_in) & (fit_q5_flip_in) & (ok_flip));
             const int out_valid_flip = (valid_flip);
             /* status */

@@ -113,15 +113,15 @@ int deltagen_gantry_xyz_ac_fk_jacobian(size_t n, const double *restrict q, doubl
  */
 int deltagen_gantry_xyz_ac_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd, int8_t *restrict status);
 
-/* Inverse kinematics in closed form, every branch: tool pose T -> q for the 2 configurations noflip, flip (in this order).
+/* Inverse kinematics in closed form, every branch: tool pose T -> q for the 2 configurations noflip, flip (in this order). A 5-axis head: the tool point and the tool z axis are solved, the rotation about the tool axis is free (not checked); T must be rigid.
  *
  * n         number of points
  * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
- * q         out, n x 10: 2 x 5 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
- * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
+ * q         out, n x 10: 2 x 5 joint values per pose, branch after branch [m for the slides 1-3, rad for the wrist]; NaN where the branch has no real solution
+ * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the tool point and the tool z axis within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 273 operations per point.
+ * Cost: 336 operations per point.
  * Stack: 25 block arrays (22 double, 3 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */

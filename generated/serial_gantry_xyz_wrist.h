@@ -117,7 +117,7 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
  *
  * n         number of points
  * T         in,  n x 16: tool pose, 4x4 row-major (rotation | position m)
- * q         out, n x 12: 2 x 6 joint values per pose, branch after branch [rad]; NaN where the branch has no real solution
+ * q         out, n x 12: 2 x 6 joint values per pose, branch after branch [m for the slides 1-3, rad for the wrist]; NaN where the branch has no real solution
  * valid     out, n x 2 (uint8_t): 2 flags per pose: 1 where the branch reaches the pose within the joint limits, else 0
  * status    out, n: OK (some branch is valid); UNREACHABLE (no branch reaches the pose within the joint limits); INVALID (a non-finite input; q NaN); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *

@@ -254,6 +254,24 @@ def test_head_branches_are_the_two_tilts_and_meet_at_the_vertical():
                for x in qv) < 1e-12  # fmt: skip
 
 
+@pytest.mark.parametrize("backend", ["reference", "compiled"])
+def test_head_refuses_a_target_that_is_not_a_rotation(backend):
+    """The head compares the tool axis only; a target whose x and y columns are not those of
+    a rotation (scaled, sheared, left-handed) is not valid all the same (solver and C)."""
+    arm = SerialRobot.load("gantry_xyz_ac", backend=backend)
+    T = arm.fk(np.array([1.0, 0.5, 0.3, 0.7, 0.6]))
+    bad = np.stack([T, T, T, T])
+    bad[1, :3, 0] *= 1.1  # x column scaled
+    bad[2, :3, 1] += 0.05 * bad[2, :3, 2]  # y column sheared towards z
+    bad[3, :3, 0] *= -1.0  # left-handed
+    solver = analytic_solver(arm.description)
+    _, valid = solver.solve(bad)
+    assert valid[0].all() and not valid[1:].any()
+    if backend == "compiled":
+        q, valid, status = arm._core.ik_all(np.ascontiguousarray(bad), 2)
+        assert valid[0].all() and not valid[1:].any() and np.isnan(q[1:]).all()
+
+
 def test_palletiser_solves_point_and_yaw_and_refuses_a_tilt():
     name = "palletiser_xyzc"
     arm = SerialRobot.load(name, backend="reference")

@@ -673,7 +673,12 @@ class _GantrySolver(AnalyticSolver):
         R, p = self.axes.fk(q.reshape(-1, n)[idx])
         err_p = np.max(np.abs(p - T[rows, :3, 3]), axis=-1) / self.axes.scale
         err_z = np.max(np.abs(R[:, :, 2] - T[rows, :3, 2]), axis=-1)
-        good.reshape(-1)[idx] = (err_p <= tol) & (err_z <= tol)
+        # the other columns are not compared: the target must still be a rotation
+        # (orthonormal, right-handed), or a matrix that is none would pass
+        Rt = T[rows, :3, :3]
+        gram = np.max(np.abs(np.swapaxes(Rt, 1, 2) @ Rt - np.eye(3)), axis=(1, 2))
+        hand = np.max(np.abs(_cross(Rt[:, :, 0], Rt[:, :, 1]) - Rt[:, :, 2]), axis=-1)
+        good.reshape(-1)[idx] = (err_p <= tol) & (err_z <= tol) & (gram <= tol) & (hand <= tol)
         return good
 
 

@@ -4,7 +4,8 @@ The arm's structure and every constant of its closed form come from
 :func:`deltagen.model.structure.detect` (a :class:`~deltagen.model.structure.PlanarArm`,
 :class:`~deltagen.model.structure.Elbow4R`, :class:`~deltagen.model.structure.SphericalWrist6R`
 or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`, or the Stanford
-arm's :class:`~deltagen.model.structure.StanfordArm`); the numpy solver of
+arm's :class:`~deltagen.model.structure.StanfordArm`, or a gantry's
+:class:`~deltagen.model.structure.GantryArm`); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
 every branch of a batch of poses in one call, like the forward kinematics. The steps and
@@ -45,7 +46,10 @@ non-finite input (all outputs NaN / 0).
 Supported: every structure of model.structure with the full pose given (the numpy solver's
 ``solve`` default): ``spherical_wrist_6r``, ``parallel_triple_6r`` (the UR family) and
 ``stanford_rrp_6`` (8 branches each), ``elbow_4r`` (Paul's method for
-q2 + q3, 4 branches) and ``planar`` (2 branches; Paul's method for the 2R arm).
+q2 + q3, 4 branches), ``planar`` (2 branches; Paul's method for the 2R arm) and the
+gantries ``gantry_wrist_3r`` (2 branches), ``gantry_head_2r`` (2 branches; the tool point
+and the tool z axis are checked, with the target's rotation checked to be one) and
+``gantry_rotary_1r`` (1 branch).
 ``position_only`` and other tolerances stay with the numpy solver.
 """
 
@@ -852,9 +856,10 @@ class IKKernelBuilder:
             qv = tape.vec("qv_g", self._rotate_target(s.carried))
             qx = tape.vec("qx_g", self._rotate_target(s.wrist_ref)) if n == 6 else None
             found = self._wrist_angles("g", qv, qx, K.vec(s.carried), with_q6=n == 6)
+            rigid = sp.true if s.full_pose else self._rigid_target()
             for name, okw, q4, q5, q6 in found:
                 angles = (q4, q5) if q6 is None else (q4, q5, q6)
-                branches.append((name[2:], okw, angles))
+                branches.append((name[2:], sp.And(okw, rigid), angles))
         solutions = {}
         for name, ok, angles in branches:
             tape.stage(f"gantry, branch {name}: the tool point carried by the wrist, the slides")
@@ -870,6 +875,22 @@ class IKKernelBuilder:
             )
             solutions[name] = (slides + tuple(angles), ok)
         return solutions
+
+    def _rigid_target(self):
+        """The target's rotation is orthonormal and right-handed within TOL (x . x = y . y =
+        z . z = 1, x . y = x . z = y . z = 0, x x y = z): the 2R head's check compares the
+        tool axis only, so a target whose other columns are not a rotation's is refused
+        here (solve.analytic._GantrySolver._reproduces)."""
+        tape = self.tape
+        cols = [tuple(self.R_t[r][c] for r in range(3)) for c in range(3)]
+        conds = []
+        for i in range(3):
+            for j in range(i, 3):
+                target = 1 if i == j else 0
+                conds.append(_le(Fabs(_dot(cols[i], cols[j]) - target), TOL))
+        xy = _cross(cols[0], cols[1])
+        conds.extend(_le(Fabs(xy[r] - cols[2][r]), TOL) for r in range(3))
+        return tape.let("rigid_target", sp.And(*conds))
 
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
@@ -915,12 +936,22 @@ class IKKernelBuilder:
         tape.stage("status")
         any_valid = tape.let("any_valid", sp.Or(*valid_flags))
         k = len(self.configs)
+        doc = (
+            f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
+            "configurations " + ", ".join(self.configs) + " (in this order)."
+        )
+        units, reaches = "[rad]", "reaches the pose"
+        if isinstance(s, GantryArm):
+            units = "[m for the slides 1-3, rad for the wrist]"
+            if not s.full_pose:
+                reaches = "reaches the tool point and the tool z axis"
+                doc += (
+                    " A 5-axis head: the tool point and the tool z axis are solved, the "
+                    "rotation about the tool axis is free (not checked); T must be rigid."
+                )
         return Kernel(
             name="ik_all",
-            doc=(
-                f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
-                "configurations " + ", ".join(self.configs) + " (in this order)."
-            ),
+            doc=doc,
             inputs=(
                 Port(
                     "T", self.T, "tool pose, 4x4 row-major (rotation | position m)", "m", width=16
@@ -931,7 +962,7 @@ class IKKernelBuilder:
                     "q",
                     tuple(q_out),
                     f"{k} x {n} joint values per pose, branch after branch "
-                    "[rad]; NaN where the branch has no real solution",
+                    f"{units}; NaN where the branch has no real solution",
                     "rad",
                     width=k * n,
                 ),
@@ -939,7 +970,7 @@ class IKKernelBuilder:
                     "valid",
                     tuple(valid_out),
                     f"{k} flags per pose: 1 where the branch "
-                    "reaches the pose within the joint limits, else 0",
+                    f"{reaches} within the joint limits, else 0",
                     "-",
                     width=k,
                     ctype="uint8_t",
