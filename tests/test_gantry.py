@@ -18,16 +18,20 @@ Evidence, independent of the solver:
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from deltagen import SerialRobot
+from deltagen import SerialRobot, paths
 from deltagen.model import structure as st
 from deltagen.model.serial import SerialDescription
 from deltagen.paths import robots_dir
 from deltagen.solve.analytic import analytic_solver
+from deltagen.status import INVALID, OK, UNREACHABLE
 
 PI = math.pi
 GANTRIES = {
@@ -416,3 +420,100 @@ def test_not_gantries_fall_back_to_the_numeric_solver(variant):
     assert analytic_solver(desc) is None
     arm = SerialRobot(desc, backend="reference")
     assert arm.analytic_configs() == ()
+
+
+# ------------------------------------------------------- the C alone, sanitized
+
+GCC = shutil.which("gcc")
+SANITIZE = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer", "-fno-sanitize-recover=all"]
+HEAD_DRIVER = r"""
+#include <stdio.h>
+#include <math.h>
+#include "serial_gantry_xyz_ac.h"
+
+#define N %(n)d
+static const double T_IN[N * 16] = {%(poses)s};
+
+int main(void) {
+    static double q[N * 10];
+    static uint8_t valid[N * 2];
+    static int8_t status[N];
+    if (deltagen_gantry_xyz_ac_ik_all(N, T_IN, q, valid, status) != 0) return 1;
+    for (size_t i = 0; i < N; ++i) {
+        printf("%%d %%d %%d", (int)status[i], valid[2 * i] == 1, valid[2 * i + 1] == 1);
+        for (size_t c = 0; c < 10; ++c) printf(" %%a", q[i * 10 + c]);
+        printf("\n");
+    }
+    return 0;
+}
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(GCC is None, reason="gcc not installed")
+def test_head_ik_all_alone_under_sanitizers(tmp_path):
+    """The generated ik_all of the 5-axis head built alone with ASan/UBSan on poses with
+    NaN, infinite, huge, non-rigid, out-of-travel and singular (tool axis along C) rows: no
+    report, the status codes as documented, the flags and angles of the numpy solver."""
+    probe = tmp_path / "probe.c"
+    probe.write_text("int main(void) { return 0; }\n")
+    cmd = [GCC, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")]
+    if subprocess.run(cmd, capture_output=True).returncode != 0:
+        pytest.skip("no sanitizer runtime")
+    arm = SerialRobot.load("gantry_xyz_ac", backend="reference")
+    T = arm.fk(_in_limits(arm, 60, seed=41))
+    T[5] = arm.fk(np.array([1.0, 0.5, 0.3, 1.1, 0.0]))  # tool axis along C
+    T[10, :3, 3] += 40.0  # beyond the travel of every slide
+    T[20, 2, 2] = np.nan
+    T[30, 0, 3] = -np.inf
+    T[40, :3, 0] *= 0.9  # not a rotation (the tool axis column untouched)
+    T[50, :3, 3] = 1e300
+    poses = ", ".join(
+        float(x).hex()
+        if np.isfinite(x)
+        else ("NAN" if np.isnan(x) else ("INFINITY" if x > 0 else "-INFINITY"))
+        for x in T.reshape(-1)
+    )
+    for name in ("serial_gantry_xyz_ac.c", "serial_gantry_xyz_ac.h"):
+        shutil.copy(paths.generated_dir() / name, tmp_path)
+    runtime = sorted(paths.runtime_dir().glob("deltagen_*.[ch]"))
+    for path in runtime:
+        shutil.copy(path, tmp_path)
+    (tmp_path / "driver.c").write_text(HEAD_DRIVER % dict(n=len(T), poses=poses))
+    sources = ["driver.c", "serial_gantry_xyz_ac.c", *(p.name for p in runtime if p.suffix == ".c")]
+    build = subprocess.run(
+        [GCC, "-std=c99", "-O0", "-Wall", "-Wextra", "-Werror", *SANITIZE, *sources]
+        + ["-o", "driver", "-lm"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert build.returncode == 0, build.stderr[-3000:]
+    env = dict(os.environ, UBSAN_OPTIONS="halt_on_error=1")
+    run = subprocess.run(
+        [str(tmp_path / "driver")],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert run.returncode == 0 and run.stderr == "", run.stderr[-3000:]
+    rows = [line.split() for line in run.stdout.splitlines()]
+    status = np.array([int(r[0]) for r in rows])
+    valid = np.array([[v == "1" for v in r[1:3]] for r in rows])
+    q_c = np.array(
+        [[float.fromhex(v) if "nan" not in v else math.nan for v in r[3:]] for r in rows]
+    )
+    q_c = q_c.reshape(len(T), 2, 5)
+    assert status[20] == INVALID and status[30] == INVALID
+    assert status[10] == UNREACHABLE and status[40] == UNREACHABLE and status[50] == UNREACHABLE
+    assert status[5] == OK and np.all(np.abs(q_c[5, :, 3]) < 1e-12)
+    safe = np.where(np.isfinite(T), T, 0.0)
+    safe[:, 3] = [0, 0, 0, 1]
+    q_n, v_n = analytic_solver(arm.description).solve(safe)
+    rows_ok = np.isin(status, (OK, UNREACHABLE))
+    np.testing.assert_array_equal(valid[rows_ok], v_n[rows_ok])
+    both = np.isfinite(q_c) & np.isfinite(q_n)
+    assert np.max(np.abs(_angle_diff(q_c, q_n)[both])) < 1e-9
