@@ -405,6 +405,25 @@ def test_squareness_error_and_wrist_offset_keep_the_closed_form_exact():
     assert _round_trip(SerialRobot(desc, backend="reference")) < 1e-12
 
 
+def test_bc_head_with_an_offset_tool_is_solved():
+    """A B/C head (C about z, B about y) whose tool point sits 3 cm off the B axis and whose
+    Z slide is 1 mrad out of square: the tool point and the tool axis of every valid
+    branch, through the description's own transforms, to 1e-12; both tilts found."""
+    desc = _universal(slide_tilt=1e-3, wrist_offset=0.03, w5="y", n=5)
+    found = st.detect(desc)
+    assert type(found) is st.GantryArm and found.kind == "gantry_head_2r"
+    arm = SerialRobot(desc, backend="reference")
+    rng = np.random.default_rng(43)
+    q = np.column_stack([rng.uniform(-1, 1, (200, 3)), rng.uniform(-PI, PI, 200),
+                         rng.uniform(-1.4, 1.4, 200)])  # fmt: skip
+    T = arm.fk(q)
+    qa, va = arm.ik_all(T)
+    assert va.all(axis=1).mean() > 0.95
+    Tb = arm.fk(np.where(np.isfinite(qa), qa, 0.0).reshape(-1, 5)).reshape(200, 2, 4, 4)
+    assert np.max(np.abs(Tb - T[:, None])[..., :3, 2:][va]) < 1e-12
+    assert np.all((_same(arm, qa, q[:, None]) & va).any(axis=1))
+
+
 @pytest.mark.parametrize(
     "variant",
     [
