@@ -121,7 +121,9 @@ exit status:
   0  success
   1  ran, but the result is not valid: fk/ik rows without a valid result, a stale
      generated/ (generate --check), a tolerance missed (validate)
-  2  usage or input error (bad arguments, an unreadable or malformed file)"""
+  2  usage or input error (bad arguments, an unreadable or malformed file, a grid or
+     sweep larger than DELTAGEN_MAX_MEMORY, an input file larger than DELTAGEN_MAX_INPUT)
+  130  interrupted (Ctrl-C)"""
 
 ROBOT_HELP = (
     "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
@@ -146,6 +148,16 @@ def _protect_negative_numbers(argv):
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # Ctrl-C: the shell's 128 + SIGINT, no traceback
+        name = (list(sys.argv[1:] if argv is None else argv) or [""])[0]
+        command = f"deltagen {name}" if not str(name).startswith("-") and name else "deltagen"
+        print(f"{command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv=None) -> int:
     parser = _Parser(
         prog="deltagen",
         description=__doc__,
@@ -248,13 +260,16 @@ def main(argv=None) -> int:
     v.set_defaults(func=_validate)
 
     d = sub.add_parser(
-        "demo", help="worked examples: the lecture's SCARA table, the Miskolc pick and place"
+        "demo",
+        help="worked examples: the lecture's SCARA table, the Miskolc pick and place, a "
+        "path past a wrist singularity",
     )
-    d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place"))
+    d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place", "singular-path"))
     d.add_argument(
         "--out",
         default=None,
         help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
+        "singular-path: singular_path; "
         "lecture-scara writes its plot only when given)",
     )
     d.set_defaults(func=lambda a: _lazy("deltagen.apps.demos", a))
@@ -355,7 +370,8 @@ def main(argv=None) -> int:
         help="identify a built delta robot's geometry from measured (q, p) pairs",
         description="Levenberg-Marquardt on fk(q) = p over per-chain parameters; prints "
         "values, 1-sigma uncertainty, residuals before/after and what the data cannot "
-        "separate. DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
+        "separate, and whether the fit is valid (exit 0; 1: not valid, no file written without "
+        "--force; 2: bad input). DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
     )
     c.add_argument("data", help="CSV of measurements: q1,q2,q3,x,y,z")
     c.add_argument("--robot", default="default", help="the nominal robot: " + ROBOT_HELP)
@@ -365,9 +381,21 @@ def main(argv=None) -> int:
         help="comma-separated: r_a, r_b, l_a, l_b, theta, q_offset (each per chain) or single "
         "entries like l_a[0] (default r_a,l_a,l_b,theta,q_offset)",
     )
-    c.add_argument("--sigma", type=float, help="measurement noise per coordinate [m] if known")
+    c.add_argument(
+        "--sigma",
+        type=float,
+        help="measurement noise per coordinate [m] if known: the residual is then "
+        "chi-square tested against it (else sigma is estimated from the residual)",
+    )
     c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
-    c.add_argument("--out", help="write the calibrated robot file (TOML) here")
+    c.add_argument(
+        "--out", help="write the calibrated robot file (TOML) here (only for a valid fit)"
+    )
+    c.add_argument(
+        "--force",
+        action="store_true",
+        help="write --out even when the fit is not valid (the exit status stays 1)",
+    )
     c.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
     _add_urdf_options(c)
     c.set_defaults(func=_calibrate)

@@ -191,7 +191,7 @@ def test_a_chain_that_never_moves_cannot_separate_its_crank():
 
 def test_bad_calibration_input_is_a_clear_error():
     robot = DeltaRobot.default()
-    q = np.zeros((5, 3))
+    q = np.zeros((10, 3))
     with pytest.raises(InputError, match="unknown calibration parameter"):
         robot.calibrate(q, q, params=("l_c",))
     with pytest.raises(InputError, match=r"rows \[2\]"):

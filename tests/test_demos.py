@@ -256,3 +256,18 @@ def test_miskolc_ik_is_the_papers_elbow_up_solution(miskolc_jt):
     th2 = np.arctan2(s, r) - np.arctan2(s4 * np.sin(th3), a2 + s4 * np.cos(th3))  # (9)
     np.testing.assert_allclose(jt.q[:, :3], np.column_stack([th1, th2, th3]), atol=1e-9)
     np.testing.assert_allclose(jt.q[:, 3], jt.cartesian.qj[:, 0], atol=1e-13)
+
+
+def test_demo_singular_path_writes_the_speed_plot(tmp_path, capsys):
+    """`deltagen demo singular-path`: the default stops, the naive following needs wrist
+    speeds far above the limit, SingArea/Wrist stays within it; a PNG is written."""
+    assert cli.main(["demo", "singular-path", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "remedy='stop' (default): segment 0 ('past the wrist')" in out
+    assert "wrist singularity" in out and "axes 4, 6" in out
+    naive = out.split("followed as programmed: peak |qd| per joint ")[1].split(" rad/s")[0]
+    assert max(float(v) for v in naive.split(", ")) > 10 * demos.SINGULAR_QD_MAX
+    fixed = out.split("  peak |qd| per joint ")[1].split(" rad/s")[0]
+    assert max(float(v) for v in fixed.split(", ")) <= demos.SINGULAR_QD_MAX
+    png = tmp_path / "singular_path_speeds.png"
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"

@@ -251,10 +251,12 @@ class DeltaRobot:
         as the encoders read them [rad], p (N, 3) measured in the base frame [m]. ``params``:
         families r_a, r_b, l_a, l_b, theta, q_offset (per chain, all three) or single
         entries like "l_a[0]". Levenberg-Marquardt with the generated C Jacobian of fk with
-        respect to the parameters; see deltagen.solve.calibration (options: sigma, rcond,
-        max_iterations, tol). Returns a CalibrationResult: the calibrated geometry and
-        ``robot`` (same backend), values, uncertainty, residual RMS before/after,
-        singular values and the sets of parameters the data cannot separate."""
+        respect to the parameters, every parameter bounded around its nominal value; see
+        deltagen.solve.calibration (options: sigma, max_length_deviation,
+        max_angle_deviation, rcond, max_iterations, tol). Returns a CalibrationResult: the
+        calibrated geometry and ``robot`` (same backend), values, uncertainty, residual RMS
+        before/after, the noise test, singular values, the parameters the data cannot place,
+        and ``valid`` / ``problems`` / ``hints``: use the geometry only when ``valid``."""
         from dataclasses import replace
 
         from deltagen.solve.calibration import calibrate

@@ -531,6 +531,29 @@ class SerialRobot:
 
         return serial_workspace(self, step, **options)
 
+    def follow(
+        self, trajectory: Any, q0: Any = None, *, singularity: str = "stop", **options: Any
+    ) -> Any:
+        """Follow a Cartesian trajectory (position and orientation; built with
+        deltagen.plan.trajectory.PathBuilder) from the joints q0 (None: ``ik`` at the start
+        pose), seeing singular regions ahead (lecture slides 112-114):
+        ``singularity="stop"`` (default) raises SingularPathError naming the segment, times
+        and kind; ``"joint"`` (or ``"wrist"``: SingArea/Wrist) interpolates the wrist joints
+        across a wrist region with the TCP kept on the path; ``"freeze"`` holds axis
+        ``freeze_axis`` (4 or 6) there. ``qd_max``, ``qdd_max`` time-scale the motion into
+        the joint limits. See deltagen.plan.singular_path.follow_path (``singularity`` is its
+        ``remedy``); returns its SingularPathResult."""
+        from deltagen.plan.singular_path import follow_path
+
+        return follow_path(self, trajectory, q0, remedy=singularity, **options)
+
+    def follow_path(self, trajectory: Any, q0: Any = None, **options: Any) -> Any:
+        """:meth:`follow` with the planner's own keyword: ``remedy="stop" | "wrist" |
+        "freeze"`` (deltagen.plan.singular_path.follow_path)."""
+        from deltagen.plan.singular_path import follow_path
+
+        return follow_path(self, trajectory, q0, **options)
+
     # -- dynamics -----------------------------------------------------------------------
     #
     # Arms whose robot file gives inertial parameters (deltagen.model.serial): recursive

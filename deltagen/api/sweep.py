@@ -19,6 +19,13 @@ in which chunk it was computed. The compiled delta core takes the geometry at ru
 so each worker process compiles (or loads from the cache) one core and reuses it for
 every design.
 
+Checks before anything runs: every key of the spec against one schema (``_SCHEMA``: its
+type, shape and range; the message names the key, e.g. "score.q_limits_deg"), the design
+table and one design's workspace grid against the memory budget (deltagen.inputs,
+DELTAGEN_MAX_MEMORY), ``workers`` (a positive integer), and a scheduler address by a probe
+(probe_scheduler: it must answer like a Dask scheduler within DASK_CONNECT_TIMEOUT, default
+10 s) before Dask connects with the same timeout.
+
 The result (SweepResult) is a table of numpy columns; to_csv writes it with the spec, the
 seed and the deltagen version in its header lines.
 
@@ -56,14 +63,16 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from deltagen.api.workspace import MIN_ENVELOPE_LEVELS, check_delta_grid, delta_default_box
 from deltagen.errors import DeltagenError, GeometryError
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, check_integer, check_memory, check_real, is_real
 from deltagen.model.delta import DeltaInertia
 from deltagen.model.robot_file import read_toml
 
@@ -81,8 +90,6 @@ SCORES = (
     "peak_torque_Nm",
     "poses",
 )
-_TOP = {"design", "n", "seed", "theta_deg", "ranges", "score", "move", "constraints", "inertia"}
-_SCORE_KEYS = {"step", "max_condition", "q_limits_deg", "envelope_levels"}
 
 
 class SweepError(DeltagenError, ValueError):
@@ -107,91 +114,68 @@ class SweepSpec:
     @classmethod
     def from_toml(cls, path: str | os.PathLike[str]) -> SweepSpec:
         try:
-            data = read_toml(path)
+            data = read_toml(path, "sweep spec")
         except GeometryError as exc:
             raise SweepError(str(exc)) from None
         return cls.from_mapping(data, source=str(path))
 
     @classmethod
     def from_mapping(cls, data: dict[str, Any], source: str = "sweep spec") -> SweepSpec:
-        if not isinstance(data, dict):
-            raise SweepError(f"{source}: expected a table")
-        unknown = set(data) - _TOP
-        if unknown:
-            raise SweepError(f"{source}: unknown keys {sorted(unknown)} (known: {sorted(_TOP)})")
-        design = data.get("design", "sobol")
-        if design not in ("grid", "sobol"):
-            raise SweepError(f"{source}: design must be 'grid' or 'sobol', got {design!r}")
-        n, seed = data.get("n", 16), data.get("seed", 0)
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise SweepError(f"{source}: n must be a positive integer, got {n!r}")
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise SweepError(f"{source}: seed must be a non-negative integer, got {seed!r}")
-        raw_ranges = data.get("ranges", {})
-        if not isinstance(raw_ranges, dict):
-            raise SweepError(f"{source}: [ranges] must be a table")
-        bad = set(raw_ranges) - set(LENGTHS)
-        if bad:
-            raise SweepError(f"{source}: [ranges] knows {LENGTHS}, not {sorted(bad)}")
-        ranges = {}
-        for key in LENGTHS:
-            if key not in raw_ranges:
-                raise SweepError(f"{source}: [ranges] needs {key} ([low, high] or a value, m)")
-            v = raw_ranges[key]
-            pair = v if isinstance(v, list) else [v, v]
-            if len(pair) != 2 or not all(_finite(x) for x in pair) or pair[0] > pair[1]:
-                raise SweepError(
-                    f"{source}: ranges.{key} must be a finite value or [low, high] with "
-                    f"low <= high (m), got {v!r}"
-                )
-            ranges[key] = (float(pair[0]), float(pair[1]))
-        theta = data.get("theta_deg", [0.0, 120.0, 240.0])
-        if not isinstance(theta, list) or len(theta) != 3 or not all(_finite(t) for t in theta):
-            raise SweepError(f"{source}: theta_deg must be 3 numbers (deg), got {theta!r}")
-        score = dict(data.get("score", {}))
-        bad = set(score) - _SCORE_KEYS
-        if bad:
-            raise SweepError(f"{source}: [score] knows {sorted(_SCORE_KEYS)}, not {sorted(bad)}")
-        inertia = data.get("inertia")
-        if inertia is not None:
-            try:
-                DeltaInertia.from_mapping(inertia, f"{source} [inertia]")
-            except GeometryError as exc:
-                raise SweepError(str(exc)) from None
-        move = data.get("move")
-        if move is not None:
-            if inertia is None:
-                raise SweepError(f"{source}: [move] (peak torque) needs an [inertia] table")
-            for key in ("from", "to"):
-                v = move.get(key)
-                if not isinstance(v, list) or len(v) != 3 or not all(_finite(x) for x in v):
-                    raise SweepError(f"{source}: move.{key} must be 3 numbers (m), got {v!r}")
-            d = move.get("duration")
-            if not _finite(d) or d <= 0:
-                raise SweepError(f"{source}: move.duration must be a positive time (s), got {d!r}")
-            if not _finite(move.get("payload", 0.0)) or move.get("payload", 0.0) < 0:
-                raise SweepError(f"{source}: move.payload must be a mass >= 0 (kg)")
-        constraints = data.get("constraints", {})
-        for key, bound in constraints.items():
-            if key not in SCORES or not isinstance(bound, dict) or not bound:
-                raise SweepError(
-                    f"{source}: constraints.{key}: a result column ({', '.join(SCORES)}) "
-                    "with {{min = ...}} and/or {{max = ...}}"
-                )
-            if set(bound) - {"min", "max"} or not all(_finite(v) for v in bound.values()):
-                raise SweepError(f"{source}: constraints.{key} takes finite min and/or max")
-        return cls(
-            ranges=ranges,
-            design=design,
-            n=n,
-            seed=seed,
-            theta_deg=tuple(float(t) for t in theta),  # type: ignore[arg-type]
-            score=score,
-            move=move,
-            constraints={k: {b: float(v) for b, v in c.items()} for k, c in constraints.items()},
-            inertia=inertia,
-            raw=copy.deepcopy(data),
+        """The spec checked against the schema (_SCHEMA: every key's type, shape and range,
+        the key named in the message) and against the memory budget."""
+        if isinstance(data, dict) and "ranges" not in data:
+            raise SweepError(
+                f"{source}: [ranges] needs {', '.join(LENGTHS)} ([low, high] or a value, m)"
+            )
+        checked = _table(_SCHEMA, top=True)(data, source)
+        if "move" in checked and "inertia" not in checked:
+            raise SweepError(f"{source}: [move] (peak torque) needs an [inertia] table")
+        spec = cls(
+            ranges=checked["ranges"],
+            design=checked.get("design", "sobol"),
+            n=checked.get("n", 16),
+            seed=checked.get("seed", 0),
+            theta_deg=checked.get("theta_deg", (0.0, 120.0, 240.0)),
+            score=checked.get("score", {}),
+            move=checked.get("move"),
+            constraints=checked.get("constraints", {}),
+            inertia=data.get("inertia"),
+            raw=copy.deepcopy(_plain(data)),
         )
+        spec.check_resources(source)
+        return spec
+
+    def design_count(self) -> int:
+        """How many designs designs() gives (exact, without making them)."""
+        varied = sum(1 for k in LENGTHS if self.ranges[k][0] < self.ranges[k][1])
+        if not varied:
+            return 1
+        return self.n**varied if self.design == "grid" else self.n
+
+    def check_resources(self, source: str = "sweep spec") -> None:
+        """SweepError (naming the key and the size) when the design table, or one design's
+        workspace grid at score.step, would exceed the memory budget
+        (deltagen.inputs.memory_limit, DELTAGEN_MAX_MEMORY)."""
+        count = self.design_count()
+        what = (
+            f"n = {self.n} values per varied length (grid: {count:.3g} designs)"
+            if self.design == "grid"
+            else f"n = {count:.3g} designs"
+        )
+        try:
+            check_memory(
+                float(count) * BYTES_PER_DESIGN,
+                f"{source}: {what}, whose table",
+                "choose a smaller n",
+            )
+            step = self.score.get("step")
+            if step is not None:  # the largest design's grid (default step: size / 40)
+                hi = {k: self.ranges[k][1] for k in LENGTHS}
+                lo_r_b = self.ranges["r_b"][0]
+                box = delta_default_box(hi["r_a"], lo_r_b, hi["l_a"], hi["l_b"])
+                check_delta_grid(box, step, "score.step", source)
+        except InputError as exc:
+            raise SweepError(str(exc)) from None
 
     def designs(self) -> np.ndarray:
         """The designs (N, 4): columns r_a, r_b, l_a, l_b [m]."""
@@ -216,8 +200,150 @@ class SweepSpec:
         return out
 
 
-def _finite(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+# -- the spec's schema: every key's type, shape and range ----------------------------------
+#
+# A checker takes (value, where) -- where names the key, e.g. "spec.toml: score.step" -- and
+# returns the value normalised (floats, tuples) or raises SweepError naming the key.
+
+Check = Callable[[Any, str], Any]
+
+
+def _as_sweep_error(check: Callable[[], Any]) -> Any:
+    try:
+        return check()
+    except InputError as exc:
+        raise SweepError(str(exc)) from None
+
+
+def _real(low: float | None = None, low_open: bool = False, unit: str = "") -> Check:
+    return lambda v, where: _as_sweep_error(
+        lambda: check_real(v, where, low=low, low_open=low_open, unit=unit)
+    )
+
+
+def _integer(low: int) -> Check:
+    return lambda v, where: _as_sweep_error(lambda: check_integer(v, where, low=low))
+
+
+def _choice(*options: str) -> Check:
+    def check(v: Any, where: str) -> str:
+        if not isinstance(v, str) or v not in options:
+            raise SweepError(f"{where} must be {' or '.join(repr(o) for o in options)}, got {v!r}")
+        return v
+
+    return check
+
+
+def _reals(count: int, unit: str) -> Check:
+    def check(v: Any, where: str) -> tuple[float, ...]:
+        if not isinstance(v, (list, tuple)) or len(v) != count:
+            raise SweepError(f"{where} must be {count} numbers [{unit}], got {v!r}")
+        return tuple(_real(unit=unit)(x, f"{where}[{i}]") for i, x in enumerate(v))
+
+    return check
+
+
+def _interval(unit: str, scalar_ok: bool) -> Check:
+    """[low, high] with low < high (scalar_ok: or one value, low = high allowed)."""
+
+    def check(v: Any, where: str) -> tuple[float, float]:
+        if scalar_ok and is_real(v):
+            x = _real(unit=unit)(v, where)
+            return (x, x)
+        shape = "a value or [low, high]" if scalar_ok else "[low, high]"
+        if not isinstance(v, (list, tuple)) or len(v) != 2:
+            raise SweepError(f"{where} must be {shape} [{unit}], got {v!r}")
+        low, high = (_real(unit=unit)(x, f"{where}[{i}]") for i, x in enumerate(v))
+        if low > high or (low == high and not scalar_ok):
+            relation = "<=" if scalar_ok else "<"
+            raise SweepError(f"{where} must have low {relation} high [{unit}], got {v!r}")
+        return (low, high)
+
+    return check
+
+
+def _table(fields: dict[str, Check], required: tuple[str, ...] = (), top: bool = False) -> Check:
+    """A TOML table with the keys of ``fields`` (each checked), ``required`` among them;
+    ``top``: the spec itself (its keys are named "source: key", nested ones "source: a.b")."""
+
+    def check(v: Any, where: str) -> dict[str, Any]:
+        if not isinstance(v, dict):
+            raise SweepError(f"{where} must be a table, got {v!r}")
+        unknown = set(v) - set(fields)
+        if unknown:
+            raise SweepError(
+                f"{where}: unknown keys {sorted(map(str, unknown))} (known: {sorted(fields)})"
+            )
+        for key in required:
+            if key not in v:
+                raise SweepError(f"{where} needs {key}")
+        return {k: fields[k](x, f"{where}: {k}" if top else f"{where}.{k}") for k, x in v.items()}
+
+    return check
+
+
+def _inertia(v: Any, where: str) -> Any:
+    try:
+        DeltaInertia.from_mapping(v, where)
+    except GeometryError as exc:
+        raise SweepError(str(exc)) from None
+    return v
+
+
+def _constraints(v: Any, where: str) -> dict[str, dict[str, float]]:
+    if not isinstance(v, dict):
+        raise SweepError(f"{where} must be a table, got {v!r}")
+    out = {}
+    for key, bound in v.items():
+        if key not in SCORES or not isinstance(bound, dict) or not bound:
+            raise SweepError(
+                f"{where}.{key}: a result column ({', '.join(SCORES)}) "
+                "with {min = ...} and/or {max = ...}"
+            )
+        out[key] = _table({"min": _real(), "max": _real()})(bound, f"{where}.{key}")
+    return out
+
+
+_SCHEMA: dict[str, Check] = {
+    "design": _choice("grid", "sobol"),
+    "n": _integer(1),
+    "seed": _integer(0),
+    "theta_deg": _reals(3, "deg"),
+    "ranges": _table({k: _interval("m", scalar_ok=True) for k in LENGTHS}, required=LENGTHS),
+    "score": _table(
+        {
+            "step": _real(0.0, low_open=True, unit="m"),
+            "max_condition": _real(1.0),
+            "q_limits_deg": _interval("deg", scalar_ok=False),
+            "envelope_levels": _integer(MIN_ENVELOPE_LEVELS),
+        }
+    ),
+    "move": _table(
+        {
+            "from": _reals(3, "m"),
+            "to": _reals(3, "m"),
+            "duration": _real(0.0, low_open=True, unit="s"),
+            "payload": _real(0.0, unit="kg"),
+        },
+        required=("from", "to", "duration"),
+    ),
+    "constraints": _constraints,
+    "inertia": _inertia,
+}
+#: Bytes per design of a sweep: the design table, its score rows (each chunk's and the
+#: joined), the result columns and the CSV row being written.
+BYTES_PER_DESIGN = 8 * (len(LENGTHS) + 3 * len(SCORES) + len(LENGTHS) + len(SCORES) + 2)
+
+
+def _plain(value: Any) -> Any:
+    """A spec value as plain Python (numpy scalars as int/float) for the JSON header."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def _spec_of(spec: Any) -> SweepSpec:
@@ -389,6 +515,13 @@ def sweep(
     from deltagen import __version__
 
     spec = _spec_of(spec)
+    if workers is not None:
+        workers = _as_sweep_error(lambda: check_integer(workers, "workers", low=1))
+    task_seconds = _as_sweep_error(
+        lambda: check_real(task_seconds, "task_seconds", low=0.0, low_open=True, unit="s")
+    )
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise SweepError(f"scheduler must be an address, 'inprocess' or None, got {scheduler!r}")
     designs = spec.designs()
     n = len(designs)
     if scheduler is None:
@@ -442,13 +575,6 @@ def _run_dask(spec, designs, scheduler, workers, task_seconds, progress):
             "Dask is needed for sweeps on a cluster: pip install 'deltagen[design]' "
             "(or scheduler='inprocess')"
         ) from exc
-    # chunk so a task holds ~task_seconds of work, timed on the first design here
-    t = time.perf_counter()
-    first = score_chunk(spec, designs[:1])
-    per_design = max(time.perf_counter() - t, 1e-3)
-    size = max(1, int(round(task_seconds / per_design)))
-    rest = designs[1:]
-    chunks = [rest[i : i + size] for i in range(0, len(rest), size)]
     cluster = None
     if scheduler == "local":
         cluster = LocalCluster(
@@ -459,8 +585,21 @@ def _run_dask(spec, designs, scheduler, workers, task_seconds, progress):
         )
         client = Client(cluster)
     else:
-        client = Client(scheduler)
+        if workers is not None:
+            raise SweepError(
+                f"workers ({workers}) sizes a local cluster; the cluster at {scheduler} has "
+                "its own workers"
+            )
+        client = connect(scheduler)
     try:
+        # chunk so a task holds ~task_seconds of work, timed on the first design here
+        # (after connecting: a bad address fails at once)
+        t = time.perf_counter()
+        first = score_chunk(spec, designs[:1])
+        per_design = max(time.perf_counter() - t, 1e-3)
+        size = max(1, int(round(task_seconds / per_design)))
+        rest = designs[1:]
+        chunks = [rest[i : i + size] for i in range(0, len(rest), size)]
         used = len(client.scheduler_info().get("workers", {})) or 1
         spec_future = client.scatter(spec, broadcast=True)
         futures = [client.submit(score_chunk, spec_future, c, pure=False) for c in chunks]
@@ -477,3 +616,96 @@ def _run_dask(spec, designs, scheduler, workers, task_seconds, progress):
         if cluster is not None:
             cluster.close()
     return np.concatenate([first] + results), used
+
+
+#: Seconds to wait for a Dask scheduler to answer (connection and handshake);
+#: DASK_CONNECT_TIMEOUT overrides it (Dask's own variable, seconds).
+CONNECT_TIMEOUT = 10.0
+#: The largest first message a Dask scheduler opens with: its handshake (a few hundred
+#: bytes of msgpack) behind an 8-byte little-endian length (distributed.comm.tcp).
+_MAX_HANDSHAKE = 1 << 20
+
+
+def _connect_timeout() -> float:
+    text = os.environ.get("DASK_CONNECT_TIMEOUT")
+    if text is None or text.strip() == "":
+        return CONNECT_TIMEOUT
+    try:
+        value = float(text.strip().rstrip("s"))
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise SweepError(
+            f"DASK_CONNECT_TIMEOUT must be a positive number of seconds, got {text!r}; unset "
+            f"it for {CONNECT_TIMEOUT:g} s"
+        )
+    return value
+
+
+def probe_scheduler(address: str, timeout: float) -> None:
+    """SweepError unless something at the TCP ``address`` answers like a Dask scheduler
+    within ``timeout`` seconds: a scheduler opens with its handshake, a small message behind
+    an 8-byte little-endian length. Anything else (an SSH or HTTP banner, silence, a closed
+    port) is refused here, before Dask reads the banner's first bytes as a length and tries
+    to allocate that much (exabytes for text). Addresses other than tcp:// (tls://, ws://,
+    inproc://) are left to Dask and its timeout."""
+    import socket
+    import struct
+    from urllib.parse import urlsplit
+
+    text = address if "://" in address else f"tcp://{address}"
+    parts = urlsplit(text)
+    if parts.scheme != "tcp":
+        return
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host = port = None
+    if not host or port is None:
+        raise SweepError(f"scheduler address {address!r}: expected tcp://host:port")
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            head = b""
+            while len(head) < 8:
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise SweepError(
+            f"no Dask scheduler answered at {address} within {timeout:g} s (something "
+            "accepted the connection but sent nothing); check the address, or set "
+            "DASK_CONNECT_TIMEOUT"
+        ) from None
+    except OSError as exc:
+        raise SweepError(
+            f"cannot connect to the Dask scheduler at {address}: {exc.strerror or exc}"
+        ) from None
+    if len(head) < 8:
+        raise SweepError(
+            f"{address} closed the connection without a Dask handshake: not a Dask scheduler"
+        )
+    (length,) = struct.unpack("<Q", head)
+    if not 0 < length <= _MAX_HANDSHAKE:
+        raise SweepError(
+            f"{address} answered, but not as a Dask scheduler (it began with {head!r}); "
+            "check the address and port (a scheduler listens on 8786 by default)"
+        )
+
+
+def connect(address: str) -> Any:
+    """A dask.distributed Client of the scheduler at ``address``: probed first
+    (probe_scheduler), then connected with a timeout; every failure a SweepError naming
+    the address."""
+    from dask.distributed import Client
+
+    timeout = _connect_timeout()
+    probe_scheduler(address, timeout)
+    try:
+        return Client(address, timeout=timeout)
+    except (OSError, TimeoutError, MemoryError, ValueError, TypeError) as exc:
+        raise SweepError(
+            f"cannot connect to the Dask scheduler at {address} within {timeout:g} s: "
+            f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+        ) from None

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, check_integer, check_memory, check_real
 
 FloatArray = np.ndarray
 
@@ -46,6 +46,21 @@ FloatArray = np.ndarray
 DEFAULT_Q_LIMITS = (-math.pi / 2, math.pi / 2)
 #: Default bound on the condition number of J (sigma_max / sigma_min).
 DEFAULT_MAX_CONDITION = 10.0
+#: Fewest heights of the envelope search: its first and last lie a voxel outside the usable
+#: heights, so with fewer than four at most one usable height remains and no interval (no
+#: cylinder of non-zero height) could be found.
+MIN_ENVELOPE_LEVELS = 4
+#: Bytes a delta workspace holds per voxel: the result arrays (usable, condition, the two
+#: gains, q (3), peak torque), the voxel centres and their meshgrid (3 + 3 each), and the
+#: centres and condition numbers the pictures draw (4).
+DELTA_BYTES_PER_VOXEL = 8 * (1 + 1 + 2 + 3 + 1 + 6 + 4) + 1
+#: Bytes per joint sample of a serial workspace (besides 8 per joint and per Jacobian entry):
+#: the tool pose (4x4), position, condition number, manipulability and their flags.
+SERIAL_BYTES_PER_SAMPLE = 8 * (16 + 3 + 4) + 4
+#: Bytes per voxel of a serial workspace grid: with a tool orientation the target poses
+#: (4x4), voxel centres and their meshgrid, the condition and manipulability maps.
+SERIAL_BYTES_PER_TARGET = 8 * (16 + 3 + 3 + 6) + 4
+SERIAL_BYTES_PER_VOXEL = 8 * 6 + 4
 
 
 def _progress(total: int, desc: str, show: bool | None) -> Any:
@@ -151,7 +166,10 @@ class DeltaWorkspace:
         return np.stack([X[ix], Y[ix], Z[ix]], axis=-1), self.condition[ix]
 
     def summary(self) -> dict[str, float]:
+        """The numbers a builder quotes. The envelopes are 0.0 when the search found none
+        (nothing fits), NaN when it did not run (``envelope=False``)."""
         zlo, zhi = self.z_range
+        searched = self.settings.get("envelope", True)
         out = {
             "volume_m3": self.volume,
             "z_min_m": zlo,
@@ -163,6 +181,11 @@ class DeltaWorkspace:
             "box_half_width_m": self.box.size if self.box else 0.0,
             "box_height_m": self.box.height if self.box else 0.0,
         }
+        if not searched:
+            for key in ("cylinder", "box"):
+                for name in out:
+                    if name.startswith(key):
+                        out[name] = math.nan
         if self.peak_torque is not None:
             t = self.peak_torque[self.usable]
             out["peak_torque_Nm"] = float(t.max()) if t.size else math.nan
@@ -344,6 +367,37 @@ def inscribed_envelopes(
     return out
 
 
+def delta_default_box(
+    r_a: float, r_b: float, l_a: float, l_b: float
+) -> tuple[tuple[float, float], ...]:
+    """The box a delta workspace samples by default: every point the chains could reach,
+    ((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi)) [m]."""
+    size = l_a + l_b
+    reach = max(abs(r_a - r_b) + size, 1e-9)
+    return ((-reach, reach), (-reach, reach), (-size - l_a, l_a))
+
+
+def voxel_counts(box: Any, step: float) -> tuple[float, float, float]:
+    """Voxels per axis of ``box`` at edge ``step`` (floats, so that a tiny step gives a
+    huge count rather than an allocation)."""
+    nx, ny, nz = (max(float(math.floor((b - a) / step)), 1.0) for a, b in box)
+    return nx, ny, nz
+
+
+def check_delta_grid(box: Any, step: float, option: str = "step", source: str = "") -> float:
+    """The voxel count of a delta workspace grid; InputError (naming ``option``, after
+    ``source``) when its arrays would exceed the memory budget (deltagen.inputs.memory_limit)."""
+    nx, ny, nz = voxel_counts(box, step)
+    voxels = nx * ny * nz
+    check_memory(
+        voxels * DELTA_BYTES_PER_VOXEL,
+        f"{source + ': ' if source else ''}the workspace grid at {option} = {step:g} m ({nx:.0f} x {ny:.0f} x {nz:.0f} = "
+        f"{voxels:.3g} voxels)",
+        f"choose a larger {option} (each halving needs 8 times the memory)",
+    )
+    return voxels
+
+
 def delta_workspace(
     robot: Any,
     step: float | None = None,
@@ -366,20 +420,27 @@ def delta_workspace(
     size = g.l_a + g.l_b
     if step is None:
         step = size / 40.0
-    if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
-        raise InputError(f"step must be a positive length [m], got {step!r}")
-    lo_q, hi_q = (float(v) for v in q_limits)
-    if not (math.isfinite(lo_q) and math.isfinite(hi_q) and lo_q < hi_q):
+    step = check_real(step, "step", low=0.0, low_open=True, unit="m")
+    if isinstance(q_limits, (str, bytes)) or not hasattr(q_limits, "__len__") or len(q_limits) != 2:
         raise InputError(f"q_limits must be (low, high) radians with low < high, got {q_limits!r}")
-    if not (math.isfinite(max_condition) and max_condition >= 1.0):
-        raise InputError(f"max_condition must be a finite number >= 1, got {max_condition!r}")
+    lo_q = check_real(q_limits[0], "q_limits[0]", unit="rad")
+    hi_q = check_real(q_limits[1], "q_limits[1]", unit="rad")
+    if not lo_q < hi_q:
+        raise InputError(f"q_limits must be (low, high) radians with low < high, got {q_limits!r}")
+    max_condition = check_real(max_condition, "max_condition", low=1.0)
+    if not isinstance(envelope, (bool, np.bool_)):
+        raise InputError(f"envelope must be True or False, got {envelope!r}")
+    envelope_levels = check_integer(envelope_levels, "envelope_levels", low=MIN_ENVELOPE_LEVELS)
+    payload = check_real(payload, "payload", low=0.0, unit="kg")
+    if acceleration is not None:
+        acceleration = check_real(acceleration, "acceleration", low=0.0, unit="m/s^2")
     if acceleration is not None and g.inertia is None:
         from deltagen.errors import GeometryError
 
         raise GeometryError("the peak torque map needs the robot's inertia (DeltaInertia)")
     reach = max(abs(g.r_a - g.r_b) + size, 1e-9)
     if box is None:
-        box = ((-reach, reach), (-reach, reach), (-size - g.l_a, g.l_a))
+        box = delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b)
     try:
         (x0, x1), (y0, y1), (z0, z1) = ((float(a), float(b)) for a, b in box)
     except (TypeError, ValueError):
@@ -393,6 +454,7 @@ def delta_workspace(
         or z0 >= z1
     ):
         raise InputError(f"box must hold finite (low, high) pairs with low < high, got {box!r}")
+    check_delta_grid(((x0, x1), (y0, y1), (z0, z1)), step)
 
     def centres(a, b):
         n = max(int(math.floor((b - a) / step)), 1)
@@ -460,7 +522,12 @@ def delta_workspace(
         tol=1e-4 * size,
         peak_torque=None if peak is None else peak.reshape(shape),
         acceleration=acceleration,
-        settings={"step": step, "box": ((x0, x1), (y0, y1), (z0, z1)), "poses": counted[0]},
+        settings={
+            "step": step,
+            "box": ((x0, x1), (y0, y1), (z0, z1)),
+            "poses": counted[0],
+            "envelope": bool(envelope),
+        },
     )
 
 
@@ -571,8 +638,13 @@ def serial_workspace(
     step: voxel edge [m] (default: the sampled reach / 25). Singular surfaces: the tool
     positions of configurations with 1/condition < singular_tol (``singular_points``), and
     the voxels where only such configurations reach (``singular``)."""
-    if not (isinstance(samples, int) and samples > 0):
-        raise InputError(f"samples must be a positive integer, got {samples!r}")
+    samples = check_integer(samples, "samples", low=1)
+    singular_tol = check_real(singular_tol, "singular_tol", low=0.0)
+    check_memory(
+        samples * (SERIAL_BYTES_PER_SAMPLE + 8 * arm.n * 8),
+        f"the workspace's {samples} joint samples",
+        "choose fewer samples",
+    )
     rng = np.random.default_rng(seed)
     lim = _joint_box(arm)
     q = rng.uniform(lim[:, 0], lim[:, 1], size=(samples, arm.n))
@@ -587,11 +659,21 @@ def serial_workspace(
     reach = float(np.max(np.linalg.norm(pos_ok, axis=1))) if pos_ok.size else 1.0
     if step is None:
         step = max(reach, 1e-6) / 25.0
-    if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
-        raise InputError(f"step must be a positive length [m], got {step!r}")
+    step = check_real(step, "step", low=0.0, low_open=True, unit="m")
     lo = pos_ok.min(axis=0) - step
     hi = pos_ok.max(axis=0) + step
-    n = np.maximum(np.ceil((hi - lo) / step).astype(int), 1)
+    counts = [max(math.ceil((float(b) - float(a)) / step), 1) for a, b in zip(lo, hi)]
+    voxels = float(counts[0]) * counts[1] * counts[2]
+    per_voxel = SERIAL_BYTES_PER_VOXEL
+    if orientation is not None:
+        per_voxel += SERIAL_BYTES_PER_TARGET + 8 * arm.n
+    check_memory(
+        voxels * per_voxel,
+        f"the workspace grid at step = {step:g} m ({counts[0]} x {counts[1]} x {counts[2]} = "
+        f"{voxels:.3g} voxels)",
+        "choose a larger step (each halving needs 8 times the memory)",
+    )
+    n = np.array(counts, dtype=int)
     axes = [lo[k] + (np.arange(n[k]) + 0.5) * step for k in range(3)]
     shape = tuple(int(v) for v in n)
     reachable = np.zeros(shape, bool)

@@ -58,6 +58,7 @@ import numpy as np
 from deltagen import status as st
 from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.rotations import rot_axis
+from deltagen.inputs import check_memory, env_flag
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
 #: The throughput targets for the compiled core [ns per point].
@@ -1239,6 +1240,9 @@ def _render_threads(result: dict, markdown: bool) -> list[str]:
 # ------------------------------------------------------------------------- entry point
 
 
+BYTES_PER_POINT = 8 * (3 + 3 + 1 + 6 + 16 + 6 + 6) * 2
+
+
 def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool = True) -> dict:
     """Measure everything; returns the raw result (see :func:`render`). ``serial`` adds the
     Puma560 section, ``oracles`` its comparison with roboticstoolbox-python / pinocchio."""
@@ -1248,6 +1252,9 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
         raise ValueError(f"--n must be at least 1, got {n}")
     if repeats < 1:
         raise ValueError(f"--repeats must be at least 1, got {repeats}")
+    # per point: the delta's inputs and outputs, the Puma 560's q, poses (4x4), rates and
+    # flags, and the peers' copies
+    check_memory(n * BYTES_PER_POINT, f"a batch of --n = {n} points", "choose a smaller --n")
     t_start = time.perf_counter()
     load_before = _load()
     compiled = DeltaRobot.default(backend="compiled", threads=1)  # builds the C core if needed
@@ -1303,11 +1310,8 @@ def _oracles_wanted(args) -> bool:
     line offers it) or DELTAGEN_BENCH_ORACLES=0."""
     if getattr(args, "no_oracles", False):
         return False
-    return os.environ.get("DELTAGEN_BENCH_ORACLES", "1").strip().lower() not in (
-        "0",
-        "no",
-        "false",
-        "off",
+    return env_flag(
+        "DELTAGEN_BENCH_ORACLES", True, "off: roboticstoolbox-python and pinocchio not timed"
     )
 
 

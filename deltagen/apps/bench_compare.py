@@ -36,6 +36,7 @@ from pathlib import Path
 
 from deltagen.apps.bench import QUANTITIES, SERIAL_QUANTITIES, SERIAL_ROBOT, SERIAL_SMALL_N
 from deltagen.errors import DeltagenError
+from deltagen.inputs import read_regular_file
 
 #: measures (label) -> (robot, method, JSON section, JSON quantity): the batched quantities
 #: of ``deltagen bench`` (apps/bench.py), so that a stored JSON has every one
@@ -122,8 +123,8 @@ def _git(args: list[str], cwd: Path) -> str:
 def from_json(path: str | Path) -> dict[str, float | None]:
     """The REF side from a `deltagen bench --json` file: {label: ns per point or None}."""
     try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
+        data = json.loads(read_regular_file(path, "bench --json file").decode("utf-8"))
+    except (OSError, ValueError) as exc:  # InputError is a ValueError
         raise CompareError(f"{path}: not a readable `deltagen bench --json` file ({exc})") from exc
     if not isinstance(data, dict) or "throughput" not in data:
         raise CompareError(f"{path}: no 'throughput' section: not `deltagen bench --json` output")

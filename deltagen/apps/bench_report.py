@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from deltagen.apps.timing import Stat
+from deltagen.inputs import read_regular_file
 
 BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"
 
@@ -120,7 +121,7 @@ def write_png(data: dict, path: str | Path) -> None:
 def update_readme(path: str | Path, markdown: str) -> None:
     """Replace the README's generated benchmark section with ``markdown``."""
     path = Path(path)
-    text = path.read_text()
+    text = read_regular_file(path, "--readme file").decode("utf-8")
     if BEGIN not in text or END not in text:
         raise ValueError(f"{path} has no {BEGIN} ... {END} section to replace")
     head, rest = text.split(BEGIN, 1)

@@ -2,6 +2,11 @@
 pairs (see deltagen.solve.calibration), print the report, optionally write the calibrated
 robot file.
 
+Exit status: 0 for a valid fit, 1 for a fit that is not valid (not converged, a parameter
+the data cannot place or that ended on its bound, a residual that disagrees with the noise:
+CalibrationResult.problems, printed with hints); then no robot file is written unless
+``--force``. Bad input (unreadable file, empty data, too few points, bad sigma): exit 2.
+
 DATA.csv: one measurement per row, columns q1, q2, q3 (encoder readings [rad], or deg
 with --degrees) and x, y, z (measured platform position in the base frame [m]); an
 optional header line.
@@ -10,18 +15,19 @@ optional header line.
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from deltagen.errors import DeltagenError
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, read_regular_file
 
 
 def read_measurements(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
-        lines = path.read_text().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
+        lines = read_regular_file(path, "measurements").decode("utf-8").splitlines()
+    except UnicodeDecodeError as exc:
         raise InputError(f"cannot read {path}: {exc}") from None
     rows = []
     for number, line in enumerate(lines, start=1):
@@ -78,9 +84,21 @@ def main(args) -> int:
     result = robot.calibrate(q, p, params=params, sigma=args.sigma)
     print(f"deltagen calibrate: {len(q)} measurements, robot {robot.geometry.name!r}")
     print(result.report())
-    if args.out:
-        Path(args.out).write_text(geometry_toml(result.geometry))
-        print(f"wrote {args.out}")
     if not math.isfinite(result.rms_after):
         raise DeltagenError("calibration failed: the residual is not finite")
-    return 0
+    if args.out and (result.valid or args.force):
+        Path(args.out).write_text(geometry_toml(result.geometry))
+        print(f"wrote {args.out}{'' if result.valid else ' (--force: the fit is NOT valid)'}")
+    if result.valid:
+        return 0
+    # the first problem (a residual far above the noise comes first) and the hints; the
+    # report above lists every problem
+    why = "; ".join(result.problems[:1] + tuple(f"hint: {h}" for h in result.hints))
+    more = len(result.problems) - 1
+    if more:
+        why += f" (and {more} more: see FIT NOT VALID above)"
+    unwritten = (
+        f"; {args.out} not written (--force writes it)" if args.out and not args.force else ""
+    )
+    print(f"deltagen calibrate: the fit is not valid: {why}{unwritten}", file=sys.stderr)
+    return 1

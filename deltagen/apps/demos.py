@@ -28,6 +28,16 @@
   over time (inverse dynamics with the robot file's chosen aluminium-link masses and
   inertias, exact q, qd, qdd; the paper's program computes joint torques from link masses
   too) and a CSV of all of it (tau1..tau4 [N m] among its columns).
+
+* ``singular-path`` -- a path through a wrist singularity (lecture slides 112-114) on the
+  Puma 560: a straight line of 0.3 m in 1 s with the tool orientation held, passing 3 mm
+  beside the pose with q5 = 0 (axes 4 and 6 in line; :data:`SINGULAR_Q`). Followed as
+  programmed (6-D path following, plan.trajectory) the wrist turns half a revolution in
+  a fraction of a second; with ``remedy="wrist"`` ("SingArea/Wrist") the wrist joints move by
+  joint interpolation across the region, the TCP stays on the line, and the motion is
+  slowed uniformly into the joint limits :data:`SINGULAR_QD_MAX`, :data:`SINGULAR_QDD_MAX`
+  (chosen). Prints the planner's report and writes ``singular_path_speeds.png`` (joint
+  speeds with and without the remedy) into ``--out`` (default ``singular_path``).
 """
 
 from __future__ import annotations
@@ -40,7 +50,7 @@ import numpy as np
 
 from deltagen.apps.plotting import pyplot
 
-NAMES = ("lecture-scara", "miskolc-pick-and-place")
+NAMES = ("lecture-scara", "miskolc-pick-and-place", "singular-path")
 
 # ------------------------------------------------------------------ lecture
 
@@ -586,9 +596,130 @@ def run_miskolc(out=None, stream=None) -> int:
     return 0
 
 
+# ------------------------------------------------------------------ singular path
+
+#: The singular pose the line passes: q5 = 0 (Puma 560, axes 4 and 6 in line).
+SINGULAR_Q = (0.2, 0.7, -2.9, 0.4, 0.0, -0.3)
+#: How far beside it [m], the half length of the line [m], its duration [s].
+SINGULAR_OFFSET, SINGULAR_HALF, SINGULAR_DURATION = 0.003, 0.15, 1.0
+#: Chosen joint limits for the demo [rad/s], [rad/s^2].
+SINGULAR_QD_MAX, SINGULAR_QDD_MAX = 1.0, 10.0
+
+
+def singular_line(arm, offset=SINGULAR_OFFSET):
+    """The demo's line (module docstring) and its start joints on SINGULAR_Q's branch:
+    across the forearm (axis 4), so that the wrist centre's motion turns axis 4 past axis 6."""
+    from deltagen.plan.trajectory import PathBuilder, Task, solve_ik, to_joint_trajectory
+    from deltagen.reference import serial as reference
+
+    pose = Task("xyz", orientation=True)
+    q_mid = np.array(SINGULAR_Q)
+    T = arm.fk(q_mid)
+    R, pm = T[:3, :3], T[:3, 3]
+    _, w = reference.joint_axes(arm.description, q_mid[None])
+    d = np.cross(w[0, 3], [0.3, 0.2, 1.0])
+    d /= np.linalg.norm(d)
+    side = np.cross(d, [0.0, 0.0, 1.0])
+    pm = pm + offset * side / np.linalg.norm(side)
+    p0, p1 = pm - SINGULAR_HALF * d, pm + SINGULAR_HALF * d
+    # start joints: continue from next to the middle (q5 small) back to the start
+    near = pm + 0.03 * (p0 - pm)
+    g = q_mid.copy()
+    g[4] = 0.05
+    g = solve_ik(arm, pose, near, R, np.zeros(0), g)[0]
+    back = PathBuilder(near, R=R).line(p0, 1.0).build()
+    q0 = to_joint_trajectory(arm, back, pose, g, dt=0.01, limits="ignore").q[-1]
+    traj = PathBuilder(p0, R=R).line(p1, SINGULAR_DURATION, label="past the wrist").build()
+    return traj, q0
+
+
+def _plot_singular_speeds(naive, res, path: Path) -> Path:
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 7), layout="constrained")
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    panels = (
+        (axes[0], naive.t, naive.qd, "followed as programmed (6-D path following)", None),
+        (axes[1], res.t, res.qd, 'remedy="wrist" (SingArea/Wrist), time-scaled', res),
+    )
+    for ax, t, qd, title, r in panels:
+        for i in range(qd.shape[1]):
+            ax.plot(t, qd[:, i], color=colors[i % len(colors)], label=f"q{i + 1}")
+        ax.axhline(SINGULAR_QD_MAX, color="k", ls="--", lw=0.8)
+        ax.axhline(-SINGULAR_QD_MAX, color="k", ls="--", lw=0.8, label="limit")
+        ax.set_ylabel("joint speed [rad/s]")
+        ax.set_title(title)
+        ax.grid(alpha=0.3)
+        if r is not None:
+            for reg in r.regions:
+                ax.axvspan(reg.t_entry, reg.t_exit, color="tab:orange", alpha=0.15)
+        else:
+            peak = float(np.abs(qd).max())
+            ax.set_yscale("symlog", linthresh=1.0)
+            ax.text(0.01, 0.92, f"peak |qd| = {peak:.3g} rad/s", transform=ax.transAxes)
+    axes[1].set_xlabel("t [s]")
+    axes[0].legend(ncol=7, fontsize=8, loc="lower right")
+    fig.suptitle(
+        "Puma 560: a line 3 mm beside q5 = 0 (axes 4 and 6 in line); shaded: the singular region"
+    )
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def run_singular(out=None, stream=None) -> int:
+    pyplot()  # before the computation: without matplotlib, say so now
+    from deltagen.api.serial import SerialRobot
+    from deltagen.plan.singular_path import SingularPathError
+    from deltagen.plan.trajectory import Task, to_joint_trajectory
+
+    stream = sys.stdout if stream is None else stream
+    folder = Path("singular_path" if out is None else out)
+    folder.mkdir(parents=True, exist_ok=True)
+    arm = SerialRobot.load("puma560")
+    traj, q0 = singular_line(arm)
+    print(
+        "Puma 560: a straight line past the wrist singularity (lecture slides 112-114), "
+        f"{SINGULAR_OFFSET * 1e3:g} mm beside q5 = 0, {2 * SINGULAR_HALF:g} m in "
+        f"{SINGULAR_DURATION:g} s, orientation held; limits |qd| <= {SINGULAR_QD_MAX:g} rad/s, "
+        f"|qdd| <= {SINGULAR_QDD_MAX:g} rad/s^2",
+        file=stream,
+    )
+    try:
+        arm.follow_path(traj, q0)
+    except SingularPathError as exc:
+        print(f"  remedy='stop' (default): {exc}", file=stream)
+    naive = to_joint_trajectory(
+        arm, traj, Task("xyz", orientation=True), q0, dt=0.005, max_step=10.0, limits="ignore"
+    )
+    peak = np.abs(naive.qd).max(axis=0)
+    print(
+        "  followed as programmed: peak |qd| per joint "
+        + ", ".join(f"{v:.3g}" for v in peak)
+        + " rad/s",
+        file=stream,
+    )
+    res = arm.follow_path(
+        traj, q0, remedy="wrist", qd_max=SINGULAR_QD_MAX, qdd_max=SINGULAR_QDD_MAX, dt=0.005
+    )
+    print("  remedy='wrist': " + res.report.lines()[0], file=stream)
+    for line in res.report.lines()[1:]:
+        print("  " + line, file=stream)
+    print(
+        "  peak |qd| per joint "
+        + ", ".join(f"{v:.3g}" for v in res.report.peak_qd)
+        + f" rad/s; TCP off the line by at most {res.report.max_position_error:.2g} m",
+        file=stream,
+    )
+    written = _plot_singular_speeds(naive, res, folder / "singular_path_speeds.png")
+    print(f"wrote {written}", file=stream)
+    return 0
+
+
 def main(args) -> int:
     name = getattr(args, "name", None)
     out = getattr(args, "out", None)
+    if name == "singular-path":
+        return run_singular(out)
     if name == "lecture-scara":
         return run_lecture(out)
     if name == "miskolc-pick-and-place":

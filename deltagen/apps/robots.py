@@ -16,7 +16,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, read_regular_file
 
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
 
@@ -82,8 +82,8 @@ def file_kind(path: Path) -> str:
     if suffix == ".cfg":
         return "klipper"
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError):
+        text = read_regular_file(path, "robot file").decode("utf-8")
+    except (InputError, UnicodeDecodeError):
         return "delta"  # its loader reports the unreadable file
     if text.lstrip().startswith("<"):
         return "urdf"

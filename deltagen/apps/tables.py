@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, read_regular_file
 
 NPY_MAGIC = b"\x93NUMPY"
 CSV_SUFFIXES = (".csv", ".txt")
@@ -74,13 +74,7 @@ def read_table(path, layouts, what: str) -> tuple[np.ndarray, int, tuple]:
     the names of the k columns). ``what`` says who reads (for messages, e.g. "fk of puma560").
     """
     path = Path(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, not a CSV or NPY file") from None
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    raw = read_regular_file(path, "input file")
     if raw.startswith(NPY_MAGIC):
         names, columns = _npy_columns(path, raw)
     elif raw.startswith(b"PK\x03\x04"):

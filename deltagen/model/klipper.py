@@ -32,7 +32,9 @@ The homed pose is p = (0, 0, position_endstop - shoulder_height) in deltagen's f
 between the steppers give per-chain lengths (an asymmetric robot). ``[include ...]``
 sections are rejected (a clear error: pass the file that holds the printer). Klipper's
 SAVE_CONFIG block at the end of printer.cfg (lines ``#*# ...``) overrides the sections
-above it, as in Klipper.
+above it, as in Klipper. Lengths outside deltagen's range of delta lengths (1e-6 m to 1e3 m,
+deltagen.model.delta.MIN_LENGTH/MAX_LENGTH; heights and endstops at most 1e3 m) are refused
+by their printer.cfg key, in mm.
 """
 
 from __future__ import annotations
@@ -44,7 +46,8 @@ from pathlib import Path
 from typing import Any
 
 from deltagen.errors import GeometryError
-from deltagen.model.delta import DeltaGeometry
+from deltagen.inputs import InputError, read_regular_file
+from deltagen.model.delta import MAX_LENGTH, MIN_LENGTH, DeltaGeometry
 from deltagen.model.robot_file import PathLike
 
 #: Klipper's default arm positions of stepper_a, _b, _c [deg].
@@ -186,6 +189,22 @@ def klipper_from_text(
     for key, values in (("upper_arm_length", upper), ("lower_arm_length", lower)):
         if min(values) <= 0.0:
             raise GeometryError(f"{source}: {key} must be > 0, got {values}")
+    # deltagen's range of delta lengths (model.delta.MIN_LENGTH..MAX_LENGTH), named by the
+    # printer.cfg key and in its unit (mm); heights are frame offsets: at most MAX_LENGTH
+    lengths = [("printer", "shoulder_radius", radius, True)]
+    lengths += [(s, "upper_arm_length", v, True) for s, v in zip(steppers, upper)]
+    lengths += [(s, "lower_arm_length", v, True) for s, v in zip(steppers, lower)]
+    lengths += [("printer", "shoulder_height", height, False)]
+    lengths += [(s, "position_endstop", v, False) for s, v in zip(steppers, endstops)]
+    for section, key, value, is_length in lengths:
+        low = MIN_LENGTH / _MM if is_length else 0.0
+        if not (low <= abs(value) <= MAX_LENGTH / _MM):
+            raise GeometryError(
+                f"{source}: [{section}] {key}: {value:g} mm is outside the range deltagen "
+                f"evaluates reliably, {low:g} to {MAX_LENGTH / _MM:g} mm"
+                f"{'' if is_length else ' in magnitude'} (float64 kinematics; see "
+                "deltagen.model.delta.MAX_LENGTH)"
+            )
     kwargs: dict[str, Any] = {}
     if len(set(upper)) == 1 and len(set(lower)) == 1:
         kwargs.update(l_a=upper[0] * _MM, l_b=lower[0] * _MM)
@@ -222,7 +241,9 @@ def read_klipper(path: PathLike, name: str = "klipper") -> KlipperRotaryDelta:
     """Read a Klipper printer.cfg (see the module docstring for the mapping)."""
     path = Path(path)
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_regular_file(path, "Klipper config").decode("utf-8")
+    except InputError as exc:
+        raise GeometryError(str(exc)) from None
+    except UnicodeDecodeError as exc:
         raise GeometryError(f"cannot read Klipper config {path}: {exc}") from None
     return klipper_from_text(text, source=str(path), name=name)

@@ -10,17 +10,20 @@ from pathlib import Path
 from typing import Any, TypeAlias
 
 from deltagen.errors import GeometryError
+from deltagen.inputs import InputError, read_regular_file
 
 PathLike: TypeAlias = str | os.PathLike[str]
 
 
-def read_toml(path: PathLike) -> dict[str, Any]:
-    """The parsed table of a robot file; unreadable or malformed files raise GeometryError."""
+def read_toml(path: PathLike, what: str = "robot file") -> dict[str, Any]:
+    """The parsed table of a robot file (``what``: the kind of file, for messages); an
+    unreadable file (read_regular_file: a regular file of bounded size) or malformed TOML
+    raises GeometryError."""
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise GeometryError(f"cannot read robot file {path}: {exc.strerror}") from None
+        text = read_regular_file(path, what).decode("utf-8")
+    except InputError as exc:
+        raise GeometryError(str(exc)) from None
     except UnicodeDecodeError:
         raise GeometryError(f"{path}: not UTF-8 text") from None
     try:

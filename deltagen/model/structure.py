@@ -38,6 +38,15 @@ Structures (tolerances of :mod:`deltagen.geometry.axes`: parallel when ``|w_i x 
     are not parallel (UR3/5/10: shoulder, elbow and wrist 1 parallel, offset wrist).
 :class:`StanfordArm` (``stanford_rrp_6``) -- joints R R P R R R: axes 1 and 2 meet, joint 3
     prismatic, axes 4, 5, 6 meet (central wrist): the Stanford arm.
+:class:`GantryArm` (``gantry_wrist_3r``, ``gantry_head_2r``, ``gantry_rotary_1r``) -- a
+    gantry ("Portal") robot: joints 1-3 prismatic with linearly independent directions (the
+    Cartesian XYZ axes, in any order and sign, mutually orthogonal on a true gantry) followed
+    by 3, 2 or 1 revolute joints: a 3R wrist (4 not parallel to 5, 5 not parallel to 6), a
+    2R head (4 not parallel to 5, the tool z axis not parallel to 5) or one rotary axis (the
+    palletiser). The slides do not turn anything, so the tool rotation is the wrist's alone
+    and the slides then place the tool point by a linear solve: neither mutually orthogonal
+    slides nor wrist axes through one point are needed for the closed form (a squareness
+    error or a wrist offset keeps it exact).
 :class:`ReversedChain` (``reversed``) -- 6 revolute joints whose chain read backwards
     (:func:`reversed_description`, T'(q_6, ..., q_1) = T(q)^-1) is a ``spherical_wrist_6r``
     or a ``parallel_triple_6r``: Pieper's other case, the first three axes meeting in a point
@@ -72,6 +81,8 @@ __all__ = [
     "ParallelTriple6R",
     "StanfordArm",
     "ReversedChain",
+    "GantryArm",
+    "GANTRY_KINDS",
     "Structure",
     "joint_axes",
     "detect",
@@ -80,6 +91,7 @@ __all__ = [
     "detect_parallel_triple",
     "detect_stanford",
     "detect_reversed",
+    "detect_gantry",
     "reversed_description",
     "parallel_pairs",
     "parallel_runs",
@@ -376,7 +388,49 @@ class ReversedChain(_Structure):
         return tuple(self.inner.configs)
 
 
-Structure = PlanarArm | Elbow4R | SphericalWrist6R | ParallelTriple6R | StanfordArm | ReversedChain
+@dataclass(frozen=True, eq=False, repr=False)
+class GantryArm(_Structure):
+    """Three prismatic joints (directions w1, w2, w3 linearly independent) followed by 3, 2
+    or 1 revolute joints 4..n (n = 6, 5, 4): a gantry robot.
+
+    T(q) = Trans(q1 w1 + q2 w2 + q3 w3) exp(xi_4 q4) ... exp(xi_n q_n) T(0) (module
+    docstring): the rotation R(q) = Rot(w4, q4) ... Rot(w_n, q_n) R(0) is the wrist's alone,
+    and the tool point p(q) = q1 w1 + q2 w2 + q3 w3 + g(q4, ..., q_n), g the tool point at
+    q = 0 turned by the wrist, so (q1, q2, q3) = ``slide_inverse`` (p - g). What is solved:
+
+    * ``gantry_wrist_3r`` (6 axes): the whole pose; the wrist rotation R_t R(0)^T is split
+      into q4, q5, q6 as the central wrist's (Paden-Kahan subproblem 2 and 1; branches
+      ``noflip`` / ``flip``);
+    * ``gantry_head_2r`` (5 axes: an A/C or B/C head): the tool point and the tool z axis
+      (``carried``, the tool frame's z axis at q = 0): Rot(w4, q4) Rot(w5, q5) z(0) = z_t by
+      subproblem 2 (``noflip`` / ``flip``); the rotation about the tool axis is not the
+      head's to choose and is not checked;
+    * ``gantry_rotary_1r`` (4 axes: the palletiser): the tool point and the angle about w4
+      (``single``); a target tilted away from Rot(w4, .) R(0) is not reachable.
+    """
+
+    kind: str  # gantry_wrist_3r, gantry_head_2r or gantry_rotary_1r
+    configs: tuple  # branch names
+    axes: JointAxes
+    slide_inverse: np.ndarray  # (3, 3) [w1 w2 w3]^-1: slide travel from a displacement
+    carried: np.ndarray  # (3,) the vector the last wrist joint turns: w6 (3R), z(0) (2R), ref (1R)
+    wrist_ref: np.ndarray  # (3,) unit vector normal to the last axis: its angle's reference
+    cos_45: float  # w4 . w5 (0 for the 1R)
+    cos_56: float  # w5 . carried (0 for the 1R)
+    normal_45: np.ndarray  # (3,) w4 x w5 (zeros for the 1R)
+    full_pose: bool  # the closed form reaches the whole rotation (False: the tool axis only)
+    position_only_ok: ClassVar[bool] = True
+
+
+Structure = (
+    PlanarArm
+    | Elbow4R
+    | SphericalWrist6R
+    | ParallelTriple6R
+    | StanfordArm
+    | ReversedChain
+    | GantryArm
+)
 
 
 # ------------------------------------------------------------------------- detection
@@ -565,9 +619,57 @@ def detect_stanford(ax: JointAxes) -> StanfordArm | None:
     )
 
 
+GANTRY_KINDS = {6: "gantry_wrist_3r", 5: "gantry_head_2r", 4: "gantry_rotary_1r"}
+
+
+def detect_gantry(ax: JointAxes) -> GantryArm | None:
+    """A :class:`GantryArm` when joints 1-3 are prismatic with clearly independent directions
+    (|det [w1 w2 w3]| >= NONPARALLEL_TOL) and joints 4..n (n = 4, 5, 6) revolute, the wrist
+    axes clearly skew where the closed form needs it (3R: 4 to 5 and 5 to 6; 2R: 4 to 5 and
+    the tool z axis to 5), else None."""
+    n = ax.n
+    if n not in GANTRY_KINDS or ax.revolute[:3].any() or not ax.revolute[3:].all():
+        return None
+    w = ax.directions
+    slides = w[:3].T  # columns w1, w2, w3
+    if abs(float(np.linalg.det(slides))) < NONPARALLEL_TOL:
+        return None
+    ex, ey = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    zero3 = np.zeros(3)
+    configs: tuple[str, ...]
+    if n == 6:
+        if not (_clearly_skew(w[3], w[4]) and _clearly_skew(w[4], w[5])):
+            return None
+        carried, configs, full = w[5], ("noflip", "flip"), True
+    elif n == 5:
+        z0 = ax.R0[:, 2]
+        if not (_clearly_skew(w[3], w[4]) and _clearly_skew(z0, w[4])):
+            return None
+        carried, configs, full = z0, ("noflip", "flip"), False
+    else:
+        carried, configs, full = zero3, ("single",), True
+    last = w[5] if n == 6 else (carried if n == 5 else w[3])
+    ref = _reference_normal(last, ex, ey)
+    if n == 4:
+        carried = ref
+    return GantryArm(
+        kind=GANTRY_KINDS[n],
+        configs=configs,
+        axes=ax,
+        slide_inverse=_frozen(np.linalg.inv(slides)),
+        carried=_frozen(carried),
+        wrist_ref=_frozen(ref),
+        cos_45=float(w[3] @ w[4]) if n > 4 else 0.0,
+        cos_56=float(w[4] @ carried) if n > 4 else 0.0,
+        normal_45=_frozen(np.cross(w[3], w[4]) if n > 4 else zero3),
+        full_pose=full,
+    )
+
+
 def detect(desc: SerialDescription) -> Structure | None:
     """The structure of ``desc`` with a closed form (:class:`PlanarArm`, :class:`Elbow4R`,
-    :class:`SphericalWrist6R`, :class:`ParallelTriple6R`), or None (no supported structure, or a description whose
+    :class:`SphericalWrist6R`, :class:`ParallelTriple6R`, :class:`StanfordArm`,
+    :class:`GantryArm`, :class:`ReversedChain`), or None (no supported structure, or a description whose
     product-of-exponentials model does not match its transforms)."""
     try:
         ax = joint_axes(desc)
@@ -575,7 +677,13 @@ def detect(desc: SerialDescription) -> Structure | None:
         return None
     if not ax.matches(desc):  # pragma: no cover - a convention the model misses
         return None
-    for find in (detect_planar, detect_elbow, detect_parallel_triple, detect_stanford):
+    for find in (
+        detect_planar,
+        detect_elbow,
+        detect_parallel_triple,
+        detect_stanford,
+        detect_gantry,
+    ):
         found = find(ax)
         if found is not None:
             return found

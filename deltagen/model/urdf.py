@@ -77,6 +77,12 @@ the description of every movable joint and the :class:`Coupling` to the independ
 (the mimicked joint must be a movable joint of the chain; a mimic of a mimic is resolved;
 cycles are refused). ``floating`` and ``planar`` joints are refused (a serial arm has one
 variable per joint).
+
+Range. Every number must be finite, and lengths (an origin's xyz, a prismatic joint's
+limits) at most MAX_LENGTH = 1e6 m in size, masses at most MAX_MASS = 1e9 kg, inertia
+entries at most MAX_INERTIA = 1e21 kg m^2: the message names the element. An axis may have
+any finite length (it is scaled before it is normalised, so 1e300 is the direction x).
+Trees are walked with loops, not recursion: a branch may be thousands of links long.
 """
 
 from __future__ import annotations
@@ -88,7 +94,6 @@ import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from xml.parsers import expat
 
 import numpy as np
@@ -96,6 +101,7 @@ import numpy.typing as npt
 
 from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy, skew, xyz_angles
+from deltagen.inputs import InputError, read_regular_file
 from deltagen.model.coupling import Coupling
 from deltagen.model.serial import DEFAULT_GRAVITY, Inertial, Joint, SerialDescription
 
@@ -109,6 +115,12 @@ _INERTIA_NOISE = 1e-14  # inertia entries below this fraction of the largest one
 _INDEFINITE_REL = 1e-6
 _INDEFINITE_ABS = 1e-9
 _DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
+# The range of a URDF's numbers deltagen accepts (module docstring, "Range"): far beyond any
+# robot, and far inside float64, so that products of lengths, masses and inertias in the
+# kinematics and dynamics stay finite.
+MAX_LENGTH = 1e6  # [m]: an origin's offset, a prismatic joint's limit
+MAX_MASS = 1e9  # [kg]
+MAX_INERTIA = MAX_MASS * MAX_LENGTH**2  # [kg m^2]
 
 
 class URDFWarning(UserWarning):
@@ -159,6 +171,16 @@ def _numbers(text: str | None, count: int, where: str, default: str | None = Non
     return values
 
 
+def _within(values: Sequence[float], bound: float, unit: str, where: str) -> None:
+    """GeometryError naming ``where`` when a value exceeds ``bound`` in size (Range)."""
+    for v in values:
+        if abs(v) > bound:
+            raise GeometryError(
+                f"{where}: {v!r} {unit} is beyond the {bound:g} {unit} deltagen accepts "
+                "(module docstring of deltagen.model.urdf, Range)"
+            )
+
+
 def _number(element: ET.Element, attr: str, where: str, default: float | None = None) -> float:
     raw = element.get(attr)
     if raw is None and default is not None:
@@ -172,6 +194,7 @@ def _origin(parent: ET.Element, where: str) -> Matrix:
     if origin is None:
         return T
     xyz = _numbers(origin.get("xyz"), 3, f"{where} <origin xyz>", "0 0 0")
+    _within(xyz, MAX_LENGTH, "m", f"{where} <origin xyz>")
     rpy = _numbers(origin.get("rpy"), 3, f"{where} <origin rpy>", "0 0 0")
     T[:3, :3] = matrix_from_rpy(rpy)
     T[:3, 3] = xyz
@@ -199,6 +222,7 @@ def _parse_inertial(name: str, inertial: ET.Element) -> _ULink:
     mass = _number(mass_el, "value", f"{where} <mass>")
     if mass < 0:
         raise GeometryError(f"{where} <mass>: must be >= 0 kg, got {mass!r}")
+    _within([mass], MAX_MASS, "kg", f"{where} <mass>")
     E = _origin(inertial, f"{where} <inertial>")
     Ic = np.zeros((3, 3))
     correction = None
@@ -207,6 +231,7 @@ def _parse_inertial(name: str, inertial: ET.Element) -> _ULink:
         w = f"{where} <inertia>"
         xx, yy, zz = (_number(ine, k, w, 0.0) for k in ("ixx", "iyy", "izz"))
         xy, xz, yz = (_number(ine, k, w, 0.0) for k in ("ixy", "ixz", "iyz"))
+        _within([xx, yy, zz, xy, xz, yz], MAX_INERTIA, "kg m^2", w)
         Ic = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
         lam, V = np.linalg.eigh(Ic)
         smallest = float(lam[0])
@@ -275,7 +300,11 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
         ax = element.find("axis")
         if ax is not None:
             axis = np.array(_numbers(ax.get("xyz"), 3, f"{where} <axis xyz>", "1 0 0"))
-        norm = float(np.linalg.norm(axis))
+        # scaled by its largest entry first: the length of (1e300, 0, 0) overflows, its
+        # direction does not
+        scale = float(np.max(np.abs(axis)))
+        direction = axis / scale if scale > 0.0 else axis
+        norm = scale * float(np.linalg.norm(direction))
         if norm < 1e-9:
             raise GeometryError(f"{where} <axis>: zero vector {axis.tolist()}")
         if abs(norm - 1.0) > 1e-9:
@@ -284,7 +313,7 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
                 URDFWarning,
                 stacklevel=4,
             )
-        axis = axis / norm
+        axis = direction / float(np.linalg.norm(direction))
     limit = None
     lim = element.find("limit")
     if kind in ("revolute", "prismatic"):
@@ -297,6 +326,8 @@ def _parse_joint(element: ET.Element, links: dict[str, _ULink]) -> _UJoint:
         hi = _number(lim, "upper", f"{where} <limit>", 0.0)
         if lo > hi:
             raise GeometryError(f"{where} <limit>: lower {lo!r} must be below upper {hi!r}")
+        if kind == "prismatic":
+            _within([lo, hi], MAX_LENGTH, "m", f"{where} <limit>")
         if lo == hi:
             # lower and upper default to 0 in the specification: files that give a <limit>
             # only for effort and velocity carry 0 = 0 (the double pendulum of
@@ -341,8 +372,9 @@ def _refuse(*_args: object) -> None:
 def _parse(text: bytes, source: str) -> tuple[str, dict[str, _ULink], list[_UJoint]]:
     # twice: a look at the bytes before expat sees them, and expat's own declaration
     # handlers (which also catch what the byte look cannot read, e.g. a UTF-16 file)
+    # the messages do not name ``source``: chain_from_urdf prefixes every one with it
     if _DECLARATION.search(text):
-        raise GeometryError(f"{source}: {_REFUSAL}")
+        raise GeometryError(_REFUSAL)
     check = expat.ParserCreate()  # a first pass that builds nothing, with the handlers set
     for handler in (
         "StartDoctypeDeclHandler",
@@ -355,11 +387,11 @@ def _parse(text: bytes, source: str) -> tuple[str, dict[str, _ULink], list[_UJoi
         check.Parse(text, True)
         root = ET.fromstring(text)
     except _Declaration:
-        raise GeometryError(f"{source}: {_REFUSAL}") from None
+        raise GeometryError(_REFUSAL) from None
     except (expat.ExpatError, ET.ParseError) as exc:
-        raise GeometryError(f"{source}: not well-formed XML: {exc}") from None
+        raise GeometryError(f"not well-formed XML: {exc}") from None
     if root.tag != "robot":
-        raise GeometryError(f"{source}: the root element is <{root.tag}>, not <robot>")
+        raise GeometryError(f"the root element is <{root.tag}>, not <robot>")
     links: dict[str, _ULink] = {}
     for el in root.findall("link"):
         link = _parse_link(el)
@@ -487,13 +519,14 @@ class _OffChain:
         self.used: dict[str, float] = {}  # every locked joint's value
         self.defaulted: set[str] = set()  # those the caller's ``locked`` does not determine
 
-    def value(self, j: _UJoint, seen: tuple[str, ...] = ()) -> float:
+    def value(self, j: _UJoint) -> float:
         """The locked value of an off-chain movable joint: ``locked`` if given, else
-        multiplier q + offset of the joint it mimics, else 0 (the joint's zero)."""
-        if j.name in self.locked:
-            return float(self.locked[j.name])
-        if j.mimic is not None:
-            target, mult, offset = j.mimic
+        multiplier q + offset of the joint it mimics, else 0 (the joint's zero). A mimic
+        of a mimic is followed in a loop (no recursion: such chains may be long)."""
+        followers: list[_UJoint] = []  # j, the joint it mimics, ... up to the last leader
+        seen: set[str] = set()
+        while j.name not in self.locked and j.mimic is not None:
+            target = j.mimic[0]
             leader = self.by_name.get(target)
             if leader is None or leader.type not in _MOVABLE or j.name in seen:
                 raise GeometryError(
@@ -504,23 +537,34 @@ class _OffChain:
                     f"joint {j.name!r} off the chain mimics joint {target!r} of the chain: its "
                     "links would move with the chain, which a folded inertial cannot follow"
                 )
-            value = mult * self.value(leader, (*seen, j.name)) + offset
-            if leader.name in self.defaulted:
-                self.defaulted.add(j.name)
-            return value
-        self.defaulted.add(j.name)
-        return 0.0
+            seen.add(j.name)
+            followers.append(j)
+            j = leader
+        if j.name in self.locked:
+            value = float(self.locked[j.name])
+        else:
+            self.defaulted.add(j.name)
+            value = 0.0
+        for follower in reversed(followers):  # the leader's value carried down
+            _, mult, offset = follower.mimic  # type: ignore[misc]
+            value = mult * value + offset
+            if j.name in self.defaulted:
+                self.defaulted.add(follower.name)
+        return value
 
     def subtree(self, link: str, at: Matrix) -> Iterator[tuple[str, Matrix]]:
         """(link, its pose in the frame where ``link`` is at ``at``) for every link below
-        ``link`` off the chain, depth first."""
-        for j in self.below.get(link, []):
-            T = at @ j.origin
+        ``link`` off the chain, depth first (with a stack, not recursion: a branch may be
+        thousands of links long)."""
+        stack = [(j, at) for j in reversed(self.below.get(link, []))]
+        while stack:
+            j, parent_at = stack.pop()
+            T = parent_at @ j.origin
             if j.type in _MOVABLE:
                 self.used[j.name] = self.value(j)
                 T = T @ _motion(j, self.used[j.name])
             yield j.child, T
-            yield from self.subtree(j.child, T)
+            stack.extend((k, T) for k in reversed(self.below.get(j.child, [])))
 
     def finish(self, tip: str) -> None:
         defaulted = {k: v for k, v in self.used.items() if k in self.defaulted}
@@ -637,9 +681,9 @@ def chain_from_urdf(
     that mimics joint i (module docstring of model/coupling.py)."""
     source = str(path)
     try:
-        text = Path(path).read_bytes()
-    except OSError as exc:
-        raise GeometryError(f"cannot read URDF {source}: {exc}") from None
+        text = read_regular_file(path, "URDF")
+    except InputError as exc:
+        raise GeometryError(str(exc)) from None
     try:
         return _description(text, source, base, tip, name, locked, gravity)
     except TipChoiceError as exc:
@@ -658,6 +702,14 @@ def _description(
     gravity: Sequence[float] | None = None,
 ) -> tuple[SerialDescription, Coupling | None]:
     robot_name, links, joints = _parse(text, source)
+    if not links:
+        raise GeometryError("no <link>: a robot needs links joined by joints")
+    if not joints:
+        raise GeometryError(
+            f"no joints: link{'s' if len(links) > 1 else ''} {', '.join(sorted(links))} and "
+            "nothing that moves (a serial arm needs at least one revolute, continuous or "
+            "prismatic joint)"
+        )
     root, by_child = _tree(links, joints)
     available = ", ".join(sorted(links))
     if base is None:

@@ -49,6 +49,7 @@ import threading
 from pathlib import Path
 
 from deltagen.errors import DeltagenError
+from deltagen.inputs import env_flag, env_positive_int
 from deltagen.paths import cache_dir, generated_dir, runtime_dir
 
 # cffi, shutil, subprocess, tempfile and concurrent.futures are imported where a build
@@ -106,7 +107,7 @@ def compile_flags(prefix: str, opt: str = "-O3") -> tuple[list[str], list[str]]:
     if opt == "-O2":
         args.append("-fvect-cost-model=dynamic")  # vectorised per-point loops (OPT_LEVELS)
     libraries = ["m"]
-    if os.environ.get("DELTAGEN_NATIVE", "1") != "0":
+    if env_flag("DELTAGEN_NATIVE", True, "off: no -march=native, a module for any x86-64 CPU"):
         args.append("-march=native")
     if _vector_math_available():
         args += ["-fopenmp-simd", f"-D{prefix.upper()}_VECTOR_MATH"]
@@ -231,15 +232,18 @@ def write_units(source: Path, text: str, work: Path, split: bool = True) -> list
 
 def _build_jobs() -> int:
     """How many compilers run at once: the cores this process may use, at most
-    DELTAGEN_BUILD_JOBS when that is set to a positive integer."""
+    DELTAGEN_BUILD_JOBS when that is set (a positive integer; anything else is an
+    InputError, as for DELTAGEN_THREADS)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
         cores = os.cpu_count() or 1
-    raw = os.environ.get("DELTAGEN_BUILD_JOBS", "").strip()
-    if raw.isdigit() and int(raw) > 0:
-        return min(cores, int(raw))
-    return max(1, cores)
+    jobs = env_positive_int(
+        "DELTAGEN_BUILD_JOBS",
+        "the compilers a build may run at once",
+        "use every available core",
+    )
+    return max(1, cores) if jobs is None else min(max(1, cores), jobs)
 
 
 def _module_inputs(

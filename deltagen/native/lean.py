@@ -37,19 +37,19 @@ cffi path below, 5 314 through the extension (pinocchio's rnea on the UR5: 10 08
 tests/test_lean_ext.py guards it. One
 extension serves every module: it takes the kernel's address. Where it cannot be built
 (no Python.h, no compiler) the Python code below serves, unchanged; DELTAGEN_LEAN_EXT=0
-chooses it too.
+(or false, no, off; any case) chooses it too, and a value that is no such flag is an
+InputError (deltagen.inputs.env_flag).
 """
 
 from __future__ import annotations
 
-import os
 import threading
 from pathlib import Path
 
 import numpy as np
 
 from deltagen import status as st
-from deltagen.inputs import plain_row
+from deltagen.inputs import env_flag, plain_row
 from deltagen.native.build import BuildError, load_extension
 
 _F64 = np.dtype(np.float64)
@@ -63,7 +63,7 @@ def extension():
     """The compiled native/lean_ext.c (its ``kernel`` factory), or None where it cannot be
     built or DELTAGEN_LEAN_EXT=0: the Python lean path serves then. Tried once per
     process."""
-    if os.environ.get("DELTAGEN_LEAN_EXT", "1") == "0":
+    if not env_flag("DELTAGEN_LEAN_EXT", True, "off: the Python lean path, no C extension"):
         return None
     if not _EXT:
         with _EXT_LOCK:

@@ -43,7 +43,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, wait
 
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, env_positive_int, is_integer
 
 MIN_ROWS_PER_THREAD = 20000
 # a multiple of every generated module's <PREFIX>_BLOCK (codegen.render.Unit.block, 64);
@@ -70,7 +70,7 @@ def check_threads(threads, source: str = "threads"):
     if threads is None:
         resolve_threads(None)
         return None
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+    if not is_integer(threads) or threads < 1:
         raise InputError(
             f"{source} must be a positive integer (or None for every available core), "
             f"got {threads!r}"
@@ -83,19 +83,10 @@ def resolve_threads(threads: int | None) -> int:
     a positive integer), else :func:`available_cores`."""
     if threads is not None:
         return threads
-    text = os.environ.get("DELTAGEN_THREADS")
-    if text is None or text.strip() == "":
-        return available_cores()
-    try:
-        value = int(text.strip(), 10)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise InputError(
-            f"DELTAGEN_THREADS must be a positive integer (the threads a batched call may "
-            f"use), got {text!r}; unset it to use every available core"
-        )
-    return value
+    value = env_positive_int(
+        "DELTAGEN_THREADS", "the threads a batched call may use", "use every available core"
+    )
+    return available_cores() if value is None else value
 
 
 def _get_pool() -> ThreadPoolExecutor:

@@ -59,6 +59,16 @@ Supported structures
     rotation (R1 R2 R3)^T R_G (eq. 13) gives q4, q5 (Paden-Kahan subproblem 2, two solutions:
     the wrist flip) and q6. Eight configurations ``{front|back}_{up|down}_{noflip|flip}``.
 
+``gantry_wrist_3r`` / ``gantry_head_2r`` / ``gantry_rotary_1r`` -- gantry ("Portal") robots:
+    three prismatic joints with independent directions (the Cartesian slides) and a 3R wrist,
+    a 2R head (A/C, B/C) or one rotary axis (a palletiser); model/structure.py
+    :class:`~deltagen.model.structure.GantryArm`. The slides turn nothing, so the wrist alone
+    makes the rotation (the central wrist's subproblems for the 3R wrist, branches
+    ``noflip`` / ``flip``; for the 2R head the tool z axis only, subproblem 2, the same two
+    branch names; the angle about the rotary axis for the 1R, branch ``single``), and the
+    slides then reach the tool point by a 3 x 3 linear solve. The 5-axis head's ``valid``
+    checks the tool point and the tool z axis: the rotation about the tool axis is free.
+
 ``reversed_spherical_wrist_6r`` / ``reversed_parallel_triple_6r`` -- a 6R chain whose first
     three axes meet (a humanoid's hip) or whose first two meet and axes 3, 4, 5 are parallel:
     read backwards (model/structure.py ``reversed_description``: T'(q_6, ..., q_1) = T(q)^-1)
@@ -116,6 +126,7 @@ from deltagen.geometry.rotations import rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import (
+    GantryArm,
     ParallelTriple6R,
     PlanarArm,
     ReversedChain,
@@ -604,6 +615,73 @@ class _StanfordSolver(AnalyticSolver):
         return q, (ok[..., None] & np.ones(2, dtype=bool)).reshape(N, 8)
 
 
+class _GantrySolver(AnalyticSolver):
+    """model.structure.GantryArm: slides 1-3, then a 3R wrist, a 2R head or one rotary axis
+    (product of exponentials, G = T_target T(0)^-1 = Trans(q1 w1 + q2 w2 + q3 w3) e4 ... en):
+
+    1. the wrist from the rotation R_G alone (the slides turn nothing): 3R -- the central
+       wrist's q4, q5 (subproblem 2 for R_G w6) and q6 (subproblem 1), ``noflip`` / ``flip``;
+       2R head -- Rot(w4, q4) Rot(w5, q5) z(0) = R_G z(0) = z_t by subproblem 2 (the same
+       step with w6 replaced by the tool axis z(0)), ``noflip`` / ``flip``; 1R -- q4 by
+       subproblem 1 about w4 on a reference normal to it (``single``). Where the target
+       direction lies along w4 (wrist / head singularity) q4 is 0 and q6 (3R) takes the turn;
+    2. the tool point g at q = 0 carried by the wrist (e_n first, then ... e4: turns about
+       their axes' points), and the slides q1..q3 = slide_inverse (p_t - g).
+
+    ``valid`` checks the whole pose for the 3R wrist and the 1R (a tilted target is not
+    reachable by the palletiser), the tool point and the tool z axis for the 2R head."""
+
+    def _solve(self, R_t, p_t, position_only):
+        s, ax = self.detected, self.axes
+        w, o = ax.directions, ax.points
+        N, n = R_t.shape[0], self.n
+        R_G = R_t @ ax.R0.T
+        k = len(self.configs)
+        q = np.zeros((N, k, n))
+        if n == 4:
+            y = R_G @ s.wrist_ref
+            q[:, 0, 3] = _sp1(w[3], s.wrist_ref, y)
+            ok = np.ones((N, 1), dtype=bool)
+        else:
+            ww = [None, None, None, w[3], w[4], s.carried]  # the carried vector as 'w6'
+            qv = (R_G @ s.carried)[:, None, :]  # (N, 1, 3)
+            qx = (R_G @ s.wrist_ref)[:, None, :]
+            q4, q5, q6, okw = _central_wrist(s, ww, qv, qx)
+            q[:, :, 3], q[:, :, 4] = q4[:, 0], q5[:, 0]
+            if n == 6:
+                q[:, :, 5] = q6[:, 0]
+            ok = np.broadcast_to(okw, (N, k)).copy()
+            if position_only:
+                ok[:] = True  # the head's tool axis as near as it goes (gamma clipped to 0)
+        # the tool point carried by the wrist, then the slides
+        g = np.broadcast_to(ax.p0, (N, k, 3))
+        for i in range(n - 1, 2, -1):
+            g = _rotv(w[i], q[:, :, i], g - o[i]) + o[i]
+        q[:, :, :3] = (p_t[:, None, :] - g) @ s.slide_inverse.T
+        return q, ok
+
+    def _reproduces(self, T, q, ok, position_only, tol):
+        if self.detected.full_pose or position_only:
+            return super()._reproduces(T, q, ok, position_only, tol)
+        # the 2R head: the tool point and the tool z axis (the rotation about it is free)
+        N, k, n = q.shape
+        good = np.zeros((N, k), dtype=bool)
+        idx = np.flatnonzero(ok.reshape(-1))
+        if idx.size == 0:
+            return good
+        rows = idx // k
+        R, p = self.axes.fk(q.reshape(-1, n)[idx])
+        err_p = np.max(np.abs(p - T[rows, :3, 3]), axis=-1) / self.axes.scale
+        err_z = np.max(np.abs(R[:, :, 2] - T[rows, :3, 2]), axis=-1)
+        # the other columns are not compared: the target must still be a rotation
+        # (orthonormal, right-handed), or a matrix that is none would pass
+        Rt = T[rows, :3, :3]
+        gram = np.max(np.abs(np.swapaxes(Rt, 1, 2) @ Rt - np.eye(3)), axis=(1, 2))
+        hand = np.max(np.abs(_cross(Rt[:, :, 0], Rt[:, :, 1]) - Rt[:, :, 2]), axis=-1)
+        good.reshape(-1)[idx] = (err_p <= tol) & (err_z <= tol) & (gram <= tol) & (hand <= tol)
+        return good
+
+
 class ReversedSolver(AnalyticSolver):
     """The closed form of a chain read backwards (``reversed_*`` structures; model/structure.py
     :class:`~deltagen.model.structure.ReversedChain`: the first three axes meet, as in a
@@ -671,6 +749,8 @@ def solver_for(
         cls = _ParallelTripleSolver
     elif isinstance(detected, StanfordArm):
         cls = _StanfordSolver
+    elif isinstance(detected, GantryArm):
+        cls = _GantrySolver
     else:
         cls = _ElbowSolver
     return cls(detected, description)

@@ -4,7 +4,8 @@ The arm's structure and every constant of its closed form come from
 :func:`deltagen.model.structure.detect` (a :class:`~deltagen.model.structure.PlanarArm`,
 :class:`~deltagen.model.structure.Elbow4R`, :class:`~deltagen.model.structure.SphericalWrist6R`
 or, for the UR family, :class:`~deltagen.model.structure.ParallelTriple6R`, or the Stanford
-arm's :class:`~deltagen.model.structure.StanfordArm`); the numpy solver of
+arm's :class:`~deltagen.model.structure.StanfordArm`, or a gantry's
+:class:`~deltagen.model.structure.GantryArm`); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
 every branch of a batch of poses in one call, like the forward kinematics. The steps and
@@ -45,7 +46,10 @@ non-finite input (all outputs NaN / 0).
 Supported: every structure of model.structure with the full pose given (the numpy solver's
 ``solve`` default): ``spherical_wrist_6r``, ``parallel_triple_6r`` (the UR family) and
 ``stanford_rrp_6`` (8 branches each), ``elbow_4r`` (Paul's method for
-q2 + q3, 4 branches) and ``planar`` (2 branches; Paul's method for the 2R arm).
+q2 + q3, 4 branches), ``planar`` (2 branches; Paul's method for the 2R arm) and the
+gantries ``gantry_wrist_3r`` (2 branches), ``gantry_head_2r`` (2 branches; the tool point
+and the tool z axis are checked, with the target's rotation checked to be one) and
+``gantry_rotary_1r`` (1 branch).
 ``position_only`` and other tolerances stay with the numpy solver.
 """
 
@@ -61,11 +65,26 @@ from deltagen import status as st
 from deltagen.derive.functions import AllFinite, Fabs, FitAngle, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
 from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS  # noqa: F401 (SHIFTS: in deltagen_limits.h)
-from deltagen.model.structure import Elbow4R, ParallelTriple6R, PlanarArm, StanfordArm, detect
+from deltagen.model.structure import (
+    GANTRY_KINDS,
+    Elbow4R,
+    GantryArm,
+    ParallelTriple6R,
+    PlanarArm,
+    StanfordArm,
+    detect,
+)
 
 TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
 WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
-SUPPORTED = ("spherical_wrist_6r", "elbow_4r", "planar", "parallel_triple_6r", "stanford_rrp_6")
+SUPPORTED = (
+    "spherical_wrist_6r",
+    "elbow_4r",
+    "planar",
+    "parallel_triple_6r",
+    "stanford_rrp_6",
+    *GANTRY_KINDS.values(),
+)
 _DIGITS = 13
 _TINY = sp.Float("1e-300")
 
@@ -500,7 +519,15 @@ class IKKernelBuilder:
             f"qv_{tag}", self._undo(q1, tot, self._rotate_target(self.axes.directions[5]))
         )
         qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s.wrist_ref)))
-        w4, w5, w6 = w[3], w[4], w[5]
+        return self._wrist_angles(tag, qv, qx, w[5])
+
+    def _wrist_angles(self, tag, qv, qx, w6, with_q6=True):
+        """q4, q5 (Paden-Kahan 2) and q6 (subproblem 1) of a wrist whose rotation takes the
+        vector w6 (the last axis; a 2R head's tool axis) to qv and s.wrist_ref to qx, for both
+        wrist solutions: a list of (name, ok, q4, q5, q6 or None)."""
+        s, tape, K = self.s, self.tape, self.const
+        w = [K.vec(x) for x in self.axes.directions]
+        w4, w5 = w[3], w[4]
         c12 = s.cos_45
         s2 = 1.0 - c12 * c12
         b_p = s.cos_56
@@ -533,8 +560,10 @@ class IKKernelBuilder:
                     sp.Piecewise((0, singular), (q4.s, True)),
                 ),
             )
-            y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
-            q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s.wrist_ref), y)
+            q6 = None
+            if with_q6:
+                y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
+                q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s.wrist_ref), y)
             out.append((name, okw, q4, q5, q6))
         return out
 
@@ -612,8 +641,10 @@ class IKKernelBuilder:
         T = chain.T.xreplace(mapping)
         scale = self.axes.scale
         conds = []
+        # a 2R gantry head reaches the tool z axis, not the rotation about it (GantryArm)
+        columns = (2,) if getattr(self.s, "full_pose", True) is False else (0, 1, 2)
         for r in range(3):
-            for c in range(3):
+            for c in columns:
                 conds.append(_le(Fabs(T[r, c] - self.R_t[r][c]), TOL))
             conds.append(_le(Fabs(T[r, 3] - self.p_t[r]), TOL * scale))
         return tape.let(f"hit_{name}", sp.And(*conds))
@@ -817,6 +848,62 @@ class IKKernelBuilder:
                     solutions[name] = ((q1, q2, q3, q4, q5, q6), sp.And(ok3, ok2, okw))
         return solutions
 
+    # -- gantry robots (solve.analytic._GantrySolver, same steps) --------------------
+
+    def _gantry(self):
+        """The wrist from the target rotation alone (the slides turn nothing): the 3R
+        wrist's q4, q5, q6, the 2R head's q4, q5 for the tool axis, or the rotary's q4;
+        then the tool point carried by the wrist and the slides by the 3 x 3 inverse."""
+        s, ax, tape, K = self.s, self.axes, self.tape, self.const
+        w = [K.vec(x) for x in ax.directions]
+        o = [K.vec(x) for x in ax.points]
+        n = self.n
+        tape.stage("gantry: the wrist rotation R_G = R_t R0^T on the carried vectors")
+        branches = []
+        if n == 4:
+            y = tape.vec("qx_g", self._rotate_target(s.wrist_ref))
+            q4 = _sp1(tape, "q4_single", w[3], K.vec(s.wrist_ref), y)
+            branches.append(("single", sp.true, (q4,)))
+        else:
+            qv = tape.vec("qv_g", self._rotate_target(s.carried))
+            qx = tape.vec("qx_g", self._rotate_target(s.wrist_ref)) if n == 6 else None
+            found = self._wrist_angles("g", qv, qx, K.vec(s.carried), with_q6=n == 6)
+            rigid = sp.true if s.full_pose else self._rigid_target()
+            for name, okw, q4, q5, q6 in found:
+                angles = (q4, q5) if q6 is None else (q4, q5, q6)
+                branches.append((name[2:], sp.And(okw, rigid), angles))
+        solutions = {}
+        for name, ok, angles in branches:
+            tape.stage(f"gantry, branch {name}: the tool point carried by the wrist, the slides")
+            g = K.vec(ax.p0)
+            for i in range(n - 1, 2, -1):
+                a = angles[i - 3]
+                g = _add(_rotate(w[i], a.c, a.s, _add(g, _scale(-1, o[i]))), o[i])
+            g = tape.vec(f"g_{name}", g)
+            d = _add(self.p_t, _scale(-1, g))
+            slides = tuple(
+                tape.let(f"slide{j + 1}_{name}", _dot(K.vec(s.slide_inverse[j]), d))
+                for j in range(3)
+            )
+            solutions[name] = (slides + tuple(angles), ok)
+        return solutions
+
+    def _rigid_target(self):
+        """The target's rotation is orthonormal and right-handed within TOL (x . x = y . y =
+        z . z = 1, x . y = x . z = y . z = 0, x x y = z): the 2R head's check compares the
+        tool axis only, so a target whose other columns are not a rotation's is refused
+        here (solve.analytic._GantrySolver._reproduces)."""
+        tape = self.tape
+        cols = [tuple(self.R_t[r][c] for r in range(3)) for c in range(3)]
+        conds = []
+        for i in range(3):
+            for j in range(i, 3):
+                target = 1 if i == j else 0
+                conds.append(_le(Fabs(_dot(cols[i], cols[j]) - target), TOL))
+        xy = _cross(cols[0], cols[1])
+        conds.extend(_le(Fabs(xy[r] - cols[2][r]), TOL) for r in range(3))
+        return tape.let("rigid_target", sp.And(*conds))
+
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
         self._target()
@@ -828,6 +915,8 @@ class IKKernelBuilder:
             solutions = self._parallel_triple()
         elif isinstance(s, StanfordArm):
             solutions = self._stanford()
+        elif isinstance(s, GantryArm):
+            solutions = self._gantry()
         else:
             solutions = self._elbow_arm()
         q_out, valid_out, valid_flags = [], [], []
@@ -859,15 +948,22 @@ class IKKernelBuilder:
         tape.stage("status")
         any_valid = tape.let("any_valid", sp.Or(*valid_flags))
         k = len(self.configs)
+        doc = (
+            f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
+            "configurations " + ", ".join(self.configs) + " (in this order)."
+        ) + _branch_legend(self.configs)
+        units, reaches = "[rad]", "reaches the pose"
+        if isinstance(s, GantryArm):
+            units = "[m for the slides 1-3, rad for the wrist]"
+            if not s.full_pose:
+                reaches = "reaches the tool point and the tool z axis"
+                doc += (
+                    " A 5-axis head: the tool point and the tool z axis are solved, the "
+                    "rotation about the tool axis is free (not checked); T must be rigid."
+                )
         return Kernel(
             name="ik_all",
-            doc=(
-                f"Inverse kinematics in closed form, every branch: tool pose T -> q for the {k} "
-                "configurations "
-                + ", ".join(self.configs)
-                + " (in this order)."
-                + _branch_legend(self.configs)
-            ),
+            doc=doc,
             inputs=(
                 Port(
                     "T", self.T, "tool pose, 4x4 row-major (rotation | position m)", "m", width=16
@@ -878,7 +974,7 @@ class IKKernelBuilder:
                     "q",
                     tuple(q_out),
                     f"{k} x {n} joint values per pose, branch after branch "
-                    "[rad]; NaN where the branch has no real solution",
+                    f"{units}; NaN where the branch has no real solution",
                     "rad",
                     width=k * n,
                 ),
@@ -886,7 +982,7 @@ class IKKernelBuilder:
                     "valid",
                     tuple(valid_out),
                     f"{k} flags per pose: 1 where the branch "
-                    "reaches the pose within the joint limits, else 0",
+                    f"{reaches} within the joint limits, else 0",
                     "-",
                     width=k,
                     ctype="uint8_t",
