@@ -511,13 +511,19 @@ def _write_csv(jt, tau, path):
     return path
 
 
+def _output(out, default: str, stream):
+    """(stream, folder) of a demo that writes files: stdout unless given, and ``out`` (or the
+    demo's default folder name) created."""
+    folder = Path(default if out is None else out)
+    folder.mkdir(parents=True, exist_ok=True)
+    return (sys.stdout if stream is None else stream), folder
+
+
 def run_miskolc(out=None, stream=None) -> int:
     pyplot()  # before the computation: without matplotlib, say so now
     from deltagen.api.serial import SerialRobot
 
-    stream = sys.stdout if stream is None else stream
-    folder = Path("miskolc_pick_and_place" if out is None else out)
-    folder.mkdir(parents=True, exist_ok=True)
+    stream, folder = _output(out, "miskolc_pick_and_place", stream)
     arm = SerialRobot.load("miskolc_rrrr")
     jt = miskolc_joint_trajectory(DT, arm)
     jt_half = miskolc_joint_trajectory(DT / 2, arm)
@@ -672,9 +678,7 @@ def run_singular(out=None, stream=None) -> int:
     from deltagen.plan.singular_path import SingularPathError
     from deltagen.plan.trajectory import Task, to_joint_trajectory
 
-    stream = sys.stdout if stream is None else stream
-    folder = Path("singular_path" if out is None else out)
-    folder.mkdir(parents=True, exist_ok=True)
+    stream, folder = _output(out, "singular_path", stream)
     arm = SerialRobot.load("puma560")
     traj, q0 = singular_line(arm)
     print(

@@ -280,15 +280,25 @@ class AnalyticSolver:
 
     # -- shared steps --------------------------------------------------------------------
 
-    def _reproduces(self, T, q, ok, position_only, tol):
+    def _fk_at_solutions(self, T, q, ok):
+        """(good, idx, rows, R, err_p) for the forward-kinematics check of the branches
+        ``ok`` marks: an all-False (N, k) result to fill, the flat indices of those branches,
+        their pose rows, their tool rotations and their position errors relative to the arm's
+        size."""
         N, k, n = q.shape
         good = np.zeros((N, k), dtype=bool)
         idx = np.flatnonzero(ok.reshape(-1))
-        if idx.size == 0:
-            return good
         rows = idx // k
+        if idx.size == 0:
+            return good, idx, rows, np.zeros((0, 3, 3)), np.zeros(0)
         R, p = self.axes.fk(q.reshape(-1, n)[idx])
         err_p = np.max(np.abs(p - T[rows, :3, 3]), axis=-1) / self.axes.scale
+        return good, idx, rows, R, err_p
+
+    def _reproduces(self, T, q, ok, position_only, tol):
+        good, idx, rows, R, err_p = self._fk_at_solutions(T, q, ok)
+        if idx.size == 0:
+            return good
         passed = err_p <= tol
         if not position_only:
             passed &= np.max(np.abs(R - T[rows, :3, :3]), axis=(1, 2)) <= tol
@@ -664,14 +674,9 @@ class _GantrySolver(AnalyticSolver):
         if self.detected.full_pose or position_only:
             return super()._reproduces(T, q, ok, position_only, tol)
         # the 2R head: the tool point and the tool z axis (the rotation about it is free)
-        N, k, n = q.shape
-        good = np.zeros((N, k), dtype=bool)
-        idx = np.flatnonzero(ok.reshape(-1))
+        good, idx, rows, R, err_p = self._fk_at_solutions(T, q, ok)
         if idx.size == 0:
             return good
-        rows = idx // k
-        R, p = self.axes.fk(q.reshape(-1, n)[idx])
-        err_p = np.max(np.abs(p - T[rows, :3, 3]), axis=-1) / self.axes.scale
         err_z = np.max(np.abs(R[:, :, 2] - T[rows, :3, 2]), axis=-1)
         # the other columns are not compared: the target must still be a rotation
         # (orthonormal, right-handed), or a matrix that is none would pass
