@@ -140,7 +140,7 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 329 operations per point.
+ * Cost: 332 operations per point.
  * Stack: 23 block arrays (20 double, 3 int) of DELTAGEN_BOSCH_SR800_BLOCK points,
  * 11008 bytes (10.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

@@ -1677,6 +1677,12 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_GANTRY_XYZ_AC_BLOCK) {
         const size_t m = (n - start < DELTAGEN_GANTRY_XYZ_AC_BLOCK) ? n - start : DELTAGEN_GANTRY_XYZ_AC_BLOCK;
@@ -1742,17 +1748,17 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const double beta_g = 0;
             const double perp2_g = Tt13*Tt13 + Tt23*Tt23;
             const double gam2_g = perp2_g - (beta_g*beta_g);
-            const int ok_wrist_g = (gam2_g >= -1.0000000000000001e-9);
+            const int ok_wrist_g = (gam2_g >= -ik_slack);
             const double gam_g = sqrt(fmax(0, gam2_g));
             const int wrist_singular_g = (perp2_g < 9.9999999999999992e-25);
             /* wrist, branch g_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t2_1 = Tt13*beta_g + Tt23*gam_g;
             const double t2_2 = -Tt13*gam_g + Tt23*beta_g;
             const double q5_g_noflip_h = sqrt(Tt33*Tt33 + gam_g*gam_g);
-            const double q5_g_noflip_den = (((q5_g_noflip_h > 1.0e-300)) ? q5_g_noflip_h : 1.0e-300);
+            const double q5_g_noflip_den = (((ik_tiny < q5_g_noflip_h)) ? q5_g_noflip_h : ik_tiny);
             const double q5_g_noflip_inv = 1.0/q5_g_noflip_den;
             const double q4r_g_noflip_h = sqrt(t2_1*t2_1 + t2_2*t2_2);
-            const double q4r_g_noflip_den = (((q4r_g_noflip_h > 1.0e-300)) ? q4r_g_noflip_h : 1.0e-300);
+            const double q4r_g_noflip_den = (((ik_tiny < q4r_g_noflip_h)) ? q4r_g_noflip_h : ik_tiny);
             const double q4r_g_noflip_inv = 1.0/q4r_g_noflip_den;
             const int t2_0 = (q5_g_noflip_h > 0);
             const int t2_3 = (q4r_g_noflip_h > 0);
@@ -1769,14 +1775,14 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const double t3_0 = Tt33*Tt33;
             const double cw_g_flip_y = -gam_g;
             const double q5_g_flip_h = sqrt(t3_0 + cw_g_flip_y*cw_g_flip_y);
-            const double q5_g_flip_den = (((q5_g_flip_h > 1.0e-300)) ? q5_g_flip_h : 1.0e-300);
+            const double q5_g_flip_den = (((ik_tiny < q5_g_flip_h)) ? q5_g_flip_h : ik_tiny);
             const double q5_g_flip_inv = 1.0/q5_g_flip_den;
-            const int rigid_target = (((fabs(Tt11*Tt12 + Tt21*Tt22 + Tt31*Tt32) <= 1.0e-8)) & ((fabs(Tt11*Tt13 +
-                    Tt21*Tt23 + Tt31*Tt33) <= 1.0e-8)) & ((fabs(Tt12*Tt13 + Tt22*Tt23 + Tt32*Tt33) <= 1.0e-8)) &
-                    ((fabs(-Tt13 + Tt21*Tt32 - Tt22*Tt31) <= 1.0e-8)) & ((fabs(Tt11*Tt22 - Tt12*Tt21 - Tt33) <= 1.0e-8))
-                    & ((fabs(-Tt11*Tt32 + Tt12*Tt31 - Tt23) <= 1.0e-8)) & ((fabs(t3_0 - 1 + Tt13*Tt13 + Tt23*Tt23) <=
-                    1.0e-8)) & ((fabs(-1 + Tt11*Tt11 + Tt21*Tt21 + Tt31*Tt31) <= 1.0e-8)) & ((fabs(-1 + Tt12*Tt12 +
-                    Tt22*Tt22 + Tt32*Tt32) <= 1.0e-8)));
+            const int rigid_target = (((fabs(Tt11*Tt12 + Tt21*Tt22 + Tt31*Tt32) <= ik_tol)) & ((fabs(Tt11*Tt13 +
+                    Tt21*Tt23 + Tt31*Tt33) <= ik_tol)) & ((fabs(Tt12*Tt13 + Tt22*Tt23 + Tt32*Tt33) <= ik_tol)) &
+                    ((fabs(-Tt13 + Tt21*Tt32 - Tt22*Tt31) <= ik_tol)) & ((fabs(Tt11*Tt22 - Tt12*Tt21 - Tt33) <= ik_tol))
+                    & ((fabs(-Tt11*Tt32 + Tt12*Tt31 - Tt23) <= ik_tol)) & ((fabs(t3_0 - 1 + Tt13*Tt13 + Tt23*Tt23) <=
+                    ik_tol)) & ((fabs(-1 + Tt11*Tt11 + Tt21*Tt21 + Tt31*Tt31) <= ik_tol)) & ((fabs(-1 + Tt12*Tt12 +
+                    Tt22*Tt22 + Tt32*Tt32) <= ik_tol)));
             const int t3_1 = (q5_g_flip_h > 0);
             const double t3_2 = Tt13*beta_g + Tt23*cw_g_flip_y;
             const double t3_3 = -Tt13*cw_g_flip_y + Tt23*beta_g;
@@ -1784,7 +1790,7 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const double q5_g_flip_s = ((t3_1) ? cw_g_flip_y*q5_g_flip_inv : 0);
             const double q5_g_flip = ((t3_1) ? atan2(cw_g_flip_y, -Tt33) : 0);
             const double q4r_g_flip_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
-            const double q4r_g_flip_den = (((q4r_g_flip_h > 1.0e-300)) ? q4r_g_flip_h : 1.0e-300);
+            const double q4r_g_flip_den = (((ik_tiny < q4r_g_flip_h)) ? q4r_g_flip_h : ik_tiny);
             const double q4r_g_flip_inv = 1.0/q4r_g_flip_den;
             const int t3_4 = (q4r_g_flip_h > 0);
             const double q4r_g_flip_c = ((t3_4) ? q4r_g_flip_inv*t3_2 : 1);
@@ -1814,6 +1820,7 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             /* check, branch noflip: forward kinematics at the solution */
             const double t6_0 = q4_g_noflip_s*q5_g_noflip_s;
             const double t6_1 = q4_g_noflip_c*q5_g_noflip_s;
+            const double t6_2 = 1.5*ik_tol;
             const double F3_34_noflip = 1.0 - slide3_noflip;
             const double F4_34_noflip = F3_34_noflip - 0.18;
             const double F5_13_noflip = t6_0;
@@ -1821,10 +1828,9 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const double F5_23_noflip = -t6_1;
             const double F5_24_noflip = slide2_noflip + 0.22*t6_1;
             const double F5_34_noflip = F4_34_noflip - 0.22*q5_g_noflip_c;
-            const int hit_noflip = (((fabs(F5_14_noflip - Tt14) <= 1.5000000000000002e-8)) & ((fabs(F5_24_noflip - Tt24)
-                    <= 1.5000000000000002e-8)) & ((fabs(F5_34_noflip - Tt34) <= 1.5000000000000002e-8)) &
-                    ((fabs(-F5_13_noflip - Tt13) <= 1.0e-8)) & ((fabs(-F5_23_noflip - Tt23) <= 1.0e-8)) & ((fabs(-Tt33 -
-                    q5_g_noflip_c) <= 1.0e-8)));
+            const int hit_noflip = (((fabs(F5_14_noflip - Tt14) <= t6_2)) & ((fabs(F5_24_noflip - Tt24) <= t6_2)) &
+                    ((fabs(F5_34_noflip - Tt34) <= t6_2)) & ((fabs(-F5_13_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(-F5_23_noflip - Tt23) <= ik_tol)) & ((fabs(-Tt33 - q5_g_noflip_c) <= ik_tol)));
             /* joint limits and outputs, branch noflip */
             const int fit_q1_noflip_in0 = (((slide1_noflip >= -1.0e-10)) & ((slide1_noflip <= 2.5000000001)));
             const double fit_q1_noflip = ((fit_q1_noflip_in0) ? fmin(2.5, fmax(0.0, slide1_noflip)) : slide1_noflip);
@@ -1849,6 +1855,7 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             /* check, branch flip: forward kinematics at the solution */
             const double t8_0 = q4_g_flip_s*q5_g_flip_s;
             const double t8_1 = q4_g_flip_c*q5_g_flip_s;
+            const double t8_2 = 1.5*ik_tol;
             const double F3_34_flip = 1.0 - slide3_flip;
             const double F4_34_flip = F3_34_flip - 0.18;
             const double F5_13_flip = t8_0;
@@ -1856,10 +1863,9 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
             const double F5_23_flip = -t8_1;
             const double F5_24_flip = slide2_flip + 0.22*t8_1;
             const double F5_34_flip = F4_34_flip - 0.22*q5_g_flip_c;
-            const int hit_flip = (((fabs(F5_14_flip - Tt14) <= 1.5000000000000002e-8)) & ((fabs(F5_24_flip - Tt24) <=
-                    1.5000000000000002e-8)) & ((fabs(F5_34_flip - Tt34) <= 1.5000000000000002e-8)) & ((fabs(-F5_13_flip
-                    - Tt13) <= 1.0e-8)) & ((fabs(-F5_23_flip - Tt23) <= 1.0e-8)) & ((fabs(-Tt33 - q5_g_flip_c) <=
-                    1.0e-8)));
+            const int hit_flip = (((fabs(F5_14_flip - Tt14) <= t8_2)) & ((fabs(F5_24_flip - Tt24) <= t8_2)) &
+                    ((fabs(F5_34_flip - Tt34) <= t8_2)) & ((fabs(-F5_13_flip - Tt13) <= ik_tol)) & ((fabs(-F5_23_flip -
+                    Tt23) <= ik_tol)) & ((fabs(-Tt33 - q5_g_flip_c) <= ik_tol)));
             /* joint limits and outputs, branch flip */
             const int fit_q1_flip_in0 = (((slide1_flip >= -1.0e-10)) & ((slide1_flip <= 2.5000000001)));
             const double fit_q1_flip = ((fit_q1_flip_in0) ? fmin(2.5, fmax(0.0, slide1_flip)) : slide1_flip);

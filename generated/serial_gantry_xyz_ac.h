@@ -142,7 +142,7 @@ int deltagen_gantry_xyz_ac_jacobian_dot(size_t n, const double *restrict q, cons
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 336 operations per point.
+ * Cost: 339 operations per point.
  * Stack: 25 block arrays (22 double, 3 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

@@ -1936,6 +1936,12 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_GANTRY_XYZ_WRIST_BLOCK) {
         const size_t m = (n - start < DELTAGEN_GANTRY_XYZ_WRIST_BLOCK) ? n - start : DELTAGEN_GANTRY_XYZ_WRIST_BLOCK;
@@ -2009,13 +2015,13 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double beta_g = 0;
             const double perp2_g = qv_g_x*qv_g_x + qv_g_y*qv_g_y;
             const double gam2_g = perp2_g - (beta_g*beta_g);
-            const int ok_wrist_g = (gam2_g >= -1.0000000000000001e-9);
+            const int ok_wrist_g = (gam2_g >= -ik_slack);
             const double gam_g = sqrt(fmax(0, gam2_g));
             const int wrist_singular_g = (perp2_g < 9.9999999999999992e-25);
             /* wrist, branch g_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_g_noflip_x = -gam_g;
             const double q5_g_noflip_h = sqrt(cw_g_noflip_x*cw_g_noflip_x + qv_g_z*qv_g_z);
-            const double q5_g_noflip_den = (((q5_g_noflip_h > 1.0e-300)) ? q5_g_noflip_h : 1.0e-300);
+            const double q5_g_noflip_den = (((ik_tiny < q5_g_noflip_h)) ? q5_g_noflip_h : ik_tiny);
             const double q5_g_noflip_inv = 1.0/q5_g_noflip_den;
             const int t2_0 = (q5_g_noflip_h > 0);
             const double t2_1 = beta_g*qv_g_y + cw_g_noflip_x*qv_g_x;
@@ -2024,7 +2030,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double q5_g_noflip_s = ((t2_0) ? cw_g_noflip_x*q5_g_noflip_inv : 0);
             const double q5_g_noflip = ((t2_0) ? atan2(cw_g_noflip_x, qv_g_z) : 0);
             const double q4r_g_noflip_h = sqrt(t2_1*t2_1 + t2_2*t2_2);
-            const double q4r_g_noflip_den = (((q4r_g_noflip_h > 1.0e-300)) ? q4r_g_noflip_h : 1.0e-300);
+            const double q4r_g_noflip_den = (((ik_tiny < q4r_g_noflip_h)) ? q4r_g_noflip_h : ik_tiny);
             const double q4r_g_noflip_inv = 1.0/q4r_g_noflip_den;
             const int t2_3 = (q4r_g_noflip_h > 0);
             const double q4r_g_noflip_c = ((t2_3) ? q4r_g_noflip_inv*t2_1 : 1);
@@ -2038,7 +2044,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double t2_5 = q4_g_noflip_c*qx_g_y - q4_g_noflip_s*qx_g_x;
             const double t2_6 = q5_g_noflip_c*t2_5 + t2_5*(1 - q5_g_noflip_c);
             const double q6_g_noflip_h = sqrt(t2_4*t2_4 + t2_6*t2_6);
-            const double q6_g_noflip_den = (((q6_g_noflip_h > 1.0e-300)) ? q6_g_noflip_h : 1.0e-300);
+            const double q6_g_noflip_den = (((ik_tiny < q6_g_noflip_h)) ? q6_g_noflip_h : ik_tiny);
             const double q6_g_noflip_inv = 1.0/q6_g_noflip_den;
             const int t2_7 = (q6_g_noflip_h > 0);
             const double q6_g_noflip_c = ((t2_7) ? q6_g_noflip_inv*t2_6 : 1);
@@ -2048,10 +2054,10 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double t3_1 = beta_g*qv_g_y + gam_g*qv_g_x;
             const double t3_2 = -beta_g*qv_g_x + gam_g*qv_g_y;
             const double q5_g_flip_h = sqrt(gam_g*gam_g + qv_g_z*qv_g_z);
-            const double q5_g_flip_den = (((q5_g_flip_h > 1.0e-300)) ? q5_g_flip_h : 1.0e-300);
+            const double q5_g_flip_den = (((ik_tiny < q5_g_flip_h)) ? q5_g_flip_h : ik_tiny);
             const double q5_g_flip_inv = 1.0/q5_g_flip_den;
             const double q4r_g_flip_h = sqrt(t3_1*t3_1 + t3_2*t3_2);
-            const double q4r_g_flip_den = (((q4r_g_flip_h > 1.0e-300)) ? q4r_g_flip_h : 1.0e-300);
+            const double q4r_g_flip_den = (((ik_tiny < q4r_g_flip_h)) ? q4r_g_flip_h : ik_tiny);
             const double q4r_g_flip_inv = 1.0/q4r_g_flip_den;
             const int t3_0 = (q5_g_flip_h > 0);
             const int t3_3 = (q4r_g_flip_h > 0);
@@ -2069,7 +2075,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double t3_5 = q4_g_flip_c*qx_g_y - q4_g_flip_s*qx_g_x;
             const double t3_6 = q5_g_flip_c*t3_5 + t3_5*(1 - q5_g_flip_c);
             const double q6_g_flip_h = sqrt(t3_4*t3_4 + t3_6*t3_6);
-            const double q6_g_flip_den = (((q6_g_flip_h > 1.0e-300)) ? q6_g_flip_h : 1.0e-300);
+            const double q6_g_flip_den = (((ik_tiny < q6_g_flip_h)) ? q6_g_flip_h : ik_tiny);
             const double q6_g_flip_inv = 1.0/q6_g_flip_den;
             const int t3_7 = (q6_g_flip_h > 0);
             const double q6_g_flip_c = ((t3_7) ? q6_g_flip_inv*t3_6 : 1);
@@ -2094,6 +2100,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double slide2_flip = Tt24 - g_flip_y;
             const double slide3_flip = -Tt34 + g_flip_z;
             /* check, branch noflip: forward kinematics at the solution */
+            const double t6_0 = 2.0*ik_tol;
             const double F3_34_noflip = 1.25 - slide3_noflip;
             const double F4_34_noflip = F3_34_noflip - 0.25;
             const double F5_11_noflip = q4_g_noflip_c*q5_g_noflip_c;
@@ -2109,12 +2116,12 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double F6_31_noflip = -q5_g_noflip_s*q6_g_noflip_c;
             const double F6_32_noflip = q5_g_noflip_s*q6_g_noflip_s;
             const double F6_34_noflip = F4_34_noflip - 0.12*q5_g_noflip_c;
-            const int hit_noflip = (((fabs(F6_11_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_14_noflip - Tt14) <= 2.0e-8)) &
-                    ((fabs(F6_21_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_24_noflip - Tt24) <= 2.0e-8)) &
-                    ((fabs(F6_31_noflip - Tt31) <= 1.0e-8)) & ((fabs(F6_34_noflip - Tt34) <= 2.0e-8)) &
-                    ((fabs(-F5_13_noflip - Tt13) <= 1.0e-8)) & ((fabs(-F5_23_noflip - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_12_noflip - Tt12) <= 1.0e-8)) & ((fabs(-F6_22_noflip - Tt22) <= 1.0e-8)) &
-                    ((fabs(-F6_32_noflip - Tt32) <= 1.0e-8)) & ((fabs(-Tt33 - q5_g_noflip_c) <= 1.0e-8)));
+            const int hit_noflip = (((fabs(F6_11_noflip - Tt11) <= ik_tol)) & ((fabs(F6_14_noflip - Tt14) <= t6_0)) &
+                    ((fabs(F6_21_noflip - Tt21) <= ik_tol)) & ((fabs(F6_24_noflip - Tt24) <= t6_0)) &
+                    ((fabs(F6_31_noflip - Tt31) <= ik_tol)) & ((fabs(F6_34_noflip - Tt34) <= t6_0)) &
+                    ((fabs(-F5_13_noflip - Tt13) <= ik_tol)) & ((fabs(-F5_23_noflip - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_12_noflip - Tt12) <= ik_tol)) & ((fabs(-F6_22_noflip - Tt22) <= ik_tol)) &
+                    ((fabs(-F6_32_noflip - Tt32) <= ik_tol)) & ((fabs(-Tt33 - q5_g_noflip_c) <= ik_tol)));
             /* joint limits and outputs, branch noflip */
             const int fit_q1_noflip_in0 = (((slide1_noflip >= -1.0e-10)) & ((slide1_noflip <= 3.0000000001)));
             const double fit_q1_noflip = ((fit_q1_noflip_in0) ? fmin(3.0, fmax(0.0, slide1_noflip)) : slide1_noflip);
@@ -2141,6 +2148,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
                     (fit_q4_noflip_in) & (fit_q5_noflip_in) & (fit_q6_noflip_in) & (ok_noflip));
             const int out_valid_noflip = (valid_noflip);
             /* check, branch flip: forward kinematics at the solution */
+            const double t8_0 = 2.0*ik_tol;
             const double F3_34_flip = 1.25 - slide3_flip;
             const double F4_34_flip = F3_34_flip - 0.25;
             const double F5_11_flip = q4_g_flip_c*q5_g_flip_c;
@@ -2156,12 +2164,12 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double F6_31_flip = -q5_g_flip_s*q6_g_flip_c;
             const double F6_32_flip = q5_g_flip_s*q6_g_flip_s;
             const double F6_34_flip = F4_34_flip - 0.12*q5_g_flip_c;
-            const int hit_flip = (((fabs(F6_11_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_14_flip - Tt14) <= 2.0e-8)) &
-                    ((fabs(F6_21_flip - Tt21) <= 1.0e-8)) & ((fabs(F6_24_flip - Tt24) <= 2.0e-8)) & ((fabs(F6_31_flip -
-                    Tt31) <= 1.0e-8)) & ((fabs(F6_34_flip - Tt34) <= 2.0e-8)) & ((fabs(-F5_13_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(-F5_23_flip - Tt23) <= 1.0e-8)) & ((fabs(-F6_12_flip - Tt12) <= 1.0e-8)) & ((fabs(-F6_22_flip
-                    - Tt22) <= 1.0e-8)) & ((fabs(-F6_32_flip - Tt32) <= 1.0e-8)) & ((fabs(-Tt33 - q5_g_flip_c) <=
-                    1.0e-8)));
+            const int hit_flip = (((fabs(F6_11_flip - Tt11) <= ik_tol)) & ((fabs(F6_14_flip - Tt14) <= t8_0)) &
+                    ((fabs(F6_21_flip - Tt21) <= ik_tol)) & ((fabs(F6_24_flip - Tt24) <= t8_0)) & ((fabs(F6_31_flip -
+                    Tt31) <= ik_tol)) & ((fabs(F6_34_flip - Tt34) <= t8_0)) & ((fabs(-F5_13_flip - Tt13) <= ik_tol)) &
+                    ((fabs(-F5_23_flip - Tt23) <= ik_tol)) & ((fabs(-F6_12_flip - Tt12) <= ik_tol)) & ((fabs(-F6_22_flip
+                    - Tt22) <= ik_tol)) & ((fabs(-F6_32_flip - Tt32) <= ik_tol)) & ((fabs(-Tt33 - q5_g_flip_c) <=
+                    ik_tol)));
             /* joint limits and outputs, branch flip */
             const int fit_q1_flip_in0 = (((slide1_flip >= -1.0e-10)) & ((slide1_flip <= 3.0000000001)));
             const double fit_q1_flip = ((fit_q1_flip_in0) ? fmin(3.0, fmax(0.0, slide1_flip)) : slide1_flip);

@@ -141,7 +141,7 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 425 operations per point.
+ * Cost: 428 operations per point.
  * Stack: 27 block arrays (24 double, 3 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
  * 13056 bytes (12.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

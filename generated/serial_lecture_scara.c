@@ -1110,6 +1110,11 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_LECTURE_SCARA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_LECTURE_SCARA_BLOCK) ? n - start : DELTAGEN_LECTURE_SCARA_BLOCK;
@@ -1167,7 +1172,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
                     & isfinite(Tt34));
             /* planar arm: the point P, the travel along u and the yaw about u */
             const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
-            const double yaw_den = (((yaw_h > 1.0e-300)) ? yaw_h : 1.0e-300);
+            const double yaw_den = (((ik_tiny < yaw_h)) ? yaw_h : ik_tiny);
             const double yaw_inv = 1.0/yaw_den;
             const int t1_0 = (yaw_h > 0);
             const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
@@ -1177,7 +1182,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double t2_0 = -3.0*Tt11 + Tt14;
             const double t2_1 = -3.0*Tt21 + Tt24;
             const double phi_b_h = sqrt(t2_0*t2_0 + t2_1*t2_1);
-            const double phi_b_den = (((phi_b_h > 1.0e-300)) ? phi_b_h : 1.0e-300);
+            const double phi_b_den = (((ik_tiny < phi_b_h)) ? phi_b_h : ik_tiny);
             const double phi_b_inv = 1.0/phi_b_den;
             const int t2_2 = (phi_b_h > 0);
             const double phi_b_c = ((t2_2) ? phi_b_inv*t2_0 : 1);
@@ -1194,6 +1199,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double t3_3 = paul2_s*phi_b_c;
             const double t3_4 = paul2_c*t3_1 + 1.0*t3_3;
             const double t3_5 = 3.0*phi_b_s;
+            const double t3_6 = 7.0*ik_tol;
             const double F1_14_elbow_up = 4.0*phi_b_c;
             const double F1_24_elbow_up = 4.0*phi_b_s;
             const double F2_11_elbow_up = t3_2;
@@ -1202,12 +1208,11 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double F2_21_elbow_up = t3_4;
             const double F2_22_elbow_up = t3_2;
             const double F2_24_elbow_up = F1_24_elbow_up + paul2_c*t3_5 + 3.0*t3_3;
-            const int hit_elbow_up = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8))
-                    & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(-Tt34) <= 7.0000000000000005e-8)) & ((fabs(1 - Tt33) <=
-                    1.0e-8)) & ((fabs(F2_11_elbow_up - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_up - Tt12) <= 1.0e-8)) &
-                    ((fabs(F2_14_elbow_up - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_up - Tt21) <= 1.0e-8))
-                    & ((fabs(F2_22_elbow_up - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_up - Tt24) <=
-                    7.0000000000000005e-8)));
+            const int hit_elbow_up = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <= ik_tol))
+                    & ((fabs(-Tt32) <= ik_tol)) & ((fabs(-Tt34) <= t3_6)) & ((fabs(1 - Tt33) <= ik_tol)) &
+                    ((fabs(F2_11_elbow_up - Tt11) <= ik_tol)) & ((fabs(F2_12_elbow_up - Tt12) <= ik_tol)) &
+                    ((fabs(F2_14_elbow_up - Tt14) <= t3_6)) & ((fabs(F2_21_elbow_up - Tt21) <= ik_tol)) &
+                    ((fabs(F2_22_elbow_up - Tt22) <= ik_tol)) & ((fabs(F2_24_elbow_up - Tt24) <= t3_6)));
             /* joint limits and outputs, branch elbow_up */
             const double t4_0 = 1.0*phi_b;
             const double t4_1 = (1.0/2.0)/3.141592653589793;
@@ -1225,6 +1230,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double t5_3 = paul2_s*phi_b_c;
             const double t5_4 = paul2_c*t5_1 + 1.0*t5_3;
             const double t5_5 = 3.0*phi_b_s;
+            const double t5_6 = 7.0*ik_tol;
             const double F1_14_elbow_down = 4.0*phi_b_c;
             const double F1_24_elbow_down = 4.0*phi_b_s;
             const double F2_11_elbow_down = t5_2;
@@ -1233,12 +1239,11 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double F2_21_elbow_down = t5_4;
             const double F2_22_elbow_down = t5_2;
             const double F2_24_elbow_down = F1_24_elbow_down + paul2_c*t5_5 + 3.0*t5_3;
-            const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <=
-                    1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(-Tt34) <= 7.0000000000000005e-8)) & ((fabs(1 - Tt33)
-                    <= 1.0e-8)) & ((fabs(F2_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F2_12_elbow_down - Tt12) <=
-                    1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 7.0000000000000005e-8)) & ((fabs(F2_21_elbow_down -
-                    Tt21) <= 1.0e-8)) & ((fabs(F2_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F2_24_elbow_down - Tt24) <=
-                    7.0000000000000005e-8)));
+            const int hit_elbow_down = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <=
+                    ik_tol)) & ((fabs(-Tt32) <= ik_tol)) & ((fabs(-Tt34) <= t5_6)) & ((fabs(1 - Tt33) <= ik_tol)) &
+                    ((fabs(F2_11_elbow_down - Tt11) <= ik_tol)) & ((fabs(F2_12_elbow_down - Tt12) <= ik_tol)) &
+                    ((fabs(F2_14_elbow_down - Tt14) <= t5_6)) & ((fabs(F2_21_elbow_down - Tt21) <= ik_tol)) &
+                    ((fabs(F2_22_elbow_down - Tt22) <= ik_tol)) & ((fabs(F2_24_elbow_down - Tt24) <= t5_6)));
             /* joint limits and outputs, branch elbow_down */
             const int ok_elbow_down = ((elbow_down) & (hit_elbow_down) & (!invalid) & ((isfinite(fit_q1_elbow_up) &
                     isfinite(fit_q2_elbow_up))));

@@ -140,7 +140,7 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 196 operations per point.
+ * Cost: 198 operations per point.
  * Stack: 19 block arrays (16 double, 3 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
  * 8960 bytes (8.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

@@ -1525,6 +1525,12 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_MANUTEC_H5_BLOCK) {
         const size_t m = (n - start < DELTAGEN_MANUTEC_H5_BLOCK) ? n - start : DELTAGEN_MANUTEC_H5_BLOCK;
@@ -1587,7 +1593,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             /* planar arm: the point P, the travel along u and the yaw about u */
             const double travel = Tt34 + 0.1;
             const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
-            const double yaw_den = (((yaw_h > 1.0e-300)) ? yaw_h : 1.0e-300);
+            const double yaw_den = (((ik_tiny < yaw_h)) ? yaw_h : ik_tiny);
             const double yaw_inv = 1.0/yaw_den;
             const int t1_0 = (yaw_h > 0);
             const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
@@ -1596,7 +1602,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             /* planar arm: law of cosines */
             const double kappa_planar = -1.0416666666666667 + 4.1666666666666667*(Tt14*Tt14) +
                     4.1666666666666667*(Tt24*Tt24);
-            const int ok_elbow_planar = (fabs(kappa_planar) <= 1.0000000010000001);
+            const int ok_elbow_planar = (fabs(kappa_planar) <= ik_slack + 1);
             const double kc0_planar = (((kappa_planar > -1)) ? kappa_planar : -1);
             const double kc_planar = (((kc0_planar < 1)) ? kc0_planar : 1);
             const double ks_planar = sqrt(1 - (kc_planar*kc_planar));
@@ -1609,7 +1615,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double t3_2 = -Tt14*t3_0 + Tt24*t3_1;
             const double t3_3 = Tt14*t3_1 + Tt24*t3_0;
             const double th2_elbow_up_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
-            const double th2_elbow_up_den = (((th2_elbow_up_h > 1.0e-300)) ? th2_elbow_up_h : 1.0e-300);
+            const double th2_elbow_up_den = (((ik_tiny < th2_elbow_up_h)) ? th2_elbow_up_h : ik_tiny);
             const double th2_elbow_up_inv = 1.0/th2_elbow_up_den;
             const int t3_4 = (th2_elbow_up_h > 0);
             const double th2_elbow_up_c = ((t3_4) ? t3_3*th2_elbow_up_inv : 1);
@@ -1628,7 +1634,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double t4_2 = -Tt14*t4_0 + Tt24*t4_1;
             const double t4_3 = Tt14*t4_1 + Tt24*t4_0;
             const double th2_elbow_down_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_elbow_down_den = (((th2_elbow_down_h > 1.0e-300)) ? th2_elbow_down_h : 1.0e-300);
+            const double th2_elbow_down_den = (((ik_tiny < th2_elbow_down_h)) ? th2_elbow_down_h : ik_tiny);
             const double th2_elbow_down_inv = 1.0/th2_elbow_down_den;
             const int t4_4 = (th2_elbow_down_h > 0);
             const double th2_elbow_down_c = ((t4_4) ? t4_3*th2_elbow_down_inv : 1);
@@ -1647,6 +1653,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double t5_4 = kc_planar*t5_1 + 1.0*t5_3;
             const double t5_5 = 0.3*th2_elbow_up_s;
             const double t5_6 = 1.0*roll_elbow_up_s;
+            const double t5_7 = 1.0*ik_tol;
             const double F2_14_elbow_up = 0.4*th2_elbow_up_c;
             const double F2_24_elbow_up = 0.4*th2_elbow_up_s;
             const double F3_11_elbow_up = t5_2;
@@ -1660,11 +1667,11 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double F4_21_elbow_up = F3_21_elbow_up*roll_elbow_up_c + F3_22_elbow_up*t5_6;
             const double F4_22_elbow_up = -F3_21_elbow_up*t5_6 + F3_22_elbow_up*roll_elbow_up_c;
             const double F4_34_elbow_up = travel - 0.1;
-            const int hit_elbow_up = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8))
-                    & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F3_14_elbow_up - Tt14) <=
-                    1.0e-8)) & ((fabs(F3_24_elbow_up - Tt24) <= 1.0e-8)) & ((fabs(F4_11_elbow_up - Tt11) <= 1.0e-8)) &
-                    ((fabs(F4_12_elbow_up - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_up - Tt21) <= 1.0e-8)) &
-                    ((fabs(F4_22_elbow_up - Tt22) <= 1.0e-8)) & ((fabs(F4_34_elbow_up - Tt34) <= 1.0e-8)));
+            const int hit_elbow_up = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <= ik_tol))
+                    & ((fabs(-Tt32) <= ik_tol)) & ((fabs(1 - Tt33) <= ik_tol)) & ((fabs(F3_14_elbow_up - Tt14) <= t5_7))
+                    & ((fabs(F3_24_elbow_up - Tt24) <= t5_7)) & ((fabs(F4_11_elbow_up - Tt11) <= ik_tol)) &
+                    ((fabs(F4_12_elbow_up - Tt12) <= ik_tol)) & ((fabs(F4_21_elbow_up - Tt21) <= ik_tol)) &
+                    ((fabs(F4_22_elbow_up - Tt22) <= ik_tol)) & ((fabs(F4_34_elbow_up - Tt34) <= t5_7)));
             /* joint limits and outputs, branch elbow_up */
             const int fit_q1_elbow_up_in0 = (((travel >= 0.1999999999)) & ((travel <= 0.5000000001)));
             const double fit_q1_elbow_up = ((fit_q1_elbow_up_in0) ? fmin(0.5, fmax(0.2, travel)) : travel);
@@ -1693,6 +1700,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double t7_4 = kc_planar*t7_1 + 1.0*t7_3;
             const double t7_5 = 0.3*th2_elbow_down_s;
             const double t7_6 = 1.0*roll_elbow_down_s;
+            const double t7_7 = 1.0*ik_tol;
             const double F2_14_elbow_down = 0.4*th2_elbow_down_c;
             const double F2_24_elbow_down = 0.4*th2_elbow_down_s;
             const double F3_11_elbow_down = t7_2;
@@ -1706,11 +1714,11 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
             const double F4_21_elbow_down = F3_21_elbow_down*roll_elbow_down_c + F3_22_elbow_down*t7_6;
             const double F4_22_elbow_down = -F3_21_elbow_down*t7_6 + F3_22_elbow_down*roll_elbow_down_c;
             const double F4_34_elbow_down = travel - 0.1;
-            const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <=
-                    1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(1 - Tt33) <= 1.0e-8)) & ((fabs(F3_14_elbow_down -
-                    Tt14) <= 1.0e-8)) & ((fabs(F3_24_elbow_down - Tt24) <= 1.0e-8)) & ((fabs(F4_11_elbow_down - Tt11) <=
-                    1.0e-8)) & ((fabs(F4_12_elbow_down - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_down - Tt21) <= 1.0e-8))
-                    & ((fabs(F4_22_elbow_down - Tt22) <= 1.0e-8)) & ((fabs(F4_34_elbow_down - Tt34) <= 1.0e-8)));
+            const int hit_elbow_down = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <=
+                    ik_tol)) & ((fabs(-Tt32) <= ik_tol)) & ((fabs(1 - Tt33) <= ik_tol)) & ((fabs(F3_14_elbow_down -
+                    Tt14) <= t7_7)) & ((fabs(F3_24_elbow_down - Tt24) <= t7_7)) & ((fabs(F4_11_elbow_down - Tt11) <=
+                    ik_tol)) & ((fabs(F4_12_elbow_down - Tt12) <= ik_tol)) & ((fabs(F4_21_elbow_down - Tt21) <= ik_tol))
+                    & ((fabs(F4_22_elbow_down - Tt22) <= ik_tol)) & ((fabs(F4_34_elbow_down - Tt34) <= t7_7)));
             /* joint limits and outputs, branch elbow_down */
             const double fit_q2_elbow_down = deltagen_fit_angle(1.0*th2_elbow_down, -2.2689280275926285,
                     2.2689280275926285, -2.2689280276926285, 2.2689280276926285);

@@ -2283,6 +2283,12 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_MANUTEC_R15_BLOCK) {
         const size_t m = (n - start < DELTAGEN_MANUTEC_R15_BLOCK) ? n - start : DELTAGEN_MANUTEC_R15_BLOCK;
@@ -2396,11 +2402,11 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t2_0 = W_t_x*W_t_x + W_t_y*W_t_y;
             const double yV = 0;
             const double rad = t2_0 - (yV*yV);
-            const int ok_reach = (rad >= -2.8125000000000008e-9);
+            const int ok_reach = (rad >= -2.8125000000000004*ik_slack);
             const double xV = sqrt(fmax(0, rad));
             const int on_axis = (t2_0 < 2.8125000000000002e-24);
             const double phi_p_h = sqrt(t2_0);
-            const double phi_p_den = (((phi_p_h > 1.0e-300)) ? phi_p_h : 1.0e-300);
+            const double phi_p_den = (((ik_tiny < phi_p_h)) ? phi_p_h : ik_tiny);
             const double phi_p_inv = 1.0/phi_p_den;
             const int t2_1 = (phi_p_h > 0);
             const double phi_p_c = ((t2_1) ? W_t_x*phi_p_inv : 1);
@@ -2408,13 +2414,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             /* shoulder q1, front branches */
             const double t3_0 = 1.0*xV;
             const double phi_front_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_front_den = (((phi_front_h > 1.0e-300)) ? phi_front_h : 1.0e-300);
+            const double phi_front_den = (((ik_tiny < phi_front_h)) ? phi_front_h : ik_tiny);
             const double phi_front_inv = 1.0/phi_front_den;
             const double t1_front = t3_0;
             const double t2_front = 0.75 - W_t_z;
             const double kappa_front = -1.0027472527472527 + 1.0989010989010989*(t1_front*t1_front) +
                     1.0989010989010989*(t2_front*t2_front);
-            const int ok_elbow_front = (fabs(kappa_front) <= 1.0000000010000001);
+            const int ok_elbow_front = (fabs(kappa_front) <= ik_slack + 1);
             const double kc0_front = (((kappa_front > -1)) ? kappa_front : -1);
             const double kc_front = (((kc0_front < 1)) ? kc0_front : 1);
             const double ks_front = sqrt(1 - (kc_front*kc_front));
@@ -2428,13 +2434,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             /* shoulder q1, back branches */
             const double t4_0 = 1.0*xV;
             const double phi_back_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_back_den = (((phi_back_h > 1.0e-300)) ? phi_back_h : 1.0e-300);
+            const double phi_back_den = (((ik_tiny < phi_back_h)) ? phi_back_h : ik_tiny);
             const double phi_back_inv = 1.0/phi_back_den;
             const double t1_back = -t4_0;
             const double t2_back = 0.75 - W_t_z;
             const double kappa_back = -1.0027472527472527 + 1.0989010989010989*(t1_back*t1_back) +
                     1.0989010989010989*(t2_back*t2_back);
-            const int ok_elbow_back = (fabs(kappa_back) <= 1.0000000010000001);
+            const int ok_elbow_back = (fabs(kappa_back) <= ik_slack + 1);
             const double kc0_back = (((kappa_back > -1)) ? kappa_back : -1);
             const double kc_back = (((kc0_back < 1)) ? kc0_back : 1);
             const double ks_back = sqrt(1 - (kc_back*kc_back));
@@ -2454,7 +2460,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t5_2 = -t1_front*t5_0 + t2_front*t5_1;
             const double t5_3 = t1_front*t5_1 + t2_front*t5_0;
             const double th2_front_up_h = sqrt(t5_2*t5_2 + t5_3*t5_3);
-            const double th2_front_up_den = (((th2_front_up_h > 1.0e-300)) ? th2_front_up_h : 1.0e-300);
+            const double th2_front_up_den = (((ik_tiny < th2_front_up_h)) ? th2_front_up_h : ik_tiny);
             const double th2_front_up_inv = 1.0/th2_front_up_den;
             const int t5_4 = (th2_front_up_h > 0);
             const double th2_front_up_c = ((t5_4) ? t5_3*th2_front_up_inv : 1);
@@ -2469,7 +2475,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t6_2 = -t1_front*t6_0 + t2_front*t6_1;
             const double t6_3 = t1_front*t6_1 + t2_front*t6_0;
             const double th2_front_down_h = sqrt(t6_2*t6_2 + t6_3*t6_3);
-            const double th2_front_down_den = (((th2_front_down_h > 1.0e-300)) ? th2_front_down_h : 1.0e-300);
+            const double th2_front_down_den = (((ik_tiny < th2_front_down_h)) ? th2_front_down_h : ik_tiny);
             const double th2_front_down_inv = 1.0/th2_front_down_den;
             const int t6_4 = (th2_front_down_h > 0);
             const double th2_front_down_c = ((t6_4) ? t6_3*th2_front_down_inv : 1);
@@ -2484,7 +2490,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t7_2 = -t1_back*t7_0 + t2_back*t7_1;
             const double t7_3 = t1_back*t7_1 + t2_back*t7_0;
             const double th2_back_up_h = sqrt(t7_2*t7_2 + t7_3*t7_3);
-            const double th2_back_up_den = (((th2_back_up_h > 1.0e-300)) ? th2_back_up_h : 1.0e-300);
+            const double th2_back_up_den = (((ik_tiny < th2_back_up_h)) ? th2_back_up_h : ik_tiny);
             const double th2_back_up_inv = 1.0/th2_back_up_den;
             const int t7_4 = (th2_back_up_h > 0);
             const double th2_back_up_c = ((t7_4) ? t7_3*th2_back_up_inv : 1);
@@ -2499,7 +2505,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t8_2 = -t1_back*t8_0 + t2_back*t8_1;
             const double t8_3 = t1_back*t8_1 + t2_back*t8_0;
             const double th2_back_down_h = sqrt(t8_2*t8_2 + t8_3*t8_3);
-            const double th2_back_down_den = (((th2_back_down_h > 1.0e-300)) ? th2_back_down_h : 1.0e-300);
+            const double th2_back_down_den = (((ik_tiny < th2_back_down_h)) ? th2_back_down_h : ik_tiny);
             const double th2_back_down_inv = 1.0/th2_back_down_den;
             const int t8_4 = (th2_back_down_h > 0);
             const double th2_back_down_c = ((t8_4) ? t8_3*th2_back_down_inv : 1);
@@ -2525,19 +2531,18 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_front_up_y = t9_4*t9_7 + t9_7*tot_front_up_c;
             const double perp2_front_up = qv_front_up_y*qv_front_up_y + qv_front_up_z*qv_front_up_z;
             const double gam2_front_up = perp2_front_up - (beta_front_up*beta_front_up);
-            const int ok_wrist_front_up = (gam2_front_up >= -1.0000000000000001e-9);
+            const int ok_wrist_front_up = (gam2_front_up >= -ik_slack);
             const double gam_front_up = sqrt(fmax(0, gam2_front_up));
             const int wrist_singular_front_up = (perp2_front_up < 9.9999999999999992e-25);
             /* wrist, branch front_up_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t10_1 = beta_front_up*qv_front_up_y + gam_front_up*qv_front_up_z;
             const double t10_2 = beta_front_up*qv_front_up_z - gam_front_up*qv_front_up_y;
             const double q5_front_up_noflip_h = sqrt(gam_front_up*gam_front_up + qv_front_up_x*qv_front_up_x);
-            const double q5_front_up_noflip_den = (((q5_front_up_noflip_h > 1.0e-300)) ? q5_front_up_noflip_h :
-                    1.0e-300);
+            const double q5_front_up_noflip_den = (((ik_tiny < q5_front_up_noflip_h)) ? q5_front_up_noflip_h : ik_tiny);
             const double q5_front_up_noflip_inv = 1.0/q5_front_up_noflip_den;
             const double q4r_front_up_noflip_h = sqrt(t10_1*t10_1 + t10_2*t10_2);
-            const double q4r_front_up_noflip_den = (((q4r_front_up_noflip_h > 1.0e-300)) ? q4r_front_up_noflip_h :
-                    1.0e-300);
+            const double q4r_front_up_noflip_den = (((ik_tiny < q4r_front_up_noflip_h)) ? q4r_front_up_noflip_h :
+                    ik_tiny);
             const double q4r_front_up_noflip_inv = 1.0/q4r_front_up_noflip_den;
             const int t10_0 = (q5_front_up_noflip_h > 0);
             const int t10_3 = (q4r_front_up_noflip_h > 0);
@@ -2556,8 +2561,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q4_front_up_noflip_s*qx_front_up_y) - q5_front_up_noflip_s*(-q4_front_up_noflip_c*qx_front_up_x -
                     qx_front_up_x*(1 - q4_front_up_noflip_c));
             const double q6_front_up_noflip_h = sqrt(t10_5*t10_5 + t10_6*t10_6);
-            const double q6_front_up_noflip_den = (((q6_front_up_noflip_h > 1.0e-300)) ? q6_front_up_noflip_h :
-                    1.0e-300);
+            const double q6_front_up_noflip_den = (((ik_tiny < q6_front_up_noflip_h)) ? q6_front_up_noflip_h : ik_tiny);
             const double q6_front_up_noflip_inv = 1.0/q6_front_up_noflip_den;
             const int t10_7 = (q6_front_up_noflip_h > 0);
             const double q6_front_up_noflip_c = ((t10_7) ? q6_front_up_noflip_inv*t10_6 : 1);
@@ -2566,7 +2570,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             /* wrist, branch front_up_flip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_front_up_flip_z = -gam_front_up;
             const double q5_front_up_flip_h = sqrt(cw_front_up_flip_z*cw_front_up_flip_z + qv_front_up_x*qv_front_up_x);
-            const double q5_front_up_flip_den = (((q5_front_up_flip_h > 1.0e-300)) ? q5_front_up_flip_h : 1.0e-300);
+            const double q5_front_up_flip_den = (((ik_tiny < q5_front_up_flip_h)) ? q5_front_up_flip_h : ik_tiny);
             const double q5_front_up_flip_inv = 1.0/q5_front_up_flip_den;
             const int t11_0 = (q5_front_up_flip_h > 0);
             const double t11_1 = beta_front_up*qv_front_up_y + cw_front_up_flip_z*qv_front_up_z;
@@ -2575,7 +2579,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_front_up_flip_s = ((t11_0) ? -cw_front_up_flip_z*q5_front_up_flip_inv : 0);
             const double q5_front_up_flip = ((t11_0) ? atan2(-cw_front_up_flip_z, qv_front_up_x) : 0);
             const double q4r_front_up_flip_h = sqrt(t11_1*t11_1 + t11_2*t11_2);
-            const double q4r_front_up_flip_den = (((q4r_front_up_flip_h > 1.0e-300)) ? q4r_front_up_flip_h : 1.0e-300);
+            const double q4r_front_up_flip_den = (((ik_tiny < q4r_front_up_flip_h)) ? q4r_front_up_flip_h : ik_tiny);
             const double q4r_front_up_flip_inv = 1.0/q4r_front_up_flip_den;
             const int t11_3 = (q4r_front_up_flip_h > 0);
             const double q4r_front_up_flip_c = ((t11_3) ? q4r_front_up_flip_inv*t11_1 : 1);
@@ -2590,7 +2594,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q4_front_up_flip_s*qx_front_up_y) - q5_front_up_flip_s*(-q4_front_up_flip_c*qx_front_up_x -
                     qx_front_up_x*(1 - q4_front_up_flip_c));
             const double q6_front_up_flip_h = sqrt(t11_5*t11_5 + t11_6*t11_6);
-            const double q6_front_up_flip_den = (((q6_front_up_flip_h > 1.0e-300)) ? q6_front_up_flip_h : 1.0e-300);
+            const double q6_front_up_flip_den = (((ik_tiny < q6_front_up_flip_h)) ? q6_front_up_flip_h : ik_tiny);
             const double q6_front_up_flip_inv = 1.0/q6_front_up_flip_den;
             const int t11_7 = (q6_front_up_flip_h > 0);
             const double q6_front_up_flip_c = ((t11_7) ? q6_front_up_flip_inv*t11_6 : 1);
@@ -2616,19 +2620,19 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_front_down_y = t12_4*t12_7 + t12_7*tot_front_down_c;
             const double perp2_front_down = qv_front_down_y*qv_front_down_y + qv_front_down_z*qv_front_down_z;
             const double gam2_front_down = perp2_front_down - (beta_front_down*beta_front_down);
-            const int ok_wrist_front_down = (gam2_front_down >= -1.0000000000000001e-9);
+            const int ok_wrist_front_down = (gam2_front_down >= -ik_slack);
             const double gam_front_down = sqrt(fmax(0, gam2_front_down));
             const int wrist_singular_front_down = (perp2_front_down < 9.9999999999999992e-25);
             /* wrist, branch front_down_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t13_1 = beta_front_down*qv_front_down_y + gam_front_down*qv_front_down_z;
             const double t13_2 = beta_front_down*qv_front_down_z - gam_front_down*qv_front_down_y;
             const double q5_front_down_noflip_h = sqrt(gam_front_down*gam_front_down + qv_front_down_x*qv_front_down_x);
-            const double q5_front_down_noflip_den = (((q5_front_down_noflip_h > 1.0e-300)) ? q5_front_down_noflip_h :
-                    1.0e-300);
+            const double q5_front_down_noflip_den = (((ik_tiny < q5_front_down_noflip_h)) ? q5_front_down_noflip_h :
+                    ik_tiny);
             const double q5_front_down_noflip_inv = 1.0/q5_front_down_noflip_den;
             const double q4r_front_down_noflip_h = sqrt(t13_1*t13_1 + t13_2*t13_2);
-            const double q4r_front_down_noflip_den = (((q4r_front_down_noflip_h > 1.0e-300)) ? q4r_front_down_noflip_h :
-                    1.0e-300);
+            const double q4r_front_down_noflip_den = (((ik_tiny < q4r_front_down_noflip_h)) ? q4r_front_down_noflip_h :
+                    ik_tiny);
             const double q4r_front_down_noflip_inv = 1.0/q4r_front_down_noflip_den;
             const int t13_0 = (q5_front_down_noflip_h > 0);
             const int t13_3 = (q4r_front_down_noflip_h > 0);
@@ -2648,8 +2652,8 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q5_front_down_noflip_s*(-q4_front_down_noflip_c*qx_front_down_x - qx_front_down_x*(1 -
                     q4_front_down_noflip_c));
             const double q6_front_down_noflip_h = sqrt(t13_5*t13_5 + t13_6*t13_6);
-            const double q6_front_down_noflip_den = (((q6_front_down_noflip_h > 1.0e-300)) ? q6_front_down_noflip_h :
-                    1.0e-300);
+            const double q6_front_down_noflip_den = (((ik_tiny < q6_front_down_noflip_h)) ? q6_front_down_noflip_h :
+                    ik_tiny);
             const double q6_front_down_noflip_inv = 1.0/q6_front_down_noflip_den;
             const int t13_7 = (q6_front_down_noflip_h > 0);
             const double q6_front_down_noflip_c = ((t13_7) ? q6_front_down_noflip_inv*t13_6 : 1);
@@ -2659,8 +2663,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double cw_front_down_flip_z = -gam_front_down;
             const double q5_front_down_flip_h = sqrt(cw_front_down_flip_z*cw_front_down_flip_z +
                     qv_front_down_x*qv_front_down_x);
-            const double q5_front_down_flip_den = (((q5_front_down_flip_h > 1.0e-300)) ? q5_front_down_flip_h :
-                    1.0e-300);
+            const double q5_front_down_flip_den = (((ik_tiny < q5_front_down_flip_h)) ? q5_front_down_flip_h : ik_tiny);
             const double q5_front_down_flip_inv = 1.0/q5_front_down_flip_den;
             const int t14_0 = (q5_front_down_flip_h > 0);
             const double t14_1 = beta_front_down*qv_front_down_y + cw_front_down_flip_z*qv_front_down_z;
@@ -2669,8 +2672,8 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_front_down_flip_s = ((t14_0) ? -cw_front_down_flip_z*q5_front_down_flip_inv : 0);
             const double q5_front_down_flip = ((t14_0) ? atan2(-cw_front_down_flip_z, qv_front_down_x) : 0);
             const double q4r_front_down_flip_h = sqrt(t14_1*t14_1 + t14_2*t14_2);
-            const double q4r_front_down_flip_den = (((q4r_front_down_flip_h > 1.0e-300)) ? q4r_front_down_flip_h :
-                    1.0e-300);
+            const double q4r_front_down_flip_den = (((ik_tiny < q4r_front_down_flip_h)) ? q4r_front_down_flip_h :
+                    ik_tiny);
             const double q4r_front_down_flip_inv = 1.0/q4r_front_down_flip_den;
             const int t14_3 = (q4r_front_down_flip_h > 0);
             const double q4r_front_down_flip_c = ((t14_3) ? q4r_front_down_flip_inv*t14_1 : 1);
@@ -2685,8 +2688,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q4_front_down_flip_s*qx_front_down_y) - q5_front_down_flip_s*(-q4_front_down_flip_c*qx_front_down_x
                     - qx_front_down_x*(1 - q4_front_down_flip_c));
             const double q6_front_down_flip_h = sqrt(t14_5*t14_5 + t14_6*t14_6);
-            const double q6_front_down_flip_den = (((q6_front_down_flip_h > 1.0e-300)) ? q6_front_down_flip_h :
-                    1.0e-300);
+            const double q6_front_down_flip_den = (((ik_tiny < q6_front_down_flip_h)) ? q6_front_down_flip_h : ik_tiny);
             const double q6_front_down_flip_inv = 1.0/q6_front_down_flip_den;
             const int t14_7 = (q6_front_down_flip_h > 0);
             const double q6_front_down_flip_c = ((t14_7) ? q6_front_down_flip_inv*t14_6 : 1);
@@ -2712,18 +2714,17 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_back_up_y = t15_4*t15_7 + t15_7*tot_back_up_c;
             const double perp2_back_up = qv_back_up_y*qv_back_up_y + qv_back_up_z*qv_back_up_z;
             const double gam2_back_up = perp2_back_up - (beta_back_up*beta_back_up);
-            const int ok_wrist_back_up = (gam2_back_up >= -1.0000000000000001e-9);
+            const int ok_wrist_back_up = (gam2_back_up >= -ik_slack);
             const double gam_back_up = sqrt(fmax(0, gam2_back_up));
             const int wrist_singular_back_up = (perp2_back_up < 9.9999999999999992e-25);
             /* wrist, branch back_up_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t16_1 = beta_back_up*qv_back_up_y + gam_back_up*qv_back_up_z;
             const double t16_2 = beta_back_up*qv_back_up_z - gam_back_up*qv_back_up_y;
             const double q5_back_up_noflip_h = sqrt(gam_back_up*gam_back_up + qv_back_up_x*qv_back_up_x);
-            const double q5_back_up_noflip_den = (((q5_back_up_noflip_h > 1.0e-300)) ? q5_back_up_noflip_h : 1.0e-300);
+            const double q5_back_up_noflip_den = (((ik_tiny < q5_back_up_noflip_h)) ? q5_back_up_noflip_h : ik_tiny);
             const double q5_back_up_noflip_inv = 1.0/q5_back_up_noflip_den;
             const double q4r_back_up_noflip_h = sqrt(t16_1*t16_1 + t16_2*t16_2);
-            const double q4r_back_up_noflip_den = (((q4r_back_up_noflip_h > 1.0e-300)) ? q4r_back_up_noflip_h :
-                    1.0e-300);
+            const double q4r_back_up_noflip_den = (((ik_tiny < q4r_back_up_noflip_h)) ? q4r_back_up_noflip_h : ik_tiny);
             const double q4r_back_up_noflip_inv = 1.0/q4r_back_up_noflip_den;
             const int t16_0 = (q5_back_up_noflip_h > 0);
             const int t16_3 = (q4r_back_up_noflip_h > 0);
@@ -2742,7 +2743,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q4_back_up_noflip_s*qx_back_up_y) - q5_back_up_noflip_s*(-q4_back_up_noflip_c*qx_back_up_x -
                     qx_back_up_x*(1 - q4_back_up_noflip_c));
             const double q6_back_up_noflip_h = sqrt(t16_5*t16_5 + t16_6*t16_6);
-            const double q6_back_up_noflip_den = (((q6_back_up_noflip_h > 1.0e-300)) ? q6_back_up_noflip_h : 1.0e-300);
+            const double q6_back_up_noflip_den = (((ik_tiny < q6_back_up_noflip_h)) ? q6_back_up_noflip_h : ik_tiny);
             const double q6_back_up_noflip_inv = 1.0/q6_back_up_noflip_den;
             const int t16_7 = (q6_back_up_noflip_h > 0);
             const double q6_back_up_noflip_c = ((t16_7) ? q6_back_up_noflip_inv*t16_6 : 1);
@@ -2751,7 +2752,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             /* wrist, branch back_up_flip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_back_up_flip_z = -gam_back_up;
             const double q5_back_up_flip_h = sqrt(cw_back_up_flip_z*cw_back_up_flip_z + qv_back_up_x*qv_back_up_x);
-            const double q5_back_up_flip_den = (((q5_back_up_flip_h > 1.0e-300)) ? q5_back_up_flip_h : 1.0e-300);
+            const double q5_back_up_flip_den = (((ik_tiny < q5_back_up_flip_h)) ? q5_back_up_flip_h : ik_tiny);
             const double q5_back_up_flip_inv = 1.0/q5_back_up_flip_den;
             const int t17_0 = (q5_back_up_flip_h > 0);
             const double t17_1 = beta_back_up*qv_back_up_y + cw_back_up_flip_z*qv_back_up_z;
@@ -2760,7 +2761,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_back_up_flip_s = ((t17_0) ? -cw_back_up_flip_z*q5_back_up_flip_inv : 0);
             const double q5_back_up_flip = ((t17_0) ? atan2(-cw_back_up_flip_z, qv_back_up_x) : 0);
             const double q4r_back_up_flip_h = sqrt(t17_1*t17_1 + t17_2*t17_2);
-            const double q4r_back_up_flip_den = (((q4r_back_up_flip_h > 1.0e-300)) ? q4r_back_up_flip_h : 1.0e-300);
+            const double q4r_back_up_flip_den = (((ik_tiny < q4r_back_up_flip_h)) ? q4r_back_up_flip_h : ik_tiny);
             const double q4r_back_up_flip_inv = 1.0/q4r_back_up_flip_den;
             const int t17_3 = (q4r_back_up_flip_h > 0);
             const double q4r_back_up_flip_c = ((t17_3) ? q4r_back_up_flip_inv*t17_1 : 1);
@@ -2774,7 +2775,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t17_6 = q5_back_up_flip_c*(q4_back_up_flip_c*qx_back_up_z - q4_back_up_flip_s*qx_back_up_y) -
                     q5_back_up_flip_s*(-q4_back_up_flip_c*qx_back_up_x - qx_back_up_x*(1 - q4_back_up_flip_c));
             const double q6_back_up_flip_h = sqrt(t17_5*t17_5 + t17_6*t17_6);
-            const double q6_back_up_flip_den = (((q6_back_up_flip_h > 1.0e-300)) ? q6_back_up_flip_h : 1.0e-300);
+            const double q6_back_up_flip_den = (((ik_tiny < q6_back_up_flip_h)) ? q6_back_up_flip_h : ik_tiny);
             const double q6_back_up_flip_inv = 1.0/q6_back_up_flip_den;
             const int t17_7 = (q6_back_up_flip_h > 0);
             const double q6_back_up_flip_c = ((t17_7) ? q6_back_up_flip_inv*t17_6 : 1);
@@ -2800,19 +2801,19 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_back_down_y = t18_4*t18_7 + t18_7*tot_back_down_c;
             const double perp2_back_down = qv_back_down_y*qv_back_down_y + qv_back_down_z*qv_back_down_z;
             const double gam2_back_down = perp2_back_down - (beta_back_down*beta_back_down);
-            const int ok_wrist_back_down = (gam2_back_down >= -1.0000000000000001e-9);
+            const int ok_wrist_back_down = (gam2_back_down >= -ik_slack);
             const double gam_back_down = sqrt(fmax(0, gam2_back_down));
             const int wrist_singular_back_down = (perp2_back_down < 9.9999999999999992e-25);
             /* wrist, branch back_down_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t19_1 = beta_back_down*qv_back_down_y + gam_back_down*qv_back_down_z;
             const double t19_2 = beta_back_down*qv_back_down_z - gam_back_down*qv_back_down_y;
             const double q5_back_down_noflip_h = sqrt(gam_back_down*gam_back_down + qv_back_down_x*qv_back_down_x);
-            const double q5_back_down_noflip_den = (((q5_back_down_noflip_h > 1.0e-300)) ? q5_back_down_noflip_h :
-                    1.0e-300);
+            const double q5_back_down_noflip_den = (((ik_tiny < q5_back_down_noflip_h)) ? q5_back_down_noflip_h :
+                    ik_tiny);
             const double q5_back_down_noflip_inv = 1.0/q5_back_down_noflip_den;
             const double q4r_back_down_noflip_h = sqrt(t19_1*t19_1 + t19_2*t19_2);
-            const double q4r_back_down_noflip_den = (((q4r_back_down_noflip_h > 1.0e-300)) ? q4r_back_down_noflip_h :
-                    1.0e-300);
+            const double q4r_back_down_noflip_den = (((ik_tiny < q4r_back_down_noflip_h)) ? q4r_back_down_noflip_h :
+                    ik_tiny);
             const double q4r_back_down_noflip_inv = 1.0/q4r_back_down_noflip_den;
             const int t19_0 = (q5_back_down_noflip_h > 0);
             const int t19_3 = (q4r_back_down_noflip_h > 0);
@@ -2831,8 +2832,8 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q4_back_down_noflip_s*qx_back_down_y) - q5_back_down_noflip_s*(-q4_back_down_noflip_c*qx_back_down_x
                     - qx_back_down_x*(1 - q4_back_down_noflip_c));
             const double q6_back_down_noflip_h = sqrt(t19_5*t19_5 + t19_6*t19_6);
-            const double q6_back_down_noflip_den = (((q6_back_down_noflip_h > 1.0e-300)) ? q6_back_down_noflip_h :
-                    1.0e-300);
+            const double q6_back_down_noflip_den = (((ik_tiny < q6_back_down_noflip_h)) ? q6_back_down_noflip_h :
+                    ik_tiny);
             const double q6_back_down_noflip_inv = 1.0/q6_back_down_noflip_den;
             const int t19_7 = (q6_back_down_noflip_h > 0);
             const double q6_back_down_noflip_c = ((t19_7) ? q6_back_down_noflip_inv*t19_6 : 1);
@@ -2842,7 +2843,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double cw_back_down_flip_z = -gam_back_down;
             const double q5_back_down_flip_h = sqrt(cw_back_down_flip_z*cw_back_down_flip_z +
                     qv_back_down_x*qv_back_down_x);
-            const double q5_back_down_flip_den = (((q5_back_down_flip_h > 1.0e-300)) ? q5_back_down_flip_h : 1.0e-300);
+            const double q5_back_down_flip_den = (((ik_tiny < q5_back_down_flip_h)) ? q5_back_down_flip_h : ik_tiny);
             const double q5_back_down_flip_inv = 1.0/q5_back_down_flip_den;
             const int t20_0 = (q5_back_down_flip_h > 0);
             const double t20_1 = beta_back_down*qv_back_down_y + cw_back_down_flip_z*qv_back_down_z;
@@ -2851,8 +2852,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_back_down_flip_s = ((t20_0) ? -cw_back_down_flip_z*q5_back_down_flip_inv : 0);
             const double q5_back_down_flip = ((t20_0) ? atan2(-cw_back_down_flip_z, qv_back_down_x) : 0);
             const double q4r_back_down_flip_h = sqrt(t20_1*t20_1 + t20_2*t20_2);
-            const double q4r_back_down_flip_den = (((q4r_back_down_flip_h > 1.0e-300)) ? q4r_back_down_flip_h :
-                    1.0e-300);
+            const double q4r_back_down_flip_den = (((ik_tiny < q4r_back_down_flip_h)) ? q4r_back_down_flip_h : ik_tiny);
             const double q4r_back_down_flip_inv = 1.0/q4r_back_down_flip_den;
             const int t20_3 = (q4r_back_down_flip_h > 0);
             const double q4r_back_down_flip_c = ((t20_3) ? q4r_back_down_flip_inv*t20_1 : 1);
@@ -2867,7 +2867,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
                     q4_back_down_flip_s*qx_back_down_y) - q5_back_down_flip_s*(-q4_back_down_flip_c*qx_back_down_x -
                     qx_back_down_x*(1 - q4_back_down_flip_c));
             const double q6_back_down_flip_h = sqrt(t20_5*t20_5 + t20_6*t20_6);
-            const double q6_back_down_flip_den = (((q6_back_down_flip_h > 1.0e-300)) ? q6_back_down_flip_h : 1.0e-300);
+            const double q6_back_down_flip_den = (((ik_tiny < q6_back_down_flip_h)) ? q6_back_down_flip_h : ik_tiny);
             const double q6_back_down_flip_inv = 1.0/q6_back_down_flip_den;
             const int t20_7 = (q6_back_down_flip_h > 0);
             const double q6_back_down_flip_c = ((t20_7) ? q6_back_down_flip_inv*t20_6 : 1);
@@ -2877,6 +2877,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t21_0 = q1_front_c*th2_front_up_c;
             const double t21_1 = q1_front_s*th2_front_up_c;
             const double t21_2 = 1.0*th3_front_up_s;
+            const double t21_3 = 1.6770509831248424*ik_tol;
             const double F2_11_front_up_noflip = t21_0;
             const double F2_12_front_up_noflip = -q1_front_c*th2_front_up_s;
             const double F2_14_front_up_noflip = 0.65*t21_0;
@@ -2930,14 +2931,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_front_up_noflip = -F4_33_front_up_noflip*q6_front_up_noflip_c -
                     F5_31_front_up_noflip*q6_front_up_noflip_s;
             const double F6_34_front_up_noflip = F4_34_front_up_noflip + 0.15*F5_33_front_up_noflip;
-            const int hit_front_up_noflip = (((fabs(F5_13_front_up_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_up_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_up_noflip - Tt33) <= 1.0e-8))
-                    & ((fabs(F6_11_front_up_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_up_noflip - Tt12) <=
-                    1.0e-8)) & ((fabs(F6_14_front_up_noflip - Tt14) <= 1.6770509831248423e-8)) &
-                    ((fabs(F6_21_front_up_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_up_noflip - Tt22) <= 1.0e-8))
-                    & ((fabs(F6_24_front_up_noflip - Tt24) <= 1.6770509831248423e-8)) & ((fabs(F6_31_front_up_noflip -
-                    Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_up_noflip - Tt32) <= 1.0e-8)) & ((fabs(F6_34_front_up_noflip
-                    - Tt34) <= 1.6770509831248423e-8)));
+            const int hit_front_up_noflip = (((fabs(F5_13_front_up_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_23_front_up_noflip - Tt23) <= ik_tol)) & ((fabs(F5_33_front_up_noflip - Tt33) <= ik_tol))
+                    & ((fabs(F6_11_front_up_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_up_noflip - Tt12) <=
+                    ik_tol)) & ((fabs(F6_14_front_up_noflip - Tt14) <= t21_3)) & ((fabs(F6_21_front_up_noflip - Tt21) <=
+                    ik_tol)) & ((fabs(F6_22_front_up_noflip - Tt22) <= ik_tol)) & ((fabs(F6_24_front_up_noflip - Tt24)
+                    <= t21_3)) & ((fabs(F6_31_front_up_noflip - Tt31) <= ik_tol)) & ((fabs(F6_32_front_up_noflip - Tt32)
+                    <= ik_tol)) & ((fabs(F6_34_front_up_noflip - Tt34) <= t21_3)));
             /* joint limits and outputs, branch front_up_noflip */
             const double fit_q1_front_up_noflip = deltagen_fit_angle(q1_front, -2.792526803190927, 2.792526803190927,
                     -2.792526803290927, 2.792526803290927);
@@ -2975,6 +2975,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t23_0 = q1_front_c*th2_front_up_c;
             const double t23_1 = q1_front_s*th2_front_up_c;
             const double t23_2 = 1.0*th3_front_up_s;
+            const double t23_3 = 1.6770509831248424*ik_tol;
             const double F2_11_front_up_flip = t23_0;
             const double F2_12_front_up_flip = -q1_front_c*th2_front_up_s;
             const double F2_14_front_up_flip = 0.65*t23_0;
@@ -3024,14 +3025,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_front_up_flip = -F4_33_front_up_flip*q6_front_up_flip_c -
                     F5_31_front_up_flip*q6_front_up_flip_s;
             const double F6_34_front_up_flip = F4_34_front_up_flip + 0.15*F5_33_front_up_flip;
-            const int hit_front_up_flip = (((fabs(F5_13_front_up_flip - Tt13) <= 1.0e-8)) & ((fabs(F5_23_front_up_flip -
-                    Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_up_flip - Tt33) <= 1.0e-8)) & ((fabs(F6_11_front_up_flip -
-                    Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_up_flip - Tt12) <= 1.0e-8)) & ((fabs(F6_14_front_up_flip -
-                    Tt14) <= 1.6770509831248423e-8)) & ((fabs(F6_21_front_up_flip - Tt21) <= 1.0e-8)) &
-                    ((fabs(F6_22_front_up_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_24_front_up_flip - Tt24) <=
-                    1.6770509831248423e-8)) & ((fabs(F6_31_front_up_flip - Tt31) <= 1.0e-8)) &
-                    ((fabs(F6_32_front_up_flip - Tt32) <= 1.0e-8)) & ((fabs(F6_34_front_up_flip - Tt34) <=
-                    1.6770509831248423e-8)));
+            const int hit_front_up_flip = (((fabs(F5_13_front_up_flip - Tt13) <= ik_tol)) & ((fabs(F5_23_front_up_flip -
+                    Tt23) <= ik_tol)) & ((fabs(F5_33_front_up_flip - Tt33) <= ik_tol)) & ((fabs(F6_11_front_up_flip -
+                    Tt11) <= ik_tol)) & ((fabs(F6_12_front_up_flip - Tt12) <= ik_tol)) & ((fabs(F6_14_front_up_flip -
+                    Tt14) <= t23_3)) & ((fabs(F6_21_front_up_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_front_up_flip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_24_front_up_flip - Tt24) <= t23_3)) & ((fabs(F6_31_front_up_flip -
+                    Tt31) <= ik_tol)) & ((fabs(F6_32_front_up_flip - Tt32) <= ik_tol)) & ((fabs(F6_34_front_up_flip -
+                    Tt34) <= t23_3)));
             /* joint limits and outputs, branch front_up_flip */
             const double fit_q4_front_up_flip = deltagen_fit_angle(q4_front_up_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);
@@ -3057,6 +3057,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t25_0 = q1_front_c*th2_front_down_c;
             const double t25_1 = q1_front_s*th2_front_down_c;
             const double t25_2 = 1.0*th3_front_down_s;
+            const double t25_3 = 1.6770509831248424*ik_tol;
             const double F2_11_front_down_noflip = t25_0;
             const double F2_12_front_down_noflip = -q1_front_c*th2_front_down_s;
             const double F2_14_front_down_noflip = 0.65*t25_0;
@@ -3110,14 +3111,14 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_front_down_noflip = -F4_33_front_down_noflip*q6_front_down_noflip_c -
                     F5_31_front_down_noflip*q6_front_down_noflip_s;
             const double F6_34_front_down_noflip = F4_34_front_down_noflip + 0.15*F5_33_front_down_noflip;
-            const int hit_front_down_noflip = (((fabs(F5_13_front_down_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_down_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_down_noflip - Tt33) <=
-                    1.0e-8)) & ((fabs(F6_11_front_down_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_down_noflip -
-                    Tt12) <= 1.0e-8)) & ((fabs(F6_14_front_down_noflip - Tt14) <= 1.6770509831248423e-8)) &
-                    ((fabs(F6_21_front_down_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_down_noflip - Tt22) <=
-                    1.0e-8)) & ((fabs(F6_24_front_down_noflip - Tt24) <= 1.6770509831248423e-8)) &
-                    ((fabs(F6_31_front_down_noflip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_down_noflip - Tt32) <=
-                    1.0e-8)) & ((fabs(F6_34_front_down_noflip - Tt34) <= 1.6770509831248423e-8)));
+            const int hit_front_down_noflip = (((fabs(F5_13_front_down_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_23_front_down_noflip - Tt23) <= ik_tol)) & ((fabs(F5_33_front_down_noflip - Tt33) <=
+                    ik_tol)) & ((fabs(F6_11_front_down_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_down_noflip -
+                    Tt12) <= ik_tol)) & ((fabs(F6_14_front_down_noflip - Tt14) <= t25_3)) &
+                    ((fabs(F6_21_front_down_noflip - Tt21) <= ik_tol)) & ((fabs(F6_22_front_down_noflip - Tt22) <=
+                    ik_tol)) & ((fabs(F6_24_front_down_noflip - Tt24) <= t25_3)) & ((fabs(F6_31_front_down_noflip -
+                    Tt31) <= ik_tol)) & ((fabs(F6_32_front_down_noflip - Tt32) <= ik_tol)) &
+                    ((fabs(F6_34_front_down_noflip - Tt34) <= t25_3)));
             /* joint limits and outputs, branch front_down_noflip */
             const double fit_q2_front_down_noflip = deltagen_fit_angle(th2_front_down, -2.9670597283903604,
                     0.17453292519943295, -2.9670597284903604, 0.17453292529943296);
@@ -3151,6 +3152,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t27_0 = q1_front_c*th2_front_down_c;
             const double t27_1 = q1_front_s*th2_front_down_c;
             const double t27_2 = 1.0*th3_front_down_s;
+            const double t27_3 = 1.6770509831248424*ik_tol;
             const double F2_11_front_down_flip = t27_0;
             const double F2_12_front_down_flip = -q1_front_c*th2_front_down_s;
             const double F2_14_front_down_flip = 0.65*t27_0;
@@ -3204,14 +3206,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_front_down_flip = -F4_33_front_down_flip*q6_front_down_flip_c -
                     F5_31_front_down_flip*q6_front_down_flip_s;
             const double F6_34_front_down_flip = F4_34_front_down_flip + 0.15*F5_33_front_down_flip;
-            const int hit_front_down_flip = (((fabs(F5_13_front_down_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_down_flip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_down_flip - Tt33) <= 1.0e-8))
-                    & ((fabs(F6_11_front_down_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_down_flip - Tt12) <=
-                    1.0e-8)) & ((fabs(F6_14_front_down_flip - Tt14) <= 1.6770509831248423e-8)) &
-                    ((fabs(F6_21_front_down_flip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_down_flip - Tt22) <= 1.0e-8))
-                    & ((fabs(F6_24_front_down_flip - Tt24) <= 1.6770509831248423e-8)) & ((fabs(F6_31_front_down_flip -
-                    Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_down_flip - Tt32) <= 1.0e-8)) & ((fabs(F6_34_front_down_flip
-                    - Tt34) <= 1.6770509831248423e-8)));
+            const int hit_front_down_flip = (((fabs(F5_13_front_down_flip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_23_front_down_flip - Tt23) <= ik_tol)) & ((fabs(F5_33_front_down_flip - Tt33) <= ik_tol))
+                    & ((fabs(F6_11_front_down_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_down_flip - Tt12) <=
+                    ik_tol)) & ((fabs(F6_14_front_down_flip - Tt14) <= t27_3)) & ((fabs(F6_21_front_down_flip - Tt21) <=
+                    ik_tol)) & ((fabs(F6_22_front_down_flip - Tt22) <= ik_tol)) & ((fabs(F6_24_front_down_flip - Tt24)
+                    <= t27_3)) & ((fabs(F6_31_front_down_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_front_down_flip - Tt32)
+                    <= ik_tol)) & ((fabs(F6_34_front_down_flip - Tt34) <= t27_3)));
             /* joint limits and outputs, branch front_down_flip */
             const double fit_q4_front_down_flip = deltagen_fit_angle(q4_front_down_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);
@@ -3237,6 +3238,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t29_0 = q1_back_c*th2_back_up_c;
             const double t29_1 = q1_back_s*th2_back_up_c;
             const double t29_2 = 1.0*th3_back_up_s;
+            const double t29_3 = 1.6770509831248424*ik_tol;
             const double F2_11_back_up_noflip = t29_0;
             const double F2_12_back_up_noflip = -q1_back_c*th2_back_up_s;
             const double F2_14_back_up_noflip = 0.65*t29_0;
@@ -3290,14 +3292,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_back_up_noflip = -F4_33_back_up_noflip*q6_back_up_noflip_c -
                     F5_31_back_up_noflip*q6_back_up_noflip_s;
             const double F6_34_back_up_noflip = F4_34_back_up_noflip + 0.15*F5_33_back_up_noflip;
-            const int hit_back_up_noflip = (((fabs(F5_13_back_up_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_back_up_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_up_noflip - Tt33) <= 1.0e-8)) &
-                    ((fabs(F6_11_back_up_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_up_noflip - Tt12) <= 1.0e-8)) &
-                    ((fabs(F6_14_back_up_noflip - Tt14) <= 1.6770509831248423e-8)) & ((fabs(F6_21_back_up_noflip - Tt21)
-                    <= 1.0e-8)) & ((fabs(F6_22_back_up_noflip - Tt22) <= 1.0e-8)) & ((fabs(F6_24_back_up_noflip - Tt24)
-                    <= 1.6770509831248423e-8)) & ((fabs(F6_31_back_up_noflip - Tt31) <= 1.0e-8)) &
-                    ((fabs(F6_32_back_up_noflip - Tt32) <= 1.0e-8)) & ((fabs(F6_34_back_up_noflip - Tt34) <=
-                    1.6770509831248423e-8)));
+            const int hit_back_up_noflip = (((fabs(F5_13_back_up_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_23_back_up_noflip - Tt23) <= ik_tol)) & ((fabs(F5_33_back_up_noflip - Tt33) <= ik_tol)) &
+                    ((fabs(F6_11_back_up_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_up_noflip - Tt12) <= ik_tol)) &
+                    ((fabs(F6_14_back_up_noflip - Tt14) <= t29_3)) & ((fabs(F6_21_back_up_noflip - Tt21) <= ik_tol)) &
+                    ((fabs(F6_22_back_up_noflip - Tt22) <= ik_tol)) & ((fabs(F6_24_back_up_noflip - Tt24) <= t29_3)) &
+                    ((fabs(F6_31_back_up_noflip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_up_noflip - Tt32) <= ik_tol)) &
+                    ((fabs(F6_34_back_up_noflip - Tt34) <= t29_3)));
             /* joint limits and outputs, branch back_up_noflip */
             const double fit_q1_back_up_noflip = deltagen_fit_angle(q1_back, -2.792526803190927, 2.792526803190927,
                     -2.792526803290927, 2.792526803290927);
@@ -3335,6 +3336,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t31_0 = q1_back_c*th2_back_up_c;
             const double t31_1 = q1_back_s*th2_back_up_c;
             const double t31_2 = 1.0*th3_back_up_s;
+            const double t31_3 = 1.6770509831248424*ik_tol;
             const double F2_11_back_up_flip = t31_0;
             const double F2_12_back_up_flip = -q1_back_c*th2_back_up_s;
             const double F2_14_back_up_flip = 0.65*t31_0;
@@ -3384,13 +3386,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_back_up_flip = -F4_33_back_up_flip*q6_back_up_flip_c -
                     F5_31_back_up_flip*q6_back_up_flip_s;
             const double F6_34_back_up_flip = F4_34_back_up_flip + 0.15*F5_33_back_up_flip;
-            const int hit_back_up_flip = (((fabs(F5_13_back_up_flip - Tt13) <= 1.0e-8)) & ((fabs(F5_23_back_up_flip -
-                    Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_up_flip - Tt33) <= 1.0e-8)) & ((fabs(F6_11_back_up_flip -
-                    Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_up_flip - Tt12) <= 1.0e-8)) & ((fabs(F6_14_back_up_flip -
-                    Tt14) <= 1.6770509831248423e-8)) & ((fabs(F6_21_back_up_flip - Tt21) <= 1.0e-8)) &
-                    ((fabs(F6_22_back_up_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_24_back_up_flip - Tt24) <=
-                    1.6770509831248423e-8)) & ((fabs(F6_31_back_up_flip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_back_up_flip
-                    - Tt32) <= 1.0e-8)) & ((fabs(F6_34_back_up_flip - Tt34) <= 1.6770509831248423e-8)));
+            const int hit_back_up_flip = (((fabs(F5_13_back_up_flip - Tt13) <= ik_tol)) & ((fabs(F5_23_back_up_flip -
+                    Tt23) <= ik_tol)) & ((fabs(F5_33_back_up_flip - Tt33) <= ik_tol)) & ((fabs(F6_11_back_up_flip -
+                    Tt11) <= ik_tol)) & ((fabs(F6_12_back_up_flip - Tt12) <= ik_tol)) & ((fabs(F6_14_back_up_flip -
+                    Tt14) <= t31_3)) & ((fabs(F6_21_back_up_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_back_up_flip - Tt22)
+                    <= ik_tol)) & ((fabs(F6_24_back_up_flip - Tt24) <= t31_3)) & ((fabs(F6_31_back_up_flip - Tt31) <=
+                    ik_tol)) & ((fabs(F6_32_back_up_flip - Tt32) <= ik_tol)) & ((fabs(F6_34_back_up_flip - Tt34) <=
+                    t31_3)));
             /* joint limits and outputs, branch back_up_flip */
             const double fit_q4_back_up_flip = deltagen_fit_angle(q4_back_up_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);
@@ -3416,6 +3418,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t33_0 = q1_back_c*th2_back_down_c;
             const double t33_1 = q1_back_s*th2_back_down_c;
             const double t33_2 = 1.0*th3_back_down_s;
+            const double t33_3 = 1.6770509831248424*ik_tol;
             const double F2_11_back_down_noflip = t33_0;
             const double F2_12_back_down_noflip = -q1_back_c*th2_back_down_s;
             const double F2_14_back_down_noflip = 0.65*t33_0;
@@ -3469,14 +3472,14 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_back_down_noflip = -F4_33_back_down_noflip*q6_back_down_noflip_c -
                     F5_31_back_down_noflip*q6_back_down_noflip_s;
             const double F6_34_back_down_noflip = F4_34_back_down_noflip + 0.15*F5_33_back_down_noflip;
-            const int hit_back_down_noflip = (((fabs(F5_13_back_down_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_back_down_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_down_noflip - Tt33) <=
-                    1.0e-8)) & ((fabs(F6_11_back_down_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_down_noflip - Tt12)
-                    <= 1.0e-8)) & ((fabs(F6_14_back_down_noflip - Tt14) <= 1.6770509831248423e-8)) &
-                    ((fabs(F6_21_back_down_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_back_down_noflip - Tt22) <=
-                    1.0e-8)) & ((fabs(F6_24_back_down_noflip - Tt24) <= 1.6770509831248423e-8)) &
-                    ((fabs(F6_31_back_down_noflip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_back_down_noflip - Tt32) <=
-                    1.0e-8)) & ((fabs(F6_34_back_down_noflip - Tt34) <= 1.6770509831248423e-8)));
+            const int hit_back_down_noflip = (((fabs(F5_13_back_down_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_23_back_down_noflip - Tt23) <= ik_tol)) & ((fabs(F5_33_back_down_noflip - Tt33) <=
+                    ik_tol)) & ((fabs(F6_11_back_down_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_down_noflip - Tt12)
+                    <= ik_tol)) & ((fabs(F6_14_back_down_noflip - Tt14) <= t33_3)) & ((fabs(F6_21_back_down_noflip -
+                    Tt21) <= ik_tol)) & ((fabs(F6_22_back_down_noflip - Tt22) <= ik_tol)) &
+                    ((fabs(F6_24_back_down_noflip - Tt24) <= t33_3)) & ((fabs(F6_31_back_down_noflip - Tt31) <= ik_tol))
+                    & ((fabs(F6_32_back_down_noflip - Tt32) <= ik_tol)) & ((fabs(F6_34_back_down_noflip - Tt34) <=
+                    t33_3)));
             /* joint limits and outputs, branch back_down_noflip */
             const double fit_q2_back_down_noflip = deltagen_fit_angle(th2_back_down, -2.9670597283903604,
                     0.17453292519943295, -2.9670597284903604, 0.17453292529943296);
@@ -3510,6 +3513,7 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double t35_0 = q1_back_c*th2_back_down_c;
             const double t35_1 = q1_back_s*th2_back_down_c;
             const double t35_2 = 1.0*th3_back_down_s;
+            const double t35_3 = 1.6770509831248424*ik_tol;
             const double F2_11_back_down_flip = t35_0;
             const double F2_12_back_down_flip = -q1_back_c*th2_back_down_s;
             const double F2_14_back_down_flip = 0.65*t35_0;
@@ -3563,14 +3567,13 @@ int deltagen_manutec_r15_ik_all(size_t n, const double *restrict T, double *rest
             const double F6_32_back_down_flip = -F4_33_back_down_flip*q6_back_down_flip_c -
                     F5_31_back_down_flip*q6_back_down_flip_s;
             const double F6_34_back_down_flip = F4_34_back_down_flip + 0.15*F5_33_back_down_flip;
-            const int hit_back_down_flip = (((fabs(F5_13_back_down_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_back_down_flip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_down_flip - Tt33) <= 1.0e-8)) &
-                    ((fabs(F6_11_back_down_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_down_flip - Tt12) <= 1.0e-8)) &
-                    ((fabs(F6_14_back_down_flip - Tt14) <= 1.6770509831248423e-8)) & ((fabs(F6_21_back_down_flip - Tt21)
-                    <= 1.0e-8)) & ((fabs(F6_22_back_down_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_24_back_down_flip - Tt24)
-                    <= 1.6770509831248423e-8)) & ((fabs(F6_31_back_down_flip - Tt31) <= 1.0e-8)) &
-                    ((fabs(F6_32_back_down_flip - Tt32) <= 1.0e-8)) & ((fabs(F6_34_back_down_flip - Tt34) <=
-                    1.6770509831248423e-8)));
+            const int hit_back_down_flip = (((fabs(F5_13_back_down_flip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_23_back_down_flip - Tt23) <= ik_tol)) & ((fabs(F5_33_back_down_flip - Tt33) <= ik_tol)) &
+                    ((fabs(F6_11_back_down_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_down_flip - Tt12) <= ik_tol)) &
+                    ((fabs(F6_14_back_down_flip - Tt14) <= t35_3)) & ((fabs(F6_21_back_down_flip - Tt21) <= ik_tol)) &
+                    ((fabs(F6_22_back_down_flip - Tt22) <= ik_tol)) & ((fabs(F6_24_back_down_flip - Tt24) <= t35_3)) &
+                    ((fabs(F6_31_back_down_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_down_flip - Tt32) <= ik_tol)) &
+                    ((fabs(F6_34_back_down_flip - Tt34) <= t35_3)));
             /* joint limits and outputs, branch back_down_flip */
             const double fit_q4_back_down_flip = deltagen_fit_angle(q4_back_down_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);

@@ -141,7 +141,7 @@ int deltagen_manutec_r15_jacobian_dot(size_t n, const double *restrict q, const 
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 2352 operations per point.
+ * Cost: 2368 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_MANUTEC_R15_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

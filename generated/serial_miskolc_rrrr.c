@@ -1666,6 +1666,12 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_MISKOLC_RRRR_BLOCK) {
         const size_t m = (n - start < DELTAGEN_MISKOLC_RRRR_BLOCK) ? n - start : DELTAGEN_MISKOLC_RRRR_BLOCK;
@@ -1739,11 +1745,11 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t1_0 = Tt14*Tt14 + Tt24*Tt24;
             const double yV = 0;
             const double rad = t1_0 - (yV*yV);
-            const int ok_reach = (rad >= -1.4600000000000003e-9);
+            const int ok_reach = (rad >= -1.4600000000000002*ik_slack);
             const double xV = sqrt(fmax(0, rad));
             const int on_axis = (t1_0 < 1.4599999999999999e-24);
             const double phi_p_h = sqrt(t1_0);
-            const double phi_p_den = (((phi_p_h > 1.0e-300)) ? phi_p_h : 1.0e-300);
+            const double phi_p_den = (((ik_tiny < phi_p_h)) ? phi_p_h : ik_tiny);
             const double phi_p_inv = 1.0/phi_p_den;
             const int t1_1 = (phi_p_h > 0);
             const double phi_p_c = ((t1_1) ? Tt14*phi_p_inv : 1);
@@ -1751,7 +1757,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             /* shoulder q1, front branches */
             const double t2_0 = 1.0*xV;
             const double phi_front_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_front_den = (((phi_front_h > 1.0e-300)) ? phi_front_h : 1.0e-300);
+            const double phi_front_den = (((ik_tiny < phi_front_h)) ? phi_front_h : ik_tiny);
             const double phi_front_inv = 1.0/phi_front_den;
             const double t1_front = t2_0;
             const double t2_front = Tt34 - 0.5;
@@ -1764,7 +1770,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             /* shoulder q1, back branches */
             const double t3_0 = 1.0*xV;
             const double phi_back_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_back_den = (((phi_back_h > 1.0e-300)) ? phi_back_h : 1.0e-300);
+            const double phi_back_den = (((ik_tiny < phi_back_h)) ? phi_back_h : ik_tiny);
             const double phi_back_inv = 1.0/phi_back_den;
             const double t1_back = -t3_0;
             const double t2_back = Tt34 - 0.5;
@@ -1778,7 +1784,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t4_0 = Tt13*q1_front_c + Tt23*q1_front_s;
             const double t4_1 = Tt33*q1_front_c + Tt33*(1 - q1_front_c);
             const double tot_front_up_h = sqrt(t4_0*t4_0 + t4_1*t4_1);
-            const double tot_front_up_den = (((tot_front_up_h > 1.0e-300)) ? tot_front_up_h : 1.0e-300);
+            const double tot_front_up_den = (((ik_tiny < tot_front_up_h)) ? tot_front_up_h : ik_tiny);
             const double tot_front_up_inv = 1.0/tot_front_up_den;
             const int t4_2 = (tot_front_up_h > 0);
             const double tot_front_up_c = ((t4_2) ? t4_0*tot_front_up_inv : 1);
@@ -1787,7 +1793,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t4_3 = t1_front - 0.5*tot_front_up_c;
             const double t4_4 = t2_front - 0.5*tot_front_up_s;
             const double phi2_front_up_h = sqrt(t4_3*t4_3 + t4_4*t4_4);
-            const double phi2_front_up_den = (((phi2_front_up_h > 1.0e-300)) ? phi2_front_up_h : 1.0e-300);
+            const double phi2_front_up_den = (((ik_tiny < phi2_front_up_h)) ? phi2_front_up_h : ik_tiny);
             const double phi2_front_up_inv = 1.0/phi2_front_up_den;
             const int t4_5 = (phi2_front_up_h > 0);
             const double phi2_front_up_c = ((t4_5) ? phi2_front_up_inv*t4_3 : 1);
@@ -1804,7 +1810,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double y4_front_up_z = tot_front_up_c*(Tt31*q1_front_c + Tt31*(1 - q1_front_c)) -
                     tot_front_up_s*(Tt11*q1_front_c + Tt21*q1_front_s);
             const double q4_front_up_h = sqrt(y4_front_up_y*y4_front_up_y + y4_front_up_z*y4_front_up_z);
-            const double q4_front_up_den = (((q4_front_up_h > 1.0e-300)) ? q4_front_up_h : 1.0e-300);
+            const double q4_front_up_den = (((ik_tiny < q4_front_up_h)) ? q4_front_up_h : ik_tiny);
             const double q4_front_up_inv = 1.0/q4_front_up_den;
             const int t5_1 = (q4_front_up_h > 0);
             const double q4_front_up_c = ((t5_1) ? q4_front_up_inv*y4_front_up_z : 1);
@@ -1814,7 +1820,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t6_0 = Tt13*q1_front_c + Tt23*q1_front_s;
             const double t6_1 = Tt33*q1_front_c + Tt33*(1 - q1_front_c);
             const double tot_front_down_h = sqrt(t6_0*t6_0 + t6_1*t6_1);
-            const double tot_front_down_den = (((tot_front_down_h > 1.0e-300)) ? tot_front_down_h : 1.0e-300);
+            const double tot_front_down_den = (((ik_tiny < tot_front_down_h)) ? tot_front_down_h : ik_tiny);
             const double tot_front_down_inv = 1.0/tot_front_down_den;
             const int t6_2 = (tot_front_down_h > 0);
             const double tot_front_down_c = ((t6_2) ? t6_0*tot_front_down_inv : 1);
@@ -1823,7 +1829,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t6_3 = t1_front - 0.5*tot_front_down_c;
             const double t6_4 = t2_front - 0.5*tot_front_down_s;
             const double phi2_front_down_h = sqrt(t6_3*t6_3 + t6_4*t6_4);
-            const double phi2_front_down_den = (((phi2_front_down_h > 1.0e-300)) ? phi2_front_down_h : 1.0e-300);
+            const double phi2_front_down_den = (((ik_tiny < phi2_front_down_h)) ? phi2_front_down_h : ik_tiny);
             const double phi2_front_down_inv = 1.0/phi2_front_down_den;
             const int t6_5 = (phi2_front_down_h > 0);
             const double phi2_front_down_c = ((t6_5) ? phi2_front_down_inv*t6_3 : 1);
@@ -1840,7 +1846,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double y4_front_down_z = tot_front_down_c*(Tt31*q1_front_c + Tt31*(1 - q1_front_c)) -
                     tot_front_down_s*(Tt11*q1_front_c + Tt21*q1_front_s);
             const double q4_front_down_h = sqrt(y4_front_down_y*y4_front_down_y + y4_front_down_z*y4_front_down_z);
-            const double q4_front_down_den = (((q4_front_down_h > 1.0e-300)) ? q4_front_down_h : 1.0e-300);
+            const double q4_front_down_den = (((ik_tiny < q4_front_down_h)) ? q4_front_down_h : ik_tiny);
             const double q4_front_down_inv = 1.0/q4_front_down_den;
             const int t7_1 = (q4_front_down_h > 0);
             const double q4_front_down_c = ((t7_1) ? q4_front_down_inv*y4_front_down_z : 1);
@@ -1850,7 +1856,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t8_0 = Tt13*q1_back_c + Tt23*q1_back_s;
             const double t8_1 = Tt33*q1_back_c + Tt33*(1 - q1_back_c);
             const double tot_back_up_h = sqrt(t8_0*t8_0 + t8_1*t8_1);
-            const double tot_back_up_den = (((tot_back_up_h > 1.0e-300)) ? tot_back_up_h : 1.0e-300);
+            const double tot_back_up_den = (((ik_tiny < tot_back_up_h)) ? tot_back_up_h : ik_tiny);
             const double tot_back_up_inv = 1.0/tot_back_up_den;
             const int t8_2 = (tot_back_up_h > 0);
             const double tot_back_up_c = ((t8_2) ? t8_0*tot_back_up_inv : 1);
@@ -1859,7 +1865,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t8_3 = t1_back - 0.5*tot_back_up_c;
             const double t8_4 = t2_back - 0.5*tot_back_up_s;
             const double phi2_back_up_h = sqrt(t8_3*t8_3 + t8_4*t8_4);
-            const double phi2_back_up_den = (((phi2_back_up_h > 1.0e-300)) ? phi2_back_up_h : 1.0e-300);
+            const double phi2_back_up_den = (((ik_tiny < phi2_back_up_h)) ? phi2_back_up_h : ik_tiny);
             const double phi2_back_up_inv = 1.0/phi2_back_up_den;
             const int t8_5 = (phi2_back_up_h > 0);
             const double phi2_back_up_c = ((t8_5) ? phi2_back_up_inv*t8_3 : 1);
@@ -1876,7 +1882,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double y4_back_up_z = tot_back_up_c*(Tt31*q1_back_c + Tt31*(1 - q1_back_c)) -
                     tot_back_up_s*(Tt11*q1_back_c + Tt21*q1_back_s);
             const double q4_back_up_h = sqrt(y4_back_up_y*y4_back_up_y + y4_back_up_z*y4_back_up_z);
-            const double q4_back_up_den = (((q4_back_up_h > 1.0e-300)) ? q4_back_up_h : 1.0e-300);
+            const double q4_back_up_den = (((ik_tiny < q4_back_up_h)) ? q4_back_up_h : ik_tiny);
             const double q4_back_up_inv = 1.0/q4_back_up_den;
             const int t9_1 = (q4_back_up_h > 0);
             const double q4_back_up_c = ((t9_1) ? q4_back_up_inv*y4_back_up_z : 1);
@@ -1886,7 +1892,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t10_0 = Tt13*q1_back_c + Tt23*q1_back_s;
             const double t10_1 = Tt33*q1_back_c + Tt33*(1 - q1_back_c);
             const double tot_back_down_h = sqrt(t10_0*t10_0 + t10_1*t10_1);
-            const double tot_back_down_den = (((tot_back_down_h > 1.0e-300)) ? tot_back_down_h : 1.0e-300);
+            const double tot_back_down_den = (((ik_tiny < tot_back_down_h)) ? tot_back_down_h : ik_tiny);
             const double tot_back_down_inv = 1.0/tot_back_down_den;
             const int t10_2 = (tot_back_down_h > 0);
             const double tot_back_down_c = ((t10_2) ? t10_0*tot_back_down_inv : 1);
@@ -1895,7 +1901,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t10_3 = t1_back - 0.5*tot_back_down_c;
             const double t10_4 = t2_back - 0.5*tot_back_down_s;
             const double phi2_back_down_h = sqrt(t10_3*t10_3 + t10_4*t10_4);
-            const double phi2_back_down_den = (((phi2_back_down_h > 1.0e-300)) ? phi2_back_down_h : 1.0e-300);
+            const double phi2_back_down_den = (((ik_tiny < phi2_back_down_h)) ? phi2_back_down_h : ik_tiny);
             const double phi2_back_down_inv = 1.0/phi2_back_down_den;
             const int t10_5 = (phi2_back_down_h > 0);
             const double phi2_back_down_c = ((t10_5) ? phi2_back_down_inv*t10_3 : 1);
@@ -1912,7 +1918,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double y4_back_down_z = tot_back_down_c*(Tt31*q1_back_c + Tt31*(1 - q1_back_c)) -
                     tot_back_down_s*(Tt11*q1_back_c + Tt21*q1_back_s);
             const double q4_back_down_h = sqrt(y4_back_down_y*y4_back_down_y + y4_back_down_z*y4_back_down_z);
-            const double q4_back_down_den = (((q4_back_down_h > 1.0e-300)) ? q4_back_down_h : 1.0e-300);
+            const double q4_back_down_den = (((ik_tiny < q4_back_down_h)) ? q4_back_down_h : ik_tiny);
             const double q4_back_down_inv = 1.0/q4_back_down_den;
             const int t11_1 = (q4_back_down_h > 0);
             const double q4_back_down_c = ((t11_1) ? q4_back_down_inv*y4_back_down_z : 1);
@@ -1922,6 +1928,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t12_0 = phi2_front_up_c*q1_front_c;
             const double t12_1 = phi2_front_up_c*q1_front_s;
             const double t12_2 = 1.0*paul3_front_up_s;
+            const double t12_3 = 1.2083045973594573*ik_tol;
             const double F2_11_front_up = t12_0;
             const double F2_12_front_up = -phi2_front_up_s*q1_front_c;
             const double F2_14_front_up = 0.6*t12_0;
@@ -1944,13 +1951,12 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double F4_31_front_up = F3_31_front_up*q4_front_up_c;
             const double F4_32_front_up = -F3_31_front_up*q4_front_up_s;
             const double F4_34_front_up = F2_34_front_up + 0.5*F3_33_front_up;
-            const int hit_front_up = (((fabs(F3_13_front_up - Tt13) <= 1.0e-8)) & ((fabs(F3_23_front_up - Tt23) <=
-                    1.0e-8)) & ((fabs(F3_33_front_up - Tt33) <= 1.0e-8)) & ((fabs(F4_11_front_up - Tt11) <= 1.0e-8)) &
-                    ((fabs(F4_12_front_up - Tt12) <= 1.0e-8)) & ((fabs(F4_14_front_up - Tt14) <= 1.2083045973594573e-8))
-                    & ((fabs(F4_21_front_up - Tt21) <= 1.0e-8)) & ((fabs(F4_22_front_up - Tt22) <= 1.0e-8)) &
-                    ((fabs(F4_24_front_up - Tt24) <= 1.2083045973594573e-8)) & ((fabs(F4_31_front_up - Tt31) <= 1.0e-8))
-                    & ((fabs(F4_32_front_up - Tt32) <= 1.0e-8)) & ((fabs(F4_34_front_up - Tt34) <=
-                    1.2083045973594573e-8)));
+            const int hit_front_up = (((fabs(F3_13_front_up - Tt13) <= ik_tol)) & ((fabs(F3_23_front_up - Tt23) <=
+                    ik_tol)) & ((fabs(F3_33_front_up - Tt33) <= ik_tol)) & ((fabs(F4_11_front_up - Tt11) <= ik_tol)) &
+                    ((fabs(F4_12_front_up - Tt12) <= ik_tol)) & ((fabs(F4_14_front_up - Tt14) <= t12_3)) &
+                    ((fabs(F4_21_front_up - Tt21) <= ik_tol)) & ((fabs(F4_22_front_up - Tt22) <= ik_tol)) &
+                    ((fabs(F4_24_front_up - Tt24) <= t12_3)) & ((fabs(F4_31_front_up - Tt31) <= ik_tol)) &
+                    ((fabs(F4_32_front_up - Tt32) <= ik_tol)) & ((fabs(F4_34_front_up - Tt34) <= t12_3)));
             /* joint limits and outputs, branch front_up */
             const double fit_q1_front_up = deltagen_fit_angle(q1_front, -2.356194490192345, 2.356194490192345,
                     -2.356194490292345, 2.356194490292345);
@@ -1977,6 +1983,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t14_0 = phi2_front_down_c*q1_front_c;
             const double t14_1 = phi2_front_down_c*q1_front_s;
             const double t14_2 = 1.0*paul3_front_down_s;
+            const double t14_3 = 1.2083045973594573*ik_tol;
             const double F2_11_front_down = t14_0;
             const double F2_12_front_down = -phi2_front_down_s*q1_front_c;
             const double F2_14_front_down = 0.6*t14_0;
@@ -1999,13 +2006,12 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double F4_31_front_down = F3_31_front_down*q4_front_down_c;
             const double F4_32_front_down = -F3_31_front_down*q4_front_down_s;
             const double F4_34_front_down = F2_34_front_down + 0.5*F3_33_front_down;
-            const int hit_front_down = (((fabs(F3_13_front_down - Tt13) <= 1.0e-8)) & ((fabs(F3_23_front_down - Tt23) <=
-                    1.0e-8)) & ((fabs(F3_33_front_down - Tt33) <= 1.0e-8)) & ((fabs(F4_11_front_down - Tt11) <= 1.0e-8))
-                    & ((fabs(F4_12_front_down - Tt12) <= 1.0e-8)) & ((fabs(F4_14_front_down - Tt14) <=
-                    1.2083045973594573e-8)) & ((fabs(F4_21_front_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_front_down -
-                    Tt22) <= 1.0e-8)) & ((fabs(F4_24_front_down - Tt24) <= 1.2083045973594573e-8)) &
-                    ((fabs(F4_31_front_down - Tt31) <= 1.0e-8)) & ((fabs(F4_32_front_down - Tt32) <= 1.0e-8)) &
-                    ((fabs(F4_34_front_down - Tt34) <= 1.2083045973594573e-8)));
+            const int hit_front_down = (((fabs(F3_13_front_down - Tt13) <= ik_tol)) & ((fabs(F3_23_front_down - Tt23) <=
+                    ik_tol)) & ((fabs(F3_33_front_down - Tt33) <= ik_tol)) & ((fabs(F4_11_front_down - Tt11) <= ik_tol))
+                    & ((fabs(F4_12_front_down - Tt12) <= ik_tol)) & ((fabs(F4_14_front_down - Tt14) <= t14_3)) &
+                    ((fabs(F4_21_front_down - Tt21) <= ik_tol)) & ((fabs(F4_22_front_down - Tt22) <= ik_tol)) &
+                    ((fabs(F4_24_front_down - Tt24) <= t14_3)) & ((fabs(F4_31_front_down - Tt31) <= ik_tol)) &
+                    ((fabs(F4_32_front_down - Tt32) <= ik_tol)) & ((fabs(F4_34_front_down - Tt34) <= t14_3)));
             /* joint limits and outputs, branch front_down */
             const double fit_q2_front_down = deltagen_fit_angle(phi2_front_down, 0.0, 1.5707963267948966, -1.0e-10,
                     1.5707963268948966);
@@ -2029,6 +2035,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t16_0 = phi2_back_up_c*q1_back_c;
             const double t16_1 = phi2_back_up_c*q1_back_s;
             const double t16_2 = 1.0*paul3_back_up_s;
+            const double t16_3 = 1.2083045973594573*ik_tol;
             const double F2_11_back_up = t16_0;
             const double F2_12_back_up = -phi2_back_up_s*q1_back_c;
             const double F2_14_back_up = 0.6*t16_0;
@@ -2051,12 +2058,12 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double F4_31_back_up = F3_31_back_up*q4_back_up_c;
             const double F4_32_back_up = -F3_31_back_up*q4_back_up_s;
             const double F4_34_back_up = F2_34_back_up + 0.5*F3_33_back_up;
-            const int hit_back_up = (((fabs(F3_13_back_up - Tt13) <= 1.0e-8)) & ((fabs(F3_23_back_up - Tt23) <= 1.0e-8))
-                    & ((fabs(F3_33_back_up - Tt33) <= 1.0e-8)) & ((fabs(F4_11_back_up - Tt11) <= 1.0e-8)) &
-                    ((fabs(F4_12_back_up - Tt12) <= 1.0e-8)) & ((fabs(F4_14_back_up - Tt14) <= 1.2083045973594573e-8)) &
-                    ((fabs(F4_21_back_up - Tt21) <= 1.0e-8)) & ((fabs(F4_22_back_up - Tt22) <= 1.0e-8)) &
-                    ((fabs(F4_24_back_up - Tt24) <= 1.2083045973594573e-8)) & ((fabs(F4_31_back_up - Tt31) <= 1.0e-8)) &
-                    ((fabs(F4_32_back_up - Tt32) <= 1.0e-8)) & ((fabs(F4_34_back_up - Tt34) <= 1.2083045973594573e-8)));
+            const int hit_back_up = (((fabs(F3_13_back_up - Tt13) <= ik_tol)) & ((fabs(F3_23_back_up - Tt23) <= ik_tol))
+                    & ((fabs(F3_33_back_up - Tt33) <= ik_tol)) & ((fabs(F4_11_back_up - Tt11) <= ik_tol)) &
+                    ((fabs(F4_12_back_up - Tt12) <= ik_tol)) & ((fabs(F4_14_back_up - Tt14) <= t16_3)) &
+                    ((fabs(F4_21_back_up - Tt21) <= ik_tol)) & ((fabs(F4_22_back_up - Tt22) <= ik_tol)) &
+                    ((fabs(F4_24_back_up - Tt24) <= t16_3)) & ((fabs(F4_31_back_up - Tt31) <= ik_tol)) &
+                    ((fabs(F4_32_back_up - Tt32) <= ik_tol)) & ((fabs(F4_34_back_up - Tt34) <= t16_3)));
             /* joint limits and outputs, branch back_up */
             const double fit_q1_back_up = deltagen_fit_angle(q1_back, -2.356194490192345, 2.356194490192345,
                     -2.356194490292345, 2.356194490292345);
@@ -2081,6 +2088,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double t18_0 = phi2_back_down_c*q1_back_c;
             const double t18_1 = phi2_back_down_c*q1_back_s;
             const double t18_2 = 1.0*paul3_back_down_s;
+            const double t18_3 = 1.2083045973594573*ik_tol;
             const double F2_11_back_down = t18_0;
             const double F2_12_back_down = -phi2_back_down_s*q1_back_c;
             const double F2_14_back_down = 0.6*t18_0;
@@ -2103,13 +2111,12 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
             const double F4_31_back_down = F3_31_back_down*q4_back_down_c;
             const double F4_32_back_down = -F3_31_back_down*q4_back_down_s;
             const double F4_34_back_down = F2_34_back_down + 0.5*F3_33_back_down;
-            const int hit_back_down = (((fabs(F3_13_back_down - Tt13) <= 1.0e-8)) & ((fabs(F3_23_back_down - Tt23) <=
-                    1.0e-8)) & ((fabs(F3_33_back_down - Tt33) <= 1.0e-8)) & ((fabs(F4_11_back_down - Tt11) <= 1.0e-8)) &
-                    ((fabs(F4_12_back_down - Tt12) <= 1.0e-8)) & ((fabs(F4_14_back_down - Tt14) <=
-                    1.2083045973594573e-8)) & ((fabs(F4_21_back_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_back_down -
-                    Tt22) <= 1.0e-8)) & ((fabs(F4_24_back_down - Tt24) <= 1.2083045973594573e-8)) &
-                    ((fabs(F4_31_back_down - Tt31) <= 1.0e-8)) & ((fabs(F4_32_back_down - Tt32) <= 1.0e-8)) &
-                    ((fabs(F4_34_back_down - Tt34) <= 1.2083045973594573e-8)));
+            const int hit_back_down = (((fabs(F3_13_back_down - Tt13) <= ik_tol)) & ((fabs(F3_23_back_down - Tt23) <=
+                    ik_tol)) & ((fabs(F3_33_back_down - Tt33) <= ik_tol)) & ((fabs(F4_11_back_down - Tt11) <= ik_tol)) &
+                    ((fabs(F4_12_back_down - Tt12) <= ik_tol)) & ((fabs(F4_14_back_down - Tt14) <= t18_3)) &
+                    ((fabs(F4_21_back_down - Tt21) <= ik_tol)) & ((fabs(F4_22_back_down - Tt22) <= ik_tol)) &
+                    ((fabs(F4_24_back_down - Tt24) <= t18_3)) & ((fabs(F4_31_back_down - Tt31) <= ik_tol)) &
+                    ((fabs(F4_32_back_down - Tt32) <= ik_tol)) & ((fabs(F4_34_back_down - Tt34) <= t18_3)));
             /* joint limits and outputs, branch back_down */
             const double fit_q2_back_down = deltagen_fit_angle(phi2_back_down, 0.0, 1.5707963267948966, -1.0e-10,
                     1.5707963268948966);

@@ -144,7 +144,7 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 872 operations per point.
+ * Cost: 878 operations per point.
  * Stack: 33 block arrays (28 double, 5 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
  * 15616 bytes (15.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

@@ -2374,6 +2374,12 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_MOTOMAN_UP6_BLOCK) {
         const size_t m = (n - start < DELTAGEN_MOTOMAN_UP6_BLOCK) ? n - start : DELTAGEN_MOTOMAN_UP6_BLOCK;
@@ -2487,11 +2493,11 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t2_0 = W_t_x*W_t_x + W_t_y*W_t_y;
             const double yV = 0;
             const double rad = t2_0 - (yV*yV);
-            const int ok_reach = (rad >= -1.3773249999999999e-9);
+            const int ok_reach = (rad >= -1.3773249999999999*ik_slack);
             const double xV = sqrt(fmax(0, rad));
             const int on_axis = (t2_0 < 1.3773249999999996e-24);
             const double phi_p_h = sqrt(t2_0);
-            const double phi_p_den = (((phi_p_h > 1.0e-300)) ? phi_p_h : 1.0e-300);
+            const double phi_p_den = (((ik_tiny < phi_p_h)) ? phi_p_h : ik_tiny);
             const double phi_p_inv = 1.0/phi_p_den;
             const int t2_1 = (phi_p_h > 0);
             const double phi_p_c = ((t2_1) ? W_t_x*phi_p_inv : 1);
@@ -2499,13 +2505,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             /* shoulder q1, front branches */
             const double t3_0 = 1.0*xV;
             const double phi_front_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_front_den = (((phi_front_h > 1.0e-300)) ? phi_front_h : 1.0e-300);
+            const double phi_front_den = (((ik_tiny < phi_front_h)) ? phi_front_h : ik_tiny);
             const double phi_front_inv = 1.0/phi_front_den;
             const double t1_front = t3_0 - 0.15;
             const double t2_front = 0.45 - W_t_z;
             const double kappa_front = -1.1536992386963453 + 3.009126861492815*(t1_front*t1_front) +
                     3.009126861492815*(t2_front*t2_front);
-            const int ok_elbow_front = (fabs(kappa_front) <= 1.0000000010000001);
+            const int ok_elbow_front = (fabs(kappa_front) <= ik_slack + 1);
             const double kc0_front = (((kappa_front > -1)) ? kappa_front : -1);
             const double kc_front = (((kc0_front < 1)) ? kc0_front : 1);
             const double ks_front = sqrt(1 - (kc_front*kc_front));
@@ -2519,13 +2525,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             /* shoulder q1, back branches */
             const double t4_0 = 1.0*xV;
             const double phi_back_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_back_den = (((phi_back_h > 1.0e-300)) ? phi_back_h : 1.0e-300);
+            const double phi_back_den = (((ik_tiny < phi_back_h)) ? phi_back_h : ik_tiny);
             const double phi_back_inv = 1.0/phi_back_den;
             const double t1_back = -t4_0 - 0.15;
             const double t2_back = 0.45 - W_t_z;
             const double kappa_back = -1.1536992386963453 + 3.009126861492815*(t1_back*t1_back) +
                     3.009126861492815*(t2_back*t2_back);
-            const int ok_elbow_back = (fabs(kappa_back) <= 1.0000000010000001);
+            const int ok_elbow_back = (fabs(kappa_back) <= ik_slack + 1);
             const double kc0_back = (((kappa_back > -1)) ? kappa_back : -1);
             const double kc_back = (((kc0_back < 1)) ? kc0_back : 1);
             const double ks_back = sqrt(1 - (kc_back*kc_back));
@@ -2546,7 +2552,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t5_2 = t1_front*t5_0 + t2_front*t5_1;
             const double t5_3 = -t1_front*t5_1 + t2_front*t5_0;
             const double th2_front_up_h = sqrt(t5_2*t5_2 + t5_3*t5_3);
-            const double th2_front_up_den = (((th2_front_up_h > 1.0e-300)) ? th2_front_up_h : 1.0e-300);
+            const double th2_front_up_den = (((ik_tiny < th2_front_up_h)) ? th2_front_up_h : ik_tiny);
             const double th2_front_up_inv = 1.0/th2_front_up_den;
             const int t5_4 = (th2_front_up_h > 0);
             const double th2_front_up_c = ((t5_4) ? t5_2*th2_front_up_inv : 1);
@@ -2562,7 +2568,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t6_2 = t1_front*t6_0 + t2_front*t6_1;
             const double t6_3 = -t1_front*t6_1 + t2_front*t6_0;
             const double th2_front_down_h = sqrt(t6_2*t6_2 + t6_3*t6_3);
-            const double th2_front_down_den = (((th2_front_down_h > 1.0e-300)) ? th2_front_down_h : 1.0e-300);
+            const double th2_front_down_den = (((ik_tiny < th2_front_down_h)) ? th2_front_down_h : ik_tiny);
             const double th2_front_down_inv = 1.0/th2_front_down_den;
             const int t6_4 = (th2_front_down_h > 0);
             const double th2_front_down_c = ((t6_4) ? t6_2*th2_front_down_inv : 1);
@@ -2578,7 +2584,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t7_2 = t1_back*t7_0 + t2_back*t7_1;
             const double t7_3 = -t1_back*t7_1 + t2_back*t7_0;
             const double th2_back_up_h = sqrt(t7_2*t7_2 + t7_3*t7_3);
-            const double th2_back_up_den = (((th2_back_up_h > 1.0e-300)) ? th2_back_up_h : 1.0e-300);
+            const double th2_back_up_den = (((ik_tiny < th2_back_up_h)) ? th2_back_up_h : ik_tiny);
             const double th2_back_up_inv = 1.0/th2_back_up_den;
             const int t7_4 = (th2_back_up_h > 0);
             const double th2_back_up_c = ((t7_4) ? t7_2*th2_back_up_inv : 1);
@@ -2594,7 +2600,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t8_2 = t1_back*t8_0 + t2_back*t8_1;
             const double t8_3 = -t1_back*t8_1 + t2_back*t8_0;
             const double th2_back_down_h = sqrt(t8_2*t8_2 + t8_3*t8_3);
-            const double th2_back_down_den = (((th2_back_down_h > 1.0e-300)) ? th2_back_down_h : 1.0e-300);
+            const double th2_back_down_den = (((ik_tiny < th2_back_down_h)) ? th2_back_down_h : ik_tiny);
             const double th2_back_down_inv = 1.0/th2_back_down_den;
             const int t8_4 = (th2_back_down_h > 0);
             const double th2_back_down_c = ((t8_4) ? t8_2*th2_back_down_inv : 1);
@@ -2620,19 +2626,18 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_front_up_y = t9_4*t9_7 + t9_7*tot_front_up_c;
             const double perp2_front_up = qv_front_up_y*qv_front_up_y + qv_front_up_z*qv_front_up_z;
             const double gam2_front_up = perp2_front_up - (beta_front_up*beta_front_up);
-            const int ok_wrist_front_up = (gam2_front_up >= -1.0000000000000001e-9);
+            const int ok_wrist_front_up = (gam2_front_up >= -ik_slack);
             const double gam_front_up = sqrt(fmax(0, gam2_front_up));
             const int wrist_singular_front_up = (perp2_front_up < 9.9999999999999992e-25);
             /* wrist, branch front_up_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t10_1 = beta_front_up*qv_front_up_y + gam_front_up*qv_front_up_z;
             const double t10_2 = beta_front_up*qv_front_up_z - gam_front_up*qv_front_up_y;
             const double q5_front_up_noflip_h = sqrt(gam_front_up*gam_front_up + qv_front_up_x*qv_front_up_x);
-            const double q5_front_up_noflip_den = (((q5_front_up_noflip_h > 1.0e-300)) ? q5_front_up_noflip_h :
-                    1.0e-300);
+            const double q5_front_up_noflip_den = (((ik_tiny < q5_front_up_noflip_h)) ? q5_front_up_noflip_h : ik_tiny);
             const double q5_front_up_noflip_inv = 1.0/q5_front_up_noflip_den;
             const double q4r_front_up_noflip_h = sqrt(t10_1*t10_1 + t10_2*t10_2);
-            const double q4r_front_up_noflip_den = (((q4r_front_up_noflip_h > 1.0e-300)) ? q4r_front_up_noflip_h :
-                    1.0e-300);
+            const double q4r_front_up_noflip_den = (((ik_tiny < q4r_front_up_noflip_h)) ? q4r_front_up_noflip_h :
+                    ik_tiny);
             const double q4r_front_up_noflip_inv = 1.0/q4r_front_up_noflip_den;
             const int t10_0 = (q5_front_up_noflip_h > 0);
             const int t10_3 = (q4r_front_up_noflip_h > 0);
@@ -2651,8 +2656,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q4_front_up_noflip_s*qx_front_up_y) - q5_front_up_noflip_s*(-q4_front_up_noflip_c*qx_front_up_x -
                     qx_front_up_x*(1 - q4_front_up_noflip_c));
             const double q6_front_up_noflip_h = sqrt(t10_5*t10_5 + t10_6*t10_6);
-            const double q6_front_up_noflip_den = (((q6_front_up_noflip_h > 1.0e-300)) ? q6_front_up_noflip_h :
-                    1.0e-300);
+            const double q6_front_up_noflip_den = (((ik_tiny < q6_front_up_noflip_h)) ? q6_front_up_noflip_h : ik_tiny);
             const double q6_front_up_noflip_inv = 1.0/q6_front_up_noflip_den;
             const int t10_7 = (q6_front_up_noflip_h > 0);
             const double q6_front_up_noflip_c = ((t10_7) ? q6_front_up_noflip_inv*t10_6 : 1);
@@ -2661,7 +2665,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             /* wrist, branch front_up_flip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_front_up_flip_z = -gam_front_up;
             const double q5_front_up_flip_h = sqrt(cw_front_up_flip_z*cw_front_up_flip_z + qv_front_up_x*qv_front_up_x);
-            const double q5_front_up_flip_den = (((q5_front_up_flip_h > 1.0e-300)) ? q5_front_up_flip_h : 1.0e-300);
+            const double q5_front_up_flip_den = (((ik_tiny < q5_front_up_flip_h)) ? q5_front_up_flip_h : ik_tiny);
             const double q5_front_up_flip_inv = 1.0/q5_front_up_flip_den;
             const int t11_0 = (q5_front_up_flip_h > 0);
             const double t11_1 = beta_front_up*qv_front_up_y + cw_front_up_flip_z*qv_front_up_z;
@@ -2670,7 +2674,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_front_up_flip_s = ((t11_0) ? -cw_front_up_flip_z*q5_front_up_flip_inv : 0);
             const double q5_front_up_flip = ((t11_0) ? atan2(-cw_front_up_flip_z, qv_front_up_x) : 0);
             const double q4r_front_up_flip_h = sqrt(t11_1*t11_1 + t11_2*t11_2);
-            const double q4r_front_up_flip_den = (((q4r_front_up_flip_h > 1.0e-300)) ? q4r_front_up_flip_h : 1.0e-300);
+            const double q4r_front_up_flip_den = (((ik_tiny < q4r_front_up_flip_h)) ? q4r_front_up_flip_h : ik_tiny);
             const double q4r_front_up_flip_inv = 1.0/q4r_front_up_flip_den;
             const int t11_3 = (q4r_front_up_flip_h > 0);
             const double q4r_front_up_flip_c = ((t11_3) ? q4r_front_up_flip_inv*t11_1 : 1);
@@ -2685,7 +2689,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q4_front_up_flip_s*qx_front_up_y) - q5_front_up_flip_s*(-q4_front_up_flip_c*qx_front_up_x -
                     qx_front_up_x*(1 - q4_front_up_flip_c));
             const double q6_front_up_flip_h = sqrt(t11_5*t11_5 + t11_6*t11_6);
-            const double q6_front_up_flip_den = (((q6_front_up_flip_h > 1.0e-300)) ? q6_front_up_flip_h : 1.0e-300);
+            const double q6_front_up_flip_den = (((ik_tiny < q6_front_up_flip_h)) ? q6_front_up_flip_h : ik_tiny);
             const double q6_front_up_flip_inv = 1.0/q6_front_up_flip_den;
             const int t11_7 = (q6_front_up_flip_h > 0);
             const double q6_front_up_flip_c = ((t11_7) ? q6_front_up_flip_inv*t11_6 : 1);
@@ -2711,19 +2715,19 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_front_down_y = t12_4*t12_7 + t12_7*tot_front_down_c;
             const double perp2_front_down = qv_front_down_y*qv_front_down_y + qv_front_down_z*qv_front_down_z;
             const double gam2_front_down = perp2_front_down - (beta_front_down*beta_front_down);
-            const int ok_wrist_front_down = (gam2_front_down >= -1.0000000000000001e-9);
+            const int ok_wrist_front_down = (gam2_front_down >= -ik_slack);
             const double gam_front_down = sqrt(fmax(0, gam2_front_down));
             const int wrist_singular_front_down = (perp2_front_down < 9.9999999999999992e-25);
             /* wrist, branch front_down_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t13_1 = beta_front_down*qv_front_down_y + gam_front_down*qv_front_down_z;
             const double t13_2 = beta_front_down*qv_front_down_z - gam_front_down*qv_front_down_y;
             const double q5_front_down_noflip_h = sqrt(gam_front_down*gam_front_down + qv_front_down_x*qv_front_down_x);
-            const double q5_front_down_noflip_den = (((q5_front_down_noflip_h > 1.0e-300)) ? q5_front_down_noflip_h :
-                    1.0e-300);
+            const double q5_front_down_noflip_den = (((ik_tiny < q5_front_down_noflip_h)) ? q5_front_down_noflip_h :
+                    ik_tiny);
             const double q5_front_down_noflip_inv = 1.0/q5_front_down_noflip_den;
             const double q4r_front_down_noflip_h = sqrt(t13_1*t13_1 + t13_2*t13_2);
-            const double q4r_front_down_noflip_den = (((q4r_front_down_noflip_h > 1.0e-300)) ? q4r_front_down_noflip_h :
-                    1.0e-300);
+            const double q4r_front_down_noflip_den = (((ik_tiny < q4r_front_down_noflip_h)) ? q4r_front_down_noflip_h :
+                    ik_tiny);
             const double q4r_front_down_noflip_inv = 1.0/q4r_front_down_noflip_den;
             const int t13_0 = (q5_front_down_noflip_h > 0);
             const int t13_3 = (q4r_front_down_noflip_h > 0);
@@ -2743,8 +2747,8 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q5_front_down_noflip_s*(-q4_front_down_noflip_c*qx_front_down_x - qx_front_down_x*(1 -
                     q4_front_down_noflip_c));
             const double q6_front_down_noflip_h = sqrt(t13_5*t13_5 + t13_6*t13_6);
-            const double q6_front_down_noflip_den = (((q6_front_down_noflip_h > 1.0e-300)) ? q6_front_down_noflip_h :
-                    1.0e-300);
+            const double q6_front_down_noflip_den = (((ik_tiny < q6_front_down_noflip_h)) ? q6_front_down_noflip_h :
+                    ik_tiny);
             const double q6_front_down_noflip_inv = 1.0/q6_front_down_noflip_den;
             const int t13_7 = (q6_front_down_noflip_h > 0);
             const double q6_front_down_noflip_c = ((t13_7) ? q6_front_down_noflip_inv*t13_6 : 1);
@@ -2754,8 +2758,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double cw_front_down_flip_z = -gam_front_down;
             const double q5_front_down_flip_h = sqrt(cw_front_down_flip_z*cw_front_down_flip_z +
                     qv_front_down_x*qv_front_down_x);
-            const double q5_front_down_flip_den = (((q5_front_down_flip_h > 1.0e-300)) ? q5_front_down_flip_h :
-                    1.0e-300);
+            const double q5_front_down_flip_den = (((ik_tiny < q5_front_down_flip_h)) ? q5_front_down_flip_h : ik_tiny);
             const double q5_front_down_flip_inv = 1.0/q5_front_down_flip_den;
             const int t14_0 = (q5_front_down_flip_h > 0);
             const double t14_1 = beta_front_down*qv_front_down_y + cw_front_down_flip_z*qv_front_down_z;
@@ -2764,8 +2767,8 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_front_down_flip_s = ((t14_0) ? -cw_front_down_flip_z*q5_front_down_flip_inv : 0);
             const double q5_front_down_flip = ((t14_0) ? atan2(-cw_front_down_flip_z, qv_front_down_x) : 0);
             const double q4r_front_down_flip_h = sqrt(t14_1*t14_1 + t14_2*t14_2);
-            const double q4r_front_down_flip_den = (((q4r_front_down_flip_h > 1.0e-300)) ? q4r_front_down_flip_h :
-                    1.0e-300);
+            const double q4r_front_down_flip_den = (((ik_tiny < q4r_front_down_flip_h)) ? q4r_front_down_flip_h :
+                    ik_tiny);
             const double q4r_front_down_flip_inv = 1.0/q4r_front_down_flip_den;
             const int t14_3 = (q4r_front_down_flip_h > 0);
             const double q4r_front_down_flip_c = ((t14_3) ? q4r_front_down_flip_inv*t14_1 : 1);
@@ -2780,8 +2783,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q4_front_down_flip_s*qx_front_down_y) - q5_front_down_flip_s*(-q4_front_down_flip_c*qx_front_down_x
                     - qx_front_down_x*(1 - q4_front_down_flip_c));
             const double q6_front_down_flip_h = sqrt(t14_5*t14_5 + t14_6*t14_6);
-            const double q6_front_down_flip_den = (((q6_front_down_flip_h > 1.0e-300)) ? q6_front_down_flip_h :
-                    1.0e-300);
+            const double q6_front_down_flip_den = (((ik_tiny < q6_front_down_flip_h)) ? q6_front_down_flip_h : ik_tiny);
             const double q6_front_down_flip_inv = 1.0/q6_front_down_flip_den;
             const int t14_7 = (q6_front_down_flip_h > 0);
             const double q6_front_down_flip_c = ((t14_7) ? q6_front_down_flip_inv*t14_6 : 1);
@@ -2807,18 +2809,17 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_back_up_y = t15_4*t15_7 + t15_7*tot_back_up_c;
             const double perp2_back_up = qv_back_up_y*qv_back_up_y + qv_back_up_z*qv_back_up_z;
             const double gam2_back_up = perp2_back_up - (beta_back_up*beta_back_up);
-            const int ok_wrist_back_up = (gam2_back_up >= -1.0000000000000001e-9);
+            const int ok_wrist_back_up = (gam2_back_up >= -ik_slack);
             const double gam_back_up = sqrt(fmax(0, gam2_back_up));
             const int wrist_singular_back_up = (perp2_back_up < 9.9999999999999992e-25);
             /* wrist, branch back_up_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t16_1 = beta_back_up*qv_back_up_y + gam_back_up*qv_back_up_z;
             const double t16_2 = beta_back_up*qv_back_up_z - gam_back_up*qv_back_up_y;
             const double q5_back_up_noflip_h = sqrt(gam_back_up*gam_back_up + qv_back_up_x*qv_back_up_x);
-            const double q5_back_up_noflip_den = (((q5_back_up_noflip_h > 1.0e-300)) ? q5_back_up_noflip_h : 1.0e-300);
+            const double q5_back_up_noflip_den = (((ik_tiny < q5_back_up_noflip_h)) ? q5_back_up_noflip_h : ik_tiny);
             const double q5_back_up_noflip_inv = 1.0/q5_back_up_noflip_den;
             const double q4r_back_up_noflip_h = sqrt(t16_1*t16_1 + t16_2*t16_2);
-            const double q4r_back_up_noflip_den = (((q4r_back_up_noflip_h > 1.0e-300)) ? q4r_back_up_noflip_h :
-                    1.0e-300);
+            const double q4r_back_up_noflip_den = (((ik_tiny < q4r_back_up_noflip_h)) ? q4r_back_up_noflip_h : ik_tiny);
             const double q4r_back_up_noflip_inv = 1.0/q4r_back_up_noflip_den;
             const int t16_0 = (q5_back_up_noflip_h > 0);
             const int t16_3 = (q4r_back_up_noflip_h > 0);
@@ -2837,7 +2838,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q4_back_up_noflip_s*qx_back_up_y) - q5_back_up_noflip_s*(-q4_back_up_noflip_c*qx_back_up_x -
                     qx_back_up_x*(1 - q4_back_up_noflip_c));
             const double q6_back_up_noflip_h = sqrt(t16_5*t16_5 + t16_6*t16_6);
-            const double q6_back_up_noflip_den = (((q6_back_up_noflip_h > 1.0e-300)) ? q6_back_up_noflip_h : 1.0e-300);
+            const double q6_back_up_noflip_den = (((ik_tiny < q6_back_up_noflip_h)) ? q6_back_up_noflip_h : ik_tiny);
             const double q6_back_up_noflip_inv = 1.0/q6_back_up_noflip_den;
             const int t16_7 = (q6_back_up_noflip_h > 0);
             const double q6_back_up_noflip_c = ((t16_7) ? q6_back_up_noflip_inv*t16_6 : 1);
@@ -2846,7 +2847,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             /* wrist, branch back_up_flip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_back_up_flip_z = -gam_back_up;
             const double q5_back_up_flip_h = sqrt(cw_back_up_flip_z*cw_back_up_flip_z + qv_back_up_x*qv_back_up_x);
-            const double q5_back_up_flip_den = (((q5_back_up_flip_h > 1.0e-300)) ? q5_back_up_flip_h : 1.0e-300);
+            const double q5_back_up_flip_den = (((ik_tiny < q5_back_up_flip_h)) ? q5_back_up_flip_h : ik_tiny);
             const double q5_back_up_flip_inv = 1.0/q5_back_up_flip_den;
             const int t17_0 = (q5_back_up_flip_h > 0);
             const double t17_1 = beta_back_up*qv_back_up_y + cw_back_up_flip_z*qv_back_up_z;
@@ -2855,7 +2856,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_back_up_flip_s = ((t17_0) ? -cw_back_up_flip_z*q5_back_up_flip_inv : 0);
             const double q5_back_up_flip = ((t17_0) ? atan2(-cw_back_up_flip_z, qv_back_up_x) : 0);
             const double q4r_back_up_flip_h = sqrt(t17_1*t17_1 + t17_2*t17_2);
-            const double q4r_back_up_flip_den = (((q4r_back_up_flip_h > 1.0e-300)) ? q4r_back_up_flip_h : 1.0e-300);
+            const double q4r_back_up_flip_den = (((ik_tiny < q4r_back_up_flip_h)) ? q4r_back_up_flip_h : ik_tiny);
             const double q4r_back_up_flip_inv = 1.0/q4r_back_up_flip_den;
             const int t17_3 = (q4r_back_up_flip_h > 0);
             const double q4r_back_up_flip_c = ((t17_3) ? q4r_back_up_flip_inv*t17_1 : 1);
@@ -2869,7 +2870,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t17_6 = q5_back_up_flip_c*(q4_back_up_flip_c*qx_back_up_z - q4_back_up_flip_s*qx_back_up_y) -
                     q5_back_up_flip_s*(-q4_back_up_flip_c*qx_back_up_x - qx_back_up_x*(1 - q4_back_up_flip_c));
             const double q6_back_up_flip_h = sqrt(t17_5*t17_5 + t17_6*t17_6);
-            const double q6_back_up_flip_den = (((q6_back_up_flip_h > 1.0e-300)) ? q6_back_up_flip_h : 1.0e-300);
+            const double q6_back_up_flip_den = (((ik_tiny < q6_back_up_flip_h)) ? q6_back_up_flip_h : ik_tiny);
             const double q6_back_up_flip_inv = 1.0/q6_back_up_flip_den;
             const int t17_7 = (q6_back_up_flip_h > 0);
             const double q6_back_up_flip_c = ((t17_7) ? q6_back_up_flip_inv*t17_6 : 1);
@@ -2895,19 +2896,19 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double qx_back_down_y = t18_4*t18_7 + t18_7*tot_back_down_c;
             const double perp2_back_down = qv_back_down_y*qv_back_down_y + qv_back_down_z*qv_back_down_z;
             const double gam2_back_down = perp2_back_down - (beta_back_down*beta_back_down);
-            const int ok_wrist_back_down = (gam2_back_down >= -1.0000000000000001e-9);
+            const int ok_wrist_back_down = (gam2_back_down >= -ik_slack);
             const double gam_back_down = sqrt(fmax(0, gam2_back_down));
             const int wrist_singular_back_down = (perp2_back_down < 9.9999999999999992e-25);
             /* wrist, branch back_down_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double t19_1 = beta_back_down*qv_back_down_y + gam_back_down*qv_back_down_z;
             const double t19_2 = beta_back_down*qv_back_down_z - gam_back_down*qv_back_down_y;
             const double q5_back_down_noflip_h = sqrt(gam_back_down*gam_back_down + qv_back_down_x*qv_back_down_x);
-            const double q5_back_down_noflip_den = (((q5_back_down_noflip_h > 1.0e-300)) ? q5_back_down_noflip_h :
-                    1.0e-300);
+            const double q5_back_down_noflip_den = (((ik_tiny < q5_back_down_noflip_h)) ? q5_back_down_noflip_h :
+                    ik_tiny);
             const double q5_back_down_noflip_inv = 1.0/q5_back_down_noflip_den;
             const double q4r_back_down_noflip_h = sqrt(t19_1*t19_1 + t19_2*t19_2);
-            const double q4r_back_down_noflip_den = (((q4r_back_down_noflip_h > 1.0e-300)) ? q4r_back_down_noflip_h :
-                    1.0e-300);
+            const double q4r_back_down_noflip_den = (((ik_tiny < q4r_back_down_noflip_h)) ? q4r_back_down_noflip_h :
+                    ik_tiny);
             const double q4r_back_down_noflip_inv = 1.0/q4r_back_down_noflip_den;
             const int t19_0 = (q5_back_down_noflip_h > 0);
             const int t19_3 = (q4r_back_down_noflip_h > 0);
@@ -2926,8 +2927,8 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q4_back_down_noflip_s*qx_back_down_y) - q5_back_down_noflip_s*(-q4_back_down_noflip_c*qx_back_down_x
                     - qx_back_down_x*(1 - q4_back_down_noflip_c));
             const double q6_back_down_noflip_h = sqrt(t19_5*t19_5 + t19_6*t19_6);
-            const double q6_back_down_noflip_den = (((q6_back_down_noflip_h > 1.0e-300)) ? q6_back_down_noflip_h :
-                    1.0e-300);
+            const double q6_back_down_noflip_den = (((ik_tiny < q6_back_down_noflip_h)) ? q6_back_down_noflip_h :
+                    ik_tiny);
             const double q6_back_down_noflip_inv = 1.0/q6_back_down_noflip_den;
             const int t19_7 = (q6_back_down_noflip_h > 0);
             const double q6_back_down_noflip_c = ((t19_7) ? q6_back_down_noflip_inv*t19_6 : 1);
@@ -2937,7 +2938,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double cw_back_down_flip_z = -gam_back_down;
             const double q5_back_down_flip_h = sqrt(cw_back_down_flip_z*cw_back_down_flip_z +
                     qv_back_down_x*qv_back_down_x);
-            const double q5_back_down_flip_den = (((q5_back_down_flip_h > 1.0e-300)) ? q5_back_down_flip_h : 1.0e-300);
+            const double q5_back_down_flip_den = (((ik_tiny < q5_back_down_flip_h)) ? q5_back_down_flip_h : ik_tiny);
             const double q5_back_down_flip_inv = 1.0/q5_back_down_flip_den;
             const int t20_0 = (q5_back_down_flip_h > 0);
             const double t20_1 = beta_back_down*qv_back_down_y + cw_back_down_flip_z*qv_back_down_z;
@@ -2946,8 +2947,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double q5_back_down_flip_s = ((t20_0) ? -cw_back_down_flip_z*q5_back_down_flip_inv : 0);
             const double q5_back_down_flip = ((t20_0) ? atan2(-cw_back_down_flip_z, qv_back_down_x) : 0);
             const double q4r_back_down_flip_h = sqrt(t20_1*t20_1 + t20_2*t20_2);
-            const double q4r_back_down_flip_den = (((q4r_back_down_flip_h > 1.0e-300)) ? q4r_back_down_flip_h :
-                    1.0e-300);
+            const double q4r_back_down_flip_den = (((ik_tiny < q4r_back_down_flip_h)) ? q4r_back_down_flip_h : ik_tiny);
             const double q4r_back_down_flip_inv = 1.0/q4r_back_down_flip_den;
             const int t20_3 = (q4r_back_down_flip_h > 0);
             const double q4r_back_down_flip_c = ((t20_3) ? q4r_back_down_flip_inv*t20_1 : 1);
@@ -2962,7 +2962,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
                     q4_back_down_flip_s*qx_back_down_y) - q5_back_down_flip_s*(-q4_back_down_flip_c*qx_back_down_x -
                     qx_back_down_x*(1 - q4_back_down_flip_c));
             const double q6_back_down_flip_h = sqrt(t20_5*t20_5 + t20_6*t20_6);
-            const double q6_back_down_flip_den = (((q6_back_down_flip_h > 1.0e-300)) ? q6_back_down_flip_h : 1.0e-300);
+            const double q6_back_down_flip_den = (((ik_tiny < q6_back_down_flip_h)) ? q6_back_down_flip_h : ik_tiny);
             const double q6_back_down_flip_inv = 1.0/q6_back_down_flip_den;
             const int t20_7 = (q6_back_down_flip_h > 0);
             const double q6_back_down_flip_c = ((t20_7) ? q6_back_down_flip_inv*t20_6 : 1);
@@ -2975,6 +2975,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t21_5 = 0.13*th3_front_up_s;
             const double t21_6 = 0.52*th3_front_up_s;
             const double t21_9 = th2_front_up_s*th3_front_up_c;
+            const double t21_16 = 1.1735949045560823*ik_tol;
             const double F1_14_front_up_noflip = 0.15*q1_front_c;
             const double F1_24_front_up_noflip = 0.15*q1_front_s;
             const double F2_11_front_up_noflip = q1_front_c*th2_front_up_c;
@@ -3040,14 +3041,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_front_up_noflip = F3_14_front_up_noflip + 0.095*t21_10 - 0.095*t21_11;
             const double F5_21_front_up_noflip = t21_12 - t21_13;
             const double F5_24_front_up_noflip = F3_24_front_up_noflip + 0.095*t21_12 - 0.095*t21_13;
-            const int hit_front_up_noflip = (((fabs(F5_11_front_up_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_14_front_up_noflip - Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_front_up_noflip -
-                    Tt23) <= 1.0e-8)) & ((fabs(F5_24_front_up_noflip - Tt24) <= 1.1735949045560824e-8)) &
-                    ((fabs(F5_31_front_up_noflip - Tt33) <= 1.0e-8)) & ((fabs(F5_34_front_up_noflip - Tt34) <=
-                    1.1735949045560824e-8)) & ((fabs(F6_11_front_up_noflip - Tt11) <= 1.0e-8)) &
-                    ((fabs(F6_12_front_up_noflip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_front_up_noflip - Tt21) <= 1.0e-8))
-                    & ((fabs(F6_22_front_up_noflip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_front_up_noflip - Tt31) <=
-                    1.0e-8)) & ((fabs(F6_32_front_up_noflip - Tt32) <= 1.0e-8)));
+            const int hit_front_up_noflip = (((fabs(F5_11_front_up_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_14_front_up_noflip - Tt14) <= t21_16)) & ((fabs(F5_21_front_up_noflip - Tt23) <= ik_tol))
+                    & ((fabs(F5_24_front_up_noflip - Tt24) <= t21_16)) & ((fabs(F5_31_front_up_noflip - Tt33) <=
+                    ik_tol)) & ((fabs(F5_34_front_up_noflip - Tt34) <= t21_16)) & ((fabs(F6_11_front_up_noflip - Tt11)
+                    <= ik_tol)) & ((fabs(F6_12_front_up_noflip - Tt12) <= ik_tol)) & ((fabs(F6_21_front_up_noflip -
+                    Tt21) <= ik_tol)) & ((fabs(F6_22_front_up_noflip - Tt22) <= ik_tol)) & ((fabs(F6_31_front_up_noflip
+                    - Tt31) <= ik_tol)) & ((fabs(F6_32_front_up_noflip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_up_noflip */
             const double fit_q1_front_up_noflip = deltagen_fit_angle(q1_front, -2.9670597283903604, 2.9670597283903604,
                     -2.9670597284903604, 2.9670597284903604);
@@ -3088,6 +3088,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t23_5 = 0.13*th3_front_up_s;
             const double t23_6 = 0.52*th3_front_up_s;
             const double t23_9 = th2_front_up_s*th3_front_up_c;
+            const double t23_16 = 1.1735949045560823*ik_tol;
             const double F1_14_front_up_flip = 0.15*q1_front_c;
             const double F1_24_front_up_flip = 0.15*q1_front_s;
             const double F2_11_front_up_flip = q1_front_c*th2_front_up_c;
@@ -3149,13 +3150,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_front_up_flip = F3_14_front_up_flip + 0.095*t23_10 - 0.095*t23_11;
             const double F5_21_front_up_flip = t23_12 - t23_13;
             const double F5_24_front_up_flip = F3_24_front_up_flip + 0.095*t23_12 - 0.095*t23_13;
-            const int hit_front_up_flip = (((fabs(F5_11_front_up_flip - Tt13) <= 1.0e-8)) & ((fabs(F5_14_front_up_flip -
-                    Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_front_up_flip - Tt23) <= 1.0e-8)) &
-                    ((fabs(F5_24_front_up_flip - Tt24) <= 1.1735949045560824e-8)) & ((fabs(F5_31_front_up_flip - Tt33)
-                    <= 1.0e-8)) & ((fabs(F5_34_front_up_flip - Tt34) <= 1.1735949045560824e-8)) &
-                    ((fabs(F6_11_front_up_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_up_flip - Tt12) <= 1.0e-8)) &
-                    ((fabs(F6_21_front_up_flip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_up_flip - Tt22) <= 1.0e-8)) &
-                    ((fabs(F6_31_front_up_flip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_up_flip - Tt32) <= 1.0e-8)));
+            const int hit_front_up_flip = (((fabs(F5_11_front_up_flip - Tt13) <= ik_tol)) & ((fabs(F5_14_front_up_flip -
+                    Tt14) <= t23_16)) & ((fabs(F5_21_front_up_flip - Tt23) <= ik_tol)) & ((fabs(F5_24_front_up_flip -
+                    Tt24) <= t23_16)) & ((fabs(F5_31_front_up_flip - Tt33) <= ik_tol)) & ((fabs(F5_34_front_up_flip -
+                    Tt34) <= t23_16)) & ((fabs(F6_11_front_up_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_up_flip -
+                    Tt12) <= ik_tol)) & ((fabs(F6_21_front_up_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_front_up_flip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_front_up_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_front_up_flip -
+                    Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_up_flip */
             const double fit_q4_front_up_flip = deltagen_fit_angle(q4_front_up_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);
@@ -3184,6 +3185,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t25_5 = 0.13*th3_front_down_s;
             const double t25_6 = 0.52*th3_front_down_s;
             const double t25_9 = th2_front_down_s*th3_front_down_c;
+            const double t25_16 = 1.1735949045560823*ik_tol;
             const double F1_14_front_down_noflip = 0.15*q1_front_c;
             const double F1_24_front_down_noflip = 0.15*q1_front_s;
             const double F2_11_front_down_noflip = q1_front_c*th2_front_down_c;
@@ -3249,14 +3251,14 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_front_down_noflip = F3_14_front_down_noflip + 0.095*t25_10 - 0.095*t25_11;
             const double F5_21_front_down_noflip = t25_12 - t25_13;
             const double F5_24_front_down_noflip = F3_24_front_down_noflip + 0.095*t25_12 - 0.095*t25_13;
-            const int hit_front_down_noflip = (((fabs(F5_11_front_down_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_14_front_down_noflip - Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_front_down_noflip -
-                    Tt23) <= 1.0e-8)) & ((fabs(F5_24_front_down_noflip - Tt24) <= 1.1735949045560824e-8)) &
-                    ((fabs(F5_31_front_down_noflip - Tt33) <= 1.0e-8)) & ((fabs(F5_34_front_down_noflip - Tt34) <=
-                    1.1735949045560824e-8)) & ((fabs(F6_11_front_down_noflip - Tt11) <= 1.0e-8)) &
-                    ((fabs(F6_12_front_down_noflip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_front_down_noflip - Tt21) <=
-                    1.0e-8)) & ((fabs(F6_22_front_down_noflip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_front_down_noflip -
-                    Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_down_noflip - Tt32) <= 1.0e-8)));
+            const int hit_front_down_noflip = (((fabs(F5_11_front_down_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_14_front_down_noflip - Tt14) <= t25_16)) & ((fabs(F5_21_front_down_noflip - Tt23) <=
+                    ik_tol)) & ((fabs(F5_24_front_down_noflip - Tt24) <= t25_16)) & ((fabs(F5_31_front_down_noflip -
+                    Tt33) <= ik_tol)) & ((fabs(F5_34_front_down_noflip - Tt34) <= t25_16)) &
+                    ((fabs(F6_11_front_down_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_down_noflip - Tt12) <=
+                    ik_tol)) & ((fabs(F6_21_front_down_noflip - Tt21) <= ik_tol)) & ((fabs(F6_22_front_down_noflip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_front_down_noflip - Tt31) <= ik_tol)) &
+                    ((fabs(F6_32_front_down_noflip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_down_noflip */
             const double fit_q2_front_down_noflip = deltagen_fit_angle(th2_front_down, -1.5707963267948966,
                     2.705260340591211, -1.5707963268948966, 2.705260340691211);
@@ -3293,6 +3295,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t27_5 = 0.13*th3_front_down_s;
             const double t27_6 = 0.52*th3_front_down_s;
             const double t27_9 = th2_front_down_s*th3_front_down_c;
+            const double t27_16 = 1.1735949045560823*ik_tol;
             const double F1_14_front_down_flip = 0.15*q1_front_c;
             const double F1_24_front_down_flip = 0.15*q1_front_s;
             const double F2_11_front_down_flip = q1_front_c*th2_front_down_c;
@@ -3358,14 +3361,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_front_down_flip = F3_14_front_down_flip + 0.095*t27_10 - 0.095*t27_11;
             const double F5_21_front_down_flip = t27_12 - t27_13;
             const double F5_24_front_down_flip = F3_24_front_down_flip + 0.095*t27_12 - 0.095*t27_13;
-            const int hit_front_down_flip = (((fabs(F5_11_front_down_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_14_front_down_flip - Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_front_down_flip -
-                    Tt23) <= 1.0e-8)) & ((fabs(F5_24_front_down_flip - Tt24) <= 1.1735949045560824e-8)) &
-                    ((fabs(F5_31_front_down_flip - Tt33) <= 1.0e-8)) & ((fabs(F5_34_front_down_flip - Tt34) <=
-                    1.1735949045560824e-8)) & ((fabs(F6_11_front_down_flip - Tt11) <= 1.0e-8)) &
-                    ((fabs(F6_12_front_down_flip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_front_down_flip - Tt21) <= 1.0e-8))
-                    & ((fabs(F6_22_front_down_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_front_down_flip - Tt31) <=
-                    1.0e-8)) & ((fabs(F6_32_front_down_flip - Tt32) <= 1.0e-8)));
+            const int hit_front_down_flip = (((fabs(F5_11_front_down_flip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_14_front_down_flip - Tt14) <= t27_16)) & ((fabs(F5_21_front_down_flip - Tt23) <= ik_tol))
+                    & ((fabs(F5_24_front_down_flip - Tt24) <= t27_16)) & ((fabs(F5_31_front_down_flip - Tt33) <=
+                    ik_tol)) & ((fabs(F5_34_front_down_flip - Tt34) <= t27_16)) & ((fabs(F6_11_front_down_flip - Tt11)
+                    <= ik_tol)) & ((fabs(F6_12_front_down_flip - Tt12) <= ik_tol)) & ((fabs(F6_21_front_down_flip -
+                    Tt21) <= ik_tol)) & ((fabs(F6_22_front_down_flip - Tt22) <= ik_tol)) & ((fabs(F6_31_front_down_flip
+                    - Tt31) <= ik_tol)) & ((fabs(F6_32_front_down_flip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_down_flip */
             const double fit_q4_front_down_flip = deltagen_fit_angle(q4_front_down_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);
@@ -3394,6 +3396,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t29_5 = 0.13*th3_back_up_s;
             const double t29_6 = 0.52*th3_back_up_s;
             const double t29_9 = th2_back_up_s*th3_back_up_c;
+            const double t29_16 = 1.1735949045560823*ik_tol;
             const double F1_14_back_up_noflip = 0.15*q1_back_c;
             const double F1_24_back_up_noflip = 0.15*q1_back_s;
             const double F2_11_back_up_noflip = q1_back_c*th2_back_up_c;
@@ -3459,14 +3462,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_back_up_noflip = F3_14_back_up_noflip + 0.095*t29_10 - 0.095*t29_11;
             const double F5_21_back_up_noflip = t29_12 - t29_13;
             const double F5_24_back_up_noflip = F3_24_back_up_noflip + 0.095*t29_12 - 0.095*t29_13;
-            const int hit_back_up_noflip = (((fabs(F5_11_back_up_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_14_back_up_noflip - Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_back_up_noflip - Tt23)
-                    <= 1.0e-8)) & ((fabs(F5_24_back_up_noflip - Tt24) <= 1.1735949045560824e-8)) &
-                    ((fabs(F5_31_back_up_noflip - Tt33) <= 1.0e-8)) & ((fabs(F5_34_back_up_noflip - Tt34) <=
-                    1.1735949045560824e-8)) & ((fabs(F6_11_back_up_noflip - Tt11) <= 1.0e-8)) &
-                    ((fabs(F6_12_back_up_noflip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_back_up_noflip - Tt21) <= 1.0e-8)) &
-                    ((fabs(F6_22_back_up_noflip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_back_up_noflip - Tt31) <= 1.0e-8)) &
-                    ((fabs(F6_32_back_up_noflip - Tt32) <= 1.0e-8)));
+            const int hit_back_up_noflip = (((fabs(F5_11_back_up_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_14_back_up_noflip - Tt14) <= t29_16)) & ((fabs(F5_21_back_up_noflip - Tt23) <= ik_tol)) &
+                    ((fabs(F5_24_back_up_noflip - Tt24) <= t29_16)) & ((fabs(F5_31_back_up_noflip - Tt33) <= ik_tol)) &
+                    ((fabs(F5_34_back_up_noflip - Tt34) <= t29_16)) & ((fabs(F6_11_back_up_noflip - Tt11) <= ik_tol)) &
+                    ((fabs(F6_12_back_up_noflip - Tt12) <= ik_tol)) & ((fabs(F6_21_back_up_noflip - Tt21) <= ik_tol)) &
+                    ((fabs(F6_22_back_up_noflip - Tt22) <= ik_tol)) & ((fabs(F6_31_back_up_noflip - Tt31) <= ik_tol)) &
+                    ((fabs(F6_32_back_up_noflip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch back_up_noflip */
             const double fit_q1_back_up_noflip = deltagen_fit_angle(q1_back, -2.9670597283903604, 2.9670597283903604,
                     -2.9670597284903604, 2.9670597284903604);
@@ -3507,6 +3509,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t31_5 = 0.13*th3_back_up_s;
             const double t31_6 = 0.52*th3_back_up_s;
             const double t31_9 = th2_back_up_s*th3_back_up_c;
+            const double t31_16 = 1.1735949045560823*ik_tol;
             const double F1_14_back_up_flip = 0.15*q1_back_c;
             const double F1_24_back_up_flip = 0.15*q1_back_s;
             const double F2_11_back_up_flip = q1_back_c*th2_back_up_c;
@@ -3568,13 +3571,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_back_up_flip = F3_14_back_up_flip + 0.095*t31_10 - 0.095*t31_11;
             const double F5_21_back_up_flip = t31_12 - t31_13;
             const double F5_24_back_up_flip = F3_24_back_up_flip + 0.095*t31_12 - 0.095*t31_13;
-            const int hit_back_up_flip = (((fabs(F5_11_back_up_flip - Tt13) <= 1.0e-8)) & ((fabs(F5_14_back_up_flip -
-                    Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_back_up_flip - Tt23) <= 1.0e-8)) &
-                    ((fabs(F5_24_back_up_flip - Tt24) <= 1.1735949045560824e-8)) & ((fabs(F5_31_back_up_flip - Tt33) <=
-                    1.0e-8)) & ((fabs(F5_34_back_up_flip - Tt34) <= 1.1735949045560824e-8)) & ((fabs(F6_11_back_up_flip
-                    - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_up_flip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_back_up_flip -
-                    Tt21) <= 1.0e-8)) & ((fabs(F6_22_back_up_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_back_up_flip -
-                    Tt31) <= 1.0e-8)) & ((fabs(F6_32_back_up_flip - Tt32) <= 1.0e-8)));
+            const int hit_back_up_flip = (((fabs(F5_11_back_up_flip - Tt13) <= ik_tol)) & ((fabs(F5_14_back_up_flip -
+                    Tt14) <= t31_16)) & ((fabs(F5_21_back_up_flip - Tt23) <= ik_tol)) & ((fabs(F5_24_back_up_flip -
+                    Tt24) <= t31_16)) & ((fabs(F5_31_back_up_flip - Tt33) <= ik_tol)) & ((fabs(F5_34_back_up_flip -
+                    Tt34) <= t31_16)) & ((fabs(F6_11_back_up_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_up_flip -
+                    Tt12) <= ik_tol)) & ((fabs(F6_21_back_up_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_back_up_flip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_back_up_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_up_flip -
+                    Tt32) <= ik_tol)));
             /* joint limits and outputs, branch back_up_flip */
             const double fit_q4_back_up_flip = deltagen_fit_angle(q4_back_up_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);
@@ -3603,6 +3606,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t33_5 = 0.13*th3_back_down_s;
             const double t33_6 = 0.52*th3_back_down_s;
             const double t33_9 = th2_back_down_s*th3_back_down_c;
+            const double t33_16 = 1.1735949045560823*ik_tol;
             const double F1_14_back_down_noflip = 0.15*q1_back_c;
             const double F1_24_back_down_noflip = 0.15*q1_back_s;
             const double F2_11_back_down_noflip = q1_back_c*th2_back_down_c;
@@ -3668,14 +3672,14 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_back_down_noflip = F3_14_back_down_noflip + 0.095*t33_10 - 0.095*t33_11;
             const double F5_21_back_down_noflip = t33_12 - t33_13;
             const double F5_24_back_down_noflip = F3_24_back_down_noflip + 0.095*t33_12 - 0.095*t33_13;
-            const int hit_back_down_noflip = (((fabs(F5_11_back_down_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_14_back_down_noflip - Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_back_down_noflip -
-                    Tt23) <= 1.0e-8)) & ((fabs(F5_24_back_down_noflip - Tt24) <= 1.1735949045560824e-8)) &
-                    ((fabs(F5_31_back_down_noflip - Tt33) <= 1.0e-8)) & ((fabs(F5_34_back_down_noflip - Tt34) <=
-                    1.1735949045560824e-8)) & ((fabs(F6_11_back_down_noflip - Tt11) <= 1.0e-8)) &
-                    ((fabs(F6_12_back_down_noflip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_back_down_noflip - Tt21) <=
-                    1.0e-8)) & ((fabs(F6_22_back_down_noflip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_back_down_noflip - Tt31)
-                    <= 1.0e-8)) & ((fabs(F6_32_back_down_noflip - Tt32) <= 1.0e-8)));
+            const int hit_back_down_noflip = (((fabs(F5_11_back_down_noflip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_14_back_down_noflip - Tt14) <= t33_16)) & ((fabs(F5_21_back_down_noflip - Tt23) <=
+                    ik_tol)) & ((fabs(F5_24_back_down_noflip - Tt24) <= t33_16)) & ((fabs(F5_31_back_down_noflip - Tt33)
+                    <= ik_tol)) & ((fabs(F5_34_back_down_noflip - Tt34) <= t33_16)) & ((fabs(F6_11_back_down_noflip -
+                    Tt11) <= ik_tol)) & ((fabs(F6_12_back_down_noflip - Tt12) <= ik_tol)) &
+                    ((fabs(F6_21_back_down_noflip - Tt21) <= ik_tol)) & ((fabs(F6_22_back_down_noflip - Tt22) <=
+                    ik_tol)) & ((fabs(F6_31_back_down_noflip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_down_noflip - Tt32)
+                    <= ik_tol)));
             /* joint limits and outputs, branch back_down_noflip */
             const double fit_q2_back_down_noflip = deltagen_fit_angle(th2_back_down, -1.5707963267948966,
                     2.705260340591211, -1.5707963268948966, 2.705260340691211);
@@ -3712,6 +3716,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double t35_5 = 0.13*th3_back_down_s;
             const double t35_6 = 0.52*th3_back_down_s;
             const double t35_9 = th2_back_down_s*th3_back_down_c;
+            const double t35_16 = 1.1735949045560823*ik_tol;
             const double F1_14_back_down_flip = 0.15*q1_back_c;
             const double F1_24_back_down_flip = 0.15*q1_back_s;
             const double F2_11_back_down_flip = q1_back_c*th2_back_down_c;
@@ -3777,14 +3782,13 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
             const double F5_14_back_down_flip = F3_14_back_down_flip + 0.095*t35_10 - 0.095*t35_11;
             const double F5_21_back_down_flip = t35_12 - t35_13;
             const double F5_24_back_down_flip = F3_24_back_down_flip + 0.095*t35_12 - 0.095*t35_13;
-            const int hit_back_down_flip = (((fabs(F5_11_back_down_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_14_back_down_flip - Tt14) <= 1.1735949045560824e-8)) & ((fabs(F5_21_back_down_flip - Tt23)
-                    <= 1.0e-8)) & ((fabs(F5_24_back_down_flip - Tt24) <= 1.1735949045560824e-8)) &
-                    ((fabs(F5_31_back_down_flip - Tt33) <= 1.0e-8)) & ((fabs(F5_34_back_down_flip - Tt34) <=
-                    1.1735949045560824e-8)) & ((fabs(F6_11_back_down_flip - Tt11) <= 1.0e-8)) &
-                    ((fabs(F6_12_back_down_flip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_back_down_flip - Tt21) <= 1.0e-8)) &
-                    ((fabs(F6_22_back_down_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_back_down_flip - Tt31) <= 1.0e-8)) &
-                    ((fabs(F6_32_back_down_flip - Tt32) <= 1.0e-8)));
+            const int hit_back_down_flip = (((fabs(F5_11_back_down_flip - Tt13) <= ik_tol)) &
+                    ((fabs(F5_14_back_down_flip - Tt14) <= t35_16)) & ((fabs(F5_21_back_down_flip - Tt23) <= ik_tol)) &
+                    ((fabs(F5_24_back_down_flip - Tt24) <= t35_16)) & ((fabs(F5_31_back_down_flip - Tt33) <= ik_tol)) &
+                    ((fabs(F5_34_back_down_flip - Tt34) <= t35_16)) & ((fabs(F6_11_back_down_flip - Tt11) <= ik_tol)) &
+                    ((fabs(F6_12_back_down_flip - Tt12) <= ik_tol)) & ((fabs(F6_21_back_down_flip - Tt21) <= ik_tol)) &
+                    ((fabs(F6_22_back_down_flip - Tt22) <= ik_tol)) & ((fabs(F6_31_back_down_flip - Tt31) <= ik_tol)) &
+                    ((fabs(F6_32_back_down_flip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch back_down_flip */
             const double fit_q4_back_down_flip = deltagen_fit_angle(q4_back_down_flip, -3.141592653589793,
                     3.141592653589793, -3.141592653689793, 3.141592653689793);

@@ -1373,6 +1373,11 @@ int deltagen_palletiser_xyzc_ik_all(size_t n, const double *restrict T, double *
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_PALLETISER_XYZC_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PALLETISER_XYZC_BLOCK) ? n - start : DELTAGEN_PALLETISER_XYZC_BLOCK;
@@ -1431,7 +1436,7 @@ int deltagen_palletiser_xyzc_ik_all(size_t n, const double *restrict T, double *
             const double qx_g_x = -Tt12;
             const double qx_g_y = -Tt22;
             const double q4_single_h = sqrt(qx_g_x*qx_g_x + qx_g_y*qx_g_y);
-            const double q4_single_den = (((q4_single_h > 1.0e-300)) ? q4_single_h : 1.0e-300);
+            const double q4_single_den = (((ik_tiny < q4_single_h)) ? q4_single_h : ik_tiny);
             const double q4_single_inv = 1.0/q4_single_den;
             const int t1_0 = (q4_single_h > 0);
             const double q4_single_c = ((t1_0) ? q4_single_inv*qx_g_y : 1);
@@ -1446,16 +1451,16 @@ int deltagen_palletiser_xyzc_ik_all(size_t n, const double *restrict T, double *
             const double slide3_single = -Tt34 + g_single_z;
             /* check, branch single: forward kinematics at the solution */
             const double t3_0 = -q4_single_s;
+            const double t3_1 = 2.7999999999999998*ik_tol;
             const double F3_34_single = 1.8 - slide3_single;
             const double F4_14_single = 0.08*q4_single_c + slide1_single;
             const double F4_24_single = 0.08*q4_single_s + slide2_single;
             const double F4_34_single = F3_34_single - 0.35;
-            const int hit_single = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8)) &
-                    ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(F4_14_single - Tt14) <= 2.7999999999999999e-8)) &
-                    ((fabs(F4_24_single - Tt24) <= 2.7999999999999999e-8)) & ((fabs(F4_34_single - Tt34) <=
-                    2.7999999999999999e-8)) & ((fabs(-Tt11 + q4_single_c) <= 1.0e-8)) & ((fabs(-Tt33 - 1) <= 1.0e-8)) &
-                    ((fabs(-Tt12 - t3_0) <= 1.0e-8)) & ((fabs(-Tt21 - t3_0) <= 1.0e-8)) & ((fabs(-Tt22 - q4_single_c) <=
-                    1.0e-8)));
+            const int hit_single = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <= ik_tol)) &
+                    ((fabs(-Tt32) <= ik_tol)) & ((fabs(F4_14_single - Tt14) <= t3_1)) & ((fabs(F4_24_single - Tt24) <=
+                    t3_1)) & ((fabs(F4_34_single - Tt34) <= t3_1)) & ((fabs(-Tt11 + q4_single_c) <= ik_tol)) &
+                    ((fabs(-Tt33 - 1) <= ik_tol)) & ((fabs(-Tt12 - t3_0) <= ik_tol)) & ((fabs(-Tt21 - t3_0) <= ik_tol))
+                    & ((fabs(-Tt22 - q4_single_c) <= ik_tol)));
             /* joint limits and outputs, branch single */
             const int fit_q1_single_in0 = (((slide1_single >= -1.0e-10)) & ((slide1_single <= 4.0000000001)));
             const double fit_q1_single = ((fit_q1_single_in0) ? fmin(4.0, fmax(0.0, slide1_single)) : slide1_single);

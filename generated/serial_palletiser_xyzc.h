@@ -139,7 +139,7 @@ int deltagen_palletiser_xyzc_jacobian_dot(size_t n, const double *restrict q, co
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 110 operations per point.
+ * Cost: 111 operations per point.
  * Stack: 18 block arrays (16 double, 2 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
  * 8704 bytes (8.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

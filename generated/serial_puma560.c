@@ -2295,6 +2295,12 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_PUMA560_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PUMA560_BLOCK) ? n - start : DELTAGEN_PUMA560_BLOCK;
@@ -2404,11 +2410,11 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t1_0 = Tt14*Tt14 + Tt24*Tt24;
             const double yV = -0.15005;
             const double rad = t1_0 - (yV*yV);
-            const int ok_reach = (rad >= -1.4449085894000003e-9);
+            const int ok_reach = (rad >= -1.4449085894000002*ik_slack);
             const double xV = sqrt(fmax(0, rad));
             const int on_axis = (t1_0 < 1.4449085894000001e-24);
             const double phi_p_h = sqrt(t1_0);
-            const double phi_p_den = (((phi_p_h > 1.0e-300)) ? phi_p_h : 1.0e-300);
+            const double phi_p_den = (((ik_tiny < phi_p_h)) ? phi_p_h : ik_tiny);
             const double phi_p_inv = 1.0/phi_p_den;
             const int t1_1 = (phi_p_h > 0);
             const double phi_p_c = ((t1_1) ? Tt14*phi_p_inv : 1);
@@ -2416,13 +2422,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             /* shoulder q1, front branches */
             const double t2_0 = 1.0*xV;
             const double phi_front_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_front_den = (((phi_front_h > 1.0e-300)) ? phi_front_h : 1.0e-300);
+            const double phi_front_den = (((ik_tiny < phi_front_h)) ? phi_front_h : ik_tiny);
             const double phi_front_inv = 1.0/phi_front_den;
             const double t1_front = t2_0;
             const double t2_front = Tt34 - 0.67183;
             const double kappa_front = -1.0000006092626885 + 2.678707689503489*(t1_front*t1_front) +
                     2.678707689503489*(t2_front*t2_front);
-            const int ok_elbow_front = (fabs(kappa_front) <= 1.0000000010000001);
+            const int ok_elbow_front = (fabs(kappa_front) <= ik_slack + 1);
             const double kc0_front = (((kappa_front > -1)) ? kappa_front : -1);
             const double kc_front = (((kc0_front < 1)) ? kc0_front : 1);
             const double ks_front = sqrt(1 - (kc_front*kc_front));
@@ -2436,13 +2442,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             /* shoulder q1, back branches */
             const double t3_0 = 1.0*xV;
             const double phi_back_h = sqrt(1.0*(xV*xV) + yV*yV);
-            const double phi_back_den = (((phi_back_h > 1.0e-300)) ? phi_back_h : 1.0e-300);
+            const double phi_back_den = (((ik_tiny < phi_back_h)) ? phi_back_h : ik_tiny);
             const double phi_back_inv = 1.0/phi_back_den;
             const double t1_back = -t3_0;
             const double t2_back = Tt34 - 0.67183;
             const double kappa_back = -1.0000006092626885 + 2.678707689503489*(t1_back*t1_back) +
                     2.678707689503489*(t2_back*t2_back);
-            const int ok_elbow_back = (fabs(kappa_back) <= 1.0000000010000001);
+            const int ok_elbow_back = (fabs(kappa_back) <= ik_slack + 1);
             const double kc0_back = (((kappa_back > -1)) ? kappa_back : -1);
             const double kc_back = (((kc0_back < 1)) ? kc0_back : 1);
             const double ks_back = sqrt(1 - (kc_back*kc_back));
@@ -2463,7 +2469,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t4_2 = t1_front*t4_1 + t2_front*t4_0;
             const double t4_3 = -t1_front*t4_0 + t2_front*t4_1;
             const double th2_front_up_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_front_up_den = (((th2_front_up_h > 1.0e-300)) ? th2_front_up_h : 1.0e-300);
+            const double th2_front_up_den = (((ik_tiny < th2_front_up_h)) ? th2_front_up_h : ik_tiny);
             const double th2_front_up_inv = 1.0/th2_front_up_den;
             const int t4_4 = (th2_front_up_h > 0);
             const double th2_front_up_c = ((t4_4) ? t4_2*th2_front_up_inv : 1);
@@ -2479,7 +2485,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t5_2 = t1_front*t5_1 + t2_front*t5_0;
             const double t5_3 = -t1_front*t5_0 + t2_front*t5_1;
             const double th2_front_down_h = sqrt(t5_2*t5_2 + t5_3*t5_3);
-            const double th2_front_down_den = (((th2_front_down_h > 1.0e-300)) ? th2_front_down_h : 1.0e-300);
+            const double th2_front_down_den = (((ik_tiny < th2_front_down_h)) ? th2_front_down_h : ik_tiny);
             const double th2_front_down_inv = 1.0/th2_front_down_den;
             const int t5_4 = (th2_front_down_h > 0);
             const double th2_front_down_c = ((t5_4) ? t5_2*th2_front_down_inv : 1);
@@ -2495,7 +2501,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t6_2 = t1_back*t6_1 + t2_back*t6_0;
             const double t6_3 = -t1_back*t6_0 + t2_back*t6_1;
             const double th2_back_up_h = sqrt(t6_2*t6_2 + t6_3*t6_3);
-            const double th2_back_up_den = (((th2_back_up_h > 1.0e-300)) ? th2_back_up_h : 1.0e-300);
+            const double th2_back_up_den = (((ik_tiny < th2_back_up_h)) ? th2_back_up_h : ik_tiny);
             const double th2_back_up_inv = 1.0/th2_back_up_den;
             const int t6_4 = (th2_back_up_h > 0);
             const double th2_back_up_c = ((t6_4) ? t6_2*th2_back_up_inv : 1);
@@ -2511,7 +2517,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t7_2 = t1_back*t7_1 + t2_back*t7_0;
             const double t7_3 = -t1_back*t7_0 + t2_back*t7_1;
             const double th2_back_down_h = sqrt(t7_2*t7_2 + t7_3*t7_3);
-            const double th2_back_down_den = (((th2_back_down_h > 1.0e-300)) ? th2_back_down_h : 1.0e-300);
+            const double th2_back_down_den = (((ik_tiny < th2_back_down_h)) ? th2_back_down_h : ik_tiny);
             const double th2_back_down_inv = 1.0/th2_back_down_den;
             const int t7_4 = (th2_back_down_h > 0);
             const double th2_back_down_c = ((t7_4) ? t7_2*th2_back_down_inv : 1);
@@ -2537,14 +2543,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double qx_front_up_y = t8_4*t8_7 + t8_7*tot_front_up_c;
             const double perp2_front_up = qv_front_up_x*qv_front_up_x + qv_front_up_y*qv_front_up_y;
             const double gam2_front_up = perp2_front_up - (beta_front_up*beta_front_up);
-            const int ok_wrist_front_up = (gam2_front_up >= -1.0000000000000001e-9);
+            const int ok_wrist_front_up = (gam2_front_up >= -ik_slack);
             const double gam_front_up = sqrt(fmax(0, gam2_front_up));
             const int wrist_singular_front_up = (perp2_front_up < 9.9999999999999992e-25);
             /* wrist, branch front_up_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_front_up_noflip_y = -beta_front_up;
             const double q5_front_up_noflip_h = sqrt(gam_front_up*gam_front_up + qv_front_up_z*qv_front_up_z);
-            const double q5_front_up_noflip_den = (((q5_front_up_noflip_h > 1.0e-300)) ? q5_front_up_noflip_h :
-                    1.0e-300);
+            const double q5_front_up_noflip_den = (((ik_tiny < q5_front_up_noflip_h)) ? q5_front_up_noflip_h : ik_tiny);
             const double q5_front_up_noflip_inv = 1.0/q5_front_up_noflip_den;
             const int t9_0 = (q5_front_up_noflip_h > 0);
             const double t9_1 = cw_front_up_noflip_y*qv_front_up_y + gam_front_up*qv_front_up_x;
@@ -2553,8 +2558,8 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_front_up_noflip_s = ((t9_0) ? -gam_front_up*q5_front_up_noflip_inv : 0);
             const double q5_front_up_noflip = ((t9_0) ? atan2(-gam_front_up, qv_front_up_z) : 0);
             const double q4r_front_up_noflip_h = sqrt(t9_1*t9_1 + t9_2*t9_2);
-            const double q4r_front_up_noflip_den = (((q4r_front_up_noflip_h > 1.0e-300)) ? q4r_front_up_noflip_h :
-                    1.0e-300);
+            const double q4r_front_up_noflip_den = (((ik_tiny < q4r_front_up_noflip_h)) ? q4r_front_up_noflip_h :
+                    ik_tiny);
             const double q4r_front_up_noflip_inv = 1.0/q4r_front_up_noflip_den;
             const int t9_3 = (q4r_front_up_noflip_h > 0);
             const double q4r_front_up_noflip_c = ((t9_3) ? q4r_front_up_noflip_inv*t9_1 : 1);
@@ -2569,8 +2574,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q4_front_up_noflip_s*qx_front_up_y) + q5_front_up_noflip_s*(-q4_front_up_noflip_c*qx_front_up_z -
                     qx_front_up_z*(1 - q4_front_up_noflip_c));
             const double q6_front_up_noflip_h = sqrt(t9_5*t9_5 + t9_6*t9_6);
-            const double q6_front_up_noflip_den = (((q6_front_up_noflip_h > 1.0e-300)) ? q6_front_up_noflip_h :
-                    1.0e-300);
+            const double q6_front_up_noflip_den = (((ik_tiny < q6_front_up_noflip_h)) ? q6_front_up_noflip_h : ik_tiny);
             const double q6_front_up_noflip_inv = 1.0/q6_front_up_noflip_den;
             const int t9_7 = (q6_front_up_noflip_h > 0);
             const double q6_front_up_noflip_c = ((t9_7) ? q6_front_up_noflip_inv*t9_5 : 1);
@@ -2580,7 +2584,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double cw_front_up_flip_x = -gam_front_up;
             const double cw_front_up_flip_y = -beta_front_up;
             const double q5_front_up_flip_h = sqrt(cw_front_up_flip_x*cw_front_up_flip_x + qv_front_up_z*qv_front_up_z);
-            const double q5_front_up_flip_den = (((q5_front_up_flip_h > 1.0e-300)) ? q5_front_up_flip_h : 1.0e-300);
+            const double q5_front_up_flip_den = (((ik_tiny < q5_front_up_flip_h)) ? q5_front_up_flip_h : ik_tiny);
             const double q5_front_up_flip_inv = 1.0/q5_front_up_flip_den;
             const int t10_0 = (q5_front_up_flip_h > 0);
             const double t10_1 = cw_front_up_flip_x*qv_front_up_x + cw_front_up_flip_y*qv_front_up_y;
@@ -2589,7 +2593,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_front_up_flip_s = ((t10_0) ? -cw_front_up_flip_x*q5_front_up_flip_inv : 0);
             const double q5_front_up_flip = ((t10_0) ? atan2(-cw_front_up_flip_x, qv_front_up_z) : 0);
             const double q4r_front_up_flip_h = sqrt(t10_1*t10_1 + t10_2*t10_2);
-            const double q4r_front_up_flip_den = (((q4r_front_up_flip_h > 1.0e-300)) ? q4r_front_up_flip_h : 1.0e-300);
+            const double q4r_front_up_flip_den = (((ik_tiny < q4r_front_up_flip_h)) ? q4r_front_up_flip_h : ik_tiny);
             const double q4r_front_up_flip_inv = 1.0/q4r_front_up_flip_den;
             const int t10_3 = (q4r_front_up_flip_h > 0);
             const double q4r_front_up_flip_c = ((t10_3) ? q4r_front_up_flip_inv*t10_1 : 1);
@@ -2604,7 +2608,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q4_front_up_flip_s*qx_front_up_y) + q5_front_up_flip_s*(-q4_front_up_flip_c*qx_front_up_z -
                     qx_front_up_z*(1 - q4_front_up_flip_c));
             const double q6_front_up_flip_h = sqrt(t10_5*t10_5 + t10_6*t10_6);
-            const double q6_front_up_flip_den = (((q6_front_up_flip_h > 1.0e-300)) ? q6_front_up_flip_h : 1.0e-300);
+            const double q6_front_up_flip_den = (((ik_tiny < q6_front_up_flip_h)) ? q6_front_up_flip_h : ik_tiny);
             const double q6_front_up_flip_inv = 1.0/q6_front_up_flip_den;
             const int t10_7 = (q6_front_up_flip_h > 0);
             const double q6_front_up_flip_c = ((t10_7) ? q6_front_up_flip_inv*t10_5 : 1);
@@ -2630,14 +2634,14 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double qx_front_down_y = t11_4*t11_7 + t11_7*tot_front_down_c;
             const double perp2_front_down = qv_front_down_x*qv_front_down_x + qv_front_down_y*qv_front_down_y;
             const double gam2_front_down = perp2_front_down - (beta_front_down*beta_front_down);
-            const int ok_wrist_front_down = (gam2_front_down >= -1.0000000000000001e-9);
+            const int ok_wrist_front_down = (gam2_front_down >= -ik_slack);
             const double gam_front_down = sqrt(fmax(0, gam2_front_down));
             const int wrist_singular_front_down = (perp2_front_down < 9.9999999999999992e-25);
             /* wrist, branch front_down_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_front_down_noflip_y = -beta_front_down;
             const double q5_front_down_noflip_h = sqrt(gam_front_down*gam_front_down + qv_front_down_z*qv_front_down_z);
-            const double q5_front_down_noflip_den = (((q5_front_down_noflip_h > 1.0e-300)) ? q5_front_down_noflip_h :
-                    1.0e-300);
+            const double q5_front_down_noflip_den = (((ik_tiny < q5_front_down_noflip_h)) ? q5_front_down_noflip_h :
+                    ik_tiny);
             const double q5_front_down_noflip_inv = 1.0/q5_front_down_noflip_den;
             const int t12_0 = (q5_front_down_noflip_h > 0);
             const double t12_1 = cw_front_down_noflip_y*qv_front_down_y + gam_front_down*qv_front_down_x;
@@ -2646,8 +2650,8 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_front_down_noflip_s = ((t12_0) ? -gam_front_down*q5_front_down_noflip_inv : 0);
             const double q5_front_down_noflip = ((t12_0) ? atan2(-gam_front_down, qv_front_down_z) : 0);
             const double q4r_front_down_noflip_h = sqrt(t12_1*t12_1 + t12_2*t12_2);
-            const double q4r_front_down_noflip_den = (((q4r_front_down_noflip_h > 1.0e-300)) ? q4r_front_down_noflip_h :
-                    1.0e-300);
+            const double q4r_front_down_noflip_den = (((ik_tiny < q4r_front_down_noflip_h)) ? q4r_front_down_noflip_h :
+                    ik_tiny);
             const double q4r_front_down_noflip_inv = 1.0/q4r_front_down_noflip_den;
             const int t12_3 = (q4r_front_down_noflip_h > 0);
             const double q4r_front_down_noflip_c = ((t12_3) ? q4r_front_down_noflip_inv*t12_1 : 1);
@@ -2663,8 +2667,8 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q5_front_down_noflip_s*(-q4_front_down_noflip_c*qx_front_down_z - qx_front_down_z*(1 -
                     q4_front_down_noflip_c));
             const double q6_front_down_noflip_h = sqrt(t12_5*t12_5 + t12_6*t12_6);
-            const double q6_front_down_noflip_den = (((q6_front_down_noflip_h > 1.0e-300)) ? q6_front_down_noflip_h :
-                    1.0e-300);
+            const double q6_front_down_noflip_den = (((ik_tiny < q6_front_down_noflip_h)) ? q6_front_down_noflip_h :
+                    ik_tiny);
             const double q6_front_down_noflip_inv = 1.0/q6_front_down_noflip_den;
             const int t12_7 = (q6_front_down_noflip_h > 0);
             const double q6_front_down_noflip_c = ((t12_7) ? q6_front_down_noflip_inv*t12_5 : 1);
@@ -2675,8 +2679,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double cw_front_down_flip_y = -beta_front_down;
             const double q5_front_down_flip_h = sqrt(cw_front_down_flip_x*cw_front_down_flip_x +
                     qv_front_down_z*qv_front_down_z);
-            const double q5_front_down_flip_den = (((q5_front_down_flip_h > 1.0e-300)) ? q5_front_down_flip_h :
-                    1.0e-300);
+            const double q5_front_down_flip_den = (((ik_tiny < q5_front_down_flip_h)) ? q5_front_down_flip_h : ik_tiny);
             const double q5_front_down_flip_inv = 1.0/q5_front_down_flip_den;
             const int t13_0 = (q5_front_down_flip_h > 0);
             const double t13_1 = cw_front_down_flip_x*qv_front_down_x + cw_front_down_flip_y*qv_front_down_y;
@@ -2685,8 +2688,8 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_front_down_flip_s = ((t13_0) ? -cw_front_down_flip_x*q5_front_down_flip_inv : 0);
             const double q5_front_down_flip = ((t13_0) ? atan2(-cw_front_down_flip_x, qv_front_down_z) : 0);
             const double q4r_front_down_flip_h = sqrt(t13_1*t13_1 + t13_2*t13_2);
-            const double q4r_front_down_flip_den = (((q4r_front_down_flip_h > 1.0e-300)) ? q4r_front_down_flip_h :
-                    1.0e-300);
+            const double q4r_front_down_flip_den = (((ik_tiny < q4r_front_down_flip_h)) ? q4r_front_down_flip_h :
+                    ik_tiny);
             const double q4r_front_down_flip_inv = 1.0/q4r_front_down_flip_den;
             const int t13_3 = (q4r_front_down_flip_h > 0);
             const double q4r_front_down_flip_c = ((t13_3) ? q4r_front_down_flip_inv*t13_1 : 1);
@@ -2701,8 +2704,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q4_front_down_flip_s*qx_front_down_y) + q5_front_down_flip_s*(-q4_front_down_flip_c*qx_front_down_z
                     - qx_front_down_z*(1 - q4_front_down_flip_c));
             const double q6_front_down_flip_h = sqrt(t13_5*t13_5 + t13_6*t13_6);
-            const double q6_front_down_flip_den = (((q6_front_down_flip_h > 1.0e-300)) ? q6_front_down_flip_h :
-                    1.0e-300);
+            const double q6_front_down_flip_den = (((ik_tiny < q6_front_down_flip_h)) ? q6_front_down_flip_h : ik_tiny);
             const double q6_front_down_flip_inv = 1.0/q6_front_down_flip_den;
             const int t13_7 = (q6_front_down_flip_h > 0);
             const double q6_front_down_flip_c = ((t13_7) ? q6_front_down_flip_inv*t13_5 : 1);
@@ -2728,13 +2730,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double qx_back_up_y = t14_4*t14_7 + t14_7*tot_back_up_c;
             const double perp2_back_up = qv_back_up_x*qv_back_up_x + qv_back_up_y*qv_back_up_y;
             const double gam2_back_up = perp2_back_up - (beta_back_up*beta_back_up);
-            const int ok_wrist_back_up = (gam2_back_up >= -1.0000000000000001e-9);
+            const int ok_wrist_back_up = (gam2_back_up >= -ik_slack);
             const double gam_back_up = sqrt(fmax(0, gam2_back_up));
             const int wrist_singular_back_up = (perp2_back_up < 9.9999999999999992e-25);
             /* wrist, branch back_up_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_back_up_noflip_y = -beta_back_up;
             const double q5_back_up_noflip_h = sqrt(gam_back_up*gam_back_up + qv_back_up_z*qv_back_up_z);
-            const double q5_back_up_noflip_den = (((q5_back_up_noflip_h > 1.0e-300)) ? q5_back_up_noflip_h : 1.0e-300);
+            const double q5_back_up_noflip_den = (((ik_tiny < q5_back_up_noflip_h)) ? q5_back_up_noflip_h : ik_tiny);
             const double q5_back_up_noflip_inv = 1.0/q5_back_up_noflip_den;
             const int t15_0 = (q5_back_up_noflip_h > 0);
             const double t15_1 = cw_back_up_noflip_y*qv_back_up_y + gam_back_up*qv_back_up_x;
@@ -2743,8 +2745,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_back_up_noflip_s = ((t15_0) ? -gam_back_up*q5_back_up_noflip_inv : 0);
             const double q5_back_up_noflip = ((t15_0) ? atan2(-gam_back_up, qv_back_up_z) : 0);
             const double q4r_back_up_noflip_h = sqrt(t15_1*t15_1 + t15_2*t15_2);
-            const double q4r_back_up_noflip_den = (((q4r_back_up_noflip_h > 1.0e-300)) ? q4r_back_up_noflip_h :
-                    1.0e-300);
+            const double q4r_back_up_noflip_den = (((ik_tiny < q4r_back_up_noflip_h)) ? q4r_back_up_noflip_h : ik_tiny);
             const double q4r_back_up_noflip_inv = 1.0/q4r_back_up_noflip_den;
             const int t15_3 = (q4r_back_up_noflip_h > 0);
             const double q4r_back_up_noflip_c = ((t15_3) ? q4r_back_up_noflip_inv*t15_1 : 1);
@@ -2759,7 +2760,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q4_back_up_noflip_s*qx_back_up_y) + q5_back_up_noflip_s*(-q4_back_up_noflip_c*qx_back_up_z -
                     qx_back_up_z*(1 - q4_back_up_noflip_c));
             const double q6_back_up_noflip_h = sqrt(t15_5*t15_5 + t15_6*t15_6);
-            const double q6_back_up_noflip_den = (((q6_back_up_noflip_h > 1.0e-300)) ? q6_back_up_noflip_h : 1.0e-300);
+            const double q6_back_up_noflip_den = (((ik_tiny < q6_back_up_noflip_h)) ? q6_back_up_noflip_h : ik_tiny);
             const double q6_back_up_noflip_inv = 1.0/q6_back_up_noflip_den;
             const int t15_7 = (q6_back_up_noflip_h > 0);
             const double q6_back_up_noflip_c = ((t15_7) ? q6_back_up_noflip_inv*t15_5 : 1);
@@ -2769,7 +2770,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double cw_back_up_flip_x = -gam_back_up;
             const double cw_back_up_flip_y = -beta_back_up;
             const double q5_back_up_flip_h = sqrt(cw_back_up_flip_x*cw_back_up_flip_x + qv_back_up_z*qv_back_up_z);
-            const double q5_back_up_flip_den = (((q5_back_up_flip_h > 1.0e-300)) ? q5_back_up_flip_h : 1.0e-300);
+            const double q5_back_up_flip_den = (((ik_tiny < q5_back_up_flip_h)) ? q5_back_up_flip_h : ik_tiny);
             const double q5_back_up_flip_inv = 1.0/q5_back_up_flip_den;
             const int t16_0 = (q5_back_up_flip_h > 0);
             const double t16_1 = cw_back_up_flip_x*qv_back_up_x + cw_back_up_flip_y*qv_back_up_y;
@@ -2778,7 +2779,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_back_up_flip_s = ((t16_0) ? -cw_back_up_flip_x*q5_back_up_flip_inv : 0);
             const double q5_back_up_flip = ((t16_0) ? atan2(-cw_back_up_flip_x, qv_back_up_z) : 0);
             const double q4r_back_up_flip_h = sqrt(t16_1*t16_1 + t16_2*t16_2);
-            const double q4r_back_up_flip_den = (((q4r_back_up_flip_h > 1.0e-300)) ? q4r_back_up_flip_h : 1.0e-300);
+            const double q4r_back_up_flip_den = (((ik_tiny < q4r_back_up_flip_h)) ? q4r_back_up_flip_h : ik_tiny);
             const double q4r_back_up_flip_inv = 1.0/q4r_back_up_flip_den;
             const int t16_3 = (q4r_back_up_flip_h > 0);
             const double q4r_back_up_flip_c = ((t16_3) ? q4r_back_up_flip_inv*t16_1 : 1);
@@ -2792,7 +2793,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t16_6 = -q5_back_up_flip_c*(q4_back_up_flip_c*qx_back_up_x + q4_back_up_flip_s*qx_back_up_y) +
                     q5_back_up_flip_s*(-q4_back_up_flip_c*qx_back_up_z - qx_back_up_z*(1 - q4_back_up_flip_c));
             const double q6_back_up_flip_h = sqrt(t16_5*t16_5 + t16_6*t16_6);
-            const double q6_back_up_flip_den = (((q6_back_up_flip_h > 1.0e-300)) ? q6_back_up_flip_h : 1.0e-300);
+            const double q6_back_up_flip_den = (((ik_tiny < q6_back_up_flip_h)) ? q6_back_up_flip_h : ik_tiny);
             const double q6_back_up_flip_inv = 1.0/q6_back_up_flip_den;
             const int t16_7 = (q6_back_up_flip_h > 0);
             const double q6_back_up_flip_c = ((t16_7) ? q6_back_up_flip_inv*t16_5 : 1);
@@ -2818,14 +2819,14 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double qx_back_down_y = t17_4*t17_7 + t17_7*tot_back_down_c;
             const double perp2_back_down = qv_back_down_x*qv_back_down_x + qv_back_down_y*qv_back_down_y;
             const double gam2_back_down = perp2_back_down - (beta_back_down*beta_back_down);
-            const int ok_wrist_back_down = (gam2_back_down >= -1.0000000000000001e-9);
+            const int ok_wrist_back_down = (gam2_back_down >= -ik_slack);
             const double gam_back_down = sqrt(fmax(0, gam2_back_down));
             const int wrist_singular_back_down = (perp2_back_down < 9.9999999999999992e-25);
             /* wrist, branch back_down_noflip: q5, q4 (Paden-Kahan 2), q6 */
             const double cw_back_down_noflip_y = -beta_back_down;
             const double q5_back_down_noflip_h = sqrt(gam_back_down*gam_back_down + qv_back_down_z*qv_back_down_z);
-            const double q5_back_down_noflip_den = (((q5_back_down_noflip_h > 1.0e-300)) ? q5_back_down_noflip_h :
-                    1.0e-300);
+            const double q5_back_down_noflip_den = (((ik_tiny < q5_back_down_noflip_h)) ? q5_back_down_noflip_h :
+                    ik_tiny);
             const double q5_back_down_noflip_inv = 1.0/q5_back_down_noflip_den;
             const int t18_0 = (q5_back_down_noflip_h > 0);
             const double t18_1 = cw_back_down_noflip_y*qv_back_down_y + gam_back_down*qv_back_down_x;
@@ -2834,8 +2835,8 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_back_down_noflip_s = ((t18_0) ? -gam_back_down*q5_back_down_noflip_inv : 0);
             const double q5_back_down_noflip = ((t18_0) ? atan2(-gam_back_down, qv_back_down_z) : 0);
             const double q4r_back_down_noflip_h = sqrt(t18_1*t18_1 + t18_2*t18_2);
-            const double q4r_back_down_noflip_den = (((q4r_back_down_noflip_h > 1.0e-300)) ? q4r_back_down_noflip_h :
-                    1.0e-300);
+            const double q4r_back_down_noflip_den = (((ik_tiny < q4r_back_down_noflip_h)) ? q4r_back_down_noflip_h :
+                    ik_tiny);
             const double q4r_back_down_noflip_inv = 1.0/q4r_back_down_noflip_den;
             const int t18_3 = (q4r_back_down_noflip_h > 0);
             const double q4r_back_down_noflip_c = ((t18_3) ? q4r_back_down_noflip_inv*t18_1 : 1);
@@ -2850,8 +2851,8 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q4_back_down_noflip_s*qx_back_down_y) + q5_back_down_noflip_s*(-q4_back_down_noflip_c*qx_back_down_z
                     - qx_back_down_z*(1 - q4_back_down_noflip_c));
             const double q6_back_down_noflip_h = sqrt(t18_5*t18_5 + t18_6*t18_6);
-            const double q6_back_down_noflip_den = (((q6_back_down_noflip_h > 1.0e-300)) ? q6_back_down_noflip_h :
-                    1.0e-300);
+            const double q6_back_down_noflip_den = (((ik_tiny < q6_back_down_noflip_h)) ? q6_back_down_noflip_h :
+                    ik_tiny);
             const double q6_back_down_noflip_inv = 1.0/q6_back_down_noflip_den;
             const int t18_7 = (q6_back_down_noflip_h > 0);
             const double q6_back_down_noflip_c = ((t18_7) ? q6_back_down_noflip_inv*t18_5 : 1);
@@ -2862,7 +2863,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double cw_back_down_flip_y = -beta_back_down;
             const double q5_back_down_flip_h = sqrt(cw_back_down_flip_x*cw_back_down_flip_x +
                     qv_back_down_z*qv_back_down_z);
-            const double q5_back_down_flip_den = (((q5_back_down_flip_h > 1.0e-300)) ? q5_back_down_flip_h : 1.0e-300);
+            const double q5_back_down_flip_den = (((ik_tiny < q5_back_down_flip_h)) ? q5_back_down_flip_h : ik_tiny);
             const double q5_back_down_flip_inv = 1.0/q5_back_down_flip_den;
             const int t19_0 = (q5_back_down_flip_h > 0);
             const double t19_1 = cw_back_down_flip_x*qv_back_down_x + cw_back_down_flip_y*qv_back_down_y;
@@ -2871,8 +2872,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double q5_back_down_flip_s = ((t19_0) ? -cw_back_down_flip_x*q5_back_down_flip_inv : 0);
             const double q5_back_down_flip = ((t19_0) ? atan2(-cw_back_down_flip_x, qv_back_down_z) : 0);
             const double q4r_back_down_flip_h = sqrt(t19_1*t19_1 + t19_2*t19_2);
-            const double q4r_back_down_flip_den = (((q4r_back_down_flip_h > 1.0e-300)) ? q4r_back_down_flip_h :
-                    1.0e-300);
+            const double q4r_back_down_flip_den = (((ik_tiny < q4r_back_down_flip_h)) ? q4r_back_down_flip_h : ik_tiny);
             const double q4r_back_down_flip_inv = 1.0/q4r_back_down_flip_den;
             const int t19_3 = (q4r_back_down_flip_h > 0);
             const double q4r_back_down_flip_c = ((t19_3) ? q4r_back_down_flip_inv*t19_1 : 1);
@@ -2887,7 +2887,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     q4_back_down_flip_s*qx_back_down_y) + q5_back_down_flip_s*(-q4_back_down_flip_c*qx_back_down_z -
                     qx_back_down_z*(1 - q4_back_down_flip_c));
             const double q6_back_down_flip_h = sqrt(t19_5*t19_5 + t19_6*t19_6);
-            const double q6_back_down_flip_den = (((q6_back_down_flip_h > 1.0e-300)) ? q6_back_down_flip_h : 1.0e-300);
+            const double q6_back_down_flip_den = (((ik_tiny < q6_back_down_flip_h)) ? q6_back_down_flip_h : ik_tiny);
             const double q6_back_down_flip_inv = 1.0/q6_back_down_flip_den;
             const int t19_7 = (q6_back_down_flip_h > 0);
             const double q6_back_down_flip_c = ((t19_7) ? q6_back_down_flip_inv*t19_5 : 1);
@@ -2899,6 +2899,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t20_3 = 1.0*th3_front_up_s;
             const double t20_4 = 0.0203*th3_front_up_s;
             const double t20_6 = th2_front_up_s*th3_front_up_c;
+            const double t20_7 = 1.2020435056186611*ik_tol;
             const double F2_11_front_up_noflip = t20_0;
             const double F2_12_front_up_noflip = -q1_front_c*th2_front_up_s;
             const double F2_14_front_up_noflip = 0.4318*t20_0;
@@ -2956,14 +2957,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_front_up_noflip*q6_front_up_noflip_c;
             const double F6_22_front_up_noflip = -F4_23_front_up_noflip*q6_front_up_noflip_c -
                     F5_21_front_up_noflip*q6_front_up_noflip_s;
-            const int hit_front_up_noflip = (((fabs(F4_14_front_up_noflip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_front_up_noflip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_front_up_noflip -
-                    Tt34) <= 1.2020435056186611e-8)) & ((fabs(F5_13_front_up_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_up_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_up_noflip - Tt33) <= 1.0e-8))
-                    & ((fabs(F6_11_front_up_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_up_noflip - Tt12) <=
-                    1.0e-8)) & ((fabs(F6_21_front_up_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_up_noflip - Tt22)
-                    <= 1.0e-8)) & ((fabs(F6_31_front_up_noflip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_up_noflip -
-                    Tt32) <= 1.0e-8)));
+            const int hit_front_up_noflip = (((fabs(F4_14_front_up_noflip - Tt14) <= t20_7)) &
+                    ((fabs(F4_24_front_up_noflip - Tt24) <= t20_7)) & ((fabs(F4_34_front_up_noflip - Tt34) <= t20_7)) &
+                    ((fabs(F5_13_front_up_noflip - Tt13) <= ik_tol)) & ((fabs(F5_23_front_up_noflip - Tt23) <= ik_tol))
+                    & ((fabs(F5_33_front_up_noflip - Tt33) <= ik_tol)) & ((fabs(F6_11_front_up_noflip - Tt11) <=
+                    ik_tol)) & ((fabs(F6_12_front_up_noflip - Tt12) <= ik_tol)) & ((fabs(F6_21_front_up_noflip - Tt21)
+                    <= ik_tol)) & ((fabs(F6_22_front_up_noflip - Tt22) <= ik_tol)) & ((fabs(F6_31_front_up_noflip -
+                    Tt31) <= ik_tol)) & ((fabs(F6_32_front_up_noflip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_up_noflip */
             const double fit_q1_front_up_noflip = deltagen_fit_angle(q1_front, -2.792526803190927, 2.792526803190927,
                     -2.792526803290927, 2.792526803290927);
@@ -3003,6 +3003,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t22_3 = 1.0*th3_front_up_s;
             const double t22_4 = 0.0203*th3_front_up_s;
             const double t22_6 = th2_front_up_s*th3_front_up_c;
+            const double t22_7 = 1.2020435056186611*ik_tol;
             const double F2_11_front_up_flip = t22_0;
             const double F2_12_front_up_flip = -q1_front_c*th2_front_up_s;
             const double F2_14_front_up_flip = 0.4318*t22_0;
@@ -3056,13 +3057,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_front_up_flip*q6_front_up_flip_c;
             const double F6_22_front_up_flip = -F4_23_front_up_flip*q6_front_up_flip_c -
                     F5_21_front_up_flip*q6_front_up_flip_s;
-            const int hit_front_up_flip = (((fabs(F4_14_front_up_flip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_front_up_flip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_front_up_flip - Tt34)
-                    <= 1.2020435056186611e-8)) & ((fabs(F5_13_front_up_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_up_flip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_up_flip - Tt33) <= 1.0e-8)) &
-                    ((fabs(F6_11_front_up_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_up_flip - Tt12) <= 1.0e-8)) &
-                    ((fabs(F6_21_front_up_flip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_up_flip - Tt22) <= 1.0e-8)) &
-                    ((fabs(F6_31_front_up_flip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_up_flip - Tt32) <= 1.0e-8)));
+            const int hit_front_up_flip = (((fabs(F4_14_front_up_flip - Tt14) <= t22_7)) & ((fabs(F4_24_front_up_flip -
+                    Tt24) <= t22_7)) & ((fabs(F4_34_front_up_flip - Tt34) <= t22_7)) & ((fabs(F5_13_front_up_flip -
+                    Tt13) <= ik_tol)) & ((fabs(F5_23_front_up_flip - Tt23) <= ik_tol)) & ((fabs(F5_33_front_up_flip -
+                    Tt33) <= ik_tol)) & ((fabs(F6_11_front_up_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_up_flip -
+                    Tt12) <= ik_tol)) & ((fabs(F6_21_front_up_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_front_up_flip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_front_up_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_front_up_flip -
+                    Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_up_flip */
             const double fit_q4_front_up_flip = deltagen_fit_angle(q4_front_up_flip, -1.9198621771937625,
                     2.9670597283903604, -1.9198621772937625, 2.9670597284903604);
@@ -3090,6 +3091,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t24_3 = 1.0*th3_front_down_s;
             const double t24_4 = 0.0203*th3_front_down_s;
             const double t24_6 = th2_front_down_s*th3_front_down_c;
+            const double t24_7 = 1.2020435056186611*ik_tol;
             const double F2_11_front_down_noflip = t24_0;
             const double F2_12_front_down_noflip = -q1_front_c*th2_front_down_s;
             const double F2_14_front_down_noflip = 0.4318*t24_0;
@@ -3149,14 +3151,14 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_front_down_noflip*q6_front_down_noflip_c;
             const double F6_22_front_down_noflip = -F4_23_front_down_noflip*q6_front_down_noflip_c -
                     F5_21_front_down_noflip*q6_front_down_noflip_s;
-            const int hit_front_down_noflip = (((fabs(F4_14_front_down_noflip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_front_down_noflip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_front_down_noflip -
-                    Tt34) <= 1.2020435056186611e-8)) & ((fabs(F5_13_front_down_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_down_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_down_noflip - Tt33) <=
-                    1.0e-8)) & ((fabs(F6_11_front_down_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_down_noflip -
-                    Tt12) <= 1.0e-8)) & ((fabs(F6_21_front_down_noflip - Tt21) <= 1.0e-8)) &
-                    ((fabs(F6_22_front_down_noflip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_front_down_noflip - Tt31) <=
-                    1.0e-8)) & ((fabs(F6_32_front_down_noflip - Tt32) <= 1.0e-8)));
+            const int hit_front_down_noflip = (((fabs(F4_14_front_down_noflip - Tt14) <= t24_7)) &
+                    ((fabs(F4_24_front_down_noflip - Tt24) <= t24_7)) & ((fabs(F4_34_front_down_noflip - Tt34) <=
+                    t24_7)) & ((fabs(F5_13_front_down_noflip - Tt13) <= ik_tol)) & ((fabs(F5_23_front_down_noflip -
+                    Tt23) <= ik_tol)) & ((fabs(F5_33_front_down_noflip - Tt33) <= ik_tol)) &
+                    ((fabs(F6_11_front_down_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_front_down_noflip - Tt12) <=
+                    ik_tol)) & ((fabs(F6_21_front_down_noflip - Tt21) <= ik_tol)) & ((fabs(F6_22_front_down_noflip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_front_down_noflip - Tt31) <= ik_tol)) &
+                    ((fabs(F6_32_front_down_noflip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_down_noflip */
             const double fit_q2_front_down_noflip = deltagen_fit_angle(th2_front_down, -0.7853981633974483,
                     3.9269908169872414, -0.7853981634974483, 3.9269908170872414);
@@ -3192,6 +3194,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t26_3 = 1.0*th3_front_down_s;
             const double t26_4 = 0.0203*th3_front_down_s;
             const double t26_6 = th2_front_down_s*th3_front_down_c;
+            const double t26_7 = 1.2020435056186611*ik_tol;
             const double F2_11_front_down_flip = t26_0;
             const double F2_12_front_down_flip = -q1_front_c*th2_front_down_s;
             const double F2_14_front_down_flip = 0.4318*t26_0;
@@ -3249,14 +3252,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_front_down_flip*q6_front_down_flip_c;
             const double F6_22_front_down_flip = -F4_23_front_down_flip*q6_front_down_flip_c -
                     F5_21_front_down_flip*q6_front_down_flip_s;
-            const int hit_front_down_flip = (((fabs(F4_14_front_down_flip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_front_down_flip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_front_down_flip -
-                    Tt34) <= 1.2020435056186611e-8)) & ((fabs(F5_13_front_down_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_front_down_flip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_front_down_flip - Tt33) <= 1.0e-8))
-                    & ((fabs(F6_11_front_down_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_front_down_flip - Tt12) <=
-                    1.0e-8)) & ((fabs(F6_21_front_down_flip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_front_down_flip - Tt22)
-                    <= 1.0e-8)) & ((fabs(F6_31_front_down_flip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_front_down_flip -
-                    Tt32) <= 1.0e-8)));
+            const int hit_front_down_flip = (((fabs(F4_14_front_down_flip - Tt14) <= t26_7)) &
+                    ((fabs(F4_24_front_down_flip - Tt24) <= t26_7)) & ((fabs(F4_34_front_down_flip - Tt34) <= t26_7)) &
+                    ((fabs(F5_13_front_down_flip - Tt13) <= ik_tol)) & ((fabs(F5_23_front_down_flip - Tt23) <= ik_tol))
+                    & ((fabs(F5_33_front_down_flip - Tt33) <= ik_tol)) & ((fabs(F6_11_front_down_flip - Tt11) <=
+                    ik_tol)) & ((fabs(F6_12_front_down_flip - Tt12) <= ik_tol)) & ((fabs(F6_21_front_down_flip - Tt21)
+                    <= ik_tol)) & ((fabs(F6_22_front_down_flip - Tt22) <= ik_tol)) & ((fabs(F6_31_front_down_flip -
+                    Tt31) <= ik_tol)) & ((fabs(F6_32_front_down_flip - Tt32) <= ik_tol)));
             /* joint limits and outputs, branch front_down_flip */
             const double fit_q4_front_down_flip = deltagen_fit_angle(q4_front_down_flip, -1.9198621771937625,
                     2.9670597283903604, -1.9198621772937625, 2.9670597284903604);
@@ -3284,6 +3286,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t28_3 = 1.0*th3_back_up_s;
             const double t28_4 = 0.0203*th3_back_up_s;
             const double t28_6 = th2_back_up_s*th3_back_up_c;
+            const double t28_7 = 1.2020435056186611*ik_tol;
             const double F2_11_back_up_noflip = t28_0;
             const double F2_12_back_up_noflip = -q1_back_c*th2_back_up_s;
             const double F2_14_back_up_noflip = 0.4318*t28_0;
@@ -3341,13 +3344,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_back_up_noflip*q6_back_up_noflip_c;
             const double F6_22_back_up_noflip = -F4_23_back_up_noflip*q6_back_up_noflip_c -
                     F5_21_back_up_noflip*q6_back_up_noflip_s;
-            const int hit_back_up_noflip = (((fabs(F4_14_back_up_noflip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_back_up_noflip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_back_up_noflip - Tt34)
-                    <= 1.2020435056186611e-8)) & ((fabs(F5_13_back_up_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_back_up_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_up_noflip - Tt33) <= 1.0e-8)) &
-                    ((fabs(F6_11_back_up_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_up_noflip - Tt12) <= 1.0e-8)) &
-                    ((fabs(F6_21_back_up_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_back_up_noflip - Tt22) <= 1.0e-8)) &
-                    ((fabs(F6_31_back_up_noflip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_back_up_noflip - Tt32) <= 1.0e-8)));
+            const int hit_back_up_noflip = (((fabs(F4_14_back_up_noflip - Tt14) <= t28_7)) & ((fabs(F4_24_back_up_noflip
+                    - Tt24) <= t28_7)) & ((fabs(F4_34_back_up_noflip - Tt34) <= t28_7)) & ((fabs(F5_13_back_up_noflip -
+                    Tt13) <= ik_tol)) & ((fabs(F5_23_back_up_noflip - Tt23) <= ik_tol)) & ((fabs(F5_33_back_up_noflip -
+                    Tt33) <= ik_tol)) & ((fabs(F6_11_back_up_noflip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_up_noflip -
+                    Tt12) <= ik_tol)) & ((fabs(F6_21_back_up_noflip - Tt21) <= ik_tol)) & ((fabs(F6_22_back_up_noflip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_back_up_noflip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_up_noflip -
+                    Tt32) <= ik_tol)));
             /* joint limits and outputs, branch back_up_noflip */
             const double fit_q1_back_up_noflip = deltagen_fit_angle(q1_back, -2.792526803190927, 2.792526803190927,
                     -2.792526803290927, 2.792526803290927);
@@ -3387,6 +3390,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t30_3 = 1.0*th3_back_up_s;
             const double t30_4 = 0.0203*th3_back_up_s;
             const double t30_6 = th2_back_up_s*th3_back_up_c;
+            const double t30_7 = 1.2020435056186611*ik_tol;
             const double F2_11_back_up_flip = t30_0;
             const double F2_12_back_up_flip = -q1_back_c*th2_back_up_s;
             const double F2_14_back_up_flip = 0.4318*t30_0;
@@ -3440,13 +3444,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_back_up_flip*q6_back_up_flip_c;
             const double F6_22_back_up_flip = -F4_23_back_up_flip*q6_back_up_flip_c -
                     F5_21_back_up_flip*q6_back_up_flip_s;
-            const int hit_back_up_flip = (((fabs(F4_14_back_up_flip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_back_up_flip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_back_up_flip - Tt34) <=
-                    1.2020435056186611e-8)) & ((fabs(F5_13_back_up_flip - Tt13) <= 1.0e-8)) & ((fabs(F5_23_back_up_flip
-                    - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_up_flip - Tt33) <= 1.0e-8)) & ((fabs(F6_11_back_up_flip -
-                    Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_up_flip - Tt12) <= 1.0e-8)) & ((fabs(F6_21_back_up_flip -
-                    Tt21) <= 1.0e-8)) & ((fabs(F6_22_back_up_flip - Tt22) <= 1.0e-8)) & ((fabs(F6_31_back_up_flip -
-                    Tt31) <= 1.0e-8)) & ((fabs(F6_32_back_up_flip - Tt32) <= 1.0e-8)));
+            const int hit_back_up_flip = (((fabs(F4_14_back_up_flip - Tt14) <= t30_7)) & ((fabs(F4_24_back_up_flip -
+                    Tt24) <= t30_7)) & ((fabs(F4_34_back_up_flip - Tt34) <= t30_7)) & ((fabs(F5_13_back_up_flip - Tt13)
+                    <= ik_tol)) & ((fabs(F5_23_back_up_flip - Tt23) <= ik_tol)) & ((fabs(F5_33_back_up_flip - Tt33) <=
+                    ik_tol)) & ((fabs(F6_11_back_up_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_up_flip - Tt12) <=
+                    ik_tol)) & ((fabs(F6_21_back_up_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_back_up_flip - Tt22) <=
+                    ik_tol)) & ((fabs(F6_31_back_up_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_up_flip - Tt32) <=
+                    ik_tol)));
             /* joint limits and outputs, branch back_up_flip */
             const double fit_q4_back_up_flip = deltagen_fit_angle(q4_back_up_flip, -1.9198621771937625,
                     2.9670597283903604, -1.9198621772937625, 2.9670597284903604);
@@ -3474,6 +3478,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t32_3 = 1.0*th3_back_down_s;
             const double t32_4 = 0.0203*th3_back_down_s;
             const double t32_6 = th2_back_down_s*th3_back_down_c;
+            const double t32_7 = 1.2020435056186611*ik_tol;
             const double F2_11_back_down_noflip = t32_0;
             const double F2_12_back_down_noflip = -q1_back_c*th2_back_down_s;
             const double F2_14_back_down_noflip = 0.4318*t32_0;
@@ -3533,14 +3538,14 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_back_down_noflip*q6_back_down_noflip_c;
             const double F6_22_back_down_noflip = -F4_23_back_down_noflip*q6_back_down_noflip_c -
                     F5_21_back_down_noflip*q6_back_down_noflip_s;
-            const int hit_back_down_noflip = (((fabs(F4_14_back_down_noflip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_back_down_noflip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_back_down_noflip -
-                    Tt34) <= 1.2020435056186611e-8)) & ((fabs(F5_13_back_down_noflip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_back_down_noflip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_down_noflip - Tt33) <=
-                    1.0e-8)) & ((fabs(F6_11_back_down_noflip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_down_noflip - Tt12)
-                    <= 1.0e-8)) & ((fabs(F6_21_back_down_noflip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_back_down_noflip -
-                    Tt22) <= 1.0e-8)) & ((fabs(F6_31_back_down_noflip - Tt31) <= 1.0e-8)) &
-                    ((fabs(F6_32_back_down_noflip - Tt32) <= 1.0e-8)));
+            const int hit_back_down_noflip = (((fabs(F4_14_back_down_noflip - Tt14) <= t32_7)) &
+                    ((fabs(F4_24_back_down_noflip - Tt24) <= t32_7)) & ((fabs(F4_34_back_down_noflip - Tt34) <= t32_7))
+                    & ((fabs(F5_13_back_down_noflip - Tt13) <= ik_tol)) & ((fabs(F5_23_back_down_noflip - Tt23) <=
+                    ik_tol)) & ((fabs(F5_33_back_down_noflip - Tt33) <= ik_tol)) & ((fabs(F6_11_back_down_noflip - Tt11)
+                    <= ik_tol)) & ((fabs(F6_12_back_down_noflip - Tt12) <= ik_tol)) & ((fabs(F6_21_back_down_noflip -
+                    Tt21) <= ik_tol)) & ((fabs(F6_22_back_down_noflip - Tt22) <= ik_tol)) &
+                    ((fabs(F6_31_back_down_noflip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_down_noflip - Tt32) <=
+                    ik_tol)));
             /* joint limits and outputs, branch back_down_noflip */
             const double fit_q2_back_down_noflip = deltagen_fit_angle(th2_back_down, -0.7853981633974483,
                     3.9269908169872414, -0.7853981634974483, 3.9269908170872414);
@@ -3576,6 +3581,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
             const double t34_3 = 1.0*th3_back_down_s;
             const double t34_4 = 0.0203*th3_back_down_s;
             const double t34_6 = th2_back_down_s*th3_back_down_c;
+            const double t34_7 = 1.2020435056186611*ik_tol;
             const double F2_11_back_down_flip = t34_0;
             const double F2_12_back_down_flip = -q1_back_c*th2_back_down_s;
             const double F2_14_back_down_flip = 0.4318*t34_0;
@@ -3633,13 +3639,13 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
                     F5_21_back_down_flip*q6_back_down_flip_c;
             const double F6_22_back_down_flip = -F4_23_back_down_flip*q6_back_down_flip_c -
                     F5_21_back_down_flip*q6_back_down_flip_s;
-            const int hit_back_down_flip = (((fabs(F4_14_back_down_flip - Tt14) <= 1.2020435056186611e-8)) &
-                    ((fabs(F4_24_back_down_flip - Tt24) <= 1.2020435056186611e-8)) & ((fabs(F4_34_back_down_flip - Tt34)
-                    <= 1.2020435056186611e-8)) & ((fabs(F5_13_back_down_flip - Tt13) <= 1.0e-8)) &
-                    ((fabs(F5_23_back_down_flip - Tt23) <= 1.0e-8)) & ((fabs(F5_33_back_down_flip - Tt33) <= 1.0e-8)) &
-                    ((fabs(F6_11_back_down_flip - Tt11) <= 1.0e-8)) & ((fabs(F6_12_back_down_flip - Tt12) <= 1.0e-8)) &
-                    ((fabs(F6_21_back_down_flip - Tt21) <= 1.0e-8)) & ((fabs(F6_22_back_down_flip - Tt22) <= 1.0e-8)) &
-                    ((fabs(F6_31_back_down_flip - Tt31) <= 1.0e-8)) & ((fabs(F6_32_back_down_flip - Tt32) <= 1.0e-8)));
+            const int hit_back_down_flip = (((fabs(F4_14_back_down_flip - Tt14) <= t34_7)) & ((fabs(F4_24_back_down_flip
+                    - Tt24) <= t34_7)) & ((fabs(F4_34_back_down_flip - Tt34) <= t34_7)) & ((fabs(F5_13_back_down_flip -
+                    Tt13) <= ik_tol)) & ((fabs(F5_23_back_down_flip - Tt23) <= ik_tol)) & ((fabs(F5_33_back_down_flip -
+                    Tt33) <= ik_tol)) & ((fabs(F6_11_back_down_flip - Tt11) <= ik_tol)) & ((fabs(F6_12_back_down_flip -
+                    Tt12) <= ik_tol)) & ((fabs(F6_21_back_down_flip - Tt21) <= ik_tol)) & ((fabs(F6_22_back_down_flip -
+                    Tt22) <= ik_tol)) & ((fabs(F6_31_back_down_flip - Tt31) <= ik_tol)) & ((fabs(F6_32_back_down_flip -
+                    Tt32) <= ik_tol)));
             /* joint limits and outputs, branch back_down_flip */
             const double fit_q4_back_down_flip = deltagen_fit_angle(q4_back_down_flip, -1.9198621771937625,
                     2.9670597283903604, -1.9198621772937625, 2.9670597284903604);

@@ -145,7 +145,7 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
  *                   would return that is not finite (they are too large: the arithmetic overflows); all outputs of such
  *                   a row are NaN (flags 0)
  *
- * Cost: 2466 operations per point.
+ * Cost: 2482 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_PUMA560_BLOCK points,
  * 33024 bytes (32.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

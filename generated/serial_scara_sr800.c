@@ -1531,6 +1531,12 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_SCARA_SR800_BLOCK) {
         const size_t m = (n - start < DELTAGEN_SCARA_SR800_BLOCK) ? n - start : DELTAGEN_SCARA_SR800_BLOCK;
@@ -1593,7 +1599,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             /* planar arm: the point P, the travel along u and the yaw about u */
             const double travel = Tt34 - 0.5;
             const double yaw_h = sqrt(Tt11*Tt11 + Tt21*Tt21);
-            const double yaw_den = (((yaw_h > 1.0e-300)) ? yaw_h : 1.0e-300);
+            const double yaw_den = (((ik_tiny < yaw_h)) ? yaw_h : ik_tiny);
             const double yaw_inv = 1.0/yaw_den;
             const int t1_0 = (yaw_h > 0);
             const double yaw_c = ((t1_0) ? Tt11*yaw_inv : 1);
@@ -1602,7 +1608,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             /* planar arm: law of cosines */
             const double kappa_planar = -1.0317460317460317 + 3.1746031746031746*(Tt14*Tt14) +
                     3.1746031746031746*(Tt24*Tt24);
-            const int ok_elbow_planar = (fabs(kappa_planar) <= 1.0000000010000001);
+            const int ok_elbow_planar = (fabs(kappa_planar) <= ik_slack + 1);
             const double kc0_planar = (((kappa_planar > -1)) ? kappa_planar : -1);
             const double kc_planar = (((kc0_planar < 1)) ? kc0_planar : 1);
             const double ks_planar = sqrt(1 - (kc_planar*kc_planar));
@@ -1615,7 +1621,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double t3_2 = -Tt14*t3_0 + Tt24*t3_1;
             const double t3_3 = Tt14*t3_1 + Tt24*t3_0;
             const double th2_elbow_up_h = sqrt(t3_2*t3_2 + t3_3*t3_3);
-            const double th2_elbow_up_den = (((th2_elbow_up_h > 1.0e-300)) ? th2_elbow_up_h : 1.0e-300);
+            const double th2_elbow_up_den = (((ik_tiny < th2_elbow_up_h)) ? th2_elbow_up_h : ik_tiny);
             const double th2_elbow_up_inv = 1.0/th2_elbow_up_den;
             const int t3_4 = (th2_elbow_up_h > 0);
             const double th2_elbow_up_c = ((t3_4) ? t3_3*th2_elbow_up_inv : 1);
@@ -1634,7 +1640,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double t4_2 = -Tt14*t4_0 + Tt24*t4_1;
             const double t4_3 = Tt14*t4_1 + Tt24*t4_0;
             const double th2_elbow_down_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_elbow_down_den = (((th2_elbow_down_h > 1.0e-300)) ? th2_elbow_down_h : 1.0e-300);
+            const double th2_elbow_down_den = (((ik_tiny < th2_elbow_down_h)) ? th2_elbow_down_h : ik_tiny);
             const double th2_elbow_down_inv = 1.0/th2_elbow_down_den;
             const int t4_4 = (th2_elbow_down_h > 0);
             const double th2_elbow_down_c = ((t4_4) ? t4_3*th2_elbow_down_inv : 1);
@@ -1653,6 +1659,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double t5_4 = kc_planar*t5_1 + 1.0*t5_3;
             const double t5_5 = 0.35*th2_elbow_up_s;
             const double t5_6 = 1.0*roll_elbow_up_s;
+            const double t5_7 = 1.0*ik_tol;
             const double F1_14_elbow_up = 0.45*th2_elbow_up_c;
             const double F1_24_elbow_up = 0.45*th2_elbow_up_s;
             const double F2_11_elbow_up = t5_2;
@@ -1666,11 +1673,11 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double F4_12_elbow_up = F2_11_elbow_up*t5_6 + F2_12_elbow_up*roll_elbow_up_c;
             const double F4_21_elbow_up = F2_21_elbow_up*roll_elbow_up_c - F2_22_elbow_up*t5_6;
             const double F4_22_elbow_up = F2_21_elbow_up*t5_6 + F2_22_elbow_up*roll_elbow_up_c;
-            const int hit_elbow_up = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <= 1.0e-8))
-                    & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(F2_14_elbow_up - Tt14) <= 1.0e-8)) & ((fabs(F2_24_elbow_up -
-                    Tt24) <= 1.0e-8)) & ((fabs(F3_34_elbow_up - Tt34) <= 1.0e-8)) & ((fabs(F4_11_elbow_up - Tt11) <=
-                    1.0e-8)) & ((fabs(F4_12_elbow_up - Tt12) <= 1.0e-8)) & ((fabs(F4_21_elbow_up - Tt21) <= 1.0e-8)) &
-                    ((fabs(F4_22_elbow_up - Tt22) <= 1.0e-8)) & ((fabs(-Tt33 - 1) <= 1.0e-8)));
+            const int hit_elbow_up = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <= ik_tol))
+                    & ((fabs(-Tt32) <= ik_tol)) & ((fabs(F2_14_elbow_up - Tt14) <= t5_7)) & ((fabs(F2_24_elbow_up -
+                    Tt24) <= t5_7)) & ((fabs(F3_34_elbow_up - Tt34) <= t5_7)) & ((fabs(F4_11_elbow_up - Tt11) <=
+                    ik_tol)) & ((fabs(F4_12_elbow_up - Tt12) <= ik_tol)) & ((fabs(F4_21_elbow_up - Tt21) <= ik_tol)) &
+                    ((fabs(F4_22_elbow_up - Tt22) <= ik_tol)) & ((fabs(-Tt33 - 1) <= ik_tol)));
             /* joint limits and outputs, branch elbow_up */
             const double fit_q1_elbow_up = deltagen_fit_angle(1.0*th2_elbow_up, -2.2689280275926285, 2.2689280275926285,
                     -2.2689280276926285, 2.2689280276926285);
@@ -1701,6 +1708,7 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double t7_4 = kc_planar*t7_1 + 1.0*t7_3;
             const double t7_5 = 0.35*th2_elbow_down_s;
             const double t7_6 = 1.0*roll_elbow_down_s;
+            const double t7_7 = 1.0*ik_tol;
             const double F1_14_elbow_down = 0.45*th2_elbow_down_c;
             const double F1_24_elbow_down = 0.45*th2_elbow_down_s;
             const double F2_11_elbow_down = t7_2;
@@ -1714,12 +1722,12 @@ int deltagen_scara_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double F4_12_elbow_down = F2_11_elbow_down*t7_6 + F2_12_elbow_down*roll_elbow_down_c;
             const double F4_21_elbow_down = F2_21_elbow_down*roll_elbow_down_c - F2_22_elbow_down*t7_6;
             const double F4_22_elbow_down = F2_21_elbow_down*t7_6 + F2_22_elbow_down*roll_elbow_down_c;
-            const int hit_elbow_down = (((fabs(-Tt13) <= 1.0e-8)) & ((fabs(-Tt23) <= 1.0e-8)) & ((fabs(-Tt31) <=
-                    1.0e-8)) & ((fabs(-Tt32) <= 1.0e-8)) & ((fabs(F2_14_elbow_down - Tt14) <= 1.0e-8)) &
-                    ((fabs(F2_24_elbow_down - Tt24) <= 1.0e-8)) & ((fabs(F3_34_elbow_down - Tt34) <= 1.0e-8)) &
-                    ((fabs(F4_11_elbow_down - Tt11) <= 1.0e-8)) & ((fabs(F4_12_elbow_down - Tt12) <= 1.0e-8)) &
-                    ((fabs(F4_21_elbow_down - Tt21) <= 1.0e-8)) & ((fabs(F4_22_elbow_down - Tt22) <= 1.0e-8)) &
-                    ((fabs(-Tt33 - 1) <= 1.0e-8)));
+            const int hit_elbow_down = (((fabs(-Tt13) <= ik_tol)) & ((fabs(-Tt23) <= ik_tol)) & ((fabs(-Tt31) <=
+                    ik_tol)) & ((fabs(-Tt32) <= ik_tol)) & ((fabs(F2_14_elbow_down - Tt14) <= t7_7)) &
+                    ((fabs(F2_24_elbow_down - Tt24) <= t7_7)) & ((fabs(F3_34_elbow_down - Tt34) <= t7_7)) &
+                    ((fabs(F4_11_elbow_down - Tt11) <= ik_tol)) & ((fabs(F4_12_elbow_down - Tt12) <= ik_tol)) &
+                    ((fabs(F4_21_elbow_down - Tt21) <= ik_tol)) & ((fabs(F4_22_elbow_down - Tt22) <= ik_tol)) &
+                    ((fabs(-Tt33 - 1) <= ik_tol)));
             /* joint limits and outputs, branch elbow_down */
             const double fit_q1_elbow_down = deltagen_fit_angle(1.0*th2_elbow_down, -2.2689280275926285,
                     2.2689280275926285, -2.2689280276926285, 2.2689280276926285);

@@ -2378,6 +2378,12 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
     if (status == NULL || T == NULL || q == NULL || valid == NULL) {
         return -1;
     }
+    /* named constants: ik_tol, the accepted forward-kinematics residual (relative to the arm's size for positions);
+     *    ik_slack, how far a cosine may pass +-1 (or a square below 0) and still count as met; ik_tiny, the floor of a
+     *    divisor that may vanish */
+    const double ik_tol = 1.0e-8;
+    const double ik_slack = 1.0000000000000001e-9;
+    const double ik_tiny = 1.0e-300;
 
     for (size_t start = 0; start < n; start += DELTAGEN_UR5_BLOCK) {
         const size_t m = (n - start < DELTAGEN_UR5_BLOCK) ? n - start : DELTAGEN_UR5_BLOCK;
@@ -2488,12 +2494,12 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double v_p5_y = -0.0823*Tt21 + Tt24;
             const double t1_0 = sqrt(v_p5_x*v_p5_x + v_p5_y*v_p5_y);
             const double q1eq_base_h = t1_0;
-            const double q1eq_base_den = (((q1eq_base_h > 1.0e-300)) ? q1eq_base_h : 1.0e-300);
+            const double q1eq_base_den = (((ik_tiny < q1eq_base_h)) ? q1eq_base_h : ik_tiny);
             const double q1eq_base_inv = 1.0/q1eq_base_den;
             const double q1eq_r = t1_0;
-            const double q1eq_den = (((q1eq_r > 1.0e-300)) ? q1eq_r : 1.0e-300);
+            const double q1eq_den = (((ik_tiny < q1eq_r)) ? q1eq_r : ik_tiny);
             const double q1eq_ratio = (((q1eq_r > 0)) ? 0.10915*1.0/q1eq_den : 0);
-            const int ok_q1eq = (fabs(q1eq_ratio) <= 1.0000000010000001);
+            const int ok_q1eq = (fabs(q1eq_ratio) <= ik_slack + 1);
             const double q1eq_kc0 = (((q1eq_ratio > -1)) ? q1eq_ratio : -1);
             const double q1eq_kc = (((q1eq_kc0 < 1)) ? q1eq_kc0 : 1);
             const double q1eq_ks = sqrt(1 - (q1eq_kc*q1eq_kc));
@@ -2507,15 +2513,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double q1_sp_c = q1eq_base_c*q1eq_kc - q1eq_base_s*q1eq_ks;
             const double q1_sp_s = q1eq_base_c*q1eq_ks + q1eq_base_s*q1eq_kc;
             const double q5eq_sp_base_h = 1;
-            const double q5eq_sp_base_den = (((q5eq_sp_base_h > 1.0e-300)) ? q5eq_sp_base_h : 1.0e-300);
+            const double q5eq_sp_base_den = (((ik_tiny < q5eq_sp_base_h)) ? q5eq_sp_base_h : ik_tiny);
             const double q5eq_sp_base_inv = 1.0/q5eq_sp_base_den;
             const double q5eq_sp_base_c = (((q5eq_sp_base_h > 0)) ? q5eq_sp_base_inv : 1);
             const double q5eq_sp_base_s = 0;
             const double q5eq_sp_base = 0;
             const double q5eq_sp_r = 1;
-            const double q5eq_sp_den = (((q5eq_sp_r > 1.0e-300)) ? q5eq_sp_r : 1.0e-300);
+            const double q5eq_sp_den = (((ik_tiny < q5eq_sp_r)) ? q5eq_sp_r : ik_tiny);
             const double q5eq_sp_ratio = (((q5eq_sp_r > 0)) ? (-Tt11*q1_sp_s + Tt21*q1_sp_c)*1.0/q5eq_sp_den : 0);
-            const int ok_q5eq_sp = (fabs(q5eq_sp_ratio) <= 1.0000000010000001);
+            const int ok_q5eq_sp = (fabs(q5eq_sp_ratio) <= ik_slack + 1);
             const double q5eq_sp_kc0 = (((q5eq_sp_ratio > -1)) ? q5eq_sp_ratio : -1);
             const double q5eq_sp_kc = (((q5eq_sp_kc0 < 1)) ? q5eq_sp_kc0 : 1);
             const double q5eq_sp_ks = sqrt(1 - (q5eq_sp_kc*q5eq_sp_kc));
@@ -2532,7 +2538,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t3_0 = a_spwp_x*b_sp_x + a_spwp_z*b_sp_z;
             const double t3_1 = -a_spwp_x*b_sp_z + a_spwp_z*b_sp_x;
             const double mq6_spwp_h = sqrt(t3_0*t3_0 + t3_1*t3_1);
-            const double mq6_spwp_den = (((mq6_spwp_h > 1.0e-300)) ? mq6_spwp_h : 1.0e-300);
+            const double mq6_spwp_den = (((ik_tiny < mq6_spwp_h)) ? mq6_spwp_h : ik_tiny);
             const double mq6_spwp_inv = 1.0/mq6_spwp_den;
             const int t3_2 = (mq6_spwp_h > 0);
             const double mq6_spwp_c = ((t3_2) ? mq6_spwp_inv*t3_0 : 1);
@@ -2550,7 +2556,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     Tt23*t3_4);
             const double x_spwp_z = q1_sp_c*t3_8 + t3_8*t3_9;
             const double phi_spwp_h = sqrt(x_spwp_x*x_spwp_x + x_spwp_z*x_spwp_z);
-            const double phi_spwp_den = (((phi_spwp_h > 1.0e-300)) ? phi_spwp_h : 1.0e-300);
+            const double phi_spwp_den = (((ik_tiny < phi_spwp_h)) ? phi_spwp_h : ik_tiny);
             const double phi_spwp_inv = 1.0/phi_spwp_den;
             const double y_spwp_x = 0.09465*mq6_spwp_s + 0.093*t3_5 + 0.81725;
             const double y_spwp_y = -0.093*q5_spwp_c*t3_6 - 0.093*t3_3 + 0.10915;
@@ -2566,7 +2572,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_spwp = -q1_sp_c*t3_14 - t3_14*t3_9;
             const double kappa_spwp = -1.0032169234806733 + 2.9992876691785701*(t1_spwp*t1_spwp) +
                     2.9992876691785701*(t2_spwp*t2_spwp);
-            const int ok_elbow_spwp = (fabs(kappa_spwp) <= 1.0000000010000001);
+            const int ok_elbow_spwp = (fabs(kappa_spwp) <= ik_slack + 1);
             const double kc0_spwp = (((kappa_spwp > -1)) ? kappa_spwp : -1);
             const double kc_spwp = (((kc0_spwp < 1)) ? kc0_spwp : 1);
             const double ks_spwp = sqrt(1 - (kc_spwp*kc_spwp));
@@ -2577,7 +2583,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t4_2 = -t1_spwp*t4_0 + t2_spwp*t4_1;
             const double t4_3 = t1_spwp*t4_1 + t2_spwp*t4_0;
             const double th2_spwpep_h = sqrt(t4_2*t4_2 + t4_3*t4_3);
-            const double th2_spwpep_den = (((th2_spwpep_h > 1.0e-300)) ? th2_spwpep_h : 1.0e-300);
+            const double th2_spwpep_den = (((ik_tiny < th2_spwpep_h)) ? th2_spwpep_h : ik_tiny);
             const double th2_spwpep_inv = 1.0/th2_spwpep_den;
             const int t4_4 = (th2_spwpep_h > 0);
             const double th2_spwpep_c = ((t4_4) ? t4_3*th2_spwpep_inv : 1);
@@ -2596,7 +2602,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t5_2 = -t1_spwp*t5_0 + t2_spwp*t5_1;
             const double t5_3 = t1_spwp*t5_1 + t2_spwp*t5_0;
             const double th2_spwpem_h = sqrt(t5_2*t5_2 + t5_3*t5_3);
-            const double th2_spwpem_den = (((th2_spwpem_h > 1.0e-300)) ? th2_spwpem_h : 1.0e-300);
+            const double th2_spwpem_den = (((ik_tiny < th2_spwpem_h)) ? th2_spwpem_h : ik_tiny);
             const double th2_spwpem_inv = 1.0/th2_spwpem_den;
             const int t5_4 = (th2_spwpem_h > 0);
             const double th2_spwpem_c = ((t5_4) ? t5_3*th2_spwpem_inv : 1);
@@ -2631,7 +2637,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_spwm = -q1_sp_c*t6_5 - t6_5*(1 - q1_sp_c);
             const double kappa_spwm = -1.0032169234806733 + 2.9992876691785701*(t1_spwm*t1_spwm) +
                     2.9992876691785701*(t2_spwm*t2_spwm);
-            const int ok_elbow_spwm = (fabs(kappa_spwm) <= 1.0000000010000001);
+            const int ok_elbow_spwm = (fabs(kappa_spwm) <= ik_slack + 1);
             const double kc0_spwm = (((kappa_spwm > -1)) ? kappa_spwm : -1);
             const double kc_spwm = (((kc0_spwm < 1)) ? kc0_spwm : 1);
             const double ks_spwm = sqrt(1 - (kc_spwm*kc_spwm));
@@ -2642,7 +2648,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t7_2 = -t1_spwm*t7_0 + t2_spwm*t7_1;
             const double t7_3 = t1_spwm*t7_1 + t2_spwm*t7_0;
             const double th2_spwmep_h = sqrt(t7_2*t7_2 + t7_3*t7_3);
-            const double th2_spwmep_den = (((th2_spwmep_h > 1.0e-300)) ? th2_spwmep_h : 1.0e-300);
+            const double th2_spwmep_den = (((ik_tiny < th2_spwmep_h)) ? th2_spwmep_h : ik_tiny);
             const double th2_spwmep_inv = 1.0/th2_spwmep_den;
             const int t7_4 = (th2_spwmep_h > 0);
             const double th2_spwmep_c = ((t7_4) ? t7_3*th2_spwmep_inv : 1);
@@ -2661,7 +2667,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t8_2 = -t1_spwm*t8_0 + t2_spwm*t8_1;
             const double t8_3 = t1_spwm*t8_1 + t2_spwm*t8_0;
             const double th2_spwmem_h = sqrt(t8_2*t8_2 + t8_3*t8_3);
-            const double th2_spwmem_den = (((th2_spwmem_h > 1.0e-300)) ? th2_spwmem_h : 1.0e-300);
+            const double th2_spwmem_den = (((ik_tiny < th2_spwmem_h)) ? th2_spwmem_h : ik_tiny);
             const double th2_spwmem_inv = 1.0/th2_spwmem_den;
             const int t8_4 = (th2_spwmem_h > 0);
             const double th2_spwmem_c = ((t8_4) ? t8_3*th2_spwmem_inv : 1);
@@ -2677,15 +2683,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double q1_sm_c = q1eq_base_c*q1eq_kc + q1eq_base_s*q1eq_ks;
             const double q1_sm_s = -q1eq_base_c*q1eq_ks + q1eq_base_s*q1eq_kc;
             const double q5eq_sm_base_h = 1;
-            const double q5eq_sm_base_den = (((q5eq_sm_base_h > 1.0e-300)) ? q5eq_sm_base_h : 1.0e-300);
+            const double q5eq_sm_base_den = (((ik_tiny < q5eq_sm_base_h)) ? q5eq_sm_base_h : ik_tiny);
             const double q5eq_sm_base_inv = 1.0/q5eq_sm_base_den;
             const double q5eq_sm_base_c = (((q5eq_sm_base_h > 0)) ? q5eq_sm_base_inv : 1);
             const double q5eq_sm_base_s = 0;
             const double q5eq_sm_base = 0;
             const double q5eq_sm_r = 1;
-            const double q5eq_sm_den = (((q5eq_sm_r > 1.0e-300)) ? q5eq_sm_r : 1.0e-300);
+            const double q5eq_sm_den = (((ik_tiny < q5eq_sm_r)) ? q5eq_sm_r : ik_tiny);
             const double q5eq_sm_ratio = (((q5eq_sm_r > 0)) ? (-Tt11*q1_sm_s + Tt21*q1_sm_c)*1.0/q5eq_sm_den : 0);
-            const int ok_q5eq_sm = (fabs(q5eq_sm_ratio) <= 1.0000000010000001);
+            const int ok_q5eq_sm = (fabs(q5eq_sm_ratio) <= ik_slack + 1);
             const double q5eq_sm_kc0 = (((q5eq_sm_ratio > -1)) ? q5eq_sm_ratio : -1);
             const double q5eq_sm_kc = (((q5eq_sm_kc0 < 1)) ? q5eq_sm_kc0 : 1);
             const double q5eq_sm_ks = sqrt(1 - (q5eq_sm_kc*q5eq_sm_kc));
@@ -2702,7 +2708,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t10_0 = a_smwp_x*b_sm_x + a_smwp_z*b_sm_z;
             const double t10_1 = -a_smwp_x*b_sm_z + a_smwp_z*b_sm_x;
             const double mq6_smwp_h = sqrt(t10_0*t10_0 + t10_1*t10_1);
-            const double mq6_smwp_den = (((mq6_smwp_h > 1.0e-300)) ? mq6_smwp_h : 1.0e-300);
+            const double mq6_smwp_den = (((ik_tiny < mq6_smwp_h)) ? mq6_smwp_h : ik_tiny);
             const double mq6_smwp_inv = 1.0/mq6_smwp_den;
             const int t10_2 = (mq6_smwp_h > 0);
             const double mq6_smwp_c = ((t10_2) ? mq6_smwp_inv*t10_0 : 1);
@@ -2720,7 +2726,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     Tt23*t10_4);
             const double x_smwp_z = q1_sm_c*t10_8 + t10_8*t10_9;
             const double phi_smwp_h = sqrt(x_smwp_x*x_smwp_x + x_smwp_z*x_smwp_z);
-            const double phi_smwp_den = (((phi_smwp_h > 1.0e-300)) ? phi_smwp_h : 1.0e-300);
+            const double phi_smwp_den = (((ik_tiny < phi_smwp_h)) ? phi_smwp_h : ik_tiny);
             const double phi_smwp_inv = 1.0/phi_smwp_den;
             const double y_smwp_x = 0.09465*mq6_smwp_s + 0.093*t10_5 + 0.81725;
             const double y_smwp_y = -0.093*q5_smwp_c*t10_6 - 0.093*t10_3 + 0.10915;
@@ -2736,7 +2742,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_smwp = -q1_sm_c*t10_14 - t10_14*t10_9;
             const double kappa_smwp = -1.0032169234806733 + 2.9992876691785701*(t1_smwp*t1_smwp) +
                     2.9992876691785701*(t2_smwp*t2_smwp);
-            const int ok_elbow_smwp = (fabs(kappa_smwp) <= 1.0000000010000001);
+            const int ok_elbow_smwp = (fabs(kappa_smwp) <= ik_slack + 1);
             const double kc0_smwp = (((kappa_smwp > -1)) ? kappa_smwp : -1);
             const double kc_smwp = (((kc0_smwp < 1)) ? kc0_smwp : 1);
             const double ks_smwp = sqrt(1 - (kc_smwp*kc_smwp));
@@ -2747,7 +2753,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t11_2 = -t11_0*t1_smwp + t11_1*t2_smwp;
             const double t11_3 = t11_0*t2_smwp + t11_1*t1_smwp;
             const double th2_smwpep_h = sqrt(t11_2*t11_2 + t11_3*t11_3);
-            const double th2_smwpep_den = (((th2_smwpep_h > 1.0e-300)) ? th2_smwpep_h : 1.0e-300);
+            const double th2_smwpep_den = (((ik_tiny < th2_smwpep_h)) ? th2_smwpep_h : ik_tiny);
             const double th2_smwpep_inv = 1.0/th2_smwpep_den;
             const int t11_4 = (th2_smwpep_h > 0);
             const double th2_smwpep_c = ((t11_4) ? t11_3*th2_smwpep_inv : 1);
@@ -2766,7 +2772,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t12_2 = -t12_0*t1_smwp + t12_1*t2_smwp;
             const double t12_3 = t12_0*t2_smwp + t12_1*t1_smwp;
             const double th2_smwpem_h = sqrt(t12_2*t12_2 + t12_3*t12_3);
-            const double th2_smwpem_den = (((th2_smwpem_h > 1.0e-300)) ? th2_smwpem_h : 1.0e-300);
+            const double th2_smwpem_den = (((ik_tiny < th2_smwpem_h)) ? th2_smwpem_h : ik_tiny);
             const double th2_smwpem_inv = 1.0/th2_smwpem_den;
             const int t12_4 = (th2_smwpem_h > 0);
             const double th2_smwpem_c = ((t12_4) ? t12_3*th2_smwpem_inv : 1);
@@ -2801,7 +2807,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t2_smwm = -q1_sm_c*t13_5 - t13_5*(1 - q1_sm_c);
             const double kappa_smwm = -1.0032169234806733 + 2.9992876691785701*(t1_smwm*t1_smwm) +
                     2.9992876691785701*(t2_smwm*t2_smwm);
-            const int ok_elbow_smwm = (fabs(kappa_smwm) <= 1.0000000010000001);
+            const int ok_elbow_smwm = (fabs(kappa_smwm) <= ik_slack + 1);
             const double kc0_smwm = (((kappa_smwm > -1)) ? kappa_smwm : -1);
             const double kc_smwm = (((kc0_smwm < 1)) ? kc0_smwm : 1);
             const double ks_smwm = sqrt(1 - (kc_smwm*kc_smwm));
@@ -2812,7 +2818,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t14_2 = -t14_0*t1_smwm + t14_1*t2_smwm;
             const double t14_3 = t14_0*t2_smwm + t14_1*t1_smwm;
             const double th2_smwmep_h = sqrt(t14_2*t14_2 + t14_3*t14_3);
-            const double th2_smwmep_den = (((th2_smwmep_h > 1.0e-300)) ? th2_smwmep_h : 1.0e-300);
+            const double th2_smwmep_den = (((ik_tiny < th2_smwmep_h)) ? th2_smwmep_h : ik_tiny);
             const double th2_smwmep_inv = 1.0/th2_smwmep_den;
             const int t14_4 = (th2_smwmep_h > 0);
             const double th2_smwmep_c = ((t14_4) ? t14_3*th2_smwmep_inv : 1);
@@ -2831,7 +2837,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t15_2 = -t15_0*t1_smwm + t15_1*t2_smwm;
             const double t15_3 = t15_0*t2_smwm + t15_1*t1_smwm;
             const double th2_smwmem_h = sqrt(t15_2*t15_2 + t15_3*t15_3);
-            const double th2_smwmem_den = (((th2_smwmem_h > 1.0e-300)) ? th2_smwmem_h : 1.0e-300);
+            const double th2_smwmem_den = (((ik_tiny < th2_smwmem_h)) ? th2_smwmem_h : ik_tiny);
             const double th2_smwmem_inv = 1.0/th2_smwmem_den;
             const int t15_4 = (th2_smwmem_h > 0);
             const double th2_smwmem_c = ((t15_4) ? t15_3*th2_smwmem_inv : 1);
@@ -2849,6 +2855,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t16_3 = 1.0*ks_spwp;
             const double t16_4 = 0.39225*ks_spwp;
             const double t16_5 = 1.0*th4_spwpep_s;
+            const double t16_6 = 1.0*ik_tol;
             const double F1_14_shoulderp_elbowp_wristp = -0.13585*q1_sp_s;
             const double F1_24_shoulderp_elbowp_wristp = 0.13585*q1_sp_c;
             const double F2_11_shoulderp_elbowp_wristp = -q1_sp_c*t16_0;
@@ -2918,15 +2925,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderp_elbowp_wristp;
             const double T_34_shoulderp_elbowp_wristp = 0.0823*F5_33_shoulderp_elbowp_wristp +
                     F5_34_shoulderp_elbowp_wristp;
-            const int hit_shoulderp_elbowp_wristp = (((fabs(F5_13_shoulderp_elbowp_wristp - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderp_elbowp_wristp - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowp_wristp -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowp_wristp - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderp_elbowp_wristp - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowp_wristp -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowp_wristp - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderp_elbowp_wristp - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowp_wristp -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowp_wristp - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderp_elbowp_wristp - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowp_wristp -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderp_elbowp_wristp = (((fabs(F5_13_shoulderp_elbowp_wristp - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderp_elbowp_wristp - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderp_elbowp_wristp -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderp_elbowp_wristp - Tt14) <= t16_6)) &
+                    ((fabs(T_24_shoulderp_elbowp_wristp - Tt24) <= t16_6)) & ((fabs(T_34_shoulderp_elbowp_wristp - Tt34)
+                    <= t16_6)) & ((fabs(-F6_11_shoulderp_elbowp_wristp - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderp_elbowp_wristp - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderp_elbowp_wristp -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderp_elbowp_wristp - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderp_elbowp_wristp - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderp_elbowp_wristp -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderp_elbowp_wristp */
             const double fit_q1_shoulderp_elbowp_wristp = deltagen_fit_angle(q1_sp, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -2969,6 +2976,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t18_3 = 1.0*ks_spwm;
             const double t18_4 = 0.39225*ks_spwm;
             const double t18_5 = 1.0*th4_spwmep_s;
+            const double t18_6 = 1.0*ik_tol;
             const double F1_14_shoulderp_elbowp_wristm = -0.13585*q1_sp_s;
             const double F1_24_shoulderp_elbowp_wristm = 0.13585*q1_sp_c;
             const double F2_11_shoulderp_elbowp_wristm = -q1_sp_c*t18_0;
@@ -3038,15 +3046,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderp_elbowp_wristm;
             const double T_34_shoulderp_elbowp_wristm = 0.0823*F5_33_shoulderp_elbowp_wristm +
                     F5_34_shoulderp_elbowp_wristm;
-            const int hit_shoulderp_elbowp_wristm = (((fabs(F5_13_shoulderp_elbowp_wristm - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderp_elbowp_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowp_wristm -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowp_wristm - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderp_elbowp_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowp_wristm -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowp_wristm - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderp_elbowp_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowp_wristm -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowp_wristm - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderp_elbowp_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowp_wristm -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderp_elbowp_wristm = (((fabs(F5_13_shoulderp_elbowp_wristm - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderp_elbowp_wristm - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderp_elbowp_wristm -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderp_elbowp_wristm - Tt14) <= t18_6)) &
+                    ((fabs(T_24_shoulderp_elbowp_wristm - Tt24) <= t18_6)) & ((fabs(T_34_shoulderp_elbowp_wristm - Tt34)
+                    <= t18_6)) & ((fabs(-F6_11_shoulderp_elbowp_wristm - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderp_elbowp_wristm - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderp_elbowp_wristm -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderp_elbowp_wristm - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderp_elbowp_wristm - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderp_elbowp_wristm -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderp_elbowp_wristm */
             const double fit_q2_shoulderp_elbowp_wristm = deltagen_fit_angle(1.0*th2_spwmep, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3085,6 +3093,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t20_3 = 1.0*th3_spwpem_s;
             const double t20_4 = 0.39225*th3_spwpem_s;
             const double t20_5 = 1.0*th4_spwpem_s;
+            const double t20_6 = 1.0*ik_tol;
             const double F1_14_shoulderp_elbowm_wristp = -0.13585*q1_sp_s;
             const double F1_24_shoulderp_elbowm_wristp = 0.13585*q1_sp_c;
             const double F2_11_shoulderp_elbowm_wristp = -q1_sp_c*t20_0;
@@ -3154,15 +3163,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderp_elbowm_wristp;
             const double T_34_shoulderp_elbowm_wristp = 0.0823*F5_33_shoulderp_elbowm_wristp +
                     F5_34_shoulderp_elbowm_wristp;
-            const int hit_shoulderp_elbowm_wristp = (((fabs(F5_13_shoulderp_elbowm_wristp - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderp_elbowm_wristp - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowm_wristp -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowm_wristp - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderp_elbowm_wristp - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowm_wristp -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowm_wristp - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderp_elbowm_wristp - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowm_wristp -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowm_wristp - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderp_elbowm_wristp - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowm_wristp -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderp_elbowm_wristp = (((fabs(F5_13_shoulderp_elbowm_wristp - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderp_elbowm_wristp - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderp_elbowm_wristp -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderp_elbowm_wristp - Tt14) <= t20_6)) &
+                    ((fabs(T_24_shoulderp_elbowm_wristp - Tt24) <= t20_6)) & ((fabs(T_34_shoulderp_elbowm_wristp - Tt34)
+                    <= t20_6)) & ((fabs(-F6_11_shoulderp_elbowm_wristp - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderp_elbowm_wristp - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderp_elbowm_wristp -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderp_elbowm_wristp - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderp_elbowm_wristp - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderp_elbowm_wristp -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderp_elbowm_wristp */
             const double fit_q2_shoulderp_elbowm_wristp = deltagen_fit_angle(1.0*th2_spwpem, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3193,6 +3202,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t22_3 = 1.0*th3_spwmem_s;
             const double t22_4 = 0.39225*th3_spwmem_s;
             const double t22_5 = 1.0*th4_spwmem_s;
+            const double t22_6 = 1.0*ik_tol;
             const double F1_14_shoulderp_elbowm_wristm = -0.13585*q1_sp_s;
             const double F1_24_shoulderp_elbowm_wristm = 0.13585*q1_sp_c;
             const double F2_11_shoulderp_elbowm_wristm = -q1_sp_c*t22_0;
@@ -3262,15 +3272,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderp_elbowm_wristm;
             const double T_34_shoulderp_elbowm_wristm = 0.0823*F5_33_shoulderp_elbowm_wristm +
                     F5_34_shoulderp_elbowm_wristm;
-            const int hit_shoulderp_elbowm_wristm = (((fabs(F5_13_shoulderp_elbowm_wristm - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderp_elbowm_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderp_elbowm_wristm -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderp_elbowm_wristm - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderp_elbowm_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderp_elbowm_wristm -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderp_elbowm_wristm - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderp_elbowm_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderp_elbowm_wristm -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderp_elbowm_wristm - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderp_elbowm_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderp_elbowm_wristm -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderp_elbowm_wristm = (((fabs(F5_13_shoulderp_elbowm_wristm - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderp_elbowm_wristm - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderp_elbowm_wristm -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderp_elbowm_wristm - Tt14) <= t22_6)) &
+                    ((fabs(T_24_shoulderp_elbowm_wristm - Tt24) <= t22_6)) & ((fabs(T_34_shoulderp_elbowm_wristm - Tt34)
+                    <= t22_6)) & ((fabs(-F6_11_shoulderp_elbowm_wristm - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderp_elbowm_wristm - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderp_elbowm_wristm -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderp_elbowm_wristm - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderp_elbowm_wristm - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderp_elbowm_wristm -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderp_elbowm_wristm */
             const double fit_q2_shoulderp_elbowm_wristm = deltagen_fit_angle(1.0*th2_spwmem, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3301,6 +3311,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t24_3 = 1.0*ks_smwp;
             const double t24_4 = 0.39225*ks_smwp;
             const double t24_5 = 1.0*th4_smwpep_s;
+            const double t24_6 = 1.0*ik_tol;
             const double F1_14_shoulderm_elbowp_wristp = -0.13585*q1_sm_s;
             const double F1_24_shoulderm_elbowp_wristp = 0.13585*q1_sm_c;
             const double F2_11_shoulderm_elbowp_wristp = -q1_sm_c*t24_0;
@@ -3370,15 +3381,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderm_elbowp_wristp;
             const double T_34_shoulderm_elbowp_wristp = 0.0823*F5_33_shoulderm_elbowp_wristp +
                     F5_34_shoulderm_elbowp_wristp;
-            const int hit_shoulderm_elbowp_wristp = (((fabs(F5_13_shoulderm_elbowp_wristp - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderm_elbowp_wristp - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowp_wristp -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowp_wristp - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderm_elbowp_wristp - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowp_wristp -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowp_wristp - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderm_elbowp_wristp - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowp_wristp -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowp_wristp - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderm_elbowp_wristp - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowp_wristp -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderm_elbowp_wristp = (((fabs(F5_13_shoulderm_elbowp_wristp - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderm_elbowp_wristp - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderm_elbowp_wristp -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderm_elbowp_wristp - Tt14) <= t24_6)) &
+                    ((fabs(T_24_shoulderm_elbowp_wristp - Tt24) <= t24_6)) & ((fabs(T_34_shoulderm_elbowp_wristp - Tt34)
+                    <= t24_6)) & ((fabs(-F6_11_shoulderm_elbowp_wristp - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderm_elbowp_wristp - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderm_elbowp_wristp -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderm_elbowp_wristp - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderm_elbowp_wristp - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderm_elbowp_wristp -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderm_elbowp_wristp */
             const double fit_q1_shoulderm_elbowp_wristp = deltagen_fit_angle(q1_sm, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3421,6 +3432,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t26_3 = 1.0*ks_smwm;
             const double t26_4 = 0.39225*ks_smwm;
             const double t26_5 = 1.0*th4_smwmep_s;
+            const double t26_6 = 1.0*ik_tol;
             const double F1_14_shoulderm_elbowp_wristm = -0.13585*q1_sm_s;
             const double F1_24_shoulderm_elbowp_wristm = 0.13585*q1_sm_c;
             const double F2_11_shoulderm_elbowp_wristm = -q1_sm_c*t26_0;
@@ -3490,15 +3502,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderm_elbowp_wristm;
             const double T_34_shoulderm_elbowp_wristm = 0.0823*F5_33_shoulderm_elbowp_wristm +
                     F5_34_shoulderm_elbowp_wristm;
-            const int hit_shoulderm_elbowp_wristm = (((fabs(F5_13_shoulderm_elbowp_wristm - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderm_elbowp_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowp_wristm -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowp_wristm - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderm_elbowp_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowp_wristm -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowp_wristm - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderm_elbowp_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowp_wristm -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowp_wristm - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderm_elbowp_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowp_wristm -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderm_elbowp_wristm = (((fabs(F5_13_shoulderm_elbowp_wristm - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderm_elbowp_wristm - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderm_elbowp_wristm -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderm_elbowp_wristm - Tt14) <= t26_6)) &
+                    ((fabs(T_24_shoulderm_elbowp_wristm - Tt24) <= t26_6)) & ((fabs(T_34_shoulderm_elbowp_wristm - Tt34)
+                    <= t26_6)) & ((fabs(-F6_11_shoulderm_elbowp_wristm - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderm_elbowp_wristm - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderm_elbowp_wristm -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderm_elbowp_wristm - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderm_elbowp_wristm - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderm_elbowp_wristm -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderm_elbowp_wristm */
             const double fit_q2_shoulderm_elbowp_wristm = deltagen_fit_angle(1.0*th2_smwmep, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3537,6 +3549,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t28_3 = 1.0*th3_smwpem_s;
             const double t28_4 = 0.39225*th3_smwpem_s;
             const double t28_5 = 1.0*th4_smwpem_s;
+            const double t28_6 = 1.0*ik_tol;
             const double F1_14_shoulderm_elbowm_wristp = -0.13585*q1_sm_s;
             const double F1_24_shoulderm_elbowm_wristp = 0.13585*q1_sm_c;
             const double F2_11_shoulderm_elbowm_wristp = -q1_sm_c*t28_0;
@@ -3606,15 +3619,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderm_elbowm_wristp;
             const double T_34_shoulderm_elbowm_wristp = 0.0823*F5_33_shoulderm_elbowm_wristp +
                     F5_34_shoulderm_elbowm_wristp;
-            const int hit_shoulderm_elbowm_wristp = (((fabs(F5_13_shoulderm_elbowm_wristp - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderm_elbowm_wristp - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowm_wristp -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowm_wristp - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderm_elbowm_wristp - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowm_wristp -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowm_wristp - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderm_elbowm_wristp - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowm_wristp -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowm_wristp - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderm_elbowm_wristp - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowm_wristp -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderm_elbowm_wristp = (((fabs(F5_13_shoulderm_elbowm_wristp - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderm_elbowm_wristp - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderm_elbowm_wristp -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderm_elbowm_wristp - Tt14) <= t28_6)) &
+                    ((fabs(T_24_shoulderm_elbowm_wristp - Tt24) <= t28_6)) & ((fabs(T_34_shoulderm_elbowm_wristp - Tt34)
+                    <= t28_6)) & ((fabs(-F6_11_shoulderm_elbowm_wristp - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderm_elbowm_wristp - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderm_elbowm_wristp -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderm_elbowm_wristp - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderm_elbowm_wristp - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderm_elbowm_wristp -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderm_elbowm_wristp */
             const double fit_q2_shoulderm_elbowm_wristp = deltagen_fit_angle(1.0*th2_smwpem, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);
@@ -3645,6 +3658,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
             const double t30_3 = 1.0*th3_smwmem_s;
             const double t30_4 = 0.39225*th3_smwmem_s;
             const double t30_5 = 1.0*th4_smwmem_s;
+            const double t30_6 = 1.0*ik_tol;
             const double F1_14_shoulderm_elbowm_wristm = -0.13585*q1_sm_s;
             const double F1_24_shoulderm_elbowm_wristm = 0.13585*q1_sm_c;
             const double F2_11_shoulderm_elbowm_wristm = -q1_sm_c*t30_0;
@@ -3714,15 +3728,15 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
                     F5_24_shoulderm_elbowm_wristm;
             const double T_34_shoulderm_elbowm_wristm = 0.0823*F5_33_shoulderm_elbowm_wristm +
                     F5_34_shoulderm_elbowm_wristm;
-            const int hit_shoulderm_elbowm_wristm = (((fabs(F5_13_shoulderm_elbowm_wristm - Tt11) <= 1.0e-8)) &
-                    ((fabs(F5_23_shoulderm_elbowm_wristm - Tt21) <= 1.0e-8)) & ((fabs(F5_33_shoulderm_elbowm_wristm -
-                    Tt31) <= 1.0e-8)) & ((fabs(T_14_shoulderm_elbowm_wristm - Tt14) <= 1.0e-8)) &
-                    ((fabs(T_24_shoulderm_elbowm_wristm - Tt24) <= 1.0e-8)) & ((fabs(T_34_shoulderm_elbowm_wristm -
-                    Tt34) <= 1.0e-8)) & ((fabs(-F6_11_shoulderm_elbowm_wristm - Tt12) <= 1.0e-8)) &
-                    ((fabs(-F6_12_shoulderm_elbowm_wristm - Tt13) <= 1.0e-8)) & ((fabs(-F6_21_shoulderm_elbowm_wristm -
-                    Tt22) <= 1.0e-8)) & ((fabs(-F6_22_shoulderm_elbowm_wristm - Tt23) <= 1.0e-8)) &
-                    ((fabs(-F6_31_shoulderm_elbowm_wristm - Tt32) <= 1.0e-8)) & ((fabs(-F6_32_shoulderm_elbowm_wristm -
-                    Tt33) <= 1.0e-8)));
+            const int hit_shoulderm_elbowm_wristm = (((fabs(F5_13_shoulderm_elbowm_wristm - Tt11) <= ik_tol)) &
+                    ((fabs(F5_23_shoulderm_elbowm_wristm - Tt21) <= ik_tol)) & ((fabs(F5_33_shoulderm_elbowm_wristm -
+                    Tt31) <= ik_tol)) & ((fabs(T_14_shoulderm_elbowm_wristm - Tt14) <= t30_6)) &
+                    ((fabs(T_24_shoulderm_elbowm_wristm - Tt24) <= t30_6)) & ((fabs(T_34_shoulderm_elbowm_wristm - Tt34)
+                    <= t30_6)) & ((fabs(-F6_11_shoulderm_elbowm_wristm - Tt12) <= ik_tol)) &
+                    ((fabs(-F6_12_shoulderm_elbowm_wristm - Tt13) <= ik_tol)) & ((fabs(-F6_21_shoulderm_elbowm_wristm -
+                    Tt22) <= ik_tol)) & ((fabs(-F6_22_shoulderm_elbowm_wristm - Tt23) <= ik_tol)) &
+                    ((fabs(-F6_31_shoulderm_elbowm_wristm - Tt32) <= ik_tol)) & ((fabs(-F6_32_shoulderm_elbowm_wristm -
+                    Tt33) <= ik_tol)));
             /* joint limits and outputs, branch shoulderm_elbowm_wristm */
             const double fit_q2_shoulderm_elbowm_wristm = deltagen_fit_angle(1.0*th2_smwmem, -6.283185307179586,
                     6.283185307179586, -6.283185307279586, 6.283185307279586);

@@ -86,7 +86,18 @@ SUPPORTED = (
     *GANTRY_KINDS.values(),
 )
 _DIGITS = 13
-_TINY = sp.Float("1e-300")
+
+#: The closed forms' named constants: in C, ``const double`` at the top of ik_all (the
+#: ``setup`` of the kernel), so a statement reads ``<= ik_tol`` instead of a bare 1.0e-8.
+ik_tol = sp.Symbol("ik_tol", positive=True)  # TOL: accepted forward-kinematics residual
+ik_slack = sp.Symbol("ik_slack", positive=True)  # how far a cosine may pass +-1, a square 0
+ik_tiny = sp.Symbol("ik_tiny", positive=True)  # the floor of a divisor that may vanish
+_CONSTANTS = Stage(
+    "named constants: ik_tol, the accepted forward-kinematics residual (relative to the "
+    "arm's size for positions); ik_slack, how far a cosine may pass +-1 (or a square below "
+    "0) and still count as met; ik_tiny, the floor of a divisor that may vanish",
+    ((ik_tol, sp.Float(TOL)), (ik_slack, sp.Float(1e-9)), (ik_tiny, sp.Float(1e-300))),
+)
 
 
 # Comparisons, Max, Min, Abs and floor of the kernel's values are derive.functions'
@@ -186,7 +197,7 @@ def _direction(tape, name, y, x, with_h=False):
     h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
     # the division is done whatever h is, so the selection below is a plain blend (a
     # division inside a ternary would be a branch)
-    inv = tape.let(f"{name}_inv", 1 / tape.let(f"{name}_den", _at_least(h, _TINY)))
+    inv = tape.let(f"{name}_inv", 1 / tape.let(f"{name}_den", _at_least(h, ik_tiny)))
     c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
     s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
     return (c, s, h) if with_h else (c, s)
@@ -345,7 +356,7 @@ class IKKernelBuilder:
         pz = tape.let("pz", _dot(d, K.vec(s.ez)))
         yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
         rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", _ge(rad, -1e-9 * ax.scale**2))
+        ok1 = tape.let("ok_reach", _ge(rad, -ik_slack * sp.Float(ax.scale**2)))
         r = tape.let("xV", sp.sqrt(_max(rad, 0)))
         on_axis = tape.let("on_axis", _lt(px * px + py * py, (1e-12 * ax.scale) ** 2))
         a = _Angle(0, *_direction(tape, "phi_p", py, px))
@@ -481,7 +492,7 @@ class IKKernelBuilder:
         kappa = tape.let(
             f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
         )
-        ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + 1e-9))
+        ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + ik_slack))
         kc = tape.let(f"kc_{tag}", _at_most(tape.let(f"kc0_{tag}", _at_least(kappa, -1)), 1))
         ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
         bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
@@ -537,7 +548,7 @@ class IKKernelBuilder:
         perp = _cross(qv, w4)
         perp2 = tape.let(f"perp2_{tag}", _dot(perp, perp))
         gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
-        okw = tape.let(f"ok_wrist_{tag}", _ge(gam2, -1e-9))
+        okw = tape.let(f"ok_wrist_{tag}", _ge(gam2, -ik_slack))
         gam = tape.let(f"gam_{tag}", sp.sqrt(_max(gam2, 0)))
         singular = tape.let(f"wrist_singular_{tag}", _lt(perp2, WRIST_SINGULAR**2))
         n45 = K.vec(s.normal_45)
@@ -645,8 +656,8 @@ class IKKernelBuilder:
         columns = (2,) if getattr(self.s, "full_pose", True) is False else (0, 1, 2)
         for r in range(3):
             for c in columns:
-                conds.append(_le(Fabs(T[r, c] - self.R_t[r][c]), TOL))
-            conds.append(_le(Fabs(T[r, 3] - self.p_t[r]), TOL * scale))
+                conds.append(_le(Fabs(T[r, c] - self.R_t[r][c]), ik_tol))
+            conds.append(_le(Fabs(T[r, 3] - self.p_t[r]), ik_tol * sp.Float(scale)))
         return tape.let(f"hit_{name}", sp.And(*conds))
 
     # -- the kernel ----------------------------------------------------------------
@@ -686,9 +697,9 @@ class IKKernelBuilder:
         r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
         ratio = tape.let(
             f"{name}_ratio",
-            sp.Piecewise((C / tape.let(f"{name}_den", _at_least(r, _TINY)), _gt(r, 0)), (0, True)),
+            sp.Piecewise((C / tape.let(f"{name}_den", _at_least(r, ik_tiny)), _gt(r, 0)), (0, True)),
         )
-        ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + 1e-9))
+        ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + ik_slack))
         kc = tape.let(f"{name}_kc", _at_most(tape.let(f"{name}_kc0", _at_least(ratio, -1)), 1))
         ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
         return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
@@ -815,7 +826,7 @@ class IKKernelBuilder:
         v = tape.vec("v_wc", _add(self._move_point(s.wrist), _scale(-1, c)))
         b = float(ax.directions[2] @ W0)
         disc = tape.let("disc3", K(b * b - W0 @ W0) + _dot(v, v))
-        ok3 = tape.let("ok_reach", _ge(disc, -1e-9 * ax.scale**2))
+        ok3 = tape.let("ok_reach", _ge(disc, -ik_slack * sp.Float(ax.scale**2)))
         root = tape.let("root3", sp.sqrt(_max(disc, 0)))
         c12 = float(ax.directions[0] @ ax.directions[1])
         n12 = np.cross(ax.directions[0], ax.directions[1])
@@ -833,7 +844,7 @@ class IKKernelBuilder:
                 f"g2_reach{a}",
                 (_dot(u, u) - alpha * alpha - beta * beta - 2 * K(c12) * alpha * beta) / nn,
             )
-            ok2 = tape.let(f"ok_shoulder_reach{a}", _ge(g2, -1e-9))
+            ok2 = tape.let(f"ok_shoulder_reach{a}", _ge(g2, -ik_slack))
             g = tape.let(f"g_reach{a}", sp.sqrt(_max(g2, 0)))
             for sg2, e in ((1, "p"), (-1, "m")):
                 tag = f"reach{a}_shoulder{e}"
@@ -899,9 +910,9 @@ class IKKernelBuilder:
         for i in range(3):
             for j in range(i, 3):
                 target = 1 if i == j else 0
-                conds.append(_le(Fabs(_dot(cols[i], cols[j]) - target), TOL))
+                conds.append(_le(Fabs(_dot(cols[i], cols[j]) - target), ik_tol))
         xy = _cross(cols[0], cols[1])
-        conds.extend(_le(Fabs(xy[r] - cols[2][r]), TOL) for r in range(3))
+        conds.extend(_le(Fabs(xy[r] - cols[2][r]), ik_tol) for r in range(3))
         return tape.let("rigid_target", sp.And(*conds))
 
     def build(self) -> Kernel:
@@ -989,6 +1000,7 @@ class IKKernelBuilder:
                 ),
             ),
             stages=tuple(tape.as_stages()),
+            setup=(_CONSTANTS,),
             status=sp.Piecewise((st.INVALID, invalid), (st.OK, any_valid), (st.UNREACHABLE, True)),
             status_doc=(
                 "OK (some branch is valid); UNREACHABLE (no branch reaches the pose "
