@@ -172,6 +172,11 @@ class _ThreeSpheres:
 
         return delta_workspace(self, step, **options)
 
+    def workspace_extent(self) -> tuple[float, float, tuple, tuple[float, float]]:
+        """(length scale, reach, default box ((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi)),
+        joint travel) [m] for the workspace tooling (api/workspace.py)."""
+        raise NotImplementedError
+
     # -- helpers ------------------------------------------------------------------------
 
     @staticmethod
@@ -270,6 +275,15 @@ class LinearDelta(_ThreeSpheres):
 
         return cls.from_geometry(read_klipper_delta(path).geometry, backend, threads=threads)
 
+    def workspace_extent(self) -> tuple[float, float, tuple, tuple[float, float]]:
+        """The arm length, the reach from the axis (tower radius + arm), a box around the
+        towers from the lowest effector (lowest carriage - arm) to the highest carriage,
+        and the carriage travel."""
+        g = self.geometry
+        arm, lo, hi = max(g.arm_length), *g.carriage_range
+        reach = max(g.radius) + arm
+        return arm, reach, ((-reach, reach), (-reach, reach), (lo - arm, hi)), (lo, hi)
+
     def __repr__(self) -> str:
         g = self.geometry
         deg = ", ".join(f"{math.degrees(a):g}" for a in g.angle)
@@ -324,6 +338,19 @@ class Tripod(_ThreeSpheres):
         cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
     ) -> Tripod:
         return cls.from_geometry(TripodGeometry.from_toml(path), backend, threads=threads)
+
+    def workspace_extent(self) -> tuple[float, float, tuple, tuple[float, float]]:
+        """The longest strut, the reach, the box of the base points grown by the longest
+        strut on the chosen side of the base plane, and the strut travel."""
+        g = self.geometry
+        lo, hi = g.strut_range
+        xs, ys = (0.0, g.b_x, g.c_x), (0.0, g.c_y)
+        box = (
+            (min(xs) - hi, max(xs) + hi),
+            (min(ys) - hi, max(ys) + hi),
+            (0.0, hi) if g.side == "above" else (-hi, 0.0),
+        )
+        return hi, hi + max(abs(g.b_x), math.hypot(g.c_x, g.c_y)), box, (lo, hi)
 
     def mirror(self) -> Tripod:
         """The same tripod with the other side of the base plane chosen (fk's other
