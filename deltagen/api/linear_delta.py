@@ -280,7 +280,8 @@ class LinearDelta(_ThreeSpheres):
         towers from the lowest effector (lowest carriage - arm) to the highest carriage,
         and the carriage travel."""
         g = self.geometry
-        arm, lo, hi = max(g.arm_length), *g.carriage_range
+        arm = max(g.arm_length)
+        lo, hi = g.carriage_range
         reach = max(g.radius) + arm
         return arm, reach, ((-reach, reach), (-reach, reach), (lo - arm, hi)), (lo, hi)
 
