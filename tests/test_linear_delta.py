@@ -363,3 +363,17 @@ def test_batches_and_single_points(machines):
     assert all(np.array_equal(robot.fk(row), robot.fk(flat)[k]) for k, row in enumerate(flat))
     J = robot.jacobian(q)
     assert J.shape == (2, 3, 4, 3, 3)
+
+
+def test_threads_give_the_same_bits():
+    """A batch split across threads (native.parallel) gives the single-threaded bits."""
+    one, two = LinearDelta(**ASYM, threads=1), LinearDelta(**ASYM, threads=2)  # type: ignore[arg-type]
+    p = workspace_points("asym", n=50_000, seed=12)
+    h = one.ik(p)
+    assert np.array_equal(h, two.ik(p))
+    assert np.array_equal(
+        one.fk_acc(h, h, h, errors="nan")[2], two.fk_acc(h, h, h, errors="nan")[2]
+    )
+    tripods = Tripod.default(threads=1), Tripod.default(threads=2)
+    lengths = tripods[0].ik(workspace_points("tripod", n=50_000, seed=13))
+    assert np.array_equal(tripods[0].jacobian(lengths), tripods[1].jacobian(lengths))
