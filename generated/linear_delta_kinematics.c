@@ -798,3 +798,307 @@ int deltagen_linear_delta_ik(const deltagen_linear_delta_geometry *restrict geom
     }
     return 0;
 }
+
+int deltagen_linear_delta_ik_vel(const deltagen_linear_delta_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, double *restrict h, double *restrict hd, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || h == NULL || hd == NULL) {
+        return -1;
+    }
+    const double tower_x1 = geometry->tower_x[0];
+    const double tower_x2 = geometry->tower_x[1];
+    const double tower_x3 = geometry->tower_x[2];
+    const double tower_y1 = geometry->tower_y[0];
+    const double tower_y2 = geometry->tower_y[1];
+    const double tower_y3 = geometry->tower_y[2];
+    const double arm1 = geometry->arm_length[0];
+    const double arm2 = geometry->arm_length[1];
+    const double arm3 = geometry->arm_length[2];
+    const double singular_tol = geometry->singular_tol;
+    /* the singularity thresholds scaled to the machine (L: mean arm length) and the centre plane's normal (z) */
+    const double length_scale = (1.0/3.0)*arm1 + (1.0/3.0)*arm2 + (1.0/3.0)*arm3;
+    const double det_limit = singular_tol*(length_scale*length_scale*length_scale);
+    const double ik_limit = (singular_tol*singular_tol)*(length_scale*length_scale);
+    const double centre_normal_z = (-tower_x1 + tower_x2)*(-tower_y1 + tower_y3) - (-tower_x1 + tower_x3)*(-tower_y1 + tower_y2);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_LINEAR_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_LINEAR_DELTA_BLOCK) ? n - start : DELTAGEN_LINEAR_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double y_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double z_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double xd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double yd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double zd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            x_b[k] = p[(start + k) * 3 + 0];
+            y_b[k] = p[(start + k) * 3 + 1];
+            z_b[k] = p[(start + k) * 3 + 2];
+            xd_b[k] = pd[(start + k) * 3 + 0];
+            yd_b[k] = pd[(start + k) * 3 + 1];
+            zd_b[k] = pd[(start + k) * 3 + 2];
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_h1_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_h2_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_h3_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hd1_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hd2_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hd3_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            /* carriage heights h_i = z + sqrt(arm_i^2 - dx_i^2 - dy_i^2) (Klipper's delta) */
+            const double t0_0 = -x;
+            const double t0_1 = -y;
+            const double radicand1 = -pow(-t0_0 - tower_x1, 2) - pow(-t0_1 - tower_y1, 2) + arm1*arm1;
+            const double radicand2 = -pow(-t0_0 - tower_x2, 2) - pow(-t0_1 - tower_y2, 2) + arm2*arm2;
+            const double radicand3 = -pow(-t0_0 - tower_x3, 2) - pow(-t0_1 - tower_y3, 2) + arm3*arm3;
+            const double h1 = sqrt(radicand1) + z;
+            const double h2 = sqrt(radicand2) + z;
+            const double h3 = sqrt(radicand3) + z;
+            /* sphere centres S_i */
+            const double S_x1 = tower_x1;
+            const double S_y1 = tower_y1;
+            const double S_z1 = h1;
+            const double S_x2 = tower_x2;
+            const double S_y2 = tower_y2;
+            const double S_z2 = h2;
+            const double S_x3 = tower_x3;
+            const double S_y3 = tower_y3;
+            const double S_z3 = h3;
+            /* the side of the centre plane p lies on: det of the rows p - S_i */
+            const double t2_0 = -x;
+            const double t2_1 = -y;
+            const double t2_2 = -z;
+            const double D11 = -S_x1 - t2_0;
+            const double D12 = -S_y1 - t2_1;
+            const double D13 = -S_z1 - t2_2;
+            const double D21 = -S_x2 - t2_0;
+            const double D22 = -S_y2 - t2_1;
+            const double D23 = -S_z2 - t2_2;
+            const double D31 = -S_x3 - t2_0;
+            const double D32 = -S_y3 - t2_1;
+            const double D33 = -S_z3 - t2_2;
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            /* status flags: non-finite input, unreachable (or the other side), singular */
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(xd) & isfinite(yd) & isfinite(zd));
+            const int unreachable = (((radicand1 < 0)) | ((radicand2 < 0)) | ((radicand3 < 0)) | ((((fabs(det_D) > det_limit)) & ((-centre_normal_z*det_D < 0)))));
+            const int singular = (((radicand1 <= ik_limit)) | ((radicand2 <= ik_limit)) | ((radicand3 <= ik_limit)));
+            /* diagonal g of D pdot = diag(g) qdot: g_i = D_i,z (carriage along z) */
+            const double g1 = D13;
+            const double g2 = D23;
+            const double g3 = D33;
+            /* joint rates qdot_i = D_i . pdot / g_i */
+            const double hd1 = (D11*xd + D12*yd + D13*zd)*1.0/g1;
+            const double hd2 = (D21*xd + D22*yd + D23*zd)*1.0/g2;
+            const double hd3 = (D31*xd + D32*yd + D33*zd)*1.0/g3;
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(h1) & isfinite(h2) & isfinite(h3))))) | (((!(isfinite(hd1) & isfinite(hd2) & isfinite(hd3))) & (!(((invalid) | (singular) | (unreachable)))))));
+            const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
+            const int t6_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+            const double out_h1_checked = ((t6_0) ? NAN : h1);
+            const double out_h2_checked = ((t6_0) ? NAN : h2);
+            const double out_h3_checked = ((t6_0) ? NAN : h3);
+            const double out_hd1_checked = ((t6_1) ? NAN : hd1);
+            const double out_hd2_checked = ((t6_1) ? NAN : hd2);
+            const double out_hd3_checked = ((t6_1) ? NAN : hd3);
+            out_h1_checked_b[k] = out_h1_checked;
+            out_h2_checked_b[k] = out_h2_checked;
+            out_h3_checked_b[k] = out_h3_checked;
+            out_hd1_checked_b[k] = out_hd1_checked;
+            out_hd2_checked_b[k] = out_hd2_checked;
+            out_hd3_checked_b[k] = out_hd3_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        for (size_t k = 0; k < m; ++k) {
+            h[(start + k) * 3 + 0] = out_h1_checked_b[k];
+            h[(start + k) * 3 + 1] = out_h2_checked_b[k];
+            h[(start + k) * 3 + 2] = out_h3_checked_b[k];
+            hd[(start + k) * 3 + 0] = out_hd1_checked_b[k];
+            hd[(start + k) * 3 + 1] = out_hd2_checked_b[k];
+            hd[(start + k) * 3 + 2] = out_hd3_checked_b[k];
+        }
+    }
+    return 0;
+}
+
+int deltagen_linear_delta_ik_acc(const deltagen_linear_delta_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict h, double *restrict hd, double *restrict hdd, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || pdd == NULL || h == NULL || hd == NULL || hdd == NULL) {
+        return -1;
+    }
+    const double tower_x1 = geometry->tower_x[0];
+    const double tower_x2 = geometry->tower_x[1];
+    const double tower_x3 = geometry->tower_x[2];
+    const double tower_y1 = geometry->tower_y[0];
+    const double tower_y2 = geometry->tower_y[1];
+    const double tower_y3 = geometry->tower_y[2];
+    const double arm1 = geometry->arm_length[0];
+    const double arm2 = geometry->arm_length[1];
+    const double arm3 = geometry->arm_length[2];
+    const double singular_tol = geometry->singular_tol;
+    /* the singularity thresholds scaled to the machine (L: mean arm length) and the centre plane's normal (z) */
+    const double length_scale = (1.0/3.0)*arm1 + (1.0/3.0)*arm2 + (1.0/3.0)*arm3;
+    const double det_limit = singular_tol*(length_scale*length_scale*length_scale);
+    const double ik_limit = (singular_tol*singular_tol)*(length_scale*length_scale);
+    const double centre_normal_z = (-tower_x1 + tower_x2)*(-tower_y1 + tower_y3) - (-tower_x1 + tower_x3)*(-tower_y1 + tower_y2);
+
+    for (size_t start = 0; start < n; start += DELTAGEN_LINEAR_DELTA_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_LINEAR_DELTA_BLOCK) ? n - start : DELTAGEN_LINEAR_DELTA_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double y_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double z_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double xd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double yd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double zd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double xdd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double ydd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double zdd_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            x_b[k] = p[(start + k) * 3 + 0];
+            y_b[k] = p[(start + k) * 3 + 1];
+            z_b[k] = p[(start + k) * 3 + 2];
+            xd_b[k] = pd[(start + k) * 3 + 0];
+            yd_b[k] = pd[(start + k) * 3 + 1];
+            zd_b[k] = pd[(start + k) * 3 + 2];
+            xdd_b[k] = pdd[(start + k) * 3 + 0];
+            ydd_b[k] = pdd[(start + k) * 3 + 1];
+            zdd_b[k] = pdd[(start + k) * 3 + 2];
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_h1_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_h2_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_h3_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hd1_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hd2_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hd3_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hdd1_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hdd2_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        double out_hdd3_checked_b[DELTAGEN_LINEAR_DELTA_BLOCK];
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            const double xdd = xdd_b[k];
+            const double ydd = ydd_b[k];
+            const double zdd = zdd_b[k];
+            /* carriage heights h_i = z + sqrt(arm_i^2 - dx_i^2 - dy_i^2) (Klipper's delta) */
+            const double t0_0 = -x;
+            const double t0_1 = -y;
+            const double radicand1 = -pow(-t0_0 - tower_x1, 2) - pow(-t0_1 - tower_y1, 2) + arm1*arm1;
+            const double radicand2 = -pow(-t0_0 - tower_x2, 2) - pow(-t0_1 - tower_y2, 2) + arm2*arm2;
+            const double radicand3 = -pow(-t0_0 - tower_x3, 2) - pow(-t0_1 - tower_y3, 2) + arm3*arm3;
+            const double h1 = sqrt(radicand1) + z;
+            const double h2 = sqrt(radicand2) + z;
+            const double h3 = sqrt(radicand3) + z;
+            /* sphere centres S_i */
+            const double S_x1 = tower_x1;
+            const double S_y1 = tower_y1;
+            const double S_z1 = h1;
+            const double S_x2 = tower_x2;
+            const double S_y2 = tower_y2;
+            const double S_z2 = h2;
+            const double S_x3 = tower_x3;
+            const double S_y3 = tower_y3;
+            const double S_z3 = h3;
+            /* the side of the centre plane p lies on: det of the rows p - S_i */
+            const double t2_0 = -x;
+            const double t2_1 = -y;
+            const double t2_2 = -z;
+            const double D11 = -S_x1 - t2_0;
+            const double D12 = -S_y1 - t2_1;
+            const double D13 = -S_z1 - t2_2;
+            const double D21 = -S_x2 - t2_0;
+            const double D22 = -S_y2 - t2_1;
+            const double D23 = -S_z2 - t2_2;
+            const double D31 = -S_x3 - t2_0;
+            const double D32 = -S_y3 - t2_1;
+            const double D33 = -S_z3 - t2_2;
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            /* status flags: non-finite input, unreachable (or the other side), singular */
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd));
+            const int unreachable = (((radicand1 < 0)) | ((radicand2 < 0)) | ((radicand3 < 0)) | ((((fabs(det_D) > det_limit)) & ((-centre_normal_z*det_D < 0)))));
+            const int singular = (((radicand1 <= ik_limit)) | ((radicand2 <= ik_limit)) | ((radicand3 <= ik_limit)));
+            /* diagonal g of D pdot = diag(g) qdot: g_i = D_i,z (carriage along z) */
+            const double g1 = D13;
+            const double g2 = D23;
+            const double g3 = D33;
+            /* joint rates qdot_i = D_i . pdot / g_i */
+            const double hd1 = (D11*xd + D12*yd + D13*zd)*1.0/g1;
+            const double hd2 = (D21*xd + D22*yd + D23*zd)*1.0/g2;
+            const double hd3 = (D31*xd + D32*yd + D33*zd)*1.0/g3;
+            /* joint accelerations qddot_i = (D_i . pddot - c_i) / g_i */
+            const double t6_0 = -zd;
+            const double t6_1 = xd*xd + yd*yd;
+            const double c1 = -t6_1 - pow(-hd1 - t6_0, 2);
+            const double c2 = -t6_1 - pow(-hd2 - t6_0, 2);
+            const double c3 = -t6_1 - pow(-hd3 - t6_0, 2);
+            const double hdd1 = (D11*xdd + D12*ydd + D13*zdd - c1)*1.0/g1;
+            const double hdd2 = (D21*xdd + D22*ydd + D23*zdd - c2)*1.0/g2;
+            const double hdd3 = (D31*xdd + D32*ydd + D33*zdd - c3)*1.0/g3;
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(h1) & isfinite(h2) & isfinite(h3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(hd1) & isfinite(hd2) & isfinite(hd3) & isfinite(hdd1) & isfinite(hdd2) & isfinite(hdd3))))));
+            const int t7_0 = ((invalid) | (nonfinite_output) | (unreachable));
+            const int t7_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+            const double out_h1_checked = ((t7_0) ? NAN : h1);
+            const double out_h2_checked = ((t7_0) ? NAN : h2);
+            const double out_h3_checked = ((t7_0) ? NAN : h3);
+            const double out_hd1_checked = ((t7_1) ? NAN : hd1);
+            const double out_hd2_checked = ((t7_1) ? NAN : hd2);
+            const double out_hd3_checked = ((t7_1) ? NAN : hd3);
+            const double out_hdd1_checked = ((t7_1) ? NAN : hdd1);
+            const double out_hdd2_checked = ((t7_1) ? NAN : hdd2);
+            const double out_hdd3_checked = ((t7_1) ? NAN : hdd3);
+            out_h1_checked_b[k] = out_h1_checked;
+            out_h2_checked_b[k] = out_h2_checked;
+            out_h3_checked_b[k] = out_h3_checked;
+            out_hd1_checked_b[k] = out_hd1_checked;
+            out_hd2_checked_b[k] = out_hd2_checked;
+            out_hd3_checked_b[k] = out_hd3_checked;
+            out_hdd1_checked_b[k] = out_hdd1_checked;
+            out_hdd2_checked_b[k] = out_hdd2_checked;
+            out_hdd3_checked_b[k] = out_hdd3_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        for (size_t k = 0; k < m; ++k) {
+            h[(start + k) * 3 + 0] = out_h1_checked_b[k];
+            h[(start + k) * 3 + 1] = out_h2_checked_b[k];
+            h[(start + k) * 3 + 2] = out_h3_checked_b[k];
+            hd[(start + k) * 3 + 0] = out_hd1_checked_b[k];
+            hd[(start + k) * 3 + 1] = out_hd2_checked_b[k];
+            hd[(start + k) * 3 + 2] = out_hd3_checked_b[k];
+            hdd[(start + k) * 3 + 0] = out_hdd1_checked_b[k];
+            hdd[(start + k) * 3 + 1] = out_hdd2_checked_b[k];
+            hdd[(start + k) * 3 + 2] = out_hdd3_checked_b[k];
+        }
+    }
+    return 0;
+}

@@ -124,6 +124,40 @@ int deltagen_linear_delta_jacobian(const deltagen_linear_delta_geometry *restric
  */
 int deltagen_linear_delta_ik(const deltagen_linear_delta_geometry *restrict geometry, size_t n, const double *restrict p, double *restrict h, int8_t *restrict status);
 
+/* Inverse kinematics at velocity level: (p, pdot) -> carriage heights h (Klipper's delta kinematics) and rates.
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * p         in,  n x 3: point p = (x, y, z) in the base frame [m]
+ * pd        in,  n x 3: velocity of p [m/s]
+ * h         out, n x 3: carriage heights h_1..h_3 along the towers [m]
+ * hd        out, n x 3: carriage velocities [m/s]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (an arm cannot reach, or p on the other side of the centre plane than the direct kinematics returns); SINGULAR (an arm within singular_tol of horizontal; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 129 operations per point.
+ * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_LINEAR_DELTA_BLOCK points,
+ * 6400 bytes (6.2 KiB) at 64, plus scalars.
+ */
+int deltagen_linear_delta_ik_vel(const deltagen_linear_delta_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, double *restrict h, double *restrict hd, int8_t *restrict status);
+
+/* Inverse kinematics at acceleration level: (p, pdot, pddot) -> carriage heights h (Klipper's delta kinematics), rates and accelerations.
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * p         in,  n x 3: point p = (x, y, z) in the base frame [m]
+ * pd        in,  n x 3: velocity of p [m/s]
+ * pdd       in,  n x 3: acceleration of p [m/s^2]
+ * h         out, n x 3: carriage heights h_1..h_3 along the towers [m]
+ * hd        out, n x 3: carriage velocities [m/s]
+ * hdd       out, n x 3: carriage accelerations [m/s^2]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (an arm cannot reach, or p on the other side of the centre plane than the direct kinematics returns); SINGULAR (an arm within singular_tol of horizontal; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 172 operations per point.
+ * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_LINEAR_DELTA_BLOCK points,
+ * 9472 bytes (9.2 KiB) at 64, plus scalars.
+ */
+int deltagen_linear_delta_ik_acc(const deltagen_linear_delta_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict h, double *restrict hd, double *restrict hdd, int8_t *restrict status);
+
 #ifdef __cplusplus
 }
 #endif

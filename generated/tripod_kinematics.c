@@ -755,3 +755,290 @@ int deltagen_tripod_ik(const deltagen_tripod_geometry *restrict geometry, size_t
     }
     return 0;
 }
+
+int deltagen_tripod_ik_vel(const deltagen_tripod_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, double *restrict l, double *restrict ld, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || l == NULL || ld == NULL) {
+        return -1;
+    }
+    const double base_b_x = geometry->b_x;
+    const double base_c_x = geometry->c_x;
+    const double base_c_y = geometry->c_y;
+    const double side = geometry->side;
+    const double singular_tol = geometry->singular_tol;
+    /* the singularity thresholds scaled to the machine (L: base size) and the centre plane's normal (z) */
+    const double length_scale = (1.0/2.0)*fabs(base_b_x) + (1.0/2.0)*sqrt(base_c_x*base_c_x + base_c_y*base_c_y);
+    const double det_limit = singular_tol*(length_scale*length_scale*length_scale);
+    const double centre_normal_z = base_b_x*base_c_y;
+
+    for (size_t start = 0; start < n; start += DELTAGEN_TRIPOD_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_TRIPOD_BLOCK) ? n - start : DELTAGEN_TRIPOD_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_TRIPOD_BLOCK];
+        double y_b[DELTAGEN_TRIPOD_BLOCK];
+        double z_b[DELTAGEN_TRIPOD_BLOCK];
+        double xd_b[DELTAGEN_TRIPOD_BLOCK];
+        double yd_b[DELTAGEN_TRIPOD_BLOCK];
+        double zd_b[DELTAGEN_TRIPOD_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            x_b[k] = p[(start + k) * 3 + 0];
+            y_b[k] = p[(start + k) * 3 + 1];
+            z_b[k] = p[(start + k) * 3 + 2];
+            xd_b[k] = pd[(start + k) * 3 + 0];
+            yd_b[k] = pd[(start + k) * 3 + 1];
+            zd_b[k] = pd[(start + k) * 3 + 2];
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_l1_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_l2_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_l3_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ld1_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ld2_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ld3_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            /* strut lengths l_i = |p - S_i| (tripodkins' inverse) */
+            const double t0_0 = z*z;
+            const double t0_1 = t0_0 + y*y;
+            const double t0_2 = -x;
+            const double l1 = sqrt(t0_1 + x*x);
+            const double l2 = sqrt(t0_1 + pow(-base_b_x - t0_2, 2));
+            const double l3 = sqrt(t0_0 + pow(-base_c_x - t0_2, 2) + pow(-base_c_y + y, 2));
+            /* sphere centres S_i */
+            const double S_x1 = 0;
+            const double S_y1 = 0;
+            const double S_z1 = 0;
+            const double S_x2 = base_b_x;
+            const double S_y2 = 0;
+            const double S_z2 = 0;
+            const double S_x3 = base_c_x;
+            const double S_y3 = base_c_y;
+            const double S_z3 = 0;
+            /* the side of the centre plane p lies on: det of the rows p - S_i */
+            const double t2_0 = -x;
+            const double t2_1 = -y;
+            const double t2_2 = -z;
+            const double D11 = -S_x1 - t2_0;
+            const double D12 = -S_y1 - t2_1;
+            const double D13 = -S_z1 - t2_2;
+            const double D21 = -S_x2 - t2_0;
+            const double D22 = -S_y2 - t2_1;
+            const double D23 = -S_z2 - t2_2;
+            const double D31 = -S_x3 - t2_0;
+            const double D32 = -S_y3 - t2_1;
+            const double D33 = -S_z3 - t2_2;
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            /* status flags: non-finite input, unreachable (or the other side), singular */
+            const double t3_0 = fabs(det_D);
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(xd) & isfinite(yd) & isfinite(zd));
+            const int unreachable = (((t3_0 > det_limit)) & ((centre_normal_z*det_D*side < 0)));
+            const int singular = (t3_0 <= det_limit);
+            /* diagonal g of D pdot = diag(g) qdot: g_i = l_i (strut length) */
+            const double g1 = l1;
+            const double g2 = l2;
+            const double g3 = l3;
+            /* joint rates qdot_i = D_i . pdot / g_i */
+            const double ld1 = (D11*xd + D12*yd + D13*zd)*1.0/g1;
+            const double ld2 = (D21*xd + D22*yd + D23*zd)*1.0/g2;
+            const double ld3 = (D31*xd + D32*yd + D33*zd)*1.0/g3;
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(l1) & isfinite(l2) & isfinite(l3) & isfinite(ld1) & isfinite(ld2) & isfinite(ld3))));
+            const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
+            const double out_l1_checked = ((t6_0) ? NAN : l1);
+            const double out_l2_checked = ((t6_0) ? NAN : l2);
+            const double out_l3_checked = ((t6_0) ? NAN : l3);
+            const double out_ld1_checked = ((t6_0) ? NAN : ld1);
+            const double out_ld2_checked = ((t6_0) ? NAN : ld2);
+            const double out_ld3_checked = ((t6_0) ? NAN : ld3);
+            out_l1_checked_b[k] = out_l1_checked;
+            out_l2_checked_b[k] = out_l2_checked;
+            out_l3_checked_b[k] = out_l3_checked;
+            out_ld1_checked_b[k] = out_ld1_checked;
+            out_ld2_checked_b[k] = out_ld2_checked;
+            out_ld3_checked_b[k] = out_ld3_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        for (size_t k = 0; k < m; ++k) {
+            l[(start + k) * 3 + 0] = out_l1_checked_b[k];
+            l[(start + k) * 3 + 1] = out_l2_checked_b[k];
+            l[(start + k) * 3 + 2] = out_l3_checked_b[k];
+            ld[(start + k) * 3 + 0] = out_ld1_checked_b[k];
+            ld[(start + k) * 3 + 1] = out_ld2_checked_b[k];
+            ld[(start + k) * 3 + 2] = out_ld3_checked_b[k];
+        }
+    }
+    return 0;
+}
+
+int deltagen_tripod_ik_acc(const deltagen_tripod_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict l, double *restrict ld, double *restrict ldd, int8_t *restrict status)
+{
+    if (n == 0) {
+        return 0;
+    }
+    if (geometry == NULL || status == NULL || p == NULL || pd == NULL || pdd == NULL || l == NULL || ld == NULL || ldd == NULL) {
+        return -1;
+    }
+    const double base_b_x = geometry->b_x;
+    const double base_c_x = geometry->c_x;
+    const double base_c_y = geometry->c_y;
+    const double side = geometry->side;
+    const double singular_tol = geometry->singular_tol;
+    /* the singularity thresholds scaled to the machine (L: base size) and the centre plane's normal (z) */
+    const double length_scale = (1.0/2.0)*fabs(base_b_x) + (1.0/2.0)*sqrt(base_c_x*base_c_x + base_c_y*base_c_y);
+    const double det_limit = singular_tol*(length_scale*length_scale*length_scale);
+    const double centre_normal_z = base_b_x*base_c_y;
+
+    for (size_t start = 0; start < n; start += DELTAGEN_TRIPOD_BLOCK) {
+        const size_t m = (n - start < DELTAGEN_TRIPOD_BLOCK) ? n - start : DELTAGEN_TRIPOD_BLOCK;
+        /* gather: inputs of this block into contiguous columns */
+        double x_b[DELTAGEN_TRIPOD_BLOCK];
+        double y_b[DELTAGEN_TRIPOD_BLOCK];
+        double z_b[DELTAGEN_TRIPOD_BLOCK];
+        double xd_b[DELTAGEN_TRIPOD_BLOCK];
+        double yd_b[DELTAGEN_TRIPOD_BLOCK];
+        double zd_b[DELTAGEN_TRIPOD_BLOCK];
+        double xdd_b[DELTAGEN_TRIPOD_BLOCK];
+        double ydd_b[DELTAGEN_TRIPOD_BLOCK];
+        double zdd_b[DELTAGEN_TRIPOD_BLOCK];
+        for (size_t k = 0; k < m; ++k) {
+            x_b[k] = p[(start + k) * 3 + 0];
+            y_b[k] = p[(start + k) * 3 + 1];
+            z_b[k] = p[(start + k) * 3 + 2];
+            xd_b[k] = pd[(start + k) * 3 + 0];
+            yd_b[k] = pd[(start + k) * 3 + 1];
+            zd_b[k] = pd[(start + k) * 3 + 2];
+            xdd_b[k] = pdd[(start + k) * 3 + 0];
+            ydd_b[k] = pdd[(start + k) * 3 + 1];
+            zdd_b[k] = pdd[(start + k) * 3 + 2];
+        }
+        /* kinematics, one point per iteration */
+        int status_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_l1_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_l2_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_l3_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ld1_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ld2_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ld3_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ldd1_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ldd2_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        double out_ldd3_checked_b[DELTAGEN_TRIPOD_BLOCK];
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double x = x_b[k];
+            const double y = y_b[k];
+            const double z = z_b[k];
+            const double xd = xd_b[k];
+            const double yd = yd_b[k];
+            const double zd = zd_b[k];
+            const double xdd = xdd_b[k];
+            const double ydd = ydd_b[k];
+            const double zdd = zdd_b[k];
+            /* strut lengths l_i = |p - S_i| (tripodkins' inverse) */
+            const double t0_0 = z*z;
+            const double t0_1 = t0_0 + y*y;
+            const double t0_2 = -x;
+            const double l1 = sqrt(t0_1 + x*x);
+            const double l2 = sqrt(t0_1 + pow(-base_b_x - t0_2, 2));
+            const double l3 = sqrt(t0_0 + pow(-base_c_x - t0_2, 2) + pow(-base_c_y + y, 2));
+            /* sphere centres S_i */
+            const double S_x1 = 0;
+            const double S_y1 = 0;
+            const double S_z1 = 0;
+            const double S_x2 = base_b_x;
+            const double S_y2 = 0;
+            const double S_z2 = 0;
+            const double S_x3 = base_c_x;
+            const double S_y3 = base_c_y;
+            const double S_z3 = 0;
+            /* the side of the centre plane p lies on: det of the rows p - S_i */
+            const double t2_0 = -x;
+            const double t2_1 = -y;
+            const double t2_2 = -z;
+            const double D11 = -S_x1 - t2_0;
+            const double D12 = -S_y1 - t2_1;
+            const double D13 = -S_z1 - t2_2;
+            const double D21 = -S_x2 - t2_0;
+            const double D22 = -S_y2 - t2_1;
+            const double D23 = -S_z2 - t2_2;
+            const double D31 = -S_x3 - t2_0;
+            const double D32 = -S_y3 - t2_1;
+            const double D33 = -S_z3 - t2_2;
+            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+            /* status flags: non-finite input, unreachable (or the other side), singular */
+            const double t3_0 = fabs(det_D);
+            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd));
+            const int unreachable = (((t3_0 > det_limit)) & ((centre_normal_z*det_D*side < 0)));
+            const int singular = (t3_0 <= det_limit);
+            /* diagonal g of D pdot = diag(g) qdot: g_i = l_i (strut length) */
+            const double g1 = l1;
+            const double g2 = l2;
+            const double g3 = l3;
+            /* joint rates qdot_i = D_i . pdot / g_i */
+            const double ld1 = (D11*xd + D12*yd + D13*zd)*1.0/g1;
+            const double ld2 = (D21*xd + D22*yd + D23*zd)*1.0/g2;
+            const double ld3 = (D31*xd + D32*yd + D33*zd)*1.0/g3;
+            /* joint accelerations qddot_i = (D_i . pddot - c_i) / g_i */
+            const double t6_0 = xd*xd + yd*yd + zd*zd;
+            const double c1 = -t6_0 + ld1*ld1;
+            const double c2 = -t6_0 + ld2*ld2;
+            const double c3 = -t6_0 + ld3*ld3;
+            const double ldd1 = (D11*xdd + D12*ydd + D13*zdd - c1)*1.0/g1;
+            const double ldd2 = (D21*xdd + D22*ydd + D23*zdd - c2)*1.0/g2;
+            const double ldd3 = (D31*xdd + D32*ydd + D33*zdd - c3)*1.0/g3;
+            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+            const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(l1) & isfinite(l2) & isfinite(l3) & isfinite(ld1) & isfinite(ld2) & isfinite(ld3) & isfinite(ldd1) & isfinite(ldd2) & isfinite(ldd3))));
+            const int t7_0 = ((invalid) | (nonfinite_output) | (unreachable));
+            const double out_l1_checked = ((t7_0) ? NAN : l1);
+            const double out_l2_checked = ((t7_0) ? NAN : l2);
+            const double out_l3_checked = ((t7_0) ? NAN : l3);
+            const double out_ld1_checked = ((t7_0) ? NAN : ld1);
+            const double out_ld2_checked = ((t7_0) ? NAN : ld2);
+            const double out_ld3_checked = ((t7_0) ? NAN : ld3);
+            const double out_ldd1_checked = ((t7_0) ? NAN : ldd1);
+            const double out_ldd2_checked = ((t7_0) ? NAN : ldd2);
+            const double out_ldd3_checked = ((t7_0) ? NAN : ldd3);
+            out_l1_checked_b[k] = out_l1_checked;
+            out_l2_checked_b[k] = out_l2_checked;
+            out_l3_checked_b[k] = out_l3_checked;
+            out_ld1_checked_b[k] = out_ld1_checked;
+            out_ld2_checked_b[k] = out_ld2_checked;
+            out_ld3_checked_b[k] = out_ld3_checked;
+            out_ldd1_checked_b[k] = out_ldd1_checked;
+            out_ldd2_checked_b[k] = out_ldd2_checked;
+            out_ldd3_checked_b[k] = out_ldd3_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1 - unreachable)*(2*singular)));
+        }
+        /* statuses are narrowed in a loop of their own: mixing int8
+         * stores into the loop above costs gcc about 2 ns per point */
+        for (size_t k = 0; k < m; ++k) {
+            status[start + k] = (int8_t)status_b[k];
+        }
+        /* scatter: results of this block into the caller's rows */
+        for (size_t k = 0; k < m; ++k) {
+            l[(start + k) * 3 + 0] = out_l1_checked_b[k];
+            l[(start + k) * 3 + 1] = out_l2_checked_b[k];
+            l[(start + k) * 3 + 2] = out_l3_checked_b[k];
+            ld[(start + k) * 3 + 0] = out_ld1_checked_b[k];
+            ld[(start + k) * 3 + 1] = out_ld2_checked_b[k];
+            ld[(start + k) * 3 + 2] = out_ld3_checked_b[k];
+            ldd[(start + k) * 3 + 0] = out_ldd1_checked_b[k];
+            ldd[(start + k) * 3 + 1] = out_ldd2_checked_b[k];
+            ldd[(start + k) * 3 + 2] = out_ldd3_checked_b[k];
+        }
+    }
+    return 0;
+}

@@ -125,6 +125,40 @@ int deltagen_tripod_jacobian(const deltagen_tripod_geometry *restrict geometry, 
  */
 int deltagen_tripod_ik(const deltagen_tripod_geometry *restrict geometry, size_t n, const double *restrict p, double *restrict l, int8_t *restrict status);
 
+/* Inverse kinematics at velocity level: (p, pdot) -> strut lengths l (tripodkins) and rates.
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * p         in,  n x 3: point p = (x, y, z) in the base frame [m]
+ * pd        in,  n x 3: velocity of p [m/s]
+ * l         out, n x 3: strut lengths |AD|, |BD|, |CD| (tripodkins' joints 0..2) [m]
+ * ld        out, n x 3: strut length rates [m/s]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (p on the other side of the centre plane than the direct kinematics returns); SINGULAR (p within tolerance of the base plane; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 100 operations per point.
+ * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_TRIPOD_BLOCK points,
+ * 6400 bytes (6.2 KiB) at 64, plus scalars.
+ */
+int deltagen_tripod_ik_vel(const deltagen_tripod_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, double *restrict l, double *restrict ld, int8_t *restrict status);
+
+/* Inverse kinematics at acceleration level: (p, pdot, pddot) -> strut lengths l (tripodkins), rates and accelerations.
+ *
+ * geometry  robot geometry
+ * n         number of points
+ * p         in,  n x 3: point p = (x, y, z) in the base frame [m]
+ * pd        in,  n x 3: velocity of p [m/s]
+ * pdd       in,  n x 3: acceleration of p [m/s^2]
+ * l         out, n x 3: strut lengths |AD|, |BD|, |CD| (tripodkins' joints 0..2) [m]
+ * ld        out, n x 3: strut length rates [m/s]
+ * ldd       out, n x 3: strut length accelerations [m/s^2]
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (p on the other side of the centre plane than the direct kinematics returns); SINGULAR (p within tolerance of the base plane; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ *
+ * Cost: 135 operations per point.
+ * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_TRIPOD_BLOCK points,
+ * 9472 bytes (9.2 KiB) at 64, plus scalars.
+ */
+int deltagen_tripod_ik_acc(const deltagen_tripod_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict l, double *restrict ld, double *restrict ldd, int8_t *restrict status);
+
 #ifdef __cplusplus
 }
 #endif

@@ -377,3 +377,36 @@ def test_threads_give_the_same_bits():
     tripods = Tripod.default(threads=1), Tripod.default(threads=2)
     lengths = tripods[0].ik(workspace_points("tripod", n=50_000, seed=13))
     assert np.array_equal(tripods[0].jacobian(lengths), tripods[1].jacobian(lengths))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_inverse_rates(machines, name):
+    """ik_vel and ik_acc invert fk_vel and fk_acc (round trips), and agree with the
+    reference."""
+    robot = machines[name]
+    ref = robot.with_backend("reference")
+    p = workspace_points(name, n=200, seed=14)
+    rng = np.random.default_rng(15)
+    pd, pdd = rng.normal(size=(2,) + p.shape)
+    q, qd, qdd = robot.ik_acc(p, pd, pdd)
+    for a, b in zip((q, qd, qdd), ref.ik_acc(p, pd, pdd)):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+    np.testing.assert_array_equal(robot.ik_vel(p, pd)[1], qd)
+    p2, pd2, pdd2 = robot.fk_acc(q, qd, qdd)
+    np.testing.assert_allclose(p2, p, atol=1e-12)
+    np.testing.assert_allclose(pd2, pd, rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(pdd2, pdd, rtol=1e-8, atol=1e-9)
+
+
+def test_inverse_rates_at_a_horizontal_arm():
+    """A linear delta's arm lying horizontal: the carriage height exists (SINGULAR, given),
+    its rate does not (NaN, not valid; SingularityError when raising)."""
+    robot = LinearDelta(0.1, 0.25)
+    tower = np.array([robot.geometry.tower_x[2], robot.geometry.tower_y[2]])
+    p = np.array([[*(tower * (1 - 0.25 / 0.1)), 0.1]])  # 0.25 m from tower 3, through the axis
+    h, ok = robot.ik(p, errors="nan")
+    assert ok.all() and np.isclose(h[0, 2], 0.1)
+    h, hd, ok = robot.ik_vel(p, [[0.0, 0.1, 0.0]], errors="nan")
+    assert not ok.any() and np.isnan(hd).all()
+    with pytest.raises(Exception, match="singular"):
+        robot.ik_vel(p, [[0.0, 0.1, 0.0]])

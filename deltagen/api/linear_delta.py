@@ -56,6 +56,12 @@ class _ReferenceCore:
     def ik(self, p):
         return self._m.ik(self._kind, self._g, p)
 
+    def ik_vel(self, p, pd):
+        return self._m.ik_vel(self._kind, self._g, p, pd)
+
+    def ik_acc(self, p, pd, pdd):
+        return self._m.ik_acc(self._kind, self._g, p, pd, pdd)
+
 
 class _ThreeSpheres:
     """What the linear delta and the tripod share: the calls, the modes and the backends."""
@@ -78,7 +84,7 @@ class _ThreeSpheres:
             from deltagen.native.linear_delta import CompiledTrilateration
 
             self._core = CompiledTrilateration(self.kind, self.geometry, self._threads)
-            for name in ("fk", "ik", "fk_vel", "fk_acc", "jacobian"):
+            for name in ("fk", "ik", "fk_vel", "fk_acc", "jacobian", "ik_vel", "ik_acc"):
                 self._single[name] = self._core.single(name)
         else:
             self._core = _ReferenceCore(self.kind, self.geometry)
@@ -163,6 +169,30 @@ class _ThreeSpheres:
         lead, flat = self._prepare(errors, dict(zip(names, (q, qd, qdd))))
         p, pd, pdd, status = self._core.fk_acc(*flat)
         return self._finish(errors, lead, status, [p, pd, pdd], names, flat)
+
+    def ik_vel(self, p: ArrayLike, pd: ArrayLike, errors: Errors = "raise") -> Result:
+        """(q, qdot) from (p, pdot): qdot_i = D_i . pdot / g_i (D rows p - S_i; g_i the
+        arm's vertical component, or the strut length). A linear delta's arm lying
+        horizontal has no finite carriage rate (SingularityError, or NaN)."""
+        out = self._lean("ik_vel", errors, p, pd)
+        if out is not None:
+            return out
+        lead, flat = self._prepare(errors, {"p": p, "pd": pd})
+        q, qd, status = self._core.ik_vel(*flat)
+        return self._finish(errors, lead, status, [q, qd], ("p", "pd"), flat, allow_singular=True)
+
+    def ik_acc(
+        self, p: ArrayLike, pd: ArrayLike, pdd: ArrayLike, errors: Errors = "raise"
+    ) -> Result:
+        """(q, qdot, qddot) from (p, pdot, pddot): the second time derivative of the sphere
+        constraints solved for qddot (diag(g) is diagonal)."""
+        out = self._lean("ik_acc", errors, p, pd, pdd)
+        if out is not None:
+            return out
+        names = ("p", "pd", "pdd")
+        lead, flat = self._prepare(errors, dict(zip(names, (p, pd, pdd))))
+        q, qd, qdd, status = self._core.ik_acc(*flat)
+        return self._finish(errors, lead, status, [q, qd, qdd], names, flat, allow_singular=True)
 
     def workspace(self, step: float | None = None, **options: Any) -> Any:
         """The usable workspace on a voxel grid with its dexterity maps (as the rotary

@@ -46,6 +46,8 @@ class CompiledTrilateration:
         "fk_vel": (2, 2, (3,)),
         "fk_acc": (3, 3, (3,)),
         "jacobian": (1, 1, (3, 3)),
+        "ik_vel": (2, 2, (3,)),
+        "ik_acc": (3, 3, (3,)),
     }
 
     def __init__(self, kind: str, geometry, threads=None):
@@ -102,3 +104,9 @@ class CompiledTrilateration:
 
     def ik(self, p):
         return self.run("ik", [p], (3,))
+
+    def ik_vel(self, p, pd):
+        return self.run("ik_vel", [p, pd], (3, 3))
+
+    def ik_acc(self, p, pd, pdd):
+        return self.run("ik_acc", [p, pd, pdd], (3, 3, 3))

@@ -14,7 +14,8 @@ solution of the derivation.
 * Rates: |p - S_i|^2 = r_i^2 differentiated in time gives D pd = diag(g) qd with rows
   D_i = p - S_i and g_i = D_i,z (a carriage moving along z) or l_i (a strut); twice,
   D pdd = diag(g) qdd + c with c_i = -|pd - hd_i z|^2 or ld_i^2 - |pd|^2; numpy solves.
-* Inverse: h_i = z + sqrt(arm_i^2 - (x - tower_x_i)^2 - (y - tower_y_i)^2), l_i = |p - S_i|.
+* Inverse: h_i = z + sqrt(arm_i^2 - (x - tower_x_i)^2 - (y - tower_y_i)^2), l_i = |p - S_i|;
+  its rates row by row from the same relations (qd_i = D_i . pd / g_i, ...).
 
 Status rules (as the generated C, derive/linear_delta/kernels.py): INVALID (non-finite
 input, or a non-finite output the status does not explain), SINGULAR (collinear centres,
@@ -200,3 +201,49 @@ def ik(kind, g, p):
     q = np.array(q)
     q[invalid | unreachable] = np.nan
     return q, _finite_rule(status, [(q, invalid | unreachable)])
+
+
+def _ik_rates(kind, g, p, pd, pdd=None):
+    """Joints, rates (and accelerations) from the rows of D pd = diag(g) qd and
+    D pdd = diag(g) qdd + c, each row on its own (diag(g) is diagonal)."""
+    q, status = ik(kind, g, p)
+    with np.errstate(all="ignore"):
+        bad = ~np.all(np.isfinite(pd), axis=1)
+        if pdd is not None:
+            bad |= ~np.all(np.isfinite(pdd), axis=1)
+        status[bad] = INVALID
+        q[bad] = np.nan
+        if kind == LINEAR:
+            S = np.stack(
+                [np.broadcast_to(g.tower_x, q.shape), np.broadcast_to(g.tower_y, q.shape), q], -1
+            )
+        else:
+            S = np.broadcast_to(np.array(g.base_points), (p.shape[0], 3, 3))
+        D = p[:, None, :] - S
+        gv = _g(kind, D, q)
+        qd = np.einsum("nik,nk->ni", D, pd) / gv
+        qdd = None
+        if pdd is not None:
+            if kind == LINEAR:
+                rel = pd[:, None, :] - qd[:, :, None] * np.array([0.0, 0.0, 1.0])
+                c = -np.einsum("nik,nik->ni", rel, rel)
+            else:
+                c = qd**2 - np.einsum("nk,nk->n", pd, pd)[:, None]
+            qdd = (np.einsum("nik,nk->ni", D, pdd) - c) / gv
+    no_q = (status == INVALID) | (status == UNREACHABLE)
+    no_rates = no_q | ((status == SINGULAR) if kind == LINEAR else False)
+    outs = [(q, no_q), (qd, no_rates)] + ([(qdd, no_rates)] if qdd is not None else [])
+    for out, mask in outs[1:]:
+        out[mask] = np.nan
+    status = _finite_rule(status, outs)
+    return (q, qd, status) if qdd is None else (q, qd, qdd, status)
+
+
+def ik_vel(kind, g, p, pd):
+    p, pd = (np.asarray(a, dtype=float).reshape(-1, 3) for a in (p, pd))
+    return _ik_rates(kind, g, p, pd)
+
+
+def ik_acc(kind, g, p, pd, pdd):
+    p, pd, pdd = (np.asarray(a, dtype=float).reshape(-1, 3) for a in (p, pd, pdd))
+    return _ik_rates(kind, g, p, pd, pdd)

@@ -20,6 +20,8 @@ Status rules (identical in the numpy reference, reference/linear_delta.py):
        other side of the centre plane than the direct kinematics chooses (|det D| > tol L^3);
        SINGULAR (linear delta) where an arm is within tol L of horizontal (carriage rate
        infinite), (tripod) where p lies within tol L^3 / |e| of the base plane
+  (ik_vel, ik_acc) the status of ik; the joint rates NaN unless OK (linear delta) or unless
+       the joints are given (tripod: its rates exist at the base-plane singularity)
 with L the mean arm length (linear delta) or the base size (|b_x| + |C|) / 2 (tripod).
 """
 
@@ -226,9 +228,25 @@ def _jacobian_kernel(kind):
     )
 
 
-def _ik_kernel(kind):
+def _inverse_rate_stages(kind, levels):
+    """qdot_i = D_i . pdot / g_i and qddot_i = (D_i . pddot - c_i) / g_i: the rows of
+    D pdot = diag(g) qdot and D pddot = diag(g) qddot + c (derive/linear_delta/rates.py),
+    solved for the joints (diag(g) is diagonal)."""
+    rates_, accels = (s.hd, s.hdd) if kind == LINEAR else (s.ld, s.ldd)
+    stages = [rates.g_stage(kind)]
+    velocity = [(rates_[i], vel.D[i, :].dot(ds.pd) / rates.g[i]) for i in range(3)]
+    stages.append(Stage("joint rates qdot_i = D_i . pdot / g_i", tuple(velocity)))
+    if levels > 2:
+        c_terms = [(rates.c[i], rates.c_value(kind, i)) for i in range(3)]
+        accel = [(accels[i], (vel.D[i, :].dot(ds.pdd) - rates.c[i]) / rates.g[i]) for i in range(3)]
+        stages.append(
+            Stage("joint accelerations qddot_i = (D_i . pddot - c_i) / g_i", tuple(c_terms + accel))
+        )
+    return tuple(stages)
+
+
+def _ik_kernel(kind, levels=1):
     centres, _ = _centres(kind)
-    joints = s.h if kind == LINEAR else s.strut
     if kind == LINEAR:
         joint_values = [
             (radicand[i], s.arm[i] ** 2 - (ds.x - s.tower_x[i]) ** 2 - (ds.y - s.tower_y[i]) ** 2)
@@ -254,10 +272,11 @@ def _ik_kernel(kind):
         near = sp.Or(*(radicand[i] <= ik_limit for i in range(3)))
     else:
         no_reach, near = other_side, sp.Abs(fkd.det_D) <= det_limit
+    inputs = [v for entry in _POSITIONS[:levels] for v in entry[0]]
     flags = Stage(
         "status flags: non-finite input, unreachable (or the other side), singular",
         (
-            (invalid, sp.Not(AllFinite(ds.x, ds.y, ds.z))),
+            (invalid, sp.Not(AllFinite(*inputs))),
             (unreachable, no_reach),
             (singular, near),
         ),
@@ -265,25 +284,42 @@ def _ik_kernel(kind):
     status = sp.Piecewise(
         (st.INVALID, invalid), (st.UNREACHABLE, unreachable), (st.SINGULAR, singular), (st.OK, True)
     )
-    names = [str(q) for q in joints]
-    outs, out_stage = _masked(names, joints, sp.Or(invalid, unreachable))
-    symbols, pname, pdoc, unit = _JOINTS[kind][0]
-    return Kernel(
-        name="ik",
-        doc="Inverse kinematics: point p -> "
-        + (
-            "carriage heights h (Klipper's delta kinematics)."
-            if kind == LINEAR
-            else "strut lengths l (tripodkins)."
+    no_q = sp.Or(invalid, unreachable)
+    # the joint rates are infinite where a linear delta's arm lies horizontal (g_i = 0, the
+    # SINGULAR of its ik); a tripod's exist at its base-plane singularity (g_i = l_i)
+    no_rates = sp.Or(no_q, singular) if kind == LINEAR else no_q
+    ports, out_pairs = [], ()
+    for level in range(levels):
+        symbols, pname, pdoc, unit = _JOINTS[kind][level]
+        outs, stage = _masked([str(q) for q in symbols], symbols, no_q if level == 0 else no_rates)
+        out_pairs += stage
+        ports.append(Port(pname, outs, pdoc, unit, width=3))
+    what = (
+        "carriage heights h (Klipper's delta kinematics)"
+        if kind == LINEAR
+        else "strut lengths l (tripodkins)"
+    )
+    name, doc = {
+        1: ("ik", f"Inverse kinematics: point p -> {what}."),
+        2: ("ik_vel", f"Inverse kinematics at velocity level: (p, pdot) -> {what} and rates."),
+        3: (
+            "ik_acc",
+            f"Inverse kinematics at acceleration level: (p, pdot, pddot) -> {what}, "
+            "rates and accelerations.",
         ),
-        inputs=(Port("p", (ds.x, ds.y, ds.z), _POSITIONS[0][2], "m", width=3),),
-        outputs=(Port(pname, outs, pdoc, unit, width=3),),
+    }[levels]
+    return Kernel(
+        name=name,
+        doc=doc,
+        inputs=tuple(Port(n_, sy, d, u, width=3) for sy, n_, d, u in _POSITIONS[:levels]),
+        outputs=tuple(ports),
         stages=(
             Stage(comment, tuple(joint_values)),
             Stage("sphere centres S_i", centre_pairs),
             mode,
             flags,
-            Stage("outputs (NaN where the status says they do not exist)", out_stage),
+            *(_inverse_rate_stages(kind, levels) if levels > 1 else ()),
+            Stage("outputs (NaN where the status says they do not exist)", out_pairs),
         ),
         status=status,
         parameters=PARAMETERS[kind],
@@ -303,7 +339,8 @@ def _ik_kernel(kind):
 
 @cache
 def all_kernels(kind: str) -> tuple:
-    """fk, fk_vel, fk_acc, jacobian and ik of ``kind`` ("linear_delta" or "tripod")."""
+    """fk, fk_vel, fk_acc, jacobian, ik, ik_vel and ik_acc of ``kind`` ("linear_delta" or
+    "tripod")."""
     what = "carriage heights h" if kind == LINEAR else "strut lengths l"
     return (
         _fk_kernel(kind, 1, "fk", f"Direct kinematics: {what} -> point p (three spheres)."),
@@ -316,4 +353,6 @@ def all_kernels(kind: str) -> tuple:
         ),
         _jacobian_kernel(kind),
         _ik_kernel(kind),
+        _ik_kernel(kind, 2),
+        _ik_kernel(kind, 3),
     )
