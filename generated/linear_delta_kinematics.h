@@ -132,7 +132,7 @@ int deltagen_linear_delta_ik(const deltagen_linear_delta_geometry *restrict geom
  * pd        in,  n x 3: velocity of p [m/s]
  * h         out, n x 3: carriage heights h_1..h_3 along the towers [m]
  * hd        out, n x 3: carriage velocities [m/s]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (an arm cannot reach, or p on the other side of the centre plane than the direct kinematics returns); SINGULAR (an arm within singular_tol of horizontal; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (an arm cannot reach, or p on the other side of the centre plane than the direct kinematics returns); SINGULAR (an arm within singular_tol of horizontal; the joints are still given); the rates are NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 129 operations per point.
  * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_LINEAR_DELTA_BLOCK points,
@@ -150,7 +150,7 @@ int deltagen_linear_delta_ik_vel(const deltagen_linear_delta_geometry *restrict 
  * h         out, n x 3: carriage heights h_1..h_3 along the towers [m]
  * hd        out, n x 3: carriage velocities [m/s]
  * hdd       out, n x 3: carriage accelerations [m/s^2]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (an arm cannot reach, or p on the other side of the centre plane than the direct kinematics returns); SINGULAR (an arm within singular_tol of horizontal; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (an arm cannot reach, or p on the other side of the centre plane than the direct kinematics returns); SINGULAR (an arm within singular_tol of horizontal; the joints are still given); the rates are NaN unless OK; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 172 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_LINEAR_DELTA_BLOCK points,

@@ -133,7 +133,7 @@ int deltagen_tripod_ik(const deltagen_tripod_geometry *restrict geometry, size_t
  * pd        in,  n x 3: velocity of p [m/s]
  * l         out, n x 3: strut lengths |AD|, |BD|, |CD| (tripodkins' joints 0..2) [m]
  * ld        out, n x 3: strut length rates [m/s]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (p on the other side of the centre plane than the direct kinematics returns); SINGULAR (p within tolerance of the base plane; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (p on the other side of the centre plane than the direct kinematics returns); SINGULAR (p within tolerance of the base plane; the joints are still given); the rates are given wherever the joints are; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 100 operations per point.
  * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_TRIPOD_BLOCK points,
@@ -151,7 +151,7 @@ int deltagen_tripod_ik_vel(const deltagen_tripod_geometry *restrict geometry, si
  * l         out, n x 3: strut lengths |AD|, |BD|, |CD| (tripodkins' joints 0..2) [m]
  * ld        out, n x 3: strut length rates [m/s]
  * ldd       out, n x 3: strut length accelerations [m/s^2]
- * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (p on the other side of the centre plane than the direct kinematics returns); SINGULAR (p within tolerance of the base plane; the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input); UNREACHABLE (p on the other side of the centre plane than the direct kinematics returns); SINGULAR (p within tolerance of the base plane; the joints are still given); the rates are given wherever the joints are; INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 135 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_TRIPOD_BLOCK points,

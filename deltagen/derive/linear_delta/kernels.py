@@ -333,7 +333,14 @@ def _ik_kernel(kind, levels=1):
             if kind == LINEAR
             else "p within tolerance of the base plane"
         )
-        + "; the joints are still given)",
+        + "; the joints are still given)"
+        + (
+            ""
+            if levels == 1
+            else "; the rates are NaN unless OK"
+            if kind == LINEAR
+            else "; the rates are given wherever the joints are"
+        ),
     )
 
 
