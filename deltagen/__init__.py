@@ -1,6 +1,7 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
 from deltagen.api.delta import DeltaInertia, DeltaRobot
+from deltagen.api.linear_delta import LinearDelta, Tripod
 from deltagen.api.serial import SerialRobot
 from deltagen.api.sweep import SweepResult, SweepSpec, sweep
 from deltagen.errors import (
@@ -17,10 +18,12 @@ __all__ = [
     "GeometryError",
     "IncompleteSolutionsWarning",
     "InputError",
+    "LinearDelta",
     "SerialRobot",
     "SingularityError",
     "SweepResult",
     "SweepSpec",
+    "Tripod",
     "UnreachableError",
     "sweep",
 ]

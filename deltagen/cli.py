@@ -52,7 +52,7 @@ def cmd_generate(args) -> int:
     from deltagen.inputs import InputError
 
     if args.robot_file:
-        from deltagen.apps.robots import COUPLED, SERIAL, kind_of
+        from deltagen.apps.robots import COUPLED, KIND_NAMES, SERIAL, kind_of
 
         args.backend = "reference"  # the module is built below, once
         robot = _robot(args, args.robot_file)
@@ -61,7 +61,7 @@ def cmd_generate(args) -> int:
                 "`deltagen generate ROBOT_FILE` takes a serial arm: a serial-arm file (a "
                 "`convention` key and [[joint]] tables), a URDF or a bundled arm's name; "
                 f"{args.robot_file} "
-                "describes a delta robot, whose core is generic (`deltagen generate` writes it; "
+                f"describes {KIND_NAMES[kind_of(robot)]}, whose core is generic (`deltagen generate` writes it; "
                 f"the geometry is read at run time), so use the file directly: "
                 f"`deltagen fk {args.robot_file} ...`"
             )
@@ -453,9 +453,10 @@ def _main(argv=None) -> int:
 
 def _evaluate(args, forward: bool) -> int:
     from deltagen.apps import kinematics
-    from deltagen.apps.robots import COUPLED, DELTA, SERIAL
+    from deltagen.apps.robots import COUPLED, DELTA, LINEAR_DELTA, SERIAL, TRIPOD
 
-    return kinematics.run(_robot(args, kinds=(DELTA, SERIAL, COUPLED)), forward, args)
+    kinds = (DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD)
+    return kinematics.run(_robot(args, kinds=kinds), forward, args)
 
 
 def _dynamics(args) -> int:
@@ -468,19 +469,20 @@ def _dynamics(args) -> int:
 
 def _workspace(args) -> int:
     from deltagen.apps import workspace
-    from deltagen.apps.robots import DELTA, SERIAL
+    from deltagen.apps.robots import DELTA, LINEAR_DELTA, SERIAL, TRIPOD
 
-    args.robot_object = _robot(args, kinds=(DELTA, SERIAL))
+    args.robot_object = _robot(args, kinds=(DELTA, SERIAL, LINEAR_DELTA, TRIPOD))
     return workspace.main(args)
 
 
 def _export(args) -> int:
     from deltagen.apps import export
-    from deltagen.apps.robots import DELTA, SERIAL
+    from deltagen.apps.robots import DELTA, LINEAR_DELTA, SERIAL, TRIPOD
 
     args.backend = "reference"  # only the description is needed: no compiled core
     name = args.robot
-    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=(DELTA, SERIAL))
+    kinds = (DELTA, SERIAL, LINEAR_DELTA, TRIPOD)
+    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=kinds)
     return export.main(args)
 
 

@@ -3,7 +3,8 @@ in-process: the exit status is the documented one (0 served, 1 served but not va
 refused or bad input), a refusal names the command and the robot's kind, and nothing ends
 in an exception. The kinds: the default delta TOML, a Klipper printer.cfg, a bundled arm by
 name (puma560), a URDF (robots/ur5.urdf), a URDF with a <mimic> joint (a CoupledArm) and a
-URDF whose tree ends in a two-finger gripper (two leaves: --tip chooses the chain).
+URDF whose tree ends in a two-finger gripper (two leaves: --tip chooses the chain), the
+bundled linear delta and tripod TOMLs and a Klipper linear-delta printer.cfg.
 sweep, bench and demo load no robot and are not in the matrix."""
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from test_klipper import EXAMPLE_CFG
+from test_linear_delta import KLIPPER_CFG as LINEAR_DELTA_CFG
 
 from deltagen.cli import main
 
@@ -57,6 +59,7 @@ GRIPPER = (
 )
 
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+LINEAR, TRIPOD = "linear_delta", "tripod"
 
 
 @pytest.fixture(scope="module")
@@ -64,6 +67,7 @@ def robots(tmp_path_factory, repo_root):
     """kind name -> (robot arguments, kind, joint count)."""
     folder = tmp_path_factory.mktemp("kinds")
     (folder / "printer.cfg").write_text(EXAMPLE_CFG)
+    (folder / "linear_delta.cfg").write_text(LINEAR_DELTA_CFG)
     (folder / "mimic.urdf").write_text(MIMIC)
     (folder / "gripper.urdf").write_text(GRIPPER)
     return {
@@ -77,6 +81,9 @@ def robots(tmp_path_factory, repo_root):
             SERIAL,
             4,
         ),
+        "linear_delta_toml": ([str(repo_root / "robots" / "linear_delta.toml")], LINEAR, 3),
+        "linear_delta_cfg": ([str(folder / "linear_delta.cfg")], LINEAR, 3),
+        "tripod_toml": ([str(repo_root / "robots" / "tripod.toml")], TRIPOD, 3),
     }
 
 
@@ -84,17 +91,29 @@ KIND_WORDS = {
     DELTA: "a delta robot",
     SERIAL: "a serial arm",
     COUPLED: "a serial arm with coupled",
+    LINEAR: "a linear delta",
+    TRIPOD: "a tripod",
 }
 
-ROBOTS = ("delta_toml", "klipper_cfg", "bundled_arm", "urdf", "mimic_urdf", "gripper_urdf_tip")
+ROBOTS = (
+    "delta_toml",
+    "klipper_cfg",
+    "bundled_arm",
+    "urdf",
+    "mimic_urdf",
+    "gripper_urdf_tip",
+    "linear_delta_toml",
+    "linear_delta_cfg",
+    "tripod_toml",
+)
 
 #: command -> the kinds it serves (the others are refused with exit status 2)
 SERVES = {
-    "fk": (DELTA, SERIAL, COUPLED),
-    "ik": (DELTA, SERIAL, COUPLED),
+    "fk": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD),
+    "ik": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD),
     "dynamics": (DELTA, SERIAL, COUPLED),
-    "workspace": (DELTA, SERIAL),
-    "export": (DELTA, SERIAL),
+    "workspace": (DELTA, SERIAL, LINEAR, TRIPOD),
+    "export": (DELTA, SERIAL, LINEAR, TRIPOD),
     "calibrate": (DELTA,),
     "validate": (DELTA,),
     "generate": (SERIAL, COUPLED),
@@ -102,14 +121,24 @@ SERVES = {
 
 
 def _q(kind, n):
+    if kind == LINEAR:  # carriage heights [m] of a Kossel-sized printer
+        return np.array([0.40, 0.42, 0.41])
+    if kind == TRIPOD:  # strut lengths [m] of robots/tripod.toml
+        return np.array([1.0, 1.0, 1.0])
     return np.array([0.3, 0.5, 0.7]) if kind == DELTA else np.linspace(0.1, 0.4, n)
 
 
 def _reference(args):
     """The robot of ``args`` read through the API (not the CLI's loader)."""
-    from deltagen import DeltaRobot, SerialRobot
+    from deltagen import DeltaRobot, LinearDelta, SerialRobot, Tripod
 
     spec = args[0]
+    if spec.endswith("linear_delta.toml"):
+        return LinearDelta.from_toml(spec, backend="reference")
+    if spec.endswith("tripod.toml"):
+        return Tripod.from_toml(spec, backend="reference")
+    if spec.endswith("linear_delta.cfg"):
+        return LinearDelta.from_klipper(spec, backend="reference")
     if spec.endswith(".toml"):
         return DeltaRobot.from_toml(spec, backend="reference")
     if spec.endswith(".cfg"):
@@ -131,13 +160,15 @@ def _command(command, robot_args, kind, n, tmp_path):
         from deltagen.api.serial import euler_zyx
 
         robot = _reference(robot_args)
-        if kind == DELTA:
+        if kind in (DELTA, LINEAR, TRIPOD):
             pose = robot.fk(q)
         else:
             T = robot.fk(q)
             pose = np.concatenate([T[:3, 3], euler_zyx(T[:3, :3])])
         values = [f"{v:.17g}" for v in pose]
-        extra = [] if kind == DELTA else ["--q0=" + ",".join(f"{v:.17g}" for v in q)]
+        extra = (
+            [] if kind in (DELTA, LINEAR, TRIPOD) else ["--q0=" + ",".join(f"{v:.17g}" for v in q)]
+        )
         return ["ik", spec, *values, "--backend", "reference", *extra, *urdf]
     if command == "dynamics":
         t = np.linspace(0.0, 0.04, 5)
@@ -148,7 +179,7 @@ def _command(command, robot_args, kind, n, tmp_path):
         out = tmp_path / "torques.csv"
         return ["dynamics", spec, "--input", str(path), "--output", str(out), "--backend", "reference", *urdf]  # fmt: skip
     if command == "workspace":
-        step = "0.1" if kind == DELTA else "0.3"
+        step = {DELTA: "0.1", LINEAR: "0.05", TRIPOD: "0.2"}.get(kind, "0.3")
         out = str(tmp_path / "ws")
         return ["workspace", spec, "--out", out, "--step", step, "--quiet", "--backend", "reference", *urdf]  # fmt: skip
     if command == "export":
@@ -187,6 +218,7 @@ SLOW_SKIPPED = {
     ("export", "klipper_cfg"),
     ("generate", "bundled_arm"),
     ("generate", "urdf"),
+    ("export", "linear_delta_cfg"),
 }
 
 
@@ -202,8 +234,10 @@ def test_every_command_serves_or_refuses_every_kind(command, robot, robots, tmp_
     assert "Traceback" not in err
     if kind != DELTA:
         assert "the delta robot" not in out + err
-        if command == "fk":  # an arm's result: its tool frame, not a delta's platform point
+        if command == "fk" and kind in (SERIAL, COUPLED):  # an arm's tool frame, not a point
             assert "T =" in out and "p = [" not in out, out
+        if command == "fk" and kind in (LINEAR, TRIPOD) and code == 0:  # the point, in m
+            assert "p = [" in out and "T =" not in out, out
     if (command, robot) in INPUT_ERRORS:
         assert code == 2 and INPUT_ERRORS[command, robot] in err, (argv, out, err)
     elif kind in SERVES[command]:

@@ -18,11 +18,21 @@ from deltagen.api.serial import bundled_robots, bundled_urdfs
 from deltagen.apps import generate
 
 DELTA = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
-# the delta core plus one C module per bundled serial arm (TOML and URDF)
-NAMES = DELTA + tuple(
-    f"serial_{name}{ext}"
-    for name in bundled_robots() + bundled_urdfs()
+# the linear delta's and the tripod's cores (one each, the geometry in a struct)
+THREE_SPHERES = tuple(
+    f"{stem}{ext}"
+    for stem in ("linear_delta_kinematics", "tripod_kinematics")
     for ext in (".c", ".h", ".cdef.h")
+)
+# the delta core, those two, plus one C module per bundled serial arm (TOML and URDF)
+NAMES = (
+    DELTA
+    + THREE_SPHERES
+    + tuple(
+        f"serial_{name}{ext}"
+        for name in bundled_robots() + bundled_urdfs()
+        for ext in (".c", ".h", ".cdef.h")
+    )
 )
 
 

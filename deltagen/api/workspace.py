@@ -228,13 +228,18 @@ def singular_values3(J):
     return np.sqrt(np.maximum(e, 0.0))
 
 
-def delta_usable(robot, p, q_limits=DEFAULT_Q_LIMITS, max_condition=DEFAULT_MAX_CONDITION):
+def delta_usable(
+    robot, p, q_limits=DEFAULT_Q_LIMITS, max_condition=DEFAULT_MAX_CONDITION, size=None
+):
     """(usable (N,), q (N, 3), J (N, 3, 3), condition (N,)) of points p (N, 3) [m]: the
-    three conditions of the module docstring. NaN q/J/condition where ik or J fails."""
+    three conditions of the module docstring. NaN q/J/condition where ik or J fails.
+    ``size``: the robot's length scale for the round-trip check (default l_a + l_b of a
+    rotary delta; a linear delta's or a tripod's from its workspace_extent)."""
     p = np.ascontiguousarray(np.asarray(p, dtype=float).reshape(-1, 3))
     q, ok = robot.ik(p, errors="nan")
     back, ok_fk = robot.fk(np.where(ok[:, None], q, 0.0), errors="nan")
-    size = robot.geometry.l_a + robot.geometry.l_b
+    if size is None:
+        size = robot.geometry.l_a + robot.geometry.l_b
     same = ok & ok_fk & (np.linalg.norm(back - p, axis=-1) <= 1e-9 * size)
     lo, hi = q_limits
     inside = same & np.all((q >= lo) & (q <= hi), axis=-1)
@@ -403,7 +408,7 @@ def delta_workspace(
     step: float | None = None,
     *,
     box: tuple[tuple[float, float], ...] | None = None,
-    q_limits: tuple[float, float] = DEFAULT_Q_LIMITS,
+    q_limits: tuple[float, float] | None = None,
     max_condition: float = DEFAULT_MAX_CONDITION,
     envelope: bool = True,
     envelope_levels: int = 40,
@@ -415,9 +420,23 @@ def delta_workspace(
     (default (l_a + l_b) / 40); box: ((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi)) [m], by
     default every point the chains could reach; q_limits [rad]; max_condition >= 1;
     acceleration [m/s^2]: also the peak torque map (the robot needs inertia); progress:
-    a tqdm bar (None: when stderr is a terminal)."""
+    a tqdm bar (None: when stderr is a terminal).
+
+    A LinearDelta or a Tripod (deltagen.api.linear_delta) works the same way: q are its
+    carriage heights or strut lengths, ``q_limits`` their travel [m] (default: the
+    geometry's carriage_range or strut_range), and its ``workspace_extent()`` gives the
+    length scale, the reach and the default box."""
     g = robot.geometry
-    size = g.l_a + g.l_b
+    extent = getattr(robot, "workspace_extent", None)
+    if extent is not None:
+        size, reach, default_box, default_limits = extent()
+    else:
+        size = g.l_a + g.l_b
+        reach = max(abs(g.r_a - g.r_b) + size, 1e-9)
+        default_box = delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b)
+        default_limits = DEFAULT_Q_LIMITS
+    if q_limits is None:
+        q_limits = default_limits
     if step is None:
         step = size / 40.0
     step = check_real(step, "step", low=0.0, low_open=True, unit="m")
@@ -434,13 +453,12 @@ def delta_workspace(
     payload = check_real(payload, "payload", low=0.0, unit="kg")
     if acceleration is not None:
         acceleration = check_real(acceleration, "acceleration", low=0.0, unit="m/s^2")
-    if acceleration is not None and g.inertia is None:
+    if acceleration is not None and getattr(g, "inertia", None) is None:
         from deltagen.errors import GeometryError
 
         raise GeometryError("the peak torque map needs the robot's inertia (DeltaInertia)")
-    reach = max(abs(g.r_a - g.r_b) + size, 1e-9)
     if box is None:
-        box = delta_default_box(g.r_a, g.r_b, g.l_a, g.l_b)
+        box = default_box
     try:
         (x0, x1), (y0, y1), (z0, z1) = ((float(a), float(b)) for a, b in box)
     except (TypeError, ValueError):
@@ -483,7 +501,7 @@ def delta_workspace(
     chunk = 1 << 16
     for a in range(0, n, chunk):
         b = min(a + chunk, n)
-        ok, q, _J, c, sv = delta_usable(robot, P[a:b], (lo_q, hi_q), max_condition)
+        ok, q, _J, c, sv = delta_usable(robot, P[a:b], (lo_q, hi_q), max_condition, size)
         usable[a:b], cond[a:b], qall[a:b] = ok, c, q
         vgain[a:b] = sv[:, 0]
         with np.errstate(divide="ignore"):
@@ -501,7 +519,7 @@ def delta_workspace(
 
         def fn(pts):
             counted[0] += len(pts)
-            return delta_usable(robot, pts, (lo_q, hi_q), max_condition)[0]
+            return delta_usable(robot, pts, (lo_q, hi_q), max_condition, size)[0]
 
         env = inscribed_envelopes(fn, levels, reach, tol=tol)
         cyl, boxe = env["cylinder"][0], env["box"][0]

@@ -71,9 +71,16 @@ class ExportResult:
 
 
 def _robot_parts(robot):
-    """(kind, unit, kernels, description or geometry) of a DeltaRobot or SerialRobot."""
-    from deltagen.codegen.export import arm_unit_kernels, delta_unit_kernels
+    """(kind, unit, kernels) of a DeltaRobot, SerialRobot, LinearDelta or Tripod."""
+    from deltagen.codegen.export import (
+        arm_unit_kernels,
+        delta_unit_kernels,
+        trilateration_unit_kernels,
+    )
 
+    if hasattr(robot, "workspace_extent"):  # LinearDelta, Tripod: kind "linear_delta", "tripod"
+        unit, kernels = trilateration_unit_kernels(robot.kind)
+        return robot.kind, unit, kernels
     if hasattr(robot, "geometry"):
         unit, kernels = delta_unit_kernels()
         return "delta", unit, kernels
@@ -88,11 +95,21 @@ def _literal(value: float, real: str) -> str:
     return text
 
 
-def _struct_values(robot, real: str) -> list:
-    from deltagen.native.delta import geometry_struct
+def _geometry_struct(robot, kind) -> dict:
+    """The C parameter struct's fields of a DeltaRobot, LinearDelta or Tripod."""
+    if kind == "delta":
+        from deltagen.native.delta import geometry_struct
 
+        return geometry_struct(robot.geometry)
+    from deltagen.native.linear_delta import linear_delta_struct, tripod_struct
+
+    fill = linear_delta_struct if kind == "linear_delta" else tripod_struct
+    return fill(robot.geometry)
+
+
+def _struct_values(robot, real: str, kind: str = "delta") -> list:
     values = []
-    for name, value in geometry_struct(robot.geometry).items():
+    for name, value in _geometry_struct(robot, kind).items():
         if isinstance(value, (list, tuple)):
             values.append((name, "{" + ", ".join(_literal(v, real) for v in value) + "}"))
         else:
@@ -104,9 +121,28 @@ def _struct_values(robot, real: str) -> list:
 DELTA_EXAMPLE_Q = (0.3, 0.5, 0.7)
 
 
+def _three_sphere_points(robot, n: int, seed: int = 0) -> np.ndarray:
+    """Points (n, 3) [m] about the middle of a LinearDelta's or a Tripod's working volume:
+    below the carriages' lowest travel within half the tower radius of the axis, or above
+    (below) the tripod's base triangle."""
+    rng = np.random.default_rng(seed)
+    g = robot.geometry
+    if robot.kind == "linear_delta":
+        lo, arm, r = g.carriage_range[0], min(g.arm_length), 0.5 * min(g.radius)
+        z = rng.uniform(lo - 0.6 * arm, lo - 0.2 * arm, n)
+        return np.c_[rng.uniform(-r, r, (n, 2)) / math.sqrt(2.0), z]
+    centre = np.mean(np.array(g.base_points), axis=0)
+    size = 0.25 * min(abs(g.b_x), abs(g.c_y))
+    z = g.side_sign * rng.uniform(0.5, 1.0, n) * g.strut_range[1] / 2
+    return np.c_[centre[:2] + rng.uniform(-size, size, (n, 2)), z]
+
+
 def _example_pose(robot, kind):
     if kind == "delta":
         return list(DELTA_EXAMPLE_Q), None
+    if kind in ("linear_delta", "tripod"):
+        q = robot.with_backend("reference").ik(_three_sphere_points(robot, 1)[0])
+        return [float(v) for v in q], None
     configurations = robot.configurations
     for name in ("qn", "qr", *configurations):
         if name in configurations:
@@ -254,6 +290,8 @@ def accuracy_points(robot, kind, n_random: int = 2000, seed: int = 0):
     """The points the float32 build is measured on: the delta report's trajectory, eqs.
     (40)-(42), 1 kHz for 10 s (positions p, (N, 3)); for a serial arm ``n_random`` joint
     vectors uniform within its limits (+-pi where a revolute joint has none, +-1 m prismatic)."""
+    if kind in ("linear_delta", "tripod"):
+        return _three_sphere_points(robot, n_random, seed)
     if kind == "delta":
         from deltagen.apps.validate import sample_times, trajectory
 
@@ -278,7 +316,7 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
     """{quantity label: (max, rms)} of the float32 single-point functions against the double
     ones on :func:`accuracy_points` (rows OK in both builds)."""
     points = accuracy_points(robot, kind)
-    if kind == "delta":
+    if kind != "serial":
         q_d, s_qd = double_lib("ik", [points], [3])
         q_f, s_qf = float_lib("ik", [points], [3])
         p_d, s_pd = double_lib("fk", [q_d], [3])
@@ -290,7 +328,9 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
             "n": int(len(points)),
             "ok": int(np.count_nonzero(ok_ik & ok_fk)),
             "fk position error [um]": _stats(1e6 * np.linalg.norm(p_f - p_d, axis=1)[ok_fk]),
-            "ik angle error [urad]": _stats(1e6 * np.abs(q_f - q_d).max(axis=1)[ok_ik]),
+            ("ik angle error [urad]" if kind == "delta" else "ik joint error [um]"): _stats(
+                1e6 * np.abs(q_f - q_d).max(axis=1)[ok_ik]
+            ),
             "ik position error, fk(ik(p)) - p [um]": _stats(
                 1e6 * np.linalg.norm(p_back - points, axis=1)[ok_ik]
             ),
@@ -312,7 +352,13 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
 
 
 def _accuracy_text(kind, result) -> str:
-    if kind == "delta":
+    if kind in ("linear_delta", "tripod"):
+        where = f"{result['n']} random points of the working volume (seed 0)"
+        how = (
+            "ik of each point in float and in double; fk in float and in double of the "
+            "double ik's joints; and the double fk of the float ik's joints against the point"
+        )
+    elif kind == "delta":
         where = (
             f"the delta report's trajectory (eqs. (40)-(42), 1 kHz for 10 s: {result['n']} "
             "positions)"
@@ -539,12 +585,18 @@ def export(
     sources = [n for n in files if n.endswith(".c")]
     library = unit.prefix
     q, q_name = _example_pose(robot, kind)
-    symmetric = kind == "serial" or robot.geometry.symmetric
+    symmetric = kind != "delta" or robot.geometry.symmetric
     has_dynamics = any(k.name == "inverse_dynamics" for k in kernels) and (
         kind == "serial" or (robot.inertia is not None and symmetric)
     )
     common = dict(
-        robot_name=(f"the delta robot '{robot.geometry.name}'" if kind == "delta" else robot.name),
+        robot_name=(
+            f"the delta robot '{robot.geometry.name}'"
+            if kind == "delta"
+            else f"the {kind.replace('_', ' ')} '{robot.name}'"
+            if kind != "serial"
+            else robot.name
+        ),
         library=library,
         sources=sources,
         prefix=unit.prefix,
@@ -559,8 +611,14 @@ def export(
             **common,
             kind=kind,
             struct_name=unit.struct_name,
-            struct_values=_struct_values(robot, real) if kind == "delta" else [],
+            struct_values=_struct_values(robot, real, kind) if kind != "serial" else [],
             has_inertia=kind == "delta" and robot.inertia is not None,
+            joint_doc={
+                "delta": "crank angles [rad], positive down",
+                "linear_delta": "carriage heights along the towers [m]",
+                "tripod": "strut lengths |AD|, |BD|, |CD| [m]",
+            }.get(kind, ""),
+            joint_unit="rad" if kind == "delta" else "m",
             has_dynamics=has_dynamics,
             encoder=bool(encoder),
             q_offset=[_literal(v, real) for v in robot.geometry.q_offset] if encoder else [],
@@ -713,10 +771,8 @@ def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
     from deltagen.codegen.export import package_sources
 
     struct = None
-    if kind == "delta":
-        from deltagen.native.delta import geometry_struct
-
-        struct = geometry_struct(robot.geometry)
+    if kind != "serial":
+        struct = _geometry_struct(robot, kind)
     libraries = {}
     with tempfile.TemporaryDirectory(prefix="deltagen-float32-") as tmp:
         for real in ("double", "float"):

@@ -9,7 +9,8 @@ from deltagen.paths import generated_dir
 
 
 def generated_files() -> dict[str, str]:
-    """Every checked-in generated file, by name: the delta core and each bundled arm (the
+    """Every checked-in generated file, by name: the delta core, the linear delta's and the
+    tripod's cores, and each bundled arm (the
     TOML ones and the URDF ones, robots/*.urdf read as SerialRobot.load reads them)."""
     from deltagen.api.serial import bundled_robots, bundled_urdfs
     from deltagen.codegen.delta import delta_sources
@@ -19,6 +20,10 @@ def generated_files() -> dict[str, str]:
     from deltagen.paths import robots_dir
 
     files = dict(delta_sources())
+    from deltagen.codegen.linear_delta import linear_delta_sources, tripod_sources
+
+    files.update(linear_delta_sources())
+    files.update(tripod_sources())
     for name in bundled_robots():
         files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
     for name in bundled_urdfs():

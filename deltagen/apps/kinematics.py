@@ -66,7 +66,7 @@ class Job:
 
     @property
     def what(self) -> str:
-        name = self.robot.name if self.serial else "the delta robot"
+        name = self.robot.name if self.serial else getattr(self.robot, "name", "the delta robot")
         return f"{'fk' if self.forward else 'ik'} of {name}"
 
     # -- input -> the API's arguments -------------------------------------------------
@@ -140,7 +140,19 @@ class Job:
 
 def make_job(robot, forward: bool, args) -> Job:
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.linear_delta import LinearDelta, Tripod
 
+    if isinstance(robot, (LinearDelta, Tripod)):  # joints in m (carriages or struts)
+        for flag, value in (
+            ("--config", args.config),
+            ("--q0", args.q0),
+            ("--method", args.method),
+            ("--restarts", args.restarts),
+        ):
+            if value is not None:
+                raise InputError(f"{flag} applies to serial arms, not to {robot.name}")
+        columns = Columns(("q1", "q2", "q3")) if forward else Columns(("x", "y", "z"))
+        return Job(robot, False, forward, args.degrees, [columns], revolute=np.zeros(3, dtype=bool))
     serial = not isinstance(robot, DeltaRobot)  # a SerialRobot or a CoupledArm
     if not serial:
         for flag, value in (

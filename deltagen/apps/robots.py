@@ -4,8 +4,10 @@ command that cannot serve that kind.
 
 A robot argument is 'default' (the delta robot of robots/default_delta.toml), a bundled arm's
 name (robots/<name>.toml or robots/<name>.urdf), or a file: a URDF (its content is XML,
-whatever its extension), a Klipper printer.cfg (kinematics: rotary_delta), a delta robot TOML
-(a [delta] table) or a serial-arm TOML (a `convention` key and [[joint]] tables). A URDF gives
+whatever its extension), a Klipper printer.cfg (kinematics: rotary_delta, or delta: a linear
+delta), a delta robot TOML (a [delta] table), a linear delta's or a tripod's TOML (a
+[linear_delta] or [tripod] table) or a serial-arm TOML (a `convention` key and [[joint]]
+tables). A URDF gives
 a SerialRobot, or a CoupledArm when its chain has ``<mimic>`` joints; ``base``, ``tip`` and
 ``locked`` (the CLI's --base, --tip, --locked) choose its chain (SerialRobot.from_urdf)."""
 
@@ -19,19 +21,28 @@ from typing import Any
 from deltagen.inputs import InputError, read_regular_file
 
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+LINEAR_DELTA, TRIPOD = "linear_delta", "tripod"
 
 #: How messages name each kind (with an article).
 KIND_NAMES = {
     DELTA: "a delta robot",
     SERIAL: "a serial arm",
     COUPLED: "a serial arm with coupled (URDF <mimic>) joints",
+    LINEAR_DELTA: "a linear delta",
+    TRIPOD: "a tripod",
 }
 
 
 def kind_of(robot: Any) -> str:
-    """DELTA, SERIAL or COUPLED for a loaded robot."""
+    """DELTA, SERIAL, COUPLED, LINEAR_DELTA or TRIPOD for a loaded robot."""
     from deltagen.api.coupled import CoupledArm
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.linear_delta import LinearDelta, Tripod
+
+    if isinstance(robot, LinearDelta):
+        return LINEAR_DELTA
+    if isinstance(robot, Tripod):
+        return TRIPOD
 
     if isinstance(robot, DeltaRobot):
         return DELTA
@@ -74,8 +85,9 @@ def parse_locked(items: Sequence[str] | None) -> dict[str, float] | None:
 
 
 def file_kind(path: Path) -> str:
-    """ "urdf", "klipper", "serial" or "delta" for a robot file, from its content (the
-    extension decides only for .urdf and .cfg, and for a file that cannot be read)."""
+    """ "urdf", "klipper", "serial", "linear_delta", "tripod" or "delta" for a robot file,
+    from its content (the extension decides only for .urdf and .cfg, and for a file that
+    cannot be read)."""
     suffix = path.suffix.lower()
     if suffix == ".urdf":
         return "urdf"
@@ -95,6 +107,9 @@ def file_kind(path: Path) -> str:
         return "serial" if "convention" in text and "[delta]" not in text else "delta"
     if "delta" not in data and ("convention" in data or "joint" in data):
         return "serial"
+    for table in (LINEAR_DELTA, TRIPOD):
+        if "delta" not in data and table in data:
+            return table
     return "delta"
 
 
@@ -152,6 +167,18 @@ def load_robot(
         if hasattr(robot, "coupling"):
             return type(robot)(robot.full.with_backend(backend), robot.coupling)
         return robot.with_backend(backend)
+    if kind == "klipper":
+        from deltagen.model.klipper import klipper_kinematics
+
+        if klipper_kinematics(path) == "delta":
+            kind = "klipper_linear_delta"
+    if kind in (LINEAR_DELTA, TRIPOD, "klipper_linear_delta"):
+        from deltagen.api.linear_delta import LinearDelta, Tripod
+
+        _require(command, TRIPOD if kind == TRIPOD else LINEAR_DELTA, path.stem, kinds)
+        if kind == "klipper_linear_delta":
+            return LinearDelta.from_klipper(path, backend=backend)
+        return (Tripod if kind == TRIPOD else LinearDelta).from_toml(path, backend=backend)
     serial = kind in ("bundled", "serial")
     _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
     if kind == "bundled":

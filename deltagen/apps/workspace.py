@@ -129,6 +129,29 @@ def delta_skeleton(robot: DeltaRobot, q: Any) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def three_sphere_skeleton(robot: Any, q: Any) -> np.ndarray:
+    """Polyline points (K, 3) [m] of a LinearDelta or a Tripod at joint values q (3,): the
+    towers (linear delta, over the carriage travel) or the base triangle A, B, C (tripod),
+    each arm or strut from its sphere centre to the point, NaN rows between the pieces."""
+    g = robot.geometry
+    q = np.asarray(q, dtype=float)[:3]
+    p = np.asarray(robot.fk(q), dtype=float)[:3]
+    gap = np.full((1, 3), np.nan)
+    if robot.kind == "linear_delta":
+        lo, hi = g.carriage_range
+        centres = np.c_[g.tower_x, g.tower_y, q]
+        parts = []
+        for i in range(3):
+            tower = [[g.tower_x[i], g.tower_y[i], lo], [g.tower_x[i], g.tower_y[i], hi]]
+            parts += [np.array(tower), gap]
+    else:
+        centres = np.array(g.base_points)
+        parts = [centres[[0, 1, 2, 0]], gap]
+    for i in range(3):
+        parts += [np.stack([centres[i], p]), gap]
+    return np.concatenate(parts[:-1])
+
+
 def serial_skeleton(arm, q: Any) -> np.ndarray:
     """Polyline (n + 2, 3) [m] through the base origin, every joint frame and the tool."""
     frames = np.asarray(arm.frames(np.asarray(q, dtype=float)))
@@ -170,8 +193,13 @@ def write_page(
         import plotly.graph_objects as go
     except ImportError as exc:
         raise DeltagenError(PLOTLY_HINT) from exc
-    is_delta = isinstance(robot, DeltaRobot)
-    skeleton = delta_skeleton if is_delta else serial_skeleton
+    is_delta = isinstance(ws, DeltaWorkspace)
+    if isinstance(robot, DeltaRobot):
+        skeleton = delta_skeleton
+    elif is_delta:  # a LinearDelta or a Tripod: the same workspace result
+        skeleton = three_sphere_skeleton
+    else:
+        skeleton = serial_skeleton
     traj = default_trajectory(robot, ws) if trajectory is None else np.asarray(trajectory)
     pts, cond = ws.points()
     if len(pts) > MAX_POINTS:
@@ -267,7 +295,7 @@ def main(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     show = False if args.quiet else None
-    if isinstance(robot, DeltaRobot):
+    if isinstance(robot, DeltaRobot) or hasattr(robot, "workspace_extent"):
         ws = robot.workspace(args.step, max_condition=args.max_condition, progress=show)
     else:
         ws = robot.workspace(args.step, progress=show)

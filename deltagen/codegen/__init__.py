@@ -1,6 +1,7 @@
 """Code generation: kernel -> CSE + C99 printing (``lowering``, ``printer``) ->
 Jinja rendering (``render``, with the line layout of ``layout``: at most 120 columns) of a
-robot's C module (``delta``, ``serial``); ``export``
+robot's C module (``delta``, ``serial``, ``linear_delta``: the linear delta's and the
+tripod's); ``export``
 writes the C package of `deltagen export` (the batched module, single-point functions and
 the files around them). ``templates/`` holds layout only; ``runtime`` (a package of C
 files, no Python) holds hand-written C compiled beside each module.

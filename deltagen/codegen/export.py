@@ -30,6 +30,16 @@ def delta_unit_kernels() -> tuple[Unit, tuple]:
     return UNIT, _KERNELS["delta"]
 
 
+def trilateration_unit_kernels(kind: str) -> tuple[Unit, tuple]:
+    """The linear delta's or the tripod's unit and its derived kernels."""
+    from deltagen.codegen.linear_delta import LINEAR_UNIT, TRIPOD_UNIT
+    from deltagen.derive.linear_delta.kernels import LINEAR, all_kernels
+
+    if kind not in _KERNELS:
+        _KERNELS[kind] = tuple(all_kernels(kind))
+    return (LINEAR_UNIT if kind == LINEAR else TRIPOD_UNIT), _KERNELS[kind]
+
+
 def arm_unit_kernels(desc) -> tuple[Unit, tuple]:
     """A serial arm's unit and its derived kernels."""
     from deltagen.codegen.serial import arm_unit

@@ -5,7 +5,8 @@ coordinates (``serial``), TOML robot files (``robot_file``), names that reach C 
 (``naming``) and structure detection of a chain (``structure``: central wrist, parallel
 axes, planar arms), which both the derivation and the solvers read. Imports into these:
 ``urdf`` (a URDF chain as universal coordinates), ``coupling`` (URDF ``<mimic>`` joints,
-q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delta geometry).
+q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delta geometry, and a linear delta's).
+``linear_delta`` holds the linear delta's and the tripod's geometry.
 
 May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
 ``inputs``, ``paths``). Nothing else of deltagen.

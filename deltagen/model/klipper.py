@@ -1,4 +1,6 @@
-"""Klipper rotary-delta configurations (printer.cfg) as deltagen delta geometries.
+"""Klipper rotary-delta configurations (printer.cfg) as deltagen delta geometries, and
+Klipper linear deltas (``kinematics: delta``) as LinearDeltaGeometry (KlipperLinearDelta
+at the end of this module gives that mapping).
 
 Klipper (the 3D-printer firmware) describes a rotary delta in ``[printer]`` with
 ``kinematics: rotary_delta`` and in the sections ``[stepper_a]``, ``[stepper_b]``,
@@ -48,6 +50,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.inputs import InputError, read_regular_file
 from deltagen.model.delta import MAX_LENGTH, MIN_LENGTH, DeltaGeometry
+from deltagen.model.linear_delta import KLIPPER_TOWER_ANGLES, LinearDeltaGeometry
 from deltagen.model.robot_file import PathLike
 
 #: Klipper's default arm positions of stepper_a, _b, _c [deg].
@@ -167,7 +170,8 @@ def klipper_from_text(
     if kinematics != "rotary_delta":
         raise GeometryError(
             f"{source}: [printer] kinematics is {kinematics or 'missing'!r}; only "
-            "'rotary_delta' describes a rotary delta robot (a linear delta's towers do not map)"
+            "'rotary_delta' describes a rotary delta robot (a linear delta, kinematics: delta: "
+            "deltagen.LinearDelta.from_klipper)"
         )
     steppers = [f"stepper_{a}" for a in "abc"]
     for section in steppers:
@@ -237,13 +241,118 @@ def _geometry(chains: dict[str, Any] | None = None, **kwargs: Any) -> DeltaGeome
     return geometry if chains is None else geometry.with_chains(**chains)
 
 
-def read_klipper(path: PathLike, name: str = "klipper") -> KlipperRotaryDelta:
-    """Read a Klipper printer.cfg (see the module docstring for the mapping)."""
-    path = Path(path)
+def _read_config(path: Path) -> str:
+    """The text of a Klipper config, read as a bounded regular file (GeometryError else)."""
     try:
-        text = read_regular_file(path, "Klipper config").decode("utf-8")
+        return read_regular_file(path, "Klipper config").decode("utf-8")
     except InputError as exc:
         raise GeometryError(str(exc)) from None
     except UnicodeDecodeError as exc:
         raise GeometryError(f"cannot read Klipper config {path}: {exc}") from None
+
+
+def read_klipper(path: PathLike, name: str = "klipper") -> KlipperRotaryDelta:
+    """Read a Klipper printer.cfg (see the module docstring for the mapping)."""
+    path = Path(path)
+    text = _read_config(path)
     return klipper_from_text(text, source=str(path), name=name)
+
+
+# -- the linear delta ([printer] kinematics: delta) ---------------------------------------
+
+
+@dataclass(frozen=True)
+class KlipperLinearDelta:
+    """A parsed Klipper linear delta (``kinematics: delta``), in metres, in Klipper's frame
+    (x, y as Klipper's; z above the bed; carriage heights = Klipper's stepper positions).
+
+    geometry          the LinearDeltaGeometry: delta_radius for every tower at the
+                      stepper's ``angle`` (default 210, 330, 90 deg), the per-stepper
+                      arm_length (stepper_b, _c default to stepper_a's), carriage travel
+                      from minimum_z_position to the highest endstop carriage height
+    position_endstop  the effector heights at x = y = 0 when each carriage sits at its
+                      endstop [m]
+    endstop_carriage  the carriage heights at the endstops: position_endstop_i +
+                      sqrt(arm_i^2 - delta_radius^2) (Klipper's abs_endstops) [m]
+    print_radius      the printable radius [m] (delta_radius when not given)
+    minimum_z         minimum_z_position [m]
+    """
+
+    geometry: LinearDeltaGeometry
+    position_endstop: tuple[float, float, float]
+    endstop_carriage: tuple[float, float, float]
+    print_radius: float
+    minimum_z: float
+
+    @property
+    def max_z(self) -> float:
+        """The highest effector z, the lowest endstop (Klipper's max_z) [m]."""
+        return min(self.position_endstop)
+
+
+def klipper_kinematics(path: PathLike) -> str:
+    """The ``[printer] kinematics`` of a Klipper config ('' when there is none)."""
+    path = Path(path)
+    text = _read_config(path)
+    config = _parse(text, str(path))
+    return config.get("printer", "kinematics", fallback="").strip()
+
+
+def klipper_delta_from_text(
+    text: str, source: str = "printer.cfg", name: str = "klipper"
+) -> KlipperLinearDelta:
+    """Parse a Klipper ``kinematics: delta`` config's text (KlipperLinearDelta's mapping)."""
+    config = _parse(text, source)
+    if not config.has_section("printer"):
+        raise GeometryError(f"{source}: no [printer] section")
+    kinematics = config.get("printer", "kinematics", fallback="").strip()
+    if kinematics != "delta":
+        raise GeometryError(
+            f"{source}: [printer] kinematics is {kinematics or 'missing'!r}; only 'delta' "
+            "describes a linear delta (a rotary delta: deltagen.DeltaRobot.from_klipper)"
+        )
+    steppers = [f"stepper_{a}" for a in "abc"]
+    for section in steppers:
+        if not config.has_section(section):
+            raise GeometryError(f"{source}: no [{section}] section")
+    radius = _number(config, "printer", "delta_radius", source)
+    if radius <= 0.0:
+        raise GeometryError(f"{source}: [printer] delta_radius must be > 0")
+    print_radius = _number(config, "printer", "print_radius", source, radius)
+    arm_a = _number(config, "stepper_a", "arm_length", source)
+    arms = [_number(config, s, "arm_length", source, arm_a) for s in steppers]
+    if min(arms) <= radius:  # Klipper: arm_length above=radius
+        raise GeometryError(
+            f"{source}: every arm_length must exceed delta_radius ({radius}), got {arms}"
+        )
+    angles = [
+        _number(config, s, "angle", source, d) for s, d in zip(steppers, KLIPPER_TOWER_ANGLES)
+    ]
+    endstop_a = _number(config, "stepper_a", "position_endstop", source)
+    endstops = [_number(config, s, "position_endstop", source, endstop_a) for s in steppers]
+    minimum_z = _number(config, "printer", "minimum_z_position", source, 0.0)
+    carriage = [e + math.sqrt(a**2 - radius**2) for e, a in zip(endstops, arms)]
+    try:
+        geometry = LinearDeltaGeometry(
+            radius=(radius * _MM,) * 3,
+            angle=tuple(math.radians(a) for a in angles),  # type: ignore[arg-type]
+            arm_length=tuple(a * _MM for a in arms),
+            carriage_range=(minimum_z * _MM, max(carriage) * _MM),
+            name=name,
+        )
+    except GeometryError as exc:
+        raise GeometryError(f"{source}: {exc}") from None
+    return KlipperLinearDelta(
+        geometry=geometry,
+        position_endstop=tuple(e * _MM for e in endstops),
+        endstop_carriage=tuple(c * _MM for c in carriage),
+        print_radius=print_radius * _MM,
+        minimum_z=minimum_z * _MM,
+    )
+
+
+def read_klipper_delta(path: PathLike, name: str = "klipper") -> KlipperLinearDelta:
+    """Read a Klipper ``kinematics: delta`` printer.cfg (KlipperLinearDelta's mapping)."""
+    path = Path(path)
+    text = _read_config(path)
+    return klipper_delta_from_text(text, source=str(path), name=name)

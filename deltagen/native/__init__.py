@@ -1,5 +1,6 @@
 """The compiled cores: cffi build and cache (``build``), and the Python wrappers of
-the delta core (``delta``) and of each serial arm's module (``serial``); ``parallel``
+the delta core (``delta``) and of each serial arm's module (``serial``), of the linear delta and tripod cores
+(``linear_delta``); ``parallel``
 (a batched call split across threads), ``lean`` (the one-pose fast path, with its
 CPython-extension entry ``lean_ext.c``) and ``general6r`` (the compiled eigen step of the
 general-6R inverse kinematics, one module for every arm). The speed guards' measures:

@@ -82,11 +82,13 @@ e_sq, inv_e_sq, h_sq, lam = sp.symbols("e_sq inv_e_sq h_sq lambda_", real=True)
 det_D = sp.Symbol("det_D", real=True)  # det of the rows p - S_i (= det J_p / 8)
 
 
-def _centred_planes():
+def _centred_planes(radii=s.chain_l_b):
     """Planes of eqs. (6), (7) in coordinates xi = p - S_1: subtracting sphere 1 from
     spheres 2, 3 leaves 2 a.xi = |a|^2 + l_b1^2 - l_b2^2 and 2 b.xi = |b|^2 + l_b1^2 - l_b3^2
-    (derived, not asserted; the rod terms cancel for equal rods)."""
-    sig, _ = spheres(*xi, centres=[sp.zeros(3, 1), a, b], radii=s.chain_l_b)
+    (derived, not asserted; the rod terms cancel for equal rods). ``radii``: the three
+    spheres' radii (the rods l_b,i of the rotary delta; a linear delta's arms, a tripod's
+    struts)."""
+    sig, _ = spheres(*xi, centres=[sp.zeros(3, 1), a, b], radii=radii)
     planes = []
     for other in (1, 2):
         plane = sp.Poly(sp.expand(sig[0] - sig[other]), *xi)
@@ -98,11 +100,26 @@ def _centred_planes():
 def fk_stages():
     """Stages computing p = (x, y, z) from cos q_i, sin q_i; also e_sq, h_sq and det_D for
     the status. The lower of the two intersections is chosen (z points up, eq. (26))."""
-    centres = []
+    centres = [s.sphere_centre(i) for i in range(3)]
+    return intersection_stages(centres, s.chain_l_b, -1, "sphere centres S_i, eqs. (3)-(5)")
+
+
+def intersection_stages(centres, radii, side, centre_comment):
+    """The intersection of three spheres (the delta report's method, eqs. (6)-(27), solved
+    as described in the module docstring): one copy of the math for every machine whose
+    direct kinematics is a trilateration (the rotary delta, the linear delta, the tripod).
+
+    ``centres``: three 3-vectors (expressions) assigned to S_1..S_3 in the first stage,
+    whose comment is ``centre_comment``; ``radii``: the three radii (expressions);
+    ``side``: -1 for the intersection below the plane of the centres (lambda e_z < 0, eq.
+    (26)'s minimum z), +1 for the one above, or a symbol holding +-1 (a run-time choice).
+    Assigns S, a, b, e, e_sq, inv_e_sq, x0, h_sq, lambda_, xi, p = (x, y, z) and det_D
+    (det of the rows p - S_i)."""
+    centre_pairs = []
     for i in range(3):
-        centres += list(zip(S[i], s.sphere_centre(i)))
+        centre_pairs += list(zip(S[i], centres[i]))
     edges = list(zip(a, S[1] - S[0])) + list(zip(b, S[2] - S[0]))
-    (n1, d1), (n2, d2) = _centred_planes()
+    (n1, d1), (n2, d2) = _centred_planes(radii)
     cross = list(zip(e, a.cross(b))) + [(e_sq, e.dot(e))]
     reciprocal = [(inv_e_sq, 1 / e_sq)]  # one division, used twice
     # Rows: plane 1, plane 2, and e.xi = 0 (the foot point of the line nearest S_1).
@@ -112,23 +129,28 @@ def fk_stages():
     det_M = sp.factor(M.det().subs({e[0]: a.cross(b)[0], e[1]: a.cross(b)[1], e[2]: a.cross(b)[2]}))
     assert sp.simplify(det_M - 4 * (a.cross(b)).dot(a.cross(b))) == 0
     foot = M.adjugate() * rhs * inv_e_sq / 4
-    foot_point = list(zip(x0, foot)) + [(h_sq, s.chain_l_b[0] ** 2 - x0.dot(x0))]
-    # xi = x0 + lambda e with |xi| = l_b and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
-    # Lower intersection: lambda * e_z < 0 (eq. (26) takes the minimum z).
-    line = [(lam, -CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]
+    foot_point = list(zip(x0, foot)) + [(h_sq, radii[0] ** 2 - x0.dot(x0))]
+    # xi = x0 + lambda e with |xi| = radius_1 and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
+    # side -1: the lower intersection, lambda * e_z < 0 (eq. (26) takes the minimum z).
+    line = [(lam, side * CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]
     # xi = p - S_1 is rod 1's vector C_1 - B_1; the rate kernels build J_p's rows from it
     rod = [(xi[k], x0[k] + lam * e[k]) for k in range(3)]
     position = rod + [(sym, S[0][k] + xi[k]) for k, sym in enumerate((s.x, s.y, s.z))]
     # det of rows (p - S_i) = xi.(a x b) = lambda |e|^2 (rows xi, xi - a, xi - b).
     det_rows = [(det_D, lam * e_sq)]
     return [
-        Stage("sphere centres S_i, eqs. (3)-(5)", tuple(centres)),
+        Stage(centre_comment, tuple(centre_pairs)),
         Stage("edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle", tuple(edges)),
         Stage("e = a x b, normal of the centre plane; its squared length", tuple(cross)),
         Stage("1 / |e|^2 (|e| = 0 only for collinear centres)", tuple(reciprocal)),
         Stage(
             "foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule", tuple(foot_point)
         ),
-        Stage("lower intersection with sphere 1, eqs. (22)-(26)", tuple(line)),
+        Stage(
+            "lower intersection with sphere 1, eqs. (22)-(26)"
+            if side == -1
+            else "chosen intersection with sphere 1 (side), eqs. (22)-(26)",
+            tuple(line),
+        ),
         Stage("platform position p, eq. (27)", tuple(position) + tuple(det_rows)),
     ]
