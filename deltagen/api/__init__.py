@@ -5,5 +5,8 @@ variables); ``validity`` (the finite-output rule at the API: which rows are vali
 INVALID row's error says); ``hints`` (the type aliases of the public API);
 ``workspace`` (the numbers of robot.workspace) and ``sweep`` (deltagen.sweep, on Dask).
 
+``hexapod`` (``Hexapod``, the Stewart-Gough platform: ik, fk by damped Newton in C,
+Jacobian, rates, leg forces, joint limits, workspace grids).
+
 May import: ``solve``, ``plan``, and everything below them.
 """

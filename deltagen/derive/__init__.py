@@ -7,5 +7,7 @@ statements, dynamics). ``kernel`` declares the
 data a derivation hands on (a kernel's ports, stages and status); ``functions`` the few
 SymPy functions beyond SymPy's own.
 
+``hexapod`` (``derive.hexapod``) holds the hexapod's leg kinematics.
+
 May import: ``model``, ``geometry``, the foundation modules.
 """

@@ -7,6 +7,9 @@ axes, planar arms), which both the derivation and the solvers read. Imports into
 ``urdf`` (a URDF chain as universal coordinates), ``coupling`` (URDF ``<mimic>`` joints,
 q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delta geometry).
 
+``hexapod``: the hexapod (Stewart-Gough platform) geometry, LinuxCNC genhexkins' default
+included.
+
 May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
 ``inputs``, ``paths``). Nothing else of deltagen.
 """
