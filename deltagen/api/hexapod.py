@@ -11,8 +11,9 @@ base frame.
 * ``fk``: damped Newton in C (codegen/runtime/deltagen_hexapod_fk.c) from a start pose
   (default: the home pose; ``guess=``: one pose or one per point; ``trajectory=True``: each
   point from the previous solution). Converged means max_i |l_i(pose) - l_i| <= ``tol``
-  (default 1e-9 m), after which the Newton step of that iterate is still taken, so the
-  returned pose reproduces the lengths to rounding (about 1e-15 m); at most ``max_iter``
+  (default 1e-11 m), after which the Newton step of that iterate is still taken, so the
+  returned pose reproduces the lengths to rounding (about 1e-15 m) at well-conditioned
+  poses, and to about ``tol`` near a singularity; at most ``max_iter``
   (default 50) steps. A point that does not converge is UNREACHABLE (or SINGULAR when the
   Jacobian is singular there) and never returned as valid. Newton finds the solution
   nearest the start (in its basin): a general 6-6 platform has up to 40 assembly modes,
@@ -45,7 +46,7 @@ from deltagen.model.hexapod import HexapodGeometry
 from deltagen.status import SINGULAR_TOL
 
 #: fk defaults: tolerance on the leg lengths [m], Newton steps, damping, rotation per step
-FK_TOL = 1e-9
+FK_TOL = 1e-11
 FK_MAX_ITER = 50
 FK_DAMPING = 1.0
 FK_MAX_STEP = 0.5
@@ -165,11 +166,13 @@ class Hexapod:
 
     @staticmethod
     def _bad_input(name: str, rows: np.ndarray) -> InputError:
-        return InputError(
-            f"{name}: a non-finite value or a rotation block that is not a rotation "
-            f"(R R^T = I to 1e-8, det R > 0) in rows {rows_text(rows)}",
-            rows,
+        what = (
+            "a non-finite value, or outputs that overflow"
+            if name == "lengths"
+            else "a non-finite value or a rotation block that is not a rotation "
+            "(R R^T = I to 1e-8, det R > 0)"
         )
+        return InputError(f"{name}: {what} in rows {rows_text(rows)}", rows)
 
     def _finish(self, errors, lead, outs, ok, names, status=None):
         """Reshape outputs to the leading shape; raise or NaN the failing rows."""
