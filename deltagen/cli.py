@@ -425,9 +425,14 @@ def main(argv=None) -> int:
 
 def _evaluate(args, forward: bool) -> int:
     from deltagen.apps import kinematics
-    from deltagen.apps.robots import COUPLED, DELTA, SERIAL
+    from deltagen.apps.robots import COUPLED, DELTA, HEXAPOD, SERIAL, kind_of
 
-    return kinematics.run(_robot(args, kinds=(DELTA, SERIAL, COUPLED)), forward, args)
+    robot = _robot(args, kinds=(DELTA, SERIAL, COUPLED, HEXAPOD))
+    if kind_of(robot) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        return hexapod.run(robot, forward, args)
+    return kinematics.run(robot, forward, args)
 
 
 def _dynamics(args) -> int:

@@ -456,3 +456,31 @@ def test_generated_c_strict_and_under_sanitizers(robot, tmp_path, sanitize):
     rows = [line.split() for line in run.stdout.split("\n") if line]
     assert [int(r[0]) for r in rows] == [st.OK, st.OK, st.INVALID]
     assert max(float(r[1]) for r in rows[:2]) < 1e-12
+
+
+# ----------------------------------------------------------------- the command line
+
+
+def test_cli_fk_ik_of_the_robot_file(capsys, tmp_path):
+    """`deltagen ik` then `deltagen fk` of robots/hexapod_genhex.toml give the pose back;
+    commands that do not serve a hexapod refuse with exit status 2."""
+    from deltagen.cli import main
+
+    robot_file = str(paths.robots_dir() / "hexapod_genhex.toml")
+    poses = tmp_path / "poses.csv"
+    poses.write_text("x,y,z,roll,pitch,yaw\n0.01,-0.02,0.5,0.05,0.02,-0.1\n0,0,0.52,0,0,0\n")
+    lengths = tmp_path / "lengths.csv"
+    assert main(["ik", robot_file, "--input", str(poses), "--output", str(lengths)]) == 0
+    back = tmp_path / "back.csv"
+    assert main(["fk", robot_file, "--input", str(lengths), "--output", str(back)]) == 0
+    table = np.genfromtxt(back, delimiter=",", names=True)
+    got = np.column_stack([table[k] for k in ("x", "y", "z", "roll", "pitch", "yaw")])
+    np.testing.assert_allclose(
+        got, [[0.01, -0.02, 0.5, 0.05, 0.02, -0.1], [0, 0, 0.52, 0, 0, 0]], atol=1e-9
+    )
+    assert main(["fk", robot_file, "0.1", "2", "0.1", "2", "0.1", "2"]) == 1
+    assert main(["workspace", robot_file]) == 2
+    assert (
+        "takes a delta robot or a serial arm; the robot given is a hexapod"
+        in capsys.readouterr().err
+    )

@@ -19,12 +19,14 @@ from typing import Any
 from deltagen.inputs import InputError
 
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+HEXAPOD = "hexapod"
 
 #: How messages name each kind (with an article).
 KIND_NAMES = {
     DELTA: "a delta robot",
     SERIAL: "a serial arm",
     COUPLED: "a serial arm with coupled (URDF <mimic>) joints",
+    HEXAPOD: "a hexapod",
 }
 
 
@@ -32,7 +34,10 @@ def kind_of(robot: Any) -> str:
     """DELTA, SERIAL or COUPLED for a loaded robot."""
     from deltagen.api.coupled import CoupledArm
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.hexapod import Hexapod
 
+    if isinstance(robot, Hexapod):
+        return HEXAPOD
     if isinstance(robot, DeltaRobot):
         return DELTA
     if isinstance(robot, CoupledArm):
@@ -74,7 +79,7 @@ def parse_locked(items: Sequence[str] | None) -> dict[str, float] | None:
 
 
 def file_kind(path: Path) -> str:
-    """ "urdf", "klipper", "serial" or "delta" for a robot file, from its content (the
+    """ "urdf", "klipper", "serial", "hexapod" or "delta" for a robot file, from its content (the
     extension decides only for .urdf and .cfg, and for a file that cannot be read)."""
     suffix = path.suffix.lower()
     if suffix == ".urdf":
@@ -93,6 +98,8 @@ def file_kind(path: Path) -> str:
         if "kinematics:" in text and "[printer]" in text:
             return "klipper"
         return "serial" if "convention" in text and "[delta]" not in text else "delta"
+    if "hexapod" in data and "delta" not in data:
+        return "hexapod"
     if "delta" not in data and ("convention" in data or "joint" in data):
         return "serial"
     return "delta"
@@ -152,6 +159,11 @@ def load_robot(
         if hasattr(robot, "coupling"):
             return type(robot)(robot.full.with_backend(backend), robot.coupling)
         return robot.with_backend(backend)
+    if kind == "hexapod":  # a [hexapod] table (model/hexapod.py)
+        from deltagen.api.hexapod import Hexapod
+
+        _require(command, HEXAPOD, name, kinds)
+        return Hexapod.from_toml(path, backend=backend)
     serial = kind in ("bundled", "serial")
     _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
     if kind == "bundled":
