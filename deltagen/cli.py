@@ -52,7 +52,7 @@ def cmd_generate(args) -> int:
     from deltagen.inputs import InputError
 
     if args.robot_file:
-        from deltagen.apps.robots import COUPLED, SERIAL, kind_of
+        from deltagen.apps.robots import COUPLED, KIND_NAMES, SERIAL, kind_of
 
         args.backend = "reference"  # the module is built below, once
         robot = _robot(args, args.robot_file)
@@ -61,7 +61,7 @@ def cmd_generate(args) -> int:
                 "`deltagen generate ROBOT_FILE` takes a serial arm: a serial-arm file (a "
                 "`convention` key and [[joint]] tables), a URDF or a bundled arm's name; "
                 f"{args.robot_file} "
-                "describes a delta robot, whose core is generic (`deltagen generate` writes it; "
+                f"describes {KIND_NAMES[kind_of(robot)]}, whose core is generic (`deltagen generate` writes it; "
                 f"the geometry is read at run time), so use the file directly: "
                 f"`deltagen fk {args.robot_file} ...`"
             )

@@ -56,7 +56,7 @@ GRIPPER = (
     + "\n</robot>\n"
 )
 
-DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+DELTA, SERIAL, COUPLED, HEXAPOD = "delta", "serial", "coupled", "hexapod"
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +77,7 @@ def robots(tmp_path_factory, repo_root):
             SERIAL,
             4,
         ),
+        "hexapod_toml": ([str(repo_root / "robots" / "hexapod_genhex.toml")], HEXAPOD, 6),
     }
 
 
@@ -84,14 +85,23 @@ KIND_WORDS = {
     DELTA: "a delta robot",
     SERIAL: "a serial arm",
     COUPLED: "a serial arm with coupled",
+    HEXAPOD: "a hexapod",
 }
 
-ROBOTS = ("delta_toml", "klipper_cfg", "bundled_arm", "urdf", "mimic_urdf", "gripper_urdf_tip")
+ROBOTS = (
+    "delta_toml",
+    "klipper_cfg",
+    "bundled_arm",
+    "urdf",
+    "mimic_urdf",
+    "gripper_urdf_tip",
+    "hexapod_toml",
+)
 
 #: command -> the kinds it serves (the others are refused with exit status 2)
 SERVES = {
-    "fk": (DELTA, SERIAL, COUPLED),
-    "ik": (DELTA, SERIAL, COUPLED),
+    "fk": (DELTA, SERIAL, COUPLED, HEXAPOD),
+    "ik": (DELTA, SERIAL, COUPLED, HEXAPOD),
     "dynamics": (DELTA, SERIAL, COUPLED),
     "workspace": (DELTA, SERIAL),
     "export": (DELTA, SERIAL),
@@ -125,6 +135,9 @@ def _command(command, robot_args, kind, n, tmp_path):
     """The argument list of ``command`` on the robot, with tiny inputs."""
     spec, urdf = robot_args[0], robot_args[1:]
     q = _q(kind, n)
+    if kind == HEXAPOD and command in ("fk", "ik"):  # leg lengths [m]; a pose x y z r p y
+        values = [0.76] * 6 if command == "fk" else [0.01, -0.02, 0.5, 0.05, 0.02, -0.1]
+        return [command, spec, *map(str, values), "--backend", "reference"]
     if command == "fk":
         return ["fk", spec, *map(str, q), "--backend", "reference", *urdf]
     if command == "ik":
