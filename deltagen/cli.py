@@ -445,9 +445,14 @@ def _dynamics(args) -> int:
 
 def _workspace(args) -> int:
     from deltagen.apps import workspace
-    from deltagen.apps.robots import DELTA, SERIAL
+    from deltagen.apps.robots import DELTA, HEXAPOD, SERIAL, kind_of
 
-    args.robot_object = _robot(args, kinds=(DELTA, SERIAL))
+    args.robot_object = _robot(args, kinds=(DELTA, SERIAL, HEXAPOD))
+    if kind_of(args.robot_object) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        hexapod.write_workspace(args.robot_object, args.out, args.step, args.quiet)
+        return 0
     return workspace.main(args)
 
 

@@ -103,7 +103,7 @@ SERVES = {
     "fk": (DELTA, SERIAL, COUPLED, HEXAPOD),
     "ik": (DELTA, SERIAL, COUPLED, HEXAPOD),
     "dynamics": (DELTA, SERIAL, COUPLED),
-    "workspace": (DELTA, SERIAL),
+    "workspace": (DELTA, SERIAL, HEXAPOD),
     "export": (DELTA, SERIAL),
     "calibrate": (DELTA,),
     "validate": (DELTA,),

@@ -463,7 +463,8 @@ def test_generated_c_strict_and_under_sanitizers(robot, tmp_path, sanitize):
 
 def test_cli_fk_ik_of_the_robot_file(capsys, tmp_path):
     """`deltagen ik` then `deltagen fk` of robots/hexapod_genhex.toml give the pose back;
-    commands that do not serve a hexapod refuse with exit status 2."""
+    `deltagen workspace` draws its slices; commands that do not serve a hexapod refuse with
+    exit status 2."""
     from deltagen.cli import main
 
     robot_file = str(paths.robots_dir() / "hexapod_genhex.toml")
@@ -479,8 +480,9 @@ def test_cli_fk_ik_of_the_robot_file(capsys, tmp_path):
         got, [[0.01, -0.02, 0.5, 0.05, 0.02, -0.1], [0, 0, 0.52, 0, 0, 0]], atol=1e-9
     )
     assert main(["fk", robot_file, "0.1", "2", "0.1", "2", "0.1", "2"]) == 1
-    assert main(["workspace", robot_file]) == 2
-    assert (
-        "takes a delta robot or a serial arm; the robot given is a hexapod"
-        in capsys.readouterr().err
-    )
+    assert main(["validate", "--robot", robot_file]) == 2
+    assert "the robot given is a hexapod" in capsys.readouterr().err
+    assert main(["workspace", robot_file, "--out", str(tmp_path / "ws"), "--quiet"]) == 0
+    assert (tmp_path / "ws" / "workspace_slices.png").stat().st_size > 10_000
+    summary = (tmp_path / "ws" / "workspace_summary.csv").read_text()
+    assert "position_reachable_fraction" in summary

@@ -96,3 +96,94 @@ def run(robot, forward: bool, args) -> int:
         else:
             print("l = [" + ", ".join(f"{v:.12g}" for v in row) + "] m")
     return 0
+
+
+def write_workspace(robot, out, step=None, quiet=False) -> list:
+    """`deltagen workspace HEXAPOD.toml`: the position workspace at R = I over a box around
+    the home position (edge ``step``, default size / 20) and the orientation workspace
+    (roll x pitch, yaw 0, +-45 deg) at the home position, drawn as PNG slices coloured by the
+    condition number of J (grey: not reachable), and the summary numbers as CSV. Returns
+    the files written."""
+    import csv
+    from pathlib import Path
+
+    from deltagen.apps.plotting import pyplot
+
+    g = robot.geometry
+    size = g.size
+    step = size / 20 if step is None else step
+    if not (math.isfinite(step) and step > 0):
+        raise InputError(f"--step must be a positive length [m], got {step}")
+    half = 0.6 * size
+    x = np.arange(-half, half + step / 2, step)
+    hz = np.array(g.home_position)
+    z = np.arange(max(hz[2] - half, step), hz[2] + half + step / 2, step)
+    if x.size * x.size * z.size > 2_000_000:
+        raise InputError(f"--step {step} m gives more than 2e6 grid points; use a larger step")
+    ws = robot.position_workspace(x + hz[0], x + hz[1], z)
+    angles = np.radians(np.linspace(-45, 45, 61))
+    ows = robot.orientation_workspace(angles, angles, [0.0])
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plt = pyplot()
+    zi = np.flatnonzero(ws.reachable.any(axis=(0, 1)))
+    if zi.size == 0:
+        raise DeltagenError("no pose of the grid is reachable: no slices to draw")
+    levels = np.unique(np.linspace(zi.min(), zi.max(), 5).round().astype(int)[1:-1])
+    finite = ws.condition[np.isfinite(ws.condition)]
+    vmax = float(finite.max()) if finite.size else 2.0
+    fig, axes = plt.subplots(
+        1, len(levels) + 1, figsize=(3.6 * (len(levels) + 1) + 1, 3.8), layout="constrained"
+    )
+    cmap = plt.get_cmap("viridis").copy()
+    cmap.set_bad("0.85")
+    im = None
+    for ax, k in zip(axes[:-1], levels):
+        im = ax.imshow(
+            ws.condition[:, :, k].T,
+            origin="lower",
+            cmap=cmap,
+            vmin=1,
+            vmax=vmax,
+            extent=(ws.axes[0][0], ws.axes[0][-1], ws.axes[1][0], ws.axes[1][-1]),
+        )
+        ax.set_title(f"z = {ws.axes[2][k]:.3f} m, R = I")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    deg = np.degrees(angles)
+    im = axes[-1].imshow(
+        ows.condition[:, :, 0].T,
+        origin="lower",
+        cmap=cmap,
+        vmin=1,
+        vmax=vmax,
+        extent=(deg[0], deg[-1], deg[0], deg[-1]),
+    )
+    axes[-1].set_title("orientations at home, yaw = 0")
+    axes[-1].set_xlabel("roll [deg]")
+    axes[-1].set_ylabel("pitch [deg]")
+    fig.colorbar(im, ax=axes, label="condition number of J (grey: not reachable)")
+    fig.suptitle(f"deltagen workspace: hexapod {g.name} (leg limits, joint cones, cond(J))")
+    slices = out / "workspace_slices.png"
+    fig.savefig(slices, dpi=110)
+    plt.close(fig)
+    summary = {
+        "grid_step_m": step,
+        "position_points": ws.reachable.size,
+        "position_reachable_fraction": ws.fraction,
+        "position_reachable_volume_m3": float(ws.reachable.sum()) * step**3,
+        "orientation_reachable_fraction": ows.fraction,
+        "best_condition": float(np.nanmin(ws.condition)) if finite.size else math.nan,
+    }
+    table = out / "workspace_summary.csv"
+    with table.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["quantity", "value"])
+        for key, value in summary.items():
+            w.writerow([key, repr(float(value))])
+    if not quiet:
+        for key, value in summary.items():
+            print(f"{key:>32}  {value:.6g}")
+        for p in (slices, table):
+            print(f"wrote {p}")
+    return [slices, table]
