@@ -458,11 +458,29 @@ def _workspace(args) -> int:
 
 def _export(args) -> int:
     from deltagen.apps import export
-    from deltagen.apps.robots import DELTA, SERIAL
+    from deltagen.apps.robots import DELTA, HEXAPOD, SERIAL, kind_of
+    from deltagen.inputs import InputError
 
     args.backend = "reference"  # only the description is needed: no compiled core
     name = args.robot
-    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=(DELTA, SERIAL))
+    kinds = (DELTA, SERIAL, HEXAPOD)
+    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=kinds)
+    if kind_of(args.robot_object) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        for flag, value in (
+            ("--float32", args.float32),
+            ("--prefix", args.prefix),
+            ("--no-batch", args.no_batch),
+        ):
+            if value:
+                raise InputError(f"{flag} is not available for a hexapod's export")
+        files, output = hexapod.export_hexapod(args.robot_object, args.out, force=args.force)
+        print(f"wrote {len(files)} files to {args.out}/: {', '.join(files)}")
+        if output:
+            print("example output:")
+            print(output, end="")
+        return 0
     return export.main(args)
 
 

@@ -104,7 +104,7 @@ SERVES = {
     "ik": (DELTA, SERIAL, COUPLED, HEXAPOD),
     "dynamics": (DELTA, SERIAL, COUPLED),
     "workspace": (DELTA, SERIAL, HEXAPOD),
-    "export": (DELTA, SERIAL),
+    "export": (DELTA, SERIAL, HEXAPOD),
     "calibrate": (DELTA,),
     "validate": (DELTA,),
     "generate": (SERIAL, COUPLED),
@@ -165,7 +165,8 @@ def _command(command, robot_args, kind, n, tmp_path):
         out = str(tmp_path / "ws")
         return ["workspace", spec, "--out", out, "--step", step, "--quiet", "--backend", "reference", *urdf]  # fmt: skip
     if command == "export":
-        return ["export", spec, "--out", str(tmp_path / "export"), "--no-batch", *urdf]
+        batch = [] if kind == HEXAPOD else ["--no-batch"]  # a hexapod exports its batched C
+        return ["export", spec, "--out", str(tmp_path / "export"), *batch, *urdf]
     if command == "calibrate":
         data = tmp_path / "measured.csv"
         if kind == DELTA:

@@ -486,3 +486,29 @@ def test_cli_fk_ik_of_the_robot_file(capsys, tmp_path):
     assert (tmp_path / "ws" / "workspace_slices.png").stat().st_size > 10_000
     summary = (tmp_path / "ws" / "workspace_summary.csv").read_text()
     assert "position_reachable_fraction" in summary
+
+
+@pytest.mark.skipif(GCC is None, reason="gcc not installed")
+def test_export_builds_and_its_example_agrees(robot, tmp_path, capsys):
+    """`deltagen export` of the robot file writes a C package whose example, built with
+    make, prints the leg lengths deltagen computes for the example's pose and fk's
+    answer (the pose's position)."""
+    from deltagen.apps.hexapod import EXAMPLE_POSITION, EXAMPLE_RPY
+    from deltagen.cli import main
+
+    out = tmp_path / "export"
+    robot_file = str(paths.robots_dir() / "hexapod_genhex.toml")
+    assert main(["export", robot_file, "--out", str(out)]) == 0
+    assert main(["export", robot_file, "--out", str(out), "--float32"]) == 2
+    capsys.readouterr()
+    built = subprocess.run(["make", "-s"], cwd=out, capture_output=True, text=True, timeout=300)
+    assert built.returncode == 0, built.stderr
+    run = subprocess.run(["./example"], cwd=out, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    ik_line, fk_line = run.stdout.splitlines()
+    position = np.add(robot.geometry.home_position, EXAMPLE_POSITION)
+    expected = robot.ik(robot.pose(position, rpy=EXAMPLE_RPY))
+    printed = np.array([float(v) for v in ik_line.split("=")[1].split()[:6]])
+    np.testing.assert_allclose(printed, expected, atol=1e-9)
+    found = np.array([float(v) for v in fk_line.split("=")[1].split()[:3]])
+    np.testing.assert_allclose(found, position, atol=1e-9)

@@ -187,3 +187,67 @@ def write_workspace(robot, out, step=None, quiet=False) -> list:
         for p in (slices, table):
             print(f"wrote {p}")
     return [slices, table]
+
+
+#: the pose of the exported example: a shifted, tilted platform [m, rad]
+EXAMPLE_POSITION = (0.01, -0.02, 0.0)  # added to the home position
+EXAMPLE_RPY = (0.05, 0.02, -0.1)
+
+
+def export_hexapod(robot, out, force: bool = False) -> tuple[list, str | None]:
+    """`deltagen export HEXAPOD.toml --out DIR`: the hexapod's generated C (as in
+    generated/), the runtime C it includes (deltagen_hexapod_fk, deltagen_linalg), an
+    example.c with this robot's numbers (ik of one pose, fk of its lengths from home), a
+    Makefile and a CMakeLists.txt; with a C compiler the example is built and run. Returns
+    (files written, the example's output or None)."""
+    from pathlib import Path
+
+    from deltagen.apps.export import ExportError, build_and_measure, compiler
+    from deltagen.codegen.export import render_extra
+    from deltagen.codegen.hexapod import UNIT
+    from deltagen.native.build import runtime_files
+    from deltagen.native.hexapod import geometry_struct
+    from deltagen.paths import generated_dir
+
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not force)):
+        raise ExportError(f"--out {out} exists and is not an empty folder (--force overwrites)")
+    files = {}
+    for ext in (".c", ".h"):
+        name = f"{UNIT.base_name}{ext}"
+        files[name] = (generated_dir() / name).read_text()
+    for path in runtime_files(list(files.values())):
+        files[path.name] = path.read_text()
+    values = []
+    for name, value in geometry_struct(robot.geometry).items():
+        if isinstance(value, list):
+            values.append((name, "{" + ", ".join(repr(float(v)) for v in value) + "}"))
+        else:
+            values.append((name, repr(float(value))))
+    g = robot.geometry
+    pose = robot.pose(np.add(g.home_position, EXAMPLE_POSITION), rpy=EXAMPLE_RPY)
+    sources = sorted(n for n in files if n.endswith(".c"))
+    common = dict(
+        robot_name=f"hexapod '{g.name}'",
+        library=UNIT.prefix,
+        sources=sources,
+        prefix=UNIT.prefix,
+        header=f"{UNIT.base_name}.h",
+    )
+    files["example.c"] = render_extra(
+        "hexapod_example.c",
+        "double",
+        **common,
+        struct_name=UNIT.struct_name,
+        struct_values=values,
+        pose=[repr(float(v)) for v in pose.reshape(-1)],
+        home=[repr(float(v)) for v in robot.home.reshape(-1)],
+    )
+    files["Makefile"] = render_extra("Makefile", "double", **common)
+    files["CMakeLists.txt"] = render_extra("CMakeLists.txt", "double", **common)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, text in files.items():
+        (out / name).write_text(text)
+    cc = compiler()
+    output = build_and_measure(out, sources, cc)[1] if cc else None
+    return sorted(files), output
