@@ -433,7 +433,7 @@ class Hexapod:
         T = self.pose(np.broadcast_to(np.asarray(p, dtype=float), A.shape), rpy=A)
         return self._workspace(T, axes, ("roll [rad]", "pitch [rad]", "yaw [rad]"))
 
-    def _workspace(self, T, axes, labels) -> HexapodWorkspace:
+    def _workspace(self, T: np.ndarray, axes: list, labels: tuple) -> HexapodWorkspace:
         limits = self.limits(T)
         cond = self.condition(T, errors="nan")[0]
         return HexapodWorkspace(

@@ -66,7 +66,7 @@ _HEXAPOD_KEYS = {
 _TOP_KEYS = {"name", "kind", "hexapod"}
 
 
-def _points(value: Any, where: str) -> tuple[tuple[float, float, float], ...]:
+def _points(value: Any, where: str) -> tuple[tuple[float, ...], ...]:
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if not isinstance(value, list | tuple) or len(value) != LEGS:
@@ -163,8 +163,8 @@ class HexapodGeometry:
     def genhexkins(cls) -> HexapodGeometry:
         """LinuxCNC genhexkins.h's default joints [inch -> m], home 20 in above the base."""
         return cls(
-            base_joints=np.array(GENHEXKINS_BASE_INCH) * INCH,
-            platform_joints=np.array(GENHEXKINS_PLATFORM_INCH) * INCH,
+            base_joints=tuple(tuple(x * INCH for x in p) for p in GENHEXKINS_BASE_INCH),
+            platform_joints=tuple(tuple(x * INCH for x in p) for p in GENHEXKINS_PLATFORM_INCH),
             leg_limits=(0.60, 0.95),
             base_cone=math.radians(75.0),
             platform_cone=math.radians(75.0),
