@@ -135,8 +135,7 @@ def write_workspace(robot, out, step=None, quiet=False) -> list:
     fig, axes = plt.subplots(
         1, len(levels) + 1, figsize=(3.6 * (len(levels) + 1) + 1, 3.8), layout="constrained"
     )
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")  # grey: not reachable
     im = None
     for ax, k in zip(axes[:-1], levels):
         im = ax.imshow(
