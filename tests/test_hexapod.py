@@ -512,3 +512,18 @@ def test_export_builds_and_its_example_agrees(robot, tmp_path, capsys):
     np.testing.assert_allclose(printed, expected, atol=1e-9)
     found = np.array([float(v) for v in fk_line.split("=")[1].split()[:3]])
     np.testing.assert_allclose(found, position, atol=1e-9)
+
+
+def test_threads_give_the_bits_of_one_thread():
+    """A batch split across threads (native.parallel, at 40,000 rows and more) gives the
+    single-threaded bits, fk included (each point iterates on its own)."""
+    one = Hexapod.genhexkins()
+    one._core.threads = 1
+    two = Hexapod.genhexkins()
+    two._core.threads = 2
+    T = random_poses(one, 45_000, seed=31)
+    lengths = one.ik(T)
+    assert np.array_equal(lengths, two.ik(T))
+    assert np.array_equal(one.jacobian(T), two.jacobian(T))
+    a, b = one.fk_result(lengths[:41_000]), two.fk_result(lengths[:41_000])
+    assert np.array_equal(a.status, b.status) and np.array_equal(a.pose, b.pose, equal_nan=True)
