@@ -181,6 +181,50 @@ def test_fk_ik_round_trips(robot, reachable):
     assert result.residual.max() <= 1e-11 and result.iterations.max() <= 50
 
 
+def linuxcnc_forward(base, platform, lengths, xyz, abc_deg, criterion=1e-13, limit=500):
+    """genhexkins.c's genhexKinematicsForward, rewritten: Newton-Raphson from the pose
+    (xyz, abc) on the strut lengths, its inverse Jacobian rows (u_i, (R a_i) x u_i),
+    subtracting J^-1 (l(pose) - l) from the position and the roll-pitch-yaw angles
+    themselves, until every |strut length difference| <= criterion (None after ``limit``
+    iterations)."""
+    q = np.array(xyz, dtype=float)
+    rpy = np.radians(abc_deg)
+    for _ in range(limit):
+        R = Hexapod.pose([0, 0, 0], rpy=rpy)[:3, :3]
+        rows, diff = [], []
+        for a, b, length in zip(platform, base, lengths):
+            ra = R @ np.array(a)
+            strut = q + ra - np.array(b)
+            unit = strut / np.linalg.norm(strut)
+            diff.append(np.linalg.norm(strut) - length)
+            rows.append([*unit, *np.cross(ra, unit)])
+        delta = np.linalg.solve(np.array(rows), np.array(diff))
+        q -= delta[:3]
+        rpy -= delta[3:]
+        if np.all(np.abs(diff) <= criterion):
+            return q, np.degrees(rpy)
+    return None
+
+
+def test_fk_is_linuxcncs_forward():
+    """Compiled fk against genhexkins' forward iteration rewritten above, both from the
+    same start (20 in above the base, level), in LinuxCNC's units (inch, degrees)."""
+    hexapod = Hexapod(LINUXCNC_BASE, LINUXCNC_PLATFORM, home_position=(0, 0, 20))
+    rng = np.random.default_rng(13)
+    for _ in range(20):
+        xyz = rng.uniform([-3, -3, 17], [3, 3, 23])
+        abc = rng.uniform(-10, 10, 3)
+        lengths = linuxcnc_inverse(LINUXCNC_BASE, LINUXCNC_PLATFORM, xyz, abc)
+        found = linuxcnc_forward(LINUXCNC_BASE, LINUXCNC_PLATFORM, lengths, [0, 0, 20], [0, 0, 0])
+        assert found is not None
+        T = hexapod.fk(lengths)
+        np.testing.assert_allclose(T[:3, 3], found[0], rtol=0, atol=1e-10)
+        np.testing.assert_allclose(
+            T[:3, :3], hexapod.pose([0, 0, 0], rpy=np.radians(found[1]))[:3, :3], atol=1e-11
+        )
+        np.testing.assert_allclose(T[:3, 3], xyz, rtol=0, atol=1e-10)
+
+
 def test_fk_matches_the_reference_solver(robot, reference, reachable):
     """The C damped Newton and SciPy's least squares (reference) reach the same pose."""
     lengths = robot.ik(reachable[:15])
