@@ -1,6 +1,7 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
 from deltagen.api.delta import DeltaInertia, DeltaRobot
+from deltagen.api.hexapod import Hexapod
 from deltagen.api.linear_delta import LinearDelta, Tripod
 from deltagen.api.serial import SerialRobot
 from deltagen.api.sweep import SweepResult, SweepSpec, sweep
@@ -16,6 +17,7 @@ __all__ = [
     "DeltaInertia",
     "DeltaRobot",
     "GeometryError",
+    "Hexapod",
     "IncompleteSolutionsWarning",
     "InputError",
     "LinearDelta",

@@ -453,10 +453,14 @@ def _main(argv=None) -> int:
 
 def _evaluate(args, forward: bool) -> int:
     from deltagen.apps import kinematics
-    from deltagen.apps.robots import COUPLED, DELTA, LINEAR_DELTA, SERIAL, TRIPOD
+    from deltagen.apps.robots import COUPLED, DELTA, HEXAPOD, LINEAR_DELTA, SERIAL, TRIPOD, kind_of
 
-    kinds = (DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD)
-    return kinematics.run(_robot(args, kinds=kinds), forward, args)
+    robot = _robot(args, kinds=(DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD, HEXAPOD))
+    if kind_of(robot) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        return hexapod.run(robot, forward, args)
+    return kinematics.run(robot, forward, args)
 
 
 def _dynamics(args) -> int:
@@ -469,20 +473,42 @@ def _dynamics(args) -> int:
 
 def _workspace(args) -> int:
     from deltagen.apps import workspace
-    from deltagen.apps.robots import DELTA, LINEAR_DELTA, SERIAL, TRIPOD
+    from deltagen.apps.robots import DELTA, HEXAPOD, LINEAR_DELTA, SERIAL, TRIPOD, kind_of
 
-    args.robot_object = _robot(args, kinds=(DELTA, SERIAL, LINEAR_DELTA, TRIPOD))
+    args.robot_object = _robot(args, kinds=(DELTA, SERIAL, LINEAR_DELTA, TRIPOD, HEXAPOD))
+    if kind_of(args.robot_object) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        hexapod.write_workspace(args.robot_object, args.out, args.step, args.quiet)
+        return 0
     return workspace.main(args)
 
 
 def _export(args) -> int:
     from deltagen.apps import export
-    from deltagen.apps.robots import DELTA, LINEAR_DELTA, SERIAL, TRIPOD
+    from deltagen.apps.robots import DELTA, HEXAPOD, LINEAR_DELTA, SERIAL, TRIPOD, kind_of
+    from deltagen.inputs import InputError
 
     args.backend = "reference"  # only the description is needed: no compiled core
     name = args.robot
-    kinds = (DELTA, SERIAL, LINEAR_DELTA, TRIPOD)
+    kinds = (DELTA, SERIAL, LINEAR_DELTA, TRIPOD, HEXAPOD)
     args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=kinds)
+    if kind_of(args.robot_object) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        for flag, value in (
+            ("--float32", args.float32),
+            ("--prefix", args.prefix),
+            ("--no-batch", args.no_batch),
+        ):
+            if value:
+                raise InputError(f"{flag} is not available for a hexapod's export")
+        files, output = hexapod.export_hexapod(args.robot_object, args.out, force=args.force)
+        print(f"wrote {len(files)} files to {args.out}/: {', '.join(files)}")
+        if output:
+            print("example output:")
+            print(output, end="")
+        return 0
     return export.main(args)
 
 

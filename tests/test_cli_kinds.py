@@ -58,7 +58,7 @@ GRIPPER = (
     + "\n</robot>\n"
 )
 
-DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+DELTA, SERIAL, COUPLED, HEXAPOD = "delta", "serial", "coupled", "hexapod"
 LINEAR, TRIPOD = "linear_delta", "tripod"
 
 
@@ -84,6 +84,7 @@ def robots(tmp_path_factory, repo_root):
         "linear_delta_toml": ([str(repo_root / "robots" / "linear_delta.toml")], LINEAR, 3),
         "linear_delta_cfg": ([str(folder / "linear_delta.cfg")], LINEAR, 3),
         "tripod_toml": ([str(repo_root / "robots" / "tripod.toml")], TRIPOD, 3),
+        "hexapod_toml": ([str(repo_root / "robots" / "hexapod_genhex.toml")], HEXAPOD, 6),
     }
 
 
@@ -93,6 +94,7 @@ KIND_WORDS = {
     COUPLED: "a serial arm with coupled",
     LINEAR: "a linear delta",
     TRIPOD: "a tripod",
+    HEXAPOD: "a hexapod",
 }
 
 ROBOTS = (
@@ -105,15 +107,16 @@ ROBOTS = (
     "linear_delta_toml",
     "linear_delta_cfg",
     "tripod_toml",
+    "hexapod_toml",
 )
 
 #: command -> the kinds it serves (the others are refused with exit status 2)
 SERVES = {
-    "fk": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD),
-    "ik": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD),
+    "fk": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD, HEXAPOD),
+    "ik": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD, HEXAPOD),
     "dynamics": (DELTA, SERIAL, COUPLED),
-    "workspace": (DELTA, SERIAL, LINEAR, TRIPOD),
-    "export": (DELTA, SERIAL, LINEAR, TRIPOD),
+    "workspace": (DELTA, SERIAL, LINEAR, TRIPOD, HEXAPOD),
+    "export": (DELTA, SERIAL, LINEAR, TRIPOD, HEXAPOD),
     "calibrate": (DELTA,),
     "validate": (DELTA,),
     "generate": (SERIAL, COUPLED),
@@ -154,6 +157,9 @@ def _command(command, robot_args, kind, n, tmp_path):
     """The argument list of ``command`` on the robot, with tiny inputs."""
     spec, urdf = robot_args[0], robot_args[1:]
     q = _q(kind, n)
+    if kind == HEXAPOD and command in ("fk", "ik"):  # leg lengths [m]; a pose x y z r p y
+        values = [0.76] * 6 if command == "fk" else [0.01, -0.02, 0.5, 0.05, 0.02, -0.1]
+        return [command, spec, *map(str, values), "--backend", "reference"]
     if command == "fk":
         return ["fk", spec, *map(str, q), "--backend", "reference", *urdf]
     if command == "ik":
@@ -183,7 +189,8 @@ def _command(command, robot_args, kind, n, tmp_path):
         out = str(tmp_path / "ws")
         return ["workspace", spec, "--out", out, "--step", step, "--quiet", "--backend", "reference", *urdf]  # fmt: skip
     if command == "export":
-        return ["export", spec, "--out", str(tmp_path / "export"), "--no-batch", *urdf]
+        batch = [] if kind == HEXAPOD else ["--no-batch"]  # a hexapod exports its batched C
+        return ["export", spec, "--out", str(tmp_path / "export"), *batch, *urdf]
     if command == "calibrate":
         data = tmp_path / "measured.csv"
         if kind == DELTA:

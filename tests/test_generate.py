@@ -34,6 +34,8 @@ NAMES = (
         for ext in (".c", ".h", ".cdef.h")
     )
 )
+# the parallel-kinematics families, one module each (geometry in a run-time struct)
+NAMES += ("hexapod_kinematics.c", "hexapod_kinematics.h", "hexapod_kinematics.cdef.h")
 
 
 @pytest.fixture(scope="module")

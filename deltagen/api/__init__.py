@@ -6,5 +6,8 @@ INVALID row's error says); ``hints`` (the type aliases of the public API);
 ``workspace`` (the numbers of robot.workspace) and ``sweep`` (deltagen.sweep, on Dask);
 ``linear_delta`` (``LinearDelta`` and ``Tripod``, the three-sphere machines).
 
+``hexapod`` (``Hexapod``, the Stewart-Gough platform: ik, fk by damped Newton in C,
+Jacobian, rates, leg forces, joint limits, workspace grids).
+
 May import: ``solve``, ``plan``, and everything below them.
 """

@@ -4,7 +4,8 @@
 of one pose or a batch), ``tables`` (the one CSV/NPY reader and writer of batches, columns
 by name), ``dynamics`` (motor sizing along a trajectory), ``calibrate`` (a built delta's
 geometry from measured pairs), ``export`` (a self-contained C package for a controller) and
-``plotting`` (the one module that imports matplotlib); ``robots`` is the one loader every
+``plotting`` (the one module that imports matplotlib); ``hexapod`` (`deltagen fk|ik|workspace|export`
+of a hexapod robot file); ``robots`` is the one loader every
 command takes its robot from (the kind decided from the file, the URDF options).
 
 ``deltagen bench`` is ``bench`` (throughput and one-pose latency) with its sections and

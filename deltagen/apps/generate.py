@@ -28,6 +28,9 @@ def generated_files() -> dict[str, str]:
         files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
     for name in bundled_urdfs():
         files.update(arm_sources(description_from_urdf(robots_dir() / f"{name}.urdf", name=name)))
+    from deltagen.codegen.hexapod import hexapod_sources
+
+    files.update(hexapod_sources())
     return files
 
 

@@ -22,6 +22,7 @@ from deltagen.inputs import InputError, read_regular_file
 
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
 LINEAR_DELTA, TRIPOD = "linear_delta", "tripod"
+HEXAPOD = "hexapod"
 
 #: How messages name each kind (with an article).
 KIND_NAMES = {
@@ -30,6 +31,7 @@ KIND_NAMES = {
     COUPLED: "a serial arm with coupled (URDF <mimic>) joints",
     LINEAR_DELTA: "a linear delta",
     TRIPOD: "a tripod",
+    HEXAPOD: "a hexapod",
 }
 
 
@@ -43,7 +45,10 @@ def kind_of(robot: Any) -> str:
         return LINEAR_DELTA
     if isinstance(robot, Tripod):
         return TRIPOD
+    from deltagen.api.hexapod import Hexapod
 
+    if isinstance(robot, Hexapod):
+        return HEXAPOD
     if isinstance(robot, DeltaRobot):
         return DELTA
     if isinstance(robot, CoupledArm):
@@ -85,8 +90,8 @@ def parse_locked(items: Sequence[str] | None) -> dict[str, float] | None:
 
 
 def file_kind(path: Path) -> str:
-    """ "urdf", "klipper", "serial", "linear_delta", "tripod" or "delta" for a robot file,
-    from its content (the extension decides only for .urdf and .cfg, and for a file that
+    """ "urdf", "klipper", "serial", "linear_delta", "tripod", "hexapod" or "delta" for a robot
+    file, from its content (the extension decides only for .urdf and .cfg, and for a file that
     cannot be read)."""
     suffix = path.suffix.lower()
     if suffix == ".urdf":
@@ -105,6 +110,8 @@ def file_kind(path: Path) -> str:
         if "kinematics:" in text and "[printer]" in text:
             return "klipper"
         return "serial" if "convention" in text and "[delta]" not in text else "delta"
+    if "hexapod" in data and "delta" not in data:
+        return "hexapod"
     if "delta" not in data and ("convention" in data or "joint" in data):
         return "serial"
     for table in (LINEAR_DELTA, TRIPOD):
@@ -179,6 +186,11 @@ def load_robot(
         if kind == "klipper_linear_delta":
             return LinearDelta.from_klipper(path, backend=backend)
         return (Tripod if kind == TRIPOD else LinearDelta).from_toml(path, backend=backend)
+    if kind == "hexapod":  # a [hexapod] table (model/hexapod.py)
+        from deltagen.api.hexapod import Hexapod
+
+        _require(command, HEXAPOD, name, kinds)
+        return Hexapod.from_toml(path, backend=backend)
     serial = kind in ("bundled", "serial")
     _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
     if kind == "bundled":

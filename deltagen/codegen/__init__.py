@@ -6,5 +6,8 @@ writes the C package of `deltagen export` (the batched module, single-point func
 the files around them). ``templates/`` holds layout only; ``runtime`` (a package of C
 files, no Python) holds hand-written C compiled beside each module.
 
+``hexapod`` is the hexapod's module (its kernels and the fk wrapper of
+runtime/deltagen_hexapod_fk.c).
+
 May import: ``derive``, ``model``, ``geometry``, the foundation modules.
 """

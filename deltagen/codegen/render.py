@@ -76,6 +76,9 @@ class Unit:
         None  # {n, revolute}: emit <prefix>_ik_newton, the wrapper of runtime/deltagen_ik_newton.c
     )
     dynamics: dict | None = None  # {n}: emit <prefix>_forward_dynamics (runtime Cholesky)
+    # further functions of the module, each from the templates <name>.c.j2 and <name>.h.j2
+    # (the hexapod's fk wrapper of its runtime solver)
+    extras: tuple = ()
 
 
 def _columns(port):
@@ -301,6 +304,7 @@ def render_context(unit: Unit, lowered: list) -> tuple[jinja2.Environment, dict]
         block=unit.block,
         newton=newton,
         dynamics=dynamics,
+        extras=unit.extras,
         real=real_type,
         real_bytes=real_bytes,
         zero=zero,

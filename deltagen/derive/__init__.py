@@ -8,5 +8,7 @@ the tripod, whose direct kinematics reuse the delta's sphere intersection. ``ker
 data a derivation hands on (a kernel's ports, stages and status); ``functions`` the few
 SymPy functions beyond SymPy's own.
 
+``hexapod`` (``derive.hexapod``) holds the hexapod's leg kinematics.
+
 May import: ``model``, ``geometry``, the foundation modules.
 """

@@ -8,6 +8,9 @@ axes, planar arms), which both the derivation and the solvers read. Imports into
 q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delta geometry, and a linear delta's).
 ``linear_delta`` holds the linear delta's and the tripod's geometry.
 
+``hexapod``: the hexapod (Stewart-Gough platform) geometry, LinuxCNC genhexkins' default
+included.
+
 May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
 ``inputs``, ``paths``). Nothing else of deltagen.
 """

@@ -7,5 +7,7 @@ general-6R inverse kinematics, one module for every arm). The speed guards' meas
 ``vectorisation`` (which loops gcc vectorises, from its own report) and ``instructions``
 (instructions per point under callgrind).
 
+``hexapod`` wraps the hexapod core (``CompiledHexapod``).
+
 May import: ``codegen``, ``derive``, ``model``, ``geometry``, the foundation modules.
 """

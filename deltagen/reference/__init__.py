@@ -2,5 +2,7 @@
 from the model (``delta``, ``serial``, ``linear_delta``: the linear delta and the
 tripod), never from the derivation.
 
+``hexapod`` is the hexapod in numpy (homogeneous transforms, SciPy least squares for fk).
+
 May import: ``model``, ``geometry``, the foundation modules.
 """

@@ -8,5 +8,8 @@ only: encoder readings <-> crank angles of a delta robot with encoder offsets, c
 wrappers of `deltagen export`, templates/robot.c.j2), and ``deltagen_general6r`` with
 ``deltagen_eigen`` (the eigen step of the general-6R inverse kinematics, native/general6r.py).
 
+``deltagen_hexapod_fk`` is the hexapod's forward kinematics by damped Newton, called by the
+generated ``deltagen_hexapod_fk`` wrapper with the module's jacobian kernel.
+
 Generated code calls runtime code, never the other way. No Python lives here.
 """

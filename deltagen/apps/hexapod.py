@@ -1,0 +1,252 @@
+"""`deltagen fk | ik HEXAPOD.toml ...` for a hexapod (Stewart-Gough platform): one pose as
+values or a batch (``--input`` CSV/NPY, :mod:`deltagen.apps.tables`).
+
+==============  ============================  ==============================================
+command         reads                         writes
+==============  ============================  ==============================================
+hexapod fk      l1 .. l6                      x,y,z,roll,pitch,yaw,T11 .. T44,valid
+hexapod ik      x,y,z,roll,pitch,yaw          l1 .. l6,valid
+==============  ============================  ==============================================
+
+Units: m and rad; R = Rz(yaw) Ry(pitch) Rx(roll). fk starts from the robot file's home
+pose (damped Newton, deltagen.api.hexapod). Exit status: 0 every pose computed; 1 some rows
+have no valid result (NaN, valid = 0); 2 usage or input error.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+
+from deltagen.apps.tables import Columns, output_format, read_table, write_table
+from deltagen.errors import DeltagenError
+from deltagen.geometry.rotations import rpy
+from deltagen.inputs import InputError
+
+LENGTHS = tuple(f"l{i + 1}" for i in range(6))
+POSE = ("x", "y", "z", "roll", "pitch", "yaw")
+TRANSFORM = tuple(f"T{r}{c}" for r in range(1, 5) for c in range(1, 5))
+
+
+def _compute(robot, forward: bool, x: np.ndarray):
+    with np.errstate(all="ignore"):
+        if forward:
+            T, valid = robot.fk(x, errors="nan")
+            out = np.column_stack([T[:, :3, 3], rpy(T[:, :3, :3]), T.reshape(-1, 16)])
+            names = POSE + TRANSFORM
+        else:
+            out, valid = robot.ik(robot.pose(x[:, :3], rpy=x[:, 3:]), errors="nan")
+            names = LENGTHS
+    valid = np.asarray(valid, dtype=bool) & np.all(np.isfinite(out), axis=1)
+    out[~valid] = np.nan
+    return out, valid, names
+
+
+def run(robot, forward: bool, args) -> int:
+    """The job of `deltagen fk|ik` for a hexapod; returns the exit status."""
+    for flag in ("config", "q0", "method", "restarts"):
+        if getattr(args, flag, None) is not None:
+            raise InputError(f"--{flag} applies to serial arms, not to a hexapod")
+    if getattr(args, "degrees", False):
+        raise InputError("--degrees applies to joint angles; a hexapod's joints are lengths [m]")
+    what = f"{'fk' if forward else 'ik'} of the hexapod {robot.geometry.name}"
+    layout = Columns(LENGTHS if forward else POSE)
+    if args.output is not None:
+        output_format(args.output)
+    if args.input is not None:
+        if args.values:
+            raise InputError("give the poses either as values or with --input, not both")
+        x, _, _ = read_table(args.input, [layout], what)
+    else:
+        values = list(args.values)
+        if len(values) != 6:
+            expected = "6 leg lengths l1 .. l6 [m]" if forward else "x y z roll pitch yaw (m, rad)"
+            raise InputError(f"{what}: give {expected}; got {len(values)} values")
+        if not all(math.isfinite(v) for v in values):
+            raise InputError(f"{what}: every value must be a finite number")
+        x = np.array([values], dtype=np.float64)
+    out, valid, names = _compute(robot, forward, x)
+    if args.input is not None or args.output is not None:
+        write_table(args.output if args.output is not None else sys.stdout, names, out, valid)
+    bad = np.flatnonzero(~valid)
+    if bad.size:
+        try:
+            (
+                robot.fk(x[bad[:1]])
+                if forward
+                else robot.ik(robot.pose(x[bad[:1], :3], rpy=x[bad[:1], 3:]))
+            )
+            why = "the result is not finite"
+        except DeltagenError as exc:
+            why = str(exc)
+        print(
+            f"deltagen {'fk' if forward else 'ik'}: {bad.size} of {len(valid)} rows have no "
+            f"valid result (first: row {bad[0]}): {why}",
+            file=sys.stderr,
+        )
+        return 1
+    if args.input is None and args.output is None:
+        row = out[0]
+        if forward:
+            with np.printoptions(precision=9, suppress=True):
+                print(f"{robot.geometry.name}: T =\n{row[6:].reshape(4, 4)}")
+            print("roll, pitch, yaw = [" + ", ".join(f"{v:.12g}" for v in row[3:6]) + "] rad")
+        else:
+            print("l = [" + ", ".join(f"{v:.12g}" for v in row) + "] m")
+    return 0
+
+
+def write_workspace(robot, out, step=None, quiet=False) -> list:
+    """`deltagen workspace HEXAPOD.toml`: the position workspace at R = I over a box around
+    the home position (edge ``step``, default size / 20) and the orientation workspace
+    (roll x pitch, yaw 0, +-45 deg) at the home position, drawn as PNG slices coloured by the
+    condition number of J (grey: not reachable), and the summary numbers as CSV. Returns
+    the files written."""
+    import csv
+    from pathlib import Path
+
+    from deltagen.apps.plotting import pyplot
+
+    g = robot.geometry
+    size = g.size
+    step = size / 20 if step is None else step
+    if not (math.isfinite(step) and step > 0):
+        raise InputError(f"--step must be a positive length [m], got {step}")
+    half = 0.6 * size
+    x = np.arange(-half, half + step / 2, step)
+    hz = np.array(g.home_position)
+    z = np.arange(max(hz[2] - half, step), hz[2] + half + step / 2, step)
+    if x.size * x.size * z.size > 2_000_000:
+        raise InputError(f"--step {step} m gives more than 2e6 grid points; use a larger step")
+    ws = robot.position_workspace(x + hz[0], x + hz[1], z)
+    angles = np.radians(np.linspace(-45, 45, 61))
+    ows = robot.orientation_workspace(angles, angles, [0.0])
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    plt = pyplot()
+    zi = np.flatnonzero(ws.reachable.any(axis=(0, 1)))
+    if zi.size == 0:
+        raise DeltagenError("no pose of the grid is reachable: no slices to draw")
+    levels = np.unique(np.linspace(zi.min(), zi.max(), 5).round().astype(int)[1:-1])
+    finite = ws.condition[np.isfinite(ws.condition)]
+    vmax = float(finite.max()) if finite.size else 2.0
+    fig, axes = plt.subplots(
+        1, len(levels) + 1, figsize=(3.6 * (len(levels) + 1) + 1, 3.8), layout="constrained"
+    )
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")  # grey: not reachable
+    im = None
+    for ax, k in zip(axes[:-1], levels):
+        im = ax.imshow(
+            ws.condition[:, :, k].T,
+            origin="lower",
+            cmap=cmap,
+            vmin=1,
+            vmax=vmax,
+            extent=(ws.axes[0][0], ws.axes[0][-1], ws.axes[1][0], ws.axes[1][-1]),
+        )
+        ax.set_title(f"z = {ws.axes[2][k]:.3f} m, R = I")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    deg = np.degrees(angles)
+    im = axes[-1].imshow(
+        ows.condition[:, :, 0].T,
+        origin="lower",
+        cmap=cmap,
+        vmin=1,
+        vmax=vmax,
+        extent=(deg[0], deg[-1], deg[0], deg[-1]),
+    )
+    axes[-1].set_title("orientations at home, yaw = 0")
+    axes[-1].set_xlabel("roll [deg]")
+    axes[-1].set_ylabel("pitch [deg]")
+    fig.colorbar(im, ax=axes, label="condition number of J (grey: not reachable)")
+    fig.suptitle(f"deltagen workspace: hexapod {g.name} (leg limits, joint cones, cond(J))")
+    slices = out / "workspace_slices.png"
+    fig.savefig(slices, dpi=110)
+    plt.close(fig)
+    summary = {
+        "grid_step_m": step,
+        "position_points": ws.reachable.size,
+        "position_reachable_fraction": ws.fraction,
+        "position_reachable_volume_m3": float(ws.reachable.sum()) * step**3,
+        "orientation_reachable_fraction": ows.fraction,
+        "best_condition": float(np.nanmin(ws.condition)) if finite.size else math.nan,
+    }
+    table = out / "workspace_summary.csv"
+    with table.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["quantity", "value"])
+        for key, value in summary.items():
+            w.writerow([key, repr(float(value))])
+    if not quiet:
+        for key, value in summary.items():
+            print(f"{key:>32}  {value:.6g}")
+        for p in (slices, table):
+            print(f"wrote {p}")
+    return [slices, table]
+
+
+#: the pose of the exported example: a shifted, tilted platform [m, rad]
+EXAMPLE_POSITION = (0.01, -0.02, 0.0)  # added to the home position
+EXAMPLE_RPY = (0.05, 0.02, -0.1)
+
+
+def export_hexapod(robot, out, force: bool = False) -> tuple[list, str | None]:
+    """`deltagen export HEXAPOD.toml --out DIR`: the hexapod's generated C (as in
+    generated/), the runtime C it includes (deltagen_hexapod_fk, deltagen_linalg), an
+    example.c with this robot's numbers (ik of one pose, fk of its lengths from home), a
+    Makefile and a CMakeLists.txt; with a C compiler the example is built and run. Returns
+    (files written, the example's output or None)."""
+    from pathlib import Path
+
+    from deltagen.apps.export import ExportError, build_and_measure, compiler
+    from deltagen.codegen.export import render_extra
+    from deltagen.codegen.hexapod import UNIT
+    from deltagen.native.build import runtime_files
+    from deltagen.native.hexapod import geometry_struct
+    from deltagen.paths import generated_dir
+
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not force)):
+        raise ExportError(f"--out {out} exists and is not an empty folder (--force overwrites)")
+    files = {}
+    for ext in (".c", ".h"):
+        name = f"{UNIT.base_name}{ext}"
+        files[name] = (generated_dir() / name).read_text()
+    for path in runtime_files(list(files.values())):
+        files[path.name] = path.read_text()
+    values = []
+    for name, value in geometry_struct(robot.geometry).items():
+        if isinstance(value, list):
+            values.append((name, "{" + ", ".join(repr(float(v)) for v in value) + "}"))
+        else:
+            values.append((name, repr(float(value))))
+    g = robot.geometry
+    pose = robot.pose(np.add(g.home_position, EXAMPLE_POSITION), rpy=EXAMPLE_RPY)
+    sources = sorted(n for n in files if n.endswith(".c"))
+    common = dict(
+        robot_name=f"hexapod '{g.name}'",
+        library=UNIT.prefix,
+        sources=sources,
+        prefix=UNIT.prefix,
+        header=f"{UNIT.base_name}.h",
+    )
+    files["example.c"] = render_extra(
+        "hexapod_example.c",
+        "double",
+        **common,
+        struct_name=UNIT.struct_name,
+        struct_values=values,
+        pose=[repr(float(v)) for v in pose.reshape(-1)],
+        home=[repr(float(v)) for v in robot.home.reshape(-1)],
+    )
+    files["Makefile"] = render_extra("Makefile", "double", **common)
+    files["CMakeLists.txt"] = render_extra("CMakeLists.txt", "double", **common)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, text in files.items():
+        (out / name).write_text(text)
+    cc = compiler()
+    output = build_and_measure(out, sources, cc)[1] if cc else None
+    return sorted(files), output
