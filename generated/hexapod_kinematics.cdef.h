@@ -14,9 +14,12 @@ typedef struct deltagen_hexapod_geometry {
     double singular_tol;
 } deltagen_hexapod_geometry;
 
-int deltagen_hexapod_ik(const deltagen_hexapod_geometry *geometry, size_t n, const double *pose, double *lengths, int8_t *status);
-int deltagen_hexapod_jacobian(const deltagen_hexapod_geometry *geometry, size_t n, const double *pose, double *lengths, double *J, int8_t *status);
-int deltagen_hexapod_joint_angles(const deltagen_hexapod_geometry *geometry, size_t n, const double *pose, double *angles, int8_t *status);
+int deltagen_hexapod_ik(const deltagen_hexapod_geometry *geometry, size_t n, const double *pose, double *lengths,
+        int8_t *status);
+int deltagen_hexapod_jacobian(const deltagen_hexapod_geometry *geometry, size_t n, const double *pose, double *lengths,
+        double *J, int8_t *status);
+int deltagen_hexapod_joint_angles(const deltagen_hexapod_geometry *geometry, size_t n, const double *pose,
+        double *angles, int8_t *status);
 int deltagen_hexapod_fk_legs(const void *geometry, size_t n, const double *pose, double *lengths,
     double *J, int8_t *status);
 int deltagen_hexapod_fk(const deltagen_hexapod_geometry *geometry, size_t n,

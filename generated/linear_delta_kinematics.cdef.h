@@ -12,10 +12,17 @@ typedef struct deltagen_linear_delta_geometry {
     double singular_tol;
 } deltagen_linear_delta_geometry;
 
-int deltagen_linear_delta_fk(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h, double *p, int8_t *status);
-int deltagen_linear_delta_fk_vel(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h, const double *hd, double *p, double *pd, int8_t *status);
-int deltagen_linear_delta_fk_acc(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h, const double *hd, const double *hdd, double *p, double *pd, double *pdd, int8_t *status);
-int deltagen_linear_delta_jacobian(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h, double *J, int8_t *status);
-int deltagen_linear_delta_ik(const deltagen_linear_delta_geometry *geometry, size_t n, const double *p, double *h, int8_t *status);
-int deltagen_linear_delta_ik_vel(const deltagen_linear_delta_geometry *geometry, size_t n, const double *p, const double *pd, double *h, double *hd, int8_t *status);
-int deltagen_linear_delta_ik_acc(const deltagen_linear_delta_geometry *geometry, size_t n, const double *p, const double *pd, const double *pdd, double *h, double *hd, double *hdd, int8_t *status);
+int deltagen_linear_delta_fk(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h, double *p,
+        int8_t *status);
+int deltagen_linear_delta_fk_vel(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h,
+        const double *hd, double *p, double *pd, int8_t *status);
+int deltagen_linear_delta_fk_acc(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h,
+        const double *hd, const double *hdd, double *p, double *pd, double *pdd, int8_t *status);
+int deltagen_linear_delta_jacobian(const deltagen_linear_delta_geometry *geometry, size_t n, const double *h,
+        double *J, int8_t *status);
+int deltagen_linear_delta_ik(const deltagen_linear_delta_geometry *geometry, size_t n, const double *p, double *h,
+        int8_t *status);
+int deltagen_linear_delta_ik_vel(const deltagen_linear_delta_geometry *geometry, size_t n, const double *p,
+        const double *pd, double *h, double *hd, int8_t *status);
+int deltagen_linear_delta_ik_acc(const deltagen_linear_delta_geometry *geometry, size_t n, const double *p,
+        const double *pd, const double *pdd, double *h, double *hd, double *hdd, int8_t *status);

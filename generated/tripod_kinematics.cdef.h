@@ -14,9 +14,14 @@ typedef struct deltagen_tripod_geometry {
 } deltagen_tripod_geometry;
 
 int deltagen_tripod_fk(const deltagen_tripod_geometry *geometry, size_t n, const double *l, double *p, int8_t *status);
-int deltagen_tripod_fk_vel(const deltagen_tripod_geometry *geometry, size_t n, const double *l, const double *ld, double *p, double *pd, int8_t *status);
-int deltagen_tripod_fk_acc(const deltagen_tripod_geometry *geometry, size_t n, const double *l, const double *ld, const double *ldd, double *p, double *pd, double *pdd, int8_t *status);
-int deltagen_tripod_jacobian(const deltagen_tripod_geometry *geometry, size_t n, const double *l, double *J, int8_t *status);
+int deltagen_tripod_fk_vel(const deltagen_tripod_geometry *geometry, size_t n, const double *l, const double *ld,
+        double *p, double *pd, int8_t *status);
+int deltagen_tripod_fk_acc(const deltagen_tripod_geometry *geometry, size_t n, const double *l, const double *ld,
+        const double *ldd, double *p, double *pd, double *pdd, int8_t *status);
+int deltagen_tripod_jacobian(const deltagen_tripod_geometry *geometry, size_t n, const double *l, double *J,
+        int8_t *status);
 int deltagen_tripod_ik(const deltagen_tripod_geometry *geometry, size_t n, const double *p, double *l, int8_t *status);
-int deltagen_tripod_ik_vel(const deltagen_tripod_geometry *geometry, size_t n, const double *p, const double *pd, double *l, double *ld, int8_t *status);
-int deltagen_tripod_ik_acc(const deltagen_tripod_geometry *geometry, size_t n, const double *p, const double *pd, const double *pdd, double *l, double *ld, double *ldd, int8_t *status);
+int deltagen_tripod_ik_vel(const deltagen_tripod_geometry *geometry, size_t n, const double *p, const double *pd,
+        double *l, double *ld, int8_t *status);
+int deltagen_tripod_ik_acc(const deltagen_tripod_geometry *geometry, size_t n, const double *p, const double *pd,
+        const double *pdd, double *l, double *ld, double *ldd, int8_t *status);
