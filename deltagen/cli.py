@@ -52,10 +52,17 @@ def cmd_generate(args) -> int:
     from deltagen.inputs import InputError
 
     if args.robot_file:
-        from deltagen.apps.robots import COUPLED, SERIAL, kind_of
+        from deltagen.apps.robots import COUPLED, MACHINE, SERIAL, kind_of
 
         args.backend = "reference"  # the module is built below, once
         robot = _robot(args, args.robot_file)
+        if kind_of(robot) == MACHINE:
+            raise InputError(
+                f"`deltagen generate ROBOT_FILE` takes a serial arm; {args.robot_file} describes "
+                "a 5-axis NC machine, whose core is generic (`deltagen generate` writes it; the "
+                f"geometry is read at run time), so use the file directly: `deltagen fk "
+                f"{args.robot_file} ...`"
+            )
         if kind_of(robot) not in (SERIAL, COUPLED):
             raise InputError(
                 "`deltagen generate ROBOT_FILE` takes a serial arm: a serial-arm file (a "
@@ -124,8 +131,8 @@ exit status:
   2  usage or input error (bad arguments, an unreadable or malformed file)"""
 
 ROBOT_HELP = (
-    "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
-    "or a Klipper printer.cfg (kinematics: rotary_delta)"
+    "'default' (the delta robot), a bundled serial arm's or 5-axis machine's name, a robot "
+    "TOML file, a URDF, or a Klipper printer.cfg (kinematics: rotary_delta)"
 )
 
 
@@ -425,9 +432,9 @@ def main(argv=None) -> int:
 
 def _evaluate(args, forward: bool) -> int:
     from deltagen.apps import kinematics
-    from deltagen.apps.robots import COUPLED, DELTA, SERIAL
+    from deltagen.apps.robots import COUPLED, DELTA, MACHINE, SERIAL
 
-    return kinematics.run(_robot(args, kinds=(DELTA, SERIAL, COUPLED)), forward, args)
+    return kinematics.run(_robot(args, kinds=(DELTA, SERIAL, COUPLED, MACHINE)), forward, args)
 
 
 def _dynamics(args) -> int:
@@ -448,11 +455,12 @@ def _workspace(args) -> int:
 
 def _export(args) -> int:
     from deltagen.apps import export
-    from deltagen.apps.robots import DELTA, SERIAL
+    from deltagen.apps.robots import DELTA, MACHINE, SERIAL
 
     args.backend = "reference"  # only the description is needed: no compiled core
     name = args.robot
-    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=(DELTA, SERIAL))
+    kinds = (DELTA, SERIAL, MACHINE)
+    args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=kinds)
     return export.main(args)
 
 

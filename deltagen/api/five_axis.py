@@ -215,11 +215,19 @@ class FiveAxisMachine:
         out = (j.reshape(lead + (2, 5)), valid.reshape(lead + (2,)))
         return (*out, status.reshape(lead)) if return_status else out
 
-    def ik_path(self, p: ArrayLike, d: ArrayLike, previous: ArrayLike | None = None) -> Any:
-        """Joints (N, 5) along a path of N tool tips (N, 3) and tool axes (N, 3): each point's
-        ik takes the previous point's joints (the first takes ``previous``, default zeros),
-        so C runs on without 2 pi jumps and the branch does not flip; through a SINGULAR
-        point C holds. Raises on invalid rows."""
+    def ik_path(
+        self,
+        p: ArrayLike,
+        d: ArrayLike,
+        previous: ArrayLike | None = None,
+        errors: Errors = "raise",
+    ) -> Result:
+        """Joints (N, 5) along a path of N tool tips (N, 3) and tool axes (N, 3): each
+        point's ik takes the joints of the point before (the first takes ``previous``,
+        default zeros), so C runs on without 2 pi jumps and the branch does not flip;
+        through a SINGULAR point C holds. errors="nan": an invalid row is NaN (the next
+        row continues from the last valid one) and valid (N,) is returned last."""
+        check_errors_mode(errors)
         pf, df = as_rows(p, "p", (3,)), as_rows(d, "d", (3,))
         if pf.ndim != 2 or df.shape != pf.shape:
             raise InputError(f"p and d must be (N, 3) of one shape, got {pf.shape}, {df.shape}")
@@ -227,9 +235,19 @@ class FiveAxisMachine:
         if last.shape != (5,):
             raise InputError(f"previous must be one joint row (5,), got {last.shape}")
         out = np.empty((pf.shape[0], 5))
+        valid = np.ones(pf.shape[0], dtype=bool)
         for i in range(pf.shape[0]):
-            last = out[i] = self.ik(pf[i], df[i], last)
-        return out
+            if errors == "raise":
+                try:
+                    last = out[i] = self.ik(pf[i], df[i], last)
+                except InputError as exc:
+                    raise InputError(f"path point {i}: {exc}", [i]) from None
+                continue
+            row, ok = self.ik(pf[i], df[i], last, errors="nan")
+            out[i], valid[i] = row, ok
+            if ok:
+                last = row
+        return out if errors == "raise" else (out, valid)
 
     # -- helpers ------------------------------------------------------------------------
 

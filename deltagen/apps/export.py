@@ -71,9 +71,17 @@ class ExportResult:
 
 
 def _robot_parts(robot):
-    """(kind, unit, kernels, description or geometry) of a DeltaRobot or SerialRobot."""
-    from deltagen.codegen.export import arm_unit_kernels, delta_unit_kernels
+    """(kind, unit, kernels) of a DeltaRobot, SerialRobot or FiveAxisMachine."""
+    from deltagen.api.five_axis import FiveAxisMachine
+    from deltagen.codegen.export import (
+        arm_unit_kernels,
+        delta_unit_kernels,
+        machine_unit_kernels,
+    )
 
+    if isinstance(robot, FiveAxisMachine):
+        unit, kernels = machine_unit_kernels(robot.description)
+        return "machine", unit, kernels
     if hasattr(robot, "geometry"):
         unit, kernels = delta_unit_kernels()
         return "delta", unit, kernels
@@ -88,11 +96,22 @@ def _literal(value: float, real: str) -> str:
     return text
 
 
-def _struct_values(robot, real: str) -> list:
-    from deltagen.native.delta import geometry_struct
+def _geometry_struct(robot, kind) -> dict | None:
+    """The struct fields of a delta robot or a 5-axis machine (None for an arm: compiled in)."""
+    if kind == "delta":
+        from deltagen.native.delta import geometry_struct
 
+        return geometry_struct(robot.geometry)
+    if kind == "machine":
+        from deltagen.native.five_axis import geometry_struct as machine_struct
+
+        return machine_struct(robot.description)
+    return None
+
+
+def _struct_values(robot, real: str, kind: str = "delta") -> list:
     values = []
-    for name, value in geometry_struct(robot.geometry).items():
+    for name, value in (_geometry_struct(robot, kind) or {}).items():
         if isinstance(value, (list, tuple)):
             values.append((name, "{" + ", ".join(_literal(v, real) for v in value) + "}"))
         else:
@@ -102,11 +121,15 @@ def _struct_values(robot, real: str) -> list:
 
 #: The delta example's pose: crank angles [rad] (inside the workspace of the default robot).
 DELTA_EXAMPLE_Q = (0.3, 0.5, 0.7)
+#: The 5-axis machine example's joints: x, y, z [m], tilt, C [rad].
+MACHINE_EXAMPLE_J = (0.05, -0.02, 0.1, 0.4, 0.7)
 
 
 def _example_pose(robot, kind):
     if kind == "delta":
         return list(DELTA_EXAMPLE_Q), None
+    if kind == "machine":
+        return list(MACHINE_EXAMPLE_J), None
     configurations = robot.configurations
     for name in ("qn", "qr", *configurations):
         if name in configurations:
@@ -260,6 +283,8 @@ def accuracy_points(robot, kind, n_random: int = 2000, seed: int = 0):
         p, _, _ = trajectory(sample_times(1000.0, 10.0))
         return p[:, :3]
     rng = np.random.default_rng(seed)
+    if kind == "machine":  # x, y, z within +-0.5 m, tilt and C within +-pi
+        return rng.uniform(-1.0, 1.0, size=(n_random, 5)) * [0.5, 0.5, 0.5, math.pi, math.pi]
     qlim = np.array(robot.qlim, dtype=float)
     lo, hi = qlim[:, 0].copy(), qlim[:, 1].copy()
     revolute = np.array([j.revolute for j in robot.description.joints])
@@ -295,6 +320,17 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
                 1e6 * np.linalg.norm(p_back - points, axis=1)[ok_ik]
             ),
         }
+    if kind == "machine":
+        name = robot.description.config
+        p_d, d_d, s_d = double_lib(f"{name}_fk", [points], [3, 3])
+        p_f, d_f, s_f = float_lib(f"{name}_fk", [points], [3, 3])
+        ok = (s_d == st.OK) & (s_f == st.OK)
+        return {
+            "n": int(len(points)),
+            "ok": int(np.count_nonzero(ok)),
+            "fk tool tip error [um]": _stats(1e6 * np.linalg.norm(p_f - p_d, axis=1)[ok]),
+            "fk tool axis error [urad]": _stats(1e6 * np.linalg.norm(d_f - d_d, axis=1)[ok]),
+        }
     T_d, s_d = double_lib("fk", [points], [16])
     T_f, s_f = float_lib("fk", [points], [16])
     ok = (s_d == st.OK) & (s_f == st.OK)
@@ -322,6 +358,9 @@ def _accuracy_text(kind, result) -> str:
             "double ik's angles; and the double fk of the float ik's angles against the "
             "position asked for"
         )
+    elif kind == "machine":
+        where = f"{result['n']} random joint vectors (x, y, z within 0.5 m, angles within pi)"
+        how = "fk in float and in double of the same joint vector"
     else:
         where = f"{result['n']} random joint vectors within the joint limits (seed 0)"
         how = "fk in float and in double of the same joint vector"
@@ -539,12 +578,18 @@ def export(
     sources = [n for n in files if n.endswith(".c")]
     library = unit.prefix
     q, q_name = _example_pose(robot, kind)
-    symmetric = kind == "serial" or robot.geometry.symmetric
+    symmetric = kind != "delta" or robot.geometry.symmetric
     has_dynamics = any(k.name == "inverse_dynamics" for k in kernels) and (
-        kind == "serial" or (robot.inertia is not None and symmetric)
+        kind == "serial" or (kind == "delta" and robot.inertia is not None and symmetric)
     )
     common = dict(
-        robot_name=(f"the delta robot '{robot.geometry.name}'" if kind == "delta" else robot.name),
+        robot_name=(
+            f"the delta robot '{robot.geometry.name}'"
+            if kind == "delta"
+            else f"the 5-axis machine '{robot.name}'"
+            if kind == "machine"
+            else robot.name
+        ),
         library=library,
         sources=sources,
         prefix=unit.prefix,
@@ -559,7 +604,9 @@ def export(
             **common,
             kind=kind,
             struct_name=unit.struct_name,
-            struct_values=_struct_values(robot, real) if kind == "delta" else [],
+            struct_values=_struct_values(robot, real, kind),
+            config=robot.description.config if kind == "machine" else "",
+            tilt=robot.description.tilt_axis if kind == "machine" else "",
             has_inertia=kind == "delta" and robot.inertia is not None,
             has_dynamics=has_dynamics,
             encoder=bool(encoder),
@@ -712,11 +759,7 @@ def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
     """Compile the float package just written and a double twin side by side and compare."""
     from deltagen.codegen.export import package_sources
 
-    struct = None
-    if kind == "delta":
-        from deltagen.native.delta import geometry_struct
-
-        struct = geometry_struct(robot.geometry)
+    struct = _geometry_struct(robot, kind)
     libraries = {}
     with tempfile.TemporaryDirectory(prefix="deltagen-float32-") as tmp:
         for real in ("double", "float"):

@@ -5,7 +5,8 @@ command that cannot serve that kind.
 A robot argument is 'default' (the delta robot of robots/default_delta.toml), a bundled arm's
 name (robots/<name>.toml or robots/<name>.urdf), or a file: a URDF (its content is XML,
 whatever its extension), a Klipper printer.cfg (kinematics: rotary_delta), a delta robot TOML
-(a [delta] table) or a serial-arm TOML (a `convention` key and [[joint]] tables). A URDF gives
+(a [delta] table), a 5-axis machine TOML (a [machine] table; a bundled machine by its name)
+or a serial-arm TOML (a `convention` key and [[joint]] tables). A URDF gives
 a SerialRobot, or a CoupledArm when its chain has ``<mimic>`` joints; ``base``, ``tip`` and
 ``locked`` (the CLI's --base, --tip, --locked) choose its chain (SerialRobot.from_urdf)."""
 
@@ -19,20 +20,25 @@ from typing import Any
 from deltagen.inputs import InputError
 
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+MACHINE = "machine"
 
 #: How messages name each kind (with an article).
 KIND_NAMES = {
     DELTA: "a delta robot",
     SERIAL: "a serial arm",
     COUPLED: "a serial arm with coupled (URDF <mimic>) joints",
+    MACHINE: "a 5-axis NC machine",
 }
 
 
 def kind_of(robot: Any) -> str:
-    """DELTA, SERIAL or COUPLED for a loaded robot."""
+    """DELTA, SERIAL, COUPLED or MACHINE for a loaded robot."""
     from deltagen.api.coupled import CoupledArm
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.five_axis import FiveAxisMachine
 
+    if isinstance(robot, FiveAxisMachine):
+        return MACHINE
     if isinstance(robot, DeltaRobot):
         return DELTA
     if isinstance(robot, CoupledArm):
@@ -74,7 +80,7 @@ def parse_locked(items: Sequence[str] | None) -> dict[str, float] | None:
 
 
 def file_kind(path: Path) -> str:
-    """ "urdf", "klipper", "serial" or "delta" for a robot file, from its content (the
+    """ "urdf", "klipper", "serial", "machine" or "delta" for a robot file, from its content (the
     extension decides only for .urdf and .cfg, and for a file that cannot be read)."""
     suffix = path.suffix.lower()
     if suffix == ".urdf":
@@ -92,7 +98,11 @@ def file_kind(path: Path) -> str:
     except tomllib.TOMLDecodeError:  # malformed: the loader named by a plain look reports it
         if "kinematics:" in text and "[printer]" in text:
             return "klipper"
+        if "[machine]" in text and "[delta]" not in text:
+            return "machine"
         return "serial" if "convention" in text and "[delta]" not in text else "delta"
+    if "machine" in data and "delta" not in data:
+        return "machine"
     if "delta" not in data and ("convention" in data or "joint" in data):
         return "serial"
     return "delta"
@@ -112,6 +122,7 @@ def load_robot(
     (InputError naming ``command`` and the robot's kind) unless it is of one of them, before
     any compiled core is built."""
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.five_axis import FiveAxisMachine, bundled_machines
     from deltagen.api.serial import SerialRobot, bundled_robots, bundled_urdfs
     from deltagen.paths import robots_dir
 
@@ -128,11 +139,14 @@ def load_robot(
         kind, path = "bundled-urdf", robots_dir() / f"{name}.urdf"
     elif name in bundled_robots():
         kind = "bundled"
+    elif name in bundled_machines():
+        kind, path = "machine", robots_dir() / f"{name}.toml"
     elif not path.exists() and path.suffix.lower() not in (".toml", ".urdf", ".cfg"):
         raise InputError(
             f"unknown robot {name!r}: use 'default', a bundled arm "
-            f"({', '.join(bundled_robots() + bundled_urdfs())}), a robot .toml file, a .urdf or "
-            "a Klipper printer.cfg"
+            f"({', '.join(bundled_robots() + bundled_urdfs())}), a bundled 5-axis machine "
+            f"({', '.join(bundled_machines())}), a robot .toml file, a .urdf or a Klipper "
+            "printer.cfg"
         )
     else:
         kind = file_kind(path)
@@ -152,6 +166,9 @@ def load_robot(
         if hasattr(robot, "coupling"):
             return type(robot)(robot.full.with_backend(backend), robot.coupling)
         return robot.with_backend(backend)
+    if kind == "machine":
+        _require(command, MACHINE, name, kinds)
+        return FiveAxisMachine.from_toml(path, backend=backend)
     serial = kind in ("bundled", "serial")
     _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
     if kind == "bundled":
