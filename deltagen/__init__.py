@@ -1,6 +1,7 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
 from deltagen.api.delta import DeltaInertia, DeltaRobot
+from deltagen.api.five_axis import FiveAxisMachine
 from deltagen.api.serial import SerialRobot
 from deltagen.api.sweep import SweepResult, SweepSpec, sweep
 from deltagen.errors import (
@@ -14,6 +15,7 @@ from deltagen.inputs import InputError
 __all__ = [
     "DeltaInertia",
     "DeltaRobot",
+    "FiveAxisMachine",
     "GeometryError",
     "IncompleteSolutionsWarning",
     "InputError",

@@ -2,8 +2,9 @@
 in-process: the exit status is the documented one (0 served, 1 served but not valid, 2
 refused or bad input), a refusal names the command and the robot's kind, and nothing ends
 in an exception. The kinds: the default delta TOML, a Klipper printer.cfg, a bundled arm by
-name (puma560), a URDF (robots/ur5.urdf), a URDF with a <mimic> joint (a CoupledArm) and a
-URDF whose tree ends in a two-finger gripper (two leaves: --tip chooses the chain).
+name (puma560), a URDF (robots/ur5.urdf), a URDF with a <mimic> joint (a CoupledArm), a
+URDF whose tree ends in a two-finger gripper (two leaves: --tip chooses the chain), and
+5-axis NC machines (a bundled one by name, and a machine TOML file).
 sweep, bench and demo load no robot and are not in the matrix."""
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ GRIPPER = (
     + "\n</robot>\n"
 )
 
-DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
+DELTA, SERIAL, COUPLED, MACHINE = "delta", "serial", "coupled", "machine"
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +78,8 @@ def robots(tmp_path_factory, repo_root):
             SERIAL,
             4,
         ),
+        "bundled_machine": (["xyzac_trt"], MACHINE, 5),
+        "machine_toml": ([str(repo_root / "robots" / "bridge_bc_head.toml")], MACHINE, 5),
     }
 
 
@@ -84,17 +87,27 @@ KIND_WORDS = {
     DELTA: "a delta robot",
     SERIAL: "a serial arm",
     COUPLED: "a serial arm with coupled",
+    MACHINE: "a 5-axis NC machine",
 }
 
-ROBOTS = ("delta_toml", "klipper_cfg", "bundled_arm", "urdf", "mimic_urdf", "gripper_urdf_tip")
+ROBOTS = (
+    "delta_toml",
+    "klipper_cfg",
+    "bundled_arm",
+    "urdf",
+    "mimic_urdf",
+    "gripper_urdf_tip",
+    "bundled_machine",
+    "machine_toml",
+)
 
 #: command -> the kinds it serves (the others are refused with exit status 2)
 SERVES = {
-    "fk": (DELTA, SERIAL, COUPLED),
-    "ik": (DELTA, SERIAL, COUPLED),
+    "fk": (DELTA, SERIAL, COUPLED, MACHINE),
+    "ik": (DELTA, SERIAL, COUPLED, MACHINE),
     "dynamics": (DELTA, SERIAL, COUPLED),
     "workspace": (DELTA, SERIAL),
-    "export": (DELTA, SERIAL),
+    "export": (DELTA, SERIAL, MACHINE),
     "calibrate": (DELTA,),
     "validate": (DELTA,),
     "generate": (SERIAL, COUPLED),
@@ -107,9 +120,14 @@ def _q(kind, n):
 
 def _reference(args):
     """The robot of ``args`` read through the API (not the CLI's loader)."""
-    from deltagen import DeltaRobot, SerialRobot
+    from deltagen import DeltaRobot, FiveAxisMachine, SerialRobot
+    from deltagen.api.five_axis import bundled_machines
 
     spec = args[0]
+    if spec in bundled_machines():
+        return FiveAxisMachine.load(spec, backend="reference")
+    if spec.endswith(".toml") and "[machine]" in open(spec).read():
+        return FiveAxisMachine.from_toml(spec, backend="reference")
     if spec.endswith(".toml"):
         return DeltaRobot.from_toml(spec, backend="reference")
     if spec.endswith(".cfg"):
@@ -131,6 +149,9 @@ def _command(command, robot_args, kind, n, tmp_path):
         from deltagen.api.serial import euler_zyx
 
         robot = _reference(robot_args)
+        if kind == MACHINE:  # the tool tip and the tool axis
+            pose = np.concatenate(robot.fk(q))
+            return ["ik", spec, *(f"{v:.17g}" for v in pose), "--backend", "reference"]
         if kind == DELTA:
             pose = robot.fk(q)
         else:
@@ -187,6 +208,7 @@ SLOW_SKIPPED = {
     ("export", "klipper_cfg"),
     ("generate", "bundled_arm"),
     ("generate", "urdf"),
+    ("export", "machine_toml"),
 }
 
 
@@ -202,7 +224,9 @@ def test_every_command_serves_or_refuses_every_kind(command, robot, robots, tmp_
     assert "Traceback" not in err
     if kind != DELTA:
         assert "the delta robot" not in out + err
-        if command == "fk":  # an arm's result: its tool frame, not a delta's platform point
+        if command == "fk" and kind == MACHINE:  # the tool tip and axis, not a frame
+            assert "p = [" in out and "d = [" in out and "T =" not in out, out
+        elif command == "fk":  # an arm's result: its tool frame, not a delta's platform point
             assert "T =" in out and "p = [" not in out, out
     if (command, robot) in INPUT_ERRORS:
         assert code == 2 and INPUT_ERRORS[command, robot] in err, (argv, out, err)
