@@ -12,6 +12,7 @@ it is a valid, finite answer; ``return_status=True`` returns the per-row status 
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -30,7 +31,7 @@ __all__ = ["FiveAxisMachine", "bundled_machines"]
 _BACKENDS = ("compiled", "reference")
 
 
-def _is_machine_file(path) -> bool:
+def _is_machine_file(path: Path) -> bool:
     import tomllib
 
     try:
@@ -154,7 +155,9 @@ class FiveAxisMachine:
 
     # -- kinematics ---------------------------------------------------------------------
 
-    def fk(self, joints: ArrayLike, errors: Errors = "raise", return_status: bool = False) -> Result:
+    def fk(
+        self, joints: ArrayLike, errors: Errors = "raise", return_status: bool = False
+    ) -> Result:
         """Tool tip p (..., 3) [m] and tool axis d (..., 3) (unit, from the tip into the
         spindle) in the workpiece frame, of joints (..., 5): x, y, z [m], tilt, C [rad]."""
         if not return_status and type(errors) is str and errors == "raise":

@@ -397,7 +397,9 @@ def _run_machine(machine, forward: bool, args) -> int:
     else:
         values = list(args.values)
         if len(values) != len(wanted):
-            raise InputError(f"{what}: give {len(wanted)} values {' '.join(wanted)}; got {len(values)}")
+            raise InputError(
+                f"{what}: give {len(wanted)} values {' '.join(wanted)}; got {len(values)}"
+            )
         if not all(math.isfinite(v) for v in values):
             raise InputError(f"{what}: every value must be a finite number")
         x = np.array([values], dtype=np.float64)

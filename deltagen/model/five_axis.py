@@ -104,9 +104,7 @@ class MachineDescription:
     def __post_init__(self) -> None:
         check_identifier(self.name, "machine name")
         if self.layout not in LAYOUTS:
-            raise GeometryError(
-                f"layout must be one of {', '.join(LAYOUTS)}, got {self.layout!r}"
-            )
+            raise GeometryError(f"layout must be one of {', '.join(LAYOUTS)}, got {self.layout!r}")
         rotary = self.rotary.upper() if isinstance(self.rotary, str) else self.rotary
         if rotary not in ROTARIES:
             raise GeometryError(
@@ -137,7 +135,7 @@ class MachineDescription:
 
     @property
     def tilt_axis(self) -> str:
-        """"A" or "B"."""
+        """ "A" or "B"."""
         return self.rotary[0]
 
     @property

@@ -106,9 +106,7 @@ def ik_all(desc, p, d, j_prev):
         for k, sign in enumerate((1.0, -1.0)):
             t = sign * np.arctan2(horizontal, u[:, 2])
             # the tilted tool's azimuth: R_x(t) e_z = (0, -sin t, .), R_y(t) e_z = (sin t, 0, .)
-            tool = (
-                np.arctan2(-sign, 0.0) if desc.tilt_axis == "A" else np.arctan2(0.0, sign)
-            )
+            tool = np.arctan2(-sign, 0.0) if desc.tilt_axis == "A" else np.arctan2(0.0, sign)
             c = azimuth - tool
             c = c + 2 * np.pi * np.round((c_prev - c) / (2 * np.pi))
             c = np.where(singular, c_prev, c)

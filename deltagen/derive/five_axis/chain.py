@@ -94,11 +94,13 @@ def unit_direction():
     d_max, inv_max, norm, norm_safe = sp.symbols("d_max inv_max d_norm d_norm_safe", real=True)
     ex, ey, ez = sp.symbols("ex ey ez", real=True)
     zero = sp.Symbol("zero_direction")
-    scaled = [v * inv_max for v in (dx, dy, dz)]
+    # the scaled components are symbols of their own: CSE would otherwise square d first
+    scaled = sp.symbols("sx sy sz", real=True)
     assignments = (
         (d_max, Fmax(Fabs(dx), Fmax(Fabs(dy), Fabs(dz)))),
         (zero, Le(d_max, 0)),
         (inv_max, 1 / sp.Piecewise((1, zero), (d_max, True))),
+        *((v, w * inv_max) for v, w in zip(scaled, (dx, dy, dz))),
         (norm, sp.sqrt(sum(v**2 for v in scaled))),
         (norm_safe, sp.Piecewise((1, zero), (norm, True))),
         (ex, scaled[0] / norm_safe),

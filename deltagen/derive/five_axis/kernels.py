@@ -107,7 +107,10 @@ def _inverse_stages(layout, rotary):
     flags = Stage(
         "status flags: non-finite input or zero direction; tool axis parallel to the C axis",
         (
-            (invalid, sp.Or(sp.Not(AllFinite(ch.px, ch.py, ch.pz, ch.dx, ch.dy, ch.dz, *ch.prev)), zero)),
+            (
+                invalid,
+                sp.Or(sp.Not(AllFinite(ch.px, ch.py, ch.pz, ch.dx, ch.dy, ch.dz, *ch.prev)), zero),
+            ),
             (singular, Le(rho, ch.singular_tol)),
         ),
     )
@@ -199,9 +202,7 @@ def ik_kernel(layout: str, rotary: str) -> Kernel:
         "joints) -> the joints of the branch nearest the previous ones (squared distance of "
         "the rotary angles, C at its nearest turn).",
         inputs=_inverse_inputs(rotary),
-        outputs=(
-            _joint_port("j", outs, f"joints x, y, z [m], {rotary[0]}, C [rad]"),
-        ),
+        outputs=(_joint_port("j", outs, f"joints x, y, z [m], {rotary[0]}, C [rad]"),),
         stages=(*stages, choose, Stage("outputs (NaN on invalid rows)", out_stage)),
         status=sp.Piecewise((st.INVALID, invalid), (st.SINGULAR, singular), (st.OK, True)),
         parameters=PARAMETERS,
