@@ -258,18 +258,23 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -280,7 +285,7 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double t2_3 = pz - tilt_pivot2;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
@@ -297,7 +302,7 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double t3_4 = pz - tilt_pivot2;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
@@ -447,18 +452,23 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -469,7 +479,7 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double t2_3 = pz - tilt_pivot2;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
@@ -486,7 +496,7 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double t3_4 = pz - tilt_pivot2;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
@@ -767,18 +777,23 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -790,7 +805,7 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double t2_4 = -c_pivot1 + py;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
@@ -806,7 +821,7 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double t3_3 = -c_pivot1 + py;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
@@ -956,18 +971,23 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -979,7 +999,7 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double t2_4 = -c_pivot1 + py;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
@@ -995,7 +1015,7 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double t3_3 = -c_pivot1 + py;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
@@ -1267,18 +1287,23 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -1289,7 +1314,7 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double t2_3 = ez*spindle_offset1 + head_pivot1 - rho*spindle_offset2;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
@@ -1304,7 +1329,7 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double t3_3 = ez*spindle_offset1 + head_pivot1 + rho*spindle_offset2;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
@@ -1449,18 +1474,23 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -1471,7 +1501,7 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double t2_3 = ez*spindle_offset1 + head_pivot1 - rho*spindle_offset2;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
@@ -1486,7 +1516,7 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double t3_3 = ez*spindle_offset1 + head_pivot1 + rho*spindle_offset2;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
@@ -1756,18 +1786,23 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -1777,7 +1812,7 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             const double t2_2 = ez*spindle_offset0 + head_pivot0 + rho*spindle_offset2;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
@@ -1792,7 +1827,7 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             const double t3_3 = ez*spindle_offset0 + head_pivot0 - rho*spindle_offset2;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
@@ -1937,18 +1972,23 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -1958,7 +1998,7 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             const double t2_2 = ez*spindle_offset0 + head_pivot0 + rho*spindle_offset2;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
@@ -1973,7 +2013,7 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             const double t3_3 = ez*spindle_offset0 + head_pivot0 - rho*spindle_offset2;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
@@ -2247,18 +2287,23 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -2268,7 +2313,7 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             const double t2_2 = -c_pivot1 + py;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
@@ -2282,7 +2327,7 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             const double t3_2 = -c_pivot1 + py;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
@@ -2429,18 +2474,23 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -2450,7 +2500,7 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             const double t2_2 = -c_pivot1 + py;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
@@ -2464,7 +2514,7 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             const double t3_2 = -c_pivot1 + py;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
@@ -2738,18 +2788,23 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -2759,7 +2814,7 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             const double t2_2 = -c_pivot1 + py;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
@@ -2773,7 +2828,7 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             const double t3_2 = -c_pivot1 + py;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
@@ -2920,18 +2975,23 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             const double cos_c_prev = cos_c_prev_b[k];
             const double sin_c_prev = sin_c_prev_b[k];
             /* unit tool axis (scaled by its largest component first) and its horizontal part */
-            const double d_max = fmax(fabs(dx), fmax(fabs(dy), fabs(dz)));
+            const double t0_0 = fabs(dx);
+            const double t0_1 = fabs(dy);
+            const double t0_2 = fabs(dz);
+            const double d_xy_max = (((t0_0 >= t0_1)) ? t0_0 : t0_1);
+            const double d_max = (((d_xy_max >= t0_2)) ? d_xy_max : t0_2);
             const int zero_direction = (d_max <= 0);
-            const double inv_max = ((zero_direction) ? 1 : 1.0/d_max);
+            const double d_max_safe = ((zero_direction) ? 1 : d_max);
+            const double inv_max = 1.0/d_max_safe;
             const double sx = dx*inv_max;
             const double sy = dy*inv_max;
             const double sz = dz*inv_max;
             const double d_norm = sqrt(sx*sx + sy*sy + sz*sz);
             const double d_norm_safe = ((zero_direction) ? 1 : d_norm);
-            const double t0_0 = 1.0/d_norm_safe;
-            const double ex = sx*t0_0;
-            const double ey = sy*t0_0;
-            const double ez = sz*t0_0;
+            const double t0_3 = 1.0/d_norm_safe;
+            const double ex = sx*t0_3;
+            const double ey = sy*t0_3;
+            const double ez = sz*t0_3;
             const double rho = sqrt(ex*ex + ey*ey);
             /* status flags: non-finite input or zero direction; tool axis parallel to the C axis */
             const int invalid = ((zero_direction) | (!(isfinite(px) & isfinite(py) & isfinite(pz) & isfinite(dx) & isfinite(dy) & isfinite(dz) & isfinite(x_prev) & isfinite(y_prev) & isfinite(z_prev) & isfinite(tilt_prev) & isfinite(c_prev))));
@@ -2941,7 +3001,7 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             const double t2_2 = -c_pivot1 + py;
             const double tilt_1 = atan2(rho, ez);
             const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
             const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
@@ -2955,7 +3015,7 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             const double t3_2 = -c_pivot1 + py;
             const double tilt_2 = atan2(-rho, ez);
             const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*floor((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793 + 1.0/2.0);
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
             const double c_2 = ((singular) ? c_prev : c_turn_2);
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;

@@ -77,7 +77,7 @@ int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *rest
  * j         out, n x 5: joints x, y, z [m], A, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 156 operations per point.
+ * Cost: 152 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -93,7 +93,7 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
  * j         out, n x 10: branch 1 (sin A >= 0) then branch 2 (sin A <= 0), each x, y, z [m], A, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 143 operations per point.
+ * Cost: 139 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -124,7 +124,7 @@ int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *rest
  * j         out, n x 5: joints x, y, z [m], B, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 156 operations per point.
+ * Cost: 152 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -140,7 +140,7 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
  * j         out, n x 10: branch 1 (sin B >= 0) then branch 2 (sin B <= 0), each x, y, z [m], B, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 143 operations per point.
+ * Cost: 139 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -171,7 +171,7 @@ int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *restri
  * j         out, n x 5: joints x, y, z [m], A, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 151 operations per point.
+ * Cost: 147 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -187,7 +187,7 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
  * j         out, n x 10: branch 1 (sin A >= 0) then branch 2 (sin A <= 0), each x, y, z [m], A, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 138 operations per point.
+ * Cost: 134 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -218,7 +218,7 @@ int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *restri
  * j         out, n x 5: joints x, y, z [m], B, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 152 operations per point.
+ * Cost: 148 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -234,7 +234,7 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
  * j         out, n x 10: branch 1 (sin B >= 0) then branch 2 (sin B <= 0), each x, y, z [m], B, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 139 operations per point.
+ * Cost: 135 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -265,7 +265,7 @@ int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *restr
  * j         out, n x 5: joints x, y, z [m], A, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 153 operations per point.
+ * Cost: 149 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -281,7 +281,7 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
  * j         out, n x 10: branch 1 (sin A >= 0) then branch 2 (sin A <= 0), each x, y, z [m], A, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 140 operations per point.
+ * Cost: 136 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */
@@ -312,7 +312,7 @@ int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *restr
  * j         out, n x 5: joints x, y, z [m], B, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 153 operations per point.
+ * Cost: 149 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -328,7 +328,7 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
  * j         out, n x 10: branch 1 (sin B >= 0) then branch 2 (sin B <= 0), each x, y, z [m], B, C [rad]
  * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 140 operations per point.
+ * Cost: 136 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 12032 bytes (11.8 KiB) at 64, plus scalars.
  */

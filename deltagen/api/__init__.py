@@ -3,7 +3,8 @@
 ``coupled`` (``CoupledArm``, a serial arm with URDF ``<mimic>`` joints, in its independent
 variables); ``validity`` (the finite-output rule at the API: which rows are valid and what an
 INVALID row's error says); ``hints`` (the type aliases of the public API);
-``workspace`` (the numbers of robot.workspace) and ``sweep`` (deltagen.sweep, on Dask).
+``workspace`` (the numbers of robot.workspace) and ``sweep`` (deltagen.sweep, on Dask);
+``five_axis`` (``FiveAxisMachine``, the 5-axis NC machines).
 
 May import: ``solve``, ``plan``, and everything below them.
 """

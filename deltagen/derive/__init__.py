@@ -3,7 +3,8 @@
 ``delta`` (``derive.delta``) holds the rotary delta robot of the delta report (fk,
 velocity, acceleration, ik, dynamics, and the printed equations for the errata); ``serial``
 (``derive.serial``) holds serial chains (the chain and its Jacobians, the closed-form IK
-statements, dynamics). ``kernel`` declares the
+statements, dynamics); ``five_axis`` (``derive.five_axis``) the 5-axis NC machines' chain
+and its closed-form inverse. ``kernel`` declares the
 data a derivation hands on (a kernel's ports, stages and status); ``functions`` the few
 SymPy functions beyond SymPy's own.
 

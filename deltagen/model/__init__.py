@@ -6,6 +6,7 @@ coordinates (``serial``), TOML robot files (``robot_file``), names that reach C 
 axes, planar arms), which both the derivation and the solvers read. Imports into these:
 ``urdf`` (a URDF chain as universal coordinates), ``coupling`` (URDF ``<mimic>`` joints,
 q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delta geometry).
+``five_axis`` describes 5-axis NC machines (table-table, head-head, table-head; AC or BC).
 
 May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
 ``inputs``, ``paths``). Nothing else of deltagen.

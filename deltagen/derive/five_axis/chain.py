@@ -13,14 +13,14 @@ tilt = atan2(s rho, d_z) and c = atan2(s (u_x d_y - u_y d_x), s (u_x d_x + u_y d
 angle that turns s u onto (d_x, d_y). Where rho <= singular_tol the tool axis is parallel
 to the C axis and c is undetermined: it keeps the previous value (no division by rho: its
 cosine and sine are those of the previous c). Otherwise c takes the turn nearest the
-previous c: c + 2 pi floor((c_prev - c) / (2 pi) + 1/2).
+previous c: c + 2 pi rint((c_prev - c) / (2 pi)) (C99 rint: to nearest, ties to even).
 """
 
 from __future__ import annotations
 
 import sympy as sp
 
-from deltagen.derive.functions import Fabs, Floor, Fmax, Le
+from deltagen.derive.functions import Fabs, Ge, Le, NearestInteger
 from deltagen.model.five_axis import LAYOUTS, ROTARIES
 
 # joints and their cosines and sines
@@ -88,24 +88,36 @@ def joints_of(layout: str, rotary: str, w, ct, st, cc, sc):
     return m - R_hc * (head_pivot + R_ht * spindle_offset) + tool_length * d_m
 
 
+def _larger(a, b):
+    """max(a, b) as a select (C fmax keeps NaN rules that stop gcc's vectoriser; a NaN
+    input is INVALID anyway)."""
+    return sp.Piecewise((a, Ge(a, b)), (b, True))
+
+
 def unit_direction():
     """(e, zero, assignments): the direction scaled by its largest component, then
-    normalised (no overflow for large d); ``zero`` is True where d = 0 (no direction)."""
-    d_max, inv_max, norm, norm_safe = sp.symbols("d_max inv_max d_norm d_norm_safe", real=True)
-    ex, ey, ez = sp.symbols("ex ey ez", real=True)
+    normalised (no overflow for large d); ``zero`` is True where d = 0 (no direction).
+    Each select and each divisor is a symbol of its own: a division inside a select is
+    control flow to gcc, and CSE would square d before scaling it."""
+    names = "d_xy_max d_max d_max_safe inv_max d_norm d_norm_safe sx sy sz ex ey ez"
+    d_xy, d_max, d_safe, inv_max, norm, norm_safe, sx, sy, sz, ex, ey, ez = sp.symbols(
+        names, real=True
+    )
     zero = sp.Symbol("zero_direction")
-    # the scaled components are symbols of their own: CSE would otherwise square d first
-    scaled = sp.symbols("sx sy sz", real=True)
     assignments = (
-        (d_max, Fmax(Fabs(dx), Fmax(Fabs(dy), Fabs(dz)))),
+        (d_xy, _larger(Fabs(dx), Fabs(dy))),
+        (d_max, _larger(d_xy, Fabs(dz))),
         (zero, Le(d_max, 0)),
-        (inv_max, 1 / sp.Piecewise((1, zero), (d_max, True))),
-        *((v, w * inv_max) for v, w in zip(scaled, (dx, dy, dz))),
-        (norm, sp.sqrt(sum(v**2 for v in scaled))),
+        (d_safe, sp.Piecewise((1, zero), (d_max, True))),
+        (inv_max, 1 / d_safe),
+        (sx, dx * inv_max),
+        (sy, dy * inv_max),
+        (sz, dz * inv_max),
+        (norm, sp.sqrt(sx**2 + sy**2 + sz**2)),
         (norm_safe, sp.Piecewise((1, zero), (norm, True))),
-        (ex, scaled[0] / norm_safe),
-        (ey, scaled[1] / norm_safe),
-        (ez, scaled[2] / norm_safe),
+        (ex, sx / norm_safe),
+        (ey, sy / norm_safe),
+        (ez, sz / norm_safe),
     )
     return (ex, ey, ez), zero, assignments
 
@@ -125,7 +137,7 @@ def branch(layout: str, rotary: str, e, rho, singular, sign: int, tag: str):
     assignments = [
         (t, sp.atan2(sign * rho, ez)),
         (cr, sp.atan2(yy, xx)),
-        (cw, cr + two_pi * Floor((prev[4] - cr) / two_pi + sp.Rational(1, 2))),
+        (cw, cr + two_pi * NearestInteger((prev[4] - cr) / two_pi)),
         (co, sp.Piecewise((prev[4], singular), (cw, True))),
         (rho_safe, sp.Piecewise((1, singular), (rho, True))),
         (cc, sp.Piecewise((cos_c_prev, singular), (xx / rho_safe, True))),
