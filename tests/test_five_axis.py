@@ -448,3 +448,62 @@ def test_machine_files(tmp_path, repo_root):
         FiveAxisMachine.from_toml(bad)
     with pytest.raises(GeometryError, match="no bundled machine"):
         FiveAxisMachine.load("puma560")
+
+
+def test_threaded_batches_give_the_single_threaded_bits():
+    machine = FiveAxisMachine.load("table_head_bc")
+    j = _joints(50_000)
+    one = FiveAxisMachine.load("table_head_bc", threads=1)
+    machine.threads = 2
+    p, d = machine.fk(j)
+    p1, d1 = one.fk(j)
+    assert np.array_equal(p, p1) and np.array_equal(d, d1)
+    assert np.array_equal(machine.ik_all(p, d, j)[0], one.ik_all(p, d, j)[0])
+
+
+def test_cli_ik_of_a_file_is_a_path_and_reads_fk_output(tmp_path, capsys):
+    """`deltagen fk` writes px..dz; `deltagen ik` reads them back as a path: C continuous
+    over three turns, the joints those fk started from."""
+    from deltagen.cli import main
+
+    turn = np.linspace(0.0, 6 * math.pi, 181)
+    j = np.column_stack(
+        [0.02 * np.cos(turn), 0.01 * np.sin(turn), 0.05 + 0 * turn, 0.5 + 0 * turn, turn]
+    )
+    header = "x,y,z,a,c"
+    np.savetxt(tmp_path / "j.csv", j, delimiter=",", header=header, comments="")
+    assert (
+        main(
+            [
+                "fk",
+                "xyzac_trt",
+                "--input",
+                str(tmp_path / "j.csv"),
+                "--output",
+                str(tmp_path / "p.csv"),
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "ik",
+                "xyzac_trt",
+                "--input",
+                str(tmp_path / "p.csv"),
+                "--output",
+                str(tmp_path / "j2.csv"),
+                "--q0",
+                "0,0,0,0.5,0",
+            ]
+        )
+        == 0
+    )
+    back = np.genfromtxt(tmp_path / "j2.csv", delimiter=",", names=True)
+    got = np.column_stack([back[n] for n in ("x", "y", "z", "a", "c")])
+    np.testing.assert_allclose(got, j, atol=1e-12)
+    assert main(["ik", "xyzac_trt", "0", "0", "0", "0", "0", "0"]) == 1  # zero tool axis
+    assert "zero tool axis" in capsys.readouterr().err
+    assert main(["fk", "xyzac_trt", "0", "0", "0"]) == 2
+    assert main(["ik", "xyzac_trt", "0", "0", "0", "0", "0", "1", "--config", "up"]) == 2

@@ -51,6 +51,14 @@ STATUS_MEANINGS = {
     st.INVALID: "a non-finite input, or finite inputs so large that the arithmetic overflows: "
     "all outputs NaN",
 }
+#: where a 5-axis machine's kernels say otherwise (derive/five_axis/kernels.py)
+MACHINE_STATUS_MEANINGS = {
+    st.UNREACHABLE: "not returned: every tool pose has its two rotary branches",
+    st.SINGULAR: "the tool axis is parallel to the C axis: C is undetermined and keeps the "
+    "previous value (ik, ik_all); every output is given, finite",
+    st.INVALID: "a non-finite input, a zero tool axis (ik), or finite inputs so large that the "
+    "arithmetic overflows: all outputs NaN",
+}
 
 
 class ExportError(DeltagenError, ValueError):
@@ -729,7 +737,14 @@ def _write_and_measure(
         axes_choices=unit.axes_choices,
         batch=batch,
         status_codes=[
-            (code, name, STATUS_MEANINGS[code]) for code, name in sorted(st.STATUS_NAMES.items())
+            (
+                code,
+                name,
+                (MACHINE_STATUS_MEANINGS if kind == "machine" else {}).get(
+                    code, STATUS_MEANINGS[code]
+                ),
+            )
+            for code, name in sorted(st.STATUS_NAMES.items())
         ],
         stack_note=(
             f"bytes of each function's frame, `{cc} -std=c99 -O2 -fstack-usage` on the host "
