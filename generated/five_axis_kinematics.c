@@ -27,7 +27,7 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (table_table_ac_ik_all
- * the most, 12032 bytes at 64 points; each function's comment in
+ * the most, 12544 bytes at 64 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_FIVE_AXIS_BLOCK
 #define DELTAGEN_FIVE_AXIS_BLOCK 64
@@ -186,6 +186,8 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -312,31 +314,35 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double t3_5 = c_pivot1 + cos_c_2*t3_2 - sin_c_2*t3_1 + t3_3;
             const double y_2 = ez*t3_5 - head_pivot1 - rho*t3_4 - spindle_offset1 - t3_3;
             const double z_2 = ez*t3_4 - head_pivot2 + rho*t3_5 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t4_0 = -c_prev;
-            const double t4_1 = -tilt_prev;
-            const double cost1 = pow(c_1 + t4_0, 2) + pow(t4_1 + tilt_1, 2);
-            const double cost2 = pow(c_2 + t4_0, 2) + pow(t4_1 + tilt_2, 2);
-            const int take_first = (cost1 <= cost2);
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
+            const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
+            const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const double t5_0 = ((take_first) ? x_1 : x_2);
-            const double t5_1 = ((take_first) ? y_1 : y_2);
-            const double t5_2 = ((take_first) ? z_1 : z_2);
-            const double t5_3 = ((take_first) ? tilt_1 : tilt_2);
-            const double t5_4 = ((take_first) ? c_1 : c_2);
-            const int nonfinite_output = ((!invalid) & (!(isfinite(t5_0) & isfinite(t5_1) & isfinite(t5_2) & isfinite(t5_3) & isfinite(t5_4))));
-            const int t5_5 = ((invalid) | (nonfinite_output));
-            const double out_x_checked = ((t5_5) ? NAN : t5_0);
-            const double out_y_checked = ((t5_5) ? NAN : t5_1);
-            const double out_z_checked = ((t5_5) ? NAN : t5_2);
-            const double out_tilt_checked = ((t5_5) ? NAN : t5_3);
-            const double out_c_checked = ((t5_5) ? NAN : t5_4);
+            const double t6_0 = ((take_first) ? x_1 : x_2);
+            const double t6_1 = ((take_first) ? y_1 : y_2);
+            const double t6_2 = ((take_first) ? z_1 : z_2);
+            const double t6_3 = ((take_first) ? tilt_1 : tilt_2);
+            const double t6_4 = ((take_first) ? c_1 : c_2);
+            const int nonfinite_output = ((!(((invalid) | (no_branch)))) & (!(isfinite(t6_0) & isfinite(t6_1) & isfinite(t6_2) & isfinite(t6_3) & isfinite(t6_4))));
+            const int t6_5 = ((invalid) | (no_branch) | (nonfinite_output));
+            const double out_x_checked = ((t6_5) ? NAN : t6_0);
+            const double out_y_checked = ((t6_5) ? NAN : t6_1);
+            const double out_z_checked = ((t6_5) ? NAN : t6_2);
+            const double out_tilt_checked = ((t6_5) ? NAN : t6_3);
+            const double out_c_checked = ((t6_5) ? NAN : t6_4);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
             out_tilt_checked_b[k] = out_tilt_checked;
             out_c_checked_b[k] = out_c_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -355,12 +361,12 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
     return 0;
 }
 
-int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status)
+int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status)
 {
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL || valid == NULL) {
         return -1;
     }
     const double c_pivot0 = geometry->c_pivot[0];
@@ -375,6 +381,8 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -437,6 +445,8 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
         double out_z2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -506,19 +516,29 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double t3_5 = c_pivot1 + cos_c_2*t3_2 - sin_c_2*t3_1 + t3_3;
             const double y_2 = ez*t3_5 - head_pivot1 - rho*t3_4 - spindle_offset1 - t3_3;
             const double z_2 = ez*t3_4 - head_pivot2 + rho*t3_5 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            const int out_valid1 = (((t5_0) & (within1)));
+            const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!invalid) & (!(isfinite(x_1) & isfinite(y_1) & isfinite(z_1) & isfinite(tilt_1) & isfinite(c_1) & isfinite(x_2) & isfinite(y_2) & isfinite(z_2) & isfinite(tilt_2) & isfinite(c_2))));
-            const int t4_0 = ((invalid) | (nonfinite_output));
-            const double out_x1_checked = ((t4_0) ? NAN : x_1);
-            const double out_y1_checked = ((t4_0) ? NAN : y_1);
-            const double out_z1_checked = ((t4_0) ? NAN : z_1);
-            const double out_tilt1_checked = ((t4_0) ? NAN : tilt_1);
-            const double out_c1_checked = ((t4_0) ? NAN : c_1);
-            const double out_x2_checked = ((t4_0) ? NAN : x_2);
-            const double out_y2_checked = ((t4_0) ? NAN : y_2);
-            const double out_z2_checked = ((t4_0) ? NAN : z_2);
-            const double out_tilt2_checked = ((t4_0) ? NAN : tilt_2);
-            const double out_c2_checked = ((t4_0) ? NAN : c_2);
+            const int out_valid1_checked = ((nonfinite_output) ? 0 : out_valid1);
+            const int out_valid2_checked = ((nonfinite_output) ? 0 : out_valid2);
+            const int t6_0 = ((invalid) | (nonfinite_output));
+            const double out_x1_checked = ((t6_0) ? NAN : x_1);
+            const double out_y1_checked = ((t6_0) ? NAN : y_1);
+            const double out_z1_checked = ((t6_0) ? NAN : z_1);
+            const double out_tilt1_checked = ((t6_0) ? NAN : tilt_1);
+            const double out_c1_checked = ((t6_0) ? NAN : c_1);
+            const double out_x2_checked = ((t6_0) ? NAN : x_2);
+            const double out_y2_checked = ((t6_0) ? NAN : y_2);
+            const double out_z2_checked = ((t6_0) ? NAN : z_2);
+            const double out_tilt2_checked = ((t6_0) ? NAN : tilt_2);
+            const double out_c2_checked = ((t6_0) ? NAN : c_2);
             out_x1_checked_b[k] = out_x1_checked;
             out_y1_checked_b[k] = out_y1_checked;
             out_z1_checked_b[k] = out_z1_checked;
@@ -529,9 +549,11 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             out_z2_checked_b[k] = out_z2_checked;
             out_tilt2_checked_b[k] = out_tilt2_checked;
             out_c2_checked_b[k] = out_c2_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            out_valid1_checked_b[k] = out_valid1_checked;
+            out_valid2_checked_b[k] = out_valid2_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
-        /* statuses are narrowed in a loop of their own: mixing int8
+        /* statuses are narrowed in a loop of their own (flags in the scatter): mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
@@ -548,6 +570,8 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             j[(start + k) * 10 + 7] = out_z2_checked_b[k];
             j[(start + k) * 10 + 8] = out_tilt2_checked_b[k];
             j[(start + k) * 10 + 9] = out_c2_checked_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid1_checked_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid2_checked_b[k];
         }
     }
     return 0;
@@ -705,6 +729,8 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -831,31 +857,35 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double t3_4 = c_pivot0 + cos_c_2*t3_2 + sin_c_2*t3_3 - tilt_pivot0;
             const double x_2 = ez*t3_4 - head_pivot0 + rho*t3_1 - spindle_offset0 + tilt_pivot0;
             const double z_2 = ez*t3_1 - head_pivot2 - rho*t3_4 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t4_0 = -c_prev;
-            const double t4_1 = -tilt_prev;
-            const double cost1 = pow(c_1 + t4_0, 2) + pow(t4_1 + tilt_1, 2);
-            const double cost2 = pow(c_2 + t4_0, 2) + pow(t4_1 + tilt_2, 2);
-            const int take_first = (cost1 <= cost2);
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
+            const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
+            const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const double t5_0 = ((take_first) ? x_1 : x_2);
-            const double t5_1 = ((take_first) ? y_1 : y_2);
-            const double t5_2 = ((take_first) ? z_1 : z_2);
-            const double t5_3 = ((take_first) ? tilt_1 : tilt_2);
-            const double t5_4 = ((take_first) ? c_1 : c_2);
-            const int nonfinite_output = ((!invalid) & (!(isfinite(t5_0) & isfinite(t5_1) & isfinite(t5_2) & isfinite(t5_3) & isfinite(t5_4))));
-            const int t5_5 = ((invalid) | (nonfinite_output));
-            const double out_x_checked = ((t5_5) ? NAN : t5_0);
-            const double out_y_checked = ((t5_5) ? NAN : t5_1);
-            const double out_z_checked = ((t5_5) ? NAN : t5_2);
-            const double out_tilt_checked = ((t5_5) ? NAN : t5_3);
-            const double out_c_checked = ((t5_5) ? NAN : t5_4);
+            const double t6_0 = ((take_first) ? x_1 : x_2);
+            const double t6_1 = ((take_first) ? y_1 : y_2);
+            const double t6_2 = ((take_first) ? z_1 : z_2);
+            const double t6_3 = ((take_first) ? tilt_1 : tilt_2);
+            const double t6_4 = ((take_first) ? c_1 : c_2);
+            const int nonfinite_output = ((!(((invalid) | (no_branch)))) & (!(isfinite(t6_0) & isfinite(t6_1) & isfinite(t6_2) & isfinite(t6_3) & isfinite(t6_4))));
+            const int t6_5 = ((invalid) | (no_branch) | (nonfinite_output));
+            const double out_x_checked = ((t6_5) ? NAN : t6_0);
+            const double out_y_checked = ((t6_5) ? NAN : t6_1);
+            const double out_z_checked = ((t6_5) ? NAN : t6_2);
+            const double out_tilt_checked = ((t6_5) ? NAN : t6_3);
+            const double out_c_checked = ((t6_5) ? NAN : t6_4);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
             out_tilt_checked_b[k] = out_tilt_checked;
             out_c_checked_b[k] = out_c_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -874,12 +904,12 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
     return 0;
 }
 
-int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status)
+int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status)
 {
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL || valid == NULL) {
         return -1;
     }
     const double c_pivot0 = geometry->c_pivot[0];
@@ -894,6 +924,8 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -956,6 +988,8 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
         double out_z2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -1025,19 +1059,29 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double t3_4 = c_pivot0 + cos_c_2*t3_2 + sin_c_2*t3_3 - tilt_pivot0;
             const double x_2 = ez*t3_4 - head_pivot0 + rho*t3_1 - spindle_offset0 + tilt_pivot0;
             const double z_2 = ez*t3_1 - head_pivot2 - rho*t3_4 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            const int out_valid1 = (((t5_0) & (within1)));
+            const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!invalid) & (!(isfinite(x_1) & isfinite(y_1) & isfinite(z_1) & isfinite(tilt_1) & isfinite(c_1) & isfinite(x_2) & isfinite(y_2) & isfinite(z_2) & isfinite(tilt_2) & isfinite(c_2))));
-            const int t4_0 = ((invalid) | (nonfinite_output));
-            const double out_x1_checked = ((t4_0) ? NAN : x_1);
-            const double out_y1_checked = ((t4_0) ? NAN : y_1);
-            const double out_z1_checked = ((t4_0) ? NAN : z_1);
-            const double out_tilt1_checked = ((t4_0) ? NAN : tilt_1);
-            const double out_c1_checked = ((t4_0) ? NAN : c_1);
-            const double out_x2_checked = ((t4_0) ? NAN : x_2);
-            const double out_y2_checked = ((t4_0) ? NAN : y_2);
-            const double out_z2_checked = ((t4_0) ? NAN : z_2);
-            const double out_tilt2_checked = ((t4_0) ? NAN : tilt_2);
-            const double out_c2_checked = ((t4_0) ? NAN : c_2);
+            const int out_valid1_checked = ((nonfinite_output) ? 0 : out_valid1);
+            const int out_valid2_checked = ((nonfinite_output) ? 0 : out_valid2);
+            const int t6_0 = ((invalid) | (nonfinite_output));
+            const double out_x1_checked = ((t6_0) ? NAN : x_1);
+            const double out_y1_checked = ((t6_0) ? NAN : y_1);
+            const double out_z1_checked = ((t6_0) ? NAN : z_1);
+            const double out_tilt1_checked = ((t6_0) ? NAN : tilt_1);
+            const double out_c1_checked = ((t6_0) ? NAN : c_1);
+            const double out_x2_checked = ((t6_0) ? NAN : x_2);
+            const double out_y2_checked = ((t6_0) ? NAN : y_2);
+            const double out_z2_checked = ((t6_0) ? NAN : z_2);
+            const double out_tilt2_checked = ((t6_0) ? NAN : tilt_2);
+            const double out_c2_checked = ((t6_0) ? NAN : c_2);
             out_x1_checked_b[k] = out_x1_checked;
             out_y1_checked_b[k] = out_y1_checked;
             out_z1_checked_b[k] = out_z1_checked;
@@ -1048,9 +1092,11 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             out_z2_checked_b[k] = out_z2_checked;
             out_tilt2_checked_b[k] = out_tilt2_checked;
             out_c2_checked_b[k] = out_c2_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            out_valid1_checked_b[k] = out_valid1_checked;
+            out_valid2_checked_b[k] = out_valid2_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
-        /* statuses are narrowed in a loop of their own: mixing int8
+        /* statuses are narrowed in a loop of their own (flags in the scatter): mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
@@ -1067,6 +1113,8 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             j[(start + k) * 10 + 7] = out_z2_checked_b[k];
             j[(start + k) * 10 + 8] = out_tilt2_checked_b[k];
             j[(start + k) * 10 + 9] = out_c2_checked_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid1_checked_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid2_checked_b[k];
         }
     }
     return 0;
@@ -1215,6 +1263,8 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -1338,31 +1388,35 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double sin_c_2 = ((singular) ? sin_c_prev : -ex*t3_0);
             const double x_2 = -cos_c_2*t3_2 + px - sin_c_2*t3_1 + sin_c_2*t3_3;
             const double y_2 = cos_c_2*t3_1 - cos_c_2*t3_3 + py - sin_c_2*t3_2;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t4_0 = -c_prev;
-            const double t4_1 = -tilt_prev;
-            const double cost1 = pow(c_1 + t4_0, 2) + pow(t4_1 + tilt_1, 2);
-            const double cost2 = pow(c_2 + t4_0, 2) + pow(t4_1 + tilt_2, 2);
-            const int take_first = (cost1 <= cost2);
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
+            const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
+            const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const double t5_0 = ((take_first) ? x_1 : x_2);
-            const double t5_1 = ((take_first) ? y_1 : y_2);
-            const double t5_2 = ((take_first) ? z_1 : z_2);
-            const double t5_3 = ((take_first) ? tilt_1 : tilt_2);
-            const double t5_4 = ((take_first) ? c_1 : c_2);
-            const int nonfinite_output = ((!invalid) & (!(isfinite(t5_0) & isfinite(t5_1) & isfinite(t5_2) & isfinite(t5_3) & isfinite(t5_4))));
-            const int t5_5 = ((invalid) | (nonfinite_output));
-            const double out_x_checked = ((t5_5) ? NAN : t5_0);
-            const double out_y_checked = ((t5_5) ? NAN : t5_1);
-            const double out_z_checked = ((t5_5) ? NAN : t5_2);
-            const double out_tilt_checked = ((t5_5) ? NAN : t5_3);
-            const double out_c_checked = ((t5_5) ? NAN : t5_4);
+            const double t6_0 = ((take_first) ? x_1 : x_2);
+            const double t6_1 = ((take_first) ? y_1 : y_2);
+            const double t6_2 = ((take_first) ? z_1 : z_2);
+            const double t6_3 = ((take_first) ? tilt_1 : tilt_2);
+            const double t6_4 = ((take_first) ? c_1 : c_2);
+            const int nonfinite_output = ((!(((invalid) | (no_branch)))) & (!(isfinite(t6_0) & isfinite(t6_1) & isfinite(t6_2) & isfinite(t6_3) & isfinite(t6_4))));
+            const int t6_5 = ((invalid) | (no_branch) | (nonfinite_output));
+            const double out_x_checked = ((t6_5) ? NAN : t6_0);
+            const double out_y_checked = ((t6_5) ? NAN : t6_1);
+            const double out_z_checked = ((t6_5) ? NAN : t6_2);
+            const double out_tilt_checked = ((t6_5) ? NAN : t6_3);
+            const double out_c_checked = ((t6_5) ? NAN : t6_4);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
             out_tilt_checked_b[k] = out_tilt_checked;
             out_c_checked_b[k] = out_c_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -1381,12 +1435,12 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
     return 0;
 }
 
-int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status)
+int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status)
 {
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL || valid == NULL) {
         return -1;
     }
     const double head_pivot0 = geometry->head_pivot[0];
@@ -1397,6 +1451,8 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -1459,6 +1515,8 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
         double out_z2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -1525,19 +1583,29 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double sin_c_2 = ((singular) ? sin_c_prev : -ex*t3_0);
             const double x_2 = -cos_c_2*t3_2 + px - sin_c_2*t3_1 + sin_c_2*t3_3;
             const double y_2 = cos_c_2*t3_1 - cos_c_2*t3_3 + py - sin_c_2*t3_2;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            const int out_valid1 = (((t5_0) & (within1)));
+            const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!invalid) & (!(isfinite(x_1) & isfinite(y_1) & isfinite(z_1) & isfinite(tilt_1) & isfinite(c_1) & isfinite(x_2) & isfinite(y_2) & isfinite(z_2) & isfinite(tilt_2) & isfinite(c_2))));
-            const int t4_0 = ((invalid) | (nonfinite_output));
-            const double out_x1_checked = ((t4_0) ? NAN : x_1);
-            const double out_y1_checked = ((t4_0) ? NAN : y_1);
-            const double out_z1_checked = ((t4_0) ? NAN : z_1);
-            const double out_tilt1_checked = ((t4_0) ? NAN : tilt_1);
-            const double out_c1_checked = ((t4_0) ? NAN : c_1);
-            const double out_x2_checked = ((t4_0) ? NAN : x_2);
-            const double out_y2_checked = ((t4_0) ? NAN : y_2);
-            const double out_z2_checked = ((t4_0) ? NAN : z_2);
-            const double out_tilt2_checked = ((t4_0) ? NAN : tilt_2);
-            const double out_c2_checked = ((t4_0) ? NAN : c_2);
+            const int out_valid1_checked = ((nonfinite_output) ? 0 : out_valid1);
+            const int out_valid2_checked = ((nonfinite_output) ? 0 : out_valid2);
+            const int t6_0 = ((invalid) | (nonfinite_output));
+            const double out_x1_checked = ((t6_0) ? NAN : x_1);
+            const double out_y1_checked = ((t6_0) ? NAN : y_1);
+            const double out_z1_checked = ((t6_0) ? NAN : z_1);
+            const double out_tilt1_checked = ((t6_0) ? NAN : tilt_1);
+            const double out_c1_checked = ((t6_0) ? NAN : c_1);
+            const double out_x2_checked = ((t6_0) ? NAN : x_2);
+            const double out_y2_checked = ((t6_0) ? NAN : y_2);
+            const double out_z2_checked = ((t6_0) ? NAN : z_2);
+            const double out_tilt2_checked = ((t6_0) ? NAN : tilt_2);
+            const double out_c2_checked = ((t6_0) ? NAN : c_2);
             out_x1_checked_b[k] = out_x1_checked;
             out_y1_checked_b[k] = out_y1_checked;
             out_z1_checked_b[k] = out_z1_checked;
@@ -1548,9 +1616,11 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             out_z2_checked_b[k] = out_z2_checked;
             out_tilt2_checked_b[k] = out_tilt2_checked;
             out_c2_checked_b[k] = out_c2_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            out_valid1_checked_b[k] = out_valid1_checked;
+            out_valid2_checked_b[k] = out_valid2_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
-        /* statuses are narrowed in a loop of their own: mixing int8
+        /* statuses are narrowed in a loop of their own (flags in the scatter): mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
@@ -1567,6 +1637,8 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             j[(start + k) * 10 + 7] = out_z2_checked_b[k];
             j[(start + k) * 10 + 8] = out_tilt2_checked_b[k];
             j[(start + k) * 10 + 9] = out_c2_checked_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid1_checked_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid2_checked_b[k];
         }
     }
     return 0;
@@ -1714,6 +1786,8 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -1836,31 +1910,35 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             const double sin_c_2 = ((singular) ? sin_c_prev : -ey*t3_0);
             const double x_2 = -cos_c_2*t3_1 - cos_c_2*t3_3 + px + sin_c_2*t3_2;
             const double y_2 = -cos_c_2*t3_2 + py - sin_c_2*t3_1 - sin_c_2*t3_3;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t4_0 = -c_prev;
-            const double t4_1 = -tilt_prev;
-            const double cost1 = pow(c_1 + t4_0, 2) + pow(t4_1 + tilt_1, 2);
-            const double cost2 = pow(c_2 + t4_0, 2) + pow(t4_1 + tilt_2, 2);
-            const int take_first = (cost1 <= cost2);
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
+            const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
+            const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const double t5_0 = ((take_first) ? x_1 : x_2);
-            const double t5_1 = ((take_first) ? y_1 : y_2);
-            const double t5_2 = ((take_first) ? z_1 : z_2);
-            const double t5_3 = ((take_first) ? tilt_1 : tilt_2);
-            const double t5_4 = ((take_first) ? c_1 : c_2);
-            const int nonfinite_output = ((!invalid) & (!(isfinite(t5_0) & isfinite(t5_1) & isfinite(t5_2) & isfinite(t5_3) & isfinite(t5_4))));
-            const int t5_5 = ((invalid) | (nonfinite_output));
-            const double out_x_checked = ((t5_5) ? NAN : t5_0);
-            const double out_y_checked = ((t5_5) ? NAN : t5_1);
-            const double out_z_checked = ((t5_5) ? NAN : t5_2);
-            const double out_tilt_checked = ((t5_5) ? NAN : t5_3);
-            const double out_c_checked = ((t5_5) ? NAN : t5_4);
+            const double t6_0 = ((take_first) ? x_1 : x_2);
+            const double t6_1 = ((take_first) ? y_1 : y_2);
+            const double t6_2 = ((take_first) ? z_1 : z_2);
+            const double t6_3 = ((take_first) ? tilt_1 : tilt_2);
+            const double t6_4 = ((take_first) ? c_1 : c_2);
+            const int nonfinite_output = ((!(((invalid) | (no_branch)))) & (!(isfinite(t6_0) & isfinite(t6_1) & isfinite(t6_2) & isfinite(t6_3) & isfinite(t6_4))));
+            const int t6_5 = ((invalid) | (no_branch) | (nonfinite_output));
+            const double out_x_checked = ((t6_5) ? NAN : t6_0);
+            const double out_y_checked = ((t6_5) ? NAN : t6_1);
+            const double out_z_checked = ((t6_5) ? NAN : t6_2);
+            const double out_tilt_checked = ((t6_5) ? NAN : t6_3);
+            const double out_c_checked = ((t6_5) ? NAN : t6_4);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
             out_tilt_checked_b[k] = out_tilt_checked;
             out_c_checked_b[k] = out_c_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -1879,12 +1957,12 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
     return 0;
 }
 
-int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status)
+int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status)
 {
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL || valid == NULL) {
         return -1;
     }
     const double head_pivot0 = geometry->head_pivot[0];
@@ -1895,6 +1973,8 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -1957,6 +2037,8 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
         double out_z2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -2022,19 +2104,29 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             const double sin_c_2 = ((singular) ? sin_c_prev : -ey*t3_0);
             const double x_2 = -cos_c_2*t3_1 - cos_c_2*t3_3 + px + sin_c_2*t3_2;
             const double y_2 = -cos_c_2*t3_2 + py - sin_c_2*t3_1 - sin_c_2*t3_3;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            const int out_valid1 = (((t5_0) & (within1)));
+            const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!invalid) & (!(isfinite(x_1) & isfinite(y_1) & isfinite(z_1) & isfinite(tilt_1) & isfinite(c_1) & isfinite(x_2) & isfinite(y_2) & isfinite(z_2) & isfinite(tilt_2) & isfinite(c_2))));
-            const int t4_0 = ((invalid) | (nonfinite_output));
-            const double out_x1_checked = ((t4_0) ? NAN : x_1);
-            const double out_y1_checked = ((t4_0) ? NAN : y_1);
-            const double out_z1_checked = ((t4_0) ? NAN : z_1);
-            const double out_tilt1_checked = ((t4_0) ? NAN : tilt_1);
-            const double out_c1_checked = ((t4_0) ? NAN : c_1);
-            const double out_x2_checked = ((t4_0) ? NAN : x_2);
-            const double out_y2_checked = ((t4_0) ? NAN : y_2);
-            const double out_z2_checked = ((t4_0) ? NAN : z_2);
-            const double out_tilt2_checked = ((t4_0) ? NAN : tilt_2);
-            const double out_c2_checked = ((t4_0) ? NAN : c_2);
+            const int out_valid1_checked = ((nonfinite_output) ? 0 : out_valid1);
+            const int out_valid2_checked = ((nonfinite_output) ? 0 : out_valid2);
+            const int t6_0 = ((invalid) | (nonfinite_output));
+            const double out_x1_checked = ((t6_0) ? NAN : x_1);
+            const double out_y1_checked = ((t6_0) ? NAN : y_1);
+            const double out_z1_checked = ((t6_0) ? NAN : z_1);
+            const double out_tilt1_checked = ((t6_0) ? NAN : tilt_1);
+            const double out_c1_checked = ((t6_0) ? NAN : c_1);
+            const double out_x2_checked = ((t6_0) ? NAN : x_2);
+            const double out_y2_checked = ((t6_0) ? NAN : y_2);
+            const double out_z2_checked = ((t6_0) ? NAN : z_2);
+            const double out_tilt2_checked = ((t6_0) ? NAN : tilt_2);
+            const double out_c2_checked = ((t6_0) ? NAN : c_2);
             out_x1_checked_b[k] = out_x1_checked;
             out_y1_checked_b[k] = out_y1_checked;
             out_z1_checked_b[k] = out_z1_checked;
@@ -2045,9 +2137,11 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             out_z2_checked_b[k] = out_z2_checked;
             out_tilt2_checked_b[k] = out_tilt2_checked;
             out_c2_checked_b[k] = out_c2_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            out_valid1_checked_b[k] = out_valid1_checked;
+            out_valid2_checked_b[k] = out_valid2_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
-        /* statuses are narrowed in a loop of their own: mixing int8
+        /* statuses are narrowed in a loop of their own (flags in the scatter): mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
@@ -2064,6 +2158,8 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             j[(start + k) * 10 + 7] = out_z2_checked_b[k];
             j[(start + k) * 10 + 8] = out_tilt2_checked_b[k];
             j[(start + k) * 10 + 9] = out_c2_checked_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid1_checked_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid2_checked_b[k];
         }
     }
     return 0;
@@ -2215,6 +2311,8 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -2336,31 +2434,35 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             const double sin_c_2 = ((singular) ? sin_c_prev : -ex*t3_0);
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - head_pivot0 + sin_c_2*t3_2 - spindle_offset0;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - ez*spindle_offset1 - head_pivot1 - rho*spindle_offset2 + rho*tool_length - sin_c_2*t3_1;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t4_0 = -c_prev;
-            const double t4_1 = -tilt_prev;
-            const double cost1 = pow(c_1 + t4_0, 2) + pow(t4_1 + tilt_1, 2);
-            const double cost2 = pow(c_2 + t4_0, 2) + pow(t4_1 + tilt_2, 2);
-            const int take_first = (cost1 <= cost2);
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
+            const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
+            const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const double t5_0 = ((take_first) ? x_1 : x_2);
-            const double t5_1 = ((take_first) ? y_1 : y_2);
-            const double t5_2 = ((take_first) ? z_1 : z_2);
-            const double t5_3 = ((take_first) ? tilt_1 : tilt_2);
-            const double t5_4 = ((take_first) ? c_1 : c_2);
-            const int nonfinite_output = ((!invalid) & (!(isfinite(t5_0) & isfinite(t5_1) & isfinite(t5_2) & isfinite(t5_3) & isfinite(t5_4))));
-            const int t5_5 = ((invalid) | (nonfinite_output));
-            const double out_x_checked = ((t5_5) ? NAN : t5_0);
-            const double out_y_checked = ((t5_5) ? NAN : t5_1);
-            const double out_z_checked = ((t5_5) ? NAN : t5_2);
-            const double out_tilt_checked = ((t5_5) ? NAN : t5_3);
-            const double out_c_checked = ((t5_5) ? NAN : t5_4);
+            const double t6_0 = ((take_first) ? x_1 : x_2);
+            const double t6_1 = ((take_first) ? y_1 : y_2);
+            const double t6_2 = ((take_first) ? z_1 : z_2);
+            const double t6_3 = ((take_first) ? tilt_1 : tilt_2);
+            const double t6_4 = ((take_first) ? c_1 : c_2);
+            const int nonfinite_output = ((!(((invalid) | (no_branch)))) & (!(isfinite(t6_0) & isfinite(t6_1) & isfinite(t6_2) & isfinite(t6_3) & isfinite(t6_4))));
+            const int t6_5 = ((invalid) | (no_branch) | (nonfinite_output));
+            const double out_x_checked = ((t6_5) ? NAN : t6_0);
+            const double out_y_checked = ((t6_5) ? NAN : t6_1);
+            const double out_z_checked = ((t6_5) ? NAN : t6_2);
+            const double out_tilt_checked = ((t6_5) ? NAN : t6_3);
+            const double out_c_checked = ((t6_5) ? NAN : t6_4);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
             out_tilt_checked_b[k] = out_tilt_checked;
             out_c_checked_b[k] = out_c_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -2379,12 +2481,12 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
     return 0;
 }
 
-int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status)
+int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status)
 {
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL || valid == NULL) {
         return -1;
     }
     const double c_pivot0 = geometry->c_pivot[0];
@@ -2397,6 +2499,8 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -2459,6 +2563,8 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
         double out_z2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -2523,19 +2629,29 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             const double sin_c_2 = ((singular) ? sin_c_prev : -ex*t3_0);
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - head_pivot0 + sin_c_2*t3_2 - spindle_offset0;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - ez*spindle_offset1 - head_pivot1 - rho*spindle_offset2 + rho*tool_length - sin_c_2*t3_1;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            const int out_valid1 = (((t5_0) & (within1)));
+            const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!invalid) & (!(isfinite(x_1) & isfinite(y_1) & isfinite(z_1) & isfinite(tilt_1) & isfinite(c_1) & isfinite(x_2) & isfinite(y_2) & isfinite(z_2) & isfinite(tilt_2) & isfinite(c_2))));
-            const int t4_0 = ((invalid) | (nonfinite_output));
-            const double out_x1_checked = ((t4_0) ? NAN : x_1);
-            const double out_y1_checked = ((t4_0) ? NAN : y_1);
-            const double out_z1_checked = ((t4_0) ? NAN : z_1);
-            const double out_tilt1_checked = ((t4_0) ? NAN : tilt_1);
-            const double out_c1_checked = ((t4_0) ? NAN : c_1);
-            const double out_x2_checked = ((t4_0) ? NAN : x_2);
-            const double out_y2_checked = ((t4_0) ? NAN : y_2);
-            const double out_z2_checked = ((t4_0) ? NAN : z_2);
-            const double out_tilt2_checked = ((t4_0) ? NAN : tilt_2);
-            const double out_c2_checked = ((t4_0) ? NAN : c_2);
+            const int out_valid1_checked = ((nonfinite_output) ? 0 : out_valid1);
+            const int out_valid2_checked = ((nonfinite_output) ? 0 : out_valid2);
+            const int t6_0 = ((invalid) | (nonfinite_output));
+            const double out_x1_checked = ((t6_0) ? NAN : x_1);
+            const double out_y1_checked = ((t6_0) ? NAN : y_1);
+            const double out_z1_checked = ((t6_0) ? NAN : z_1);
+            const double out_tilt1_checked = ((t6_0) ? NAN : tilt_1);
+            const double out_c1_checked = ((t6_0) ? NAN : c_1);
+            const double out_x2_checked = ((t6_0) ? NAN : x_2);
+            const double out_y2_checked = ((t6_0) ? NAN : y_2);
+            const double out_z2_checked = ((t6_0) ? NAN : z_2);
+            const double out_tilt2_checked = ((t6_0) ? NAN : tilt_2);
+            const double out_c2_checked = ((t6_0) ? NAN : c_2);
             out_x1_checked_b[k] = out_x1_checked;
             out_y1_checked_b[k] = out_y1_checked;
             out_z1_checked_b[k] = out_z1_checked;
@@ -2546,9 +2662,11 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             out_z2_checked_b[k] = out_z2_checked;
             out_tilt2_checked_b[k] = out_tilt2_checked;
             out_c2_checked_b[k] = out_c2_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            out_valid1_checked_b[k] = out_valid1_checked;
+            out_valid2_checked_b[k] = out_valid2_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
-        /* statuses are narrowed in a loop of their own: mixing int8
+        /* statuses are narrowed in a loop of their own (flags in the scatter): mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
@@ -2565,6 +2683,8 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             j[(start + k) * 10 + 7] = out_z2_checked_b[k];
             j[(start + k) * 10 + 8] = out_tilt2_checked_b[k];
             j[(start + k) * 10 + 9] = out_c2_checked_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid1_checked_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid2_checked_b[k];
         }
     }
     return 0;
@@ -2716,6 +2836,8 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -2837,31 +2959,35 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             const double sin_c_2 = ((singular) ? sin_c_prev : -ey*t3_0);
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - ez*spindle_offset0 - head_pivot0 + rho*spindle_offset2 - rho*tool_length + sin_c_2*t3_2;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - head_pivot1 - sin_c_2*t3_1 - spindle_offset1;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t4_0 = -c_prev;
-            const double t4_1 = -tilt_prev;
-            const double cost1 = pow(c_1 + t4_0, 2) + pow(t4_1 + tilt_1, 2);
-            const double cost2 = pow(c_2 + t4_0, 2) + pow(t4_1 + tilt_2, 2);
-            const int take_first = (cost1 <= cost2);
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
+            const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
+            const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const double t5_0 = ((take_first) ? x_1 : x_2);
-            const double t5_1 = ((take_first) ? y_1 : y_2);
-            const double t5_2 = ((take_first) ? z_1 : z_2);
-            const double t5_3 = ((take_first) ? tilt_1 : tilt_2);
-            const double t5_4 = ((take_first) ? c_1 : c_2);
-            const int nonfinite_output = ((!invalid) & (!(isfinite(t5_0) & isfinite(t5_1) & isfinite(t5_2) & isfinite(t5_3) & isfinite(t5_4))));
-            const int t5_5 = ((invalid) | (nonfinite_output));
-            const double out_x_checked = ((t5_5) ? NAN : t5_0);
-            const double out_y_checked = ((t5_5) ? NAN : t5_1);
-            const double out_z_checked = ((t5_5) ? NAN : t5_2);
-            const double out_tilt_checked = ((t5_5) ? NAN : t5_3);
-            const double out_c_checked = ((t5_5) ? NAN : t5_4);
+            const double t6_0 = ((take_first) ? x_1 : x_2);
+            const double t6_1 = ((take_first) ? y_1 : y_2);
+            const double t6_2 = ((take_first) ? z_1 : z_2);
+            const double t6_3 = ((take_first) ? tilt_1 : tilt_2);
+            const double t6_4 = ((take_first) ? c_1 : c_2);
+            const int nonfinite_output = ((!(((invalid) | (no_branch)))) & (!(isfinite(t6_0) & isfinite(t6_1) & isfinite(t6_2) & isfinite(t6_3) & isfinite(t6_4))));
+            const int t6_5 = ((invalid) | (no_branch) | (nonfinite_output));
+            const double out_x_checked = ((t6_5) ? NAN : t6_0);
+            const double out_y_checked = ((t6_5) ? NAN : t6_1);
+            const double out_z_checked = ((t6_5) ? NAN : t6_2);
+            const double out_tilt_checked = ((t6_5) ? NAN : t6_3);
+            const double out_c_checked = ((t6_5) ? NAN : t6_4);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
             out_tilt_checked_b[k] = out_tilt_checked;
             out_c_checked_b[k] = out_c_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
@@ -2880,12 +3006,12 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
     return 0;
 }
 
-int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status)
+int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status)
 {
     if (n == 0) {
         return 0;
     }
-    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL) {
+    if (geometry == NULL || status == NULL || p == NULL || d == NULL || j_prev == NULL || j == NULL || valid == NULL) {
         return -1;
     }
     const double c_pivot0 = geometry->c_pivot[0];
@@ -2898,6 +3024,8 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
     const double spindle_offset2 = geometry->spindle_offset[2];
     const double tool_length = geometry->tool_length;
     const double singular_tol = geometry->singular_tol;
+    const double tilt_min = geometry->tilt_min;
+    const double tilt_max = geometry->tilt_max;
 
     for (size_t start = 0; start < n; start += DELTAGEN_FIVE_AXIS_BLOCK) {
         const size_t m = (n - start < DELTAGEN_FIVE_AXIS_BLOCK) ? n - start : DELTAGEN_FIVE_AXIS_BLOCK;
@@ -2960,6 +3088,8 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
         double out_z2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -3024,19 +3154,29 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             const double sin_c_2 = ((singular) ? sin_c_prev : -ey*t3_0);
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - ez*spindle_offset0 - head_pivot0 + rho*spindle_offset2 - rho*tool_length + sin_c_2*t3_2;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - head_pivot1 - sin_c_2*t3_1 - spindle_offset1;
+            /* each branch's tilt within its travel [tilt_min, tilt_max] */
+            const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
+            const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
+            const int no_branch = ((!within1) & (!within2));
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            const int out_valid1 = (((t5_0) & (within1)));
+            const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!invalid) & (!(isfinite(x_1) & isfinite(y_1) & isfinite(z_1) & isfinite(tilt_1) & isfinite(c_1) & isfinite(x_2) & isfinite(y_2) & isfinite(z_2) & isfinite(tilt_2) & isfinite(c_2))));
-            const int t4_0 = ((invalid) | (nonfinite_output));
-            const double out_x1_checked = ((t4_0) ? NAN : x_1);
-            const double out_y1_checked = ((t4_0) ? NAN : y_1);
-            const double out_z1_checked = ((t4_0) ? NAN : z_1);
-            const double out_tilt1_checked = ((t4_0) ? NAN : tilt_1);
-            const double out_c1_checked = ((t4_0) ? NAN : c_1);
-            const double out_x2_checked = ((t4_0) ? NAN : x_2);
-            const double out_y2_checked = ((t4_0) ? NAN : y_2);
-            const double out_z2_checked = ((t4_0) ? NAN : z_2);
-            const double out_tilt2_checked = ((t4_0) ? NAN : tilt_2);
-            const double out_c2_checked = ((t4_0) ? NAN : c_2);
+            const int out_valid1_checked = ((nonfinite_output) ? 0 : out_valid1);
+            const int out_valid2_checked = ((nonfinite_output) ? 0 : out_valid2);
+            const int t6_0 = ((invalid) | (nonfinite_output));
+            const double out_x1_checked = ((t6_0) ? NAN : x_1);
+            const double out_y1_checked = ((t6_0) ? NAN : y_1);
+            const double out_z1_checked = ((t6_0) ? NAN : z_1);
+            const double out_tilt1_checked = ((t6_0) ? NAN : tilt_1);
+            const double out_c1_checked = ((t6_0) ? NAN : c_1);
+            const double out_x2_checked = ((t6_0) ? NAN : x_2);
+            const double out_y2_checked = ((t6_0) ? NAN : y_2);
+            const double out_z2_checked = ((t6_0) ? NAN : z_2);
+            const double out_tilt2_checked = ((t6_0) ? NAN : tilt_2);
+            const double out_c2_checked = ((t6_0) ? NAN : c_2);
             out_x1_checked_b[k] = out_x1_checked;
             out_y1_checked_b[k] = out_y1_checked;
             out_z1_checked_b[k] = out_z1_checked;
@@ -3047,9 +3187,11 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             out_z2_checked_b[k] = out_z2_checked;
             out_tilt2_checked_b[k] = out_tilt2_checked;
             out_c2_checked_b[k] = out_c2_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*singular));
+            out_valid1_checked_b[k] = out_valid1_checked;
+            out_valid2_checked_b[k] = out_valid2_checked;
+            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(no_branch + (1 - no_branch)*(2*singular)));
         }
-        /* statuses are narrowed in a loop of their own: mixing int8
+        /* statuses are narrowed in a loop of their own (flags in the scatter): mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
@@ -3066,6 +3208,8 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             j[(start + k) * 10 + 7] = out_z2_checked_b[k];
             j[(start + k) * 10 + 8] = out_tilt2_checked_b[k];
             j[(start + k) * 10 + 9] = out_c2_checked_b[k];
+            valid[(start + k) * 2 + 0] = (uint8_t)out_valid1_checked_b[k];
+            valid[(start + k) * 2 + 1] = (uint8_t)out_valid2_checked_b[k];
         }
     }
     return 0;

@@ -50,6 +50,8 @@ typedef struct deltagen_five_axis_geometry {
     double spindle_offset[3]; /* spindle gauge point from the tilt pivot [m] */
     double tool_length; /* gauge point to tool tip [m] */
     double singular_tol; /* tool axis within it of the C axis: SINGULAR */
+    double tilt_min; /* the tilt axis's travel, lower end [rad] */
+    double tilt_max; /* the tilt axis's travel, upper end [rad] */
 } deltagen_five_axis_geometry;
 
 /* Direct kinematics of a table-table AC machine (trunnion table: the tilt axis carries the C table (LinuxCNC xyzac-trt)): joints -> tool tip and tool axis in the workpiece frame.
@@ -67,7 +69,7 @@ typedef struct deltagen_five_axis_geometry {
  */
 int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict j, double *restrict p, double *restrict d, int8_t *restrict status);
 
-/* Inverse kinematics of a table-table AC machine (trunnion table: the tilt axis carries the C table (LinuxCNC xyzac-trt)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn).
+/* Inverse kinematics of a table-table AC machine (trunnion table: the tilt axis carries the C table (LinuxCNC xyzac-trt)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn) among those within the tilt's travel.
  *
  * geometry  robot geometry
  * n         number of points
@@ -75,9 +77,9 @@ int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *rest
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], A, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 5: joints x, y, z [m], A, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 152 operations per point.
+ * Cost: 165 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -91,13 +93,14 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], A, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 10: branch 1 (sin A >= 0) then branch 2 (sin A <= 0), each x, y, z [m], A, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * valid     out, n x 2 (uint8_t): 2 flags per point: 1 where the branch's tilt lies within its travel, else 0
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 139 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ * Cost: 155 operations per point.
+ * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
-int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status);
+int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status);
 
 /* Direct kinematics of a table-table BC machine (trunnion table: the tilt axis carries the C table (LinuxCNC xyzbc-trt)): joints -> tool tip and tool axis in the workpiece frame.
  *
@@ -114,7 +117,7 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
  */
 int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict j, double *restrict p, double *restrict d, int8_t *restrict status);
 
-/* Inverse kinematics of a table-table BC machine (trunnion table: the tilt axis carries the C table (LinuxCNC xyzbc-trt)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn).
+/* Inverse kinematics of a table-table BC machine (trunnion table: the tilt axis carries the C table (LinuxCNC xyzbc-trt)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn) among those within the tilt's travel.
  *
  * geometry  robot geometry
  * n         number of points
@@ -122,9 +125,9 @@ int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *rest
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], B, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 5: joints x, y, z [m], B, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 152 operations per point.
+ * Cost: 165 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -138,13 +141,14 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], B, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 10: branch 1 (sin B >= 0) then branch 2 (sin B <= 0), each x, y, z [m], B, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * valid     out, n x 2 (uint8_t): 2 flags per point: 1 where the branch's tilt lies within its travel, else 0
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 139 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ * Cost: 155 operations per point.
+ * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
-int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status);
+int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status);
 
 /* Direct kinematics of a head-head AC machine (spindle head: C on the carrier, the head tilts (LinuxCNC 5axiskins)): joints -> tool tip and tool axis in the workpiece frame.
  *
@@ -161,7 +165,7 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
  */
 int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict j, double *restrict p, double *restrict d, int8_t *restrict status);
 
-/* Inverse kinematics of a head-head AC machine (spindle head: C on the carrier, the head tilts (LinuxCNC 5axiskins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn).
+/* Inverse kinematics of a head-head AC machine (spindle head: C on the carrier, the head tilts (LinuxCNC 5axiskins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn) among those within the tilt's travel.
  *
  * geometry  robot geometry
  * n         number of points
@@ -169,9 +173,9 @@ int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *restri
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], A, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 5: joints x, y, z [m], A, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 147 operations per point.
+ * Cost: 160 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -185,13 +189,14 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], A, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 10: branch 1 (sin A >= 0) then branch 2 (sin A <= 0), each x, y, z [m], A, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * valid     out, n x 2 (uint8_t): 2 flags per point: 1 where the branch's tilt lies within its travel, else 0
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 134 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ * Cost: 150 operations per point.
+ * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
-int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status);
+int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status);
 
 /* Direct kinematics of a head-head BC machine (spindle head: C on the carrier, the head tilts (LinuxCNC 5axiskins)): joints -> tool tip and tool axis in the workpiece frame.
  *
@@ -208,7 +213,7 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
  */
 int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict j, double *restrict p, double *restrict d, int8_t *restrict status);
 
-/* Inverse kinematics of a head-head BC machine (spindle head: C on the carrier, the head tilts (LinuxCNC 5axiskins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn).
+/* Inverse kinematics of a head-head BC machine (spindle head: C on the carrier, the head tilts (LinuxCNC 5axiskins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn) among those within the tilt's travel.
  *
  * geometry  robot geometry
  * n         number of points
@@ -216,9 +221,9 @@ int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *restri
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], B, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 5: joints x, y, z [m], B, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 148 operations per point.
+ * Cost: 161 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -232,13 +237,14 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], B, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 10: branch 1 (sin B >= 0) then branch 2 (sin B <= 0), each x, y, z [m], B, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * valid     out, n x 2 (uint8_t): 2 flags per point: 1 where the branch's tilt lies within its travel, else 0
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 135 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ * Cost: 151 operations per point.
+ * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
-int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status);
+int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status);
 
 /* Direct kinematics of a table-head AC machine (C table, tilting head (LinuxCNC maxkins)): joints -> tool tip and tool axis in the workpiece frame.
  *
@@ -255,7 +261,7 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
  */
 int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict j, double *restrict p, double *restrict d, int8_t *restrict status);
 
-/* Inverse kinematics of a table-head AC machine (C table, tilting head (LinuxCNC maxkins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn).
+/* Inverse kinematics of a table-head AC machine (C table, tilting head (LinuxCNC maxkins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn) among those within the tilt's travel.
  *
  * geometry  robot geometry
  * n         number of points
@@ -263,9 +269,9 @@ int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *restr
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], A, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 5: joints x, y, z [m], A, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 149 operations per point.
+ * Cost: 162 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -279,13 +285,14 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], A, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 10: branch 1 (sin A >= 0) then branch 2 (sin A <= 0), each x, y, z [m], A, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * valid     out, n x 2 (uint8_t): 2 flags per point: 1 where the branch's tilt lies within its travel, else 0
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 136 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ * Cost: 152 operations per point.
+ * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
-int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status);
+int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status);
 
 /* Direct kinematics of a table-head BC machine (C table, tilting head (LinuxCNC maxkins)): joints -> tool tip and tool axis in the workpiece frame.
  *
@@ -302,7 +309,7 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
  */
 int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict j, double *restrict p, double *restrict d, int8_t *restrict status);
 
-/* Inverse kinematics of a table-head BC machine (C table, tilting head (LinuxCNC maxkins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn).
+/* Inverse kinematics of a table-head BC machine (C table, tilting head (LinuxCNC maxkins)): (tool tip, tool axis, previous joints) -> the joints of the branch nearest the previous ones (squared distance of the rotary angles, C at its nearest turn) among those within the tilt's travel.
  *
  * geometry  robot geometry
  * n         number of points
@@ -310,9 +317,9 @@ int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *restr
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], B, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 5: joints x, y, z [m], B, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 149 operations per point.
+ * Cost: 162 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars.
  */
@@ -326,13 +333,14 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
  * d         in,  n x 3: tool axis in W, from the tip into the spindle (any length > 0)
  * j_prev    in,  n x 5: previous joints x, y, z [m], B, C [rad]: C takes the turn nearest the previous C, and keeps it where the tool axis is parallel to the C axis
  * j         out, n x 10: branch 1 (sin B >= 0) then branch 2 (sin B <= 0), each x, y, z [m], B, C [rad]
- * status    out, n: OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
+ * valid     out, n x 2 (uint8_t): 2 flags per point: 1 where the branch's tilt lies within its travel, else 0
+ * status    out, n: OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within singular_tol: C keeps the previous value, the joints are still given); INVALID also where finite inputs give an output the status would return that is not finite (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 136 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars.
+ * Cost: 152 operations per point.
+ * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 12544 bytes (12.2 KiB) at 64, plus scalars.
  */
-int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, int8_t *restrict status);
+int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n, const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j, uint8_t *restrict valid, int8_t *restrict status);
 
 #ifdef __cplusplus
 }

@@ -507,3 +507,52 @@ def test_cli_ik_of_a_file_is_a_path_and_reads_fk_output(tmp_path, capsys):
     assert "zero tool axis" in capsys.readouterr().err
     assert main(["fk", "xyzac_trt", "0", "0", "0"]) == 2
     assert main(["ik", "xyzac_trt", "0", "0", "0", "0", "0", "1", "--config", "up"]) == 2
+
+
+@pytest.mark.parametrize("backend", ["compiled", "reference"])
+def test_the_tilt_travel_keeps_the_branch_within_it(backend):
+    """A head whose tilt travels over [-0.1, 2.0] rad: of a target reached with tilt 1.0
+    only branch 1 is valid, and ik takes it even when the previous joints lie on the other
+    branch; with the travel [0.2, 0.5] neither branch reaches it: UNREACHABLE."""
+    from deltagen import UnreachableError
+
+    geometry = dict(tool_length=0.05, head_pivot=(0.0, 0.01, 0.1), spindle_offset=(0, 0, -0.1))
+    machine = FiveAxisMachine(
+        "head-head", "AC", tilt_limits=(-0.1, 2.0), backend=backend, **geometry
+    )
+    free = FiveAxisMachine("head-head", "AC", backend=backend, **geometry)
+    j = np.array([0.1, 0.2, 0.3, 1.0, 0.4])
+    p, d = machine.fk(j)
+    other = free.ik_all(p, d, j)[0][1]  # the same tool pose from branch 2 (tilt -1)
+    np.testing.assert_allclose(other[3], -1.0, atol=1e-12)
+    np.testing.assert_allclose(free.ik(p, d, other), other, atol=1e-12)  # no travel limit
+    both, valid = machine.ik_all(p, d, j)
+    assert valid.tolist() == [True, False] and np.isnan(both[1]).all()
+    np.testing.assert_allclose(machine.ik(p, d, other), j, atol=1e-12)  # branch 1 only
+    p, d = np.array([p, p]), np.array([d, d])
+    narrow = FiveAxisMachine("head-head", "AC", tilt_limits=(0.2, 0.5), backend=backend, **geometry)
+    with pytest.raises(UnreachableError, match="beyond its travel"):
+        narrow.ik(p[0], d[0])
+    q, ok, status = narrow.ik(p, d, errors="nan", return_status=True)
+    assert not ok.any() and np.isnan(q).all() and np.all(status == st.UNREACHABLE)
+    both, valid = narrow.ik_all(p, d)
+    assert not valid.any() and np.isnan(both).all()
+
+
+def test_tilt_limits_in_a_machine_file(tmp_path):
+    path = tmp_path / "m.toml"
+    path.write_text(
+        '[machine]\nlayout = "table-table"\nrotary = "AC"\ntilt_limits_deg = [-120, 30]\n'
+    )
+    desc = MachineDescription.from_toml(path)
+    np.testing.assert_allclose(desc.tilt_limits, np.radians([-120, 30]))
+    for bad, message in (
+        ("[30, -120]", "lower < upper"),
+        ("[0, 200]", "lower < upper"),
+        ("[1]", "list of 2"),
+    ):
+        path.write_text(
+            f'[machine]\nlayout = "table-table"\nrotary = "AC"\ntilt_limits_deg = {bad}\n'
+        )
+        with pytest.raises(GeometryError, match=message):
+            MachineDescription.from_toml(path)

@@ -21,10 +21,14 @@ DELTA = ("delta_kinematics.c", "delta_kinematics.h", "delta_kinematics.cdef.h")
 FIVE_AXIS = ("five_axis_kinematics.c", "five_axis_kinematics.h", "five_axis_kinematics.cdef.h")
 # the delta core, the 5-axis machines' core, and one C module per bundled serial arm (TOML
 # and URDF)
-NAMES = DELTA + FIVE_AXIS + tuple(
-    f"serial_{name}{ext}"
-    for name in bundled_robots() + bundled_urdfs()
-    for ext in (".c", ".h", ".cdef.h")
+NAMES = (
+    DELTA
+    + FIVE_AXIS
+    + tuple(
+        f"serial_{name}{ext}"
+        for name in bundled_robots() + bundled_urdfs()
+        for ext in (".c", ".h", ".cdef.h")
+    )
 )
 
 

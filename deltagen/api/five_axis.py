@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
 from deltagen.api.validity import invalid_message
-from deltagen.errors import GeometryError, rows_text
+from deltagen.errors import GeometryError, UnreachableError, rows_text
 from deltagen.inputs import InputError, as_rows, check_errors_mode
 from deltagen.model.five_axis import MachineDescription
 from deltagen.native.parallel import check_threads
@@ -60,6 +60,7 @@ class FiveAxisMachine:
         rotary: str,
         *,
         tool_length: float = 0.0,
+        tilt_limits: tuple[float, float] = (-np.pi, np.pi),
         c_pivot: ArrayLike = (0.0, 0.0, 0.0),
         tilt_pivot: ArrayLike = (0.0, 0.0, 0.0),
         head_pivot: ArrayLike = (0.0, 0.0, 0.0),
@@ -73,6 +74,7 @@ class FiveAxisMachine:
             layout=layout,
             rotary=rotary,
             tool_length=tool_length,
+            tilt_limits=tilt_limits,
             c_pivot=c_pivot,  # type: ignore[arg-type]
             tilt_pivot=tilt_pivot,  # type: ignore[arg-type]
             head_pivot=head_pivot,  # type: ignore[arg-type]
@@ -181,9 +183,10 @@ class FiveAxisMachine:
         return_status: bool = False,
     ) -> Result:
         """Joints (..., 5) that put the tool tip at p (..., 3) with the tool axis along d
-        (..., 3, any length > 0): of the two rotary branches the one nearest ``previous``
-        (..., 5; default zeros) in tilt and C, C at its turn nearest the previous C. Where
-        the tool axis is parallel to the C axis (SINGULAR) C keeps the previous value."""
+        (..., 3, any length > 0): of the two rotary branches within the tilt's travel the
+        one nearest ``previous`` (..., 5; default zeros) in tilt and C, C at its turn nearest
+        the previous C. Where the tool axis is parallel to the C axis (SINGULAR) C keeps the
+        previous value; where neither branch is within the travel the row is UNREACHABLE."""
         prev = np.zeros(5) if previous is None else previous
         if not return_status and type(errors) is str and errors == "raise":
             if self._ik_single is not None:
@@ -204,17 +207,17 @@ class FiveAxisMachine:
         return_status: bool = False,
     ) -> Result:
         """Both rotary branches: joints (..., 2, 5), branch 1 with sin(tilt) >= 0, branch 2
-        with sin(tilt) <= 0 (C at the turn nearest ``previous``'s C), and valid (..., 2).
-        errors="raise" raises on invalid input rows; "nan" leaves them NaN, not valid."""
+        with sin(tilt) <= 0 (C at the turn nearest ``previous``'s C), and valid (..., 2):
+        False (and NaN joints) where the branch's tilt lies beyond its travel
+        (``tilt_limits``). errors="raise" raises on invalid input rows; "nan" leaves them
+        NaN, not valid."""
         check_errors_mode(errors)
         prev = np.zeros(5) if previous is None else previous
         lead, flat = self._inverse_inputs(p, d, prev)
-        j, status = self._core.ik_all(*flat)
-        ok = status != st.INVALID
-        if errors == "raise" and not ok.all():
+        j, valid, status = self._core.ik_all(*flat)
+        if errors == "raise" and np.any(status == st.INVALID):
             self._raise(status, ["p", "d", "previous"], flat)
-        j[~ok] = np.nan
-        valid = np.repeat(ok[:, None], 2, axis=1)
+        j[~valid] = np.nan
         out = (j.reshape(lead + (2, 5)), valid.reshape(lead + (2,)))
         return (*out, status.reshape(lead)) if return_status else out
 
@@ -269,7 +272,8 @@ class FiveAxisMachine:
         return lead, flat
 
     def _finish(self, errors, lead, status, outs, names, inputs, return_status):
-        ok = status != st.INVALID  # SINGULAR rows are given, finite (the kernel's status)
+        # SINGULAR rows are given, finite (the kernel's status)
+        ok = (status != st.INVALID) & (status != st.UNREACHABLE)
         if errors == "raise" and not ok.all():
             self._raise(status, names, inputs)
         shaped = [o.reshape(lead + o.shape[1:]) for o in outs]
@@ -282,9 +286,16 @@ class FiveAxisMachine:
             return shaped[0]
         return (*shaped, *extra)
 
-    @staticmethod
-    def _raise(status, names, inputs):
+    def _raise(self, status, names, inputs):
         bad = np.flatnonzero(status == st.INVALID)
+        if bad.size == 0:
+            rows = np.flatnonzero(status == st.UNREACHABLE)
+            lo, hi = self.description.tilt_limits
+            raise UnreachableError(
+                f"both rotary branches put the tilt axis {self.description.tilt_axis} beyond "
+                f"its travel [{lo:.6g}, {hi:.6g}] rad in rows {rows_text(rows)}",
+                rows,
+            )
         if len(inputs) > 1:  # the inverse: a zero tool axis is invalid too
             zero = bad[np.all(inputs[1][bad] == 0.0, axis=1)]
             if zero.size:

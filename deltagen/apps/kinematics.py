@@ -423,7 +423,8 @@ def _run_machine(machine, forward: bool, args) -> int:
     if bad.size:
         print(
             f"deltagen {'fk' if forward else 'ik'}: {bad.size} of {len(valid)} rows have no valid "
-            f"result (NaN, valid = 0): a non-finite value, or a zero tool axis d",
+            f"result (NaN, valid = 0): a non-finite value, a zero tool axis d, or (ik) the tilt "
+            "beyond its travel on both branches",
             file=sys.stderr,
         )
         return EXIT_INVALID

@@ -38,6 +38,8 @@ UNIT = Unit(
         ),
         StructField("tool_length", "double", "", "gauge point to tool tip [m]"),
         StructField("singular_tol", "double", "", "tool axis within it of the C axis: SINGULAR"),
+        StructField("tilt_min", "double", "", "the tilt axis's travel, lower end [rad]"),
+        StructField("tilt_max", "double", "", "the tilt axis's travel, upper end [rad]"),
     ),
 )
 

@@ -30,6 +30,9 @@ The geometry (every point in metres):
 ``spindle_offset``  the spindle's gauge point relative to the tilt pivot, in the tilted
                     head frame (head layouts; a constant shift for table-table)
 ``tool_length``     gauge point to tool tip along -d [m]
+``tilt_limits``     the tilt axis's travel [rad] (``tilt_limits_deg`` in degrees in a file),
+                    within [-pi, pi]; a branch of the inverse beyond it is not valid.
+                    C turns without limit.
 
 Tool tip in M:  m = (x, y, z) + R_hc (head_pivot + R_ht spindle_offset) - tool_length d_M
 Tool tip in W:  w = c_pivot + R_tc (tilt_pivot - c_pivot + R_tt (m - tilt_pivot))
@@ -49,11 +52,13 @@ Robot files are TOML::
     tilt_pivot = [0.0, 0.02, 0.05]   # [m], optional (zero)
     head_pivot = [0.0, 0.0, 0.0]     # [m], optional (zero)
     spindle_offset = [0.0, 0.0, 0.0] # [m], optional (zero)
+    tilt_limits_deg = [-120, 30]     # optional (default [-180, 180]); or tilt_limits [rad]
     singular_tol = 1e-9              # optional: |sin tilt| at or below it is SINGULAR
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,7 +76,15 @@ POINTS = {
     "head_pivot": LAYOUTS,
     "spindle_offset": LAYOUTS,
 }
-_MACHINE_KEYS = {"layout", "rotary", "tool_length", "singular_tol", *POINTS}
+_MACHINE_KEYS = {
+    "layout",
+    "rotary",
+    "tool_length",
+    "singular_tol",
+    "tilt_limits",
+    "tilt_limits_deg",
+    *POINTS,
+}
 _TOP_KEYS = {"name", "doc", "machine"}
 _ZERO = (0.0, 0.0, 0.0)
 
@@ -99,6 +112,7 @@ class MachineDescription:
     spindle_offset: tuple[float, float, float] = _ZERO
     name: str = "machine"
     singular_tol: float = SINGULAR_TOL
+    tilt_limits: tuple[float, float] = (-math.pi, math.pi)
     doc: str = field(default="", compare=False)
 
     def __post_init__(self) -> None:
@@ -121,6 +135,15 @@ class MachineDescription:
                     f"{key} has no effect in a {self.layout} machine (it acts in "
                     f"{', '.join(layouts)}); leave it out or zero"
                 )
+        limits = self.tilt_limits
+        if isinstance(limits, (str, bytes)) or not hasattr(limits, "__len__") or len(limits) != 2:
+            raise GeometryError(f"tilt_limits must hold 2 numbers (lower, upper), got {limits!r}")
+        lo, hi = (real(v, f"tilt_limits[{i}]") for i, v in enumerate(limits))
+        if not -math.pi <= lo < hi <= math.pi:
+            raise GeometryError(
+                f"tilt_limits must satisfy -pi <= lower < upper <= pi [rad], got ({lo!r}, {hi!r})"
+            )
+        object.__setattr__(self, "tilt_limits", (lo, hi))
         tol = real(self.singular_tol, "singular_tol")
         if not 0.0 < tol < 1.0:
             raise GeometryError(f"singular_tol must lie in (0, 1), got {tol!r}")
@@ -164,6 +187,17 @@ class MachineDescription:
         if missing:
             raise GeometryError(f"{source}: missing keys in [machine]: {missing}")
         kwargs = dict(machine)
+        if "tilt_limits" in kwargs and "tilt_limits_deg" in kwargs:
+            raise GeometryError(f"{source}: give tilt_limits (rad) or tilt_limits_deg, not both")
+        if "tilt_limits_deg" in kwargs:
+            degrees = kwargs.pop("tilt_limits_deg")
+            if not isinstance(degrees, list) or len(degrees) != 2:
+                raise GeometryError(f"{source}: tilt_limits_deg must be a list of 2 numbers")
+            try:
+                values = [real(v, f"tilt_limits_deg[{i}]") for i, v in enumerate(degrees)]
+            except GeometryError as exc:
+                raise GeometryError(f"{source}: {exc}") from None
+            kwargs["tilt_limits"] = tuple(math.radians(v) for v in values)
         for key in ("name", "doc"):
             if key in data:
                 kwargs[key] = data[key]

@@ -20,6 +20,8 @@ def geometry_struct(desc) -> dict:
         "spindle_offset": list(desc.spindle_offset),
         "tool_length": desc.tool_length,
         "singular_tol": desc.singular_tol,
+        "tilt_min": desc.tilt_limits[0],
+        "tilt_max": desc.tilt_limits[1],
     }
 
 
@@ -76,5 +78,24 @@ class CompiledFiveAxis:
         return self._run("ik", [p, d, j_prev], (5,))
 
     def ik_all(self, p, d, j_prev):
-        j, status = self._run("ik_all", [p, d, j_prev], (10,))
-        return j.reshape(-1, 2, 5), status
+        """Both branches (N, 2, 5), their within-travel flags (N, 2) and the status."""
+        fn = self._fn("ik_all")
+        n = p.shape[0]
+        fb, geometry = self._ffi.from_buffer, self._geometry
+        j = np.empty((n, 10))
+        valid = np.empty((n, 2), dtype=np.uint8)
+        status = np.empty(n, dtype=np.int8)
+
+        def call(lo, hi):
+            return fn(
+                geometry,
+                hi - lo,
+                *(fb("double[]", a[lo:hi]) for a in (p, d, j_prev)),
+                fb("double[]", j[lo:hi], require_writable=True),
+                fb("uint8_t[]", valid[lo:hi], require_writable=True),
+                fb("int8_t[]", status[lo:hi], require_writable=True),
+            )
+
+        if run_rows(n, self.threads, call) != 0:
+            raise RuntimeError("C core rejected its arguments")
+        return j.reshape(-1, 2, 5), valid.astype(bool), status

@@ -92,7 +92,8 @@ def _joints(desc, p, d_unit, t, c):
 
 def ik_all(desc, p, d, j_prev):
     """Both rotary branches (N, 2, 5): branch 1 with sin(tilt) >= 0, branch 2 <= 0; C at
-    the turn nearest j_prev's C, or j_prev's C where the tool axis is parallel to C."""
+    the turn nearest j_prev's C, or j_prev's C where the tool axis is parallel to C; which
+    branches lie within the tilt's travel (N, 2); the status (UNREACHABLE: neither)."""
     p, d, j_prev = (np.asarray(a, dtype=float) for a in (p, d, j_prev))
     n = p.shape[0]
     with np.errstate(all="ignore"):
@@ -113,15 +114,20 @@ def ik_all(desc, p, d, j_prev):
             out[:, k, 3], out[:, k, 4] = t, c
             out[:, k, :3] = _joints(desc, p, u, t, c)
     finite = np.all(np.isfinite(np.hstack([p, d, j_prev])), axis=1) & (length > 0)
-    status = np.where(singular, st.SINGULAR, st.OK)
+    lo, hi = desc.tilt_limits
+    within = (out[:, :, 3] >= lo) & (out[:, :, 3] <= hi)
+    status = np.where(~within.any(axis=1), st.UNREACHABLE, np.where(singular, st.SINGULAR, st.OK))
     (out, status) = _finish([out], finite, status)
-    return out, status
+    return out, within & (status != st.INVALID)[:, None], status
 
 
 def ik(desc, p, d, j_prev):
-    """The branch of ik_all nearest j_prev's tilt and C (sum of squared differences; the
-    first branch on a tie)."""
-    both, status = ik_all(desc, p, d, j_prev)
+    """The branch of ik_all within the tilt's travel nearest j_prev's tilt and C (sum of
+    squared differences; the first branch on a tie); NaN where neither is within."""
+    both, within, status = ik_all(desc, p, d, j_prev)
     cost = ((both[:, :, 3:] - np.asarray(j_prev, dtype=float)[:, None, 3:]) ** 2).sum(axis=2)
+    cost = np.where(within, cost, np.inf)
     pick = np.where(cost[:, 0] <= cost[:, 1], 0, 1)
-    return both[np.arange(len(pick)), pick], status
+    out = both[np.arange(len(pick)), pick]
+    out[status == st.UNREACHABLE] = np.nan
+    return out, status

@@ -38,6 +38,7 @@ head_pivot = sp.Matrix(sp.symbols("head_pivot0:3", real=True))
 spindle_offset = sp.Matrix(sp.symbols("spindle_offset0:3", real=True))
 tool_length = sp.Symbol("tool_length", real=True)
 singular_tol = sp.Symbol("singular_tol", positive=True)
+tilt_min, tilt_max = sp.symbols("tilt_min tilt_max", real=True)
 
 E_Z = sp.Matrix([0, 0, 1])
 

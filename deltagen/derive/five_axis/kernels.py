@@ -18,7 +18,7 @@ import sympy as sp
 
 from deltagen import status as st
 from deltagen.derive.five_axis import chain as ch
-from deltagen.derive.functions import AllFinite, Le
+from deltagen.derive.functions import AllFinite, Ge, Le
 from deltagen.derive.kernel import Angle, Kernel, Parameter, Port, Stage
 from deltagen.model.five_axis import LAYOUTS, ROTARIES, config_name
 
@@ -29,9 +29,12 @@ PARAMETERS = (
     *(Parameter(ch.spindle_offset[i], "spindle_offset", i) for i in range(3)),
     Parameter(ch.tool_length, "tool_length"),
     Parameter(ch.singular_tol, "singular_tol"),
+    Parameter(ch.tilt_min, "tilt_min"),
+    Parameter(ch.tilt_max, "tilt_max"),
 )
 
-invalid, singular = sp.symbols("invalid singular")
+invalid, singular, no_branch = sp.symbols("invalid singular no_branch")
+within1, within2 = sp.symbols("within1 within2")
 
 _LAYOUT_DOC = {
     "table-table": "trunnion table: the tilt axis carries the C table (LinuxCNC xyz?c-trt)",
@@ -116,6 +119,14 @@ def _inverse_stages(layout, rotary):
     )
     first, j1 = ch.branch(layout, rotary, e, rho, singular, 1, "1")
     second, j2 = ch.branch(layout, rotary, e, rho, singular, -1, "2")
+    travel = Stage(
+        "each branch's tilt within its travel [tilt_min, tilt_max]",
+        (
+            (within1, sp.And(Ge(j1[3], ch.tilt_min), Le(j1[3], ch.tilt_max))),
+            (within2, sp.And(Ge(j2[3], ch.tilt_min), Le(j2[3], ch.tilt_max))),
+            (no_branch, sp.And(sp.Not(within1), sp.Not(within2))),
+        ),
+    )
     stages = (
         Stage(
             "unit tool axis (scaled by its largest component first) and its horizontal part",
@@ -124,6 +135,7 @@ def _inverse_stages(layout, rotary):
         flags,
         Stage("branch 1: sin(tilt) >= 0; C at the turn nearest the previous C", first),
         Stage("branch 2: sin(tilt) <= 0; C at the turn nearest the previous C", second),
+        travel,
     )
     return stages, j1, j2
 
@@ -148,8 +160,13 @@ def _inverse_inputs(rotary):
 
 
 _INVERSE_STATUS = (
-    "OK; INVALID (non-finite input, or d = 0); SINGULAR (the tool axis is parallel to the "
-    "C axis within singular_tol: C keeps the previous value, the joints are still given)"
+    "OK; INVALID (non-finite input, or d = 0); UNREACHABLE (neither branch's tilt lies "
+    "within [tilt_min, tilt_max]); SINGULAR (the tool axis is parallel to the C axis within "
+    "singular_tol: C keeps the previous value, the joints are still given)"
+)
+
+_INVERSE_RULE = sp.Piecewise(
+    (st.INVALID, invalid), (st.UNREACHABLE, no_branch), (st.SINGULAR, singular), (st.OK, True)
 )
 
 
@@ -158,6 +175,11 @@ def ik_all_kernel(layout: str, rotary: str) -> Kernel:
     stages, j1, j2 = _inverse_stages(layout, rotary)
     names = [f"{n}{b}" for b in (1, 2) for n in ("x", "y", "z", "tilt", "c")]
     outs, out_stage = _masked(names, (*j1, *j2), invalid)
+    flags = sp.symbols("out_valid1 out_valid2")
+    flag_stage = tuple(
+        (f, sp.Piecewise((sp.Integer(1), sp.And(w, sp.Not(invalid))), (sp.Integer(0), True)))
+        for f, w in zip(flags, (within1, within2))
+    )
     return Kernel(
         name=f"{config_name(layout, rotary)}_ik_all",
         doc=f"Inverse kinematics of a {_what(layout, rotary)}, both rotary branches: "
@@ -172,9 +194,17 @@ def ik_all_kernel(layout: str, rotary: str) -> Kernel:
                 "m, rad",
                 width=10,
             ),
+            Port(
+                "valid",
+                flags,
+                "2 flags per point: 1 where the branch's tilt lies within its travel, else 0",
+                "-",
+                width=2,
+                ctype="uint8_t",
+            ),
         ),
-        stages=(*stages, Stage("outputs (NaN on invalid rows)", out_stage)),
-        status=sp.Piecewise((st.INVALID, invalid), (st.SINGULAR, singular), (st.OK, True)),
+        stages=(*stages, Stage("outputs (NaN on invalid rows)", out_stage + flag_stage)),
+        status=_INVERSE_RULE,
         parameters=PARAMETERS,
         angles=(Angle(ch.prev[4], ch.cos_c_prev, ch.sin_c_prev),),
         status_doc=_INVERSE_STATUS,
@@ -191,20 +221,20 @@ def ik_kernel(layout: str, rotary: str) -> Kernel:
         (
             (cost1, (j1[3] - t_prev) ** 2 + (j1[4] - c_prev) ** 2),
             (cost2, (j2[3] - t_prev) ** 2 + (j2[4] - c_prev) ** 2),
-            (first, Le(cost1, cost2)),
+            (first, sp.And(within1, sp.Or(sp.Not(within2), Le(cost1, cost2)))),
         ),
     )
     chosen = [sp.Piecewise((a, first), (b, True)) for a, b in zip(j1, j2)]
-    outs, out_stage = _masked(("x", "y", "z", "tilt", "c"), chosen, invalid)
+    outs, out_stage = _masked(("x", "y", "z", "tilt", "c"), chosen, sp.Or(invalid, no_branch))
     return Kernel(
         name=f"{config_name(layout, rotary)}_ik",
         doc=f"Inverse kinematics of a {_what(layout, rotary)}: (tool tip, tool axis, previous "
         "joints) -> the joints of the branch nearest the previous ones (squared distance of "
-        "the rotary angles, C at its nearest turn).",
+        "the rotary angles, C at its nearest turn) among those within the tilt's travel.",
         inputs=_inverse_inputs(rotary),
         outputs=(_joint_port("j", outs, f"joints x, y, z [m], {rotary[0]}, C [rad]"),),
-        stages=(*stages, choose, Stage("outputs (NaN on invalid rows)", out_stage)),
-        status=sp.Piecewise((st.INVALID, invalid), (st.SINGULAR, singular), (st.OK, True)),
+        stages=(*stages, choose, Stage("outputs (NaN on invalid or unreachable rows)", out_stage)),
+        status=_INVERSE_RULE,
         parameters=PARAMETERS,
         angles=(Angle(ch.prev[4], ch.cos_c_prev, ch.sin_c_prev),),
         status_doc=_INVERSE_STATUS,
