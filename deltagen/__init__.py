@@ -1,6 +1,7 @@
 """deltagen: robot geometry -> fast, verified kinematics code (SymPy -> C99 -> cffi)."""
 
 from deltagen.api.delta import DeltaInertia, DeltaRobot
+from deltagen.api.five_axis import FiveAxisMachine
 from deltagen.api.hexapod import Hexapod
 from deltagen.api.linear_delta import LinearDelta, Tripod
 from deltagen.api.serial import SerialRobot
@@ -16,6 +17,7 @@ from deltagen.inputs import InputError
 __all__ = [
     "DeltaInertia",
     "DeltaRobot",
+    "FiveAxisMachine",
     "GeometryError",
     "Hexapod",
     "IncompleteSolutionsWarning",

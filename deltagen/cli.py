@@ -52,10 +52,17 @@ def cmd_generate(args) -> int:
     from deltagen.inputs import InputError
 
     if args.robot_file:
-        from deltagen.apps.robots import COUPLED, KIND_NAMES, SERIAL, kind_of
+        from deltagen.apps.robots import COUPLED, KIND_NAMES, MACHINE, SERIAL, kind_of
 
         args.backend = "reference"  # the module is built below, once
         robot = _robot(args, args.robot_file)
+        if kind_of(robot) == MACHINE:
+            raise InputError(
+                f"`deltagen generate ROBOT_FILE` takes a serial arm; {args.robot_file} describes "
+                "a 5-axis NC machine, whose core is generic (`deltagen generate` writes it; the "
+                f"geometry is read at run time), so use the file directly: `deltagen fk "
+                f"{args.robot_file} ...`"
+            )
         if kind_of(robot) not in (SERIAL, COUPLED):
             raise InputError(
                 "`deltagen generate ROBOT_FILE` takes a serial arm: a serial-arm file (a "
@@ -126,8 +133,8 @@ exit status:
   130  interrupted (Ctrl-C)"""
 
 ROBOT_HELP = (
-    "'default' (the delta robot), a bundled serial arm's name, a robot TOML file, a URDF, "
-    "or a Klipper printer.cfg (kinematics: rotary_delta)"
+    "'default' (the delta robot), a bundled serial arm's or 5-axis machine's name, a robot "
+    "TOML file, a URDF, or a Klipper printer.cfg (kinematics: rotary_delta)"
 )
 
 
@@ -453,9 +460,18 @@ def _main(argv=None) -> int:
 
 def _evaluate(args, forward: bool) -> int:
     from deltagen.apps import kinematics
-    from deltagen.apps.robots import COUPLED, DELTA, HEXAPOD, LINEAR_DELTA, SERIAL, TRIPOD, kind_of
+    from deltagen.apps.robots import (
+        COUPLED,
+        DELTA,
+        HEXAPOD,
+        LINEAR_DELTA,
+        MACHINE,
+        SERIAL,
+        TRIPOD,
+        kind_of,
+    )
 
-    robot = _robot(args, kinds=(DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD, HEXAPOD))
+    robot = _robot(args, kinds=(DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD, HEXAPOD, MACHINE))
     if kind_of(robot) == HEXAPOD:
         from deltagen.apps import hexapod
 
@@ -486,12 +502,12 @@ def _workspace(args) -> int:
 
 def _export(args) -> int:
     from deltagen.apps import export
-    from deltagen.apps.robots import DELTA, HEXAPOD, LINEAR_DELTA, SERIAL, TRIPOD, kind_of
+    from deltagen.apps.robots import DELTA, HEXAPOD, LINEAR_DELTA, MACHINE, SERIAL, TRIPOD, kind_of
     from deltagen.inputs import InputError
 
     args.backend = "reference"  # only the description is needed: no compiled core
     name = args.robot
-    kinds = (DELTA, SERIAL, LINEAR_DELTA, TRIPOD, HEXAPOD)
+    kinds = (DELTA, SERIAL, LINEAR_DELTA, TRIPOD, HEXAPOD, MACHINE)
     args.robot_object = _robot(args, "default" if name == "delta" else name, kinds=kinds)
     if kind_of(args.robot_object) == HEXAPOD:
         from deltagen.apps import hexapod

@@ -46,6 +46,7 @@ LIBM = {
     "log",
     "ceil",
     "floor",
+    "rint",
 }
 
 
@@ -897,3 +898,27 @@ def test_runtime_status_codes_are_deltagen_status():
     block = header[header.index("#ifndef DELTAGEN_STATUS_CODES") :]
     block = block[: block.index("#endif") + 6]
     assert block in generated
+
+
+@pytest.mark.parametrize("opt", ["-O0", "-O2", "-O3"])
+def test_five_axis_module_compiles_strict_and_needs_only_libm(tmp_path, opt):
+    """The 5-axis machines' module (generated/five_axis_kinematics.c, no runtime C): strict
+    C99 -pedantic -Werror at each level, the build's own flags too, only libm symbols
+    undefined, no global data, and one fk, ik and ik_all per layout and rotary pair."""
+    for ext in (".c", ".h"):
+        shutil.copy(paths.generated_dir() / f"five_axis_kinematics{ext}", tmp_path)
+    _gcc([*STRICT, opt, "-c", "five_axis_kinematics.c", "-o", "k.o"], cwd=tmp_path)
+    args, _ = compile_flags("deltagen_five_axis")
+    _gcc([*args, "-pedantic", "-Werror", "-c", "five_axis_kinematics.c", "-o", "v.o"], cwd=tmp_path)
+    _check_symbols(["k.o"], tmp_path)
+    nm = shutil.which("nm")
+    if nm is not None:
+        table = subprocess.run([nm, "k.o"], cwd=tmp_path, capture_output=True, text=True).stdout
+        functions = {line.split()[2] for line in table.splitlines() if " T " in line}
+        expected = {
+            f"deltagen_five_axis_{layout}_{rotary}_{quantity}"
+            for layout in ("table_table", "head_head", "table_head")
+            for rotary in ("ac", "bc")
+            for quantity in ("fk", "ik", "ik_all")
+        }
+        assert functions == expected

@@ -2,9 +2,10 @@
 in-process: the exit status is the documented one (0 served, 1 served but not valid, 2
 refused or bad input), a refusal names the command and the robot's kind, and nothing ends
 in an exception. The kinds: the default delta TOML, a Klipper printer.cfg, a bundled arm by
-name (puma560), a URDF (robots/ur5.urdf), a URDF with a <mimic> joint (a CoupledArm) and a
+name (puma560), a URDF (robots/ur5.urdf), a URDF with a <mimic> joint (a CoupledArm), a
 URDF whose tree ends in a two-finger gripper (two leaves: --tip chooses the chain), the
-bundled linear delta and tripod TOMLs and a Klipper linear-delta printer.cfg.
+bundled linear delta and tripod TOMLs, a Klipper linear-delta printer.cfg, the hexapod TOML
+and 5-axis NC machines (a bundled one by name, and a machine TOML file).
 sweep, bench and demo load no robot and are not in the matrix."""
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ GRIPPER = (
     + "\n</robot>\n"
 )
 
-DELTA, SERIAL, COUPLED, HEXAPOD = "delta", "serial", "coupled", "hexapod"
+DELTA, SERIAL, COUPLED, HEXAPOD, MACHINE = "delta", "serial", "coupled", "hexapod", "machine"
 LINEAR, TRIPOD = "linear_delta", "tripod"
 
 
@@ -85,6 +86,8 @@ def robots(tmp_path_factory, repo_root):
         "linear_delta_cfg": ([str(folder / "linear_delta.cfg")], LINEAR, 3),
         "tripod_toml": ([str(repo_root / "robots" / "tripod.toml")], TRIPOD, 3),
         "hexapod_toml": ([str(repo_root / "robots" / "hexapod_genhex.toml")], HEXAPOD, 6),
+        "bundled_machine": (["xyzac_trt"], MACHINE, 5),
+        "machine_toml": ([str(repo_root / "robots" / "bridge_bc_head.toml")], MACHINE, 5),
     }
 
 
@@ -95,6 +98,7 @@ KIND_WORDS = {
     LINEAR: "a linear delta",
     TRIPOD: "a tripod",
     HEXAPOD: "a hexapod",
+    MACHINE: "a 5-axis NC machine",
 }
 
 ROBOTS = (
@@ -108,15 +112,17 @@ ROBOTS = (
     "linear_delta_cfg",
     "tripod_toml",
     "hexapod_toml",
+    "bundled_machine",
+    "machine_toml",
 )
 
 #: command -> the kinds it serves (the others are refused with exit status 2)
 SERVES = {
-    "fk": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD, HEXAPOD),
-    "ik": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD, HEXAPOD),
+    "fk": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD, HEXAPOD, MACHINE),
+    "ik": (DELTA, SERIAL, COUPLED, LINEAR, TRIPOD, HEXAPOD, MACHINE),
     "dynamics": (DELTA, SERIAL, COUPLED),
     "workspace": (DELTA, SERIAL, LINEAR, TRIPOD, HEXAPOD),
-    "export": (DELTA, SERIAL, LINEAR, TRIPOD, HEXAPOD),
+    "export": (DELTA, SERIAL, LINEAR, TRIPOD, HEXAPOD, MACHINE),
     "calibrate": (DELTA,),
     "validate": (DELTA,),
     "generate": (SERIAL, COUPLED),
@@ -133,9 +139,14 @@ def _q(kind, n):
 
 def _reference(args):
     """The robot of ``args`` read through the API (not the CLI's loader)."""
-    from deltagen import DeltaRobot, LinearDelta, SerialRobot, Tripod
+    from deltagen import DeltaRobot, FiveAxisMachine, LinearDelta, SerialRobot, Tripod
+    from deltagen.api.five_axis import bundled_machines
 
     spec = args[0]
+    if spec in bundled_machines():
+        return FiveAxisMachine.load(spec, backend="reference")
+    if spec.endswith(".toml") and "[machine]" in open(spec).read():
+        return FiveAxisMachine.from_toml(spec, backend="reference")
     if spec.endswith("linear_delta.toml"):
         return LinearDelta.from_toml(spec, backend="reference")
     if spec.endswith("tripod.toml"):
@@ -166,6 +177,9 @@ def _command(command, robot_args, kind, n, tmp_path):
         from deltagen.api.serial import euler_zyx
 
         robot = _reference(robot_args)
+        if kind == MACHINE:  # the tool tip and the tool axis
+            pose = np.concatenate(robot.fk(q))
+            return ["ik", spec, *(f"{v:.17g}" for v in pose), "--backend", "reference"]
         if kind in (DELTA, LINEAR, TRIPOD):
             pose = robot.fk(q)
         else:
@@ -226,6 +240,7 @@ SLOW_SKIPPED = {
     ("generate", "bundled_arm"),
     ("generate", "urdf"),
     ("export", "linear_delta_cfg"),
+    ("export", "machine_toml"),
 }
 
 
@@ -241,7 +256,9 @@ def test_every_command_serves_or_refuses_every_kind(command, robot, robots, tmp_
     assert "Traceback" not in err
     if kind != DELTA:
         assert "the delta robot" not in out + err
-        if command == "fk" and kind in (SERIAL, COUPLED):  # an arm's tool frame, not a point
+        if command == "fk" and kind == MACHINE:  # the tool tip and axis, not a frame
+            assert "p = [" in out and "d = [" in out and "T =" not in out, out
+        elif command == "fk" and kind in (SERIAL, COUPLED):  # an arm's tool frame, not a point
             assert "T =" in out and "p = [" not in out, out
         if command == "fk" and kind in (LINEAR, TRIPOD) and code == 0:  # the point, in m
             assert "p = [" in out and "T =" not in out, out

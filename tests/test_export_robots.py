@@ -1,6 +1,7 @@
 """`deltagen export` of every robot deltagen ships, and a calibrated robot end to end.
 
-Every bundled arm (robots/*.toml with a convention, robots/*.urdf), the delta robot and a
+Every bundled arm (robots/*.toml with a convention, robots/*.urdf), every bundled 5-axis
+machine (robots/*.toml with a [machine] table), the delta robot and a
 URDF arm written here (the path of a robot file that is not bundled), each in double and in
 float32: the package alone in a clean folder builds with its Makefile and with its
 CMakeLists.txt, its example runs, and the numbers it prints are the Python API's (the
@@ -27,6 +28,7 @@ import pytest
 
 from deltagen import DeltaRobot, SerialRobot
 from deltagen import status as st
+from deltagen.api.five_axis import FiveAxisMachine, bundled_machines
 from deltagen.api.serial import bundled_robots, bundled_urdfs
 from deltagen.apps import export as ex
 
@@ -73,7 +75,14 @@ URDF_ARM = """<?xml version="1.0"?>
 
 # delta_built: a delta robot as built (per-chain lengths, encoder offsets): its package
 # has the wrappers on encoder readings, which its example calls
-ROBOTS = ["delta", "delta_built", *bundled_robots(), *bundled_urdfs(), "urdf_arm"]
+ROBOTS = [
+    "delta",
+    "delta_built",
+    *bundled_robots(),
+    *bundled_urdfs(),
+    "urdf_arm",
+    *bundled_machines(),
+]
 CASES = [(name, real) for name in ROBOTS for real in ("double", "float")]
 
 
@@ -98,6 +107,8 @@ def _load(name, urdf_arm_file):
         return DeltaRobot.from_geometry(built, backend="reference")
     if name == "urdf_arm":
         return SerialRobot.from_urdf(urdf_arm_file, backend="reference")
+    if name in bundled_machines():
+        return FiveAxisMachine.load(name, backend="reference")
     return SerialRobot.load(name, backend="reference")
 
 
@@ -139,6 +150,15 @@ def _check_example(robot, output: str, real: str) -> None:
     decimals for poses, 4 for torques; float adds its own rounding)."""
     lines = output.splitlines()
     atol = 1e-6 if real == "double" else 2e-5
+    if isinstance(robot, FiveAxisMachine):  # fk of the example's joints, then ik back
+        j = np.array(ex.MACHINE_EXAMPLE_J)
+        fk, ik = _numbers(lines[0]), _numbers(lines[1])
+        p, d = robot.fk(j)
+        np.testing.assert_allclose(fk[:3], p, atol=atol)
+        np.testing.assert_allclose(fk[3:6], d, atol=atol)
+        np.testing.assert_allclose(ik[:5], j, atol=atol)
+        assert lines[0].endswith("status 0") and lines[1].endswith("status 0"), output
+        return
     if isinstance(robot, DeltaRobot):
         fk, ik = _numbers(lines[0]), _numbers(lines[1])
         q, p = fk[:3], fk[3:6]

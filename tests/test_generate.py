@@ -24,10 +24,13 @@ THREE_SPHERES = tuple(
     for stem in ("linear_delta_kinematics", "tripod_kinematics")
     for ext in (".c", ".h", ".cdef.h")
 )
-# the delta core, those two, plus one C module per bundled serial arm (TOML and URDF)
+FIVE_AXIS = ("five_axis_kinematics.c", "five_axis_kinematics.h", "five_axis_kinematics.cdef.h")
+# the delta core, the linear delta's, the tripod's and the 5-axis machines' cores, and one
+# C module per bundled serial arm (TOML and URDF)
 NAMES = (
     DELTA
     + THREE_SPHERES
+    + FIVE_AXIS
     + tuple(
         f"serial_{name}{ext}"
         for name in bundled_robots() + bundled_urdfs()

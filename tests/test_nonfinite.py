@@ -333,7 +333,7 @@ def test_every_generated_function_has_the_check():
     for source in paths.generated_dir().glob("*.c"):
         text = source.read_text()
         functions = len(
-            re.findall(r"^int deltagen_\w+\(size_t n|^int deltagen_delta_\w+\(", text, re.M)
+            re.findall(r"^int deltagen_\w+\((size_t n|const deltagen_\w+_geometry)", text, re.M)
         )
         newton = text.count("_ik_newton(size_t n")
         # forward dynamics wraps two lowered kernels and checks its own solution

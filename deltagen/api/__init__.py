@@ -9,5 +9,7 @@ INVALID row's error says); ``hints`` (the type aliases of the public API);
 ``hexapod`` (``Hexapod``, the Stewart-Gough platform: ik, fk by damped Newton in C,
 Jacobian, rates, leg forces, joint limits, workspace grids).
 
+``five_axis`` (``FiveAxisMachine``, the 5-axis NC machines).
+
 May import: ``solve``, ``plan``, and everything below them.
 """

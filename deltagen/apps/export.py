@@ -51,6 +51,14 @@ STATUS_MEANINGS = {
     st.INVALID: "a non-finite input, or finite inputs so large that the arithmetic overflows: "
     "all outputs NaN",
 }
+#: where a 5-axis machine's kernels say otherwise (derive/five_axis/kernels.py)
+MACHINE_STATUS_MEANINGS = {
+    st.UNREACHABLE: "not returned: every tool pose has its two rotary branches",
+    st.SINGULAR: "the tool axis is parallel to the C axis: C is undetermined and keeps the "
+    "previous value (ik, ik_all); every output is given, finite",
+    st.INVALID: "a non-finite input, a zero tool axis (ik), or finite inputs so large that the "
+    "arithmetic overflows: all outputs NaN",
+}
 
 
 class ExportError(DeltagenError, ValueError):
@@ -71,13 +79,19 @@ class ExportResult:
 
 
 def _robot_parts(robot):
-    """(kind, unit, kernels) of a DeltaRobot, SerialRobot, LinearDelta or Tripod."""
+    """(kind, unit, kernels) of a DeltaRobot, SerialRobot, LinearDelta, Tripod or
+    FiveAxisMachine."""
+    from deltagen.api.five_axis import FiveAxisMachine
     from deltagen.codegen.export import (
         arm_unit_kernels,
         delta_unit_kernels,
+        machine_unit_kernels,
         trilateration_unit_kernels,
     )
 
+    if isinstance(robot, FiveAxisMachine):
+        unit, kernels = machine_unit_kernels(robot.description)
+        return "machine", unit, kernels
     if hasattr(robot, "workspace_extent"):  # LinearDelta, Tripod: kind "linear_delta", "tripod"
         unit, kernels = trilateration_unit_kernels(robot.kind)
         return robot.kind, unit, kernels
@@ -95,21 +109,28 @@ def _literal(value: float, real: str) -> str:
     return text
 
 
-def _geometry_struct(robot, kind) -> dict:
-    """The C parameter struct's fields of a DeltaRobot, LinearDelta or Tripod."""
+def _geometry_struct(robot, kind) -> dict | None:
+    """The C parameter struct's fields of a DeltaRobot, LinearDelta, Tripod or 5-axis machine
+    (None for an arm: its numbers are compiled in)."""
     if kind == "delta":
         from deltagen.native.delta import geometry_struct
 
         return geometry_struct(robot.geometry)
-    from deltagen.native.linear_delta import linear_delta_struct, tripod_struct
+    if kind == "machine":
+        from deltagen.native.five_axis import geometry_struct as machine_struct
 
-    fill = linear_delta_struct if kind == "linear_delta" else tripod_struct
-    return fill(robot.geometry)
+        return machine_struct(robot.description)
+    if kind in ("linear_delta", "tripod"):
+        from deltagen.native.linear_delta import linear_delta_struct, tripod_struct
+
+        fill = linear_delta_struct if kind == "linear_delta" else tripod_struct
+        return fill(robot.geometry)
+    return None
 
 
 def _struct_values(robot, real: str, kind: str = "delta") -> list:
     values = []
-    for name, value in _geometry_struct(robot, kind).items():
+    for name, value in (_geometry_struct(robot, kind) or {}).items():
         if isinstance(value, (list, tuple)):
             values.append((name, "{" + ", ".join(_literal(v, real) for v in value) + "}"))
         else:
@@ -119,6 +140,8 @@ def _struct_values(robot, real: str, kind: str = "delta") -> list:
 
 #: The delta example's pose: crank angles [rad] (inside the workspace of the default robot).
 DELTA_EXAMPLE_Q = (0.3, 0.5, 0.7)
+#: The 5-axis machine example's joints: x, y, z [m], tilt, C [rad].
+MACHINE_EXAMPLE_J = (0.05, -0.02, 0.1, 0.4, 0.7)
 
 
 def _three_sphere_points(robot, n: int, seed: int = 0) -> np.ndarray:
@@ -140,6 +163,8 @@ def _three_sphere_points(robot, n: int, seed: int = 0) -> np.ndarray:
 def _example_pose(robot, kind):
     if kind == "delta":
         return list(DELTA_EXAMPLE_Q), None
+    if kind == "machine":
+        return list(MACHINE_EXAMPLE_J), None
     if kind in ("linear_delta", "tripod"):
         q = robot.with_backend("reference").ik(_three_sphere_points(robot, 1)[0])
         return [float(v) for v in q], None
@@ -298,6 +323,8 @@ def accuracy_points(robot, kind, n_random: int = 2000, seed: int = 0):
         p, _, _ = trajectory(sample_times(1000.0, 10.0))
         return p[:, :3]
     rng = np.random.default_rng(seed)
+    if kind == "machine":  # x, y, z within +-0.5 m, tilt and C within +-pi
+        return rng.uniform(-1.0, 1.0, size=(n_random, 5)) * [0.5, 0.5, 0.5, math.pi, math.pi]
     qlim = np.array(robot.qlim, dtype=float)
     lo, hi = qlim[:, 0].copy(), qlim[:, 1].copy()
     revolute = np.array([j.revolute for j in robot.description.joints])
@@ -335,6 +362,17 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
                 1e6 * np.linalg.norm(p_back - points, axis=1)[ok_ik]
             ),
         }
+    if kind == "machine":
+        name = robot.description.config
+        p_d, d_d, s_d = double_lib(f"{name}_fk", [points], [3, 3])
+        p_f, d_f, s_f = float_lib(f"{name}_fk", [points], [3, 3])
+        ok = (s_d == st.OK) & (s_f == st.OK)
+        return {
+            "n": int(len(points)),
+            "ok": int(np.count_nonzero(ok)),
+            "fk tool tip error [um]": _stats(1e6 * np.linalg.norm(p_f - p_d, axis=1)[ok]),
+            "fk tool axis error [urad]": _stats(1e6 * np.linalg.norm(d_f - d_d, axis=1)[ok]),
+        }
     T_d, s_d = double_lib("fk", [points], [16])
     T_f, s_f = float_lib("fk", [points], [16])
     ok = (s_d == st.OK) & (s_f == st.OK)
@@ -368,6 +406,9 @@ def _accuracy_text(kind, result) -> str:
             "double ik's angles; and the double fk of the float ik's angles against the "
             "position asked for"
         )
+    elif kind == "machine":
+        where = f"{result['n']} random joint vectors (x, y, z within 0.5 m, angles within pi)"
+        how = "fk in float and in double of the same joint vector"
     else:
         where = f"{result['n']} random joint vectors within the joint limits (seed 0)"
         how = "fk in float and in double of the same joint vector"
@@ -587,12 +628,14 @@ def export(
     q, q_name = _example_pose(robot, kind)
     symmetric = kind != "delta" or robot.geometry.symmetric
     has_dynamics = any(k.name == "inverse_dynamics" for k in kernels) and (
-        kind == "serial" or (robot.inertia is not None and symmetric)
+        kind == "serial" or (kind == "delta" and robot.inertia is not None and symmetric)
     )
     common = dict(
         robot_name=(
             f"the delta robot '{robot.geometry.name}'"
             if kind == "delta"
+            else f"the 5-axis machine '{robot.name}'"
+            if kind == "machine"
             else f"the {kind.replace('_', ' ')} '{robot.name}'"
             if kind != "serial"
             else robot.name
@@ -611,7 +654,9 @@ def export(
             **common,
             kind=kind,
             struct_name=unit.struct_name,
-            struct_values=_struct_values(robot, real, kind) if kind != "serial" else [],
+            struct_values=_struct_values(robot, real, kind),
+            config=robot.description.config if kind == "machine" else "",
+            tilt=robot.description.tilt_axis if kind == "machine" else "",
             has_inertia=kind == "delta" and robot.inertia is not None,
             joint_doc={
                 "delta": "crank angles [rad], positive down",
@@ -740,7 +785,14 @@ def _write_and_measure(
         axes_choices=unit.axes_choices,
         batch=batch,
         status_codes=[
-            (code, name, STATUS_MEANINGS[code]) for code, name in sorted(st.STATUS_NAMES.items())
+            (
+                code,
+                name,
+                (MACHINE_STATUS_MEANINGS if kind == "machine" else {}).get(
+                    code, STATUS_MEANINGS[code]
+                ),
+            )
+            for code, name in sorted(st.STATUS_NAMES.items())
         ],
         stack_note=(
             f"bytes of each function's frame, `{cc} -std=c99 -O2 -fstack-usage` on the host "
@@ -770,9 +822,7 @@ def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
     """Compile the float package just written and a double twin side by side and compare."""
     from deltagen.codegen.export import package_sources
 
-    struct = None
-    if kind != "serial":
-        struct = _geometry_struct(robot, kind)
+    struct = _geometry_struct(robot, kind)
     libraries = {}
     with tempfile.TemporaryDirectory(prefix="deltagen-float32-") as tmp:
         for real in ("double", "float"):

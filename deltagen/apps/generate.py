@@ -10,10 +10,11 @@ from deltagen.paths import generated_dir
 
 def generated_files() -> dict[str, str]:
     """Every checked-in generated file, by name: the delta core, the linear delta's and the
-    tripod's cores, and each bundled arm (the
-    TOML ones and the URDF ones, robots/*.urdf read as SerialRobot.load reads them)."""
+    tripod's cores, the 5-axis machine core and each bundled arm (the TOML ones and the URDF
+    ones, robots/*.urdf read as SerialRobot.load reads them)."""
     from deltagen.api.serial import bundled_robots, bundled_urdfs
     from deltagen.codegen.delta import delta_sources
+    from deltagen.codegen.five_axis import five_axis_sources
     from deltagen.codegen.serial import arm_sources
     from deltagen.model.serial import SerialDescription
     from deltagen.model.urdf import description_from_urdf
@@ -24,6 +25,7 @@ def generated_files() -> dict[str, str]:
 
     files.update(linear_delta_sources())
     files.update(tripod_sources())
+    files.update(five_axis_sources())
     for name in bundled_robots():
         files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
     for name in bundled_urdfs():

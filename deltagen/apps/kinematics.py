@@ -11,7 +11,13 @@ delta ik        x,y,z[,phi]                          q1,q2,q3[,q4],valid
 serial fk       q1 .. qn                             x,y,z,psi,theta,phi,T11 .. T44,valid
 serial ik       T11 .. T34 (T41 .. T44 optional),    q1 .. qn,valid
                 else x,y,z,psi,theta,phi
+machine fk      x,y,z,a|b,c                          px,py,pz,dx,dy,dz,valid
+machine ik      px,py,pz,dx,dy,dz                    x,y,z,a|b,c,valid
 ==============  ===================================  ===========================================
+
+A 5-axis machine (model/five_axis.py): p the tool tip, d the tool axis in the workpiece
+frame; the rows of an ik file are a path, each solved from the joints of the row before
+(the first from ``--q0``, default zeros), so C does not jump by 2 pi (FiveAxisMachine.ik_path).
 
 q4 is the delta's fourth axis and phi the platform's turn about z that it gives (delta report
 eq. (43)); psi, theta, phi of a serial arm are the Euler angles after Vukobratovic,
@@ -256,6 +262,10 @@ def _parse_q0(robot, text, degrees, revolute) -> np.ndarray:
 
 def run(robot, forward: bool, args) -> int:
     """The job of `deltagen fk|ik`; returns the exit status."""
+    from deltagen.api.five_axis import FiveAxisMachine
+
+    if isinstance(robot, FiveAxisMachine):
+        return _run_machine(robot, forward, args)
     job = make_job(robot, forward, args)
     if args.output is not None:
         output_format(args.output)  # a bad file name fails before any work
@@ -361,3 +371,84 @@ def _show(job, x, row) -> None:
         )
     else:
         print("q = [" + ", ".join(f"{v:.12g}" for v in row) + f"] {_units(job)}")
+
+
+MACHINE_POSE = ("px", "py", "pz", "dx", "dy", "dz")
+
+
+def _run_machine(machine, forward: bool, args) -> int:
+    """`deltagen fk|ik` of a 5-axis machine: joints x, y, z, tilt, C <-> tool tip and axis."""
+    for flag, value in (
+        ("--config", args.config),
+        ("--method", args.method),
+        ("--restarts", args.restarts),
+    ):
+        if value is not None:
+            raise InputError(f"{flag} applies to serial arms, not to a 5-axis machine")
+    if forward and args.q0 is not None:
+        raise InputError("--q0 applies to ik (the joints the path starts from), not to fk")
+    joints = ("x", "y", "z", machine.description.tilt_axis.lower(), "c")
+    what = f"{'fk' if forward else 'ik'} of {machine.name}"
+    previous = None
+    if args.q0 is not None:
+        try:
+            previous = np.array([float(t) for t in args.q0.replace(",", " ").split()])
+        except ValueError:
+            previous = np.array([])
+        if previous.shape != (5,) or not np.all(np.isfinite(previous)):
+            raise InputError(f"--q0 {args.q0!r}: give 5 finite numbers x,y,z,{joints[3]},c")
+        if args.degrees:
+            previous[3:] = np.radians(previous[3:])
+    if args.output is not None:
+        output_format(args.output)
+    wanted = joints if forward else MACHINE_POSE
+    if args.input is not None:
+        if args.values:
+            raise InputError("give the poses either as values or with --input, not both")
+        x, _, _ = read_table(args.input, [Columns(wanted)], what)
+    else:
+        values = list(args.values)
+        if len(values) != len(wanted):
+            raise InputError(
+                f"{what}: give {len(wanted)} values {' '.join(wanted)}; got {len(values)}"
+            )
+        if not all(math.isfinite(v) for v in values):
+            raise InputError(f"{what}: every value must be a finite number")
+        x = np.array([values], dtype=np.float64)
+    with np.errstate(all="ignore"):
+        if forward:
+            q = x.copy()
+            if args.degrees:
+                q[:, 3:] = np.radians(q[:, 3:])
+            p, d, valid = machine.fk(q, errors="nan")
+            out, names = np.column_stack([p, d]), MACHINE_POSE
+        else:
+            out, valid = machine.ik_path(x[:, :3], x[:, 3:], previous, errors="nan")
+            if args.degrees:
+                out[:, 3:] = np.degrees(out[:, 3:])
+            names = joints
+    valid = np.asarray(valid, dtype=bool) & np.all(np.isfinite(out), axis=1)
+    out[~valid] = np.nan
+    if args.input is not None or args.output is not None:
+        write_table(args.output if args.output is not None else sys.stdout, names, out, valid)
+    bad = np.flatnonzero(~valid)
+    if bad.size:
+        print(
+            f"deltagen {'fk' if forward else 'ik'}: {bad.size} of {len(valid)} rows have no valid "
+            f"result (NaN, valid = 0): a non-finite value, a zero tool axis d, or (ik) the tilt "
+            "beyond its travel on both branches",
+            file=sys.stderr,
+        )
+        return EXIT_INVALID
+    if args.input is None and args.output is None:
+        unit = "deg" if args.degrees else "rad"
+        if forward:
+            print("p = [" + ", ".join(f"{v:.12g}" for v in out[0, :3]) + "] m")
+            print("d = [" + ", ".join(f"{v:.12g}" for v in out[0, 3:]) + "]")
+        else:
+            print(
+                "j = ["
+                + ", ".join(f"{v:.12g}" for v in out[0])
+                + f"] (x, y, z m; {joints[3].upper()}, C {unit})"
+            )
+    return EXIT_OK

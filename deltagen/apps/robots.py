@@ -6,8 +6,9 @@ A robot argument is 'default' (the delta robot of robots/default_delta.toml), a 
 name (robots/<name>.toml or robots/<name>.urdf), or a file: a URDF (its content is XML,
 whatever its extension), a Klipper printer.cfg (kinematics: rotary_delta, or delta: a linear
 delta), a delta robot TOML (a [delta] table), a linear delta's or a tripod's TOML (a
-[linear_delta] or [tripod] table) or a serial-arm TOML (a `convention` key and [[joint]]
-tables). A URDF gives
+[linear_delta] or [tripod] table), a hexapod TOML (a [hexapod] table), a 5-axis machine
+TOML (a [machine] table; a bundled machine by its name) or a serial-arm TOML (a
+`convention` key and [[joint]] tables). A URDF gives
 a SerialRobot, or a CoupledArm when its chain has ``<mimic>`` joints; ``base``, ``tip`` and
 ``locked`` (the CLI's --base, --tip, --locked) choose its chain (SerialRobot.from_urdf)."""
 
@@ -23,6 +24,7 @@ from deltagen.inputs import InputError, read_regular_file
 DELTA, SERIAL, COUPLED = "delta", "serial", "coupled"
 LINEAR_DELTA, TRIPOD = "linear_delta", "tripod"
 HEXAPOD = "hexapod"
+MACHINE = "machine"
 
 #: How messages name each kind (with an article).
 KIND_NAMES = {
@@ -32,21 +34,25 @@ KIND_NAMES = {
     LINEAR_DELTA: "a linear delta",
     TRIPOD: "a tripod",
     HEXAPOD: "a hexapod",
+    MACHINE: "a 5-axis NC machine",
 }
 
 
 def kind_of(robot: Any) -> str:
-    """DELTA, SERIAL, COUPLED, LINEAR_DELTA or TRIPOD for a loaded robot."""
+    """The kind (DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD, HEXAPOD, MACHINE) of a loaded
+    robot."""
     from deltagen.api.coupled import CoupledArm
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.five_axis import FiveAxisMachine
+    from deltagen.api.hexapod import Hexapod
     from deltagen.api.linear_delta import LinearDelta, Tripod
 
+    if isinstance(robot, FiveAxisMachine):
+        return MACHINE
     if isinstance(robot, LinearDelta):
         return LINEAR_DELTA
     if isinstance(robot, Tripod):
         return TRIPOD
-    from deltagen.api.hexapod import Hexapod
-
     if isinstance(robot, Hexapod):
         return HEXAPOD
     if isinstance(robot, DeltaRobot):
@@ -90,9 +96,9 @@ def parse_locked(items: Sequence[str] | None) -> dict[str, float] | None:
 
 
 def file_kind(path: Path) -> str:
-    """ "urdf", "klipper", "serial", "linear_delta", "tripod", "hexapod" or "delta" for a robot
-    file, from its content (the extension decides only for .urdf and .cfg, and for a file that
-    cannot be read)."""
+    """ "urdf", "klipper", "serial", "linear_delta", "tripod", "hexapod", "machine" or "delta"
+    for a robot file, from its content (the extension decides only for .urdf and .cfg, and
+    for a file that cannot be read)."""
     suffix = path.suffix.lower()
     if suffix == ".urdf":
         return "urdf"
@@ -109,9 +115,13 @@ def file_kind(path: Path) -> str:
     except tomllib.TOMLDecodeError:  # malformed: the loader named by a plain look reports it
         if "kinematics:" in text and "[printer]" in text:
             return "klipper"
+        if "[machine]" in text and "[delta]" not in text:
+            return "machine"
         return "serial" if "convention" in text and "[delta]" not in text else "delta"
     if "hexapod" in data and "delta" not in data:
         return "hexapod"
+    if "machine" in data and "delta" not in data:
+        return "machine"
     if "delta" not in data and ("convention" in data or "joint" in data):
         return "serial"
     for table in (LINEAR_DELTA, TRIPOD):
@@ -134,6 +144,7 @@ def load_robot(
     (InputError naming ``command`` and the robot's kind) unless it is of one of them, before
     any compiled core is built."""
     from deltagen.api.delta import DeltaRobot
+    from deltagen.api.five_axis import FiveAxisMachine, bundled_machines
     from deltagen.api.serial import SerialRobot, bundled_robots, bundled_urdfs
     from deltagen.paths import robots_dir
 
@@ -150,11 +161,14 @@ def load_robot(
         kind, path = "bundled-urdf", robots_dir() / f"{name}.urdf"
     elif name in bundled_robots():
         kind = "bundled"
+    elif name in bundled_machines():
+        kind, path = "machine", robots_dir() / f"{name}.toml"
     elif not path.exists() and path.suffix.lower() not in (".toml", ".urdf", ".cfg"):
         raise InputError(
             f"unknown robot {name!r}: use 'default', a bundled arm "
-            f"({', '.join(bundled_robots() + bundled_urdfs())}), a robot .toml file, a .urdf or "
-            "a Klipper printer.cfg"
+            f"({', '.join(bundled_robots() + bundled_urdfs())}), a bundled 5-axis machine "
+            f"({', '.join(bundled_machines())}), a robot .toml file, a .urdf or a Klipper "
+            "printer.cfg"
         )
     else:
         kind = file_kind(path)
@@ -191,6 +205,9 @@ def load_robot(
 
         _require(command, HEXAPOD, name, kinds)
         return Hexapod.from_toml(path, backend=backend)
+    if kind == "machine":
+        _require(command, MACHINE, name, kinds)
+        return FiveAxisMachine.from_toml(path, backend=backend)
     serial = kind in ("bundled", "serial")
     _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
     if kind == "bundled":

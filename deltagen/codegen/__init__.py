@@ -3,7 +3,8 @@ Jinja rendering (``render``, with the line layout of ``layout``: at most 120 col
 robot's C module (``delta``, ``serial``, ``linear_delta``: the linear delta's and the
 tripod's); ``export``
 writes the C package of `deltagen export` (the batched module, single-point functions and
-the files around them). ``templates/`` holds layout only; ``runtime`` (a package of C
+the files around them). ``five_axis`` renders the 5-axis machines' module (one for every
+layout). ``templates/`` holds layout only; ``runtime`` (a package of C
 files, no Python) holds hand-written C compiled beside each module.
 
 ``hexapod`` is the hexapod's module (its kernels and the fk wrapper of

@@ -40,6 +40,20 @@ def trilateration_unit_kernels(kind: str) -> tuple[Unit, tuple]:
     return (LINEAR_UNIT if kind == LINEAR else TRIPOD_UNIT), _KERNELS[kind]
 
 
+def machine_unit_kernels(desc) -> tuple[Unit, tuple]:
+    """The 5-axis machine module's unit and the kernels of the machine's layout and rotary
+    pair (fk, ik, ik_all): the geometry is read from the struct at run time."""
+    from deltagen.codegen.five_axis import UNIT
+    from deltagen.derive.five_axis.kernels import fk_kernel, ik_all_kernel, ik_kernel
+
+    key = ("machine", desc.layout, desc.rotary)
+    if key not in _KERNELS:
+        _KERNELS[key] = tuple(
+            f(desc.layout, desc.rotary) for f in (fk_kernel, ik_kernel, ik_all_kernel)
+        )
+    return UNIT, _KERNELS[key]
+
+
 def arm_unit_kernels(desc) -> tuple[Unit, tuple]:
     """A serial arm's unit and its derived kernels."""
     from deltagen.codegen.serial import arm_unit

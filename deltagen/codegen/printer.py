@@ -7,6 +7,7 @@
   or, when every branch is an integer constant, as branch-free 0/1 arithmetic.
 * derive.functions' unevaluated Ge, Le, Gt, Lt, Fmax, Fmin, Fabs, Floor print as
   SymPy's relationals, Max, Min, Abs and floor.
+* ``NearestInteger(x)`` prints C99 ``rint(x)`` (``rintf`` in float).
 * ``FitAngle(a, lo, hi, lo_tol, hi_tol)`` prints the runtime's ``deltagen_fit_angle`` (its
   float twin ``deltagen_fit_anglef`` in float).
 * Small integer powers are expanded to products (``pow(x, 3)`` is not folded by gcc
@@ -46,6 +47,9 @@ class KernelPrinter(C99CodePrinter):
 
     def _print_Floor(self, expr):
         return self._print_math_func(expr)
+
+    def _print_NearestInteger(self, expr):
+        return "rint" + self._get_func_suffix(real) + "(" + self._print(expr.args[0]) + ")"
 
     def _print_FitAngle(self, expr):
         name = "deltagen_fit_angle" + self._get_func_suffix(real)  # deltagen_fit_anglef in float

@@ -114,6 +114,18 @@ class Floor(sp.floor):
         return None
 
 
+class NearestInteger(sp.Function):
+    """C99 rint(x): x rounded to an integer in the current rounding mode (to nearest, ties
+    to even, unless a caller changed it); gcc vectorises it where floor under -std=c99
+    stops the loop. Never evaluated."""
+
+    nargs = 1
+
+    @classmethod
+    def eval(cls, arg):
+        return None
+
+
 class FitAngle(sp.Function):
     """A revolute joint's value fitted into its limits, (angle, lo, hi, lo - LIMIT_TOL,
     hi + LIMIT_TOL): the hand-written C deltagen_fit_angle (codegen/runtime/

@@ -3,7 +3,8 @@ the delta core (``delta``) and of each serial arm's module (``serial``), of the 
 (``linear_delta``); ``parallel``
 (a batched call split across threads), ``lean`` (the one-pose fast path, with its
 CPython-extension entry ``lean_ext.c``) and ``general6r`` (the compiled eigen step of the
-general-6R inverse kinematics, one module for every arm). The speed guards' measures:
+general-6R inverse kinematics, one module for every arm); ``five_axis`` wraps the 5-axis
+machines' module. The speed guards' measures:
 ``vectorisation`` (which loops gcc vectorises, from its own report) and ``instructions``
 (instructions per point under callgrind).
 

@@ -697,7 +697,9 @@ class IKKernelBuilder:
         r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
         ratio = tape.let(
             f"{name}_ratio",
-            sp.Piecewise((C / tape.let(f"{name}_den", _at_least(r, ik_tiny)), _gt(r, 0)), (0, True)),
+            sp.Piecewise(
+                (C / tape.let(f"{name}_den", _at_least(r, ik_tiny)), _gt(r, 0)), (0, True)
+            ),
         )
         ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + ik_slack))
         kc = tape.let(f"{name}_kc", _at_most(tape.let(f"{name}_kc0", _at_least(ratio, -1)), 1))
