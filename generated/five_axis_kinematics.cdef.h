@@ -16,21 +16,39 @@ typedef struct deltagen_five_axis_geometry {
     double tilt_max;
 } deltagen_five_axis_geometry;
 
-int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j, double *p, double *d, int8_t *status);
-int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, int8_t *status);
-int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
-int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j, double *p, double *d, int8_t *status);
-int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, int8_t *status);
-int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
-int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j, double *p, double *d, int8_t *status);
-int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, int8_t *status);
-int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
-int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j, double *p, double *d, int8_t *status);
-int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, int8_t *status);
-int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
-int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j, double *p, double *d, int8_t *status);
-int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, int8_t *status);
-int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
-int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j, double *p, double *d, int8_t *status);
-int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, int8_t *status);
-int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p, const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
+int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j,
+        double *p, double *d, int8_t *status);
+int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, int8_t *status);
+int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
+int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j,
+        double *p, double *d, int8_t *status);
+int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, int8_t *status);
+int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
+int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j,
+        double *p, double *d, int8_t *status);
+int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, int8_t *status);
+int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
+int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j,
+        double *p, double *d, int8_t *status);
+int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, int8_t *status);
+int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
+int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j,
+        double *p, double *d, int8_t *status);
+int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, int8_t *status);
+int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
+int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *geometry, size_t n, const double *j,
+        double *p, double *d, int8_t *status);
+int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, int8_t *status);
+int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *geometry, size_t n, const double *p,
+        const double *d, const double *j_prev, double *j, uint8_t *valid, int8_t *status);
