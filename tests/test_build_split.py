@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from deltagen.inputs import InputError
 from deltagen.native import build
 from deltagen.paths import generated_dir
 
@@ -222,6 +223,9 @@ def test_build_jobs_follow_the_usable_cores_and_the_cap(monkeypatch):
     assert build._build_jobs() == 1
     monkeypatch.setenv("DELTAGEN_BUILD_JOBS", str(cores + 5))
     assert build._build_jobs() == cores  # a cap, never more compilers than cores
-    for bad in ("0", "-2", "many", ""):
+    monkeypatch.setenv("DELTAGEN_BUILD_JOBS", "")  # empty: as if unset
+    assert build._build_jobs() == cores
+    for bad in ("0", "-2", "many"):  # an error naming the variable, as DELTAGEN_THREADS's
         monkeypatch.setenv("DELTAGEN_BUILD_JOBS", bad)
-        assert build._build_jobs() == cores
+        with pytest.raises(InputError, match="DELTAGEN_BUILD_JOBS must be a positive integer"):
+            build._build_jobs()

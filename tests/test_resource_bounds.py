@@ -231,8 +231,8 @@ def test_probe_refuses_what_is_not_a_dask_scheduler(monkeypatch):
         api_sweep.probe_scheduler(f"tcp://127.0.0.1:{port}", 2.0)
     with pytest.raises(SweepError, match="tcp://host:port"):
         api_sweep.probe_scheduler("tcp://nohostport", 1.0)
-    monkeypatch.setenv("DASK_CONNECT_TIMEOUT", "soon")
-    with pytest.raises(SweepError, match="DASK_CONNECT_TIMEOUT"):
+    monkeypatch.setenv("DELTAGEN_CONNECT_TIMEOUT", "soon")
+    with pytest.raises(SweepError, match="DELTAGEN_CONNECT_TIMEOUT"):
         from deltagen.api.sweep import connect
 
         connect(banner.address)

@@ -23,7 +23,7 @@ Checks before anything runs: every key of the spec against one schema (``_SCHEMA
 type, shape and range; the message names the key, e.g. "score.q_limits_deg"), the design
 table and one design's workspace grid against the memory budget (deltagen.inputs,
 DELTAGEN_MAX_MEMORY), ``workers`` (a positive integer), and a scheduler address by a probe
-(probe_scheduler: it must answer like a Dask scheduler within DASK_CONNECT_TIMEOUT, default
+(probe_scheduler: it must answer like a Dask scheduler within DELTAGEN_CONNECT_TIMEOUT, default
 10 s) before Dask connects with the same timeout.
 
 The result (SweepResult) is a table of numpy columns; to_csv writes it with the spec, the
@@ -619,7 +619,8 @@ def _run_dask(spec, designs, scheduler, workers, task_seconds, progress):
 
 
 #: Seconds to wait for a Dask scheduler to answer (connection and handshake);
-#: DASK_CONNECT_TIMEOUT overrides it (Dask's own variable, seconds).
+#: DELTAGEN_CONNECT_TIMEOUT overrides it (seconds; not a DASK_ variable, which Dask would
+#: read into its own configuration).
 CONNECT_TIMEOUT = 10.0
 #: The largest first message a Dask scheduler opens with: its handshake (a few hundred
 #: bytes of msgpack) behind an 8-byte little-endian length (distributed.comm.tcp).
@@ -627,7 +628,7 @@ _MAX_HANDSHAKE = 1 << 20
 
 
 def _connect_timeout() -> float:
-    text = os.environ.get("DASK_CONNECT_TIMEOUT")
+    text = os.environ.get("DELTAGEN_CONNECT_TIMEOUT")
     if text is None or text.strip() == "":
         return CONNECT_TIMEOUT
     try:
@@ -636,7 +637,7 @@ def _connect_timeout() -> float:
         value = math.nan
     if not (math.isfinite(value) and value > 0):
         raise SweepError(
-            f"DASK_CONNECT_TIMEOUT must be a positive number of seconds, got {text!r}; unset "
+            f"DELTAGEN_CONNECT_TIMEOUT must be a positive number of seconds, got {text!r}; unset "
             f"it for {CONNECT_TIMEOUT:g} s"
         )
     return value
@@ -676,7 +677,7 @@ def probe_scheduler(address: str, timeout: float) -> None:
         raise SweepError(
             f"no Dask scheduler answered at {address} within {timeout:g} s (something "
             "accepted the connection but sent nothing); check the address, or set "
-            "DASK_CONNECT_TIMEOUT"
+            "DELTAGEN_CONNECT_TIMEOUT"
         ) from None
     except OSError as exc:
         raise SweepError(
