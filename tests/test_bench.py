@@ -61,9 +61,11 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_
         assert out.strip() in text
     delta_part, _, serial_part = out.partition("Serial arm: puma560")
     assert serial_part, "no serial-arm section"
-    # the three-sphere machines' cores beside the rotary delta's, in the same run
-    for row in ("rotary delta fk", "linear delta fk", "linear delta fk_acc", "tripod ik"):
-        assert row in serial_part, f"no three-sphere row {row!r}"
+    # the other families' cores beside the rotary delta's, in the same run
+    rows = ("rotary delta fk", "linear delta fk", "linear delta fk_acc", "tripod ik")
+    rows += ("hexapod ik", "hexapod fk (Newton from home)", "5-axis xyzac_trt ik_all")
+    for row in rows:
+        assert row in serial_part, f"no row {row!r} of the other machine families"
     # the UR closed-form row: per-pose batched time against its 2 us target
     ur_row = next(line for line in serial_part.splitlines() if "ur5: all 8 branches" in line)
     assert "<= 2 " in ur_row

@@ -10,8 +10,8 @@ command takes its robot from (the kind decided from the file, the URDF options).
 
 ``deltagen bench`` is ``bench`` (throughput and one-pose latency) with its sections and
 tools: ``bench_ik`` (inverse kinematics), ``bench_general6r`` (the general-6R solver),
-``bench_load`` (cold and warm load of an arm), ``bench_three_spheres`` (the linear delta's
-and the tripod's cores beside the rotary delta's), ``bench_compare`` (``--compare REF``: this
+``bench_load`` (cold and warm load of an arm), ``bench_families`` (the linear delta's,
+the tripod's, the hexapod's and a 5-axis machine's cores beside the rotary delta's), ``bench_compare`` (``--compare REF``: this
 tree beside another, in one run), ``bench_report`` (JSON, PNG and the README section) and
 ``timing`` (timers, repeats and tables).
 

@@ -43,8 +43,9 @@ All cores. A last section times delta fk, Puma560 fk and Puma560 jacobian throug
 the available cores; native.parallel splits batches of at least 2 x MIN_ROWS_PER_THREAD
 rows into row chunks on a thread pool), round-robin, and prints the speedup.
 
-Three-sphere machines. The linear delta's and the tripod's cores beside the rotary delta's
-fk and ik (``bench_three_spheres``), ns per point through ``_core``, threads=1.
+Other machine families. The linear delta's, the tripod's, the hexapod's and a 5-axis
+machine's cores beside the rotary delta's fk and ik (``bench_families``), ns per point
+through ``_core``, threads=1.
 """
 
 from __future__ import annotations
@@ -1029,11 +1030,11 @@ def render(result: dict, markdown: bool) -> str:
     if result.get("threads") is not None:
         out.append("")
         out += _render_threads(result["threads"], markdown)
-    if result.get("three_spheres") is not None:
-        from deltagen.apps import bench_three_spheres
+    if result.get("families") is not None:
+        from deltagen.apps import bench_families
 
         out.append("")
-        out += bench_three_spheres.render(result["three_spheres"], markdown)
+        out += bench_families.render(result["families"], markdown)
     out.append(f"{bullet}total bench time {result['elapsed_s']:.1f} s")
     return "\n".join(out)
 
@@ -1286,9 +1287,9 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
     del poses
     serial_result = run_serial(n, repeats, oracles) if serial else None
     threads_result = run_threads(n, repeats) if serial else None
-    from deltagen.apps import bench_three_spheres
+    from deltagen.apps import bench_families
 
-    three_spheres = bench_three_spheres.run(n, repeats)
+    families = bench_families.run(n, repeats)
     machine = machine_info(compiled)
     if serial_result is not None:
         machine.append(("C build (serial)", _build_name(serial_result["robot"])))
@@ -1310,7 +1311,7 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
         "agreement": agreement,
         "serial": serial_result,
         "threads": threads_result,
-        "three_spheres": three_spheres,
+        "families": families,
         "load_before": load_before,
         "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,
