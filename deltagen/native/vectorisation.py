@@ -219,7 +219,8 @@ def check(
     used: set[str] | None = None,
 ) -> list[str]:
     """Problems of one module (empty: every kernel vectorises where it must). ``exempt``
-    maps ``"<kernel>"`` (a kernel with no marked loop: not a per-point kernel) or
+    maps ``"<kernel>"`` or ``"<prefix>_<kernel>"`` (one module's kernel only) (a kernel
+    with no marked loop: not a per-point kernel) or
     ``"<kernel>/<role>"`` (a marked loop gcc may leave scalar) to the reason; the keys this
     module needed are added to ``used`` (the caller reports keys no module needed). An
     exempt loop that is vectorised is a problem: its exemption is stale."""
@@ -232,8 +233,9 @@ def check(
     for kernel, first, _ in kernels(text, prefix):
         if any(loop.kernel == kernel for loop in loops):
             continue
-        if kernel in exempt:
-            used.add(kernel)
+        qualified = f"{prefix}_{kernel}"  # one module's kernel, e.g. deltagen_hexapod_fk
+        if kernel in exempt or qualified in exempt:
+            used.add(kernel if kernel in exempt else qualified)
         else:
             problems.append(
                 f"{prefix}_{kernel} (line {first}) has no loop marked `/* loop: ... */`: a "
