@@ -528,6 +528,8 @@ def test_cli_fk_ik_of_the_robot_file(capsys, tmp_path):
     assert "the robot given is a hexapod" in capsys.readouterr().err
     assert main(["workspace", robot_file, "--out", str(tmp_path / "ws"), "--quiet"]) == 0
     assert (tmp_path / "ws" / "workspace_slices.png").stat().st_size > 10_000
+    page = (tmp_path / "ws" / "workspace.html").read_text()  # the 3D page, plotly inlined
+    assert "Scatter3d" in page or "scatter3d" in page
     summary = (tmp_path / "ws" / "workspace_summary.csv").read_text()
     assert "position_reachable_fraction" in summary
 

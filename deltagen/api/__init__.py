@@ -11,5 +11,8 @@ Jacobian, rates, leg forces, joint limits, workspace grids).
 
 ``five_axis`` (``FiveAxisMachine``, the 5-axis NC machines).
 
+``threads`` (``ThreadsProperty``: the ``threads`` property the classes with a compiled core
+share).
+
 May import: ``solve``, ``plan``, and everything below them.
 """

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
+from deltagen.api.threads import ThreadsProperty
 from deltagen.api.validity import finite_rows, invalid_message
 from deltagen.errors import (
     GeometryError,
@@ -37,7 +38,7 @@ __all__ = ["DeltaInertia", "DeltaRobot"]
 _BACKENDS = ("compiled", "reference")
 
 
-class DeltaRobot:
+class DeltaRobot(ThreadsProperty):
     """Rotary delta robot of the 2008 report with an optional independent fourth axis.
 
     Parameters are in metres and radians: r_a (base radius to the drive axes), r_b
@@ -100,19 +101,6 @@ class DeltaRobot:
             self._fk_vel_single = self._fk_acc_single = self._jacobian_single = None
             self._id_single = None
         self._threads = threads
-
-    @property
-    def threads(self) -> int | None:
-        """Threads a batched call may use (compiled backend; batches of at least 2 x
-        native.parallel.MIN_ROWS_PER_THREAD rows are split into row chunks): a positive
-        integer, or None for DELTAGEN_THREADS, else every available core. Results do not
-        depend on it (bit for bit)."""
-        return self._threads
-
-    @threads.setter
-    def threads(self, threads: int | None) -> None:
-        self._threads = check_threads(threads)
-        self._core.threads = self._threads
 
     @classmethod
     def from_geometry(

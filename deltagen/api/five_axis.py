@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
+from deltagen.api.threads import ThreadsProperty
 from deltagen.api.validity import invalid_message
 from deltagen.errors import GeometryError, UnreachableError, rows_text
 from deltagen.inputs import InputError, as_rows, check_errors_mode
@@ -47,7 +48,7 @@ def bundled_machines() -> list[str]:
     return [p.stem for p in sorted(robots_dir().glob("*.toml")) if _is_machine_file(p)]
 
 
-class FiveAxisMachine:
+class FiveAxisMachine(ThreadsProperty):
     """A 5-axis NC machine: layout "table-table" (trunnion), "head-head" or "table-head",
     rotary "AC" or "BC" (the tilt axis, then C), the pivot points and the tool length in
     metres (model/five_axis.py)."""
@@ -138,15 +139,6 @@ class FiveAxisMachine:
     @property
     def name(self) -> str:
         return self.description.name
-
-    @property
-    def threads(self) -> int | None:
-        return self._threads
-
-    @threads.setter
-    def threads(self, threads: int | None) -> None:
-        self._threads = check_threads(threads)
-        self._core.threads = self._threads
 
     def __repr__(self) -> str:
         g = self.description

@@ -461,5 +461,11 @@ class HexapodWorkspace:
         """The reachable fraction of the grid."""
         return float(self.reachable.mean())
 
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """(M, 3) grid coordinates of the reachable poses (positions [m] for a position
+        workspace) and their (M,) condition numbers, as DeltaWorkspace.points gives them."""
+        grid = np.stack(np.meshgrid(*self.axes, indexing="ij"), axis=-1)
+        return grid[self.reachable], self.condition[self.reachable]
+
 
 __all__ = ["FkResult", "Hexapod", "HexapodWorkspace", "SINGULAR_TOL"]

@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, Errors, PathLike, Result
+from deltagen.api.threads import ThreadsProperty
 from deltagen.api.validity import finite_rows, invalid_message
 from deltagen.errors import SingularityError, UnreachableError, rows_text
 from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
@@ -63,7 +64,7 @@ class _ReferenceCore:
         return self._m.ik_acc(self._kind, self._g, p, pd, pdd)
 
 
-class _ThreeSpheres:
+class _ThreeSpheres(ThreadsProperty):
     """What the linear delta and the tripod share: the calls, the modes and the backends."""
 
     kind = ""
@@ -104,15 +105,6 @@ class _ThreeSpheres:
     @property
     def name(self) -> str:
         return self.geometry.name
-
-    @property
-    def threads(self) -> int | None:
-        return self._threads
-
-    @threads.setter
-    def threads(self, threads: int | None) -> None:
-        self._threads = check_threads(threads)
-        self._core.threads = self._threads
 
     def _lean(self, name, errors, *args):
         if type(errors) is str and errors == "raise":

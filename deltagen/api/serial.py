@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike
 
 from deltagen import status as st
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
+from deltagen.api.threads import ThreadsProperty
 from deltagen.api.validity import invalid_message, mark_nonfinite
 from deltagen.errors import (
     GeometryError,
@@ -149,7 +150,7 @@ def bundled_urdfs() -> list[str]:
 _PENDING = object()  # a one-state path not made yet
 
 
-class SerialRobot:
+class SerialRobot(ThreadsProperty):
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
     _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
@@ -198,19 +199,6 @@ class SerialRobot:
             self._general_single = False  # numpy engine: the general path
             self._id_single = self._fd_single = self._mass_single = None
         self._threads = threads
-
-    @property
-    def threads(self) -> int | None:
-        """Threads a batched call may use (compiled backend; batches of at least 2 x
-        native.parallel.MIN_ROWS_PER_THREAD rows are split into row chunks): a positive
-        integer, or None for DELTAGEN_THREADS, else every available core. Results do not
-        depend on it (bit for bit)."""
-        return self._threads
-
-    @threads.setter
-    def threads(self, threads: int | None) -> None:
-        self._threads = check_threads(threads)
-        self._core.threads = self._threads
 
     # -- construction ---------------------------------------------------------------
 

@@ -102,12 +102,14 @@ def write_workspace(robot, out, step=None, quiet=False) -> list:
     """`deltagen workspace HEXAPOD.toml`: the position workspace at R = I over a box around
     the home position (edge ``step``, default size / 20) and the orientation workspace
     (roll x pitch, yaw 0, +-45 deg) at the home position, drawn as PNG slices coloured by the
-    condition number of J (grey: not reachable), and the summary numbers as CSV. Returns
-    the files written."""
+    condition number of J (grey: not reachable), the position workspace as the 3D page
+    (apps/workspace.py write_page: the reachable positions and the hexapod moving on a
+    slider), and the summary numbers as CSV. Returns the files written."""
     import csv
     from pathlib import Path
 
     from deltagen.apps.plotting import pyplot
+    from deltagen.apps.workspace import write_page
 
     g = robot.geometry
     size = g.size
@@ -166,6 +168,14 @@ def write_workspace(robot, out, step=None, quiet=False) -> list:
     slices = out / "workspace_slices.png"
     fig.savefig(slices, dpi=110)
     plt.close(fig)
+    page = write_page(
+        robot,
+        ws,
+        out / "workspace.html",
+        trajectory=_demo_poses(robot),
+        title=f"deltagen workspace: hexapod {g.name} (positions at R = I, cond(J))",
+        skeleton=hexapod_skeleton,
+    )
     summary = {
         "grid_step_m": step,
         "position_points": ws.reachable.size,
@@ -183,9 +193,35 @@ def write_workspace(robot, out, step=None, quiet=False) -> list:
     if not quiet:
         for key, value in summary.items():
             print(f"{key:>32}  {value:.6g}")
-        for p in (slices, table):
+        for p in (slices, page, table):
             print(f"wrote {p}")
-    return [slices, table]
+    return [slices, page, table]
+
+
+def hexapod_skeleton(robot, T) -> np.ndarray:
+    """Polyline points (K, 3) [m] of the hexapod at pose T (4, 4): the base hexagon, the
+    platform hexagon and the six legs, NaN rows between the pieces."""
+    g = robot.geometry
+    a = np.asarray(g.base_joints, dtype=float)
+    b = np.asarray(T, dtype=float)[:3, :3] @ np.asarray(g.platform_joints, dtype=float).T
+    b = b.T + np.asarray(T, dtype=float)[:3, 3]
+    gap = np.full((1, 3), np.nan)
+    ring = [0, 1, 2, 3, 4, 5, 0]
+    parts = [a[ring], gap, b[ring], gap]
+    for i in range(6):
+        parts += [np.stack([a[i], b[i]]), gap]
+    return np.concatenate(parts[:-1])
+
+
+def _demo_poses(robot, n: int = 24) -> np.ndarray:
+    """Poses (n, 4, 4) for the page's slider: a circle of 0.05 x the robot's size about the
+    home position, the platform rolling and pitching by 0.1 rad with it."""
+    t = np.linspace(0.0, 2 * math.pi, n)
+    r = 0.05 * robot.geometry.size
+    home = np.asarray(robot.geometry.home_position, dtype=float)
+    p = home + np.stack([r * np.cos(t), r * np.sin(t), np.zeros(n)], axis=-1)
+    rpy = np.stack([0.1 * np.sin(t), 0.1 * np.cos(t), np.zeros(n)], axis=-1)
+    return robot.pose(p, rpy=rpy)
 
 
 #: the pose of the exported example: a shifted, tilted platform [m, rad]

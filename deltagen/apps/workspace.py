@@ -185,16 +185,26 @@ def default_trajectory(robot, ws, n: int = 24) -> np.ndarray:
 
 
 def write_page(
-    robot, ws, path: str | Path, trajectory: Any = None, title: str = "", seed: int = 0
+    robot,
+    ws,
+    path: str | Path,
+    trajectory: Any = None,
+    title: str = "",
+    seed: int = 0,
+    skeleton: Any = None,
 ) -> Path:
     """The self-contained 3D page (module docstring). trajectory: joint coordinates (n, k)
-    for the slider (default: default_trajectory)."""
+    for the slider (default: default_trajectory); skeleton(robot, q) -> (K, 3) polyline
+    points of the robot at one trajectory entry (default: by the robot's kind). ``ws``
+    needs ``points()`` -> (positions (M, 3), condition numbers (M,))."""
     try:
         import plotly.graph_objects as go
     except ImportError as exc:
         raise DeltagenError(PLOTLY_HINT) from exc
     is_delta = isinstance(ws, DeltaWorkspace)
-    if isinstance(robot, DeltaRobot):
+    if skeleton is not None:
+        pass
+    elif isinstance(robot, DeltaRobot):
         skeleton = delta_skeleton
     elif is_delta:  # a LinearDelta or a Tripod: the same workspace result
         skeleton = three_sphere_skeleton

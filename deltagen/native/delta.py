@@ -8,7 +8,7 @@ import numpy as np
 
 from deltagen.native.build import load
 from deltagen.native.lean import single_call
-from deltagen.native.parallel import run_rows
+from deltagen.native.parallel import run_batch
 
 
 def geometry_struct(g) -> dict:
@@ -103,26 +103,11 @@ class CompiledDelta:
     def _run(self, fn, inputs, n_out, out_width=None, widths=None):
         """fn(geometry, rows, axes, *inputs, *outputs, status) over the batch, split into row
         chunks across threads (native.parallel); inputs are (N, ...) C-contiguous."""
-        n, axes = inputs[0].shape
-        fb, geometry = self._ffi.from_buffer, self._geometry
-        widths = widths or (out_width,) * n_out
-        outs = [np.empty((n, w or axes)) for w in widths]
-        status = np.empty(n, dtype=np.int8)
-
-        def call(lo, hi):
-            return fn(
-                geometry,
-                hi - lo,
-                axes,
-                *(fb("double[]", a[lo:hi]) for a in inputs),
-                *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
-                fb("int8_t[]", status[lo:hi], require_writable=True),
-            )
-
-        rc = run_rows(n, self.threads, call)
-        if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return (*outs, status)
+        axes = inputs[0].shape[1]
+        widths = [w or axes for w in (widths or (out_width,) * n_out)]
+        return run_batch(
+            self._ffi, fn, self._geometry, inputs, widths, self.threads, leading=(axes,)
+        )
 
     def fk(self, q):
         return self._run(self._lib.deltagen_delta_fk, [self._to_crank(q)], 1)

@@ -7,7 +7,7 @@ import numpy as np
 
 from deltagen.native.build import load
 from deltagen.native.lean import single_call
-from deltagen.native.parallel import run_rows
+from deltagen.native.parallel import check_rc, run_batch, run_rows
 
 
 def geometry_struct(desc) -> dict:
@@ -51,25 +51,9 @@ class CompiledFiveAxis:
     def _run(self, quantity, inputs, widths):
         """fn(geometry, rows, *inputs, *outputs, status) over the batch, split into row chunks
         across threads (native.parallel)."""
-        fn = self._fn(quantity)
-        n = inputs[0].shape[0]
-        fb, geometry = self._ffi.from_buffer, self._geometry
-        outs = [np.empty((n, w)) for w in widths]
-        status = np.empty(n, dtype=np.int8)
-
-        def call(lo, hi):
-            return fn(
-                geometry,
-                hi - lo,
-                *(fb("double[]", a[lo:hi]) for a in inputs),
-                *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
-                fb("int8_t[]", status[lo:hi], require_writable=True),
-            )
-
-        rc = run_rows(n, self.threads, call)
-        if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return (*outs, status)
+        return run_batch(
+            self._ffi, self._fn(quantity), self._geometry, inputs, widths, self.threads
+        )
 
     def fk(self, j):
         return self._run("fk", [j], (3, 3))
@@ -96,6 +80,5 @@ class CompiledFiveAxis:
                 fb("int8_t[]", status[lo:hi], require_writable=True),
             )
 
-        if run_rows(n, self.threads, call) != 0:
-            raise RuntimeError("C core rejected its arguments")
+        check_rc(run_rows(n, self.threads, call))
         return j.reshape(-1, 2, 5), valid.astype(bool), status

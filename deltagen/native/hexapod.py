@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from deltagen.native.build import load
-from deltagen.native.parallel import run_rows
+from deltagen.native.parallel import check_rc, run_batch, run_rows
 
 
 def geometry_struct(g) -> dict:
@@ -33,24 +33,7 @@ class CompiledHexapod:
         self._geometry = self._ffi.new("deltagen_hexapod_geometry *", geometry_struct(geometry))
 
     def _run(self, fn, pose, widths):
-        n = pose.shape[0]
-        fb, geometry = self._ffi.from_buffer, self._geometry
-        outs = [np.empty((n, w)) for w in widths]
-        status = np.empty(n, dtype=np.int8)
-
-        def call(lo, hi):
-            return fn(
-                geometry,
-                hi - lo,
-                fb("double[]", pose[lo:hi]),
-                *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
-                fb("int8_t[]", status[lo:hi], require_writable=True),
-            )
-
-        rc = run_rows(n, self.threads, call)
-        if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return (*outs, status)
+        return run_batch(self._ffi, fn, self._geometry, [pose], widths, self.threads)
 
     def ik(self, pose):
         """Leg lengths (N, 6) and status of poses (N, 16)."""
@@ -100,7 +83,5 @@ class CompiledHexapod:
                 fb("int8_t[]", status[lo:hi], require_writable=True),
             )
 
-        rc = run_rows(n, 1 if warm_start else self.threads, call)
-        if rc != 0:
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        check_rc(run_rows(n, 1 if warm_start else self.threads, call))
         return pose, residual, iterations, status

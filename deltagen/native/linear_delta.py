@@ -3,11 +3,9 @@ linear_delta_kinematics.c and tripod_kinematics.c via cffi (rows of 3, no axes a
 
 from __future__ import annotations
 
-import numpy as np
-
 from deltagen.native.build import load
 from deltagen.native.lean import single_call
-from deltagen.native.parallel import run_rows
+from deltagen.native.parallel import run_batch
 
 
 def linear_delta_struct(g) -> dict:
@@ -70,24 +68,7 @@ class CompiledTrilateration:
 
     def run(self, name, inputs, widths):
         """fn(geometry, rows, *inputs, *outputs, status) split across threads."""
-        fn, geometry, fb = self._fn(name), self._geometry, self._ffi.from_buffer
-        n = inputs[0].shape[0]
-        outs = [np.empty((n, w)) for w in widths]
-        status = np.empty(n, dtype=np.int8)
-
-        def call(lo, hi):
-            return fn(
-                geometry,
-                hi - lo,
-                *(fb("double[]", a[lo:hi]) for a in inputs),
-                *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
-                fb("int8_t[]", status[lo:hi], require_writable=True),
-            )
-
-        rc = run_rows(n, self.threads, call)
-        if rc != 0:  # the Python layer validates first, so this is a bug, not bad input
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
-        return (*outs, status)
+        return run_batch(self._ffi, self._fn(name), self._geometry, inputs, widths, self.threads)
 
     def fk(self, q):
         return self.run("fk", [q], (3,))

@@ -43,6 +43,8 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, wait
 
+import numpy as np
+
 from deltagen.inputs import InputError, env_positive_int, is_integer
 
 MIN_ROWS_PER_THREAD = 20000
@@ -137,3 +139,35 @@ def run_rows(n: int, threads: int | None, call: Callable[[int, int], int]) -> in
         wait(futures)
     rcs += [f.result() for f in futures]
     return next((rc for rc in rcs if rc != 0), 0)
+
+
+def run_batch(ffi, fn, geometry, inputs, widths, threads, leading=()) -> tuple:
+    """(*outputs, status) of ``fn(geometry, rows, *leading, *inputs, *outputs, status)``, the
+    calling convention of every struct-taking generated kernel, over the batch: inputs are
+    (N, ...) C-contiguous float64, outputs (N, w) float64 for each w of ``widths``, status
+    (N,) int8; the rows are split across threads (:func:`run_rows`). A nonzero rc is a bug
+    (the Python layer validates first): RuntimeError."""
+    n = inputs[0].shape[0]
+    fb = ffi.from_buffer
+    outs = [np.empty((n, w)) for w in widths]
+    status = np.empty(n, dtype=np.int8)
+
+    def call(lo, hi):
+        return fn(
+            geometry,
+            hi - lo,
+            *leading,
+            *(fb("double[]", a[lo:hi]) for a in inputs),
+            *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
+            fb("int8_t[]", status[lo:hi], require_writable=True),
+        )
+
+    check_rc(run_rows(n, threads, call))
+    return (*outs, status)
+
+
+def check_rc(rc: int) -> None:
+    """RuntimeError for a kernel's nonzero rc: the Python layer validates first, so this is a
+    bug, not bad input."""
+    if rc != 0:
+        raise RuntimeError(f"C core rejected its arguments (rc={rc})")

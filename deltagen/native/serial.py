@@ -22,7 +22,7 @@ from deltagen.codegen.serial import (
 from deltagen.derive.serial.parts import PARTS
 from deltagen.native.build import is_built, load, usable_cache_dir
 from deltagen.native.lean import single_call
-from deltagen.native.parallel import run_rows
+from deltagen.native.parallel import check_rc, run_rows
 from deltagen.paths import generated_dir
 
 
@@ -149,9 +149,7 @@ class CompiledArm:
                 fb("int8_t[]", status[lo:hi], require_writable=True),
             )
 
-        rc = run_rows(n, self.threads, call)
-        if rc != 0:
-            raise RuntimeError(f"C core rejected its arguments (rc={rc})")
+        check_rc(run_rows(n, self.threads, call))
         return (*outs, status)
 
     def fk(self, q):
