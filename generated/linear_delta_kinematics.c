@@ -128,7 +128,7 @@ int deltagen_linear_delta_fk(const deltagen_linear_delta_geometry *restrict geom
             const double y = S_y1 + xi_y;
             const double z = S_z1 + xi_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(h1) & isfinite(h2) & isfinite(h3));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (h_sq < 0);
@@ -264,7 +264,7 @@ int deltagen_linear_delta_fk_vel(const deltagen_linear_delta_geometry *restrict 
             const double y = S_y1 + xi_y;
             const double z = S_z1 + xi_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(h1) & isfinite(h2) & isfinite(h3) & isfinite(hd1) & isfinite(hd2) &
                     isfinite(hd3));
             const int collinear = (e_sq <= collinear_limit);
@@ -449,7 +449,7 @@ int deltagen_linear_delta_fk_acc(const deltagen_linear_delta_geometry *restrict 
             const double y = S_y1 + xi_y;
             const double z = S_z1 + xi_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(h1) & isfinite(h2) & isfinite(h3) & isfinite(hd1) & isfinite(hd2) &
                     isfinite(hd3) & isfinite(hdd1) & isfinite(hdd2) & isfinite(hdd3));
             const int collinear = (e_sq <= collinear_limit);
@@ -632,7 +632,7 @@ int deltagen_linear_delta_jacobian(const deltagen_linear_delta_geometry *restric
             const double xi_y = e_y*lambda_ + x0_y;
             const double xi_z = e_z*lambda_ + x0_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(h1) & isfinite(h2) & isfinite(h3));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (h_sq < 0);

@@ -123,7 +123,7 @@ int deltagen_tripod_fk(const deltagen_tripod_geometry *restrict geometry, size_t
             const double y = S_y1 + xi_y;
             const double z = S_z1 + xi_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(l1) & isfinite(l2) & isfinite(l3));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (((h_sq < 0)) | ((l1 < 0)) | ((l2 < 0)) | ((l3 < 0)));
@@ -253,7 +253,7 @@ int deltagen_tripod_fk_vel(const deltagen_tripod_geometry *restrict geometry, si
             const double y = S_y1 + xi_y;
             const double z = S_z1 + xi_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(l1) & isfinite(l2) & isfinite(l3) & isfinite(ld1) & isfinite(ld2) &
                     isfinite(ld3));
             const int collinear = (e_sq <= collinear_limit);
@@ -428,7 +428,7 @@ int deltagen_tripod_fk_acc(const deltagen_tripod_geometry *restrict geometry, si
             const double y = S_y1 + xi_y;
             const double z = S_z1 + xi_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(l1) & isfinite(l2) & isfinite(l3) & isfinite(ld1) & isfinite(ld2) &
                     isfinite(ld3) & isfinite(ldd1) & isfinite(ldd2) & isfinite(ldd3));
             const int collinear = (e_sq <= collinear_limit);
@@ -600,7 +600,7 @@ int deltagen_tripod_jacobian(const deltagen_tripod_geometry *restrict geometry, 
             const double xi_y = e_y*lambda_ + x0_y;
             const double xi_z = e_z*lambda_ + x0_z;
             const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det D ~ 0 */
+            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
             const int invalid = !(isfinite(l1) & isfinite(l2) & isfinite(l3));
             const int collinear = (e_sq <= collinear_limit);
             const int unreachable = (((h_sq < 0)) | ((l1 < 0)) | ((l2 < 0)) | ((l3 < 0)));

@@ -115,12 +115,21 @@ invalid, collinear, unreachable, singular = sp.symbols("invalid collinear unreac
 
 def _fk_level(inputs_finite):
     """Status flags, status and masks shared by the fk-level kernels."""
+    return fk_status(inputs_finite, fkd.h_sq < 0, collinear_limit, det_limit)
+
+
+def fk_status(inputs_finite, apart, collinear_limit, det_limit):
+    """(flags stage, status, no_position, no_rates) of a three-sphere direct kinematics (the
+    rotary delta's, the linear delta's, the tripod's): INVALID for a non-finite input,
+    SINGULAR for collinear centres (|e|^2 <= collinear_limit, no position), UNREACHABLE
+    where ``apart`` (the spheres do not meet), SINGULAR where |det D| <= det_limit (the
+    position is given, its rates are not)."""
     flags = Stage(
         "status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0",
         (
             (invalid, sp.Not(inputs_finite)),
             (collinear, fkd.e_sq <= collinear_limit),
-            (unreachable, fkd.h_sq < 0),
+            (unreachable, apart),
             (singular, sp.Abs(fkd.det_D) <= det_limit),
         ),
     )

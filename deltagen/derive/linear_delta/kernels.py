@@ -35,6 +35,7 @@ from deltagen import status as st
 from deltagen.derive.delta import fk as fkd
 from deltagen.derive.delta import symbols as ds
 from deltagen.derive.delta import velocity as vel
+from deltagen.derive.delta.kernels import fk_status
 from deltagen.derive.functions import AllFinite
 from deltagen.derive.kernel import Kernel, Parameter, Port, Stage
 from deltagen.derive.linear_delta import rates
@@ -141,27 +142,8 @@ def _masked(names, values, bad):
 
 def _fk_level(kind, levels):
     inputs = [v for entry in _JOINTS[kind][:levels] for v in entry[0]]
-    flags = Stage(
-        "status flags: non-finite input, collinear centres, spheres apart, det D ~ 0",
-        (
-            (invalid, sp.Not(AllFinite(*inputs))),
-            (collinear, fkd.e_sq <= collinear_limit),
-            (
-                unreachable,
-                fkd.h_sq < 0 if kind == LINEAR else sp.Or(fkd.h_sq < 0, *(q < 0 for q in s.strut)),
-            ),
-            (singular, sp.Abs(fkd.det_D) <= det_limit),
-        ),
-    )
-    status = sp.Piecewise(
-        (st.INVALID, invalid),
-        (st.SINGULAR, collinear),
-        (st.UNREACHABLE, unreachable),
-        (st.SINGULAR, singular),
-        (st.OK, True),
-    )
-    no_p = sp.Or(invalid, collinear, unreachable)
-    return flags, status, no_p, sp.Or(no_p, singular)
+    apart = fkd.h_sq < 0 if kind == LINEAR else sp.Or(fkd.h_sq < 0, *(q < 0 for q in s.strut))
+    return fk_status(AllFinite(*inputs), apart, collinear_limit, det_limit)
 
 
 _FK_STATUS_DOC = (
