@@ -20,6 +20,7 @@ import sys
 
 import numpy as np
 
+from deltagen.apps.kinematics import SERIAL_ONLY, refuse_options
 from deltagen.apps.tables import Columns, output_format, read_table, write_table
 from deltagen.errors import DeltagenError
 from deltagen.geometry.rotations import rpy
@@ -46,9 +47,7 @@ def _compute(robot, forward: bool, x: np.ndarray):
 
 def run(robot, forward: bool, args) -> int:
     """The job of `deltagen fk|ik` for a hexapod; returns the exit status."""
-    for flag in ("config", "q0", "method", "restarts"):
-        if getattr(args, flag, None) is not None:
-            raise InputError(f"--{flag} applies to serial arms, not to a hexapod")
+    refuse_options(args, SERIAL_ONLY, "applies to serial arms, not to a hexapod")
     if getattr(args, "degrees", False):
         raise InputError("--degrees applies to joint angles; a hexapod's joints are lengths [m]")
     what = f"{'fk' if forward else 'ik'} of the hexapod {robot.geometry.name}"

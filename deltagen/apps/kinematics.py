@@ -144,31 +144,29 @@ class Job:
         return "the result is not finite (the input is too large to evaluate)"
 
 
+#: The ik options only a serial arm's solvers take (argparse names).
+SERIAL_ONLY = ("config", "q0", "method", "restarts")
+
+
+def refuse_options(args, flags, reason: str) -> None:
+    """InputError "--<flag> <reason>" for the first of ``flags`` (argparse names) that
+    ``args`` gives (a value other than None)."""
+    for flag in flags:
+        if getattr(args, flag, None) is not None:
+            raise InputError(f"--{flag} {reason}")
+
+
 def make_job(robot, forward: bool, args) -> Job:
     from deltagen.api.delta import DeltaRobot
     from deltagen.api.linear_delta import LinearDelta, Tripod
 
     if isinstance(robot, (LinearDelta, Tripod)):  # joints in m (carriages or struts)
-        for flag, value in (
-            ("--config", args.config),
-            ("--q0", args.q0),
-            ("--method", args.method),
-            ("--restarts", args.restarts),
-        ):
-            if value is not None:
-                raise InputError(f"{flag} applies to serial arms, not to {robot.name}")
+        refuse_options(args, SERIAL_ONLY, f"applies to serial arms, not to {robot.name}")
         columns = Columns(("q1", "q2", "q3")) if forward else Columns(("x", "y", "z"))
         return Job(robot, False, forward, args.degrees, [columns], revolute=np.zeros(3, dtype=bool))
     serial = not isinstance(robot, DeltaRobot)  # a SerialRobot or a CoupledArm
     if not serial:
-        for flag, value in (
-            ("--config", args.config),
-            ("--q0", args.q0),
-            ("--method", args.method),
-            ("--restarts", args.restarts),
-        ):
-            if value is not None:
-                raise InputError(f"{flag} applies to serial arms, not to the delta robot")
+        refuse_options(args, SERIAL_ONLY, "applies to serial arms, not to the delta robot")
         joints = Columns(("q1", "q2", "q3"), ("q4",))
         pose = Columns(("x", "y", "z"), ("phi",))
         return Job(
@@ -182,13 +180,7 @@ def make_job(robot, forward: bool, args) -> Job:
     revolute = _revolute(robot)
     joints = Columns(tuple(f"q{i + 1}" for i in range(robot.n)))
     if forward:
-        for flag, value in (
-            ("--q0", args.q0),
-            ("--method", args.method),
-            ("--restarts", args.restarts),
-        ):
-            if value is not None:
-                raise InputError(f"{flag} applies to ik, not to fk")
+        refuse_options(args, ("q0", "method", "restarts"), "applies to ik, not to fk")
         return Job(robot, True, True, args.degrees, [joints], revolute=revolute)
     layouts = [Columns(TRANSFORM, TRANSFORM_LAST, positional=False), Columns(SERIAL_POSE)]
     options = {}
@@ -378,13 +370,9 @@ MACHINE_POSE = ("px", "py", "pz", "dx", "dy", "dz")
 
 def _run_machine(machine, forward: bool, args) -> int:
     """`deltagen fk|ik` of a 5-axis machine: joints x, y, z, tilt, C <-> tool tip and axis."""
-    for flag, value in (
-        ("--config", args.config),
-        ("--method", args.method),
-        ("--restarts", args.restarts),
-    ):
-        if value is not None:
-            raise InputError(f"{flag} applies to serial arms, not to a 5-axis machine")
+    refuse_options(
+        args, ("config", "method", "restarts"), "applies to serial arms, not to a 5-axis machine"
+    )
     if forward and args.q0 is not None:
         raise InputError("--q0 applies to ik (the joints the path starts from), not to fk")
     joints = ("x", "y", "z", machine.description.tilt_axis.lower(), "c")
