@@ -159,24 +159,36 @@ def _number(config, section, key, source, default=None):
     return value
 
 
-def klipper_from_text(
-    text: str, source: str = "printer.cfg", name: str = "klipper"
-) -> KlipperRotaryDelta:
-    """Parse a Klipper config's text: a :class:`KlipperRotaryDelta`."""
+def _delta_config(text: str, source: str, kinematics: str, describes: str):
+    """(config, stepper section names) of a Klipper config whose ``[printer] kinematics`` is
+    ``kinematics``, with its [stepper_a/b/c] sections; GeometryError otherwise (``describes``:
+    the message's "only ..." clause)."""
     config = _parse(text, source)
     if not config.has_section("printer"):
         raise GeometryError(f"{source}: no [printer] section")
-    kinematics = config.get("printer", "kinematics", fallback="").strip()
-    if kinematics != "rotary_delta":
+    found = config.get("printer", "kinematics", fallback="").strip()
+    if found != kinematics:
         raise GeometryError(
-            f"{source}: [printer] kinematics is {kinematics or 'missing'!r}; only "
-            "'rotary_delta' describes a rotary delta robot (a linear delta, kinematics: delta: "
-            "deltagen.LinearDelta.from_klipper)"
+            f"{source}: [printer] kinematics is {found or 'missing'!r}; only {describes}"
         )
     steppers = [f"stepper_{a}" for a in "abc"]
     for section in steppers:
         if not config.has_section(section):
             raise GeometryError(f"{source}: no [{section}] section")
+    return config, steppers
+
+
+def klipper_from_text(
+    text: str, source: str = "printer.cfg", name: str = "klipper"
+) -> KlipperRotaryDelta:
+    """Parse a Klipper config's text: a :class:`KlipperRotaryDelta`."""
+    config, steppers = _delta_config(
+        text,
+        source,
+        "rotary_delta",
+        "'rotary_delta' describes a rotary delta robot (a linear delta, kinematics: delta: "
+        "deltagen.LinearDelta.from_klipper)",
+    )
     radius = _number(config, "printer", "shoulder_radius", source)
     height = _number(config, "printer", "shoulder_height", source)
     if radius <= 0.0 or height <= 0.0:
@@ -302,19 +314,12 @@ def klipper_delta_from_text(
     text: str, source: str = "printer.cfg", name: str = "klipper"
 ) -> KlipperLinearDelta:
     """Parse a Klipper ``kinematics: delta`` config's text (KlipperLinearDelta's mapping)."""
-    config = _parse(text, source)
-    if not config.has_section("printer"):
-        raise GeometryError(f"{source}: no [printer] section")
-    kinematics = config.get("printer", "kinematics", fallback="").strip()
-    if kinematics != "delta":
-        raise GeometryError(
-            f"{source}: [printer] kinematics is {kinematics or 'missing'!r}; only 'delta' "
-            "describes a linear delta (a rotary delta: deltagen.DeltaRobot.from_klipper)"
-        )
-    steppers = [f"stepper_{a}" for a in "abc"]
-    for section in steppers:
-        if not config.has_section(section):
-            raise GeometryError(f"{source}: no [{section}] section")
+    config, steppers = _delta_config(
+        text,
+        source,
+        "delta",
+        "'delta' describes a linear delta (a rotary delta: deltagen.DeltaRobot.from_klipper)",
+    )
     radius = _number(config, "printer", "delta_radius", source)
     if radius <= 0.0:
         raise GeometryError(f"{source}: [printer] delta_radius must be > 0")
