@@ -159,7 +159,9 @@ def _number(config, section, key, source, default=None):
     return value
 
 
-def _delta_config(text: str, source: str, kinematics: str, describes: str):
+def _delta_config(
+    text: str, source: str, kinematics: str, describes: str
+) -> tuple[configparser.ConfigParser, list[str]]:
     """(config, stepper section names) of a Klipper config whose ``[printer] kinematics`` is
     ``kinematics``, with its [stepper_a/b/c] sections; GeometryError otherwise (``describes``:
     the message's "only ..." clause)."""
