@@ -2,8 +2,9 @@
 (closed form, numpy, built on the structure detected by ``model.structure``), ``numeric``
 (damped Newton-Raphson), ``combined`` (explicit start + Newton), ``general6r`` (every
 solution of a general 6R arm, Raghavan-Roth elimination and an eigenvalue problem),
-``singularity``; and ``calibration`` (a built delta robot's per-chain geometry identified
-from measured pairs). Joint-limit wrapping and the axis tests they share live in
+``singularity``, ``nearest`` (the closed form of a 6R chain's nearest exact arm, polished
+by Newton on the chain: a structure up to the rounding of its file); and ``calibration``
+(a built delta robot's per-chain geometry identified from measured pairs). Joint-limit wrapping and the axis tests they share live in
 ``geometry`` (``limits``, ``axes``).
 
 May import: ``native``, ``reference``, ``codegen``, ``derive``, ``model``, ``geometry``,
