@@ -208,7 +208,7 @@ def polish(
     rotations R_t (M, 3, 3) and points p_t (M, 3) from starts q0 (M, n): (q (M, n), converged
     (M,)). Each step solves J dq = e (J: the spatial Jacobian about the tool point, columns
     [w_i x (p - o_i); w_i] of the moved axes; e: the position error and the vector part of
-    R_t R^T) by least squares; a row converges when both error norms are within ``tol``
+    R_t R^T) by an LU solve, or by least squares when a row's J is singular; a row converges when both error norms are within ``tol``
     (position divided by the arm's size); rows without a finite start stay unconverged."""
     q = np.array(q0, dtype=float)
     M, n = q.shape
@@ -253,7 +253,10 @@ def polish(
             tacc = np.einsum("mij,mj->mi", Racc, ti) + tacc
             Racc = Racc @ Ri
         e = np.concatenate([e_p, e_w], axis=1)
-        dq = _lstsq(J, e)
+        try:  # square and regular (the usual case): one batched LU solve
+            dq = np.linalg.solve(J, e[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # a singular row: least squares by SVD for the batch
+            dq = _lstsq(J, e)
         q[idx] = qa + dq
     q[~start] = np.nan
     return q, converged & start
