@@ -244,6 +244,22 @@ def test_icub_leg_no_solution_missed_by_a_multistart():
 
 
 @needs_data
+def test_icub_leg_nearer_singularities():
+    """Below the Newton-Kantorovich margin (solve/nearest.py) the coverage is measured, not
+    proven: poses with sigma_min / sigma_max in [1e-4, 1e-3) (ten times nearer a singularity
+    than the target asks) still give the original q among the valid solutions."""
+    arm = load("icub_left_leg")
+    lim = arm.qlim
+    q = np.random.default_rng(13).uniform(lim[:, 0], lim[:, 1], (40000, 6))
+    s = np.linalg.svd(arm.jacobian(q), compute_uv=False)
+    ratio = s[:, -1] / s[:, 0]
+    q = q[(ratio >= 1e-4) & (ratio < 1e-3)][:200]
+    assert len(q) == 200
+    complete, found, err = completeness(arm, q)
+    assert complete and found.all() and err <= 1e-10
+
+
+@needs_data
 def test_icub_leg_as_pinocchio():
     """Every solution's pose by pinocchio reading the same file, and ik through the same
     solver. (The compiled backend runs the same numpy solver for such a chain: its C has no
