@@ -12,7 +12,9 @@ import importlib.util
 
 import pytest
 
-from deltagen.apps import bench, bench_compare, timing
+from deltagen.apps.bench import compare as bench_compare
+from deltagen.apps.bench import sections as bench
+from deltagen.apps.bench import timing
 from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")

@@ -11,14 +11,14 @@ import subprocess
 
 import pytest
 
-from deltagen.apps import bench_compare
+from deltagen.apps.bench import compare as bench_compare
 from deltagen.cli import main
 
 SMALL = ["--n", "300", "--repeats", "1", "--rounds", "1"]
 
 
 def _stored_run(path, delta_ns=10.0, arm_ns=100.0):
-    """A `bench --json` file's shape (apps/bench_report.plain), the parts --compare reads."""
+    """A `bench --json` file's shape (apps/bench/report.plain), the parts --compare reads."""
     stat = lambda v: {"median": v, "min": v, "max": v, "values": [v]}  # noqa: E731
     data = {
         "n": 1000,

@@ -106,7 +106,7 @@ def test_mirror_identity_compiled(convention):
 
 def test_flipped_standard_arm_against_pinocchio():
     pin = pytest.importorskip("pinocchio")
-    from deltagen.apps.bench import pinocchio_model
+    from deltagen.apps.bench.sections import pinocchio_model
 
     desc = _desc(_flipped(DH_ROWS), "standard", "flip_pin")
     arm = SerialRobot(desc, backend="reference")

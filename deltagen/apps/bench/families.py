@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from deltagen.apps.timing import Stat, batch_timer, interleaved, table
+from deltagen.apps.bench.timing import Stat, batch_timer, interleaved, table
 
 SEED = 7
 

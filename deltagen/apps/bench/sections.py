@@ -53,16 +53,15 @@ from __future__ import annotations
 import os
 import platform
 import subprocess
-import sys
 import sysconfig
 import time
 
 import numpy as np
 
 from deltagen import status as st
-from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
+from deltagen.apps.bench.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.rotations import rot_axis
-from deltagen.inputs import check_memory, env_flag
+from deltagen.inputs import check_memory
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
 #: The throughput targets for the compiled core [ns per point].
@@ -813,7 +812,7 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
     throughput, sizes, agreement = _measure_serial_throughput(compiled, reference, data, repeats)
     latency = _measure_serial_latency(compiled, reference, data["q"][0].copy(), repeats)
     others = _measure_oracles(compiled, data["q"], repeats, enabled=oracles)
-    from deltagen.apps import bench_ik
+    from deltagen.apps.bench import ik as bench_ik
 
     # the full IK workload for real runs; a small one for quick (test) runs
     ik = bench_ik.run(
@@ -1031,7 +1030,7 @@ def render(result: dict, markdown: bool) -> str:
         out.append("")
         out += _render_threads(result["threads"], markdown)
     if result.get("families") is not None:
-        from deltagen.apps import bench_families
+        from deltagen.apps.bench import families as bench_families
 
         out.append("")
         out += bench_families.render(result["families"], markdown)
@@ -1178,7 +1177,7 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
         out.append(f"{bullet}{text}")
     out.append("")
     if serial.get("ik") is not None:
-        from deltagen.apps import bench_ik
+        from deltagen.apps.bench import ik as bench_ik
 
         out += bench_ik.render(serial["ik"], markdown, robot.name)
     return out
@@ -1252,7 +1251,9 @@ def _render_threads(result: dict, markdown: bool) -> list[str]:
 BYTES_PER_POINT = 8 * (3 + 3 + 1 + 6 + 16 + 6 + 6) * 2
 
 
-def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool = True) -> dict:
+def measure(
+    n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool = True
+) -> dict:
     """Measure everything; returns the raw result (see :func:`render`). ``serial`` adds the
     Puma560 section, ``oracles`` its comparison with roboticstoolbox-python / pinocchio."""
     from deltagen.api.delta import DeltaRobot
@@ -1287,7 +1288,7 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
     del poses
     serial_result = run_serial(n, repeats, oracles) if serial else None
     threads_result = run_threads(n, repeats) if serial else None
-    from deltagen.apps import bench_families
+    from deltagen.apps.bench import families as bench_families
 
     families = bench_families.run(n, repeats)
     machine = machine_info(compiled)
@@ -1316,37 +1317,3 @@ def run(n: int = 1_000_000, repeats: int = 7, serial: bool = True, oracles: bool
         "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,
     }
-
-
-def _oracles_wanted(args) -> bool:
-    """roboticstoolbox-python / pinocchio are timed unless --no-oracles (where the command
-    line offers it) or DELTAGEN_BENCH_ORACLES=0."""
-    if getattr(args, "no_oracles", False):
-        return False
-    return env_flag(
-        "DELTAGEN_BENCH_ORACLES", True, "off: roboticstoolbox-python and pinocchio not timed"
-    )
-
-
-def main(args) -> int:
-    if getattr(args, "compare", None):
-        from deltagen.apps import bench_compare
-
-        return bench_compare.main(args)
-    result = run(n=args.n, repeats=args.repeats, oracles=_oracles_wanted(args))
-    print(render(result, markdown=bool(getattr(args, "markdown", False))))
-    sys.stdout.flush()
-    json_file, png_file, readme = (getattr(args, k, None) for k in ("json", "png", "readme"))
-    if json_file or png_file or readme:
-        from deltagen.apps import bench_report
-
-        text = render(result, markdown=True)
-        if json_file:
-            bench_report.write_json(result, text, json_file)
-        if png_file:
-            import json
-
-            bench_report.write_png(json.loads(json.dumps(bench_report.plain(result))), png_file)
-        if readme:
-            bench_report.update_readme(readme, text)
-    return 0

@@ -34,7 +34,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from deltagen.apps.bench import QUANTITIES, SERIAL_QUANTITIES, SERIAL_ROBOT, SERIAL_SMALL_N
+from deltagen.apps.bench.sections import QUANTITIES, SERIAL_QUANTITIES, SERIAL_ROBOT, SERIAL_SMALL_N
 from deltagen.errors import DeltagenError
 from deltagen.inputs import read_regular_file
 
@@ -106,8 +106,8 @@ class CompareError(DeltagenError, RuntimeError):
 
 def this_tree() -> Path:
     """The folder whose ``deltagen`` package this process imported (this file is
-    deltagen/apps/bench_compare.py in it)."""
-    return Path(__file__).resolve().parents[2]
+    deltagen/apps/bench/compare.py in it)."""
+    return Path(__file__).resolve().parents[3]
 
 
 def _git(args: list[str], cwd: Path) -> str:
@@ -219,7 +219,7 @@ def compare(ref: str, n: int, repeats: int, rounds: int, log=None) -> dict:
 
 
 def render(result: dict, markdown: bool = False) -> str:
-    from deltagen.apps.timing import table
+    from deltagen.apps.bench.timing import table
 
     rows = []
     for label, (ref, this) in result["rows"].items():

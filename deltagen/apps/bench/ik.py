@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 
-from deltagen.apps import bench_general6r
-from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
+from deltagen.apps.bench import general6r as bench_general6r
+from deltagen.apps.bench.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
 
 IK_ROBOT = "puma560"
