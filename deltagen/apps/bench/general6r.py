@@ -29,6 +29,7 @@ import time
 
 import numpy as np
 
+from deltagen.apps.bench.peers import rtb_model
 from deltagen.apps.bench.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.solve import general6r
@@ -140,8 +141,6 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
         ]
         robot = None
         if peers:
-            from deltagen.apps.bench.ik import rtb_model
-
             robot = rtb_model(arm)  # (None for an arm with reversed joints: Jaco's own below)
             if arm.name == "jaco":
                 import roboticstoolbox as rtb

@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from deltagen.apps.bench import general6r as bench_general6r
+from deltagen.apps.bench.peers import rtb_model
 from deltagen.apps.bench.timing import Stat, batch_timer, interleaved, loop_timer, table
 from deltagen.geometry.limits import wrap_to_pi
 
@@ -187,27 +188,6 @@ def _stats(times, solved):
         "cpu_p95_ns": float(np.percentile(cpu, 95)),
         "cpu_max_ns": float(cpu.max()),
     }
-
-
-def rtb_model(arm):
-    """roboticstoolbox-python DHRobot of a standard- or modified-DH deltagen arm of revolute
-    joints (same table, offsets, limits, base and tool), or None if rtb is missing."""
-    try:
-        import roboticstoolbox as rtb
-        import spatialmath as sm
-    except ImportError:
-        return None
-    d = arm.description
-    if d.convention not in ("standard", "modified") or not all(j.revolute for j in d.joints):
-        return None
-    link = rtb.RevoluteDH if d.convention == "standard" else rtb.RevoluteMDH
-    links = [
-        link(d=j.d, a=j.a, alpha=j.alpha, offset=j.offset, qlim=list(lim))
-        for j, lim in zip(d.joints, arm.qlim)
-    ]
-    return rtb.DHRobot(
-        links, base=sm.SE3(np.array(d.base)), tool=sm.SE3(np.array(d.tool)), name=d.name
-    )
 
 
 def measure_numeric(compiled, n=IK_NUMERIC_N, peers=True):

@@ -44,8 +44,12 @@ the available cores; native.parallel splits batches of at least 2 x MIN_ROWS_PER
 rows into row chunks on a thread pool), round-robin, and prints the speedup.
 
 Other machine families. The linear delta's, the tripod's, the hexapod's and a 5-axis
-machine's cores beside the rotary delta's fk and ik (``bench_families``), ns per point
+machine's cores beside the rotary delta's fk and ik (``families``), ns per point
 through ``_core``, threads=1.
+
+Each table is declared here (``DELTA`` and ``SERIAL``: quantities, inputs, units, targets,
+rows, the C-kernel call and the reference baseline; the latency calls) and timed and
+rendered by ``engine``; the peer libraries are ``peers``, inverse kinematics ``ik``.
 """
 
 from __future__ import annotations
@@ -59,8 +63,9 @@ import time
 import numpy as np
 
 from deltagen import status as st
-from deltagen.apps.bench.timing import Stat, batch_timer, interleaved, loop_timer, table
-from deltagen.geometry.rotations import rot_axis
+from deltagen.apps.bench import engine, families, ik, peers
+from deltagen.apps.bench.engine import Throughput
+from deltagen.apps.bench.timing import Style, cell, ratio
 from deltagen.inputs import check_memory
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
@@ -73,7 +78,6 @@ Q_RANGE = (-0.3, 0.9)  # rad; well inside the default robot's workspace
 QD_RANGE = (-2.0, 2.0)  # rad/s
 QDD_RANGE = (-20.0, 20.0)  # rad/s^2
 SEED = 2008
-AGREEMENT_TOL = 1e-9  # max abs difference compiled vs reference before a warning
 
 # name -> (inputs, number of outputs, output width or None for the input width)
 _SIGNATURES = {
@@ -93,9 +97,6 @@ _UNITS = {
     "inverse_dynamics": "N m",
 }
 PAYLOAD_RANGE = (0.0, 2.0)  # kg
-
-
-# ------------------------------------------------------------------------- timing
 
 
 # ------------------------------------------------------------------------- inputs
@@ -139,10 +140,6 @@ def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
     return {k: np.ascontiguousarray(np.concatenate(v)) for k, v in parts.items()}
 
 
-def _prefix(poses: dict, n: int) -> dict:
-    return {k: np.ascontiguousarray(v[:n]) for k, v in poses.items()}
-
-
 # ------------------------------------------------------------------------- measurements
 
 
@@ -173,41 +170,16 @@ def _kernel_callable(core, name: str, inputs: list[np.ndarray]):
         return None
 
 
-def _first_output(result):
-    return np.asarray(result[0] if isinstance(result, tuple) else result)
-
-
-def _measure_throughput(compiled, reference, poses, ref_poses, repeats):
-    """({quantity: {column: Stat in ns/point}}, {quantity: max |compiled - reference|}).
-
-    Per quantity, one warm-up call of each column (whose first outputs give the
-    agreement), then the timed calls round-robin over the columns."""
-    n, ref_n = poses["q"].shape[0], ref_poses["q"].shape[0]
-    stats, agreement = {}, {}
-    for name in QUANTITIES:
-        inputs = [poses[k] for k in _SIGNATURES[name][0]]
-        ref_inputs = [ref_poses[k] for k in _SIGNATURES[name][0]]
-        columns = {}
-        kernel = _kernel_callable(compiled._core, name, inputs)
-        if kernel is not None:
-            kernel()
-            columns["kernel"] = batch_timer(kernel, (), n)
-        comp_out = _first_output(getattr(compiled._core, name)(*inputs))[:ref_n].copy()
-        ref_out = _first_output(getattr(reference._core, name)(*ref_inputs))
-        agreement[name] = float(np.max(np.abs(comp_out - ref_out)))
-        del comp_out, ref_out
-        for label, robot, args, points in (
-            ("core", compiled._core, inputs, n),
-            ("api", compiled, inputs, n),
-            ("ref_core", reference._core, ref_inputs, ref_n),
-            ("ref_api", reference, ref_inputs, ref_n),
-        ):
-            fn = getattr(robot, name)
-            if label.endswith("api"):
-                fn(*args)  # warm-up (the _core ones ran above)
-            columns[label] = batch_timer(fn, args, points)
-        stats[name] = dict(zip(columns, interleaved(list(columns.values()), repeats)))
-    return stats, agreement
+#: the rotary delta's throughput table: every quantity on all N points, the reference (core
+#: and API) on the first REFERENCE_N
+DELTA = Throughput(
+    quantities=QUANTITIES,
+    inputs={name: signature[0] for name, signature in _SIGNATURES.items()},
+    units=_UNITS,
+    targets=TARGETS_NS,
+    kernel=_kernel_callable,
+    reference_n=REFERENCE_N,
+)
 
 
 def _latency_calls(robot, q1, p1):
@@ -232,17 +204,6 @@ def _latency_calls(robot, q1, p1):
     ]
 
 
-def _measure_latency(compiled, reference, q1, p1, repeats):
-    """[(label, compiled Stat, reference Stat, has target)] in ns per call."""
-    rows = []
-    for (label, fn, target), (_, ref_fn, _) in zip(
-        _latency_calls(compiled, q1, p1), _latency_calls(reference, q1, p1)
-    ):
-        comp, ref = interleaved([loop_timer(fn), loop_timer(ref_fn)], repeats)
-        rows.append((label, comp, ref, target))
-    return rows
-
-
 # ------------------------------------------------------------------------- serial arm
 
 SERIAL_ROBOT = "puma560"
@@ -264,11 +225,6 @@ SERIAL_REFERENCE_N = 100_000
 SERIAL_SMALL_N = 250_000
 SERIAL_QD_RANGE = (-2.0, 2.0)  # rad/s
 SERIAL_QDD_RANGE = (-5.0, 5.0)  # rad/s^2
-RTB_PY_BATCH_N = 2_000  # DHRobot.fkine on a batch is a Python loop (~50 us per configuration)
-RTB_C_BATCH_N = 100_000  # ETS.eval (C++) on a batch, ~1 us per configuration
-RTB_SE3_BATCH_N = 20_000  # ETS.fkine on a batch: C++ then one SE3 per configuration
-ORACLE_AGREEMENT_N = 200  # configurations compared with each library
-ORACLE_TOL = 1e-12
 
 _SERIAL_INPUTS = {
     "fk": ("q",),
@@ -348,34 +304,19 @@ def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
         return None
 
 
-def _measure_serial_throughput(compiled, reference, data, repeats):
-    """({quantity: {column: Stat}}, {quantity: (points, reference points)},
-    {quantity: max |compiled - reference|}); columns kernel, core, api, ref_core."""
-    n = data["q"].shape[0]
-    stats, sizes, agreement = {}, {}, {}
-    for name in SERIAL_QUANTITIES:
-        if any(k not in data for k in _SERIAL_INPUTS[name]):
-            continue  # dynamics of an arm without inertial parameters
-        points = _serial_points(name, n)
-        ref_n = min(points, SERIAL_REFERENCE_N)
-        inputs = [np.ascontiguousarray(data[k][:points]) for k in _SERIAL_INPUTS[name]]
-        ref_inputs = [np.ascontiguousarray(a[:ref_n]) for a in inputs]
-        columns = {}
-        kernel = _serial_kernel_callable(compiled._core, name, inputs)
-        if kernel is not None:
-            columns["kernel"] = batch_timer(kernel, (), points)
-        comp_out = getattr(compiled._core, name)(*inputs)[0][:ref_n].copy()
-        ref_out = getattr(reference._core, name)(*ref_inputs)[0]
-        agreement[name] = float(np.max(np.abs(comp_out - ref_out)))
-        del comp_out, ref_out
-        api = getattr(compiled, name)
-        api(*inputs)  # warm-up (the _core ones ran above)
-        columns["core"] = batch_timer(getattr(compiled._core, name), inputs, points)
-        columns["api"] = batch_timer(api, inputs, points)
-        columns["ref_core"] = batch_timer(getattr(reference._core, name), ref_inputs, ref_n)
-        stats[name] = dict(zip(columns, interleaved(list(columns.values()), repeats)))
-        sizes[name] = (points, ref_n)
-    return stats, sizes, agreement
+#: the serial arm's throughput table: fk and jacobian on all N configurations, the others
+#: on the first SERIAL_SMALL_N, the reference's _core on the first SERIAL_REFERENCE_N
+SERIAL = Throughput(
+    quantities=SERIAL_QUANTITIES,
+    inputs=_SERIAL_INPUTS,
+    units=_SERIAL_UNITS,
+    targets=SERIAL_TARGETS_NS,
+    kernel=_serial_kernel_callable,
+    reference_n=SERIAL_REFERENCE_N,
+    reference_api=False,
+    rows=_serial_points,
+    show_rows=True,
+)
 
 
 def _serial_latency_calls(robot, q1):
@@ -397,411 +338,6 @@ def _serial_latency_calls(robot, q1):
     ]
 
 
-def _measure_serial_latency(compiled, reference, q1, repeats):
-    """[(label, compiled Stat, reference Stat, has target)] in ns per call."""
-    rows = []
-    for (label, fn, target), (_, ref_fn, _) in zip(
-        _serial_latency_calls(compiled, q1), _serial_latency_calls(reference, q1)
-    ):
-        comp, ref = interleaved([loop_timer(fn), loop_timer(ref_fn)], repeats)
-        rows.append((label, comp, ref, target))
-    return rows
-
-
-# ------------------------------------------------------------------------- other libraries
-
-
-def _tz(dz: float) -> np.ndarray:
-    T = np.eye(4)
-    T[2, 3] = dz
-    return T
-
-
-def _pair(library, call, lib_fn, dg_call, dg_fn, repeats, unit="us", points=1):
-    """One comparison row: the library call and the deltagen call timed round-robin."""
-    if unit == "us":
-        timers = [loop_timer(lib_fn), loop_timer(dg_fn)]
-    else:
-        lib_fn(), dg_fn()  # warm-up
-        timers = [batch_timer(lib_fn, (), points), batch_timer(dg_fn, (), points)]
-    lib, dg = interleaved(timers, repeats)
-    return {
-        "library": library,
-        "call": call,
-        "lib": lib,
-        "dg_call": dg_call,
-        "dg": dg,
-        "unit": unit,
-        "points": points,
-    }
-
-
-def _rtb_oracle(compiled, q, repeats):
-    """roboticstoolbox-python's Puma560: rows, agreement notes (raises ImportError)."""
-    import roboticstoolbox as rtb
-
-    puma = rtb.models.DH.Puma560()
-    ets = puma.ets()
-    n = compiled.n
-    q1 = np.ascontiguousarray(q[0])
-    # rtb puts the shoulder d1 = 26.45 in above the mount; deltagen's file may round it:
-    # both are standard DH, so T_rtb = Trans_z(d1_rtb - d1_deltagen) T_deltagen and the
-    # base-frame geometric Jacobians are equal.
-    d1_dg, d1_rtb = compiled.description.joints[0].d, float(puma.links[0].d)
-    shift = _tz(d1_rtb - d1_dg)
-    m = min(ORACLE_AGREEMENT_N, q.shape[0])
-    T_dg = compiled.fk(q[:m])
-    T_rtb = np.array([T.A for T in puma.fkine(q[:m])])
-    T_ets = ets.eval(q[:m])
-    J_dg = compiled.jacobian(q[:m])
-    J_rtb = np.array([puma.jacob0(row) for row in q[:m]])
-    J_ets = np.array([ets.jacob0(row) for row in q[:m]])
-    agree = {
-        "fk (DHRobot.fkine)": float(np.max(np.abs(shift @ T_dg - T_rtb))),
-        "fk (ETS.eval)": float(np.max(np.abs(shift @ T_dg - T_ets))),
-        "jacobian (DHRobot.jacob0)": float(np.max(np.abs(J_dg - J_rtb))),
-        "jacobian (ETS.jacob0)": float(np.max(np.abs(J_dg - J_ets))),
-    }
-    notes = []
-    if d1_dg != d1_rtb:
-        notes.append(
-            f"d1: deltagen {d1_dg:.10g} m, rtb {d1_rtb:.10g} m (26.45 in); fk compared "
-            f"as Trans_z({d1_rtb - d1_dg:+.3g} m) T_deltagen"
-        )
-
-    lib = f"rtb {rtb.__version__}"
-    fk1, jac1 = f"robot.fk(q), q ndarray ({n},)", f"robot.jacobian(q), q ndarray ({n},)"
-    rows = [
-        _pair(
-            lib,
-            "DHRobot.fkine(q) -> SE3 (Python)",
-            lambda: puma.fkine(q1),
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "ETS.fkine(q) -> SE3 (C++ fknm)",
-            lambda: ets.fkine(q1),
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "ETS.eval(q) -> ndarray (C++ fknm)",
-            lambda: ets.eval(q1),
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "DHRobot.jacob0(q) (Python)",
-            lambda: puma.jacob0(q1),
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "ETS.jacob0(q) (C++ fknm)",
-            lambda: ets.jacob0(q1),
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
-    ]
-    for call, fn, size in (
-        ("DHRobot.fkine(Q) -> SE3 of N values (Python loop)", puma.fkine, RTB_PY_BATCH_N),
-        ("ETS.fkine(Q) -> SE3 of N values (C++ + SE3s)", ets.fkine, RTB_SE3_BATCH_N),
-        ("ETS.eval(Q) -> ndarray (N, 4, 4) (C++ fknm)", ets.eval, RTB_C_BATCH_N),
-    ):
-        size = min(size, q.shape[0])
-        Q = np.ascontiguousarray(q[:size])
-        rows.append(
-            _pair(
-                lib,
-                call,
-                lambda f=fn, Q=Q: f(Q),
-                f"robot.fk(Q), Q ({size:,}, {n})",
-                lambda Q=Q: compiled.fk(Q),
-                repeats,
-                unit="ns",
-                points=size,
-            )
-        )
-    return rows, agree, notes
-
-
-def pinocchio_model(description):
-    """A pinocchio Model of a standard-DH arm and the id of its tool frame: joint i is a
-    revolute (prismatic) joint about (along) z_{i-1}, placed at the fixed part
-    Trans_z(d) Trans_x(a) Rot_x(alpha) of the link before it; the tool frame sits on the
-    last joint at the last fixed part times the tool transform. With inertial parameters,
-    link i's body is appended at frame i (that fixed part), with armature and gravity."""
-    import pinocchio as pin
-
-    if description.convention != "standard":
-        raise ValueError("pinocchio_model handles standard DH only")
-    model = pin.Model()
-    parent = 0
-    placement = pin.SE3(description.base[:3, :3].copy(), description.base[:3, 3].copy())
-    for i, joint in enumerate(description.joints):
-        # A_i = Rot_z(theta) Trans_z(d) Trans_x(a) Rot_x(alpha) with theta = q + offset
-        # (revolute) or d = q + offset (prismatic): the constant part before the joint's own
-        # motion, Rot_z(offset) or Rot_z(theta) Trans_z(offset), goes into its placement
-        turn = joint.offset if joint.revolute else joint.theta
-        shift = 0.0 if joint.revolute else joint.offset
-        pre = pin.SE3(rot_axis("z", turn), np.array([0.0, 0.0, shift]))
-        if joint.sign == 1.0:
-            kind = pin.JointModelRZ() if joint.revolute else pin.JointModelPZ()
-        elif joint.revolute:  # a reversed joint turns / slides about -z
-            kind = pin.JointModelRevoluteUnaligned(np.array([0.0, 0.0, -1.0]))
-        else:
-            kind = pin.JointModelPrismaticUnaligned(np.array([0.0, 0.0, -1.0]))
-        parent = model.addJoint(parent, kind, placement * pre, f"joint{i + 1}")
-        placement = pin.SE3(
-            rot_axis("x", joint.alpha), np.array([joint.a, 0.0, joint.d if joint.revolute else 0.0])
-        )
-        if description.has_inertia:  # link i's inertials live in frame i = this placement
-            x = joint.inertial
-            model.appendBodyToJoint(
-                parent, pin.Inertia(x.mass, np.array(x.com), x.inertia_matrix), placement
-            )
-    if description.has_inertia:
-        model.armature = np.array([j.inertial.armature for j in description.joints])
-        model.gravity.linear = np.array(description.gravity)
-    tool = placement * pin.SE3(description.tool[:3, :3].copy(), description.tool[:3, 3].copy())
-    fid = model.addFrame(pin.Frame("tool", parent, 0, tool, pin.FrameType.OP_FRAME))
-    return model, fid
-
-
-def _pinocchio_oracle(compiled, q, repeats):
-    """pinocchio on the same DH table: rows, agreement (raises ImportError)."""
-    import pinocchio as pin
-
-    model, fid = pinocchio_model(compiled.description)
-    data = model.createData()
-    world = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED  # base axes, tool point: deltagen's J
-    m = min(ORACLE_AGREEMENT_N, q.shape[0])
-    err_T = err_J = 0.0
-    T_dg, J_dg = compiled.fk(q[:m]), compiled.jacobian(q[:m])
-    for k in range(m):
-        pin.forwardKinematics(model, data, q[k])
-        pin.updateFramePlacements(model, data)
-        err_T = max(err_T, float(np.max(np.abs(data.oMf[fid].homogeneous - T_dg[k]))))
-        pin.computeJointJacobians(model, data, q[k])
-        J = pin.getFrameJacobian(model, data, fid, world)
-        err_J = max(err_J, float(np.max(np.abs(J - J_dg[k]))))
-    agree = {"fk (oMf[tool])": err_T, "jacobian (getFrameJacobian)": err_J}
-
-    n, q1 = compiled.n, np.ascontiguousarray(q[0])
-    fk1, jac1 = f"robot.fk(q), q ndarray ({n},)", f"robot.jacobian(q), q ndarray ({n},)"
-    lib = f"pinocchio {pin.__version__}"
-
-    def fk_update():
-        pin.forwardKinematics(model, data, q1)
-        pin.updateFramePlacements(model, data)
-
-    def fk_pose():
-        pin.framesForwardKinematics(model, data, q1)
-        return data.oMf[fid].homogeneous
-
-    def jac_get():
-        pin.computeJointJacobians(model, data, q1)
-        return pin.getFrameJacobian(model, data, fid, world)
-
-    rows = [
-        _pair(
-            lib,
-            "forwardKinematics + updateFramePlacements",
-            fk_update,
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "framesForwardKinematics + oMf[tool].homogeneous",
-            fk_pose,
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "computeJointJacobians + getFrameJacobian",
-            jac_get,
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "computeFrameJacobian(q, tool)",
-            lambda: pin.computeFrameJacobian(model, data, q1, fid, world),
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
-    ]
-    if compiled.description.has_inertia:
-        dyn_rows, dyn_agree = _pinocchio_dynamics(pin, model, compiled, q, repeats)
-        rows += dyn_rows
-        agree.update(dyn_agree)
-    return rows, agree, []
-
-
-PIN_BATCH_N = 2_000  # pinocchio's per-configuration calls looped from Python
-
-
-def _pinocchio_dynamics(pin, model, compiled, q, repeats):
-    """rnea / crba / aba beside inverse_dynamics / mass_matrix / forward_dynamics: single
-    calls, Python-looped batches against the batched C core, and agreement (relative to
-    max(1, |value|); pinocchio has no friction: the Puma's is added to its rnea)."""
-    data = model.createData()
-    n = compiled.n
-    rng = np.random.default_rng(SEED + 1)
-    m = min(PIN_BATCH_N, q.shape[0])
-    qb = np.ascontiguousarray(q[:m])
-    qdb = np.ascontiguousarray(rng.uniform(*SERIAL_QD_RANGE, (m, n)))
-    qddb = np.ascontiguousarray(rng.uniform(*SERIAL_QDD_RANGE, (m, n)))
-    desc = compiled.description
-    viscous = np.array([j.inertial.viscous for j in desc.joints])
-    plus = np.array([j.inertial.coulomb[0] for j in desc.joints])
-    minus = np.array([j.inertial.coulomb[1] for j in desc.joints])
-    friction = viscous * qdb + np.where(qdb > 0, plus, np.where(qdb < 0, minus, 0.0))
-    k = min(ORACLE_AGREEMENT_N, m)
-    tau_dg = compiled.inverse_dynamics(qb[:k], qdb[:k], qddb[:k])
-    M_dg = compiled.mass_matrix(qb[:k])
-    rigid = tau_dg - friction[:k]  # what pinocchio's aba takes
-    qdd_dg = compiled.forward_dynamics(qb[:k], qdb[:k], tau_dg)
-    err = {"rnea": 0.0, "crba": 0.0, "aba": 0.0}
-    for i in range(k):
-        tau = pin.rnea(model, data, qb[i], qdb[i], qddb[i]) + friction[i]
-        M = pin.crba(model, data, qb[i])
-        M = np.triu(M) + np.triu(M, 1).T
-        qdd = pin.aba(model, data, qb[i], qdb[i], rigid[i])
-        for key, a, b in (("rnea", tau, tau_dg[i]), ("crba", M, M_dg[i]), ("aba", qdd, qdd_dg[i])):
-            err[key] = max(err[key], float(np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(a)))))
-    agree = {
-        "inverse_dynamics (rnea + friction, relative)": err["rnea"],
-        "mass_matrix (crba, relative)": err["crba"],
-        "forward_dynamics (aba, relative)": err["aba"],
-    }
-    lib = f"pinocchio {pin.__version__}"
-    q1, qd1, qdd1 = qb[0].copy(), qdb[0].copy(), qddb[0].copy()
-    tau1 = compiled.inverse_dynamics(q1, qd1, qdd1)
-    core = compiled._core
-    taub = compiled.inverse_dynamics(qb, qdb, qddb)
-
-    def loop(fn):
-        def run():
-            for i in range(m):
-                fn(i)
-
-        return run
-
-    rows = [
-        _pair(
-            lib,
-            "rnea(q, v, a)",
-            lambda: pin.rnea(model, data, q1, qd1, qdd1),
-            f"robot.inverse_dynamics(q, qd, qdd), ndarrays ({n},)",
-            lambda: compiled.inverse_dynamics(q1, qd1, qdd1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "crba(q)",
-            lambda: pin.crba(model, data, q1),
-            f"robot.mass_matrix(q), q ndarray ({n},)",
-            lambda: compiled.mass_matrix(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "aba(q, v, tau)",
-            lambda: pin.aba(model, data, q1, qd1, tau1),
-            f"robot.forward_dynamics(q, qd, tau), ndarrays ({n},)",
-            lambda: compiled.forward_dynamics(q1, qd1, tau1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            f"rnea looped over {m:,} configurations",
-            loop(lambda i: pin.rnea(model, data, qb[i], qdb[i], qddb[i])),
-            "robot._core.inverse_dynamics(q, qd, qdd), (N, 6)",
-            lambda: core.inverse_dynamics(qb, qdb, qddb),
-            repeats,
-            unit="ns",
-            points=m,
-        ),
-        _pair(
-            lib,
-            f"crba looped over {m:,} configurations",
-            loop(lambda i: pin.crba(model, data, qb[i])),
-            "robot._core.mass_matrix(q), (N, 6)",
-            lambda: core.mass_matrix(qb),
-            repeats,
-            unit="ns",
-            points=m,
-        ),
-        _pair(
-            lib,
-            f"aba looped over {m:,} configurations",
-            loop(lambda i: pin.aba(model, data, qb[i], qdb[i], taub[i])),
-            "robot._core.forward_dynamics(q, qd, tau), (N, 6)",
-            lambda: core.forward_dynamics(qb, qdb, taub),
-            repeats,
-            unit="ns",
-            points=m,
-        ),
-    ]
-    return rows, agree
-
-
-def _library_versions() -> dict[str, str | None]:
-    from importlib import metadata
-
-    out = {}
-    for dist in ("roboticstoolbox-python", "pin"):
-        try:
-            out[dist] = metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            out[dist] = None
-    return out
-
-
-def _measure_oracles(compiled, q, repeats, enabled=True):
-    """{"rows": [...], "agreement": {library: {what: max abs diff}}, "notes": [...],
-    "absent": [text]} for roboticstoolbox-python and pinocchio, each when importable."""
-    result = {"rows": [], "agreement": {}, "notes": [], "absent": []}
-    if not enabled:
-        result["absent"].append(
-            "roboticstoolbox-python and pinocchio skipped (DELTAGEN_BENCH_ORACLES=0)"
-        )
-        return result
-    for label, module, measure in (
-        ("roboticstoolbox-python", "roboticstoolbox", _rtb_oracle),
-        ("pinocchio (pip: pin)", "pinocchio", _pinocchio_oracle),
-    ):
-        try:
-            __import__(module)
-        except Exception as exc:  # noqa: BLE001 - absent or broken: say so, go on
-            result["absent"].append(
-                f"{label} not importable ({type(exc).__name__}); `pip install deltagen[bench]`"
-            )
-            continue
-        rows, agree, notes = measure(compiled, q, repeats)
-        result["rows"] += rows
-        result["agreement"][label] = agree
-        result["notes"] += notes
-    return result
-
-
 def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
     """The serial-arm section (see the module docstring)."""
     from deltagen.api.serial import SerialRobot
@@ -809,18 +345,22 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
     compiled = SerialRobot.load(SERIAL_ROBOT, backend="compiled", threads=1)
     reference = compiled.with_backend("reference")
     data = sample_serial(n, compiled, np.random.default_rng(SEED))
-    throughput, sizes, agreement = _measure_serial_throughput(compiled, reference, data, repeats)
-    latency = _measure_serial_latency(compiled, reference, data["q"][0].copy(), repeats)
-    others = _measure_oracles(compiled, data["q"], repeats, enabled=oracles)
-    from deltagen.apps.bench import ik as bench_ik
-
+    throughput, sizes, agreement = engine.measure_throughput(
+        SERIAL, compiled, reference, data, repeats
+    )
+    q1 = data["q"][0].copy()
+    latency = engine.measure_latency(
+        lambda robot: _serial_latency_calls(robot, q1), compiled, reference, repeats
+    )
+    rates = (SERIAL_QD_RANGE, SERIAL_QDD_RANGE, SEED + 1)
+    others = peers.measure(compiled, data["q"], repeats, enabled=oracles, rates=rates)
     # the full IK workload for real runs; a small one for quick (test) runs
-    ik = bench_ik.run(
+    ik_result = ik.run(
         compiled,
         reference,
         repeats,
-        analytic_n=min(n, bench_ik.IK_ANALYTIC_N),
-        numeric_n=bench_ik.IK_NUMERIC_N if n >= 100_000 else 20,
+        analytic_n=min(n, ik.IK_ANALYTIC_N),
+        numeric_n=ik.IK_NUMERIC_N if n >= 100_000 else 20,
         peers=oracles,
     )
     return {
@@ -831,7 +371,7 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
         "agreement": agreement,
         "latency": latency,
         "oracles": others,
-        "ik": ik,
+        "ik": ik_result,
     }
 
 
@@ -901,46 +441,12 @@ def machine_info(compiled_robot) -> list[tuple[str, str]]:
     ]
 
 
-# ------------------------------------------------------------------------- formatting
-
-
-def _num(v: float) -> str:
-    if not np.isfinite(v):
-        return "?"
-    if v >= 1000:
-        return f"{v:,.0f}"
-    if v >= 100:
-        return f"{v:.0f}"
-    if v >= 10:
-        return f"{v:.1f}"
-    return f"{v:.2f}"
-
-
-def _cell(s: Stat | None, scale: float = 1.0) -> str:
-    if s is None:
-        return "n/a"
-    return f"{_num(s.median / scale)} [{_num(s.min / scale)}, {_num(s.max / scale)}]"
-
-
-def _ratio(ref: Stat | None, comp: Stat | None) -> str:
-    if ref is None or comp is None or comp.median <= 0:
-        return "n/a"
-    r = ref.median / comp.median
-    return f"{r:.0f}x" if r >= 10 else f"{r:.1f}x" if r >= 1 else f"{r:.2f}x"
-
-
-def _verdict(value: float, target: float) -> str:
-    return "met" if value <= target else "MISSED"
-
-
 def render(result: dict, markdown: bool) -> str:
+    """The text (or Markdown) of a :func:`measure` result: every section's tables."""
     n, ref_n, repeats = result["n"], result["ref_n"], result["repeats"]
-    out: list[str] = []
-    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
-    bullet = "- " if markdown else "  "
-
-    out.append(h("deltagen bench"))
-    out.append("")
+    style = Style(markdown)
+    h, bullet = style.h, style.bullet
+    out: list[str] = [h("deltagen bench"), ""]
     for key, value in result["machine"]:
         v = f"`{value}`" if markdown and key.startswith("C ") else value
         out.append(f"{bullet}{key}: {v}")
@@ -959,61 +465,12 @@ def render(result: dict, markdown: bool) -> str:
         f"point); median [min, max] of {repeats} repeats after a warm-up call, the columns "
         "of a row timed round-robin"
     )
+    out += ["", h("Throughput, ns per point"), ""]
+    out += engine.render_throughput(DELTA, result, style)
+    out += ["", h("Single-pose latency, us per call"), ""]
+    out += engine.render_latency(result["latency"], style)
     out.append("")
-
-    out.append(h("Throughput, ns per point"))
-    out.append("")
-    header = [
-        "quantity",
-        "C kernel",
-        "compiled _core",
-        "compiled API",
-        "reference _core",
-        "reference API",
-        "speedup _core",
-        "speedup API",
-        "target (_core)",
-    ]
-    rows = []
-    for name in QUANTITIES:
-        c = result["throughput"][name]
-        target = TARGETS_NS.get(name)
-        tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
-        rows.append(
-            [
-                name,
-                _cell(c.get("kernel")),
-                _cell(c["core"]),
-                _cell(c["api"]),
-                _cell(c["ref_core"]),
-                _cell(c["ref_api"]),
-                _ratio(c["ref_core"], c["core"]),
-                _ratio(c["ref_api"], c["api"]),
-                tcell,
-            ]
-        )
-    out += table(header, rows, markdown)
-    out.append("")
-
-    out.append(h("Single-pose latency, us per call"))
-    out.append("")
-    header = ["call", "compiled", "reference", "speedup", "target (compiled)"]
-    rows = []
-    for label, comp, ref, target in result["latency"]:
-        tcell = "-" if target is None else f"<= {target / 1000:g} {_verdict(comp.median, target)}"
-        lab = f"`{label}`" if markdown else label
-        rows.append([lab, _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp), tcell])
-    out += table(header, rows, markdown)
-    out.append("")
-
-    agree = ", ".join(f"{k} {v:.1e} {_UNITS[k]}" for k, v in result["agreement"].items())
-    out.append(f"{bullet}agreement, max |compiled - reference| over the reference points: {agree}")
-    bad = [k for k, v in result["agreement"].items() if not v <= AGREEMENT_TOL]
-    if bad:
-        out.append(
-            f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
-            f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core"
-        )
+    out += engine.render_agreement(result["agreement"], DELTA.units, style)
     out.append(
         f"{bullet}C kernel = generated C function with preallocated outputs; _core = "
         "robot._core.<fn> (fresh numpy outputs); API = robot.<fn> with validation. "
@@ -1025,31 +482,26 @@ def render(result: dict, markdown: bool) -> str:
     )
     if result.get("serial") is not None:
         out.append("")
-        out += _render_serial(result["serial"], repeats, markdown)
+        out += render_serial(result["serial"], repeats, markdown)
     if result.get("threads") is not None:
         out.append("")
-        out += _render_threads(result["threads"], markdown)
+        out += _render_threads(result["threads"], style)
     if result.get("families") is not None:
-        from deltagen.apps.bench import families as bench_families
-
         out.append("")
-        out += bench_families.render(result["families"], markdown)
+        out += families.render(result["families"], markdown)
     out.append(f"{bullet}total bench time {result['elapsed_s']:.1f} s")
     return "\n".join(out)
 
 
-def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
+def render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
+    """The serial arm's section: workload, throughput, latency, peers and IK."""
     robot, n = serial["robot"], serial["n"]
-    out: list[str] = []
-    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
-    bullet = "- " if markdown else "  "
-    code = (lambda t: f"`{t}`") if markdown else (lambda t: t)
+    style = Style(markdown)
+    h, bullet, code = style.h, style.bullet, style.code
     lim = ", ".join(f"[{lo:.3g}, {hi:.3g}]" for lo, hi in robot.qlim)
     small = {name: pts for name, (pts, _) in serial["sizes"].items()}
-
     conv = robot.description.convention
-    out.append(h(f"Serial arm: {robot.name} ({robot.n} joints, {conv} DH)"))
-    out.append("")
+    out = [h(f"Serial arm: {robot.name} ({robot.n} joints, {conv} DH)"), ""]
     out.append(
         f"{bullet}workload: {code(f'SerialRobot.load({robot.name!r})')}, q uniform within "
         f"the joint limits ({lim}) rad, qd uniform in [{SERIAL_QD_RANGE[0]}, "
@@ -1061,125 +513,16 @@ def _render_serial(serial: dict, repeats: int, markdown: bool) -> list[str]:
         f"{min(n, SERIAL_REFERENCE_N):,} (scaled per configuration); median [min, max] "
         f"of {repeats} repeats, columns round-robin"
     )
+    out += ["", h(f"{robot.name}: throughput, ns per configuration"), ""]
+    out += engine.render_throughput(SERIAL, serial, style)
+    out += ["", h(f"{robot.name}: single-pose latency, us per call"), ""]
+    out += engine.render_latency(serial["latency"], style)
     out.append("")
-    out.append(h(f"{robot.name}: throughput, ns per configuration"))
-    out.append("")
-    header = [
-        "quantity",
-        "N",
-        "C kernel",
-        "compiled _core",
-        "compiled API",
-        "reference _core",
-        "speedup _core",
-        "target (_core)",
-    ]
-    rows = []
-    for name in SERIAL_QUANTITIES:
-        if name not in serial["throughput"]:
-            continue
-        c = serial["throughput"][name]
-        target = SERIAL_TARGETS_NS.get(name)
-        tcell = "-" if target is None else f"<= {target:g} {_verdict(c['core'].median, target)}"
-        rows.append(
-            [
-                name,
-                f"{serial['sizes'][name][0]:,}",
-                _cell(c.get("kernel")),
-                _cell(c["core"]),
-                _cell(c["api"]),
-                _cell(c["ref_core"]),
-                _ratio(c["ref_core"], c["core"]),
-                tcell,
-            ]
-        )
-    out += table(header, rows, markdown)
-    out.append("")
-
-    out.append(h(f"{robot.name}: single-pose latency, us per call"))
-    out.append("")
-    header = ["call", "compiled", "reference", "speedup", "target (compiled)"]
-    rows = []
-    for label, comp, ref, target in serial["latency"]:
-        tcell = "-" if target is None else f"<= {target / 1000:g} {_verdict(comp.median, target)}"
-        rows.append(
-            [code(label), _cell(comp, 1000.0), _cell(ref, 1000.0), _ratio(ref, comp), tcell]
-        )
-    out += table(header, rows, markdown)
-    out.append("")
-    agree = ", ".join(f"{k} {v:.1e} {_SERIAL_UNITS[k]}" for k, v in serial["agreement"].items())
-    out.append(f"{bullet}agreement, max |compiled - reference| over the reference points: {agree}")
-    bad = [k for k, v in serial["agreement"].items() if not v <= AGREEMENT_TOL]
-    if bad:
-        out.append(
-            f"{bullet}WARNING: compiled and reference disagree on {', '.join(bad)} "
-            f"(> {AGREEMENT_TOL:g}); the compiled timings may measure a broken core"
-        )
-
-    others = serial["oracles"]
-    if others["rows"]:
-        out.append("")
-        for unit, title, scale in (
-            ("us", "single call, us per call", 1000.0),
-            ("ns", "batch, ns per configuration", 1.0),
-        ):
-            rows = []
-            for r in others["rows"]:
-                if r["unit"] != unit:
-                    continue
-                rows.append(
-                    [
-                        r["library"],
-                        code(r["call"]),
-                        _cell(r["lib"], scale),
-                        code(r["dg_call"]),
-                        _cell(r["dg"], scale),
-                        _ratio(r["lib"], r["dg"]),
-                    ]
-                )
-            if not rows:
-                continue
-            out.append(h(f"{robot.name} vs other libraries: {title}"))
-            out.append("")
-            out += table(
-                [
-                    "library",
-                    "call",
-                    "library time",
-                    "deltagen call",
-                    "deltagen time (compiled)",
-                    "library / deltagen",
-                ],
-                rows,
-                markdown,
-            )
-            out.append("")
-        for library, agree in others["agreement"].items():
-            text = ", ".join(f"{k} {v:.1e}" for k, v in agree.items())
-            out.append(
-                f"{bullet}agreement with {library}, max |deltagen - library| over "
-                f"{min(ORACLE_AGREEMENT_N, n)} configurations: {text}"
-            )
-            bad = [k for k, v in agree.items() if not v <= ORACLE_TOL]
-            if bad:
-                out.append(
-                    f"{bullet}WARNING: deltagen and {library} disagree on "
-                    f"{', '.join(bad)} (> {ORACLE_TOL:g})"
-                )
-        for note in others["notes"]:
-            out.append(f"{bullet}{note}")
-        out.append(
-            f"{bullet}each library call is timed round-robin with the deltagen call beside "
-            "it (single calls looped ~25 ms per repeat; batches on the same "
-            "configurations)"
-        )
-    for text in others["absent"]:
-        out.append(f"{bullet}{text}")
+    out += engine.render_agreement(serial["agreement"], SERIAL.units, style)
+    out += peers.render(serial["oracles"], robot.name, n, style)
     out.append("")
     if serial.get("ik") is not None:
-        from deltagen.apps.bench import ik as bench_ik
-
-        out += bench_ik.render(serial["ik"], markdown, robot.name)
+        out += ik.render(serial["ik"], markdown, robot.name)
     return out
 
 
@@ -1205,10 +548,9 @@ def run_threads(n: int, repeats: int) -> dict:
         (f"{SERIAL_ROBOT} fk", arm, "fk", q_arm),
         (f"{SERIAL_ROBOT} jacobian", arm, "jacobian", q_arm),
     ):
-        calls = [getattr(robots[t]._core, fn) for t in (1, threads)]
-        for call in calls:
-            call(q)  # warm-up (and the pool's threads)
-        one, many = interleaved([batch_timer(c, (q,), n) for c in calls], repeats)
+        # the warm-up call also starts the pool's threads
+        calls = [(t, getattr(robots[t]._core, fn), (q,), n) for t in (1, threads)]
+        (_, one), (_, many) = engine.time_calls(calls, repeats)
         rows.append((label, one, many))
     return {
         "threads": threads,
@@ -1219,25 +561,17 @@ def run_threads(n: int, repeats: int) -> dict:
     }
 
 
-def _render_threads(result: dict, markdown: bool) -> list[str]:
-    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
-    bullet = "- " if markdown else "  "
-    k = result["threads"]
-    out = [h(f"All cores: threads=1 vs threads={k}, _core, ns per item"), ""]
-    header = ["quantity", "threads=1", f"threads={k}", "speedup"]
-    out += table(
-        header,
-        [
-            [label, _cell(one), _cell(many), _ratio(one, many)]
-            for label, one, many in result["rows"]
-        ],
-        markdown,
-    )
-    out.append("")
+def _render_threads(result: dict, style: Style) -> list[str]:
     from deltagen.native import parallel
 
+    k = result["threads"]
+    out = [style.h(f"All cores: threads=1 vs threads={k}, _core, ns per item"), ""]
+    header = ["quantity", "threads=1", f"threads={k}", "speedup"]
+    rows = [[label, cell(one), cell(many), ratio(one, many)] for label, one, many in result["rows"]]
+    out += style.table(header, rows)
+    out.append("")
     out.append(
-        f"{bullet}threads: DELTAGEN_THREADS, else the available cores = {k}; N = "
+        f"{style.bullet}threads: DELTAGEN_THREADS, else the available cores = {k}; N = "
         f"{result['n']:,} rows in {result['chunks']} chunk(s) (batches below "
         f"{2 * parallel.MIN_ROWS_PER_THREAD:,} rows run in one call); load average (1 min) "
         f"{result['load']} after this section"
@@ -1278,24 +612,20 @@ def measure(
     poses = {k: np.ascontiguousarray(v) for k, v in poses.items()}
     del head, tail
 
-    ref_poses = _prefix(poses, ref_n)
-    throughput, agreement = _measure_throughput(compiled, reference, poses, ref_poses, repeats)
-    del ref_poses
-
-    latency = _measure_latency(
-        compiled, reference, poses["q"][0].copy(), poses["p"][0].copy(), repeats
+    throughput, _, agreement = engine.measure_throughput(DELTA, compiled, reference, poses, repeats)
+    q1, p1 = poses["q"][0].copy(), poses["p"][0].copy()
+    latency = engine.measure_latency(
+        lambda robot: _latency_calls(robot, q1, p1), compiled, reference, repeats
     )
     del poses
     serial_result = run_serial(n, repeats, oracles) if serial else None
     threads_result = run_threads(n, repeats) if serial else None
-    from deltagen.apps.bench import families as bench_families
-
-    families = bench_families.run(n, repeats)
+    families_result = families.run(n, repeats)
     machine = machine_info(compiled)
     if serial_result is not None:
         machine.append(("C build (serial)", _build_name(serial_result["robot"])))
         if oracles:
-            versions = _library_versions()
+            versions = peers.library_versions()
             machine.append(
                 (
                     "other libraries",
@@ -1312,7 +642,7 @@ def measure(
         "agreement": agreement,
         "serial": serial_result,
         "threads": threads_result,
-        "families": families,
+        "families": families_result,
         "load_before": load_before,
         "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,

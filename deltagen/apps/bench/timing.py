@@ -1,9 +1,10 @@
 """Timing and tables of ``deltagen bench``: timers (one batch call, a calibrated loop),
-round-robin repeats with the collector off, medians, and text/markdown tables."""
+round-robin repeats with the collector off, medians, cells, and text/markdown tables."""
 
 from __future__ import annotations
 
 import gc
+import math
 import statistics
 import time
 
@@ -83,3 +84,55 @@ def table(header, rows, markdown: bool) -> list[str]:
         (c.ljust(w) if i == 0 else c.rjust(w)) for i, (c, w) in enumerate(zip(r, widths))
     )
     return [fmt(header), fmt(["-" * w for w in widths])] + [fmt(r) for r in rows]
+
+
+# ------------------------------------------------------------------------- cells
+
+
+def num(v: float) -> str:
+    """A time with as many digits as it deserves ("?" when not finite)."""
+    if not math.isfinite(v):
+        return "?"
+    if v >= 1000:
+        return f"{v:,.0f}"
+    if v >= 100:
+        return f"{v:.0f}"
+    if v >= 10:
+        return f"{v:.1f}"
+    return f"{v:.2f}"
+
+
+def cell(s: Stat | None, scale: float = 1.0) -> str:
+    """ "median [min, max]" of a measurement divided by ``scale``; "n/a" if not measured."""
+    if s is None:
+        return "n/a"
+    return f"{num(s.median / scale)} [{num(s.min / scale)}, {num(s.max / scale)}]"
+
+
+def ratio(base: Stat | None, measured: Stat | None) -> str:
+    """base / measured of the medians (a speedup when base is the slower one)."""
+    if base is None or measured is None or measured.median <= 0:
+        return "n/a"
+    r = base.median / measured.median
+    return f"{r:.0f}x" if r >= 10 else f"{r:.1f}x" if r >= 1 else f"{r:.2f}x"
+
+
+def verdict(value: float, target: float) -> str:
+    return "met" if value <= target else "MISSED"
+
+
+class Style:
+    """Headings, bullets and code spans of the text or the Markdown rendering."""
+
+    def __init__(self, markdown: bool):
+        self.markdown = markdown
+        self.bullet = "- " if markdown else "  "
+
+    def h(self, title: str) -> str:
+        return f"### {title}" if self.markdown else f"== {title} =="
+
+    def code(self, text: str) -> str:
+        return f"`{text}`" if self.markdown else text
+
+    def table(self, header, rows) -> list[str]:
+        return table(header, rows, self.markdown)
