@@ -27,9 +27,10 @@ The command: :func:`add_parser` adds ``bench`` to the CLI's subcommands, :func:`
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """The ``bench`` subcommand and its options on the CLI's ``subparsers``."""
     b = subparsers.add_parser("bench", help="throughput and latency, compiled vs reference")
     b.add_argument("--n", type=int, default=1_000_000, help="batch size (default 10^6)")
@@ -58,7 +59,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return b
 
 
-def _oracles_wanted(args) -> bool:
+def _oracles_wanted(args: argparse.Namespace) -> bool:
     """roboticstoolbox-python / pinocchio are timed unless --no-oracles (where the command
     line offers it) or DELTAGEN_BENCH_ORACLES=0."""
     from deltagen.inputs import env_flag
@@ -70,7 +71,7 @@ def _oracles_wanted(args) -> bool:
     )
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     """``deltagen bench`` with the options of :func:`add_parser`: print the tables, write
     the files asked for; ``--compare REF`` instead prints this tree beside REF."""
     import sys

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -80,11 +81,13 @@ class Throughput:
         return [c for c in COLUMNS if c != "ref_api" or self.reference_api]
 
 
-def _first_output(result) -> np.ndarray:
+def _first_output(result: Any) -> np.ndarray:
     return np.asarray(result[0] if isinstance(result, tuple) else result)
 
 
-def measure_throughput(section: Throughput, compiled, reference, data: dict, repeats: int):
+def measure_throughput(
+    section: Throughput, compiled: Any, reference: Any, data: dict, repeats: int
+) -> tuple[dict, dict, dict]:
     """({quantity: {column: Stat in ns per row}}, {quantity: (rows, reference rows)},
     {quantity: max |compiled - reference|}); a quantity whose inputs the workload lacks
     (the dynamics of an arm without inertial parameters) is left out."""
@@ -138,7 +141,7 @@ def render_throughput(section: Throughput, result: dict, style: Style) -> list[s
     return style.table(header, rows)
 
 
-def measure_latency(calls: Callable, compiled, reference, repeats: int) -> list:
+def measure_latency(calls: Callable, compiled: Any, reference: Any, repeats: int) -> list:
     """[(label, compiled Stat, reference Stat, target)] in ns per call; ``calls(robot)``
     gives [(label, no-argument call, target ns or None)], the same labels for both."""
     rows = []

@@ -24,7 +24,7 @@ from deltagen.apps.bench.timing import Style, cell
 SEED = 7
 
 
-def _points(kind: str, n: int, rng) -> np.ndarray:
+def _points(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
     if kind == "linear_delta":
         r = 0.1 * np.sqrt(rng.uniform(0, 1, n))
         t = rng.uniform(0, 2 * np.pi, n)
@@ -67,7 +67,7 @@ def run(n: int, repeats: int) -> dict:
     return {"n": n, "rows": engine.time_calls(calls, repeats)}
 
 
-def _hexapod_calls(n: int, rng) -> list:
+def _hexapod_calls(n: int, rng: np.random.Generator) -> list:
     from deltagen.api import hexapod as hx
 
     robot = hx.Hexapod.genhexkins()
@@ -87,7 +87,7 @@ def _hexapod_calls(n: int, rng) -> list:
     ]
 
 
-def _machine_calls(n: int, rng) -> list:
+def _machine_calls(n: int, rng: np.random.Generator) -> list:
     from deltagen.api.five_axis import FiveAxisMachine
 
     robot = FiveAxisMachine.load("xyzac_trt")

@@ -162,7 +162,7 @@ def table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> None:
+def main(argv: list[str] | None = None) -> None:
     """``python -m deltagen.apps.bench.load [--repeats R] [--call KERNEL] [ARM ...]``: JSON
     lines per measurement (arms round-robin, R rounds), then the Markdown table."""
     args = list(sys.argv[1:] if argv is None else argv)

@@ -80,47 +80,17 @@ def _rtb_oracle(compiled, q, repeats, rates):
 
     lib = f"rtb {rtb.__version__}"
     fk1, jac1 = f"robot.fk(q), q ndarray ({n},)", f"robot.jacobian(q), q ndarray ({n},)"
+    fk_dg, jac_dg = (fk1, lambda: compiled.fk(q1)), (jac1, lambda: compiled.jacobian(q1))
+    singles = (
+        ("DHRobot.fkine(q) -> SE3 (Python)", lambda: puma.fkine(q1), fk_dg),
+        ("ETS.fkine(q) -> SE3 (C++ fknm)", lambda: ets.fkine(q1), fk_dg),
+        ("ETS.eval(q) -> ndarray (C++ fknm)", lambda: ets.eval(q1), fk_dg),
+        ("DHRobot.jacob0(q) (Python)", lambda: puma.jacob0(q1), jac_dg),
+        ("ETS.jacob0(q) (C++ fknm)", lambda: ets.jacob0(q1), jac_dg),
+    )
     rows = [
-        _pair(
-            lib,
-            "DHRobot.fkine(q) -> SE3 (Python)",
-            lambda: puma.fkine(q1),
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "ETS.fkine(q) -> SE3 (C++ fknm)",
-            lambda: ets.fkine(q1),
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "ETS.eval(q) -> ndarray (C++ fknm)",
-            lambda: ets.eval(q1),
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "DHRobot.jacob0(q) (Python)",
-            lambda: puma.jacob0(q1),
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "ETS.jacob0(q) (C++ fknm)",
-            lambda: ets.jacob0(q1),
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
+        _pair(lib, call, lib_fn, dg_call, dg_fn, repeats)
+        for call, lib_fn, (dg_call, dg_fn) in singles
     ]
     for call, fn, size in (
         ("DHRobot.fkine(Q) -> SE3 of N values (Python loop)", puma.fkine, RTB_PY_BATCH_N),
@@ -222,39 +192,20 @@ def _pinocchio_oracle(compiled, q, repeats, rates):
         pin.computeJointJacobians(model, data, q1)
         return pin.getFrameJacobian(model, data, fid, world)
 
-    rows = [
-        _pair(
-            lib,
-            "forwardKinematics + updateFramePlacements",
-            fk_update,
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "framesForwardKinematics + oMf[tool].homogeneous",
-            fk_pose,
-            fk1,
-            lambda: compiled.fk(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
-            "computeJointJacobians + getFrameJacobian",
-            jac_get,
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
-        ),
-        _pair(
-            lib,
+    fk_dg, jac_dg = (fk1, lambda: compiled.fk(q1)), (jac1, lambda: compiled.jacobian(q1))
+    singles = (
+        ("forwardKinematics + updateFramePlacements", fk_update, fk_dg),
+        ("framesForwardKinematics + oMf[tool].homogeneous", fk_pose, fk_dg),
+        ("computeJointJacobians + getFrameJacobian", jac_get, jac_dg),
+        (
             "computeFrameJacobian(q, tool)",
             lambda: pin.computeFrameJacobian(model, data, q1, fid, world),
-            jac1,
-            lambda: compiled.jacobian(q1),
-            repeats,
+            jac_dg,
         ),
+    )
+    rows = [
+        _pair(lib, call, lib_fn, dg_call, dg_fn, repeats)
+        for call, lib_fn, (dg_call, dg_fn) in singles
     ]
     if compiled.description.has_inertia:
         dyn_rows, dyn_agree = _pinocchio_dynamics(pin, model, compiled, q, repeats, rates)
@@ -314,61 +265,59 @@ def _pinocchio_dynamics(pin, model, compiled, q, repeats, rates):
 
         return run
 
-    rows = [
-        _pair(
-            lib,
+    singles = (
+        (
             "rnea(q, v, a)",
             lambda: pin.rnea(model, data, q1, qd1, qdd1),
             f"robot.inverse_dynamics(q, qd, qdd), ndarrays ({n},)",
             lambda: compiled.inverse_dynamics(q1, qd1, qdd1),
-            repeats,
         ),
-        _pair(
-            lib,
+        (
             "crba(q)",
             lambda: pin.crba(model, data, q1),
             f"robot.mass_matrix(q), q ndarray ({n},)",
             lambda: compiled.mass_matrix(q1),
-            repeats,
         ),
-        _pair(
-            lib,
+        (
             "aba(q, v, tau)",
             lambda: pin.aba(model, data, q1, qd1, tau1),
             f"robot.forward_dynamics(q, qd, tau), ndarrays ({n},)",
             lambda: compiled.forward_dynamics(q1, qd1, tau1),
-            repeats,
         ),
-        _pair(
-            lib,
-            f"rnea looped over {m:,} configurations",
-            loop(lambda i: pin.rnea(model, data, qb[i], qdb[i], qddb[i])),
+    )
+    batches = (
+        (
+            "rnea",
+            lambda i: pin.rnea(model, data, qb[i], qdb[i], qddb[i]),
             "robot._core.inverse_dynamics(q, qd, qdd), (N, 6)",
             lambda: core.inverse_dynamics(qb, qdb, qddb),
-            repeats,
-            unit="ns",
-            points=m,
         ),
-        _pair(
-            lib,
-            f"crba looped over {m:,} configurations",
-            loop(lambda i: pin.crba(model, data, qb[i])),
+        (
+            "crba",
+            lambda i: pin.crba(model, data, qb[i]),
             "robot._core.mass_matrix(q), (N, 6)",
             lambda: core.mass_matrix(qb),
-            repeats,
-            unit="ns",
-            points=m,
         ),
-        _pair(
-            lib,
-            f"aba looped over {m:,} configurations",
-            loop(lambda i: pin.aba(model, data, qb[i], qdb[i], taub[i])),
+        (
+            "aba",
+            lambda i: pin.aba(model, data, qb[i], qdb[i], taub[i]),
             "robot._core.forward_dynamics(q, qd, tau), (N, 6)",
             lambda: core.forward_dynamics(qb, qdb, taub),
+        ),
+    )
+    rows = [_pair(lib, *row, repeats) for row in singles]
+    rows += [
+        _pair(
+            lib,
+            f"{name} looped over {m:,} configurations",
+            loop(one),
+            dg_call,
+            dg_fn,
             repeats,
             unit="ns",
             points=m,
-        ),
+        )
+        for name, one, dg_call, dg_fn in batches
     ]
     return rows, agree
 
@@ -376,7 +325,7 @@ def _pinocchio_dynamics(pin, model, compiled, q, repeats, rates):
 def library_versions() -> dict[str, str | None]:
     from importlib import metadata
 
-    out = {}
+    out: dict[str, str | None] = {}
     for dist in ("roboticstoolbox-python", "pin"):
         try:
             out[dist] = metadata.version(dist)

@@ -59,6 +59,8 @@ import platform
 import subprocess
 import sysconfig
 import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -114,9 +116,9 @@ def _valid_rows(core, q, qd, qdd):
     return ok, p
 
 
-def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
+def sample_poses(n: int, cores: Sequence, rng: np.random.Generator) -> dict[str, np.ndarray]:
     """n rows of q, qd, qdd and p = fk(q), all OK for every core in ``cores``."""
-    parts = {k: [] for k in ("q", "qd", "qdd", "p", "payload")}
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("q", "qd", "qdd", "p", "payload")}
     have, tries = 0, 0
     while have < n:
         tries += 1
@@ -132,6 +134,7 @@ def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
             ok_c, p_c = _valid_rows(core, q, qd, qdd)
             ok &= ok_c
             p = p_c if p is None else p  # positions from the first core (compiled)
+        assert p is not None, "sample_poses needs at least one core"
         take = np.flatnonzero(ok)[: n - have]
         payload = rng.uniform(*PAYLOAD_RANGE, m)
         for key, arr in (("q", q), ("qd", qd), ("qdd", qdd), ("p", p), ("payload", payload)):
@@ -143,7 +146,7 @@ def sample_poses(n: int, cores, rng) -> dict[str, np.ndarray]:
 # ------------------------------------------------------------------------- measurements
 
 
-def _kernel_callable(core, name: str, inputs: list[np.ndarray]):
+def _kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable | None:
     """A no-argument call of the generated C function with preallocated outputs, or None
     if the core is not the cffi one or its ABI is not the expected one."""
     try:
@@ -262,7 +265,7 @@ def _serial_points(name: str, n: int) -> int:
     return n if name in ("fk", "jacobian") else min(n, SERIAL_SMALL_N)
 
 
-def sample_serial(n: int, robot, rng) -> dict[str, np.ndarray]:
+def sample_serial(n: int, robot: Any, rng: np.random.Generator) -> dict[str, np.ndarray]:
     """n configurations q uniform within the arm's joint limits, rates qd and accelerations
     qdd (C-contiguous); for arms with inertial parameters also tau, the numpy reference's
     inverse dynamics of (q, qd, qdd) on the first SERIAL_SMALL_N (forward dynamics input)."""
@@ -281,7 +284,7 @@ def sample_serial(n: int, robot, rng) -> dict[str, np.ndarray]:
     return out
 
 
-def _serial_kernel_callable(core, name: str, inputs: list[np.ndarray]):
+def _serial_kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable | None:
     """A no-argument call of the arm's generated C function ``deltagen_<robot>_<name>`` with
     preallocated outputs, or None if the core is not the cffi one."""
     try:
@@ -399,7 +402,7 @@ def _compiler() -> str:
         return cc
 
 
-def _build_name(robot) -> str:
+def _build_name(robot: Any) -> str:
     lib = getattr(robot._core, "_lib", None)
     name = getattr(lib, "__name__", "") or ""
     return name.removesuffix(".lib") or "?"
@@ -412,14 +415,14 @@ def _load() -> str:
         return "?"
 
 
-def machine_info(compiled_robot) -> list[tuple[str, str]]:
+def machine_info(compiled_robot: Any) -> list[tuple[str, str]]:
     from deltagen.native.build import compile_flags
 
     args, libraries = compile_flags("delta")
     try:
         usable = len(os.sched_getaffinity(0))
     except AttributeError:
-        usable = os.cpu_count()
+        usable = os.cpu_count() or 1
     import cffi
 
     return [

@@ -7,11 +7,12 @@ import gc
 import math
 import statistics
 import time
+from collections.abc import Callable, Sequence
 
 LATENCY_REPEAT_NS = 25_000_000  # target duration of one latency repeat
 
 
-def batch_timer(fn, args, points: int):
+def batch_timer(fn: Callable, args: Sequence, points: int) -> Callable[[], float]:
     """A timer: one call of ``fn(*args)`` -> ns per point (the result is dropped)."""
 
     def timer():
@@ -48,7 +49,7 @@ def loop_timer(fn):
 def interleaved(timers: list, repeats: int) -> list[Stat]:
     """Run the timers round-robin ``repeats`` times (so a load change on a shared machine
     hits every column alike), garbage collector off; one Stat per timer."""
-    samples = [[] for _ in timers]
+    samples: list[list[float]] = [[] for _ in timers]
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
@@ -71,7 +72,7 @@ class Stat:
         self.max = max(self.values)
 
 
-def table(header, rows, markdown: bool) -> list[str]:
+def table(header: Sequence[str], rows: Sequence[Sequence[str]], markdown: bool) -> list[str]:
     if markdown:
         lines = [
             "| " + " | ".join(header) + " |",
@@ -134,5 +135,5 @@ class Style:
     def code(self, text: str) -> str:
         return f"`{text}`" if self.markdown else text
 
-    def table(self, header, rows) -> list[str]:
+    def table(self, header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
         return table(header, rows, self.markdown)
