@@ -223,3 +223,18 @@ def test_oracle_section_names_absent_libraries(monkeypatch):
     assert others["rows"] == [] and others["agreement"] == {}
     assert len(others["absent"]) == 2
     assert all("not importable" in t and "deltagen[bench]" in t for t in others["absent"])
+
+
+def test_the_package_parser_is_the_commands(capsys):
+    """apps.bench.add_parser declares exactly the options and help of `deltagen bench`, and
+    run is what the command calls."""
+    import argparse
+
+    from deltagen.apps import bench as package
+
+    assert main(["bench", "--help"]) == 0
+    cli_help = capsys.readouterr().out
+    sub = argparse.ArgumentParser(prog="deltagen").add_subparsers()
+    parser = package.add_parser(sub)
+    assert parser.format_help() == cli_help
+    assert parser.parse_args(["--n", "5"]).func is package.run

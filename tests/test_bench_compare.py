@@ -109,3 +109,11 @@ def test_compare_with_a_commit(capsys):
         ["git", "worktree", "list"], cwd=tree, capture_output=True, text=True
     ).stdout
     assert "deltagen-ref-" not in listed
+
+
+def test_the_checked_in_run_is_readable():
+    """docs/bench.json, written by an earlier version of `deltagen bench --json`, still gives
+    every measure --compare shows (the record's format is unchanged)."""
+    stored = bench_compare.from_json(bench_compare.this_tree() / "docs" / "bench.json")
+    assert set(stored) == set(bench_compare.MEASURES)
+    assert all(v is not None and v > 0 for v in stored.values()), stored
