@@ -334,9 +334,11 @@ def library_versions() -> dict[str, str | None]:
     return out
 
 
-def measure(compiled, q, repeats, enabled=True, rates=((-2.0, 2.0), (-5.0, 5.0), 2009)):
+def measure(compiled, q, repeats, rates, enabled=True):
     """{"rows": [...], "agreement": {library: {what: max abs diff}}, "notes": [...],
-    "absent": [text]} for roboticstoolbox-python and pinocchio, each when importable."""
+    "absent": [text]} for roboticstoolbox-python and pinocchio, each when importable, on the
+    arm's configurations ``q``; ``rates``: (qd range, qdd range, seed) of the dynamics'
+    inputs."""
     result = {"rows": [], "agreement": {}, "notes": [], "absent": []}
     if not enabled:
         result["absent"].append(

@@ -356,7 +356,7 @@ def run_serial(n: int, repeats: int, oracles: bool = True) -> dict:
         lambda robot: _serial_latency_calls(robot, q1), compiled, reference, repeats
     )
     rates = (SERIAL_QD_RANGE, SERIAL_QDD_RANGE, SEED + 1)
-    others = peers.measure(compiled, data["q"], repeats, enabled=oracles, rates=rates)
+    others = peers.measure(compiled, data["q"], repeats, rates, enabled=oracles)
     # the full IK workload for real runs; a small one for quick (test) runs
     ik_result = ik.run(
         compiled,
