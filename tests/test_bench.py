@@ -12,7 +12,8 @@ import importlib.util
 
 import pytest
 
-from deltagen.apps import bench, bench_compare, timing
+from deltagen.apps.bench import compare as bench_compare
+from deltagen.apps.bench import peers, sections, timing
 from deltagen.cli import main
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik")
@@ -155,7 +156,7 @@ def test_sampled_poses_are_valid_for_both_backends():
     from deltagen.status import OK
 
     compiled, reference = DeltaRobot.default(), DeltaRobot.default(backend="reference")
-    poses = bench.sample_poses(500, [compiled._core, reference._core], np.random.default_rng(0))
+    poses = sections.sample_poses(500, [compiled._core, reference._core], np.random.default_rng(0))
     assert poses["payload"].shape == (500,) and (poses["payload"] >= 0).all()
     assert all(
         v.shape == (500, 3) and v.flags.c_contiguous for k, v in poses.items() if k != "payload"
@@ -176,8 +177,8 @@ def test_serial_poses_are_within_limits():
 
     from deltagen.api.serial import SerialRobot
 
-    robot = SerialRobot.load(bench.SERIAL_ROBOT)
-    data = bench.sample_serial(300, robot, np.random.default_rng(0))
+    robot = SerialRobot.load(sections.SERIAL_ROBOT)
+    data = sections.sample_serial(300, robot, np.random.default_rng(0))
     assert data["q"].shape == data["qd"].shape == (300, robot.n)
     assert data["q"].flags.c_contiguous and robot.within_limits(data["q"]).all()
 
@@ -189,8 +190,8 @@ def test_oracle_section_at_tiny_size(monkeypatch, markdown):
     and finds them in agreement (sizes shrunk: this checks the wiring, not the speed)."""
     monkeypatch.setattr(timing, "LATENCY_REPEAT_NS", 1_000_000)
     for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
-        monkeypatch.setattr(bench, name, 50)
-    serial = bench.run_serial(300, 1, oracles=True)
+        monkeypatch.setattr(peers, name, 50)
+    serial = sections.run_serial(300, 1, oracles=True)
     others = serial["oracles"]
     if not others["rows"]:
         pytest.skip("; ".join(others["absent"]))  # installed but not importable
@@ -199,8 +200,8 @@ def test_oracle_section_at_tiny_size(monkeypatch, markdown):
         assert row["lib"].median > 0 and row["dg"].median > 0
         assert row["dg_call"].startswith("robot.")
     for library, agree in others["agreement"].items():
-        assert all(v <= bench.ORACLE_TOL for v in agree.values()), (library, agree)
-    text = "\n".join(bench._render_serial(serial, 1, markdown))
+        assert all(v <= peers.ORACLE_TOL for v in agree.values()), (library, agree)
+    text = "\n".join(sections.render_serial(serial, 1, markdown))
     assert "vs other libraries" in text and "library / deltagen" in text
     assert "WARNING" not in text
     for library, label in (("roboticstoolbox-python", "rtb "), ("pinocchio", "pinocchio ")):
@@ -218,7 +219,22 @@ def test_oracle_section_names_absent_libraries(monkeypatch):
 
     for module in ("roboticstoolbox", "pinocchio"):
         monkeypatch.setitem(sys.modules, module, None)  # import raises ImportError
-    others = bench._measure_oracles(None, None, 1)
+    others = peers.measure(None, None, 1, rates=None)
     assert others["rows"] == [] and others["agreement"] == {}
     assert len(others["absent"]) == 2
     assert all("not importable" in t and "deltagen[bench]" in t for t in others["absent"])
+
+
+def test_the_package_parser_is_the_commands(capsys):
+    """apps.bench.add_parser declares exactly the options and help of `deltagen bench`, and
+    run is what the command calls."""
+    import argparse
+
+    from deltagen.apps import bench as package
+
+    assert main(["bench", "--help"]) == 0
+    cli_help = capsys.readouterr().out
+    sub = argparse.ArgumentParser(prog="deltagen").add_subparsers()
+    parser = package.add_parser(sub)
+    assert parser.format_help() == cli_help
+    assert parser.parse_args(["--n", "5"]).func is package.run

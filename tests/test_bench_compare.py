@@ -11,14 +11,14 @@ import subprocess
 
 import pytest
 
-from deltagen.apps import bench_compare
+from deltagen.apps.bench import compare as bench_compare
 from deltagen.cli import main
 
 SMALL = ["--n", "300", "--repeats", "1", "--rounds", "1"]
 
 
 def _stored_run(path, delta_ns=10.0, arm_ns=100.0):
-    """A `bench --json` file's shape (apps/bench_report.plain), the parts --compare reads."""
+    """A `bench --json` file's shape (apps/bench/report.plain), the parts --compare reads."""
     stat = lambda v: {"median": v, "min": v, "max": v, "values": [v]}  # noqa: E731
     data = {
         "n": 1000,
@@ -109,3 +109,11 @@ def test_compare_with_a_commit(capsys):
         ["git", "worktree", "list"], cwd=tree, capture_output=True, text=True
     ).stdout
     assert "deltagen-ref-" not in listed
+
+
+def test_the_checked_in_run_is_readable():
+    """docs/bench.json, written by an earlier version of `deltagen bench --json`, still gives
+    every measure --compare shows (the record's format is unchanged)."""
+    stored = bench_compare.from_json(bench_compare.this_tree() / "docs" / "bench.json")
+    assert set(stored) == set(bench_compare.MEASURES)
+    assert all(v is not None and v > 0 for v in stored.values()), stored

@@ -8,7 +8,7 @@ Evidence:
   Jdot(q, qd) = Jdot'(q', qd') diag(s), tau(q, qd, qdd) = diag(s) tau'(q', qd', qdd')
   (symmetric friction), checked on the compiled core (SymPy derivation) of standard DH,
   modified DH and universal-coordinate arms with a prismatic joint;
-* pinocchio (apps.bench.pinocchio_model, an about -z joint) on the flipped standard arm.
+* pinocchio (apps.bench.peers.pinocchio_model, an about -z joint) on the flipped standard arm.
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ def test_mirror_identity_compiled(convention):
 
 def test_flipped_standard_arm_against_pinocchio():
     pin = pytest.importorskip("pinocchio")
-    from deltagen.apps.bench import pinocchio_model
+    from deltagen.apps.bench.peers import pinocchio_model
 
     desc = _desc(_flipped(DH_ROWS), "standard", "flip_pin")
     arm = SerialRobot(desc, backend="reference")

@@ -3,7 +3,7 @@
 Evidence independent of the solver: the targets are fk(q) of q drawn within the limits
 (so a solution exists), and each answer is checked with the numpy reference's fk (written
 from the model, not from the derivation) to 1e-10 m and rad, and against the joint limits.
-Two arms: the Puma 560 and a Panda-like 7-axis arm (apps/bench_ik.PANDA_DH, the Franka
+Two arms: the Puma 560 and a Panda-like 7-axis arm (apps/bench/ik.PANDA_DH, the Franka
 documentation's table). The restarts run in C from a deterministic sequence, so the same
 call gives the same answer bit for bit, and one target per call gives the batch's row.
 """
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from deltagen import SerialRobot
-from deltagen.apps.bench_ik import numeric_targets, panda_like
+from deltagen.apps.bench.ik import numeric_targets, panda_like
 from deltagen.reference import serial as reference
 from deltagen.solve import numeric as ikn
 

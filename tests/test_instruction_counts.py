@@ -75,9 +75,9 @@ def _update_requested(config) -> bool:
 
 
 def _delta_inputs(points: int):
-    """Inputs every delta kernel reads (all rows OK: bench.sample_poses), the geometry."""
+    """Inputs every delta kernel reads (all rows OK: apps.bench.sections.sample_poses), the geometry."""
     from deltagen.api.delta import DeltaRobot
-    from deltagen.apps.bench import sample_poses
+    from deltagen.apps.bench.sections import sample_poses
     from deltagen.native.delta import geometry_struct
 
     robot = DeltaRobot.default(threads=1)

@@ -163,8 +163,8 @@ def test_fk_and_jacobian_match_pinocchio(puma, pin_puma, configurations):
 
 
 def test_bench_pinocchio_model_is_the_robot(pin_puma, configurations):
-    """deltagen.apps.bench builds its pinocchio model from the robot's own description."""
-    from deltagen.apps.bench import pinocchio_model
+    """deltagen.apps.bench.peers builds its pinocchio model from the robot's own description."""
+    from deltagen.apps.bench.peers import pinocchio_model
 
     pin = pin_puma[0]
     robot = SerialRobot.load("puma560")

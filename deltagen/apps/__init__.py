@@ -8,12 +8,10 @@ geometry from measured pairs), ``export`` (a self-contained C package for a cont
 of a hexapod robot file); ``robots`` is the one loader every
 command takes its robot from (the kind decided from the file, the URDF options).
 
-``deltagen bench`` is ``bench`` (throughput and one-pose latency) with its sections and
-tools: ``bench_ik`` (inverse kinematics), ``bench_general6r`` (the general-6R solver),
-``bench_load`` (cold and warm load of an arm), ``bench_families`` (the linear delta's,
-the tripod's, the hexapod's and a 5-axis machine's cores beside the rotary delta's), ``bench_compare`` (``--compare REF``: this
-tree beside another, in one run), ``bench_report`` (JSON, PNG and the README section) and
-``timing`` (timers, repeats and tables).
+``deltagen bench`` is the ``bench`` package (throughput and one-pose latency, one
+measure-and-render path: each section declares what it times, one engine runs, records and
+renders it; its own docstring names its modules: the sections, the engine, the timers, the
+peer libraries, IK, general 6R, the other families, load, ``--compare`` and the report).
 
 May import: anything of deltagen except ``cli``.
 """

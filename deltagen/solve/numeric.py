@@ -142,7 +142,7 @@ PHASE2_FROM_START = True  # the limited phase restarts from the attempt's start 
 FREE_CHECK = 1e-9  # free phase: limits checked once |dx| <= max(tol, this)
 FREE_FIRST = True  # each attempt starts with the limits unenforced (module docstring)
 #: default number of restarts: enough for every reachable in-limit target of the Puma 560
-#: and of a 7-axis arm in the tests and in `deltagen bench` (apps/bench_ik.py); a target
+#: and of a 7-axis arm in the tests and in `deltagen bench` (apps/bench/ik.py); a target
 #: the first attempt solves costs nothing more, an unreachable one at most this many short
 #: (stalled) attempts
 RESTARTS = 100

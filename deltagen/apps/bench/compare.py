@@ -26,15 +26,17 @@ an old commit can be measured with it; a measure its version lacks is shown as n
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
-from deltagen.apps.bench import QUANTITIES, SERIAL_QUANTITIES, SERIAL_ROBOT, SERIAL_SMALL_N
+from deltagen.apps.bench.sections import QUANTITIES, SERIAL_QUANTITIES, SERIAL_ROBOT, SERIAL_SMALL_N
 from deltagen.errors import DeltagenError
 from deltagen.inputs import read_regular_file
 
@@ -106,8 +108,8 @@ class CompareError(DeltagenError, RuntimeError):
 
 def this_tree() -> Path:
     """The folder whose ``deltagen`` package this process imported (this file is
-    deltagen/apps/bench_compare.py in it)."""
-    return Path(__file__).resolve().parents[2]
+    deltagen/apps/bench/compare.py in it)."""
+    return Path(__file__).resolve().parents[3]
 
 
 def _git(args: list[str], cwd: Path) -> str:
@@ -162,12 +164,14 @@ def probe(tree: Path, cache: Path, n: int, repeats: int) -> dict[str, float | No
 def median_of(runs: list[dict]) -> dict[str, float | None]:
     out = {}
     for label in MEASURES:
-        values = [r.get(label) for r in runs if r.get(label) is not None]
+        values = [float(v) for r in runs if (v := r.get(label)) is not None]
         out[label] = statistics.median(values) if values else None
     return out
 
 
-def compare(ref: str, n: int, repeats: int, rounds: int, log=None) -> dict:
+def compare(
+    ref: str, n: int, repeats: int, rounds: int, log: Callable[[str], None] | None = None
+) -> dict:
     """{"ref": label, "this": label, "rows": {measure: (ref ns, this ns)}, ...}."""
     if rounds < 1:
         raise ValueError(f"--rounds must be at least 1, got {rounds}")
@@ -219,7 +223,7 @@ def compare(ref: str, n: int, repeats: int, rounds: int, log=None) -> dict:
 
 
 def render(result: dict, markdown: bool = False) -> str:
-    from deltagen.apps.timing import table
+    from deltagen.apps.bench.timing import Style, table
 
     rows = []
     for label, (ref, this) in result["rows"].items():
@@ -232,7 +236,7 @@ def render(result: dict, markdown: bool = False) -> str:
                 ratio,
             ]
         )
-    bullet = "- " if markdown else "  "
+    bullet = Style(markdown).bullet
     out = [
         f"{bullet}ref: {result['ref']}",
         f"{bullet}this: {result['this']}",
@@ -246,7 +250,7 @@ def render(result: dict, markdown: bool = False) -> str:
     return "\n".join(out)
 
 
-def main(args) -> int:
+def main(args: argparse.Namespace) -> int:
     def log(text: str) -> None:
         print(f"bench --compare: {text}", file=sys.stderr, flush=True)
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from deltagen.apps.timing import Stat
+from deltagen.apps.bench.timing import Stat
 from deltagen.inputs import read_regular_file
 
 BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"

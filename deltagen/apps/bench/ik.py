@@ -20,11 +20,21 @@ from __future__ import annotations
 
 import gc
 import time
+from typing import Any
 
 import numpy as np
 
-from deltagen.apps import bench_general6r
-from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
+from deltagen.apps.bench import general6r as bench_general6r
+from deltagen.apps.bench.peers import rtb_model
+from deltagen.apps.bench.timing import (
+    Stat,
+    Style,
+    batch_timer,
+    interleaved,
+    loop_timer,
+    table,
+    verdict,
+)
 from deltagen.geometry.limits import wrap_to_pi
 
 IK_ROBOT = "puma560"
@@ -189,27 +199,6 @@ def _stats(times, solved):
     }
 
 
-def rtb_model(arm):
-    """roboticstoolbox-python DHRobot of a standard- or modified-DH deltagen arm of revolute
-    joints (same table, offsets, limits, base and tool), or None if rtb is missing."""
-    try:
-        import roboticstoolbox as rtb
-        import spatialmath as sm
-    except ImportError:
-        return None
-    d = arm.description
-    if d.convention not in ("standard", "modified") or not all(j.revolute for j in d.joints):
-        return None
-    link = rtb.RevoluteDH if d.convention == "standard" else rtb.RevoluteMDH
-    links = [
-        link(d=j.d, a=j.a, alpha=j.alpha, offset=j.offset, qlim=list(lim))
-        for j, lim in zip(d.joints, arm.qlim)
-    ]
-    return rtb.DHRobot(
-        links, base=sm.SE3(np.array(d.base)), tool=sm.SE3(np.array(d.tool)), name=d.name
-    )
-
-
 def measure_numeric(compiled, n=IK_NUMERIC_N, peers=True):
     """Numerical IK with default options, one target per call: deltagen's
     ``arm.ik(T, method="numeric")`` and, if installed, roboticstoolbox's C++ ``ik_LM`` on
@@ -245,7 +234,12 @@ def measure_numeric(compiled, n=IK_NUMERIC_N, peers=True):
 
 
 def run(
-    compiled, reference, repeats, analytic_n=IK_ANALYTIC_N, numeric_n=IK_NUMERIC_N, peers=True
+    compiled: Any,
+    reference: Any,
+    repeats: int,
+    analytic_n: int = IK_ANALYTIC_N,
+    numeric_n: int = IK_NUMERIC_N,
+    peers: bool = True,
 ) -> dict:
     from deltagen.api.serial import SerialRobot
 
@@ -264,19 +258,16 @@ def run(
     }
 
 
-def _us(stat: Stat, scale=1000.0) -> str:
+def _us(stat: Stat, scale: float = 1000.0) -> str:
     return f"{stat.median / scale:.3g} [{stat.min / scale:.3g}, {stat.max / scale:.3g}]"
 
 
 def render(result: dict, markdown: bool, name: str) -> list[str]:
     """Lines of the IK section."""
-    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
-    bullet = "- " if markdown else "  "
+    style = Style(markdown)
+    h, bullet = style.h, style.bullet
     a = result["analytic"]
     out = [h(f"{name}: inverse kinematics"), ""]
-
-    def verdict(value, target):
-        return "met" if value <= target else "MISSED"
 
     rows = [
         [
@@ -332,8 +323,7 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
 def render_ur(a: dict, markdown: bool) -> list[str]:
     """Lines of the UR closed-form rows (the target: all 8 branches <= 2 us per pose,
     batched)."""
-    bullet = "- " if markdown else "  "
-    met = a["batch"]["api"].median <= TARGETS["ur5_batch_ns"]
+    bullet = Style(markdown).bullet
     rows = [
         [
             f"{UR_ROBOT}: all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, "
@@ -344,7 +334,7 @@ def render_ur(a: dict, markdown: bool) -> list[str]:
         [
             f"{UR_ROBOT}: all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}",
             _us(a["batch"]["api"]),
-            "<= 2 " + ("met" if met else "MISSED"),
+            f"<= 2 {verdict(a['batch']['api'].median, TARGETS['ur5_batch_ns'])}",
         ],
         [
             f"{UR_ROBOT}: numpy solver (reference backend), batch of {a['ref_n']:,}",
@@ -397,7 +387,7 @@ def render_numeric(result: dict, markdown: bool, name: str) -> list[str]:
     if not rows:
         return []
     n = result["numeric"]["n"]
-    bullet = "- " if markdown else "  "
+    bullet = Style(markdown).bullet
     out = [
         f"Numerical IK, default options, one target per call: {n:,} targets fk(q), q uniform "
         f"within the limits; solved = converged to {IK_TOL:g} m and rad within the limits, "

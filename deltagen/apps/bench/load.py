@@ -62,7 +62,7 @@ from deltagen.paths import robots_dir
 w1, c1 = time.perf_counter(), usage()
 def load():
     if arm_name == "chain20":
-        from deltagen.apps.bench_load import CHAIN20
+        from deltagen.apps.bench.load import CHAIN20
         return SerialRobot.from_dh(CHAIN20, "standard", name="chain20")
     path = robots_dir() / arm_name
     return SerialRobot.from_urdf(path, name=path.stem + "_new")
@@ -94,7 +94,7 @@ def _run(arm: str, cache: Path, env_extra: dict | None = None, call: str = "") -
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     if env_extra:
         env.update(env_extra)
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[3]
     env["PYTHONPATH"] = str(root) + os.pathsep + env.get("PYTHONPATH", "")
     out = subprocess.run(
         [sys.executable, "-c", _CHILD, arm, call],
@@ -162,8 +162,8 @@ def table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> None:
-    """``python -m deltagen.apps.bench_load [--repeats R] [--call KERNEL] [ARM ...]``: JSON
+def main(argv: list[str] | None = None) -> None:
+    """``python -m deltagen.apps.bench.load [--repeats R] [--call KERNEL] [ARM ...]``: JSON
     lines per measurement (arms round-robin, R rounds), then the Markdown table."""
     args = list(sys.argv[1:] if argv is None else argv)
     repeats, call = 1, ""

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from deltagen.apps.timing import Stat, batch_timer, interleaved, table
+from deltagen.apps.bench import engine
+from deltagen.apps.bench.timing import Style, cell
 
 SEED = 7
 
 
-def _points(kind: str, n: int, rng) -> np.ndarray:
+def _points(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
     if kind == "linear_delta":
         r = 0.1 * np.sqrt(rng.uniform(0, 1, n))
         t = rng.uniform(0, 2 * np.pi, n)
@@ -63,13 +64,10 @@ def run(n: int, repeats: int) -> dict:
             (f"{label} fk_acc", core.fk_acc, (q, qd, qdd), n),
         ]
     calls += _hexapod_calls(n, rng) + _machine_calls(n, rng)
-    for _, fn, args, _m in calls:
-        fn(*args)  # warm-up
-    stats = interleaved([batch_timer(fn, args, m) for _, fn, args, m in calls], repeats)
-    return {"n": n, "rows": [(label, s) for (label, _, _, _), s in zip(calls, stats)]}
+    return {"n": n, "rows": engine.time_calls(calls, repeats)}
 
 
-def _hexapod_calls(n: int, rng) -> list:
+def _hexapod_calls(n: int, rng: np.random.Generator) -> list:
     from deltagen.api import hexapod as hx
 
     robot = hx.Hexapod.genhexkins()
@@ -89,7 +87,7 @@ def _hexapod_calls(n: int, rng) -> list:
     ]
 
 
-def _machine_calls(n: int, rng) -> list:
+def _machine_calls(n: int, rng: np.random.Generator) -> list:
     from deltagen.api.five_axis import FiveAxisMachine
 
     robot = FiveAxisMachine.load("xyzac_trt")
@@ -106,19 +104,14 @@ def _machine_calls(n: int, rng) -> list:
 
 
 def render(result: dict, markdown: bool) -> list[str]:
-    h = (lambda t: f"### {t}") if markdown else (lambda t: f"== {t} ==")
-    bullet = "- " if markdown else "  "
-    out = [h("Other machine families beside the rotary delta, _core ns per point"), ""]
-
-    def cell(s: Stat) -> str:
-        return f"{s.median:.1f} [{s.min:.1f}, {s.max:.1f}]"
-
-    out += table(["quantity", "ns per point"], [[k, cell(s)] for k, s in result["rows"]], markdown)
+    style = Style(markdown)
+    out = [style.h("Other machine families beside the rotary delta, _core ns per point"), ""]
+    out += style.table(["quantity", "ns per point"], [[k, cell(s)] for k, s in result["rows"]])
     out.append("")
     out.append(
-        f"{bullet}N = {result['n']:,} points each (the hexapod's fk: N / 20), threads=1, "
+        f"{style.bullet}N = {result['n']:,} points each (the hexapod's fk: N / 20), threads=1, "
         "round-robin; the linear delta of robots/linear_delta.toml, the tripod of "
         "robots/tripod.toml, the hexapod of LinuxCNC genhexkins, the 5-axis machine xyzac_trt "
-        "(apps/bench_families.py)"
+        "(apps/bench/families.py)"
     )
     return out

@@ -1,16 +1,18 @@
 """Timing and tables of ``deltagen bench``: timers (one batch call, a calibrated loop),
-round-robin repeats with the collector off, medians, and text/markdown tables."""
+round-robin repeats with the collector off, medians, cells, and text/markdown tables."""
 
 from __future__ import annotations
 
 import gc
+import math
 import statistics
 import time
+from collections.abc import Callable, Sequence
 
 LATENCY_REPEAT_NS = 25_000_000  # target duration of one latency repeat
 
 
-def batch_timer(fn, args, points: int):
+def batch_timer(fn: Callable, args: Sequence, points: int) -> Callable[[], float]:
     """A timer: one call of ``fn(*args)`` -> ns per point (the result is dropped)."""
 
     def timer():
@@ -47,7 +49,7 @@ def loop_timer(fn):
 def interleaved(timers: list, repeats: int) -> list[Stat]:
     """Run the timers round-robin ``repeats`` times (so a load change on a shared machine
     hits every column alike), garbage collector off; one Stat per timer."""
-    samples = [[] for _ in timers]
+    samples: list[list[float]] = [[] for _ in timers]
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
@@ -70,7 +72,7 @@ class Stat:
         self.max = max(self.values)
 
 
-def table(header, rows, markdown: bool) -> list[str]:
+def table(header: Sequence[str], rows: Sequence[Sequence[str]], markdown: bool) -> list[str]:
     if markdown:
         lines = [
             "| " + " | ".join(header) + " |",
@@ -83,3 +85,55 @@ def table(header, rows, markdown: bool) -> list[str]:
         (c.ljust(w) if i == 0 else c.rjust(w)) for i, (c, w) in enumerate(zip(r, widths))
     )
     return [fmt(header), fmt(["-" * w for w in widths])] + [fmt(r) for r in rows]
+
+
+# ------------------------------------------------------------------------- cells
+
+
+def num(v: float) -> str:
+    """A time with as many digits as it deserves ("?" when not finite)."""
+    if not math.isfinite(v):
+        return "?"
+    if v >= 1000:
+        return f"{v:,.0f}"
+    if v >= 100:
+        return f"{v:.0f}"
+    if v >= 10:
+        return f"{v:.1f}"
+    return f"{v:.2f}"
+
+
+def cell(s: Stat | None, scale: float = 1.0) -> str:
+    """ "median [min, max]" of a measurement divided by ``scale``; "n/a" if not measured."""
+    if s is None:
+        return "n/a"
+    return f"{num(s.median / scale)} [{num(s.min / scale)}, {num(s.max / scale)}]"
+
+
+def ratio(base: Stat | None, measured: Stat | None) -> str:
+    """base / measured of the medians (a speedup when base is the slower one)."""
+    if base is None or measured is None or measured.median <= 0:
+        return "n/a"
+    r = base.median / measured.median
+    return f"{r:.0f}x" if r >= 10 else f"{r:.1f}x" if r >= 1 else f"{r:.2f}x"
+
+
+def verdict(value: float, target: float) -> str:
+    return "met" if value <= target else "MISSED"
+
+
+class Style:
+    """Headings, bullets and code spans of the text or the Markdown rendering."""
+
+    def __init__(self, markdown: bool):
+        self.markdown = markdown
+        self.bullet = "- " if markdown else "  "
+
+    def h(self, title: str) -> str:
+        return f"### {title}" if self.markdown else f"== {title} =="
+
+    def code(self, text: str) -> str:
+        return f"`{text}`" if self.markdown else text
+
+    def table(self, header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
+        return table(header, rows, self.markdown)

@@ -26,15 +26,25 @@ each arm's ``ik_all`` rows, the same solver with the numpy/LAPACK engine (``engi
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
-from deltagen.apps.timing import Stat, batch_timer, interleaved, loop_timer, table
+from deltagen.apps.bench.peers import rtb_model
+from deltagen.apps.bench.timing import (
+    Stat,
+    Style,
+    batch_timer,
+    interleaved,
+    loop_timer,
+    table,
+    verdict,
+)
 from deltagen.geometry.limits import wrap_to_pi
 from deltagen.solve import general6r
 
 
-def _cpu_timer(fn, calls: int, points: int):
+def _cpu_timer(fn: Callable, calls: int, points: int) -> Callable[[], float]:
     """A timer: ``fn()`` called ``calls`` times -> process CPU ns per point (leaves out
     the time the process waits for a core on a loaded machine)."""
 
@@ -90,7 +100,7 @@ def jaco_arm(threads=1):
     return SerialRobot.from_dh(rows, "standard", name="jaco", threads=threads)
 
 
-def _arms(generic: bool):
+def _arms(generic: bool) -> list:
     from deltagen.api.serial import SerialRobot
 
     ur5 = SerialRobot.load("ur5", backend="compiled", threads=1)
@@ -140,8 +150,6 @@ def measure(repeats: int, n: int = G6R_N, peers: bool = True, generic: bool = Tr
         ]
         robot = None
         if peers:
-            from deltagen.apps.bench_ik import rtb_model
-
             robot = rtb_model(arm)  # (None for an arm with reversed joints: Jaco's own below)
             if arm.name == "jaco":
                 import roboticstoolbox as rtb
@@ -188,14 +196,13 @@ def render(result: dict, markdown: bool) -> list[str]:
     rows = []
     for name, r in result.items():
         for key, label in (("batch", f"batch of {r['n']:,}"), ("single", "one pose per call")):
-            met = r[key].median / 1000 <= TARGETS_US[key]
             rows.append(
                 [
                     name,
                     f"general 6R `ik_all(T, method='complete')`, all 16, {label}",
                     _us(r[key]),
                     f"{r[key + '_cpu'].median / 1000:.4g}",
-                    f"<= {TARGETS_US[key]:g} " + ("met" if met else "MISSED"),
+                    f"<= {TARGETS_US[key]:g} {verdict(r[key].median / 1000, TARGETS_US[key])}",
                 ]
             )
         for key, label in (("batch", f"batch of {r['n']:,}"), ("single", "one pose per call")):
@@ -219,7 +226,7 @@ def render(result: dict, markdown: bool) -> list[str]:
                     "-",
                 ]
             )
-    bullet = "- " if markdown else "  "
+    bullet = Style(markdown).bullet
     out = [
         "General 6R, every solution (solve/general6r.py: Raghavan-Roth elimination; "
         "per-pose algebra and the 24 x 24 eigenproblem in hand-written C "
