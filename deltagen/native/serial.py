@@ -274,6 +274,13 @@ class CompiledArm:
     def dynamics_loaded(self) -> bool:
         return "dynamics" in self._parts
 
+    def kernel(self, name: str) -> dict:
+        """The manifest entry of kernel ``name`` (native.manifest.kernels: C function, ports
+        with width, C type, unit and matrix shape), from the module that has it (a new
+        arm's part is built on first use): for callers that time or drive the C directly."""
+        self.c_function(name)
+        return self._kernels[name]
+
     def c_function(self, name: str):
         """(ffi, function) of the generated C function <prefix>_<name>, from the module
         that has it (for callers that time or drive the C directly)."""
