@@ -324,6 +324,7 @@ def kernel_manifest(unit: Unit, lowered: list) -> str:
         )
     wrappers += list(unit.extras)
     manifest = dict(
+        generated="by deltagen from deltagen/codegen/render.py (kernel_manifest); do not edit",
         module=unit.base_name,
         prefix=unit.prefix,
         real=lowered[0].real_type if lowered else "double",
