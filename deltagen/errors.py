@@ -41,3 +41,9 @@ class SingularityError(KinematicsError):
 class IncompleteSolutionsWarning(UserWarning):
     """ik_all answered with a method that may miss solutions (its result's ``complete`` is
     False): a pose without a valid solution may still be reachable."""
+
+
+class ManifestError(DeltagenError, RuntimeError):
+    """A compiled module and the Python declaration disagree: a field of the parameter
+    struct, or a kernel's ports (the generated C is stale, or a parameter table was edited
+    without `deltagen generate`)."""

@@ -356,7 +356,7 @@ def _float_library(result, unit, kernels, tmp, name, struct):
     for file, text in package.files.items():
         (tmp / file).write_text(text)
     module = ex.load_package(package, tmp, tmp / "build", name)
-    return ex.PointLibrary(module, unit.prefix, "float", struct)
+    return ex.PointLibrary(module, unit.prefix, "float", struct, package)
 
 
 U = 2.0**-24  # unit roundoff of binary32
@@ -386,8 +386,8 @@ def test_float32_delta_error_bound(exports, default_robot, tmp_path):
     g = robot.geometry
     L = g.l_a + g.l_b + g.r_a
     ops = {fn["name"]: fn["operation_count"] for fn in package_sources(unit, kernels).functions}
-    p_f, s_fk = lib("fk", [q], [3])
-    q_f, s_ik = lib("ik", [p], [3])
+    p_f, s_fk = lib("fk", [q])
+    q_f, s_ik = lib("ik", [p])
     assert (s_fk == st.OK).all() and (s_ik == st.OK).all()
     fk_error = np.linalg.norm(p_f - default_robot.fk(q), axis=1).max()
     ik_error = np.linalg.norm(default_robot.fk(q_f) - p, axis=1).max()
@@ -415,7 +415,7 @@ def test_float32_serial_error_bound(exports, tmp_path):
     unit, kernels = arm_unit_kernels(robot.description)
     lib = _float_library(result, unit, kernels, tmp_path, "_test_export_scara_f32", None)
     q = ex.accuracy_points(robot, "serial")
-    T_f, status = lib("fk", [q], [16])
+    T_f, status = lib("fk", [q])
     assert (status == st.OK).all()
     T = robot.fk(q)
     L = sum(abs(j.a) + abs(j.d) for j in robot.description.joints)

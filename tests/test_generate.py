@@ -39,6 +39,8 @@ NAMES = (
 )
 # the parallel-kinematics families, one module each (geometry in a run-time struct)
 NAMES += ("hexapod_kinematics.c", "hexapod_kinematics.h", "hexapod_kinematics.cdef.h")
+# each module's kernel manifest (codegen.render.kernel_manifest)
+NAMES += tuple(sorted({f"{name.split('.')[0]}.kernels.json" for name in NAMES}))
 
 
 @pytest.fixture(scope="module")
@@ -109,9 +111,10 @@ def _layout_problems(name, text):
 def test_generated_layout_is_clean(rendered):
     """trim_blocks/lstrip_blocks and the templates give C without stray indentation or runs
     of blank lines, and each file names the template it was rendered from."""
-    problems = [p for name, text in rendered.items() for p in _layout_problems(name, text)]
+    c_files = {name: text for name, text in rendered.items() if not name.endswith(".json")}
+    problems = [p for name, text in c_files.items() for p in _layout_problems(name, text)]
     assert problems == [], "\n".join(problems[:20])
-    for name, text in rendered.items():
+    for name, text in c_files.items():
         template = {".c": "source.c.j2", ".h": "header.h.j2"}.get(
             name[name.index(".") :], "cdef.h.j2"
         )
@@ -237,7 +240,7 @@ def test_rendering_is_deterministic_across_processes(tmp_path):
         assert proc.returncode == 0, stderr.decode()
     (a, _), (b, _) = procs
     names = sorted(p.name for p in a.iterdir())
-    assert len(names) == 3 * (1 + len(DETERMINISM_ARMS)), names
+    assert len(names) == 4 * (1 + len(DETERMINISM_ARMS)), names  # .c .h .cdef.h .kernels.json
     for name in names:
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
         assert (a / name).read_bytes() == (paths.generated_dir() / name).read_bytes(), name

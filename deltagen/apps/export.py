@@ -280,17 +280,23 @@ def load_package(
 
 class PointLibrary:
     """Calls the single-point functions of a compiled package, point by point, in its real
-    type (inputs rounded to it by cffi, results returned as float64)."""
+    type (inputs rounded to it by cffi, results returned as float64). The output widths of
+    each function are its kernel's ports as the package declares them (``package.functions``:
+    one point of each output)."""
 
-    def __init__(self, module, prefix: str, real: str, struct: dict | None):
+    def __init__(self, module, prefix: str, real: str, struct: dict | None, package):
         self.ffi, self.lib, self.prefix, self.real = module.ffi, module.lib, prefix, real
+        self.out_widths = {
+            fn["name"]: [port["point_width"] for port in fn["outputs"]] for fn in package.functions
+        }
         self.geometry = None
         if struct is not None:
             self.geometry = self.ffi.new(f"{prefix}_geometry *", struct)
 
-    def __call__(self, name: str, inputs, out_widths):
+    def __call__(self, name: str, inputs):
         """Evaluate ``name`` on the rows of ``inputs`` (arrays (N, width)); returns the
         outputs (N, width) float64 and the statuses (N,)."""
+        out_widths = self.out_widths[name]
         fn = getattr(self.lib, f"{self.prefix}_{name}_point")
         n = len(inputs[0])
         outs = [np.empty((n, w)) for w in out_widths]
@@ -344,11 +350,11 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
     ones on :func:`accuracy_points` (rows OK in both builds)."""
     points = accuracy_points(robot, kind)
     if kind != "serial":
-        q_d, s_qd = double_lib("ik", [points], [3])
-        q_f, s_qf = float_lib("ik", [points], [3])
-        p_d, s_pd = double_lib("fk", [q_d], [3])
-        p_f, s_pf = float_lib("fk", [q_d], [3])  # q_d rounded to float by the call
-        p_back, s_back = double_lib("fk", [q_f], [3])  # where the float ik's angles put P
+        q_d, s_qd = double_lib("ik", [points])
+        q_f, s_qf = float_lib("ik", [points])
+        p_d, s_pd = double_lib("fk", [q_d])
+        p_f, s_pf = float_lib("fk", [q_d])  # q_d rounded to float by the call
+        p_back, s_back = double_lib("fk", [q_f])  # where the float ik's angles put P
         ok_ik = (s_qd == st.OK) & (s_qf == st.OK) & (s_back == st.OK)
         ok_fk = (s_pd == st.OK) & (s_pf == st.OK)
         return {
@@ -364,8 +370,8 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
         }
     if kind == "machine":
         name = robot.description.config
-        p_d, d_d, s_d = double_lib(f"{name}_fk", [points], [3, 3])
-        p_f, d_f, s_f = float_lib(f"{name}_fk", [points], [3, 3])
+        p_d, d_d, s_d = double_lib(f"{name}_fk", [points])
+        p_f, d_f, s_f = float_lib(f"{name}_fk", [points])
         ok = (s_d == st.OK) & (s_f == st.OK)
         return {
             "n": int(len(points)),
@@ -373,8 +379,8 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
             "fk tool tip error [um]": _stats(1e6 * np.linalg.norm(p_f - p_d, axis=1)[ok]),
             "fk tool axis error [urad]": _stats(1e6 * np.linalg.norm(d_f - d_d, axis=1)[ok]),
         }
-    T_d, s_d = double_lib("fk", [points], [16])
-    T_f, s_f = float_lib("fk", [points], [16])
+    T_d, s_d = double_lib("fk", [points])
+    T_f, s_f = float_lib("fk", [points])
     ok = (s_d == st.OK) & (s_f == st.OK)
     R_d, R_f = T_d.reshape(-1, 4, 4)[:, :3, :3], T_f.reshape(-1, 4, 4)[:, :3, :3]
     return {
@@ -835,7 +841,7 @@ def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
             for file, text in package.files.items():
                 (directory / file).write_text(text)
             module = load_package(package, directory, Path(tmp) / f"build_{real}", name)
-            libraries[real] = PointLibrary(module, f"m_{real}", real, struct)
+            libraries[real] = PointLibrary(module, f"m_{real}", real, struct, package)
         return float32_accuracy(robot, kind, libraries["double"], libraries["float"])
 
 

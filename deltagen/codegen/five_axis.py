@@ -9,8 +9,9 @@ has its own fk, ik and ik_all (a few dozen operations each), named
 from __future__ import annotations
 
 from deltagen.codegen.lowering import lower
-from deltagen.codegen.render import StructField, Unit, render
+from deltagen.codegen.render import Unit, render
 from deltagen.derive.five_axis.kernels import all_kernels
+from deltagen.model.five_axis import FIVE_AXIS_PARAMETERS
 
 UNIT = Unit(
     prefix="deltagen_five_axis",
@@ -27,20 +28,7 @@ UNIT = Unit(
         "rule as the tool's motion relative to the workpiece (ISO 841). The tool axis d",
         "points from the tool tip into the spindle.",
     ),
-    struct_fields=(
-        StructField("c_pivot", "double", "[3]", "a point of the C axis, machine frame [m]"),
-        StructField("tilt_pivot", "double", "[3]", "a point of the tilt axis (table-table) [m]"),
-        StructField(
-            "head_pivot", "double", "[3]", "tilt pivot from the XYZ reference point (head) [m]"
-        ),
-        StructField(
-            "spindle_offset", "double", "[3]", "spindle gauge point from the tilt pivot [m]"
-        ),
-        StructField("tool_length", "double", "", "gauge point to tool tip [m]"),
-        StructField("singular_tol", "double", "", "tool axis within it of the C axis: SINGULAR"),
-        StructField("tilt_min", "double", "", "the tilt axis's travel, lower end [rad]"),
-        StructField("tilt_max", "double", "", "the tilt axis's travel, upper end [rad]"),
-    ),
+    struct_fields=FIVE_AXIS_PARAMETERS,
 )
 
 

@@ -5,8 +5,9 @@ and rendered to generated/, and the fk wrapper of the runtime's damped Newton
 from __future__ import annotations
 
 from deltagen.codegen.lowering import lower
-from deltagen.codegen.render import StructField, Unit, render
+from deltagen.codegen.render import Unit, render
 from deltagen.derive.hexapod.kernels import all_kernels
+from deltagen.model.hexapod import HEXAPOD_PARAMETERS
 
 UNIT = Unit(
     prefix="deltagen_hexapod",
@@ -21,21 +22,7 @@ UNIT = Unit(
         "point. A pose is the 4x4 homogeneous transform of the platform frame in the base",
         "frame, row-major (16 values); twists are (vx, vy, vz, wx, wy, wz) in the base frame.",
     ),
-    struct_fields=(
-        StructField("base_joints", "double", "[18]", "base joints a_i, 6 x 3, base frame [m]"),
-        StructField(
-            "platform_joints", "double", "[18]", "platform joints b_i, 6 x 3, platform frame [m]"
-        ),
-        StructField("base_axes", "double", "[18]", "base joint axes n_a,i, 6 x 3 unit vectors"),
-        StructField(
-            "platform_axes",
-            "double",
-            "[18]",
-            "platform joint axes n_b,i, 6 x 3 unit vectors, platform frame",
-        ),
-        StructField("scale", "double", "", "size of the robot [m] (largest joint radius)"),
-        StructField("singular_tol", "double", "", "relative singularity threshold, e.g. 1e-9"),
-    ),
+    struct_fields=HEXAPOD_PARAMETERS,
     extras=("hexapod_fk",),
 )
 

@@ -5,8 +5,9 @@ struct: one compiled core for every linear delta, one for every tripod)."""
 from __future__ import annotations
 
 from deltagen.codegen.lowering import lower
-from deltagen.codegen.render import StructField, Unit, render
+from deltagen.codegen.render import Unit, render
 from deltagen.derive.linear_delta.kernels import LINEAR, TRIPOD, all_kernels
+from deltagen.model.linear_delta import LINEAR_DELTA_PARAMETERS, TRIPOD_PARAMETERS
 
 _CONVENTIONS = (
     "Conventions: SI units (m, s). Arrays are row-major and contiguous, one row of 3 per",
@@ -23,12 +24,7 @@ LINEAR_UNIT = Unit(
     struct_doc="Tower positions (x, y) and arm lengths; the carriage of tower i rides at "
     "(tower_x[i], tower_y[i], h_i) and its arm reaches the effector point.",
     conventions=_CONVENTIONS,
-    struct_fields=(
-        StructField("tower_x", "double", "[3]", "x of each tower (radius cos angle) [m]"),
-        StructField("tower_y", "double", "[3]", "y of each tower (radius sin angle) [m]"),
-        StructField("arm_length", "double", "[3]", "arm (rod) length of each tower [m]"),
-        StructField("singular_tol", "double", "", "relative singularity threshold, e.g. 1e-9"),
-    ),
+    struct_fields=LINEAR_DELTA_PARAMETERS,
 )
 
 TRIPOD_UNIT = Unit(
@@ -41,15 +37,7 @@ TRIPOD_UNIT = Unit(
     struct_doc="Base points A = (0, 0, 0), B = (b_x, 0, 0), C = (c_x, c_y, 0) (tripodkins' "
     "Bx, Cx, Cy) and the side of the base plane the direct kinematics returns.",
     conventions=_CONVENTIONS,
-    struct_fields=(
-        StructField("b_x", "double", "", "x of base point B [m]"),
-        StructField("c_x", "double", "", "x of base point C [m]"),
-        StructField("c_y", "double", "", "y of base point C [m]"),
-        StructField(
-            "side", "double", "", "+1: the solution above the base plane (z > 0), -1: below"
-        ),
-        StructField("singular_tol", "double", "", "relative singularity threshold, e.g. 1e-9"),
-    ),
+    struct_fields=TRIPOD_PARAMETERS,
 )
 
 

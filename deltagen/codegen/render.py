@@ -7,6 +7,7 @@ and stores); the templates only lay it out.
 from __future__ import annotations
 
 import functools
+import json
 import re
 from dataclasses import dataclass
 
@@ -50,14 +51,6 @@ def environment(real_type: str = "double") -> jinja2.Environment:
 
 
 @dataclass(frozen=True)
-class StructField:
-    name: str
-    ctype: str
-    suffix: str
-    doc: str
-
-
-@dataclass(frozen=True)
 class Unit:
     """What one generated C module needs besides its kernels."""
 
@@ -66,7 +59,9 @@ class Unit:
     title: str
     source: str  # where the equations come from
     struct_name: str | None  # None: the geometry is compiled in, no parameter struct
-    struct_fields: tuple  # (StructField, ...)
+    # the family's parameter table (model/parameters.py: RobotParameter, ...), the struct's
+    # one declaration; () without a struct
+    struct_fields: tuple
     struct_doc: str = ""
     conventions: tuple = ()  # lines of the header's conventions paragraph
     axes_choices: tuple = ()  # e.g. (3, 4): a run-time row length; () for fixed widths
@@ -235,10 +230,114 @@ def render(unit: Unit, lowered: list) -> dict[str, str]:
         f"{unit.base_name}.c": ("source.c.j2", "restrict "),
         f"{unit.base_name}.cdef.h": ("cdef.h.j2", ""),
     }
-    return {
+    rendered = {
         name: env.get_template(template).render(template=template, restrict=restrict, **context)
         for name, (template, restrict) in files.items()
     }
+    rendered[manifest_name(unit.base_name)] = kernel_manifest(unit, lowered)
+    return rendered
+
+
+def manifest_name(base_name: str) -> str:
+    """The file of a module's kernel manifest: ``<base_name>.kernels.json``."""
+    return f"{base_name}.kernels.json"
+
+
+def _port_entry(port) -> dict:
+    return dict(
+        name=port.name,
+        width=port.width,
+        ctype=port.ctype,
+        unit=port.unit,
+        doc=port.doc,
+        fourth=port.fourth is not None,
+        matrix=None if port.matrix is None else list(port.matrix),
+    )
+
+
+def _check_parameters(unit: Unit, kernel) -> None:
+    """Every struct field a kernel reads is a field of the unit's parameter table, its index
+    within the field's length: the derivation and the table name the same struct."""
+    fields = {p.name: p for p in unit.struct_fields}
+    for parameter in kernel.parameters:
+        field = fields.get(parameter.field)
+        count = None if field is None else field.count
+        if (
+            field is None
+            or (parameter.index is None) != (count is None)
+            or (parameter.index is not None and not 0 <= parameter.index < count)
+        ):
+            raise ValueError(
+                f"kernel {kernel.name} reads {parameter.field}"
+                f"{'' if parameter.index is None else f'[{parameter.index}]'}, which the "
+                f"parameter table of {unit.struct_name} does not declare"
+            )
+
+
+def kernel_manifest(unit: Unit, lowered: list) -> str:
+    """The module's kernel manifest (JSON text, sorted keys, deterministic): the C prefix,
+    the parameter struct (each field's name, C type, length, unit, per-chain flag and doc,
+    from the family's parameter table) and, per C function, its ports (name, width, C type,
+    unit, doc, matrix shape) and status doc, from the derivation's ``Kernel`` objects. The
+    native backends read their widths from it (deltagen.native.manifest); it is written
+    beside the C by `deltagen generate`, which checks it with the C."""
+    functions = []
+    for lk in lowered:
+        k = lk.kernel
+        _check_parameters(unit, k)
+        functions.append(
+            dict(
+                name=k.name,
+                function=f"{unit.prefix}_{k.name}",
+                kind="kernel",
+                doc=k.doc,
+                inputs=[_port_entry(p) for p in k.inputs],
+                outputs=[_port_entry(p) for p in k.outputs],
+                status_doc=k.status_doc,
+            )
+        )
+    wrappers = []
+    if unit.newton:
+        wrappers.append("ik_newton")
+    if unit.dynamics:
+        n = unit.dynamics["n"]
+        # the ports of forward_dynamics.h.j2 (M^-1 (tau - h) of the runtime's Cholesky)
+        ports = [
+            dict(name=name, width=n, ctype="double", unit=u, doc=doc, fourth=False, matrix=None)
+            for name, u, doc in (
+                ("q", "rad|m", "joint coordinates"),
+                ("qd", "rad/s|m/s", "joint rates"),
+                ("tau", "N m|N", "joint torques"),
+                ("qdd", "rad/s^2|m/s^2", "joint accelerations"),
+            )
+        ]
+        functions.append(
+            dict(
+                name="forward_dynamics",
+                function=f"{unit.prefix}_forward_dynamics",
+                kind="wrapper",
+                doc="qdd = M(q)^-1 (tau - h(q, qd)) by the runtime's Cholesky factorisation",
+                inputs=ports[:3],
+                outputs=ports[3:],
+                status_doc="OK; INVALID; SINGULAR (M not positive definite)",
+            )
+        )
+    wrappers += list(unit.extras)
+    manifest = dict(
+        generated="by deltagen from deltagen/codegen/render.py (kernel_manifest); do not edit",
+        module=unit.base_name,
+        prefix=unit.prefix,
+        real=lowered[0].real_type if lowered else "double",
+        axes=list(unit.axes_choices),
+        struct=None
+        if unit.struct_name is None
+        else dict(name=unit.struct_name, fields=[p.manifest() for p in unit.struct_fields]),
+        functions=functions,
+        # the templates of the module's functions whose arguments are not rows of points
+        # (an options struct, a solver's scratch): declared and documented in the header only
+        wrapper_templates=wrappers,
+    )
+    return json.dumps(manifest, indent=1, sort_keys=True) + "\n"
 
 
 def render_context(unit: Unit, lowered: list) -> tuple[jinja2.Environment, dict]:

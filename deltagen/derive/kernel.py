@@ -24,6 +24,10 @@ class Port:
     width: object = "axes"
     fourth: sp.Symbol | None = None  # column 4 when axes == 4 (the fourth axis, eq. (43))
     ctype: str = "double"  # C element type; "uint8_t" for 0/1 flags (symbols are 0/1 ints)
+    # the shape of the row-major array carried in the ``width`` values of a point (the
+    # callers' shape of the output: (3, 3) for a Jacobian, (count, 4, 4) for a stack of
+    # frames); None: a plain row
+    matrix: tuple | None = None
 
     @property
     def shape(self) -> str:

@@ -11,6 +11,8 @@ q_j = m_j q_i + c_j) and ``klipper`` (Klipper rotary-delta printer.cfg as a delt
 ``hexapod``: the hexapod (Stewart-Gough platform) geometry, LinuxCNC genhexkins' default
 included.
 ``five_axis`` describes 5-axis NC machines (table-table, head-head, table-head; AC or BC).
+``parameters``: the type of the per-family parameter tables (``DELTA_PARAMETERS`` and the
+others: each field of a family's C parameter struct, declared once) and their reading.
 
 May import: ``geometry`` and the foundation modules (``deltagen.errors``, ``status``,
 ``inputs``, ``paths``). Nothing else of deltagen.

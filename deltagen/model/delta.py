@@ -51,11 +51,13 @@ payload given per call.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
+from deltagen.model.parameters import RobotParameter
 from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
@@ -355,3 +357,113 @@ class DeltaGeometry:
     @classmethod
     def from_toml(cls, path: PathLike) -> DeltaGeometry:
         return cls.from_mapping(read_toml(path), source=str(path))
+
+
+def _inertia(key: str) -> Callable[[DeltaGeometry], Any]:
+    """Reader of an inertia field: None for a geometry without inertia (the dynamics raise
+    first in the API, so the compiled core leaves these fields zero)."""
+
+    def read(g: DeltaGeometry) -> Any:
+        return None if g.inertia is None else getattr(g.inertia, key)
+
+    return read
+
+
+_NO_INERTIA = "a geometry without [inertia]: the API refuses the dynamics first"
+
+#: The fields of the delta core's parameter struct (deltagen_delta_geometry), in order: the
+#: one declaration of the delta's parameters (model/parameters.py). The kinematics read the
+#: per-chain values (an asymmetric robot); r_a, r_b, l_a, l_b are the nominal values that
+#: scale the singularity thresholds and enter the dynamics.
+DELTA_PARAMETERS = (
+    RobotParameter("r_a", "m", "base radius, O to a drive axis [m]", lambda g: g.r_a),
+    RobotParameter("r_b", "m", "platform radius, P to a joint C_i [m]", lambda g: g.r_b),
+    RobotParameter("l_a", "m", "crank length [m]", lambda g: g.l_a),
+    RobotParameter("l_b", "m", "parallelogram rod length [m]", lambda g: g.l_b),
+    RobotParameter(
+        "chain_r",
+        "m",
+        "per chain r_a,i - r_b,i [m] (symmetric: r_a - r_b)",
+        lambda g: g.chain_r,
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "chain_l_a",
+        "m",
+        "per-chain crank length [m] (symmetric: l_a)",
+        lambda g: g.chain("l_a"),
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "chain_l_b",
+        "m",
+        "per-chain rod length [m] (symmetric: l_b)",
+        lambda g: g.chain("l_b"),
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "cos_theta",
+        "1",
+        "cos of the drive positions theta_i",
+        lambda g: [math.cos(t) for t in g.theta],
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "sin_theta",
+        "1",
+        "sin of the drive positions theta_i",
+        lambda g: [math.sin(t) for t in g.theta],
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "singular_tol",
+        "1",
+        "relative singularity threshold, e.g. 1e-9",
+        lambda g: g.singular_tol,
+    ),
+    RobotParameter(
+        "I_a",
+        "kg m^2",
+        "crank inertia about the drive axis, rotor + gearbox [kg m^2]",
+        _inertia("I_a"),
+        optional=_NO_INERTIA,
+    ),
+    RobotParameter("m_a", "kg", "crank mass (gravity) [kg]", _inertia("m_a"), optional=_NO_INERTIA),
+    RobotParameter(
+        "r_ca",
+        "m",
+        "crank centre of mass from A_i along the crank [m]",
+        _inertia("r_ca"),
+        optional=_NO_INERTIA,
+    ),
+    RobotParameter(
+        "m_b",
+        "kg",
+        "mass of one rod pair (parallelogram) [kg]",
+        _inertia("m_b"),
+        optional=_NO_INERTIA,
+    ),
+    RobotParameter(
+        "m_p", "kg", "platform mass without payload [kg]", _inertia("m_p"), optional=_NO_INERTIA
+    ),
+    RobotParameter(
+        "gravity",
+        "m/s^2",
+        "gravity vector in the base frame [m/s^2]",
+        _inertia("gravity"),
+        count=3,
+        optional=_NO_INERTIA,
+    ),
+    RobotParameter(
+        "I_4",
+        "kg m^2",
+        "fourth-axis inertia about its axis [kg m^2]",
+        _inertia("I_4"),
+        optional=_NO_INERTIA,
+    ),
+)

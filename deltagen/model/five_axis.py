@@ -64,6 +64,7 @@ from typing import Any
 
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
+from deltagen.model.parameters import RobotParameter
 from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
@@ -209,3 +210,46 @@ class MachineDescription:
     @classmethod
     def from_toml(cls, path: PathLike) -> MachineDescription:
         return cls.from_mapping(read_toml(path), source=str(path))
+
+
+#: The fields of the 5-axis core's parameter struct (deltagen_five_axis_geometry), in order
+#: (model/parameters.py); a layout reads only the fields that act in it (POINTS).
+FIVE_AXIS_PARAMETERS = (
+    RobotParameter(
+        "c_pivot", "m", "a point of the C axis, machine frame [m]", lambda d: d.c_pivot, count=3
+    ),
+    RobotParameter(
+        "tilt_pivot",
+        "m",
+        "a point of the tilt axis (table-table) [m]",
+        lambda d: d.tilt_pivot,
+        count=3,
+    ),
+    RobotParameter(
+        "head_pivot",
+        "m",
+        "tilt pivot from the XYZ reference point (head) [m]",
+        lambda d: d.head_pivot,
+        count=3,
+    ),
+    RobotParameter(
+        "spindle_offset",
+        "m",
+        "spindle gauge point from the tilt pivot [m]",
+        lambda d: d.spindle_offset,
+        count=3,
+    ),
+    RobotParameter("tool_length", "m", "gauge point to tool tip [m]", lambda d: d.tool_length),
+    RobotParameter(
+        "singular_tol",
+        "rad",
+        "tool axis within it of the C axis: SINGULAR",
+        lambda d: d.singular_tol,
+    ),
+    RobotParameter(
+        "tilt_min", "rad", "the tilt axis's travel, lower end [rad]", lambda d: d.tilt_limits[0]
+    ),
+    RobotParameter(
+        "tilt_max", "rad", "the tilt axis's travel, upper end [rad]", lambda d: d.tilt_limits[1]
+    ),
+)

@@ -26,6 +26,7 @@ import numpy as np
 
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
+from deltagen.model.parameters import RobotParameter
 from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
@@ -221,3 +222,50 @@ def _leg_limits(value: Any) -> tuple[float, float]:
     if not 0 <= lo < hi:
         raise GeometryError(f"leg_limits must satisfy 0 <= l_min < l_max, got {value!r}")
     return lo, hi
+
+
+def _flat(points: Any) -> list:
+    """6 points of 3 as the struct's 18 values, point after point."""
+    return [x for point in points for x in point]
+
+
+#: The fields of the hexapod core's parameter struct (deltagen_hexapod_geometry), in order
+#: (model/parameters.py); the per-leg arrays hold the six legs' points one after another.
+HEXAPOD_PARAMETERS = (
+    RobotParameter(
+        "base_joints",
+        "m",
+        "base joints a_i, 6 x 3, base frame [m]",
+        lambda g: _flat(g.base_joints),
+        count=3 * LEGS,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "platform_joints",
+        "m",
+        "platform joints b_i, 6 x 3, platform frame [m]",
+        lambda g: _flat(g.platform_joints),
+        count=3 * LEGS,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "base_axes",
+        "1",
+        "base joint axes n_a,i, 6 x 3 unit vectors",
+        lambda g: _flat(g.base_axes),
+        count=3 * LEGS,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "platform_axes",
+        "1",
+        "platform joint axes n_b,i, 6 x 3 unit vectors, platform frame",
+        lambda g: _flat(g.platform_axes),
+        count=3 * LEGS,
+        per_chain=True,
+    ),
+    RobotParameter("scale", "m", "size of the robot [m] (largest joint radius)", lambda g: g.size),
+    RobotParameter(
+        "singular_tol", "1", "relative singularity threshold, e.g. 1e-9", lambda g: g.singular_tol
+    ),
+)

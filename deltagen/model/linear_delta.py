@@ -36,6 +36,7 @@ from typing import Any
 
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
+from deltagen.model.parameters import RobotParameter
 from deltagen.model.robot_file import PathLike, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
@@ -227,3 +228,51 @@ class TripodGeometry:
     @classmethod
     def from_toml(cls, path: PathLike) -> TripodGeometry:
         return cls.from_mapping(read_toml(path), str(path))
+
+
+_TOL_DOC = "relative singularity threshold, e.g. 1e-9"
+
+#: The fields of the linear delta core's parameter struct (deltagen_linear_delta_geometry),
+#: in order (model/parameters.py).
+LINEAR_DELTA_PARAMETERS = (
+    RobotParameter(
+        "tower_x",
+        "m",
+        "x of each tower (radius cos angle) [m]",
+        lambda g: g.tower_x,
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "tower_y",
+        "m",
+        "y of each tower (radius sin angle) [m]",
+        lambda g: g.tower_y,
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter(
+        "arm_length",
+        "m",
+        "arm (rod) length of each tower [m]",
+        lambda g: g.arm_length,
+        count=3,
+        per_chain=True,
+    ),
+    RobotParameter("singular_tol", "1", _TOL_DOC, lambda g: g.singular_tol),
+)
+
+#: The fields of the tripod core's parameter struct (deltagen_tripod_geometry), in order
+#: (model/parameters.py): LinuxCNC tripodkins' Bx, Cx, Cy and the side of the base plane.
+TRIPOD_PARAMETERS = (
+    RobotParameter("b_x", "m", "x of base point B [m]", lambda g: g.b_x),
+    RobotParameter("c_x", "m", "x of base point C [m]", lambda g: g.c_x),
+    RobotParameter("c_y", "m", "y of base point C [m]", lambda g: g.c_y),
+    RobotParameter(
+        "side",
+        "1",
+        "+1: the solution above the base plane (z > 0), -1: below",
+        lambda g: g.side_sign,
+    ),
+    RobotParameter("singular_tol", "1", _TOL_DOC, lambda g: g.singular_tol),
+)

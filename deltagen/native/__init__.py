@@ -9,6 +9,8 @@ machines' module. The speed guards' measures:
 (instructions per point under callgrind).
 
 ``hexapod`` wraps the hexapod core (``CompiledHexapod``).
+``manifest`` reads the kernel manifests (generated/<module>.kernels.json: each kernel's
+ports and widths) and fills the parameter structs, checked against their tables.
 
 May import: ``codegen``, ``derive``, ``model``, ``geometry``, the foundation modules.
 """

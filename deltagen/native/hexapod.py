@@ -6,21 +6,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from deltagen.model.hexapod import HEXAPOD_PARAMETERS
+from deltagen.model.parameters import struct_values
 from deltagen.native.build import load
+from deltagen.native.manifest import fill_struct, kernels, output_widths, reshape_outputs
 from deltagen.native.parallel import check_rc, run_batch, run_rows
+
+MODULE = "hexapod_kinematics"  # generated/hexapod_kinematics.{c,h,cdef.h,kernels.json}
+STRUCT = "deltagen_hexapod_geometry"
 
 
 def geometry_struct(g) -> dict:
-    """The fields of deltagen_hexapod_geometry for a HexapodGeometry (every field): what the
-    compiled core passes, and what `deltagen export` writes into its example."""
-    return {
-        "base_joints": [x for point in g.base_joints for x in point],
-        "platform_joints": [x for point in g.platform_joints for x in point],
-        "base_axes": [x for point in g.base_axes for x in point],
-        "platform_axes": [x for point in g.platform_axes for x in point],
-        "scale": g.size,
-        "singular_tol": g.singular_tol,
-    }
+    """The fields of deltagen_hexapod_geometry for a HexapodGeometry (every field), read
+    through its one declaration (model.hexapod.HEXAPOD_PARAMETERS): what the compiled core
+    passes, and what `deltagen export` writes into its example."""
+    return struct_values(HEXAPOD_PARAMETERS, g)
 
 
 class CompiledHexapod:
@@ -28,25 +28,32 @@ class CompiledHexapod:
 
     def __init__(self, geometry, threads=None):
         self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
-        module = load("hexapod_kinematics", "deltagen_hexapod")
+        module = load(MODULE, "deltagen_hexapod")
         self._ffi, self._lib = module.ffi, module.lib
-        self._geometry = self._ffi.new("deltagen_hexapod_geometry *", geometry_struct(geometry))
+        self._kernels = kernels(MODULE)  # ports and widths (generated/*.kernels.json)
+        self._geometry = fill_struct(self._ffi, STRUCT, HEXAPOD_PARAMETERS, geometry)
 
-    def _run(self, fn, pose, widths):
-        return run_batch(self._ffi, fn, self._geometry, [pose], widths, self.threads)
+    def _run(self, name, pose):
+        """The kernel ``name`` over poses (N, 16), split across threads; the outputs' widths
+        are the manifest's, a matrix output reshaped to (N, rows, columns)."""
+        entry = self._kernels[name]
+        fn = getattr(self._lib, entry["function"])
+        *outs, status = run_batch(
+            self._ffi, fn, self._geometry, [pose], output_widths(entry), self.threads
+        )
+        return (*reshape_outputs(entry, outs), status)
 
     def ik(self, pose):
         """Leg lengths (N, 6) and status of poses (N, 16)."""
-        return self._run(self._lib.deltagen_hexapod_ik, pose, (6,))
+        return self._run("ik", pose)
 
     def jacobian(self, pose):
         """Leg lengths (N, 6), J (N, 6, 6) and status."""
-        lengths, J, status = self._run(self._lib.deltagen_hexapod_jacobian, pose, (6, 36))
-        return lengths, J.reshape(-1, 6, 6), status
+        return self._run("jacobian", pose)
 
     def joint_angles(self, pose):
         """Base and platform joint angles (N, 12) [rad] and status."""
-        return self._run(self._lib.deltagen_hexapod_joint_angles, pose, (12,))
+        return self._run("joint_angles", pose)
 
     def fk(self, lengths, guess, tol, damping, max_step, max_iter, warm_start=False):
         """Poses (N, 16), residuals (N,), iterations (N,) and status of leg lengths (N, 6)

@@ -144,12 +144,15 @@ def run_rows(n: int, threads: int | None, call: Callable[[int, int], int]) -> in
 def run_batch(ffi, fn, geometry, inputs, widths, threads, leading=()) -> tuple:
     """(*outputs, status) of ``fn(geometry, rows, *leading, *inputs, *outputs, status)``, the
     calling convention of every struct-taking generated kernel, over the batch: inputs are
-    (N, ...) C-contiguous float64, outputs (N, w) float64 for each w of ``widths``, status
-    (N,) int8; the rows are split across threads (:func:`run_rows`). A nonzero rc is a bug
-    (the Python layer validates first): RuntimeError."""
+    (N, ...) C-contiguous float64, outputs (N, w) float64 for each w of ``widths`` ((w,
+    "uint8_t"): a 0/1 flag output, uint8), status (N,) int8; the rows are split across threads
+    (:func:`run_rows`). A nonzero rc is a bug (the Python layer validates first):
+    RuntimeError."""
     n = inputs[0].shape[0]
     fb = ffi.from_buffer
-    outs = [np.empty((n, w)) for w in widths]
+    kinds = [w if isinstance(w, tuple) else (w, "double") for w in widths]
+    outs = [np.empty((n, w), dtype=_DTYPES[ctype]) for w, ctype in kinds]
+    ctypes = [f"{ctype}[]" for _, ctype in kinds]
     status = np.empty(n, dtype=np.int8)
 
     def call(lo, hi):
@@ -158,12 +161,16 @@ def run_batch(ffi, fn, geometry, inputs, widths, threads, leading=()) -> tuple:
             hi - lo,
             *leading,
             *(fb("double[]", a[lo:hi]) for a in inputs),
-            *(fb("double[]", o[lo:hi], require_writable=True) for o in outs),
+            *(fb(c, o[lo:hi], require_writable=True) for o, c in zip(outs, ctypes)),
             fb("int8_t[]", status[lo:hi], require_writable=True),
         )
 
     check_rc(run_rows(n, threads, call))
     return (*outs, status)
+
+
+#: numpy element type of each C element type an output port may have (derive.kernel.Port)
+_DTYPES = {"double": np.float64, "uint8_t": np.uint8}
 
 
 def check_rc(rc: int) -> None:

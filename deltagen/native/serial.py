@@ -20,8 +20,10 @@ from deltagen.codegen.serial import (
     generator_fingerprint,
 )
 from deltagen.derive.serial.parts import PARTS
+from deltagen.errors import ManifestError
 from deltagen.native.build import is_built, load, usable_cache_dir
 from deltagen.native.lean import single_call
+from deltagen.native.manifest import kernels, output_widths, point_shape, reshape_outputs
 from deltagen.native.parallel import check_rc, run_rows
 from deltagen.paths import generated_dir
 
@@ -79,6 +81,14 @@ def _load(desc, part: str = "all"):
     return load(base_name(desc), c_prefix(desc), folder, _opt(folder), part=part)
 
 
+def _ports(desc, part: str = "all") -> dict:
+    """{kernel: manifest entry} of the module (or part) :func:`_load` loads: the ports of its
+    kernels (the <name>.kernels.json beside its C, native.manifest)."""
+    folder = source_dir(desc, part=part)
+    assert folder is not None
+    return kernels(base_name(desc), folder)
+
+
 def complete_module(desc):
     """The description's module with every kernel (kinematics, ik_all, dynamics when it has
     inertials), built if needed: what `deltagen generate ROBOT_FILE` leaves in the cache."""
@@ -112,28 +122,35 @@ class CompiledArm:
         # generate`, a bundled robot) is loaded at once and serves every kernel.
         self._lock = threading.Lock()
         self._parts: dict[str, Any] = {}
+        # {kernel: manifest entry} of every module loaded so far (its ports and widths)
+        self._kernels: dict[str, dict] = {}
         self._kinematics_desc = desc.without_inertia() if desc.has_inertia else desc
         if module_ready(desc):
             module = _load(desc)
+            self._kernels.update(_ports(desc))
             self._parts = dict.fromkeys(("later", "dynamics", "mass", "coriolis"), module)
             if not desc.has_inertia:
                 for part in ("dynamics", "mass", "coriolis"):
                     del self._parts[part]
         elif desc.has_inertia and module_ready(self._kinematics_desc):
             module = self._parts["later"] = _load(self._kinematics_desc)
+            self._kernels.update(_ports(self._kinematics_desc))
         else:
             module = _load(self._kinematics_desc, part="first")
+            self._kernels.update(_ports(self._kinematics_desc, part="first"))
         self._ffi, self._lib = module.ffi, module.lib
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
-    def _run(self, name, inputs, *widths):
-        """Call <prefix>_<name> on the input rows: one (N, width) output per width, then
-        the status. A width may be (width, "uint8_t") for a flag output. The rows are split
-        into chunks across threads (native.parallel)."""
+    def _run(self, name, inputs):
+        """Call <prefix>_<name> on the input rows: one output per port of the kernel's
+        manifest entry ((N, width), a matrix port reshaped to (N, *matrix); a flag port
+        uint8), then the status. The rows are split into chunks across threads
+        (native.parallel)."""
         n = inputs[0].shape[0]
         ffi, fn = self.c_function(name)
+        entry = self._kernels[name]
         fb = ffi.from_buffer
-        kinds = [w if isinstance(w, tuple) else (w, "double") for w in widths]
+        kinds = [w if isinstance(w, tuple) else (w, "double") for w in output_widths(entry)]
         outs = [
             np.empty((n, width), dtype=np.uint8 if ctype == "uint8_t" else np.float64)
             for width, ctype in kinds
@@ -150,26 +167,23 @@ class CompiledArm:
             )
 
         check_rc(run_rows(n, self.threads, call))
-        return (*outs, status)
+        return (*reshape_outputs(entry, outs), status)
 
     def fk(self, q):
-        T, status = self._run("fk", [q], 16)
-        return T.reshape(-1, 4, 4), status
+        """T (N, 4, 4) and the status."""
+        return self._run("fk", [q])
 
     def frames(self, q):
-        count = self.desc.n + 2
-        F, status = self._run("frames", [q], 16 * count)
-        return F.reshape(-1, count, 4, 4), status
+        """Every link frame (N, n + 2, 4, 4), base to tool, and the status."""
+        return self._run("frames", [q])
 
     def jacobian(self, q):
-        J, status = self._run("jacobian", [q], 6 * self.desc.n)
-        return J.reshape(-1, 6, self.desc.n), status
+        """J (N, 6, n) and the status."""
+        return self._run("jacobian", [q])
 
     def fk_jacobian(self, q):
         """T (N, 4, 4) and J (N, 6, n) from one evaluation, and the status."""
-        n = self.desc.n
-        T, J, status = self._run("fk_jacobian", [q], 16, 6 * n)
-        return T.reshape(-1, 4, 4), J.reshape(-1, 6, n), status
+        return self._run("fk_jacobian", [q])
 
     def ik_options(self, **fields):
         """A filled deltagen_ik_options struct (cffi-owned) for :meth:`ik_newton`: one
@@ -228,8 +242,7 @@ class CompiledArm:
         return q, err_p, err_r, iterations, status
 
     def jacobian_dot(self, q, qd):
-        Jd, status = self._run("jacobian_dot", [q, qd], 6 * self.desc.n)
-        return Jd.reshape(-1, 6, self.desc.n), status
+        return self._run("jacobian_dot", [q, qd])
 
     # -- dynamics (arms with inertial parameters; the API checks has_inertia first) ------
 
@@ -243,7 +256,9 @@ class CompiledArm:
                 module = self._parts.get(part)
                 if module is None:
                     desc = self._kinematics_desc if part == "later" else self.desc
-                    module = self._parts[part] = _load(desc, part=part)
+                    module = _load(desc, part=part)
+                    self._kernels.update(_ports(desc, part=part))
+                    self._parts[part] = module
         return module
 
     def load_dynamics(self):
@@ -259,6 +274,13 @@ class CompiledArm:
     def dynamics_loaded(self) -> bool:
         return "dynamics" in self._parts
 
+    def kernel(self, name: str) -> dict:
+        """The manifest entry of kernel ``name`` (native.manifest.kernels: C function, ports
+        with width, C type, unit and matrix shape), from the module that has it (a new
+        arm's part is built on first use): for callers that time or drive the C directly."""
+        self.c_function(name)
+        return self._kernels[name]
+
     def c_function(self, name: str):
         """(ffi, function) of the generated C function <prefix>_<name>, from the module
         that has it (for callers that time or drive the C directly)."""
@@ -268,41 +290,45 @@ class CompiledArm:
         return ffi, getattr(lib, f"{self._prefix}_{name}")
 
     def inverse_dynamics(self, q, qd, qdd):
-        return self._run("inverse_dynamics", [q, qd, qdd], self.desc.n)
+        return self._run("inverse_dynamics", [q, qd, qdd])
 
     def nonlinear_effects(self, q, qd):
-        return self._run("nonlinear_effects", [q, qd], self.desc.n)
+        return self._run("nonlinear_effects", [q, qd])
 
     def gravity_torque(self, q):
-        return self._run("gravity_torque", [q], self.desc.n)
+        return self._run("gravity_torque", [q])
 
     def mass_matrix(self, q):
-        n = self.desc.n
-        M, status = self._run("mass_matrix", [q], n * n)
-        return M.reshape(-1, n, n), status
+        """M (N, n, n) and the status."""
+        return self._run("mass_matrix", [q])
 
     def coriolis(self, q, qd):
-        n = self.desc.n
-        C, status = self._run("coriolis", [q, qd], n * n)
-        return C.reshape(-1, n, n), status
+        """C (N, n, n) and the status."""
+        return self._run("coriolis", [q, qd])
 
     def forward_dynamics(self, q, qd, tau):
-        return self._run("forward_dynamics", [q, qd, tau], self.desc.n)
+        return self._run("forward_dynamics", [q, qd, tau])
+
+    def _single(self, name, module=None, rows=None):
+        """The lean one-point call (native.lean) of kernel ``name`` of ``module`` (None: the
+        module loaded first): input rows and output shapes from its manifest entry
+        (``rows``: native.lean's kinds instead)."""
+        ffi, lib = (self._ffi, self._lib) if module is None else (module.ffi, module.lib)
+        entry = self._kernels[name]
+        rows = rows or [port["width"] for port in entry["inputs"]]
+        outputs = [(point_shape(port), port["ctype"]) for port in entry["outputs"]]
+        return single_call(ffi, getattr(lib, entry["function"]), (1,), rows, outputs)
 
     def single_dynamics(self, name):
         """Lean path (native.lean) for one state of inverse_dynamics or forward_dynamics:
         three rows of n numbers (inputs.plain_row) in, the (n,) result out, or None when
         the general path must handle the call (other inputs, a status other than OK)."""
-        module, n = self.part_module(_PART_OF[name]), self.desc.n
-        fn = getattr(module.lib, f"{self._prefix}_{name}")
-        return single_call(module.ffi, fn, (1,), [n, n, n], [((n,), "double")])
+        return self._single(name, self.part_module(_PART_OF[name]))
 
     def single_mass_matrix(self):
         """Lean path of mass_matrix for one q (inputs.plain_row): M (n, n), or None when the
         general path must handle the call."""
-        module, n = self.part_module("mass"), self.desc.n
-        fn = getattr(module.lib, f"{self._prefix}_mass_matrix")
-        return single_call(module.ffi, fn, (1,), [n], [((n, n), "double")])
+        return self._single("mass_matrix", self.part_module("mass"))
 
     @property
     def has_ik_all(self) -> bool:
@@ -311,11 +337,19 @@ class CompiledArm:
         it)."""
         return hasattr(self.load_kinematics().lib, f"{self._prefix}_ik_all")
 
+    def _check_branches(self, k: int) -> None:
+        """ik_all's callers name its branch count k: the manifest's must be the same."""
+        found = self._kernels["ik_all"]["outputs"][0]["matrix"][0]
+        if found != k:
+            raise ManifestError(f"ik_all of {self.desc.name} has {found} branches, not {k}")
+
     def ik_all(self, T, k):
         """Every closed-form branch (generated ik_all): T (N, 4, 4) C-contiguous ->
         q (N, k, n), valid (N, k) bool, status (N,)."""
-        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)], k * self.desc.n, (k, "uint8_t"))
-        return q.reshape(-1, k, self.desc.n), valid != 0, status
+        self.load_kinematics()
+        self._check_branches(k)
+        q, valid, status = self._run("ik_all", [T.reshape(-1, 16)])
+        return q, valid != 0, status
 
     def single_ik_all(self, k):
         """Lean path of ik_all for one pose: a (4, 4) C-contiguous float64 array with the
@@ -324,10 +358,8 @@ class CompiledArm:
         call (other inputs; a status other than OK)."""
         if not self.has_ik_all:
             return None
-        module = self.load_kinematics()
-        fn = getattr(module.lib, f"{self._prefix}_ik_all")
-        n = self.desc.n
-        return single_call(module.ffi, fn, (1,), ["pose"], [((k, n), "double"), ((k,), "uint8_t")])
+        self._check_branches(k)
+        return self._single("ik_all", self.load_kinematics(), rows=["pose"])
 
     def single(self, name):
         """Lean path (native.lean) for one configuration of fk or jacobian: what
@@ -336,7 +368,4 @@ class CompiledArm:
         general path must handle the call (other inputs, whose checks it makes, or a status
         other than OK: the kernel's status is OK only when every output is finite,
         deltagen/status.py). Same C function, same numbers as the batch path."""
-        n = self.desc.n
-        shape = (4, 4) if name == "fk" else (6, n)
-        fn = getattr(self._lib, f"{self._prefix}_{name}")
-        return single_call(self._ffi, fn, (1,), [n], [(shape, "double")])
+        return self._single(name)

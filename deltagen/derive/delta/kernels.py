@@ -207,7 +207,16 @@ def jacobian_kernel() -> Kernel:
         name="jacobian",
         doc="Jacobian J = J_p^-1 J_q of eq. (30), row-major 3x3 per point: pdot = J qdot.",
         inputs=(_q_port(),),
-        outputs=(Port("J", J_out, "Jacobian d p / d q, row-major 3x3 [m/rad]", "m/rad", width=9),),
+        outputs=(
+            Port(
+                "J",
+                J_out,
+                "Jacobian d p / d q, row-major 3x3 [m/rad]",
+                "m/rad",
+                width=9,
+                matrix=(3, 3),
+            ),
+        ),
         stages=tuple(fkd.fk_stages())
         + (flags,)
         + _rate_stages(with_jacobian=True)

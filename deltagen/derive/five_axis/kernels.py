@@ -193,6 +193,7 @@ def ik_all_kernel(layout: str, rotary: str) -> Kernel:
                 f"x, y, z [m], {rotary[0]}, C [rad]",
                 "m, rad",
                 width=10,
+                matrix=(2, 5),
             ),
             Port(
                 "valid",

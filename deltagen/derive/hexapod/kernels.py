@@ -105,6 +105,7 @@ def jacobian_kernel() -> Kernel:
                 "6 x 6 row-major, row i = dl_i/d(vx, vy, vz, wx, wy, wz) [1, m]",
                 "1, m",
                 width=36,
+                matrix=(6, 6),
             ),
         ),
         stages=(

@@ -198,7 +198,11 @@ def _jacobian_kernel(kind):
         name="jacobian",
         doc="Jacobian J = D^-1 diag(g), row-major 3x3 per point: pdot = J qdot.",
         inputs=(_port(_JOINTS[kind][0]),),
-        outputs=(Port("J", J_out, "Jacobian d p / d q, row-major 3x3 [m/m]", "1", width=9),),
+        outputs=(
+            Port(
+                "J", J_out, "Jacobian d p / d q, row-major 3x3 [m/m]", "1", width=9, matrix=(3, 3)
+            ),
+        ),
         stages=tuple(_fk_stages(kind))
         + (flags,)
         + rates.rate_stages(kind, with_jacobian=True)

@@ -990,6 +990,7 @@ class IKKernelBuilder:
                     f"{units}; NaN where the branch has no real solution",
                     "rad",
                     width=k * n,
+                    matrix=(k, n),
                 ),
                 Port(
                     "valid",

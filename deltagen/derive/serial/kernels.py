@@ -76,7 +76,16 @@ class ArmKernels:
             f"Forward kinematics: q -> tool pose T = base A_1 ... A_{self.desc.n} tool "
             "(4x4 homogeneous, row-major; position in m).",
             (self.q_port,),
-            (Port("T", outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16),),
+            (
+                Port(
+                    "T",
+                    outs,
+                    "tool pose, 4x4 row-major [rotation | position m]",
+                    "m",
+                    width=16,
+                    matrix=(4, 4),
+                ),
+            ),
             [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)],
         )
 
@@ -97,6 +106,7 @@ class ArmKernels:
                     f"{count} frames x 4x4 row-major, base to tool",
                     "m",
                     width=16 * count,
+                    matrix=(count, 4, 4),
                 ),
             ),
             [*c.stages, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", stage)],
@@ -130,6 +140,7 @@ class ArmKernels:
                     f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]",
                     "-",
                     width=6 * n,
+                    matrix=(6, n),
                 ),
             ),
             [*c.stages, stage, _flags(c.sym.q), Stage("outputs (NaN on invalid rows)", out_stage)],
@@ -150,7 +161,12 @@ class ArmKernels:
             (self.q_port,),
             (
                 Port(
-                    "T", t_outs, "tool pose, 4x4 row-major [rotation | position m]", "m", width=16
+                    "T",
+                    t_outs,
+                    "tool pose, 4x4 row-major [rotation | position m]",
+                    "m",
+                    width=16,
+                    matrix=(4, 4),
                 ),
                 Port(
                     "J",
@@ -158,6 +174,7 @@ class ArmKernels:
                     f"6 x {n} row-major [m/rad, 1 (prismatic) | rad/rad]",
                     "-",
                     width=6 * n,
+                    matrix=(6, n),
                 ),
             ),
             [
@@ -183,7 +200,7 @@ class ArmKernels:
             f"Time derivative of the geometric Jacobian along qdot, 6 x {n} "
             "row-major: tool acceleration = J qddot + Jdot qdot.",
             (self.q_port, self.qd_port),
-            (Port("Jd", outs, f"6 x {n} row-major, per second", "-", width=6 * n),),
+            (Port("Jd", outs, f"6 x {n} row-major, per second", "-", width=6 * n, matrix=(6, n)),),
             [
                 *c.stages,
                 stage,
@@ -229,7 +246,16 @@ class ArmKernels:
             name=name,
             doc=doc,
             inputs=inputs,
-            outputs=(Port(port[0], outs, port[1], port[2], width=len(values)),),
+            outputs=(
+                Port(
+                    port[0],
+                    outs,
+                    port[1],
+                    port[2],
+                    width=len(values),
+                    matrix=port[3] if len(port) > 3 else None,
+                ),
+            ),
             stages=(
                 Stage(
                     "recursive Newton-Euler passes (derive/serial/dynamics.py)", tuple(assignments)
@@ -301,7 +327,7 @@ class ArmKernels:
             "armature (reflected motor inertia) on the diagonal; one RNEA pass per column "
             "(qdd = e_j, no velocity, no gravity).",
             (self.q_port,),
-            ("M", f"{n} x {n} row-major [kg m^2 | kg m | kg]", "kg m^2|kg"),
+            ("M", f"{n} x {n} row-major [kg m^2 | kg m | kg]", "kg m^2|kg", (n, n)),
             [M[r][c] for r in range(n) for c in range(n)],
             assignments,
         )
@@ -315,7 +341,7 @@ class ArmKernels:
             "(C qd: Coriolis and centrifugal torques; Mdot - 2C skew-symmetric); column j is "
             "the bilinear RNEA of (qd, e_j).",
             (self.q_port, self.qd_port),
-            ("C", f"{n} x {n} row-major [kg m^2/s | ...]", "kg m^2/s"),
+            ("C", f"{n} x {n} row-major [kg m^2/s | ...]", "kg m^2/s", (n, n)),
             [C[r][c] for r in range(n) for c in range(n)],
             assignments,
         )
