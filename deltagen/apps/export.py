@@ -61,6 +61,10 @@ MACHINE_STATUS_MEANINGS = {
 }
 
 
+#: The robot kinds (apps/robots.py) an export serves, in the order messages name them.
+KINDS = ("delta", "serial", "linear_delta", "tripod", "hexapod", "machine")
+
+
 class ExportError(DeltagenError, ValueError):
     """The export cannot be written (a bad option or output folder)."""
 
@@ -839,8 +843,61 @@ def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
         return float32_accuracy(robot, kind, libraries["double"], libraries["float"])
 
 
-def main(args) -> int:
-    robot = args.robot_object
+def add_parser(subparsers) -> None:
+    """`deltagen export ROBOT --out DIR [--float32] [--prefix NAME] [--no-batch] [--force]`."""
+    from deltagen.apps.robots import ROBOT_HELP, add_urdf_options
+
+    x = subparsers.add_parser(
+        "export",
+        help="standalone C package of a robot for a controller (CMake, Makefile, example)",
+        description="Write a self-contained C99 package of the robot: its generated C "
+        "(batched and single-point functions), the runtime C it needs, CMakeLists.txt, a "
+        "Makefile, example.c and a README with units, status codes, cost, stack use and "
+        "(--float32) the accuracy against double.",
+    )
+    x.add_argument("robot", help="'delta' or " + ROBOT_HELP)
+    x.add_argument("--out", required=True, help="folder to write the package into")
+    x.add_argument(
+        "--float32",
+        action="store_true",
+        help="float arithmetic (sinf/cosf/sqrtf); the README states the accuracy against double",
+    )
+    x.add_argument("--prefix", help="C prefix of functions and files (default deltagen_<robot>)")
+    x.add_argument(
+        "--no-batch", action="store_true", help="single-point functions only (no batched ones)"
+    )
+    x.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite files in --out that an earlier export did not write (e.g. your own "
+        "Makefile); without it such a folder is refused",
+    )
+    add_urdf_options(x)
+
+
+def run(args) -> int:
+    """`deltagen export`: the package written (and measured, with a C compiler)."""
+    from deltagen.apps.robots import HEXAPOD, kind_of, robot_of
+
+    spec = "default" if args.robot == "delta" else args.robot
+    # only the description is needed: no compiled core
+    robot = robot_of(args, kinds=KINDS, spec=spec, backend="reference")
+    if kind_of(robot) == HEXAPOD:
+        from deltagen.apps import hexapod
+
+        for flag, value in (
+            ("--float32", args.float32),
+            ("--prefix", args.prefix),
+            ("--no-batch", args.no_batch),
+        ):
+            if value:
+                raise ExportError(f"{flag} is not available for a hexapod's export")
+        files, output = hexapod.export_hexapod(robot, args.out, force=args.force)
+        print(f"wrote {len(files)} files to {args.out}/: {', '.join(files)}")
+        if output:
+            print("example output:")
+            print(output, end="")
+        return 0
     result = export(
         robot,
         args.out,

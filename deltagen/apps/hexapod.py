@@ -45,7 +45,7 @@ def _compute(robot, forward: bool, x: np.ndarray):
     return out, valid, names
 
 
-def run(robot, forward: bool, args) -> int:
+def evaluate(robot, forward: bool, args) -> int:
     """The job of `deltagen fk|ik` for a hexapod; returns the exit status."""
     refuse_options(args, SERIAL_ONLY, "applies to serial arms, not to a hexapod")
     if getattr(args, "degrees", False):
