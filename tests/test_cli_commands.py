@@ -58,3 +58,20 @@ def test_hexapod_workspace_beyond_the_memory_budget_is_refused(capsys, tmp_path)
     assert "deltagen workspace: error: the hexapod's position grid at --step = 1e-05 m" in err
     assert "choose a larger --step" in err and "DELTAGEN_MAX_MEMORY" in err
     assert not out.exists()
+
+
+def test_machine_float32_export_measures_its_accuracy(capsys, tmp_path):
+    """`deltagen export MACHINE --float32` measures the float build against the double one
+    on the machine's own functions (<config>_fk), not the delta's ik/fk (a traceback
+    before)."""
+    from deltagen.apps.export import compiler
+
+    if compiler() is None:
+        pytest.skip("no C compiler")
+    out = tmp_path / "machine"
+    assert cli.main(["export", "xyzac_trt", "--out", str(out), "--float32"]) == 0
+    printed = capsys.readouterr().out
+    tip = [line for line in printed.splitlines() if line.startswith("float32 fk tool tip")]
+    assert len(tip) == 1
+    # float near 0.1 m: a few units of 2^-24 * 0.1 m = 6e-3 um; far below 5 um
+    assert 0 < float(tip[0].split("max ")[1].split(",")[0]) < 5
