@@ -203,8 +203,7 @@ def _command(command, robot_args, kind, n, tmp_path):
         out = str(tmp_path / "ws")
         return ["workspace", spec, "--out", out, "--step", step, "--quiet", "--backend", "reference", *urdf]  # fmt: skip
     if command == "export":
-        batch = [] if kind == HEXAPOD else ["--no-batch"]  # a hexapod exports its batched C
-        return ["export", spec, "--out", str(tmp_path / "export"), *batch, *urdf]
+        return ["export", spec, "--out", str(tmp_path / "export"), "--no-batch", *urdf]
     if command == "calibrate":
         data = tmp_path / "measured.csv"
         if kind == DELTA:

@@ -103,7 +103,7 @@ def test_sample_times():
 def test_run_default_robot_passes(backend):
     robot = DeltaRobot.default(backend=backend)
     calls = []
-    result = val.run(
+    result = val.run_trajectory(
         robot,
         rate=200.0,
         duration=2.0,
@@ -132,8 +132,8 @@ def test_run_default_robot_passes(backend):
 
 
 def test_backends_agree():
-    a = val.run(DeltaRobot.default(backend="compiled"), rate=100.0, duration=1.0)
-    b = val.run(DeltaRobot.default(backend="reference"), rate=100.0, duration=1.0)
+    a = val.run_trajectory(DeltaRobot.default(backend="compiled"), rate=100.0, duration=1.0)
+    b = val.run_trajectory(DeltaRobot.default(backend="reference"), rate=100.0, duration=1.0)
     for name in ("q", "qd", "qdd"):
         scale = np.abs(getattr(b, name)).max()
         np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-11 * scale)
@@ -181,7 +181,7 @@ class _Perturbed:
 
 
 def test_run_detects_wrong_kinematics():
-    result = val.run(_Perturbed(DeltaRobot.default()), rate=50.0, duration=0.5)
+    result = val.run_trajectory(_Perturbed(DeltaRobot.default()), rate=50.0, duration=0.5)
     assert not result.failed.any()
     assert result.relative_errors()["position"] == pytest.approx(1e-6 / 1.35, rel=1e-6)
     assert not result.passed
@@ -198,7 +198,7 @@ def _short_robot(tmp_path):
 
 def test_run_flags_unreachable_samples(tmp_path):
     robot = DeltaRobot.from_toml(_short_robot(tmp_path))
-    result = val.run(robot, rate=100.0, duration=2.0)
+    result = val.run_trajectory(robot, rate=100.0, duration=2.0)
     _, reachable = robot.ik(result.p, errors="nan")
     np.testing.assert_array_equal(result.unreachable, ~reachable)
     assert result.unreachable.any() and (~result.unreachable).any()

@@ -75,8 +75,50 @@ def geometry_toml(g) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(args) -> int:
-    robot = args.robot_object
+def add_parser(subparsers) -> None:
+    """`deltagen calibrate DATA.csv [--robot DELTA] ...`."""
+    from deltagen.apps.robots import ROBOT_HELP, add_urdf_options
+
+    c = subparsers.add_parser(
+        "calibrate",
+        help="identify a built delta robot's geometry from measured (q, p) pairs",
+        description="Levenberg-Marquardt on fk(q) = p over per-chain parameters; prints "
+        "values, 1-sigma uncertainty, residuals before/after and what the data cannot "
+        "separate, and whether the fit is valid (exit 0; 1: not valid, no file written without "
+        "--force; 2: bad input). DATA.csv: rows q1,q2,q3,x,y,z (rad, m), optional header.",
+    )
+    c.add_argument("data", help="CSV of measurements: q1,q2,q3,x,y,z")
+    c.add_argument("--robot", default="default", help="the nominal robot: " + ROBOT_HELP)
+    c.add_argument(
+        "--params",
+        default="r_a,l_a,l_b,theta,q_offset",
+        help="comma-separated: r_a, r_b, l_a, l_b, theta, q_offset (each per chain) or single "
+        "entries like l_a[0] (default r_a,l_a,l_b,theta,q_offset)",
+    )
+    c.add_argument(
+        "--sigma",
+        type=float,
+        help="measurement noise per coordinate [m] if known: the residual is then "
+        "chi-square tested against it (else sigma is estimated from the residual)",
+    )
+    c.add_argument("--degrees", action="store_true", help="q in the file in degrees")
+    c.add_argument(
+        "--out", help="write the calibrated robot file (TOML) here (only for a valid fit)"
+    )
+    c.add_argument(
+        "--force",
+        action="store_true",
+        help="write --out even when the fit is not valid (the exit status stays 1)",
+    )
+    c.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    add_urdf_options(c)
+
+
+def run(args) -> int:
+    """`deltagen calibrate`: 0 a valid fit, 1 not valid (nothing written without --force)."""
+    from deltagen.apps.robots import DELTA, robot_of
+
+    robot = robot_of(args, kinds=(DELTA,))
     q, p = read_measurements(Path(args.data))
     if args.degrees:
         q = np.radians(q)

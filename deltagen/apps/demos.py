@@ -719,9 +719,27 @@ def run_singular(out=None, stream=None) -> int:
     return 0
 
 
-def main(args) -> int:
-    name = getattr(args, "name", None)
-    out = getattr(args, "out", None)
+def add_parser(subparsers) -> None:
+    """`deltagen demo NAME [--out DIR]`."""
+    d = subparsers.add_parser(
+        "demo",
+        help="worked examples: the lecture's SCARA table, the Miskolc pick and place, a "
+        "path past a wrist singularity",
+    )
+    d.add_argument("name", choices=("lecture-scara", "miskolc-pick-and-place", "singular-path"))
+    d.add_argument(
+        "--out",
+        default=None,
+        help="folder for PNG/CSV output (miskolc default: miskolc_pick_and_place; "
+        "singular-path: singular_path; "
+        "lecture-scara writes its plot only when given)",
+    )
+
+
+def run(args) -> int:
+    """`deltagen demo NAME`: 0 when the demo ran."""
+    name = args.name
+    out = args.out
     if name == "singular-path":
         return run_singular(out)
     if name == "lecture-scara":

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from deltagen.apps.robots import COUPLED, DELTA, SERIAL
+
 
 @dataclass
 class TorqueProfile:
@@ -192,15 +194,45 @@ def load_trajectory(robot, path):
     return t, q, qd, qdd, valid
 
 
-def main(args) -> int:
-    from deltagen.api.delta import DeltaRobot
+def add_parser(subparsers) -> None:
+    """`deltagen dynamics [ROBOT] --input TRAJECTORY ...`."""
+    from deltagen.apps.robots import ROBOT_HELP, add_urdf_options
+
+    y = subparsers.add_parser(
+        "dynamics",
+        help="motor / joint torques of a delta robot or serial arm along a trajectory file",
+        description="Feed-forward motor torques along a trajectory (CSV or NPY, columns by "
+        "name): t,q1,q2,q3,qd1..qd3,qdd1..qdd3 or t,x,y,z,xd,yd,zd,xdd,ydd,zdd (rates given), "
+        "or t,q1,q2,q3 / t,x,y,z (rates by second-order finite differences). Prints peak and "
+        "RMS torque and peak power per drive and the simplified model's difference; writes "
+        "t,q..,qd..,qdd..,tau1..tau3,valid. A serial arm with inertial parameters reads "
+        "t,q1..qn[,qd1..qdn,qdd1..qddn] and writes t,q..,qd..,qdd..,tau1..taun,valid "
+        "(--payload and --model are for delta robots).",
+    )
+    y.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
+    y.add_argument("--input", required=True, help="trajectory file (CSV or NPY)")
+    y.add_argument("--output", help="torque file (.csv or .npy; default: stdout)")
+    y.add_argument("--payload", type=float, default=0.0, help="payload [kg] (default 0)")
+    y.add_argument("--model", choices=("exact", "simplified"), default="exact")
+    y.add_argument("--plot", help="PNG of q, qd, qdd and tau per drive")
+    y.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    add_urdf_options(y)
+
+
+def run(args) -> int:
+    """`deltagen dynamics`: the job of the robot's kind (JOBS); returns the exit status."""
+    from deltagen.apps.robots import kind_of, robot_of
+
+    robot = robot_of(args, kinds=tuple(JOBS))
+    return JOBS[kind_of(robot)](robot, args)
+
+
+def delta_main(robot, args) -> int:
+    """`deltagen dynamics` of a delta robot: motor torques of both models."""
     from deltagen.apps.tables import write_table
     from deltagen.errors import rows_text
     from deltagen.inputs import InputError
 
-    robot = args.robot_object
-    if not isinstance(robot, DeltaRobot):
-        return serial_main(robot, args)
     t, q, qd, qdd, valid = load_trajectory(robot, args.input)
     if args.payload < 0 or not math.isfinite(args.payload):
         raise InputError(f"--payload must be a non-negative mass in kg, got {args.payload!r}")
@@ -359,3 +391,7 @@ def serial_main(arm, args) -> int:
         )
         return 1
     return 0
+
+
+#: The job of `deltagen dynamics` for each robot kind it serves (apps/robots.py).
+JOBS = {DELTA: delta_main, SERIAL: serial_main, COUPLED: serial_main}

@@ -59,6 +59,23 @@ MACHINE_STATUS_MEANINGS = {
     st.INVALID: "a non-finite input, a zero tool axis (ik), or finite inputs so large that the "
     "arithmetic overflows: all outputs NaN",
 }
+#: where a hexapod's kernels (derive/hexapod/kernels.py) and its fk (the runtime's damped
+#: Newton, runtime/deltagen_hexapod_fk.c) say otherwise
+HEXAPOD_STATUS_MEANINGS = {
+    st.UNREACHABLE: "fk: no convergence within the options' iteration cap (lengths the "
+    "platform cannot take, or a start pose outside the solution's basin); not returned by "
+    "ik, jacobian, joint_angles",
+    st.SINGULAR: "jacobian: a leg shorter than singular_tol * scale (J NaN, the lengths still "
+    "given); fk: no convergence with J singular at the last iterate",
+    st.INVALID: "a non-finite input, or finite inputs so large that the arithmetic overflows: "
+    "all outputs NaN",
+}
+#: The status meanings per robot kind where they differ from STATUS_MEANINGS.
+KIND_STATUS_MEANINGS = {"machine": MACHINE_STATUS_MEANINGS, "hexapod": HEXAPOD_STATUS_MEANINGS}
+
+
+#: The robot kinds (apps/robots.py) an export serves, in the order messages name them.
+KINDS = ("delta", "serial", "linear_delta", "tripod", "hexapod", "machine")
 
 
 class ExportError(DeltagenError, ValueError):
@@ -79,16 +96,21 @@ class ExportResult:
 
 
 def _robot_parts(robot):
-    """(kind, unit, kernels) of a DeltaRobot, SerialRobot, LinearDelta, Tripod or
+    """(kind, unit, kernels) of a DeltaRobot, SerialRobot, LinearDelta, Tripod, Hexapod or
     FiveAxisMachine."""
     from deltagen.api.five_axis import FiveAxisMachine
+    from deltagen.api.hexapod import Hexapod
     from deltagen.codegen.export import (
         arm_unit_kernels,
         delta_unit_kernels,
+        hexapod_unit_kernels,
         machine_unit_kernels,
         trilateration_unit_kernels,
     )
 
+    if isinstance(robot, Hexapod):  # the batched module's extra: fk (the runtime's Newton)
+        unit, kernels = hexapod_unit_kernels()
+        return "hexapod", unit, kernels
     if isinstance(robot, FiveAxisMachine):
         unit, kernels = machine_unit_kernels(robot.description)
         return "machine", unit, kernels
@@ -110,8 +132,12 @@ def _literal(value: float, real: str) -> str:
 
 
 def _geometry_struct(robot, kind) -> dict | None:
-    """The C parameter struct's fields of a DeltaRobot, LinearDelta, Tripod or 5-axis machine
-    (None for an arm: its numbers are compiled in)."""
+    """The C parameter struct's fields of a DeltaRobot, LinearDelta, Tripod, Hexapod or 5-axis
+    machine (None for an arm: its numbers are compiled in)."""
+    if kind == "hexapod":
+        from deltagen.native.hexapod import geometry_struct as hexapod_struct
+
+        return hexapod_struct(robot.geometry)
     if kind == "delta":
         from deltagen.native.delta import geometry_struct
 
@@ -160,7 +186,36 @@ def _three_sphere_points(robot, n: int, seed: int = 0) -> np.ndarray:
     return np.c_[centre[:2] + rng.uniform(-size, size, (n, 2)), z]
 
 
+def _hexapod_poses(robot, n: int, seed: int = 0) -> np.ndarray:
+    """Poses (n, 4, 4) about a Hexapod's home: positions within 0.05 x its size, roll, pitch
+    and yaw within 0.1 rad (uniform, ``seed``)."""
+    rng = np.random.default_rng(seed)
+    home = np.asarray(robot.geometry.home_position, dtype=float)
+    p = home + 0.05 * robot.geometry.size * rng.uniform(-1.0, 1.0, (n, 3))
+    return robot.pose(p, rpy=rng.uniform(-0.1, 0.1, (n, 3)))
+
+
+def _example_context(robot, kind, real: str, package) -> tuple[str, dict]:
+    """The example's template (templates/export/) and what a family's own template needs
+    besides the shared context: the hexapod's example (ik of a shifted, tilted pose and,
+    where the package has it, fk of those lengths from home: the batched double module's
+    extra) has its own."""
+    if kind != "hexapod":
+        return "example.c", {}
+    from deltagen.apps.hexapod import EXAMPLE_POSITION, EXAMPLE_RPY
+
+    g = robot.geometry
+    pose = robot.pose(np.add(g.home_position, EXAMPLE_POSITION), rpy=EXAMPLE_RPY)
+    return "hexapod_example.c", dict(
+        pose=[_literal(v, real) for v in pose.reshape(-1)],
+        home=[repr(float(v)) for v in robot.home.reshape(-1)],
+        fk=package.batch and "hexapod_fk" in package.unit.extras,
+    )
+
+
 def _example_pose(robot, kind):
+    if kind == "hexapod":
+        return [], None
     if kind == "delta":
         return list(DELTA_EXAMPLE_Q), None
     if kind == "machine":
@@ -323,6 +378,8 @@ def accuracy_points(robot, kind, n_random: int = 2000, seed: int = 0):
     vectors uniform within its limits (+-pi where a revolute joint has none, +-1 m prismatic)."""
     if kind in ("linear_delta", "tripod"):
         return _three_sphere_points(robot, n_random, seed)
+    if kind == "hexapod":  # poses, 16 values each
+        return _hexapod_poses(robot, n_random, seed).reshape(-1, 16)
     if kind == "delta":
         from deltagen.apps.validate import sample_times, trajectory
 
@@ -349,7 +406,22 @@ def float32_accuracy(robot, kind, double_lib: PointLibrary, float_lib: PointLibr
     """{quantity label: (max, rms)} of the float32 single-point functions against the double
     ones on :func:`accuracy_points` (rows OK in both builds)."""
     points = accuracy_points(robot, kind)
-    if kind != "serial":
+    if kind == "hexapod":
+        l_d, s_d = double_lib("ik", [points])
+        l_f, s_f = float_lib("ik", [points])
+        _, J_d, s_jd = double_lib("jacobian", [points])
+        _, J_f, s_jf = float_lib("jacobian", [points])
+        ok = (s_d == st.OK) & (s_f == st.OK)
+        ok_j = (s_jd == st.OK) & (s_jf == st.OK)
+        return {
+            "n": int(len(points)),
+            "ok": int(np.count_nonzero(ok & ok_j)),
+            "ik leg length error [um]": _stats(1e6 * np.abs(l_f - l_d).max(axis=1)[ok]),
+            "jacobian error, max |J_f - J_d| entry [1e-6]": _stats(
+                1e6 * np.abs(J_f - J_d).max(axis=1)[ok_j]
+            ),
+        }
+    if kind not in ("serial", "machine"):
         q_d, s_qd = double_lib("ik", [points])
         q_f, s_qf = float_lib("ik", [points])
         p_d, s_pd = double_lib("fk", [q_d])
@@ -412,6 +484,11 @@ def _accuracy_text(kind, result) -> str:
             "double ik's angles; and the double fk of the float ik's angles against the "
             "position asked for"
         )
+    elif kind == "hexapod":
+        where = (
+            f"{result['n']} random poses about home (within 0.05 x the size and 0.1 rad, seed 0)"
+        )
+        how = "ik and the jacobian in float and in double of the same pose"
     elif kind == "machine":
         where = f"{result['n']} random joint vectors (x, y, z within 0.5 m, angles within pi)"
         how = "fk in float and in double of the same joint vector"
@@ -642,6 +719,8 @@ def export(
             if kind == "delta"
             else f"the 5-axis machine '{robot.name}'"
             if kind == "machine"
+            else f"the hexapod '{robot.geometry.name}'"
+            if kind == "hexapod"
             else f"the {kind.replace('_', ' ')} '{robot.name}'"
             if kind != "serial"
             else robot.name
@@ -652,12 +731,14 @@ def export(
         header=package.robot_header or package.header,
         real=real,
     )
+    example_template, example_context = _example_context(robot, kind, real, package)
     add(
         "example.c",
         render_extra(
-            "example.c",
+            example_template,
             real,
             **common,
+            **example_context,
             kind=kind,
             struct_name=unit.struct_name,
             struct_values=_struct_values(robot, real, kind),
@@ -744,6 +825,8 @@ def _write_and_measure(
         symbols.append((f"{unit.prefix}_ik_newton", "see header"))
     if batch and unit.dynamics:
         symbols.append((f"{unit.prefix}_forward_dynamics", "see header"))
+    if batch and "hexapod_fk" in unit.extras:
+        symbols.append((f"{unit.prefix}_fk", "see header"))
     for symbol, ops in symbols:
         measured = stack.get(symbol) if stack else None
         text = (
@@ -773,7 +856,7 @@ def _write_and_measure(
         **common,
         title=unit.title,
         command=_command(
-            robot_arg or (robot.geometry.name if kind == "delta" else robot.name),
+            robot_arg or (robot.geometry.name if kind in ("delta", "hexapod") else robot.name),
             out.name,
             float32,
             prefix,
@@ -794,9 +877,7 @@ def _write_and_measure(
             (
                 code,
                 name,
-                (MACHINE_STATUS_MEANINGS if kind == "machine" else {}).get(
-                    code, STATUS_MEANINGS[code]
-                ),
+                KIND_STATUS_MEANINGS.get(kind, {}).get(code, STATUS_MEANINGS[code]),
             )
             for code, name in sorted(st.STATUS_NAMES.items())
         ],
@@ -845,8 +926,45 @@ def _measure_float32(robot, kind, unit, kernels, prefix, out: Path) -> dict:
         return float32_accuracy(robot, kind, libraries["double"], libraries["float"])
 
 
-def main(args) -> int:
-    robot = args.robot_object
+def add_parser(subparsers) -> None:
+    """`deltagen export ROBOT --out DIR [--float32] [--prefix NAME] [--no-batch] [--force]`."""
+    from deltagen.apps.robots import ROBOT_HELP, add_urdf_options
+
+    x = subparsers.add_parser(
+        "export",
+        help="standalone C package of a robot for a controller (CMake, Makefile, example)",
+        description="Write a self-contained C99 package of the robot: its generated C "
+        "(batched and single-point functions), the runtime C it needs, CMakeLists.txt, a "
+        "Makefile, example.c and a README with units, status codes, cost, stack use and "
+        "(--float32) the accuracy against double.",
+    )
+    x.add_argument("robot", help="'delta' or " + ROBOT_HELP)
+    x.add_argument("--out", required=True, help="folder to write the package into")
+    x.add_argument(
+        "--float32",
+        action="store_true",
+        help="float arithmetic (sinf/cosf/sqrtf); the README states the accuracy against double",
+    )
+    x.add_argument("--prefix", help="C prefix of functions and files (default deltagen_<robot>)")
+    x.add_argument(
+        "--no-batch", action="store_true", help="single-point functions only (no batched ones)"
+    )
+    x.add_argument(
+        "--force",
+        action="store_true",
+        help="overwrite files in --out that an earlier export did not write (e.g. your own "
+        "Makefile); without it such a folder is refused",
+    )
+    add_urdf_options(x)
+
+
+def run(args) -> int:
+    """`deltagen export`: the package written (and measured, with a C compiler)."""
+    from deltagen.apps.robots import robot_of
+
+    spec = "default" if args.robot == "delta" else args.robot
+    # only the description is needed: no compiled core
+    robot = robot_of(args, kinds=KINDS, spec=spec, backend="reference")
     result = export(
         robot,
         args.out,

@@ -112,3 +112,86 @@ def check(directory: Path | None = None) -> list[str]:
                 f"{name} is {'stale' if path.exists() else 'missing'}:\n" + "".join(list(diff)[:60])
             )
     return problems
+
+
+# ---------------------------------------------------------------- the command
+
+
+def add_parser(subparsers) -> None:
+    """`deltagen generate [ROBOT_FILE] [--check]`."""
+    from deltagen.apps.robots import add_urdf_options
+
+    p = subparsers.add_parser("generate", help="regenerate generated/ (deterministic)")
+    p.add_argument(
+        "robot_file",
+        nargs="?",
+        help="a serial-arm TOML, a URDF or a bundled arm's name: generate, compile and "
+        "cache its module",
+    )
+    add_urdf_options(p)
+    p.add_argument(
+        "--check", action="store_true", help="fail and show a diff if generated/ is stale"
+    )
+
+
+def run(args) -> int:
+    """`deltagen generate`: 0 written or current; 1 (--check) stale; the robot file's module
+    generated and compiled."""
+    import sys
+
+    if args.robot_file:
+        return _run_robot_file(args)
+    if args.check:
+        problems = check()
+        for text in problems:
+            print(text, file=sys.stderr)
+        if problems:
+            print("generated/ is stale: run `deltagen generate`", file=sys.stderr)
+            return 1
+        print("generated/ is up to date")
+        return 0
+    written = write()
+    for path in written:
+        print(f"wrote {path}")
+    if not written:
+        print("generated/ already up to date")
+    for name in stray():
+        print(
+            f"warning: generated/{name} is not produced by the generator; delete it "
+            "(`deltagen generate --check` fails while it is there)",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def _run_robot_file(args) -> int:
+    """`deltagen generate ROBOT_FILE`: a serial arm's module; other kinds have a generic core
+    whose geometry is read at run time, so they are refused with the way to use the file."""
+    from deltagen.apps.robots import COUPLED, KIND_NAMES, MACHINE, SERIAL, kind_of, robot_of
+    from deltagen.inputs import InputError
+    from deltagen.paths import runtime_dir
+
+    robot = robot_of(args, spec=args.robot_file, backend="reference")  # built below, once
+    kind = kind_of(robot)
+    if kind == MACHINE:
+        raise InputError(
+            f"`deltagen generate ROBOT_FILE` takes a serial arm; {args.robot_file} describes "
+            "a 5-axis NC machine, whose core is generic (`deltagen generate` writes it; the "
+            f"geometry is read at run time), so use the file directly: `deltagen fk "
+            f"{args.robot_file} ...`"
+        )
+    if kind not in (SERIAL, COUPLED):
+        raise InputError(
+            "`deltagen generate ROBOT_FILE` takes a serial arm: a serial-arm file (a "
+            "`convention` key and [[joint]] tables), a URDF or a bundled arm's name; "
+            f"{args.robot_file} "
+            f"describes {KIND_NAMES[kind]}, whose core is generic (`deltagen generate` writes "
+            f"it; the geometry is read at run time), so use the file directly: "
+            f"`deltagen fk {args.robot_file} ...`"
+        )
+    folder = generate_robot(robot)
+    print(
+        f"generated and compiled {args.robot_file}: C sources in {folder} "
+        f"(compile them with the runtime C in {runtime_dir()})"
+    )
+    return 0

@@ -1,5 +1,7 @@
-"""`deltagen fk | ik HEXAPOD.toml ...` for a hexapod (Stewart-Gough platform): one pose as
-values or a batch (``--input`` CSV/NPY, :mod:`deltagen.apps.tables`).
+"""The hexapod's (Stewart-Gough platform) jobs of the commands: `deltagen fk | ik HEXAPOD.toml
+...` (:func:`evaluate`: one pose as values or a batch, ``--input`` CSV/NPY,
+:mod:`deltagen.apps.tables`) and `deltagen workspace` (:func:`write_workspace`); its export
+is apps/export.py's (the example pose below).
 
 ==============  ============================  ==============================================
 command         reads                         writes
@@ -24,9 +26,14 @@ from deltagen.apps.kinematics import SERIAL_ONLY, refuse_options
 from deltagen.apps.tables import Columns, output_format, read_table, write_table
 from deltagen.errors import DeltagenError
 from deltagen.geometry.rotations import rpy
-from deltagen.inputs import InputError
+from deltagen.inputs import InputError, check_memory
 
 LENGTHS = tuple(f"l{i + 1}" for i in range(6))
+#: Bytes a point of the position workspace's grid takes at the peak (Hexapod.position_workspace
+#: and limits, float64): the grid and its positions (3 + 3), the pose and its masked copies
+#: (3 x 16), lengths (6), joint angles (12), the Jacobian with its singular values (36 + 6)
+#: and the condition numbers (2), plus the masks.
+BYTES_PER_POINT = 8 * (3 + 3 + 3 * 16 + 6 + 12 + 36 + 6 + 2) + 8
 POSE = ("x", "y", "z", "roll", "pitch", "yaw")
 TRANSFORM = tuple(f"T{r}{c}" for r in range(1, 5) for c in range(1, 5))
 
@@ -45,7 +52,7 @@ def _compute(robot, forward: bool, x: np.ndarray):
     return out, valid, names
 
 
-def run(robot, forward: bool, args) -> int:
+def evaluate(robot, forward: bool, args) -> int:
     """The job of `deltagen fk|ik` for a hexapod; returns the exit status."""
     refuse_options(args, SERIAL_ONLY, "applies to serial arms, not to a hexapod")
     if getattr(args, "degrees", False):
@@ -116,11 +123,18 @@ def write_workspace(robot, out, step=None, quiet=False) -> list:
     if not (math.isfinite(step) and step > 0):
         raise InputError(f"--step must be a positive length [m], got {step}")
     half = 0.6 * size
-    x = np.arange(-half, half + step / 2, step)
     hz = np.array(g.home_position)
-    z = np.arange(max(hz[2] - half, step), hz[2] + half + step / 2, step)
-    if x.size * x.size * z.size > 2_000_000:
-        raise InputError(f"--step {step} m gives more than 2e6 grid points; use a larger step")
+    z_low = max(hz[2] - half, step)
+    nx = math.floor(2 * half / step + 0.5) + 1.0  # the lengths of the aranges below, as floats
+    nz = max(math.floor((hz[2] + half - z_low) / step + 0.5) + 1.0, 0.0)
+    check_memory(
+        nx * nx * nz * BYTES_PER_POINT,
+        f"the hexapod's position grid at --step = {step:g} m ({nx:.0f} x {nx:.0f} x {nz:.0f} = "
+        f"{nx * nx * nz:.3g} points)",
+        "choose a larger --step (each halving needs 8 times the memory)",
+    )
+    x = np.arange(-half, half + step / 2, step)
+    z = np.arange(z_low, hz[2] + half + step / 2, step)
     ws = robot.position_workspace(x + hz[0], x + hz[1], z)
     angles = np.radians(np.linspace(-45, 45, 61))
     ows = robot.orientation_workspace(angles, angles, [0.0])
@@ -223,65 +237,7 @@ def _demo_poses(robot, n: int = 24) -> np.ndarray:
     return robot.pose(p, rpy=rpy)
 
 
-#: the pose of the exported example: a shifted, tilted platform [m, rad]
+#: the pose of the exported example (`deltagen export`, apps/export.py): a shifted, tilted
+#: platform [m, rad]
 EXAMPLE_POSITION = (0.01, -0.02, 0.0)  # added to the home position
 EXAMPLE_RPY = (0.05, 0.02, -0.1)
-
-
-def export_hexapod(robot, out, force: bool = False) -> tuple[list, str | None]:
-    """`deltagen export HEXAPOD.toml --out DIR`: the hexapod's generated C (as in
-    generated/), the runtime C it includes (deltagen_hexapod_fk, deltagen_linalg), an
-    example.c with this robot's numbers (ik of one pose, fk of its lengths from home), a
-    Makefile and a CMakeLists.txt; with a C compiler the example is built and run. Returns
-    (files written, the example's output or None)."""
-    from pathlib import Path
-
-    from deltagen.apps.export import ExportError, build_and_measure, compiler
-    from deltagen.codegen.export import render_extra
-    from deltagen.codegen.hexapod import UNIT
-    from deltagen.native.build import runtime_files
-    from deltagen.native.hexapod import geometry_struct
-    from deltagen.paths import generated_dir
-
-    out = Path(out)
-    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not force)):
-        raise ExportError(f"--out {out} exists and is not an empty folder (--force overwrites)")
-    files = {}
-    for ext in (".c", ".h"):
-        name = f"{UNIT.base_name}{ext}"
-        files[name] = (generated_dir() / name).read_text()
-    for path in runtime_files(list(files.values())):
-        files[path.name] = path.read_text()
-    values = []
-    for name, value in geometry_struct(robot.geometry).items():
-        if isinstance(value, list):
-            values.append((name, "{" + ", ".join(repr(float(v)) for v in value) + "}"))
-        else:
-            values.append((name, repr(float(value))))
-    g = robot.geometry
-    pose = robot.pose(np.add(g.home_position, EXAMPLE_POSITION), rpy=EXAMPLE_RPY)
-    sources = sorted(n for n in files if n.endswith(".c"))
-    common = dict(
-        robot_name=f"hexapod '{g.name}'",
-        library=UNIT.prefix,
-        sources=sources,
-        prefix=UNIT.prefix,
-        header=f"{UNIT.base_name}.h",
-    )
-    files["example.c"] = render_extra(
-        "hexapod_example.c",
-        "double",
-        **common,
-        struct_name=UNIT.struct_name,
-        struct_values=values,
-        pose=[repr(float(v)) for v in pose.reshape(-1)],
-        home=[repr(float(v)) for v in robot.home.reshape(-1)],
-    )
-    files["Makefile"] = render_extra("Makefile", "double", **common)
-    files["CMakeLists.txt"] = render_extra("CMakeLists.txt", "double", **common)
-    out.mkdir(parents=True, exist_ok=True)
-    for name, text in files.items():
-        (out / name).write_text(text)
-    cc = compiler()
-    output = build_and_measure(out, sources, cc)[1] if cc else None
-    return sorted(files), output

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from deltagen.apps import robots
 from deltagen.apps.tables import Columns, output_format, read_table, write_table
 from deltagen.errors import DeltagenError
 from deltagen.geometry.rotations import matrix_from_euler_zyx
@@ -252,12 +253,9 @@ def _parse_q0(robot, text, degrees, revolute) -> np.ndarray:
     return q0
 
 
-def run(robot, forward: bool, args) -> int:
-    """The job of `deltagen fk|ik`; returns the exit status."""
-    from deltagen.api.five_axis import FiveAxisMachine
-
-    if isinstance(robot, FiveAxisMachine):
-        return _run_machine(robot, forward, args)
+def evaluate(robot, forward: bool, args) -> int:
+    """The job of `deltagen fk|ik` for a delta robot, a linear delta, a tripod or a serial
+    arm; returns the exit status."""
     job = make_job(robot, forward, args)
     if args.output is not None:
         output_format(args.output)  # a bad file name fails before any work
@@ -368,7 +366,7 @@ def _show(job, x, row) -> None:
 MACHINE_POSE = ("px", "py", "pz", "dx", "dy", "dz")
 
 
-def _run_machine(machine, forward: bool, args) -> int:
+def evaluate_machine(machine, forward: bool, args) -> int:
     """`deltagen fk|ik` of a 5-axis machine: joints x, y, z, tilt, C <-> tool tip and axis."""
     refuse_options(
         args, ("config", "method", "restarts"), "applies to serial arms, not to a 5-axis machine"
@@ -440,3 +438,121 @@ def _run_machine(machine, forward: bool, args) -> int:
                 + f"] (x, y, z m; {joints[3].upper()}, C {unit})"
             )
     return EXIT_OK
+
+
+# ---------------------------------------------------------------- the commands
+
+
+def _evaluate_hexapod(robot, forward: bool, args) -> int:
+    from deltagen.apps.hexapod import evaluate as hexapod_evaluate  # it imports this module
+
+    return hexapod_evaluate(robot, forward, args)
+
+
+#: The job of fk and ik for each robot kind they serve (apps/robots.py): the 5-axis machine
+#: and the hexapod have their own columns, the other kinds the general job (make_job).
+JOBS = {
+    robots.DELTA: evaluate,
+    robots.SERIAL: evaluate,
+    robots.COUPLED: evaluate,
+    robots.LINEAR_DELTA: evaluate,
+    robots.TRIPOD: evaluate,
+    robots.HEXAPOD: _evaluate_hexapod,
+    robots.MACHINE: evaluate_machine,
+}
+
+EXIT_STATUS = """\
+exit status:
+  0  success: every pose computed
+  1  computed, but some rows have no valid result (unreachable, singular, outside the
+     joint limits, or a row of the input file with NaN/inf); those rows are NaN with
+     valid = 0 in the output, and a message on stderr names them
+  2  usage or input error: bad arguments, an unreadable or malformed file, missing columns"""
+
+FILES = """\
+files (--input, --output): CSV or NPY, one pose per row, columns matched by name:
+  CSV  a header line names the columns, plain (q1,q2,q3) or numpy's (# q1,q2,q3); without
+       one the columns are positional
+  NPY  a structured array whose field names are the column names (what deltagen writes:
+       float64 fields, valid as bool); a plain 2-D array is positional
+  Other columns (valid, ...) are ignored, so ik reads what fk writes and the other way round.
+  Delta: q1,q2,q3[,q4] <-> x,y,z[,phi] (q4 the fourth axis, phi the platform's turn it
+  gives, delta report eq. (43)). Serial arm: q1..qn <-> x,y,z,psi,theta,phi (Euler angles
+  after Vukobratovic, R = Rz(psi) Ry(theta) Rx(phi)), T11..T44; ik uses T11..T34 when present.
+  --output: the extension (.csv, .txt or .npy, any case) picks the format."""
+
+
+def add_parser(subparsers) -> None:
+    """`deltagen fk` and `deltagen ik` (their values and options may be intermixed: the
+    command line parses them with parse_intermixed_args)."""
+    import argparse
+
+    for name, forward in (("fk", True), ("ik", False)):
+        what = "direct" if forward else "inverse"
+        e = subparsers.add_parser(
+            name,
+            help=f"{what} kinematics of one pose or of a CSV/NPY batch",
+            description=f"{what.capitalize()} kinematics of the delta robot or a serial arm: "
+            "one pose from the values, or a batch with --input.",
+            epilog=FILES + "\n\n" + EXIT_STATUS,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        e.add_argument("robot", nargs="?", default="default", help=robots.ROBOT_HELP)
+        e.add_argument(
+            "values",
+            nargs="*",
+            type=float,
+            help=(
+                "joint coordinates q1 .. qn: delta q1 q2 q3 [q4, the fourth axis]; serial arm one "
+                "per joint (rad, m for prismatic joints)"
+                if forward
+                else "the pose: delta x y z [phi] (m, rad); serial arm x y z psi theta phi (m, rad)"
+            ),
+        )
+        e.add_argument("--input", help="CSV or NPY file with one pose per row (see below)")
+        e.add_argument(
+            "--output", help="write the result here (.csv, .txt or .npy), also for a single pose"
+        )
+        e.add_argument(
+            "--degrees",
+            action="store_true",
+            help="revolute joint coordinates in degrees (prismatic stay in m; "
+            + ("the input q" if forward else "the output q and --q0")
+            + "; poses are always m and rad)",
+        )
+        if forward:
+            e.add_argument(
+                "--config",
+                help="serial arm: a named joint configuration of its "
+                "robot file (e.g. qr) instead of values",
+            )
+        else:
+            e.add_argument(
+                "--config", help="serial arm: the closed-form branch by name (e.g. front_up_noflip)"
+            )
+            e.add_argument(
+                "--q0",
+                help="serial arm: start of the numeric solver, or with a "
+                "closed form the branch nearest it: n numbers "
+                "(--q0=-0.1,0.2,...) or a configuration name (e.g. qn)",
+            )
+            e.add_argument(
+                "--method",
+                choices=("auto", "analytic", "numeric"),
+                help="serial arm: auto (default: closed form if the arm has one), "
+                "analytic, or numeric (damped Newton)",
+            )
+            e.add_argument(
+                "--restarts",
+                type=int,
+                help="serial arm, --method numeric: random restarts when a start does not converge",
+            )
+        e.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+        robots.add_urdf_options(e)
+        e.set_defaults(command=name, q0=None, method=None, restarts=None)
+
+
+def run(args) -> int:
+    """`deltagen fk|ik`: the job of the robot's kind (JOBS); returns the exit status."""
+    robot = robots.robot_of(args, kinds=tuple(JOBS))
+    return JOBS[robots.kind_of(robot)](robot, args.command == "fk", args)

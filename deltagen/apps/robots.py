@@ -38,6 +38,55 @@ KIND_NAMES = {
 }
 
 
+#: What a command's robot argument may be (its help text).
+ROBOT_HELP = (
+    "'default' (the delta robot), a bundled serial arm's or 5-axis machine's name, a robot "
+    "TOML file, a URDF, or a Klipper printer.cfg (kinematics: rotary_delta)"
+)
+
+
+def add_urdf_options(parser: Any) -> None:
+    """--base, --tip, --locked: the chain of a URDF robot (SerialRobot.from_urdf)."""
+    parser.add_argument(
+        "--base", metavar="LINK", help="URDF: the chain's first link (default: the root)"
+    )
+    parser.add_argument(
+        "--tip",
+        metavar="LINK",
+        help="URDF: the chain's last link (default: the single leaf; needed when the tree "
+        "branches, e.g. an arm with a two-finger gripper)",
+    )
+    parser.add_argument(
+        "--locked",
+        metavar="NAME=VALUE",
+        action="append",
+        help="URDF: the value [rad or m] of a movable joint off the chain (or above --base), "
+        "where its link's mass is folded in (default 0); repeatable",
+    )
+
+
+def robot_of(
+    args: Any,
+    kinds: Sequence[str] | None = None,
+    *,
+    spec: str | None = None,
+    backend: str | None = None,
+) -> Any:
+    """The robot of a command's parsed arguments, the one place a command loads it
+    (:func:`load_robot`): ``spec`` or ``args.robot``, ``backend`` or ``args.backend``
+    (default compiled), the URDF options --base, --tip, --locked; refused (InputError, exit
+    status 2) unless of ``kinds``, naming ``args.command``."""
+    return load_robot(
+        args.robot if spec is None else spec,
+        backend or getattr(args, "backend", None) or "compiled",
+        base=getattr(args, "base", None),
+        tip=getattr(args, "tip", None),
+        locked=parse_locked(getattr(args, "locked", None)),
+        command=args.command,
+        kinds=kinds,
+    )
+
+
 def kind_of(robot: Any) -> str:
     """The kind (DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD, HEXAPOD, MACHINE) of a loaded
     robot."""

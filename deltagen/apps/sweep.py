@@ -48,7 +48,32 @@ def write_pareto(result: SweepResult, path: str | Path) -> Path:
     return path
 
 
-def main(args) -> int:
+def add_parser(subparsers) -> None:
+    """`deltagen sweep SPEC.toml ...`."""
+    s = subparsers.add_parser(
+        "sweep",
+        help="geometry sweep of a delta robot on Dask (local cluster by default)",
+        description="Score the designs of a sweep spec (TOML: design grid|sobol, n, seed, "
+        "[ranges] r_a r_b l_a l_b, [score], [move], [constraints], [inertia]; see "
+        "deltagen.api.sweep) by workspace volume, usable cylinder, worst condition number "
+        "and peak torque; write sweep.csv and pareto.png to --out. Runs on a local Dask "
+        "cluster (every core), or on the cluster at --scheduler / DASK_SCHEDULER_ADDRESS.",
+    )
+    s.add_argument("spec", help="sweep spec (TOML)")
+    s.add_argument(
+        "--scheduler",
+        default=None,
+        help="Dask scheduler address (tcp://host:port); 'inprocess' runs without Dask; "
+        "default: DASK_SCHEDULER_ADDRESS, else a local cluster",
+    )
+    s.add_argument("--workers", type=int, default=None, help="local cluster: worker processes")
+    s.add_argument("--out", default="sweep", help="output folder (default: sweep)")
+    s.add_argument("--no-plot", action="store_true", help="skip the Pareto plot")
+    s.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+
+def run(args) -> int:
+    """`deltagen sweep`: the designs scored, the CSV and the Pareto plot written."""
     result = sweep(
         args.spec,
         scheduler=args.scheduler,

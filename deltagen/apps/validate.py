@@ -265,7 +265,7 @@ class ValidationResult:
         }
 
 
-def run(
+def run_trajectory(
     robot, rate=1000.0, duration=10.0, progress=None, chunk=CHUNK, payload=0.0
 ) -> ValidationResult:
     """Run the validation trajectory through ``robot``; see the module docstring.
@@ -657,26 +657,35 @@ def report(result: ValidationResult, out=None) -> None:
     )
 
 
-def _load_robot(args):
-    from deltagen.api.delta import DeltaRobot
+def add_parser(subparsers) -> None:
+    """`deltagen validate [--robot DELTA] ...`."""
+    from deltagen.apps.robots import add_urdf_options
 
-    backend = getattr(args, "backend", None) or "compiled"
-    name = getattr(args, "robot", None)
-    if name in (None, "default"):
-        return DeltaRobot.default(backend=backend)
-    return DeltaRobot.from_toml(name, backend=backend)
+    v = subparsers.add_parser("validate", help="the report's validation trajectory, eqs. (40)-(42)")
+    v.add_argument(
+        "--robot", default="default", help="a delta robot: 'default', a TOML or a printer.cfg"
+    )
+    v.add_argument("--rate", type=float, default=1000.0, help="sample rate [Hz] (default 1000)")
+    v.add_argument("--duration", type=float, default=10.0, help="duration [s] (default 10)")
+    v.add_argument("--out", default="validation", help="folder for the CSV and PNG")
+    v.add_argument("--no-plot", action="store_true", help="skip the PNG figure")
+    v.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    v.add_argument("--quiet", action="store_true", help="no progress output")
+    add_urdf_options(v)
 
 
-def main(args) -> int:
+def run(args) -> int:
     """The `deltagen validate` subcommand: 0 if the run passes, 1 if it fails."""
-    quiet = bool(getattr(args, "quiet", False))
-    if not getattr(args, "no_plot", False):
+    from deltagen.apps.robots import DELTA, robot_of
+
+    quiet = bool(args.quiet)
+    if not args.no_plot:
         from deltagen.apps.plotting import pyplot
 
         pyplot()  # before the run: without matplotlib, say so now (or use --no-plot)
-    robot = getattr(args, "robot_object", None) or _load_robot(args)
-    rate = getattr(args, "rate", 1000.0)
-    duration = getattr(args, "duration", 10.0)
+    robot = robot_of(args, kinds=(DELTA,))
+    rate = args.rate
+    duration = args.duration
 
     def progress(done, total):
         print(
@@ -686,17 +695,17 @@ def main(args) -> int:
         )
 
     try:
-        result = run(robot, rate, duration, progress=None if quiet else progress)
-    except KinematicsError as exc:  # run() works in errors="nan" mode: should not happen
+        result = run_trajectory(robot, rate, duration, progress=None if quiet else progress)
+    except KinematicsError as exc:  # run_trajectory() works in errors="nan" mode: should not happen
         print(f"deltagen validate: FAILED: {exc}", file=sys.stderr)
         return 1
     report(result)
 
-    out = Path(getattr(args, "out", None) or "validation")
+    out = Path(args.out or "validation")
     out.mkdir(parents=True, exist_ok=True)
     csv_path = write_csv(result, out / "validation.csv")
     print(f"wrote {csv_path}")
-    if not getattr(args, "no_plot", False):
+    if not args.no_plot:
         png = plot(result, out / "validation.png")
         print(f"wrote {png}")
         if result.dynamics is not None:

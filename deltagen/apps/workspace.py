@@ -24,6 +24,7 @@ import numpy as np
 from deltagen import __version__
 from deltagen.api.delta import DeltaRobot
 from deltagen.api.workspace import DeltaWorkspace, SerialWorkspace
+from deltagen.apps import robots
 from deltagen.apps.plotting import pyplot
 from deltagen.errors import DeltagenError
 
@@ -300,8 +301,48 @@ def write_summary(ws, path: str | Path, robot) -> Path:
     return path
 
 
-def main(args) -> int:
-    robot = args.robot_object
+def add_parser(subparsers) -> None:
+    """`deltagen workspace [ROBOT] ...`."""
+    from deltagen.apps.robots import ROBOT_HELP, add_urdf_options
+
+    w = subparsers.add_parser(
+        "workspace",
+        help="workspace and dexterity maps of a robot (PNG slices, 3D HTML page, summary)",
+        description="Usable workspace on a voxel grid (delta: ik over a box, crank limits "
+        "+-90 deg, condition number of J <= --max-condition; serial arm: position-only "
+        "reach by joint sampling), the largest inscribed cylinder and box (delta), and "
+        "pictures: workspace_slices.png, workspace.html (self-contained, plotly), "
+        "workspace_summary.csv in --out.",
+    )
+    w.add_argument("robot", nargs="?", default="default", help=ROBOT_HELP)
+    w.add_argument("--out", default="workspace", help="output folder (default: workspace)")
+    w.add_argument("--step", type=float, default=None, help="voxel edge [m] (default: size/40)")
+    w.add_argument(
+        "--max-condition", type=float, default=10.0, help="delta: bound on cond(J) (default 10)"
+    )
+    w.add_argument("--quiet", action="store_true", help="no progress bars or summary")
+    w.add_argument("--backend", choices=("compiled", "reference"), default="compiled")
+    add_urdf_options(w)
+
+
+def run(args) -> int:
+    """`deltagen workspace`: the job of the robot's kind (JOBS); returns the exit status."""
+    from deltagen.apps.robots import kind_of, robot_of
+
+    robot = robot_of(args, kinds=tuple(JOBS))
+    return JOBS[kind_of(robot)](robot, args)
+
+
+def _hexapod_maps(robot, args) -> int:
+    from deltagen.apps.hexapod import write_workspace
+
+    write_workspace(robot, args.out, args.step, args.quiet)
+    return 0
+
+
+def write_maps(robot, args) -> int:
+    """`deltagen workspace` of a delta robot, a linear delta, a tripod or a serial arm: the
+    slices, the 3D page and the summary in ``args.out``."""
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     show = False if args.quiet else None
@@ -321,3 +362,15 @@ def main(args) -> int:
         for p in written:
             print(f"wrote {p}")
     return 0
+
+
+#: The job of `deltagen workspace` for each robot kind it serves (apps/robots.py): the
+#: hexapod's grid of positions and orientations (apps/hexapod.py), the robot's own
+#: workspace for the others.
+JOBS = {
+    robots.DELTA: write_maps,
+    robots.SERIAL: write_maps,
+    robots.LINEAR_DELTA: write_maps,
+    robots.TRIPOD: write_maps,
+    robots.HEXAPOD: _hexapod_maps,
+}

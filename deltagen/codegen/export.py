@@ -40,6 +40,17 @@ def trilateration_unit_kernels(kind: str) -> tuple[Unit, tuple]:
     return (LINEAR_UNIT if kind == LINEAR else TRIPOD_UNIT), _KERNELS[kind]
 
 
+def hexapod_unit_kernels() -> tuple[Unit, tuple]:
+    """The hexapod core's unit (its extra: fk, the wrapper of the runtime's damped Newton)
+    and its derived kernels (ik, jacobian, joint_angles)."""
+    from deltagen.codegen.hexapod import UNIT
+    from deltagen.derive.hexapod.kernels import all_kernels
+
+    if "hexapod" not in _KERNELS:
+        _KERNELS["hexapod"] = tuple(all_kernels())
+    return UNIT, _KERNELS["hexapod"]
+
+
 def machine_unit_kernels(desc) -> tuple[Unit, tuple]:
     """The 5-axis machine module's unit and the kernels of the machine's layout and rotary
     pair (fk, ik, ik_all): the geometry is read from the struct at run time."""
@@ -82,7 +93,8 @@ class Package:
 
 def exported_unit(unit: Unit, prefix: str | None, real_type: str) -> Unit:
     """The unit under the user's prefix (functions <prefix>_*, files <prefix>.{c,h},
-    struct <prefix>_geometry); in float without the runtime's double-only wrappers."""
+    struct <prefix>_geometry); in float without the runtime's double-only wrappers (the
+    serial ik_newton and forward_dynamics, the hexapod's fk)."""
     if prefix is not None:
         check_identifier(prefix, "prefix")
         unit = replace(
@@ -91,8 +103,8 @@ def exported_unit(unit: Unit, prefix: str | None, real_type: str) -> Unit:
             base_name=prefix,
             struct_name=None if unit.struct_name is None else f"{prefix}_geometry",
         )
-    if real_type != "double":
-        unit = replace(unit, newton=None, dynamics=None)
+    if real_type != "double":  # the runtime's solvers behind these are double
+        unit = replace(unit, newton=None, dynamics=None, extras=())
     return unit
 
 

@@ -99,7 +99,3 @@ def run(args: argparse.Namespace) -> int:
         if readme:
             report.update_readme(readme, text)
     return 0
-
-
-#: the name the CLI's dispatch calls today (``_lazy`` imports a module and calls ``main``)
-main = run

@@ -1,0 +1,77 @@
+"""The command table of deltagen/cli.py: every command is served by an object with
+``add_parser(subparsers)`` and ``run(args)``, its add_parser adds exactly the table's
+subcommands (no command without an entry, no entry without a subcommand), and the robot
+kinds a command's job table serves are the ones it refuses the others by (apps/robots.py);
+a hexapod workspace grid beyond the memory budget is refused before any allocation."""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+
+import pytest
+
+from deltagen import cli, paths
+from deltagen.apps import dynamics, kinematics, robots, workspace
+
+
+@pytest.mark.parametrize("command", list(cli.COMMANDS))
+def test_every_command_has_add_parser_and_run(command):
+    served = cli.app(command)
+    assert callable(served.add_parser) and callable(served.run)
+    assert list(inspect.signature(served.add_parser).parameters) == ["subparsers"]
+    assert list(inspect.signature(served.run).parameters) == ["args"]
+
+
+def test_the_parser_holds_exactly_the_table():
+    parser, commands = cli.build_parser()
+    assert list(commands) == list(cli.COMMANDS)
+    for command, sub in commands.items():
+        assert isinstance(sub, argparse.ArgumentParser)
+        assert sub.prog == f"{parser.prog} {command}"
+    assert set(cli.INTERMIXED) <= set(cli.COMMANDS)
+
+
+def test_fk_and_ik_know_their_command_without_the_top_parser():
+    """The intermixed parse (cli._parse) goes straight to the subcommand's parser: the
+    command's name comes from its own defaults, not from the caller."""
+    for name in ("fk", "ik"):
+        args = cli._parse([name, "default", "0.1", "--degrees", "-0.2", "0.3"])
+        assert args.command == name and args.degrees
+        assert args.values == [0.1, -0.2, 0.3]
+
+
+@pytest.mark.parametrize("table", [kinematics.JOBS, dynamics.JOBS, workspace.JOBS])
+def test_job_tables_name_known_kinds_in_message_order(table):
+    """Each job table's keys are robot kinds, in the order of robots.KIND_NAMES (the order
+    a refusal names the kinds served in)."""
+    order = list(robots.KIND_NAMES)
+    assert set(table) <= set(order)
+    assert list(table) == sorted(table, key=order.index)
+
+
+def test_hexapod_workspace_beyond_the_memory_budget_is_refused(capsys, tmp_path):
+    robot_file = str(paths.robots_dir() / "hexapod_genhex.toml")
+    out = tmp_path / "ws"
+    assert cli.main(["workspace", robot_file, "--step", "1e-5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "deltagen workspace: error: the hexapod's position grid at --step = 1e-05 m" in err
+    assert "choose a larger --step" in err and "DELTAGEN_MAX_MEMORY" in err
+    assert not out.exists()
+
+
+def test_machine_float32_export_measures_its_accuracy(capsys, tmp_path):
+    """`deltagen export MACHINE --float32` measures the float build against the double one
+    on the machine's own functions (<config>_fk), not the delta's ik/fk (a traceback
+    before)."""
+    from deltagen.apps.export import compiler
+
+    if compiler() is None:
+        pytest.skip("no C compiler")
+    out = tmp_path / "machine"
+    assert cli.main(["export", "xyzac_trt", "--out", str(out), "--float32"]) == 0
+    printed = capsys.readouterr().out
+    tip = [line for line in printed.splitlines() if line.startswith("float32 fk tool tip")]
+    assert len(tip) == 1
+    # float near 0.1 m: a few units of 2^-24 * 0.1 m = 6e-3 um; far below 5 um
+    assert 0 < float(tip[0].split("max ")[1].split(",")[0]) < 5
