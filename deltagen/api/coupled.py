@@ -238,10 +238,11 @@ class CoupledArm:
                 )
         from deltagen.errors import UnreachableError
         from deltagen.solve import numeric as ik_numeric
+        from deltagen.solve.ik import check_poses, raise_bad_poses
 
-        lead, flat, finite, rigid = self.full._poses(T)
+        lead, flat, finite, rigid = check_poses(T)
         if errors == "raise" and not np.all(rigid):
-            self.full._raise_bad_poses(finite, rigid)
+            raise_bad_poses(finite, rigid)
         reduced = _ReducedChain(self)
         if q0 is None:
             start = np.broadcast_to(reduced.middle, (flat.shape[0], self.n))
@@ -267,7 +268,7 @@ class CoupledArm:
             # the whole pose (a chain of fewer than 6 variables fits the components it can
             # move: a target it cannot take is not reached) and every physical joint's limits
             q = self.coupling.expand(r[ok])
-            fits = self.full._reaches_fully(q, flat[ok])
+            fits = self.full.ik_planner.reaches_fully(q, flat[ok])
             ok[ok] = fits & np.asarray(self.full.within_limits(q))
         r[~ok] = np.nan
         if errors == "raise":
