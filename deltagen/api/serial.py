@@ -24,9 +24,10 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from deltagen import status as st
+from deltagen.api.base import ReferenceCore, RobotFamily
+from deltagen.api.coupled import CoupledArm, load_urdf_arm
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
-from deltagen.api.threads import ThreadsProperty
+from deltagen.api.serial_dynamics import DYNAMICS, PENDING, SerialDynamics
 from deltagen.api.validity import invalid_message, mark_nonfinite
 from deltagen.errors import SingularityError, rows_text
 from deltagen.geometry.rotations import euler_zyx, skew  # euler_zyx: public here too
@@ -37,7 +38,6 @@ from deltagen.inputs import (
     check_errors_mode,
 )
 from deltagen.model.serial import DEFAULT_GRAVITY, SerialDescription
-from deltagen.native.parallel import check_threads
 from deltagen.paths import robots_dir
 from deltagen.solve.ik import (
     IK_METHODS,
@@ -50,7 +50,8 @@ from deltagen.solve.ik import (
 
 __all__ = ["IKSolutions", "SerialRobot", "bundled_robots", "bundled_urdfs", "euler_zyx"]
 
-_BACKENDS = ("compiled", "reference")
+#: the reference functions a SerialRobot calls (reference/serial.py)
+_CALLS = ("fk", "frames", "jacobian", "jacobian_dot", *DYNAMICS)
 _F64 = np.dtype(np.float64)  # native byte order
 
 Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
@@ -72,19 +73,13 @@ def bundled_urdfs() -> list[str]:
     return [path.stem for path in sorted(robots_dir().glob("*.urdf"))]
 
 
-_PENDING = object()  # a one-state path not made yet
-
-
-class SerialRobot(ThreadsProperty):
+class SerialRobot(SerialDynamics, RobotFamily):
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
-    _core: Any  # CompiledArm or _ReferenceArm: the same call signatures
+    _core: Any  # CompiledArm or a ReferenceCore: the same call signatures
+    _model_attr = "description"
+    _model_class = SerialDescription
     ik_planner: IKPlanner  # the choice of ik / ik_all method (deltagen.solve.ik)
-    # one-state inverse_dynamics / forward_dynamics / mass_matrix (compiled, with inertia):
-    # _PENDING until the first call of that kernel
-    _id_single: Any
-    _fd_single: Any
-    _mass_single: Any
 
     def __init__(
         self,
@@ -95,11 +90,8 @@ class SerialRobot(ThreadsProperty):
     ) -> None:
         if not isinstance(description, SerialDescription):
             raise InputError("SerialRobot needs a SerialDescription (see from_dh, from_toml, load)")
-        if backend not in _BACKENDS:
-            raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
-        threads = check_threads(threads)
+        threads = self._check_backend(backend, threads)
         self.description = description
-        self.backend = backend
         self.n = description.n
         if backend == "compiled":
             from deltagen.native.serial import CompiledArm
@@ -109,15 +101,14 @@ class SerialRobot(ThreadsProperty):
             self._jacobian_single = self._core.single("jacobian")
             # each one-state dynamics path is made on the first call of its kernel: the core
             # may defer building that kernel until then (native.serial.CompiledArm)
-            pending = _PENDING if description.has_inertia else None
+            pending = PENDING if description.has_inertia else None
             self._id_single = self._fd_single = self._mass_single = pending
         else:
             from deltagen.reference import serial as reference
 
-            self._core = _ReferenceArm(reference, description)
+            self._core = ReferenceCore(reference, (description,), _CALLS)
             self._fk_single = self._jacobian_single = None
             self._id_single = self._fd_single = self._mass_single = None
-        self._threads = threads
         self.ik_planner = IKPlanner(self)
 
     # -- construction ---------------------------------------------------------------
@@ -152,10 +143,8 @@ class SerialRobot(ThreadsProperty):
         )
 
     @classmethod
-    def from_toml(
-        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
-    ) -> SerialRobot:
-        return cls(SerialDescription.from_toml(Path(path)), backend, threads=threads)
+    def _from_model(cls, model: Any, backend: Backend, threads: int | None) -> SerialRobot:
+        return cls(model, backend, threads=threads)
 
     @classmethod
     def from_dh(
@@ -199,7 +188,7 @@ class SerialRobot(ThreadsProperty):
         gravity: Sequence[float] | None = None,
         backend: Backend = "compiled",
         threads: int | None = None,
-    ) -> SerialRobot:
+    ) -> SerialRobot | CoupledArm:
         """The chain of a URDF file from link ``base`` (default: the root link) to link
         ``tip`` (default: the single leaf) as universal coordinates (model/urdf.py states the
         mapping): revolute, continuous, prismatic and fixed joints, axes of any direction,
@@ -210,27 +199,21 @@ class SerialRobot(ThreadsProperty):
         locked like the ones off the chain).
         A chain with ``<mimic>`` joints gives a :class:`deltagen.api.coupled.CoupledArm`
         in the independent variables instead."""
-        from deltagen.model.urdf import chain_from_urdf
-
-        desc, coupling = chain_from_urdf(
-            path, base=base, tip=tip, name=name, locked=locked, gravity=gravity
+        return load_urdf_arm(
+            cls,
+            path,
+            base,
+            tip,
+            name=name,
+            locked=locked,
+            gravity=gravity,
+            backend=backend,
+            threads=threads,
         )
-        if coupling is not None:
-            from deltagen.api.coupled import CoupledArm
-
-            return CoupledArm(cls(desc, backend, threads=threads), coupling)  # type: ignore[return-value]
-        return cls(desc, backend, threads=threads)
-
-    def with_backend(self, backend: Backend) -> SerialRobot:
-        return type(self)(self.description, backend, threads=self.threads)
 
     def __repr__(self) -> str:
         d = self.description
         return f"SerialRobot({d.name!r}, {d.n} joints, {d.convention}, backend={self.backend!r})"
-
-    @property
-    def name(self) -> str:
-        return self.description.name
 
     @property
     def qlim(self) -> FloatArray:
@@ -461,121 +444,6 @@ class SerialRobot(ThreadsProperty):
         from deltagen.plan.singular_path import follow_path
 
         return follow_path(self, trajectory, q0, **options)
-
-    # -- dynamics -----------------------------------------------------------------------
-    #
-    # Arms whose robot file gives inertial parameters (deltagen.model.serial): recursive
-    # Newton-Euler in generated C (derive/serial/dynamics.py), or the Jacobian-form numpy
-    # reference. Torques in N m (N for prismatic joints); gravity from the description.
-
-    def _dynamics_single(self, name: str) -> Any:
-        """The one-state path of ``name`` (inverse_dynamics, forward_dynamics,
-        mass_matrix), made on its first call; None when there is none."""
-        attr = {"inverse_dynamics": "_id_single", "forward_dynamics": "_fd_single"}.get(
-            name, "_mass_single"
-        )
-        single = getattr(self, attr)
-        if single is _PENDING:
-            core = self._core
-            single = (
-                core.single_mass_matrix() if attr == "_mass_single" else core.single_dynamics(name)
-            )
-            setattr(self, attr, single)
-        return single
-
-    def _dynamics(self):
-        """The core, after checking that the arm has inertial parameters."""
-        if not self.description.has_inertia:
-            raise InputError(
-                f"{self.name} has no inertial parameters: its robot file gives no mass, com "
-                "or inertia in its [[joint]] tables (see deltagen.model.serial), so it has "
-                "no dynamics"
-            )
-        return self._core
-
-    def inverse_dynamics(
-        self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
-    ) -> Result:
-        """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
-        viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
-        id_single = self._dynamics_single("inverse_dynamics")
-        if id_single is not None and errors == "raise":
-            tau = id_single(q, qd, qdd)
-            if tau is not None:
-                return tau
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf, qddf) = self._broadcast(q=q, qd=qd, qdd=qdd)
-        tau, status = core.inverse_dynamics(qf, qdf, qddf)
-        return self._finish_dynamics(
-            errors, lead, status, [tau], ("q", "qd", "qdd"), [qf, qdf, qddf]
-        )
-
-    def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
-        """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
-        mass_single = self._dynamics_single("mass_matrix")
-        if mass_single is not None and errors == "raise":
-            M = mass_single(q)
-            if M is not None:
-                return M
-        core = self._dynamics()
-        lead, qf = self._prepare(errors, q)
-        M, status = core.mass_matrix(qf)
-        return self._finish_dynamics(errors, lead, status, [M], ("q",), [qf])
-
-    def gravity_torque(self, q: ArrayLike, errors: Errors = "raise") -> Result:
-        """g(q) (..., n): the joint torques that hold the arm still against gravity."""
-        core = self._dynamics()
-        lead, qf = self._prepare(errors, q)
-        g, status = core.gravity_torque(qf)
-        return self._finish_dynamics(errors, lead, status, [g], ("q",), [qf])
-
-    def coriolis(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
-        """Coriolis matrix C (..., n, n) in the Christoffel form: C qd holds the Coriolis
-        and centrifugal torques and Mdot - 2C is skew-symmetric."""
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
-        C, status = core.coriolis(qf, qdf)
-        return self._finish_dynamics(errors, lead, status, [C], ("q", "qd"), [qf, qdf])
-
-    def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
-        """h (..., n) = C(q, qd) qd + g(q) + friction: the torques at qdd = 0."""
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
-        h, status = core.nonlinear_effects(qf, qdf)
-        return self._finish_dynamics(errors, lead, status, [h], ("q", "qd"), [qf, qdf])
-
-    def forward_dynamics(
-        self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, errors: Errors = "raise"
-    ) -> Result:
-        """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
-        SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
-        fd_single = self._dynamics_single("forward_dynamics")
-        if fd_single is not None and errors == "raise":
-            qdd = fd_single(q, qd, tau)
-            if qdd is not None:
-                return qdd
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf, tf) = self._broadcast(q=q, qd=qd, tau=tau)
-        qdd, status = core.forward_dynamics(qf, qdf, tf)
-        return self._finish_dynamics(errors, lead, status, [qdd], ("q", "qd", "tau"), [qf, qdf, tf])
-
-    def _finish_dynamics(self, errors, lead, status, outs, names, inputs):
-        singular = status == st.SINGULAR
-        if errors == "raise" and np.any(singular) and np.all((status == st.OK) | singular):
-            bad = np.flatnonzero(singular)
-            raise SingularityError(
-                f"the mass matrix of {self.name} is not positive definite in rows "
-                f"{rows_text(bad)} (forward dynamics has no unique solution)",
-                bad,
-            )
-        if errors == "raise" and not np.all((status == st.OK) | singular):
-            bad = np.flatnonzero((status != st.OK) & ~singular)
-            raise InputError(invalid_message(names, inputs, bad), bad)
-        return self._finish(errors, lead, status, outs, names, inputs)
 
     # -- inverse kinematics (the choice of method: deltagen.solve.ik.IKPlanner) ---------
 
@@ -811,56 +679,11 @@ class SerialRobot(ThreadsProperty):
         lead, _, flat = broadcast_rows(checked, widths=(self.n,))
         return lead, flat
 
-    def _finish(self, errors, lead, status, outs, names, inputs):
-        """Shape the outputs. The status already applies the finite-output rule (the kernels
-        and the reference give OK only where every output is finite; outputs transformed in
-        Python after a kernel get it from validity.mark_nonfinite where they are made), so
-        the outputs are not read again: that pass cost about as much as the kernel."""
-        ok = status == st.OK
-        if not ok.all():
-            if errors == "raise":
-                bad = np.flatnonzero(~ok)
-                raise InputError(invalid_message(names, inputs, bad), bad)
-            for o in outs:
-                o[~ok] = np.nan
-        shaped = [o.reshape(lead + o.shape[1:]) for o in outs]
-        if errors == "nan":
-            return (*shaped, ok.reshape(lead))
-        return shaped[0] if len(shaped) == 1 else tuple(shaped)
+    def _raise(self, status, ok, names, inputs):
+        """A row that is not OK here has an input that is not finite (or outputs that
+        overflow): InputError naming the rows and the arguments."""
+        bad = np.flatnonzero(~ok)
+        raise InputError(invalid_message(names, inputs, bad), bad)
 
 
-class _ReferenceArm:
-    """The numpy reference with the compiled backend's call signatures."""
-
-    def __init__(self, module, desc):
-        self._m, self._d = module, desc
-
-    def fk(self, q):
-        return self._m.fk(self._d, q)
-
-    def frames(self, q):
-        return self._m.frames(self._d, q)
-
-    def jacobian(self, q):
-        return self._m.jacobian(self._d, q)
-
-    def jacobian_dot(self, q, qd):
-        return self._m.jacobian_dot(self._d, q, qd)
-
-    def inverse_dynamics(self, q, qd, qdd):
-        return self._m.inverse_dynamics(self._d, q, qd, qdd)
-
-    def mass_matrix(self, q):
-        return self._m.mass_matrix(self._d, q)
-
-    def gravity_torque(self, q):
-        return self._m.gravity_torque(self._d, q)
-
-    def coriolis(self, q, qd):
-        return self._m.coriolis(self._d, q, qd)
-
-    def nonlinear_effects(self, q, qd):
-        return self._m.nonlinear_effects(self._d, q, qd)
-
-    def forward_dynamics(self, q, qd, tau):
-        return self._m.forward_dynamics(self._d, q, qd, tau)
+CoupledArm.arm_class = SerialRobot  # the full chain of CoupledArm.from_urdf (api/coupled.py)
