@@ -18,13 +18,13 @@ Orientation conventions (spelled out because they are the usual source of confus
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from deltagen.api.base import ReferenceCore, RobotFamily
+from deltagen.api.bundled import bundled_arm, bundled_robots, bundled_urdfs
 from deltagen.api.coupled import CoupledArm, load_urdf_arm
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
 from deltagen.api.serial_dynamics import DYNAMICS, PENDING, SerialDynamics
@@ -38,7 +38,6 @@ from deltagen.inputs import (
     check_errors_mode,
 )
 from deltagen.model.serial import DEFAULT_GRAVITY, SerialDescription
-from deltagen.paths import robots_dir
 from deltagen.solve.ik import (
     IK_METHODS,
     IKPlanner,
@@ -47,6 +46,7 @@ from deltagen.solve.ik import (
     check_poses,
     raise_bad_poses,
 )
+from deltagen.solve.singularity import singular_values
 
 __all__ = ["IKSolutions", "SerialRobot", "bundled_robots", "bundled_urdfs", "euler_zyx"]
 
@@ -57,29 +57,12 @@ _F64 = np.dtype(np.float64)  # native byte order
 Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
 
 
-def _is_arm_file(path: Path) -> bool:
-    """A robot file of a serial arm (serial files state a convention; delta files do not)."""
-    return path.is_file() and "convention" in path.read_text()
-
-
-def bundled_robots() -> list[str]:
-    """Names of the bundled serial arms (robots/*.toml with a convention)."""
-    return [path.stem for path in sorted(robots_dir().glob("*.toml")) if _is_arm_file(path)]
-
-
-def bundled_urdfs() -> list[str]:
-    """Names of the bundled URDF arms (robots/*.urdf: SerialRobot.load(name) reads the chain
-    from the root link to the single leaf, under the file's name)."""
-    return [path.stem for path in sorted(robots_dir().glob("*.urdf"))]
-
-
 class SerialRobot(SerialDynamics, RobotFamily):
     """A serial arm (standard DH, modified DH or universal coordinates)."""
 
     _core: Any  # CompiledArm or a ReferenceCore: the same call signatures
     _model_attr = "description"
     _model_class = SerialDescription
-    ik_planner: IKPlanner  # the choice of ik / ik_all method (deltagen.solve.ik)
 
     def __init__(
         self,
@@ -90,8 +73,12 @@ class SerialRobot(SerialDynamics, RobotFamily):
     ) -> None:
         if not isinstance(description, SerialDescription):
             raise InputError("SerialRobot needs a SerialDescription (see from_dh, from_toml, load)")
-        threads = self._check_backend(backend, threads)
         self.description = description
+        self._init_backend(backend, threads)
+
+    def _init_backend(self, backend: Any, threads: int | None = None) -> None:
+        threads = self._check_backend(backend, threads)
+        description = self.description
         self.n = description.n
         if backend == "compiled":
             from deltagen.native.serial import CompiledArm
@@ -109,7 +96,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
             self._core = ReferenceCore(reference, (description,), _CALLS)
             self._fk_single = self._jacobian_single = None
             self._id_single = self._fd_single = self._mass_single = None
-        self.ik_planner = IKPlanner(self)
+        self.ik_planner = IKPlanner(self)  # the choice of ik / ik_all method (solve/ik.py)
 
     # -- construction ---------------------------------------------------------------
 
@@ -119,32 +106,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
     ) -> SerialRobot:
         """A bundled robot by name, e.g. "puma560" (see bundled_robots()), or a bundled URDF
         (robots/<name>.urdf, e.g. "ur5")."""
-        if (
-            isinstance(name, str)
-            and name.isidentifier()
-            and not (robots_dir() / f"{name}.toml").exists()
-            and (robots_dir() / f"{name}.urdf").is_file()
-        ):
-            from deltagen.model.urdf import description_from_urdf
-
-            desc = description_from_urdf(robots_dir() / f"{name}.urdf", name=name)
-            return cls(desc, backend, threads=threads)
-        if (
-            not isinstance(name, str)
-            or not name.isidentifier()
-            or not _is_arm_file(robots_dir() / f"{name}.toml")
-        ):
-            raise InputError(
-                f"no bundled serial robot {name!r}; bundled: "
-                f"{', '.join(bundled_robots() + bundled_urdfs())}"
-            )
-        return cls(
-            SerialDescription.from_toml(robots_dir() / f"{name}.toml"), backend, threads=threads
-        )
-
-    @classmethod
-    def _from_model(cls, model: Any, backend: Backend, threads: int | None) -> SerialRobot:
-        return cls(model, backend, threads=threads)
+        return cls(bundled_arm(name), backend, threads=threads)
 
     @classmethod
     def from_dh(
@@ -269,7 +231,6 @@ class SerialRobot(SerialDynamics, RobotFamily):
             if J is not None:
                 return J
         frame = self._check_frame(frame)
-        check_errors_mode(errors)
         lead, qf = self._prepare(errors, q)
         J, status = self._core.jacobian(qf)
         if frame == "tool":
@@ -370,7 +331,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         check_errors_mode(errors)
         J, valid = self.jacobian(q, errors="nan")
         with np.errstate(over="ignore"):  # a product that overflows: not valid (_plain)
-            out = np.prod(self._singular_values(J, valid), axis=-1)
+            out = np.prod(singular_values(J, valid), axis=-1)
         return self._plain(errors, q, out, valid, "manipulability")
 
     def condition_number(self, q: ArrayLike, errors: Errors = "raise") -> Result:
@@ -379,7 +340,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         raise SingularityError (errors="raise") or give NaN and False (errors="nan")."""
         check_errors_mode(errors)
         J, valid = self.jacobian(q, errors="nan")
-        sv = self._singular_values(J, valid)
+        sv = singular_values(J, valid)
         with np.errstate(divide="ignore", invalid="ignore"):
             out = sv[..., 0] / sv[..., -1]
         return self._plain(errors, q, out, valid, "condition number")
@@ -485,36 +446,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
             raise InputError(f'singular must be "raise" or "allow", got {singular!r}')
         if not isinstance(method, str) or method not in IK_METHODS:
             raise InputError(f'method must be "auto", "analytic" or "numeric", got {method!r}')
-        configs = self.analytic_configs()
-        if method == "analytic" and not configs:
-            raise InputError(f"{self.name} has no closed-form inverse; use method='numeric'")
-        analytic = method == "analytic" or (method == "auto" and bool(configs))
-        if config is not None:
-            if not analytic:
-                raise InputError(
-                    f"config picks a closed-form branch; it does not apply to the numeric "
-                    f"method ({self.name}, method={method!r}; give q0 to choose the start)"
-                )
-            if not isinstance(config, str) or config not in configs:
-                raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
-        from deltagen.solve import numeric as ik_numeric
-
-        unknown = sorted(set(options) - set(ik_numeric.OPTIONS)) if options else ()
-        if unknown:
-            raise InputError(
-                f"ik got unknown option(s) {', '.join(unknown)}; it takes config, q0, method, "
-                f"errors, singular and, for method='numeric', {', '.join(ik_numeric.OPTIONS)}"
-            )
-        checked = None
-        if analytic:
-            if options:
-                raise InputError(
-                    f"option(s) {', '.join(sorted(options))} apply to method='numeric' only; "
-                    f"this call uses {self.name}'s closed form (method={method!r})"
-                )
-        else:
-            # max_iter >= 1 here; no options: the defaults, which pass
-            checked = ik_numeric.check_options(self, **options) if options else None
+        analytic, checked = self.ik_planner.choose(method, config, options)
         if q0 is not None:
             if not (type(q0) is np.ndarray and q0.dtype.char == "d"):
                 q0 = as_float_array(q0, "q0", f"(..., {self.n})")
@@ -592,7 +524,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
             return q.reshape(lead + (self.n,))
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
 
-    # the planner's parts that tests, the combined method and CoupledArm read on the arm
+    # the planner's parts that tests and the combined method read on the arm
     def _poses(self, T, name="T"):
         return check_poses(T, name)
 
@@ -602,34 +534,12 @@ class SerialRobot(SerialDynamics, RobotFamily):
     def _general(self):
         return self.ik_planner.general
 
-    @property
-    def _general_6r(self):
-        return self.ik_planner.general
-
-    @_general_6r.setter
-    def _general_6r(self, value):
-        self.ik_planner.general = value
-
     def _start(self, q0, lead):
         return self.ik_planner.start(q0, lead)
 
-    # -- helpers ----------------------------------------------------------------------
+    _general_6r = property(_general, lambda self, v: setattr(self.ik_planner, "general", v))
 
-    @staticmethod
-    def _singular_values(J, valid):
-        """Singular values (..., min(6, n)) of the valid rows' J, NaN elsewhere (and where
-        LAPACK does not converge, which huge finite entries can cause)."""
-        sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
-        try:
-            sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
-        except np.linalg.LinAlgError:
-            rows = np.argwhere(valid)
-            for index in map(tuple, rows):
-                try:
-                    sv[index] = np.linalg.svd(J[index], compute_uv=False)
-                except np.linalg.LinAlgError:
-                    pass
-        return sv
+    # -- helpers ----------------------------------------------------------------------
 
     def _plain(self, errors, q, out, valid, what):
         """A per-row number derived from J: valid only where it is finite (the finite-output

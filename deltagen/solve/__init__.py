@@ -2,8 +2,10 @@
 (closed form, numpy, built on the structure detected by ``model.structure``), ``numeric``
 (damped Newton-Raphson), ``combined`` (explicit start + Newton), ``general6r`` (every
 solution of a general 6R arm, Raghavan-Roth elimination and an eigenvalue problem),
-``singularity``; and ``calibration`` (a built delta robot's per-chain geometry identified
-from measured pairs). Joint-limit wrapping and the axis tests they share live in
+``singularity``; ``ik`` (the IK planner of a serial arm: which of those methods answers
+``ik`` and ``ik_all``, built once per arm by ``SerialRobot``, and the result types
+``IKSolutions`` / ``IKResult``); and ``calibration`` (a built delta robot's per-chain
+geometry identified from measured pairs). Joint-limit wrapping and the axis tests they share live in
 ``geometry`` (``limits``, ``axes``).
 
 May import: ``native``, ``reference``, ``codegen``, ``derive``, ``model``, ``geometry``,

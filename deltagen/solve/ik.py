@@ -382,6 +382,43 @@ class IKPlanner:
         q[bad], valid[bad] = np.nan, False
         return q.reshape(lead + (k, self.n)), valid.reshape(lead + (k,))
 
+    def choose(self, method: str, config: Any, options: dict[str, Any]) -> tuple[bool, Any]:
+        """ik's method for ``method`` (checked: "auto", "analytic" or "numeric"), after
+        checking that ``config`` and ``options`` apply to it: (analytic: the closed form's
+        branches, else the numeric solver; the numeric options checked by
+        deltagen.solve.numeric.check_options, or None)."""
+        configs = self.configs()
+        if method == "analytic" and not configs:
+            raise InputError(f"{self.name} has no closed-form inverse; use method='numeric'")
+        analytic = method == "analytic" or (method == "auto" and bool(configs))
+        if config is not None:
+            if not analytic:
+                raise InputError(
+                    f"config picks a closed-form branch; it does not apply to the numeric "
+                    f"method ({self.name}, method={method!r}; give q0 to choose the start)"
+                )
+            if not isinstance(config, str) or config not in configs:
+                raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
+        from deltagen.solve import numeric as ik_numeric
+
+        unknown = sorted(set(options) - set(ik_numeric.OPTIONS)) if options else ()
+        if unknown:
+            raise InputError(
+                f"ik got unknown option(s) {', '.join(unknown)}; it takes config, q0, method, "
+                f"errors, singular and, for method='numeric', {', '.join(ik_numeric.OPTIONS)}"
+            )
+        checked = None
+        if analytic:
+            if options:
+                raise InputError(
+                    f"option(s) {', '.join(sorted(options))} apply to method='numeric' only; "
+                    f"this call uses {self.name}'s closed form (method={method!r})"
+                )
+        else:
+            # max_iter >= 1 here; no options: the defaults, which pass
+            checked = ik_numeric.check_options(self.arm, **options) if options else None
+        return analytic, checked
+
     # -- ik -------------------------------------------------------------------------
 
     def solve(self, flat, good, start, analytic, config, singular, options, explain):
