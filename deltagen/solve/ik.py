@@ -235,6 +235,21 @@ class IKPlanner:
             return general6r.eliminations(self.description)
         return None
 
+    def all_method(self, method: str) -> str | None:
+        """The path ik_all(T, method) takes on this arm: "closed_form", "complete" or
+        "combined" (None: no method applies, ik_all refuses). "auto" is the closed form
+        where the structure has one; else, for a 6R arm, the general solver when one of its
+        eliminations is regular or the combined method does not apply; else the combined
+        method."""
+        if method != "auto":
+            return method
+        if self.analytic is not None:
+            return "closed_form"
+        general, combined = self.general, self.combined
+        if general is not None and (general[1] or combined is None):
+            return "complete"
+        return "combined" if combined is not None else None
+
     def ik_all(self, T: Any, method: str = "auto") -> IKSolutions:
         """SerialRobot.ik_all (its docstring states the methods and ``complete``): the
         solutions, and the IncompleteSolutionsWarning once per method where the method
@@ -294,10 +309,8 @@ class IKPlanner:
                 f'method must be "auto", "closed_form", "complete" or "combined", got {method!r}'
             )
         solver = self.analytic
-        if method == "auto" and solver is None and self.general is not None:
-            eliminations, complete = self.general
-            if complete or self.combined is None:
-                method = "complete"
+        if method == "auto" and solver is None and self.all_method("auto") == "complete":
+            method = "complete"
         if method == "complete":
             general = self.general
             if general is None:
