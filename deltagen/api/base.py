@@ -70,11 +70,6 @@ class RobotFamily(ThreadsProperty):
         """The same robot (same model, same threads) on the other backend."""
         return type(self)._from_model(getattr(self, self._model_attr), backend, self._threads)
 
-    @property
-    def name(self) -> str:
-        """The robot's name (its model's)."""
-        return str(getattr(self, self._model_attr).name)
-
     def _lean(self, name: str, errors: Errors, *args: Any) -> Any:
         """The one-pose lean path of kernel ``name`` (same C function, same results), or
         None when the general path must answer (a batch, errors="nan", the reference)."""

@@ -98,8 +98,6 @@ class SerialRobot(SerialDynamics, RobotFamily):
             self._id_single = self._fd_single = self._mass_single = None
         self.ik_planner = IKPlanner(self)  # the choice of ik / ik_all method (solve/ik.py)
 
-    # -- construction ---------------------------------------------------------------
-
     @classmethod
     def load(
         cls, name: str, backend: Backend = "compiled", *, threads: int | None = None
@@ -176,6 +174,10 @@ class SerialRobot(SerialDynamics, RobotFamily):
     def __repr__(self) -> str:
         d = self.description
         return f"SerialRobot({d.name!r}, {d.n} joints, {d.convention}, backend={self.backend!r})"
+
+    @property
+    def name(self) -> str:
+        return self.description.name
 
     @property
     def qlim(self) -> FloatArray:
@@ -525,8 +527,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         return q.reshape(lead + (self.n,)), ok.reshape(lead)
 
     # the planner's parts that tests and the combined method read on the arm
-    def _poses(self, T, name="T"):
-        return check_poses(T, name)
+    _poses = staticmethod(check_poses)
 
     def _analytic(self):
         return self.ik_planner.analytic
@@ -589,9 +590,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         lead, _, flat = broadcast_rows(checked, widths=(self.n,))
         return lead, flat
 
-    def _raise(self, status, ok, names, inputs):
-        """A row that is not OK here has an input that is not finite (or outputs that
-        overflow): InputError naming the rows and the arguments."""
+    def _raise(self, status, ok, names, inputs):  # a non-finite input, or an overflow
         bad = np.flatnonzero(~ok)
         raise InputError(invalid_message(names, inputs, bad), bad)
 
