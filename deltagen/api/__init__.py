@@ -14,5 +14,13 @@ Jacobian, rates, leg forces, joint limits, workspace grids).
 ``threads`` (``ThreadsProperty``: the ``threads`` property the classes with a compiled core
 share).
 
+``base`` (``RobotFamily``: what the robot families share -- backend and threads checks,
+``from_toml`` / ``default``, ``with_backend``, the errors-mode shaping ``_finish``, the
+one-pose lean path, ``ReferenceCore``); ``serial_dynamics`` (SerialRobot's dynamics
+methods); ``bundled`` (the bundled arms' names and descriptions). SerialRobot keeps the
+argument checks, error modes and shaping of ik / ik_all; the choice of method is
+``deltagen.solve.ik``'s. ``coupled.load_urdf_arm`` is the one URDF loader (plain or coupled
+arm); ``serial`` imports ``coupled``, never the reverse.
+
 May import: ``solve``, ``plan``, and everything below them.
 """

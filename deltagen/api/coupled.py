@@ -14,21 +14,58 @@ coupling.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from deltagen.api.hints import Backend, BoolArray, Errors, FloatArray, PathLike, Result
-from deltagen.api.serial import SerialRobot
 from deltagen.api.validity import mark_nonfinite
 from deltagen.errors import rows_text
 from deltagen.inputs import InputError, as_float_array, check_errors_mode
 from deltagen.model.coupling import Coupling
 
+if TYPE_CHECKING:  # serial.py imports this module, never the other way round
+    from deltagen.api.serial import SerialRobot
+
+
+def load_urdf_arm(
+    arm_class: Any,
+    path: PathLike,
+    base: str | None = None,
+    tip: str | None = None,
+    *,
+    name: str | None = None,
+    locked: Mapping[str, float] | None = None,
+    gravity: Any = None,
+    backend: Backend = "compiled",
+    threads: int | None = None,
+    coupled: Any = None,
+) -> Any:
+    """The one loader of a URDF chain (SerialRobot.from_urdf, CoupledArm.from_urdf), which
+    decides plain or coupled arm: the full chain as ``arm_class`` (SerialRobot), returned
+    as it is when the chain has no ``<mimic>`` joints, else wrapped in a CoupledArm in the
+    independent variables. ``coupled`` (a CoupledArm class): always wrap, the identity
+    coupling for a chain without mimic joints."""
+    from deltagen.model.urdf import chain_from_urdf
+
+    desc, coupling = chain_from_urdf(
+        path, base=base, tip=tip, name=name, locked=locked, gravity=gravity
+    )
+    if coupling is None and coupled is not None:
+        coupling = Coupling.from_mimics([j.name for j in desc.joints], {})
+    full = arm_class(desc, backend, threads=threads)
+    if coupling is None:
+        return full
+    return (coupled or CoupledArm)(full, coupling)
+
 
 class CoupledArm:
     """A chain with couplings, in its k independent variables (module docstring)."""
+
+    #: the class of the full chain: deltagen.api.serial sets SerialRobot here when it defines
+    #: it (serial.py imports this module; this module does not import serial.py)
+    arm_class: ClassVar[type[Any]]
 
     def __init__(self, full: SerialRobot, coupling: Coupling):
         if coupling.n != full.n:
@@ -50,12 +87,17 @@ class CoupledArm:
     ) -> CoupledArm:
         """The chain of a URDF with ``<mimic>`` joints (a coupling-free chain gives the
         identity coupling)."""
-        from deltagen.model.urdf import chain_from_urdf
-
-        desc, coupling = chain_from_urdf(path, base=base, tip=tip, name=name, locked=locked)
-        if coupling is None:
-            coupling = Coupling.from_mimics([j.name for j in desc.joints], {})
-        return cls(SerialRobot(desc, backend, threads=threads), coupling)
+        return load_urdf_arm(
+            cls.arm_class,
+            path,
+            base,
+            tip,
+            name=name,
+            locked=locked,
+            backend=backend,
+            threads=threads,
+            coupled=cls,
+        )
 
     def __repr__(self) -> str:
         return f"CoupledArm({self.name!r}, {self.n} of {self.full.n} joints independent)"
@@ -238,10 +280,11 @@ class CoupledArm:
                 )
         from deltagen.errors import UnreachableError
         from deltagen.solve import numeric as ik_numeric
+        from deltagen.solve.ik import check_poses, raise_bad_poses
 
-        lead, flat, finite, rigid = self.full._poses(T)
+        lead, flat, finite, rigid = check_poses(T)
         if errors == "raise" and not np.all(rigid):
-            self.full._raise_bad_poses(finite, rigid)
+            raise_bad_poses(finite, rigid)
         reduced = _ReducedChain(self)
         if q0 is None:
             start = np.broadcast_to(reduced.middle, (flat.shape[0], self.n))
@@ -267,7 +310,7 @@ class CoupledArm:
             # the whole pose (a chain of fewer than 6 variables fits the components it can
             # move: a target it cannot take is not reached) and every physical joint's limits
             q = self.coupling.expand(r[ok])
-            fits = self.full._reaches_fully(q, flat[ok])
+            fits = self.full.ik_planner.reaches_fully(q, flat[ok])
             ok[ok] = fits & np.asarray(self.full.within_limits(q))
         r[~ok] = np.nan
         if errors == "raise":

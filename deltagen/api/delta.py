@@ -19,9 +19,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from deltagen import status as st
+from deltagen.api.base import ReferenceCore, RobotFamilyWithDefault
 from deltagen.api.hints import Backend, Errors, PathLike, Result
-from deltagen.api.threads import ThreadsProperty
-from deltagen.api.validity import finite_rows, invalid_message
+from deltagen.api.validity import invalid_message
 from deltagen.errors import (
     GeometryError,
     SingularityError,
@@ -30,15 +30,14 @@ from deltagen.errors import (
 )
 from deltagen.inputs import InputError, as_float_array, broadcast_rows, check_errors_mode
 from deltagen.model.delta import DeltaGeometry, DeltaInertia
-from deltagen.native.parallel import check_threads
 
 _MODELS = ("exact", "simplified")
 __all__ = ["DeltaInertia", "DeltaRobot"]
+#: the reference functions a DeltaRobot calls (reference/delta.py)
+_CALLS = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "ik_vel", "ik_acc")
 
-_BACKENDS = ("compiled", "reference")
 
-
-class DeltaRobot(ThreadsProperty):
+class DeltaRobot(RobotFamilyWithDefault):
     """Rotary delta robot of the 2008 report with an optional independent fourth axis.
 
     Parameters are in metres and radians: r_a (base radius to the drive axes), r_b
@@ -47,7 +46,8 @@ class DeltaRobot(ThreadsProperty):
     drive axes with z up, so the platform works at negative z; q_i > 0 turns a crank down.
     """
 
-    _core: Any  # CompiledDelta or _ReferenceCore: the same call signatures
+    _core: Any  # CompiledDelta or a ReferenceCore: the same call signatures
+    _model_class = DeltaGeometry
 
     def __init__(
         self,
@@ -76,10 +76,7 @@ class DeltaRobot(ThreadsProperty):
         self._init_backend(backend, threads)
 
     def _init_backend(self, backend, threads=None):
-        if backend not in _BACKENDS:
-            raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
-        threads = check_threads(threads)
-        self.backend = backend
+        threads = self._check_backend(backend, threads)
         if backend == "compiled":
             from deltagen.native.delta import CompiledDelta
 
@@ -96,31 +93,20 @@ class DeltaRobot(ThreadsProperty):
         else:
             from deltagen.reference import delta as reference
 
-            self._core = _ReferenceCore(reference, self.geometry)
+            g = self.geometry
+            self._core = ReferenceCore(reference, (g,), _CALLS)
+            self._core.inverse_dynamics = lambda q, qd, qdd, payload, model="exact": (
+                reference.inverse_dynamics(g, g.inertia, q, qd, qdd, payload, model=model)
+            )
             self._fk_single = self._ik_single = None
             self._fk_vel_single = self._fk_acc_single = self._jacobian_single = None
             self._id_single = None
-        self._threads = threads
 
     @classmethod
     def from_geometry(
         cls, geometry: DeltaGeometry, backend: Backend = "compiled", *, threads: int | None = None
     ) -> DeltaRobot:
-        robot = cls.__new__(cls)
-        robot.geometry = geometry
-        robot._init_backend(backend, threads)
-        return robot
-
-    @classmethod
-    def default(cls, backend: Backend = "compiled", *, threads: int | None = None) -> DeltaRobot:
-        """The embedded default robot: r_a 0.2, r_b 0.045, l_a 0.35, l_b 0.8 m, 0/120/240 deg."""
-        return cls.from_geometry(DeltaGeometry.default(), backend, threads=threads)
-
-    @classmethod
-    def from_toml(
-        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
-    ) -> DeltaRobot:
-        return cls.from_geometry(DeltaGeometry.from_toml(path), backend, threads=threads)
+        return cls._from_model(geometry, backend, threads)
 
     @classmethod
     def from_klipper(
@@ -134,9 +120,6 @@ class DeltaRobot(ThreadsProperty):
         from deltagen.model.klipper import read_klipper
 
         return cls.from_geometry(read_klipper(path).geometry, backend, threads=threads)
-
-    def with_backend(self, backend: Backend) -> DeltaRobot:
-        return type(self).from_geometry(self.geometry, backend, threads=self.threads)
 
     def with_inertia(self, inertia: DeltaInertia | None) -> DeltaRobot:
         """The same robot with other inertial parameters (same backend)."""
@@ -350,32 +333,6 @@ class DeltaRobot(ThreadsProperty):
         check_errors_mode(errors)
         return broadcast_rows(arrays)
 
-    def _finish(
-        self, errors, lead, status, outs, names, inputs, allow_singular=False, trailing=None
-    ):
-        """Shape the kernel's outputs. The status already applies the finite-output rule
-        (deltagen/status.py: a row is OK only where every output is finite -- the generated C
-        and the reference alike, tested by the fuzz tests), so only the SINGULAR rows that
-        fk and ik may return are read again here: a second pass over them cost more than fk
-        itself (~50 ns per point of numpy reductions against ~14 in the kernel)."""
-        trailing = trailing or [o.shape[1:] for o in outs]
-        ok = status == st.OK
-        all_ok = bool(ok.all())
-        if not all_ok:
-            if allow_singular:  # fk's and ik's singular rows that have a (finite) value;
-                # collinear sphere centres are SINGULAR too, and have none (NaN)
-                singular = np.flatnonzero(status == st.SINGULAR)
-                ok[singular] = finite_rows(*(o[singular] for o in outs))
-            if errors == "raise" and not ok.all():
-                self._raise(status, ok, names, inputs)
-        shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
-        if errors == "nan":
-            if not all_ok:
-                for o in outs:
-                    o[~ok] = np.nan
-            return (*shaped, ok.reshape(lead))
-        return shaped[0] if len(shaped) == 1 else tuple(shaped)
-
     @staticmethod
     def _raise(status, ok, names, inputs):
         bad = np.flatnonzero(~ok)
@@ -404,34 +361,3 @@ class DeltaRobot(ThreadsProperty):
         else:
             *outs, status = self._core.ik_acc(*flat)
         return self._finish(errors, lead, status, outs, tuple(arrays), flat)
-
-
-class _ReferenceCore:
-    """Adapter giving the numpy reference the compiled core's call signatures."""
-
-    def __init__(self, module, geometry):
-        self._m, self._g = module, geometry
-
-    def fk(self, q):
-        return self._m.fk(self._g, q)
-
-    def fk_vel(self, q, qd):
-        return self._m.fk_vel(self._g, q, qd)
-
-    def fk_acc(self, q, qd, qdd):
-        return self._m.fk_acc(self._g, q, qd, qdd)
-
-    def jacobian(self, q):
-        return self._m.jacobian(self._g, q)
-
-    def ik(self, p):
-        return self._m.ik(self._g, p)
-
-    def ik_vel(self, p, pd):
-        return self._m.ik_vel(self._g, p, pd)
-
-    def ik_acc(self, p, pd, pdd):
-        return self._m.ik_acc(self._g, p, pd, pdd)
-
-    def inverse_dynamics(self, q, qd, qdd, payload, model="exact"):
-        return self._m.inverse_dynamics(self._g, self._g.inertia, q, qd, qdd, payload, model=model)

@@ -19,17 +19,17 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from deltagen import status as st
-from deltagen.api.hints import Backend, Errors, PathLike, Result
-from deltagen.api.threads import ThreadsProperty
+from deltagen.api.base import ReferenceCore, RobotFamily
+from deltagen.api.hints import Backend, Errors, Result
 from deltagen.api.validity import invalid_message
 from deltagen.errors import GeometryError, UnreachableError, rows_text
 from deltagen.inputs import InputError, as_rows, check_errors_mode
 from deltagen.model.five_axis import MachineDescription
-from deltagen.native.parallel import check_threads
 
 __all__ = ["FiveAxisMachine", "bundled_machines"]
 
-_BACKENDS = ("compiled", "reference")
+#: the reference functions a FiveAxisMachine calls (reference/five_axis.py)
+_CALLS = ("fk", "ik", "ik_all")
 
 
 def _is_machine_file(path: Path) -> bool:
@@ -48,12 +48,14 @@ def bundled_machines() -> list[str]:
     return [p.stem for p in sorted(robots_dir().glob("*.toml")) if _is_machine_file(p)]
 
 
-class FiveAxisMachine(ThreadsProperty):
+class FiveAxisMachine(RobotFamily):
     """A 5-axis NC machine: layout "table-table" (trunnion), "head-head" or "table-head",
     rotary "AC" or "BC" (the tilt axis, then C), the pivot points and the tool length in
     metres (model/five_axis.py)."""
 
-    _core: Any  # CompiledFiveAxis or _ReferenceCore: the same call signatures
+    _core: Any  # CompiledFiveAxis or a ReferenceCore: the same call signatures
+    _model_attr = "description"
+    _model_class = MachineDescription
 
     def __init__(
         self,
@@ -86,10 +88,7 @@ class FiveAxisMachine(ThreadsProperty):
         self._init_backend(backend, threads)
 
     def _init_backend(self, backend, threads=None):
-        if backend not in _BACKENDS:
-            raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
-        self._threads = check_threads(threads)
-        self.backend = backend
+        self._check_backend(backend, threads)
         if backend == "compiled":
             from deltagen.native.five_axis import CompiledFiveAxis
 
@@ -97,7 +96,9 @@ class FiveAxisMachine(ThreadsProperty):
             self._fk_single = self._core.single("fk")
             self._ik_single = self._core.single("ik")
         else:
-            self._core = _ReferenceCore(self.description)
+            from deltagen.reference import five_axis as reference
+
+            self._core = ReferenceCore(reference, (self.description,), _CALLS)
             self._fk_single = self._ik_single = None
 
     @classmethod
@@ -108,17 +109,7 @@ class FiveAxisMachine(ThreadsProperty):
         *,
         threads: int | None = None,
     ) -> FiveAxisMachine:
-        machine = cls.__new__(cls)
-        machine.description = description
-        machine._init_backend(backend, threads)
-        return machine
-
-    @classmethod
-    def from_toml(
-        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
-    ) -> FiveAxisMachine:
-        """A machine file: a [machine] table (model/five_axis.py)."""
-        return cls.from_description(MachineDescription.from_toml(path), backend, threads=threads)
+        return cls._from_model(description, backend, threads)
 
     @classmethod
     def load(
@@ -132,9 +123,6 @@ class FiveAxisMachine(ThreadsProperty):
                 f"no bundled machine {name!r}; bundled: {', '.join(bundled_machines())}"
             )
         return cls.from_toml(robots_dir() / f"{name}.toml", backend, threads=threads)
-
-    def with_backend(self, backend: Backend) -> FiveAxisMachine:
-        return type(self).from_description(self.description, backend, threads=self._threads)
 
     @property
     def name(self) -> str:
@@ -295,22 +283,3 @@ class FiveAxisMachine(ThreadsProperty):
                     f"d (the tool axis) has zero length in rows {rows_text(zero)}", zero
                 )
         raise InputError(invalid_message(names, inputs, bad), bad)
-
-
-class _ReferenceCore:
-    """The numpy reference with the compiled core's call signatures."""
-
-    def __init__(self, desc):
-        from deltagen.reference import five_axis as reference
-
-        self._m, self._g = reference, desc
-        self.threads = None
-
-    def fk(self, j):
-        return self._m.fk(self._g, j)
-
-    def ik(self, p, d, j_prev):
-        return self._m.ik(self._g, p, d, j_prev)
-
-    def ik_all(self, p, d, j_prev):
-        return self._m.ik_all(self._g, p, d, j_prev)

@@ -20,51 +20,21 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from deltagen import status as st
+from deltagen.api.base import ReferenceCore, RobotFamilyWithDefault
 from deltagen.api.hints import Backend, Errors, PathLike, Result
-from deltagen.api.threads import ThreadsProperty
-from deltagen.api.validity import finite_rows, invalid_message
+from deltagen.api.validity import invalid_message
 from deltagen.errors import SingularityError, UnreachableError, rows_text
 from deltagen.inputs import InputError, broadcast_rows, check_errors_mode
 from deltagen.model.linear_delta import LinearDeltaGeometry, TripodGeometry
-from deltagen.native.parallel import check_threads
 
 __all__ = ["LinearDelta", "Tripod"]
 #: Klipper's default tower angles, 210, 330, 90 deg [rad]
 _KLIPPER_ANGLES = (math.radians(210.0), math.radians(330.0), math.radians(90.0))
-_BACKENDS = ("compiled", "reference")
+#: the reference functions of the three-sphere machines (reference/linear_delta.py)
+_CALLS = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "ik_vel", "ik_acc")
 
 
-class _ReferenceCore:
-    """The numpy reference with the compiled core's call signatures."""
-
-    def __init__(self, kind, geometry):
-        from deltagen.reference import linear_delta as reference
-
-        self._m, self._kind, self._g = reference, kind, geometry
-
-    def fk(self, q):
-        return self._m.fk(self._kind, self._g, q)
-
-    def fk_vel(self, q, qd):
-        return self._m.fk_vel(self._kind, self._g, q, qd)
-
-    def fk_acc(self, q, qd, qdd):
-        return self._m.fk_acc(self._kind, self._g, q, qd, qdd)
-
-    def jacobian(self, q):
-        return self._m.jacobian(self._kind, self._g, q)
-
-    def ik(self, p):
-        return self._m.ik(self._kind, self._g, p)
-
-    def ik_vel(self, p, pd):
-        return self._m.ik_vel(self._kind, self._g, p, pd)
-
-    def ik_acc(self, p, pd, pdd):
-        return self._m.ik_acc(self._kind, self._g, p, pd, pdd)
-
-
-class _ThreeSpheres(ThreadsProperty):
+class _ThreeSpheres(RobotFamilyWithDefault):
     """What the linear delta and the tripod share: the calls, the modes and the backends."""
 
     kind = ""
@@ -76,11 +46,8 @@ class _ThreeSpheres(ThreadsProperty):
     _unreachable_fk = ""
 
     def _init_backend(self, backend: Any, threads: int | None = None) -> None:
-        if backend not in _BACKENDS:
-            raise InputError(f"backend must be one of {_BACKENDS}, got {backend!r}")
-        self._threads = check_threads(threads)
-        self.backend = backend
-        self._single: dict[str, Any] = {}
+        self._check_backend(backend, threads)
+        self._single = {}
         if backend == "compiled":
             from deltagen.native.linear_delta import CompiledTrilateration
 
@@ -88,30 +55,19 @@ class _ThreeSpheres(ThreadsProperty):
             for name in ("fk", "ik", "fk_vel", "fk_acc", "jacobian", "ik_vel", "ik_acc"):
                 self._single[name] = self._core.single(name)
         else:
-            self._core = _ReferenceCore(self.kind, self.geometry)
+            from deltagen.reference import linear_delta as reference
+
+            self._core = ReferenceCore(reference, (self.kind, self.geometry), _CALLS)
 
     @classmethod
     def from_geometry(
         cls, geometry: Any, backend: Backend = "compiled", *, threads: int | None = None
     ) -> Any:
-        robot = cls.__new__(cls)
-        robot.geometry = geometry
-        robot._init_backend(backend, threads)
-        return robot
-
-    def with_backend(self, backend: Backend) -> Any:
-        return type(self).from_geometry(self.geometry, backend, threads=self._threads)
+        return cls._from_model(geometry, backend, threads)
 
     @property
     def name(self) -> str:
         return self.geometry.name
-
-    def _lean(self, name, errors, *args):
-        if type(errors) is str and errors == "raise":
-            fn = self._single.get(name)
-            if fn is not None:
-                return fn(*args)
-        return None
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Point p (..., 3) [m] of joint values q (..., 3): the three-sphere intersection."""
@@ -207,25 +163,6 @@ class _ThreeSpheres(ThreadsProperty):
         lead, _, flat = broadcast_rows(arrays, widths=(3,))
         return lead, flat
 
-    def _finish(
-        self, errors, lead, status, outs, names, inputs, allow_singular=False, trailing=None
-    ):
-        trailing = trailing or [o.shape[1:] for o in outs]
-        ok = status == st.OK
-        if not ok.all():
-            if allow_singular:  # singular rows with a finite value are answers
-                singular = np.flatnonzero(status == st.SINGULAR)
-                ok[singular] = finite_rows(*(o[singular] for o in outs))
-            if errors == "raise" and not ok.all():
-                self._raise(status, ok, names, inputs)
-            if errors == "nan":
-                for o in outs:
-                    o[~ok] = np.nan
-        shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
-        if errors == "nan":
-            return (*shaped, ok.reshape(lead))
-        return shaped[0] if len(shaped) == 1 else tuple(shaped)
-
     def _raise(self, status, ok, names, inputs):
         bad = np.flatnonzero(~ok)
         invalid = bad[status[bad] == st.INVALID]
@@ -248,6 +185,7 @@ class LinearDelta(_ThreeSpheres):
 
     kind = "linear_delta"
     joint = "h"
+    _model_class = LinearDeltaGeometry
     _unreachable_ik = (
         "an arm cannot reach the point, or only with the effector above the carriages' plane"
     )
@@ -274,17 +212,6 @@ class LinearDelta(_ThreeSpheres):
             name=name,
         )
         self._init_backend(backend, threads)
-
-    @classmethod
-    def default(cls, backend: Backend = "compiled", *, threads: int | None = None) -> LinearDelta:
-        """Towers at radius 0.1 m at 210/330/90 deg, arms 0.25 m, carriages 0 .. 0.5 m."""
-        return cls.from_geometry(LinearDeltaGeometry.default(), backend, threads=threads)
-
-    @classmethod
-    def from_toml(
-        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
-    ) -> LinearDelta:
-        return cls.from_geometry(LinearDeltaGeometry.from_toml(path), backend, threads=threads)
 
     @classmethod
     def from_klipper(
@@ -324,6 +251,7 @@ class Tripod(_ThreeSpheres):
 
     kind = "tripod"
     joint = "l"
+    _model_class = TripodGeometry
     _unreachable_ik = "the point lies on the other side of the base plane than the tripod's side"
     _unreachable_fk = "the struts' spheres do not meet, or a strut length is negative"
 
@@ -350,17 +278,6 @@ class Tripod(_ThreeSpheres):
             name=name,
         )
         self._init_backend(backend, threads)
-
-    @classmethod
-    def default(cls, backend: Backend = "compiled", *, threads: int | None = None) -> Tripod:
-        """B = (1, 0, 0), C = (0.5, 0.8, 0) m, the point above the base plane."""
-        return cls.from_geometry(TripodGeometry.default(), backend, threads=threads)
-
-    @classmethod
-    def from_toml(
-        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
-    ) -> Tripod:
-        return cls.from_geometry(TripodGeometry.from_toml(path), backend, threads=threads)
 
     def workspace_extent(self) -> tuple[float, float, tuple, tuple[float, float]]:
         """The longest strut, the reach, the box of the base points grown by the longest

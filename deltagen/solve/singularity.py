@@ -228,6 +228,22 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     return out
 
 
+def singular_values(J, valid):
+    """Singular values (..., min(6, n)) of the valid rows' J, NaN elsewhere (and where
+    LAPACK does not converge, which huge finite entries can cause)."""
+    sv = np.full(J.shape[:-2] + (min(J.shape[-2:]),), np.nan)
+    try:
+        sv[valid] = np.linalg.svd(J[valid], compute_uv=False)
+    except np.linalg.LinAlgError:
+        rows = np.argwhere(valid)
+        for index in map(tuple, rows):
+            try:
+                sv[index] = np.linalg.svd(J[index], compute_uv=False)
+            except np.linalg.LinAlgError:
+                pass
+    return sv
+
+
 def row_of(rep: dict, index) -> dict:
     """The report of one configuration out of a batched report."""
     return {k: (v[index] if isinstance(v, np.ndarray) else v) for k, v in rep.items()}

@@ -1,0 +1,120 @@
+"""What the robot families of the API share (DeltaRobot, SerialRobot, LinearDelta, Tripod,
+FiveAxisMachine, Hexapod): the backend and ``threads`` checks, the class methods that read
+a robot file or take the family's default model, the shaping of a batched kernel's outputs
+by the ``errors`` mode (``_finish``), the one-pose lean path (``_lean``) and the adapter that
+gives a numpy reference module the compiled core's call signatures (``ReferenceCore``)."""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Any, ClassVar, Self
+
+import numpy as np
+
+from deltagen import status as st
+from deltagen.api.hints import Backend, Errors, PathLike
+from deltagen.api.threads import ThreadsProperty
+from deltagen.api.validity import finite_rows
+from deltagen.inputs import InputError
+from deltagen.native.parallel import check_threads
+
+BACKENDS = ("compiled", "reference")
+
+
+class ReferenceCore:
+    """A numpy reference module with the compiled core's call signatures: ``core.fk(q)``
+    is ``module.fk(*model, q)`` for each name in ``calls`` (the reference functions take the
+    robot's model first)."""
+
+    def __init__(self, module: Any, model: tuple, calls: tuple[str, ...]) -> None:
+        for name in calls:
+            setattr(self, name, partial(getattr(module, name), *model))
+        self.threads: int | None = None  # the reference is single-threaded
+
+
+class RobotFamily(ThreadsProperty):
+    """The base of the robot classes: a model (the family's geometry or description, in the
+    attribute ``_model_attr``, of class ``_model_class``), a backend and a core."""
+
+    _model_attr: ClassVar[str] = "geometry"
+    _model_class: ClassVar[Any]
+    backend: Backend
+    _single: dict[str, Any]  # the one-pose lean paths of the compiled core, by kernel
+
+    def _check_backend(self, backend: Any, threads: int | None) -> int | None:
+        """Set ``backend`` and ``threads`` after checking them; returns the checked threads."""
+        if backend not in BACKENDS:
+            raise InputError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        self._threads = check_threads(threads)
+        self.backend = backend
+        return self._threads
+
+    def _init_backend(self, backend: Any, threads: int | None = None) -> None:
+        raise NotImplementedError
+
+    @classmethod
+    def _from_model(cls, model: Any, backend: Backend, threads: int | None) -> Self:
+        robot = cls.__new__(cls)
+        setattr(robot, cls._model_attr, model)
+        robot._init_backend(backend, threads)
+        return robot
+
+    @classmethod
+    def from_toml(
+        cls, path: PathLike, backend: Backend = "compiled", *, threads: int | None = None
+    ) -> Self:
+        """The robot of a robot file (the family's model class reads it: its from_toml)."""
+        return cls._from_model(cls._model_class.from_toml(path), backend, threads)
+
+    def with_backend(self, backend: Backend) -> Self:
+        """The same robot (same model, same threads) on the other backend."""
+        return type(self)._from_model(getattr(self, self._model_attr), backend, self._threads)
+
+    def _lean(self, name: str, errors: Errors, *args: Any) -> Any:
+        """The one-pose lean path of kernel ``name`` (same C function, same results), or
+        None when the general path must answer (a batch, errors="nan", the reference)."""
+        if type(errors) is str and errors == "raise":
+            fn = self._single.get(name)
+            if fn is not None:
+                return fn(*args)
+        return None
+
+    def _raise(self, status: Any, ok: Any, names: Any, inputs: Any) -> None:
+        """Raise the error of the rows that are not ok (each family words its causes)."""
+        raise NotImplementedError
+
+    def _finish(
+        self, errors, lead, status, outs, names, inputs, allow_singular=False, trailing=None
+    ):
+        """Shape the kernel's outputs (N, ...) to ``lead``. The status already applies the
+        finite-output rule (deltagen/status.py: a row is OK only where every output is
+        finite -- the generated C and the reference alike, tested by the fuzz tests), so the
+        outputs are not read again, except the SINGULAR rows that fk and ik may return
+        (``allow_singular``: a singular row with a finite value is an answer): a second
+        pass over every row cost about as much as the kernel."""
+        trailing = trailing or [o.shape[1:] for o in outs]
+        ok = status == st.OK
+        all_ok = bool(ok.all())
+        if not all_ok:
+            if allow_singular:  # collinear sphere centres are SINGULAR too, with no value
+                singular = np.flatnonzero(status == st.SINGULAR)
+                ok[singular] = finite_rows(*(o[singular] for o in outs))
+            if errors == "raise" and not ok.all():
+                self._raise(status, ok, names, inputs)
+        shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
+        if errors == "nan":
+            if not all_ok:
+                for o in outs:
+                    o[~ok] = np.nan
+            return (*shaped, ok.reshape(lead))
+        return shaped[0] if len(shaped) == 1 else tuple(shaped)
+
+
+class RobotFamilyWithDefault(RobotFamily):
+    """A family whose model class has a default robot (DeltaRobot, LinearDelta, Tripod)."""
+
+    @classmethod
+    def default(cls, backend: Backend = "compiled", *, threads: int | None = None) -> Self:
+        """The family's default robot (its model class's default(): the numbers are in
+        that method's docstring)."""
+        return cls._from_model(cls._model_class.default(), backend, threads)
