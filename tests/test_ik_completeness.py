@@ -25,8 +25,7 @@ from deltagen import IncompleteSolutionsWarning, SerialRobot
 from deltagen.geometry.limits import fit_limits
 from deltagen.model.urdf import URDFWarning
 from deltagen.solve import numeric as ik_numeric
-from deltagen.solve.analytic import analytic_solver
-from deltagen.solve.nearest import NearestSolver, nearest_exact
+from deltagen.solve.nearest import NearestSolver, closed_form_solver, nearest_exact
 
 ROBOTS_DIR = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix/share/example-robot-data/robots"
 POSES = 40  # per chain in the test run (the closing note's table: the script with 1000)
@@ -132,7 +131,7 @@ def load(name: str, backend: str = "reference") -> SerialRobot:
 
 def method_of(arm: SerialRobot) -> str:
     """The method ik_all(method="auto") uses: the closed form's structure, or general6r."""
-    solver = analytic_solver(arm.description)
+    solver = closed_form_solver(arm.description)
     return "general6r" if solver is None else solver.structure
 
 
@@ -210,7 +209,7 @@ def test_icub_leg_is_nearly_a_reversed_central_wrist():
     assert nearest is not None and nearest.inner.kind == "reversed"
     assert 1e-7 < nearest.moved_angle < 1e-5 and nearest.moved_length < 1e-5
     assert 1e-7 < nearest.deviation < 1e-4
-    solver = analytic_solver(arm.description)
+    solver = closed_form_solver(arm.description)
     assert isinstance(solver, NearestSolver) and len(solver.configs) == 8
 
 

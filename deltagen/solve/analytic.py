@@ -762,16 +762,9 @@ def solver_for(
 
 
 def analytic_solver(desc: SerialDescription) -> AnalyticSolver | None:
-    """The closed-form solver for ``desc``, or None when no supported structure applies: the
-    structure's own, or for a 6R chain that is one only up to the rounding of its file, the
-    nearest exact arm's closed form polished by Newton on the chain (solve/nearest.py)."""
+    """The closed-form solver for ``desc``'s structure, or None when no supported structure
+    applies (a 6R chain that is one only up to the rounding of its file:
+    deltagen.solve.nearest.closed_form_solver)."""
     if not isinstance(desc, SerialDescription):
         raise InputError("analytic_solver needs a SerialDescription")
-    solver = solver_for(detect(desc), desc)
-    if solver is None:
-        from deltagen.solve.nearest import NearestSolver, nearest_exact
-
-        nearest = nearest_exact(desc)
-        if nearest is not None:
-            return NearestSolver(nearest, desc)
-    return solver
+    return solver_for(detect(desc), desc)

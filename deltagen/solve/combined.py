@@ -20,7 +20,7 @@ to first order. On 500 random in-limit Puma-with-a4 = 2 cm poses, the original q
 valid branches for 470 / 478 / 486 poses with 0 / 1 / 2 passes (default 2), median Newton steps
 per valid branch 3 / 2 / 2.
 
-The closed form comes from :func:`deltagen.solve.analytic.analytic_solver` (structure
+The closed form comes from :func:`deltagen.solve.nearest.closed_form_solver` (structure
 ``spherical_wrist_6r``), the refinement from :func:`deltagen.solve.numeric.solve`
 (damped Newton, ``restarts=0``, started at the branch). Everything is batched: the N poses
 times k branches are one Newton batch of N k rows.
@@ -35,7 +35,7 @@ times k branches are one Newton batch of N k rows.
 
 Everything else (d4, the tool offset along axis 6 (d6), alpha, offsets, limits, base, tool)
 is kept. Universal coordinates are not supported (InputError). The result is checked:
-:func:`analytic_solver` must accept it (InputError otherwise).
+:func:`closed_form_solver` must accept it (InputError otherwise).
 
 ``solve_all(arm, T)`` returns ``q`` (..., k, n) and ``valid`` (..., k) in the branch order
 and with the names of the closed-form solver (``branch_names(arm)``, for a Puma-like arm
@@ -65,7 +65,7 @@ from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError
 from deltagen.model.serial import SerialDescription
 from deltagen.solve import numeric as ik_numeric
-from deltagen.solve.analytic import analytic_solver
+from deltagen.solve.nearest import closed_form_solver
 
 __all__ = ["nearest_central_wrist", "central_solver", "branch_names", "solve_all"]
 
@@ -99,7 +99,7 @@ def nearest_central_wrist(desc: SerialDescription) -> SerialDescription:
         joints=tuple(joints),
         doc=f"{desc.name} with the wrist offsets set to zero",
     )
-    if analytic_solver(central) is None:
+    if closed_form_solver(central) is None:
         raise InputError(
             f"{desc.name}: no closed form for the arm with a central wrist "
             "(needs axes 2 and 3 parallel, axis 1 not parallel to them)"
@@ -111,7 +111,7 @@ def central_solver(arm):
     """The closed-form solver of the nearest central-wrist arm of ``arm`` (cached per arm)."""
     solver = _SOLVERS.get(arm)
     if solver is None:
-        solver = analytic_solver(nearest_central_wrist(arm.description))
+        solver = closed_form_solver(nearest_central_wrist(arm.description))
         _SOLVERS[arm] = solver
     return solver
 

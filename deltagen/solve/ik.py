@@ -210,10 +210,11 @@ class IKPlanner:
 
     @cached_property
     def analytic(self) -> Any:
-        """The closed form of deltagen.solve.analytic for this arm's structure, else None."""
-        from deltagen.solve.analytic import analytic_solver
+        """The closed form of deltagen.solve.analytic for this arm's structure (or its nearest
+        exact arm's, deltagen.solve.nearest), else None."""
+        from deltagen.solve.nearest import closed_form_solver
 
-        return analytic_solver(self.description)
+        return closed_form_solver(self.description)
 
     @cached_property
     def combined(self) -> Any:

@@ -62,7 +62,7 @@ from deltagen.geometry.axes import NONPARALLEL_TOL
 from deltagen.inputs import InputError
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import JointAxes, detect, joint_axes, reversed_description
-from deltagen.solve.analytic import AnalyticSolver, solver_for
+from deltagen.solve.analytic import AnalyticSolver, analytic_solver, solver_for
 
 __all__ = [
     "SNAP_SINE",
@@ -70,6 +70,7 @@ __all__ = [
     "POLISH_TOL",
     "NearestArm",
     "NearestSolver",
+    "closed_form_solver",
     "nearest_exact",
     "polish",
 ]
@@ -308,3 +309,15 @@ class NearestSolver(AnalyticSolver):
         ok = ok.reshape(N, k)
         q[~ok] = np.nan
         return q, ok
+
+
+def closed_form_solver(desc: SerialDescription) -> AnalyticSolver | None:
+    """The closed-form solver for ``desc``: its structure's own (solve/analytic.py), or for a
+    6R chain that is one only up to the rounding of its file, the nearest exact arm's closed
+    form polished by Newton on the chain; None when neither applies."""
+    solver = analytic_solver(desc)
+    if solver is None:
+        nearest = nearest_exact(desc)
+        if nearest is not None:
+            return NearestSolver(nearest, desc)
+    return solver
