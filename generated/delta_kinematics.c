@@ -178,17 +178,19 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -205,8 +207,8 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(x) & isfinite(y)
-                    & isfinite(z) & isfinite(q4))));
+            const int nonfinite_output = ((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
+                    (unreachable)))));
             const int t8_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
             const double out_x_checked = ((t8_0) ? NAN : x);
             const double out_y_checked = ((t8_0) ? NAN : y);
@@ -405,17 +407,19 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -468,9 +472,9 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
             const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
             const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(x) &
-                    isfinite(y) & isfinite(z) & isfinite(q4))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd) &
-                    isfinite(qd4))) & (!(((collinear) | (invalid) | (singular) | (unreachable)))))));
+            const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
+                    (unreachable)))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd))) & (!(((collinear) | (invalid)
+                    | (singular) | (unreachable)))))));
             const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
             const int t12_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
             const double out_x_checked = ((t12_0) ? NAN : x);
@@ -706,17 +710,19 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -792,10 +798,9 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
             const double ydd = inv_det_D*(adjD22*t13_0 + adjD23*t13_1 + e_y*h1);
             const double zdd = inv_det_D*(adjD32*t13_0 + adjD33*t13_1 + e_z*h1);
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(x) &
-                    isfinite(y) & isfinite(z) & isfinite(q4))))) | (((!(((collinear) | (invalid) | (singular) |
-                    (unreachable)))) & (!(isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(qd4) & isfinite(xdd) &
-                    isfinite(ydd) & isfinite(zdd) & isfinite(qdd4))))));
+            const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
+                    (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) & (!(isfinite(xd)
+                    & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd))))));
             const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
             const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
             const double out_x_checked = ((t14_0) ? NAN : x);
@@ -1009,17 +1014,19 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -1170,6 +1177,9 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
     const double det_limit = singular_tol*(l_b*l_b*l_b);
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+    const double G0_1 = chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) + chain_r1*chain_r1;
+    const double G0_2 = chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) + chain_r2*chain_r2;
+    const double G0_3 = chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) + chain_r3*chain_r3;
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
@@ -1220,16 +1230,13 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
             const double t0_12 = 2*chain_r3;
             const double E1 = -t0_2*(-chain_r1 + t0_0 + t0_1);
             const double F1 = t0_2*z;
-            const double G1 = -t0_0*t0_3 - t0_1*t0_3 + t0_4 + chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) +
-                    chain_r1*chain_r1;
+            const double G1 = G0_1 - t0_0*t0_3 - t0_1*t0_3 + t0_4;
             const double E2 = -t0_7*(-chain_r2 + t0_5 + t0_6);
             const double F2 = t0_7*z;
-            const double G2 = t0_4 - t0_5*t0_8 - t0_6*t0_8 + chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) +
-                    chain_r2*chain_r2;
+            const double G2 = G0_2 + t0_4 - t0_5*t0_8 - t0_6*t0_8;
             const double E3 = -t0_11*(-chain_r3 + t0_10 + t0_9);
             const double F3 = t0_11*z;
-            const double G3 = -t0_10*t0_12 - t0_12*t0_9 + t0_4 + chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) +
-                    chain_r3*chain_r3;
+            const double G3 = G0_3 - t0_10*t0_12 - t0_12*t0_9 + t0_4;
             /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
             const double disc1 = E1*E1 + F1*F1 - (G1*G1);
             const double disc2 = E2*E2 + F2*F2 - (G2*G2);
@@ -1248,59 +1255,50 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
             const double q1 = atan2(ik_y1, ik_x1);
             const double q2 = atan2(ik_y2, ik_x2);
             const double q3 = atan2(ik_y3, ik_x3);
-            /* cos q_i, sin q_i = (X, Y) / rho^2 */
-            const double inv_rho_sq1 = 1.0/(E1*E1 + F1*F1);
-            const double inv_rho_sq2 = 1.0/(E2*E2 + F2*F2);
-            const double inv_rho_sq3 = 1.0/(E3*E3 + F3*F3);
-            const double cos_q1 = ik_x1*inv_rho_sq1;
-            const double sin_q1 = ik_y1*inv_rho_sq1;
-            const double cos_q2 = ik_x2*inv_rho_sq2;
-            const double sin_q2 = ik_y2*inv_rho_sq2;
-            const double cos_q3 = ik_x3*inv_rho_sq3;
-            const double sin_q3 = ik_y3*inv_rho_sq3;
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t5_0;
-            const double S_y1 = sin_theta1*t5_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t5_1;
-            const double S_y2 = sin_theta2*t5_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t5_2;
-            const double S_y3 = sin_theta3*t5_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-            const double t6_0 = -x;
-            const double t6_1 = -y;
-            const double t6_2 = -z;
-            const double D11 = -S_x1 - t6_0;
-            const double D12 = -S_y1 - t6_1;
-            const double D13 = -S_z1 - t6_2;
-            const double D21 = -S_x2 - t6_0;
-            const double D22 = -S_y2 - t6_1;
-            const double D23 = -S_z2 - t6_2;
-            const double D31 = -S_x3 - t6_0;
-            const double D32 = -S_y3 - t6_1;
-            const double D33 = -S_z3 - t6_2;
-            /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
-            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
-            const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
+            /* assembly mode without divisions: rho_i^2 S_i, P det_D and P e_z, P = prod rho_i^2 */
+            const double rho_sq1 = E1*E1 + F1*F1;
+            const double rho_sq2 = E2*E2 + F2*F2;
+            const double rho_sq3 = E3*E3 + F3*F3;
+            const double St_z1 = -chain_l_a1*ik_y1;
+            const double St_z2 = -chain_l_a2*ik_y2;
+            const double St_z3 = -chain_l_a3*ik_y3;
+            const double Dt13 = -St_z1 + rho_sq1*z;
+            const double Dt23 = -St_z2 + rho_sq2*z;
+            const double Dt33 = -St_z3 + rho_sq3*z;
+            const double rho_sq_product = rho_sq1*rho_sq2*rho_sq3;
+            const double t4_0 = chain_l_a1*ik_x1 + chain_r1*rho_sq1;
+            const double t4_1 = chain_l_a2*ik_x2 + chain_r2*rho_sq2;
+            const double t4_2 = chain_l_a3*ik_x3 + chain_r3*rho_sq3;
+            const double St_x1 = cos_theta1*t4_0;
+            const double St_y1 = sin_theta1*t4_0;
+            const double St_x2 = cos_theta2*t4_1;
+            const double St_y2 = sin_theta2*t4_1;
+            const double St_x3 = cos_theta3*t4_2;
+            const double St_y3 = sin_theta3*t4_2;
+            const double Dt11 = -St_x1 + rho_sq1*x;
+            const double Dt12 = -St_y1 + rho_sq1*y;
+            const double Dt21 = -St_x2 + rho_sq2*x;
+            const double Dt22 = -St_y2 + rho_sq2*y;
+            const double Dt31 = -St_x3 + rho_sq3*x;
+            const double Dt32 = -St_y3 + rho_sq3*y;
+            const double scaled_det_D = Dt11*(Dt22*Dt33 - Dt23*Dt32) + Dt12*(-Dt21*Dt33 + Dt23*Dt31) + Dt13*(Dt21*Dt32 -
+                    Dt22*Dt31);
+            const double scaled_normal_z = rho_sq1*(St_x2*St_y3 - St_x3*St_y2) + rho_sq2*(-St_x1*St_y3 + St_x3*St_y1) +
+                    rho_sq3*(St_x1*St_y2 - St_x2*St_y1);
             /* status flags: non-finite input, a crank cannot reach or the target lies in the other assembly mode, a
              *    crank at its reach limit */
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((fabs(det_D) > det_limit)) &
-                    ((centre_normal_z*det_D > 0)))));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((scaled_det_D*scaled_normal_z >
+                    0)) & ((fabs(scaled_det_D) > det_limit*rho_sq_product)))));
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                    isfinite(q3) & isfinite(phi))));
-            const int t9_0 = ((invalid) | (nonfinite_output) | (unreachable));
-            const double out_q1_checked = ((t9_0) ? NAN : q1);
-            const double out_q2_checked = ((t9_0) ? NAN : q2);
-            const double out_q3_checked = ((t9_0) ? NAN : q3);
-            const double out_q4_checked = ((t9_0) ? NAN : phi);
+                    isfinite(q3))));
+            const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
+            const double out_q1_checked = ((t6_0) ? NAN : q1);
+            const double out_q2_checked = ((t6_0) ? NAN : q2);
+            const double out_q3_checked = ((t6_0) ? NAN : q3);
+            const double out_q4_checked = ((t6_0) ? NAN : phi);
             out_q1_checked_b[k] = out_q1_checked;
             out_q2_checked_b[k] = out_q2_checked;
             out_q3_checked_b[k] = out_q3_checked;
@@ -1366,6 +1364,9 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
     const double det_limit = singular_tol*(l_b*l_b*l_b);
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+    const double G0_1 = chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) + chain_r1*chain_r1;
+    const double G0_2 = chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) + chain_r2*chain_r2;
+    const double G0_3 = chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) + chain_r3*chain_r3;
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
@@ -1436,16 +1437,13 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
             const double t0_12 = 2*chain_r3;
             const double E1 = -t0_2*(-chain_r1 + t0_0 + t0_1);
             const double F1 = t0_2*z;
-            const double G1 = -t0_0*t0_3 - t0_1*t0_3 + t0_4 + chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) +
-                    chain_r1*chain_r1;
+            const double G1 = G0_1 - t0_0*t0_3 - t0_1*t0_3 + t0_4;
             const double E2 = -t0_7*(-chain_r2 + t0_5 + t0_6);
             const double F2 = t0_7*z;
-            const double G2 = t0_4 - t0_5*t0_8 - t0_6*t0_8 + chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) +
-                    chain_r2*chain_r2;
+            const double G2 = G0_2 + t0_4 - t0_5*t0_8 - t0_6*t0_8;
             const double E3 = -t0_11*(-chain_r3 + t0_10 + t0_9);
             const double F3 = t0_11*z;
-            const double G3 = -t0_10*t0_12 - t0_12*t0_9 + t0_4 + chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) +
-                    chain_r3*chain_r3;
+            const double G3 = G0_3 - t0_10*t0_12 - t0_12*t0_9 + t0_4;
             /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
             const double disc1 = E1*E1 + F1*F1 - (G1*G1);
             const double disc2 = E2*E2 + F2*F2 - (G2*G2);
@@ -1525,8 +1523,8 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                    isfinite(q3) & isfinite(phi))))) | (((!(((invalid) | (singular) | (unreachable)))) &
-                    (!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(phid))))));
+                    isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) | (singular)
+                    | (unreachable)))))));
             const int t11_0 = ((invalid) | (nonfinite_output) | (unreachable));
             const int t11_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
             const double out_q1_checked = ((t11_0) ? NAN : q1);
@@ -1614,6 +1612,9 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
     /* r = r_a - r_b (eq. (1)) and the singularity thresholds scaled to the robot */
     const double det_limit = singular_tol*(l_b*l_b*l_b);
     const double jq_limit = 4*(singular_tol*singular_tol)*(l_a*l_a)*(l_b*l_b);
+    const double G0_1 = chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) + chain_r1*chain_r1;
+    const double G0_2 = chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) + chain_r2*chain_r2;
+    const double G0_3 = chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) + chain_r3*chain_r3;
 
     for (size_t start = 0; start < n; start += DELTAGEN_DELTA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_DELTA_BLOCK) ? n - start : DELTAGEN_DELTA_BLOCK;
@@ -1704,16 +1705,13 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
             const double t0_12 = 2*chain_r3;
             const double E1 = -t0_2*(-chain_r1 + t0_0 + t0_1);
             const double F1 = t0_2*z;
-            const double G1 = -t0_0*t0_3 - t0_1*t0_3 + t0_4 + chain_l_a1*chain_l_a1 - (chain_l_b1*chain_l_b1) +
-                    chain_r1*chain_r1;
+            const double G1 = G0_1 - t0_0*t0_3 - t0_1*t0_3 + t0_4;
             const double E2 = -t0_7*(-chain_r2 + t0_5 + t0_6);
             const double F2 = t0_7*z;
-            const double G2 = t0_4 - t0_5*t0_8 - t0_6*t0_8 + chain_l_a2*chain_l_a2 - (chain_l_b2*chain_l_b2) +
-                    chain_r2*chain_r2;
+            const double G2 = G0_2 + t0_4 - t0_5*t0_8 - t0_6*t0_8;
             const double E3 = -t0_11*(-chain_r3 + t0_10 + t0_9);
             const double F3 = t0_11*z;
-            const double G3 = -t0_10*t0_12 - t0_12*t0_9 + t0_4 + chain_l_a3*chain_l_a3 - (chain_l_b3*chain_l_b3) +
-                    chain_r3*chain_r3;
+            const double G3 = G0_3 - t0_10*t0_12 - t0_12*t0_9 + t0_4;
             /* discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
             const double disc1 = E1*E1 + F1*F1 - (G1*G1);
             const double disc2 = E2*E2 + F2*F2 - (G2*G2);
@@ -1819,9 +1817,8 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
             const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                    isfinite(q3) & isfinite(phi))))) | (((!(((invalid) | (singular) | (unreachable)))) &
-                    (!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3) & isfinite(phid) & isfinite(qdd1) & isfinite(qdd2)
-                    & isfinite(qdd3) & isfinite(phidd))))));
+                    isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
+                    isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
             const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
             const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
             const double out_q1_checked = ((t12_0) ? NAN : q1);
@@ -2075,17 +2072,19 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -2250,11 +2249,11 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
             const double dp_q3_y = adjD23*t12_15;
             const double dp_q3_z = adjD33*t12_15;
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(((collinear) | (invalid) | (unreachable)))) & (!(isfinite(x) &
-                    isfinite(y) & isfinite(z) & isfinite(q4))))) | (((!(((collinear) | (invalid) | (singular) |
-                    (unreachable)))) & (!(isfinite(dp_r1_x) & isfinite(dp_r1_y) & isfinite(dp_r1_z) & isfinite(dp_r2_x)
-                    & isfinite(dp_r2_y) & isfinite(dp_r2_z) & isfinite(dp_r3_x) & isfinite(dp_r3_y) & isfinite(dp_r3_z)
-                    & isfinite(dp_l_a1_x) & isfinite(dp_l_a1_y) & isfinite(dp_l_a1_z) & isfinite(dp_l_a2_x) &
+            const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
+                    (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) &
+                    (!(isfinite(dp_r1_x) & isfinite(dp_r1_y) & isfinite(dp_r1_z) & isfinite(dp_r2_x) & isfinite(dp_r2_y)
+                    & isfinite(dp_r2_z) & isfinite(dp_r3_x) & isfinite(dp_r3_y) & isfinite(dp_r3_z) &
+                    isfinite(dp_l_a1_x) & isfinite(dp_l_a1_y) & isfinite(dp_l_a1_z) & isfinite(dp_l_a2_x) &
                     isfinite(dp_l_a2_y) & isfinite(dp_l_a2_z) & isfinite(dp_l_a3_x) & isfinite(dp_l_a3_y) &
                     isfinite(dp_l_a3_z) & isfinite(dp_l_b1_x) & isfinite(dp_l_b1_y) & isfinite(dp_l_b1_z) &
                     isfinite(dp_l_b2_x) & isfinite(dp_l_b2_y) & isfinite(dp_l_b2_z) & isfinite(dp_l_b3_x) &
@@ -2669,17 +2668,19 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -3055,17 +3056,19 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = chain_l_b1*chain_l_b1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (chain_l_b3*chain_l_b3);
+            const double t4_0 = chain_l_b1*chain_l_b1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (chain_l_b2*chain_l_b2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */

@@ -417,9 +417,8 @@ int deltagen_gantry_xyz_ac_frames(size_t n, const double *restrict q, double *re
             const double t4_4 = -F5_23;
             const double t4_5 = -sin_q5;
             const double t4_6 = -cos_q5;
-            const int nonfinite_output = ((!invalid) & (!(isfinite(q1) & isfinite(q1) & isfinite(q2) & isfinite(q1) &
-                    isfinite(q2) & isfinite(F3_34) & isfinite(cos_q4) & isfinite(t4_0) & isfinite(q1) & isfinite(sin_q4)
-                    & isfinite(cos_q4) & isfinite(q2) & isfinite(F4_34) & isfinite(cos_q4) & isfinite(F5_12) &
+            const int nonfinite_output = ((!invalid) & (!(isfinite(F3_34) & isfinite(cos_q4) & isfinite(t4_0) &
+                    isfinite(sin_q4) & isfinite(cos_q4) & isfinite(F4_34) & isfinite(cos_q4) & isfinite(F5_12) &
                     isfinite(F5_13) & isfinite(F5_14) & isfinite(sin_q4) & isfinite(F5_22) & isfinite(F5_23) &
                     isfinite(F5_24) & isfinite(sin_q5) & isfinite(cos_q5) & isfinite(F5_34) & isfinite(cos_q4) &
                     isfinite(t4_1) & isfinite(t4_2) & isfinite(F5_14) & isfinite(sin_q4) & isfinite(t4_3) &

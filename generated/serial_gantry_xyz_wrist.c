@@ -477,16 +477,15 @@ int deltagen_gantry_xyz_wrist_frames(size_t n, const double *restrict q, double 
             const double t5_5 = -F5_23;
             const double t5_6 = -F6_32;
             const double t5_7 = -cos_q5;
-            const int nonfinite_output = ((!invalid) & (!(isfinite(q1) & isfinite(q1) & isfinite(q2) & isfinite(q1) &
-                    isfinite(q2) & isfinite(F3_34) & isfinite(cos_q4) & isfinite(t5_0) & isfinite(q1) & isfinite(sin_q4)
-                    & isfinite(cos_q4) & isfinite(q2) & isfinite(F4_34) & isfinite(F5_11) & isfinite(t5_0) &
-                    isfinite(F5_13) & isfinite(q1) & isfinite(F5_21) & isfinite(cos_q4) & isfinite(F5_23) & isfinite(q2)
-                    & isfinite(t5_1) & isfinite(cos_q5) & isfinite(F4_34) & isfinite(F6_11) & isfinite(F6_12) &
-                    isfinite(F5_13) & isfinite(F6_14) & isfinite(F6_21) & isfinite(F6_22) & isfinite(F5_23) &
-                    isfinite(F6_24) & isfinite(F6_31) & isfinite(F6_32) & isfinite(cos_q5) & isfinite(F6_34) &
-                    isfinite(F6_11) & isfinite(t5_2) & isfinite(t5_3) & isfinite(F6_14) & isfinite(F6_21) &
-                    isfinite(t5_4) & isfinite(t5_5) & isfinite(F6_24) & isfinite(F6_31) & isfinite(t5_6) &
-                    isfinite(t5_7) & isfinite(F6_34))));
+            const int nonfinite_output = ((!invalid) & (!(isfinite(F3_34) & isfinite(cos_q4) & isfinite(t5_0) &
+                    isfinite(sin_q4) & isfinite(cos_q4) & isfinite(F4_34) & isfinite(F5_11) & isfinite(t5_0) &
+                    isfinite(F5_13) & isfinite(F5_21) & isfinite(cos_q4) & isfinite(F5_23) & isfinite(t5_1) &
+                    isfinite(cos_q5) & isfinite(F4_34) & isfinite(F6_11) & isfinite(F6_12) & isfinite(F5_13) &
+                    isfinite(F6_14) & isfinite(F6_21) & isfinite(F6_22) & isfinite(F5_23) & isfinite(F6_24) &
+                    isfinite(F6_31) & isfinite(F6_32) & isfinite(cos_q5) & isfinite(F6_34) & isfinite(F6_11) &
+                    isfinite(t5_2) & isfinite(t5_3) & isfinite(F6_14) & isfinite(F6_21) & isfinite(t5_4) &
+                    isfinite(t5_5) & isfinite(F6_24) & isfinite(F6_31) & isfinite(t5_6) & isfinite(t5_7) &
+                    isfinite(F6_34))));
             const int t5_8 = ((invalid) | (nonfinite_output));
             const double t5_9 = ((t5_8) ? NAN : 1);
             const double t5_10 = ((t5_8) ? NAN : 0);

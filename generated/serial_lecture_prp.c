@@ -112,7 +112,7 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const double t2_0 = -sin_q2;
             const int nonfinite_output = ((!invalid) & (!(isfinite(cos_q2) & isfinite(t2_0) & isfinite(F3_14) &
-                    isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F3_24) & isfinite(q1))));
+                    isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F3_24))));
             const int t2_1 = ((invalid) | (nonfinite_output));
             const double t2_2 = ((t2_1) ? NAN : cos_q2);
             const double t2_3 = ((t2_1) ? NAN : 0);
@@ -317,11 +317,10 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
             const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const double t2_0 = -sin_q2;
-            const int nonfinite_output = ((!invalid) & (!(isfinite(q1) & isfinite(t2_0) & isfinite(cos_q2) &
-                    isfinite(cos_q2) & isfinite(sin_q2) & isfinite(q1) & isfinite(t2_0) & isfinite(cos_q2) &
-                    isfinite(F3_14) & isfinite(cos_q2) & isfinite(sin_q2) & isfinite(F3_24) & isfinite(q1) &
-                    isfinite(cos_q2) & isfinite(t2_0) & isfinite(F3_14) & isfinite(sin_q2) & isfinite(cos_q2) &
-                    isfinite(F3_24) & isfinite(q1))));
+            const int nonfinite_output = ((!invalid) & (!(isfinite(t2_0) & isfinite(cos_q2) & isfinite(cos_q2) &
+                    isfinite(sin_q2) & isfinite(t2_0) & isfinite(cos_q2) & isfinite(F3_14) & isfinite(cos_q2) &
+                    isfinite(sin_q2) & isfinite(F3_24) & isfinite(cos_q2) & isfinite(t2_0) & isfinite(F3_14) &
+                    isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F3_24))));
             const int t2_1 = ((invalid) | (nonfinite_output));
             const double t2_2 = ((t2_1) ? NAN : 1);
             const double t2_3 = ((t2_1) ? NAN : 0);
@@ -865,11 +864,10 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const double t3_0 = -sin_q2;
             const int nonfinite_output = ((!invalid) & (!(isfinite(cos_q2) & isfinite(t3_0) & isfinite(F3_14) &
-                    isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F3_24) & isfinite(q1) & isfinite(J1_1) &
-                    isfinite(J1_2) & isfinite(J1_3) & isfinite(J2_1) & isfinite(J2_2) & isfinite(J2_3) & isfinite(J3_1)
-                    & isfinite(J3_2) & isfinite(J3_3) & isfinite(J4_1) & isfinite(J4_2) & isfinite(J4_3) &
-                    isfinite(J5_1) & isfinite(J5_2) & isfinite(J5_3) & isfinite(J6_1) & isfinite(J6_2) &
-                    isfinite(J6_3))));
+                    isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F3_24) & isfinite(J1_1) & isfinite(J1_2) &
+                    isfinite(J1_3) & isfinite(J2_1) & isfinite(J2_2) & isfinite(J2_3) & isfinite(J3_1) & isfinite(J3_2)
+                    & isfinite(J3_3) & isfinite(J4_1) & isfinite(J4_2) & isfinite(J4_3) & isfinite(J5_1) &
+                    isfinite(J5_2) & isfinite(J5_3) & isfinite(J6_1) & isfinite(J6_2) & isfinite(J6_3))));
             const int t3_1 = ((invalid) | (nonfinite_output));
             const double t3_2 = ((t3_1) ? NAN : cos_q2);
             const double t3_3 = ((t3_1) ? NAN : 0);

@@ -421,13 +421,12 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
             const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const double t4_0 = -sin_q2;
-            const int nonfinite_output = ((!invalid) & (!(isfinite(q1) & isfinite(cos_q2) & isfinite(t4_0) &
-                    isfinite(F2_14) & isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F2_24) & isfinite(q1) &
-                    isfinite(F3_11) & isfinite(F3_12) & isfinite(F3_14) & isfinite(F3_21) & isfinite(F3_22) &
-                    isfinite(F3_24) & isfinite(q1) & isfinite(F4_11) & isfinite(F4_12) & isfinite(F3_14) &
-                    isfinite(F4_21) & isfinite(F4_22) & isfinite(F3_24) & isfinite(F4_34) & isfinite(F4_11) &
+            const int nonfinite_output = ((!invalid) & (!(isfinite(cos_q2) & isfinite(t4_0) & isfinite(F2_14) &
+                    isfinite(sin_q2) & isfinite(cos_q2) & isfinite(F2_24) & isfinite(F3_11) & isfinite(F3_12) &
+                    isfinite(F3_14) & isfinite(F3_21) & isfinite(F3_22) & isfinite(F3_24) & isfinite(F4_11) &
                     isfinite(F4_12) & isfinite(F3_14) & isfinite(F4_21) & isfinite(F4_22) & isfinite(F3_24) &
-                    isfinite(F4_34))));
+                    isfinite(F4_34) & isfinite(F4_11) & isfinite(F4_12) & isfinite(F3_14) & isfinite(F4_21) &
+                    isfinite(F4_22) & isfinite(F3_24) & isfinite(F4_34))));
             const int t4_1 = ((invalid) | (nonfinite_output));
             const double t4_2 = ((t4_1) ? NAN : 1);
             const double t4_3 = ((t4_1) ? NAN : 0);

@@ -347,11 +347,10 @@ int deltagen_palletiser_xyzc_frames(size_t n, const double *restrict q, double *
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const double t3_0 = -sin_q4;
             const double t3_1 = -cos_q4;
-            const int nonfinite_output = ((!invalid) & (!(isfinite(q1) & isfinite(q1) & isfinite(q2) & isfinite(q1) &
-                    isfinite(q2) & isfinite(F3_34) & isfinite(cos_q4) & isfinite(t3_0) & isfinite(F4_14) &
-                    isfinite(sin_q4) & isfinite(cos_q4) & isfinite(F4_24) & isfinite(F4_34) & isfinite(cos_q4) &
-                    isfinite(sin_q4) & isfinite(F4_14) & isfinite(sin_q4) & isfinite(t3_1) & isfinite(F4_24) &
-                    isfinite(F4_34))));
+            const int nonfinite_output = ((!invalid) & (!(isfinite(F3_34) & isfinite(cos_q4) & isfinite(t3_0) &
+                    isfinite(F4_14) & isfinite(sin_q4) & isfinite(cos_q4) & isfinite(F4_24) & isfinite(F4_34) &
+                    isfinite(cos_q4) & isfinite(sin_q4) & isfinite(F4_14) & isfinite(sin_q4) & isfinite(t3_1) &
+                    isfinite(F4_24) & isfinite(F4_34))));
             const int t3_2 = ((invalid) | (nonfinite_output));
             const double t3_3 = ((t3_2) ? NAN : 1);
             const double t3_4 = ((t3_2) ? NAN : 0);

@@ -102,17 +102,19 @@ int deltagen_tripod_fk(const deltagen_tripod_geometry *restrict geometry, size_t
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = l1*l1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (l3*l3);
+            const double t4_0 = l1*l1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (l2*l2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (l2*l2);
+            const double radii_term3 = t4_0 - (l3*l3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* chosen intersection with sphere 1 (side), eqs. (22)-(26) */
             const double lambda_ = side*copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -232,17 +234,19 @@ int deltagen_tripod_fk_vel(const deltagen_tripod_geometry *restrict geometry, si
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = l1*l1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (l3*l3);
+            const double t4_0 = l1*l1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (l2*l2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (l2*l2);
+            const double radii_term3 = t4_0 - (l3*l3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* chosen intersection with sphere 1 (side), eqs. (22)-(26) */
             const double lambda_ = side*copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -407,17 +411,19 @@ int deltagen_tripod_fk_acc(const deltagen_tripod_geometry *restrict geometry, si
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = l1*l1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (l3*l3);
+            const double t4_0 = l1*l1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (l2*l2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (l2*l2);
+            const double radii_term3 = t4_0 - (l3*l3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* chosen intersection with sphere 1 (side), eqs. (22)-(26) */
             const double lambda_ = side*copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -582,17 +588,19 @@ int deltagen_tripod_jacobian(const deltagen_tripod_geometry *restrict geometry, 
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = 2*e_z;
-            const double t4_1 = l1*l1;
-            const double t4_2 = t4_1 + b_x*b_x + b_y*b_y + b_z*b_z - (l3*l3);
+            const double t4_0 = l1*l1;
+            const double t4_1 = 2*e_z;
             const double t4_3 = 2*e_y;
-            const double t4_4 = t4_1 + a_x*a_x + a_y*a_y + a_z*a_z - (l2*l2);
             const double t4_5 = (1.0/4.0)*inv_e_sq;
             const double t4_6 = 2*e_x;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_0 + 2*a_z*e_y) + t4_4*(b_y*t4_0 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_0 - a_z*t4_6) + t4_4*(-b_x*t4_0 + 2*b_z*e_x));
+            const double radii_term2 = t4_0 - (l2*l2);
+            const double radii_term3 = t4_0 - (l3*l3);
+            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
             const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_1 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* chosen intersection with sphere 1 (side), eqs. (22)-(26) */
             const double lambda_ = side*copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */

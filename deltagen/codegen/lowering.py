@@ -144,6 +144,23 @@ def _finite_by_construction(expr) -> bool:
     return all(v is sp.nan or (v.is_Number and v.is_finite) for v in values)
 
 
+def _finite_where_unmasked(raw, mask, assignments, inputs) -> bool:
+    """``raw`` is an input passed through (the delta's fourth axis) and finite wherever
+    ``mask`` is false, because the mask holds (as one of its Or terms) a flag assigned
+    Not(AllFinite(..., raw, ...)), the INVALID flag: no second isfinite of it."""
+    if raw not in inputs:
+        return False
+    for term in mask.args if isinstance(mask, sp.Or) else (mask,):
+        flag = assignments.get(term)
+        if (
+            isinstance(flag, sp.Not)
+            and isinstance(flag.args[0], AllFinite)
+            and raw in flag.args[0].args
+        ):
+            return True
+    return False
+
+
 def guard_outputs(kernel: Kernel) -> Kernel:
     """The finite-output rule, applied to every kernel: a row whose outputs are not all
     finite, apart from the NaNs its status explains, gets status INVALID and NaN in every
@@ -163,6 +180,11 @@ def guard_outputs(kernel: Kernel) -> Kernel:
     ik 13 -> 94. The results are the same bits: where the mask holds the output was NaN
     either way, elsewhere raw is the output."""
     assignments = {sym: sp.sympify(e) for stage in kernel.stages for sym, e in stage.assignments}
+    inputs = {
+        sym
+        for port in kernel.inputs
+        for sym in (*port.symbols, *(() if port.fourth is None else (port.fourth,)))
+    }
     by_mask: dict = {}
     split: dict = {}
     for port in kernel.outputs:
@@ -177,7 +199,9 @@ def guard_outputs(kernel: Kernel) -> Kernel:
                 split[sym] = (sp.false, sym)
             else:
                 split[sym] = (mask, raw)
-            if _finite_by_construction(expr):
+            if _finite_by_construction(expr) or _finite_where_unmasked(
+                raw, mask, assignments, inputs
+            ):
                 continue
             by_mask.setdefault(mask, []).append(sym if raw is None else raw)
     if not by_mask:

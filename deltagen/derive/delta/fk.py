@@ -120,6 +120,18 @@ def intersection_stages(centres, radii, side, centre_comment):
         centre_pairs += list(zip(S[i], centres[i]))
     edges = list(zip(a, S[1] - S[0])) + list(zip(b, S[2] - S[0]))
     (n1, d1), (n2, d2) = _centred_planes(radii)
+    # the radii's share of the planes' right-hand sides (l_b1^2 - l_b2^2, l_b1^2 - l_b3^2)
+    # named on its own: it depends on the parameters only, so the compiler computes it once
+    # per call instead of adding the radii's squares at every point
+    radii_terms, sides = [], []
+    for k, d in enumerate((d1, d2)):
+        constant = sp.expand(d).subs({**dict.fromkeys(a, 0), **dict.fromkeys(b, 0)})
+        if constant != 0:
+            term = sp.Symbol(f"radii_term{k + 2}", real=True)
+            radii_terms.append((term, constant))
+            d = sp.expand(d - constant) + term
+        sides.append(d)
+    d1, d2 = sides
     cross = list(zip(e, a.cross(b))) + [(e_sq, e.dot(e))]
     reciprocal = [(inv_e_sq, 1 / e_sq)]  # one division, used twice
     # Rows: plane 1, plane 2, and e.xi = 0 (the foot point of the line nearest S_1).
@@ -129,7 +141,7 @@ def intersection_stages(centres, radii, side, centre_comment):
     det_M = sp.factor(M.det().subs({e[0]: a.cross(b)[0], e[1]: a.cross(b)[1], e[2]: a.cross(b)[2]}))
     assert sp.simplify(det_M - 4 * (a.cross(b)).dot(a.cross(b))) == 0
     foot = M.adjugate() * rhs * inv_e_sq / 4
-    foot_point = list(zip(x0, foot)) + [(h_sq, radii[0] ** 2 - x0.dot(x0))]
+    foot_point = radii_terms + list(zip(x0, foot)) + [(h_sq, radii[0] ** 2 - x0.dot(x0))]
     # xi = x0 + lambda e with |xi| = radius_1 and e.x0 = 0  =>  lambda^2 |e|^2 = h_sq.
     # side -1: the lower intersection, lambda * e_z < 0 (eq. (26) takes the minimum z).
     line = [(lam, side * CopySign(sp.sqrt(h_sq * inv_e_sq), e[2]))]

@@ -26,6 +26,9 @@ E = sp.symbols("E1:4", real=True)
 F = sp.symbols("F1:4", real=True)
 G = sp.symbols("G1:4", real=True)
 disc = sp.symbols("disc1:4", real=True)  # rho^2 - G^2
+# the part of G_i free of p, r_i^2 + l_a,i^2 - l_b,i^2: a constant of the robot, summed once
+# per call (SETUP) instead of term by term at every point
+G0 = sp.symbols("G0_1:4", real=True)
 
 
 def crank_equation(i: int):
@@ -40,10 +43,20 @@ def crank_equation(i: int):
     return Ei, Fi, Gi
 
 
+def crank_constants() -> tuple:
+    """Setup pairs (G0_i, the terms of G_i free of the platform position p)."""
+    pairs = []
+    for i in range(3):
+        Gi = crank_equation(i)[2]
+        pairs.append((G0[i], Gi.subs({s.x: 0, s.y: 0, s.z: 0})))
+    return tuple(pairs)
+
+
 def ik_stages():
     coeffs, discs, angles = [], [], []
-    for i in range(3):
+    for (g0, constant), i in zip(crank_constants(), range(3)):
         Ei, Fi, Gi = crank_equation(i)
+        Gi = sp.expand(Gi - constant) + g0
         coeffs += [(E[i], Ei), (F[i], Fi), (G[i], Gi)]
         discs.append((disc[i], E[i] ** 2 + F[i] ** 2 - G[i] ** 2))
         root = sp.sqrt(disc[i])

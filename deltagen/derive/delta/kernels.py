@@ -67,6 +67,7 @@ SETUP = (
             (jq_limit, (2 * s.singular_tol * s.l_a * s.l_b) ** 2),
         ),
     ),
+    Stage("the part of each chain's G_i free of p (derive/delta/ik.py)", ikd.crank_constants()),
 )
 
 ANGLES = tuple(Angle(s.q[i], s.cos_q[i], s.sin_q[i]) for i in range(3))
@@ -297,6 +298,78 @@ def _other_assembly_mode():
     return sp.And(fkd.det_D * centre_normal_z > 0, sp.Abs(fkd.det_D) > det_limit)
 
 
+rho_sq = sp.symbols("rho_sq1:4", real=True)  # E_i^2 + F_i^2
+scaled_det_D, scaled_normal_z, rho_sq_product = sp.symbols(
+    "scaled_det_D scaled_normal_z rho_sq_product", real=True
+)
+
+
+def _scaled_assembly_stage() -> Stage:
+    """_assembly_stage without a division: the inverse's atan2 arguments are (X_i, Y_i) =
+    rho_i^2 (cos q_i, sin q_i) (derive/delta/inverse_rates.py), so the centres scaled by
+    rho_i^2 are polynomials in them, S~_i = rho_i^2 S_i. With P = rho_1^2 rho_2^2 rho_3^2:
+    det of the rows rho_i^2 p - S~_i = P det_D (row i scaled by rho_i^2), and, from
+    e = S_1 x S_2 + S_2 x S_3 + S_3 x S_1, P e_z = rho_3^2 (S~_1 x S~_2)_z
+    + rho_1^2 (S~_2 x S~_3)_z + rho_2^2 (S~_3 x S~_1)_z. P > 0 keeps the signs, so
+    det_D e_z > 0 and |det_D| > det_limit read (P det_D)(P e_z) > 0 and
+    |P det_D| > det_limit P (the batched ik, which needs no cos q_i, sin q_i: three
+    divisions fewer per point; the rate kernels divide, they need them)."""
+    pairs = []
+    for i in range(3):
+        pairs.append((rho_sq[i], ikd.E[i] ** 2 + ikd.F[i] ** 2))
+    scaled, exprs = [], []
+    for i in range(3):
+        radius = s.chain_r[i] * rho_sq[i] + s.chain_l_a[i] * irs.ik_x[i]
+        exprs.append(
+            sp.Matrix(
+                [radius * s.cos_theta[i], radius * s.sin_theta[i], -s.chain_l_a[i] * irs.ik_y[i]]
+            )
+        )
+        scaled.append(sp.Matrix(sp.symbols(f"St_x{i + 1} St_y{i + 1} St_z{i + 1}", real=True)))
+        pairs += list(zip(scaled[i], exprs[i]))
+    for i in range(3):  # S~_i = rho_i^2 S_i (the radius r_i + l_a,i cos q_i scaled)
+        unscaled = s.sphere_centre(i).subs(
+            {s.cos_q[i]: irs.ik_x[i] / rho_sq[i], s.sin_q[i]: irs.ik_y[i] / rho_sq[i]}
+        )
+        assert sp.simplify(exprs[i] - rho_sq[i] * unscaled) == sp.zeros(3, 1)
+    p = sp.Matrix([s.x, s.y, s.z])
+    rows = sp.Matrix(3, 3, lambda i, k: sp.Symbol(f"Dt{i + 1}{k + 1}", real=True))
+    for i in range(3):
+        pairs += [(rows[i, k], rho_sq[i] * p[k] - scaled[i][k]) for k in range(3)]
+
+    def cross_z(u, v):
+        return u[0] * v[1] - u[1] * v[0]
+
+    normal = (
+        rho_sq[2] * cross_z(scaled[0], scaled[1])
+        + rho_sq[0] * cross_z(scaled[1], scaled[2])
+        + rho_sq[1] * cross_z(scaled[2], scaled[0])
+    )
+    # det by the first row's cofactors (9 products, not the expanded 12)
+    det = sum(
+        rows[0, k] * cross_z(rows[1:, :].col((k + 1) % 3), rows[1:, :].col((k + 2) % 3))
+        for k in range(3)
+    )
+    assert sp.expand(det - rows.det()) == 0
+    pairs += [
+        (scaled_det_D, det),
+        (scaled_normal_z, normal),
+        (rho_sq_product, rho_sq[0] * rho_sq[1] * rho_sq[2]),
+    ]
+    return Stage(
+        "assembly mode without divisions: rho_i^2 S_i, P det_D and P e_z, P = prod rho_i^2",
+        tuple(pairs),
+    )
+
+
+def _other_assembly_mode_scaled():
+    """_other_assembly_mode in the scaled quantities of _scaled_assembly_stage."""
+    return sp.And(
+        scaled_det_D * scaled_normal_z > 0,
+        sp.Abs(scaled_det_D) > det_limit * rho_sq_product,
+    )
+
+
 _IK_UNREACHABLE_DOC = (
     "UNREACHABLE (a crank cannot reach, or only in the other assembly mode: the platform "
     "above the centre plane of the spheres, where the direct kinematics would not return p)"
@@ -313,7 +386,7 @@ def ik_kernel() -> Kernel:
             (invalid, sp.Not(finite)),
             (
                 unreachable,
-                sp.Or(*(ikd.disc[i] < 0 for i in range(3)), _other_assembly_mode()),
+                sp.Or(*(ikd.disc[i] < 0 for i in range(3)), _other_assembly_mode_scaled()),
             ),
             (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
         ),
@@ -343,10 +416,8 @@ def ik_kernel() -> Kernel:
             ),
         ),
         stages=(
-            *irs.ik_stages_with_trig(),
-            irs.centres_stage(),
-            vel.rows_stage(),
-            _assembly_stage(),
+            *irs.ik_stages_with_trig()[:-1],  # q needs no cos q_i, sin q_i: no divisions
+            _scaled_assembly_stage(),
             flags,
             Stage("outputs (NaN where unreachable)", q_stage),
         ),
