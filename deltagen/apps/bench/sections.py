@@ -69,6 +69,7 @@ from deltagen.apps.bench import engine, families, ik, peers
 from deltagen.apps.bench.engine import Throughput
 from deltagen.apps.bench.timing import Style, cell, ratio
 from deltagen.inputs import check_memory
+from deltagen.native.manifest import kernels, output_widths
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
 #: The throughput targets for the compiled core [ns per point].
@@ -81,23 +82,12 @@ QD_RANGE = (-2.0, 2.0)  # rad/s
 QDD_RANGE = (-20.0, 20.0)  # rad/s^2
 SEED = 2008
 
-# name -> (inputs, number of outputs, output width or None for the input width)
-_SIGNATURES = {
-    "fk": (("q",), 1, None),
-    "fk_vel": (("q", "qd"), 2, None),
-    "fk_acc": (("q", "qd", "qdd"), 3, None),
-    "jacobian": (("q",), 1, 9),
-    "ik": (("p",), 1, None),
-    "inverse_dynamics": (("q", "qd", "qdd", "payload"), 1, None),  # exact model
-}
-_UNITS = {
-    "fk": "m",
-    "fk_vel": "m/s",
-    "fk_acc": "m/s^2",
-    "jacobian": "m/rad",
-    "ik": "rad",
-    "inverse_dynamics": "N m",
-}
+#: the rotary delta's batched C kernels as generated/delta_kinematics.kernels.json declares
+#: them (C function, input ports, output widths and units)
+_DELTA_KERNELS = kernels("delta_kinematics")
+# the unit of each quantity's first output, the one the agreement line compares (fk_vel's
+# and fk_acc's is the position p, m)
+_UNITS = {name: _DELTA_KERNELS[name]["outputs"][0]["unit"] for name in QUANTITIES}
 PAYLOAD_RANGE = (0.0, 2.0)  # kg
 
 
@@ -151,9 +141,9 @@ def _kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable
     if the core is not the cffi one or its ABI is not the expected one."""
     try:
         ffi, lib, geometry = core._ffi, core._lib, core._geometry
-        _, n_out, width = _SIGNATURES[name]
+        entry = _DELTA_KERNELS[name]
         n, axes = inputs[0].shape
-        outs = [np.empty((n, width or axes)) for _ in range(n_out)]
+        outs = [np.empty((n, width)) for width in output_widths(entry, axes)]
         status = np.empty(n, dtype=np.int8)
         fb = ffi.from_buffer
         cargs = (
@@ -164,7 +154,7 @@ def _kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable
             *(fb("double[]", o, require_writable=True) for o in outs),
             fb("int8_t[]", status, require_writable=True),
         )
-        fn = getattr(lib, f"deltagen_delta_{name}")
+        fn = getattr(lib, entry["function"])
         if fn(*cargs) != 0:
             return None
         keep = (inputs, outs, status)  # the buffers must outlive the call object
@@ -177,7 +167,7 @@ def _kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable
 #: and API) on the first REFERENCE_N
 DELTA = Throughput(
     quantities=QUANTITIES,
-    inputs={name: signature[0] for name, signature in _SIGNATURES.items()},
+    inputs={name: tuple(p["name"] for p in _DELTA_KERNELS[name]["inputs"]) for name in QUANTITIES},
     units=_UNITS,
     targets=TARGETS_NS,
     kernel=_kernel_callable,
@@ -249,18 +239,6 @@ _SERIAL_UNITS = {
 }
 
 
-def _serial_width(name: str, n: int) -> int:
-    return {
-        "fk": 16,
-        "frames": 16 * (n + 2),
-        "jacobian": 6 * n,
-        "jacobian_dot": 6 * n,
-        "inverse_dynamics": n,
-        "mass_matrix": n * n,
-        "forward_dynamics": n,
-    }[name]
-
-
 def _serial_points(name: str, n: int) -> int:
     return n if name in ("fk", "jacobian") else min(n, SERIAL_SMALL_N)
 
@@ -290,7 +268,8 @@ def _serial_kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> C
     try:
         ffi, fn = core.c_function(name)
         points, axes = inputs[0].shape
-        out = np.empty((points, _serial_width(name, axes)))
+        (width,) = output_widths(core.kernel(name), axes)  # generated/<arm>.kernels.json
+        out = np.empty((points, width))
         status = np.empty(points, dtype=np.int8)
         fb = ffi.from_buffer
         cargs = (
