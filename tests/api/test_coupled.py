@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import MIMIC
 
 from deltagen import SerialRobot
 from deltagen.api.coupled import CoupledArm
@@ -85,7 +86,6 @@ def test_ik_round_trip_of_a_coupled_6_variable_arm(double_elbow):
 def test_ik_of_the_mimic_of_a_mimic_chain(tmp_path):
     """3 independent variables of 5 joints (a prismatic one mimicking a revolute one that
     mimics another): a least-squares fit of all 6 components that is exact on fk(r)."""
-    from test_urdf_mimic import MIMIC
 
     path = tmp_path / "mimic.urdf"
     path.write_text(MIMIC)

@@ -21,6 +21,7 @@ from delta_oracles import (
     well_conditioned,
     with_tol,
 )
+from helpers import BACKENDS, DELTA_METHODS, args_for, as_tuple, call
 from hypothesis import assume, given, settings
 from hypothesis import strategies as hs
 
@@ -29,48 +30,7 @@ from deltagen.api.delta import DeltaRobot as DeltaRobotFromModule
 from deltagen.errors import GeometryError
 from deltagen.model.delta import DeltaGeometry
 
-BACKENDS = ("compiled", "reference")
 RTOL = 1e-12
-
-#: Per method: (number of array arguments, kind of input, number of outputs).
-METHODS = {
-    "fk": (1, "q", 1),
-    "fk_vel": (2, "q", 2),
-    "fk_acc": (3, "q", 3),
-    "jacobian": (1, "q", 1),
-    "ik": (1, "p", 1),
-    "ik_vel": (2, "p", 2),
-    "ik_acc": (3, "p", 3),
-}
-
-
-def args_for(method, lead, width, rng=None):
-    """Valid arguments of ``method`` with leading shape ``lead`` and ``width`` columns."""
-    rng = rng or np.random.default_rng(0)
-    n_args, kind, _ = METHODS[method]
-    size = int(np.prod(lead, dtype=int))
-    if kind == "q":
-        first = random_q(rng, size)
-    else:  # positions well inside the default robot's workspace
-        first = np.column_stack(
-            [
-                rng.uniform(-0.1, 0.1, size),
-                rng.uniform(-0.1, 0.1, size),
-                rng.uniform(-0.8, -0.6, size),
-            ]
-        )
-    arrays = [first] + [rng.normal(size=(size, 3)) for _ in range(n_args - 1)]
-    if width == 4:
-        arrays = [np.column_stack([a, rng.uniform(-3, 3, size)]) for a in arrays]
-    return [a.reshape(tuple(lead) + (width,)) for a in arrays]
-
-
-def call(robot, method, args, **kw):
-    return getattr(robot, method)(*args, **kw)
-
-
-def as_tuple(result):
-    return result if isinstance(result, tuple) else (result,)
 
 
 @pytest.fixture(scope="module", params=BACKENDS)
@@ -81,7 +41,7 @@ def any_robot(request):
 # ------------------------------------------------------------------------------ shapes
 
 
-@pytest.mark.parametrize("method", list(METHODS))
+@pytest.mark.parametrize("method", list(DELTA_METHODS))
 @pytest.mark.parametrize(
     "lead,width",
     [
@@ -100,7 +60,7 @@ def any_robot(request):
 )
 def test_output_shapes(any_robot, method, lead, width):
     args = args_for(method, lead, width)
-    n_out = METHODS[method][2]
+    n_out = DELTA_METHODS[method][2]
     out = as_tuple(call(any_robot, method, args))
     assert len(out) == n_out
     trailing = (3, 3) if method == "jacobian" else (width,)

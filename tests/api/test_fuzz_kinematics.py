@@ -24,7 +24,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from deltagen import DeltaRobot
-from deltagen.api.serial import SerialRobot
 from deltagen.errors import DeltagenError
 
 EXAMPLES = 300
@@ -306,8 +305,8 @@ ARMS = ("puma560", "lecture_prp", "lecture_scara", "bosch_sr800")
 
 
 @pytest.fixture(scope="module")
-def arms():
-    return {name: (SerialRobot.load(name), SerialRobot.load(name, "reference")) for name in ARMS}
+def arms(serial_arms):
+    return {name: (serial_arms(name), serial_arms(name, "reference")) for name in ARMS}
 
 
 @st.composite

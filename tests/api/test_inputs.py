@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_robot_api import BACKENDS, METHODS, args_for, as_tuple, call
+from helpers import BACKENDS, DELTA_METHODS, args_for, as_tuple, call
 
 from deltagen import DeltaRobot, InputError
 
@@ -22,7 +22,7 @@ def _replace(args, index, value):
     return args
 
 
-ALL = list(METHODS)
+ALL = list(DELTA_METHODS)
 
 
 # ------------------------------------------------------------------------ non-numeric
@@ -113,7 +113,7 @@ def test_scalar_error_message_names_its_shape(default_robot):
         default_robot.fk(0.5)
 
 
-@pytest.mark.parametrize("method", [m for m in ALL if METHODS[m][0] > 1])
+@pytest.mark.parametrize("method", [m for m in ALL if DELTA_METHODS[m][0] > 1])
 def test_arguments_must_agree_in_width_and_broadcast(any_robot, method):
     args = args_for(method, (5,), 3)
     wide = args_for(method, (5,), 4)
@@ -130,7 +130,7 @@ def test_arguments_must_agree_in_width_and_broadcast(any_robot, method):
 @pytest.mark.parametrize("method", ALL)
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf], ids=["nan", "inf", "-inf"])
 def test_non_finite_rows_are_named_or_masked(any_robot, method, bad):
-    n_args = METHODS[method][0]
+    n_args = DELTA_METHODS[method][0]
     for position in range(n_args):
         args = args_for(method, (6,), 3)
         args[position][1, 0] = bad
@@ -195,7 +195,7 @@ def _layouts(base, integers):
 def _integer_values(method, position, n):
     """Integer arguments that make a valid call: crank angles 0 / 1 rad, the reachable
     position (0, 0, -1) m, any rates."""
-    kind = METHODS[method][1]
+    kind = DELTA_METHODS[method][1]
     if position > 0:
         return (np.arange(3 * n).reshape(n, 3) % 4).astype(np.int64)
     if kind == "q":
@@ -210,7 +210,7 @@ def test_any_real_dtype_and_layout_is_accepted(any_robot, method):
     for position in range(len(args)):
         for name, value, exact in _layouts(args[position], _integer_values(method, position, 6)):
             unsigned = isinstance(value, np.ndarray) and value.dtype.kind == "u"
-            if METHODS[method][1] == "p" and position == 0 and unsigned:
+            if DELTA_METHODS[method][1] == "p" and position == 0 and unsigned:
                 continue  # unsigned types cannot hold z = -1
             expected = as_tuple(call(any_robot, method, _replace(args, position, exact)))
             got = as_tuple(call(any_robot, method, _replace(args, position, value)))

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import KLIPPER_LINEAR_CFG
 
 from deltagen import GeometryError, InputError, LinearDelta, Tripod, UnreachableError
 from deltagen.model.klipper import klipper_delta_from_text
@@ -98,28 +99,6 @@ def test_jacobian_and_rates_by_finite_differences(machines, name):
 
 # -- Klipper -----------------------------------------------------------------------------
 
-# Klipper's config/example-delta.cfg (the kinematics keys), mm and degrees; stepper_c gets
-# its own arm and angle to exercise the per-stepper overrides
-KLIPPER_CFG = """\
-[stepper_a]
-step_pin: PF0
-position_endstop: 297.05
-arm_length: 333.0
-
-[stepper_b]
-step_pin: PF6
-
-[stepper_c]
-step_pin: PL3
-arm_length: 334.5   # a per-stepper override
-angle: 91.0
-
-[printer]
-kinematics: delta
-max_velocity: 300
-delta_radius: 174.75
-"""
-
 
 def klipper_towers(radius, angles_deg):
     """Klipper's tower positions: (cos(angle) radius, sin(angle) radius) for the angles of
@@ -157,8 +136,8 @@ def klipper_trilateration(centres, radius2):
 @pytest.fixture(scope="module")
 def klipper(tmp_path_factory):
     path = tmp_path_factory.mktemp("klipper") / "printer.cfg"
-    path.write_text(KLIPPER_CFG)
-    return LinearDelta.from_klipper(path), klipper_delta_from_text(KLIPPER_CFG)
+    path.write_text(KLIPPER_LINEAR_CFG)
+    return LinearDelta.from_klipper(path), klipper_delta_from_text(KLIPPER_LINEAR_CFG)
 
 
 def test_klipper_mapping(klipper):
@@ -201,12 +180,12 @@ def test_klipper_formulas(klipper):
 def test_klipper_errors(tmp_path):
     with pytest.raises(GeometryError, match="kinematics is 'rotary_delta'"):
         klipper_delta_from_text(
-            KLIPPER_CFG.replace("kinematics: delta", "kinematics: rotary_delta")
+            KLIPPER_LINEAR_CFG.replace("kinematics: delta", "kinematics: rotary_delta")
         )
     with pytest.raises(GeometryError, match="delta_radius"):
-        klipper_delta_from_text(KLIPPER_CFG.replace("delta_radius: 174.75", ""))
+        klipper_delta_from_text(KLIPPER_LINEAR_CFG.replace("delta_radius: 174.75", ""))
     with pytest.raises(GeometryError, match="exceed delta_radius"):
-        klipper_delta_from_text(KLIPPER_CFG.replace("arm_length: 333.0", "arm_length: 100"))
+        klipper_delta_from_text(KLIPPER_LINEAR_CFG.replace("arm_length: 333.0", "arm_length: 100"))
 
 
 # -- LinuxCNC tripodkins -----------------------------------------------------------------

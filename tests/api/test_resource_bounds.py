@@ -17,17 +17,16 @@ import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import REPO
 
 from deltagen import DeltaRobot, InputError, cli, inputs
 from deltagen.api import sweep as api_sweep
 from deltagen.api import workspace as api_workspace
 from deltagen.api.sweep import SweepError, SweepSpec
 
-REPO = Path(__file__).resolve().parent.parent
 ADDRESS_SPACE = 3 << 30  # rlimit of the subprocesses: far above what they need, far below
 # what an unbounded grid, sweep or /dev/zero read would take
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import REPO
 
 from deltagen import DeltaRobot, SerialRobot
 from deltagen import status as st
@@ -26,7 +27,6 @@ from deltagen.codegen.export import arm_unit_kernels, delta_unit_kernels, packag
 from deltagen.native.build import compile_flags
 from deltagen.native.delta import geometry_struct
 
-REPO = Path(__file__).resolve().parent.parent
 CC = ex.compiler()
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (cc, gcc or clang) on PATH")
 

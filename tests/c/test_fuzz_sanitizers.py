@@ -21,6 +21,7 @@ import subprocess
 import numpy as np
 import pytest
 from delta_oracles import DEFAULT
+from helpers import STRICT_SANITIZED
 
 from deltagen import paths
 from deltagen.reference import delta as ref_delta
@@ -30,17 +31,6 @@ from deltagen.status import INVALID, OK, STATUS_NAMES
 GCC = shutil.which("gcc")
 pytestmark = [pytest.mark.skipif(GCC is None, reason="gcc not installed"), pytest.mark.slow]
 
-FLAGS = [
-    "-std=c99",
-    "-pedantic",
-    "-Wall",
-    "-Wextra",
-    "-Werror",
-    "-O0",  # instrumented modules compile ~3x faster than at -O1; the sanitizers see the same
-    "-fsanitize=address,undefined",
-    "-fno-sanitize-recover=all",
-    "-fno-omit-frame-pointer",
-]
 SIZES = (0, 1, 2, 63, 64, 65, 131)  # the block is 64 points
 ARM = "puma560"
 NJ, BRANCHES = 6, 8
@@ -240,7 +230,9 @@ def driver(tmp_path_factory):
     probe = work / "probe.c"
     probe.write_text("int main(void) { return 0; }\n")
     built = subprocess.run(
-        [GCC, *FLAGS, str(probe), "-o", str(work / "probe")], capture_output=True, text=True
+        [GCC, *STRICT_SANITIZED, str(probe), "-o", str(work / "probe")],
+        capture_output=True,
+        text=True,
     )
     if built.returncode != 0:
         pytest.skip(f"no sanitizer runtime: {built.stderr[-300:]}")
@@ -270,7 +262,7 @@ def driver(tmp_path_factory):
         *sorted(p.name for p in work.glob("deltagen_*.c")),
     ]
     proc = subprocess.run(
-        [GCC, *FLAGS, *sources, "-o", "driver", "-lm"],
+        [GCC, *STRICT_SANITIZED, *sources, "-o", "driver", "-lm"],
         cwd=work,
         capture_output=True,
         text=True,

@@ -14,8 +14,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from test_c_fuzz_sanitizers import FLAGS
-from test_ik_general6r import _random_arm
+from helpers import STRICT_SANITIZED, random_6r_arm
 
 from deltagen import SerialRobot, paths
 from deltagen.solve import general6r
@@ -155,7 +154,7 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
     if which == "ur5":
         arm = SerialRobot.load("ur5", backend="reference")
     else:
-        arm = _random_arm(17, "san6r")
+        arm = random_6r_arm(17, "san6r")
     (g,), _ = arm._general()
     rng = np.random.default_rng(18)
     T = arm.fk(rng.uniform(-np.pi, np.pi, (24, 6)))
@@ -187,7 +186,7 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
     build = subprocess.run(
         [
             GCC,
-            *FLAGS,
+            *STRICT_SANITIZED,
             "driver.c",
             "deltagen_general6r.c",
             "deltagen_eigen.c",

@@ -27,8 +27,8 @@ C_ARMS = CENTRAL_WRIST + ("miskolc_rrrr", "lecture_scara", "manutec_h5", "bosch_
 
 
 @pytest.fixture(scope="module", params=C_ARMS)
-def arms(request):
-    return (SerialRobot.load(request.param), SerialRobot.load(request.param, backend="reference"))
+def arms(request, serial_arms):
+    return (serial_arms(request.param), serial_arms(request.param, "reference"))
 
 
 def _in_limit_q(arm, count, seed):

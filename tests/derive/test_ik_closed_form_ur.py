@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import compiled_fit_angle, rtb_dh_rows
 
 from deltagen import SerialRobot
 from deltagen.solve.analytic import analytic_solver
@@ -154,9 +155,8 @@ def test_fit_shortcut_is_the_general_path_bit_for_bit(tmp_path, limit):
     """The shortcut (lo <= -3.2, hi >= 3.2, |a| <= 2^20) against the general path on
     random angles, the wrap's boundaries (odd multiples of pi and their neighbours),
     +-2^20 and beyond, signed zeros, infinities and NaN; limits that do and do not take it."""
-    from tests.test_structure import _compiled_fit_angle
 
-    fit = _compiled_fit_angle(tmp_path)
+    fit = compiled_fit_angle(tmp_path)
     rng = np.random.default_rng(5)
     odd_pi = np.arange(-41, 42, 2) * math.pi
     edges = np.concatenate([odd_pi, np.nextafter(odd_pi, np.inf), np.nextafter(odd_pi, -np.inf)])
@@ -221,10 +221,9 @@ def test_wrist_flip_shortcut_is_taken_exactly_where_the_numpy_branches_show_it()
     the numpy solver's own wrist branches: the UR3 / UR5 / UR10 have the symmetry and the
     shortcut; the same arms with a skewed wrist twist or a q5 offset have neither."""
     rtb = pytest.importorskip("roboticstoolbox", reason="roboticstoolbox (test extra) is missing")
-    from tests.test_ik_parallel_triple import _rows
 
     for name in ("UR3", "UR5", "UR10"):
-        rows = _rows(getattr(rtb.models.DH, name)())
+        rows = rtb_dh_rows(getattr(rtb.models.DH, name)())
         for variant, expected in (
             (rows, True),
             (_skewed(rows, alpha=(4, 1.2)), False),
@@ -242,9 +241,8 @@ def test_compiled_kernel_without_the_shortcut_matches_the_numpy_solver():
     """A UR5 with a skewed wrist (alpha5 = 1.2 rad): no wrist-flip shortcut; its C ik_all,
     built here, against the numpy solver."""
     rtb = pytest.importorskip("roboticstoolbox", reason="roboticstoolbox (test extra) is missing")
-    from tests.test_ik_parallel_triple import _rows
 
-    rows = _skewed(_rows(rtb.models.DH.UR5()), alpha=(4, 1.2))
+    rows = _skewed(rtb_dh_rows(rtb.models.DH.UR5()), alpha=(4, 1.2))
     for row in rows:
         row["qlim"] = [-6.2, 6.2]
     arm = SerialRobot.from_dh(rows, "standard", name="ur5_skewed_c")

@@ -9,11 +9,11 @@ docs/errata.md lists the results.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 import sympy as sp
+from helpers import REPO
 
 from deltagen import DeltaRobot
 from deltagen.derive.delta import printed as P
@@ -42,7 +42,7 @@ crank_equation = _symmetric(crank_equation)
 
 CHAINS = (0, 1, 2)
 DEFAULT = DeltaGeometry.default()
-SEED = Path(__file__).resolve().parents[2] / "shared" / "seeds" / "000_e75353eb064fd002.txt"
+SEED = REPO.parent / "shared" / "seeds" / "000_e75353eb064fd002.txt"
 
 
 def zero(expr) -> bool:

@@ -7,32 +7,12 @@ from __future__ import annotations
 
 import re
 
+from helpers import PARTS_ROWS
+
 from deltagen import SerialRobot
 from deltagen.codegen.serial import arm_sources
 from deltagen.derive.serial.kernels import PARTS
 from deltagen.native.build import _DEFINITION
-
-ROWS = [
-    dict(
-        a=0.3,
-        alpha=0.4,
-        d=0.1,
-        mass=2.0,
-        com=(-0.1, 0.01, 0.0),
-        inertia=(0.02, 0.03, 0.02, 0, 0, 0),
-    ),
-    dict(
-        a=0.25,
-        alpha=-0.3,
-        d=0.0,
-        mass=1.5,
-        com=(-0.1, 0.0, 0.02),
-        inertia=(0.01, 0.01, 0.02, 0, 0, 0),
-    ),
-    dict(
-        a=0.0, alpha=1.2, d=0.2, mass=0.5, com=(0.0, 0.0, 0.05), inertia=(0.01, 0.01, 0.01, 0, 0, 0)
-    ),
-]
 
 
 def _functions(sources: dict[str, str]) -> dict[str, list[str]]:
@@ -48,7 +28,9 @@ def _functions(sources: dict[str, str]) -> dict[str, list[str]]:
 
 
 def test_every_kernel_is_in_one_part_with_the_complete_modules_c():
-    desc = SerialRobot.from_dh(ROWS, "standard", name="parts_arm", backend="reference").description
+    desc = SerialRobot.from_dh(
+        PARTS_ROWS, "standard", name="parts_arm", backend="reference"
+    ).description
     complete = _functions(arm_sources(desc))
     seen: dict[str, str] = {}
     for part, kernels in PARTS.items():
@@ -78,7 +60,7 @@ def test_a_part_is_never_served_as_the_whole_module():
     from deltagen.native import serial as native_serial
 
     desc = SerialRobot.from_dh(
-        ROWS[:2], "standard", name="partkey_arm", backend="reference"
+        PARTS_ROWS[:2], "standard", name="partkey_arm", backend="reference"
     ).description.without_inertia()
     folder = native_serial.source_dir(desc, part="first")
     name, prefix = base_name(desc), c_prefix(desc)

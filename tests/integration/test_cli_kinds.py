@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_klipper import EXAMPLE_CFG
-from test_linear_delta import KLIPPER_CFG as LINEAR_DELTA_CFG
+from helpers import KLIPPER_LINEAR_CFG, KLIPPER_ROTARY_CFG
 
 from deltagen.cli import main
 
@@ -67,8 +66,8 @@ LINEAR, TRIPOD = "linear_delta", "tripod"
 def robots(tmp_path_factory, repo_root):
     """kind name -> (robot arguments, kind, joint count)."""
     folder = tmp_path_factory.mktemp("kinds")
-    (folder / "printer.cfg").write_text(EXAMPLE_CFG)
-    (folder / "linear_delta.cfg").write_text(LINEAR_DELTA_CFG)
+    (folder / "printer.cfg").write_text(KLIPPER_ROTARY_CFG)
+    (folder / "linear_delta.cfg").write_text(KLIPPER_LINEAR_CFG)
     (folder / "mimic.urdf").write_text(MIMIC)
     (folder / "gripper.urdf").write_text(GRIPPER)
     return {

@@ -42,9 +42,9 @@ ARMS = ("puma560", "lecture_scara")
 
 
 @pytest.fixture(scope="module")
-def arms():
+def arms(serial_arms):
     return {
-        (name, backend): SerialRobot.load(name, backend=backend)
+        (name, backend): serial_arms(name, backend)
         for name in ARMS
         for backend in ("compiled", "reference")
     }

@@ -11,8 +11,9 @@ import ast
 from pathlib import Path
 
 import pytest
+from helpers import REPO
 
-PACKAGE = Path(__file__).resolve().parent.parent / "deltagen"
+PACKAGE = REPO / "deltagen"
 
 FOUNDATION = {"errors", "status", "inputs", "paths"}
 BELOW_NATIVE = {"codegen", "derive", "model", "geometry"}

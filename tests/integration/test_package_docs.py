@@ -12,8 +12,9 @@ import re
 from pathlib import Path
 
 import pytest
+from helpers import REPO
 
-PACKAGE = Path(__file__).resolve().parent.parent / "deltagen"
+PACKAGE = REPO / "deltagen"
 
 PACKAGES = sorted(init.parent for init in PACKAGE.rglob("__init__.py") if init.parent != PACKAGE)
 

@@ -6,15 +6,15 @@ from __future__ import annotations
 import subprocess
 import sys
 import tomllib
-from pathlib import Path
 
 import pytest
+from helpers import REPO
 
 import deltagen
 from deltagen import cli
 from deltagen.apps import plotting
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = REPO
 
 
 def test_python_m_deltagen_runs_the_cli():

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import MIMIC
 
 from deltagen import SerialRobot
 from deltagen.api.coupled import CoupledArm
@@ -17,50 +18,6 @@ from deltagen.model.urdf import chain_from_urdf, description_from_urdf
 pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
 
 
-def _link(name, mass=1.0):
-    return (
-        f'<link name="{name}"><inertial><origin xyz="0.02 0.01 0.05" rpy="0.1 0 0.2"/>'
-        f'<mass value="{mass}"/><inertia ixx="0.01" ixy="0.001" ixz="0" iyy="0.02" iyz="0" '
-        'izz="0.015"/></inertial></link>'
-    )
-
-
-def _joint(name, kind, parent, child, xyz, axis, extra=""):
-    limit = '<limit lower="-3" upper="3" effort="1" velocity="1"/>'
-    return (
-        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-        f'<origin xyz="{xyz}" rpy="0.1 -0.2 0.3"/><axis xyz="{axis}"/>{limit}{extra}</joint>'
-    )
-
-
-# j3 mimics j2 (-0.5, +0.2); the prismatic j4 mimics j3 (a mimic of a mimic: 0.1, 0.01);
-# j1 and j5 are free: r = (q1, q2, q5)
-MIMIC = (
-    '<?xml version="1.0"?>\n<robot name="mimic_arm">\n<link name="base"/>'
-    + "".join(_link(f"l{i}", 1.0 + 0.2 * i) for i in range(1, 6))
-    + _joint("j1", "revolute", "base", "l1", "0 0 0.2", "0 0 1")
-    + _joint("j2", "revolute", "l1", "l2", "0.1 0 0.1", "0 1 0")
-    + _joint(
-        "j3",
-        "revolute",
-        "l2",
-        "l3",
-        "0.3 0 0",
-        "0 -1 0",
-        '<mimic joint="j2" multiplier="-0.5" offset="0.2"/>',
-    )
-    + _joint(
-        "j4",
-        "prismatic",
-        "l3",
-        "l4",
-        "0.2 0 0",
-        "1 0 0",
-        '<mimic joint="j3" multiplier="0.1" offset="0.01"/>',
-    )
-    + _joint("j5", "revolute", "l4", "l5", "0.05 0.02 0", "0 0 1")
-    + "\n</robot>\n"
-)
 E_HAND = np.array([[1, 0, 0], [0, 1, 0], [0, -0.5, 0], [0, -0.05, 0], [0, 0, 1]], dtype=float)
 C_HAND = np.array([0, 0, 0.2, 0.1 * 0.2 + 0.01, 0])
 

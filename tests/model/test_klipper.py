@@ -12,41 +12,12 @@ import sys
 
 import numpy as np
 import pytest
+from helpers import KLIPPER_ROTARY_CFG
 
 from deltagen import DeltaRobot
 from deltagen.errors import GeometryError
 from deltagen.model.klipper import klipper_from_text, read_klipper
 
-# Klipper's own example: config/example-rotary-delta.cfg of github.com/Klipper3d/klipper
-# (the kinematics keys; pins, heaters and the extruder left out). mm and degrees.
-EXAMPLE_CFG = """\
-# This file is an example config file for rotary delta style printers.
-[stepper_a]
-step_pin: ar54
-step_distance: 0.001963495
-position_endstop: 252
-upper_arm_length: 170.000
-lower_arm_length: 320.000
-
-[stepper_b]
-step_pin: ar60   ; inline comments are allowed
-step_distance: 0.001963495
-
-[stepper_c]
-step_pin: ar46
-step_distance: 0.001963495
-
-[printer]
-kinematics: rotary_delta
-max_velocity: 300
-max_accel: 3000
-max_z_velocity: 50
-shoulder_radius: 33.900
-shoulder_height: 412.900
-
-[delta_calibrate]
-radius: 50
-"""
 SHOULDER_RADIUS, SHOULDER_HEIGHT, UPPER, LOWER = 33.9, 412.9, 170.0, 320.0
 ANGLES_DEG = (30.0, 150.0, 270.0)  # Klipper's defaults for stepper_a, _b, _c
 
@@ -107,7 +78,7 @@ def klipper_effector(arm_angles, lower=LOWER):
 @pytest.fixture(scope="module")
 def example(tmp_path_factory):
     path = tmp_path_factory.mktemp("klipper") / "printer.cfg"
-    path.write_text(EXAMPLE_CFG)
+    path.write_text(KLIPPER_ROTARY_CFG)
     return path
 
 
@@ -159,7 +130,7 @@ def test_home_pose_is_the_endstop_height(example):
 
 
 def test_per_stepper_angles_and_save_config_override():
-    text = EXAMPLE_CFG.replace("[stepper_c]\n", "[stepper_c]\nangle: 275.5\n") + (
+    text = KLIPPER_ROTARY_CFG.replace("[stepper_c]\n", "[stepper_c]\nangle: 275.5\n") + (
         "\n#*# <---------------------- SAVE_CONFIG ---------------------->\n"
         "#*# DO NOT EDIT THIS BLOCK OR BELOW. The contents are auto-generated.\n"
         "#*#\n#*# [printer]\n#*# shoulder_height = 410.000\n"
@@ -182,7 +153,7 @@ def test_per_stepper_angles_and_save_config_override():
 )
 def test_bad_configs_are_clear_errors(edit, message):
     with pytest.raises(GeometryError, match=message):
-        klipper_from_text(edit(EXAMPLE_CFG))
+        klipper_from_text(edit(KLIPPER_ROTARY_CFG))
 
 
 def test_cli_accepts_a_printer_cfg(example, repo_root):
@@ -201,7 +172,7 @@ def test_cli_accepts_a_printer_cfg(example, repo_root):
 @pytest.mark.parametrize("backend", ["compiled", "reference"])
 def test_per_stepper_arm_lengths_give_an_asymmetric_robot(backend):
     upper, lower = (170.0, 171.5, 169.0), (320.0, 318.0, 321.0)
-    text = EXAMPLE_CFG.replace(
+    text = KLIPPER_ROTARY_CFG.replace(
         "[stepper_b]\n", "[stepper_b]\nupper_arm_length: 171.5\nlower_arm_length: 318\n"
     ).replace("[stepper_c]\n", "[stepper_c]\nupper_arm_length: 169\nlower_arm_length: 321\n")
     k = klipper_from_text(text)

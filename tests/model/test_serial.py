@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import ROBOTS
 
 from deltagen.model.serial import SerialDescription
 
-ROBOTS = Path(__file__).resolve().parent.parent / "robots"
 DEG = math.pi / 180.0
 
 

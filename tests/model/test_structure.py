@@ -17,6 +17,7 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
+from helpers import compiled_fit_angle
 
 from deltagen.geometry import axes as geo
 from deltagen.geometry import limits
@@ -486,36 +487,6 @@ def test_shift_into_limits():
     )
 
 
-def _compiled_fit_angle(tmp_path):
-    """The runtime's hand-written deltagen_fit_angle (codegen/runtime/deltagen_limits.h),
-    compiled by gcc into a shared library, as a numpy-broadcasting function."""
-    import ctypes
-    import shutil
-    import subprocess
-
-    from deltagen.paths import runtime_dir
-
-    gcc = shutil.which("gcc")
-    if gcc is None:
-        pytest.skip("gcc not installed")
-    source = tmp_path / "fit.c"
-    source.write_text(
-        '#include "deltagen_limits.h"\n'
-        "double fit(double a, double lo, double hi, double lo_tol, double hi_tol)\n"
-        "{ return deltagen_fit_angle(a, lo, hi, lo_tol, hi_tol); }\n"
-    )
-    library = tmp_path / "fit.so"
-    subprocess.run(
-        [gcc, "-std=c99", "-O2", "-shared", "-fPIC", f"-I{runtime_dir()}", str(source)]
-        + ["-o", str(library), "-lm"],
-        check=True,
-    )
-    fit = ctypes.CDLL(str(library)).fit
-    fit.restype = ctypes.c_double
-    fit.argtypes = [ctypes.c_double] * 5
-    return np.vectorize(lambda *args: fit(*map(float, args)), otypes=[float])
-
-
 def test_the_c_kernel_fit_is_the_numpy_fit(tmp_path):
     """The limit fit of the ik_all emitter (SymPy statements around the runtime's C
     deltagen_fit_angle, compiled here), evaluated in double precision, is
@@ -524,7 +495,7 @@ def test_the_c_kernel_fit_is_the_numpy_fit(tmp_path):
     numpy: mod(x + pi, 2 pi) - pi; they differ by an ulp of pi at most)."""
     from deltagen.derive.serial import ik_closed_form as ikc
 
-    modules = [{"FitAngle": _compiled_fit_angle(tmp_path)}, "numpy"]
+    modules = [{"FitAngle": compiled_fit_angle(tmp_path)}, "numpy"]
 
     assert ikc.LIMIT_TOL is limits.LIMIT_TOL and ikc.SHIFTS is limits.SHIFTS
     found = st.detect(_load("bosch_sr800"))  # revolute joints with limits and a prismatic one

@@ -8,6 +8,11 @@ import warnings
 
 import numpy as np
 import pytest
+from pinocchio_oracles import (
+    compare_with_pinocchio,
+    pin_q,
+    random_urdf_q,
+)
 
 from deltagen import SerialRobot
 from deltagen.errors import GeometryError
@@ -19,7 +24,6 @@ from deltagen.paths import robots_dir
 pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
 
 UR5 = robots_dir() / "ur5.urdf"
-N_CONFIGS = 1000
 
 # An arm that uses every feature: reversed axes (-z, -x), a non-unit axis (continuous joint),
 # a tilted prismatic axis, fixed joints in the middle (with a massive link, lumped into its
@@ -99,74 +103,11 @@ def odd_path(tmp_path_factory):
     return path
 
 
-def _pin_q(model, q):
-    """Pinocchio's configuration vector of deltagen's joint vector q (n,): a continuous
-    joint is (cos q, sin q) there."""
-    out = np.zeros(model.nq)
-    for k in range(1, model.njoints):
-        j = model.joints[k]
-        i = j.idx_v
-        if j.nq == 2:
-            out[j.idx_q : j.idx_q + 2] = (math.cos(q[i]), math.sin(q[i]))
-        else:
-            out[j.idx_q] = q[i]
-    return out
-
-
-def _assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M):
-    """deltagen's tau (N, n) and M (N, n, n) at q, qd, qdd equal pinocchio's rnea (plus the
-    file's damping and Coulomb friction, which rnea leaves out) and crba, to 1e-10 relative."""
-    for k in range(len(q)):
-        qp = _pin_q(model, q[k])
-        taup = pin.rnea(model, data, qp, qd[k], qdd[k])
-        taup = taup + model.damping * qd[k] + model.friction * np.sign(qd[k])
-        assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
-        Mp = pin.crba(model, data, qp)
-        Mp = np.triu(Mp) + np.triu(Mp, 1).T
-        assert np.abs(M[k] - Mp).max() <= 1e-10 * np.abs(Mp).max()
-
-
-def _random_q(robot, rng, count=N_CONFIGS):
-    lim = np.clip(robot.qlim, -np.pi, np.pi)
-    return rng.uniform(lim[:, 0], lim[:, 1], (count, robot.n))
-
-
-def _compare_with_pinocchio(robot, path, tip):
-    model = pin.buildModelFromUrdf(str(path))
-    data = model.createData()
-    assert model.nv == robot.n
-    names = [model.names[k] for k in range(1, model.njoints)]
-    assert names == [j.name for j in robot.description.joints]
-    fid = model.getFrameId(tip)
-    rng = np.random.default_rng(7)
-    q = _random_q(robot, rng)
-    qd = rng.uniform(-2, 2, q.shape)
-    qdd = rng.uniform(-3, 3, q.shape)
-    T = robot.fk(q)
-    J = robot.jacobian(q)
-    tau = robot.inverse_dynamics(q, qd, qdd)
-    M = robot.mass_matrix(q)
-    for k in range(len(q)):
-        qp = _pin_q(model, q[k])
-        pin.framesForwardKinematics(model, data, qp)
-        np.testing.assert_allclose(T[k], data.oMf[fid].homogeneous, rtol=0, atol=1e-12)
-        # deltagen's base-frame Jacobian: the tool origin's velocity and the angular
-        # velocity in base axes = pinocchio's LOCAL_WORLD_ALIGNED (not WORLD, whose linear
-        # part is the velocity of the point at the world origin)
-        Jp = pin.computeFrameJacobian(model, data, qp, fid, pin.LOCAL_WORLD_ALIGNED)
-        np.testing.assert_allclose(J[k], Jp, rtol=0, atol=1e-12)
-        taup = pin.rnea(model, data, qp, qd[k], qdd[k])
-        assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
-        Mp = pin.crba(model, data, qp)
-        Mp = np.triu(Mp) + np.triu(Mp, 1).T
-        assert np.abs(M[k] - Mp).max() <= 1e-10 * np.abs(Mp).max()
-
-
 def test_ur5_matches_pinocchio():
     robot = SerialRobot.from_urdf(UR5, backend="reference")
     assert robot.name == "ur5" and robot.n == 6
     assert robot.description.has_inertia
-    _compare_with_pinocchio(robot, UR5, "ee_link")
+    compare_with_pinocchio(robot, UR5, "ee_link")
 
 
 def test_odd_arm_matches_pinocchio(odd_path):
@@ -179,7 +120,7 @@ def test_odd_arm_matches_pinocchio(odd_path):
     lim = robot.qlim
     assert np.isinf(lim[1]).all()  # continuous
     np.testing.assert_array_equal(lim[2], [-0.1, 0.2])
-    _compare_with_pinocchio(robot, odd_path, "tip")
+    compare_with_pinocchio(robot, odd_path, "tip")
 
 
 def test_ur5_urdf_equals_the_published_dh_table():
@@ -199,7 +140,7 @@ def test_ur5_urdf_equals_the_published_dh_table():
     B[:3, :3] = rot_axis(2, pi)
     E = np.eye(4)
     E[:3, :3] = [[0, -1, 0], [0, 0, -1], [1, 0, 0]]
-    q = _random_q(urdf, np.random.default_rng(3))
+    q = random_urdf_q(urdf, np.random.default_rng(3))
     np.testing.assert_allclose(urdf.fk(q), B @ dh.fk(q) @ E, rtol=0, atol=1e-12)
 
 
@@ -357,7 +298,7 @@ def test_compiled_core_of_a_urdf_arm_matches_the_reference():
     compiled = SerialRobot.from_urdf(UR5)
     reference = compiled.with_backend("reference")
     rng = np.random.default_rng(11)
-    q = _random_q(compiled, rng, 200)
+    q = random_urdf_q(compiled, rng, 200)
     qd, qdd = rng.uniform(-2, 2, q.shape), rng.uniform(-2, 2, q.shape)
     np.testing.assert_allclose(compiled.fk(q), reference.fk(q), rtol=0, atol=1e-12)
     from deltagen.apps.generate import generate_robot_file  # `deltagen generate arm.urdf`
@@ -409,7 +350,7 @@ def test_joint_dynamics_become_viscous_and_coulomb_friction(tmp_path):
         odd.write_text(ODD)
         free = SerialRobot.from_urdf(odd, tip="tip", backend="reference")
     rng = np.random.default_rng(5)
-    q = _random_q(free, rng, 50)
+    q = random_urdf_q(free, rng, 50)
     qd, qdd = rng.uniform(-2, 2, q.shape), rng.uniform(-2, 2, q.shape)
     extra = damped.inverse_dynamics(q, qd, qdd) - free.inverse_dynamics(q, qd, qdd)
     expected = np.zeros_like(q)
@@ -430,7 +371,7 @@ def test_every_link_pose_matches_pinocchio(path_name, odd_path):
             path, tip="ee_link" if path_name == "ur5" else "tip", backend="reference"
         )
         names = [j.name for j in whole.description.joints]
-        q = _random_q(whole, np.random.default_rng(9), 200)
+        q = random_urdf_q(whole, np.random.default_rng(9), 200)
         checked = 0
         for frame in model.frames:
             if frame.type != pin.FrameType.BODY:
@@ -444,7 +385,7 @@ def test_every_link_pose_matches_pinocchio(path_name, odd_path):
             T = part.fk(q[:, cols])
             fid = model.getFrameId(frame.name)
             for k in range(len(q)):
-                pin.framesForwardKinematics(model, data, _pin_q(model, q[k]))
+                pin.framesForwardKinematics(model, data, pin_q(model, q[k]))
                 np.testing.assert_allclose(T[k], data.oMf[fid].homogeneous, rtol=0, atol=1e-12)
             checked += 1
     assert checked == (6 if path_name == "ur5" else 7) + 1  # every moving link and the tip

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_urdf import _random_q
+from helpers import ROBOTS
+from pinocchio_oracles import compare_with_pinocchio, random_urdf_q
 
 from deltagen import SerialRobot
 from deltagen.api.serial import bundled_urdfs
@@ -43,7 +44,7 @@ def test_panda_equals_frankas_modified_dh_table():
     urdf = SerialRobot.load("panda", backend="reference")
     c, s = math.cos(-pi / 4), math.sin(-pi / 4)
     tool = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0.107 + 0.1034], [0, 0, 0, 1]])
-    q = _random_q(urdf, np.random.default_rng(1), N)
+    q = random_urdf_q(urdf, np.random.default_rng(1), N)
     np.testing.assert_allclose(urdf.fk(q), mdh.fk(q) @ tool, rtol=0, atol=1e-12)
 
 
@@ -69,7 +70,7 @@ def test_scara_equals_its_dh_table():
     urdf = SerialRobot.load("scara_sr800", backend="reference")
     dh = SerialRobot.load("bosch_sr800", backend="reference")
     np.testing.assert_allclose(urdf.qlim, dh.qlim, rtol=0, atol=1e-15)
-    q = _random_q(urdf, np.random.default_rng(2), N)
+    q = random_urdf_q(urdf, np.random.default_rng(2), N)
     np.testing.assert_allclose(urdf.fk(q), dh.fk(q), rtol=0, atol=1e-12)
     np.testing.assert_allclose(urdf.jacobian(q), dh.jacobian(q), rtol=0, atol=1e-12)
 
@@ -78,7 +79,7 @@ def test_bundled_urdf_ik_round_trips():
     rng = np.random.default_rng(3)
     for name in ("panda", "scara_sr800"):
         robot = SerialRobot.load(name, backend="reference")
-        q = _random_q(robot, rng, 30)
+        q = random_urdf_q(robot, rng, 30)
         T = robot.fk(q)
         q_ik = robot.ik(T, method="numeric")
         np.testing.assert_allclose(robot.fk(q_ik), T, rtol=0, atol=1e-10, err_msg=name)
@@ -90,7 +91,7 @@ def test_bundled_urdf_ik_round_trips():
 def test_the_checked_in_c_of_the_bundled_urdfs_equals_the_reference(name):
     compiled = SerialRobot.load(name)
     reference = compiled.with_backend("reference")
-    q = _random_q(compiled, np.random.default_rng(6), N)
+    q = random_urdf_q(compiled, np.random.default_rng(6), N)
     np.testing.assert_allclose(compiled.fk(q), reference.fk(q), rtol=0, atol=1e-12)
     np.testing.assert_allclose(compiled.jacobian(q), reference.jacobian(q), rtol=0, atol=1e-12)
     if name == "panda":  # the only one with inertials; its C holds the dynamics kernels
@@ -127,7 +128,7 @@ def test_panda_matches_example_robot_data_through_pinocchio():
     ]
     np.testing.assert_allclose(robot.qlim[:, 0], model.lowerPositionLimit, rtol=0, atol=1e-12)
     np.testing.assert_allclose(robot.qlim[:, 1], model.upperPositionLimit, rtol=0, atol=1e-12)
-    q = _random_q(robot, np.random.default_rng(4), N)
+    q = random_urdf_q(robot, np.random.default_rng(4), N)
     F = robot.frames(q)  # universal frames 0..7 (frame i-1: joint i's axis is its z), tool
     T = robot.fk(q)
     J = robot.jacobian(q)
@@ -147,8 +148,7 @@ def test_panda_matches_example_robot_data_through_pinocchio():
 def test_panda_dynamics_match_pinocchio_on_the_same_file():
     """The bundled Panda's inertials (Gaz et al. 2019) through deltagen's derivation and through
     pinocchio's rnea/crba reading the same file, to 1e-10 relative."""
-    from test_urdf import _compare_with_pinocchio
 
-    path = Path(__file__).resolve().parents[1] / "robots" / "panda.urdf"
+    path = ROBOTS / "panda.urdf"
     robot = SerialRobot.load("panda", backend="reference")
-    _compare_with_pinocchio(robot, path, "panda_hand_tcp")
+    compare_with_pinocchio(robot, path, "panda_hand_tcp")

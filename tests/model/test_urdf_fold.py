@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_urdf import _assert_dynamics_as_pinocchio, _random_q
+from pinocchio_oracles import assert_dynamics_as_pinocchio, random_urdf_q
 
 from deltagen import SerialRobot
 from deltagen.errors import GeometryError
@@ -169,12 +169,12 @@ def test_panda_fingers_locked_open_match_pinocchio_reduced_model(tip):
     model = pin.buildReducedModel(full, lock, q_ref)
     data = model.createData()
     rng = np.random.default_rng(5)
-    q = _random_q(robot, rng, 100)
+    q = random_urdf_q(robot, rng, 100)
     qd = rng.uniform(-2, 2, q.shape)
     qdd = rng.uniform(-3, 3, q.shape)
     tau = robot.inverse_dynamics(q, qd, qdd)
     M = robot.mass_matrix(q)
-    _assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M)
+    assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M)
     # the fingers' 2 x 15 g matter: locked closed, the mass matrix differs
     with pytest.warns(URDFWarning, match=r"panda_finger_joint1 = 0, panda_finger_joint2 = 0"):
         closed = SerialRobot.from_urdf(PANDA, "panda_link0", tip, backend="reference")

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pinocchio_oracles import assert_gravity_as_pinocchio, pinocchio_chain
 
 from deltagen import SerialRobot
 from deltagen.errors import GeometryError
@@ -68,37 +69,6 @@ def turned_path(tmp_path_factory):
     return path
 
 
-def _pinocchio_chain(path, chain, at=None, gravity=None):
-    """Pinocchio's whole-tree model of the file with world gravity (or ``gravity``), every
-    joint outside ``chain`` locked at 0 or at ``at[name]``."""
-    full = pin.buildModelFromUrdf(str(path))
-    if gravity is not None:
-        full.gravity.linear = np.asarray(gravity, dtype=float)
-    q_lock = pin.neutral(full)
-    for name, value in (at or {}).items():
-        q_lock[full.joints[full.getJointId(name)].idx_q] = value
-    lock = [k for k in range(1, full.njoints) if full.names[k] not in chain]
-    model = pin.buildReducedModel(full, lock, q_lock)
-    assert [model.names[k] for k in range(1, model.njoints)] == chain
-    return model
-
-
-def _assert_gravity_as_pinocchio(robot, model, rng, count=50):
-    data = model.createData()
-    lim = np.clip(robot.qlim, -np.pi, np.pi)
-    q = rng.uniform(lim[:, 0], lim[:, 1], (count, robot.n))
-    qd = rng.uniform(-2, 2, q.shape)
-    qdd = rng.uniform(-3, 3, q.shape)
-    g = robot.gravity_torque(q)
-    tau = robot.inverse_dynamics(q, qd, qdd)
-    for k in range(count):
-        gp = pin.computeGeneralizedGravity(model, data, q[k])
-        assert np.abs(g[k] - gp).max() <= 1e-10 * np.abs(gp).max()
-        taup = pin.rnea(model, data, q[k], qd[k], qdd[k])
-        taup = taup + model.damping * qd[k] + model.friction * np.sign(qd[k])
-        assert np.abs(tau[k] - taup).max() <= 1e-10 * np.abs(taup).max()
-
-
 @pytest.mark.parametrize("backend", ["reference", "compiled"])
 def test_gravity_of_a_turned_base_is_the_worlds(turned_path, backend):
     with pytest.warns(URDFWarning, match=r"movable joints above the base at waist = 0"):
@@ -106,8 +76,8 @@ def test_gravity_of_a_turned_base_is_the_worlds(turned_path, backend):
     g = np.array(robot.description.gravity)
     assert np.linalg.norm(g) == pytest.approx(9.81, rel=1e-15)
     assert abs(g[2] + 9.81) > 1.0  # the base is turned: not its own -z
-    _assert_gravity_as_pinocchio(
-        robot, _pinocchio_chain(turned_path, CHAIN), np.random.default_rng(1)
+    assert_gravity_as_pinocchio(
+        robot, pinocchio_chain(turned_path, CHAIN), np.random.default_rng(1)
     )
 
 
@@ -118,16 +88,16 @@ def test_locked_joints_above_the_base_and_gravity_given(turned_path):
         robot = SerialRobot.from_urdf(
             turned_path, "chest", "hand", locked={**at, "neck": 0.0}, backend="reference"
         )
-    model = _pinocchio_chain(turned_path, CHAIN, at)
-    _assert_gravity_as_pinocchio(robot, model, np.random.default_rng(2))
+    model = pinocchio_chain(turned_path, CHAIN, at)
+    assert_gravity_as_pinocchio(robot, model, np.random.default_rng(2))
     world_g = (1.5, -2.0, -9.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", URDFWarning)
         robot = SerialRobot.from_urdf(
             turned_path, "chest", "hand", gravity=world_g, backend="reference"
         )
-    model = _pinocchio_chain(turned_path, CHAIN, gravity=world_g)
-    _assert_gravity_as_pinocchio(robot, model, np.random.default_rng(3))
+    model = pinocchio_chain(turned_path, CHAIN, gravity=world_g)
+    assert_gravity_as_pinocchio(robot, model, np.random.default_rng(3))
 
 
 def test_a_chain_from_the_root_keeps_the_files_gravity(turned_path):
@@ -184,4 +154,4 @@ def test_published_humanoid_arms_gravity_as_pinocchio(name):
         warnings.simplefilter("ignore", URDFWarning)
         robot = SerialRobot.from_urdf(path, base, tip, backend="reference")
     chain = [j.name for j in robot.description.joints]
-    _assert_gravity_as_pinocchio(robot, _pinocchio_chain(path, chain), np.random.default_rng(5))
+    assert_gravity_as_pinocchio(robot, pinocchio_chain(path, chain), np.random.default_rng(5))

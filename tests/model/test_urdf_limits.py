@@ -9,16 +9,15 @@ from __future__ import annotations
 import subprocess
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import REPO
 
 from deltagen import SerialRobot, cli
 from deltagen.errors import GeometryError
 from deltagen.model.urdf import URDFWarning, description_from_urdf
 
-REPO = Path(__file__).resolve().parent.parent
 BRANCH = 3000  # links of the side branch: far beyond Python's recursion limit (1000)
 BRANCH_MASS = 0.002  # [kg] each
 BRANCH_STEP = 0.001  # [m] between branch links, along the y axis of l1

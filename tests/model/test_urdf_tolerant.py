@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pinocchio_oracles import assert_gravity_as_pinocchio, pinocchio_chain
 
 from deltagen import SerialRobot
 from deltagen.errors import GeometryError
@@ -153,7 +154,6 @@ def test_tiny_rounding_is_kept_as_the_file_writes_it(tmp_path):
 @pytest.mark.parametrize("file", ["tiago.urdf", "tiago_no_hand.urdf", "tiago_dual.urdf"])
 def test_tiago_arms_load_and_agree_with_pinocchio(file):
     pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
-    from test_urdf_gravity import _assert_gravity_as_pinocchio, _pinocchio_chain
 
     path = ROBOTS_DIR / "tiago_description/robots" / file
     tip = "arm_left_7_link" if file == "tiago_dual.urdf" else "arm_7_link"
@@ -162,7 +162,7 @@ def test_tiago_arms_load_and_agree_with_pinocchio(file):
         robot = SerialRobot.from_urdf(path, "base_footprint", tip, backend="reference")
     chain = [j.name for j in robot.description.joints]
     assert robot.n == 8 and chain[0] == "torso_lift_joint"
-    model = _pinocchio_chain(path, chain)
+    model = pinocchio_chain(path, chain)
     data = model.createData()
     rng = np.random.default_rng(6)
     lim = robot.qlim
@@ -172,5 +172,5 @@ def test_tiago_arms_load_and_agree_with_pinocchio(file):
     for k in range(len(q)):
         pin.framesForwardKinematics(model, data, q[k])
         np.testing.assert_allclose(T[k], data.oMf[fid].homogeneous, rtol=0, atol=1e-12)
-    _assert_gravity_as_pinocchio(robot, model, rng)
+    assert_gravity_as_pinocchio(robot, model, rng)
     assert pin is not None

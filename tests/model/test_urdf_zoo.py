@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_urdf import _assert_dynamics_as_pinocchio, _pin_q, _random_q
+from pinocchio_oracles import assert_dynamics_as_pinocchio, pin_q, random_urdf_q
 
 from deltagen import SerialRobot
 from deltagen.model.urdf import URDFWarning
@@ -79,7 +79,7 @@ def test_published_arm_matches_pinocchio(name):
     root = model.getFrameId(base) if base else 0
     fid = model.getFrameId(tip or model.frames[-1].name)
     rng = np.random.default_rng(3)
-    q = _random_q(robot, rng, N)
+    q = random_urdf_q(robot, rng, N)
     qd = rng.uniform(-2, 2, q.shape)
     qdd = rng.uniform(-3, 3, q.shape)
     T = robot.fk(q)
@@ -90,7 +90,7 @@ def test_published_arm_matches_pinocchio(name):
         tau = robot.inverse_dynamics(q, qd, qdd)
         M = robot.mass_matrix(q)
     for k in range(N):
-        qp = _pin_q(model, q[k])
+        qp = pin_q(model, q[k])
         pin.framesForwardKinematics(model, data, qp)
         Tb = data.oMf[root].homogeneous
         Tp = np.linalg.solve(Tb, data.oMf[fid].homogeneous)
@@ -101,4 +101,4 @@ def test_published_arm_matches_pinocchio(name):
         np.testing.assert_allclose(J[k], Jp, rtol=0, atol=1e-12 * size)
     if dynamics:
         # joint friction from the file's <dynamics damping friction>, as pinocchio read it
-        _assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M)
+        assert_dynamics_as_pinocchio(model, data, q, qd, qdd, tau, M)

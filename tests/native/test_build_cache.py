@@ -46,15 +46,8 @@ def tiny(tmp_path):
     return source
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
-    return folder
-
-
-def _run_loader(source: Path, cache: Path, cwd: Path | None = None):
-    env = dict(os.environ, DELTAGEN_CACHE=str(cache))
+def _run_loader(source: Path, private_cache: Path, cwd: Path | None = None):
+    env = dict(os.environ, DELTAGEN_CACHE=str(private_cache))
     return subprocess.run(
         [sys.executable, "-c", LOADER, str(source)],
         env=env,
@@ -65,17 +58,17 @@ def _run_loader(source: Path, cache: Path, cwd: Path | None = None):
     )
 
 
-def _artifact(cache: Path) -> Path:
-    (folder,) = [p for p in cache.iterdir() if p.name.startswith("_deltagen_tiny_")]
+def _artifact(private_cache: Path) -> Path:
+    (folder,) = [p for p in private_cache.iterdir() if p.name.startswith("_deltagen_tiny_")]
     (so,) = folder.glob("*.so")
     return so
 
 
-def test_cold_build_writes_a_verified_artifact(tiny, cache):
-    proc = _run_loader(tiny, cache)
+def test_cold_build_writes_a_verified_artifact(tiny, private_cache):
+    proc = _run_loader(tiny, private_cache)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "5"
-    so = _artifact(cache)
+    so = _artifact(private_cache)
     assert (so.parent / "manifest.json").is_file()
     assert build._verified(so.parent, so)
 
@@ -84,11 +77,11 @@ def test_cold_build_writes_a_verified_artifact(tiny, cache):
     "fault",
     ["truncated", "zero_length", "garbage", "missing_so", "missing_manifest", "wrong_manifest"],
 )
-def test_a_damaged_artifact_is_rebuilt_not_loaded(tiny, cache, fault):
+def test_a_damaged_artifact_is_rebuilt_not_loaded(tiny, private_cache, fault):
     """Before the fix a truncated .so killed every later process with SIGBUS and an empty
     one or a folder without its .so gave a permanent ImportError."""
-    assert _run_loader(tiny, cache).returncode == 0
-    so = _artifact(cache)
+    assert _run_loader(tiny, private_cache).returncode == 0
+    so = _artifact(private_cache)
     data = so.read_bytes()
     if fault == "truncated":
         so.write_bytes(data[: len(data) // 3])
@@ -102,13 +95,13 @@ def test_a_damaged_artifact_is_rebuilt_not_loaded(tiny, cache, fault):
         (so.parent / "manifest.json").unlink()
     elif fault == "wrong_manifest":
         (so.parent / "manifest.json").write_text('{"size": 1, "sha256": "00"}')
-    proc = _run_loader(tiny, cache)
+    proc = _run_loader(tiny, private_cache)
     assert proc.returncode == 0, f"rc {proc.returncode}: {proc.stderr[-2000:]}"
     assert proc.stdout.strip() == "5"
-    assert build._verified(so.parent, _artifact(cache))
+    assert build._verified(so.parent, _artifact(private_cache))
 
 
-def test_concurrent_cold_builds_from_threads(tiny, cache):
+def test_concurrent_cold_builds_from_threads(tiny, private_cache):
     """Before the fix cffi's compile changed the working directory of the whole process,
     so threads building at once collided."""
     cwd = os.getcwd()
@@ -131,11 +124,11 @@ def test_concurrent_cold_builds_from_threads(tiny, cache):
     assert errors == []
     assert results == [42] * 4
     assert cwds == {cwd} and os.getcwd() == cwd
-    assert len([p for p in cache.iterdir() if p.name.startswith("_deltagen_tiny_")]) == 1
+    assert len([p for p in private_cache.iterdir() if p.name.startswith("_deltagen_tiny_")]) == 1
 
 
-def test_concurrent_cold_builds_from_processes(tiny, cache):
-    env = dict(os.environ, DELTAGEN_CACHE=str(cache))
+def test_concurrent_cold_builds_from_processes(tiny, private_cache):
+    env = dict(os.environ, DELTAGEN_CACHE=str(private_cache))
     procs = [
         subprocess.Popen(
             [sys.executable, "-c", LOADER, str(tiny)],
@@ -150,7 +143,7 @@ def test_concurrent_cold_builds_from_processes(tiny, cache):
     for proc, (out, err) in zip(procs, outputs):
         assert proc.returncode == 0, err
         assert out.strip() == "5"
-    assert not [p for p in cache.iterdir() if ".bad." in p.name or p.name.endswith(".tmp")]
+    assert not [p for p in private_cache.iterdir() if ".bad." in p.name or p.name.endswith(".tmp")]
 
 
 def test_relative_cache_path_is_resolved_once(tiny, tmp_path):
@@ -224,7 +217,7 @@ def test_reference_backend_works_without_a_usable_cache(tmp_path, monkeypatch):
     assert np.isfinite(arm.fk(np.array([0.1, 0.2]))).all()
 
 
-def test_compiler_error_text_reaches_the_user(tiny, cache):
+def test_compiler_error_text_reaches_the_user(tiny, private_cache):
     (tiny / "tiny.c").write_text(TINY_C + "int broken_function(void) { return undeclared_name; }\n")
     with pytest.raises(build.BuildError) as info:
         build.load("tiny", "tiny", tiny)
@@ -233,14 +226,14 @@ def test_compiler_error_text_reaches_the_user(tiny, cache):
     assert "is a C compiler installed" not in text
 
 
-def test_warnings_of_a_successful_build_stay_quiet(tiny, cache, capfd):
+def test_warnings_of_a_successful_build_stay_quiet(tiny, private_cache, capfd):
     (tiny / "tiny.c").write_text(TINY_C + "int unused_arg(int x, int y) { return x; }\n")
     assert build.load("tiny", "tiny", tiny).lib.tiny_add(1, 1) == 2
     out, err = capfd.readouterr()
     assert out == "" and err == ""
 
 
-def test_missing_compiler_is_named(tiny, cache, monkeypatch):
+def test_missing_compiler_is_named(tiny, private_cache, monkeypatch):
     monkeypatch.setenv("CC", "/nonexistent/deltagen-cc")
     with pytest.raises(build.BuildError, match="deltagen-cc"):
         build.load("tiny", "tiny", tiny)
@@ -347,7 +340,7 @@ def test_compiled_api_names_a_read_only_cache_in_a_fresh_process(tmp_path):
     assert list(cache.iterdir()) == []
 
 
-def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, cache):
+def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, private_cache):
     """-O3 (default) and -O2 (modules rendered at run time, native/serial.py) are two
     artifacts, each built with its own level; anything else is refused."""
     o3 = build.load("tiny", "tiny", tiny)
@@ -355,7 +348,7 @@ def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, cache):
     assert o3 is not o2 and o2.lib.tiny_add(2, 3) == 5
     commands = sorted(
         (p / "manifest.json").read_text()
-        for p in cache.iterdir()
+        for p in private_cache.iterdir()
         if p.name.startswith("_deltagen_")
     )
     assert len(commands) == 2

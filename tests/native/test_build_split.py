@@ -62,13 +62,6 @@ def _write_kernels(folder: Path, body: str = "return x + 1;") -> Path:
     return folder
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
-    return folder
-
-
 @pytest.mark.parametrize("path", sorted(generated_dir().glob("*.c")), ids=lambda p: p.name)
 def test_every_checked_in_module_splits_into_its_kernels(path):
     """The units hold the whole file (preamble + kernels, in order, nothing lost or
@@ -102,20 +95,22 @@ def test_layouts_the_split_cannot_keep_exact_compile_as_one_unit(text):
     assert build.split_units(text) is None
 
 
-def test_split_module_computes_what_the_whole_file_does(tmp_path, cache):
+def test_split_module_computes_what_the_whole_file_does(tmp_path, private_cache):
     source = _write_kernels(tmp_path / "src")
     split = build.load("kern", "kern", source)
     whole = build.load("kern", "kern", source, split=False)
     assert split is not whole
     for x in (-7, 0, 5, 11):
         assert split.lib.kern_c(x) == whole.lib.kern_c(x) == 3 * x + x + 1
-    manifests = [(p / "manifest.json").read_text() for p in cache.iterdir() if "_kern_" in p.name]
+    manifests = [
+        (p / "manifest.json").read_text() for p in private_cache.iterdir() if "_kern_" in p.name
+    ]
     assert len(manifests) == 2
     assert sum(".unit" in m for m in manifests) == 1  # one built from units, one whole
 
 
 @pytest.mark.parametrize("split", [True, False], ids=["split", "whole"])
-def test_compiler_error_in_one_kernel_names_the_file_and_line(tmp_path, cache, split):
+def test_compiler_error_in_one_kernel_names_the_file_and_line(tmp_path, private_cache, split):
     source = _write_kernels(tmp_path / "src", body="return x + undeclared_name;")
     line = 1 + (source / "kern.c").read_text().split("\n").index("    return x + undeclared_name;")
     with pytest.raises(build.BuildError) as info:

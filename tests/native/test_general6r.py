@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import jaco_arm, random_6r_arm
 from scipy.optimize import linear_sum_assignment
-from test_ik_general6r import _jaco, _random_arm
 
 from deltagen import SerialRobot
 from deltagen.solve import general6r
@@ -135,8 +135,8 @@ def _arm(name):
     if name == "ur5":
         return SerialRobot.load("ur5", backend="reference")
     if name == "jaco":
-        return _jaco("jaco_c")
-    return _random_arm(11, "random6r_c")
+        return jaco_arm("jaco_c")
+    return random_6r_arm(11, "random6r_c")
 
 
 def _pencils(arm, n, seed):

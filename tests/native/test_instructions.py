@@ -23,11 +23,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import BASELINES
 
 from deltagen.native import build, instructions
 from deltagen.paths import generated_dir
 
-BASELINE = Path(__file__).resolve().parent / "baselines" / "instructions.json"
+BASELINE = BASELINES / "instructions.json"
 TOLERANCE = 0.05
 SEED = 2008
 DELTA_KERNELS = (

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import PARTS_ROWS
 
 from deltagen import GeometryError, InputError, SerialRobot, SingularityError, cli
 from deltagen.api.serial import bundled_robots, euler_zyx
@@ -339,9 +340,8 @@ def test_dynamics_are_built_on_first_use_and_agree(tmp_path, monkeypatch):
     from deltagen.native.serial import module_ready
 
     monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path))
-    from test_serial_parts import ROWS
 
-    rows = ROWS[:2]  # two links with inertia
+    rows = PARTS_ROWS[:2]  # two links with inertia
     arm = SerialRobot.from_dh(rows, "standard", name="lazy_arm")
     reference = arm.with_backend("reference")
     core = arm._core

@@ -15,6 +15,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from helpers import rtb_dh_rows
 
 from deltagen import SerialRobot
 from deltagen.model.serial import SerialDescription
@@ -26,21 +27,10 @@ from deltagen.solve.analytic import analytic_solver
 rtb = pytest.importorskip("roboticstoolbox", reason="roboticstoolbox (test extra) is missing")
 
 
-def _rows(robot):
-    rows = []
-    for link in robot.links:
-        row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
-        row["offset"] = float(link.offset)
-        if link.isflip:
-            row["flip"] = True
-        rows.append(row)
-    return rows
-
-
 def _arm(name):
     if name == "ur5_urdf":
         return SerialRobot.load("ur5", backend="reference")
-    rows = _rows(getattr(rtb.models.DH, name)())
+    rows = rtb_dh_rows(getattr(rtb.models.DH, name)())
     return SerialRobot.from_dh(rows, "standard", name=name.lower(), backend="reference")
 
 
@@ -143,7 +133,7 @@ def test_compiled_kernel_matches_the_numpy_solver():
     """The generated C ik_all of a UR5 (derive/serial/ik_closed_form.py, the same steps as
     the numpy solver) against the numpy solver: the same valid flags and joint values, the
     original q among the branches, with limits (+-6.2 rad) checked in C."""
-    rows = _rows(rtb.models.DH.UR5())
+    rows = rtb_dh_rows(rtb.models.DH.UR5())
     for row in rows:
         row["qlim"] = [-6.2, 6.2]
     arm = SerialRobot.from_dh(rows, "standard", name="ur5_dh_c")

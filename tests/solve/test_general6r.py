@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import jaco_arm, random_6r_arm
 
 from deltagen import IncompleteSolutionsWarning, SerialRobot
 from deltagen.inputs import InputError
@@ -25,29 +26,13 @@ def _wrapped(a):
     return np.abs((a + np.pi) % (2 * np.pi) - np.pi)
 
 
-def _random_arm(seed, name=None):
-    """A 6R arm with random DH rows (seeded): no two axes parallel or meeting, in general."""
-    r = np.random.default_rng(seed)
-    rows = [
-        dict(
-            a=float(r.uniform(0.1, 0.8)),
-            alpha=float(r.uniform(-np.pi, np.pi)),
-            d=float(r.uniform(-0.5, 0.5)),
-            offset=float(r.uniform(-1, 1)),
-        )
-        for _ in range(6)
-    ]
-    name = name or f"random6r_{seed}"
-    return SerialRobot.from_dh(rows, "standard", name=name, backend="reference")
-
-
 def _found(Q, valid, q, tol=1e-6):
     return np.where(valid, _wrapped(Q - q[:, None]).max(-1), np.inf).min(-1) < tol
 
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_random_arms_every_solution(seed):
-    arm = _random_arm(seed)
+    arm = random_6r_arm(seed)
     (elimination,), complete = arm._general()
     assert complete and elimination.regular
     assert elimination.fit_residual < 1e-12  # Raghavan-Roth's structure holds
@@ -131,29 +116,18 @@ def _complete_and_multistart(arm, rng, poses, seeds=64):
 
 
 def test_no_solution_is_missed_numeric_multistart():
-    arm = _random_arm(3)
+    arm = random_6r_arm(3)
     T, Q, valid, conv, qn = _complete_and_multistart(arm, np.random.default_rng(4), 6)
     for p in range(len(T)):
         for s in np.flatnonzero(conv[p]):
             assert _wrapped(Q[p][valid[p]] - qn[p, s]).max(-1).min() < 1e-6
 
 
-def _jaco(name="jaco_g"):
-    """roboticstoolbox's DH model of the Kinova Jaco (reversed joints as flip)."""
-    rtb = pytest.importorskip("roboticstoolbox")
-    rows = []
-    for link in rtb.models.DH.Jaco().links:
-        row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
-        row.update(offset=float(link.offset), flip=bool(link.isflip))
-        rows.append(row)
-    return SerialRobot.from_dh(rows, "standard", name=name, backend="reference")
-
-
 def test_jaco_complete_by_a_regular_arrangement():
     """rtb's Jaco (meeting / parallel neighbouring axes): the forward elimination's pencil
     is singular, a cyclic arrangement's is not; ik_all is complete by default and finds
     everything the combined method finds (and the originals the combined method misses)."""
-    arm = _jaco()
+    arm = jaco_arm()
     assert not general6r.General6R(arm.description).regular
     (elimination,), complete = arm._general()
     assert (
@@ -182,7 +156,7 @@ def test_best_effort_path_of_singular_eliminations():
     """With only singular eliminations (forced here: the Jaco's forward and reversed
     chains), ik_all(method="complete") is a best effort that adds the combined branches:
     nothing invalid is marked valid, and it finds whatever the combined method finds."""
-    arm = _jaco()
+    arm = jaco_arm()
     forced = [general6r.General6R(arm.description, reverse=r) for r in (False, True)]
     assert not any(g.regular for g in forced)
     arm._general_6r = (forced, False)
@@ -200,7 +174,7 @@ def test_best_effort_path_of_singular_eliminations():
 
 
 def test_ik_all_methods_are_checked():
-    arm = _random_arm(1)
+    arm = random_6r_arm(1)
     T = arm.fk(np.zeros(6))
     with pytest.raises(InputError, match="method must be"):
         arm.ik_all(T, method="magic")
@@ -235,7 +209,7 @@ def _solution_set_equal(Qa, Va, Qb, Vb, tol=1e-9):
 def test_batched_equals_one_pose_per_call(which):
     """ik_all on a batch (stacked eigenproblems, vectorised extraction and dedupe) gives,
     pose by pose, the same solution set as one (4, 4) pose per call."""
-    arm = _random_arm(5) if which == "random" else _jaco()
+    arm = random_6r_arm(5) if which == "random" else jaco_arm()
     q = np.random.default_rng(21).uniform(-np.pi, np.pi, (24, 6))
     T = arm.fk(q)
     Qb, Vb = arm.ik_all(T, method="complete")
@@ -269,11 +243,11 @@ def test_complete_on_random_poses(name, count):
     of random q, and every valid solution reproduces T to 1e-10 in the arm's own
     (reference, DH-matrix) fk."""
     arm = {
-        "jaco": _jaco,
+        "jaco": jaco_arm,
         "ur5": _ur5,
         "puma560": _puma,
-        "random7": lambda: _random_arm(7),
-        "random8": lambda: _random_arm(8),
+        "random7": lambda: random_6r_arm(7),
+        "random8": lambda: random_6r_arm(8),
     }[name]()
     eliminations, complete = arm._general()
     assert complete and len(eliminations) == 1 and eliminations[0].recovered == 8
@@ -294,7 +268,7 @@ def test_complete_on_random_poses(name, count):
 def test_standard_and_qz_eigen_paths_agree(monkeypatch):
     """The stacked companion-matrix path and the per-pose QZ path (forced by a condition
     threshold of 0) find the same real eigenvalues x3 of the pencil."""
-    arm = _jaco()
+    arm = jaco_arm()
     (g,), _ = arm._general()
     T = arm.fk(np.random.default_rng(22).uniform(-np.pi, np.pi, (12, 6)))
     w, o, G = g._arranged(T)
@@ -310,7 +284,7 @@ def test_standard_and_qz_eigen_paths_agree(monkeypatch):
 def test_carried_left_equals_interpolated():
     """The left side's coefficients from the cached fixed-axis ones (turned by R_G^T for
     the carried arrangements) equal the per-pose interpolation."""
-    arm = _jaco()
+    arm = jaco_arm()
     T = arm.fk(np.random.default_rng(23).uniform(-np.pi, np.pi, (5, 6)))
     for reverse in (False, True):
         for shift in (0, 4, 5):
@@ -323,7 +297,7 @@ def test_carried_left_equals_interpolated():
 def test_no_solution_is_missed_on_industrial_arms(name):
     """The independent count check on shifted arrangements: a numeric multi-start (64
     random seeds per pose) converges to no solution that the complete solver missed."""
-    arm = _jaco() if name == "jaco" else _ur5()
+    arm = jaco_arm() if name == "jaco" else _ur5()
     T, Q, valid, conv, qn = _complete_and_multistart(arm, np.random.default_rng(31), 3)
     # every converged slot (valid or outside the limits) counts: the multi-start ignores them
     have = np.isfinite(Q).all(-1)

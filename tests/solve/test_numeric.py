@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import random_q, reference_fk
 
 from deltagen.api.serial import SerialRobot, bundled_robots
 from deltagen.inputs import InputError
@@ -26,53 +27,16 @@ TOL = 1e-10
 
 
 @pytest.fixture(scope="module")
-def arms():
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            cache[name] = SerialRobot.load(name)
-        return cache[name]
-
-    return get
-
-
-@pytest.fixture(scope="module")
-def puma7():
-    """A 7-axis Puma: Corke's Puma 560 table with joint 6 turned into an offset link
-    (a6 = 0.05 m, alpha6 = 90 deg) and a 7th revolute joint behind it (d7 = 0.1 m), so that
-    axis 7 is perpendicular to axis 6 and the arm is kinematically redundant."""
-    rows = [
-        dict(a=0.0, alpha_deg=90, d=0.6718, qlim_deg=[-160, 160]),
-        dict(a=0.4318, alpha=0.0, d=0.0, qlim_deg=[-45, 225]),
-        dict(a=0.0203, alpha_deg=-90, d=0.15005, qlim_deg=[-225, 45]),
-        dict(a=0.0, alpha_deg=90, d=0.4318, qlim_deg=[-110, 170]),
-        dict(a=0.0, alpha_deg=-90, d=0.0, qlim_deg=[-100, 100]),
-        dict(a=0.05, alpha_deg=90, d=0.0, qlim_deg=[-266, 266]),
-        dict(a=0.0, alpha=0.0, d=0.1, qlim_deg=[-170, 170]),
-    ]
-    return SerialRobot.from_dh(rows, "standard", name="puma7_ik_test")
+def arms(serial_arms):
+    return serial_arms
 
 
 # ------------------------------------------------------------------ independent helpers
 
 
-def _random_q(arm, rng, N, margin=0.0):
-    lo, hi = arm.qlim.T
-    lo = np.where(np.isfinite(lo), lo, -np.pi)
-    hi = np.where(np.isfinite(hi), hi, np.pi)
-    return lo + margin + (hi - lo - 2 * margin) * rng.random((N, arm.n))
-
-
 def _perturbed(arm, q, rng, sigma=0.1):
     lo, hi = arm.qlim.T
     return np.clip(q + rng.normal(0.0, sigma, q.shape), lo, hi)
-
-
-def _ref_fk(arm, q):
-    T, status = reference.fk(arm.description, np.atleast_2d(q))
-    assert np.all(status == 0)
-    return T
 
 
 def _rotation_angle(Ra, Rb):
@@ -85,7 +49,7 @@ def _check_solution(arm, res, T, tol=TOL):
     """Converged rows: within limits, and the reference fk reproduces T to tol."""
     c = res.converged
     assert arm.within_limits(res.q[c]).all()
-    Tq = _ref_fk(arm, res.q[c])
+    Tq = reference_fk(arm, res.q[c])
     dp = np.linalg.norm(Tq[:, :3, 3] - T[c][:, :3, 3], axis=1)
     dr = _rotation_angle(Tq[:, :3, :3], T[c][:, :3, :3])
     # the solver's tol plus a few ulps of the two fk implementations
@@ -151,7 +115,7 @@ def test_rotation_vector_inverts_rodrigues(rng):
 @pytest.mark.parametrize("name", bundled_robots())
 def test_jacobian_sources_agree(arms, name, rng):
     arm = arms(name)
-    q = _random_q(arm, rng, 300)
+    q = random_q(arm, rng, 300)
     Js = ikn.jacobian(arm, q, "symbolic")
     Jg = ikn.jacobian(arm, q, "geometric")
     Jf = ikn.jacobian(arm, q, "fd")
@@ -166,14 +130,14 @@ def test_jacobian_sources_agree(arms, name, rng):
 def test_fd_jacobian_is_a_derivative_of_fk(arms, rng):
     """The fd source against an own one-sided difference of the reference fk."""
     arm = arms("motoman_up6")
-    q = _random_q(arm, rng, 20)
+    q = random_q(arm, rng, 20)
     Jf = ikn.jacobian(arm, q, "fd")
     h = 1e-7
-    T0 = _ref_fk(arm, q)
+    T0 = reference_fk(arm, q)
     for i in range(arm.n):
         dq = np.zeros(arm.n)
         dq[i] = h
-        T1 = _ref_fk(arm, q + dq)
+        T1 = reference_fk(arm, q + dq)
         v = (T1[:, :3, 3] - T0[:, :3, 3]) / h
         w = _small_rotvec(T1[:, :3, :3] @ np.swapaxes(T0[:, :3, :3], 1, 2)) / h
         assert np.allclose(Jf[:, :3, i], v, atol=1e-5)
@@ -203,22 +167,22 @@ def test_modified_dh_on_the_reference_backend(rng):
     ]
     arm2 = SerialRobot.from_dh(rpr, "modified", name="rpr_modified", backend="reference")
     for a in (arm, arm2):
-        q = _random_q(a, rng, 100)
+        q = random_q(a, rng, 100)
         Jr, _ = reference.jacobian(a.description, q)
         assert np.abs(ikn.jacobian(a, q, "geometric") - Jr).max() <= 1e-12
         assert np.abs(ikn.jacobian(a, q, "fd") - Jr).max() <= 1e-6
-    q_true = _random_q(arm, rng, 100)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 100)
+    T = reference_fk(arm, q_true)
     res = ikn.solve(arm, T, _perturbed(arm, q_true, rng), jacobian="geometric", restarts=10)
     assert res.converged.all()
     _check_solution(arm, res, T)
-    q_true = _random_q(arm2, rng, 100)
-    T = _ref_fk(arm2, q_true)
+    q_true = random_q(arm2, rng, 100)
+    T = reference_fk(arm2, q_true)
     res = ikn.solve(
         arm2, T, _perturbed(arm2, q_true, rng, 0.05), mask=[1, 1, 1, 0, 0, 0], restarts=10
     )
     assert res.converged.all() and arm2.within_limits(res.q).all()
-    assert np.abs(_ref_fk(arm2, res.q)[:, :3, 3] - T[:, :3, 3]).max() <= 1e-10
+    assert np.abs(reference_fk(arm2, res.q)[:, :3, 3] - T[:, :3, 3]).max() <= 1e-10
 
 
 # ------------------------------------------------------------------ six-axis arms
@@ -227,8 +191,8 @@ def test_modified_dh_on_the_reference_backend(rng):
 @pytest.mark.parametrize("name", SIX_AXIS)
 def test_six_axis_random_targets(arms, name, rng):
     arm = arms(name)
-    q_true = _random_q(arm, rng, 1000)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 1000)
+    T = reference_fk(arm, q_true)
     q0 = _perturbed(arm, q_true, rng)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -245,8 +209,8 @@ def test_six_axis_random_targets(arms, name, rng):
 def test_six_axis_from_named_configuration(arms, name, rng):
     """Cold start from "qz" (the Puma's is wrist-singular): restarts bring it to 100 %."""
     arm = arms(name)
-    q_true = _random_q(arm, rng, 200)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 200)
+    T = reference_fk(arm, q_true)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         res = ikn.solve(arm, T, arm.configuration("qz"), restarts=100, seed=2)
@@ -258,8 +222,8 @@ def test_six_axis_from_named_configuration(arms, name, rng):
 @pytest.mark.parametrize("name", SIX_AXIS)
 def test_every_jacobian_source_converges(arms, name, source, rng):
     arm = arms(name)
-    q_true = _random_q(arm, rng, 200)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 200)
+    T = reference_fk(arm, q_true)
     res = ikn.solve(arm, T, _perturbed(arm, q_true, rng), jacobian=source, restarts=30)
     assert res.converged.all()
     _check_solution(arm, res, T)
@@ -268,15 +232,15 @@ def test_every_jacobian_source_converges(arms, name, source, rng):
 def test_single_step_is_gauss_elimination(arms, rng):
     """damping=None, one step, no step limit: dq = J^-1 dx with J and dx computed here."""
     arm = arms("puma560")
-    q_true = _random_q(arm, rng, 50, margin=0.6)
+    q_true = random_q(arm, rng, 50, margin=0.6)
     q0 = q_true + rng.uniform(-0.05, 0.05, q_true.shape)
-    T = _ref_fk(arm, q_true)
+    T = reference_fk(arm, q_true)
     J, _ = reference.jacobian(arm.description, q0)
     well = np.linalg.cond(J) < 100  # the step stays small: no limit or 2 pi shift involved
     q0, T, J = q0[well], T[well], J[well]
     assert len(q0) > 10
     res = ikn.solve(arm, T, q0, max_iter=1, restarts=0, damping=None, step_limit=None)
-    T0 = _ref_fk(arm, q0)
+    T0 = reference_fk(arm, q0)
     dx = np.concatenate(
         [
             T[:, :3, 3] - T0[:, :3, 3],
@@ -290,7 +254,7 @@ def test_single_step_is_gauss_elimination(arms, rng):
 
 def test_solve_is_reproducible(arms, rng):
     arm = arms("manutec_r15")
-    T = _ref_fk(arm, _random_q(arm, rng, 100))
+    T = reference_fk(arm, random_q(arm, rng, 100))
     a = ikn.solve(arm, T, arm.configuration("qz"), restarts=5, seed=3)
     b = ikn.solve(arm, T, arm.configuration("qz"), restarts=5, seed=3)
     assert np.array_equal(a.q, b.q, equal_nan=True) and np.array_equal(a.iterations, b.iterations)
@@ -301,8 +265,8 @@ def test_solve_is_reproducible(arms, rng):
 
 def test_redundant_arm_svd_pseudo_inverse(puma7, rng):
     arm = puma7
-    q_true = _random_q(arm, rng, 500)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 500)
+    T = reference_fk(arm, q_true)
     res = ikn.solve(arm, T, _perturbed(arm, q_true, rng), restarts=30)
     assert res.converged.all()
     _check_solution(arm, res, T)
@@ -319,15 +283,15 @@ def test_redundant_arm_svd_pseudo_inverse(puma7, rng):
 def test_redundant_step_is_minimum_norm(puma7, rng):
     """One undamped step of the 7-axis arm is the Moore-Penrose step pinv(J) dx."""
     arm = puma7
-    q_true = _random_q(arm, rng, 50, margin=0.6)
+    q_true = random_q(arm, rng, 50, margin=0.6)
     q0 = q_true + rng.uniform(-0.05, 0.05, q_true.shape)
-    T = _ref_fk(arm, q_true)
+    T = reference_fk(arm, q_true)
     J, _ = reference.jacobian(arm.description, q0)
     well = np.linalg.cond(J) < 100
     q0, T, J = q0[well], T[well], J[well]
     assert len(q0) > 10
     res = ikn.solve(arm, T, q0, max_iter=1, restarts=0, damping=None, step_limit=None)
-    T0 = _ref_fk(arm, q0)
+    T0 = reference_fk(arm, q0)
     dx = np.concatenate(
         [
             T[:, :3, 3] - T0[:, :3, 3],
@@ -359,8 +323,8 @@ def test_scara_tool_fitting(arms, name, rng):
     vector is horizontal, i.e. the matched wz component vanishes at R = R_t."""
     arm = arms(name)
     N = 300
-    q_true = _random_q(arm, rng, N, margin=0.05)
-    T_true = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, N, margin=0.05)
+    T_true = reference_fk(arm, q_true)
     assert np.allclose(np.abs(T_true[:, 2, 2]), 1.0)  # the tool z axis is vertical
     u = np.concatenate([rng.normal(size=(N, 2)), np.zeros((N, 1))], axis=1)
     T = T_true.copy()
@@ -371,7 +335,7 @@ def test_scara_tool_fitting(arms, name, rng):
     assert res.mask.tolist() == [1, 1, 1, 0, 0, 1]
     assert res.converged.all()
     assert arm.within_limits(res.q).all()
-    Tq = _ref_fk(arm, res.q)
+    Tq = reference_fk(arm, res.q)
     assert np.abs(Tq[:, :3, 3] - T_true[:, :3, 3]).max() <= 1e-10
     assert _rotation_angle(Tq[:, :3, :3], T_true[:, :3, :3]).max() <= 1e-9
     # untilted targets: the exact pose
@@ -393,12 +357,12 @@ def test_planar_scara_position_only(arms, rng):
     T[:, 2, 3] = 0.5  # out of the arm's plane: ignored by the mask
     res = ikn.solve(arm, T, [0.3, 0.3], mask=[True, True, False, False, False, False], restarts=5)
     assert res.converged.all()
-    Tq = _ref_fk(arm, res.q)
+    Tq = reference_fk(arm, res.q)
     assert np.abs(Tq[:, :2, 3] - T[:, :2, 3]).max() <= 1e-10
     cos_q2 = (r**2 - 16 - 9) / (2 * 4 * 3)  # law of cosines, L1 = 4, L2 = 3
     assert np.allclose(np.cos(res.q[:, 1]), cos_q2, atol=1e-9)
-    q_true = _random_q(arm, rng, N)
-    T2 = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, N)
+    T2 = reference_fk(arm, q_true)
     res2 = ikn.solve(arm, T2, _perturbed(arm, q_true, rng), restarts=5)
     assert res2.mask.tolist() == [1, 1, 0, 0, 0, 1]
     assert res2.converged.all()
@@ -416,9 +380,9 @@ def test_puma_wrist_singularity(arms, q5, rng):
     the one reached first is out of the q4 range the limited phase can stall."""
     arm = arms("puma560")
     N = 200
-    q_true = _random_q(arm, rng, N)
+    q_true = random_q(arm, rng, N)
     q_true[:, 4] = q5 * rng.choice([-1.0, 1.0], N)
-    T = _ref_fk(arm, q_true)
+    T = reference_fk(arm, q_true)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         res = ikn.solve(arm, T, _perturbed(arm, q_true, rng), damping="auto", restarts=30)
@@ -434,7 +398,7 @@ def test_damped_start_at_singularity(arms, rng):
     arm = arms("puma560")
     lo, hi = arm.qlim.T
     q_true = np.clip(rng.normal(0.0, 0.3, (300, 6)), lo, hi)
-    T = _ref_fk(arm, q_true)
+    T = reference_fk(arm, q_true)
     res = ikn.solve(arm, T, arm.configuration("qz"), damping="auto")
     assert res.converged.mean() >= 0.98
     _check_solution(arm, res, T)
@@ -454,12 +418,14 @@ def test_unreachable_targets(arms, rng):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         res = ikn.solve(arm, T, arm.configuration("qn"), max_iter=50, restarts=2)
-    start = np.linalg.norm(_ref_fk(arm, arm.configuration("qn"))[0, :3, 3] - T[:, :3, 3], axis=1)
+    start = np.linalg.norm(
+        reference_fk(arm, arm.configuration("qn"))[0, :3, 3] - T[:, :3, 3], axis=1
+    )
     assert not res.converged.any()
     assert np.all(np.isfinite(res.q)) and arm.within_limits(res.q).all()
     assert np.all(res.iterations <= 3 * 50)
     # the reported errors are those of the returned q (recomputed here)
-    Tq = _ref_fk(arm, res.q)
+    Tq = reference_fk(arm, res.q)
     assert np.allclose(
         res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1), rtol=1e-9
     )
@@ -474,8 +440,8 @@ def test_orientation_unreachable_for_scara_without_mask_fit(arms, rng):
     """All six components demanded of a 4-axis SCARA with a tilted target: no exact
     solution, converged False, best least-squares q returned, no warnings."""
     arm = arms("manutec_h5")
-    q_true = _random_q(arm, rng, 20, margin=0.05)
-    T = _ref_fk(arm, q_true).copy()
+    q_true = random_q(arm, rng, 20, margin=0.05)
+    T = reference_fk(arm, q_true).copy()
     T[:, :3, :3] = T[:, :3, :3] @ _rodrigues(np.array([1.0, 0, 0]), 0.3)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -486,8 +452,8 @@ def test_orientation_unreachable_for_scara_without_mask_fit(arms, rng):
 
 def test_nan_targets_and_starts(arms, rng):
     arm = arms("manutec_r15")
-    q_true = _random_q(arm, rng, 10)
-    T = _ref_fk(arm, q_true).copy()
+    q_true = random_q(arm, rng, 10)
+    T = reference_fk(arm, q_true).copy()
     q0 = _perturbed(arm, q_true, rng)
     T[2, 0, 3] = np.nan
     T[5] = np.nan
@@ -527,8 +493,8 @@ def test_all_nan_and_empty_batches(arms):
 
 def test_shapes(arms, rng):
     arm = arms("puma560")
-    q_true = _random_q(arm, rng, 6)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 6)
+    T = reference_fk(arm, q_true)
     one = ikn.solve(arm, T[0], _perturbed(arm, q_true[0], rng))
     assert one.q.shape == (6,) and one.converged.shape == () and bool(one.converged)
     grid = ikn.solve(arm, T.reshape(2, 3, 4, 4), _perturbed(arm, q_true, rng).reshape(2, 3, 6))
@@ -547,7 +513,7 @@ def test_respect_limits_false_may_leave_the_range(arms):
     arm = arms("puma560")
     q_out = np.array([0.3, 0.5, -0.5, math.radians(175), 0.5, 0.1])
     assert not arm.within_limits(q_out)
-    T = _ref_fk(arm, q_out)
+    T = reference_fk(arm, q_out)
     free = ikn.solve(arm, T, q_out + 0.01, respect_limits=False)
     assert free.converged and np.allclose(free.q, q_out, atol=1e-8)
     kept = ikn.solve(arm, T[0], q_out + 0.01, restarts=20)
@@ -567,8 +533,8 @@ def test_start_outside_the_limits(arms, rng):
     """q0 beyond the limits (q2 = 250 deg > 225 deg, q6 = 400 deg = 40 deg + 360 deg):
     solutions and, for an unreachable target, the best q are inside the limits."""
     arm = arms("puma560")
-    q_true = _random_q(arm, rng, 100)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 100)
+    T = reference_fk(arm, q_true)
     q0 = np.radians([0.0, 250.0, -90.0, 0.0, 30.0, 400.0])
     res = ikn.solve(arm, T, q0, restarts=100)
     assert res.converged.all()
@@ -584,7 +550,7 @@ def test_zero_tolerance_and_zero_iterations(arms):
     max_iter), returns the best q; max_iter = 0 only checks the start."""
     arm = arms("puma560")
     qn = arm.configuration("qn")
-    T = _ref_fk(arm, qn)[0]
+    T = reference_fk(arm, qn)[0]
     res = ikn.solve(arm, T, qn + 0.05, tol=0.0, restarts=0)
     assert res.position_error < 1e-14 and res.rotation_error < 1e-14
     assert res.iterations <= 100

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import random_q, reference_fk
 
 from deltagen import status as st
 from deltagen.api.serial import SerialRobot
@@ -25,28 +26,8 @@ TOL = 1e-10
 
 
 @pytest.fixture(scope="module")
-def arms():
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            cache[name] = SerialRobot.load(name)
-        return cache[name]
-
-    return get
-
-
-def _random_q(arm, rng, N, margin=0.0):
-    lo, hi = arm.qlim.T
-    lo = np.where(np.isfinite(lo), lo, -np.pi)
-    hi = np.where(np.isfinite(hi), hi, np.pi)
-    return lo + margin + (hi - lo - 2 * margin) * rng.random((N, arm.n))
-
-
-def _ref_fk(arm, q):
-    T, status = reference.fk(arm.description, np.atleast_2d(q))
-    assert np.all(status == 0)
-    return T
+def arms(serial_arms):
+    return serial_arms
 
 
 def _rotation_angle(Ra, Rb):
@@ -58,7 +39,7 @@ def _check(arm, res, T, rows=None, tol=TOL):
     """Converged rows: within the limits, and the reference fk reproduces T to tol."""
     c = res.converged if rows is None else rows
     assert arm.within_limits(res.q[c]).all()
-    Tq = _ref_fk(arm, res.q[c])
+    Tq = reference_fk(arm, res.q[c])
     dp = np.linalg.norm(Tq[:, :3, 3] - T[c][:, :3, 3], axis=1)
     dr = _rotation_angle(Tq[:, :3, :3], T[c][:, :3, :3])
     assert dp.max(initial=0) <= tol + 1e-13, dp.max()
@@ -68,7 +49,7 @@ def _check(arm, res, T, rows=None, tol=TOL):
 def test_fk_jacobian_kernel_matches_fk_and_jacobian(arms, rng):
     for name in SIX_AXIS + ("manutec_h5", "lecture_prp"):
         arm = arms(name)
-        q = _random_q(arm, rng, 257)
+        q = random_q(arm, rng, 257)
         q[5, 0] = np.nan
         T, J, status = arm._core.fk_jacobian(np.ascontiguousarray(q))
         T1, s1 = arm._core.fk(q)
@@ -86,9 +67,9 @@ def test_six_axis_1000_targets_all_converge(arms, name, start, rng):
     """1000 random reachable in-limit targets, cold starts (random in-limit or "qz"),
     restarts: 100 %, within the limits, fk round trip to 1e-10 (reference fk)."""
     arm = arms(name)
-    q_true = _random_q(arm, rng, 1000)
-    T = _ref_fk(arm, q_true)
-    q0 = _random_q(arm, rng, 1000) if start == "random" else arm.configuration("qz")
+    q_true = random_q(arm, rng, 1000)
+    T = reference_fk(arm, q_true)
+    q0 = random_q(arm, rng, 1000) if start == "random" else arm.configuration("qz")
     res = ikn.solve(arm, T, q0, restarts=60, seed=5, engine="c")
     assert res.converged.all(), np.flatnonzero(~res.converged)
     assert np.all(res.position_error <= TOL) and np.all(res.rotation_error <= TOL)
@@ -100,8 +81,8 @@ def test_c_and_numpy_engines_agree_from_a_near_start(arms, name, rng):
     """Same targets, same near starts: both engines converge to the same branch (the
     start's), i.e. the same q to well below the tolerance's effect on q."""
     arm = arms(name)
-    q_true = _random_q(arm, rng, 400, margin=0.05)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 400, margin=0.05)
+    T = reference_fk(arm, q_true)
     lo, hi = arm.qlim.T
     q0 = np.clip(q_true + rng.normal(0.0, 0.05, q_true.shape), lo, hi)
     rc = ikn.solve(arm, T, q0, engine="c")
@@ -119,48 +100,39 @@ def test_c_and_numpy_engines_agree_from_a_near_start(arms, name, rng):
 def test_scara_with_mask(arms, rng):
     """manutec_h5 (4 axes): the default mask vx vy vz wz, and position only."""
     arm = arms("manutec_h5")
-    q_true = _random_q(arm, rng, 1000, margin=0.02)
-    T = _ref_fk(arm, q_true)
-    res = ikn.solve(arm, T, _random_q(arm, rng, 1000), restarts=30, engine="c")
+    q_true = random_q(arm, rng, 1000, margin=0.02)
+    T = reference_fk(arm, q_true)
+    res = ikn.solve(arm, T, random_q(arm, rng, 1000), restarts=30, engine="c")
     assert res.mask.tolist() == [1, 1, 1, 0, 0, 1]
     assert res.converged.all()
     _check(arm, res, T)
     res = ikn.solve(
-        arm, T, _random_q(arm, rng, 1000), restarts=30, engine="c", mask=[1, 1, 1, 0, 0, 0]
+        arm, T, random_q(arm, rng, 1000), restarts=30, engine="c", mask=[1, 1, 1, 0, 0, 0]
     )
     assert res.converged.all() and arm.within_limits(res.q).all()
-    Tq = _ref_fk(arm, res.q)
+    Tq = reference_fk(arm, res.q)
     assert np.abs(Tq[:, :3, 3] - T[:, :3, 3]).max() <= 1e-10
 
 
 def test_under_actuated_planar_and_rrrr(arms, rng):
     for name in ("lecture_scara", "miskolc_rrrr", "bosch_sr800"):
         arm = arms(name)
-        q_true = _random_q(arm, rng, 300, margin=0.02)
-        T = _ref_fk(arm, q_true)
-        res = ikn.solve(arm, T, _random_q(arm, rng, 300), restarts=30, engine="c")
+        q_true = random_q(arm, rng, 300, margin=0.02)
+        T = reference_fk(arm, q_true)
+        res = ikn.solve(arm, T, random_q(arm, rng, 300), restarts=30, engine="c")
         assert res.converged.all(), (name, np.flatnonzero(~res.converged))
         m = res.mask
-        Tq = _ref_fk(arm, res.q)
+        Tq = reference_fk(arm, res.q)
         assert arm.within_limits(res.q).all()
         assert np.abs((Tq[:, :3, 3] - T[:, :3, 3])[:, m[:3]]).max(initial=0) <= 1e-10
 
 
-def test_redundant_seven_axis(rng):
+def test_redundant_seven_axis(puma7, rng):
     """n = 7 > k = 6: the J J^T form (minimum-norm step)."""
-    rows = [
-        dict(a=0.0, alpha_deg=90, d=0.6718, qlim_deg=[-160, 160]),
-        dict(a=0.4318, alpha=0.0, d=0.0, qlim_deg=[-45, 225]),
-        dict(a=0.0203, alpha_deg=-90, d=0.15005, qlim_deg=[-225, 45]),
-        dict(a=0.0, alpha_deg=90, d=0.4318, qlim_deg=[-110, 170]),
-        dict(a=0.0, alpha_deg=-90, d=0.0, qlim_deg=[-100, 100]),
-        dict(a=0.05, alpha_deg=90, d=0.0, qlim_deg=[-266, 266]),
-        dict(a=0.0, alpha=0.0, d=0.1, qlim_deg=[-170, 170]),
-    ]
-    arm = SerialRobot.from_dh(rows, "standard", name="puma7_newton_c_test")
-    q_true = _random_q(arm, rng, 500)
-    T = _ref_fk(arm, q_true)
-    res = ikn.solve(arm, T, _random_q(arm, rng, 500), restarts=40, engine="c")
+    arm = puma7
+    q_true = random_q(arm, rng, 500)
+    T = reference_fk(arm, q_true)
+    res = ikn.solve(arm, T, random_q(arm, rng, 500), restarts=40, engine="c")
     assert res.converged.all()
     _check(arm, res, T)
     # one step from a near start: the damped minimum-norm step J^T (J J^T + lambda^2 I)^-1 dx
@@ -172,7 +144,7 @@ def test_redundant_seven_axis(rng):
     one_np = ikn.solve(arm, T[:50], q0, engine="numpy", **kw)
     assert np.allclose(one.q, one_np.q, rtol=0, atol=1e-12)
     J, _ = reference.jacobian(arm.description, q0)
-    T0 = _ref_fk(arm, q0)
+    T0 = reference_fk(arm, q0)
     dx = np.concatenate(
         [
             T[:50, :3, 3] - T0[:, :3, 3],
@@ -189,8 +161,8 @@ def test_redundant_seven_axis(rng):
 
 def test_non_finite_rows_are_invalid(arms, rng):
     arm = arms("puma560")
-    q_true = _random_q(arm, rng, 8)
-    T = _ref_fk(arm, q_true).copy()
+    q_true = random_q(arm, rng, 8)
+    T = reference_fk(arm, q_true).copy()
     q0 = q_true + 0.01
     T[1, 0, 3] = np.nan
     T[4, 2, 2] = np.inf
@@ -231,11 +203,11 @@ def test_unreachable_rows_return_the_best_q(arms, rng):
     arm = arms("puma560")
     T = np.tile(np.eye(4), (10, 1, 1))
     T[:, :3, 3] = [3.0, 0.0, 0.5]
-    res = ikn.solve(arm, T, _random_q(arm, rng, 10), max_iter=40, restarts=2, engine="c")
+    res = ikn.solve(arm, T, random_q(arm, rng, 10), max_iter=40, restarts=2, engine="c")
     assert not res.converged.any()
     assert np.isfinite(res.q).all() and arm.within_limits(res.q).all()
     assert np.all(res.iterations <= 3 * 40)
-    Tq = _ref_fk(arm, res.q)
+    Tq = reference_fk(arm, res.q)
     assert np.allclose(
         res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1), rtol=1e-9
     )
@@ -295,11 +267,11 @@ def test_engine_selection_and_bad_options(arms):
 
 def test_serial_robot_ik_numeric_uses_the_c_engine(arms, rng):
     arm = arms("puma560")
-    q_true = _random_q(arm, rng, 50)
-    T = _ref_fk(arm, q_true)
+    q_true = random_q(arm, rng, 50)
+    T = reference_fk(arm, q_true)
     q = arm.ik(T, method="numeric", q0=arm.configuration("qz"), restarts=60, seed=1)
     assert arm.within_limits(q).all()
-    Tq = _ref_fk(arm, q)
+    Tq = reference_fk(arm, q)
     assert np.abs(Tq - T).max() <= 1e-9
     q_np = arm.ik(T, method="numeric", q0=q, engine="numpy")
     assert np.abs(q_np - q).max() < 1e-9  # q is a solution: both stop at once
