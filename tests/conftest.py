@@ -140,3 +140,29 @@ def private_cache(tmp_path, monkeypatch):
     folder = tmp_path / "cache"
     monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
     return folder
+
+
+@pytest.fixture(scope="session")
+def sanitizers(tmp_path_factory):
+    """tests/helpers.py SANITIZE, after a probe program built and run with them (once per
+    worker): skip, naming why, where the toolchain has no ASan/UBSan runtime."""
+    import subprocess
+
+    from helpers import GCC, SANITIZE
+
+    if GCC is None:
+        pytest.skip("gcc not installed")
+    work = tmp_path_factory.mktemp("sanitizer_probe")
+    (work / "probe.c").write_text("int main(void) { return 0; }\n")
+    build = subprocess.run(
+        [GCC, *SANITIZE, str(work / "probe.c"), "-o", str(work / "probe")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    if build.returncode != 0:
+        pytest.skip(f"no sanitizer runtime: {build.stderr[-300:]}")
+    run = subprocess.run([str(work / "probe")], capture_output=True, text=True, timeout=60)
+    if run.returncode != 0 or run.stderr:
+        pytest.skip(f"sanitized programs cannot run here: {run.stderr[-300:]}")
+    return SANITIZE

@@ -8,8 +8,10 @@ Fixtures live in tests/conftest.py; plain functions and constants live here, imp
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import math
 import os
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -392,3 +394,39 @@ def generated_share(part: int, parts: int) -> list[str]:
     --dist loadfile runs each file on one worker: the renders spread over the workers)."""
     arms = [stem for stem in generated_stems() if stem.startswith("serial_")]
     return arms[part::parts]
+
+
+def shared_object(cwd: Path, name: str, flags) -> Path:
+    """The object of ``cwd/name`` compiled with ``flags`` (plus -c), built once for the
+    whole test run and every pytest-xdist worker: kept in the suite's build cache under a
+    key of the flags, the source and the headers it includes, built under a file lock (one
+    worker compiles, the others wait and reuse it). For the big modules several drivers
+    link (the Puma 560's under the sanitizers)."""
+    import fcntl
+
+    digest = hashlib.sha256(repr((GCC, list(flags), name)).encode())
+    todo, seen = [name], set()
+    while todo:  # the source and the local headers it includes, transitively
+        file = todo.pop()
+        if file in seen or not (cwd / file).exists():
+            continue
+        seen.add(file)
+        text = (cwd / file).read_bytes()
+        digest.update(file.encode() + b"\0" + text)
+        todo += re.findall(r'#\s*include\s+"([^"]+)"', text.decode())
+    folder = Path(os.environ["DELTAGEN_CACHE"]) / "test-objects"
+    folder.mkdir(parents=True, exist_ok=True)
+    obj = folder / f"{Path(name).stem}-{digest.hexdigest()[:20]}.o"
+    with open(folder / f"{obj.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not obj.exists():
+            partial = folder / f"{obj.name}.{os.getpid()}.tmp"
+            compile_c([name], partial, flags=[*flags, "-c"], cwd=cwd, libs=())
+            os.replace(partial, obj)
+    return obj
+
+
+def rotation_angle(Ra, Rb):
+    """Angle of Ra Rb^T from ||Ra - Rb||_F = 2 sqrt(2) sin(theta / 2) (accurate near 0)."""
+    d = np.linalg.norm(Ra - Rb, axis=(-2, -1))
+    return 2.0 * np.arcsin(np.clip(d / (2.0 * math.sqrt(2.0)), 0.0, 1.0))

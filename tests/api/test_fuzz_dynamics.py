@@ -1,4 +1,4 @@
-"""Extreme inputs for the dynamics methods (test_fuzz_kinematics.py's property): on
+"""Extreme inputs for the dynamics methods (tests/api/test_fuzz_kinematics.py's property): on
 both backends a result is either finite and valid, or NaN and not valid, the raise mode names
 the rows, and the compiled core agrees with the independent reference where both are valid.
 Deterministic: a fixed grid of special magnitudes placed in every input column."""

@@ -12,6 +12,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from helpers import GCC, compile_c
 
 from deltagen import GeometryError, Hexapod, InputError, SingularityError, UnreachableError, paths
 from deltagen import status as st
@@ -413,8 +414,6 @@ def test_bad_input_is_an_input_error(robot):
 # ----------------------------------------------------------------- the C
 
 
-GCC = shutil.which("gcc")
-
 DRIVER = r"""
 #include <math.h>
 #include <stdio.h>
@@ -486,15 +485,8 @@ def test_generated_c_strict_and_under_sanitizers(robot, tmp_path, sanitize):
         )
     )
     flags = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-O1", "-g"]
-    if sanitize:
-        flags += ["-fsanitize=address,undefined", "-fno-sanitize-recover=all"]
     sources = ["driver.c", "hexapod_kinematics.c", "deltagen_hexapod_fk.c", "deltagen_linalg.c"]
-    built = subprocess.run(
-        [GCC, *flags, *sources, "-o", "driver", "-lm"], cwd=tmp_path, capture_output=True, text=True
-    )
-    if sanitize and built.returncode != 0 and "sanitize" in built.stderr:
-        pytest.skip(f"no sanitizer runtime: {built.stderr[-300:]}")
-    assert built.returncode == 0 and not built.stderr.strip(), built.stderr[-3000:]
+    compile_c(sources, tmp_path / "driver", flags=flags, cwd=tmp_path, sanitize=sanitize)
     run = subprocess.run(["./driver"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0 and not run.stderr.strip(), run.stderr[-3000:]
     rows = [line.split() for line in run.stdout.split("\n") if line]

@@ -9,7 +9,7 @@ numpy reference backend: independent of the C). The derivations are shared by th
 session (codegen.export caches them per process); each package compiles once per build
 system, at -O0 to keep the compile time down: the numbers are
 compared at the example's print precision, and the bit-level agreement of the optimised
-builds is test_export.py's.
+builds is tests/apps/test_export.py's.
 
 Then the calibration workflow: `deltagen calibrate` on synthetic measurements of a robot
 with encoder offsets writes a robot file; `deltagen export` of that file, built with make,

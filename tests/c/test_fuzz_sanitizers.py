@@ -9,7 +9,7 @@ or write past a row is a sanitizer error.
 
 Each run writes every output and status to a file; the checks here: the run is clean, every
 status is a documented code, OK rows are finite (the finite-output rule), INVALID rows are
-NaN, and OK rows agree with the numpy reference (tests/test_c_standalone.py holds the
+NaN, and OK rows agree with the numpy reference (tests/c/test_standalone.py holds the
 hand-written delta driver with exact expectations; this one is the fuzzing complement)."""
 
 from __future__ import annotations
@@ -21,19 +21,19 @@ import subprocess
 import numpy as np
 import pytest
 from delta_oracles import DEFAULT
-from helpers import STRICT_SANITIZED
+from helpers import GCC, STRICT_SANITIZED, compile_c, shared_object
 
 from deltagen import paths
 from deltagen.reference import delta as ref_delta
 from deltagen.reference import serial as ref_serial
 from deltagen.status import INVALID, OK, STATUS_NAMES
 
-GCC = shutil.which("gcc")
 pytestmark = [pytest.mark.skipif(GCC is None, reason="gcc not installed"), pytest.mark.slow]
 
 SIZES = (0, 1, 2, 63, 64, 65, 131)  # the block is 64 points
 ARM = "puma560"
 NJ, BRANCHES = 6, 8
+MODULES = ("delta_kinematics.c", f"serial_{ARM}.c")
 
 DRIVER = r"""
 #include <math.h>
@@ -225,20 +225,11 @@ def _check(name, status, *outputs):
 
 
 @pytest.fixture(scope="module")
-def driver(tmp_path_factory):
+def driver(tmp_path_factory, sanitizers):
     work = tmp_path_factory.mktemp("c_fuzz")
-    probe = work / "probe.c"
-    probe.write_text("int main(void) { return 0; }\n")
-    built = subprocess.run(
-        [GCC, *STRICT_SANITIZED, str(probe), "-o", str(work / "probe")],
-        capture_output=True,
-        text=True,
-    )
-    if built.returncode != 0:
-        pytest.skip(f"no sanitizer runtime: {built.stderr[-300:]}")
-    for name in ("delta_kinematics", f"serial_{ARM}"):
+    for name in MODULES:
         for ext in (".c", ".h"):
-            shutil.copy(paths.generated_dir() / f"{name}{ext}", work)
+            shutil.copy(paths.generated_dir() / name.replace(".c", ext), work)
     for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
         shutil.copy(path, work)
     g = DEFAULT
@@ -255,21 +246,11 @@ def driver(tmp_path_factory):
             branches=BRANCHES,
         )
     )
-    sources = [
-        "driver.c",
-        "delta_kinematics.c",
-        f"serial_{ARM}.c",
-        *sorted(p.name for p in work.glob("deltagen_*.c")),
-    ]
-    proc = subprocess.run(
-        [GCC, *STRICT_SANITIZED, *sources, "-o", "driver", "-lm"],
-        cwd=work,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0 and not proc.stderr.strip(), proc.stderr[-3000:]
-    return work / "driver"
+    # the big modules' instrumented objects are built once per run (the Puma's is shared
+    # with tests/derive/test_ik_closed_form.py's driver)
+    modules = [shared_object(work, name, STRICT_SANITIZED) for name in MODULES]
+    sources = ["driver.c", *modules, *sorted(work.glob("deltagen_*.c"))]
+    return compile_c(sources, work / "driver", flags=STRICT_SANITIZED, cwd=work, sanitize=True)
 
 
 @pytest.mark.parametrize("n", SIZES)

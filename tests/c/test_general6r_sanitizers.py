@@ -14,12 +14,11 @@ import subprocess
 
 import numpy as np
 import pytest
-from helpers import STRICT_SANITIZED, random_6r_arm
+from helpers import GCC, STRICT_SANITIZED, random_6r_arm
 
 from deltagen import SerialRobot, paths
 from deltagen.solve import general6r
 
-GCC = shutil.which("gcc")
 pytestmark = [pytest.mark.skipif(GCC is None, reason="gcc not installed"), pytest.mark.slow]
 native_g6r = pytest.importorskip("deltagen.native.general6r")
 

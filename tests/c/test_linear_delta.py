@@ -12,10 +12,10 @@ import shutil
 import subprocess
 
 import pytest
+from helpers import GCC
 
 from deltagen import paths
 
-GCC = shutil.which("gcc")
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc not installed")
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]

@@ -15,13 +15,13 @@ import subprocess
 import numpy as np
 import pytest
 from delta_oracles import DEFAULT, KLIPPER, random_q, well_conditioned
+from helpers import GCC
 
 from deltagen import paths
 from deltagen.native.build import compile_flags, runtime_files
 from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, UNREACHABLE
 
-GCC = shutil.which("gcc")
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc not installed")
 
 STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
@@ -59,68 +59,70 @@ def _gcc(args, cwd):
 
 @pytest.fixture(scope="module")
 def source_dir(tmp_path_factory):
-    """A private copy of generated/, so concurrent regeneration cannot race the tests."""
+    """A private copy of generated/ and of the runtime C, so concurrent regeneration cannot
+    race the tests."""
     copy = tmp_path_factory.mktemp("generated")
-    for name in ("delta_kinematics.c", "delta_kinematics.h"):
-        shutil.copy(paths.generated_dir() / name, copy / name)
+    for path in paths.generated_dir().glob("*.[ch]"):
+        shutil.copy(path, copy / path.name)
+    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
+        shutil.copy(path, copy / path.name)
     return copy
 
 
+@pytest.fixture(scope="module")
+def objects(source_dir):
+    """``compile_object(name, flags)``: the object of ``source_dir/name`` compiled with
+    ``flags`` (warning-free, else the test fails with the compiler's text), built once per
+    module for each distinct (file, flags): the tests below share the compiles they have in
+    common (one -O2 object is both compiled warning-free and read by nm)."""
+    built = {}
+
+    def compile_object(name, flags):
+        key = (name, tuple(flags))
+        if key not in built:
+            obj = source_dir / f"{name[:-2]}.{len(built)}.o"
+            _gcc([*flags, "-c", name, "-o", obj.name], cwd=source_dir)
+            built[key] = obj
+        return built[key]
+
+    return compile_object
+
+
+#: the vector-math variant of the delta core, tested whatever the machine's build uses
+VECTOR_MATH = [*STRICT, "-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTAGEN_DELTA_VECTOR_MATH"]
+
+
+def _runtime_flags(args):
+    """An arm's build flags for the runtime C, which reads no arm's VECTOR_MATH switch (so
+    one runtime object serves every arm; test_runtime_reads_no_arm_switch)."""
+    return [a for a in args if not (a.startswith("-DDELTAGEN_") and a.endswith("_VECTOR_MATH"))]
+
+
+def test_runtime_reads_no_arm_switch():
+    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
+        assert "VECTOR_MATH" not in path.read_text(), path.name
+
+
 @pytest.mark.parametrize("opt", ["-O0", "-O2", "-O3"])
-def test_strict_c99_compiles_warning_free(source_dir, tmp_path, opt):
-    _gcc(
-        [*STRICT, opt, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(tmp_path / "k.o")],
-        cwd=tmp_path,
-    )
+def test_strict_c99_compiles_warning_free(objects, opt):
+    objects("delta_kinematics.c", [*STRICT, opt])
 
 
-def test_compiles_warning_free_with_the_build_flags(source_dir, tmp_path):
+def test_compiles_warning_free_with_the_build_flags(objects):
     """The flags deltagen.native.build uses for the cffi core (vector math included where
     available), plus -pedantic -Werror."""
     args, _ = compile_flags("deltagen_delta")
-    _gcc(
-        [
-            *args,
-            "-pedantic",
-            "-Werror",
-            "-c",
-            str(source_dir / "delta_kinematics.c"),
-            "-o",
-            str(tmp_path / "k.o"),
-        ],
-        cwd=tmp_path,
-    )
+    objects("delta_kinematics.c", [*args, "-pedantic", "-Werror"])
     if "-DDELTAGEN_DELTA_VECTOR_MATH" not in args:  # test the vector-math variant regardless
-        _gcc(
-            [
-                *STRICT,
-                "-O3",
-                "-fno-math-errno",
-                "-fopenmp-simd",
-                "-DDELTAGEN_DELTA_VECTOR_MATH",
-                "-c",
-                str(source_dir / "delta_kinematics.c"),
-                "-o",
-                str(tmp_path / "v.o"),
-            ],
-            cwd=tmp_path,
-        )
+        objects("delta_kinematics.c", VECTOR_MATH)
 
 
-@pytest.mark.parametrize(
-    "flags",
-    [["-O2"], ["-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTAGEN_DELTA_VECTOR_MATH"]],
-    ids=["O2", "vector-math"],
-)
-def test_object_needs_only_libm_and_has_no_global_data(source_dir, tmp_path, flags):
+@pytest.mark.parametrize("flags", [[*STRICT, "-O2"], VECTOR_MATH], ids=["O2", "vector-math"])
+def test_object_needs_only_libm_and_has_no_global_data(objects, flags):
     nm = shutil.which("nm")
     if nm is None:
         pytest.skip("nm not installed")
-    obj = tmp_path / "k.o"
-    _gcc(
-        [*STRICT, *flags, "-c", str(source_dir / "delta_kinematics.c"), "-o", str(obj)],
-        cwd=tmp_path,
-    )
+    obj = objects("delta_kinematics.c", flags)
     table = subprocess.run([nm, str(obj)], capture_output=True, text=True, check=True).stdout
     defined, undefined = {}, set()
     for line in table.splitlines():
@@ -444,37 +446,10 @@ def _driver_source(geom, n_rows, seed):
     return source, q, status, round_trip
 
 
-SANITIZE = [
-    "-fsanitize=address,undefined",
-    "-fno-sanitize-recover=all",
-    "-fno-omit-frame-pointer",
-    "-g",
-]
-
-
 def _build_flags():
     """The cffi build's compile flags and libraries (vector math where available)."""
     args, libraries = compile_flags("deltagen_delta")
     return list(args), [f"-l{lib}" for lib in libraries]
-
-
-@pytest.fixture(scope="module")
-def sanitizers(tmp_path_factory):
-    """Skip (rather than fail) where the toolchain has no ASan/UBSan runtime."""
-    work = tmp_path_factory.mktemp("probe")
-    (work / "probe.c").write_text("int main(void) { return 0; }\n")
-    build = subprocess.run(
-        [GCC, *SANITIZE, str(work / "probe.c"), "-o", str(work / "probe")],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    if build.returncode != 0:
-        pytest.skip(f"no sanitizer runtime: {build.stderr[-300:]}")
-    run = subprocess.run([str(work / "probe")], capture_output=True, text=True, timeout=60)
-    if run.returncode != 0 or run.stderr:
-        pytest.skip(f"sanitized programs cannot run here: {run.stderr[-300:]}")
-    return SANITIZE
 
 
 @pytest.mark.slow
@@ -487,7 +462,7 @@ def sanitizers(tmp_path_factory):
     ],
     ids=["default-131-plain", "klipper-200-plain", "default-257-build-flags"],
 )
-def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows, variant):
+def test_driver_under_sanitizers(source_dir, objects, sanitizers, tmp_path, geom, n_rows, variant):
     assert n_rows % 64 != 0
     source, q, status, round_trip = _driver_source(geom, n_rows, seed=n_rows)
     assert round_trip.sum() > n_rows // 2
@@ -499,17 +474,10 @@ def test_driver_under_sanitizers(source_dir, sanitizers, tmp_path, geom, n_rows,
     else:
         flags, libs = _build_flags()
         flags = [*flags, "-pedantic", "-Werror"]
+    # the core's instrumented object is shared by the drivers of the same flags
+    core = objects("delta_kinematics.c", [*flags, *sanitizers])
     _gcc(
-        [
-            *flags,
-            *sanitizers,
-            f"-I{source_dir}",
-            str(driver),
-            str(source_dir / "delta_kinematics.c"),
-            "-o",
-            str(exe),
-            *libs,
-        ],
+        [*flags, *sanitizers, f"-I{source_dir}", str(driver), str(core), "-o", str(exe), *libs],
         cwd=tmp_path,
     )
     env = dict(
@@ -582,25 +550,21 @@ def _check_symbols(objects, cwd, allowed=LIBM):
 
 
 @pytest.mark.parametrize("name", _serial_sources())
-def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
+def test_serial_modules_compile_strict_and_need_only_libm(name, source_dir, objects):
     """Every checked-in arm module with the runtime: strict C99 at -O2 warning-free, the
-    build flags too, only libm symbols undefined, no global data."""
-    for ext in (".c", ".h"):
-        shutil.copy(paths.generated_dir() / name.replace(".c", ext), tmp_path)
-    _copy_runtime(tmp_path)
+    build flags too, only libm symbols undefined, no global data (the runtime's objects are
+    built once for every arm)."""
     prefix = "deltagen_" + name[len("serial_") : -2]
     args, _ = compile_flags(prefix)
-    texts = [(tmp_path / name.replace(".c", ext)).read_text() for ext in (".c", ".h")]
+    texts = [(source_dir / name.replace(".c", ext)).read_text() for ext in (".c", ".h")]
     # the runtime C the module includes (what build.py compiles beside it and an export ships)
     runtime = sorted(f.name for f in runtime_files(texts) if f.suffix == ".c")
     assert "deltagen_linalg.c" in runtime
-    objects = []
-    for source in [name, *runtime]:
-        obj = source.replace(".c", ".o")
-        _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
-        _gcc([*args, "-pedantic", "-Werror", "-c", source, "-o", "v_" + obj], cwd=tmp_path)
-        objects.append(obj)
-    _check_symbols(objects, tmp_path)
+    strict = [objects(source, [*STRICT, "-O2"]) for source in [name, *runtime]]
+    objects(name, [*args, "-pedantic", "-Werror"])
+    for source in runtime:
+        objects(source, [*_runtime_flags(args), "-pedantic", "-Werror"])
+    _check_symbols([str(obj) for obj in strict], source_dir)
 
 
 #: what GCC requires of every environment, freestanding ones included ("GCC requires the
@@ -609,16 +573,14 @@ def test_serial_modules_compile_strict_and_need_only_libm(name, tmp_path):
 GCC_REQUIRED = {"memcpy", "memmove", "memset", "memcmp"}
 
 
-def test_general6r_runtime_compiles_strict(tmp_path):
+def test_general6r_runtime_compiles_strict(source_dir, objects):
     """The general-6R solver's C (host side, one module for every arm; no arm module or
     export includes it): strict C99 warning-free, no global data, libm and GCC's four."""
-    _copy_runtime(tmp_path)
-    objects = []
-    for source in ("deltagen_eigen.c", "deltagen_general6r.c"):
-        obj = source.replace(".c", ".o")
-        _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
-        objects.append(obj)
-    _check_symbols(objects, tmp_path, allowed=LIBM | GCC_REQUIRED)
+    built = [
+        str(objects(source, [*STRICT, "-O2"]))
+        for source in ("deltagen_eigen.c", "deltagen_general6r.c")
+    ]
+    _check_symbols(built, source_dir, allowed=LIBM | GCC_REQUIRED)
 
 
 def _long_arm(n_joints):
@@ -647,19 +609,24 @@ def _render_arm(desc, dest):
 
 
 @pytest.mark.parametrize("n_joints", [7, 9])
-def test_long_arms_compile_warning_free(n_joints, tmp_path):
+def test_long_arms_compile_warning_free(n_joints, tmp_path, objects):
     """Arms with more than 6 joints: the module and the runtime compile with -Werror and
-    -Warray-bounds at -O2 and -O3 (arrays sized by the joint count work for any count)."""
+    -Warray-bounds at -O2 and -O3 (arrays sized by the joint count work for any count; the
+    runtime, the same for every arm, is compiled once for both)."""
     desc = _long_arm(n_joints)
     _render_arm(desc, tmp_path)
     args, _ = compile_flags(f"deltagen_{desc.name}")
-    for source in [f"serial_{desc.name}.c", *RUNTIME_SOURCES]:
+    source = f"serial_{desc.name}.c"
+    for opt in ("-O2", "-O3"):
+        _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"], cwd=tmp_path)
+    _gcc(
+        [*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
+        cwd=tmp_path,
+    )
+    for runtime in RUNTIME_SOURCES:
         for opt in ("-O2", "-O3"):
-            _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"], cwd=tmp_path)
-        _gcc(
-            [*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
-            cwd=tmp_path,
-        )
+            objects(runtime, [*STRICT, opt, "-Warray-bounds=2"])
+        objects(runtime, [*_runtime_flags(args), "-pedantic", "-Werror", "-Warray-bounds=2"])
 
 
 IK_DRIVER = r"""
@@ -736,7 +703,7 @@ int main(void)
 
 @pytest.mark.slow
 # the Puma module (with its dynamics) runs ik_newton under the sanitizers in
-# test_c_fuzz_sanitizers.py; compiling it twice more under ASan costs ~80 s
+# tests/c/test_fuzz_sanitizers.py; compiling it twice more under ASan costs ~80 s
 @pytest.mark.parametrize("name", ["manutec_h5", "long7", "long9"])
 def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
     """deltagen_<arm>_ik_newton (the generated wrapper and the runtime solver) on its own, linked with
@@ -901,19 +868,18 @@ def test_runtime_status_codes_are_deltagen_status():
 
 
 @pytest.mark.parametrize("opt", ["-O0", "-O2", "-O3"])
-def test_five_axis_module_compiles_strict_and_needs_only_libm(tmp_path, opt):
+def test_five_axis_module_compiles_strict_and_needs_only_libm(source_dir, objects, opt):
     """The 5-axis machines' module (generated/five_axis_kinematics.c, no runtime C): strict
-    C99 -pedantic -Werror at each level, the build's own flags too, only libm symbols
-    undefined, no global data, and one fk, ik and ik_all per layout and rotary pair."""
-    for ext in (".c", ".h"):
-        shutil.copy(paths.generated_dir() / f"five_axis_kinematics{ext}", tmp_path)
-    _gcc([*STRICT, opt, "-c", "five_axis_kinematics.c", "-o", "k.o"], cwd=tmp_path)
+    C99 -pedantic -Werror at each level, the build's own flags too (compiled once for the
+    three levels), only libm symbols undefined, no global data, and one fk, ik and ik_all
+    per layout and rotary pair."""
+    obj = str(objects("five_axis_kinematics.c", [*STRICT, opt]))
     args, _ = compile_flags("deltagen_five_axis")
-    _gcc([*args, "-pedantic", "-Werror", "-c", "five_axis_kinematics.c", "-o", "v.o"], cwd=tmp_path)
-    _check_symbols(["k.o"], tmp_path)
+    objects("five_axis_kinematics.c", [*args, "-pedantic", "-Werror"])
+    _check_symbols([obj], source_dir)
     nm = shutil.which("nm")
     if nm is not None:
-        table = subprocess.run([nm, "k.o"], cwd=tmp_path, capture_output=True, text=True).stdout
+        table = subprocess.run([nm, obj], capture_output=True, text=True).stdout
         functions = {line.split()[2] for line in table.splitlines() if " T " in line}
         expected = {
             f"deltagen_five_axis_{layout}_{rotary}_{quantity}"

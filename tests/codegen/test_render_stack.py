@@ -7,15 +7,14 @@ arrays (the delta's ik, the Panda's Coriolis matrix) are compiled."""
 from __future__ import annotations
 
 import re
-import shutil
 import subprocess
 
 import pytest
+from helpers import GCC
 
 from deltagen.codegen.render import STACK_MARGIN_PERCENT
 from deltagen.paths import generated_dir, runtime_dir
 
-GCC = shutil.which("gcc")
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is needed to measure frames")
 
 #: "Stack: ... \n * <bytes> bytes (...) at <block>, plus scalars ..." then the signature.

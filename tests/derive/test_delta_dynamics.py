@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from delta_oracles import irregular_dynamic_robot
 
 from deltagen import DeltaInertia, DeltaRobot, GeometryError, InputError, SingularityError
 from deltagen.apps.validate import trajectory
@@ -27,16 +28,7 @@ from deltagen.reference import delta as ref
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
 
 DEFAULT = DeltaRobot.default()
-IRREGULAR = DeltaRobot(
-    0.22,
-    0.05,
-    0.3,
-    0.75,
-    theta=tuple(math.radians(t) for t in (10, 100, 250)),
-    inertia=DeltaInertia(
-        I_a=0.02, m_a=0.9, r_ca=0.11, m_b=0.35, m_p=0.8, gravity=(0.5, -1.2, -9.7), I_4=1e-3
-    ),
-)
+IRREGULAR = irregular_dynamic_robot()
 ROBOTS = {"default": DEFAULT, "irregular": IRREGULAR}
 robots = pytest.mark.parametrize("robot", list(ROBOTS.values()), ids=list(ROBOTS))
 

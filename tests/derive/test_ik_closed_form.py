@@ -14,6 +14,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from helpers import STRICT_SANITIZED, compile_c, shared_object
 from hypothesis import example, given, settings
 from hypothesis import strategies as hst
 
@@ -185,13 +186,6 @@ def test_property_pose_of_q_is_solved_back(unit):
 
 # ------------------------------------------------------------ the C alone, sanitized
 
-GCC = shutil.which("gcc")
-SANITIZE = [
-    "-fsanitize=address,undefined",
-    "-fno-sanitize-recover=all",
-    "-fno-omit-frame-pointer",
-    "-g",
-]
 
 DRIVER = r"""
 #include <stdio.h>
@@ -234,17 +228,7 @@ int main(void) {
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(GCC is None, reason="gcc not installed")
-def test_ik_all_alone_under_sanitizers(tmp_path):
-    probe = tmp_path / "probe.c"
-    probe.write_text("int main(void) { return 0; }\n")
-    if (
-        subprocess.run(
-            [GCC, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")], capture_output=True
-        ).returncode
-        != 0
-    ):
-        pytest.skip("no sanitizer runtime")
+def test_ik_all_alone_under_sanitizers(tmp_path, sanitizers):
     arm = SerialRobot.load("puma560")
     q = _in_limit_q(arm, 150, seed=5)
     T = arm.fk(q)
@@ -265,30 +249,13 @@ def test_ik_all_alone_under_sanitizers(tmp_path):
     for path in runtime:
         shutil.copy(path, tmp_path)
     (tmp_path / "driver.c").write_text(DRIVER % dict(n=len(T), poses=poses))
-    # -O0: the instrumented build of the whole Puma module is 3x faster to compile than at
-    # -O1, and the sanitizers see every access either way
-    build = subprocess.run(
-        [
-            GCC,
-            "-std=c99",
-            "-O0",
-            "-Wall",
-            "-Wextra",
-            "-Werror",
-            *SANITIZE,
-            "driver.c",
-            "serial_puma560.c",
-            *(p.name for p in runtime if p.suffix == ".c"),
-            "-o",
-            "driver",
-            "-lm",
-        ],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert build.returncode == 0, build.stderr[-3000:]
+    # the module's instrumented object (strict C99 at -O0: 3x faster to compile than at
+    # -O1, the sanitizers see every access either way) is the one
+    # tests/c/test_fuzz_sanitizers.py's driver links: built once per run
+    module = shared_object(tmp_path, "serial_puma560.c", STRICT_SANITIZED)
+    runtime_c = [p.name for p in runtime if p.suffix == ".c"]
+    flags = ["-std=c99", "-O0", "-Wall", "-Wextra", "-Werror", *sanitizers]
+    compile_c(["driver.c", module, *runtime_c], tmp_path / "driver", flags=flags, cwd=tmp_path)
     env = dict(os.environ, UBSAN_OPTIONS="halt_on_error=1")
     run = subprocess.run(
         [str(tmp_path / "driver")],

@@ -146,8 +146,14 @@ def test_eq6_to_15_linear_coefficients():
 # ------------------------------------------------------------ (16)-(21) elimination
 
 
-def test_eq18_19_agree_and_divisor_is_vertical_centre_plane():
-    d = report_elimination()
+@pytest.fixture(scope="module")
+def elimination():
+    """w_1..w_7 of eqs. (16)-(25) derived once for the module (an uncached SymPy solve)."""
+    return report_elimination()
+
+
+def test_eq18_19_agree_and_divisor_is_vertical_centre_plane(elimination):
+    d = elimination
     w1, w2, _, _ = P.eq18_21_w()
     assert zero(w1 - d["w1"]) and zero(w2 - d["w2"])
     # divisor v1 u2 - u1 v2 = -4 e_z, e = (S2 - S1) x (S3 - S1): it vanishes only when the
@@ -164,15 +170,15 @@ def test_eq18_19_agree_and_divisor_is_vertical_centre_plane():
     assert sp.expand(ez - sp.sqrt(3) / 2 * (R[0] * R[1] + R[1] * R[2] + R[2] * R[0])) == 0
 
 
-def test_eq20_21_equivalent_where_v2_nonzero():
-    d = report_elimination()
+def test_eq20_21_equivalent_where_v2_nonzero(elimination):
+    d = elimination
     _, _, w3, w4 = P.eq18_21_w_substituted()
     assert zero(w3 - d["w3"]) and zero(w4 - d["w4"])
 
 
-def test_eq20_21_undefined_at_v2_zero():
+def test_eq20_21_undefined_at_v2_zero(elimination):
     """At v2 = 0 the printed (20), (21) are 0/0, the derived w3, w4 stay finite."""
-    d = report_elimination()
+    d = elimination
     u, v = P.u, P.v
     w1, w2, w3, w4 = P.eq18_21_w()
     at = {v[1]: 0}
@@ -275,8 +281,8 @@ def test_printed_fk_chain_works_on_default_robot_trajectory():
 # ---------------------------------------------------------- (22)-(27) the quadratic
 
 
-def test_eq22_to_25_quadratic():
-    d = report_elimination()
+def test_eq22_to_25_quadratic(elimination):
+    d = elimination
     w5, w6, w7 = P.eq23_25_w()
     assert sp.expand(P.eq22_quadratic() - (w5 * s.z**2 + w6 * s.z + w7)) == 0
     for printed, derived in zip((w5, w6, w7), (d["w5"], d["w6"], d["w7"])):

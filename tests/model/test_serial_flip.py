@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import rtb_dh_rows
 
 from deltagen import SerialRobot
 from deltagen.errors import GeometryError
@@ -125,23 +126,12 @@ def test_flipped_standard_arm_against_pinocchio():
         assert _rel(arm.inverse_dynamics(q, qd, qdd), tau + friction) < 1e-10
 
 
-def _rtb_rows(robot):
-    rows = []
-    for link in robot.links:
-        row = dict(a=float(link.a), alpha=float(link.alpha), d=float(link.d))
-        row["offset"] = float(link.offset)
-        if link.isflip:
-            row["flip"] = True
-        rows.append(row)
-    return rows
-
-
 def test_jaco_against_roboticstoolbox():
     """rtb's Jaco reverses joint 1 (theta = -q1); our flipped row must agree."""
     rtb = pytest.importorskip("roboticstoolbox")
     jaco = rtb.models.DH.Jaco()
     assert jaco.links[0].isflip
-    rows = _rtb_rows(jaco)
+    rows = rtb_dh_rows(jaco)
     rng = np.random.default_rng(7)
     q = rng.uniform(-np.pi, np.pi, (100, 6))
     T_rtb = np.array([jaco.fkine(x).A for x in q])

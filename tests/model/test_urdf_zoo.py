@@ -6,8 +6,8 @@ pinocchio's own URDF parser: the tool pose and the Jacobian on random configurat
 where the chain carries all of the arm's mass, the inverse dynamics (with the files' joint
 damping and friction) and the mass matrix.
 
-The reference backend (numpy) is used: the compiled core equals it (tests/test_compiled.py,
-tests/test_serial_dynamics.py), and compiling seven arms' dynamics would cost minutes."""
+The reference backend (numpy) is used: the compiled core equals it (tests/native/test_delta.py,
+tests/derive/test_serial_dynamics.py), and compiling seven arms' dynamics would cost minutes."""
 
 from __future__ import annotations
 

@@ -358,7 +358,7 @@ def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, private_cac
 
 
 @pytest.mark.slow
-def test_o2_and_o3_give_the_same_bits(tmp_path, monkeypatch):
+def test_o2_and_o3_give_the_same_bits(monkeypatch):
     """The Puma 560's checked-in module (kinematics, closed-form and numerical IK, dynamics)
     built at -O2 gives the same doubles as at -O3 (the level of modules rendered at run
     time, native/serial.py: no level may change a floating-point result without
@@ -368,7 +368,8 @@ def test_o2_and_o3_give_the_same_bits(tmp_path, monkeypatch):
     from deltagen import SerialRobot
     from deltagen.native import serial as native_serial
 
-    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
+    # the suite's cache: the -O3 module is the one the other tests load (built once per
+    # run), only the -O2 one is this test's own
     arm = SerialRobot.load("puma560", threads=1)
     # the checked-in module as a whole (on a cold cache the arm itself starts from its
     # parts, native/serial.py: load_dynamics would be the dynamics part, without fk)

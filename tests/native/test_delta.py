@@ -3,7 +3,7 @@ the numpy reference (deltagen.reference.delta) on large random batches, hand-der
 values, symmetry, central finite differences and round trips.
 
 The low-level backends are called directly here (``robot._core.fk(q) -> (p, status)``);
-the public API is covered in test_robot_api.py.
+the public API is covered in tests/api/test_delta.py.
 """
 
 from __future__ import annotations

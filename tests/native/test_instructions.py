@@ -7,8 +7,8 @@ naming the kernel and both counts; one that executes more than 5 % fewer fails t
 snapshot: the baseline is refreshed so the next slowdown is measured from the new level).
 Refresh after a deliberate change with
 
-    DELTAGEN_UPDATE_BASELINES=1 python -m pytest tests/test_instruction_counts.py
-    (or: python -m pytest tests/test_instruction_counts.py --update-baselines)
+    DELTAGEN_UPDATE_BASELINES=1 python -m pytest tests/native/test_instructions.py
+    (or: python -m pytest tests/native/test_instructions.py --update-baselines)
 
 and commit the file. Counts are exact for a given compiler, glibc (libmvec) and valgrind;
 the baseline records their versions, and where they differ the comparison is skipped with
@@ -59,7 +59,7 @@ ARM_KERNELS = (
 )
 #: kernels of the counted modules that are not counted, and why
 NOT_COUNTED = {
-    "ik_newton": "iterative: its cost is its iteration count (tests/test_ik_newton_c.py)",
+    "ik_newton": "iterative: its cost is its iteration count (tests/solve/test_numeric_c.py)",
 }
 MODULES = {
     "delta_kinematics": DELTA_KERNELS,
@@ -166,7 +166,7 @@ def test_instructions_per_point(module, request):
         f"{100 * TOLERANCE:g} %:\n  "
         + "\n  ".join(problems)
         + "\nIf the change is intended, refresh the baseline: DELTAGEN_UPDATE_BASELINES=1 "
-        "python -m pytest tests/test_instruction_counts.py (or --update-baselines), and commit it"
+        "python -m pytest tests/native/test_instructions.py (or --update-baselines), and commit it"
     )
 
 
@@ -185,7 +185,7 @@ def test_compare_reports_both_directions():
 
 def test_a_devectorised_kernel_fails_against_the_baseline(tmp_path):
     """The regression this guard exists for, made on purpose: delta fk with the finite-output
-    guard in the form gcc 12 does not vectorise (tests/test_vectorisation.py) executes
+    guard in the form gcc 12 does not vectorise (tests/native/test_vectorisation.py) executes
     several times the baseline's instructions per point, and the comparison says so."""
     stored = _baseline()
     if stored.get("toolchain") != instructions.toolchain():

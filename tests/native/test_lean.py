@@ -9,7 +9,7 @@ by the last bits of atan2, so there the one-pose call equals a batch of one row 
 the long batch's row to rounding (1e-14 rad; 1e-12 for the 8 branches of ik_all).
 Inputs the lean path does not take (lists of numpy scalars, non-contiguous views,
 big-endian arrays) give the same numbers through the general path. Errors on bad single inputs are those of the batch path
-(tests/test_api_checks.py covers that for every method).
+(tests/api/test_checks.py covers that for every method).
 """
 
 from __future__ import annotations

@@ -4,11 +4,11 @@ Evidence: (1) the one-row call through the extension equals the batch kernel's r
 bit (a second caller of the same C function, through cffi and numpy); (2) for every input
 the extension does not take, and every bad input, the outcome -- the result, or the
 exception's type and message -- is exactly that of the Python lean path
-(DELTAGEN_LEAN_EXT=0), which tests/test_api_checks.py ties to the general path; (3) threads
+(DELTAGEN_LEAN_EXT=0), which tests/api/test_checks.py ties to the general path; (3) threads
 calling at once get their own rows; (4) 100 000 calls leave no memory behind (results,
 declined calls, the inputs' reference counts); (5) where the extension cannot be built the
 Python lean path serves, and a broken source gives a BuildError with the compiler's text.
-tests/test_single_paths.py covers every quantity's one-row call against the batch; the
+tests/native/test_lean.py covers every quantity's one-row call against the batch; the
 first test here makes sure those calls are the extension's.
 """
 

@@ -10,31 +10,16 @@ import math
 
 import numpy as np
 import pytest
+from delta_oracles import DEFAULT, GEOMETRIES, KLIPPER, geometry
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from deltagen.model.delta import DeltaGeometry
 from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, SINGULAR, UNREACHABLE
 
 pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")  # numpy must never warn
 
 
-def _geom(r_a, r_b, l_a, l_b, theta_deg, **kw):
-    return DeltaGeometry(
-        r_a=r_a,
-        r_b=r_b,
-        l_a=l_a,
-        l_b=l_b,
-        theta=tuple(math.radians(t) for t in theta_deg),
-        **kw,
-    )
-
-
-DEFAULT = DeltaGeometry.default()
-KLIPPER = _geom(0.15, 0.04, 0.25, 0.6, (30, 150, 270))
-IRREGULAR = _geom(0.22, 0.05, 0.3, 0.75, (10, 100, 250))
-GEOMETRIES = {"default": DEFAULT, "klipper": KLIPPER, "irregular": IRREGULAR}
 geometries = pytest.mark.parametrize("geom", list(GEOMETRIES.values()), ids=list(GEOMETRIES))
 
 
@@ -372,7 +357,7 @@ def test_unreachable_fk_default_geometry():
 
 def test_unreachable_fk_short_rods():
     # l_b = 0.4 < r + l_a = 0.505: at q = 0 the centres' circle is wider than a rod.
-    g = _geom(0.2, 0.045, 0.35, 0.4, (0, 120, 240))
+    g = geometry(0.2, 0.045, 0.35, 0.4, (0, 120, 240))
     p, status = ref.fk(g, np.array([[0.0, 0.0, 0.0], [1.2, 1.2, 1.2]]))
     # q = 1.2: circle radius 0.155 + 0.35 cos 1.2 = 0.282 < 0.4, reachable
     assert status.tolist() == [UNREACHABLE, OK]
@@ -429,7 +414,7 @@ def test_det_singular_pose_by_hand():
     q = np.zeros((1, 3))
     qd = np.ones((1, 3))
     for tol, expected in ((0.5, SINGULAR), (0.2, OK)):
-        g = _geom(0.2, 0.045, 0.35, l_b, (0, 120, 240), singular_tol=tol)
+        g = geometry(0.2, 0.045, 0.35, l_b, (0, 120, 240), singular_tol=tol)
         p, status = ref.fk(g, q)
         assert status.tolist() == [expected]
         np.testing.assert_allclose(p[0], [0, 0, z0], atol=1e-14)  # p is always returned
@@ -456,7 +441,7 @@ def test_ik_singular_folded_chain():
     assert 1e-5 < beta < 1e-3
     p = (S1 - (g.l_b + eps) * u)[None, :]
     for tol, expected in ((1e-3, SINGULAR), (1e-5, OK), (g.singular_tol, OK)):
-        gt = _geom(0.2, 0.045, 0.35, 0.8, (0, 120, 240), singular_tol=tol)
+        gt = geometry(0.2, 0.045, 0.35, 0.8, (0, 120, 240), singular_tol=tol)
         q, status = ref.ik(gt, p)
         assert status.tolist() == [expected]
         assert np.all(np.isfinite(q))  # q is returned either way
@@ -470,7 +455,7 @@ def test_ik_singular_folded_chain():
 def test_collinear_centres_are_singular():
     # r_a = r_b and q_i = pi/2: every crank points straight down, all three centres
     # coincide at (0, 0, -l_a) (collinear in the degenerate sense)
-    g = _geom(0.1, 0.1, 0.3, 0.6, (0, 120, 240))
+    g = geometry(0.1, 0.1, 0.3, 0.6, (0, 120, 240))
     q = np.array([[math.pi / 2] * 3, [0.5, 0.5, 0.5]])
     p, status = ref.fk(g, q)
     assert status.tolist() == [SINGULAR, OK]

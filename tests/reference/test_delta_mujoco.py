@@ -29,24 +29,16 @@ import math
 
 import numpy as np
 import pytest
+from delta_oracles import irregular_dynamic_robot
 
-from deltagen import DeltaInertia, DeltaRobot
+from deltagen import DeltaRobot
 from deltagen.apps.validate import trajectory
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo (pip install mujoco) is the oracle here")
 
 SPIN = 1e-9  # rod spin inertia relative to the transverse one (slender rod: 0)
 
-IRREGULAR = DeltaRobot(
-    0.22,
-    0.05,
-    0.3,
-    0.75,
-    theta=tuple(math.radians(t) for t in (10, 100, 250)),
-    inertia=DeltaInertia(
-        I_a=0.02, m_a=0.9, r_ca=0.11, m_b=0.35, m_p=0.8, gravity=(0.5, -1.2, -9.7), I_4=1e-3
-    ),
-)
+IRREGULAR = irregular_dynamic_robot()
 ROBOTS = {"default": DeltaRobot.default(), "irregular": IRREGULAR}
 
 

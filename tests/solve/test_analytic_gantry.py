@@ -24,6 +24,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from helpers import compile_c
 from scipy.optimize import least_squares
 
 from deltagen import SerialRobot, paths
@@ -443,8 +444,6 @@ def test_not_gantries_fall_back_to_the_numeric_solver(variant):
 
 # ------------------------------------------------------- the C alone, sanitized
 
-GCC = shutil.which("gcc")
-SANITIZE = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer", "-fno-sanitize-recover=all"]
 HEAD_DRIVER = r"""
 #include <stdio.h>
 #include <math.h>
@@ -469,16 +468,10 @@ int main(void) {
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(GCC is None, reason="gcc not installed")
-def test_head_ik_all_alone_under_sanitizers(tmp_path):
+def test_head_ik_all_alone_under_sanitizers(tmp_path, sanitizers):
     """The generated ik_all of the 5-axis head built alone with ASan/UBSan on poses with
     NaN, infinite, huge, non-rigid, out-of-travel and singular (tool axis along C) rows: no
     report, the status codes as documented, the flags and angles of the numpy solver."""
-    probe = tmp_path / "probe.c"
-    probe.write_text("int main(void) { return 0; }\n")
-    cmd = [GCC, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")]
-    if subprocess.run(cmd, capture_output=True).returncode != 0:
-        pytest.skip("no sanitizer runtime")
     arm = SerialRobot.load("gantry_xyz_ac", backend="reference")
     T = arm.fk(_in_limits(arm, 60, seed=41))
     T[5] = arm.fk(np.array([1.0, 0.5, 0.3, 1.1, 0.0]))  # tool axis along C
@@ -500,15 +493,8 @@ def test_head_ik_all_alone_under_sanitizers(tmp_path):
         shutil.copy(path, tmp_path)
     (tmp_path / "driver.c").write_text(HEAD_DRIVER % dict(n=len(T), poses=poses))
     sources = ["driver.c", "serial_gantry_xyz_ac.c", *(p.name for p in runtime if p.suffix == ".c")]
-    build = subprocess.run(
-        [GCC, "-std=c99", "-O0", "-Wall", "-Wextra", "-Werror", *SANITIZE, *sources]
-        + ["-o", "driver", "-lm"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert build.returncode == 0, build.stderr[-3000:]
+    flags = ["-std=c99", "-O0", "-Wall", "-Wextra", "-Werror", *sanitizers]
+    compile_c(sources, tmp_path / "driver", flags=flags, cwd=tmp_path)
     env = dict(os.environ, UBSAN_OPTIONS="halt_on_error=1")
     run = subprocess.run(
         [str(tmp_path / "driver")],

@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
-from helpers import random_q, reference_fk
+from helpers import random_q, reference_fk, rotation_angle
 
 from deltagen.api.serial import SerialRobot, bundled_robots
 from deltagen.inputs import InputError
@@ -39,19 +39,13 @@ def _perturbed(arm, q, rng, sigma=0.1):
     return np.clip(q + rng.normal(0.0, sigma, q.shape), lo, hi)
 
 
-def _rotation_angle(Ra, Rb):
-    """Angle of Ra Rb^T from ||Ra - Rb||_F = 2 sqrt(2) sin(theta / 2) (accurate near 0)."""
-    d = np.linalg.norm(Ra - Rb, axis=(-2, -1))
-    return 2.0 * np.arcsin(np.clip(d / (2.0 * math.sqrt(2.0)), 0.0, 1.0))
-
-
 def _check_solution(arm, res, T, tol=TOL):
     """Converged rows: within limits, and the reference fk reproduces T to tol."""
     c = res.converged
     assert arm.within_limits(res.q[c]).all()
     Tq = reference_fk(arm, res.q[c])
     dp = np.linalg.norm(Tq[:, :3, 3] - T[c][:, :3, 3], axis=1)
-    dr = _rotation_angle(Tq[:, :3, :3], T[c][:, :3, :3])
+    dr = rotation_angle(Tq[:, :3, :3], T[c][:, :3, :3])
     # the solver's tol plus a few ulps of the two fk implementations
     assert dp.max(initial=0) <= tol + 1e-13, dp.max()
     assert dr.max(initial=0) <= tol + 1e-13, dr.max()
@@ -337,7 +331,7 @@ def test_scara_tool_fitting(arms, name, rng):
     assert arm.within_limits(res.q).all()
     Tq = reference_fk(arm, res.q)
     assert np.abs(Tq[:, :3, 3] - T_true[:, :3, 3]).max() <= 1e-10
-    assert _rotation_angle(Tq[:, :3, :3], T_true[:, :3, :3]).max() <= 1e-9
+    assert rotation_angle(Tq[:, :3, :3], T_true[:, :3, :3]).max() <= 1e-9
     # untilted targets: the exact pose
     res2 = ikn.solve(arm, T_true, _perturbed(arm, q_true, rng), restarts=10)
     assert res2.converged.all()
@@ -429,7 +423,7 @@ def test_unreachable_targets(arms, rng):
     assert np.allclose(
         res.position_error, np.linalg.norm(Tq[:, :3, 3] - T[:, :3, 3], axis=1), rtol=1e-9
     )
-    assert np.allclose(res.rotation_error, _rotation_angle(Tq[:, :3, :3], T[:, :3, :3]), atol=1e-6)
+    assert np.allclose(res.rotation_error, rotation_angle(Tq[:, :3, :3], T[:, :3, :3]), atol=1e-6)
     # the returned q is the best found: closer than the start, and 5 m minus the reach
     # (shoulder 0.67 m high, arm ~0.9 m) is the least possible distance
     assert np.all(res.position_error < start)

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import random_q, reference_fk
+from helpers import random_q, reference_fk, rotation_angle
 
 from deltagen import status as st
 from deltagen.api.serial import SerialRobot
@@ -30,18 +30,13 @@ def arms(serial_arms):
     return serial_arms
 
 
-def _rotation_angle(Ra, Rb):
-    d = np.linalg.norm(Ra - Rb, axis=(-2, -1))
-    return 2.0 * np.arcsin(np.clip(d / (2.0 * math.sqrt(2.0)), 0.0, 1.0))
-
-
 def _check(arm, res, T, rows=None, tol=TOL):
     """Converged rows: within the limits, and the reference fk reproduces T to tol."""
     c = res.converged if rows is None else rows
     assert arm.within_limits(res.q[c]).all()
     Tq = reference_fk(arm, res.q[c])
     dp = np.linalg.norm(Tq[:, :3, 3] - T[c][:, :3, 3], axis=1)
-    dr = _rotation_angle(Tq[:, :3, :3], T[c][:, :3, :3])
+    dr = rotation_angle(Tq[:, :3, :3], T[c][:, :3, :3])
     assert dp.max(initial=0) <= tol + 1e-13, dp.max()
     assert dr.max(initial=0) <= tol + 1e-13, dr.max()
 
