@@ -20,7 +20,8 @@ import delta_oracles
 import numpy as np
 import pytest
 
-from deltagen import SerialRobot, reference
+from deltagen import SerialRobot
+from deltagen.reference import serial as serial_reference
 
 TESTS = Path(__file__).resolve().parent
 REPO = TESTS.parent
@@ -102,7 +103,7 @@ def in_limit_q(arm, rng, count):
 
 def reference_fk(arm, q):
     """The numpy reference's pose of ``q`` (every row must be evaluable)."""
-    T, status = reference.fk(arm.description, np.atleast_2d(q))
+    T, status = serial_reference.fk(arm.description, np.atleast_2d(q))
     assert np.all(status == 0)
     return T
 
@@ -390,10 +391,25 @@ def update_generated(config) -> bool:
 
 
 def generated_share(part: int, parts: int) -> list[str]:
-    """The serial arms' modules of generated/, dealt into ``parts`` files (pytest-xdist
-    --dist loadfile runs each file on one worker: the renders spread over the workers)."""
+    """The serial arms' modules of generated/, dealt into ``parts`` files of about equal
+    work (pytest-xdist --dist loadfile runs each file on one worker, so the renders spread
+    over the workers): the largest checked-in module first, each to the lightest share
+    (the size of its C stands for the cost of its derivation)."""
+    from deltagen.paths import generated_dir
+
     arms = [stem for stem in generated_stems() if stem.startswith("serial_")]
-    return arms[part::parts]
+
+    def size(stem):
+        path = generated_dir() / f"{stem}.c"
+        return path.stat().st_size if path.exists() else 0
+
+    shares: list[list[str]] = [[] for _ in range(parts)]
+    loads = [0] * parts
+    for stem in sorted(arms, key=lambda stem: (-size(stem), stem)):
+        lightest = loads.index(min(loads))
+        shares[lightest].append(stem)
+        loads[lightest] += size(stem)
+    return shares[part]
 
 
 def shared_object(cwd: Path, name: str, flags) -> Path:

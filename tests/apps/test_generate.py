@@ -247,8 +247,9 @@ def test_rendering_uses_the_templates(tmp_path, monkeypatch, rendered):
     header = copy / "header.h.j2"
     header.write_text("/* template marker */\n" + header.read_text())
     monkeypatch.setattr(render, "template_dir", lambda: copy)
-    from deltagen.codegen.delta import delta_sources
-
-    again = delta_sources()  # the delta module alone: the templates are shared
-    assert again["delta_kinematics.h"] == "/* template marker */\n" + rendered["delta_kinematics.h"]
-    assert again["delta_kinematics.c"] == rendered["delta_kinematics.c"]
+    # one module alone, the quickest to derive (the lecture's PRP arm): the templates are
+    # shared by every module
+    again = generate.module_renderers()["serial_lecture_prp"]()
+    marked = "/* template marker */\n" + rendered["serial_lecture_prp.h"]
+    assert again["serial_lecture_prp.h"] == marked
+    assert again["serial_lecture_prp.c"] == rendered["serial_lecture_prp.c"]
