@@ -34,3 +34,28 @@ def test_generated_holds_only_rendered_modules():
 @pytest.mark.parametrize("stem", PARALLEL)
 def test_module_is_current(stem, request):
     compare_or_update_generated(stem, update_generated(request.config))
+
+
+def test_a_stale_missing_or_stray_file_fails_and_the_update_flag_rewrites(tmp_path, monkeypatch):
+    """The check itself, on a folder of its own and a stand-in renderer: a hand edit, a
+    missing file and a stray ``<stem>.*`` each fail naming the file (with the diff), and
+    the update flag writes the render and removes the stray file, after which it passes."""
+    from deltagen import paths
+    from deltagen.apps import generate
+
+    render = {"arm_x.c": "int x;\n", "arm_x.h": "/* x */\n"}
+    monkeypatch.setattr(generate, "module_renderers", lambda: {"arm_x": lambda: dict(render)})
+    monkeypatch.setattr(paths, "generated_dir", lambda: tmp_path)
+    (tmp_path / "arm_x.c").write_text("int x; /* hand edit */\n")
+    (tmp_path / "arm_x.old").write_text("retired\n")
+    (tmp_path / "arm_xy.c").write_text("another module's file\n")
+    with pytest.raises(AssertionError) as failure:
+        compare_or_update_generated("arm_x", update=False)
+    text = str(failure.value)
+    assert "arm_x.c is stale" in text and "-int x; /* hand edit */" in text
+    assert "arm_x.h is missing" in text and "arm_x.old is stray" in text
+    assert "arm_xy.c" not in text
+    compare_or_update_generated("arm_x", update=True)
+    assert {p.name for p in tmp_path.iterdir()} == {"arm_x.c", "arm_x.h", "arm_xy.c"}
+    assert (tmp_path / "arm_x.c").read_text() == "int x;\n"
+    compare_or_update_generated("arm_x", update=False)
