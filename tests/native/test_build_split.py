@@ -158,15 +158,15 @@ def test_two_processes_loading_a_cold_split_module_build_it_once(tmp_path):
     assert len([p for p in cache.iterdir() if p.name.startswith("_deltagen_kern_")]) == 1
 
 
-@pytest.mark.slow  # two builds of the Puma's full module
-def test_split_puma_gives_the_bits_of_the_single_unit_build(tmp_path, monkeypatch):
+@pytest.mark.slow  # a build of the Puma's full module (the other is the suite's own)
+def test_split_puma_gives_the_bits_of_the_single_unit_build(monkeypatch):
     """Every kernel of the Puma 560's checked-in module (kinematics, closed-form and
     numerical IK, dynamics, forward dynamics through the runtime's Cholesky) built as one
     unit per kernel gives the same doubles as built from the whole file."""
     from deltagen import SerialRobot
     from deltagen.native import serial as native_serial
 
-    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
+    # the suite's cache: one of the two builds is the module the other tests load
     arms = {}
     for split in (True, False):
         monkeypatch.setattr(native_serial, "load", functools.partial(build.load, split=split))
