@@ -1,4 +1,6 @@
-"""Shared fixtures: the three test geometries and their robots on both backends."""
+"""Shared fixtures of every stage folder (tests/<stage>/test_*.py; plain helpers are in
+tests/helpers.py): the three test geometries and their robots on both backends, the bundled
+arms loaded once per session, the 7-axis arm, a private build cache."""
 
 from __future__ import annotations
 
@@ -39,7 +41,7 @@ def suite_cache_dir() -> Path:
 # Set before deltagen is imported, so nothing can resolve the user's cache first; every
 # subprocess a test starts inherits it.
 os.environ["DELTAGEN_CACHE"] = str(suite_cache_dir())
-if str(TESTS) not in sys.path:  # delta_oracles is importable under any --import-mode
+if str(TESTS) not in sys.path:  # delta_oracles, helpers importable under any --import-mode
     sys.path.insert(0, str(TESTS))
 
 from delta_oracles import GEOMETRIES  # noqa: E402
@@ -56,6 +58,13 @@ def pytest_addoption(parser):
         default=False,
         help="rewrite tests/baselines/ from this run (as DELTAGEN_UPDATE_BASELINES=1 does) "
         "instead of comparing with it",
+    )
+    parser.addoption(
+        "--update-generated",
+        action="store_true",
+        default=False,
+        help="rewrite the stale files of generated/ from this run (as `deltagen generate` does, "
+        "or DELTAGEN_UPDATE_GENERATED=1) instead of failing on them",
     )
 
 
@@ -96,3 +105,64 @@ def rng(request):
     """A generator seeded by the test's name: reproducible, different per test."""
     seed = zlib.crc32(request.node.nodeid.encode())
     return np.random.default_rng(seed)
+
+
+@pytest.fixture(scope="session")
+def serial_arms():
+    """``get(name, backend="compiled")``: a bundled arm, loaded once per session (and
+    worker) whatever the test file that asks for it."""
+    from deltagen import SerialRobot
+
+    loaded = {}
+
+    def get(name, backend="compiled"):
+        if (name, backend) not in loaded:
+            loaded[name, backend] = SerialRobot.load(name, backend=backend)
+        return loaded[name, backend]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def puma7():
+    """The redundant 7-axis Puma of tests/helpers.py PUMA7_ROWS, compiled once."""
+    from helpers import PUMA7_ROWS
+
+    from deltagen import SerialRobot
+
+    return SerialRobot.from_dh([dict(r) for r in PUMA7_ROWS], "standard", name="puma7_test")
+
+
+@pytest.fixture
+def private_cache(tmp_path, monkeypatch):
+    """An empty build cache of this test's own (DELTAGEN_CACHE set for it and its
+    subprocesses)."""
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("DELTAGEN_CACHE", str(folder))
+    return folder
+
+
+@pytest.fixture(scope="session")
+def sanitizers(tmp_path_factory):
+    """tests/helpers.py SANITIZE, after a probe program built and run with them (once per
+    worker): skip, naming why, where the toolchain has no ASan/UBSan runtime."""
+    import subprocess
+
+    from helpers import GCC, SANITIZE
+
+    if GCC is None:
+        pytest.skip("gcc not installed")
+    work = tmp_path_factory.mktemp("sanitizer_probe")
+    (work / "probe.c").write_text("int main(void) { return 0; }\n")
+    build = subprocess.run(
+        [GCC, *SANITIZE, str(work / "probe.c"), "-o", str(work / "probe")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    if build.returncode != 0:
+        pytest.skip(f"no sanitizer runtime: {build.stderr[-300:]}")
+    run = subprocess.run([str(work / "probe")], capture_output=True, text=True, timeout=60)
+    if run.returncode != 0 or run.stderr:
+        pytest.skip(f"sanitized programs cannot run here: {run.stderr[-300:]}")
+    return SANITIZE

@@ -34,6 +34,21 @@ KLIPPER = geometry(0.15, 0.04, 0.25, 0.6, (30, 150, 270), name="klipper")
 #: Unequal drive spacing (90 / 150 / 120 deg): no symmetry to hide errors behind.
 IRREGULAR = geometry(0.22, 0.05, 0.3, 0.75, (10, 100, 250), name="irregular")
 GEOMETRIES = {"default": DEFAULT, "klipper": KLIPPER, "irregular": IRREGULAR}
+#: The irregular robot's masses, inertias and a gravity off the z axis (the dynamics tests:
+#: nothing symmetric or vertical for an error to hide behind).
+IRREGULAR_INERTIA = dict(
+    I_a=0.02, m_a=0.9, r_ca=0.11, m_b=0.35, m_p=0.8, gravity=(0.5, -1.2, -9.7), I_4=1e-3
+)
+
+
+def irregular_dynamic_robot():
+    """The compiled robot of IRREGULAR with IRREGULAR_INERTIA."""
+    from deltagen import DeltaInertia, DeltaRobot
+
+    g = IRREGULAR
+    inertia = DeltaInertia(**IRREGULAR_INERTIA)
+    return DeltaRobot(g.r_a, g.r_b, g.l_a, g.l_b, theta=g.theta, inertia=inertia)
+
 
 #: A box of crank angles that is reachable and far from singular for all three geometries.
 WORK_Q = (-0.6, 1.3)

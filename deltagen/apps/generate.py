@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+from collections.abc import Callable
 from pathlib import Path
 
 from deltagen.paths import generated_dir
@@ -12,28 +13,44 @@ def generated_files() -> dict[str, str]:
     """Every checked-in generated file, by name: the delta core, the linear delta's and the
     tripod's cores, the 5-axis machine core and each bundled arm (the TOML ones and the URDF
     ones, robots/*.urdf read as SerialRobot.load reads them)."""
+    files: dict[str, str] = {}
+    for render in module_renderers().values():
+        files.update(render())
+    return files
+
+
+def module_renderers() -> dict[str, Callable[[], dict[str, str]]]:
+    """Each module of generated/ by its stem (its files are ``<stem>.*``), with the function
+    that renders it alone: the per-module checks of tests/codegen/ render one each, in
+    parallel, and their union is :func:`generated_files`. Listing them derives nothing."""
     from deltagen.api.serial import bundled_robots, bundled_urdfs
     from deltagen.codegen.delta import delta_sources
     from deltagen.codegen.five_axis import five_axis_sources
+    from deltagen.codegen.hexapod import hexapod_sources
+    from deltagen.codegen.linear_delta import linear_delta_sources, tripod_sources
     from deltagen.codegen.serial import arm_sources
     from deltagen.model.serial import SerialDescription
     from deltagen.model.urdf import description_from_urdf
     from deltagen.paths import robots_dir
 
-    files = dict(delta_sources())
-    from deltagen.codegen.linear_delta import linear_delta_sources, tripod_sources
+    def toml_arm(name):
+        return lambda: arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml"))
 
-    files.update(linear_delta_sources())
-    files.update(tripod_sources())
-    files.update(five_axis_sources())
+    def urdf_arm(name):
+        return lambda: arm_sources(description_from_urdf(robots_dir() / f"{name}.urdf", name=name))
+
+    renderers: dict[str, Callable[[], dict[str, str]]] = {
+        "delta_kinematics": delta_sources,
+        "linear_delta_kinematics": linear_delta_sources,
+        "tripod_kinematics": tripod_sources,
+        "five_axis_kinematics": five_axis_sources,
+    }
     for name in bundled_robots():
-        files.update(arm_sources(SerialDescription.from_toml(robots_dir() / f"{name}.toml")))
+        renderers[f"serial_{name}"] = toml_arm(name)
     for name in bundled_urdfs():
-        files.update(arm_sources(description_from_urdf(robots_dir() / f"{name}.urdf", name=name)))
-    from deltagen.codegen.hexapod import hexapod_sources
-
-    files.update(hexapod_sources())
-    return files
+        renderers[f"serial_{name}"] = urdf_arm(name)
+    renderers["hexapod_kinematics"] = hexapod_sources
+    return renderers
 
 
 def generate_robot_file(path) -> Path:
@@ -98,20 +115,27 @@ def check(directory: Path | None = None) -> list[str]:
     for name in stray(directory, files):
         problems.append(f"{name} is stray: the generator does not produce it (delete it)\n")
     for name, text in files.items():
-        path = directory / name
-        current = path.read_text() if path.exists() else ""
-        if current != text:
-            diff = difflib.unified_diff(
-                current.splitlines(keepends=True),
-                text.splitlines(keepends=True),
-                fromfile=f"{path} (checked in)",
-                tofile=f"{path} (regenerated)",
-                n=1,
-            )
-            problems.append(
-                f"{name} is {'stale' if path.exists() else 'missing'}:\n" + "".join(list(diff)[:60])
-            )
+        problem = stale(directory / name, text)
+        if problem:
+            problems.append(problem)
     return problems
+
+
+def stale(path: Path, text: str) -> str | None:
+    """None when ``path`` holds ``text``; else "<name> is stale|missing:" and a unified diff
+    (its first 60 lines)."""
+    current = path.read_text() if path.exists() else ""
+    if current == text:
+        return None
+    diff = difflib.unified_diff(
+        current.splitlines(keepends=True),
+        text.splitlines(keepends=True),
+        fromfile=f"{path} (checked in)",
+        tofile=f"{path} (regenerated)",
+        n=1,
+    )
+    state = "stale" if path.exists() else "missing"
+    return f"{path.name} is {state}:\n" + "".join(list(diff)[:60])
 
 
 # ---------------------------------------------------------------- the command

@@ -5,7 +5,7 @@ the templates.
 The single-point functions (``<prefix>_<kernel>_point``, templates/scalar.{c,h}.j2) print the
 same lowered statements as the batched ones: the kernels are derived once, lowered once per
 real type (codegen.lowering.lower), and both templates lay out those statements. In double
-the two therefore compute the same bits (tests/test_export.py holds them to it).
+the two therefore compute the same bits (tests/apps/test_export.py holds them to it).
 """
 
 from __future__ import annotations

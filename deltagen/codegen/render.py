@@ -90,7 +90,7 @@ def _kib(nbytes: int) -> str:
 
 #: The margin the stack figures state for what they leave out (scalars, register spills):
 #: a frame is at least its block arrays and, with gcc -O2 on x86-64, at most this much more
-#: (measured 2-15 % on the bundled robots; tests/test_stack_estimate.py checks every
+#: (measured 2-15 % on the bundled robots; tests/codegen/test_render_stack.py checks every
 #: checked-in module).
 STACK_MARGIN_PERCENT = 25
 

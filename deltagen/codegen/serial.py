@@ -35,8 +35,8 @@ def description_fingerprint(desc) -> str:
 
 
 # What the generated text can depend on, by the layering rule (codegen imports only these
-# stages and the foundation modules; tests/test_layering.py holds the rule): every file in
-# them is hashed, so no hand-kept list can miss one.
+# stages and the foundation modules; tests/integration/test_layering.py holds the rule):
+# every file in them is hashed, so no hand-kept list can miss one.
 _GENERATOR_PACKAGES = ("model", "geometry", "derive", "codegen")
 _FOUNDATION = ("errors.py", "status.py", "inputs.py", "paths.py")
 

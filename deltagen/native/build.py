@@ -1,7 +1,7 @@
 """Build stage: compile a generated C module (and the runtime C it needs) into a cffi
 extension module, cached on disk under a key of everything that shapes the binary.
 
-How the cache stays sound (tests/test_build_cache.py puts each point under faults):
+How the cache stays sound (tests/native/test_build_cache.py puts each point under faults):
 
 * **One build per key at a time**, from threads and processes alike: a lock per key, a
   ``threading.Lock`` inside the process and an exclusive ``flock`` on a lock file across
@@ -26,7 +26,7 @@ How the cache stays sound (tests/test_build_cache.py puts each point under fault
   process may use (``os.sched_getaffinity``; ``DELTAGEN_BUILD_JOBS`` caps it), largest
   first, then link into one shared object. No flag changes and no unit sees another's
   code: with FMA contraction off (-std=c99, no -ffast-math) a kernel gives the same bits
-  in its own unit as in the whole file (tests/test_build_split.py). A file whose layout
+  in its own unit as in the whole file (tests/native/test_build_split.py). A file whose layout
   the splitter does not recognise (a ``static`` definition, a preprocessor line or other
   file-scope code between kernels) is compiled as one unit.
 """

@@ -34,7 +34,7 @@ above are made in C with the same outcome (accepted: what plain_row accepts, wit
 strides; else None, and the general path raises). Callgrind, instructions per call from
 Python (README "Dynamics"): Puma 560 inverse_dynamics through SerialRobot 18 278 on the
 cffi path below, 5 314 through the extension (pinocchio's rnea on the UR5: 10 088);
-tests/test_lean_ext.py guards it. One
+tests/native/test_lean_ext.py guards it. One
 extension serves every module: it takes the kernel's address. Where it cannot be built
 (no Python.h, no compiler) the Python code below serves, unchanged; DELTAGEN_LEAN_EXT=0
 (or false, no, off; any case) chooses it too, and a value that is no such flag is an

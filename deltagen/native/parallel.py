@@ -49,7 +49,7 @@ from deltagen.inputs import InputError, env_positive_int, is_integer
 
 MIN_ROWS_PER_THREAD = 20000
 # a multiple of every generated module's <PREFIX>_BLOCK (codegen.render.Unit.block, 64);
-# tests/test_threads.py checks it against generated/
+# tests/native/test_parallel.py checks it against generated/
 ROW_ALIGN = 256
 _MAX_POOL_THREADS = 64  # pool threads are started only when needed, up to this many
 

@@ -65,7 +65,7 @@ Of the 24 eigenvalues 8 (a generic arm) or 16 (the UR5) are +-i, from the half-a
 substitution; they are not deflated ahead (deltagen_general6r.c says why: 4- and 8-fold,
 ill conditioned, and exact +-i shifts did not save QR steps). The eigen step is the floor:
 ~50 us of CPU per 24 x 24 matrix in C on the 2-core development machine (LAPACK through
-numpy: ~120-150 us there); tests/test_general6r_c.py compares the engines.
+numpy: ~120-150 us there); tests/native/test_general6r.py compares the engines.
 
 Degenerate arms and arrangements. The pencil is *singular* (det M(x3) = 0 for every x3)
 for many industrial arms in the arrangement above: neighbouring axes that meet (a_i = 0) or
@@ -76,7 +76,7 @@ depend on the pose and are interpolated per pose), or reversed (G^-1 = e6^-1 ...
 :func:`eliminations` takes the first arrangement whose pencil and Q are clearly regular
 (checked at 4 random poses when the arm is loaded) and whose candidates contain the q of 8
 further random poses (``recovered``; the margins alone can pass on rounding noise): for
-rtb's Jaco, Mico, the Puma 560 and the UR5 a shifted one is (tests/test_ik_general6r.py:
+rtb's Jaco, Mico, the Puma 560 and the UR5 a shifted one is (tests/solve/test_general6r.py:
 the original q found on 100% of 400-500 in-limit poses each). Only if no
 arrangement is regular does it fall back to the forward and reversed chains as a best effort
 (``complete`` False), to which SerialRobot.ik_all adds the combined method's branches.

@@ -43,7 +43,7 @@ by this argument (within about eps of the workspace's boundary the true chain ma
 the exact arm just misses: the clipped elbow start then serves, as in solve/combined.py), and
 two branches may converge to one solution there, as at any singularity. Between that margin
 and the 1e-3 the completeness target asks for, the evidence is measured
-(tests/test_ik_completeness.py: the original q among the valid solutions on 1000 of 1000
+(tests/solve/test_ik_completeness.py: the original q among the valid solutions on 1000 of 1000
 random poses of each leg, and an independent numeric multi-start finds no solution that
 ik_all misses). ik_all reports such a chain as complete, with this margin stated in the
 README.

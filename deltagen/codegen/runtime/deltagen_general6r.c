@@ -1,7 +1,7 @@
 /* deltagen_general6r.c: the eigen step of the general 6R inverse kinematics (see the
  * header). Hand-written C, part of deltagen; C99, reentrant, no heap, no globals, libm
  * only. The numpy twin is General6R._eigen (deltagen/solve/general6r.py), which
- * tests/test_general6r_c.py compares this with. */
+ * tests/native/test_general6r.py compares this with. */
 #include "deltagen_general6r.h"
 
 #include "deltagen_limits.h"
@@ -216,7 +216,7 @@ static double dot3(const double *a, const double *b)
 }
 
 /* cos and sin of th. Read through a volatile: gcc would otherwise fuse the pair into GNU
- * sincos, which is not C99 (the runtime needs only C99 libm: tests/test_c_standalone.py) */
+ * sincos, which is not C99 (the runtime needs only C99 libm: tests/c/test_standalone.py) */
 static void cos_sin(double th, double *c, double *s)
 {
     volatile double angle = th;

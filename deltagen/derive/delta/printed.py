@@ -1,7 +1,7 @@
 """The delta report's PRINTED equations, transcribed literally as SymPy expressions.
 
 Nothing here is derived: every expression is copied from the printed text, errors
-included, so that tests/test_errata.py can compare it with what deltagen derives
+included, so that tests/derive/test_printed.py can compare it with what deltagen derives
 (deltagen.derive.delta.*) and docs/errata.md can list the disagreements. Do not "fix"
 anything in this module; corrections live in the derivation modules.
 

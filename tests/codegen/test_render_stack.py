@@ -1,0 +1,48 @@
+"""The stack figures of the generated headers ("Stack: ... N bytes at 64, plus scalars and
+spills: allow M % more", codegen/render.py ``stack_use``) against the compiler's own frame
+sizes (gcc -O2 -fstack-usage): every frame is at least its block arrays and at most the
+stated margin more. The delta core and two arms with the largest frames relative to their
+arrays (the delta's ik, the Panda's Coriolis matrix) are compiled."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+
+import pytest
+from helpers import GCC
+
+from deltagen.codegen.render import STACK_MARGIN_PERCENT
+from deltagen.paths import generated_dir, runtime_dir
+
+pytestmark = pytest.mark.skipif(GCC is None, reason="gcc is needed to measure frames")
+
+#: "Stack: ... \n * <bytes> bytes (...) at <block>, plus scalars ..." then the signature.
+_FIGURE = re.compile(
+    r"\* Stack: [^\n]*\n \* (\d+) bytes [^\n]*allow (\d+) % more\.\n \*/\n\w+ (\w+)\("
+)
+
+
+def _frames(source, tmp_path) -> dict[str, int]:
+    obj = tmp_path / (source.stem + ".o")
+    cmd = [GCC, "-std=c99", "-O2", "-fstack-usage", "-I", str(generated_dir())]
+    cmd += ["-I", str(runtime_dir()), "-c", str(source), "-o", str(obj)]
+    subprocess.run(cmd, check=True, capture_output=True, timeout=300)
+    frames = {}
+    for line in obj.with_suffix(".su").read_text().splitlines():
+        where, nbytes, _kind = line.split("\t")
+        frames[where.rsplit(":", 1)[-1]] = int(nbytes)
+    return frames
+
+
+@pytest.mark.parametrize("module", ["delta_kinematics", "serial_puma560", "serial_panda"])
+def test_each_frame_is_its_arrays_plus_at_most_the_stated_margin(module, tmp_path):
+    figures = {
+        name: (int(nbytes), int(margin))
+        for nbytes, margin, name in _FIGURE.findall((generated_dir() / f"{module}.h").read_text())
+    }
+    assert len(figures) >= 5, "the header's stack figures were not found"
+    frames = _frames(generated_dir() / f"{module}.c", tmp_path)
+    for name, (nbytes, margin) in figures.items():
+        assert margin == STACK_MARGIN_PERCENT
+        assert nbytes <= frames[name] <= nbytes * (1 + margin / 100), (name, frames[name], nbytes)
