@@ -1287,10 +1287,13 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                     rho_sq3*(St_x1*St_y2 - St_x2*St_y1);
             /* status flags: non-finite input, a crank cannot reach or the target lies in the other assembly mode, a
              *    crank at its reach limit */
+            const double t5_0 = fabs(scaled_det_D);
+            const double t5_1 = det_limit*rho_sq_product;
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((scaled_det_D*scaled_normal_z >
-                    0)) & ((fabs(scaled_det_D) > det_limit*rho_sq_product)))));
-            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t5_0 > t5_1)) &
+                    ((scaled_det_D*scaled_normal_z > 0)))));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t5_0 <=
+                    t5_1)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                     isfinite(q3))));
@@ -1516,11 +1519,13 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
             const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
             const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
             /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+            const double t10_0 = fabs(det_D);
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd)
                     & isfinite(zd) & isfinite(phid));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((fabs(det_D) > det_limit)) &
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t10_0 > det_limit)) &
                     ((centre_normal_z*det_D > 0)))));
-            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t10_0 <=
+                    det_limit)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                     isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) | (singular)
@@ -1810,11 +1815,13 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
             const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
             const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
             /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+            const double t11_0 = fabs(det_D);
             const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd)
                     & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) & isfinite(phidd));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((fabs(det_D) > det_limit)) &
+            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
                     ((centre_normal_z*det_D > 0)))));
-            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)));
+            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
+                    det_limit)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                     isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &

@@ -46,8 +46,10 @@ Status rules (per point, int8; see :mod:`deltagen.status`):
   ``|det D| / l_b^3 < tol`` (p is returned, pd / pdd / J are NaN); else OK.
 * ik_vel, ik_acc: the status of ik, with the rates NaN unless OK (a SINGULAR row has
   an infinite qd); the finite-output rule covers q and the rates.
-* ik: UNREACHABLE if for any chain ``E^2 + F^2 - G^2 < 0`` (row NaN); else SINGULAR if
-  for any chain ``|j_i| / (l_a l_b) < tol`` (q is returned); else OK.
+* ik: UNREACHABLE if for any chain ``E^2 + F^2 - G^2 < 0`` (row NaN), or if the target
+  lies in the other assembly mode; else SINGULAR if for any chain ``|j_i| / (l_a l_b) < tol``
+  or at the parallel singularity ``|det D| / l_b^3 <= tol`` (where fk(q) is SINGULAR too)
+  (q is returned); else OK.
 * Finite outputs (:mod:`deltagen.status`, the rule the generated C applies too): INVALID
   where an output the status gives is not finite (finite but huge inputs overflow, e.g. a
   target 1e155 m away); all outputs of the row NaN.
@@ -337,8 +339,11 @@ def ik(geom, p):
         # parallel singularity, and fk(q) would be its mirror image: unreachable here
         det = _det3(p3[:, None, :] - S)
         normal_z = np.cross(S[:, 1] - S[:, 0], S[:, 2] - S[:, 0])[:, 2]
-        above = (det * normal_z > 0.0) & (np.abs(det) / geom.l_b**3 > geom.singular_tol)
+        parallel = np.abs(det) / geom.l_b**3 <= geom.singular_tol
+        above = (det * normal_z > 0.0) & ~parallel
         unreachable |= above & ~bad
+        # at the parallel singularity fk(q) is SINGULAR (with collinear centres it has no p)
+        singular |= parallel
 
         status = np.full(n, OK, dtype=np.int8)
         status[singular] = SINGULAR

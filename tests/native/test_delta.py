@@ -207,10 +207,20 @@ def test_ik_solves_only_what_fk_returns(geom, rng):
         robot = DeltaRobot.from_geometry(geom, backend=backend)
         q, ok = robot.ik(p, errors="nan")
         assert ok.sum() > 1000
-        p_back, ok_back = robot.fk(q[ok], errors="nan")
-        # the rows fk calls singular still carry p
-        err = np.linalg.norm(p_back - p[ok], axis=1)
-        assert err.max() < 1e-9 * lb, (backend, p[ok][err.argmax()])
+        _, status = robot._core.ik(p)
+        solved = status == OK
+        p_back, status_back = robot._core.fk(q[solved])
+        err = np.linalg.norm(p_back - p[solved], axis=1)
+        assert err.max() < 1e-9 * lb, (backend, p[solved][err.argmax()])
+        assert np.all(status_back == OK), backend
+        # a valid SINGULAR row (q given) carries p back where fk has one (not with collinear
+        # sphere centres, a parallel singularity where fk is SINGULAR without a position)
+        singular = ok & (status == SINGULAR)
+        p_back, status_back = robot._core.fk(q[singular])
+        assert np.all((status_back == OK) | (status_back == SINGULAR)), backend
+        has_p = np.all(np.isfinite(p_back), axis=1)
+        err = np.linalg.norm(p_back[has_p] - p[singular][has_p], axis=1)
+        assert not has_p.any() or err.max() < 1e-9 * lb, backend
         # and some rows are unreachable only by the assembly mode: every crank reaches them
         c, s = np.cos(geom.theta), np.sin(geom.theta)
         x_i = p[:, :1] * c + p[:, 1:2] * s
@@ -591,3 +601,28 @@ def test_property_fourth_axis_passes_through(name, q, phi, phid, phidd):
     assert (p[0, 3], pd[0, 3], pdd[0, 3]) == (phi, phid, phidd)
     back, _ = core.ik(p)
     assert back[0, 3] == phi
+
+
+def test_ik_at_collinear_centres_is_singular_not_ok():
+    """ik's status agrees with fk's at the parallel singularity. With every crank at
+    a = acos(-r / l_a) the three sphere centres coincide on the base axis and any point at
+    l_b from them is reached: ik finds those q, but fk(q) has no position (collinear
+    centres), so ik must not call the row OK (a random draw of
+    test_ik_solves_only_what_fk_returns found p = (-0.024, 0.078, 0.482) m marked OK)."""
+    a = math.acos(-DEFAULT.r / DEFAULT.l_a)
+    S, _, _ = centres(DEFAULT, np.array([[a, a, a]]))
+    assert np.allclose(S[0, :, :2], 0.0, atol=1e-15) and np.ptp(S[0, :, 2]) < 1e-15
+    tilt = np.linspace(0.02, 0.6, 30)  # directions from the common centre, up and tilted
+    u = np.column_stack((np.sin(tilt) * 0.3, np.sin(tilt), np.cos(tilt)))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    p = S[0, 0] + DEFAULT.l_b * u
+    hit = 0
+    for backend in ("compiled", "reference"):
+        robot = DeltaRobot.from_geometry(DEFAULT, backend=backend)
+        q, status = robot._core.ik(np.ascontiguousarray(p))
+        at_a = np.all(np.abs(q - a) < 1e-6, axis=1)
+        hit += int(at_a.sum())
+        assert np.all(status[at_a] == SINGULAR), (backend, status[at_a])
+        _, fk_status = robot._core.fk(np.ascontiguousarray(q[at_a]))
+        assert np.all(fk_status == SINGULAR)
+    assert hit > 0  # the case was exercised

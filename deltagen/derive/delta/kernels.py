@@ -9,7 +9,8 @@ Status rules (identical in the numpy reference, see deltagen/status.py):
   SINGULAR     |det D| < tol l_b^3, D rows p - S_i        (p given, derivatives NaN)
   (ik) UNREACHABLE if a chain's rho^2 - G^2 < 0, or if the target lies in the other assembly
        mode (det D e_z > 0 with |det D| > tol l_b^3: fk would return the mirror point);
-       SINGULAR if rho^2 - G^2 < (2 tol l_a l_b)^2
+       SINGULAR if rho^2 - G^2 < (2 tol l_a l_b)^2, or if |det D| <= tol l_b^3 (the parallel
+       singularity, where fk(q) is SINGULAR too; centres collinear included: fk has no p there)
   INVALID      (every kernel, added by codegen.lowering.guard_outputs) an output the status
                gives is not finite: finite inputs that overflow; the row is all NaN
 """
@@ -388,7 +389,13 @@ def ik_kernel() -> Kernel:
                 unreachable,
                 sp.Or(*(ikd.disc[i] < 0 for i in range(3)), _other_assembly_mode_scaled()),
             ),
-            (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
+            (
+                singular,
+                sp.Or(
+                    *(ikd.disc[i] <= jq_limit for i in range(3)),
+                    sp.Abs(scaled_det_D) <= det_limit * rho_sq_product,
+                ),
+            ),
         ),
     )
     status = sp.Piecewise(
@@ -463,7 +470,13 @@ def _inverse_rates(with_acceleration: bool) -> Kernel:
                 unreachable,
                 sp.Or(*(ikd.disc[i] < 0 for i in range(3)), _other_assembly_mode()),
             ),
-            (singular, sp.Or(*(ikd.disc[i] <= jq_limit for i in range(3)))),
+            (
+                singular,
+                sp.Or(
+                    *(ikd.disc[i] <= jq_limit for i in range(3)),
+                    sp.Abs(fkd.det_D) <= det_limit,
+                ),
+            ),
         ),
     )
     status = sp.Piecewise(
