@@ -2,7 +2,8 @@
 (closed form, numpy, built on the structure detected by ``model.structure``), ``numeric``
 (damped Newton-Raphson), ``combined`` (explicit start + Newton), ``general6r`` (every
 solution of a general 6R arm, Raghavan-Roth elimination and an eigenvalue problem),
-``singularity``; and ``calibration`` (a built delta robot's per-chain geometry identified
+``singularity``; ``least_squares`` (the damped least-squares step the numeric solver and the
+calibration share); and ``calibration`` (a built delta robot's per-chain geometry identified
 from measured pairs). Joint-limit wrapping and the axis tests they share live in
 ``geometry`` (``limits``, ``axes``).
 
