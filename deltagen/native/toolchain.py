@@ -29,7 +29,6 @@ import os
 import platform
 import re
 import shlex
-import shutil
 import sys
 import sysconfig
 from pathlib import Path
@@ -37,7 +36,8 @@ from pathlib import Path
 from deltagen.errors import DeltagenError
 from deltagen.inputs import env_flag
 
-# subprocess and cffi are imported where a compiler runs: a warm load needs neither
+# shutil, subprocess and cffi are imported where a compiler is sought or run: a warm load
+# needs none of them
 
 #: Seconds one compiler run may take before the build gives up.
 TIMEOUT_S = 600
@@ -78,6 +78,8 @@ def compiler_identity() -> str:
 def find_compiler() -> str | None:
     """The plain C compiler a package is built with outside Python: ``$CC`` (its words: a
     command may carry flags), else cc, gcc or clang on PATH; None when there is none."""
+    import shutil
+
     candidates = [os.environ["CC"]] if os.environ.get("CC") else ["cc", "gcc", "clang"]
     for name in candidates:
         words = shlex.split(name)
@@ -99,6 +101,8 @@ CORTEX_M4 = (
 
 def cortex_m4_command() -> list[str] | None:
     """:data:`CORTEX_M4` when arm-none-eabi-gcc is on PATH, else None."""
+    import shutil
+
     return list(CORTEX_M4) if shutil.which(CORTEX_M4[0]) else None
 
 
