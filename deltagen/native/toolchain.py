@@ -31,7 +31,13 @@ import re
 import shlex
 import sys
 import sysconfig
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import subprocess
 
 from deltagen.errors import DeltagenError
 from deltagen.inputs import env_flag
@@ -173,7 +179,7 @@ def python_include() -> str:
 # ---------------------------------------------------------------- running
 
 
-def run(command: list[str], cwd: Path | str, what: str):
+def run(command: list[str], cwd: Path | str, what: str) -> subprocess.CompletedProcess[str]:
     """Run one compiler (or a program it built) in ``cwd`` with :data:`TIMEOUT_S`, output
     captured, no standard input: the CompletedProcess. BuildError naming the program when it
     is not found, or naming ``what`` when it took too long."""
@@ -197,12 +203,12 @@ def run(command: list[str], cwd: Path | str, what: str):
         raise BuildError(f"compiling {what} took over {TIMEOUT_S} s; gave up") from exc
 
 
-def message(proc) -> str:
+def message(proc: subprocess.CompletedProcess[str]) -> str:
     """The compiler's own text of a run (its standard error, else its output), stripped."""
     return (proc.stderr or proc.stdout or "").strip()
 
 
-def require_success(proc, command: list[str], what: str) -> None:
+def require_success(proc: subprocess.CompletedProcess[str], command: list[str], what: str) -> None:
     """BuildError "<what> failed (exit N)" with the command and the end of the compiler's own
     text when ``proc`` failed."""
     if proc.returncode != 0:
@@ -257,7 +263,7 @@ def compile_and_link(
     return [commands[src] for src in sources], link
 
 
-def write_cffi_wrapper(ffi, module_name: str, preamble: str, path: Path) -> Path:
+def write_cffi_wrapper(ffi: Any, module_name: str, preamble: str, path: Path) -> Path:
     """The cffi wrapper C of ``ffi`` (its cdef done) for the module ``module_name``, with
     ``preamble`` (the #includes of the real declarations) written to ``path``: cffi writes
     the C only, nothing is compiled and the working directory is left alone."""
@@ -268,14 +274,14 @@ def write_cffi_wrapper(ffi, module_name: str, preamble: str, path: Path) -> Path
 
 
 def build_cffi(
-    ffi,
+    ffi: Any,
     module_name: str,
     preamble: str,
-    sources,
-    out_dir: Path,
-    include_dirs=(),
-    flags=(),
-    libraries=("m",),
+    sources: Iterable[Path | str],
+    out_dir: Path | str,
+    include_dirs: Iterable[Path | str] = (),
+    flags: Sequence[str] = (),
+    libraries: Sequence[str] = ("m",),
 ) -> Path:
     """Build the cffi module ``module_name`` of ``ffi`` (its cdef done; ``preamble``: the C
     its wrapper starts with) and the C files ``sources`` into ``out_dir`` (created), with
@@ -300,7 +306,7 @@ def build_cffi(
     return so_path
 
 
-def import_extension(module_name: str, path: Path):
+def import_extension(module_name: str, path: Path) -> ModuleType:
     """Import the extension module ``module_name`` from the shared object ``path``;
     BuildError naming the file when the dynamic loader refuses it."""
     import importlib.util

@@ -27,7 +27,14 @@ def kept(s: np.ndarray, rcond: float) -> np.ndarray:
     return s > rcond * s[..., :1]
 
 
-def damped_step(U, s, Vt, r, lam2, keep) -> np.ndarray:
+def damped_step(
+    U: np.ndarray,
+    s: np.ndarray,
+    Vt: np.ndarray,
+    r: np.ndarray,
+    lam2: float | np.ndarray,
+    keep: np.ndarray,
+) -> np.ndarray:
     """dx = V diag(f) U^T r with f = s / (s^2 + lam2) on ``keep`` and 0 elsewhere (module
     doc). Batched: U (k, m, p), s and keep (k, p), Vt (k, p, n), r (k, m), lam2 (k,) ->
     (k, n); single: U (m, p), s and keep (p,), Vt (p, n), r (m,), lam2 a scalar -> (n,)
