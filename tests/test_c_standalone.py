@@ -614,7 +614,7 @@ def test_general6r_runtime_compiles_strict(tmp_path):
     export includes it): strict C99 warning-free, no global data, libm and GCC's four."""
     _copy_runtime(tmp_path)
     objects = []
-    for source in ("deltagen_eigen.c", "deltagen_general6r.c"):
+    for source in ("deltagen_eigen.c", "deltagen_general6r.c", "deltagen_linalg.c"):
         obj = source.replace(".c", ".o")
         _gcc([*STRICT, "-O2", "-c", source, "-o", obj], cwd=tmp_path)
         objects.append(obj)
