@@ -24,12 +24,10 @@ configurations within its joint limits.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import os
 import re
 import shutil
-import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass, field
@@ -39,6 +37,7 @@ import numpy as np
 
 from deltagen import status as st
 from deltagen.errors import DeltagenError
+from deltagen.native.toolchain import CORTEX_M4  # the README's Cortex-M4F stack column
 
 #: Unit roundoff of IEEE binary32 (round to nearest): 2^-24.
 FLOAT32_ROUNDOFF = 2.0**-24
@@ -235,75 +234,60 @@ def _example_pose(robot, kind):
 
 def compiler() -> str | None:
     """The host C compiler: $CC, else cc, gcc or clang on PATH (None if there is none)."""
-    candidates = [os.environ["CC"]] if os.environ.get("CC") else ["cc", "gcc", "clang"]
-    for name in candidates:
-        if shutil.which(name.split()[0]):
-            return name
-    return None
+    from deltagen.native.toolchain import find_compiler
+
+    return find_compiler()
 
 
-def _run(cmd, cwd, **kwargs) -> subprocess.CompletedProcess:
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600, **kwargs)
+def _compile(command: list[str], cwd, what: str, name: str) -> None:
+    """Run one compile of the package; ExportError with the compiler's own text when it
+    fails."""
+    from deltagen.native import toolchain
+
+    result = toolchain.run(command, cwd, what)
+    if result.returncode != 0:
+        text = toolchain.message(result)[-toolchain.MESSAGE_CHARS :]
+        raise ExportError(f"{name} could not compile {what}:\n{text}")
 
 
 def build_and_measure(directory: Path, sources, cc: str) -> tuple[dict, str]:
     """Compile the package's sources once with ``cc -std=c99 -O2 -fstack-usage``: the stack
     use of every function ({function: (bytes, static|dynamic|bounded)}); then link the
     example with those objects, run it and return its output."""
+    from deltagen.native import toolchain
+
     flags = ["-std=c99", "-O2", "-I", str(directory)]
-    usage: dict = {}
     with tempfile.TemporaryDirectory(prefix="deltagen-export-") as tmp:
         objects = []
         for source in sources:
             obj = str(Path(tmp) / Path(source).with_suffix(".o"))
             cmd = [*cc.split(), *flags, "-fstack-usage", "-c", str(directory / source), "-o", obj]
-            result = _run(cmd, cwd=tmp)
-            if result.returncode != 0:
-                raise ExportError(f"{cc} could not compile {source}:\n{result.stderr[-2000:]}")
+            _compile(cmd, tmp, source, cc)
             objects.append(obj)
-        for su in Path(tmp).glob("*.su"):
-            for line in su.read_text().splitlines():
-                # file.c:LINE:COL:function<TAB>bytes<TAB>static|dynamic|bounded
-                found = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
-                if found:
-                    usage[found.group(1)] = (int(found.group(2)), found.group(3))
+        usage = toolchain.stack_usage(Path(tmp))
         exe = str(Path(tmp) / "example")
         example = str(directory / "example.c")
-        built = _run([*cc.split(), *flags, "-o", exe, example, *objects, "-lm"], cwd=tmp)
+        link = [*cc.split(), *flags, "-o", exe, example, *objects, "-lm"]
+        built = toolchain.run(link, tmp, "the example")
         if built.returncode != 0:
             raise ExportError(f"{cc} could not build the example:\n{built.stderr[-2000:]}")
-        return usage, _run([exe], cwd=tmp).stdout
-
-
-#: The Cortex-M4F build the README's second stack column is measured with.
-CORTEX_M4 = (
-    "arm-none-eabi-gcc",
-    "-mcpu=cortex-m4",
-    "-mthumb",
-    "-mfloat-abi=hard",
-    "-mfpu=fpv4-sp-d16",
-)
+        return usage, toolchain.run([exe], tmp, "the example").stdout
 
 
 def stack_cortex_m4(directory: Path, sources) -> dict | None:
     """{function: bytes} of ``arm-none-eabi-gcc -std=c99 -O2 -fstack-usage`` for a
     Cortex-M4F, or None when that compiler is not installed."""
-    if shutil.which(CORTEX_M4[0]) is None:
+    from deltagen.native import toolchain
+
+    command = toolchain.cortex_m4_command()
+    if command is None:
         return None
-    usage: dict = {}
     with tempfile.TemporaryDirectory(prefix="deltagen-m4-") as tmp:
         for source in sources:
             obj = str(Path(tmp) / Path(source).with_suffix(".o"))
-            cmd = [*CORTEX_M4, "-std=c99", "-O2", "-fstack-usage", "-I", str(directory)]
-            result = _run([*cmd, "-c", str(directory / source), "-o", obj], cwd=tmp)
-            if result.returncode != 0:
-                raise ExportError(f"{CORTEX_M4[0]} could not compile {source}:\n{result.stderr}")
-        for su in Path(tmp).glob("*.su"):
-            for line in su.read_text().splitlines():
-                found = re.match(r".*:(\w+)\t(\d+)\t(\w+)", line)
-                if found:
-                    usage[found.group(1)] = int(found.group(2))
-    return usage
+            cmd = [*command, "-std=c99", "-O2", "-fstack-usage", "-I", str(directory)]
+            _compile([*cmd, "-c", str(directory / source), "-o", obj], tmp, source, command[0])
+        return {name: nbytes for name, (nbytes, _) in toolchain.stack_usage(Path(tmp)).items()}
 
 
 def load_package(
@@ -311,26 +295,26 @@ def load_package(
 ):
     """Compile the package's C (``package.files`` written in ``directory``) into a cffi
     module and import it: for the float32 measurement and the tests (``flags`` and
-    ``libraries``: -std=c99 -O2 and libm unless given)."""
+    ``libraries``: -std=c99 -O2 and libm unless given). Built by the toolchain, which never
+    changes the working directory (native/toolchain.py)."""
     import cffi
+
+    from deltagen.native import toolchain
 
     ffi = cffi.FFI()
     ffi.cdef(package.cdef)
     headers = [n for n in package.files if n.endswith(".h")]
-    ffi.set_source(
+    library = toolchain.build_cffi(
+        ffi,
         module_name,
         "".join(f'#include "{h}"\n' for h in headers),
-        sources=[str(directory / s) for s in package.sources],
-        include_dirs=[str(directory)],
-        extra_compile_args=list(flags or ["-std=c99", "-O2"]),
+        [directory / s for s in package.sources],
+        build_dir,
+        include_dirs=[directory],
+        flags=list(flags or ["-std=c99", "-O2"]),
         libraries=list(libraries or ["m"]),
     )
-    build_dir.mkdir(parents=True, exist_ok=True)
-    library = ffi.compile(tmpdir=str(build_dir), verbose=False)
-    spec = importlib.util.spec_from_file_location(module_name, library)
-    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
-    return module
+    return toolchain.import_extension(module_name, library)
 
 
 class PointLibrary:

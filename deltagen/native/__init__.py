@@ -12,5 +12,10 @@ machines' module. The speed guards' measures:
 ``manifest`` reads the kernel manifests (generated/<module>.kernels.json: each kernel's
 ports and widths) and fills the parameter structs, checked against their tables.
 
+``toolchain`` is the one C toolchain (compiler discovery, flags, compiler runs with a timeout
+and the compiler's own text, a cffi build that never changes directory, gcc's ``.su``
+stack-usage lines), used by ``build``, the lean extension, the speed guards and the export;
+``units`` splits a module's C into one translation unit per kernel for ``build``.
+
 May import: ``codegen``, ``derive``, ``model``, ``geometry``, the foundation modules.
 """

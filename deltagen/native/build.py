@@ -1,15 +1,16 @@
 """Build stage: compile a generated C module (and the runtime C it needs) into a cffi
-extension module, cached on disk under a key of everything that shapes the binary.
+extension module, cached on disk under a key of everything that shapes the binary. The
+compiler, its flags and its runs are the toolchain's (native/toolchain.py); the split into
+translation units is native/units.py; this module keeps the cache.
 
 How the cache stays sound (tests/native/test_build_cache.py puts each point under faults):
 
 * **One build per key at a time**, from threads and processes alike: a lock per key, a
   ``threading.Lock`` inside the process and an exclusive ``flock`` on a lock file across
   processes. The first caller builds; the others wait and then load its result.
-* **No working-directory changes**: cffi only writes the wrapper C
-  (``FFI.emit_c_code``); the compiler is run here as one subprocess with absolute paths
-  (cffi's own ``compile`` changes the process's working directory, which breaks other
-  threads).
+* **No working-directory changes**: cffi only writes the wrapper C and the toolchain runs
+  the compiler as subprocesses with absolute paths (toolchain.py: cffi's own ``compile``
+  changes the process's working directory, which breaks other threads).
 * **Verified artifacts**: a build happens in a private temporary folder; the shared object's
   size and SHA-256 go into a manifest next to it, and the folder is renamed into place in
   one atomic step. Before loading, the manifest is checked against the file: a truncated,
@@ -18,29 +19,19 @@ How the cache stays sound (tests/native/test_build_cache.py puts each point unde
 * **Clear errors**: a failed build raises :class:`BuildError` with the compiler's own error
   text; a successful build's warnings never reach the user's terminal. A cache path that is
   not a directory or is not writable gets an error naming the path.
-* **Parallel translation units** (a new arm's cold load): a module's C is split at build time
-  at its top-level function definitions (one kernel per unit, :func:`split_units`), each
-  unit being the file's preamble (includes, declarations, macros) and one kernel behind a
-  ``#line`` directive, so a compiler message names the module's own file and line. The
-  units, cffi's wrapper and the runtime .c files compile to objects on every core the
-  process may use (``os.sched_getaffinity``; ``DELTAGEN_BUILD_JOBS`` caps it), largest
-  first, then link into one shared object. No flag changes and no unit sees another's
-  code: with FMA contraction off (-std=c99, no -ffast-math) a kernel gives the same bits
-  in its own unit as in the whole file (tests/native/test_build_split.py). A file whose layout
-  the splitter does not recognise (a ``static`` definition, a preprocessor line or other
-  file-scope code between kernels) is compiled as one unit.
+* **Parallel translation units** (a new arm's cold load): a module's C is split at its
+  kernels (native/units.py, tests/native/test_build_split.py); the units, cffi's wrapper and the runtime .c files compile to
+  objects on every core the process may use (``os.sched_getaffinity``;
+  ``DELTAGEN_BUILD_JOBS`` caps it), largest first, then link into one shared object.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import hashlib
 import importlib.machinery
-import importlib.util
 import json
 import os
-import platform
 import re
 import shlex
 import sys
@@ -48,71 +39,27 @@ import sysconfig
 import threading
 from pathlib import Path
 
-from deltagen.errors import DeltagenError
-from deltagen.inputs import env_flag, env_positive_int
+from deltagen.inputs import env_positive_int
+from deltagen.native import toolchain
+from deltagen.native.toolchain import OPT_LEVELS as OPT_LEVELS
+from deltagen.native.toolchain import BuildError as BuildError
+from deltagen.native.toolchain import compile_flags as compile_flags
+from deltagen.native.toolchain import extension_flags as extension_flags
+from deltagen.native.units import split_units as split_units
+from deltagen.native.units import write_units
 from deltagen.paths import cache_dir, generated_dir, runtime_dir
 
-# cffi, shutil, subprocess, tempfile and concurrent.futures are imported where a build
-# runs: a warm load needs none of them (25 ms of imports)
+# cffi, shutil, tempfile and the toolchain's subprocess and concurrent.futures are imported
+# where a build runs: a warm load needs none of them (25 ms of imports)
 
 _LOADED: dict[str, object] = {}
 _GUARD = threading.Lock()  # guards _KEY_LOCKS and _LOADED
 _KEY_LOCKS: dict[str, threading.Lock] = {}
 _MANIFEST = "manifest.json"
-_BUILD_TIMEOUT_S = 600
 
-
-class BuildError(DeltagenError, RuntimeError):
-    """The C core could not be built or loaded; backend="reference" still works."""
-
-
-@functools.lru_cache(maxsize=1)
-def _vector_math_available() -> bool:
-    """glibc's vector math library (libmvec) is present: asked once per process, first by
-    loading it (the dynamic loader searches what ldconfig lists), else by
-    ctypes.util.find_library, whose import and ldconfig run cost a warm load 15 ms."""
-    if not (sys.platform.startswith("linux") and platform.machine() in ("x86_64", "AMD64")):
-        return False
-    import ctypes
-
-    try:
-        ctypes.CDLL("libmvec.so.1")
-        return True
-    except OSError:
-        import ctypes.util
-
-        return ctypes.util.find_library("mvec") is not None
-
-
-#: Optimisation levels a module may be built with: -O3 (checked-in modules, the default) and
-#: -O2 (arm modules rendered at run time, native/serial.py: gcc 12 compiles the UR5's
-#: kinematics module in 13 s of CPU instead of 17 s; their outputs were checked bit for bit
-#: against -O3 -- fk, frames, Jacobian, its derivative, ik_all, ik_newton, the dynamics).
-#: -O2 gets -fvect-cost-model=dynamic, -O3's model: gcc 12's -O2 default ("very-cheap")
-#: leaves every per-point loop scalar (found by native/vectorisation.py); with it they
-#: vectorise as at -O3, for 13 s of compile instead of 5 (frames and coriolis take most).
-#: Without -ffast-math and with -std=c99, which turns FMA contraction off, neither level may
-#: change a floating-point result; the vector cos/sin/atan2 of the `omp simd` loops are used
-#: at both levels.
-OPT_LEVELS = ("-O3", "-O2")
-
-
-def compile_flags(prefix: str, opt: str = "-O3") -> tuple[list[str], list[str]]:
-    """(extra compile args, libraries). IEEE semantics are kept (no -ffast-math): NaN for
-    unreachable points must survive. -fno-math-errno lets sqrt vectorise. ``opt``: one of
-    OPT_LEVELS."""
-    if opt not in OPT_LEVELS:
-        raise ValueError(f"opt must be one of {OPT_LEVELS}, not {opt!r}")
-    args = ["-std=c99", opt, "-fno-math-errno", "-Wall", "-Wextra"]
-    if opt == "-O2":
-        args.append("-fvect-cost-model=dynamic")  # vectorised per-point loops (OPT_LEVELS)
-    libraries = ["m"]
-    if env_flag("DELTAGEN_NATIVE", True, "off: no -march=native, a module for any x86-64 CPU"):
-        args.append("-march=native")
-    if _vector_math_available():
-        args += ["-fopenmp-simd", f"-D{prefix.upper()}_VECTOR_MATH"]
-        libraries.insert(0, "mvec")
-    return args, libraries
+#: The host compiler's command (the toolchain's; the speed guards and tests read it here).
+_compiler_command = toolchain.host_command
+_vector_math_available = toolchain.vector_math_available
 
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([A-Za-z0-9_]+\.h)"', re.MULTILINE)
@@ -171,65 +118,6 @@ def usable_cache_dir() -> Path:
     return root
 
 
-#: a top-level function definition: the start of a kernel (generated C puts return type,
-#: name and "(" at column 0 and indents everything inside a function)
-_DEFINITION = re.compile(r"^(?!(?:static|extern|typedef)\b)[A-Za-z_][A-Za-z0-9_ *]*?\b\w+\s*\(")
-
-
-def split_units(text: str) -> tuple[list[str], list[tuple[int, list[str]]]] | None:
-    """The preamble of a C file (its lines before the first top-level function definition)
-    and its kernels as (first line number, lines), each running to the next definition;
-    None when the file's layout is not one the split can keep exact: no definition, a
-    ``static`` one (invisible to the other units), a preprocessor line or other file-scope
-    code at column 0 between the kernels (only definitions, ``{``/``}``, comments and
-    blank lines may start there)."""
-    lines = text.split("\n")
-    starts = [i for i, line in enumerate(lines) if _DEFINITION.match(line)]
-    if len(starts) < 2:
-        return None
-    in_comment = False
-    for i in range(starts[0], len(lines)):
-        line = lines[i]
-        if in_comment:
-            in_comment = "*/" not in line
-            continue
-        if not line or line[0] in " \t{}" or i in starts:
-            continue
-        if line.startswith("/*"):
-            in_comment = "*/" not in line
-            continue
-        if line.startswith("//"):
-            continue
-        return None
-    bounds = [*starts, len(lines)]
-    kernels = [(start + 1, lines[start:end]) for start, end in zip(bounds, bounds[1:])]
-    return lines[: starts[0]], kernels
-
-
-def _unit_text(source: Path, preamble: list[str], kernel: tuple[int, list[str]]) -> str:
-    """One translation unit: the preamble and one kernel, each behind a ``#line`` naming
-    the whole file's path and line (so diagnostics read as they would for the whole file)."""
-    name = json.dumps(str(source))  # a C string literal: quotes and backslashes escaped
-    first, body = kernel
-    return "\n".join([f"#line 1 {name}", *preamble, f"#line {first} {name}", *body]) + "\n"
-
-
-def write_units(source: Path, text: str, work: Path, split: bool = True) -> list[Path]:
-    """The translation units of the C file ``source`` (its ``text``) to compile: one per
-    kernel (split_units), written into ``work`` behind ``#line``s naming ``source``; or
-    ``source`` itself when ``split`` is False or the layout cannot be split."""
-    units = split_units(text) if split else None
-    if units is None:
-        return [source]
-    preamble, kernels = units
-    written = []
-    for k, kernel in enumerate(kernels):
-        unit = work / f"{source.stem}.unit{k:03d}.c"
-        unit.write_text(_unit_text(source, preamble, kernel))
-        written.append(unit)
-    return written
-
-
 def _build_jobs() -> int:
     """How many compilers run at once: the cores this process may use, at most
     DELTAGEN_BUILD_JOBS when that is set (a positive integer; anything else is an
@@ -276,7 +164,7 @@ def _module_inputs(
             sys.version,
             sysconfig.get_platform(),
             _cffi_version(),
-            _compiler_identity(),
+            toolchain.compiler_identity(),
             "units: per kernel" if split else "units: one",
         ]
         + [f.name + "\0" + text for f, text in runtime.items()]
@@ -357,16 +245,7 @@ def _load_cached(module_name: str, build):
 
 
 def _import(module_name: str, shared_object: Path):
-    spec = importlib.util.spec_from_file_location(module_name, shared_object)
-    module = importlib.util.module_from_spec(spec)
-    try:
-        spec.loader.exec_module(module)
-    except ImportError as exc:
-        raise BuildError(
-            f"the compiled core {shared_object} does not load ({exc}); delete "
-            f"{shared_object.parent} to rebuild it"
-        ) from exc
-    return module
+    return toolchain.import_extension(module_name, shared_object)
 
 
 @contextlib.contextmanager
@@ -435,57 +314,13 @@ def _cffi_version() -> str:
     return _cffi_backend.__version__
 
 
-def extension_flags() -> list[str]:
-    """What an extension build of this interpreter adds to every compile (CCSHARED, -fwrapv,
-    -DNDEBUG), minus -g: the module build, the lean extension and the native/ checks that
-    compile a module as the build does."""
-    return [*shlex.split(sysconfig.get_config_var("CCSHARED") or "-fPIC"), "-fwrapv", "-DNDEBUG"]
-
-
-def _compiler_command() -> list[str]:
-    """The interpreter's own shared-object link command (compile and link in one step)."""
-    command = os.environ.get("LDSHARED") or sysconfig.get_config_var("LDSHARED") or "cc -shared"
-    parts = shlex.split(command)
-    cc = os.environ.get("CC")
-    if cc:  # honour CC like setuptools does
-        parts = shlex.split(cc) + parts[1:]
-    return parts
-
-
-def _compiler_identity() -> str:
-    return " ".join(_compiler_command())
-
-
-def _run_compiler(command: list[str], work: Path, what: str):
-    import subprocess
-
-    try:
-        return subprocess.run(
-            command,
-            cwd=work,
-            capture_output=True,
-            text=True,
-            timeout=_BUILD_TIMEOUT_S,
-            stdin=subprocess.DEVNULL,
-        )
-    except FileNotFoundError as exc:
-        raise BuildError(
-            f"no C compiler: {command[0]!r} was not found (set CC, or use "
-            "backend='reference', which needs none)"
-        ) from exc
-    except subprocess.TimeoutExpired as exc:
-        raise BuildError(f"compiling {what} took over {_BUILD_TIMEOUT_S} s; gave up") from exc
-
-
 def _build(
     module_name, target: Path, so_name: str, texts, files, runtime, args, libraries, split=True
 ) -> None:
     import shutil
     import tempfile
-    from concurrent.futures import ThreadPoolExecutor
 
     import cffi
-    from cffi.recompiler import make_c_source
 
     work = Path(tempfile.mkdtemp(prefix=f"{module_name}.", dir=target.parent))
     try:
@@ -495,57 +330,19 @@ def _build(
             (work / f.name).write_text(text)
         ffi = cffi.FFI()
         ffi.cdef(runtime_cdef(runtime) + texts[".cdef.h"])
-        wrapper = work / f"{module_name}.c"
-        # cffi writes the wrapper C only; the compiler runs below (no chdir, no printing)
-        make_c_source(ffi, module_name, f'#include "{files[".h"].name}"', str(wrapper))
+        wrapper = toolchain.write_cffi_wrapper(
+            ffi, module_name, f'#include "{files[".h"].name}"', work / f"{module_name}.c"
+        )
         out = work / "out"
         out.mkdir()
-        include = [f"-I{work}", f"-I{sysconfig.get_paths()['include']}"]
-        ccshared = extension_flags()
         module_c = work / files[".c"].name
         sources = [wrapper, *write_units(module_c, texts[".c"], work, split)]
         sources += [work / f.name for f in runtime if f.suffix == ".c"]
-        objects = {src: work / f"{src.stem}.o" for src in sources}
-        compiler = _compiler_command() + ccshared + args + include
-        commands = {src: compiler + ["-c", str(src), "-o", str(objects[src])] for src in sources}
-        # largest first: the longest compile starts at once, the small ones fill the gaps
-        order = sorted(sources, key=lambda src: -src.stat().st_size)
-        with ThreadPoolExecutor(max_workers=_build_jobs()) as pool:
-            procs = dict(
-                zip(
-                    order,
-                    pool.map(lambda src: _run_compiler(commands[src], work, src.name), order),
-                )
-            )
-        failed = [src for src in sources if procs[src].returncode != 0]
-        if failed:
-            first = procs[failed[0]]
-            # each distinct message once (an error in the preamble is every unit's)
-            texts_failed = "\n".join(
-                dict.fromkeys(
-                    (procs[src].stderr or procs[src].stdout or "").strip() for src in failed
-                )
-            )
-            raise BuildError(
-                f"compiling {files['.c'].name} failed (exit {first.returncode}):\n"
-                f"{shlex.join(commands[failed[0]])}\n{texts_failed[-4000:]}"
-            )
-        link = (
-            _compiler_command()
-            + ccshared
-            + args
-            + [str(objects[src]) for src in sources]
-            + ["-o", str(out / so_name)]
-            + [f"-l{lib}" for lib in libraries]
+        flags = [*extension_flags(), *args, f"-I{work}", f"-I{toolchain.python_include()}"]
+        compiled, link = toolchain.compile_and_link(
+            sources, out / so_name, work, flags, libraries, files[".c"].name, _build_jobs()
         )
-        proc = _run_compiler(link, work, so_name)
-        if proc.returncode != 0:
-            text = (proc.stderr or proc.stdout or "").strip()
-            raise BuildError(
-                f"linking {files['.c'].name} failed (exit {proc.returncode}):\n"
-                f"{shlex.join(link)}\n{text[-4000:]}"
-            )
-        _publish(out / so_name, target, link, [commands[src] for src in sources])
+        _publish(out / so_name, target, link, compiled)
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -579,7 +376,7 @@ def load_extension(source: Path, base_name: str):
     it cannot be built (no compiler, no Python.h) or loaded."""
     text = Path(source).read_text()
     numpy_include, numpy_version = _numpy_include()
-    python_include = sysconfig.get_paths()["include"]
+    python_include = toolchain.python_include()
     args = ["-std=c99", "-O2", "-Wall", "-Wextra"]
     key_material = "\0".join(
         [
@@ -590,7 +387,7 @@ def load_extension(source: Path, base_name: str):
             numpy_version,
             numpy_include,
             python_include,
-            _compiler_identity(),
+            toolchain.compiler_identity(),
         ]
     )
     module_name = f"_{base_name}_{hashlib.sha256(key_material.encode()).hexdigest()[:16]}"
@@ -606,7 +403,7 @@ def load_extension(source: Path, base_name: str):
             out = work / "out"
             out.mkdir()
             command = (
-                _compiler_command()
+                toolchain.host_command()
                 + extension_flags()
                 + args
                 + [
@@ -619,13 +416,8 @@ def load_extension(source: Path, base_name: str):
                     str(out / so_name),
                 ]
             )
-            proc = _run_compiler(command, work, name)
-            if proc.returncode != 0:
-                message = (proc.stderr or proc.stdout or "").strip()
-                raise BuildError(
-                    f"compiling {name} failed (exit {proc.returncode}):\n"
-                    f"{shlex.join(command)}\n{message[-4000:]}"
-                )
+            proc = toolchain.run(command, work, name)
+            toolchain.require_success(proc, command, f"compiling {name}")
             _publish(out / so_name, target, command)
         finally:
             shutil.rmtree(work, ignore_errors=True)

@@ -32,6 +32,7 @@ import subprocess
 from pathlib import Path
 
 from deltagen.native import build
+from deltagen.native import toolchain as tools
 
 POINTS = (512, 1024)
 MARCH = "-march=x86-64-v3"
@@ -54,7 +55,7 @@ def unavailable() -> str | None:
     missing = [f for f in ("avx2", "fma", "bmi2") if f not in flags]
     if missing:
         return f"the CPU lacks {', '.join(missing)}: it cannot run {MARCH} code"
-    if not build._vector_math_available():
+    if not tools.vector_math_available():
         return "no libmvec here: the kernels' vector cos/sin are not available"
     return None
 
@@ -74,7 +75,7 @@ def _first_line(command: list[str]) -> str:
 
 
 def _compiler() -> str:
-    return build._compiler_command()[0]
+    return tools.host_compiler()
 
 
 def toolchain() -> dict[str, str]:
@@ -89,9 +90,9 @@ def toolchain() -> dict[str, str]:
 
 
 def _flags(prefix: str) -> tuple[list[str], list[str]]:
-    args, libraries = build.compile_flags(prefix, "-O3")
+    args, libraries = tools.compile_flags(prefix, "-O3")
     args = [a for a in args if not a.startswith("-march=")] + [MARCH]
-    return build.extension_flags() + args, libraries
+    return tools.extension_flags() + args, libraries
 
 
 def signatures(cdef: str, prefix: str) -> dict[str, list[tuple[str, str]]]:
@@ -212,11 +213,7 @@ def _run(command: list[str], cwd: Path, what: str, timeout: float = 600):
     proc = subprocess.run(
         command, cwd=cwd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
     )
-    if proc.returncode != 0:
-        raise build.BuildError(
-            f"{what} failed (exit {proc.returncode}):\n{shlex.join(command)}\n"
-            f"{(proc.stderr or proc.stdout)[-4000:]}"
-        )
+    tools.require_success(proc, command, what)
     return proc
 
 

@@ -35,7 +35,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from deltagen.native import build
+from deltagen.native import build, toolchain
+from deltagen.native import units as unit_split
 
 #: the comment that names a loop the vectoriser must handle, on the loop's ``for`` line
 MARKER = re.compile(r"^(?P<indent>\s*)for \(.*\{\s*/\* loop: (?P<role>[a-z_]+) \*/\s*$")
@@ -81,7 +82,7 @@ def module_prefix(text: str) -> str:
 def kernels(text: str, prefix: str) -> list[tuple[str, int, int]]:
     """(kernel name without ``prefix_``, first line, last line) of every top-level function
     definition of a generated module, in order (the layout build.split_units reads)."""
-    units = build.split_units(text)
+    units = unit_split.split_units(text)
     if units is None:
         raise ValueError("the module's layout is not one build.split_units recognises")
     out = []
@@ -125,13 +126,13 @@ def unavailable() -> str | None:
         return f"no C compiler to ask ({exc})"
     if "gcc" not in version.lower() and "free software foundation" not in version.lower():
         return f"the compiler is not gcc ({version.splitlines()[0]!r}): no -fopt-info report"
-    if not build._vector_math_available():
+    if not toolchain.vector_math_available():
         return "no libmvec here: the build compiles scalar cos/sin, which cannot vectorise"
     return None
 
 
 def _compiler_version() -> str:
-    command = build._compiler_command()
+    command = toolchain.host_command()
     proc = subprocess.run(
         [command[0], "--version"], capture_output=True, text=True, timeout=60, check=True
     )
@@ -139,10 +140,10 @@ def _compiler_version() -> str:
 
 
 def _report_command(prefix: str, directory: Path, opt: str) -> list[str]:
-    args, _ = build.compile_flags(prefix, opt)
+    args, _ = toolchain.compile_flags(prefix, opt)
     include = [f"-I{directory}", f"-I{build.runtime_dir()}"]
     # -fsyntax-only would stop before the optimisers run: compile to an object, discard it
-    return build._compiler_command() + build.extension_flags() + args + include + [REPORT_FLAG]
+    return toolchain.host_command() + toolchain.extension_flags() + args + include + [REPORT_FLAG]
 
 
 def vector_report(
@@ -157,7 +158,7 @@ def vector_report(
 
     source = Path(source).resolve()
     prefix = prefix or module_prefix(text)
-    units = build.split_units(text)
+    units = unit_split.split_units(text)
     if units is None:
         raise ValueError(f"{source.name}: layout not recognised by build.split_units")
     preamble, pieces = units
@@ -167,7 +168,7 @@ def vector_report(
     cache.mkdir(exist_ok=True)
 
     def one(piece) -> str:
-        unit = build._unit_text(source, preamble, piece)
+        unit = unit_split._unit_text(source, preamble, piece)
         key = hashlib.sha256("\0".join([unit, shlex.join(command), version]).encode())
         stored = cache / f"{key.hexdigest()[:24]}.txt"
         if stored.is_file():
@@ -179,11 +180,11 @@ def vector_report(
                 command + ["-c", str(path), "-o", str(Path(work) / "unit.o")],
                 capture_output=True,
                 text=True,
-                timeout=build._BUILD_TIMEOUT_S,
+                timeout=toolchain.TIMEOUT_S,
                 stdin=subprocess.DEVNULL,
             )
         if proc.returncode != 0:
-            raise build.BuildError(
+            raise toolchain.BuildError(
                 f"compiling {source.name} (line {piece[0]}) for its vectoriser report "
                 f"failed (exit {proc.returncode}):\n{proc.stderr[-4000:]}"
             )

@@ -5,9 +5,10 @@ solution of a general 6R arm, Raghavan-Roth elimination and an eigenvalue proble
 ``singularity``, ``nearest`` (the closed form of a 6R chain's nearest exact arm, polished
 by Newton on the chain: a structure up to the rounding of its file); ``ik`` (the IK planner
 of a serial arm: which of those methods answers ``ik`` and ``ik_all``, built once per arm by
-``SerialRobot``, and the result types ``IKSolutions`` / ``IKResult``); and ``calibration``
-(a built delta robot's per-chain geometry identified from measured pairs). Joint-limit
-wrapping and the axis tests they share live in
+``SerialRobot``, and the result types ``IKSolutions`` / ``IKResult``); ``least_squares``
+(the damped least-squares step the numeric solver and the calibration share); and
+``calibration`` (a built delta robot's per-chain geometry identified from measured pairs).
+Joint-limit wrapping and the axis tests they share live in
 ``geometry`` (``limits``, ``axes``).
 
 May import: ``native``, ``reference``, ``codegen``, ``derive``, ``model``, ``geometry``,

@@ -55,6 +55,7 @@ from deltagen.errors import KinematicsError, rows_text
 from deltagen.inputs import InputError
 from deltagen.model.delta import DeltaGeometry
 from deltagen.native.delta import CompiledDelta
+from deltagen.solve.least_squares import damped_step, kept
 
 #: Per-chain parameter families and their column block in the fk_param_jacobian kernel
 #: (r_a and r_b share the block of r = r_a - r_b, with opposite signs).
@@ -358,12 +359,10 @@ def calibrate(
         scale = np.linalg.norm(J, axis=0)
         scale[scale == 0.0] = 1.0
         U, s, Vt = np.linalg.svd(J / scale, full_matrices=False)
-        keep = s > rcond * s[0] if s.size and s[0] > 0 else np.zeros_like(s, dtype=bool)
-        g = U.T @ r
+        keep = kept(s, rcond)
         improved = False
         for _ in range(30):
-            damp = np.where(keep, s / (s * s + lam * s[0] ** 2), 0.0)
-            step = -(Vt.T @ (damp * g)) / scale
+            step = -damped_step(U, s, Vt, r, lam * s[0] ** 2, keep) / scale
             trial = np.clip(x + step, box[:, 0], box[:, 1])  # projected onto the bounds
             step = trial - x
             try:

@@ -123,6 +123,7 @@ from deltagen.geometry.limits import shift_into_limits
 from deltagen.geometry.rotations import rot_log as rotation_vector  # rotation_vector: public
 from deltagen.geometry.rotations import vee
 from deltagen.inputs import InputError, as_float_array
+from deltagen.solve.least_squares import damped_step, kept
 
 __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
 
@@ -609,10 +610,9 @@ def _newton_step(A, r, err, mu, damped, c0, k_nh, q, mid, null_gain, step_limit,
         U, s, Vt = np.linalg.svd(As, full_matrices=False)
         sm = s[:, -1]
         smin[slow] = sm
-        keep = s > _RCOND * s[:, :1]
+        keep = kept(s, _RCOND)
         lam2 = lam2_of(sm, slow)
-        f = np.where(keep, s / np.where(keep, s * s + lam2[:, None], 1.0), 0.0)
-        d = np.einsum("kri,kr->ki", Vt, f * np.einsum("kmr,km->kr", U, rs))
+        d = damped_step(U, s, Vt, rs, lam2, keep)
         if m == n:
             gauss = (lam2 <= (GAUSS_REL * sm) ** 2) & (sm >= SIGMA_WELL)
             if np.any(gauss):

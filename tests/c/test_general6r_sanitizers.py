@@ -166,7 +166,7 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
     conv = (rng.random((6, 20)) < 0.7).astype(float)
     qlim = np.array([[-2.5, 2.5], [-np.inf, np.inf]] + [[-np.pi, np.pi]] * 4)
     for ext in ("c", "h"):
-        for name in ("deltagen_general6r", "deltagen_eigen"):
+        for name in ("deltagen_general6r", "deltagen_eigen", "deltagen_linalg"):
             shutil.copy(paths.runtime_dir() / f"{name}.{ext}", tmp_path)
     shutil.copy(paths.runtime_dir() / "deltagen_limits.h", tmp_path)
     results = []
@@ -189,6 +189,7 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
             "driver.c",
             "deltagen_general6r.c",
             "deltagen_eigen.c",
+            "deltagen_linalg.c",
             "-o",
             "driver",
             "-lm",

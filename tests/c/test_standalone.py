@@ -578,7 +578,7 @@ def test_general6r_runtime_compiles_strict(source_dir, objects):
     export includes it): strict C99 warning-free, no global data, libm and GCC's four."""
     built = [
         str(objects(source, [*STRICT, "-O2"]))
-        for source in ("deltagen_eigen.c", "deltagen_general6r.c")
+        for source in ("deltagen_eigen.c", "deltagen_general6r.c", "deltagen_linalg.c")
     ]
     _check_symbols(built, source_dir, allowed=LIBM | GCC_REQUIRED)
 

@@ -57,7 +57,6 @@ from __future__ import annotations
 import os
 import platform
 import subprocess
-import sysconfig
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -70,6 +69,7 @@ from deltagen.apps.bench.engine import Throughput
 from deltagen.apps.bench.timing import Style, cell, ratio
 from deltagen.inputs import check_memory
 from deltagen.native.manifest import kernels, output_widths
+from deltagen.native.toolchain import host_compiler
 
 QUANTITIES = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "inverse_dynamics")
 #: The throughput targets for the compiled core [ns per point].
@@ -372,7 +372,8 @@ def _cpu_model() -> str:
 
 
 def _compiler() -> str:
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
+    """The host compiler the cores are built with (native.toolchain) and its version line."""
+    cc = host_compiler()
     try:
         out = subprocess.run([cc, "--version"], capture_output=True, text=True, timeout=10)
         first = out.stdout.splitlines()[0].strip() if out.stdout else ""

@@ -5,6 +5,7 @@
 #include "deltagen_general6r.h"
 
 #include "deltagen_limits.h"
+#include "deltagen_linalg.h" /* deltagen_lu, deltagen_lu_solve: the 12 x 12 solves */
 
 #include <math.h>
 
@@ -15,66 +16,6 @@
 
 #define N12 12
 #define N24 24
-
-/* LU factorisation with partial pivoting of the 12 x 12 A in place (GVL Alg. 3.4.1);
- * piv[k] the row swapped into k; -1 at an exactly zero pivot. */
-static int lu12(double *A, int *piv)
-{
-    for (int k = 0; k < N12; ++k) {
-        int p = k;
-        double best = fabs(A[k * N12 + k]);
-        for (int i = k + 1; i < N12; ++i) {
-            if (fabs(A[i * N12 + k]) > best) {
-                best = fabs(A[i * N12 + k]);
-                p = i;
-            }
-        }
-        piv[k] = p;
-        if (best == 0.0) {
-            return -1;
-        }
-        if (p != k) {
-            for (int j = 0; j < N12; ++j) {
-                const double t = A[k * N12 + j];
-                A[k * N12 + j] = A[p * N12 + j];
-                A[p * N12 + j] = t;
-            }
-        }
-        const double inv = 1.0 / A[k * N12 + k];
-        for (int i = k + 1; i < N12; ++i) {
-            const double f = A[i * N12 + k] * inv;
-            A[i * N12 + k] = f;
-            for (int j = k + 1; j < N12; ++j) {
-                A[i * N12 + j] -= f * A[k * N12 + j];
-            }
-        }
-    }
-    return 0;
-}
-
-/* Solve (LU) x = b in place for b of 12 values (LU, piv from lu12). */
-static void lu12_solve(const double *LU, const int *piv, double *b)
-{
-    for (int k = 0; k < N12; ++k) {
-        const double t = b[k];
-        b[k] = b[piv[k]];
-        b[piv[k]] = t;
-    }
-    for (int i = 1; i < N12; ++i) {
-        double s = b[i];
-        for (int j = 0; j < i; ++j) {
-            s -= LU[i * N12 + j] * b[j];
-        }
-        b[i] = s;
-    }
-    for (int i = N12 - 1; i >= 0; --i) {
-        double s = b[i];
-        for (int j = i + 1; j < N12; ++j) {
-            s -= LU[i * N12 + j] * b[j];
-        }
-        b[i] = s / LU[i * N12 + i];
-    }
-}
 
 static int solve_pose(const double *M, double cond_limit, double imag_tol, const double *start,
                       int *nreal, double *x, double *V)
@@ -92,7 +33,7 @@ static int solve_pose(const double *M, double cond_limit, double imag_tol, const
         n1 = s > n1 ? s : n1;
     }
     memcpy(LU, M2, sizeof LU);
-    if (lu12(LU, piv) != 0) {
+    if (deltagen_lu(LU, N12, piv, NULL) != 0) {
         return 1;
     }
     double n1inv = 0.0;
@@ -100,7 +41,7 @@ static int solve_pose(const double *M, double cond_limit, double imag_tol, const
         for (int i = 0; i < N12; ++i) {
             col[i] = i == j ? 1.0 : 0.0;
         }
-        lu12_solve(LU, piv, col);
+        deltagen_lu_solve(LU, piv, N12, col);
         double s = 0.0;
         for (int i = 0; i < N12; ++i) {
             inv[i * N12 + j] = col[i];
@@ -154,10 +95,10 @@ static int solve_pose(const double *M, double cond_limit, double imag_tol, const
         }
         double v[N12];
         memcpy(v, start, sizeof v);
-        if (lu12(Mx, piv) != 0) {
+        if (deltagen_lu(Mx, N12, piv, NULL) != 0) {
             return 3;
         }
-        lu12_solve(Mx, piv, v);
+        deltagen_lu_solve(Mx, piv, N12, v);
         double norm = 0.0;
         for (int i = 0; i < N12; ++i) {
             norm += v[i] * v[i];

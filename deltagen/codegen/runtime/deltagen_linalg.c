@@ -104,7 +104,7 @@ void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const
     }
 }
 
-int deltagen_gauss(double *A, size_t s, double *b)
+int deltagen_lu(double *A, size_t s, int *piv, double *b)
 {
     for (size_t j = 0; j < s; ++j) {
         size_t p = j;
@@ -112,6 +112,9 @@ int deltagen_gauss(double *A, size_t s, double *b)
             if (fabs(A[i * s + j]) > fabs(A[p * s + j])) {
                 p = i;
             }
+        }
+        if (piv != NULL) {
+            piv[j] = (int)p;
         }
         if (!(A[p * s + j] != 0.0)) {
             return -1;
@@ -122,26 +125,62 @@ int deltagen_gauss(double *A, size_t s, double *b)
                 A[j * s + k] = A[p * s + k];
                 A[p * s + k] = t;
             }
-            const double t = b[j];
-            b[j] = b[p];
-            b[p] = t;
+            if (b != NULL) {
+                const double t = b[j];
+                b[j] = b[p];
+                b[p] = t;
+            }
         }
         const double pivot_inv = 1.0 / A[j * s + j];
         for (size_t i = j + 1; i < s; ++i) {
             const double f = A[i * s + j] * pivot_inv;
-            for (size_t k = j; k < s; ++k) {
+            A[i * s + j] = f;
+            for (size_t k = j + 1; k < s; ++k) {
                 A[i * s + k] -= f * A[j * s + k];
             }
-            b[i] -= f * b[j];
+            if (b != NULL) {
+                b[i] -= f * b[j];
+            }
         }
     }
+    return 0;
+}
+
+/* Back substitution U x = b in place (U: the upper triangle of LU, s x s). */
+static void lu_back(const double *LU, size_t s, double *b)
+{
     for (size_t i = s; i-- > 0;) {
         double x = b[i];
         for (size_t k = i + 1; k < s; ++k) {
-            x -= A[i * s + k] * b[k];
+            x -= LU[i * s + k] * b[k];
         }
-        b[i] = x / A[i * s + i];
+        b[i] = x / LU[i * s + i];
     }
+}
+
+void deltagen_lu_solve(const double *LU, const int *piv, size_t s, double *b)
+{
+    for (size_t k = 0; k < s; ++k) {
+        const double t = b[k];
+        b[k] = b[piv[k]];
+        b[piv[k]] = t;
+    }
+    for (size_t i = 1; i < s; ++i) {
+        double x = b[i];
+        for (size_t j = 0; j < i; ++j) {
+            x -= LU[i * s + j] * b[j];
+        }
+        b[i] = x;
+    }
+    lu_back(LU, s, b);
+}
+
+int deltagen_gauss(double *A, size_t s, double *b)
+{
+    if (deltagen_lu(A, s, NULL, b) != 0) {
+        return -1;
+    }
+    lu_back(A, s, b);
     return 0;
 }
 

@@ -33,8 +33,17 @@ int deltagen_cholesky_relative(double *A, size_t s, double *inv, double rtol);
 void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const double *b,
                              double *x);
 
-/* Gauss elimination with partial pivoting: A x = b for the s x s A (destroyed), x in b;
- * 0, or -1 if a pivot is zero. */
+/* LU factorisation with partial pivoting (GVL Alg. 3.4.1) of the s x s A in place: U on and
+ * above the diagonal, the multipliers of L below it; piv[j] (s values, or NULL) the row
+ * swapped into row j. When b is not NULL the same row operations are applied to it (the
+ * forward half of Gauss elimination). 0, or -1 at a zero (or NaN) pivot. */
+int deltagen_lu(double *A, size_t s, int *piv, double *b);
+
+/* Solve A x = b in place for b (s values) from deltagen_lu's LU and piv (b NULL there). */
+void deltagen_lu_solve(const double *LU, const int *piv, size_t s, double *b);
+
+/* Gauss elimination with partial pivoting: A x = b for the s x s A (destroyed), x in b
+ * (deltagen_lu with b, then back substitution); 0, or -1 if a pivot is zero. */
 int deltagen_gauss(double *A, size_t s, double *b);
 
 /* The Gram matrix of the k x N matrix A: A^T A (N x N) if N <= k, else A A^T (k x k),
