@@ -261,8 +261,12 @@ def test_cli_sweep_at_a_non_dask_address_ends_quickly_without_allocating(tmp_pat
 def test_ctrl_c_ends_a_sweep_with_130_and_no_traceback(tmp_path):
     spec = tmp_path / "long.toml"
     spec.write_text(SPEC.replace("n = 4", "n = 4096").replace("step = 0.12", "step = 0.05"))
+    # Ctrl-C's disposition as a terminal gives it: a child inherits an ignored SIGINT, and
+    # Python then never raises KeyboardInterrupt (a library run earlier in this pytest
+    # worker may have left SIGINT ignored)
     code = (
-        "import sys\nfrom deltagen.cli import main\nprint('ready', flush=True)\n"
+        "import signal, sys\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
+        "from deltagen.cli import main\nprint('ready', flush=True)\n"
         "sys.exit(main(sys.argv[1:]))"
     )
     proc = subprocess.Popen(

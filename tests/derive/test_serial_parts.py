@@ -12,7 +12,7 @@ from helpers import PARTS_ROWS
 from deltagen import SerialRobot
 from deltagen.codegen.serial import arm_sources
 from deltagen.derive.serial.kernels import PARTS
-from deltagen.native.build import _DEFINITION
+from deltagen.native.units import _DEFINITION
 
 
 def _functions(sources: dict[str, str]) -> dict[str, list[str]]:

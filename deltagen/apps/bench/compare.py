@@ -19,7 +19,7 @@ REF is either
 Every measure is the public API on a batch, nanoseconds per point: the delta's fk, fk_vel,
 fk_acc, jacobian, ik and inverse_dynamics and the Puma 560's fk, frames, jacobian,
 jacobian_dot, inverse_dynamics, mass_matrix and forward_dynamics, on the workloads of
-``deltagen bench`` (apps/bench.py: crank angles in [-0.3, 0.9] rad, the arm within its joint
+``deltagen bench`` (apps/bench/sections.py: crank angles in [-0.3, 0.9] rad, the arm within its joint
 limits). The probe that a process runs uses only the public API that every version has, so
 an old commit can be measured with it; a measure its version lacks is shown as n/a.
 """
@@ -41,7 +41,7 @@ from deltagen.errors import DeltagenError
 from deltagen.inputs import read_regular_file
 
 #: measures (label) -> (robot, method, JSON section, JSON quantity): the batched quantities
-#: of ``deltagen bench`` (apps/bench.py), so that a stored JSON has every one
+#: of ``deltagen bench`` (apps/bench/sections.py), so that a stored JSON has every one
 MEASURES = {
     **{f"delta {q}": ("delta", q, "throughput", q) for q in QUANTITIES},
     **{f"{SERIAL_ROBOT} {q}": (SERIAL_ROBOT, q, "serial", q) for q in SERIAL_QUANTITIES},
