@@ -92,6 +92,23 @@ def pinocchio_chain(path, chain, at=None, gravity=None):
     return model
 
 
+def chain_pose_fk(path, chain, base, tip):
+    """Pinocchio's fk of a chain of the file, as a function of q (N, n): the pose (N, 4, 4)
+    of frame ``tip`` in frame ``base`` (the chain's joints free, every other joint at 0)."""
+    model = pinocchio_chain(path, chain)
+    data = model.createData()
+    root, fid = model.getFrameId(base), model.getFrameId(tip)
+
+    def fk(q):
+        out = np.empty((len(q), 4, 4))
+        for k, qk in enumerate(q):
+            pin.framesForwardKinematics(model, data, qk)
+            out[k] = np.linalg.solve(data.oMf[root].homogeneous, data.oMf[fid].homogeneous)
+        return out
+
+    return fk
+
+
 def assert_gravity_as_pinocchio(robot, model, rng, count=50):
     data = model.createData()
     lim = np.clip(robot.qlim, -np.pi, np.pi)

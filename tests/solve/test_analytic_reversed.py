@@ -143,7 +143,7 @@ TALOS_LEGS = {
 @pytest.mark.skipif(not ROBOTS_DIR.is_dir(), reason="example-robot-data (test extra) is absent")
 @pytest.mark.parametrize("side", sorted(TALOS_LEGS))
 def test_talos_legs_every_solution_as_pinocchio(side):
-    pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
+    pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
     file, base, tip = TALOS_LEGS[side]
     path = ROBOTS_DIR / file
     with warnings.catch_warnings():
@@ -155,19 +155,8 @@ def test_talos_legs_every_solution_as_pinocchio(side):
         q = np.array([-0.25, -0.12, -1.72, 1.89, -0.25, -0.2])
         Q, valid = leg.ik_all(leg.fk(q))
         assert np.any(valid & np.all(_angle(Q - q) < 1e-8, axis=-1))
-    full = pin.buildModelFromUrdf(str(path))
-    chain = [j.name for j in leg.description.joints]
-    lock = [k for k in range(1, full.njoints) if full.names[k] not in chain]
-    model = pin.buildReducedModel(full, lock, pin.neutral(full))
-    data = model.createData()
-    root, fid = model.getFrameId(base), model.getFrameId(tip)
+    from pinocchio_oracles import chain_pose_fk
 
-    def pin_fk(q):
-        out = np.empty((len(q), 4, 4))
-        for k, qk in enumerate(q):
-            pin.framesForwardKinematics(model, data, qk)
-            out[k] = np.linalg.solve(data.oMf[root].homogeneous, data.oMf[fid].homogeneous)
-        return out
-
+    pin_fk = chain_pose_fk(path, [j.name for j in leg.description.joints], base, tip)
     q = _well_conditioned_poses(leg, np.random.default_rng(4))
     _assert_complete(leg, q, fk=pin_fk)

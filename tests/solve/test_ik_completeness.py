@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import random_6r_arm
 
 from deltagen import IncompleteSolutionsWarning, SerialRobot
 from deltagen.geometry.limits import fit_limits
@@ -179,17 +180,7 @@ def test_every_chain_complete(name):
 def test_random_6r_arms_complete():
     rng = np.random.default_rng(7)
     for seed in range(3):
-        r = np.random.default_rng(100 + seed)
-        rows = [
-            dict(
-                a=float(r.uniform(0.1, 0.8)),
-                alpha=float(r.uniform(-np.pi, np.pi)),
-                d=float(r.uniform(-0.5, 0.5)),
-                offset=float(r.uniform(-1, 1)),
-            )
-            for _ in range(6)
-        ]
-        arm = SerialRobot.from_dh(rows, "standard", name=f"r6_{seed}", backend="reference")
+        arm = random_6r_arm(100 + seed, name=f"r6_{seed}")
         assert method_of(arm) == "general6r"
         complete, found, err = completeness(arm, well_conditioned(arm, rng, 30))
         assert complete and found.all() and err <= 1e-10
@@ -263,24 +254,12 @@ def test_icub_leg_as_pinocchio():
     """Every solution's pose by pinocchio reading the same file, and ik through the same
     solver. (The compiled backend runs the same numpy solver for such a chain: its C has no
     closed form, a build of some 45 s this file leaves out.)"""
-    pin = pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
+    pytest.importorskip("pinocchio", reason="pinocchio (test extra) is not installed")
     arm = load("icub_right_leg")
     file, base, tip, _ = CHAINS["icub_right_leg"]
-    full = pin.buildModelFromUrdf(str(ROBOTS_DIR / file))
-    chain = [j.name for j in arm.description.joints]
-    lock = [k for k in range(1, full.njoints) if full.names[k] not in chain]
-    model = pin.buildReducedModel(full, lock, pin.neutral(full))
-    assert [model.names[k] for k in range(1, model.njoints)] == chain
-    data = model.createData()
-    root, fid = model.getFrameId(base), model.getFrameId(tip)
+    from pinocchio_oracles import chain_pose_fk
 
-    def pin_fk(q):
-        out = np.empty((len(q), 4, 4))
-        for k, qk in enumerate(q):
-            pin.framesForwardKinematics(model, data, qk)
-            out[k] = np.linalg.solve(data.oMf[root].homogeneous, data.oMf[fid].homogeneous)
-        return out
-
+    pin_fk = chain_pose_fk(ROBOTS_DIR / file, [j.name for j in arm.description.joints], base, tip)
     q = well_conditioned(arm, np.random.default_rng(12), 100)
     complete, found, err = completeness(arm, q, fk=pin_fk)
     assert complete and found.all() and err <= 1e-10
