@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import random_6r_arm
 
 from deltagen import IncompleteSolutionsWarning, SerialRobot
 from deltagen.geometry.limits import fit_limits
@@ -178,6 +177,8 @@ def test_every_chain_complete(name):
 
 
 def test_random_6r_arms_complete():
+    from helpers import random_6r_arm  # here: the file also runs as a script (__main__)
+
     rng = np.random.default_rng(7)
     for seed in range(3):
         arm = random_6r_arm(100 + seed, name=f"r6_{seed}")
