@@ -59,10 +59,12 @@ import numpy as np
 
 from deltagen.geometry import axes as geo
 from deltagen.geometry.axes import NONPARALLEL_TOL
+from deltagen.geometry.rotations import rot_exp
 from deltagen.inputs import InputError
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import JointAxes, detect, joint_axes, reversed_description
 from deltagen.solve.analytic import AnalyticSolver, analytic_solver, solver_for
+from deltagen.solve.least_squares import damped_step, kept
 
 __all__ = [
     "SNAP_SINE",
@@ -249,7 +251,7 @@ def polish(
             oi = np.einsum("mij,j->mi", Racc, O0[i]) + tacc
             J[:, :3, i] = np.cross(wi, p - oi)
             J[:, 3:, i] = wi
-            Ri = _rodrigues(W0[i], qa[:, i])
+            Ri = rot_exp(np.multiply.outer(qa[:, i], W0[i]))  # about the unit axis W0[i]
             ti = O0[i] - Ri @ O0[i]
             tacc = np.einsum("mij,mj->mi", Racc, ti) + tacc
             Racc = Racc @ Ri
@@ -257,25 +259,11 @@ def polish(
         try:  # square and regular (the usual case): one batched LU solve
             dq = np.linalg.solve(J, e[..., None])[..., 0]
         except np.linalg.LinAlgError:  # a singular row: least squares by SVD for the batch
-            dq = _lstsq(J, e)
+            U, sv, Vt = np.linalg.svd(J, full_matrices=False)
+            dq = damped_step(U, sv, Vt, e, 0.0, kept(sv, 1e-12))  # undamped: the pseudo-inverse
         q[idx] = qa + dq
     q[~start] = np.nan
     return q, converged & start
-
-
-def _lstsq(J, e):
-    """Least-squares steps of a batch of (6, n) systems: the pseudo-inverse by SVD
-    (singular directions below 1e-12 of the largest dropped)."""
-    U, s, Vt = np.linalg.svd(J, full_matrices=False)
-    inv = np.where(s > 1e-12 * s[:, :1], 1.0 / np.where(s > 0, s, 1.0), 0.0)
-    return np.einsum("mji,mj,mj->mi", Vt, inv, np.einsum("mji,mj->mi", U, e))
-
-
-def _rodrigues(w, angle):
-    """Rotation matrices (M, 3, 3) about the unit axis w by ``angle`` (M,)."""
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
 
 
 class NearestSolver(AnalyticSolver):
