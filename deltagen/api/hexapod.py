@@ -27,7 +27,9 @@ base frame.
 
 ``errors="raise"`` (default) raises InputError, UnreachableError or SingularityError naming
 the rows; ``errors="nan"`` gives NaN rows and returns a boolean ``valid`` mask last.
-``backend="reference"`` runs the numpy reference (reference/hexapod.py) instead of C.
+``backend="reference"`` runs the numpy reference (reference/hexapod.py) instead of C; the
+class sits on api/base.RobotFamily (``default``/``genhexkins``, ``from_toml``,
+``from_geometry``, ``with_backend``, ``threads``, the errors-mode shaping).
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ from typing import Any
 import numpy as np
 
 from deltagen import status as st
+from deltagen.api.base import ReferenceCore, RobotFamilyWithDefault
+from deltagen.api.hints import Backend
 from deltagen.errors import SingularityError, UnreachableError, rows_text
 from deltagen.geometry.rotations import matrix_from_rpy, rot_exp
 from deltagen.inputs import InputError, as_float_array, check_errors_mode
@@ -50,6 +54,8 @@ FK_TOL = 1e-11
 FK_MAX_ITER = 50
 FK_DAMPING = 1.0
 FK_MAX_STEP = 0.5
+#: the reference functions a Hexapod calls (reference/hexapod.py)
+_CALLS = ("ik", "jacobian", "joint_angles", "fk")
 
 
 @dataclass(frozen=True)
@@ -64,53 +70,55 @@ class FkResult:
     iterations: np.ndarray
 
 
-class Hexapod:
+class Hexapod(RobotFamilyWithDefault):
     """A hexapod: six legs from base joints a_i (base frame) to platform joints b_i
-    (platform frame); keyword arguments as HexapodGeometry (model/hexapod.py)."""
+    (platform frame); keyword arguments as HexapodGeometry (model/hexapod.py). The default
+    robot (``default()``, also ``genhexkins()``) is LinuxCNC genhexkins' geometry."""
+
+    _core: Any  # CompiledHexapod or a ReferenceCore: the same call signatures
+    _model_class = HexapodGeometry
+    geometry: HexapodGeometry
 
     def __init__(
         self,
         base_joints: Any,
         platform_joints: Any,
         *,
-        backend: str = "compiled",
+        backend: Backend = "compiled",
         threads: int | None = None,
         **geometry: Any,
     ) -> None:
-        g = HexapodGeometry(base_joints=base_joints, platform_joints=platform_joints, **geometry)
-        self._init(g, backend, threads)
+        self.geometry = HexapodGeometry(
+            base_joints=base_joints, platform_joints=platform_joints, **geometry
+        )
+        self._init_backend(backend, threads)
 
-    @classmethod
-    def from_geometry(
-        cls, geometry: HexapodGeometry, backend: str = "compiled", threads: int | None = None
-    ) -> Hexapod:
-        robot = cls.__new__(cls)
-        robot._init(geometry, backend, threads)
-        return robot
-
-    @classmethod
-    def genhexkins(cls, backend: str = "compiled") -> Hexapod:
-        """LinuxCNC genhexkins' default geometry (model/hexapod.py), in metres."""
-        return cls.from_geometry(HexapodGeometry.genhexkins(), backend=backend)
-
-    @classmethod
-    def from_toml(cls, path: Any, backend: str = "compiled") -> Hexapod:
-        return cls.from_geometry(HexapodGeometry.from_toml(path), backend=backend)
-
-    def _init(self, geometry: HexapodGeometry, backend: str, threads: int | None) -> None:
-        if backend not in ("compiled", "reference"):
-            raise InputError(f"backend must be 'compiled' or 'reference', got {backend!r}")
-        self.geometry = geometry
-        self.backend = backend
+    def _init_backend(self, backend: Any, threads: int | None = None) -> None:
+        self._check_backend(backend, threads)
+        self._single = {}  # no one-pose lean path: every call takes the batched core
         if backend == "compiled":
             from deltagen.native.hexapod import CompiledHexapod
 
-            self._core: Any = CompiledHexapod(geometry, threads=threads)
+            self._core = CompiledHexapod(self.geometry, threads=self._threads)
         else:
-            self._core = None
-        from deltagen.reference.hexapod import ReferenceHexapod
+            from deltagen.reference import hexapod as reference
 
-        self._reference = ReferenceHexapod(geometry)
+            self._core = ReferenceCore(reference, (self.geometry,), _CALLS)
+
+    @classmethod
+    def from_geometry(
+        cls, geometry: HexapodGeometry, backend: Backend = "compiled", threads: int | None = None
+    ) -> Hexapod:
+        return cls._from_model(geometry, backend, threads)
+
+    @classmethod
+    def genhexkins(cls, backend: Backend = "compiled", *, threads: int | None = None) -> Hexapod:
+        """LinuxCNC genhexkins' default geometry (model/hexapod.py), in metres: default()."""
+        return cls.default(backend, threads=threads)
+
+    @property
+    def name(self) -> str:
+        return self.geometry.name
 
     def __repr__(self) -> str:
         return f"Hexapod(name={self.geometry.name!r}, backend={self.backend!r})"
@@ -174,31 +182,28 @@ class Hexapod:
         )
         return InputError(f"{name}: {what} in rows {rows_text(rows)}", rows)
 
-    def _finish(self, errors, lead, outs, ok, names, status=None):
-        """Reshape outputs to the leading shape; raise or NaN the failing rows."""
-        if errors == "raise" and not ok.all():
-            bad = np.flatnonzero(~ok)
-            invalid = bad if status is None else bad[status[bad] == st.INVALID]
-            if invalid.size:
-                raise self._bad_input(names, invalid)
-            unreachable = bad[status[bad] == st.UNREACHABLE]
-            if unreachable.size:
-                raise UnreachableError(
-                    f"fk did not converge (lengths the platform cannot take, or a start "
-                    f"pose outside the solution's basin) in rows {rows_text(unreachable)}",
-                    unreachable,
-                )
-            raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
-        shaped = []
-        for out in outs:
-            out = out.copy() if out.base is not None else out
-            out[~ok] = np.nan
-            shaped.append(out.reshape(lead + out.shape[1:]))
-        result = shaped[0] if len(shaped) == 1 else tuple(shaped)
-        if errors == "nan":
-            valid = ok.reshape(lead)
-            return (*shaped, valid) if len(shaped) > 1 else (result, valid)
-        return result
+    def _raise(self, status, ok, names, inputs):
+        """INVALID rows: InputError naming the input (``names``: its name in messages);
+        UNREACHABLE (fk only): UnreachableError; else SingularityError."""
+        bad = np.flatnonzero(~ok)
+        invalid = bad[status[bad] == st.INVALID]
+        if invalid.size:
+            raise self._bad_input(names, invalid)
+        unreachable = bad[status[bad] == st.UNREACHABLE]
+        if unreachable.size:
+            raise UnreachableError(
+                f"fk did not converge (lengths the platform cannot take, or a start "
+                f"pose outside the solution's basin) in rows {rows_text(unreachable)}",
+                unreachable,
+            )
+        raise SingularityError(f"singular pose in rows {rows_text(bad)}", bad)
+
+    def _done(self, errors, lead, outs, ok, name):
+        """``_finish`` of outputs whose failing rows (not ``ok``: a bad input, or a kernel
+        status other than OK) are all the input's fault: INVALID, an InputError naming
+        ``name``."""
+        status = np.where(ok, st.OK, st.INVALID).astype(np.int8)
+        return self._finish(errors, lead, status, outs, name, None)
 
     # ----------------------------------------------------------------- kinematics
 
@@ -206,14 +211,8 @@ class Hexapod:
         """Leg lengths (..., 6) [m] of poses (..., 4, 4)."""
         check_errors_mode(errors)
         lead, flat, ok = self._poses(pose)
-        if self._core is not None:
-            lengths, status = self._core.ik(flat)
-            ok &= status == st.OK
-        else:
-            with np.errstate(all="ignore"):
-                lengths = self._reference.ik(flat.reshape(-1, 4, 4))
-            ok &= np.all(np.isfinite(lengths), axis=1)
-        return self._finish(errors, lead, [lengths], ok, "pose")
+        lengths, status = self._core.ik(flat)
+        return self._done(errors, lead, [lengths], ok & (status == st.OK), "pose")
 
     def fk_result(
         self,
@@ -256,18 +255,9 @@ class Hexapod:
             raise InputError(f"guess must be one pose or one per point ({n}), got {len(G)}")
         if not good.all():
             raise self._bad_input("guess", np.flatnonzero(~good))
-        if self._core is not None:
-            P, residual, iterations, status = self._core.fk(
-                flat, G, tol, damping, max_step, max_iter, warm_start=trajectory
-            )
-            P = P.reshape(-1, 4, 4)
-        else:
-            P, status = self._reference.fk(flat, G.reshape(-1, 4, 4))
-            with np.errstate(all="ignore"):
-                residual = np.max(np.abs(self._reference.ik(P) - flat), axis=1)
-            iterations = np.zeros(n, dtype=np.int32)
-            bad = ~np.all(np.isfinite(flat), axis=1)
-            status[bad] = st.INVALID
+        P, residual, iterations, status = self._core.fk(
+            flat, G, tol, damping, max_step, max_iter, warm_start=trajectory
+        )
         return FkResult(
             P.reshape(lead + (4, 4)),
             status.reshape(lead),
@@ -284,28 +274,21 @@ class Hexapod:
         result = self.fk_result(lengths, guess, **options)
         lead = result.status.shape
         status = result.status.reshape(-1)
-        ok = status == st.OK
-        return self._finish(errors, lead, [result.pose.reshape(-1, 4, 4)], ok, "lengths", status)
+        return self._finish(errors, lead, status, [result.pose.reshape(-1, 4, 4)], "lengths", None)
 
     # ----------------------------------------------------------------- rates and forces
 
     def _jacobian(self, pose):
         lead, flat, ok = self._poses(pose)
-        if self._core is not None:
-            _, J, status = self._core.jacobian(flat)
-            ok &= status == st.OK
-        else:
-            with np.errstate(all="ignore"):
-                J = self._reference.jacobian(flat.reshape(-1, 4, 4))
-            ok &= np.all(np.isfinite(J), axis=(1, 2))
-        return lead, J, ok
+        _, J, status = self._core.jacobian(flat)
+        return lead, J, ok & (status == st.OK)
 
     def jacobian(self, pose: Any, errors: str = "raise") -> Any:
         """The leg-length Jacobian J (..., 6, 6) = dl/d(v, w): row i is
         (u_i, (R b_i) x u_i), u_i the unit vector of leg i."""
         check_errors_mode(errors)
         lead, J, ok = self._jacobian(pose)
-        return self._finish(errors, lead, [J], ok, "pose")
+        return self._done(errors, lead, [J], ok, "pose")
 
     def condition(self, pose: Any, errors: str = "raise") -> Any:
         """The 2-norm condition number of J (...,), rotation columns scaled by the robot's
@@ -317,7 +300,7 @@ class Hexapod:
         with np.errstate(all="ignore"):
             s = np.linalg.svd(np.where(ok[:, None, None], scaled, 0.0), compute_uv=False)
             cond = np.where(s[:, -1] > 0, s[:, 0] / s[:, -1], np.inf)
-        return self._finish(errors, lead, [cond], ok, "pose")
+        return self._done(errors, lead, [cond], ok, "pose")
 
     def _solve(self, pose, rhs, name, transpose):
         lead, J, ok = self._jacobian(pose)
@@ -335,7 +318,7 @@ class Hexapod:
         if ok.any():
             x[ok] = np.linalg.solve(A[ok], b[ok, :, None])[..., 0]
         status = np.where(ok, st.OK, np.where(singular, st.SINGULAR, st.INVALID))
-        return lead, x, ok, status
+        return lead, x, status
 
     def leg_rates(self, pose: Any, twist: Any, errors: str = "raise") -> Any:
         """Leg rates dl/dt (..., 6) [m/s] of a platform twist (v, w) (..., 6)."""
@@ -348,13 +331,13 @@ class Hexapod:
         ok &= np.all(np.isfinite(v), axis=1)
         with np.errstate(all="ignore"):
             ld = np.einsum("nij,nj->ni", J, v)
-        return self._finish(errors, lead, [ld], ok, "pose or twist")
+        return self._done(errors, lead, [ld], ok, "pose or twist")
 
     def twist(self, pose: Any, leg_rates: Any, errors: str = "raise") -> Any:
         """The platform twist (v, w) (..., 6) of leg rates (..., 6): J^-1 ldot."""
         check_errors_mode(errors)
-        lead, x, ok, status = self._solve(pose, leg_rates, "leg_rates", transpose=False)
-        return self._finish(errors, lead, [x], ok, "pose or leg_rates", status)
+        lead, x, status = self._solve(pose, leg_rates, "leg_rates", transpose=False)
+        return self._finish(errors, lead, status, [x], "pose or leg_rates", None)
 
     def leg_forces(self, pose: Any, wrench: Any, errors: str = "raise") -> Any:
         """Leg forces F (..., 6) [N] whose resultant wrench on the platform is ``wrench``
@@ -362,8 +345,8 @@ class Hexapod:
         F = J^-T w; F_i > 0 pushes the platform away from the base. To hold an external
         load w_ext, pass -w_ext (a payload of mass m: wrench (0, 0, m g, ...))."""
         check_errors_mode(errors)
-        lead, x, ok, status = self._solve(pose, wrench, "wrench", transpose=True)
-        return self._finish(errors, lead, [x], ok, "pose or wrench", status)
+        lead, x, status = self._solve(pose, wrench, "wrench", transpose=True)
+        return self._finish(errors, lead, status, [x], "pose or wrench", None)
 
     # ----------------------------------------------------------------- limits
 
@@ -372,14 +355,8 @@ class Hexapod:
         against its platform joint's axis R n_b,i (the leg pointing to the base)."""
         check_errors_mode(errors)
         lead, flat, ok = self._poses(pose)
-        if self._core is not None:
-            angles, status = self._core.joint_angles(flat)
-            ok &= status == st.OK
-        else:
-            with np.errstate(all="ignore"):
-                angles = self._reference.joint_angles(flat.reshape(-1, 4, 4))
-            ok &= np.all(np.isfinite(angles), axis=1)
-        return self._finish(errors, lead, [angles], ok, "pose")
+        angles, status = self._core.joint_angles(flat)
+        return self._done(errors, lead, [angles], ok & (status == st.OK), "pose")
 
     def limits(self, pose: Any) -> dict[str, np.ndarray]:
         """Per pose (...,) booleans: ``legs`` (every length within leg_limits), ``base_joints``

@@ -1,5 +1,5 @@
 """The ``threads`` property every robot class with a compiled core shares (DeltaRobot,
-SerialRobot, LinearDelta, Tripod, FiveAxisMachine): one copy of its check and its doc."""
+SerialRobot, LinearDelta, Tripod, FiveAxisMachine, Hexapod): one copy of its check and its doc."""
 
 from __future__ import annotations
 

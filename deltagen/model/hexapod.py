@@ -174,6 +174,11 @@ class HexapodGeometry:
         )
 
     @classmethod
+    def default(cls) -> HexapodGeometry:
+        """The family's default robot (api.base.RobotFamilyWithDefault): genhexkins'."""
+        return cls.genhexkins()
+
+    @classmethod
     def from_mapping(cls, data: Any, source: str = "robot description") -> HexapodGeometry:
         if not isinstance(data, dict):
             raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")

@@ -1,12 +1,19 @@
 """The hexapod in numpy, written from the model (model/hexapod.py), never from the
-derivation: the compiled core is checked against it.
+derivation: the compiled core is checked against it, and ``backend="reference"`` runs on it.
+
+Each function takes the geometry first and then the compiled core's arrays (poses (N, 16),
+leg lengths (N, 6), C-contiguous float64), and returns what the compiled core returns, the
+per-point status last (api/base.ReferenceCore gives the API the compiled core's call
+signatures from these).
 
 Written differently on purpose: the platform joints are mapped by homogeneous transforms
 (T @ [b_i, 1]), the Jacobian rows use the moment arm p_i - p of the world-frame joint
 (not R b_i), the joint angles use arccos of normalised dot products, and the forward
 kinematics is SciPy's least-squares solver (trust-region reflective) on the pose
 parametrised as (p, rotation vector of R R_guess^T), not the damped Newton of the C
-runtime.
+runtime (whose options tol, damping, max_step and max_iter it therefore does not read;
+``warm_start`` it honours: each point starts from the previous point's pose where that one
+converged).
 """
 
 from __future__ import annotations
@@ -15,61 +22,107 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from deltagen.geometry.rotations import rot_exp
-from deltagen.status import OK, UNREACHABLE
+from deltagen.status import INVALID, OK, UNREACHABLE
+
+#: the reference fk's acceptance: max_i |l_i(pose) - l_i| [m]
+FK_TOL = 1e-13
 
 
-class ReferenceHexapod:
-    def __init__(self, geometry):
-        self.g = geometry
-        self.a = np.array(geometry.base_joints)  # (6, 3)
-        self.b_h = np.hstack([np.array(geometry.platform_joints), np.ones((6, 1))])  # (6, 4)
-        self.n_a = np.array(geometry.base_axes)
-        self.n_b = np.array(geometry.platform_axes)
+def _homogeneous_platform_joints(g):
+    return np.hstack([np.array(g.platform_joints), np.ones((6, 1))])  # (6, 4)
 
-    def platform_points(self, T):
-        """World positions of the platform joints, (N, 6, 3), from poses (N, 4, 4)."""
-        return np.einsum("nrc,jc->njr", T, self.b_h)[..., :3]
 
-    def ik(self, T):
-        """Leg lengths (N, 6) of poses (N, 4, 4)."""
-        return np.linalg.norm(self.platform_points(T) - self.a, axis=-1)
+def platform_points(g, T):
+    """World positions of the platform joints, (N, 6, 3), from poses (N, 4, 4)."""
+    return np.einsum("nrc,jc->njr", T, _homogeneous_platform_joints(g))[..., :3]
 
-    def jacobian(self, T):
-        """dl/d(v, w) (N, 6, 6), w in the base frame, v of the platform origin."""
-        pts = self.platform_points(T)
-        legs = pts - self.a
-        u = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
+
+def leg_lengths(g, T):
+    """Leg lengths (N, 6) of poses (N, 4, 4)."""
+    return np.linalg.norm(platform_points(g, T) - np.array(g.base_joints), axis=-1)
+
+
+def _status(*outs):
+    """OK where every output of a row is finite, else INVALID (the finite-output rule)."""
+    finite = np.ones(len(outs[0]), dtype=bool)
+    for out in outs:
+        finite &= np.all(np.isfinite(out.reshape(len(out), -1)), axis=1)
+    return np.where(finite, OK, INVALID).astype(np.int8)
+
+
+def ik(g, pose):
+    """Leg lengths (N, 6) and status of poses (N, 16)."""
+    with np.errstate(all="ignore"):
+        lengths = leg_lengths(g, pose.reshape(-1, 4, 4))
+    return lengths, _status(lengths)
+
+
+def jacobian(g, pose):
+    """Leg lengths (N, 6), dl/d(v, w) (N, 6, 6) (w in the base frame, v of the platform
+    origin) and status of poses (N, 16)."""
+    T = pose.reshape(-1, 4, 4)
+    with np.errstate(all="ignore"):
+        pts = platform_points(g, T)
+        legs = pts - np.array(g.base_joints)
+        lengths = np.linalg.norm(legs, axis=-1)
+        u = legs / lengths[..., None]
         arm = pts - T[:, None, :3, 3]
-        return np.concatenate([u, np.cross(arm, u)], axis=-1)
+        J = np.concatenate([u, np.cross(arm, u)], axis=-1)
+    return lengths, J, _status(J)
 
-    def joint_angles(self, T):
-        """(N, 12): base joint angles, then platform joint angles [rad]."""
-        legs = self.platform_points(T) - self.a
+
+def joint_angles(g, pose):
+    """(N, 12): base joint angles, then platform joint angles [rad], and status."""
+    T = pose.reshape(-1, 4, 4)
+    with np.errstate(all="ignore"):
+        legs = platform_points(g, T) - np.array(g.base_joints)
         u = legs / np.linalg.norm(legs, axis=-1, keepdims=True)
-        nb = np.einsum("nrc,jc->njr", T[:, :3, :3], self.n_b)
-        base = np.arccos(np.clip(np.sum(u * self.n_a, axis=-1), -1, 1))
+        nb = np.einsum("nrc,jc->njr", T[:, :3, :3], np.array(g.platform_axes))
+        base = np.arccos(np.clip(np.sum(u * np.array(g.base_axes), axis=-1), -1, 1))
         plat = np.arccos(np.clip(np.sum(-u * nb, axis=-1), -1, 1))
-        return np.concatenate([base, plat], axis=-1)
+        angles = np.concatenate([base, plat], axis=-1)
+    return angles, _status(angles)
 
-    def fk(self, lengths, guess, tol=1e-13):
-        """Poses (N, 4, 4) and status of leg lengths (N, 6) from start poses (N, 4, 4), one
-        least-squares solve per point; UNREACHABLE where the residual stays above ``tol``."""
-        lengths = np.asarray(lengths, dtype=float)
-        out = np.full((len(lengths), 4, 4), np.nan)
-        status = np.full(len(lengths), UNREACHABLE, dtype=np.int8)
-        for k, (l_k, T0) in enumerate(zip(lengths, guess)):
 
-            def pose(x, T0=T0):
-                T = np.eye(4)
-                T[:3, :3] = rot_exp(x[3:]) @ T0[:3, :3]
-                T[:3, 3] = T0[:3, 3] + x[:3]
-                return T
+def _solve_one(g, l_k, T0):
+    """The pose (4, 4) of leg lengths l_k (6,) from T0 by least squares, or None."""
 
-            def residual(x, l_k=l_k, pose=pose):
-                return self.ik(pose(x)[None])[0] - l_k
+    def pose(x):
+        T = np.eye(4)
+        T[:3, :3] = rot_exp(x[3:]) @ T0[:3, :3]
+        T[:3, 3] = T0[:3, 3] + x[:3]
+        return T
 
-            sol = least_squares(residual, np.zeros(6), xtol=1e-15, ftol=1e-15, gtol=1e-15)
-            if np.max(np.abs(residual(sol.x))) <= tol:
-                out[k] = pose(sol.x)
-                status[k] = OK
-        return out, status
+    def residual(x):
+        return leg_lengths(g, pose(x)[None])[0] - l_k
+
+    sol = least_squares(residual, np.zeros(6), xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    return pose(sol.x) if np.max(np.abs(residual(sol.x))) <= FK_TOL else None
+
+
+def fk(g, lengths, guess, tol=None, damping=None, max_step=None, max_iter=None, warm_start=False):
+    """Poses (N, 16), residuals max_i |l_i(pose) - l_i| (N,) [m], iterations (N,) (0: the
+    reference does not count them) and status of leg lengths (N, 6) from start poses
+    (N, 16): one least-squares solve per point, UNREACHABLE where the residual stays above
+    FK_TOL, INVALID for non-finite lengths. The C Newton's options (tol, damping, max_step,
+    max_iter) are accepted for the compiled core's signature and not read."""
+    lengths = np.asarray(lengths, dtype=float)
+    starts = np.asarray(guess, dtype=float).reshape(-1, 4, 4)
+    n = len(lengths)
+    out = np.full((n, 4, 4), np.nan)
+    status = np.full(n, UNREACHABLE, dtype=np.int8)
+    finite = np.all(np.isfinite(lengths), axis=1)
+    status[~finite] = INVALID
+    previous = None
+    for k in range(n):
+        if not finite[k]:
+            previous = None
+            continue
+        start = previous if warm_start and previous is not None else starts[k]
+        found = previous = _solve_one(g, lengths[k], start)
+        if found is not None:
+            out[k] = found
+            status[k] = OK
+    with np.errstate(all="ignore"):
+        residual = np.max(np.abs(leg_lengths(g, out) - lengths), axis=1)
+    return out.reshape(n, 16), residual, np.zeros(n, dtype=np.int32), status

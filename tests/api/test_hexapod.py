@@ -564,3 +564,71 @@ def test_threads_give_the_bits_of_one_thread():
     assert np.array_equal(one.jacobian(T), two.jacobian(T))
     a, b = one.fk_result(lengths[:41_000]), two.fk_result(lengths[:41_000])
     assert np.array_equal(a.status, b.status) and np.array_equal(a.pose, b.pose, equal_nan=True)
+
+
+# ----------------------------------------------------------------- the shared base
+
+
+def test_with_backend_round_trip_agrees_with_the_compiled_core(robot, reachable):
+    """RobotFamily.with_backend: the same geometry on the numpy reference (its ReferenceCore
+    over reference/hexapod.py) and back; the two backends agree on every quantity, fk by
+    two different solvers (C damped Newton, SciPy least squares) from the same start."""
+    ref = robot.with_backend("reference")
+    assert ref.backend == "reference" and ref.geometry is robot.geometry
+    back = ref.with_backend("compiled")
+    assert back.backend == "compiled" and back.geometry is robot.geometry
+    T = reachable[:40]
+    lengths = robot.ik(T)
+    np.testing.assert_allclose(ref.ik(T), lengths, rtol=0, atol=1e-12)
+    assert np.array_equal(back.ik(T), lengths)
+    np.testing.assert_allclose(ref.jacobian(T), robot.jacobian(T), rtol=0, atol=1e-12)
+    twist = np.linspace(-0.1, 0.1, 6)
+    np.testing.assert_allclose(
+        ref.twist(T, robot.leg_rates(T, twist)),
+        robot.twist(T, ref.leg_rates(T, twist)),
+        rtol=0,
+        atol=1e-12,
+    )
+    np.testing.assert_allclose(ref.fk(lengths), robot.fk(lengths), rtol=0, atol=1e-12)
+    # warm start: the reference also starts each point from the previous converged pose
+    s = np.linspace(0.0, 1.0, 12)
+    path = robot.pose(
+        np.column_stack([0.02 * s, 0 * s, 0.5 + 0.02 * s]),
+        rpy=np.column_stack([0 * s, 0 * s, 1.2 * s]),
+    )
+    np.testing.assert_allclose(
+        ref.fk(robot.ik(path), guess=path[0], trajectory=True), path, rtol=0, atol=1e-12
+    )
+
+
+def test_reference_backend_flags_bad_lengths_like_the_compiled_core(robot):
+    """Non-finite lengths are INVALID on both backends (the reference's solver never sees
+    them), unreachable ones UNREACHABLE or SINGULAR, never OK."""
+    ref = robot.with_backend("reference")
+    lengths = np.array([[math.nan] * 6, [0.75, 0.75, 1.5, 0.75, 0.75, 0.75], [0.76] * 6])
+    for r in (robot, ref):
+        result = r.fk_result(lengths)
+        assert result.status[0] == st.INVALID and result.status[1] != st.OK
+        assert result.status[2] == st.OK
+        with pytest.raises(InputError, match=r"lengths: a non-finite value.* in rows \[0\]"):
+            r.fk(lengths)
+        _, valid = r.fk(lengths, errors="nan")
+        assert valid.tolist() == [False, False, True]
+
+
+def test_default_from_toml_and_threads_come_from_the_base(tmp_path):
+    """default() is genhexkins' robot; from_toml and the constructors take threads=; the
+    threads property checks its value and reaches the compiled core; the reference
+    backend is single-threaded."""
+    robot = Hexapod.default(threads=2)
+    assert robot.geometry == HexapodGeometry.genhexkins() and robot.name == "genhex"
+    assert robot.threads == 2 and robot._core.threads == 2
+    robot.threads = 1
+    assert robot._core.threads == 1
+    with pytest.raises(InputError, match="threads"):
+        robot.threads = 0
+    with pytest.raises(InputError, match="threads"):
+        Hexapod.genhexkins(threads=-1)
+    loaded = Hexapod.from_toml(paths.robots_dir() / "hexapod_genhex.toml", threads=1)
+    assert loaded.threads == 1 and loaded.with_backend("reference").threads == 1
+    assert loaded.with_backend("reference")._core.threads is None
