@@ -61,8 +61,10 @@ def _protect_negative_numbers(argv):
     return [" " + a if _NEGATIVE_NUMBER.match(a) else a for a in argv]
 
 
-def build_parser() -> tuple[argparse.ArgumentParser, dict]:
-    """The `deltagen` parser and its subcommands' parsers by name, each added by its app."""
+def build_parser(commands=None) -> tuple[argparse.ArgumentParser, dict]:
+    """The `deltagen` parser and its subcommands' parsers by name, each added by its app:
+    every command of COMMANDS (``--help`` lists them all), or only those named in
+    ``commands`` (the one a command line asks for: its app alone is imported)."""
     parser = _Parser(
         prog="deltagen",
         description=__doc__,
@@ -71,7 +73,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
     )
     sub = parser.add_subparsers(dest="command", required=True)
     added: set = set()
-    for command in COMMANDS:
+    for command in COMMANDS if commands is None else commands:
         if id(serving := app(command)) not in added:  # kinematics adds fk and ik at once
             added.add(id(serving))
             serving.add_parser(sub)
@@ -79,9 +81,12 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
 
 
 def _parse(argv: list) -> argparse.Namespace:
-    """The parsed arguments (SystemExit for --help or a usage error, argparse printed why)."""
-    parser, commands = build_parser()
-    if argv and argv[0] in INTERMIXED:
+    """The parsed arguments (SystemExit for --help or a usage error, argparse printed why).
+    A known command builds its own subcommand only; anything else (``--help``, no command,
+    an unknown one) the whole parser, so argparse lists every command."""
+    known = bool(argv) and argv[0] in COMMANDS
+    parser, commands = build_parser((argv[0],) if known else None)
+    if known and argv[0] in INTERMIXED:
         # options may come between the values; negative numbers stay values
         return commands[argv[0]].parse_intermixed_args(_protect_negative_numbers(argv[1:]))
     return parser.parse_args(argv)

@@ -79,7 +79,7 @@ from deltagen.plan.trajectory import (
     solve_ik,
 )
 from deltagen.reference import serial as reference
-from deltagen.solve import singularity
+from deltagen.solve import least_squares, singularity
 
 __all__ = [
     "REMEDIES",
@@ -327,10 +327,10 @@ def _solve_frozen(robot, p, R, f, value, guess, tol, max_iter):
         e_eq = np.concatenate([p - T[:3, 3], [value - q[f]]])
         e_o = rot_log(R @ T[:3, :3].T)
         A = np.vstack([J[:3], E])
-        dq_eq = np.linalg.lstsq(A, e_eq, rcond=None)[0]
+        dq_eq = least_squares.solve(A, e_eq)  # the minimum-norm solution
         Nsp = np.linalg.svd(A)[2][A.shape[0] :].T
         B = J[3:] @ Nsp
-        z = np.linalg.lstsq(B, e_o - J[3:] @ dq_eq, rcond=None)[0]
+        z = least_squares.solve(B, e_o - J[3:] @ dq_eq)
         dq = dq_eq + Nsp @ z
         q = q + dq
         if float(np.max(np.abs(dq))) <= 1e-13 and float(np.linalg.norm(e_eq)) <= 10 * tol:

@@ -90,6 +90,7 @@ from deltagen.geometry.rotations import (  # noqa: F401
     slerp,
 )
 from deltagen.inputs import InputError, as_float_array
+from deltagen.solve import least_squares
 
 _AXES = "xyz"
 
@@ -617,16 +618,10 @@ class Task:
 
 
 def _solve(Jt, e, damping):
-    """Damped least squares dq = J^T (J J^T + lam^2 I)^-1 e; lam = 0: J^-1 e (square) or the
-    minimum-norm solution."""
-    m = Jt.shape[0]
-    if damping == 0.0:
-        if m == Jt.shape[1]:
-            return np.linalg.solve(Jt, e)
-        return np.linalg.lstsq(Jt, e, rcond=None)[0]
-    A = Jt @ Jt.T
-    lam2 = (damping**2) * max(np.trace(A) / m, 1e-300)
-    return Jt.T @ np.linalg.solve(A + lam2 * np.eye(m), e)
+    """The damped least-squares step dq of the task Jacobian Jt and error e
+    (solve/least_squares.py): lambda^2 = damping^2 times the mean eigenvalue of Jt Jt^T;
+    damping 0: Jt^-1 e (square and regular) or the minimum-norm solution."""
+    return least_squares.solve(Jt, e, damping**2, scale="mean")
 
 
 def newton_step(robot, q, task: Task, p, R=None, qj=None, damping=0.0):

@@ -55,7 +55,7 @@ from deltagen.errors import KinematicsError, rows_text
 from deltagen.inputs import InputError
 from deltagen.model.delta import DeltaGeometry
 from deltagen.native.delta import CompiledDelta
-from deltagen.solve.least_squares import damped_step, kept
+from deltagen.solve.least_squares import damped_step, kept, lambda2
 
 #: Per-chain parameter families and their column block in the fk_param_jacobian kernel
 #: (r_a and r_b share the block of r = r_a - r_b, with opposite signs).
@@ -362,7 +362,7 @@ def calibrate(
         keep = kept(s, rcond)
         improved = False
         for _ in range(30):
-            step = -damped_step(U, s, Vt, r, lam * s[0] ** 2, keep) / scale
+            step = -damped_step(U, s, Vt, r, lambda2(s, lam, "largest", len(r)), keep) / scale
             trial = np.clip(x + step, box[:, 0], box[:, 1])  # projected onto the bounds
             step = trial - x
             try:

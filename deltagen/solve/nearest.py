@@ -63,8 +63,8 @@ from deltagen.geometry.rotations import rot_exp
 from deltagen.inputs import InputError
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import JointAxes, detect, joint_axes, reversed_description
+from deltagen.solve import least_squares
 from deltagen.solve.analytic import AnalyticSolver, analytic_solver, solver_for
-from deltagen.solve.least_squares import damped_step, kept
 
 __all__ = [
     "SNAP_SINE",
@@ -256,11 +256,9 @@ def polish(
             tacc = np.einsum("mij,mj->mi", Racc, ti) + tacc
             Racc = Racc @ Ri
         e = np.concatenate([e_p, e_w], axis=1)
-        try:  # square and regular (the usual case): one batched LU solve
-            dq = np.linalg.solve(J, e[..., None])[..., 0]
-        except np.linalg.LinAlgError:  # a singular row: least squares by SVD for the batch
-            U, sv, Vt = np.linalg.svd(J, full_matrices=False)
-            dq = damped_step(U, sv, Vt, e, 0.0, kept(sv, 1e-12))  # undamped: the pseudo-inverse
+        # undamped: one batched LU solve (square and regular, the usual case), the
+        # pseudo-inverse by SVD for the batch when a row's J is singular
+        dq = least_squares.solve(J, e, rcond=1e-12)
         q[idx] = qa + dq
     q[~start] = np.nan
     return q, converged & start

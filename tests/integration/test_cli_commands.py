@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import subprocess
+import sys
 
 import pytest
 
@@ -39,6 +41,33 @@ def test_fk_and_ik_know_their_command_without_the_top_parser():
         args = cli._parse([name, "default", "0.1", "--degrees", "-0.2", "0.3"])
         assert args.command == name and args.degrees
         assert args.values == [0.1, -0.2, 0.3]
+
+
+def test_a_command_line_imports_only_its_own_app():
+    """A known command builds its own subcommand (cli._parse), so only its app module is
+    imported; --help and an unknown command still build (and list) every command. Run in a
+    fresh interpreter: this process has imported every app already."""
+    code = (
+        "import sys\n"
+        "from deltagen import cli\n"
+        "args = cli._parse(['generate', '--check'])\n"
+        "assert args.command == 'generate' and args.check\n"
+        "apps = sorted(m for m in sys.modules if m.startswith('deltagen.apps.'))\n"
+        "print('APPS', ' '.join(apps))\n"
+        "try:\n"
+        "    cli._parse(['--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print('APPS', ' '.join(sorted(m for m in sys.modules if m.startswith('deltagen.apps.'))))\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    first, after_help = [line for line in run.stdout.splitlines() if line.startswith("APPS")]
+    others = set(cli.COMMANDS.values()) - {cli.COMMANDS["generate"]}
+    assert cli.COMMANDS["generate"] in first.split() and not others & set(first.split())
+    assert {cli.COMMANDS[c] for c in cli.COMMANDS} <= set(after_help.split())
+    assert sorted(cli.build_parser(("fk",))[1]) == ["fk", "ik"]  # kinematics adds both
 
 
 @pytest.mark.parametrize("table", [kinematics.JOBS, dynamics.JOBS, workspace.JOBS])
