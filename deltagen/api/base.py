@@ -66,6 +66,11 @@ class RobotFamily(ThreadsProperty):
         """The robot of a robot file (the family's model class reads it: its from_toml)."""
         return cls._from_model(cls._model_class.from_toml(path), backend, threads)
 
+    @property
+    def name(self) -> str:
+        """The robot's name (its model's ``name``)."""
+        return getattr(self, self._model_attr).name
+
     def with_backend(self, backend: Backend) -> Self:
         """The same robot (same model, same threads) on the other backend."""
         return type(self)._from_model(getattr(self, self._model_attr), backend, self._threads)

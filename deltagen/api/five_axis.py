@@ -124,10 +124,6 @@ class FiveAxisMachine(RobotFamily):
             )
         return cls.from_toml(robots_dir() / f"{name}.toml", backend, threads=threads)
 
-    @property
-    def name(self) -> str:
-        return self.description.name
-
     def __repr__(self) -> str:
         g = self.description
         return (

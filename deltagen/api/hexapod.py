@@ -116,10 +116,6 @@ class Hexapod(RobotFamilyWithDefault):
         """LinuxCNC genhexkins' default geometry (model/hexapod.py), in metres: default()."""
         return cls.default(backend, threads=threads)
 
-    @property
-    def name(self) -> str:
-        return self.geometry.name
-
     def __repr__(self) -> str:
         return f"Hexapod(name={self.geometry.name!r}, backend={self.backend!r})"
 

@@ -65,10 +65,6 @@ class _ThreeSpheres(RobotFamilyWithDefault):
     ) -> Any:
         return cls._from_model(geometry, backend, threads)
 
-    @property
-    def name(self) -> str:
-        return self.geometry.name
-
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Point p (..., 3) [m] of joint values q (..., 3): the three-sphere intersection."""
         out = self._lean("fk", errors, q)

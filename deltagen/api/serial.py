@@ -176,10 +176,6 @@ class SerialRobot(SerialDynamics, RobotFamily):
         return f"SerialRobot({d.name!r}, {d.n} joints, {d.convention}, backend={self.backend!r})"
 
     @property
-    def name(self) -> str:
-        return self.description.name
-
-    @property
     def qlim(self) -> FloatArray:
         return self.description.qlim
 

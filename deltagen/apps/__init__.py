@@ -11,7 +11,7 @@ helpers: ``tables`` (the one CSV/NPY reader and writer of batches, columns by na
 `deltagen fk|ik|workspace`, from the per-kind ``JOBS`` tables of ``kinematics`` and
 ``workspace``) and ``robots``, the one loader every command takes its robot from
 (``robot_of``: the kind decided from the file, the URDF options, the kinds a command
-serves).
+serves; ``run_job``: a command's per-kind job table at work).
 
 ``deltagen bench`` is the ``bench`` package (throughput and one-pose latency, one
 measure-and-render path: each section declares what it times, one engine runs, records and

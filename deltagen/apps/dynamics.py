@@ -221,10 +221,9 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     """`deltagen dynamics`: the job of the robot's kind (JOBS); returns the exit status."""
-    from deltagen.apps.robots import kind_of, robot_of
+    from deltagen.apps.robots import run_job
 
-    robot = robot_of(args, kinds=tuple(JOBS))
-    return JOBS[kind_of(robot)](robot, args)
+    return run_job(args, JOBS)
 
 
 def delta_main(robot, args) -> int:

@@ -554,5 +554,4 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     """`deltagen fk|ik`: the job of the robot's kind (JOBS); returns the exit status."""
-    robot = robots.robot_of(args, kinds=tuple(JOBS))
-    return JOBS[robots.kind_of(robot)](robot, args.command == "fk", args)
+    return robots.run_job(args, JOBS, args.command == "fk")

@@ -14,6 +14,7 @@ a SerialRobot, or a CoupledArm when its chain has ``<mimic>`` joints; ``base``, 
 
 from __future__ import annotations
 
+import sys
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -87,33 +88,33 @@ def robot_of(
     )
 
 
+def run_job(args: Any, jobs: Mapping[str, Any], *before: Any) -> int:
+    """A command's job table at work: the robot of ``args`` (robot_of, refusing the kinds
+    ``jobs`` does not serve), then ``jobs[its kind](robot, *before, args)``, the exit
+    status."""
+    robot = robot_of(args, kinds=tuple(jobs))
+    return jobs[kind_of(robot)](robot, *before, args)
+
+
+#: (kind, module, class) of every robot class but SerialRobot's, tested in this order
+_CLASSES = (
+    (MACHINE, "deltagen.api.five_axis", "FiveAxisMachine"),
+    (LINEAR_DELTA, "deltagen.api.linear_delta", "LinearDelta"),
+    (TRIPOD, "deltagen.api.linear_delta", "Tripod"),
+    (HEXAPOD, "deltagen.api.hexapod", "Hexapod"),
+    (DELTA, "deltagen.api.delta", "DeltaRobot"),
+    (COUPLED, "deltagen.api.coupled", "CoupledArm"),
+)
+
+
 def kind_of(robot: Any) -> str:
     """The kind (DELTA, SERIAL, COUPLED, LINEAR_DELTA, TRIPOD, HEXAPOD, MACHINE) of a loaded
     robot."""
-    from deltagen.api.coupled import CoupledArm
-    from deltagen.api.delta import DeltaRobot
-    from deltagen.api.five_axis import FiveAxisMachine
-    from deltagen.api.hexapod import Hexapod
-    from deltagen.api.linear_delta import LinearDelta, Tripod
-
-    if isinstance(robot, FiveAxisMachine):
-        return MACHINE
-    if isinstance(robot, LinearDelta):
-        return LINEAR_DELTA
-    if isinstance(robot, Tripod):
-        return TRIPOD
-    if isinstance(robot, Hexapod):
-        return HEXAPOD
-    if isinstance(robot, DeltaRobot):
-        return DELTA
-    if isinstance(robot, CoupledArm):
-        return COUPLED
+    for kind, module, name in _CLASSES:
+        loaded = sys.modules.get(module)  # a robot's class is loaded: no import needed
+        if loaded is not None and isinstance(robot, getattr(loaded, name)):
+            return kind
     return SERIAL
-
-
-def require(command: str, robot: Any, kinds: Sequence[str]) -> None:
-    """Refuse (InputError, exit status 2) a robot whose kind ``command`` does not serve."""
-    _require(command, kind_of(robot), getattr(robot, "name", ""), kinds)
 
 
 def _require(command: str, kind: str, name: str, kinds: Sequence[str] | None) -> None:
@@ -192,9 +193,8 @@ def load_robot(
     """The robot a robot argument names (module docstring). With ``kinds``: refused
     (InputError naming ``command`` and the robot's kind) unless it is of one of them, before
     any compiled core is built."""
-    from deltagen.api.delta import DeltaRobot
-    from deltagen.api.five_axis import FiveAxisMachine, bundled_machines
-    from deltagen.api.serial import SerialRobot, bundled_robots, bundled_urdfs
+    from deltagen.api.bundled import bundled_robots, bundled_urdfs
+    from deltagen.api.five_axis import bundled_machines
     from deltagen.paths import robots_dir
 
     urdf_options = [
@@ -227,6 +227,8 @@ def load_robot(
             f"the chain of a URDF; {name} is not a URDF"
         )
     if kind in ("urdf", "bundled-urdf"):  # read without a core: serial or coupled
+        from deltagen.api.serial import SerialRobot
+
         if kind == "bundled-urdf" and not urdf_options:
             robot = SerialRobot.load(name, backend="reference")  # under the bundled name
         else:
@@ -255,16 +257,22 @@ def load_robot(
         _require(command, HEXAPOD, name, kinds)
         return Hexapod.from_toml(path, backend=backend)
     if kind == "machine":
+        from deltagen.api.five_axis import FiveAxisMachine
+
         _require(command, MACHINE, name, kinds)
         return FiveAxisMachine.from_toml(path, backend=backend)
     serial = kind in ("bundled", "serial")
     _require(command, SERIAL if serial else DELTA, name if serial else "", kinds)
-    if kind == "bundled":
-        return SerialRobot.load(name, backend=backend)
+    if serial:
+        from deltagen.api.serial import SerialRobot
+
+        if kind == "bundled":
+            return SerialRobot.load(name, backend=backend)
+        return SerialRobot.from_toml(path, backend=backend)
+    from deltagen.api.delta import DeltaRobot
+
     if kind == "klipper":
         return DeltaRobot.from_klipper(path, backend=backend)
-    if kind == "serial":
-        return SerialRobot.from_toml(path, backend=backend)
     if name == "default":
         return DeltaRobot.default(backend=backend)
     return DeltaRobot.from_toml(path, backend=backend)

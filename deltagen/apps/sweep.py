@@ -9,11 +9,14 @@ peak torque when the spec gives a move; the Pareto front joined, infeasible desi
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from deltagen.api.sweep import SweepResult, sweep
 from deltagen.apps.plotting import pyplot
+
+if TYPE_CHECKING:  # deltagen.api.sweep loads when the job runs, not with the parser
+    from deltagen.api.sweep import SweepResult
 
 
 def write_pareto(result: SweepResult, path: str | Path) -> Path:
@@ -74,6 +77,8 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     """`deltagen sweep`: the designs scored, the CSV and the Pareto plot written."""
+    from deltagen.api.sweep import sweep
+
     result = sweep(
         args.spec,
         scheduler=args.scheduler,

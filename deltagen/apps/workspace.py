@@ -17,16 +17,18 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from deltagen import __version__
-from deltagen.api.delta import DeltaRobot
-from deltagen.api.workspace import DeltaWorkspace, SerialWorkspace
 from deltagen.apps import robots
 from deltagen.apps.plotting import pyplot
 from deltagen.errors import DeltagenError
+
+if TYPE_CHECKING:  # the robot classes load when a job runs, not with the parser
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.workspace import DeltaWorkspace, SerialWorkspace
 
 PLOTLY_HINT = "plotly is needed for the 3D page: pip install 'deltagen[design]'"
 MAX_POINTS = 20_000  # points drawn in the 3D page (a random, seeded subset beyond that)
@@ -34,6 +36,8 @@ MAX_POINTS = 20_000  # points drawn in the 3D page (a random, seeded subset beyo
 
 def _field(ws):
     """(mask (nx, ny, nz), colour values, colour-bar label) of a workspace result."""
+    from deltagen.api.workspace import DeltaWorkspace
+
     if isinstance(ws, DeltaWorkspace):
         return ws.usable, ws.condition, "condition number of J (delta)"
     return ws.reachable, ws.condition, "condition number of J (best in voxel)"
@@ -41,6 +45,8 @@ def _field(ws):
 
 def write_slices(ws: DeltaWorkspace | SerialWorkspace, path: str | Path, title: str = "") -> Path:
     """PNG of x-y slices at four heights and the x-z slice through the axis (y = 0)."""
+    from deltagen.api.workspace import DeltaWorkspace
+
     plt = pyplot()
     mask, value, label = _field(ws)
     zi = np.flatnonzero(mask.any(axis=(0, 1)))
@@ -165,6 +171,8 @@ def default_trajectory(robot, ws, n: int = 24) -> np.ndarray:
     """Joint coordinates (n, k) of a move to show: delta, a circle of 0.8 x the inscribed
     cylinder's radius at its mid height; serial arm, a straight joint move between two
     reachable configurations within the limits."""
+    from deltagen.api.workspace import DeltaWorkspace
+
     if isinstance(ws, DeltaWorkspace):
         c = ws.cylinder
         if c is None:
@@ -202,6 +210,9 @@ def write_page(
         import plotly.graph_objects as go
     except ImportError as exc:
         raise DeltagenError(PLOTLY_HINT) from exc
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.workspace import DeltaWorkspace
+
     is_delta = isinstance(ws, DeltaWorkspace)
     if skeleton is not None:
         pass
@@ -327,10 +338,9 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     """`deltagen workspace`: the job of the robot's kind (JOBS); returns the exit status."""
-    from deltagen.apps.robots import kind_of, robot_of
+    from deltagen.apps.robots import run_job
 
-    robot = robot_of(args, kinds=tuple(JOBS))
-    return JOBS[kind_of(robot)](robot, args)
+    return run_job(args, JOBS)
 
 
 def _hexapod_maps(robot, args) -> int:
@@ -346,6 +356,8 @@ def write_maps(robot, args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     show = False if args.quiet else None
+    from deltagen.api.delta import DeltaRobot
+
     if isinstance(robot, DeltaRobot) or hasattr(robot, "workspace_extent"):
         ws = robot.workspace(args.step, max_condition=args.max_condition, progress=show)
     else:

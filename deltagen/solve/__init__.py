@@ -6,7 +6,8 @@ solution of a general 6R arm, Raghavan-Roth elimination and an eigenvalue proble
 by Newton on the chain: a structure up to the rounding of its file); ``ik`` (the IK planner
 of a serial arm: which of those methods answers ``ik`` and ``ik_all``, built once per arm by
 ``SerialRobot``, and the result types ``IKSolutions`` / ``IKResult``); ``least_squares``
-(the damped least-squares step the numeric solver and the calibration share); and
+(the one damped least-squares core: the numeric solver, the calibration, the nearest-arm
+polish and the path following of ``plan`` take their steps from it); and
 ``calibration`` (a built delta robot's per-chain geometry identified from measured pairs).
 Joint-limit wrapping and the axis tests they share live in
 ``geometry`` (``limits``, ``axes``).

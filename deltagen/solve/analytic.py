@@ -305,6 +305,13 @@ class AnalyticSolver:
         good.reshape(-1)[idx] = passed
         return good
 
+    def _goal(self, R_t, p_t):
+        """The targets (N, 3, 3), (N, 3) as the joints must move the home pose (R0, p0, the
+        tool pose at q = 0): the rotation R_G = R_t R0^T and the point p_G = p_t - R_G p0
+        the chain's origin goes to (the product of exponentials, exp(...) = T_t T0^-1)."""
+        R_G = R_t @ self.axes.R0.T
+        return R_G, p_t - np.einsum("nij,j->ni", R_G, self.axes.p0)
+
     def _solve(self, R_t, p_t, position_only):  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -316,8 +323,7 @@ class _PlanarSolver(AnalyticSolver):
         s, ax = self.detected, self.axes
         E, A, P = s.plane, s.first_xy, s.point
         N = R_t.shape[0]
-        R_G = R_t @ ax.R0.T
-        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        R_G, p_G = self._goal(R_t, p_t)
         P_t = p_t if position_only else np.einsum("nij,j->ni", R_G, P) + p_G
         h = (P_t - P) @ s.u  # travel along u
         t = P_t @ E.T - A  # (N, 2)
@@ -395,8 +401,7 @@ class _ElbowSolver(AnalyticSolver):
         s, ax = self.detected, self.axes
         w = ax.directions
         N = R_t.shape[0]
-        R_G = R_t @ ax.R0.T
-        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        R_G, p_G = self._goal(R_t, p_t)
         if self.n == 4:
             W_t = p_t if position_only else np.einsum("nij,j->ni", R_G, s.wrist) + p_G
             q1, th2, th3, ok = self._arm(W_t, R_G, position_only)
@@ -499,8 +504,7 @@ class _ParallelTripleSolver(AnalyticSolver):
         w, o = ax.directions, ax.points
         u = s.u
         N = R_t.shape[0]
-        R_G = R_t @ ax.R0.T
-        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        R_G, p_G = self._goal(R_t, p_t)
         pm = np.array([1.0, -1.0])
         # 1. q1 (N, 2)
         v = np.einsum("nij,j->ni", R_G, s.wrist) + p_G - o[0]
@@ -580,8 +584,7 @@ class _StanfordSolver(AnalyticSolver):
         s, ax = self.detected, self.axes
         w = ax.directions
         N = R_t.shape[0]
-        R_G = R_t @ ax.R0.T
-        p_G = p_t - np.einsum("nij,j->ni", R_G, ax.p0)
+        R_G, p_G = self._goal(R_t, p_t)
         c = s.shoulder
         W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
         pm = np.array([1.0, -1.0])

@@ -70,6 +70,45 @@ def test_a_command_line_imports_only_its_own_app():
     assert sorted(cli.build_parser(("fk",))[1]) == ["fk", "ik"]  # kinematics adds both
 
 
+def test_import_deltagen_loads_no_robot_family_until_asked():
+    """deltagen/__init__.py resolves its public names on first use: ``import deltagen``
+    loads no api module, each name of __all__ is the defining module's object, and
+    `deltagen fk default` loads the delta's modules, not the serial arms' or the other
+    families'. In a fresh interpreter (this one has loaded everything)."""
+    code = (
+        "import sys\n"
+        "import deltagen\n"
+        "print('API', sorted(m for m in sys.modules if m.startswith('deltagen.api')))\n"
+        "import importlib\n"
+        "for name in deltagen.__all__:\n"
+        "    value = getattr(deltagen, name)\n"
+        "    assert value is getattr(importlib.import_module(deltagen._MODULES[name]), name)\n"
+        "assert set(deltagen.__all__) <= set(dir(deltagen))\n"
+        "try:\n"
+        "    deltagen.NoSuchRobot\n"
+        "except AttributeError as exc:\n"
+        "    print('MISSING', exc)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert "API []" in run.stdout.splitlines()
+    assert "MISSING module 'deltagen' has no attribute 'NoSuchRobot'" in run.stdout
+    fk = (
+        "import sys\n"
+        "from deltagen.cli import main\n"
+        "assert main(['fk', 'default', '0.1', '0.2', '0.3', '--backend', 'reference']) == 0\n"
+        "print('LOADED', ' '.join(sorted(sys.modules)))\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", fk], capture_output=True, text=True, timeout=120, check=True
+    )
+    loaded = next(line for line in run.stdout.splitlines() if line.startswith("LOADED"))
+    assert "deltagen.api.delta" in loaded.split()
+    for other in ("deltagen.api.serial", "deltagen.api.hexapod", "deltagen.api.sweep"):
+        assert other not in loaded.split()
+
+
 @pytest.mark.parametrize("table", [kinematics.JOBS, dynamics.JOBS, workspace.JOBS])
 def test_job_tables_name_known_kinds_in_message_order(table):
     """Each job table's keys are robot kinds, in the order of robots.KIND_NAMES (the order
