@@ -600,21 +600,21 @@ class Task:
             parts.append(np.asarray(qj, dtype=float) - q[list(self.joints)])
         return np.concatenate(parts)
 
-    def velocity(self, cs: CartesianSamples):
-        parts = [cs.v[:, self.axes]]
+    def _rates(self, linear, angular, joint):
+        """The task's rows of sampled rates: the translation axes, the rotation if the task
+        has one, the joints it holds."""
+        parts = [linear[:, self.axes]]
         if self.orientation:
-            parts.append(cs.w)
+            parts.append(angular)
         if self.joints:
-            parts.append(cs.qjd)
+            parts.append(joint)
         return np.concatenate(parts, axis=-1)
 
+    def velocity(self, cs: CartesianSamples):
+        return self._rates(cs.v, cs.w, cs.qjd)
+
     def acceleration(self, cs: CartesianSamples):
-        parts = [cs.a[:, self.axes]]
-        if self.orientation:
-            parts.append(cs.wd)
-        if self.joints:
-            parts.append(cs.qjdd)
-        return np.concatenate(parts, axis=-1)
+        return self._rates(cs.a, cs.wd, cs.qjdd)
 
 
 def _solve(Jt, e, damping):
