@@ -169,7 +169,7 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  *                   finite inputs give an output the status would return that is not finite (they are too large: the
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 197 operations per point.
+ * Cost: 167 operations per point.
  * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 4352 bytes (4.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -191,7 +191,7 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  *                   INVALID also where finite inputs give an output the status would return that is not finite (they
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 258 operations per point.
+ * Cost: 237 operations per point.
  * Stack: 17 block arrays (16 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 8448 bytes (8.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -217,7 +217,7 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
  *                   INVALID also where finite inputs give an output the status would return that is not finite (they
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 366 operations per point.
+ * Cost: 345 operations per point.
  * Stack: 25 block arrays (24 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

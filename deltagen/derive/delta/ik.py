@@ -25,10 +25,11 @@ from deltagen.derive.kernel import Stage
 E = sp.symbols("E1:4", real=True)
 F = sp.symbols("F1:4", real=True)
 G = sp.symbols("G1:4", real=True)
+rho_sq = sp.symbols("rho_sq1:4", real=True)  # E^2 + F^2
 disc = sp.symbols("disc1:4", real=True)  # rho^2 - G^2
-# the part of G_i free of p, r_i^2 + l_a,i^2 - l_b,i^2: a constant of the robot, summed once
-# per call (SETUP) instead of term by term at every point
+# the part of G_i free of p, r_i^2 + l_a,i^2 - l_b,i^2
 G0 = sp.symbols("G0_1:4", real=True)
+_MONOMIALS = {(1, 0, 0): "x", (0, 1, 0): "y", (0, 0, 1): "z"}
 
 
 def crank_equation(i: int):
@@ -43,27 +44,53 @@ def crank_equation(i: int):
     return Ei, Fi, Gi
 
 
+def _split(i: int):
+    """E_i, F_i, G_i as polynomials in p whose coefficients free of p are named: (the
+    three polynomials in those names, setup pairs name -> coefficient). A coefficient
+    that is a number (the 1 of x^2 in G_i) stays in the polynomial."""
+    polys, pairs = [], []
+    for letter, expr in zip("EFG", crank_equation(i)):
+        poly = sp.Poly(sp.expand(expr), s.x, s.y, s.z)
+        assert poly.total_degree() <= 2
+        terms = []
+        for monomial, coeff in poly.as_dict().items():
+            power = sp.Mul(*(v**k for v, k in zip((s.x, s.y, s.z), monomial)))
+            if coeff.is_Number:
+                terms.append(coeff * power)
+                continue
+            name = G0[i] if (letter, monomial) == ("G", (0, 0, 0)) else None
+            if name is None:
+                tag = _MONOMIALS.get(monomial, "0")
+                name = sp.Symbol(f"{letter}{tag}_{i + 1}", real=True)
+            pairs.append((name, coeff))
+            terms.append(name * power)
+        polys.append(sp.Add(*terms))
+    return polys, pairs
+
+
 def crank_constants() -> tuple:
-    """Setup pairs (G0_i, the terms of G_i free of the platform position p)."""
-    pairs = []
-    for i in range(3):
-        Gi = crank_equation(i)[2]
-        pairs.append((G0[i], Gi.subs({s.x: 0, s.y: 0, s.z: 0})))
-    return tuple(pairs)
+    """Setup pairs: the coefficients of E_i, F_i, G_i as polynomials in the platform
+    position p (r_i, l_a,i, l_b,i and theta_i only), each a constant of the robot
+    evaluated once per call instead of at every point (per-chain geometry costs nothing
+    per point then)."""
+    return tuple(pair for i in range(3) for pair in _split(i)[1])
 
 
 def ik_stages():
     coeffs, discs, angles = [], [], []
-    for (g0, constant), i in zip(crank_constants(), range(3)):
-        Ei, Fi, Gi = crank_equation(i)
-        Gi = sp.expand(Gi - constant) + g0
+    for i in range(3):
+        (Ei, Fi, Gi), _ = _split(i)
         coeffs += [(E[i], Ei), (F[i], Fi), (G[i], Gi)]
-        discs.append((disc[i], E[i] ** 2 + F[i] ** 2 - G[i] ** 2))
+        discs += [(rho_sq[i], E[i] ** 2 + F[i] ** 2), (disc[i], rho_sq[i] - G[i] ** 2)]
         root = sp.sqrt(disc[i])
         angles.append((s.q[i], sp.atan2(-F[i] * G[i] + E[i] * root, -E[i] * G[i] - F[i] * root)))
     return [
         Stage("crank equation E cos q + F sin q + G = 0 from eq. (1), per chain", tuple(coeffs)),
-        Stage("discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular)", tuple(discs)),
+        Stage(
+            "rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q "
+            "singular)",
+            tuple(discs),
+        ),
         Stage(
             "elbow-out crank angles atan2(F) + atan2(sqrt(disc), -G) as one atan2", tuple(angles)
         ),

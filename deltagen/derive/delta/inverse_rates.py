@@ -39,7 +39,7 @@ def ik_stages_with_trig() -> list:
         E, F, G = ikd.E[i], ikd.F[i], ikd.G[i]
         args += [(ik_x[i], -E * G - F * root), (ik_y[i], -F * G + E * root)]
         trig += [
-            (inv_rho_sq[i], 1 / (E**2 + F**2)),
+            (inv_rho_sq[i], 1 / ikd.rho_sq[i]),
         ]
         angles.append((s.q[i], sp.atan2(ik_y[i], ik_x[i])))
     unit = []

@@ -68,7 +68,10 @@ SETUP = (
             (jq_limit, (2 * s.singular_tol * s.l_a * s.l_b) ** 2),
         ),
     ),
-    Stage("the part of each chain's G_i free of p (derive/delta/ik.py)", ikd.crank_constants()),
+    Stage(
+        "the coefficients of each chain's E_i, F_i, G_i free of p (derive/delta/ik.py)",
+        ikd.crank_constants(),
+    ),
 )
 
 ANGLES = tuple(Angle(s.q[i], s.cos_q[i], s.sin_q[i]) for i in range(3))
@@ -299,25 +302,26 @@ def _other_assembly_mode():
     return sp.And(fkd.det_D * centre_normal_z > 0, sp.Abs(fkd.det_D) > det_limit)
 
 
-rho_sq = sp.symbols("rho_sq1:4", real=True)  # E_i^2 + F_i^2
+rho_sq = ikd.rho_sq  # E_i^2 + F_i^2 (derive/delta/ik.py)
 scaled_det_D, scaled_normal_z, rho_sq_product = sp.symbols(
     "scaled_det_D scaled_normal_z rho_sq_product", real=True
 )
+row_cross_z = sp.symbols("row_cross_z23 row_cross_z31 row_cross_z12", real=True)
 
 
 def _scaled_assembly_stage() -> Stage:
     """_assembly_stage without a division: the inverse's atan2 arguments are (X_i, Y_i) =
     rho_i^2 (cos q_i, sin q_i) (derive/delta/inverse_rates.py), so the centres scaled by
-    rho_i^2 are polynomials in them, S~_i = rho_i^2 S_i. With P = rho_1^2 rho_2^2 rho_3^2:
-    det of the rows rho_i^2 p - S~_i = P det_D (row i scaled by rho_i^2), and, from
-    e = S_1 x S_2 + S_2 x S_3 + S_3 x S_1, P e_z = rho_3^2 (S~_1 x S~_2)_z
-    + rho_1^2 (S~_2 x S~_3)_z + rho_2^2 (S~_3 x S~_1)_z. P > 0 keeps the signs, so
-    det_D e_z > 0 and |det_D| > det_limit read (P det_D)(P e_z) > 0 and
-    |P det_D| > det_limit P (the batched ik, which needs no cos q_i, sin q_i: three
-    divisions fewer per point; the rate kernels divide, they need them)."""
+    rho_i^2 are polynomials in them, S~_i = rho_i^2 S_i, and so are the scaled rows
+    u~_i = rho_i^2 (p - S_i). With P = rho_1^2 rho_2^2 rho_3^2 (> 0, so signs are kept):
+    P det_D = det(u~_1; u~_2; u~_3), expanded along its z column, and, from
+    e = (S_2 - S_1) x (S_3 - S_1) = u_1 x u_2 + u_2 x u_3 + u_3 x u_1 (u_i = p - S_i),
+    P e_z = rho_1^2 (u~_2 x u~_3)_z + rho_2^2 (u~_3 x u~_1)_z + rho_3^2 (u~_1 x u~_2)_z:
+    both read the same three z components of the rows' cross products. det_D e_z > 0 and
+    |det_D| > det_limit read (P det_D)(P e_z) > 0 and |P det_D| > det_limit P (the batched
+    ik, which needs no cos q_i, sin q_i: three divisions fewer per point; the rate kernels
+    divide, they need them)."""
     pairs = []
-    for i in range(3):
-        pairs.append((rho_sq[i], ikd.E[i] ** 2 + ikd.F[i] ** 2))
     scaled, exprs = [], []
     for i in range(3):
         radius = s.chain_r[i] * rho_sq[i] + s.chain_l_a[i] * irs.ik_x[i]
@@ -341,24 +345,25 @@ def _scaled_assembly_stage() -> Stage:
     def cross_z(u, v):
         return u[0] * v[1] - u[1] * v[0]
 
-    normal = (
-        rho_sq[2] * cross_z(scaled[0], scaled[1])
-        + rho_sq[0] * cross_z(scaled[1], scaled[2])
-        + rho_sq[1] * cross_z(scaled[2], scaled[0])
-    )
-    # det by the first row's cofactors (9 products, not the expanded 12)
-    det = sum(
-        rows[0, k] * cross_z(rows[1:, :].col((k + 1) % 3), rows[1:, :].col((k + 2) % 3))
-        for k in range(3)
-    )
-    assert sp.expand(det - rows.det()) == 0
+    # (u~_2 x u~_3)_z, (u~_3 x u~_1)_z, (u~_1 x u~_2)_z: row_cross_z[i] leaves row i out
+    crosses = [cross_z(rows[(i + 1) % 3, :], rows[(i + 2) % 3, :]) for i in range(3)]
+    pairs += list(zip(row_cross_z, crosses))
+    det = sum(rows[i, 2] * row_cross_z[i] for i in range(3))
+    normal = sum(rho_sq[i] * row_cross_z[i] for i in range(3))
+    # the identities the two sums rest on, checked on the unnamed expressions
+    assert sp.expand(det.subs(dict(zip(row_cross_z, crosses))) - rows.det()) == 0
+    u = [p - s.sphere_centre(i) for i in range(3)]
+    e = (u[1] - u[0]).cross(u[2] - u[0])  # (S_2 - S_1) x (S_3 - S_1), S_i = p - u_i
+    e_from_rows = sum((u[i].cross(u[(i + 1) % 3]) for i in range(3)), sp.zeros(3, 1))
+    assert sp.expand(e - e_from_rows) == sp.zeros(3, 1)
     pairs += [
         (scaled_det_D, det),
         (scaled_normal_z, normal),
         (rho_sq_product, rho_sq[0] * rho_sq[1] * rho_sq[2]),
     ]
     return Stage(
-        "assembly mode without divisions: rho_i^2 S_i, P det_D and P e_z, P = prod rho_i^2",
+        "assembly mode without divisions: rows rho_i^2 (p - S_i), P det_D and P e_z, "
+        "P = prod rho_i^2",
         tuple(pairs),
     )
 
