@@ -112,6 +112,29 @@ def _extension_call(ffi, fn, lead, rows, outputs):
         return None
 
 
+def checked_pose_call(ffi, fn, k, n, answers, tolerances, wrap=None):
+    """The extension's one-pose ik_all (lean_ext.c ``pose_kernel``) of the generated
+    ``fn(rows, T, q, valid, status)``, or None where the extension is missing: call(T) ->
+    wrap((q (k, n), valid (k,) bool)) (the tuple itself when wrap is None) for a (4, 4)
+    float64 ndarray that is a finite rigid transform by solve/ik.py's check_one_pose rule
+    (``tolerances`` = its (rigid, bottom) tolerances), made in C, and a status in
+    ``answers``; else None (the general path checks, raises or marks)."""
+    module = extension()
+    if module is None:
+        return None
+    rigid_tol, bottom_tol = tolerances
+    return module.pose_kernel(
+        int(ffi.cast("uintptr_t", fn)),
+        int(k),
+        int(n),
+        tuple(int(a) for a in answers),
+        float(rigid_tol),
+        float(bottom_tol),
+        wrap,
+        (ffi, fn),
+    )
+
+
 def row_putter(memmove, n: int):
     """put(buffer, x): copy one row x of n numbers into a double[] cffi buffer when x is
     what inputs.plain_row(x, n) accepts and return True; else False (the general path,

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from deltagen import status as st
 from deltagen.codegen.serial import (
     arm_sources,
     base_name,
@@ -22,7 +23,7 @@ from deltagen.codegen.serial import (
 from deltagen.derive.serial.parts import PARTS
 from deltagen.errors import ManifestError
 from deltagen.native.build import is_built, load, usable_cache_dir
-from deltagen.native.lean import single_call
+from deltagen.native.lean import checked_pose_call, single_call
 from deltagen.native.manifest import kernels, output_widths, point_shape, reshape_outputs
 from deltagen.native.parallel import check_rc, run_rows
 from deltagen.paths import generated_dir
@@ -360,6 +361,30 @@ class CompiledArm:
             return None
         self._check_branches(k)
         return self._single("ik_all", self.load_kinematics(), rows=["pose"])
+
+    def checked_ik_all(self, k, tolerances, wrap=None):
+        """ik_all of one pose through the C extension (native.lean.checked_pose_call), the
+        pose's check made in C: a (4, 4) float64 ndarray in, wrap((q (k, n), valid (k,)))
+        out for a finite rigid transform (solve/ik.py's rule, ``tolerances`` its (rigid,
+        bottom) tolerances) whose status is OK or UNREACHABLE (the batch path's outputs for
+        such a row, as they stand); None for anything else (the general path answers). None
+        instead of the callable where the arm has no C closed form or the extension is
+        missing."""
+        if not self.has_ik_all:
+            return None
+        self._check_branches(k)
+        module = self.load_kinematics()
+        entry = self._kernels["ik_all"]
+        k_q, n_q = point_shape(entry["outputs"][0])  # q (k, n), the manifest's
+        return checked_pose_call(
+            module.ffi,
+            getattr(module.lib, entry["function"]),
+            k_q,
+            n_q,
+            (st.OK, st.UNREACHABLE),
+            tolerances,
+            wrap,
+        )
 
     def single(self, name):
         """Lean path (native.lean) for one configuration of fk or jacobian: what

@@ -179,7 +179,8 @@ class IKPlanner:
     ``combined`` (the combined method's module or None), ``general`` ((eliminations,
     complete) of the general 6R solver or None), ``reach``, ``z_only`` and
     ``partial_mask``; the one-pose paths made on the way are ``ik_all_single`` (the C
-    closed form's), ``general_single`` (the complete solver's: None not made yet, False
+    closed form's), ``ik_all_checked`` (the same with the pose's check in C),
+    ``general_single`` (the complete solver's: None not made yet, False
     none) and ``numeric_solver``."""
 
     def __init__(self, arm: Any) -> None:
@@ -192,6 +193,10 @@ class IKPlanner:
         self.jacobian_single = arm._jacobian_single  # None: the batched Jacobian
         compiled = arm.backend == "compiled"
         self.ik_all_single: Any = None  # made by ik_all when the arm has a C closed form
+        # with it, where the C extension builds: ik_all(T) of one (4, 4) float64 pose
+        # (methods "auto" and "closed_form") as one C call, the pose checked in C; None
+        # for any other input (native.serial.CompiledArm.checked_ik_all)
+        self.ik_all_checked: Any = None
         self.general_single: Any = None if compiled else False  # numpy engine: general path
         self.numeric_solver: Any = None  # the C numeric solver's one-pose path
         self.mid_range: Any = None  # the numeric solver's default start (n,)
@@ -388,6 +393,11 @@ class IKPlanner:
             q, valid, _ = self.core.ik_all(safe, k)  # the generated C (ik_kernel.py)
             if self.ik_all_single is None:
                 self.ik_all_single = self.core.single_ik_all(k)
+                # the whole one-pose call in C, check_one_pose's rule included (a closed
+                # form: complete); SerialRobot.ik_all calls it first
+                self.ik_all_checked = self.core.checked_ik_all(
+                    k, (_RIGID_TOL, _BOTTOM_TOL), _CompleteIKSolutions
+                )
         elif solver is not None:
             q, valid = solver.solve(safe)
         else:  # explicit start from the nearest central-wrist arm, refined by Newton
