@@ -42,9 +42,9 @@ from deltagen.solve.ik import (
     IK_METHODS,
     IKPlanner,
     IKSolutions,
-    check_one_pose,
     check_poses,
     raise_bad_poses,
+    rigid_one,
 )
 from deltagen.solve.singularity import singular_values
 
@@ -500,7 +500,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         if type(T) is np.ndarray and T.dtype is _F64 and T.shape == (4, 4) and T.flags.c_contiguous:
             # one pose as a plain array: check_poses' rule in Python floats, and the lean
             # paths (None: the general path below answers, after its own check of T)
-            if check_one_pose(T.ravel().tolist())[1]:
+            if rigid_one(T):
                 q = planner.one(T, config, q0a, analytic, errors, singular, options)
                 if q is not None:
                     return q

@@ -124,6 +124,7 @@ def test_the_c_check_states_the_rigid_transform_rule():
     for T, r in zip(boundary, rigid):
         assert ext.rigid_pose(T, tol, bottom) is bool(r)
         assert solve_ik.check_one_pose(T.ravel().tolist())[1] is bool(r)
+        assert solve_ik.rigid_one(T) is bool(r) and solve_ik.rigid_one(T.T.T) is bool(r)
     # a NaN or an infinity in any of the 16 entries
     T = _pose(rng)
     for k in range(16):
