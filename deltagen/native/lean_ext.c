@@ -499,11 +499,134 @@ static PyObject *rigid_pose_py(PyObject *module, PyObject *args)
     return PyBool_FromLong(rigid_pose(T, tol, bottom));
 }
 
+/* ---- the numerical IK of one target (the runtime's deltagen_ik_newton.c) ----
+ *
+ * newton_kernel(fn, n, options, qlim, ok, keep) -> callable(T, q0)
+ *   fn       int fn(size_t rows, const deltagen_ik_options *, const double *T,
+ *            const double *q0, const double *qlim, double *q, double *err_p,
+ *            double *err_r, int32_t *iterations, int8_t *status): <prefix>_ik_newton
+ *   n        the joints
+ *   options  the address of a filled deltagen_ik_options struct, qlim of the (n, 2)
+ *            limits: both owned by `keep`, held as long as the callable lives
+ *   ok       the status code of a converged row
+ *
+ * The callable takes T, a (4, 4) float64 ndarray (native byte order, any strides; the
+ * caller has checked that it is a finite rigid transform), and q0 as read_row reads it,
+ * and returns a fresh (n,) float64 q when the solver converged (status ok), else None (the
+ * general path answers: its restarts, errors and messages). The same C function on the
+ * same numbers as the cffi path (solve/numeric.py single_solver): the same bits. */
+
+typedef int (*NewtonFn)(size_t, const void *, const double *, const double *, const double *,
+                        double *, double *, double *, int32_t *, int8_t *);
+
+typedef struct {
+    PyObject_HEAD
+    uintptr_t fn;
+    Py_ssize_t n;
+    const void *options;
+    const double *qlim;
+    int ok;
+    PyObject *keep;
+} NewtonSpec;
+
+static void newton_spec_dealloc(NewtonSpec *self)
+{
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject NewtonSpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.NewtonSpec",
+    .tp_basicsize = sizeof(NewtonSpec),
+    .tp_dealloc = (destructor)newton_spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what a one-target numerical IK call needs (function, options, limits)",
+};
+
+/* The 16 entries of a (4, 4) float64 ndarray in native byte order, row by row; 0 for any
+ * other argument. */
+static int read_pose(PyObject *x, double T[16])
+{
+    if (Py_TYPE(x) != &PyArray_Type)
+        return 0;
+    PyArrayObject *a = (PyArrayObject *)x;
+    if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
+        || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
+        return 0;
+    const char *data = PyArray_BYTES(a);
+    const npy_intp s0 = PyArray_STRIDE(a, 0), s1 = PyArray_STRIDE(a, 1);
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            memcpy(&T[4 * r + c], data + r * s0 + c * s1, sizeof(double));
+    return 1;
+}
+
+static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const NewtonSpec *spec = (const NewtonSpec *)self;
+    double T[16], buf[MAX_WIDTH];
+    if (nargs != 2 || !read_pose(args[0], T))
+        Py_RETURN_NONE;
+    const double *q0 = read_row(args[1], spec->n, buf);
+    if (q0 == NULL)
+        Py_RETURN_NONE;
+    npy_intp dims[1] = {(npy_intp)spec->n};
+    PyObject *q = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+    if (q == NULL)
+        return NULL;
+    double ep, er;
+    int32_t iterations;
+    int8_t status = -1;
+    int rc = ((NewtonFn)spec->fn)(1, spec->options, T, q0, spec->qlim,
+                                  (double *)PyArray_DATA((PyArrayObject *)q), &ep, &er,
+                                  &iterations, &status);
+    if (rc != 0 || status != spec->ok) {
+        Py_DECREF(q);
+        Py_RETURN_NONE;
+    }
+    return q;
+}
+
+static PyMethodDef newton_call_def = {
+    "newton_call", (PyCFunction)(void (*)(void))newton_call, METH_FASTCALL,
+    "the numerical IK of one target (deltagen/native/lean_ext.c)"};
+
+static PyObject *newton_kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    unsigned long long fn, options, qlim;
+    Py_ssize_t n;
+    int ok;
+    PyObject *keep;
+    if (!PyArg_ParseTuple(args, "KnKKiO", &fn, &n, &options, &qlim, &ok, &keep))
+        return NULL;
+    if (fn == 0 || options == 0 || qlim == 0 || n < 1 || n > MAX_WIDTH) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.newton_kernel: a form it does not serve");
+        return NULL;
+    }
+    NewtonSpec *spec = PyObject_New(NewtonSpec, &NewtonSpecType);
+    if (spec == NULL)
+        return NULL;
+    spec->fn = (uintptr_t)fn;
+    spec->n = n;
+    spec->options = (const void *)(uintptr_t)options;
+    spec->qlim = (const double *)(uintptr_t)qlim;
+    spec->ok = ok;
+    Py_INCREF(keep);
+    spec->keep = keep;
+    PyObject *call = PyCFunction_NewEx(&newton_call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
 static PyMethodDef methods[] = {
     {"kernel", kernel, METH_VARARGS,
      "kernel(fn, lead, geometry, n, inputs, scalar, out_shapes, ok, keep) -> callable"},
     {"pose_kernel", pose_kernel, METH_VARARGS,
      "pose_kernel(fn, k, n, answers, rigid_tol, bottom_tol, wrap, keep) -> callable"},
+    {"newton_kernel", newton_kernel, METH_VARARGS,
+     "newton_kernel(fn, n, options, qlim, ok, keep) -> callable(T, q0)"},
     {"rigid_pose", rigid_pose_py, METH_VARARGS,
      "rigid_pose(T, rigid_tol, bottom_tol) -> the rigid flag of check_one_pose"},
     {NULL, NULL, 0, NULL},
@@ -518,7 +641,8 @@ static struct PyModuleDef module_def = {
 PyMODINIT_FUNC DELTAGEN_LEAN_INIT(void)
 {
     import_array();
-    if (PyType_Ready(&SpecType) < 0 || PyType_Ready(&PoseSpecType) < 0)
+    if (PyType_Ready(&SpecType) < 0 || PyType_Ready(&PoseSpecType) < 0
+        || PyType_Ready(&NewtonSpecType) < 0)
         return NULL;
     return PyModule_Create(&module_def);
 }

@@ -734,8 +734,7 @@ class IKPlanner:
         if J is None:
             return bool(self.singular_rows(q[None])[0])
         rows, cols = J.shape
-        flat = J.reshape(-1)
-        norm = math.sqrt(float(flat @ flat))
+        norm = math.sqrt(float(np.vdot(J, J)))  # |J|_F (vdot: half the time of ravel @)
         if rows == cols:
             if abs(float(_det(J))) >= SINGULAR_TOL * norm**rows:
                 return False

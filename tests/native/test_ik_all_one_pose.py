@@ -1,4 +1,4 @@
-"""ik_all of one pose through the C extension with the pose's check in C
+"""The one-pose C entries of ik: ik_all of one pose with the pose's check in C
 (deltagen/native/lean_ext.c ``pose_kernel``; SerialRobot.ik_all calls it first).
 
 Evidence: (1) the C rigidity check agrees with an independent numpy statement of the rule
@@ -265,3 +265,73 @@ def test_many_calls_leave_no_memory_behind(puma):
     finally:
         tracemalloc.stop()
     assert after - before < 20_000
+
+
+# ---- the numerical IK of one target through the extension (lean_ext.c newton_kernel) ----
+
+
+@pytest.fixture(scope="module")
+def solvers():
+    """The one-target numeric solver of the Puma with the extension, and the same arm's
+    with the cffi path (DELTAGEN_LEAN_EXT=0): the behaviour to keep."""
+    from deltagen.solve.numeric import single_solver
+
+    arm = SerialRobot.load("puma560", threads=1)
+    mp = pytest.MonkeyPatch()
+    mp.setenv("DELTAGEN_LEAN_EXT", "0")
+    try:
+        cffi_solver = single_solver(arm)
+    finally:
+        mp.undo()
+    return arm, single_solver(arm), cffi_solver
+
+
+def test_numeric_one_target_is_the_cffi_paths_and_the_batchs(solvers):
+    from deltagen.solve import numeric as ikn
+
+    arm, solver, cffi_solver = solvers
+    rng = np.random.default_rng(2105)
+    lim = arm.qlim
+    q = rng.uniform(np.maximum(lim[:, 0], -np.pi), np.minimum(lim[:, 1], np.pi), (60, 6))
+    T = np.ascontiguousarray(arm.fk(q))
+    mid = np.ascontiguousarray(lim.mean(axis=1))
+    batch = ikn.solve(arm, T, q0=mid)  # the batch path, every attempt in C
+    for i in range(T.shape[0]):
+        a = solver(T[i], mid)
+        assert np.array_equal(a, cffi_solver(T[i], mid))
+        if batch.converged[i]:
+            assert np.array_equal(a, batch.q[i])
+        else:
+            assert a is None
+        # other restarts / seeds: the same on both paths
+        b = solver(T[i], mid, 0, 3)
+        c = cffi_solver(T[i], mid, 0, 3)
+        assert (b is None and c is None) or np.array_equal(b, c)
+    # inputs read from a local copy, or left to the general path
+    Tf = np.asfortranarray(T[1])
+    assert np.array_equal(solver(Tf, mid), solver(T[1], mid))
+    assert np.array_equal(solver(T[1], mid.tolist()), solver(T[1], mid))
+    assert solver(T[1].tolist(), mid) is None  # not an ndarray: the general path
+    assert solver(T[1], mid[:5]) is None
+    assert solver(T[1].astype(np.float32), mid) is None
+    # an unreachable target does not converge: None, the general path reports it
+    far = T[1].copy()
+    far[:3, 3] = [5.0, 5.0, 5.0]
+    assert solver(far, mid, 0) is None and cffi_solver(far, mid, 0) is None
+
+
+def test_numeric_ik_through_the_api_keeps_its_answers(solvers):
+    arm = solvers[0]
+    rng = np.random.default_rng(2106)
+    lim = arm.qlim
+    q = rng.uniform(np.maximum(lim[:, 0], -np.pi), np.minimum(lim[:, 1], np.pi), (30, 6))
+    T = np.ascontiguousarray(arm.fk(q))
+    for i in range(T.shape[0]):
+        qi = arm.ik(T[i], method="numeric")
+        Tq, _ = reference.fk(arm.description, qi[None])
+        assert np.max(np.abs(Tq[0] - T[i])) < 1e-9  # the numpy reference's fk
+        assert np.all((qi >= lim[:, 0]) & (qi <= lim[:, 1]))
+    bad = T[0].copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(Exception, match="NaN"):
+        arm.ik(bad, method="numeric")
