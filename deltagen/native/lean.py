@@ -39,6 +39,12 @@ extension serves every module: it takes the kernel's address. Where it cannot be
 (no Python.h, no compiler) the Python code below serves, unchanged; DELTAGEN_LEAN_EXT=0
 (or false, no, off; any case) chooses it too, and a value that is no such flag is an
 InputError (deltagen.inputs.env_flag).
+
+Two more entries of the extension serve the one-pose inverse kinematics: ``pose_kernel``
+(checked_pose_call: ik_all of one pose, the pose's finite/rigid check -- solve/ik.py's
+rule -- made in C, answered as the caller's IKSolutions) and ``newton_kernel`` (the numeric
+solver of one target, solve/numeric.py single_solver); ``rigid_pose`` is that check alone
+(solve/ik.py rigid_one).
 """
 
 from __future__ import annotations

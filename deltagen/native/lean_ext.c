@@ -514,7 +514,8 @@ static PyObject *rigid_pose_py(PyObject *module, PyObject *args)
  * caller has checked that it is a finite rigid transform), and q0 as read_row reads it,
  * and returns a fresh (n,) float64 q when the solver converged (status ok), else None (the
  * general path answers: its restarts, errors and messages). The same C function on the
- * same numbers as the cffi path (solve/numeric.py single_solver): the same bits. */
+ * same numbers as the cffi path (solve/numeric.py single_solver): the same bits. Unlike
+ * the other entries it releases the GIL during the solve (as cffi does). */
 
 typedef int (*NewtonFn)(size_t, const void *, const double *, const double *, const double *,
                         double *, double *, double *, int32_t *, int8_t *);
@@ -571,16 +572,24 @@ static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t n
     const double *q0 = read_row(args[1], spec->n, buf);
     if (q0 == NULL)
         Py_RETURN_NONE;
+    if (q0 != buf) /* the caller's array: copied, other threads run during the solve */
+        memcpy(buf, q0, (size_t)spec->n * sizeof(double));
     npy_intp dims[1] = {(npy_intp)spec->n};
     PyObject *q = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
     if (q == NULL)
         return NULL;
+    double *q_out = (double *)PyArray_DATA((PyArrayObject *)q);
     double ep, er;
     int32_t iterations;
     int8_t status = -1;
-    int rc = ((NewtonFn)spec->fn)(1, spec->options, T, q0, spec->qlim,
-                                  (double *)PyArray_DATA((PyArrayObject *)q), &ep, &er,
-                                  &iterations, &status);
+    int rc;
+    /* the solve takes microseconds to milliseconds: the GIL is released meanwhile, as the
+     * cffi path releases it (every number it reads or writes is on this C stack or in q,
+     * which no other thread has seen yet) */
+    Py_BEGIN_ALLOW_THREADS
+    rc = ((NewtonFn)spec->fn)(1, spec->options, T, buf, spec->qlim, q_out, &ep, &er,
+                              &iterations, &status);
+    Py_END_ALLOW_THREADS
     if (rc != 0 || status != spec->ok) {
         Py_DECREF(q);
         Py_RETURN_NONE;

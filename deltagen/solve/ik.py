@@ -119,7 +119,7 @@ def check_one_pose(v):
 _RIGID_C: list = []  # [lean_ext.rigid_pose or None] once tried
 
 
-def rigid_one(T) -> bool:
+def rigid_one(T: np.ndarray) -> bool:
     """check_one_pose(T)[1] for one (4, 4) float64 ndarray T: the same rule, made in C by
     the lean extension where it builds (native/lean_ext.c rigid_pose, ~0.1 us instead of
     ~1 us), else in Python floats."""
@@ -233,6 +233,11 @@ class IKPlanner:
     def configs(self) -> tuple[str, ...]:
         """Branch names of ik_all ((), if the arm has none): the closed form's, or for a
         6R arm whose wrist axes nearly meet, those of its nearest central-wrist arm."""
+        return self.config_names
+
+    @cached_property
+    def config_names(self) -> tuple[str, ...]:
+        """configs(), made once (the arm's closed form and combined method do not change)."""
         solver = self.analytic
         if solver is not None:
             return tuple(solver.configs)
@@ -449,9 +454,12 @@ class IKPlanner:
                 )
             if not isinstance(config, str) or config not in configs:
                 raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
-        from deltagen.solve import numeric as ik_numeric
+        if options:
+            from deltagen.solve import numeric as ik_numeric
 
-        unknown = sorted(set(options) - set(ik_numeric.OPTIONS)) if options else ()
+            unknown = sorted(set(options) - set(ik_numeric.OPTIONS))
+        else:
+            unknown = []
         if unknown:
             raise InputError(
                 f"ik got unknown option(s) {', '.join(unknown)}; it takes config, q0, method, "

@@ -12,6 +12,9 @@ pose, an overflowing one, and inputs the C path does not take (other dtypes, sha
 byte order) get exactly the outcome of the general path: the same q/valid (NaN and False)
 or the same error, with the extension disabled as the second witness; (4) an unreachable
 pose is answered in C with the batch path's flags; (5) many calls leave no memory behind.
+The numeric solver of one target (``newton_kernel``): bit for bit the cffi path's answer
+(DELTAGEN_LEAN_EXT=0) and the batch row, for any restarts and seed; the API's answers
+checked with the numpy reference's fk.
 """
 
 from __future__ import annotations
@@ -335,3 +338,20 @@ def test_numeric_ik_through_the_api_keeps_its_answers(solvers):
     bad[0, 0] = np.nan
     with pytest.raises(Exception, match="NaN"):
         arm.ik(bad, method="numeric")
+
+
+def test_numeric_one_target_in_threads_gets_its_own_answer(solvers):
+    from concurrent.futures import ThreadPoolExecutor
+
+    arm, solver, _ = solvers
+    rng = np.random.default_rng(2107)
+    lim = arm.qlim
+    q = rng.uniform(np.maximum(lim[:, 0], -np.pi), np.minimum(lim[:, 1], np.pi), (40, 6))
+    T = np.ascontiguousarray(arm.fk(q))
+    mid = np.ascontiguousarray(lim.mean(axis=1))
+    alone = [solver(Ti, mid) for Ti in T]
+    with ThreadPoolExecutor(4) as pool:  # the solve runs without the GIL
+        together = list(pool.map(lambda Ti: solver(Ti, mid), list(T) * 3))
+    for i, a in enumerate(together):
+        b = alone[i % len(alone)]
+        assert (a is None and b is None) or np.array_equal(a, b)
