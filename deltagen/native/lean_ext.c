@@ -629,6 +629,109 @@ static PyObject *newton_kernel(PyObject *module, PyObject *args)
     return call;
 }
 
+/* ---- the cheap test of ik's exact-singularity check (solve/ik.py singular_one) ----
+ *
+ * regular_kernel(jacobian, lu, n, tol, ok, keep) -> callable(q)
+ *   jacobian  int fn(size_t rows, const double *q, double *J, int8_t *status): the arm's
+ *             generated geometric Jacobian, J (n x n) row-major (a square one: 6 joints)
+ *   lu        the runtime's deltagen_lu (codegen/runtime/deltagen_linalg.c) in the same
+ *             module: LU factorisation with partial pivoting, in place
+ *   tol       status.SINGULAR_TOL
+ *
+ * The callable takes q as read_row reads it and returns True when |det J| >= tol |J|_F^n
+ * (|J|_F >= sigma_max, so sigma_min / sigma_max >= tol: not singular), False when that
+ * test does not clear q (the caller's SVD decides), None for any other argument or a
+ * status other than ok. |det J| is the product of the magnitudes of U's diagonal. */
+
+#define MAX_SQUARE 12
+
+typedef int (*JacobianFn)(size_t, const double *, double *, int8_t *);
+typedef int (*LuFn)(double *, size_t, int *, double *);
+
+typedef struct {
+    PyObject_HEAD
+    uintptr_t jacobian, lu;
+    Py_ssize_t n;
+    double tol;
+    int ok;
+    PyObject *keep;
+} RegularSpec;
+
+static void regular_spec_dealloc(RegularSpec *self)
+{
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject RegularSpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.RegularSpec",
+    .tp_basicsize = sizeof(RegularSpec),
+    .tp_dealloc = (destructor)regular_spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what the cheap singularity test needs (Jacobian, LU, tolerance)",
+};
+
+static PyObject *regular_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const RegularSpec *spec = (const RegularSpec *)self;
+    double buf[MAX_WIDTH], J[MAX_SQUARE * MAX_SQUARE];
+    if (nargs != 1)
+        Py_RETURN_NONE;
+    const double *q = read_row(args[0], spec->n, buf);
+    if (q == NULL)
+        Py_RETURN_NONE;
+    int8_t status = -1;
+    const size_t n = (size_t)spec->n;
+    if (((JacobianFn)spec->jacobian)(1, q, J, &status) != 0 || status != spec->ok)
+        Py_RETURN_NONE;
+    double frobenius = 0.0;
+    for (size_t i = 0; i < n * n; i++)
+        frobenius += J[i] * J[i];
+    frobenius = sqrt(frobenius);
+    if (((LuFn)spec->lu)(J, n, NULL, NULL) != 0)
+        Py_RETURN_FALSE; /* a zero pivot: the SVD decides */
+    double det = 1.0;
+    for (size_t i = 0; i < n; i++)
+        det *= fabs(J[i * n + i]);
+    if (det >= spec->tol * pow(frobenius, (double)n))
+        Py_RETURN_TRUE;
+    Py_RETURN_FALSE;
+}
+
+static PyMethodDef regular_call_def = {
+    "regular_call", (PyCFunction)(void (*)(void))regular_call, METH_FASTCALL,
+    "the cheap singularity test of one configuration (deltagen/native/lean_ext.c)"};
+
+static PyObject *regular_kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    unsigned long long jacobian, lu;
+    Py_ssize_t n;
+    double tol;
+    int ok;
+    PyObject *keep;
+    if (!PyArg_ParseTuple(args, "KKndiO", &jacobian, &lu, &n, &tol, &ok, &keep))
+        return NULL;
+    if (jacobian == 0 || lu == 0 || n < 1 || n > MAX_SQUARE || !(tol > 0.0)) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.regular_kernel: a form it does not serve");
+        return NULL;
+    }
+    RegularSpec *spec = PyObject_New(RegularSpec, &RegularSpecType);
+    if (spec == NULL)
+        return NULL;
+    spec->jacobian = (uintptr_t)jacobian;
+    spec->lu = (uintptr_t)lu;
+    spec->n = n;
+    spec->tol = tol;
+    spec->ok = ok;
+    Py_INCREF(keep);
+    spec->keep = keep;
+    PyObject *call = PyCFunction_NewEx(&regular_call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
 static PyMethodDef methods[] = {
     {"kernel", kernel, METH_VARARGS,
      "kernel(fn, lead, geometry, n, inputs, scalar, out_shapes, ok, keep) -> callable"},
@@ -636,6 +739,8 @@ static PyMethodDef methods[] = {
      "pose_kernel(fn, k, n, answers, rigid_tol, bottom_tol, wrap, keep) -> callable"},
     {"newton_kernel", newton_kernel, METH_VARARGS,
      "newton_kernel(fn, n, options, qlim, ok, keep) -> callable(T, q0)"},
+    {"regular_kernel", regular_kernel, METH_VARARGS,
+     "regular_kernel(jacobian, lu, n, tol, ok, keep) -> callable(q)"},
     {"rigid_pose", rigid_pose_py, METH_VARARGS,
      "rigid_pose(T, rigid_tol, bottom_tol) -> the rigid flag of check_one_pose"},
     {NULL, NULL, 0, NULL},
@@ -651,7 +756,8 @@ PyMODINIT_FUNC DELTAGEN_LEAN_INIT(void)
 {
     import_array();
     if (PyType_Ready(&SpecType) < 0 || PyType_Ready(&PoseSpecType) < 0
-        || PyType_Ready(&NewtonSpecType) < 0)
+        || PyType_Ready(&NewtonSpecType) < 0
+        || PyType_Ready(&RegularSpecType) < 0)
         return NULL;
     return PyModule_Create(&module_def);
 }

@@ -140,6 +140,7 @@ class CompiledArm:
             module = _load(self._kinematics_desc, part="first")
             self._kernels.update(_ports(self._kinematics_desc, part="first"))
         self._ffi, self._lib = module.ffi, module.lib
+        self._module_file = getattr(module, "__file__", None)  # single_regular's LU
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
     def _run(self, name, inputs):
@@ -384,6 +385,35 @@ class CompiledArm:
             (st.OK, st.UNREACHABLE),
             tolerances,
             wrap,
+        )
+
+    def single_regular(self, tol):
+        """The cheap test of ik's singularity check for one configuration of an arm whose
+        Jacobian is square (native.lean_ext regular_kernel: the generated Jacobian and the
+        runtime's deltagen_lu of this module, in C): call(q) -> True (|det J| >= tol
+        |J|_F^n: not singular), False (the caller's SVD decides) or None (other inputs, a
+        status other than OK). None instead of the callable where the Jacobian is not
+        square, the extension is missing or the module does not export deltagen_lu."""
+        import ctypes
+
+        from deltagen.native.lean import extension
+
+        module = extension()
+        if module is None or self._module_file is None or self.desc.n != 6:
+            return None
+        try:
+            shared = ctypes.CDLL(self._module_file)
+            lu = ctypes.cast(shared.deltagen_lu, ctypes.c_void_p).value
+        except (OSError, AttributeError):
+            return None
+        jacobian = getattr(self._lib, self._kernels["jacobian"]["function"])
+        return module.regular_kernel(
+            int(self._ffi.cast("uintptr_t", jacobian)),
+            int(lu),
+            self.desc.n,
+            float(tol),
+            st.OK,
+            (self._ffi, self._lib, jacobian, shared),
         )
 
     def single(self, name):

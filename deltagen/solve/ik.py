@@ -736,8 +736,22 @@ class IKPlanner:
             return solver(T, start, seed=seed)
         return solver(T, start, int(restarts), seed)
 
+    @cached_property
+    def regular_single(self) -> Any:
+        """The C form of singular_one's cheap test for a square Jacobian (native.serial
+        CompiledArm.single_regular), or None."""
+        make = getattr(self.core, "single_regular", None)
+        return make(SINGULAR_TOL) if make is not None and self.n == 6 else None
+
     def singular_one(self, q):
         """singular_rows for one configuration, lean (the single-pose fast path)."""
+        regular = self.regular_single
+        if regular is not None:
+            cleared = regular(q)  # |det J| >= SINGULAR_TOL |J|_F^6, in C
+            if cleared is True:
+                return False
+            if cleared is False:
+                return bool(self.singular_rows(q[None])[0])
         J = self.jacobian_single(q)
         if J is None:
             return bool(self.singular_rows(q[None])[0])

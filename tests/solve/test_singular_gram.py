@@ -95,3 +95,39 @@ def test_gram_tolerance_is_far_above_the_singular_one():
     # the bound's rounding (a few eps relative on G's eigenvalues) lifts a ratio below
     # SINGULAR_TOL to ~1e-8 at most: GRAM_TOL must stay well above that
     assert solve_ik.GRAM_TOL > 100 * SINGULAR_TOL
+
+
+def test_the_c_test_of_a_square_jacobian_is_sound():
+    """The Puma's cheap test in C (lean_ext regular_kernel: the generated Jacobian and the
+    runtime's LU) clears a configuration only where the reference SVD finds sigma_min /
+    sigma_max >= SINGULAR_TOL, and singular_one agrees with the SVD around the wrist
+    singularity q5 = 0."""
+    arm = SerialRobot.load("puma560", threads=1)
+    regular = arm.ik_planner.regular_single
+    if regular is None:
+        pytest.skip("no C extension here: singular_one's numpy test serves")
+    rng = np.random.default_rng(2108)
+    q = rng.uniform(-np.pi, np.pi, (300, 6))
+    cleared = 0
+    for qi in q:
+        ok = regular(qi)
+        assert ok in (True, False)
+        if ok:
+            assert _ratio(arm, qi) >= SINGULAR_TOL
+            cleared += 1
+        _check(arm, qi)
+    assert cleared > 250  # generic configurations are cleared without the SVD
+    base = np.array([0.3, -0.6, 0.4, 0.8, 0.0, -0.2])
+    assert regular(base) is False  # q5 = 0: det J = 0
+    seen = set()
+    for step in (1e-2, 1e-5, 1e-8, 1e-10, 1e-12):
+        qs = base.copy()
+        qs[4] = step
+        ratio = _check(arm, qs)
+        if regular(qs):
+            assert ratio >= SINGULAR_TOL
+        seen.add(ratio > 2 * SINGULAR_TOL)
+    assert seen == {True, False}
+    nan = base.copy()
+    nan[0] = np.nan
+    assert regular(nan) is None and regular(base[:5]) is None and regular("q") is None
