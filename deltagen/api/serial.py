@@ -42,9 +42,9 @@ from deltagen.solve.ik import (
     IK_METHODS,
     IKPlanner,
     IKSolutions,
-    check_one_pose,
     check_poses,
     raise_bad_poses,
+    rigid_one,
 )
 from deltagen.solve.singularity import singular_values
 
@@ -432,7 +432,13 @@ class SerialRobot(SerialDynamics, RobotFamily):
         "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
-        return self.ik_planner.ik_all(T, method)
+        planner = self.ik_planner
+        one = planner.ik_all_checked  # one pose, the closed form's C path (else None)
+        if one is not None and (method == "auto" or method == "closed_form"):
+            solutions = one(T)  # None: not one finite rigid (4, 4) float64 pose, or INVALID
+            if solutions is not None:
+                return solutions
+        return planner.ik_all(T, method)
 
     def _ik_request(self, config, q0, method, errors, singular, options):
         """The one check of ik's options, made on every call before any path is chosen
@@ -490,7 +496,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         if type(T) is np.ndarray and T.dtype is _F64 and T.shape == (4, 4) and T.flags.c_contiguous:
             # one pose as a plain array: check_poses' rule in Python floats, and the lean
             # paths (None: the general path below answers, after its own check of T)
-            if check_one_pose(T.ravel().tolist())[1]:
+            if rigid_one(T):
                 q = planner.one(T, config, q0a, analytic, errors, singular, options)
                 if q is not None:
                     return q

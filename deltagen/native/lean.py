@@ -39,6 +39,12 @@ extension serves every module: it takes the kernel's address. Where it cannot be
 (no Python.h, no compiler) the Python code below serves, unchanged; DELTAGEN_LEAN_EXT=0
 (or false, no, off; any case) chooses it too, and a value that is no such flag is an
 InputError (deltagen.inputs.env_flag).
+
+Two more entries of the extension serve the one-pose inverse kinematics: ``pose_kernel``
+(checked_pose_call: ik_all of one pose, the pose's finite/rigid check -- solve/ik.py's
+rule -- made in C, answered as the caller's IKSolutions) and ``newton_kernel`` (the numeric
+solver of one target, solve/numeric.py single_solver); ``rigid_pose`` is that check alone
+(solve/ik.py rigid_one).
 """
 
 from __future__ import annotations
@@ -110,6 +116,29 @@ def _extension_call(ffi, fn, lead, rows, outputs):
         )
     except ValueError:  # a form the C entry does not serve
         return None
+
+
+def checked_pose_call(ffi, fn, k, n, answers, tolerances, wrap=None):
+    """The extension's one-pose ik_all (lean_ext.c ``pose_kernel``) of the generated
+    ``fn(rows, T, q, valid, status)``, or None where the extension is missing: call(T) ->
+    wrap((q (k, n), valid (k,) bool)) (the tuple itself when wrap is None) for a (4, 4)
+    float64 ndarray that is a finite rigid transform by solve/ik.py's check_one_pose rule
+    (``tolerances`` = its (rigid, bottom) tolerances), made in C, and a status in
+    ``answers``; else None (the general path checks, raises or marks)."""
+    module = extension()
+    if module is None:
+        return None
+    rigid_tol, bottom_tol = tolerances
+    return module.pose_kernel(
+        int(ffi.cast("uintptr_t", fn)),
+        int(k),
+        int(n),
+        tuple(int(a) for a in answers),
+        float(rigid_tol),
+        float(bottom_tol),
+        wrap,
+        (ffi, fn),
+    )
 
 
 def row_putter(memmove, n: int):

@@ -46,6 +46,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -307,9 +308,441 @@ static PyObject *kernel(PyObject *module, PyObject *args)
     return call;
 }
 
+/* ---- ik_all of one pose, with check_poses' rule in C (deltagen/solve/ik.py) ----
+ *
+ * pose_kernel(fn, k, n, answers, rigid_tol, bottom_tol, wrap, keep) -> callable(T)
+ *   fn         int fn(size_t rows, const double *T, double *q, uint8_t *valid,
+ *              int8_t *status): the generated closed-form ik_all (codegen/ik_kernel.py)
+ *   k, n       branches and joints: q comes back (k, n) float64, valid (k,) bool
+ *   answers    the status codes whose outputs are the answer as they stand (a tuple of
+ *              ints: OK and UNREACHABLE; the batch path returns the same q and flags)
+ *   rigid_tol, bottom_tol   check_poses' tolerances (solve/ik.py _RIGID_TOL, _BOTTOM_TOL)
+ *   wrap       None: return the tuple (q, valid); else wrap((q, valid)) is returned
+ *   keep       as kernel()'s
+ *
+ * The callable takes one (4, 4) float64 ndarray (exactly numpy.ndarray, native byte order,
+ * any strides) and returns the answer, or None -- for any other argument, a pose that is
+ * not finite or not a rigid transform, or a status not in `answers` -- so that the general
+ * path makes its checks and raises or marks as it does for every other call. The rigidity
+ * rule is check_one_pose's (solve/ik.py), written with the same operations in the same
+ * order (ISO C99, no contraction into fused multiply-adds: the same roundings as Python's
+ * floats): every entry finite; each row of the rotation block of unit length and the rows
+ * pairwise orthogonal to rigid_tol; the bottom row 0 0 0 1 to bottom_tol. */
+
+#define MAX_ANSWERS 4
+
+typedef struct {
+    PyObject_HEAD
+    uintptr_t fn;
+    npy_intp k, n;
+    int answers[MAX_ANSWERS];
+    int nanswers;
+    double rigid_tol, bottom_tol;
+    PyObject *wrap;
+    PyObject *keep;
+} PoseSpec;
+
+static void pose_spec_dealloc(PoseSpec *self)
+{
+    Py_XDECREF(self->wrap);
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject PoseSpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.PoseSpec",
+    .tp_basicsize = sizeof(PoseSpec),
+    .tp_dealloc = (destructor)pose_spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what a one-pose ik_all call needs (function, shapes, answers, tolerances)",
+};
+
+/* 1 when the 16 entries (row by row) are finite and a rigid transform by check_one_pose's
+ * rule, else 0. */
+static int rigid_pose(const double *v, double tol, double bottom)
+{
+    for (int i = 0; i < 16; i++)
+        if (!isfinite(v[i]))
+            return 0;
+    const double a = v[0], b = v[1], c = v[2], d = v[4], e = v[5], f = v[6];
+    const double g = v[8], h = v[9], i = v[10];
+    return fabs(a * a + b * b + c * c - 1.0) < tol && fabs(d * d + e * e + f * f - 1.0) < tol
+           && fabs(g * g + h * h + i * i - 1.0) < tol && fabs(a * d + b * e + c * f) < tol
+           && fabs(a * g + b * h + c * i) < tol && fabs(d * g + e * h + f * i) < tol
+           && fabs(v[12]) < bottom && fabs(v[13]) < bottom && fabs(v[14]) < bottom
+           && fabs(v[15] - 1.0) < bottom;
+}
+
+typedef int (*PoseFn)(size_t, const double *, double *, uint8_t *, int8_t *);
+
+static PyObject *pose_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const PoseSpec *spec = (const PoseSpec *)self;
+    if (nargs != 1 || Py_TYPE(args[0]) != &PyArray_Type)
+        Py_RETURN_NONE;
+    PyArrayObject *a = (PyArrayObject *)args[0];
+    if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
+        || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
+        Py_RETURN_NONE;
+    double T[16];
+    const char *data = PyArray_BYTES(a);
+    const npy_intp s0 = PyArray_STRIDE(a, 0), s1 = PyArray_STRIDE(a, 1);
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            memcpy(&T[4 * r + c], data + r * s0 + c * s1, sizeof(double));
+    if (!rigid_pose(T, spec->rigid_tol, spec->bottom_tol))
+        Py_RETURN_NONE; /* the general path: InputError, or NaN and invalid */
+    npy_intp qdims[2] = {spec->k, spec->n};
+    PyObject *q = PyArray_SimpleNew(2, qdims, NPY_DOUBLE);
+    if (q == NULL)
+        return NULL;
+    PyObject *valid = PyArray_SimpleNew(1, (npy_intp *)&spec->k, NPY_BOOL);
+    if (valid == NULL) {
+        Py_DECREF(q);
+        return NULL;
+    }
+    int8_t status = -1;
+    int rc = ((PoseFn)spec->fn)(1, T, (double *)PyArray_DATA((PyArrayObject *)q),
+                                (uint8_t *)PyArray_DATA((PyArrayObject *)valid), &status);
+    int answer = 0;
+    for (int j = 0; j < spec->nanswers; j++)
+        answer |= status == spec->answers[j];
+    if (rc != 0 || !answer) {
+        Py_DECREF(q);
+        Py_DECREF(valid);
+        Py_RETURN_NONE;
+    }
+    PyObject *pair = PyTuple_New(2);
+    if (pair == NULL) {
+        Py_DECREF(q);
+        Py_DECREF(valid);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(pair, 0, q); /* steals the references */
+    PyTuple_SET_ITEM(pair, 1, valid);
+    if (spec->wrap == Py_None)
+        return pair;
+    PyObject *wrapped = PyObject_CallOneArg(spec->wrap, pair);
+    Py_DECREF(pair);
+    return wrapped;
+}
+
+static PyMethodDef pose_call_def = {
+    "pose_call", (PyCFunction)(void (*)(void))pose_call, METH_FASTCALL,
+    "ik_all of one checked pose (deltagen/native/lean_ext.c)"};
+
+static PyObject *pose_kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    unsigned long long fn;
+    Py_ssize_t k, n;
+    double rigid_tol, bottom_tol;
+    PyObject *answers, *wrap, *keep;
+    if (!PyArg_ParseTuple(args, "KnnO!ddOO", &fn, &k, &n, &PyTuple_Type, &answers, &rigid_tol,
+                          &bottom_tol, &wrap, &keep))
+        return NULL;
+    Py_ssize_t m = PyTuple_GET_SIZE(answers);
+    if (fn == 0 || k < 1 || n < 1 || n > MAX_WIDTH || m < 1 || m > MAX_ANSWERS
+        || !(rigid_tol > 0.0) || !(bottom_tol > 0.0)
+        || (wrap != Py_None && !PyCallable_Check(wrap))) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.pose_kernel: a form it does not serve");
+        return NULL;
+    }
+    PoseSpec *spec = PyObject_New(PoseSpec, &PoseSpecType);
+    if (spec == NULL)
+        return NULL;
+    spec->fn = (uintptr_t)fn;
+    spec->k = (npy_intp)k;
+    spec->n = (npy_intp)n;
+    spec->nanswers = (int)m;
+    spec->rigid_tol = rigid_tol;
+    spec->bottom_tol = bottom_tol;
+    Py_INCREF(wrap);
+    spec->wrap = wrap;
+    Py_INCREF(keep);
+    spec->keep = keep;
+    for (Py_ssize_t j = 0; j < m; j++) {
+        long code = PyLong_AsLong(PyTuple_GET_ITEM(answers, j));
+        if (code == -1 && PyErr_Occurred()) {
+            Py_DECREF(spec);
+            return NULL;
+        }
+        spec->answers[j] = (int)code;
+    }
+    PyObject *call = PyCFunction_NewEx(&pose_call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
+/* rigid_pose(T) -> bool: check_one_pose's rigid flag for one (4, 4) float64 ndarray (the
+ * tolerances given), for the tests; None for any other argument. */
+static PyObject *rigid_pose_py(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *x;
+    double tol, bottom;
+    if (!PyArg_ParseTuple(args, "Odd", &x, &tol, &bottom))
+        return NULL;
+    if (Py_TYPE(x) != &PyArray_Type)
+        Py_RETURN_NONE;
+    PyArrayObject *a = (PyArrayObject *)x;
+    if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
+        || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
+        Py_RETURN_NONE;
+    double T[16];
+    const char *data = PyArray_BYTES(a);
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            memcpy(&T[4 * r + c], data + r * PyArray_STRIDE(a, 0) + c * PyArray_STRIDE(a, 1),
+                   sizeof(double));
+    return PyBool_FromLong(rigid_pose(T, tol, bottom));
+}
+
+/* ---- the numerical IK of one target (the runtime's deltagen_ik_newton.c) ----
+ *
+ * newton_kernel(fn, n, options, qlim, ok, keep) -> callable(T, q0)
+ *   fn       int fn(size_t rows, const deltagen_ik_options *, const double *T,
+ *            const double *q0, const double *qlim, double *q, double *err_p,
+ *            double *err_r, int32_t *iterations, int8_t *status): <prefix>_ik_newton
+ *   n        the joints
+ *   options  the address of a filled deltagen_ik_options struct, qlim of the (n, 2)
+ *            limits: both owned by `keep`, held as long as the callable lives
+ *   ok       the status code of a converged row
+ *
+ * The callable takes T, a (4, 4) float64 ndarray (native byte order, any strides; the
+ * caller has checked that it is a finite rigid transform), and q0 as read_row reads it,
+ * and returns a fresh (n,) float64 q when the solver converged (status ok), else None (the
+ * general path answers: its restarts, errors and messages). The same C function on the
+ * same numbers as the cffi path (solve/numeric.py single_solver): the same bits. Unlike
+ * the other entries it releases the GIL during the solve (as cffi does). */
+
+typedef int (*NewtonFn)(size_t, const void *, const double *, const double *, const double *,
+                        double *, double *, double *, int32_t *, int8_t *);
+
+typedef struct {
+    PyObject_HEAD
+    uintptr_t fn;
+    Py_ssize_t n;
+    const void *options;
+    const double *qlim;
+    int ok;
+    PyObject *keep;
+} NewtonSpec;
+
+static void newton_spec_dealloc(NewtonSpec *self)
+{
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject NewtonSpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.NewtonSpec",
+    .tp_basicsize = sizeof(NewtonSpec),
+    .tp_dealloc = (destructor)newton_spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what a one-target numerical IK call needs (function, options, limits)",
+};
+
+/* The 16 entries of a (4, 4) float64 ndarray in native byte order, row by row; 0 for any
+ * other argument. */
+static int read_pose(PyObject *x, double T[16])
+{
+    if (Py_TYPE(x) != &PyArray_Type)
+        return 0;
+    PyArrayObject *a = (PyArrayObject *)x;
+    if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
+        || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
+        return 0;
+    const char *data = PyArray_BYTES(a);
+    const npy_intp s0 = PyArray_STRIDE(a, 0), s1 = PyArray_STRIDE(a, 1);
+    for (int r = 0; r < 4; r++)
+        for (int c = 0; c < 4; c++)
+            memcpy(&T[4 * r + c], data + r * s0 + c * s1, sizeof(double));
+    return 1;
+}
+
+static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const NewtonSpec *spec = (const NewtonSpec *)self;
+    double T[16], buf[MAX_WIDTH];
+    if (nargs != 2 || !read_pose(args[0], T))
+        Py_RETURN_NONE;
+    const double *q0 = read_row(args[1], spec->n, buf);
+    if (q0 == NULL)
+        Py_RETURN_NONE;
+    if (q0 != buf) /* the caller's array: copied, other threads run during the solve */
+        memcpy(buf, q0, (size_t)spec->n * sizeof(double));
+    npy_intp dims[1] = {(npy_intp)spec->n};
+    PyObject *q = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+    if (q == NULL)
+        return NULL;
+    double *q_out = (double *)PyArray_DATA((PyArrayObject *)q);
+    double ep, er;
+    int32_t iterations;
+    int8_t status = -1;
+    int rc;
+    /* the solve takes microseconds to milliseconds: the GIL is released meanwhile, as the
+     * cffi path releases it (every number it reads or writes is on this C stack or in q,
+     * which no other thread has seen yet) */
+    Py_BEGIN_ALLOW_THREADS
+    rc = ((NewtonFn)spec->fn)(1, spec->options, T, buf, spec->qlim, q_out, &ep, &er,
+                              &iterations, &status);
+    Py_END_ALLOW_THREADS
+    if (rc != 0 || status != spec->ok) {
+        Py_DECREF(q);
+        Py_RETURN_NONE;
+    }
+    return q;
+}
+
+static PyMethodDef newton_call_def = {
+    "newton_call", (PyCFunction)(void (*)(void))newton_call, METH_FASTCALL,
+    "the numerical IK of one target (deltagen/native/lean_ext.c)"};
+
+static PyObject *newton_kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    unsigned long long fn, options, qlim;
+    Py_ssize_t n;
+    int ok;
+    PyObject *keep;
+    if (!PyArg_ParseTuple(args, "KnKKiO", &fn, &n, &options, &qlim, &ok, &keep))
+        return NULL;
+    if (fn == 0 || options == 0 || qlim == 0 || n < 1 || n > MAX_WIDTH) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.newton_kernel: a form it does not serve");
+        return NULL;
+    }
+    NewtonSpec *spec = PyObject_New(NewtonSpec, &NewtonSpecType);
+    if (spec == NULL)
+        return NULL;
+    spec->fn = (uintptr_t)fn;
+    spec->n = n;
+    spec->options = (const void *)(uintptr_t)options;
+    spec->qlim = (const double *)(uintptr_t)qlim;
+    spec->ok = ok;
+    Py_INCREF(keep);
+    spec->keep = keep;
+    PyObject *call = PyCFunction_NewEx(&newton_call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
+/* ---- the cheap test of ik's exact-singularity check (solve/ik.py singular_one) ----
+ *
+ * regular_kernel(jacobian, lu, n, tol, ok, keep) -> callable(q)
+ *   jacobian  int fn(size_t rows, const double *q, double *J, int8_t *status): the arm's
+ *             generated geometric Jacobian, J (n x n) row-major (a square one: 6 joints)
+ *   lu        the runtime's deltagen_lu (codegen/runtime/deltagen_linalg.c) in the same
+ *             module: LU factorisation with partial pivoting, in place
+ *   tol       status.SINGULAR_TOL
+ *
+ * The callable takes q as read_row reads it and returns True when |det J| >= tol |J|_F^n
+ * (|J|_F >= sigma_max, so sigma_min / sigma_max >= tol: not singular), False when that
+ * test does not clear q (the caller's SVD decides), None for any other argument or a
+ * status other than ok. |det J| is the product of the magnitudes of U's diagonal. */
+
+#define MAX_SQUARE 12
+
+typedef int (*JacobianFn)(size_t, const double *, double *, int8_t *);
+typedef int (*LuFn)(double *, size_t, int *, double *);
+
+typedef struct {
+    PyObject_HEAD
+    uintptr_t jacobian, lu;
+    Py_ssize_t n;
+    double tol;
+    int ok;
+    PyObject *keep;
+} RegularSpec;
+
+static void regular_spec_dealloc(RegularSpec *self)
+{
+    Py_XDECREF(self->keep);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject RegularSpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.RegularSpec",
+    .tp_basicsize = sizeof(RegularSpec),
+    .tp_dealloc = (destructor)regular_spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what the cheap singularity test needs (Jacobian, LU, tolerance)",
+};
+
+static PyObject *regular_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const RegularSpec *spec = (const RegularSpec *)self;
+    double buf[MAX_WIDTH], J[MAX_SQUARE * MAX_SQUARE];
+    if (nargs != 1)
+        Py_RETURN_NONE;
+    const double *q = read_row(args[0], spec->n, buf);
+    if (q == NULL)
+        Py_RETURN_NONE;
+    int8_t status = -1;
+    const size_t n = (size_t)spec->n;
+    if (((JacobianFn)spec->jacobian)(1, q, J, &status) != 0 || status != spec->ok)
+        Py_RETURN_NONE;
+    double frobenius = 0.0;
+    for (size_t i = 0; i < n * n; i++)
+        frobenius += J[i] * J[i];
+    frobenius = sqrt(frobenius);
+    if (((LuFn)spec->lu)(J, n, NULL, NULL) != 0)
+        Py_RETURN_FALSE; /* a zero pivot: the SVD decides */
+    double det = 1.0;
+    for (size_t i = 0; i < n; i++)
+        det *= fabs(J[i * n + i]);
+    if (det >= spec->tol * pow(frobenius, (double)n))
+        Py_RETURN_TRUE;
+    Py_RETURN_FALSE;
+}
+
+static PyMethodDef regular_call_def = {
+    "regular_call", (PyCFunction)(void (*)(void))regular_call, METH_FASTCALL,
+    "the cheap singularity test of one configuration (deltagen/native/lean_ext.c)"};
+
+static PyObject *regular_kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    unsigned long long jacobian, lu;
+    Py_ssize_t n;
+    double tol;
+    int ok;
+    PyObject *keep;
+    if (!PyArg_ParseTuple(args, "KKndiO", &jacobian, &lu, &n, &tol, &ok, &keep))
+        return NULL;
+    if (jacobian == 0 || lu == 0 || n < 1 || n > MAX_SQUARE || !(tol > 0.0)) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.regular_kernel: a form it does not serve");
+        return NULL;
+    }
+    RegularSpec *spec = PyObject_New(RegularSpec, &RegularSpecType);
+    if (spec == NULL)
+        return NULL;
+    spec->jacobian = (uintptr_t)jacobian;
+    spec->lu = (uintptr_t)lu;
+    spec->n = n;
+    spec->tol = tol;
+    spec->ok = ok;
+    Py_INCREF(keep);
+    spec->keep = keep;
+    PyObject *call = PyCFunction_NewEx(&regular_call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
 static PyMethodDef methods[] = {
     {"kernel", kernel, METH_VARARGS,
      "kernel(fn, lead, geometry, n, inputs, scalar, out_shapes, ok, keep) -> callable"},
+    {"pose_kernel", pose_kernel, METH_VARARGS,
+     "pose_kernel(fn, k, n, answers, rigid_tol, bottom_tol, wrap, keep) -> callable"},
+    {"newton_kernel", newton_kernel, METH_VARARGS,
+     "newton_kernel(fn, n, options, qlim, ok, keep) -> callable(T, q0)"},
+    {"regular_kernel", regular_kernel, METH_VARARGS,
+     "regular_kernel(jacobian, lu, n, tol, ok, keep) -> callable(q)"},
+    {"rigid_pose", rigid_pose_py, METH_VARARGS,
+     "rigid_pose(T, rigid_tol, bottom_tol) -> the rigid flag of check_one_pose"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -322,7 +755,9 @@ static struct PyModuleDef module_def = {
 PyMODINIT_FUNC DELTAGEN_LEAN_INIT(void)
 {
     import_array();
-    if (PyType_Ready(&SpecType) < 0)
+    if (PyType_Ready(&SpecType) < 0 || PyType_Ready(&PoseSpecType) < 0
+        || PyType_Ready(&NewtonSpecType) < 0
+        || PyType_Ready(&RegularSpecType) < 0)
         return NULL;
     return PyModule_Create(&module_def);
 }

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from deltagen import status as st
 from deltagen.codegen.serial import (
     arm_sources,
     base_name,
@@ -22,7 +23,7 @@ from deltagen.codegen.serial import (
 from deltagen.derive.serial.parts import PARTS
 from deltagen.errors import ManifestError
 from deltagen.native.build import is_built, load, usable_cache_dir
-from deltagen.native.lean import single_call
+from deltagen.native.lean import checked_pose_call, single_call
 from deltagen.native.manifest import kernels, output_widths, point_shape, reshape_outputs
 from deltagen.native.parallel import check_rc, run_rows
 from deltagen.paths import generated_dir
@@ -139,6 +140,7 @@ class CompiledArm:
             module = _load(self._kinematics_desc, part="first")
             self._kernels.update(_ports(self._kinematics_desc, part="first"))
         self._ffi, self._lib = module.ffi, module.lib
+        self._module_file = getattr(module, "__file__", None)  # single_regular's LU
         self._ik_newton = getattr(self._lib, f"{self._prefix}_ik_newton")
 
     def _run(self, name, inputs):
@@ -360,6 +362,59 @@ class CompiledArm:
             return None
         self._check_branches(k)
         return self._single("ik_all", self.load_kinematics(), rows=["pose"])
+
+    def checked_ik_all(self, k, tolerances, wrap=None):
+        """ik_all of one pose through the C extension (native.lean.checked_pose_call), the
+        pose's check made in C: a (4, 4) float64 ndarray in, wrap((q (k, n), valid (k,)))
+        out for a finite rigid transform (solve/ik.py's rule, ``tolerances`` its (rigid,
+        bottom) tolerances) whose status is OK or UNREACHABLE (the batch path's outputs for
+        such a row, as they stand); None for anything else (the general path answers). None
+        instead of the callable where the arm has no C closed form or the extension is
+        missing."""
+        if not self.has_ik_all:
+            return None
+        self._check_branches(k)
+        module = self.load_kinematics()
+        entry = self._kernels["ik_all"]
+        k_q, n_q = point_shape(entry["outputs"][0])  # q (k, n), the manifest's
+        return checked_pose_call(
+            module.ffi,
+            getattr(module.lib, entry["function"]),
+            k_q,
+            n_q,
+            (st.OK, st.UNREACHABLE),
+            tolerances,
+            wrap,
+        )
+
+    def single_regular(self, tol):
+        """The cheap test of ik's singularity check for one configuration of an arm whose
+        Jacobian is square (native.lean_ext regular_kernel: the generated Jacobian and the
+        runtime's deltagen_lu of this module, in C): call(q) -> True (|det J| >= tol
+        |J|_F^n: not singular), False (the caller's SVD decides) or None (other inputs, a
+        status other than OK). None instead of the callable where the Jacobian is not
+        square, the extension is missing or the module does not export deltagen_lu."""
+        import ctypes
+
+        from deltagen.native.lean import extension
+
+        module = extension()
+        if module is None or self._module_file is None or self.desc.n != 6:
+            return None
+        try:
+            shared = ctypes.CDLL(self._module_file)
+            lu = ctypes.cast(shared.deltagen_lu, ctypes.c_void_p).value
+        except (OSError, AttributeError):
+            return None
+        jacobian = getattr(self._lib, self._kernels["jacobian"]["function"])
+        return module.regular_kernel(
+            int(self._ffi.cast("uintptr_t", jacobian)),
+            int(lu),
+            self.desc.n,
+            float(tol),
+            st.OK,
+            (self._ffi, self._lib, jacobian, shared),
+        )
 
     def single(self, name):
         """Lean path (native.lean) for one configuration of fk or jacobian: what

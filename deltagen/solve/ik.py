@@ -73,6 +73,12 @@ class _IncompleteIKSolutions(IKSolutions):
 
 _BOTTOM = np.array([0.0, 0.0, 0.0, 1.0])
 _RIGID_TOL, _BOTTOM_TOL = 1e-6, 1e-12  # check_poses: what counts as a rigid transform
+#: The cheap lower bound sqrt(det G) / |J|_F^m of sigma_min / sigma_max for a Jacobian that is
+#: not square (G its m x m Gram matrix) clears a row as not singular only above this, far
+#: above SINGULAR_TOL: G's rounding (~ eps sigma_max^2 on its eigenvalues, a few 1e-16)
+#: could lift a ratio below SINGULAR_TOL = 1e-9 to ~1e-8 but not to 1e-6; rows below it
+#: get the SVD.
+GRAM_TOL = 1e-6
 
 
 try:  # np.linalg.det's LAPACK gufunc without its errstate context (a third of the cost
@@ -108,6 +114,26 @@ def check_one_pose(v):
         and abs(z - 1.0) < bottom
     )
     return True, rigid
+
+
+_RIGID_C: list = []  # [lean_ext.rigid_pose or None] once tried
+
+
+def rigid_one(T: np.ndarray) -> bool:
+    """check_one_pose(T)[1] for one (4, 4) float64 ndarray T: the same rule, made in C by
+    the lean extension where it builds (native/lean_ext.c rigid_pose, ~0.1 us instead of
+    ~1 us), else in Python floats."""
+    if not _RIGID_C:
+        from deltagen.native.lean import extension
+
+        module = extension()
+        _RIGID_C.append(None if module is None else module.rigid_pose)
+    rigid_c = _RIGID_C[0]
+    if rigid_c is not None:
+        rigid = rigid_c(T, _RIGID_TOL, _BOTTOM_TOL)
+        if rigid is not None:
+            return rigid
+    return check_one_pose(T.ravel().tolist())[1]
 
 
 def check_poses(T, name="T"):
@@ -179,7 +205,8 @@ class IKPlanner:
     ``combined`` (the combined method's module or None), ``general`` ((eliminations,
     complete) of the general 6R solver or None), ``reach``, ``z_only`` and
     ``partial_mask``; the one-pose paths made on the way are ``ik_all_single`` (the C
-    closed form's), ``general_single`` (the complete solver's: None not made yet, False
+    closed form's), ``ik_all_checked`` (the same with the pose's check in C),
+    ``general_single`` (the complete solver's: None not made yet, False
     none) and ``numeric_solver``."""
 
     def __init__(self, arm: Any) -> None:
@@ -192,6 +219,10 @@ class IKPlanner:
         self.jacobian_single = arm._jacobian_single  # None: the batched Jacobian
         compiled = arm.backend == "compiled"
         self.ik_all_single: Any = None  # made by ik_all when the arm has a C closed form
+        # with it, where the C extension builds: ik_all(T) of one (4, 4) float64 pose
+        # (methods "auto" and "closed_form") as one C call, the pose checked in C; None
+        # for any other input (native.serial.CompiledArm.checked_ik_all)
+        self.ik_all_checked: Any = None
         self.general_single: Any = None if compiled else False  # numpy engine: general path
         self.numeric_solver: Any = None  # the C numeric solver's one-pose path
         self.mid_range: Any = None  # the numeric solver's default start (n,)
@@ -202,6 +233,11 @@ class IKPlanner:
     def configs(self) -> tuple[str, ...]:
         """Branch names of ik_all ((), if the arm has none): the closed form's, or for a
         6R arm whose wrist axes nearly meet, those of its nearest central-wrist arm."""
+        return self.config_names
+
+    @cached_property
+    def config_names(self) -> tuple[str, ...]:
+        """configs(), made once (the arm's closed form and combined method do not change)."""
         solver = self.analytic
         if solver is not None:
             return tuple(solver.configs)
@@ -302,7 +338,7 @@ class IKPlanner:
             and T.shape == (4, 4)
             and T.dtype is _F64
             and (method == "complete" or (method == "auto" and one.auto))
-            and check_one_pose(T.ravel().tolist())[1]
+            and rigid_one(T)
         ):  # one pose, complete solver: one C call (general6r.single), after check_poses' rule
             return one(T if T.flags.c_contiguous else np.ascontiguousarray(T))
         if method not in ALL_METHODS:
@@ -350,7 +386,7 @@ class IKPlanner:
         single = self.ik_all_single
         if single is not None and type(T) is np.ndarray and T.shape == (4, 4) and T.dtype is _F64:
             # one pose: the lean path, after the same check as check_poses'
-            if check_one_pose(T.ravel().tolist())[1]:
+            if rigid_one(T):
                 result = single(T)
                 if result is not None:
                     return result
@@ -388,6 +424,11 @@ class IKPlanner:
             q, valid, _ = self.core.ik_all(safe, k)  # the generated C (ik_kernel.py)
             if self.ik_all_single is None:
                 self.ik_all_single = self.core.single_ik_all(k)
+                # the whole one-pose call in C, check_one_pose's rule included (a closed
+                # form: complete); SerialRobot.ik_all calls it first
+                self.ik_all_checked = self.core.checked_ik_all(
+                    k, (_RIGID_TOL, _BOTTOM_TOL), _CompleteIKSolutions
+                )
         elif solver is not None:
             q, valid = solver.solve(safe)
         else:  # explicit start from the nearest central-wrist arm, refined by Newton
@@ -413,9 +454,12 @@ class IKPlanner:
                 )
             if not isinstance(config, str) or config not in configs:
                 raise InputError(f"unknown configuration {config!r}; {self.name} has {configs}")
-        from deltagen.solve import numeric as ik_numeric
+        if options:
+            from deltagen.solve import numeric as ik_numeric
 
-        unknown = sorted(set(options) - set(ik_numeric.OPTIONS)) if options else ()
+            unknown = sorted(set(options) - set(ik_numeric.OPTIONS))
+        else:
+            unknown = []
         if unknown:
             raise InputError(
                 f"ik got unknown option(s) {', '.join(unknown)}; it takes config, q0, method, "
@@ -656,14 +700,21 @@ class IKPlanner:
 
     def singular_rows(self, q):
         """Rows of finite q (M, n) whose Jacobian is singular: sigma_min / sigma_max <
-        SINGULAR_TOL. For square J, |det J| / |J|_F^n bounds the ratio from below (|J|_F >=
-        sigma_max), so only rows failing that cheap test need the SVD."""
+        SINGULAR_TOL. Only rows failing a cheap lower bound of that ratio need the SVD: for
+        square J, |det J| / |J|_F^n (|J|_F >= sigma_max); for a k x n J that is not square,
+        sqrt(det G) / |J|_F^m with G the m x m Gram matrix (J J^T or J^T J, m = min(k, n)),
+        held against GRAM_TOL (see _gram_passes)."""
         J, _ = self.core.jacobian(np.ascontiguousarray(q, dtype=float))
         check = np.ones(J.shape[0], dtype=bool)
-        if J.shape[-1] == J.shape[-2]:
-            norm = np.linalg.norm(J, axis=(-2, -1))
-            with np.errstate(all="ignore"):
-                check = ~(np.abs(np.linalg.det(J)) >= SINGULAR_TOL * norm ** J.shape[-1])
+        norm = np.linalg.norm(J, axis=(-2, -1))
+        rows, cols = J.shape[-2:]
+        with np.errstate(all="ignore"):
+            if rows == cols:
+                check = ~(np.abs(np.linalg.det(J)) >= SINGULAR_TOL * norm**cols)
+            else:
+                Jt = np.swapaxes(J, -1, -2)
+                G = J @ Jt if rows < cols else Jt @ J
+                check = ~(np.sqrt(np.linalg.det(G)) >= GRAM_TOL * norm ** min(rows, cols))
         singular = np.zeros(J.shape[0], dtype=bool)
         if np.any(check):
             sv = np.linalg.svd(J[check], compute_uv=False)
@@ -685,15 +736,35 @@ class IKPlanner:
             return solver(T, start, seed=seed)
         return solver(T, start, int(restarts), seed)
 
+    @cached_property
+    def regular_single(self) -> Any:
+        """The C form of singular_one's cheap test for a square Jacobian (native.serial
+        CompiledArm.single_regular), or None."""
+        make = getattr(self.core, "single_regular", None)
+        return make(SINGULAR_TOL) if make is not None and self.n == 6 else None
+
     def singular_one(self, q):
         """singular_rows for one configuration, lean (the single-pose fast path)."""
+        regular = self.regular_single
+        if regular is not None:
+            cleared = regular(q)  # |det J| >= SINGULAR_TOL |J|_F^6, in C
+            if cleared is True:
+                return False
+            if cleared is False:
+                return bool(self.singular_rows(q[None])[0])
         J = self.jacobian_single(q)
-        if J is None or J.shape[0] != J.shape[1]:
+        if J is None:
             return bool(self.singular_rows(q[None])[0])
-        flat = J.reshape(-1)
-        bound = SINGULAR_TOL * math.sqrt(float(flat @ flat)) ** J.shape[0]
-        if abs(float(_det(J))) >= bound:
-            return False
+        rows, cols = J.shape
+        norm = math.sqrt(float(np.vdot(J, J)))  # |J|_F (vdot: half the time of ravel @)
+        if rows == cols:
+            if abs(float(_det(J))) >= SINGULAR_TOL * norm**rows:
+                return False
+        else:
+            G = J @ J.T if rows < cols else J.T @ J
+            det = float(_det(G))
+            if det >= 0.0 and math.sqrt(det) >= GRAM_TOL * norm ** min(rows, cols):
+                return False
         return bool(self.singular_rows(q[None])[0])
 
     def closed_form_one(self, T, config):

@@ -350,10 +350,7 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
     }
     const double check_p = o.tol_p > FREE_CHECK ? o.tol_p : FREE_CHECK;
     const double check_r = o.tol_r > FREE_CHECK ? o.tol_r : FREE_CHECK;
-    if (o.restarts > 0) {
-        ikn_restart_box(arm, lo, hi, respect, box_lo, box_hi);
-        ikn_sequence_steps(N, alpha);
-    }
+    int have_sequence = 0;  /* the box and the steps, made at the first restart of a call */
 
     for (size_t row = 0; row < n; ++row) {
         const double *Tt = T_target + 16 * row;
@@ -385,6 +382,11 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                     start[i] = q0[N * row + i];
                 }
             } else {
+                if (!have_sequence) {  /* most targets converge from q0: no pow calls then */
+                    ikn_restart_box(arm, lo, hi, respect, box_lo, box_hi);
+                    ikn_sequence_steps(N, alpha);
+                    have_sequence = 1;
+                }
                 ikn_sequence_point(N, alpha, o.seed, attempt, box_lo, box_hi, start);
             }
             int32_t window = o.stall_window;
@@ -413,6 +415,8 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                 best_err = clamped->err;
             }
             double mu = 0.0, cref = cur->err, qz = 1.0, chk = cur->err, s_prev = 0.0;
+            double trace_prev = 0.0;
+            int s_pending = 0;
             int32_t it_att = 0;
             for (;;) {
                 const int inside = ikn_inside(cur->q, N, lo, hi);
@@ -429,6 +433,7 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                     cref = chk = cur->err;
                     qz = 1.0;
                     s_prev = 0.0;
+                    s_pending = 0;
                     continue;
                 }
                 if (it_att >= o.max_iter || stuck) {
@@ -448,6 +453,18 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                 /* damping; a square, well-conditioned row whose damping is negligible keeps
                  * the previous sigma_min estimate (x2 safety) and goes straight to Gauss */
                 double s = s_prev, lam2 = 0.0;
+                if (s_pending) {
+                    /* the previous step skipped its estimate (below): made now from its Gram
+                     * matrix (still in G0) where the test below can use it; where it cannot
+                     * (lam2 above GAUSS_REL^2 trace >= (GAUSS_REL s_prev)^2) no value of
+                     * s_prev would take the shortcut */
+                    s_pending = 0;
+                    s = (size_t)k == N
+                                && (mu + o.base_damping) * err2
+                                       <= GAUSS_REL * GAUSS_REL * trace_prev
+                            ? deltagen_sigma_min_of(G0, N, scratch)
+                            : 0.0;
+                }
                 size_t s0 = 0;
                 int gauss = 0, have_gram = 0;
                 if ((size_t)k == N && s >= 2.0 * S_WELL) {
@@ -457,12 +474,46 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                 if (!gauss) {  /* one Gram matrix serves the estimate and the damped step */
                     s0 = deltagen_gram(A, (size_t)k, N, zeros, G0);
                     have_gram = 1;
-                    s = deltagen_sigma_min_of(G0, s0, scratch);
-                    double nh = 1.0 - (s / S_WELL) * (s / S_WELL);
-                    nh = nh > 0.0 ? nh : 0.0;
-                    lam2 = (mu + o.base_damping + o.damping * nh) * err2;
-                    gauss = (size_t)k == N && lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s)
-                            && s >= S_WELL;
+                    /* The estimate s is needed for the Nakamura-Hanafusa term (nonzero only
+                     * for s < S_WELL) and for the Gauss test (lam2 <= (GAUSS_REL s)^2, s^2 at
+                     * most the trace of G). When G - S_WELL^2 I has a Cholesky factor,
+                     * sigma_min > S_WELL (so s > S_WELL too: the term is 0), and when
+                     * moreover lam2 > GAUSS_REL^2 trace the Gauss test fails whatever s is:
+                     * then the step is the one the estimate would give, without it (one
+                     * factorisation instead of one and three solves; the error is still
+                     * large, so these are most steps). The next step makes the estimate
+                     * if its shortcut can use it (s_pending): the steps are those of the
+                     * estimate made every time, bit for bit. */
+                    const double lam2_regular = (mu + o.base_damping) * err2;
+                    double trace = 0.0;
+                    for (size_t i = 0; i < s0; ++i) {
+                        trace += G0[i * s0 + i];
+                    }
+                    int regular = 0;
+                    if (!((size_t)k == N && lam2_regular <= GAUSS_REL * GAUSS_REL * trace)) {
+                        double *Gs = scratch, *inv = scratch + s0 * s0;
+                        for (size_t i = 0; i < s0 * s0; ++i) {
+                            Gs[i] = G0[i] + 0.0;
+                        }
+                        for (size_t i = 0; i < s0; ++i) {
+                            Gs[i * s0 + i] -= S_WELL * S_WELL;
+                        }
+                        regular = deltagen_cholesky(Gs, s0, inv) == 0;
+                    }
+                    if (regular) {
+                        s = 0.0;
+                        s_pending = 1;
+                        trace_prev = trace;
+                        lam2 = lam2_regular;
+                        gauss = 0;
+                    } else {
+                        s = deltagen_sigma_min_of(G0, s0, scratch);
+                        double nh = 1.0 - (s / S_WELL) * (s / S_WELL);
+                        nh = nh > 0.0 ? nh : 0.0;
+                        lam2 = (mu + o.base_damping + o.damping * nh) * err2;
+                        gauss = (size_t)k == N && lam2 <= (GAUSS_REL * s) * (GAUSS_REL * s)
+                                && s >= S_WELL;
+                    }
                 }
                 s_prev = s;
                 for (size_t i = 0; i < N; ++i) {
