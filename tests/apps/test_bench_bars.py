@@ -80,8 +80,11 @@ def _check(result):
 
 def test_the_bars_run_and_render_at_a_tiny_size(capsys, tmp_path):
     out_json = tmp_path / "bars.json"
+    readme = tmp_path / "README.md"
+    full = "<!-- bench:begin -->\nthe full run\n<!-- bench:end -->\n"
+    readme.write_text(f"# x\n{full}<!-- bench-bars:begin -->\nold\n<!-- bench-bars:end -->\nend\n")
     argv = ["bench", "--bars", "--n", "3000", "--repeats", "1", "--markdown"]
-    assert main([*argv, "--json", str(out_json)]) == 0
+    assert main([*argv, "--json", str(out_json), "--readme", str(readme)]) == 0
     text = capsys.readouterr().out
     for label, _, _ in bars.TARGETS.values():
         assert label in text
@@ -89,6 +92,9 @@ def test_the_bars_run_and_render_at_a_tiny_size(capsys, tmp_path):
     data = json.loads(out_json.read_text())
     assert data["markdown"].strip() == text.strip()
     assert [r["key"] for r in data["bars"]["rows"]] == list(bars.TARGETS)
+    section = readme.read_text()
+    assert full in section and "old" not in section and section.endswith("end\n")
+    assert text.strip() in section  # the bars' own section, the full run's left alone
 
 
 def test_missing_peers_and_one_core_are_rows_not_errors(monkeypatch):

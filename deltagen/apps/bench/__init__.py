@@ -126,5 +126,10 @@ def _run_bars(args: argparse.Namespace) -> int:
         if json_file:
             report.write_json({"bars": result}, text, json_file)
         if readme:
-            report.update_readme(readme, text)
+            report.update_readme(
+                readme,
+                text,
+                (report.BARS_BEGIN, report.BARS_END),
+                "deltagen bench --bars --markdown --readme README.md",
+            )
     return 0
