@@ -15,7 +15,7 @@ import pytest
 from deltagen.apps.bench import bars
 from deltagen.cli import main
 
-VERDICTS = {"met", "MISSED", "n/a"}
+VERDICTS = {"met", "MISSED", "n/a", "unsettled"}
 
 
 @pytest.fixture(scope="module")
