@@ -120,3 +120,25 @@ def test_oracles_off_skips_the_peer_rows():
     assert all(
         "skipped" in r["note"] for r in result["rows"] if r["key"].startswith(("ik_", "numeric"))
     )
+
+
+@pytest.mark.parametrize(("load", "verdict"), [(9.0, "unsettled"), (0.0, "MISSED")])
+def test_a_missed_threads_bar_on_a_loaded_machine_is_unsettled(monkeypatch, load, verdict):
+    """A wall-time ratio of 1.0 (< 1.8): with the load average above the cores that is
+    'unsettled', on an idle machine MISSED."""
+    import os
+
+    from deltagen.native import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    monkeypatch.setattr(os, "getloadavg", lambda: (load, load, load))
+
+    def same_wall_time(timers, repeats):  # each call runs once; the wall ratio is 1.0
+        for timer in timers:
+            timer()
+        return [bars.Stat([10.0]) for _ in timers]
+
+    monkeypatch.setattr(bars, "interleaved", same_wall_time)
+    rows, raw = bars.measure_threads(1000, 1)
+    assert [r["verdict"] for r in rows] == [verdict, verdict]
+    assert all("CPU time" in r["note"] for r in rows) and len(raw) == 3
