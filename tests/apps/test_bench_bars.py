@@ -49,6 +49,18 @@ def test_the_floor_says_which_sin_and_cos_it_calls(floor, tmp_path):
     assert bars.vector_trig(type("M", (), {"__file__": str(fake)})).startswith("scalar libm")
 
 
+def test_without_libmvec_the_floor_is_scalar_and_says_so(monkeypatch):
+    """A build without vector math (no libmvec: compile_flags leaves out -fopenmp-simd)
+    calls scalar sin and cos, names them so, and sums the same."""
+    from deltagen.native import toolchain
+
+    monkeypatch.setattr(toolchain, "vector_math_available", lambda: False)
+    scalar = bars.floor_module()
+    assert bars.vector_trig(scalar).startswith("scalar libm")
+    q = np.random.default_rng(3).uniform(-3.0, 3.0, (300, 6))
+    np.testing.assert_allclose(bars.trig_sums(scalar, q)[0], np.sin(q).sum(axis=0), atol=1e-12)
+
+
 def test_the_stated_costs_are_read_for_every_floor_kernel():
     costs = bars.kernel_costs()
     for name, _ in bars.FLOOR_KERNELS.values():
