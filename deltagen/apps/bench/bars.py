@@ -41,8 +41,8 @@ The bars and their baselines:
   LOCAL_WORLD_ALIGNED)`` on the same arm (peers.pinocchio_model), each looped ~25 ms per
   repeat.
 * **Numeric IK with default options: median <= 0.25x, p95 <= 1.2x rtb's ik_LM.** The same
-  IK_TARGETS targets fk(q) (ik.numeric_targets): ``arm.ik(T, method="numeric",
-  errors="nan")`` and roboticstoolbox-python's C++ ``ets().ik_LM(T, tol=5e-21,
+  IK_TARGETS targets fk(q) (ik.numeric_targets): ``arm.ik(T, method="numeric")`` (a
+  failure raises and counts as unsolved) and roboticstoolbox-python's C++ ``ets().ik_LM(T, tol=5e-21,
   joint_limits=True)`` (the tolerance that stops it at 1e-10, as the IK section), called
   alternately per target; each target's time is the minimum of IK_PASSES passes; median and
   95th percentile over the targets, with both success rates.
@@ -435,6 +435,7 @@ def measure_numeric_ik(arm: Any, targets: int, passes: int) -> tuple[list[dict],
     """Numeric IK against rtb's ik_LM on the same targets (module docstring)."""
     from deltagen.apps.bench import ik
     from deltagen.apps.bench.peers import rtb_model
+    from deltagen.errors import DeltagenError
 
     T, _ = ik.numeric_targets(arm, targets)
     why = _absent("roboticstoolbox")
@@ -448,8 +449,13 @@ def measure_numeric_ik(arm: Any, targets: int, passes: int) -> tuple[list[dict],
     ets = robot.ets()
     kw = dict(tol=5e-21, joint_limits=True)  # |e| <= 1e-10, as the IK section
 
-    def ours(Ti):
-        return arm.ik(Ti, method="numeric", errors="nan")
+    nan_q = np.full(arm.n, np.nan)
+
+    def ours(Ti):  # the default options (errors="raise": a failure raises)
+        try:
+            return arm.ik(Ti, method="numeric"), True
+        except DeltagenError:
+            return nan_q, False
 
     def theirs(Ti):
         return ets.ik_LM(Ti, **kw)
