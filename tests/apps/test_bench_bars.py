@@ -33,6 +33,19 @@ def test_the_floor_loop_sums_numpys_sin_and_cos(floor, n, angles):
     np.testing.assert_allclose(sums[1], np.cos(q).sum(axis=0), rtol=0, atol=1e-12 * n)
 
 
+def test_the_fma_loop_runs_its_chains(floor):
+    """deltagen_floor_fma: 64 chains acc_i = i / 64, each updated acc = acc a + b k times
+    (the recursion written out here; fma rounds once, a*b+c twice: within 1e-15)."""
+    a, b, k = 0.75, 0.125, 5
+    out = np.empty(64)
+    ffi, lib = floor.ffi, floor.lib
+    assert lib.deltagen_floor_fma(k, a, b, ffi.from_buffer("double[]", out, True)) == 0
+    expected = np.arange(64) / 64
+    for _ in range(k):
+        expected = expected * a + b
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-15)
+
+
 def test_the_floor_loop_refuses_too_many_angles(floor):
     with pytest.raises(ValueError, match="1 to 16 angles"):
         bars.trig_sums(floor, np.zeros((4, 17)))
