@@ -38,18 +38,21 @@ The bars and their baselines:
   on the same rows.
 * **Puma ik_all of one pose <= 3.7x pinocchio's computeFrameJacobian.** ``arm.ik_all(T)``
   of one (4, 4) pose beside ``pinocchio.computeFrameJacobian(model, data, q, tool,
-  LOCAL_WORLD_ALIGNED)`` on the same arm (peers.pinocchio_model), each looped ~25 ms per
-  repeat.
+  LOCAL_WORLD_ALIGNED)`` on the same arm (peers.pinocchio_model), each looped ~10 ms of
+  CPU time per repeat.
 * **Numeric IK with default options: median <= 0.25x, p95 <= 1.2x rtb's ik_LM.** The same
   IK_TARGETS targets fk(q) (ik.numeric_targets): ``arm.ik(T, method="numeric")`` (a
-  failure raises and counts as unsolved) and roboticstoolbox-python's C++ ``ets().ik_LM(T, tol=5e-21,
-  joint_limits=True)`` (the tolerance that stops it at 1e-10, as the IK section), called
+  failure raises and counts as unsolved) and roboticstoolbox-python's C++
+  ``ets().ik_LM(T, tol=5e-21, joint_limits=True)`` (the tolerance that stops it at 1e-10,
+  as the IK section), called
   alternately per target; each target's time is the minimum of IK_PASSES passes; median and
   95th percentile over the targets, with both success rates.
 * **Two threads >= 1.8x one on THREADS_N rows**, through the public API (``robot.fk(q)``,
   so the Python work after the kernel counts: Amdahl): delta fk and Puma fk (and the Puma
-  jacobian, reported, no bar), robots made with threads=1 and threads=2, round-robin.
-  A machine with fewer than two usable cores cannot measure it: the row says so.
+  jacobian, reported, no bar), robots made with threads=1 and threads=2, round-robin, in
+  wall time, with the process CPU time beside it (:func:`measure_threads`: a missed ratio
+  while the load average says the second core was taken is "unsettled"). A machine with
+  fewer than two usable cores cannot measure it: the row says so.
 
 A peer that is not importable (pinocchio, roboticstoolbox-python) gives its row "n/a" with
 the reason; nothing raises. The default run (``deltagen bench --bars``) takes well under a
