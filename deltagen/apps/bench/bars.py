@@ -579,8 +579,8 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
         bound = cpu_one.min / (cpu_two.min / 2)
         note = (
             f"{n:,} rows; load average {load:.2f} on {cores} cores; CPU time threads=2 / "
-            f"threads=1 {cpu_two.min / cpu_one.min:.2f}, so two free cores give at most "
-            f"{bound:.2f}x"
+            f"threads=1 {cpu_two.min / cpu_one.min:.2f}: two free cores would give about "
+            f"{bound:.2f}x at most (CPU time too is noisy on a loaded machine)"
         )
         row = _row(
             key,
