@@ -423,3 +423,56 @@ def load_extension(source: Path, base_name: str):
             shutil.rmtree(work, ignore_errors=True)
 
     return _load_cached(module_name, build)
+
+
+def load_c_source(source: Path, base_name: str, cdef: str, prefix: str):
+    """Compile and import one hand-written C file (no Python.h: a cffi module over the
+    functions ``cdef`` declares, e.g. the benchmark's floor loops, apps/bench/trig_floor.c)
+    with the generated modules' flags (:func:`compile_flags` of ``prefix``: the same
+    -march, vector math and IEEE rules), cached and verified like them: the key covers the
+    text, the cdef, the flags, the interpreter, cffi and the compiler. The module's
+    ``.ffi`` / ``.lib``; BuildError when it cannot be built or loaded."""
+    import cffi
+
+    text = Path(source).read_text()
+    args, libraries = compile_flags(prefix)
+    key_material = "\0".join(
+        [
+            text,
+            cdef,
+            " ".join(args),
+            " ".join(libraries),
+            sys.version,
+            sysconfig.get_platform(),
+            _cffi_version(),
+            toolchain.compiler_identity(),
+        ]
+    )
+    module_name = f"_{base_name}_{hashlib.sha256(key_material.encode()).hexdigest()[:16]}"
+    name = Path(source).name
+
+    def build(target: Path, so_name: str) -> None:
+        import shutil
+        import tempfile
+
+        work = Path(tempfile.mkdtemp(prefix=f"{module_name}.", dir=target.parent))
+        try:
+            (work / name).write_text(text)  # the compiled text is the hashed text
+            ffi = cffi.FFI()
+            ffi.cdef(cdef)
+            so_path = toolchain.build_cffi(
+                ffi,
+                module_name,
+                cdef,  # the wrapper sees the declarations it wraps
+                [work / name],
+                work / "out",
+                flags=args,
+                libraries=libraries,
+            )
+            if so_path.name != so_name:
+                so_path = so_path.rename(so_path.with_name(so_name))
+            _publish(so_path, target, [*toolchain.host_command(), *args, name])
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+
+    return _load_cached(module_name, build)

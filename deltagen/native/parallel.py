@@ -16,6 +16,14 @@ ends on a multiple of :data:`ROW_ALIGN` rows: the kernels work in blocks of
 (libmvec's sin/cos/sqrt) or the scalar remainder (libm's), which may differ in the last
 bit; aligned chunks put every row at the same place of the same block as one call would.
 
+Sharing (:func:`run_rows`): a batch of more than PIECE_ROWS rows per chunk is cut into
+pieces of about PIECE_ROWS rows that the threads take in turn from a shared counter, not
+into one fixed chunk per thread. On the project's 2-core shared machine a fixed half per
+thread made threads=2 0.5-0.8x threads=1 through the API at 10^5-10^6 rows whenever other
+processes held a core (load average 6-7; ``deltagen bench --bars``): the caller finished
+its half and then waited for a pool thread still waiting for a core. With pieces the
+thread that runs takes the work.
+
 Threshold (:data:`MIN_ROWS_PER_THREAD`): a chunk must amortise the hand-off to a pool
 thread. Measured on the project's 2-core shared machine (load average 1.4): splitting a
 no-op call in two costs 55 us median (p90 99 us: submit, wake-up, join); delta fk costs
@@ -48,6 +56,10 @@ import numpy as np
 from deltagen.inputs import InputError, env_positive_int, is_integer
 
 MIN_ROWS_PER_THREAD = 20000
+#: rows per piece of a large batch (a multiple of ROW_ALIGN): the threads share the pieces
+#: out as they get to them (run_rows); 64 Ki rows of Puma fk are ~2 ms of work, ~1000x a
+#: cffi call
+PIECE_ROWS = 65536
 # a multiple of every generated module's <PREFIX>_BLOCK (codegen.render.Unit.block, 64);
 # tests/native/test_parallel.py checks it against generated/
 ROW_ALIGN = 256
@@ -122,22 +134,63 @@ def chunks(n: int, threads: int | None) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
+def pieces(n: int, threads: int | None) -> list[tuple[int, int]]:
+    """The row ranges the threads of one batch share out (:func:`run_rows`): the
+    :func:`chunks` themselves, or -- for a batch of more than PIECE_ROWS rows per chunk --
+    finer ranges of about PIECE_ROWS rows, every inner bound on a multiple of ROW_ALIGN."""
+    parts = chunks(n, threads)
+    count = max(len(parts), -(-n // PIECE_ROWS))
+    if len(parts) == 1 or count == len(parts):
+        return parts
+    inner = {n * i // count // ROW_ALIGN * ROW_ALIGN for i in range(1, count)}
+    bounds = [0, *sorted(inner - {0, n}), n]
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
 def run_rows(n: int, threads: int | None, call: Callable[[int, int], int]) -> int:
     """Run ``call(lo, hi)`` (one C kernel call on rows lo..hi of the batch's buffers; returns
-    the kernel's rc) over the whole batch, split across threads; the first nonzero rc, or
-    0. Small batches (and threads=1) make exactly one call, in the caller's thread."""
+    the kernel's rc) over the whole batch, split across threads; the first nonzero rc (in
+    row order), or 0. Small batches (and threads=1) make exactly one call, in the caller's
+    thread.
+
+    The caller and ``len(chunks(n, threads)) - 1`` pool threads take the :func:`pieces` in
+    row order from a shared counter until none is left (dynamic sharing): a thread that
+    waits for a core -- the other core busy with another process on a shared machine --
+    takes fewer pieces instead of holding everyone up at the join, so two threads are never
+    much slower than one. Which thread computes a row changes no bit (ROW_ALIGN). After an
+    exception no new piece is started; the caller waits for every running one before it
+    re-raises (the buffers stay in use until then)."""
     if n < 2 * MIN_ROWS_PER_THREAD or threads == 1:
         return call(0, n)
-    parts = chunks(n, threads)
-    if len(parts) == 1:
+    workers = len(chunks(n, threads))
+    if workers == 1:
         return call(0, n)
+    ranges = pieces(n, threads)
+    rcs = [0] * len(ranges)
+    taken = iter(range(len(ranges)))
+    lock = threading.Lock()
+    failed = threading.Event()
+
+    def work() -> None:
+        while not failed.is_set():
+            with lock:
+                i = next(taken, None)
+            if i is None:
+                return
+            try:
+                rcs[i] = call(*ranges[i])
+            except BaseException:
+                failed.set()
+                raise
+
     pool = _get_pool()
-    futures = [pool.submit(call, lo, hi) for lo, hi in parts[1:]]
+    futures = [pool.submit(work) for _ in range(workers - 1)]
     try:
-        rcs = [call(*parts[0])]
-    finally:  # every chunk is done with the buffers before the caller goes on
+        work()
+    finally:  # every piece is done with the buffers before the caller goes on
         wait(futures)
-    rcs += [f.result() for f in futures]
+    for f in futures:
+        f.result()  # a pool thread's exception
     return next((rc for rc in rcs if rc != 0), 0)
 
 

@@ -169,6 +169,48 @@ def test_the_batch_is_really_split(small_chunks):
     assert parallel.run_rows(n, 3, lambda lo, hi: 4 if lo else 0) == 4  # a chunk's rc
 
 
+def test_large_batches_are_shared_out_in_aligned_pieces():
+    """A batch of many PIECE_ROWS is cut into pieces of about that size, covering the rows
+    once, in order, every inner bound on ROW_ALIGN; a smaller one keeps its chunks."""
+    n = 1_000_003
+    ranges = parallel.pieces(n, 2)
+    assert len(ranges) == -(-n // parallel.PIECE_ROWS)
+    assert ranges[0][0] == 0 and ranges[-1][1] == n
+    assert all(a[1] == b[0] for a, b in zip(ranges, ranges[1:]))
+    assert all(lo % parallel.ROW_ALIGN == 0 for lo, _ in ranges)
+    small = 2 * parallel.MIN_ROWS_PER_THREAD + 7
+    assert parallel.pieces(small, 2) == parallel.chunks(small, 2)
+    assert parallel.pieces(n, 1) == [(0, n)]
+
+
+def test_a_thread_that_waits_for_a_core_does_not_hold_up_the_batch(monkeypatch):
+    """Dynamic sharing: while a pool thread is stuck in its piece (as when another process
+    holds its core), the caller takes every other piece; with one fixed chunk per thread
+    it would do half and wait."""
+    monkeypatch.setattr(parallel, "MIN_ROWS_PER_THREAD", SMALL)
+    monkeypatch.setattr(parallel, "PIECE_ROWS", SMALL)
+    n = 8 * SMALL
+    ranges = parallel.pieces(n, 2)
+    assert len(ranges) == 8
+    caller = threading.current_thread()
+    lock, release = threading.Lock(), threading.Event()
+    seen: dict[tuple[int, int], bool] = {}
+
+    def call(lo, hi):
+        mine = threading.current_thread() is caller
+        with lock:
+            seen[(lo, hi)] = mine
+            if sum(seen.values()) == len(ranges) - 1:
+                release.set()  # the caller did every piece but the stuck one
+        if not mine:
+            assert release.wait(10), "the caller did not take the other pieces"
+        return 0
+
+    assert parallel.run_rows(n, 2, call) == 0
+    assert sorted(seen) == ranges
+    assert sum(seen.values()) >= len(ranges) - 1
+
+
 def test_an_error_in_the_callers_chunk_waits_for_the_others(small_chunks):
     """The buffers stay in use until every chunk is done, even when one chunk raises."""
     done = threading.Event()

@@ -19,6 +19,9 @@ tables; ``report`` writes the record as JSON, a PNG and the README section.
 * ``load``: cold and warm load of an arm (``python -m deltagen.apps.bench.load``).
 * ``compare``: ``--compare REF``, this tree beside another commit or a stored run.
 * ``report``: JSON, PNG and the README section of a run.
+* ``bars``: every speed target of the batched kernels as a same-run ratio (the trig floor
+  of trig_floor.c, a column-wise numpy delta fk, fk_vel/fk_acc vs fk, ik_all vs pinocchio,
+  numeric IK vs rtb, two threads vs one), met / MISSED; ``--bars`` runs it alone.
 
 The command: :func:`add_parser` adds ``bench`` to the CLI's subcommands, :func:`run` runs it
 (exit 0; a bad size raises ValueError, which the CLI reports with exit 2).
@@ -55,6 +58,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     b.add_argument(
         "--rounds", type=int, default=4, help="with --compare: processes per side (median)"
     )
+    b.add_argument(
+        "--bars",
+        action="store_true",
+        help="instead: only the bars, every speed target as a same-run ratio with met/MISSED "
+        "(--n caps the workloads; well under a minute at the default)",
+    )
     b.set_defaults(func=run)
     return b
 
@@ -82,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
         return compare.main(args)
     from deltagen.apps.bench import sections
 
+    if getattr(args, "bars", False):
+        return _run_bars(args)
     result = sections.measure(n=args.n, repeats=args.repeats, oracles=_oracles_wanted(args))
     print(sections.render(result, markdown=bool(getattr(args, "markdown", False))))
     sys.stdout.flush()
@@ -98,4 +109,27 @@ def run(args: argparse.Namespace) -> int:
             report.write_png(json.loads(json.dumps(report.plain(result))), png_file)
         if readme:
             report.update_readme(readme, text)
+    return 0
+
+
+def _run_bars(args: argparse.Namespace) -> int:
+    """``deltagen bench --bars``: the bars section alone, printed and written as asked."""
+    from deltagen.apps.bench import bars
+
+    result = bars.measure(n=args.n, repeats=args.repeats, oracles=_oracles_wanted(args))
+    print("\n".join(bars.render(result, markdown=bool(getattr(args, "markdown", False)))))
+    json_file, readme = getattr(args, "json", None), getattr(args, "readme", None)
+    if json_file or readme:
+        from deltagen.apps.bench import report
+
+        text = "\n".join(bars.render(result, markdown=True))
+        if json_file:
+            report.write_json({"bars": result}, text, json_file)
+        if readme:
+            report.update_readme(
+                readme,
+                text,
+                (report.BARS_BEGIN, report.BARS_END),
+                "deltagen bench --bars --markdown --readme README.md",
+            )
     return 0

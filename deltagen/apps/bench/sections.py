@@ -47,6 +47,9 @@ Other machine families. The linear delta's, the tripod's, the hexapod's and a 5-
 machine's cores beside the rotary delta's fk and ik (``families``), ns per point
 through ``_core``, threads=1.
 
+Bars. Last, every speed target of the batched kernels as a same-run ratio with met /
+MISSED (``bars``; ``deltagen bench --bars`` runs it alone).
+
 Each table is declared here (``DELTA`` and ``SERIAL``: quantities, inputs, units, targets,
 rows, the C-kernel call and the reference baseline; the latency calls) and timed and
 rendered by ``engine``; the peer libraries are ``peers``, inverse kinematics ``ik``.
@@ -64,7 +67,7 @@ from typing import Any
 import numpy as np
 
 from deltagen import status as st
-from deltagen.apps.bench import engine, families, ik, peers
+from deltagen.apps.bench import bars, engine, families, ik, peers
 from deltagen.apps.bench.engine import Throughput
 from deltagen.apps.bench.timing import Style, cell, ratio
 from deltagen.inputs import check_memory
@@ -472,6 +475,10 @@ def render(result: dict, markdown: bool) -> str:
     if result.get("families") is not None:
         out.append("")
         out += families.render(result["families"], markdown)
+    if result.get("bars") is not None:
+        out.append("")
+        out += bars.render(result["bars"], markdown)
+        out.append("")
     out.append(f"{bullet}total bench time {result['elapsed_s']:.1f} s")
     return "\n".join(out)
 
@@ -604,6 +611,7 @@ def measure(
     serial_result = run_serial(n, repeats, oracles) if serial else None
     threads_result = run_threads(n, repeats) if serial else None
     families_result = families.run(n, repeats)
+    bars_result = bars.measure(n=n, repeats=repeats, oracles=oracles) if serial else None
     machine = machine_info(compiled)
     if serial_result is not None:
         machine.append(("C build (serial)", _build_name(serial_result["robot"])))
@@ -626,6 +634,7 @@ def measure(
         "serial": serial_result,
         "threads": threads_result,
         "families": families_result,
+        "bars": bars_result,
         "load_before": load_before,
         "load_after": _load(),
         "elapsed_s": time.perf_counter() - t_start,

@@ -1,0 +1,169 @@
+"""`deltagen bench --bars`: the section runs and renders at a tiny size, its floor loop
+(apps/bench/trig_floor.c) computes the sums it claims (against numpy's sin and cos), its
+column-wise numpy delta fk is the delta's fk (against the numpy reference, written per row
+and with (N, 3, 3) stacks), and a missing peer library or a single core gives an "n/a" row
+with the reason, never an exception. No timing assertions."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from deltagen.apps.bench import bars
+from deltagen.cli import main
+
+VERDICTS = {"met", "MISSED", "n/a", "unsettled"}
+
+
+@pytest.fixture(scope="module")
+def floor():
+    return bars.floor_module()
+
+
+@pytest.mark.parametrize(("n", "angles"), [(1, 6), (1000, 6), (64 * 3 + 5, 3), (77, 16)])
+def test_the_floor_loop_sums_numpys_sin_and_cos(floor, n, angles):
+    """Every point's sine and cosine of every angle, summed per angle: numpy's sums (the
+    block remainder and the padded lanes must add nothing)."""
+    q = np.random.default_rng(n).uniform(-np.pi, np.pi, (n, angles))
+    sums = bars.trig_sums(floor, q)
+    np.testing.assert_allclose(sums[0], np.sin(q).sum(axis=0), rtol=0, atol=1e-12 * n)
+    np.testing.assert_allclose(sums[1], np.cos(q).sum(axis=0), rtol=0, atol=1e-12 * n)
+
+
+def test_the_fma_loop_runs_its_chains(floor):
+    """deltagen_floor_fma: 64 chains acc_i = i / 64, each updated acc = acc a + b k times
+    (the recursion written out here; fma rounds once, a*b+c twice: within 1e-15)."""
+    a, b, k = 0.75, 0.125, 5
+    out = np.empty(64)
+    ffi, lib = floor.ffi, floor.lib
+    assert lib.deltagen_floor_fma(k, a, b, ffi.from_buffer("double[]", out, True)) == 0
+    expected = np.arange(64) / 64
+    for _ in range(k):
+        expected = expected * a + b
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-15)
+
+
+def test_the_floor_loop_refuses_too_many_angles(floor):
+    with pytest.raises(ValueError, match="1 to 16 angles"):
+        bars.trig_sums(floor, np.zeros((4, 17)))
+
+
+def test_the_floor_says_which_sin_and_cos_it_calls(floor, tmp_path):
+    from deltagen.native.toolchain import vector_math_available
+
+    text = bars.vector_trig(floor)
+    if vector_math_available():
+        assert text.startswith("libmvec _ZGV") and "lanes" in text
+    fake = tmp_path / "scalar.so"  # a build without libmvec imports no _ZGV symbol
+    fake.write_bytes(b"\x7fELF sin cos sincos")
+    assert bars.vector_trig(type("M", (), {"__file__": str(fake)})).startswith("scalar libm")
+
+
+def test_without_libmvec_the_floor_is_scalar_and_says_so(monkeypatch):
+    """A build without vector math (no libmvec: compile_flags leaves out -fopenmp-simd)
+    calls scalar sin and cos, names them so, and sums the same."""
+    from deltagen.native import toolchain
+
+    monkeypatch.setattr(toolchain, "vector_math_available", lambda: False)
+    scalar = bars.floor_module()
+    assert bars.vector_trig(scalar).startswith("scalar libm")
+    q = np.random.default_rng(3).uniform(-3.0, 3.0, (300, 6))
+    np.testing.assert_allclose(bars.trig_sums(scalar, q)[0], np.sin(q).sum(axis=0), atol=1e-12)
+
+
+def test_the_stated_costs_are_read_for_every_floor_kernel():
+    costs = bars.kernel_costs()
+    for name, _ in bars.FLOOR_KERNELS.values():
+        assert costs[f"deltagen_{bars.ARM}_{name}"] > 0
+    assert costs["deltagen_puma560_fk"] < costs["deltagen_puma560_inverse_dynamics"]
+
+
+def test_the_column_wise_numpy_fk_is_the_delta_fk():
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.reference import delta as reference
+
+    robot = DeltaRobot.default(backend="reference")
+    q = np.random.default_rng(7).uniform(-0.3, 0.9, (500, 3))
+    p_ref, status = reference.fk(robot.geometry, q)
+    assert (status == 0).all()
+    np.testing.assert_allclose(bars.numpy_fk_columns(robot.geometry, q), p_ref, atol=1e-12)
+
+
+def _check(result):
+    keys = [r["key"] for r in result["rows"]]
+    assert keys == list(bars.TARGETS), keys
+    for r in result["rows"]:
+        assert r["verdict"] in VERDICTS
+        if r["verdict"] == "n/a":
+            assert r["note"], r  # an n/a row says why
+        else:
+            assert r["ratio"] > 0
+
+
+def test_the_bars_run_and_render_at_a_tiny_size(capsys, tmp_path):
+    out_json = tmp_path / "bars.json"
+    readme = tmp_path / "README.md"
+    full = "<!-- bench:begin -->\nthe full run\n<!-- bench:end -->\n"
+    readme.write_text(f"# x\n{full}<!-- bench-bars:begin -->\nold\n<!-- bench-bars:end -->\nend\n")
+    argv = ["bench", "--bars", "--n", "3000", "--repeats", "1", "--markdown"]
+    assert main([*argv, "--json", str(out_json), "--readme", str(readme)]) == 0
+    text = capsys.readouterr().out
+    for label, _, _ in bars.TARGETS.values():
+        assert label in text
+    assert "floor (trig_floor.c" in text and "load average" in text
+    data = json.loads(out_json.read_text())
+    assert data["markdown"].strip() == text.strip()
+    assert [r["key"] for r in data["bars"]["rows"]] == list(bars.TARGETS)
+    section = readme.read_text()
+    assert full in section and "old" not in section and section.endswith("end\n")
+    assert text.strip() in section  # the bars' own section, the full run's left alone
+
+
+def test_missing_peers_and_one_core_are_rows_not_errors(monkeypatch):
+    import deltagen.native.parallel as parallel
+
+    for module in ("roboticstoolbox", "pinocchio"):
+        monkeypatch.setitem(sys.modules, module, None)  # import raises ImportError
+    monkeypatch.setattr(parallel, "available_cores", lambda: 1)
+    result = bars.measure(n=500, repeats=1)
+    _check(result)
+    rows = {r["key"]: r for r in result["rows"]}
+    for key in ("ik_all_pinocchio", "numeric_ik_median", "numeric_ik_p95"):
+        assert rows[key]["verdict"] == "n/a" and "not importable" in rows[key]["note"]
+    for key in ("threads_delta_fk", "threads_puma_fk"):
+        assert rows[key]["verdict"] == "n/a" and "1 core" in rows[key]["note"]
+    text = "\n".join(bars.render(result, markdown=False))
+    assert text.count("n/a") >= 5
+
+
+def test_oracles_off_skips_the_peer_rows():
+    result = bars.measure(n=300, repeats=1, oracles=False)
+    _check(result)
+    assert all(
+        "skipped" in r["note"] for r in result["rows"] if r["key"].startswith(("ik_", "numeric"))
+    )
+
+
+@pytest.mark.parametrize(("load", "verdict"), [(9.0, "unsettled"), (0.0, "MISSED")])
+def test_a_missed_threads_bar_on_a_loaded_machine_is_unsettled(monkeypatch, load, verdict):
+    """A wall-time ratio of 1.0 (< 1.8): with the load average above the cores that is
+    'unsettled', on an idle machine MISSED."""
+    import os
+
+    from deltagen.native import parallel
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 2)
+    monkeypatch.setattr(os, "getloadavg", lambda: (load, load, load))
+
+    def same_wall_time(timers, repeats):  # each call runs once; the wall ratio is 1.0
+        for timer in timers:
+            timer()
+        return [bars.Stat([10.0]) for _ in timers]
+
+    monkeypatch.setattr(bars, "interleaved", same_wall_time)
+    rows, raw = bars.measure_threads(1000, 1)
+    assert [r["verdict"] for r in rows] == [verdict, verdict]
+    assert all("CPU time" in r["note"] for r in rows) and len(raw) == 3
