@@ -442,6 +442,144 @@ def shared_object(cwd: Path, name: str, flags) -> Path:
     return obj
 
 
+# ------------------------------------------- the C on its own (tests/c/test_standalone*.py)
+
+#: strict C99, every warning an error: what a motion-controller user's build may ask of the C
+STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
+#: the libm functions the generated and runtime C may call (nothing else is undefined)
+LIBM = {
+    "cos",
+    "sin",
+    "tan",
+    "atan",
+    "atan2",
+    "acos",
+    "asin",
+    "sqrt",
+    "cbrt",
+    "hypot",
+    "fabs",
+    "copysign",
+    "fmin",
+    "fmax",
+    "fma",
+    "pow",
+    "exp",
+    "log",
+    "ceil",
+    "floor",
+    "rint",
+}
+#: what GCC requires of every environment, freestanding ones included ("GCC requires the
+#: freestanding environment provide memcpy, memmove, memset and memcmp", GCC manual,
+#: "C Language"): it may call them for copies and zero fills the C never names
+GCC_REQUIRED = {"memcpy", "memmove", "memset", "memcmp"}
+
+
+def strict_gcc(args, cwd):
+    """Run gcc with ``args`` in ``cwd``: it must succeed and print nothing (the compiler's
+    text is the assertion message)."""
+    proc = subprocess.run([GCC, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, f"gcc {' '.join(map(str, args))}\n{proc.stdout}\n{proc.stderr}"
+    assert proc.stderr.strip() == "", f"gcc printed diagnostics:\n{proc.stderr}"
+    return proc
+
+
+def vector_math_flags(prefix: str) -> list[str]:
+    """The switches of a module's vector-math branch (native/toolchain.py compile_flags adds
+    them where libmvec is present), for compiling that branch on any machine."""
+    return ["-fno-math-errno", "-fopenmp-simd", f"-D{prefix.upper()}_VECTOR_MATH"]
+
+
+def runtime_flags(args):
+    """An arm's build flags for the runtime C, which reads no arm's VECTOR_MATH switch (so
+    one runtime object serves every arm; test_runtime_reads_no_arm_switch)."""
+    return [a for a in args if not (a.startswith("-DDELTAGEN_") and a.endswith("_VECTOR_MATH"))]
+
+
+def c_double(x: float) -> str:
+    """``x`` as a C double literal, exactly (hex float; NAN and INFINITY from math.h)."""
+    if math.isnan(x):
+        return "NAN"
+    if math.isinf(x):
+        return "INFINITY" if x > 0 else "-INFINITY"
+    return float(x).hex()
+
+
+def c_array(name, values, ctype="double"):
+    """A ``static const`` C array of ``values`` (flattened), exact for doubles."""
+    flat = np.asarray(values).ravel()
+    if ctype == "double":
+        body = ", ".join(c_double(float(v)) for v in flat)
+    else:
+        body = ", ".join(str(int(v)) for v in flat)
+    return f"static const {ctype} {name}[{max(len(flat), 1)}] = {{{body or '0'}}};\n"
+
+
+def runtime_sources() -> list[str]:
+    """The hand-written runtime C files (codegen/runtime/deltagen_*.c)."""
+    from deltagen.paths import runtime_dir
+
+    return sorted(p.name for p in runtime_dir().glob("deltagen_*.c"))
+
+
+def copy_runtime(dest: Path) -> None:
+    """The hand-written runtime C (codegen/runtime/), which arm modules are compiled with."""
+    from deltagen.paths import runtime_dir
+
+    for path in runtime_dir().glob("deltagen_*.[ch]"):
+        shutil.copy(path, dest)
+
+
+def check_symbols(objects, cwd, allowed=LIBM):
+    """Only ``allowed`` symbols (libm's by default; a libmvec vector variant ``_ZGV..._f``
+    counts as ``f``) undefined besides the objects' own, and no writable global or static
+    data (nm's D, B, C, G, S, V kinds). Nothing is checked where nm is missing."""
+    nm = shutil.which("nm")
+    if nm is None:
+        return
+    defined, undefined, kinds = set(), set(), set()
+    for obj in objects:
+        table = subprocess.run(
+            [nm, str(obj)], cwd=cwd, capture_output=True, text=True, check=True
+        ).stdout
+        for line in table.splitlines():
+            parts = line.split()
+            if parts[:1] == ["U"]:
+                undefined.add(re.sub(r"^_ZGV\w+?_", "", parts[1]))
+            elif len(parts) == 3:
+                defined.add(parts[2])
+                kinds.add(parts[1])
+    assert undefined - defined <= allowed, sorted(undefined - defined - allowed)
+    assert not kinds & set("DdBbCGgSsVv"), sorted(kinds & set("DdBbCGgSsVv"))
+
+
+def long_arm(n_joints):
+    """A revolute arm of n_joints > 6 (redundant), its limits within +-170 deg."""
+    from deltagen.model.serial import SerialDescription
+
+    rows = []
+    for i in range(n_joints):
+        rows.append(
+            dict(
+                a=0.3 if i % 3 == 1 else 0.02,
+                alpha_deg=(90, -90, 0)[i % 3],
+                d=0.1 if i % 2 else 0.25,
+                qlim_deg=[-170, 170],
+            )
+        )
+    return SerialDescription.from_rows(rows, "standard", name=f"long{n_joints}")
+
+
+def render_arm(desc, dest: Path) -> None:
+    """The arm's module (codegen.serial.arm_sources) and the runtime C written to ``dest``."""
+    from deltagen.codegen.serial import arm_sources
+
+    for file_name, text in arm_sources(desc).items():
+        (dest / file_name).write_text(text)
+    copy_runtime(dest)
+
+
 def rotation_angle(Ra, Rb):
     """Angle of Ra Rb^T from ||Ra - Rb||_F = 2 sqrt(2) sin(theta / 2) (accurate near 0)."""
     d = np.linalg.norm(Ra - Rb, axis=(-2, -1))

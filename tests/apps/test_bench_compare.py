@@ -91,16 +91,50 @@ def test_render_marks_missing_cells():
     assert table["delta ik"] == ["n/a", "n/a", "n/a"]
 
 
+def _share_built_modules(tree, commit):
+    """Hard-link this tree's compiled delta core and Puma 560 modules (what the probe loads,
+    built here first) and the Puma's rendered part sources into the cache --compare gives
+    the commit's worktree. A
+    module's cache key covers everything that shapes its binary (native/build.py), so the
+    worktree loads them only where the commit's generated/ and build flags equal this
+    tree's (a clean checkout of HEAD); otherwise it builds its own, as in use."""
+    import os
+
+    from deltagen import DeltaRobot, SerialRobot
+    from deltagen.native.build import usable_cache_dir
+
+    DeltaRobot.default(backend="compiled").fk([[0.1, 0.2, 0.3]])
+    SerialRobot.load("puma560", backend="compiled").mass_matrix([[0.0] * 6])
+    cache = usable_cache_dir()
+    ref_cache = cache / f"compare-{commit[:16]}"
+    # the built modules (a complete one has its manifest) and the rendered C of the
+    # Puma's parts (a complete folder has its .cdef.h) a cold load builds them from
+    wanted = ("_deltagen_delta_kinematics_", "_deltagen_serial_puma560_", "_deltagen_lean_")
+    entries = [e for e in cache.glob("_deltagen_*") if (e / "manifest.json").is_file()]
+    entries += [e for e in cache.glob("sources/serial_puma560_*") if any(e.glob("*.cdef.h"))]
+    for entry in entries:
+        target = ref_cache / entry.relative_to(cache)
+        if entry.name.startswith(wanted + ("serial_puma560_",)) and not target.exists():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copytree(entry, target, copy_function=os.link)
+
+
 @pytest.mark.slow
 def test_compare_with_a_commit(capsys):
     """HEAD measured from a temporary worktree beside this tree: every measure on both
-    sides, and the worktree is gone afterwards."""
+    sides, and the worktree is gone afterwards. The worktree's modules come from this
+    tree's cache where their keys match (_share_built_modules): the comparison, not the
+    build cache (tests/native/test_build_cache.py), is under test here."""
     tree = bench_compare.this_tree()
     if shutil.which("git") is None or not (tree / ".git").exists():
         pytest.skip("this tree is not a git checkout")
+    commit = subprocess.run(
+        ["git", "rev-parse", "HEAD"], cwd=tree, capture_output=True, text=True, check=True
+    ).stdout.strip()
+    _share_built_modules(tree, commit)
     assert main(["bench", "--compare", "HEAD", *SMALL]) == 0
     out = capsys.readouterr().out
-    assert "ref: HEAD (" in out
+    assert f"ref: HEAD ({commit[:10]})" in out
     rows = _table(out)
     assert set(rows) == set(bench_compare.MEASURES)
     for label, cells in rows.items():

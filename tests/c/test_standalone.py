@@ -1,8 +1,9 @@
-"""The generated C on its own, as a motion-controller user would take it: strict C99
-compiles warning-free, needs only libm and has no global data, and a driver program
-(written here, linked with -fsanitize=address,undefined) evaluates batches with NaN and
-unreachable rows, sizes that are not a multiple of the block size, 3 and 4 axes, checks
-fk/ik round trips and the documented return codes, and runs clean."""
+"""The delta core's generated C on its own, as a motion-controller user would take it:
+strict C99 compiles warning-free, needs only libm and has no global data, and a driver
+program (written here, linked with -fsanitize=address,undefined) evaluates batches with NaN
+and unreachable rows, sizes that are not a multiple of the block size, 3 and 4 axes, checks
+fk/ik round trips and the documented return codes, and runs clean; the 5-axis module, and
+several modules in one program. The arm modules: tests/c/test_standalone_serial.py."""
 
 from __future__ import annotations
 
@@ -15,87 +16,26 @@ import subprocess
 import numpy as np
 import pytest
 from delta_oracles import DEFAULT, KLIPPER, random_q, well_conditioned
-from helpers import GCC
+from helpers import (
+    GCC,
+    LIBM,
+    STRICT,
+    c_array,
+    check_symbols,
+    copy_runtime,
+    runtime_sources,
+    strict_gcc,
+)
 
 from deltagen import paths
-from deltagen.native.build import compile_flags, runtime_files
+from deltagen.native.build import compile_flags
 from deltagen.reference import delta as ref
 from deltagen.status import INVALID, OK, UNREACHABLE
 
 pytestmark = pytest.mark.skipif(GCC is None, reason="gcc not installed")
 
-STRICT = ["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]
-LIBM = {
-    "cos",
-    "sin",
-    "tan",
-    "atan",
-    "atan2",
-    "acos",
-    "asin",
-    "sqrt",
-    "cbrt",
-    "hypot",
-    "fabs",
-    "copysign",
-    "fmin",
-    "fmax",
-    "fma",
-    "pow",
-    "exp",
-    "log",
-    "ceil",
-    "floor",
-    "rint",
-}
-
-
-def _gcc(args, cwd):
-    proc = subprocess.run([GCC, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, f"gcc {' '.join(args)}\n{proc.stdout}\n{proc.stderr}"
-    assert proc.stderr.strip() == "", f"gcc printed diagnostics:\n{proc.stderr}"
-    return proc
-
-
-@pytest.fixture(scope="module")
-def source_dir(tmp_path_factory):
-    """A private copy of generated/ and of the runtime C, so concurrent regeneration cannot
-    race the tests."""
-    copy = tmp_path_factory.mktemp("generated")
-    for path in paths.generated_dir().glob("*.[ch]"):
-        shutil.copy(path, copy / path.name)
-    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
-        shutil.copy(path, copy / path.name)
-    return copy
-
-
-@pytest.fixture(scope="module")
-def objects(source_dir):
-    """``compile_object(name, flags)``: the object of ``source_dir/name`` compiled with
-    ``flags`` (warning-free, else the test fails with the compiler's text), built once per
-    module for each distinct (file, flags): the tests below share the compiles they have in
-    common (one -O2 object is both compiled warning-free and read by nm)."""
-    built = {}
-
-    def compile_object(name, flags):
-        key = (name, tuple(flags))
-        if key not in built:
-            obj = source_dir / f"{name[:-2]}.{len(built)}.o"
-            _gcc([*flags, "-c", name, "-o", obj.name], cwd=source_dir)
-            built[key] = obj
-        return built[key]
-
-    return compile_object
-
-
 #: the vector-math variant of the delta core, tested whatever the machine's build uses
 VECTOR_MATH = [*STRICT, "-O3", "-fno-math-errno", "-fopenmp-simd", "-DDELTAGEN_DELTA_VECTOR_MATH"]
-
-
-def _runtime_flags(args):
-    """An arm's build flags for the runtime C, which reads no arm's VECTOR_MATH switch (so
-    one runtime object serves every arm; test_runtime_reads_no_arm_switch)."""
-    return [a for a in args if not (a.startswith("-DDELTAGEN_") and a.endswith("_VECTOR_MATH"))]
 
 
 def test_runtime_reads_no_arm_switch():
@@ -151,23 +91,6 @@ def test_object_needs_only_libm_and_has_no_global_data(objects, flags):
 
 
 # ------------------------------------------------------------------------- the driver
-
-
-def _c_double(x: float) -> str:
-    if math.isnan(x):
-        return "NAN"
-    if math.isinf(x):
-        return "INFINITY" if x > 0 else "-INFINITY"
-    return float(x).hex()
-
-
-def _c_array(name, values, ctype="double"):
-    flat = np.asarray(values).ravel()
-    if ctype == "double":
-        body = ", ".join(_c_double(float(v)) for v in flat)
-    else:
-        body = ", ".join(str(int(v)) for v in flat)
-    return f"static const {ctype} {name}[{max(len(flat), 1)}] = {{{body or '0'}}};\n"
 
 
 def _batch(geom, n_rows, seed):
@@ -426,13 +349,13 @@ def _driver_source(geom, n_rows, seed):
     q, status, round_trip, targets, s_ik = _batch(geom, n_rows, seed)
     arrays = "".join(
         [
-            _c_array("Q", q),
-            _c_array("FK_STATUS", status, "int8_t"),
-            _c_array("ROUND_TRIP", round_trip.astype(int), "int"),
-            _c_array("P", targets),
-            _c_array("IK_STATUS", s_ik, "int8_t"),
-            _c_array("COS_THETA", np.cos(geom.theta)),
-            _c_array("SIN_THETA", np.sin(geom.theta)),
+            c_array("Q", q),
+            c_array("FK_STATUS", status, "int8_t"),
+            c_array("ROUND_TRIP", round_trip.astype(int), "int"),
+            c_array("P", targets),
+            c_array("IK_STATUS", s_ik, "int8_t"),
+            c_array("COS_THETA", np.cos(geom.theta)),
+            c_array("SIN_THETA", np.sin(geom.theta)),
         ]
     )
     source = DRIVER % dict(
@@ -476,7 +399,7 @@ def test_driver_under_sanitizers(source_dir, objects, sanitizers, tmp_path, geom
         flags = [*flags, "-pedantic", "-Werror"]
     # the core's instrumented object is shared by the drivers of the same flags
     core = objects("delta_kinematics.c", [*flags, *sanitizers])
-    _gcc(
+    strict_gcc(
         [*flags, *sanitizers, f"-I{source_dir}", str(driver), str(core), "-o", str(exe), *libs],
         cwd=tmp_path,
     )
@@ -510,266 +433,6 @@ def test_driver_under_sanitizers(source_dir, objects, sanitizers, tmp_path, geom
     ok = status == OK
     np.testing.assert_allclose(got_p[ok], p_ref[ok], rtol=0, atol=1e-12 * geom.size)
     assert np.all(np.isnan(got_p[~ok]))
-
-
-# ------------------------------------------------------------- the serial-arm modules
-
-
-def _serial_sources():
-    return sorted(p.name for p in paths.generated_dir().glob("serial_*.c"))
-
-
-RUNTIME_SOURCES = sorted(p.name for p in paths.runtime_dir().glob("deltagen_*.c"))
-
-
-def _copy_runtime(dest):
-    """The hand-written runtime C (codegen/runtime/), which arm modules are compiled with."""
-    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
-        shutil.copy(path, dest)
-
-
-def _check_symbols(objects, cwd, allowed=LIBM):
-    """Only libm symbols (``allowed``) undefined besides the objects' own, no global data."""
-    nm = shutil.which("nm")
-    if nm is None:
-        return
-    defined, undefined, kinds = set(), set(), set()
-    for obj in objects:
-        table = subprocess.run(
-            [nm, obj], cwd=cwd, capture_output=True, text=True, check=True
-        ).stdout
-        for line in table.splitlines():
-            parts = line.split()
-            if parts[:1] == ["U"]:
-                undefined.add(parts[1])
-            elif len(parts) == 3:
-                defined.add(parts[2])
-                kinds.add(parts[1])
-    assert undefined - defined <= allowed, sorted(undefined - defined - allowed)
-    assert not kinds & set("DdBbCGgSsVv")
-
-
-@pytest.mark.parametrize("name", _serial_sources())
-def test_serial_modules_compile_strict_and_need_only_libm(name, source_dir, objects):
-    """Every checked-in arm module with the runtime: strict C99 at -O2 warning-free, the
-    build flags too, only libm symbols undefined, no global data (the runtime's objects are
-    built once for every arm)."""
-    prefix = "deltagen_" + name[len("serial_") : -2]
-    args, _ = compile_flags(prefix)
-    texts = [(source_dir / name.replace(".c", ext)).read_text() for ext in (".c", ".h")]
-    # the runtime C the module includes (what build.py compiles beside it and an export ships)
-    runtime = sorted(f.name for f in runtime_files(texts) if f.suffix == ".c")
-    assert "deltagen_linalg.c" in runtime
-    strict = [objects(source, [*STRICT, "-O2"]) for source in [name, *runtime]]
-    objects(name, [*args, "-pedantic", "-Werror"])
-    for source in runtime:
-        objects(source, [*_runtime_flags(args), "-pedantic", "-Werror"])
-    _check_symbols([str(obj) for obj in strict], source_dir)
-
-
-#: what GCC requires of every environment, freestanding ones included ("GCC requires the
-#: freestanding environment provide memcpy, memmove, memset and memcmp", GCC manual,
-#: "C Language"): it may call them for copies and zero fills the C never names
-GCC_REQUIRED = {"memcpy", "memmove", "memset", "memcmp"}
-
-
-def test_general6r_runtime_compiles_strict(source_dir, objects):
-    """The general-6R solver's C (host side, one module for every arm; no arm module or
-    export includes it): strict C99 warning-free, no global data, libm and GCC's four."""
-    built = [
-        str(objects(source, [*STRICT, "-O2"]))
-        for source in ("deltagen_eigen.c", "deltagen_general6r.c", "deltagen_linalg.c")
-    ]
-    _check_symbols(built, source_dir, allowed=LIBM | GCC_REQUIRED)
-
-
-def _long_arm(n_joints):
-    """A revolute arm of n_joints > 6 (redundant), its limits within +-170 deg."""
-    from deltagen.model.serial import SerialDescription
-
-    rows = []
-    for i in range(n_joints):
-        rows.append(
-            dict(
-                a=0.3 if i % 3 == 1 else 0.02,
-                alpha_deg=(90, -90, 0)[i % 3],
-                d=0.1 if i % 2 else 0.25,
-                qlim_deg=[-170, 170],
-            )
-        )
-    return SerialDescription.from_rows(rows, "standard", name=f"long{n_joints}")
-
-
-def _render_arm(desc, dest):
-    from deltagen.codegen.serial import arm_sources
-
-    for file_name, text in arm_sources(desc).items():
-        (dest / file_name).write_text(text)
-    _copy_runtime(dest)
-
-
-@pytest.mark.parametrize("n_joints", [7, 9])
-def test_long_arms_compile_warning_free(n_joints, tmp_path, objects):
-    """Arms with more than 6 joints: the module and the runtime compile with -Werror and
-    -Warray-bounds at -O2 and -O3 (arrays sized by the joint count work for any count; the
-    runtime, the same for every arm, is compiled once for both)."""
-    desc = _long_arm(n_joints)
-    _render_arm(desc, tmp_path)
-    args, _ = compile_flags(f"deltagen_{desc.name}")
-    source = f"serial_{desc.name}.c"
-    for opt in ("-O2", "-O3"):
-        _gcc([*STRICT, opt, "-Warray-bounds=2", "-c", source, "-o", f"{opt}.o"], cwd=tmp_path)
-    _gcc(
-        [*args, "-pedantic", "-Werror", "-Warray-bounds=2", "-c", source, "-o", "v.o"],
-        cwd=tmp_path,
-    )
-    for runtime in RUNTIME_SOURCES:
-        for opt in ("-O2", "-O3"):
-            objects(runtime, [*STRICT, opt, "-Warray-bounds=2"])
-        objects(runtime, [*_runtime_flags(args), "-pedantic", "-Werror", "-Warray-bounds=2"])
-
-
-IK_DRIVER = r"""
-#include <math.h>
-#include <stdio.h>
-#include "serial_%(name)s.h"
-
-#define N %(n)d
-#define NJ %(nj)d
-%(arrays)s
-static int failures = 0;
-#define CHECK(cond, ...) do { if (!(cond)) { ++failures; printf("FAIL line %%d: ", __LINE__); \
-    printf(__VA_ARGS__); printf("\n"); } } while (0)
-
-static double q[N * NJ], ep[N], er[N], T[N * 16];
-static int32_t it[N];
-static int8_t st[N], st2[N];
-
-int main(void)
-{
-    deltagen_ik_options o = {1e-10, 1e-10, 0.5, 1.0, 0.1, 100, 0, 1, 1, {1, 1, 1, 1, 1, 1}, 0, 0};
-    CHECK(deltagen_%(name)s_ik_newton(N, &o, TT, Q0, QLIM, q, ep, er, it, st) == 0, "rc");
-    CHECK(deltagen_%(name)s_fk(N, q, T, st2) == 0, "fk rc");
-    int ok = 0;
-    for (size_t i = 0; i < N; ++i) {
-        if (BAD[i]) {
-            CHECK(st[i] == DELTAGEN_INVALID && isnan(q[i * NJ]) && isnan(ep[i]) && it[i] == 0,
-                  "row %%zu not INVALID", i);
-            continue;
-        }
-        CHECK(st[i] == DELTAGEN_OK || st[i] == DELTAGEN_UNREACHABLE, "row %%zu status %%d", i, st[i]);
-        for (size_t j = 0; j < NJ; ++j) {
-            CHECK(q[i * NJ + j] >= QLIM[2 * j] && q[i * NJ + j] <= QLIM[2 * j + 1], "row %%zu limits", i);
-        }
-        if (st[i] == DELTAGEN_OK) {
-            ++ok;
-            CHECK(ep[i] <= 1e-10 && er[i] <= 1e-10, "row %%zu errors", i);
-            for (size_t c = 0; c < 3; ++c) {
-                CHECK(fabs(T[i * 16 + 4 * c + 3] - TT[i * 16 + 4 * c + 3]) <= 1e-10, "row %%zu p", i);
-            }
-        }
-    }
-    CHECK(ok >= N / 2, "only %%d converged", ok);
-    /* documented return codes: bad options, NULL pointers, n = 0 */
-    int8_t s1 = 42;
-    double q1[NJ] = {0}, e1 = 7.0, e2 = 7.0;
-    int32_t i1;
-    deltagen_ik_options bad = o;
-    bad.tol_p = -1.0;
-    CHECK(deltagen_%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "tol_p");
-    bad = o;
-    bad.mask[0] = 2;
-    CHECK(deltagen_%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "mask");
-    bad = o;
-    bad.max_iter = -1;
-    CHECK(deltagen_%(name)s_ik_newton(1, &bad, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "max_iter");
-    CHECK(deltagen_%(name)s_ik_newton(1, NULL, TT, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL options");
-    CHECK(deltagen_%(name)s_ik_newton(1, &o, NULL, Q0, QLIM, q1, &e1, &e2, &i1, &s1) == -1, "NULL T");
-    CHECK(deltagen_%(name)s_ik_newton(1, &o, TT, Q0, QLIM, q1, &e1, &e2, &i1, NULL) == -1, "NULL status");
-    CHECK(s1 == 42 && e1 == 7.0, "written on error");
-    CHECK(deltagen_%(name)s_ik_newton(0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL) == 0, "n=0");
-    /* no limits (qlim NULL), a mask, no step limit: still runs clean */
-    o.step_limit = INFINITY;
-    o.mask[3] = o.mask[4] = 0;
-    CHECK(deltagen_%(name)s_ik_newton(N, &o, TT, Q0, NULL, q, ep, er, it, st) == 0, "rc no limits");
-    if (failures) {
-        printf("%%d FAILURES\n", failures);
-        return 1;
-    }
-    return 0;
-}
-"""
-
-
-@pytest.mark.slow
-# the Puma module (with its dynamics) runs ik_newton under the sanitizers in
-# tests/c/test_fuzz_sanitizers.py; compiling it twice more under ASan costs ~80 s
-@pytest.mark.parametrize("name", ["manutec_h5", "long7", "long9"])
-def test_ik_newton_driver_under_sanitizers(sanitizers, tmp_path, name):
-    """deltagen_<arm>_ik_newton (the generated wrapper and the runtime solver) on its own, linked with
-    ASan/UBSan: converged rows reproduce their targets through the module's fk and stay
-    within the limits, non-finite rows are INVALID, bad options and NULL pointers give -1
-    and write nothing. long7 and long9 are redundant arms (7 and 9 joints)."""
-    from deltagen.api.serial import SerialRobot
-    from deltagen.reference import serial as reference
-
-    if name.startswith("long"):
-        desc = _long_arm(int(name[4:]))
-        _render_arm(desc, tmp_path)
-        arm = SerialRobot(desc, backend="reference")
-    else:
-        arm = SerialRobot.load(name, backend="reference")
-        for ext in (".c", ".h"):
-            shutil.copy(paths.generated_dir() / f"serial_{name}{ext}", tmp_path)
-        _copy_runtime(tmp_path)
-    n_rows, nj = 70, arm.n
-    rng = np.random.default_rng(7)
-    lo, hi = arm.qlim.T
-    q_true = lo + (hi - lo) * rng.random((n_rows, nj))
-    T, _ = reference.fk(arm.description, q_true)
-    q0 = np.clip(q_true + rng.normal(0, 0.1, q_true.shape), lo, hi)
-    bad = np.zeros(n_rows, dtype=int)
-    T[3, 0, 3] = np.nan
-    q0[10, 1] = np.inf
-    bad[[3, 10]] = 1
-    arrays = "".join(
-        [
-            _c_array("TT", T),
-            _c_array("Q0", q0),
-            _c_array("QLIM", arm.qlim),
-            _c_array("BAD", bad, "int"),
-        ]
-    )
-    source = IK_DRIVER % dict(name=name, n=n_rows, nj=nj, arrays=arrays)
-    if nj < 6:
-        source = source.replace("{1, 1, 1, 1, 1, 1}}", "{1, 1, 1, 0, 0, 1}}")
-    (tmp_path / "driver.c").write_text(source)
-    module = f"serial_{name}.c"
-    if name.startswith("long"):
-        # the long arms' generated kernels are big and tested elsewhere: instrumenting them
-        # (-g) costs minutes, so the runtime and the driver alone run under the sanitizers
-        _gcc([*STRICT, "-O1", "-c", module, "-o", "module.o"], cwd=tmp_path)
-        module = "module.o"
-    _gcc(
-        # -O0: an instrumented module compiles ~3x faster than at -O1 (same checks at run time)
-        [*STRICT, "-O0", *sanitizers, "driver.c", module, *RUNTIME_SOURCES, "-o", "driver", "-lm"],
-        cwd=tmp_path,
-    )
-    env = dict(
-        os.environ,
-        ASAN_OPTIONS="detect_leaks=1:detect_stack_use_after_return=1",
-        UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1",
-    )
-    proc = subprocess.run(
-        [str(tmp_path / "driver")],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        env=env,
-        cwd=tmp_path,
-    )
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    assert proc.stderr == "", proc.stderr[-3000:]
 
 
 # ------------------------------------------------- several modules in one program
@@ -815,6 +478,7 @@ def test_two_arms_the_delta_core_and_an_arm_named_delta_in_one_program(tmp_path)
     """Every exported symbol carries the project prefix: the delta core, two arm modules, a
     user arm named `delta` (its functions become deltagen_delta_arm_*) and the runtime
     compile and link into one program, all headers in one translation unit."""
+    from deltagen.codegen.serial import arm_sources
     from deltagen.model.serial import SerialDescription
 
     for base in ("delta_kinematics", "serial_puma560", "serial_manutec_h5"):
@@ -825,7 +489,11 @@ def test_two_arms_the_delta_core_and_an_arm_named_delta_in_one_program(tmp_path)
         dict(a=0.2, alpha=0.0, d=0.0),
         dict(a=0.1, alpha=0.0, d=0.0),
     ]
-    _render_arm(SerialDescription.from_rows(rows, "standard", name="delta"), tmp_path)
+    for file_name, text in arm_sources(
+        SerialDescription.from_rows(rows, "standard", name="delta")
+    ).items():
+        (tmp_path / file_name).write_text(text)
+    copy_runtime(tmp_path)
     assert "int deltagen_delta_arm_fk(" in (tmp_path / "serial_delta.h").read_text()
     geom = DEFAULT
     (tmp_path / "main.c").write_text(
@@ -845,9 +513,11 @@ def test_two_arms_the_delta_core_and_an_arm_named_delta_in_one_program(tmp_path)
         "serial_puma560.c",
         "serial_manutec_h5.c",
         "serial_delta.c",
-        *RUNTIME_SOURCES,
+        *runtime_sources(),
     ]
-    _gcc([*STRICT, "-O1", *sources, "-o", "program", "-lm"], cwd=tmp_path)
+    # -O0: this program checks the symbols' names and the link, not the optimiser (each
+    # module's -O2/-O3 compiles are the other tests of tests/c/test_standalone*.py)
+    strict_gcc([*STRICT, "-O0", *sources, "-o", "program", "-lm"], cwd=tmp_path)
     proc = subprocess.run(
         [str(tmp_path / "program")], capture_output=True, text=True, timeout=60, cwd=tmp_path
     )
@@ -876,7 +546,7 @@ def test_five_axis_module_compiles_strict_and_needs_only_libm(source_dir, object
     obj = str(objects("five_axis_kinematics.c", [*STRICT, opt]))
     args, _ = compile_flags("deltagen_five_axis")
     objects("five_axis_kinematics.c", [*args, "-pedantic", "-Werror"])
-    _check_symbols([obj], source_dir)
+    check_symbols([obj], source_dir)
     nm = shutil.which("nm")
     if nm is not None:
         table = subprocess.run([nm, obj], capture_output=True, text=True).stdout

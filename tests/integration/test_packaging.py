@@ -132,3 +132,18 @@ def test_demo_without_matplotlib_says_so(no_matplotlib, tmp_path, capsys):
     assert "matplotlib is needed for plots: pip install 'deltagen[plot]'" in capsys.readouterr().err
     # the lecture's table is text: it needs no matplotlib without --out
     assert cli.main(["demo", "lecture-scara"]) == 0
+
+
+def test_ci_prints_the_slowest_tests():
+    """`make test` (what .ci/run runs) prints pytest's slowest tests: --durations in the
+    pytest options of pyproject.toml, which the Makefile's pytest command does not override,
+    so each CI log records which tests dominate the suite's time."""
+    import shlex
+
+    options = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]
+    durations = [a for a in shlex.split(options["ini_options"]["addopts"]) if "durations" in a]
+    assert durations and int(durations[0].split("=")[1]) >= 10, durations
+    makefile = (ROOT / "Makefile").read_text()
+    assert "make test" in (ROOT / ".ci" / "run").read_text()
+    assert "-p no:terminal" not in makefile
+    assert "-o addopts" not in makefile and "--override-ini" not in makefile
