@@ -367,28 +367,15 @@ def _numpy_include() -> tuple[str, str]:
     return numpy.get_include(), numpy.__version__
 
 
-def load_extension(source: Path, base_name: str):
-    """Compile and import a hand-written CPython extension (one .c file using Python.h and
-    the numpy C API, e.g. native/lean_ext.c), cached and verified like the generated
-    modules: the key covers its text, the flags, the interpreter, numpy and the compiler.
-    The module's init function is named by the build (``-DDELTAGEN_LEAN_INIT=PyInit_<name>``
-    and ``DELTAGEN_LEAN_NAME``), so each key's module has its own name. BuildError when
-    it cannot be built (no compiler, no Python.h) or loaded."""
+def _load_hand_written(source: Path, base_name: str, key_parts: list[str], compile_into):
+    """Compile and import one hand-written C file, cached and verified like the generated
+    modules: the module is named by a key over the file's text, ``key_parts`` (flags and
+    the versions the build depends on), the interpreter, the platform and the compiler.
+    ``compile_into(c_file, out, module_name, so_name)`` builds the file's copy in a private
+    folder into ``out`` and returns (the built library, the command to record)."""
     text = Path(source).read_text()
-    numpy_include, numpy_version = _numpy_include()
-    python_include = toolchain.python_include()
-    args = ["-std=c99", "-O2", "-Wall", "-Wextra"]
     key_material = "\0".join(
-        [
-            text,
-            " ".join(args),
-            sys.version,
-            sysconfig.get_platform(),
-            numpy_version,
-            numpy_include,
-            python_include,
-            toolchain.compiler_identity(),
-        ]
+        [text, *key_parts, sys.version, sysconfig.get_platform(), toolchain.compiler_identity()]
     )
     module_name = f"_{base_name}_{hashlib.sha256(key_material.encode()).hexdigest()[:16]}"
     name = Path(source).name
@@ -402,27 +389,46 @@ def load_extension(source: Path, base_name: str):
             (work / name).write_text(text)  # the compiled text is the hashed text
             out = work / "out"
             out.mkdir()
-            command = (
-                toolchain.host_command()
-                + extension_flags()
-                + args
-                + [
-                    f"-DDELTAGEN_LEAN_INIT=PyInit_{module_name}",
-                    f'-DDELTAGEN_LEAN_NAME="{module_name}"',
-                    f"-I{python_include}",
-                    f"-I{numpy_include}",
-                    str(work / name),
-                    "-o",
-                    str(out / so_name),
-                ]
-            )
-            proc = toolchain.run(command, work, name)
-            toolchain.require_success(proc, command, f"compiling {name}")
-            _publish(out / so_name, target, command)
+            built, command = compile_into(work / name, out, module_name, so_name)
+            _publish(built, target, command)
         finally:
             shutil.rmtree(work, ignore_errors=True)
 
     return _load_cached(module_name, build)
+
+
+def load_extension(source: Path, base_name: str):
+    """Compile and import a hand-written CPython extension (one .c file using Python.h and
+    the numpy C API, e.g. native/lean_ext.c), cached and verified like the generated
+    modules: the key covers its text, the flags, the interpreter, numpy and the compiler.
+    The module's init function is named by the build (``-DDELTAGEN_LEAN_INIT=PyInit_<name>``
+    and ``DELTAGEN_LEAN_NAME``), so each key's module has its own name. BuildError when
+    it cannot be built (no compiler, no Python.h) or loaded."""
+    numpy_include, numpy_version = _numpy_include()
+    python_include = toolchain.python_include()
+    args = ["-std=c99", "-O2", "-Wall", "-Wextra"]
+
+    def compile_into(c_file: Path, out: Path, module_name: str, so_name: str):
+        command = (
+            toolchain.host_command()
+            + extension_flags()
+            + args
+            + [
+                f"-DDELTAGEN_LEAN_INIT=PyInit_{module_name}",
+                f'-DDELTAGEN_LEAN_NAME="{module_name}"',
+                f"-I{python_include}",
+                f"-I{numpy_include}",
+                str(c_file),
+                "-o",
+                str(out / so_name),
+            ]
+        )
+        proc = toolchain.run(command, c_file.parent, c_file.name)
+        toolchain.require_success(proc, command, f"compiling {c_file.name}")
+        return out / so_name, command
+
+    key = [" ".join(args), numpy_version, numpy_include, python_include]
+    return _load_hand_written(source, base_name, key, compile_into)
 
 
 def load_c_source(source: Path, base_name: str, cdef: str, prefix: str):
@@ -434,45 +440,18 @@ def load_c_source(source: Path, base_name: str, cdef: str, prefix: str):
     ``.ffi`` / ``.lib``; BuildError when it cannot be built or loaded."""
     import cffi
 
-    text = Path(source).read_text()
     args, libraries = compile_flags(prefix)
-    key_material = "\0".join(
-        [
-            text,
-            cdef,
-            " ".join(args),
-            " ".join(libraries),
-            sys.version,
-            sysconfig.get_platform(),
-            _cffi_version(),
-            toolchain.compiler_identity(),
-        ]
-    )
-    module_name = f"_{base_name}_{hashlib.sha256(key_material.encode()).hexdigest()[:16]}"
-    name = Path(source).name
 
-    def build(target: Path, so_name: str) -> None:
-        import shutil
-        import tempfile
+    def compile_into(c_file: Path, out: Path, module_name: str, so_name: str):
+        ffi = cffi.FFI()
+        ffi.cdef(cdef)
+        # the wrapper sees the declarations it wraps
+        so_path = toolchain.build_cffi(
+            ffi, module_name, cdef, [c_file], out, flags=args, libraries=libraries
+        )
+        if so_path.name != so_name:
+            so_path = so_path.rename(so_path.with_name(so_name))
+        return so_path, [*toolchain.host_command(), *args, c_file.name]
 
-        work = Path(tempfile.mkdtemp(prefix=f"{module_name}.", dir=target.parent))
-        try:
-            (work / name).write_text(text)  # the compiled text is the hashed text
-            ffi = cffi.FFI()
-            ffi.cdef(cdef)
-            so_path = toolchain.build_cffi(
-                ffi,
-                module_name,
-                cdef,  # the wrapper sees the declarations it wraps
-                [work / name],
-                work / "out",
-                flags=args,
-                libraries=libraries,
-            )
-            if so_path.name != so_name:
-                so_path = so_path.rename(so_path.with_name(so_name))
-            _publish(so_path, target, [*toolchain.host_command(), *args, name])
-        finally:
-            shutil.rmtree(work, ignore_errors=True)
-
-    return _load_cached(module_name, build)
+    key = [cdef, " ".join(args), " ".join(libraries), _cffi_version()]
+    return _load_hand_written(source, base_name, key, compile_into)
