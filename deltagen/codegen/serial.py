@@ -119,6 +119,7 @@ def arm_unit(desc, part: str = "all") -> Unit:
             if desc.has_inertia and part in ("all", "mass")
             else None
         ),
+        packed_blocks=True,
     )
 
 
