@@ -34,10 +34,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 71936 bytes at 64 points; each function's comment in
+ * the most, 17984 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-#define DELTAGEN_GANTRY_XYZ_WRIST_BLOCK 64
+#define DELTAGEN_GANTRY_XYZ_WRIST_BLOCK 16
 #endif
 
 int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)

@@ -31,10 +31,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 36096 bytes at 64 points; each function's comment in
+ * the most, 9024 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_LECTURE_SCARA_BLOCK
-#define DELTAGEN_LECTURE_SCARA_BLOCK 64
+#define DELTAGEN_LECTURE_SCARA_BLOCK 16
 #endif
 
 int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)

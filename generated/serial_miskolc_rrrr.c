@@ -36,10 +36,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 55552 bytes at 64 points; each function's comment in
+ * the most, 13888 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_MISKOLC_RRRR_BLOCK
-#define DELTAGEN_MISKOLC_RRRR_BLOCK 64
+#define DELTAGEN_MISKOLC_RRRR_BLOCK 16
 #endif
 
 int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)

@@ -32,10 +32,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 75008 bytes at 64 points; each function's comment in
+ * the most, 18752 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK
-#define DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK 64
+#define DELTAGEN_PUMA560_OFFSET_WRIST_BLOCK 16
 #endif
 
 int deltagen_puma560_offset_wrist_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)
