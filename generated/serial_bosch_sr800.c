@@ -33,10 +33,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 54528 bytes at 64 points; each function's comment in
+ * the most, 13632 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_BOSCH_SR800_BLOCK
-#define DELTAGEN_BOSCH_SR800_BLOCK 64
+#define DELTAGEN_BOSCH_SR800_BLOCK 16
 #endif
 
 int deltagen_bosch_sr800_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)
@@ -51,86 +51,49 @@ int deltagen_bosch_sr800_fk(size_t n, const double *restrict q, double *restrict
     for (size_t start = 0; start < n; start += DELTAGEN_BOSCH_SR800_BLOCK) {
         const size_t m = (n - start < DELTAGEN_BOSCH_SR800_BLOCK) ? n - start : DELTAGEN_BOSCH_SR800_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q3_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double angle_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 4 + 0];
-            q2_b[k] = q[(start + k) * 4 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 4 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 4 + 1];
             q3_b[k] = q[(start + k) * 4 + 2];
-            q4_b[k] = q[(start + k) * 4 + 3];
+            angle_b[2 * m + k] = q[(start + k) * 4 + 3];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1))
-                <= DELTAGEN_BOSCH_SR800_BLOCK
-            ? ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 3 * m;
+        const size_t a_v = ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES -
+                1)) <= 3 * DELTAGEN_BOSCH_SR800_BLOCK
+            ? ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
+        double sin_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T0_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T1_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T2_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T3_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T4_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T5_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T6_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T7_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T8_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T9_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T10_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T11_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T12_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T13_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T14_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T15_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double out_b[16][DELTAGEN_BOSCH_SR800_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
+            const double q4 = angle_b[2 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 0.45*cos_q1;
             const double F1_24 = 0.45*sin_q1;
@@ -177,22 +140,22 @@ int deltagen_bosch_sr800_fk(size_t n, const double *restrict q, double *restrict
             const double out_T13_checked = t5_1;
             const double out_T14_checked = t5_1;
             const double out_T15_checked = ((t5_0) ? NAN : 1);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -202,22 +165,22 @@ int deltagen_bosch_sr800_fk(size_t n, const double *restrict q, double *restrict
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
         }
     }
     return 0;
@@ -235,166 +198,49 @@ int deltagen_bosch_sr800_frames(size_t n, const double *restrict q, double *rest
     for (size_t start = 0; start < n; start += DELTAGEN_BOSCH_SR800_BLOCK) {
         const size_t m = (n - start < DELTAGEN_BOSCH_SR800_BLOCK) ? n - start : DELTAGEN_BOSCH_SR800_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q3_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double angle_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 4 + 0];
-            q2_b[k] = q[(start + k) * 4 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 4 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 4 + 1];
             q3_b[k] = q[(start + k) * 4 + 2];
-            q4_b[k] = q[(start + k) * 4 + 3];
+            angle_b[2 * m + k] = q[(start + k) * 4 + 3];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1))
-                <= DELTAGEN_BOSCH_SR800_BLOCK
-            ? ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 3 * m;
+        const size_t a_v = ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES -
+                1)) <= 3 * DELTAGEN_BOSCH_SR800_BLOCK
+            ? ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
+        double sin_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F0_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F1_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F2_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F3_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F4_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F5_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F6_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F7_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F8_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F9_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F10_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F11_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F12_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F13_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F14_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F15_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F16_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F17_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F18_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F19_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F20_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F21_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F22_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F23_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F24_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F25_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F26_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F27_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F28_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F29_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F30_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F31_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F32_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F33_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F34_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F35_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F36_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F37_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F38_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F39_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F40_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F41_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F42_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F43_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F44_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F45_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F46_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F47_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F48_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F49_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F50_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F51_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F52_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F53_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F54_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F55_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F56_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F57_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F58_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F59_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F60_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F61_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F62_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F63_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F64_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F65_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F66_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F67_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F68_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F69_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F70_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F71_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F72_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F73_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F74_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F75_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F76_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F77_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F78_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F79_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F80_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F81_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F82_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F83_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F84_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F85_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F86_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F87_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F88_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F89_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F90_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F91_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F92_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F93_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F94_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_F95_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double out_b[96][DELTAGEN_BOSCH_SR800_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
+            const double q4 = angle_b[2 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 0.45*cos_q1;
             const double F1_24 = 0.45*sin_q1;
@@ -542,102 +388,102 @@ int deltagen_bosch_sr800_frames(size_t n, const double *restrict q, double *rest
             const double out_F93_checked = t5_3;
             const double out_F94_checked = t5_3;
             const double out_F95_checked = t5_2;
-            out_F0_checked_b[k] = out_F0_checked;
-            out_F1_checked_b[k] = out_F1_checked;
-            out_F2_checked_b[k] = out_F2_checked;
-            out_F3_checked_b[k] = out_F3_checked;
-            out_F4_checked_b[k] = out_F4_checked;
-            out_F5_checked_b[k] = out_F5_checked;
-            out_F6_checked_b[k] = out_F6_checked;
-            out_F7_checked_b[k] = out_F7_checked;
-            out_F8_checked_b[k] = out_F8_checked;
-            out_F9_checked_b[k] = out_F9_checked;
-            out_F10_checked_b[k] = out_F10_checked;
-            out_F11_checked_b[k] = out_F11_checked;
-            out_F12_checked_b[k] = out_F12_checked;
-            out_F13_checked_b[k] = out_F13_checked;
-            out_F14_checked_b[k] = out_F14_checked;
-            out_F15_checked_b[k] = out_F15_checked;
-            out_F16_checked_b[k] = out_F16_checked;
-            out_F17_checked_b[k] = out_F17_checked;
-            out_F18_checked_b[k] = out_F18_checked;
-            out_F19_checked_b[k] = out_F19_checked;
-            out_F20_checked_b[k] = out_F20_checked;
-            out_F21_checked_b[k] = out_F21_checked;
-            out_F22_checked_b[k] = out_F22_checked;
-            out_F23_checked_b[k] = out_F23_checked;
-            out_F24_checked_b[k] = out_F24_checked;
-            out_F25_checked_b[k] = out_F25_checked;
-            out_F26_checked_b[k] = out_F26_checked;
-            out_F27_checked_b[k] = out_F27_checked;
-            out_F28_checked_b[k] = out_F28_checked;
-            out_F29_checked_b[k] = out_F29_checked;
-            out_F30_checked_b[k] = out_F30_checked;
-            out_F31_checked_b[k] = out_F31_checked;
-            out_F32_checked_b[k] = out_F32_checked;
-            out_F33_checked_b[k] = out_F33_checked;
-            out_F34_checked_b[k] = out_F34_checked;
-            out_F35_checked_b[k] = out_F35_checked;
-            out_F36_checked_b[k] = out_F36_checked;
-            out_F37_checked_b[k] = out_F37_checked;
-            out_F38_checked_b[k] = out_F38_checked;
-            out_F39_checked_b[k] = out_F39_checked;
-            out_F40_checked_b[k] = out_F40_checked;
-            out_F41_checked_b[k] = out_F41_checked;
-            out_F42_checked_b[k] = out_F42_checked;
-            out_F43_checked_b[k] = out_F43_checked;
-            out_F44_checked_b[k] = out_F44_checked;
-            out_F45_checked_b[k] = out_F45_checked;
-            out_F46_checked_b[k] = out_F46_checked;
-            out_F47_checked_b[k] = out_F47_checked;
-            out_F48_checked_b[k] = out_F48_checked;
-            out_F49_checked_b[k] = out_F49_checked;
-            out_F50_checked_b[k] = out_F50_checked;
-            out_F51_checked_b[k] = out_F51_checked;
-            out_F52_checked_b[k] = out_F52_checked;
-            out_F53_checked_b[k] = out_F53_checked;
-            out_F54_checked_b[k] = out_F54_checked;
-            out_F55_checked_b[k] = out_F55_checked;
-            out_F56_checked_b[k] = out_F56_checked;
-            out_F57_checked_b[k] = out_F57_checked;
-            out_F58_checked_b[k] = out_F58_checked;
-            out_F59_checked_b[k] = out_F59_checked;
-            out_F60_checked_b[k] = out_F60_checked;
-            out_F61_checked_b[k] = out_F61_checked;
-            out_F62_checked_b[k] = out_F62_checked;
-            out_F63_checked_b[k] = out_F63_checked;
-            out_F64_checked_b[k] = out_F64_checked;
-            out_F65_checked_b[k] = out_F65_checked;
-            out_F66_checked_b[k] = out_F66_checked;
-            out_F67_checked_b[k] = out_F67_checked;
-            out_F68_checked_b[k] = out_F68_checked;
-            out_F69_checked_b[k] = out_F69_checked;
-            out_F70_checked_b[k] = out_F70_checked;
-            out_F71_checked_b[k] = out_F71_checked;
-            out_F72_checked_b[k] = out_F72_checked;
-            out_F73_checked_b[k] = out_F73_checked;
-            out_F74_checked_b[k] = out_F74_checked;
-            out_F75_checked_b[k] = out_F75_checked;
-            out_F76_checked_b[k] = out_F76_checked;
-            out_F77_checked_b[k] = out_F77_checked;
-            out_F78_checked_b[k] = out_F78_checked;
-            out_F79_checked_b[k] = out_F79_checked;
-            out_F80_checked_b[k] = out_F80_checked;
-            out_F81_checked_b[k] = out_F81_checked;
-            out_F82_checked_b[k] = out_F82_checked;
-            out_F83_checked_b[k] = out_F83_checked;
-            out_F84_checked_b[k] = out_F84_checked;
-            out_F85_checked_b[k] = out_F85_checked;
-            out_F86_checked_b[k] = out_F86_checked;
-            out_F87_checked_b[k] = out_F87_checked;
-            out_F88_checked_b[k] = out_F88_checked;
-            out_F89_checked_b[k] = out_F89_checked;
-            out_F90_checked_b[k] = out_F90_checked;
-            out_F91_checked_b[k] = out_F91_checked;
-            out_F92_checked_b[k] = out_F92_checked;
-            out_F93_checked_b[k] = out_F93_checked;
-            out_F94_checked_b[k] = out_F94_checked;
-            out_F95_checked_b[k] = out_F95_checked;
+            out_b[0][k] = out_F0_checked;
+            out_b[1][k] = out_F1_checked;
+            out_b[2][k] = out_F2_checked;
+            out_b[3][k] = out_F3_checked;
+            out_b[4][k] = out_F4_checked;
+            out_b[5][k] = out_F5_checked;
+            out_b[6][k] = out_F6_checked;
+            out_b[7][k] = out_F7_checked;
+            out_b[8][k] = out_F8_checked;
+            out_b[9][k] = out_F9_checked;
+            out_b[10][k] = out_F10_checked;
+            out_b[11][k] = out_F11_checked;
+            out_b[12][k] = out_F12_checked;
+            out_b[13][k] = out_F13_checked;
+            out_b[14][k] = out_F14_checked;
+            out_b[15][k] = out_F15_checked;
+            out_b[16][k] = out_F16_checked;
+            out_b[17][k] = out_F17_checked;
+            out_b[18][k] = out_F18_checked;
+            out_b[19][k] = out_F19_checked;
+            out_b[20][k] = out_F20_checked;
+            out_b[21][k] = out_F21_checked;
+            out_b[22][k] = out_F22_checked;
+            out_b[23][k] = out_F23_checked;
+            out_b[24][k] = out_F24_checked;
+            out_b[25][k] = out_F25_checked;
+            out_b[26][k] = out_F26_checked;
+            out_b[27][k] = out_F27_checked;
+            out_b[28][k] = out_F28_checked;
+            out_b[29][k] = out_F29_checked;
+            out_b[30][k] = out_F30_checked;
+            out_b[31][k] = out_F31_checked;
+            out_b[32][k] = out_F32_checked;
+            out_b[33][k] = out_F33_checked;
+            out_b[34][k] = out_F34_checked;
+            out_b[35][k] = out_F35_checked;
+            out_b[36][k] = out_F36_checked;
+            out_b[37][k] = out_F37_checked;
+            out_b[38][k] = out_F38_checked;
+            out_b[39][k] = out_F39_checked;
+            out_b[40][k] = out_F40_checked;
+            out_b[41][k] = out_F41_checked;
+            out_b[42][k] = out_F42_checked;
+            out_b[43][k] = out_F43_checked;
+            out_b[44][k] = out_F44_checked;
+            out_b[45][k] = out_F45_checked;
+            out_b[46][k] = out_F46_checked;
+            out_b[47][k] = out_F47_checked;
+            out_b[48][k] = out_F48_checked;
+            out_b[49][k] = out_F49_checked;
+            out_b[50][k] = out_F50_checked;
+            out_b[51][k] = out_F51_checked;
+            out_b[52][k] = out_F52_checked;
+            out_b[53][k] = out_F53_checked;
+            out_b[54][k] = out_F54_checked;
+            out_b[55][k] = out_F55_checked;
+            out_b[56][k] = out_F56_checked;
+            out_b[57][k] = out_F57_checked;
+            out_b[58][k] = out_F58_checked;
+            out_b[59][k] = out_F59_checked;
+            out_b[60][k] = out_F60_checked;
+            out_b[61][k] = out_F61_checked;
+            out_b[62][k] = out_F62_checked;
+            out_b[63][k] = out_F63_checked;
+            out_b[64][k] = out_F64_checked;
+            out_b[65][k] = out_F65_checked;
+            out_b[66][k] = out_F66_checked;
+            out_b[67][k] = out_F67_checked;
+            out_b[68][k] = out_F68_checked;
+            out_b[69][k] = out_F69_checked;
+            out_b[70][k] = out_F70_checked;
+            out_b[71][k] = out_F71_checked;
+            out_b[72][k] = out_F72_checked;
+            out_b[73][k] = out_F73_checked;
+            out_b[74][k] = out_F74_checked;
+            out_b[75][k] = out_F75_checked;
+            out_b[76][k] = out_F76_checked;
+            out_b[77][k] = out_F77_checked;
+            out_b[78][k] = out_F78_checked;
+            out_b[79][k] = out_F79_checked;
+            out_b[80][k] = out_F80_checked;
+            out_b[81][k] = out_F81_checked;
+            out_b[82][k] = out_F82_checked;
+            out_b[83][k] = out_F83_checked;
+            out_b[84][k] = out_F84_checked;
+            out_b[85][k] = out_F85_checked;
+            out_b[86][k] = out_F86_checked;
+            out_b[87][k] = out_F87_checked;
+            out_b[88][k] = out_F88_checked;
+            out_b[89][k] = out_F89_checked;
+            out_b[90][k] = out_F90_checked;
+            out_b[91][k] = out_F91_checked;
+            out_b[92][k] = out_F92_checked;
+            out_b[93][k] = out_F93_checked;
+            out_b[94][k] = out_F94_checked;
+            out_b[95][k] = out_F95_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -647,102 +493,102 @@ int deltagen_bosch_sr800_frames(size_t n, const double *restrict q, double *rest
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            F[(start + k) * 96 + 0] = out_F0_checked_b[k];
-            F[(start + k) * 96 + 1] = out_F1_checked_b[k];
-            F[(start + k) * 96 + 2] = out_F2_checked_b[k];
-            F[(start + k) * 96 + 3] = out_F3_checked_b[k];
-            F[(start + k) * 96 + 4] = out_F4_checked_b[k];
-            F[(start + k) * 96 + 5] = out_F5_checked_b[k];
-            F[(start + k) * 96 + 6] = out_F6_checked_b[k];
-            F[(start + k) * 96 + 7] = out_F7_checked_b[k];
-            F[(start + k) * 96 + 8] = out_F8_checked_b[k];
-            F[(start + k) * 96 + 9] = out_F9_checked_b[k];
-            F[(start + k) * 96 + 10] = out_F10_checked_b[k];
-            F[(start + k) * 96 + 11] = out_F11_checked_b[k];
-            F[(start + k) * 96 + 12] = out_F12_checked_b[k];
-            F[(start + k) * 96 + 13] = out_F13_checked_b[k];
-            F[(start + k) * 96 + 14] = out_F14_checked_b[k];
-            F[(start + k) * 96 + 15] = out_F15_checked_b[k];
-            F[(start + k) * 96 + 16] = out_F16_checked_b[k];
-            F[(start + k) * 96 + 17] = out_F17_checked_b[k];
-            F[(start + k) * 96 + 18] = out_F18_checked_b[k];
-            F[(start + k) * 96 + 19] = out_F19_checked_b[k];
-            F[(start + k) * 96 + 20] = out_F20_checked_b[k];
-            F[(start + k) * 96 + 21] = out_F21_checked_b[k];
-            F[(start + k) * 96 + 22] = out_F22_checked_b[k];
-            F[(start + k) * 96 + 23] = out_F23_checked_b[k];
-            F[(start + k) * 96 + 24] = out_F24_checked_b[k];
-            F[(start + k) * 96 + 25] = out_F25_checked_b[k];
-            F[(start + k) * 96 + 26] = out_F26_checked_b[k];
-            F[(start + k) * 96 + 27] = out_F27_checked_b[k];
-            F[(start + k) * 96 + 28] = out_F28_checked_b[k];
-            F[(start + k) * 96 + 29] = out_F29_checked_b[k];
-            F[(start + k) * 96 + 30] = out_F30_checked_b[k];
-            F[(start + k) * 96 + 31] = out_F31_checked_b[k];
-            F[(start + k) * 96 + 32] = out_F32_checked_b[k];
-            F[(start + k) * 96 + 33] = out_F33_checked_b[k];
-            F[(start + k) * 96 + 34] = out_F34_checked_b[k];
-            F[(start + k) * 96 + 35] = out_F35_checked_b[k];
-            F[(start + k) * 96 + 36] = out_F36_checked_b[k];
-            F[(start + k) * 96 + 37] = out_F37_checked_b[k];
-            F[(start + k) * 96 + 38] = out_F38_checked_b[k];
-            F[(start + k) * 96 + 39] = out_F39_checked_b[k];
-            F[(start + k) * 96 + 40] = out_F40_checked_b[k];
-            F[(start + k) * 96 + 41] = out_F41_checked_b[k];
-            F[(start + k) * 96 + 42] = out_F42_checked_b[k];
-            F[(start + k) * 96 + 43] = out_F43_checked_b[k];
-            F[(start + k) * 96 + 44] = out_F44_checked_b[k];
-            F[(start + k) * 96 + 45] = out_F45_checked_b[k];
-            F[(start + k) * 96 + 46] = out_F46_checked_b[k];
-            F[(start + k) * 96 + 47] = out_F47_checked_b[k];
-            F[(start + k) * 96 + 48] = out_F48_checked_b[k];
-            F[(start + k) * 96 + 49] = out_F49_checked_b[k];
-            F[(start + k) * 96 + 50] = out_F50_checked_b[k];
-            F[(start + k) * 96 + 51] = out_F51_checked_b[k];
-            F[(start + k) * 96 + 52] = out_F52_checked_b[k];
-            F[(start + k) * 96 + 53] = out_F53_checked_b[k];
-            F[(start + k) * 96 + 54] = out_F54_checked_b[k];
-            F[(start + k) * 96 + 55] = out_F55_checked_b[k];
-            F[(start + k) * 96 + 56] = out_F56_checked_b[k];
-            F[(start + k) * 96 + 57] = out_F57_checked_b[k];
-            F[(start + k) * 96 + 58] = out_F58_checked_b[k];
-            F[(start + k) * 96 + 59] = out_F59_checked_b[k];
-            F[(start + k) * 96 + 60] = out_F60_checked_b[k];
-            F[(start + k) * 96 + 61] = out_F61_checked_b[k];
-            F[(start + k) * 96 + 62] = out_F62_checked_b[k];
-            F[(start + k) * 96 + 63] = out_F63_checked_b[k];
-            F[(start + k) * 96 + 64] = out_F64_checked_b[k];
-            F[(start + k) * 96 + 65] = out_F65_checked_b[k];
-            F[(start + k) * 96 + 66] = out_F66_checked_b[k];
-            F[(start + k) * 96 + 67] = out_F67_checked_b[k];
-            F[(start + k) * 96 + 68] = out_F68_checked_b[k];
-            F[(start + k) * 96 + 69] = out_F69_checked_b[k];
-            F[(start + k) * 96 + 70] = out_F70_checked_b[k];
-            F[(start + k) * 96 + 71] = out_F71_checked_b[k];
-            F[(start + k) * 96 + 72] = out_F72_checked_b[k];
-            F[(start + k) * 96 + 73] = out_F73_checked_b[k];
-            F[(start + k) * 96 + 74] = out_F74_checked_b[k];
-            F[(start + k) * 96 + 75] = out_F75_checked_b[k];
-            F[(start + k) * 96 + 76] = out_F76_checked_b[k];
-            F[(start + k) * 96 + 77] = out_F77_checked_b[k];
-            F[(start + k) * 96 + 78] = out_F78_checked_b[k];
-            F[(start + k) * 96 + 79] = out_F79_checked_b[k];
-            F[(start + k) * 96 + 80] = out_F80_checked_b[k];
-            F[(start + k) * 96 + 81] = out_F81_checked_b[k];
-            F[(start + k) * 96 + 82] = out_F82_checked_b[k];
-            F[(start + k) * 96 + 83] = out_F83_checked_b[k];
-            F[(start + k) * 96 + 84] = out_F84_checked_b[k];
-            F[(start + k) * 96 + 85] = out_F85_checked_b[k];
-            F[(start + k) * 96 + 86] = out_F86_checked_b[k];
-            F[(start + k) * 96 + 87] = out_F87_checked_b[k];
-            F[(start + k) * 96 + 88] = out_F88_checked_b[k];
-            F[(start + k) * 96 + 89] = out_F89_checked_b[k];
-            F[(start + k) * 96 + 90] = out_F90_checked_b[k];
-            F[(start + k) * 96 + 91] = out_F91_checked_b[k];
-            F[(start + k) * 96 + 92] = out_F92_checked_b[k];
-            F[(start + k) * 96 + 93] = out_F93_checked_b[k];
-            F[(start + k) * 96 + 94] = out_F94_checked_b[k];
-            F[(start + k) * 96 + 95] = out_F95_checked_b[k];
+            F[(start + k) * 96 + 0] = out_b[0][k];
+            F[(start + k) * 96 + 1] = out_b[1][k];
+            F[(start + k) * 96 + 2] = out_b[2][k];
+            F[(start + k) * 96 + 3] = out_b[3][k];
+            F[(start + k) * 96 + 4] = out_b[4][k];
+            F[(start + k) * 96 + 5] = out_b[5][k];
+            F[(start + k) * 96 + 6] = out_b[6][k];
+            F[(start + k) * 96 + 7] = out_b[7][k];
+            F[(start + k) * 96 + 8] = out_b[8][k];
+            F[(start + k) * 96 + 9] = out_b[9][k];
+            F[(start + k) * 96 + 10] = out_b[10][k];
+            F[(start + k) * 96 + 11] = out_b[11][k];
+            F[(start + k) * 96 + 12] = out_b[12][k];
+            F[(start + k) * 96 + 13] = out_b[13][k];
+            F[(start + k) * 96 + 14] = out_b[14][k];
+            F[(start + k) * 96 + 15] = out_b[15][k];
+            F[(start + k) * 96 + 16] = out_b[16][k];
+            F[(start + k) * 96 + 17] = out_b[17][k];
+            F[(start + k) * 96 + 18] = out_b[18][k];
+            F[(start + k) * 96 + 19] = out_b[19][k];
+            F[(start + k) * 96 + 20] = out_b[20][k];
+            F[(start + k) * 96 + 21] = out_b[21][k];
+            F[(start + k) * 96 + 22] = out_b[22][k];
+            F[(start + k) * 96 + 23] = out_b[23][k];
+            F[(start + k) * 96 + 24] = out_b[24][k];
+            F[(start + k) * 96 + 25] = out_b[25][k];
+            F[(start + k) * 96 + 26] = out_b[26][k];
+            F[(start + k) * 96 + 27] = out_b[27][k];
+            F[(start + k) * 96 + 28] = out_b[28][k];
+            F[(start + k) * 96 + 29] = out_b[29][k];
+            F[(start + k) * 96 + 30] = out_b[30][k];
+            F[(start + k) * 96 + 31] = out_b[31][k];
+            F[(start + k) * 96 + 32] = out_b[32][k];
+            F[(start + k) * 96 + 33] = out_b[33][k];
+            F[(start + k) * 96 + 34] = out_b[34][k];
+            F[(start + k) * 96 + 35] = out_b[35][k];
+            F[(start + k) * 96 + 36] = out_b[36][k];
+            F[(start + k) * 96 + 37] = out_b[37][k];
+            F[(start + k) * 96 + 38] = out_b[38][k];
+            F[(start + k) * 96 + 39] = out_b[39][k];
+            F[(start + k) * 96 + 40] = out_b[40][k];
+            F[(start + k) * 96 + 41] = out_b[41][k];
+            F[(start + k) * 96 + 42] = out_b[42][k];
+            F[(start + k) * 96 + 43] = out_b[43][k];
+            F[(start + k) * 96 + 44] = out_b[44][k];
+            F[(start + k) * 96 + 45] = out_b[45][k];
+            F[(start + k) * 96 + 46] = out_b[46][k];
+            F[(start + k) * 96 + 47] = out_b[47][k];
+            F[(start + k) * 96 + 48] = out_b[48][k];
+            F[(start + k) * 96 + 49] = out_b[49][k];
+            F[(start + k) * 96 + 50] = out_b[50][k];
+            F[(start + k) * 96 + 51] = out_b[51][k];
+            F[(start + k) * 96 + 52] = out_b[52][k];
+            F[(start + k) * 96 + 53] = out_b[53][k];
+            F[(start + k) * 96 + 54] = out_b[54][k];
+            F[(start + k) * 96 + 55] = out_b[55][k];
+            F[(start + k) * 96 + 56] = out_b[56][k];
+            F[(start + k) * 96 + 57] = out_b[57][k];
+            F[(start + k) * 96 + 58] = out_b[58][k];
+            F[(start + k) * 96 + 59] = out_b[59][k];
+            F[(start + k) * 96 + 60] = out_b[60][k];
+            F[(start + k) * 96 + 61] = out_b[61][k];
+            F[(start + k) * 96 + 62] = out_b[62][k];
+            F[(start + k) * 96 + 63] = out_b[63][k];
+            F[(start + k) * 96 + 64] = out_b[64][k];
+            F[(start + k) * 96 + 65] = out_b[65][k];
+            F[(start + k) * 96 + 66] = out_b[66][k];
+            F[(start + k) * 96 + 67] = out_b[67][k];
+            F[(start + k) * 96 + 68] = out_b[68][k];
+            F[(start + k) * 96 + 69] = out_b[69][k];
+            F[(start + k) * 96 + 70] = out_b[70][k];
+            F[(start + k) * 96 + 71] = out_b[71][k];
+            F[(start + k) * 96 + 72] = out_b[72][k];
+            F[(start + k) * 96 + 73] = out_b[73][k];
+            F[(start + k) * 96 + 74] = out_b[74][k];
+            F[(start + k) * 96 + 75] = out_b[75][k];
+            F[(start + k) * 96 + 76] = out_b[76][k];
+            F[(start + k) * 96 + 77] = out_b[77][k];
+            F[(start + k) * 96 + 78] = out_b[78][k];
+            F[(start + k) * 96 + 79] = out_b[79][k];
+            F[(start + k) * 96 + 80] = out_b[80][k];
+            F[(start + k) * 96 + 81] = out_b[81][k];
+            F[(start + k) * 96 + 82] = out_b[82][k];
+            F[(start + k) * 96 + 83] = out_b[83][k];
+            F[(start + k) * 96 + 84] = out_b[84][k];
+            F[(start + k) * 96 + 85] = out_b[85][k];
+            F[(start + k) * 96 + 86] = out_b[86][k];
+            F[(start + k) * 96 + 87] = out_b[87][k];
+            F[(start + k) * 96 + 88] = out_b[88][k];
+            F[(start + k) * 96 + 89] = out_b[89][k];
+            F[(start + k) * 96 + 90] = out_b[90][k];
+            F[(start + k) * 96 + 91] = out_b[91][k];
+            F[(start + k) * 96 + 92] = out_b[92][k];
+            F[(start + k) * 96 + 93] = out_b[93][k];
+            F[(start + k) * 96 + 94] = out_b[94][k];
+            F[(start + k) * 96 + 95] = out_b[95][k];
         }
     }
     return 0;
@@ -760,83 +606,48 @@ int deltagen_bosch_sr800_jacobian(size_t n, const double *restrict q, double *re
     for (size_t start = 0; start < n; start += DELTAGEN_BOSCH_SR800_BLOCK) {
         const size_t m = (n - start < DELTAGEN_BOSCH_SR800_BLOCK) ? n - start : DELTAGEN_BOSCH_SR800_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q3_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double angle_b[2 * DELTAGEN_BOSCH_SR800_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 4 + 0];
-            q2_b[k] = q[(start + k) * 4 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 4 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 4 + 1];
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1))
-                <= DELTAGEN_BOSCH_SR800_BLOCK
-            ? ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES -
+                1)) <= 2 * DELTAGEN_BOSCH_SR800_BLOCK
+            ? ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J0_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J1_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J2_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J3_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J4_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J5_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J6_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J7_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J8_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J9_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J10_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J11_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J12_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J13_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J14_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J15_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J16_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J17_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J18_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J19_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J20_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J21_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J22_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J23_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double out_b[24][DELTAGEN_BOSCH_SR800_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
             const double q3 = q3_b[k];
             const double q4 = q4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 0.45*cos_q1;
             const double F1_24 = 0.45*sin_q1;
@@ -904,30 +715,30 @@ int deltagen_bosch_sr800_jacobian(size_t n, const double *restrict q, double *re
             const double out_J21_checked = ((t4_0) ? NAN : J6_2);
             const double out_J22_checked = ((t4_0) ? NAN : J6_3);
             const double out_J23_checked = ((t4_0) ? NAN : J6_4);
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
-            out_J12_checked_b[k] = out_J12_checked;
-            out_J13_checked_b[k] = out_J13_checked;
-            out_J14_checked_b[k] = out_J14_checked;
-            out_J15_checked_b[k] = out_J15_checked;
-            out_J16_checked_b[k] = out_J16_checked;
-            out_J17_checked_b[k] = out_J17_checked;
-            out_J18_checked_b[k] = out_J18_checked;
-            out_J19_checked_b[k] = out_J19_checked;
-            out_J20_checked_b[k] = out_J20_checked;
-            out_J21_checked_b[k] = out_J21_checked;
-            out_J22_checked_b[k] = out_J22_checked;
-            out_J23_checked_b[k] = out_J23_checked;
+            out_b[0][k] = out_J0_checked;
+            out_b[1][k] = out_J1_checked;
+            out_b[2][k] = out_J2_checked;
+            out_b[3][k] = out_J3_checked;
+            out_b[4][k] = out_J4_checked;
+            out_b[5][k] = out_J5_checked;
+            out_b[6][k] = out_J6_checked;
+            out_b[7][k] = out_J7_checked;
+            out_b[8][k] = out_J8_checked;
+            out_b[9][k] = out_J9_checked;
+            out_b[10][k] = out_J10_checked;
+            out_b[11][k] = out_J11_checked;
+            out_b[12][k] = out_J12_checked;
+            out_b[13][k] = out_J13_checked;
+            out_b[14][k] = out_J14_checked;
+            out_b[15][k] = out_J15_checked;
+            out_b[16][k] = out_J16_checked;
+            out_b[17][k] = out_J17_checked;
+            out_b[18][k] = out_J18_checked;
+            out_b[19][k] = out_J19_checked;
+            out_b[20][k] = out_J20_checked;
+            out_b[21][k] = out_J21_checked;
+            out_b[22][k] = out_J22_checked;
+            out_b[23][k] = out_J23_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -937,30 +748,30 @@ int deltagen_bosch_sr800_jacobian(size_t n, const double *restrict q, double *re
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            J[(start + k) * 24 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 24 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 24 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 24 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 24 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 24 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 24 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 24 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 24 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 24 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 24 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 24 + 11] = out_J11_checked_b[k];
-            J[(start + k) * 24 + 12] = out_J12_checked_b[k];
-            J[(start + k) * 24 + 13] = out_J13_checked_b[k];
-            J[(start + k) * 24 + 14] = out_J14_checked_b[k];
-            J[(start + k) * 24 + 15] = out_J15_checked_b[k];
-            J[(start + k) * 24 + 16] = out_J16_checked_b[k];
-            J[(start + k) * 24 + 17] = out_J17_checked_b[k];
-            J[(start + k) * 24 + 18] = out_J18_checked_b[k];
-            J[(start + k) * 24 + 19] = out_J19_checked_b[k];
-            J[(start + k) * 24 + 20] = out_J20_checked_b[k];
-            J[(start + k) * 24 + 21] = out_J21_checked_b[k];
-            J[(start + k) * 24 + 22] = out_J22_checked_b[k];
-            J[(start + k) * 24 + 23] = out_J23_checked_b[k];
+            J[(start + k) * 24 + 0] = out_b[0][k];
+            J[(start + k) * 24 + 1] = out_b[1][k];
+            J[(start + k) * 24 + 2] = out_b[2][k];
+            J[(start + k) * 24 + 3] = out_b[3][k];
+            J[(start + k) * 24 + 4] = out_b[4][k];
+            J[(start + k) * 24 + 5] = out_b[5][k];
+            J[(start + k) * 24 + 6] = out_b[6][k];
+            J[(start + k) * 24 + 7] = out_b[7][k];
+            J[(start + k) * 24 + 8] = out_b[8][k];
+            J[(start + k) * 24 + 9] = out_b[9][k];
+            J[(start + k) * 24 + 10] = out_b[10][k];
+            J[(start + k) * 24 + 11] = out_b[11][k];
+            J[(start + k) * 24 + 12] = out_b[12][k];
+            J[(start + k) * 24 + 13] = out_b[13][k];
+            J[(start + k) * 24 + 14] = out_b[14][k];
+            J[(start + k) * 24 + 15] = out_b[15][k];
+            J[(start + k) * 24 + 16] = out_b[16][k];
+            J[(start + k) * 24 + 17] = out_b[17][k];
+            J[(start + k) * 24 + 18] = out_b[18][k];
+            J[(start + k) * 24 + 19] = out_b[19][k];
+            J[(start + k) * 24 + 20] = out_b[20][k];
+            J[(start + k) * 24 + 21] = out_b[21][k];
+            J[(start + k) * 24 + 22] = out_b[22][k];
+            J[(start + k) * 24 + 23] = out_b[23][k];
         }
     }
     return 0;
@@ -979,110 +790,49 @@ int deltagen_bosch_sr800_fk_jacobian(size_t n, const double *restrict q, double 
     for (size_t start = 0; start < n; start += DELTAGEN_BOSCH_SR800_BLOCK) {
         const size_t m = (n - start < DELTAGEN_BOSCH_SR800_BLOCK) ? n - start : DELTAGEN_BOSCH_SR800_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q3_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double angle_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 4 + 0];
-            q2_b[k] = q[(start + k) * 4 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 4 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 4 + 1];
             q3_b[k] = q[(start + k) * 4 + 2];
-            q4_b[k] = q[(start + k) * 4 + 3];
+            angle_b[2 * m + k] = q[(start + k) * 4 + 3];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1))
-                <= DELTAGEN_BOSCH_SR800_BLOCK
-            ? ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 3 * m;
+        const size_t a_v = ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES -
+                1)) <= 3 * DELTAGEN_BOSCH_SR800_BLOCK
+            ? ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
+        double sin_b[3 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T0_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T1_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T2_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T3_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T4_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T5_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T6_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T7_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T8_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T9_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T10_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T11_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T12_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T13_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T14_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_T15_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J0_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J1_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J2_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J3_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J4_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J5_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J6_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J7_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J8_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J9_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J10_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J11_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J12_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J13_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J14_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J15_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J16_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J17_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J18_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J19_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J20_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J21_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J22_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_J23_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double out_b[40][DELTAGEN_BOSCH_SR800_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
+            const double q4 = angle_b[2 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 0.45*cos_q1;
             const double F1_24 = 0.45*sin_q1;
@@ -1184,46 +934,46 @@ int deltagen_bosch_sr800_fk_jacobian(size_t n, const double *restrict q, double 
             const double out_J21_checked = ((t6_0) ? NAN : J6_2);
             const double out_J22_checked = ((t6_0) ? NAN : J6_3);
             const double out_J23_checked = ((t6_0) ? NAN : J6_4);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
-            out_J12_checked_b[k] = out_J12_checked;
-            out_J13_checked_b[k] = out_J13_checked;
-            out_J14_checked_b[k] = out_J14_checked;
-            out_J15_checked_b[k] = out_J15_checked;
-            out_J16_checked_b[k] = out_J16_checked;
-            out_J17_checked_b[k] = out_J17_checked;
-            out_J18_checked_b[k] = out_J18_checked;
-            out_J19_checked_b[k] = out_J19_checked;
-            out_J20_checked_b[k] = out_J20_checked;
-            out_J21_checked_b[k] = out_J21_checked;
-            out_J22_checked_b[k] = out_J22_checked;
-            out_J23_checked_b[k] = out_J23_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
+            out_b[16][k] = out_J0_checked;
+            out_b[17][k] = out_J1_checked;
+            out_b[18][k] = out_J2_checked;
+            out_b[19][k] = out_J3_checked;
+            out_b[20][k] = out_J4_checked;
+            out_b[21][k] = out_J5_checked;
+            out_b[22][k] = out_J6_checked;
+            out_b[23][k] = out_J7_checked;
+            out_b[24][k] = out_J8_checked;
+            out_b[25][k] = out_J9_checked;
+            out_b[26][k] = out_J10_checked;
+            out_b[27][k] = out_J11_checked;
+            out_b[28][k] = out_J12_checked;
+            out_b[29][k] = out_J13_checked;
+            out_b[30][k] = out_J14_checked;
+            out_b[31][k] = out_J15_checked;
+            out_b[32][k] = out_J16_checked;
+            out_b[33][k] = out_J17_checked;
+            out_b[34][k] = out_J18_checked;
+            out_b[35][k] = out_J19_checked;
+            out_b[36][k] = out_J20_checked;
+            out_b[37][k] = out_J21_checked;
+            out_b[38][k] = out_J22_checked;
+            out_b[39][k] = out_J23_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1233,46 +983,46 @@ int deltagen_bosch_sr800_fk_jacobian(size_t n, const double *restrict q, double 
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
-            J[(start + k) * 24 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 24 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 24 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 24 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 24 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 24 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 24 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 24 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 24 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 24 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 24 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 24 + 11] = out_J11_checked_b[k];
-            J[(start + k) * 24 + 12] = out_J12_checked_b[k];
-            J[(start + k) * 24 + 13] = out_J13_checked_b[k];
-            J[(start + k) * 24 + 14] = out_J14_checked_b[k];
-            J[(start + k) * 24 + 15] = out_J15_checked_b[k];
-            J[(start + k) * 24 + 16] = out_J16_checked_b[k];
-            J[(start + k) * 24 + 17] = out_J17_checked_b[k];
-            J[(start + k) * 24 + 18] = out_J18_checked_b[k];
-            J[(start + k) * 24 + 19] = out_J19_checked_b[k];
-            J[(start + k) * 24 + 20] = out_J20_checked_b[k];
-            J[(start + k) * 24 + 21] = out_J21_checked_b[k];
-            J[(start + k) * 24 + 22] = out_J22_checked_b[k];
-            J[(start + k) * 24 + 23] = out_J23_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
+            J[(start + k) * 24 + 0] = out_b[16][k];
+            J[(start + k) * 24 + 1] = out_b[17][k];
+            J[(start + k) * 24 + 2] = out_b[18][k];
+            J[(start + k) * 24 + 3] = out_b[19][k];
+            J[(start + k) * 24 + 4] = out_b[20][k];
+            J[(start + k) * 24 + 5] = out_b[21][k];
+            J[(start + k) * 24 + 6] = out_b[22][k];
+            J[(start + k) * 24 + 7] = out_b[23][k];
+            J[(start + k) * 24 + 8] = out_b[24][k];
+            J[(start + k) * 24 + 9] = out_b[25][k];
+            J[(start + k) * 24 + 10] = out_b[26][k];
+            J[(start + k) * 24 + 11] = out_b[27][k];
+            J[(start + k) * 24 + 12] = out_b[28][k];
+            J[(start + k) * 24 + 13] = out_b[29][k];
+            J[(start + k) * 24 + 14] = out_b[30][k];
+            J[(start + k) * 24 + 15] = out_b[31][k];
+            J[(start + k) * 24 + 16] = out_b[32][k];
+            J[(start + k) * 24 + 17] = out_b[33][k];
+            J[(start + k) * 24 + 18] = out_b[34][k];
+            J[(start + k) * 24 + 19] = out_b[35][k];
+            J[(start + k) * 24 + 20] = out_b[36][k];
+            J[(start + k) * 24 + 21] = out_b[37][k];
+            J[(start + k) * 24 + 22] = out_b[38][k];
+            J[(start + k) * 24 + 23] = out_b[39][k];
         }
     }
     return 0;
@@ -1291,17 +1041,16 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
     for (size_t start = 0; start < n; start += DELTAGEN_BOSCH_SR800_BLOCK) {
         const size_t m = (n - start < DELTAGEN_BOSCH_SR800_BLOCK) ? n - start : DELTAGEN_BOSCH_SR800_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q3_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double q4_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double qd1_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double qd2_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double qd3_b[DELTAGEN_BOSCH_SR800_BLOCK];
         double qd4_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double angle_b[2 * DELTAGEN_BOSCH_SR800_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 4 + 0];
-            q2_b[k] = q[(start + k) * 4 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 4 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 4 + 1];
             q3_b[k] = q[(start + k) * 4 + 2];
             q4_b[k] = q[(start + k) * 4 + 3];
             qd1_b[k] = qd[(start + k) * 4 + 0];
@@ -1309,77 +1058,43 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
             qd3_b[k] = qd[(start + k) * 4 + 2];
             qd4_b[k] = qd[(start + k) * 4 + 3];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1))
-                <= DELTAGEN_BOSCH_SR800_BLOCK
-            ? ((m + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES -
+                1)) <= 2 * DELTAGEN_BOSCH_SR800_BLOCK
+            ? ((a_n + DELTAGEN_BOSCH_SR800_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_BOSCH_SR800_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_BOSCH_SR800_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd0_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd1_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd2_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd3_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd4_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd5_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd6_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd7_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd8_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd9_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd10_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd11_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd12_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd13_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd14_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd15_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd16_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd17_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd18_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd19_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd20_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd21_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd22_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_Jd23_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double out_b[24][DELTAGEN_BOSCH_SR800_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
             const double q3 = q3_b[k];
             const double q4 = q4_b[k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
             const double qd3 = qd3_b[k];
             const double qd4 = qd4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 0.45*cos_q1;
             const double F1_24 = 0.45*sin_q1;
@@ -1460,30 +1175,30 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
             const double out_Jd21_checked = ((t5_0) ? NAN : Jd6_2);
             const double out_Jd22_checked = ((t5_0) ? NAN : Jd6_3);
             const double out_Jd23_checked = ((t5_0) ? NAN : Jd6_4);
-            out_Jd0_checked_b[k] = out_Jd0_checked;
-            out_Jd1_checked_b[k] = out_Jd1_checked;
-            out_Jd2_checked_b[k] = out_Jd2_checked;
-            out_Jd3_checked_b[k] = out_Jd3_checked;
-            out_Jd4_checked_b[k] = out_Jd4_checked;
-            out_Jd5_checked_b[k] = out_Jd5_checked;
-            out_Jd6_checked_b[k] = out_Jd6_checked;
-            out_Jd7_checked_b[k] = out_Jd7_checked;
-            out_Jd8_checked_b[k] = out_Jd8_checked;
-            out_Jd9_checked_b[k] = out_Jd9_checked;
-            out_Jd10_checked_b[k] = out_Jd10_checked;
-            out_Jd11_checked_b[k] = out_Jd11_checked;
-            out_Jd12_checked_b[k] = out_Jd12_checked;
-            out_Jd13_checked_b[k] = out_Jd13_checked;
-            out_Jd14_checked_b[k] = out_Jd14_checked;
-            out_Jd15_checked_b[k] = out_Jd15_checked;
-            out_Jd16_checked_b[k] = out_Jd16_checked;
-            out_Jd17_checked_b[k] = out_Jd17_checked;
-            out_Jd18_checked_b[k] = out_Jd18_checked;
-            out_Jd19_checked_b[k] = out_Jd19_checked;
-            out_Jd20_checked_b[k] = out_Jd20_checked;
-            out_Jd21_checked_b[k] = out_Jd21_checked;
-            out_Jd22_checked_b[k] = out_Jd22_checked;
-            out_Jd23_checked_b[k] = out_Jd23_checked;
+            out_b[0][k] = out_Jd0_checked;
+            out_b[1][k] = out_Jd1_checked;
+            out_b[2][k] = out_Jd2_checked;
+            out_b[3][k] = out_Jd3_checked;
+            out_b[4][k] = out_Jd4_checked;
+            out_b[5][k] = out_Jd5_checked;
+            out_b[6][k] = out_Jd6_checked;
+            out_b[7][k] = out_Jd7_checked;
+            out_b[8][k] = out_Jd8_checked;
+            out_b[9][k] = out_Jd9_checked;
+            out_b[10][k] = out_Jd10_checked;
+            out_b[11][k] = out_Jd11_checked;
+            out_b[12][k] = out_Jd12_checked;
+            out_b[13][k] = out_Jd13_checked;
+            out_b[14][k] = out_Jd14_checked;
+            out_b[15][k] = out_Jd15_checked;
+            out_b[16][k] = out_Jd16_checked;
+            out_b[17][k] = out_Jd17_checked;
+            out_b[18][k] = out_Jd18_checked;
+            out_b[19][k] = out_Jd19_checked;
+            out_b[20][k] = out_Jd20_checked;
+            out_b[21][k] = out_Jd21_checked;
+            out_b[22][k] = out_Jd22_checked;
+            out_b[23][k] = out_Jd23_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1493,30 +1208,30 @@ int deltagen_bosch_sr800_jacobian_dot(size_t n, const double *restrict q, const 
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            Jd[(start + k) * 24 + 0] = out_Jd0_checked_b[k];
-            Jd[(start + k) * 24 + 1] = out_Jd1_checked_b[k];
-            Jd[(start + k) * 24 + 2] = out_Jd2_checked_b[k];
-            Jd[(start + k) * 24 + 3] = out_Jd3_checked_b[k];
-            Jd[(start + k) * 24 + 4] = out_Jd4_checked_b[k];
-            Jd[(start + k) * 24 + 5] = out_Jd5_checked_b[k];
-            Jd[(start + k) * 24 + 6] = out_Jd6_checked_b[k];
-            Jd[(start + k) * 24 + 7] = out_Jd7_checked_b[k];
-            Jd[(start + k) * 24 + 8] = out_Jd8_checked_b[k];
-            Jd[(start + k) * 24 + 9] = out_Jd9_checked_b[k];
-            Jd[(start + k) * 24 + 10] = out_Jd10_checked_b[k];
-            Jd[(start + k) * 24 + 11] = out_Jd11_checked_b[k];
-            Jd[(start + k) * 24 + 12] = out_Jd12_checked_b[k];
-            Jd[(start + k) * 24 + 13] = out_Jd13_checked_b[k];
-            Jd[(start + k) * 24 + 14] = out_Jd14_checked_b[k];
-            Jd[(start + k) * 24 + 15] = out_Jd15_checked_b[k];
-            Jd[(start + k) * 24 + 16] = out_Jd16_checked_b[k];
-            Jd[(start + k) * 24 + 17] = out_Jd17_checked_b[k];
-            Jd[(start + k) * 24 + 18] = out_Jd18_checked_b[k];
-            Jd[(start + k) * 24 + 19] = out_Jd19_checked_b[k];
-            Jd[(start + k) * 24 + 20] = out_Jd20_checked_b[k];
-            Jd[(start + k) * 24 + 21] = out_Jd21_checked_b[k];
-            Jd[(start + k) * 24 + 22] = out_Jd22_checked_b[k];
-            Jd[(start + k) * 24 + 23] = out_Jd23_checked_b[k];
+            Jd[(start + k) * 24 + 0] = out_b[0][k];
+            Jd[(start + k) * 24 + 1] = out_b[1][k];
+            Jd[(start + k) * 24 + 2] = out_b[2][k];
+            Jd[(start + k) * 24 + 3] = out_b[3][k];
+            Jd[(start + k) * 24 + 4] = out_b[4][k];
+            Jd[(start + k) * 24 + 5] = out_b[5][k];
+            Jd[(start + k) * 24 + 6] = out_b[6][k];
+            Jd[(start + k) * 24 + 7] = out_b[7][k];
+            Jd[(start + k) * 24 + 8] = out_b[8][k];
+            Jd[(start + k) * 24 + 9] = out_b[9][k];
+            Jd[(start + k) * 24 + 10] = out_b[10][k];
+            Jd[(start + k) * 24 + 11] = out_b[11][k];
+            Jd[(start + k) * 24 + 12] = out_b[12][k];
+            Jd[(start + k) * 24 + 13] = out_b[13][k];
+            Jd[(start + k) * 24 + 14] = out_b[14][k];
+            Jd[(start + k) * 24 + 15] = out_b[15][k];
+            Jd[(start + k) * 24 + 16] = out_b[16][k];
+            Jd[(start + k) * 24 + 17] = out_b[17][k];
+            Jd[(start + k) * 24 + 18] = out_b[18][k];
+            Jd[(start + k) * 24 + 19] = out_b[19][k];
+            Jd[(start + k) * 24 + 20] = out_b[20][k];
+            Jd[(start + k) * 24 + 21] = out_b[21][k];
+            Jd[(start + k) * 24 + 22] = out_b[22][k];
+            Jd[(start + k) * 24 + 23] = out_b[23][k];
         }
     }
     return 0;
@@ -1569,14 +1284,7 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q1_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q2_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q3_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q4_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q1_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q2_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q3_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
-        double out_q4_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
+        double out_b[8][DELTAGEN_BOSCH_SR800_BLOCK];  /* the outputs, one row each */
         int out_valid_elbow_up_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_BOSCH_SR800_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
@@ -1765,14 +1473,14 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
             const double out_q2_elbow_down_checked = ((t10_1) ? NAN : fit_q2_elbow_down);
             const double out_q3_elbow_down_checked = ((t10_1) ? NAN : fit_q3_elbow_up);
             const double out_q4_elbow_down_checked = ((t10_1) ? NAN : fit_q4_elbow_down);
-            out_q1_elbow_up_checked_b[k] = out_q1_elbow_up_checked;
-            out_q2_elbow_up_checked_b[k] = out_q2_elbow_up_checked;
-            out_q3_elbow_up_checked_b[k] = out_q3_elbow_up_checked;
-            out_q4_elbow_up_checked_b[k] = out_q4_elbow_up_checked;
-            out_q1_elbow_down_checked_b[k] = out_q1_elbow_down_checked;
-            out_q2_elbow_down_checked_b[k] = out_q2_elbow_down_checked;
-            out_q3_elbow_down_checked_b[k] = out_q3_elbow_down_checked;
-            out_q4_elbow_down_checked_b[k] = out_q4_elbow_down_checked;
+            out_b[0][k] = out_q1_elbow_up_checked;
+            out_b[1][k] = out_q2_elbow_up_checked;
+            out_b[2][k] = out_q3_elbow_up_checked;
+            out_b[3][k] = out_q4_elbow_up_checked;
+            out_b[4][k] = out_q1_elbow_down_checked;
+            out_b[5][k] = out_q2_elbow_down_checked;
+            out_b[6][k] = out_q3_elbow_down_checked;
+            out_b[7][k] = out_q4_elbow_down_checked;
             out_valid_elbow_up_checked_b[k] = out_valid_elbow_up_checked;
             out_valid_elbow_down_checked_b[k] = out_valid_elbow_down_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(0*any_valid + (1
@@ -1785,14 +1493,14 @@ int deltagen_bosch_sr800_ik_all(size_t n, const double *restrict T, double *rest
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            q[(start + k) * 8 + 0] = out_q1_elbow_up_checked_b[k];
-            q[(start + k) * 8 + 1] = out_q2_elbow_up_checked_b[k];
-            q[(start + k) * 8 + 2] = out_q3_elbow_up_checked_b[k];
-            q[(start + k) * 8 + 3] = out_q4_elbow_up_checked_b[k];
-            q[(start + k) * 8 + 4] = out_q1_elbow_down_checked_b[k];
-            q[(start + k) * 8 + 5] = out_q2_elbow_down_checked_b[k];
-            q[(start + k) * 8 + 6] = out_q3_elbow_down_checked_b[k];
-            q[(start + k) * 8 + 7] = out_q4_elbow_down_checked_b[k];
+            q[(start + k) * 8 + 0] = out_b[0][k];
+            q[(start + k) * 8 + 1] = out_b[1][k];
+            q[(start + k) * 8 + 2] = out_b[2][k];
+            q[(start + k) * 8 + 3] = out_b[3][k];
+            q[(start + k) * 8 + 4] = out_b[4][k];
+            q[(start + k) * 8 + 5] = out_b[5][k];
+            q[(start + k) * 8 + 6] = out_b[6][k];
+            q[(start + k) * 8 + 7] = out_b[7][k];
             valid[(start + k) * 2 + 0] = (uint8_t)out_valid_elbow_up_checked_b[k];
             valid[(start + k) * 2 + 1] = (uint8_t)out_valid_elbow_down_checked_b[k];
         }

@@ -24,7 +24,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_GANTRY_XYZ_AC_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_GANTRY_XYZ_AC_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_GANTRY_XYZ_AC_H
 #define DELTAGEN_SERIAL_GANTRY_XYZ_AC_H
@@ -58,7 +58,7 @@ extern "C" {
  *
  * Cost: 40 operations per point.
  * Stack: 26 block arrays (25 double, 1 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
- * 13056 bytes (12.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3264 bytes (3.2 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_ac_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -73,7 +73,7 @@ int deltagen_gantry_xyz_ac_fk(size_t n, const double *restrict q, double *restri
  *
  * Cost: 54 operations per point.
  * Stack: 122 block arrays (121 double, 1 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
- * 62208 bytes (60.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 15552 bytes (15.2 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_ac_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -88,7 +88,7 @@ int deltagen_gantry_xyz_ac_frames(size_t n, const double *restrict q, double *re
  *
  * Cost: 57 operations per point.
  * Stack: 40 block arrays (39 double, 1 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
- * 20224 bytes (19.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 5056 bytes (4.9 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_ac_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -105,7 +105,7 @@ int deltagen_gantry_xyz_ac_jacobian(size_t n, const double *restrict q, double *
  *
  * Cost: 81 operations per point.
  * Stack: 56 block arrays (55 double, 1 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
- * 28416 bytes (27.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7104 bytes (6.9 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_ac_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -122,7 +122,7 @@ int deltagen_gantry_xyz_ac_fk_jacobian(size_t n, const double *restrict q, doubl
  *
  * Cost: 108 operations per point.
  * Stack: 45 block arrays (44 double, 1 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
- * 22784 bytes (22.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 5696 bytes (5.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_ac_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -144,7 +144,7 @@ int deltagen_gantry_xyz_ac_jacobian_dot(size_t n, const double *restrict q, cons
  *
  * Cost: 339 operations per point.
  * Stack: 25 block arrays (22 double, 3 int) of DELTAGEN_GANTRY_XYZ_AC_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3008 bytes (2.9 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -169,7 +169,7 @@ int deltagen_gantry_xyz_ac_ik_all(size_t n, const double *restrict T, double *re
  * n > 0 (then nothing is written).
  *
  * Stack: 2668 bytes of solver scratch memory in this frame (326 doubles, 15 ints),
- * plus fk_jacobian's 28416 bytes (27.8 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 7104 bytes (6.9 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_gantry_xyz_ac_ik_newton(size_t n, const deltagen_ik_options *restrict options,

@@ -34,10 +34,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 71936 bytes at 64 points; each function's comment in
+ * the most, 17984 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-#define DELTAGEN_GANTRY_XYZ_WRIST_BLOCK 64
+#define DELTAGEN_GANTRY_XYZ_WRIST_BLOCK 16
 #endif
 
 int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)
@@ -55,90 +55,53 @@ int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *res
         double q1_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q2_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q3_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double angle_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 6 + 0];
             q2_b[k] = q[(start + k) * 6 + 1];
             q3_b[k] = q[(start + k) * 6 + 2];
-            q4_b[k] = q[(start + k) * 6 + 3];
-            q5_b[k] = q[(start + k) * 6 + 4];
-            q6_b[k] = q[(start + k) * 6 + 5];
+            angle_b[0 * m + k] = q[(start + k) * 6 + 3];
+            angle_b[1 * m + k] = q[(start + k) * 6 + 4];
+            angle_b[2 * m + k] = q[(start + k) * 6 + 5];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
-                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-            ? ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
-                    m;
-        for (size_t k = m; k < m_v; ++k) {
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 3 * m;
+        const size_t a_v = ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
+                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= 3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
+            ? ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
+                    a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
+        double cos_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
+        double sin_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T0_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T1_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T2_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T3_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T4_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T5_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T6_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T7_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T8_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T9_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T10_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T11_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T12_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T13_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T14_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T15_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double out_b[16][DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
+            const double q4 = angle_b[0 * m + k];
+            const double q5 = angle_b[1 * m + k];
+            const double q6 = angle_b[2 * m + k];
+            const double cos_q4 = cos_b[0 * m + k];
+            const double sin_q4 = sin_b[0 * m + k];
+            const double cos_q5 = cos_b[1 * m + k];
+            const double sin_q5 = sin_b[1 * m + k];
+            const double cos_q6 = cos_b[2 * m + k];
+            const double sin_q6 = sin_b[2 * m + k];
             /* frame 3: F_3 = F_2 A_3 (universal convention) */
             const double F3_34 = 1.25 - q3;
             /* frame 4: F_4 = F_3 A_4 (universal convention) */
@@ -189,22 +152,22 @@ int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *res
             const double out_T13_checked = t5_7;
             const double out_T14_checked = t5_7;
             const double out_T15_checked = ((t5_6) ? NAN : 1);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -214,22 +177,22 @@ int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *res
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
         }
     }
     return 0;
@@ -250,202 +213,53 @@ int deltagen_gantry_xyz_wrist_frames(size_t n, const double *restrict q, double 
         double q1_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q2_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q3_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double angle_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 6 + 0];
             q2_b[k] = q[(start + k) * 6 + 1];
             q3_b[k] = q[(start + k) * 6 + 2];
-            q4_b[k] = q[(start + k) * 6 + 3];
-            q5_b[k] = q[(start + k) * 6 + 4];
-            q6_b[k] = q[(start + k) * 6 + 5];
+            angle_b[0 * m + k] = q[(start + k) * 6 + 3];
+            angle_b[1 * m + k] = q[(start + k) * 6 + 4];
+            angle_b[2 * m + k] = q[(start + k) * 6 + 5];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
-                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-            ? ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
-                    m;
-        for (size_t k = m; k < m_v; ++k) {
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 3 * m;
+        const size_t a_v = ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
+                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= 3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
+            ? ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
+                    a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
+        double cos_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
+        double sin_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F0_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F1_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F2_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F3_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F4_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F5_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F6_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F7_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F8_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F9_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F10_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F11_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F12_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F13_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F14_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F15_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F16_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F17_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F18_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F19_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F20_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F21_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F22_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F23_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F24_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F25_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F26_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F27_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F28_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F29_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F30_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F31_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F32_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F33_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F34_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F35_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F36_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F37_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F38_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F39_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F40_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F41_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F42_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F43_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F44_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F45_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F46_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F47_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F48_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F49_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F50_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F51_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F52_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F53_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F54_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F55_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F56_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F57_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F58_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F59_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F60_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F61_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F62_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F63_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F64_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F65_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F66_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F67_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F68_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F69_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F70_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F71_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F72_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F73_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F74_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F75_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F76_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F77_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F78_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F79_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F80_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F81_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F82_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F83_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F84_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F85_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F86_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F87_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F88_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F89_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F90_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F91_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F92_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F93_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F94_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F95_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F96_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F97_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F98_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F99_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F100_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F101_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F102_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F103_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F104_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F105_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F106_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F107_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F108_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F109_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F110_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F111_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F112_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F113_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F114_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F115_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F116_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F117_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F118_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F119_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F120_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F121_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F122_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F123_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F124_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F125_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F126_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_F127_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double out_b[128][DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
+            const double q4 = angle_b[0 * m + k];
+            const double q5 = angle_b[1 * m + k];
+            const double q6 = angle_b[2 * m + k];
+            const double cos_q4 = cos_b[0 * m + k];
+            const double sin_q4 = sin_b[0 * m + k];
+            const double cos_q5 = cos_b[1 * m + k];
+            const double sin_q5 = sin_b[1 * m + k];
+            const double cos_q6 = cos_b[2 * m + k];
+            const double sin_q6 = sin_b[2 * m + k];
             /* frame 3: F_3 = F_2 A_3 (universal convention) */
             const double F3_34 = 1.25 - q3;
             /* frame 4: F_4 = F_3 A_4 (universal convention) */
@@ -631,134 +445,134 @@ int deltagen_gantry_xyz_wrist_frames(size_t n, const double *restrict q, double 
             const double out_F125_checked = t5_10;
             const double out_F126_checked = t5_10;
             const double out_F127_checked = t5_9;
-            out_F0_checked_b[k] = out_F0_checked;
-            out_F1_checked_b[k] = out_F1_checked;
-            out_F2_checked_b[k] = out_F2_checked;
-            out_F3_checked_b[k] = out_F3_checked;
-            out_F4_checked_b[k] = out_F4_checked;
-            out_F5_checked_b[k] = out_F5_checked;
-            out_F6_checked_b[k] = out_F6_checked;
-            out_F7_checked_b[k] = out_F7_checked;
-            out_F8_checked_b[k] = out_F8_checked;
-            out_F9_checked_b[k] = out_F9_checked;
-            out_F10_checked_b[k] = out_F10_checked;
-            out_F11_checked_b[k] = out_F11_checked;
-            out_F12_checked_b[k] = out_F12_checked;
-            out_F13_checked_b[k] = out_F13_checked;
-            out_F14_checked_b[k] = out_F14_checked;
-            out_F15_checked_b[k] = out_F15_checked;
-            out_F16_checked_b[k] = out_F16_checked;
-            out_F17_checked_b[k] = out_F17_checked;
-            out_F18_checked_b[k] = out_F18_checked;
-            out_F19_checked_b[k] = out_F19_checked;
-            out_F20_checked_b[k] = out_F20_checked;
-            out_F21_checked_b[k] = out_F21_checked;
-            out_F22_checked_b[k] = out_F22_checked;
-            out_F23_checked_b[k] = out_F23_checked;
-            out_F24_checked_b[k] = out_F24_checked;
-            out_F25_checked_b[k] = out_F25_checked;
-            out_F26_checked_b[k] = out_F26_checked;
-            out_F27_checked_b[k] = out_F27_checked;
-            out_F28_checked_b[k] = out_F28_checked;
-            out_F29_checked_b[k] = out_F29_checked;
-            out_F30_checked_b[k] = out_F30_checked;
-            out_F31_checked_b[k] = out_F31_checked;
-            out_F32_checked_b[k] = out_F32_checked;
-            out_F33_checked_b[k] = out_F33_checked;
-            out_F34_checked_b[k] = out_F34_checked;
-            out_F35_checked_b[k] = out_F35_checked;
-            out_F36_checked_b[k] = out_F36_checked;
-            out_F37_checked_b[k] = out_F37_checked;
-            out_F38_checked_b[k] = out_F38_checked;
-            out_F39_checked_b[k] = out_F39_checked;
-            out_F40_checked_b[k] = out_F40_checked;
-            out_F41_checked_b[k] = out_F41_checked;
-            out_F42_checked_b[k] = out_F42_checked;
-            out_F43_checked_b[k] = out_F43_checked;
-            out_F44_checked_b[k] = out_F44_checked;
-            out_F45_checked_b[k] = out_F45_checked;
-            out_F46_checked_b[k] = out_F46_checked;
-            out_F47_checked_b[k] = out_F47_checked;
-            out_F48_checked_b[k] = out_F48_checked;
-            out_F49_checked_b[k] = out_F49_checked;
-            out_F50_checked_b[k] = out_F50_checked;
-            out_F51_checked_b[k] = out_F51_checked;
-            out_F52_checked_b[k] = out_F52_checked;
-            out_F53_checked_b[k] = out_F53_checked;
-            out_F54_checked_b[k] = out_F54_checked;
-            out_F55_checked_b[k] = out_F55_checked;
-            out_F56_checked_b[k] = out_F56_checked;
-            out_F57_checked_b[k] = out_F57_checked;
-            out_F58_checked_b[k] = out_F58_checked;
-            out_F59_checked_b[k] = out_F59_checked;
-            out_F60_checked_b[k] = out_F60_checked;
-            out_F61_checked_b[k] = out_F61_checked;
-            out_F62_checked_b[k] = out_F62_checked;
-            out_F63_checked_b[k] = out_F63_checked;
-            out_F64_checked_b[k] = out_F64_checked;
-            out_F65_checked_b[k] = out_F65_checked;
-            out_F66_checked_b[k] = out_F66_checked;
-            out_F67_checked_b[k] = out_F67_checked;
-            out_F68_checked_b[k] = out_F68_checked;
-            out_F69_checked_b[k] = out_F69_checked;
-            out_F70_checked_b[k] = out_F70_checked;
-            out_F71_checked_b[k] = out_F71_checked;
-            out_F72_checked_b[k] = out_F72_checked;
-            out_F73_checked_b[k] = out_F73_checked;
-            out_F74_checked_b[k] = out_F74_checked;
-            out_F75_checked_b[k] = out_F75_checked;
-            out_F76_checked_b[k] = out_F76_checked;
-            out_F77_checked_b[k] = out_F77_checked;
-            out_F78_checked_b[k] = out_F78_checked;
-            out_F79_checked_b[k] = out_F79_checked;
-            out_F80_checked_b[k] = out_F80_checked;
-            out_F81_checked_b[k] = out_F81_checked;
-            out_F82_checked_b[k] = out_F82_checked;
-            out_F83_checked_b[k] = out_F83_checked;
-            out_F84_checked_b[k] = out_F84_checked;
-            out_F85_checked_b[k] = out_F85_checked;
-            out_F86_checked_b[k] = out_F86_checked;
-            out_F87_checked_b[k] = out_F87_checked;
-            out_F88_checked_b[k] = out_F88_checked;
-            out_F89_checked_b[k] = out_F89_checked;
-            out_F90_checked_b[k] = out_F90_checked;
-            out_F91_checked_b[k] = out_F91_checked;
-            out_F92_checked_b[k] = out_F92_checked;
-            out_F93_checked_b[k] = out_F93_checked;
-            out_F94_checked_b[k] = out_F94_checked;
-            out_F95_checked_b[k] = out_F95_checked;
-            out_F96_checked_b[k] = out_F96_checked;
-            out_F97_checked_b[k] = out_F97_checked;
-            out_F98_checked_b[k] = out_F98_checked;
-            out_F99_checked_b[k] = out_F99_checked;
-            out_F100_checked_b[k] = out_F100_checked;
-            out_F101_checked_b[k] = out_F101_checked;
-            out_F102_checked_b[k] = out_F102_checked;
-            out_F103_checked_b[k] = out_F103_checked;
-            out_F104_checked_b[k] = out_F104_checked;
-            out_F105_checked_b[k] = out_F105_checked;
-            out_F106_checked_b[k] = out_F106_checked;
-            out_F107_checked_b[k] = out_F107_checked;
-            out_F108_checked_b[k] = out_F108_checked;
-            out_F109_checked_b[k] = out_F109_checked;
-            out_F110_checked_b[k] = out_F110_checked;
-            out_F111_checked_b[k] = out_F111_checked;
-            out_F112_checked_b[k] = out_F112_checked;
-            out_F113_checked_b[k] = out_F113_checked;
-            out_F114_checked_b[k] = out_F114_checked;
-            out_F115_checked_b[k] = out_F115_checked;
-            out_F116_checked_b[k] = out_F116_checked;
-            out_F117_checked_b[k] = out_F117_checked;
-            out_F118_checked_b[k] = out_F118_checked;
-            out_F119_checked_b[k] = out_F119_checked;
-            out_F120_checked_b[k] = out_F120_checked;
-            out_F121_checked_b[k] = out_F121_checked;
-            out_F122_checked_b[k] = out_F122_checked;
-            out_F123_checked_b[k] = out_F123_checked;
-            out_F124_checked_b[k] = out_F124_checked;
-            out_F125_checked_b[k] = out_F125_checked;
-            out_F126_checked_b[k] = out_F126_checked;
-            out_F127_checked_b[k] = out_F127_checked;
+            out_b[0][k] = out_F0_checked;
+            out_b[1][k] = out_F1_checked;
+            out_b[2][k] = out_F2_checked;
+            out_b[3][k] = out_F3_checked;
+            out_b[4][k] = out_F4_checked;
+            out_b[5][k] = out_F5_checked;
+            out_b[6][k] = out_F6_checked;
+            out_b[7][k] = out_F7_checked;
+            out_b[8][k] = out_F8_checked;
+            out_b[9][k] = out_F9_checked;
+            out_b[10][k] = out_F10_checked;
+            out_b[11][k] = out_F11_checked;
+            out_b[12][k] = out_F12_checked;
+            out_b[13][k] = out_F13_checked;
+            out_b[14][k] = out_F14_checked;
+            out_b[15][k] = out_F15_checked;
+            out_b[16][k] = out_F16_checked;
+            out_b[17][k] = out_F17_checked;
+            out_b[18][k] = out_F18_checked;
+            out_b[19][k] = out_F19_checked;
+            out_b[20][k] = out_F20_checked;
+            out_b[21][k] = out_F21_checked;
+            out_b[22][k] = out_F22_checked;
+            out_b[23][k] = out_F23_checked;
+            out_b[24][k] = out_F24_checked;
+            out_b[25][k] = out_F25_checked;
+            out_b[26][k] = out_F26_checked;
+            out_b[27][k] = out_F27_checked;
+            out_b[28][k] = out_F28_checked;
+            out_b[29][k] = out_F29_checked;
+            out_b[30][k] = out_F30_checked;
+            out_b[31][k] = out_F31_checked;
+            out_b[32][k] = out_F32_checked;
+            out_b[33][k] = out_F33_checked;
+            out_b[34][k] = out_F34_checked;
+            out_b[35][k] = out_F35_checked;
+            out_b[36][k] = out_F36_checked;
+            out_b[37][k] = out_F37_checked;
+            out_b[38][k] = out_F38_checked;
+            out_b[39][k] = out_F39_checked;
+            out_b[40][k] = out_F40_checked;
+            out_b[41][k] = out_F41_checked;
+            out_b[42][k] = out_F42_checked;
+            out_b[43][k] = out_F43_checked;
+            out_b[44][k] = out_F44_checked;
+            out_b[45][k] = out_F45_checked;
+            out_b[46][k] = out_F46_checked;
+            out_b[47][k] = out_F47_checked;
+            out_b[48][k] = out_F48_checked;
+            out_b[49][k] = out_F49_checked;
+            out_b[50][k] = out_F50_checked;
+            out_b[51][k] = out_F51_checked;
+            out_b[52][k] = out_F52_checked;
+            out_b[53][k] = out_F53_checked;
+            out_b[54][k] = out_F54_checked;
+            out_b[55][k] = out_F55_checked;
+            out_b[56][k] = out_F56_checked;
+            out_b[57][k] = out_F57_checked;
+            out_b[58][k] = out_F58_checked;
+            out_b[59][k] = out_F59_checked;
+            out_b[60][k] = out_F60_checked;
+            out_b[61][k] = out_F61_checked;
+            out_b[62][k] = out_F62_checked;
+            out_b[63][k] = out_F63_checked;
+            out_b[64][k] = out_F64_checked;
+            out_b[65][k] = out_F65_checked;
+            out_b[66][k] = out_F66_checked;
+            out_b[67][k] = out_F67_checked;
+            out_b[68][k] = out_F68_checked;
+            out_b[69][k] = out_F69_checked;
+            out_b[70][k] = out_F70_checked;
+            out_b[71][k] = out_F71_checked;
+            out_b[72][k] = out_F72_checked;
+            out_b[73][k] = out_F73_checked;
+            out_b[74][k] = out_F74_checked;
+            out_b[75][k] = out_F75_checked;
+            out_b[76][k] = out_F76_checked;
+            out_b[77][k] = out_F77_checked;
+            out_b[78][k] = out_F78_checked;
+            out_b[79][k] = out_F79_checked;
+            out_b[80][k] = out_F80_checked;
+            out_b[81][k] = out_F81_checked;
+            out_b[82][k] = out_F82_checked;
+            out_b[83][k] = out_F83_checked;
+            out_b[84][k] = out_F84_checked;
+            out_b[85][k] = out_F85_checked;
+            out_b[86][k] = out_F86_checked;
+            out_b[87][k] = out_F87_checked;
+            out_b[88][k] = out_F88_checked;
+            out_b[89][k] = out_F89_checked;
+            out_b[90][k] = out_F90_checked;
+            out_b[91][k] = out_F91_checked;
+            out_b[92][k] = out_F92_checked;
+            out_b[93][k] = out_F93_checked;
+            out_b[94][k] = out_F94_checked;
+            out_b[95][k] = out_F95_checked;
+            out_b[96][k] = out_F96_checked;
+            out_b[97][k] = out_F97_checked;
+            out_b[98][k] = out_F98_checked;
+            out_b[99][k] = out_F99_checked;
+            out_b[100][k] = out_F100_checked;
+            out_b[101][k] = out_F101_checked;
+            out_b[102][k] = out_F102_checked;
+            out_b[103][k] = out_F103_checked;
+            out_b[104][k] = out_F104_checked;
+            out_b[105][k] = out_F105_checked;
+            out_b[106][k] = out_F106_checked;
+            out_b[107][k] = out_F107_checked;
+            out_b[108][k] = out_F108_checked;
+            out_b[109][k] = out_F109_checked;
+            out_b[110][k] = out_F110_checked;
+            out_b[111][k] = out_F111_checked;
+            out_b[112][k] = out_F112_checked;
+            out_b[113][k] = out_F113_checked;
+            out_b[114][k] = out_F114_checked;
+            out_b[115][k] = out_F115_checked;
+            out_b[116][k] = out_F116_checked;
+            out_b[117][k] = out_F117_checked;
+            out_b[118][k] = out_F118_checked;
+            out_b[119][k] = out_F119_checked;
+            out_b[120][k] = out_F120_checked;
+            out_b[121][k] = out_F121_checked;
+            out_b[122][k] = out_F122_checked;
+            out_b[123][k] = out_F123_checked;
+            out_b[124][k] = out_F124_checked;
+            out_b[125][k] = out_F125_checked;
+            out_b[126][k] = out_F126_checked;
+            out_b[127][k] = out_F127_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -768,134 +582,134 @@ int deltagen_gantry_xyz_wrist_frames(size_t n, const double *restrict q, double 
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            F[(start + k) * 128 + 0] = out_F0_checked_b[k];
-            F[(start + k) * 128 + 1] = out_F1_checked_b[k];
-            F[(start + k) * 128 + 2] = out_F2_checked_b[k];
-            F[(start + k) * 128 + 3] = out_F3_checked_b[k];
-            F[(start + k) * 128 + 4] = out_F4_checked_b[k];
-            F[(start + k) * 128 + 5] = out_F5_checked_b[k];
-            F[(start + k) * 128 + 6] = out_F6_checked_b[k];
-            F[(start + k) * 128 + 7] = out_F7_checked_b[k];
-            F[(start + k) * 128 + 8] = out_F8_checked_b[k];
-            F[(start + k) * 128 + 9] = out_F9_checked_b[k];
-            F[(start + k) * 128 + 10] = out_F10_checked_b[k];
-            F[(start + k) * 128 + 11] = out_F11_checked_b[k];
-            F[(start + k) * 128 + 12] = out_F12_checked_b[k];
-            F[(start + k) * 128 + 13] = out_F13_checked_b[k];
-            F[(start + k) * 128 + 14] = out_F14_checked_b[k];
-            F[(start + k) * 128 + 15] = out_F15_checked_b[k];
-            F[(start + k) * 128 + 16] = out_F16_checked_b[k];
-            F[(start + k) * 128 + 17] = out_F17_checked_b[k];
-            F[(start + k) * 128 + 18] = out_F18_checked_b[k];
-            F[(start + k) * 128 + 19] = out_F19_checked_b[k];
-            F[(start + k) * 128 + 20] = out_F20_checked_b[k];
-            F[(start + k) * 128 + 21] = out_F21_checked_b[k];
-            F[(start + k) * 128 + 22] = out_F22_checked_b[k];
-            F[(start + k) * 128 + 23] = out_F23_checked_b[k];
-            F[(start + k) * 128 + 24] = out_F24_checked_b[k];
-            F[(start + k) * 128 + 25] = out_F25_checked_b[k];
-            F[(start + k) * 128 + 26] = out_F26_checked_b[k];
-            F[(start + k) * 128 + 27] = out_F27_checked_b[k];
-            F[(start + k) * 128 + 28] = out_F28_checked_b[k];
-            F[(start + k) * 128 + 29] = out_F29_checked_b[k];
-            F[(start + k) * 128 + 30] = out_F30_checked_b[k];
-            F[(start + k) * 128 + 31] = out_F31_checked_b[k];
-            F[(start + k) * 128 + 32] = out_F32_checked_b[k];
-            F[(start + k) * 128 + 33] = out_F33_checked_b[k];
-            F[(start + k) * 128 + 34] = out_F34_checked_b[k];
-            F[(start + k) * 128 + 35] = out_F35_checked_b[k];
-            F[(start + k) * 128 + 36] = out_F36_checked_b[k];
-            F[(start + k) * 128 + 37] = out_F37_checked_b[k];
-            F[(start + k) * 128 + 38] = out_F38_checked_b[k];
-            F[(start + k) * 128 + 39] = out_F39_checked_b[k];
-            F[(start + k) * 128 + 40] = out_F40_checked_b[k];
-            F[(start + k) * 128 + 41] = out_F41_checked_b[k];
-            F[(start + k) * 128 + 42] = out_F42_checked_b[k];
-            F[(start + k) * 128 + 43] = out_F43_checked_b[k];
-            F[(start + k) * 128 + 44] = out_F44_checked_b[k];
-            F[(start + k) * 128 + 45] = out_F45_checked_b[k];
-            F[(start + k) * 128 + 46] = out_F46_checked_b[k];
-            F[(start + k) * 128 + 47] = out_F47_checked_b[k];
-            F[(start + k) * 128 + 48] = out_F48_checked_b[k];
-            F[(start + k) * 128 + 49] = out_F49_checked_b[k];
-            F[(start + k) * 128 + 50] = out_F50_checked_b[k];
-            F[(start + k) * 128 + 51] = out_F51_checked_b[k];
-            F[(start + k) * 128 + 52] = out_F52_checked_b[k];
-            F[(start + k) * 128 + 53] = out_F53_checked_b[k];
-            F[(start + k) * 128 + 54] = out_F54_checked_b[k];
-            F[(start + k) * 128 + 55] = out_F55_checked_b[k];
-            F[(start + k) * 128 + 56] = out_F56_checked_b[k];
-            F[(start + k) * 128 + 57] = out_F57_checked_b[k];
-            F[(start + k) * 128 + 58] = out_F58_checked_b[k];
-            F[(start + k) * 128 + 59] = out_F59_checked_b[k];
-            F[(start + k) * 128 + 60] = out_F60_checked_b[k];
-            F[(start + k) * 128 + 61] = out_F61_checked_b[k];
-            F[(start + k) * 128 + 62] = out_F62_checked_b[k];
-            F[(start + k) * 128 + 63] = out_F63_checked_b[k];
-            F[(start + k) * 128 + 64] = out_F64_checked_b[k];
-            F[(start + k) * 128 + 65] = out_F65_checked_b[k];
-            F[(start + k) * 128 + 66] = out_F66_checked_b[k];
-            F[(start + k) * 128 + 67] = out_F67_checked_b[k];
-            F[(start + k) * 128 + 68] = out_F68_checked_b[k];
-            F[(start + k) * 128 + 69] = out_F69_checked_b[k];
-            F[(start + k) * 128 + 70] = out_F70_checked_b[k];
-            F[(start + k) * 128 + 71] = out_F71_checked_b[k];
-            F[(start + k) * 128 + 72] = out_F72_checked_b[k];
-            F[(start + k) * 128 + 73] = out_F73_checked_b[k];
-            F[(start + k) * 128 + 74] = out_F74_checked_b[k];
-            F[(start + k) * 128 + 75] = out_F75_checked_b[k];
-            F[(start + k) * 128 + 76] = out_F76_checked_b[k];
-            F[(start + k) * 128 + 77] = out_F77_checked_b[k];
-            F[(start + k) * 128 + 78] = out_F78_checked_b[k];
-            F[(start + k) * 128 + 79] = out_F79_checked_b[k];
-            F[(start + k) * 128 + 80] = out_F80_checked_b[k];
-            F[(start + k) * 128 + 81] = out_F81_checked_b[k];
-            F[(start + k) * 128 + 82] = out_F82_checked_b[k];
-            F[(start + k) * 128 + 83] = out_F83_checked_b[k];
-            F[(start + k) * 128 + 84] = out_F84_checked_b[k];
-            F[(start + k) * 128 + 85] = out_F85_checked_b[k];
-            F[(start + k) * 128 + 86] = out_F86_checked_b[k];
-            F[(start + k) * 128 + 87] = out_F87_checked_b[k];
-            F[(start + k) * 128 + 88] = out_F88_checked_b[k];
-            F[(start + k) * 128 + 89] = out_F89_checked_b[k];
-            F[(start + k) * 128 + 90] = out_F90_checked_b[k];
-            F[(start + k) * 128 + 91] = out_F91_checked_b[k];
-            F[(start + k) * 128 + 92] = out_F92_checked_b[k];
-            F[(start + k) * 128 + 93] = out_F93_checked_b[k];
-            F[(start + k) * 128 + 94] = out_F94_checked_b[k];
-            F[(start + k) * 128 + 95] = out_F95_checked_b[k];
-            F[(start + k) * 128 + 96] = out_F96_checked_b[k];
-            F[(start + k) * 128 + 97] = out_F97_checked_b[k];
-            F[(start + k) * 128 + 98] = out_F98_checked_b[k];
-            F[(start + k) * 128 + 99] = out_F99_checked_b[k];
-            F[(start + k) * 128 + 100] = out_F100_checked_b[k];
-            F[(start + k) * 128 + 101] = out_F101_checked_b[k];
-            F[(start + k) * 128 + 102] = out_F102_checked_b[k];
-            F[(start + k) * 128 + 103] = out_F103_checked_b[k];
-            F[(start + k) * 128 + 104] = out_F104_checked_b[k];
-            F[(start + k) * 128 + 105] = out_F105_checked_b[k];
-            F[(start + k) * 128 + 106] = out_F106_checked_b[k];
-            F[(start + k) * 128 + 107] = out_F107_checked_b[k];
-            F[(start + k) * 128 + 108] = out_F108_checked_b[k];
-            F[(start + k) * 128 + 109] = out_F109_checked_b[k];
-            F[(start + k) * 128 + 110] = out_F110_checked_b[k];
-            F[(start + k) * 128 + 111] = out_F111_checked_b[k];
-            F[(start + k) * 128 + 112] = out_F112_checked_b[k];
-            F[(start + k) * 128 + 113] = out_F113_checked_b[k];
-            F[(start + k) * 128 + 114] = out_F114_checked_b[k];
-            F[(start + k) * 128 + 115] = out_F115_checked_b[k];
-            F[(start + k) * 128 + 116] = out_F116_checked_b[k];
-            F[(start + k) * 128 + 117] = out_F117_checked_b[k];
-            F[(start + k) * 128 + 118] = out_F118_checked_b[k];
-            F[(start + k) * 128 + 119] = out_F119_checked_b[k];
-            F[(start + k) * 128 + 120] = out_F120_checked_b[k];
-            F[(start + k) * 128 + 121] = out_F121_checked_b[k];
-            F[(start + k) * 128 + 122] = out_F122_checked_b[k];
-            F[(start + k) * 128 + 123] = out_F123_checked_b[k];
-            F[(start + k) * 128 + 124] = out_F124_checked_b[k];
-            F[(start + k) * 128 + 125] = out_F125_checked_b[k];
-            F[(start + k) * 128 + 126] = out_F126_checked_b[k];
-            F[(start + k) * 128 + 127] = out_F127_checked_b[k];
+            F[(start + k) * 128 + 0] = out_b[0][k];
+            F[(start + k) * 128 + 1] = out_b[1][k];
+            F[(start + k) * 128 + 2] = out_b[2][k];
+            F[(start + k) * 128 + 3] = out_b[3][k];
+            F[(start + k) * 128 + 4] = out_b[4][k];
+            F[(start + k) * 128 + 5] = out_b[5][k];
+            F[(start + k) * 128 + 6] = out_b[6][k];
+            F[(start + k) * 128 + 7] = out_b[7][k];
+            F[(start + k) * 128 + 8] = out_b[8][k];
+            F[(start + k) * 128 + 9] = out_b[9][k];
+            F[(start + k) * 128 + 10] = out_b[10][k];
+            F[(start + k) * 128 + 11] = out_b[11][k];
+            F[(start + k) * 128 + 12] = out_b[12][k];
+            F[(start + k) * 128 + 13] = out_b[13][k];
+            F[(start + k) * 128 + 14] = out_b[14][k];
+            F[(start + k) * 128 + 15] = out_b[15][k];
+            F[(start + k) * 128 + 16] = out_b[16][k];
+            F[(start + k) * 128 + 17] = out_b[17][k];
+            F[(start + k) * 128 + 18] = out_b[18][k];
+            F[(start + k) * 128 + 19] = out_b[19][k];
+            F[(start + k) * 128 + 20] = out_b[20][k];
+            F[(start + k) * 128 + 21] = out_b[21][k];
+            F[(start + k) * 128 + 22] = out_b[22][k];
+            F[(start + k) * 128 + 23] = out_b[23][k];
+            F[(start + k) * 128 + 24] = out_b[24][k];
+            F[(start + k) * 128 + 25] = out_b[25][k];
+            F[(start + k) * 128 + 26] = out_b[26][k];
+            F[(start + k) * 128 + 27] = out_b[27][k];
+            F[(start + k) * 128 + 28] = out_b[28][k];
+            F[(start + k) * 128 + 29] = out_b[29][k];
+            F[(start + k) * 128 + 30] = out_b[30][k];
+            F[(start + k) * 128 + 31] = out_b[31][k];
+            F[(start + k) * 128 + 32] = out_b[32][k];
+            F[(start + k) * 128 + 33] = out_b[33][k];
+            F[(start + k) * 128 + 34] = out_b[34][k];
+            F[(start + k) * 128 + 35] = out_b[35][k];
+            F[(start + k) * 128 + 36] = out_b[36][k];
+            F[(start + k) * 128 + 37] = out_b[37][k];
+            F[(start + k) * 128 + 38] = out_b[38][k];
+            F[(start + k) * 128 + 39] = out_b[39][k];
+            F[(start + k) * 128 + 40] = out_b[40][k];
+            F[(start + k) * 128 + 41] = out_b[41][k];
+            F[(start + k) * 128 + 42] = out_b[42][k];
+            F[(start + k) * 128 + 43] = out_b[43][k];
+            F[(start + k) * 128 + 44] = out_b[44][k];
+            F[(start + k) * 128 + 45] = out_b[45][k];
+            F[(start + k) * 128 + 46] = out_b[46][k];
+            F[(start + k) * 128 + 47] = out_b[47][k];
+            F[(start + k) * 128 + 48] = out_b[48][k];
+            F[(start + k) * 128 + 49] = out_b[49][k];
+            F[(start + k) * 128 + 50] = out_b[50][k];
+            F[(start + k) * 128 + 51] = out_b[51][k];
+            F[(start + k) * 128 + 52] = out_b[52][k];
+            F[(start + k) * 128 + 53] = out_b[53][k];
+            F[(start + k) * 128 + 54] = out_b[54][k];
+            F[(start + k) * 128 + 55] = out_b[55][k];
+            F[(start + k) * 128 + 56] = out_b[56][k];
+            F[(start + k) * 128 + 57] = out_b[57][k];
+            F[(start + k) * 128 + 58] = out_b[58][k];
+            F[(start + k) * 128 + 59] = out_b[59][k];
+            F[(start + k) * 128 + 60] = out_b[60][k];
+            F[(start + k) * 128 + 61] = out_b[61][k];
+            F[(start + k) * 128 + 62] = out_b[62][k];
+            F[(start + k) * 128 + 63] = out_b[63][k];
+            F[(start + k) * 128 + 64] = out_b[64][k];
+            F[(start + k) * 128 + 65] = out_b[65][k];
+            F[(start + k) * 128 + 66] = out_b[66][k];
+            F[(start + k) * 128 + 67] = out_b[67][k];
+            F[(start + k) * 128 + 68] = out_b[68][k];
+            F[(start + k) * 128 + 69] = out_b[69][k];
+            F[(start + k) * 128 + 70] = out_b[70][k];
+            F[(start + k) * 128 + 71] = out_b[71][k];
+            F[(start + k) * 128 + 72] = out_b[72][k];
+            F[(start + k) * 128 + 73] = out_b[73][k];
+            F[(start + k) * 128 + 74] = out_b[74][k];
+            F[(start + k) * 128 + 75] = out_b[75][k];
+            F[(start + k) * 128 + 76] = out_b[76][k];
+            F[(start + k) * 128 + 77] = out_b[77][k];
+            F[(start + k) * 128 + 78] = out_b[78][k];
+            F[(start + k) * 128 + 79] = out_b[79][k];
+            F[(start + k) * 128 + 80] = out_b[80][k];
+            F[(start + k) * 128 + 81] = out_b[81][k];
+            F[(start + k) * 128 + 82] = out_b[82][k];
+            F[(start + k) * 128 + 83] = out_b[83][k];
+            F[(start + k) * 128 + 84] = out_b[84][k];
+            F[(start + k) * 128 + 85] = out_b[85][k];
+            F[(start + k) * 128 + 86] = out_b[86][k];
+            F[(start + k) * 128 + 87] = out_b[87][k];
+            F[(start + k) * 128 + 88] = out_b[88][k];
+            F[(start + k) * 128 + 89] = out_b[89][k];
+            F[(start + k) * 128 + 90] = out_b[90][k];
+            F[(start + k) * 128 + 91] = out_b[91][k];
+            F[(start + k) * 128 + 92] = out_b[92][k];
+            F[(start + k) * 128 + 93] = out_b[93][k];
+            F[(start + k) * 128 + 94] = out_b[94][k];
+            F[(start + k) * 128 + 95] = out_b[95][k];
+            F[(start + k) * 128 + 96] = out_b[96][k];
+            F[(start + k) * 128 + 97] = out_b[97][k];
+            F[(start + k) * 128 + 98] = out_b[98][k];
+            F[(start + k) * 128 + 99] = out_b[99][k];
+            F[(start + k) * 128 + 100] = out_b[100][k];
+            F[(start + k) * 128 + 101] = out_b[101][k];
+            F[(start + k) * 128 + 102] = out_b[102][k];
+            F[(start + k) * 128 + 103] = out_b[103][k];
+            F[(start + k) * 128 + 104] = out_b[104][k];
+            F[(start + k) * 128 + 105] = out_b[105][k];
+            F[(start + k) * 128 + 106] = out_b[106][k];
+            F[(start + k) * 128 + 107] = out_b[107][k];
+            F[(start + k) * 128 + 108] = out_b[108][k];
+            F[(start + k) * 128 + 109] = out_b[109][k];
+            F[(start + k) * 128 + 110] = out_b[110][k];
+            F[(start + k) * 128 + 111] = out_b[111][k];
+            F[(start + k) * 128 + 112] = out_b[112][k];
+            F[(start + k) * 128 + 113] = out_b[113][k];
+            F[(start + k) * 128 + 114] = out_b[114][k];
+            F[(start + k) * 128 + 115] = out_b[115][k];
+            F[(start + k) * 128 + 116] = out_b[116][k];
+            F[(start + k) * 128 + 117] = out_b[117][k];
+            F[(start + k) * 128 + 118] = out_b[118][k];
+            F[(start + k) * 128 + 119] = out_b[119][k];
+            F[(start + k) * 128 + 120] = out_b[120][k];
+            F[(start + k) * 128 + 121] = out_b[121][k];
+            F[(start + k) * 128 + 122] = out_b[122][k];
+            F[(start + k) * 128 + 123] = out_b[123][k];
+            F[(start + k) * 128 + 124] = out_b[124][k];
+            F[(start + k) * 128 + 125] = out_b[125][k];
+            F[(start + k) * 128 + 126] = out_b[126][k];
+            F[(start + k) * 128 + 127] = out_b[127][k];
         }
     }
     return 0;
@@ -916,99 +730,52 @@ int deltagen_gantry_xyz_wrist_jacobian(size_t n, const double *restrict q, doubl
         double q1_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q2_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q3_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double angle_b[2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 6 + 0];
             q2_b[k] = q[(start + k) * 6 + 1];
             q3_b[k] = q[(start + k) * 6 + 2];
-            q4_b[k] = q[(start + k) * 6 + 3];
-            q5_b[k] = q[(start + k) * 6 + 4];
+            angle_b[0 * m + k] = q[(start + k) * 6 + 3];
+            angle_b[1 * m + k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
-                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-            ? ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
-                    m;
-        for (size_t k = m; k < m_v; ++k) {
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
+                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= 2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
+            ? ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
+                    a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
+        double cos_b[2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
+        double sin_b[2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J0_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J1_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J2_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J3_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J4_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J5_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J6_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J7_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J8_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J9_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J10_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J11_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J12_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J13_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J14_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J15_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J16_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J17_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J18_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J19_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J20_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J21_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J22_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J23_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J24_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J25_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J26_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J27_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J28_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J29_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J30_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J31_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J32_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J33_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J34_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J35_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double out_b[36][DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
+            const double q4 = angle_b[0 * m + k];
+            const double q5 = angle_b[1 * m + k];
             const double q6 = q6_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
+            const double cos_q4 = cos_b[0 * m + k];
+            const double sin_q4 = sin_b[0 * m + k];
+            const double cos_q5 = cos_b[1 * m + k];
+            const double sin_q5 = sin_b[1 * m + k];
             /* frame 3: F_3 = F_2 A_3 (universal convention) */
             const double F3_34 = 1.25 - q3;
             /* frame 4: F_4 = F_3 A_4 (universal convention) */
@@ -1108,42 +875,42 @@ int deltagen_gantry_xyz_wrist_jacobian(size_t n, const double *restrict q, doubl
             const double out_J33_checked = ((t6_0) ? NAN : J6_4);
             const double out_J34_checked = ((t6_0) ? NAN : J6_5);
             const double out_J35_checked = ((t6_0) ? NAN : J6_6);
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
-            out_J12_checked_b[k] = out_J12_checked;
-            out_J13_checked_b[k] = out_J13_checked;
-            out_J14_checked_b[k] = out_J14_checked;
-            out_J15_checked_b[k] = out_J15_checked;
-            out_J16_checked_b[k] = out_J16_checked;
-            out_J17_checked_b[k] = out_J17_checked;
-            out_J18_checked_b[k] = out_J18_checked;
-            out_J19_checked_b[k] = out_J19_checked;
-            out_J20_checked_b[k] = out_J20_checked;
-            out_J21_checked_b[k] = out_J21_checked;
-            out_J22_checked_b[k] = out_J22_checked;
-            out_J23_checked_b[k] = out_J23_checked;
-            out_J24_checked_b[k] = out_J24_checked;
-            out_J25_checked_b[k] = out_J25_checked;
-            out_J26_checked_b[k] = out_J26_checked;
-            out_J27_checked_b[k] = out_J27_checked;
-            out_J28_checked_b[k] = out_J28_checked;
-            out_J29_checked_b[k] = out_J29_checked;
-            out_J30_checked_b[k] = out_J30_checked;
-            out_J31_checked_b[k] = out_J31_checked;
-            out_J32_checked_b[k] = out_J32_checked;
-            out_J33_checked_b[k] = out_J33_checked;
-            out_J34_checked_b[k] = out_J34_checked;
-            out_J35_checked_b[k] = out_J35_checked;
+            out_b[0][k] = out_J0_checked;
+            out_b[1][k] = out_J1_checked;
+            out_b[2][k] = out_J2_checked;
+            out_b[3][k] = out_J3_checked;
+            out_b[4][k] = out_J4_checked;
+            out_b[5][k] = out_J5_checked;
+            out_b[6][k] = out_J6_checked;
+            out_b[7][k] = out_J7_checked;
+            out_b[8][k] = out_J8_checked;
+            out_b[9][k] = out_J9_checked;
+            out_b[10][k] = out_J10_checked;
+            out_b[11][k] = out_J11_checked;
+            out_b[12][k] = out_J12_checked;
+            out_b[13][k] = out_J13_checked;
+            out_b[14][k] = out_J14_checked;
+            out_b[15][k] = out_J15_checked;
+            out_b[16][k] = out_J16_checked;
+            out_b[17][k] = out_J17_checked;
+            out_b[18][k] = out_J18_checked;
+            out_b[19][k] = out_J19_checked;
+            out_b[20][k] = out_J20_checked;
+            out_b[21][k] = out_J21_checked;
+            out_b[22][k] = out_J22_checked;
+            out_b[23][k] = out_J23_checked;
+            out_b[24][k] = out_J24_checked;
+            out_b[25][k] = out_J25_checked;
+            out_b[26][k] = out_J26_checked;
+            out_b[27][k] = out_J27_checked;
+            out_b[28][k] = out_J28_checked;
+            out_b[29][k] = out_J29_checked;
+            out_b[30][k] = out_J30_checked;
+            out_b[31][k] = out_J31_checked;
+            out_b[32][k] = out_J32_checked;
+            out_b[33][k] = out_J33_checked;
+            out_b[34][k] = out_J34_checked;
+            out_b[35][k] = out_J35_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1153,42 +920,42 @@ int deltagen_gantry_xyz_wrist_jacobian(size_t n, const double *restrict q, doubl
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            J[(start + k) * 36 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 36 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 36 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 36 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 36 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 36 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 36 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 36 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 36 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 36 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 36 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 36 + 11] = out_J11_checked_b[k];
-            J[(start + k) * 36 + 12] = out_J12_checked_b[k];
-            J[(start + k) * 36 + 13] = out_J13_checked_b[k];
-            J[(start + k) * 36 + 14] = out_J14_checked_b[k];
-            J[(start + k) * 36 + 15] = out_J15_checked_b[k];
-            J[(start + k) * 36 + 16] = out_J16_checked_b[k];
-            J[(start + k) * 36 + 17] = out_J17_checked_b[k];
-            J[(start + k) * 36 + 18] = out_J18_checked_b[k];
-            J[(start + k) * 36 + 19] = out_J19_checked_b[k];
-            J[(start + k) * 36 + 20] = out_J20_checked_b[k];
-            J[(start + k) * 36 + 21] = out_J21_checked_b[k];
-            J[(start + k) * 36 + 22] = out_J22_checked_b[k];
-            J[(start + k) * 36 + 23] = out_J23_checked_b[k];
-            J[(start + k) * 36 + 24] = out_J24_checked_b[k];
-            J[(start + k) * 36 + 25] = out_J25_checked_b[k];
-            J[(start + k) * 36 + 26] = out_J26_checked_b[k];
-            J[(start + k) * 36 + 27] = out_J27_checked_b[k];
-            J[(start + k) * 36 + 28] = out_J28_checked_b[k];
-            J[(start + k) * 36 + 29] = out_J29_checked_b[k];
-            J[(start + k) * 36 + 30] = out_J30_checked_b[k];
-            J[(start + k) * 36 + 31] = out_J31_checked_b[k];
-            J[(start + k) * 36 + 32] = out_J32_checked_b[k];
-            J[(start + k) * 36 + 33] = out_J33_checked_b[k];
-            J[(start + k) * 36 + 34] = out_J34_checked_b[k];
-            J[(start + k) * 36 + 35] = out_J35_checked_b[k];
+            J[(start + k) * 36 + 0] = out_b[0][k];
+            J[(start + k) * 36 + 1] = out_b[1][k];
+            J[(start + k) * 36 + 2] = out_b[2][k];
+            J[(start + k) * 36 + 3] = out_b[3][k];
+            J[(start + k) * 36 + 4] = out_b[4][k];
+            J[(start + k) * 36 + 5] = out_b[5][k];
+            J[(start + k) * 36 + 6] = out_b[6][k];
+            J[(start + k) * 36 + 7] = out_b[7][k];
+            J[(start + k) * 36 + 8] = out_b[8][k];
+            J[(start + k) * 36 + 9] = out_b[9][k];
+            J[(start + k) * 36 + 10] = out_b[10][k];
+            J[(start + k) * 36 + 11] = out_b[11][k];
+            J[(start + k) * 36 + 12] = out_b[12][k];
+            J[(start + k) * 36 + 13] = out_b[13][k];
+            J[(start + k) * 36 + 14] = out_b[14][k];
+            J[(start + k) * 36 + 15] = out_b[15][k];
+            J[(start + k) * 36 + 16] = out_b[16][k];
+            J[(start + k) * 36 + 17] = out_b[17][k];
+            J[(start + k) * 36 + 18] = out_b[18][k];
+            J[(start + k) * 36 + 19] = out_b[19][k];
+            J[(start + k) * 36 + 20] = out_b[20][k];
+            J[(start + k) * 36 + 21] = out_b[21][k];
+            J[(start + k) * 36 + 22] = out_b[22][k];
+            J[(start + k) * 36 + 23] = out_b[23][k];
+            J[(start + k) * 36 + 24] = out_b[24][k];
+            J[(start + k) * 36 + 25] = out_b[25][k];
+            J[(start + k) * 36 + 26] = out_b[26][k];
+            J[(start + k) * 36 + 27] = out_b[27][k];
+            J[(start + k) * 36 + 28] = out_b[28][k];
+            J[(start + k) * 36 + 29] = out_b[29][k];
+            J[(start + k) * 36 + 30] = out_b[30][k];
+            J[(start + k) * 36 + 31] = out_b[31][k];
+            J[(start + k) * 36 + 32] = out_b[32][k];
+            J[(start + k) * 36 + 33] = out_b[33][k];
+            J[(start + k) * 36 + 34] = out_b[34][k];
+            J[(start + k) * 36 + 35] = out_b[35][k];
         }
     }
     return 0;
@@ -1210,126 +977,53 @@ int deltagen_gantry_xyz_wrist_fk_jacobian(size_t n, const double *restrict q, do
         double q1_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q2_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q3_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double angle_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 6 + 0];
             q2_b[k] = q[(start + k) * 6 + 1];
             q3_b[k] = q[(start + k) * 6 + 2];
-            q4_b[k] = q[(start + k) * 6 + 3];
-            q5_b[k] = q[(start + k) * 6 + 4];
-            q6_b[k] = q[(start + k) * 6 + 5];
+            angle_b[0 * m + k] = q[(start + k) * 6 + 3];
+            angle_b[1 * m + k] = q[(start + k) * 6 + 4];
+            angle_b[2 * m + k] = q[(start + k) * 6 + 5];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
-                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-            ? ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
-                    m;
-        for (size_t k = m; k < m_v; ++k) {
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 3 * m;
+        const size_t a_v = ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
+                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= 3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
+            ? ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
+                    a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
+        double cos_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
+        double sin_b[3 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T0_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T1_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T2_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T3_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T4_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T5_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T6_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T7_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T8_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T9_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T10_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T11_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T12_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T13_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T14_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_T15_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J0_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J1_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J2_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J3_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J4_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J5_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J6_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J7_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J8_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J9_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J10_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J11_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J12_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J13_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J14_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J15_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J16_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J17_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J18_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J19_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J20_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J21_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J22_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J23_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J24_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J25_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J26_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J27_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J28_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J29_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J30_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J31_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J32_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J33_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J34_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_J35_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double out_b[52][DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
+            const double q4 = angle_b[0 * m + k];
+            const double q5 = angle_b[1 * m + k];
+            const double q6 = angle_b[2 * m + k];
+            const double cos_q4 = cos_b[0 * m + k];
+            const double sin_q4 = sin_b[0 * m + k];
+            const double cos_q5 = cos_b[1 * m + k];
+            const double sin_q5 = sin_b[1 * m + k];
+            const double cos_q6 = cos_b[2 * m + k];
+            const double sin_q6 = sin_b[2 * m + k];
             /* frame 3: F_3 = F_2 A_3 (universal convention) */
             const double F3_34 = 1.25 - q3;
             /* frame 4: F_4 = F_3 A_4 (universal convention) */
@@ -1463,58 +1157,58 @@ int deltagen_gantry_xyz_wrist_fk_jacobian(size_t n, const double *restrict q, do
             const double out_J33_checked = ((t6_6) ? NAN : J6_4);
             const double out_J34_checked = ((t6_6) ? NAN : J6_5);
             const double out_J35_checked = ((t6_6) ? NAN : J6_6);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
-            out_J12_checked_b[k] = out_J12_checked;
-            out_J13_checked_b[k] = out_J13_checked;
-            out_J14_checked_b[k] = out_J14_checked;
-            out_J15_checked_b[k] = out_J15_checked;
-            out_J16_checked_b[k] = out_J16_checked;
-            out_J17_checked_b[k] = out_J17_checked;
-            out_J18_checked_b[k] = out_J18_checked;
-            out_J19_checked_b[k] = out_J19_checked;
-            out_J20_checked_b[k] = out_J20_checked;
-            out_J21_checked_b[k] = out_J21_checked;
-            out_J22_checked_b[k] = out_J22_checked;
-            out_J23_checked_b[k] = out_J23_checked;
-            out_J24_checked_b[k] = out_J24_checked;
-            out_J25_checked_b[k] = out_J25_checked;
-            out_J26_checked_b[k] = out_J26_checked;
-            out_J27_checked_b[k] = out_J27_checked;
-            out_J28_checked_b[k] = out_J28_checked;
-            out_J29_checked_b[k] = out_J29_checked;
-            out_J30_checked_b[k] = out_J30_checked;
-            out_J31_checked_b[k] = out_J31_checked;
-            out_J32_checked_b[k] = out_J32_checked;
-            out_J33_checked_b[k] = out_J33_checked;
-            out_J34_checked_b[k] = out_J34_checked;
-            out_J35_checked_b[k] = out_J35_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
+            out_b[16][k] = out_J0_checked;
+            out_b[17][k] = out_J1_checked;
+            out_b[18][k] = out_J2_checked;
+            out_b[19][k] = out_J3_checked;
+            out_b[20][k] = out_J4_checked;
+            out_b[21][k] = out_J5_checked;
+            out_b[22][k] = out_J6_checked;
+            out_b[23][k] = out_J7_checked;
+            out_b[24][k] = out_J8_checked;
+            out_b[25][k] = out_J9_checked;
+            out_b[26][k] = out_J10_checked;
+            out_b[27][k] = out_J11_checked;
+            out_b[28][k] = out_J12_checked;
+            out_b[29][k] = out_J13_checked;
+            out_b[30][k] = out_J14_checked;
+            out_b[31][k] = out_J15_checked;
+            out_b[32][k] = out_J16_checked;
+            out_b[33][k] = out_J17_checked;
+            out_b[34][k] = out_J18_checked;
+            out_b[35][k] = out_J19_checked;
+            out_b[36][k] = out_J20_checked;
+            out_b[37][k] = out_J21_checked;
+            out_b[38][k] = out_J22_checked;
+            out_b[39][k] = out_J23_checked;
+            out_b[40][k] = out_J24_checked;
+            out_b[41][k] = out_J25_checked;
+            out_b[42][k] = out_J26_checked;
+            out_b[43][k] = out_J27_checked;
+            out_b[44][k] = out_J28_checked;
+            out_b[45][k] = out_J29_checked;
+            out_b[46][k] = out_J30_checked;
+            out_b[47][k] = out_J31_checked;
+            out_b[48][k] = out_J32_checked;
+            out_b[49][k] = out_J33_checked;
+            out_b[50][k] = out_J34_checked;
+            out_b[51][k] = out_J35_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1524,58 +1218,58 @@ int deltagen_gantry_xyz_wrist_fk_jacobian(size_t n, const double *restrict q, do
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
-            J[(start + k) * 36 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 36 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 36 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 36 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 36 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 36 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 36 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 36 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 36 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 36 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 36 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 36 + 11] = out_J11_checked_b[k];
-            J[(start + k) * 36 + 12] = out_J12_checked_b[k];
-            J[(start + k) * 36 + 13] = out_J13_checked_b[k];
-            J[(start + k) * 36 + 14] = out_J14_checked_b[k];
-            J[(start + k) * 36 + 15] = out_J15_checked_b[k];
-            J[(start + k) * 36 + 16] = out_J16_checked_b[k];
-            J[(start + k) * 36 + 17] = out_J17_checked_b[k];
-            J[(start + k) * 36 + 18] = out_J18_checked_b[k];
-            J[(start + k) * 36 + 19] = out_J19_checked_b[k];
-            J[(start + k) * 36 + 20] = out_J20_checked_b[k];
-            J[(start + k) * 36 + 21] = out_J21_checked_b[k];
-            J[(start + k) * 36 + 22] = out_J22_checked_b[k];
-            J[(start + k) * 36 + 23] = out_J23_checked_b[k];
-            J[(start + k) * 36 + 24] = out_J24_checked_b[k];
-            J[(start + k) * 36 + 25] = out_J25_checked_b[k];
-            J[(start + k) * 36 + 26] = out_J26_checked_b[k];
-            J[(start + k) * 36 + 27] = out_J27_checked_b[k];
-            J[(start + k) * 36 + 28] = out_J28_checked_b[k];
-            J[(start + k) * 36 + 29] = out_J29_checked_b[k];
-            J[(start + k) * 36 + 30] = out_J30_checked_b[k];
-            J[(start + k) * 36 + 31] = out_J31_checked_b[k];
-            J[(start + k) * 36 + 32] = out_J32_checked_b[k];
-            J[(start + k) * 36 + 33] = out_J33_checked_b[k];
-            J[(start + k) * 36 + 34] = out_J34_checked_b[k];
-            J[(start + k) * 36 + 35] = out_J35_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
+            J[(start + k) * 36 + 0] = out_b[16][k];
+            J[(start + k) * 36 + 1] = out_b[17][k];
+            J[(start + k) * 36 + 2] = out_b[18][k];
+            J[(start + k) * 36 + 3] = out_b[19][k];
+            J[(start + k) * 36 + 4] = out_b[20][k];
+            J[(start + k) * 36 + 5] = out_b[21][k];
+            J[(start + k) * 36 + 6] = out_b[22][k];
+            J[(start + k) * 36 + 7] = out_b[23][k];
+            J[(start + k) * 36 + 8] = out_b[24][k];
+            J[(start + k) * 36 + 9] = out_b[25][k];
+            J[(start + k) * 36 + 10] = out_b[26][k];
+            J[(start + k) * 36 + 11] = out_b[27][k];
+            J[(start + k) * 36 + 12] = out_b[28][k];
+            J[(start + k) * 36 + 13] = out_b[29][k];
+            J[(start + k) * 36 + 14] = out_b[30][k];
+            J[(start + k) * 36 + 15] = out_b[31][k];
+            J[(start + k) * 36 + 16] = out_b[32][k];
+            J[(start + k) * 36 + 17] = out_b[33][k];
+            J[(start + k) * 36 + 18] = out_b[34][k];
+            J[(start + k) * 36 + 19] = out_b[35][k];
+            J[(start + k) * 36 + 20] = out_b[36][k];
+            J[(start + k) * 36 + 21] = out_b[37][k];
+            J[(start + k) * 36 + 22] = out_b[38][k];
+            J[(start + k) * 36 + 23] = out_b[39][k];
+            J[(start + k) * 36 + 24] = out_b[40][k];
+            J[(start + k) * 36 + 25] = out_b[41][k];
+            J[(start + k) * 36 + 26] = out_b[42][k];
+            J[(start + k) * 36 + 27] = out_b[43][k];
+            J[(start + k) * 36 + 28] = out_b[44][k];
+            J[(start + k) * 36 + 29] = out_b[45][k];
+            J[(start + k) * 36 + 30] = out_b[46][k];
+            J[(start + k) * 36 + 31] = out_b[47][k];
+            J[(start + k) * 36 + 32] = out_b[48][k];
+            J[(start + k) * 36 + 33] = out_b[49][k];
+            J[(start + k) * 36 + 34] = out_b[50][k];
+            J[(start + k) * 36 + 35] = out_b[51][k];
         }
     }
     return 0;
@@ -1597,8 +1291,6 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
         double q1_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q2_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q3_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double q6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double qd1_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double qd2_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
@@ -1606,12 +1298,13 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
         double qd4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double qd5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         double qd6_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double angle_b[2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 6 + 0];
             q2_b[k] = q[(start + k) * 6 + 1];
             q3_b[k] = q[(start + k) * 6 + 2];
-            q4_b[k] = q[(start + k) * 6 + 3];
-            q5_b[k] = q[(start + k) * 6 + 4];
+            angle_b[0 * m + k] = q[(start + k) * 6 + 3];
+            angle_b[1 * m + k] = q[(start + k) * 6 + 4];
             q6_b[k] = q[(start + k) * 6 + 5];
             qd1_b[k] = qd[(start + k) * 6 + 0];
             qd2_b[k] = qd[(start + k) * 6 + 1];
@@ -1620,83 +1313,37 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
             qd5_b[k] = qd[(start + k) * 6 + 4];
             qd6_b[k] = qd[(start + k) * 6 + 5];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
-                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
-            ? ((m + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
-                    m;
-        for (size_t k = m; k < m_v; ++k) {
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) &
+                ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) <= 2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK
+            ? ((a_n + DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_GANTRY_XYZ_WRIST_TRIG_LANES - 1)) :
+                    a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
+        double cos_b[2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q4_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
+        double sin_b[2 * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd0_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd1_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd2_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd3_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd4_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd5_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd6_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd7_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd8_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd9_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd10_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd11_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd12_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd13_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd14_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd15_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd16_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd17_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd18_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd19_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd20_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd21_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd22_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd23_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd24_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd25_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd26_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd27_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd28_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd29_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd30_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd31_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd32_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd33_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd34_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_Jd35_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double out_b[36][DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
             const double q2 = q2_b[k];
             const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
+            const double q4 = angle_b[0 * m + k];
+            const double q5 = angle_b[1 * m + k];
             const double q6 = q6_b[k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
@@ -1704,10 +1351,10 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
             const double qd4 = qd4_b[k];
             const double qd5 = qd5_b[k];
             const double qd6 = qd6_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
+            const double cos_q4 = cos_b[0 * m + k];
+            const double sin_q4 = sin_b[0 * m + k];
+            const double cos_q5 = cos_b[1 * m + k];
+            const double sin_q5 = sin_b[1 * m + k];
             /* frame 3: F_3 = F_2 A_3 (universal convention) */
             const double F3_34 = 1.25 - q3;
             /* frame 4: F_4 = F_3 A_4 (universal convention) */
@@ -1840,42 +1487,42 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
             const double out_Jd33_checked = ((t7_0) ? NAN : Jd6_4);
             const double out_Jd34_checked = ((t7_0) ? NAN : Jd6_5);
             const double out_Jd35_checked = ((t7_0) ? NAN : Jd6_6);
-            out_Jd0_checked_b[k] = out_Jd0_checked;
-            out_Jd1_checked_b[k] = out_Jd1_checked;
-            out_Jd2_checked_b[k] = out_Jd2_checked;
-            out_Jd3_checked_b[k] = out_Jd3_checked;
-            out_Jd4_checked_b[k] = out_Jd4_checked;
-            out_Jd5_checked_b[k] = out_Jd5_checked;
-            out_Jd6_checked_b[k] = out_Jd6_checked;
-            out_Jd7_checked_b[k] = out_Jd7_checked;
-            out_Jd8_checked_b[k] = out_Jd8_checked;
-            out_Jd9_checked_b[k] = out_Jd9_checked;
-            out_Jd10_checked_b[k] = out_Jd10_checked;
-            out_Jd11_checked_b[k] = out_Jd11_checked;
-            out_Jd12_checked_b[k] = out_Jd12_checked;
-            out_Jd13_checked_b[k] = out_Jd13_checked;
-            out_Jd14_checked_b[k] = out_Jd14_checked;
-            out_Jd15_checked_b[k] = out_Jd15_checked;
-            out_Jd16_checked_b[k] = out_Jd16_checked;
-            out_Jd17_checked_b[k] = out_Jd17_checked;
-            out_Jd18_checked_b[k] = out_Jd18_checked;
-            out_Jd19_checked_b[k] = out_Jd19_checked;
-            out_Jd20_checked_b[k] = out_Jd20_checked;
-            out_Jd21_checked_b[k] = out_Jd21_checked;
-            out_Jd22_checked_b[k] = out_Jd22_checked;
-            out_Jd23_checked_b[k] = out_Jd23_checked;
-            out_Jd24_checked_b[k] = out_Jd24_checked;
-            out_Jd25_checked_b[k] = out_Jd25_checked;
-            out_Jd26_checked_b[k] = out_Jd26_checked;
-            out_Jd27_checked_b[k] = out_Jd27_checked;
-            out_Jd28_checked_b[k] = out_Jd28_checked;
-            out_Jd29_checked_b[k] = out_Jd29_checked;
-            out_Jd30_checked_b[k] = out_Jd30_checked;
-            out_Jd31_checked_b[k] = out_Jd31_checked;
-            out_Jd32_checked_b[k] = out_Jd32_checked;
-            out_Jd33_checked_b[k] = out_Jd33_checked;
-            out_Jd34_checked_b[k] = out_Jd34_checked;
-            out_Jd35_checked_b[k] = out_Jd35_checked;
+            out_b[0][k] = out_Jd0_checked;
+            out_b[1][k] = out_Jd1_checked;
+            out_b[2][k] = out_Jd2_checked;
+            out_b[3][k] = out_Jd3_checked;
+            out_b[4][k] = out_Jd4_checked;
+            out_b[5][k] = out_Jd5_checked;
+            out_b[6][k] = out_Jd6_checked;
+            out_b[7][k] = out_Jd7_checked;
+            out_b[8][k] = out_Jd8_checked;
+            out_b[9][k] = out_Jd9_checked;
+            out_b[10][k] = out_Jd10_checked;
+            out_b[11][k] = out_Jd11_checked;
+            out_b[12][k] = out_Jd12_checked;
+            out_b[13][k] = out_Jd13_checked;
+            out_b[14][k] = out_Jd14_checked;
+            out_b[15][k] = out_Jd15_checked;
+            out_b[16][k] = out_Jd16_checked;
+            out_b[17][k] = out_Jd17_checked;
+            out_b[18][k] = out_Jd18_checked;
+            out_b[19][k] = out_Jd19_checked;
+            out_b[20][k] = out_Jd20_checked;
+            out_b[21][k] = out_Jd21_checked;
+            out_b[22][k] = out_Jd22_checked;
+            out_b[23][k] = out_Jd23_checked;
+            out_b[24][k] = out_Jd24_checked;
+            out_b[25][k] = out_Jd25_checked;
+            out_b[26][k] = out_Jd26_checked;
+            out_b[27][k] = out_Jd27_checked;
+            out_b[28][k] = out_Jd28_checked;
+            out_b[29][k] = out_Jd29_checked;
+            out_b[30][k] = out_Jd30_checked;
+            out_b[31][k] = out_Jd31_checked;
+            out_b[32][k] = out_Jd32_checked;
+            out_b[33][k] = out_Jd33_checked;
+            out_b[34][k] = out_Jd34_checked;
+            out_b[35][k] = out_Jd35_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1885,42 +1532,42 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            Jd[(start + k) * 36 + 0] = out_Jd0_checked_b[k];
-            Jd[(start + k) * 36 + 1] = out_Jd1_checked_b[k];
-            Jd[(start + k) * 36 + 2] = out_Jd2_checked_b[k];
-            Jd[(start + k) * 36 + 3] = out_Jd3_checked_b[k];
-            Jd[(start + k) * 36 + 4] = out_Jd4_checked_b[k];
-            Jd[(start + k) * 36 + 5] = out_Jd5_checked_b[k];
-            Jd[(start + k) * 36 + 6] = out_Jd6_checked_b[k];
-            Jd[(start + k) * 36 + 7] = out_Jd7_checked_b[k];
-            Jd[(start + k) * 36 + 8] = out_Jd8_checked_b[k];
-            Jd[(start + k) * 36 + 9] = out_Jd9_checked_b[k];
-            Jd[(start + k) * 36 + 10] = out_Jd10_checked_b[k];
-            Jd[(start + k) * 36 + 11] = out_Jd11_checked_b[k];
-            Jd[(start + k) * 36 + 12] = out_Jd12_checked_b[k];
-            Jd[(start + k) * 36 + 13] = out_Jd13_checked_b[k];
-            Jd[(start + k) * 36 + 14] = out_Jd14_checked_b[k];
-            Jd[(start + k) * 36 + 15] = out_Jd15_checked_b[k];
-            Jd[(start + k) * 36 + 16] = out_Jd16_checked_b[k];
-            Jd[(start + k) * 36 + 17] = out_Jd17_checked_b[k];
-            Jd[(start + k) * 36 + 18] = out_Jd18_checked_b[k];
-            Jd[(start + k) * 36 + 19] = out_Jd19_checked_b[k];
-            Jd[(start + k) * 36 + 20] = out_Jd20_checked_b[k];
-            Jd[(start + k) * 36 + 21] = out_Jd21_checked_b[k];
-            Jd[(start + k) * 36 + 22] = out_Jd22_checked_b[k];
-            Jd[(start + k) * 36 + 23] = out_Jd23_checked_b[k];
-            Jd[(start + k) * 36 + 24] = out_Jd24_checked_b[k];
-            Jd[(start + k) * 36 + 25] = out_Jd25_checked_b[k];
-            Jd[(start + k) * 36 + 26] = out_Jd26_checked_b[k];
-            Jd[(start + k) * 36 + 27] = out_Jd27_checked_b[k];
-            Jd[(start + k) * 36 + 28] = out_Jd28_checked_b[k];
-            Jd[(start + k) * 36 + 29] = out_Jd29_checked_b[k];
-            Jd[(start + k) * 36 + 30] = out_Jd30_checked_b[k];
-            Jd[(start + k) * 36 + 31] = out_Jd31_checked_b[k];
-            Jd[(start + k) * 36 + 32] = out_Jd32_checked_b[k];
-            Jd[(start + k) * 36 + 33] = out_Jd33_checked_b[k];
-            Jd[(start + k) * 36 + 34] = out_Jd34_checked_b[k];
-            Jd[(start + k) * 36 + 35] = out_Jd35_checked_b[k];
+            Jd[(start + k) * 36 + 0] = out_b[0][k];
+            Jd[(start + k) * 36 + 1] = out_b[1][k];
+            Jd[(start + k) * 36 + 2] = out_b[2][k];
+            Jd[(start + k) * 36 + 3] = out_b[3][k];
+            Jd[(start + k) * 36 + 4] = out_b[4][k];
+            Jd[(start + k) * 36 + 5] = out_b[5][k];
+            Jd[(start + k) * 36 + 6] = out_b[6][k];
+            Jd[(start + k) * 36 + 7] = out_b[7][k];
+            Jd[(start + k) * 36 + 8] = out_b[8][k];
+            Jd[(start + k) * 36 + 9] = out_b[9][k];
+            Jd[(start + k) * 36 + 10] = out_b[10][k];
+            Jd[(start + k) * 36 + 11] = out_b[11][k];
+            Jd[(start + k) * 36 + 12] = out_b[12][k];
+            Jd[(start + k) * 36 + 13] = out_b[13][k];
+            Jd[(start + k) * 36 + 14] = out_b[14][k];
+            Jd[(start + k) * 36 + 15] = out_b[15][k];
+            Jd[(start + k) * 36 + 16] = out_b[16][k];
+            Jd[(start + k) * 36 + 17] = out_b[17][k];
+            Jd[(start + k) * 36 + 18] = out_b[18][k];
+            Jd[(start + k) * 36 + 19] = out_b[19][k];
+            Jd[(start + k) * 36 + 20] = out_b[20][k];
+            Jd[(start + k) * 36 + 21] = out_b[21][k];
+            Jd[(start + k) * 36 + 22] = out_b[22][k];
+            Jd[(start + k) * 36 + 23] = out_b[23][k];
+            Jd[(start + k) * 36 + 24] = out_b[24][k];
+            Jd[(start + k) * 36 + 25] = out_b[25][k];
+            Jd[(start + k) * 36 + 26] = out_b[26][k];
+            Jd[(start + k) * 36 + 27] = out_b[27][k];
+            Jd[(start + k) * 36 + 28] = out_b[28][k];
+            Jd[(start + k) * 36 + 29] = out_b[29][k];
+            Jd[(start + k) * 36 + 30] = out_b[30][k];
+            Jd[(start + k) * 36 + 31] = out_b[31][k];
+            Jd[(start + k) * 36 + 32] = out_b[32][k];
+            Jd[(start + k) * 36 + 33] = out_b[33][k];
+            Jd[(start + k) * 36 + 34] = out_b[34][k];
+            Jd[(start + k) * 36 + 35] = out_b[35][k];
         }
     }
     return 0;
@@ -1973,18 +1620,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q1_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q2_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q3_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q4_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q5_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q6_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q1_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q2_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q3_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q4_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q5_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
-        double out_q6_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
+        double out_b[12][DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];  /* the outputs, one row each */
         int out_valid_noflip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         int out_valid_flip_checked_b[DELTAGEN_GANTRY_XYZ_WRIST_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
@@ -2214,18 +1850,18 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
             const double out_q4_flip_checked = ((t11_1) ? NAN : fit_q4_flip);
             const double out_q5_flip_checked = ((t11_1) ? NAN : fit_q5_flip);
             const double out_q6_flip_checked = ((t11_1) ? NAN : fit_q6_flip);
-            out_q1_noflip_checked_b[k] = out_q1_noflip_checked;
-            out_q2_noflip_checked_b[k] = out_q2_noflip_checked;
-            out_q3_noflip_checked_b[k] = out_q3_noflip_checked;
-            out_q4_noflip_checked_b[k] = out_q4_noflip_checked;
-            out_q5_noflip_checked_b[k] = out_q5_noflip_checked;
-            out_q6_noflip_checked_b[k] = out_q6_noflip_checked;
-            out_q1_flip_checked_b[k] = out_q1_flip_checked;
-            out_q2_flip_checked_b[k] = out_q2_flip_checked;
-            out_q3_flip_checked_b[k] = out_q3_flip_checked;
-            out_q4_flip_checked_b[k] = out_q4_flip_checked;
-            out_q5_flip_checked_b[k] = out_q5_flip_checked;
-            out_q6_flip_checked_b[k] = out_q6_flip_checked;
+            out_b[0][k] = out_q1_noflip_checked;
+            out_b[1][k] = out_q2_noflip_checked;
+            out_b[2][k] = out_q3_noflip_checked;
+            out_b[3][k] = out_q4_noflip_checked;
+            out_b[4][k] = out_q5_noflip_checked;
+            out_b[5][k] = out_q6_noflip_checked;
+            out_b[6][k] = out_q1_flip_checked;
+            out_b[7][k] = out_q2_flip_checked;
+            out_b[8][k] = out_q3_flip_checked;
+            out_b[9][k] = out_q4_flip_checked;
+            out_b[10][k] = out_q5_flip_checked;
+            out_b[11][k] = out_q6_flip_checked;
             out_valid_noflip_checked_b[k] = out_valid_noflip_checked;
             out_valid_flip_checked_b[k] = out_valid_flip_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(0*any_valid + (1
@@ -2238,18 +1874,18 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            q[(start + k) * 12 + 0] = out_q1_noflip_checked_b[k];
-            q[(start + k) * 12 + 1] = out_q2_noflip_checked_b[k];
-            q[(start + k) * 12 + 2] = out_q3_noflip_checked_b[k];
-            q[(start + k) * 12 + 3] = out_q4_noflip_checked_b[k];
-            q[(start + k) * 12 + 4] = out_q5_noflip_checked_b[k];
-            q[(start + k) * 12 + 5] = out_q6_noflip_checked_b[k];
-            q[(start + k) * 12 + 6] = out_q1_flip_checked_b[k];
-            q[(start + k) * 12 + 7] = out_q2_flip_checked_b[k];
-            q[(start + k) * 12 + 8] = out_q3_flip_checked_b[k];
-            q[(start + k) * 12 + 9] = out_q4_flip_checked_b[k];
-            q[(start + k) * 12 + 10] = out_q5_flip_checked_b[k];
-            q[(start + k) * 12 + 11] = out_q6_flip_checked_b[k];
+            q[(start + k) * 12 + 0] = out_b[0][k];
+            q[(start + k) * 12 + 1] = out_b[1][k];
+            q[(start + k) * 12 + 2] = out_b[2][k];
+            q[(start + k) * 12 + 3] = out_b[3][k];
+            q[(start + k) * 12 + 4] = out_b[4][k];
+            q[(start + k) * 12 + 5] = out_b[5][k];
+            q[(start + k) * 12 + 6] = out_b[6][k];
+            q[(start + k) * 12 + 7] = out_b[7][k];
+            q[(start + k) * 12 + 8] = out_b[8][k];
+            q[(start + k) * 12 + 9] = out_b[9][k];
+            q[(start + k) * 12 + 10] = out_b[10][k];
+            q[(start + k) * 12 + 11] = out_b[11][k];
             valid[(start + k) * 2 + 0] = (uint8_t)out_valid_noflip_checked_b[k];
             valid[(start + k) * 2 + 1] = (uint8_t)out_valid_flip_checked_b[k];
         }

@@ -25,7 +25,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_GANTRY_XYZ_WRIST_H
 #define DELTAGEN_SERIAL_GANTRY_XYZ_WRIST_H
@@ -59,7 +59,7 @@ extern "C" {
  *
  * Cost: 55 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
- * 14592 bytes (14.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3648 bytes (3.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -74,7 +74,7 @@ int deltagen_gantry_xyz_wrist_fk(size_t n, const double *restrict q, double *res
  *
  * Cost: 75 operations per point.
  * Stack: 141 block arrays (140 double, 1 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
- * 71936 bytes (70.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 17984 bytes (17.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_wrist_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -89,7 +89,7 @@ int deltagen_gantry_xyz_wrist_frames(size_t n, const double *restrict q, double 
  *
  * Cost: 74 operations per point.
  * Stack: 47 block arrays (46 double, 1 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
- * 23808 bytes (23.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 5952 bytes (5.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_wrist_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -106,7 +106,7 @@ int deltagen_gantry_xyz_wrist_jacobian(size_t n, const double *restrict q, doubl
  *
  * Cost: 112 operations per point.
  * Stack: 65 block arrays (64 double, 1 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
- * 33024 bytes (32.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 8256 bytes (8.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_wrist_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -123,7 +123,7 @@ int deltagen_gantry_xyz_wrist_fk_jacobian(size_t n, const double *restrict q, do
  *
  * Cost: 165 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -143,7 +143,7 @@ int deltagen_gantry_xyz_wrist_jacobian_dot(size_t n, const double *restrict q, c
  *
  * Cost: 428 operations per point.
  * Stack: 27 block arrays (24 double, 3 int) of DELTAGEN_GANTRY_XYZ_WRIST_BLOCK points,
- * 13056 bytes (12.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3264 bytes (3.2 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -168,7 +168,7 @@ int deltagen_gantry_xyz_wrist_ik_all(size_t n, const double *restrict T, double 
  * n > 0 (then nothing is written).
  *
  * Stack: 3256 bytes of solver scratch memory in this frame (398 doubles, 18 ints),
- * plus fk_jacobian's 33024 bytes (32.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 8256 bytes (8.1 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_gantry_xyz_wrist_ik_newton(size_t n, const deltagen_ik_options *restrict options,

@@ -24,7 +24,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_LECTURE_PRP_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_LECTURE_PRP_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_LECTURE_PRP_H
 #define DELTAGEN_SERIAL_LECTURE_PRP_H
@@ -58,7 +58,7 @@ extern "C" {
  *
  * Cost: 18 operations per point.
  * Stack: 22 block arrays (21 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
- * 11008 bytes (10.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2752 bytes (2.7 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -73,7 +73,7 @@ int deltagen_lecture_prp_fk(size_t n, const double *restrict q, double *restrict
  *
  * Cost: 18 operations per point.
  * Stack: 86 block arrays (85 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
- * 43776 bytes (42.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 10944 bytes (10.7 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -88,7 +88,7 @@ int deltagen_lecture_prp_frames(size_t n, const double *restrict q, double *rest
  *
  * Cost: 28 operations per point.
  * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3008 bytes (2.9 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -105,7 +105,7 @@ int deltagen_lecture_prp_jacobian(size_t n, const double *restrict q, double *re
  *
  * Cost: 37 operations per point.
  * Stack: 40 block arrays (39 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
- * 20224 bytes (19.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 5056 bytes (4.9 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -122,7 +122,7 @@ int deltagen_lecture_prp_fk_jacobian(size_t n, const double *restrict q, double 
  *
  * Cost: 42 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_LECTURE_PRP_BLOCK points,
- * 13568 bytes (13.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3392 bytes (3.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -147,7 +147,7 @@ int deltagen_lecture_prp_jacobian_dot(size_t n, const double *restrict q, const 
  * n > 0 (then nothing is written).
  *
  * Stack: 1636 bytes of solver scratch memory in this frame (200 doubles, 9 ints),
- * plus fk_jacobian's 20224 bytes (19.8 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 5056 bytes (4.9 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_lecture_prp_ik_newton(size_t n, const deltagen_ik_options *restrict options,

@@ -31,10 +31,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 36096 bytes at 64 points; each function's comment in
+ * the most, 9024 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_LECTURE_SCARA_BLOCK
-#define DELTAGEN_LECTURE_SCARA_BLOCK 64
+#define DELTAGEN_LECTURE_SCARA_BLOCK 16
 #endif
 
 int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)
@@ -49,69 +49,42 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
     for (size_t start = 0; start < n; start += DELTAGEN_LECTURE_SCARA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_LECTURE_SCARA_BLOCK) ? n - start : DELTAGEN_LECTURE_SCARA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double angle_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 2 + 0];
-            q2_b[k] = q[(start + k) * 2 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 2 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 2 + 1];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES -
-                1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
-            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES
+                - 1)) <= 2 * DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T0_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T1_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T2_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T3_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T4_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T5_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T6_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T7_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T8_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T12_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T13_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T14_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T15_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double out_b[16][DELTAGEN_LECTURE_SCARA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 4.0*cos_q1;
             const double F1_24 = 4.0*sin_q1;
@@ -152,22 +125,22 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
             const double out_T13_checked = t3_1;
             const double out_T14_checked = t3_1;
             const double out_T15_checked = t3_2;
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -177,22 +150,22 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
         }
     }
     return 0;
@@ -210,117 +183,42 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
     for (size_t start = 0; start < n; start += DELTAGEN_LECTURE_SCARA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_LECTURE_SCARA_BLOCK) ? n - start : DELTAGEN_LECTURE_SCARA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double angle_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 2 + 0];
-            q2_b[k] = q[(start + k) * 2 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 2 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 2 + 1];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES -
-                1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
-            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES
+                - 1)) <= 2 * DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F0_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F1_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F2_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F3_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F4_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F5_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F6_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F7_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F8_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F12_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F13_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F14_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F15_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F16_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F17_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F18_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F19_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F20_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F21_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F22_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F23_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F24_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F25_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F26_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F27_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F28_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F29_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F30_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F31_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F32_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F33_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F34_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F35_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F36_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F37_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F38_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F39_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F40_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F41_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F42_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F43_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F44_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F45_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F46_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F47_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F48_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F49_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F50_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F51_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F52_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F53_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F54_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F55_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F56_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F57_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F58_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F59_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F60_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F61_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F62_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_F63_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double out_b[64][DELTAGEN_LECTURE_SCARA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 4.0*cos_q1;
             const double F1_24 = 4.0*sin_q1;
@@ -419,70 +317,70 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
             const double out_F61_checked = t3_3;
             const double out_F62_checked = t3_3;
             const double out_F63_checked = t3_2;
-            out_F0_checked_b[k] = out_F0_checked;
-            out_F1_checked_b[k] = out_F1_checked;
-            out_F2_checked_b[k] = out_F2_checked;
-            out_F3_checked_b[k] = out_F3_checked;
-            out_F4_checked_b[k] = out_F4_checked;
-            out_F5_checked_b[k] = out_F5_checked;
-            out_F6_checked_b[k] = out_F6_checked;
-            out_F7_checked_b[k] = out_F7_checked;
-            out_F8_checked_b[k] = out_F8_checked;
-            out_F9_checked_b[k] = out_F9_checked;
-            out_F10_checked_b[k] = out_F10_checked;
-            out_F11_checked_b[k] = out_F11_checked;
-            out_F12_checked_b[k] = out_F12_checked;
-            out_F13_checked_b[k] = out_F13_checked;
-            out_F14_checked_b[k] = out_F14_checked;
-            out_F15_checked_b[k] = out_F15_checked;
-            out_F16_checked_b[k] = out_F16_checked;
-            out_F17_checked_b[k] = out_F17_checked;
-            out_F18_checked_b[k] = out_F18_checked;
-            out_F19_checked_b[k] = out_F19_checked;
-            out_F20_checked_b[k] = out_F20_checked;
-            out_F21_checked_b[k] = out_F21_checked;
-            out_F22_checked_b[k] = out_F22_checked;
-            out_F23_checked_b[k] = out_F23_checked;
-            out_F24_checked_b[k] = out_F24_checked;
-            out_F25_checked_b[k] = out_F25_checked;
-            out_F26_checked_b[k] = out_F26_checked;
-            out_F27_checked_b[k] = out_F27_checked;
-            out_F28_checked_b[k] = out_F28_checked;
-            out_F29_checked_b[k] = out_F29_checked;
-            out_F30_checked_b[k] = out_F30_checked;
-            out_F31_checked_b[k] = out_F31_checked;
-            out_F32_checked_b[k] = out_F32_checked;
-            out_F33_checked_b[k] = out_F33_checked;
-            out_F34_checked_b[k] = out_F34_checked;
-            out_F35_checked_b[k] = out_F35_checked;
-            out_F36_checked_b[k] = out_F36_checked;
-            out_F37_checked_b[k] = out_F37_checked;
-            out_F38_checked_b[k] = out_F38_checked;
-            out_F39_checked_b[k] = out_F39_checked;
-            out_F40_checked_b[k] = out_F40_checked;
-            out_F41_checked_b[k] = out_F41_checked;
-            out_F42_checked_b[k] = out_F42_checked;
-            out_F43_checked_b[k] = out_F43_checked;
-            out_F44_checked_b[k] = out_F44_checked;
-            out_F45_checked_b[k] = out_F45_checked;
-            out_F46_checked_b[k] = out_F46_checked;
-            out_F47_checked_b[k] = out_F47_checked;
-            out_F48_checked_b[k] = out_F48_checked;
-            out_F49_checked_b[k] = out_F49_checked;
-            out_F50_checked_b[k] = out_F50_checked;
-            out_F51_checked_b[k] = out_F51_checked;
-            out_F52_checked_b[k] = out_F52_checked;
-            out_F53_checked_b[k] = out_F53_checked;
-            out_F54_checked_b[k] = out_F54_checked;
-            out_F55_checked_b[k] = out_F55_checked;
-            out_F56_checked_b[k] = out_F56_checked;
-            out_F57_checked_b[k] = out_F57_checked;
-            out_F58_checked_b[k] = out_F58_checked;
-            out_F59_checked_b[k] = out_F59_checked;
-            out_F60_checked_b[k] = out_F60_checked;
-            out_F61_checked_b[k] = out_F61_checked;
-            out_F62_checked_b[k] = out_F62_checked;
-            out_F63_checked_b[k] = out_F63_checked;
+            out_b[0][k] = out_F0_checked;
+            out_b[1][k] = out_F1_checked;
+            out_b[2][k] = out_F2_checked;
+            out_b[3][k] = out_F3_checked;
+            out_b[4][k] = out_F4_checked;
+            out_b[5][k] = out_F5_checked;
+            out_b[6][k] = out_F6_checked;
+            out_b[7][k] = out_F7_checked;
+            out_b[8][k] = out_F8_checked;
+            out_b[9][k] = out_F9_checked;
+            out_b[10][k] = out_F10_checked;
+            out_b[11][k] = out_F11_checked;
+            out_b[12][k] = out_F12_checked;
+            out_b[13][k] = out_F13_checked;
+            out_b[14][k] = out_F14_checked;
+            out_b[15][k] = out_F15_checked;
+            out_b[16][k] = out_F16_checked;
+            out_b[17][k] = out_F17_checked;
+            out_b[18][k] = out_F18_checked;
+            out_b[19][k] = out_F19_checked;
+            out_b[20][k] = out_F20_checked;
+            out_b[21][k] = out_F21_checked;
+            out_b[22][k] = out_F22_checked;
+            out_b[23][k] = out_F23_checked;
+            out_b[24][k] = out_F24_checked;
+            out_b[25][k] = out_F25_checked;
+            out_b[26][k] = out_F26_checked;
+            out_b[27][k] = out_F27_checked;
+            out_b[28][k] = out_F28_checked;
+            out_b[29][k] = out_F29_checked;
+            out_b[30][k] = out_F30_checked;
+            out_b[31][k] = out_F31_checked;
+            out_b[32][k] = out_F32_checked;
+            out_b[33][k] = out_F33_checked;
+            out_b[34][k] = out_F34_checked;
+            out_b[35][k] = out_F35_checked;
+            out_b[36][k] = out_F36_checked;
+            out_b[37][k] = out_F37_checked;
+            out_b[38][k] = out_F38_checked;
+            out_b[39][k] = out_F39_checked;
+            out_b[40][k] = out_F40_checked;
+            out_b[41][k] = out_F41_checked;
+            out_b[42][k] = out_F42_checked;
+            out_b[43][k] = out_F43_checked;
+            out_b[44][k] = out_F44_checked;
+            out_b[45][k] = out_F45_checked;
+            out_b[46][k] = out_F46_checked;
+            out_b[47][k] = out_F47_checked;
+            out_b[48][k] = out_F48_checked;
+            out_b[49][k] = out_F49_checked;
+            out_b[50][k] = out_F50_checked;
+            out_b[51][k] = out_F51_checked;
+            out_b[52][k] = out_F52_checked;
+            out_b[53][k] = out_F53_checked;
+            out_b[54][k] = out_F54_checked;
+            out_b[55][k] = out_F55_checked;
+            out_b[56][k] = out_F56_checked;
+            out_b[57][k] = out_F57_checked;
+            out_b[58][k] = out_F58_checked;
+            out_b[59][k] = out_F59_checked;
+            out_b[60][k] = out_F60_checked;
+            out_b[61][k] = out_F61_checked;
+            out_b[62][k] = out_F62_checked;
+            out_b[63][k] = out_F63_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -492,70 +390,70 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            F[(start + k) * 64 + 0] = out_F0_checked_b[k];
-            F[(start + k) * 64 + 1] = out_F1_checked_b[k];
-            F[(start + k) * 64 + 2] = out_F2_checked_b[k];
-            F[(start + k) * 64 + 3] = out_F3_checked_b[k];
-            F[(start + k) * 64 + 4] = out_F4_checked_b[k];
-            F[(start + k) * 64 + 5] = out_F5_checked_b[k];
-            F[(start + k) * 64 + 6] = out_F6_checked_b[k];
-            F[(start + k) * 64 + 7] = out_F7_checked_b[k];
-            F[(start + k) * 64 + 8] = out_F8_checked_b[k];
-            F[(start + k) * 64 + 9] = out_F9_checked_b[k];
-            F[(start + k) * 64 + 10] = out_F10_checked_b[k];
-            F[(start + k) * 64 + 11] = out_F11_checked_b[k];
-            F[(start + k) * 64 + 12] = out_F12_checked_b[k];
-            F[(start + k) * 64 + 13] = out_F13_checked_b[k];
-            F[(start + k) * 64 + 14] = out_F14_checked_b[k];
-            F[(start + k) * 64 + 15] = out_F15_checked_b[k];
-            F[(start + k) * 64 + 16] = out_F16_checked_b[k];
-            F[(start + k) * 64 + 17] = out_F17_checked_b[k];
-            F[(start + k) * 64 + 18] = out_F18_checked_b[k];
-            F[(start + k) * 64 + 19] = out_F19_checked_b[k];
-            F[(start + k) * 64 + 20] = out_F20_checked_b[k];
-            F[(start + k) * 64 + 21] = out_F21_checked_b[k];
-            F[(start + k) * 64 + 22] = out_F22_checked_b[k];
-            F[(start + k) * 64 + 23] = out_F23_checked_b[k];
-            F[(start + k) * 64 + 24] = out_F24_checked_b[k];
-            F[(start + k) * 64 + 25] = out_F25_checked_b[k];
-            F[(start + k) * 64 + 26] = out_F26_checked_b[k];
-            F[(start + k) * 64 + 27] = out_F27_checked_b[k];
-            F[(start + k) * 64 + 28] = out_F28_checked_b[k];
-            F[(start + k) * 64 + 29] = out_F29_checked_b[k];
-            F[(start + k) * 64 + 30] = out_F30_checked_b[k];
-            F[(start + k) * 64 + 31] = out_F31_checked_b[k];
-            F[(start + k) * 64 + 32] = out_F32_checked_b[k];
-            F[(start + k) * 64 + 33] = out_F33_checked_b[k];
-            F[(start + k) * 64 + 34] = out_F34_checked_b[k];
-            F[(start + k) * 64 + 35] = out_F35_checked_b[k];
-            F[(start + k) * 64 + 36] = out_F36_checked_b[k];
-            F[(start + k) * 64 + 37] = out_F37_checked_b[k];
-            F[(start + k) * 64 + 38] = out_F38_checked_b[k];
-            F[(start + k) * 64 + 39] = out_F39_checked_b[k];
-            F[(start + k) * 64 + 40] = out_F40_checked_b[k];
-            F[(start + k) * 64 + 41] = out_F41_checked_b[k];
-            F[(start + k) * 64 + 42] = out_F42_checked_b[k];
-            F[(start + k) * 64 + 43] = out_F43_checked_b[k];
-            F[(start + k) * 64 + 44] = out_F44_checked_b[k];
-            F[(start + k) * 64 + 45] = out_F45_checked_b[k];
-            F[(start + k) * 64 + 46] = out_F46_checked_b[k];
-            F[(start + k) * 64 + 47] = out_F47_checked_b[k];
-            F[(start + k) * 64 + 48] = out_F48_checked_b[k];
-            F[(start + k) * 64 + 49] = out_F49_checked_b[k];
-            F[(start + k) * 64 + 50] = out_F50_checked_b[k];
-            F[(start + k) * 64 + 51] = out_F51_checked_b[k];
-            F[(start + k) * 64 + 52] = out_F52_checked_b[k];
-            F[(start + k) * 64 + 53] = out_F53_checked_b[k];
-            F[(start + k) * 64 + 54] = out_F54_checked_b[k];
-            F[(start + k) * 64 + 55] = out_F55_checked_b[k];
-            F[(start + k) * 64 + 56] = out_F56_checked_b[k];
-            F[(start + k) * 64 + 57] = out_F57_checked_b[k];
-            F[(start + k) * 64 + 58] = out_F58_checked_b[k];
-            F[(start + k) * 64 + 59] = out_F59_checked_b[k];
-            F[(start + k) * 64 + 60] = out_F60_checked_b[k];
-            F[(start + k) * 64 + 61] = out_F61_checked_b[k];
-            F[(start + k) * 64 + 62] = out_F62_checked_b[k];
-            F[(start + k) * 64 + 63] = out_F63_checked_b[k];
+            F[(start + k) * 64 + 0] = out_b[0][k];
+            F[(start + k) * 64 + 1] = out_b[1][k];
+            F[(start + k) * 64 + 2] = out_b[2][k];
+            F[(start + k) * 64 + 3] = out_b[3][k];
+            F[(start + k) * 64 + 4] = out_b[4][k];
+            F[(start + k) * 64 + 5] = out_b[5][k];
+            F[(start + k) * 64 + 6] = out_b[6][k];
+            F[(start + k) * 64 + 7] = out_b[7][k];
+            F[(start + k) * 64 + 8] = out_b[8][k];
+            F[(start + k) * 64 + 9] = out_b[9][k];
+            F[(start + k) * 64 + 10] = out_b[10][k];
+            F[(start + k) * 64 + 11] = out_b[11][k];
+            F[(start + k) * 64 + 12] = out_b[12][k];
+            F[(start + k) * 64 + 13] = out_b[13][k];
+            F[(start + k) * 64 + 14] = out_b[14][k];
+            F[(start + k) * 64 + 15] = out_b[15][k];
+            F[(start + k) * 64 + 16] = out_b[16][k];
+            F[(start + k) * 64 + 17] = out_b[17][k];
+            F[(start + k) * 64 + 18] = out_b[18][k];
+            F[(start + k) * 64 + 19] = out_b[19][k];
+            F[(start + k) * 64 + 20] = out_b[20][k];
+            F[(start + k) * 64 + 21] = out_b[21][k];
+            F[(start + k) * 64 + 22] = out_b[22][k];
+            F[(start + k) * 64 + 23] = out_b[23][k];
+            F[(start + k) * 64 + 24] = out_b[24][k];
+            F[(start + k) * 64 + 25] = out_b[25][k];
+            F[(start + k) * 64 + 26] = out_b[26][k];
+            F[(start + k) * 64 + 27] = out_b[27][k];
+            F[(start + k) * 64 + 28] = out_b[28][k];
+            F[(start + k) * 64 + 29] = out_b[29][k];
+            F[(start + k) * 64 + 30] = out_b[30][k];
+            F[(start + k) * 64 + 31] = out_b[31][k];
+            F[(start + k) * 64 + 32] = out_b[32][k];
+            F[(start + k) * 64 + 33] = out_b[33][k];
+            F[(start + k) * 64 + 34] = out_b[34][k];
+            F[(start + k) * 64 + 35] = out_b[35][k];
+            F[(start + k) * 64 + 36] = out_b[36][k];
+            F[(start + k) * 64 + 37] = out_b[37][k];
+            F[(start + k) * 64 + 38] = out_b[38][k];
+            F[(start + k) * 64 + 39] = out_b[39][k];
+            F[(start + k) * 64 + 40] = out_b[40][k];
+            F[(start + k) * 64 + 41] = out_b[41][k];
+            F[(start + k) * 64 + 42] = out_b[42][k];
+            F[(start + k) * 64 + 43] = out_b[43][k];
+            F[(start + k) * 64 + 44] = out_b[44][k];
+            F[(start + k) * 64 + 45] = out_b[45][k];
+            F[(start + k) * 64 + 46] = out_b[46][k];
+            F[(start + k) * 64 + 47] = out_b[47][k];
+            F[(start + k) * 64 + 48] = out_b[48][k];
+            F[(start + k) * 64 + 49] = out_b[49][k];
+            F[(start + k) * 64 + 50] = out_b[50][k];
+            F[(start + k) * 64 + 51] = out_b[51][k];
+            F[(start + k) * 64 + 52] = out_b[52][k];
+            F[(start + k) * 64 + 53] = out_b[53][k];
+            F[(start + k) * 64 + 54] = out_b[54][k];
+            F[(start + k) * 64 + 55] = out_b[55][k];
+            F[(start + k) * 64 + 56] = out_b[56][k];
+            F[(start + k) * 64 + 57] = out_b[57][k];
+            F[(start + k) * 64 + 58] = out_b[58][k];
+            F[(start + k) * 64 + 59] = out_b[59][k];
+            F[(start + k) * 64 + 60] = out_b[60][k];
+            F[(start + k) * 64 + 61] = out_b[61][k];
+            F[(start + k) * 64 + 62] = out_b[62][k];
+            F[(start + k) * 64 + 63] = out_b[63][k];
         }
     }
     return 0;
@@ -573,65 +471,42 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
     for (size_t start = 0; start < n; start += DELTAGEN_LECTURE_SCARA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_LECTURE_SCARA_BLOCK) ? n - start : DELTAGEN_LECTURE_SCARA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double angle_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 2 + 0];
-            q2_b[k] = q[(start + k) * 2 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 2 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 2 + 1];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES -
-                1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
-            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES
+                - 1)) <= 2 * DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J0_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J1_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J2_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J3_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J4_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J5_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J6_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J7_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J8_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double out_b[12][DELTAGEN_LECTURE_SCARA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 4.0*cos_q1;
             const double F1_24 = 4.0*sin_q1;
@@ -673,18 +548,18 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
             const double out_J9_checked = ((t4_0) ? NAN : J5_2);
             const double out_J10_checked = ((t4_0) ? NAN : J6_1);
             const double out_J11_checked = ((t4_0) ? NAN : J6_2);
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
+            out_b[0][k] = out_J0_checked;
+            out_b[1][k] = out_J1_checked;
+            out_b[2][k] = out_J2_checked;
+            out_b[3][k] = out_J3_checked;
+            out_b[4][k] = out_J4_checked;
+            out_b[5][k] = out_J5_checked;
+            out_b[6][k] = out_J6_checked;
+            out_b[7][k] = out_J7_checked;
+            out_b[8][k] = out_J8_checked;
+            out_b[9][k] = out_J9_checked;
+            out_b[10][k] = out_J10_checked;
+            out_b[11][k] = out_J11_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -694,18 +569,18 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            J[(start + k) * 12 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 12 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 12 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 12 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 12 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 12 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 12 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 12 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 12 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 12 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 12 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 12 + 11] = out_J11_checked_b[k];
+            J[(start + k) * 12 + 0] = out_b[0][k];
+            J[(start + k) * 12 + 1] = out_b[1][k];
+            J[(start + k) * 12 + 2] = out_b[2][k];
+            J[(start + k) * 12 + 3] = out_b[3][k];
+            J[(start + k) * 12 + 4] = out_b[4][k];
+            J[(start + k) * 12 + 5] = out_b[5][k];
+            J[(start + k) * 12 + 6] = out_b[6][k];
+            J[(start + k) * 12 + 7] = out_b[7][k];
+            J[(start + k) * 12 + 8] = out_b[8][k];
+            J[(start + k) * 12 + 9] = out_b[9][k];
+            J[(start + k) * 12 + 10] = out_b[10][k];
+            J[(start + k) * 12 + 11] = out_b[11][k];
         }
     }
     return 0;
@@ -724,81 +599,42 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
     for (size_t start = 0; start < n; start += DELTAGEN_LECTURE_SCARA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_LECTURE_SCARA_BLOCK) ? n - start : DELTAGEN_LECTURE_SCARA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double angle_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 2 + 0];
-            q2_b[k] = q[(start + k) * 2 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 2 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 2 + 1];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES -
-                1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
-            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES
+                - 1)) <= 2 * DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T0_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T1_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T2_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T3_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T4_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T5_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T6_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T7_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T8_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T12_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T13_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T14_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_T15_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J0_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J1_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J2_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J3_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J4_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J5_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J6_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J7_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J8_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_J11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double out_b[28][DELTAGEN_LECTURE_SCARA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 4.0*cos_q1;
             const double F1_24 = 4.0*sin_q1;
@@ -867,34 +703,34 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
             const double out_J9_checked = ((t4_0) ? NAN : J5_2);
             const double out_J10_checked = ((t4_0) ? NAN : J6_1);
             const double out_J11_checked = ((t4_0) ? NAN : J6_2);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
+            out_b[16][k] = out_J0_checked;
+            out_b[17][k] = out_J1_checked;
+            out_b[18][k] = out_J2_checked;
+            out_b[19][k] = out_J3_checked;
+            out_b[20][k] = out_J4_checked;
+            out_b[21][k] = out_J5_checked;
+            out_b[22][k] = out_J6_checked;
+            out_b[23][k] = out_J7_checked;
+            out_b[24][k] = out_J8_checked;
+            out_b[25][k] = out_J9_checked;
+            out_b[26][k] = out_J10_checked;
+            out_b[27][k] = out_J11_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -904,34 +740,34 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
-            J[(start + k) * 12 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 12 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 12 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 12 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 12 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 12 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 12 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 12 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 12 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 12 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 12 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 12 + 11] = out_J11_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
+            J[(start + k) * 12 + 0] = out_b[16][k];
+            J[(start + k) * 12 + 1] = out_b[17][k];
+            J[(start + k) * 12 + 2] = out_b[18][k];
+            J[(start + k) * 12 + 3] = out_b[19][k];
+            J[(start + k) * 12 + 4] = out_b[20][k];
+            J[(start + k) * 12 + 5] = out_b[21][k];
+            J[(start + k) * 12 + 6] = out_b[22][k];
+            J[(start + k) * 12 + 7] = out_b[23][k];
+            J[(start + k) * 12 + 8] = out_b[24][k];
+            J[(start + k) * 12 + 9] = out_b[25][k];
+            J[(start + k) * 12 + 10] = out_b[26][k];
+            J[(start + k) * 12 + 11] = out_b[27][k];
         }
     }
     return 0;
@@ -950,71 +786,48 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
     for (size_t start = 0; start < n; start += DELTAGEN_LECTURE_SCARA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_LECTURE_SCARA_BLOCK) ? n - start : DELTAGEN_LECTURE_SCARA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double qd1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         double qd2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double angle_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 2 + 0];
-            q2_b[k] = q[(start + k) * 2 + 1];
+            angle_b[0 * m + k] = q[(start + k) * 2 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 2 + 1];
             qd1_b[k] = qd[(start + k) * 2 + 0];
             qd2_b[k] = qd[(start + k) * 2 + 1];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES -
-                1)) <= DELTAGEN_LECTURE_SCARA_BLOCK
-            ? ((m + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 2 * m;
+        const size_t a_v = ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES
+                - 1)) <= 2 * DELTAGEN_LECTURE_SCARA_BLOCK
+            ? ((a_n + DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_LECTURE_SCARA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
+        double sin_b[2 * DELTAGEN_LECTURE_SCARA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd0_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd1_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd2_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd3_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd4_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd5_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd6_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd7_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd8_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd9_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd10_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_Jd11_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double out_b[12][DELTAGEN_LECTURE_SCARA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
             /* frame 1: F_1 = F_0 A_1 (standard convention) */
             const double F1_14 = 4.0*cos_q1;
             const double F1_24 = 4.0*sin_q1;
@@ -1063,18 +876,18 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
             const double out_Jd9_checked = ((t5_0) ? NAN : Jd5_2);
             const double out_Jd10_checked = ((t5_0) ? NAN : Jd6_1);
             const double out_Jd11_checked = ((t5_0) ? NAN : Jd6_2);
-            out_Jd0_checked_b[k] = out_Jd0_checked;
-            out_Jd1_checked_b[k] = out_Jd1_checked;
-            out_Jd2_checked_b[k] = out_Jd2_checked;
-            out_Jd3_checked_b[k] = out_Jd3_checked;
-            out_Jd4_checked_b[k] = out_Jd4_checked;
-            out_Jd5_checked_b[k] = out_Jd5_checked;
-            out_Jd6_checked_b[k] = out_Jd6_checked;
-            out_Jd7_checked_b[k] = out_Jd7_checked;
-            out_Jd8_checked_b[k] = out_Jd8_checked;
-            out_Jd9_checked_b[k] = out_Jd9_checked;
-            out_Jd10_checked_b[k] = out_Jd10_checked;
-            out_Jd11_checked_b[k] = out_Jd11_checked;
+            out_b[0][k] = out_Jd0_checked;
+            out_b[1][k] = out_Jd1_checked;
+            out_b[2][k] = out_Jd2_checked;
+            out_b[3][k] = out_Jd3_checked;
+            out_b[4][k] = out_Jd4_checked;
+            out_b[5][k] = out_Jd5_checked;
+            out_b[6][k] = out_Jd6_checked;
+            out_b[7][k] = out_Jd7_checked;
+            out_b[8][k] = out_Jd8_checked;
+            out_b[9][k] = out_Jd9_checked;
+            out_b[10][k] = out_Jd10_checked;
+            out_b[11][k] = out_Jd11_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1084,18 +897,18 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            Jd[(start + k) * 12 + 0] = out_Jd0_checked_b[k];
-            Jd[(start + k) * 12 + 1] = out_Jd1_checked_b[k];
-            Jd[(start + k) * 12 + 2] = out_Jd2_checked_b[k];
-            Jd[(start + k) * 12 + 3] = out_Jd3_checked_b[k];
-            Jd[(start + k) * 12 + 4] = out_Jd4_checked_b[k];
-            Jd[(start + k) * 12 + 5] = out_Jd5_checked_b[k];
-            Jd[(start + k) * 12 + 6] = out_Jd6_checked_b[k];
-            Jd[(start + k) * 12 + 7] = out_Jd7_checked_b[k];
-            Jd[(start + k) * 12 + 8] = out_Jd8_checked_b[k];
-            Jd[(start + k) * 12 + 9] = out_Jd9_checked_b[k];
-            Jd[(start + k) * 12 + 10] = out_Jd10_checked_b[k];
-            Jd[(start + k) * 12 + 11] = out_Jd11_checked_b[k];
+            Jd[(start + k) * 12 + 0] = out_b[0][k];
+            Jd[(start + k) * 12 + 1] = out_b[1][k];
+            Jd[(start + k) * 12 + 2] = out_b[2][k];
+            Jd[(start + k) * 12 + 3] = out_b[3][k];
+            Jd[(start + k) * 12 + 4] = out_b[4][k];
+            Jd[(start + k) * 12 + 5] = out_b[5][k];
+            Jd[(start + k) * 12 + 6] = out_b[6][k];
+            Jd[(start + k) * 12 + 7] = out_b[7][k];
+            Jd[(start + k) * 12 + 8] = out_b[8][k];
+            Jd[(start + k) * 12 + 9] = out_b[9][k];
+            Jd[(start + k) * 12 + 10] = out_b[10][k];
+            Jd[(start + k) * 12 + 11] = out_b[11][k];
         }
     }
     return 0;
@@ -1147,10 +960,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_q1_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_q2_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_q1_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
-        double out_q2_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
+        double out_b[4][DELTAGEN_LECTURE_SCARA_BLOCK];  /* the outputs, one row each */
         int out_valid_elbow_up_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         int out_valid_elbow_down_checked_b[DELTAGEN_LECTURE_SCARA_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
@@ -1261,10 +1071,10 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
             const double out_q2_elbow_up_checked = ((t8_1) ? NAN : fit_q2_elbow_up);
             const double out_q1_elbow_down_checked = ((t8_2) ? NAN : fit_q1_elbow_up);
             const double out_q2_elbow_down_checked = ((t8_2) ? NAN : fit_q2_elbow_up);
-            out_q1_elbow_up_checked_b[k] = out_q1_elbow_up_checked;
-            out_q2_elbow_up_checked_b[k] = out_q2_elbow_up_checked;
-            out_q1_elbow_down_checked_b[k] = out_q1_elbow_down_checked;
-            out_q2_elbow_down_checked_b[k] = out_q2_elbow_down_checked;
+            out_b[0][k] = out_q1_elbow_up_checked;
+            out_b[1][k] = out_q2_elbow_up_checked;
+            out_b[2][k] = out_q1_elbow_down_checked;
+            out_b[3][k] = out_q2_elbow_down_checked;
             out_valid_elbow_up_checked_b[k] = out_valid_elbow_up_checked;
             out_valid_elbow_down_checked_b[k] = out_valid_elbow_down_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(0*any_valid + (1
@@ -1277,10 +1087,10 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            q[(start + k) * 4 + 0] = out_q1_elbow_up_checked_b[k];
-            q[(start + k) * 4 + 1] = out_q2_elbow_up_checked_b[k];
-            q[(start + k) * 4 + 2] = out_q1_elbow_down_checked_b[k];
-            q[(start + k) * 4 + 3] = out_q2_elbow_down_checked_b[k];
+            q[(start + k) * 4 + 0] = out_b[0][k];
+            q[(start + k) * 4 + 1] = out_b[1][k];
+            q[(start + k) * 4 + 2] = out_b[2][k];
+            q[(start + k) * 4 + 3] = out_b[3][k];
             valid[(start + k) * 2 + 0] = (uint8_t)out_valid_elbow_up_checked_b[k];
             valid[(start + k) * 2 + 1] = (uint8_t)out_valid_elbow_down_checked_b[k];
         }

@@ -24,7 +24,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_LECTURE_SCARA_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_LECTURE_SCARA_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_LECTURE_SCARA_H
 #define DELTAGEN_SERIAL_LECTURE_SCARA_H
@@ -58,7 +58,7 @@ extern "C" {
  *
  * Cost: 32 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
- * 11520 bytes (11.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2880 bytes (2.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -73,7 +73,7 @@ int deltagen_lecture_scara_fk(size_t n, const double *restrict q, double *restri
  *
  * Cost: 38 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
- * 36096 bytes (35.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 9024 bytes (8.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -88,7 +88,7 @@ int deltagen_lecture_scara_frames(size_t n, const double *restrict q, double *re
  *
  * Cost: 34 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2368 bytes (2.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -105,7 +105,7 @@ int deltagen_lecture_scara_jacobian(size_t n, const double *restrict q, double *
  *
  * Cost: 47 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -122,7 +122,7 @@ int deltagen_lecture_scara_fk_jacobian(size_t n, const double *restrict q, doubl
  *
  * Cost: 45 operations per point.
  * Stack: 21 block arrays (20 double, 1 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
- * 10496 bytes (10.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2624 bytes (2.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -142,7 +142,7 @@ int deltagen_lecture_scara_jacobian_dot(size_t n, const double *restrict q, cons
  *
  * Cost: 198 operations per point.
  * Stack: 19 block arrays (16 double, 3 int) of DELTAGEN_LECTURE_SCARA_BLOCK points,
- * 8960 bytes (8.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2240 bytes (2.2 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -167,7 +167,7 @@ int deltagen_lecture_scara_ik_all(size_t n, const double *restrict T, double *re
  * n > 0 (then nothing is written).
  *
  * Stack: 1192 bytes of solver scratch memory in this frame (146 doubles, 6 ints),
- * plus fk_jacobian's 17664 bytes (17.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 4416 bytes (4.3 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_lecture_scara_ik_newton(size_t n, const deltagen_ik_options *restrict options,

@@ -24,7 +24,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_MANUTEC_H5_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_MANUTEC_H5_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_MANUTEC_H5_H
 #define DELTAGEN_SERIAL_MANUTEC_H5_H
@@ -58,7 +58,7 @@ extern "C" {
  *
  * Cost: 46 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
- * 13568 bytes (13.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3392 bytes (3.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -73,7 +73,7 @@ int deltagen_manutec_h5_fk(size_t n, const double *restrict q, double *restrict 
  *
  * Cost: 57 operations per point.
  * Stack: 107 block arrays (106 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
- * 54528 bytes (53.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 13632 bytes (13.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -88,7 +88,7 @@ int deltagen_manutec_h5_frames(size_t n, const double *restrict q, double *restr
  *
  * Cost: 46 operations per point.
  * Stack: 33 block arrays (32 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
- * 16640 bytes (16.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4160 bytes (4.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -105,7 +105,7 @@ int deltagen_manutec_h5_jacobian(size_t n, const double *restrict q, double *res
  *
  * Cost: 73 operations per point.
  * Stack: 51 block arrays (50 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
- * 25856 bytes (25.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6464 bytes (6.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -122,7 +122,7 @@ int deltagen_manutec_h5_fk_jacobian(size_t n, const double *restrict q, double *
  *
  * Cost: 75 operations per point.
  * Stack: 37 block arrays (36 double, 1 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
- * 18688 bytes (18.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4672 bytes (4.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -142,7 +142,7 @@ int deltagen_manutec_h5_jacobian_dot(size_t n, const double *restrict q, const d
  *
  * Cost: 327 operations per point.
  * Stack: 23 block arrays (20 double, 3 int) of DELTAGEN_MANUTEC_H5_BLOCK points,
- * 11008 bytes (10.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2752 bytes (2.7 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -167,7 +167,7 @@ int deltagen_manutec_h5_ik_all(size_t n, const double *restrict T, double *restr
  * n > 0 (then nothing is written).
  *
  * Stack: 2128 bytes of solver scratch memory in this frame (260 doubles, 12 ints),
- * plus fk_jacobian's 25856 bytes (25.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 6464 bytes (6.3 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_manutec_h5_ik_newton(size_t n, const deltagen_ik_options *restrict options,

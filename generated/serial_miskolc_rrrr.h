@@ -28,7 +28,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_MISKOLC_RRRR_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_MISKOLC_RRRR_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_MISKOLC_RRRR_H
 #define DELTAGEN_SERIAL_MISKOLC_RRRR_H
@@ -62,7 +62,7 @@ extern "C" {
  *
  * Cost: 71 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 14592 bytes (14.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3648 bytes (3.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -77,7 +77,7 @@ int deltagen_miskolc_rrrr_fk(size_t n, const double *restrict q, double *restric
  *
  * Cost: 88 operations per point.
  * Stack: 109 block arrays (108 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 55552 bytes (54.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 13888 bytes (13.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -92,7 +92,7 @@ int deltagen_miskolc_rrrr_frames(size_t n, const double *restrict q, double *res
  *
  * Cost: 86 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -109,7 +109,7 @@ int deltagen_miskolc_rrrr_jacobian(size_t n, const double *restrict q, double *r
  *
  * Cost: 125 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -126,7 +126,7 @@ int deltagen_miskolc_rrrr_fk_jacobian(size_t n, const double *restrict q, double
  *
  * Cost: 194 operations per point.
  * Stack: 39 block arrays (38 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4928 bytes (4.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -146,7 +146,7 @@ int deltagen_miskolc_rrrr_jacobian_dot(size_t n, const double *restrict q, const
  *
  * Cost: 878 operations per point.
  * Stack: 33 block arrays (28 double, 5 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 15616 bytes (15.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3904 bytes (3.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -165,7 +165,7 @@ int deltagen_miskolc_rrrr_ik_all(size_t n, const double *restrict T, double *res
  *
  * Cost: 216 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 11520 bytes (11.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2880 bytes (2.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, const double *restrict qd,
         const double *restrict qdd, double *restrict tau, int8_t *restrict status);
@@ -182,7 +182,7 @@ int deltagen_miskolc_rrrr_inverse_dynamics(size_t n, const double *restrict q, c
  *
  * Cost: 143 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 13568 bytes (13.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3392 bytes (3.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double *restrict M, int8_t *restrict status);
 
@@ -197,7 +197,7 @@ int deltagen_miskolc_rrrr_mass_matrix(size_t n, const double *restrict q, double
  *
  * Cost: 62 operations per point.
  * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 7424 bytes (7.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 1856 bytes (1.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, double *restrict g,
         int8_t *restrict status);
@@ -215,7 +215,7 @@ int deltagen_miskolc_rrrr_gravity_torque(size_t n, const double *restrict q, dou
  *
  * Cost: 512 operations per point.
  * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 15616 bytes (15.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3904 bytes (3.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const double *restrict qd, double *restrict C,
         int8_t *restrict status);
@@ -232,7 +232,7 @@ int deltagen_miskolc_rrrr_coriolis(size_t n, const double *restrict q, const dou
  *
  * Cost: 196 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_MISKOLC_RRRR_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2368 bytes (2.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict h, int8_t *restrict status);
@@ -257,7 +257,7 @@ int deltagen_miskolc_rrrr_nonlinear_effects(size_t n, const double *restrict q, 
  * n > 0 (then nothing is written).
  *
  * Stack: 2128 bytes of solver scratch memory in this frame (260 doubles, 12 ints),
- * plus fk_jacobian's 26880 bytes (26.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 6720 bytes (6.6 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_miskolc_rrrr_ik_newton(size_t n, const deltagen_ik_options *restrict options,
@@ -279,7 +279,7 @@ int deltagen_miskolc_rrrr_ik_newton(size_t n, const deltagen_ik_options *restric
  *           a Cholesky pivot L_jj^2 <= 1e-12 max_j M_jj); qdd is NaN unless OK
  * Return value: 0, or -1 if a pointer is NULL while n > 0 (then nothing is written).
  *
- * Stack: 10368 bytes (10.1 KiB) at 64 points (M and h of a block), plus 64 bytes per point and the stack of mass_matrix
+ * Stack: 2592 bytes (2.5 KiB) at 16 points (M and h of a block), plus 64 bytes per point and the stack of mass_matrix
  *    and nonlinear_effects.
  */
 int deltagen_miskolc_rrrr_forward_dynamics(size_t n, const double *restrict q, const double *restrict qd,

@@ -24,7 +24,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_MOTOMAN_UP6_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_MOTOMAN_UP6_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_MOTOMAN_UP6_H
 #define DELTAGEN_SERIAL_MOTOMAN_UP6_H
@@ -58,7 +58,7 @@ extern "C" {
  *
  * Cost: 139 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -73,7 +73,7 @@ int deltagen_motoman_up6_fk(size_t n, const double *restrict q, double *restrict
  *
  * Cost: 174 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
- * 75008 bytes (73.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 18752 bytes (18.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -88,7 +88,7 @@ int deltagen_motoman_up6_frames(size_t n, const double *restrict q, double *rest
  *
  * Cost: 185 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -105,7 +105,7 @@ int deltagen_motoman_up6_jacobian(size_t n, const double *restrict q, double *re
  *
  * Cost: 226 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
- * 36096 bytes (35.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 9024 bytes (8.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -122,7 +122,7 @@ int deltagen_motoman_up6_fk_jacobian(size_t n, const double *restrict q, double 
  *
  * Cost: 481 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
- * 29952 bytes (29.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7488 bytes (7.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -143,7 +143,7 @@ int deltagen_motoman_up6_jacobian_dot(size_t n, const double *restrict q, const 
  *
  * Cost: 2626 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_MOTOMAN_UP6_BLOCK points,
- * 33024 bytes (32.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 8256 bytes (8.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -168,7 +168,7 @@ int deltagen_motoman_up6_ik_all(size_t n, const double *restrict T, double *rest
  * n > 0 (then nothing is written).
  *
  * Stack: 3256 bytes of solver scratch memory in this frame (398 doubles, 18 ints),
- * plus fk_jacobian's 36096 bytes (35.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 9024 bytes (8.8 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_motoman_up6_ik_newton(size_t n, const deltagen_ik_options *restrict options,

@@ -24,7 +24,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_PALLETISER_XYZC_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_PALLETISER_XYZC_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_PALLETISER_XYZC_H
 #define DELTAGEN_SERIAL_PALLETISER_XYZC_H
@@ -58,7 +58,7 @@ extern "C" {
  *
  * Cost: 24 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
- * 11520 bytes (11.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2880 bytes (2.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_palletiser_xyzc_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -73,7 +73,7 @@ int deltagen_palletiser_xyzc_fk(size_t n, const double *restrict q, double *rest
  *
  * Cost: 31 operations per point.
  * Stack: 103 block arrays (102 double, 1 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
- * 52480 bytes (51.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 13120 bytes (12.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_palletiser_xyzc_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -88,7 +88,7 @@ int deltagen_palletiser_xyzc_frames(size_t n, const double *restrict q, double *
  *
  * Cost: 38 operations per point.
  * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
- * 15616 bytes (15.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3904 bytes (3.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_palletiser_xyzc_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -105,7 +105,7 @@ int deltagen_palletiser_xyzc_jacobian(size_t n, const double *restrict q, double
  *
  * Cost: 51 operations per point.
  * Stack: 47 block arrays (46 double, 1 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
- * 23808 bytes (23.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 5952 bytes (5.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_palletiser_xyzc_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -122,7 +122,7 @@ int deltagen_palletiser_xyzc_fk_jacobian(size_t n, const double *restrict q, dou
  *
  * Cost: 53 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_palletiser_xyzc_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict Jd, int8_t *restrict status);
@@ -141,7 +141,7 @@ int deltagen_palletiser_xyzc_jacobian_dot(size_t n, const double *restrict q, co
  *
  * Cost: 111 operations per point.
  * Stack: 18 block arrays (16 double, 2 int) of DELTAGEN_PALLETISER_XYZC_BLOCK points,
- * 8704 bytes (8.5 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2176 bytes (2.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_palletiser_xyzc_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -166,7 +166,7 @@ int deltagen_palletiser_xyzc_ik_all(size_t n, const double *restrict T, double *
  * n > 0 (then nothing is written).
  *
  * Stack: 2128 bytes of solver scratch memory in this frame (260 doubles, 12 ints),
- * plus fk_jacobian's 23808 bytes (23.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 5952 bytes (5.8 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_palletiser_xyzc_ik_newton(size_t n, const deltagen_ik_options *restrict options,

@@ -34,10 +34,10 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (frames
- * the most, 84736 bytes at 64 points; each function's comment in
+ * the most, 21184 bytes at 16 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_PANDA_BLOCK
-#define DELTAGEN_PANDA_BLOCK 64
+#define DELTAGEN_PANDA_BLOCK 16
 #endif
 
 int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status)
@@ -52,139 +52,62 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
     for (size_t start = 0; start < n; start += DELTAGEN_PANDA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[7 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[6 * m + k] = q[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 7 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 7 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[7 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[7 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_T0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T15_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[16][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double q3 = angle_b[2 * m + k];
+            const double q4 = angle_b[3 * m + k];
+            const double q5 = angle_b[4 * m + k];
+            const double q6 = angle_b[5 * m + k];
+            const double q7 = angle_b[6 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q3 = cos_b[2 * m + k];
+            const double sin_q3 = sin_b[2 * m + k];
+            const double cos_q4 = cos_b[3 * m + k];
+            const double sin_q4 = sin_b[3 * m + k];
+            const double cos_q5 = cos_b[4 * m + k];
+            const double sin_q5 = sin_b[4 * m + k];
+            const double cos_q6 = cos_b[5 * m + k];
+            const double sin_q6 = sin_b[5 * m + k];
+            const double cos_q7 = cos_b[6 * m + k];
+            const double sin_q7 = sin_b[6 * m + k];
             /* frame 2: F_2 = F_1 A_2 (universal convention) */
             const double t0_0 = cos_q1*sin_q2;
             const double t0_1 = sin_q1*sin_q2;
@@ -294,22 +217,22 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
             const double out_T13_checked = t8_1;
             const double out_T14_checked = t8_1;
             const double out_T15_checked = ((t8_0) ? NAN : 1);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -319,22 +242,22 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
         }
     }
     return 0;
@@ -352,267 +275,62 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
     for (size_t start = 0; start < n; start += DELTAGEN_PANDA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[7 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[6 * m + k] = q[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 7 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 7 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[7 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[7 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_F0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F16_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F17_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F18_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F19_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F20_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F21_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F22_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F23_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F24_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F25_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F26_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F27_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F28_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F29_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F30_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F31_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F32_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F33_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F34_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F35_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F36_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F37_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F38_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F39_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F40_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F41_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F42_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F43_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F44_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F45_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F46_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F47_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F48_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F49_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F50_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F51_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F52_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F53_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F54_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F55_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F56_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F57_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F58_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F59_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F60_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F61_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F62_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F63_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F64_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F65_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F66_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F67_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F68_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F69_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F70_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F71_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F72_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F73_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F74_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F75_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F76_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F77_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F78_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F79_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F80_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F81_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F82_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F83_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F84_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F85_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F86_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F87_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F88_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F89_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F90_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F91_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F92_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F93_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F94_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F95_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F96_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F97_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F98_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F99_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F100_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F101_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F102_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F103_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F104_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F105_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F106_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F107_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F108_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F109_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F110_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F111_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F112_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F113_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F114_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F115_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F116_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F117_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F118_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F119_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F120_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F121_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F122_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F123_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F124_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F125_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F126_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F127_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F128_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F129_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F130_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F131_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F132_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F133_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F134_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F135_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F136_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F137_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F138_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F139_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F140_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F141_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F142_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_F143_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[144][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double q3 = angle_b[2 * m + k];
+            const double q4 = angle_b[3 * m + k];
+            const double q5 = angle_b[4 * m + k];
+            const double q6 = angle_b[5 * m + k];
+            const double q7 = angle_b[6 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q3 = cos_b[2 * m + k];
+            const double sin_q3 = sin_b[2 * m + k];
+            const double cos_q4 = cos_b[3 * m + k];
+            const double sin_q4 = sin_b[3 * m + k];
+            const double cos_q5 = cos_b[4 * m + k];
+            const double sin_q5 = sin_b[4 * m + k];
+            const double cos_q6 = cos_b[5 * m + k];
+            const double sin_q6 = sin_b[5 * m + k];
+            const double cos_q7 = cos_b[6 * m + k];
+            const double sin_q7 = sin_b[6 * m + k];
             /* frame 2: F_2 = F_1 A_2 (universal convention) */
             const double t0_0 = cos_q1*sin_q2;
             const double t0_1 = sin_q1*sin_q2;
@@ -892,150 +610,150 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
             const double out_F141_checked = t8_7;
             const double out_F142_checked = t8_7;
             const double out_F143_checked = t8_6;
-            out_F0_checked_b[k] = out_F0_checked;
-            out_F1_checked_b[k] = out_F1_checked;
-            out_F2_checked_b[k] = out_F2_checked;
-            out_F3_checked_b[k] = out_F3_checked;
-            out_F4_checked_b[k] = out_F4_checked;
-            out_F5_checked_b[k] = out_F5_checked;
-            out_F6_checked_b[k] = out_F6_checked;
-            out_F7_checked_b[k] = out_F7_checked;
-            out_F8_checked_b[k] = out_F8_checked;
-            out_F9_checked_b[k] = out_F9_checked;
-            out_F10_checked_b[k] = out_F10_checked;
-            out_F11_checked_b[k] = out_F11_checked;
-            out_F12_checked_b[k] = out_F12_checked;
-            out_F13_checked_b[k] = out_F13_checked;
-            out_F14_checked_b[k] = out_F14_checked;
-            out_F15_checked_b[k] = out_F15_checked;
-            out_F16_checked_b[k] = out_F16_checked;
-            out_F17_checked_b[k] = out_F17_checked;
-            out_F18_checked_b[k] = out_F18_checked;
-            out_F19_checked_b[k] = out_F19_checked;
-            out_F20_checked_b[k] = out_F20_checked;
-            out_F21_checked_b[k] = out_F21_checked;
-            out_F22_checked_b[k] = out_F22_checked;
-            out_F23_checked_b[k] = out_F23_checked;
-            out_F24_checked_b[k] = out_F24_checked;
-            out_F25_checked_b[k] = out_F25_checked;
-            out_F26_checked_b[k] = out_F26_checked;
-            out_F27_checked_b[k] = out_F27_checked;
-            out_F28_checked_b[k] = out_F28_checked;
-            out_F29_checked_b[k] = out_F29_checked;
-            out_F30_checked_b[k] = out_F30_checked;
-            out_F31_checked_b[k] = out_F31_checked;
-            out_F32_checked_b[k] = out_F32_checked;
-            out_F33_checked_b[k] = out_F33_checked;
-            out_F34_checked_b[k] = out_F34_checked;
-            out_F35_checked_b[k] = out_F35_checked;
-            out_F36_checked_b[k] = out_F36_checked;
-            out_F37_checked_b[k] = out_F37_checked;
-            out_F38_checked_b[k] = out_F38_checked;
-            out_F39_checked_b[k] = out_F39_checked;
-            out_F40_checked_b[k] = out_F40_checked;
-            out_F41_checked_b[k] = out_F41_checked;
-            out_F42_checked_b[k] = out_F42_checked;
-            out_F43_checked_b[k] = out_F43_checked;
-            out_F44_checked_b[k] = out_F44_checked;
-            out_F45_checked_b[k] = out_F45_checked;
-            out_F46_checked_b[k] = out_F46_checked;
-            out_F47_checked_b[k] = out_F47_checked;
-            out_F48_checked_b[k] = out_F48_checked;
-            out_F49_checked_b[k] = out_F49_checked;
-            out_F50_checked_b[k] = out_F50_checked;
-            out_F51_checked_b[k] = out_F51_checked;
-            out_F52_checked_b[k] = out_F52_checked;
-            out_F53_checked_b[k] = out_F53_checked;
-            out_F54_checked_b[k] = out_F54_checked;
-            out_F55_checked_b[k] = out_F55_checked;
-            out_F56_checked_b[k] = out_F56_checked;
-            out_F57_checked_b[k] = out_F57_checked;
-            out_F58_checked_b[k] = out_F58_checked;
-            out_F59_checked_b[k] = out_F59_checked;
-            out_F60_checked_b[k] = out_F60_checked;
-            out_F61_checked_b[k] = out_F61_checked;
-            out_F62_checked_b[k] = out_F62_checked;
-            out_F63_checked_b[k] = out_F63_checked;
-            out_F64_checked_b[k] = out_F64_checked;
-            out_F65_checked_b[k] = out_F65_checked;
-            out_F66_checked_b[k] = out_F66_checked;
-            out_F67_checked_b[k] = out_F67_checked;
-            out_F68_checked_b[k] = out_F68_checked;
-            out_F69_checked_b[k] = out_F69_checked;
-            out_F70_checked_b[k] = out_F70_checked;
-            out_F71_checked_b[k] = out_F71_checked;
-            out_F72_checked_b[k] = out_F72_checked;
-            out_F73_checked_b[k] = out_F73_checked;
-            out_F74_checked_b[k] = out_F74_checked;
-            out_F75_checked_b[k] = out_F75_checked;
-            out_F76_checked_b[k] = out_F76_checked;
-            out_F77_checked_b[k] = out_F77_checked;
-            out_F78_checked_b[k] = out_F78_checked;
-            out_F79_checked_b[k] = out_F79_checked;
-            out_F80_checked_b[k] = out_F80_checked;
-            out_F81_checked_b[k] = out_F81_checked;
-            out_F82_checked_b[k] = out_F82_checked;
-            out_F83_checked_b[k] = out_F83_checked;
-            out_F84_checked_b[k] = out_F84_checked;
-            out_F85_checked_b[k] = out_F85_checked;
-            out_F86_checked_b[k] = out_F86_checked;
-            out_F87_checked_b[k] = out_F87_checked;
-            out_F88_checked_b[k] = out_F88_checked;
-            out_F89_checked_b[k] = out_F89_checked;
-            out_F90_checked_b[k] = out_F90_checked;
-            out_F91_checked_b[k] = out_F91_checked;
-            out_F92_checked_b[k] = out_F92_checked;
-            out_F93_checked_b[k] = out_F93_checked;
-            out_F94_checked_b[k] = out_F94_checked;
-            out_F95_checked_b[k] = out_F95_checked;
-            out_F96_checked_b[k] = out_F96_checked;
-            out_F97_checked_b[k] = out_F97_checked;
-            out_F98_checked_b[k] = out_F98_checked;
-            out_F99_checked_b[k] = out_F99_checked;
-            out_F100_checked_b[k] = out_F100_checked;
-            out_F101_checked_b[k] = out_F101_checked;
-            out_F102_checked_b[k] = out_F102_checked;
-            out_F103_checked_b[k] = out_F103_checked;
-            out_F104_checked_b[k] = out_F104_checked;
-            out_F105_checked_b[k] = out_F105_checked;
-            out_F106_checked_b[k] = out_F106_checked;
-            out_F107_checked_b[k] = out_F107_checked;
-            out_F108_checked_b[k] = out_F108_checked;
-            out_F109_checked_b[k] = out_F109_checked;
-            out_F110_checked_b[k] = out_F110_checked;
-            out_F111_checked_b[k] = out_F111_checked;
-            out_F112_checked_b[k] = out_F112_checked;
-            out_F113_checked_b[k] = out_F113_checked;
-            out_F114_checked_b[k] = out_F114_checked;
-            out_F115_checked_b[k] = out_F115_checked;
-            out_F116_checked_b[k] = out_F116_checked;
-            out_F117_checked_b[k] = out_F117_checked;
-            out_F118_checked_b[k] = out_F118_checked;
-            out_F119_checked_b[k] = out_F119_checked;
-            out_F120_checked_b[k] = out_F120_checked;
-            out_F121_checked_b[k] = out_F121_checked;
-            out_F122_checked_b[k] = out_F122_checked;
-            out_F123_checked_b[k] = out_F123_checked;
-            out_F124_checked_b[k] = out_F124_checked;
-            out_F125_checked_b[k] = out_F125_checked;
-            out_F126_checked_b[k] = out_F126_checked;
-            out_F127_checked_b[k] = out_F127_checked;
-            out_F128_checked_b[k] = out_F128_checked;
-            out_F129_checked_b[k] = out_F129_checked;
-            out_F130_checked_b[k] = out_F130_checked;
-            out_F131_checked_b[k] = out_F131_checked;
-            out_F132_checked_b[k] = out_F132_checked;
-            out_F133_checked_b[k] = out_F133_checked;
-            out_F134_checked_b[k] = out_F134_checked;
-            out_F135_checked_b[k] = out_F135_checked;
-            out_F136_checked_b[k] = out_F136_checked;
-            out_F137_checked_b[k] = out_F137_checked;
-            out_F138_checked_b[k] = out_F138_checked;
-            out_F139_checked_b[k] = out_F139_checked;
-            out_F140_checked_b[k] = out_F140_checked;
-            out_F141_checked_b[k] = out_F141_checked;
-            out_F142_checked_b[k] = out_F142_checked;
-            out_F143_checked_b[k] = out_F143_checked;
+            out_b[0][k] = out_F0_checked;
+            out_b[1][k] = out_F1_checked;
+            out_b[2][k] = out_F2_checked;
+            out_b[3][k] = out_F3_checked;
+            out_b[4][k] = out_F4_checked;
+            out_b[5][k] = out_F5_checked;
+            out_b[6][k] = out_F6_checked;
+            out_b[7][k] = out_F7_checked;
+            out_b[8][k] = out_F8_checked;
+            out_b[9][k] = out_F9_checked;
+            out_b[10][k] = out_F10_checked;
+            out_b[11][k] = out_F11_checked;
+            out_b[12][k] = out_F12_checked;
+            out_b[13][k] = out_F13_checked;
+            out_b[14][k] = out_F14_checked;
+            out_b[15][k] = out_F15_checked;
+            out_b[16][k] = out_F16_checked;
+            out_b[17][k] = out_F17_checked;
+            out_b[18][k] = out_F18_checked;
+            out_b[19][k] = out_F19_checked;
+            out_b[20][k] = out_F20_checked;
+            out_b[21][k] = out_F21_checked;
+            out_b[22][k] = out_F22_checked;
+            out_b[23][k] = out_F23_checked;
+            out_b[24][k] = out_F24_checked;
+            out_b[25][k] = out_F25_checked;
+            out_b[26][k] = out_F26_checked;
+            out_b[27][k] = out_F27_checked;
+            out_b[28][k] = out_F28_checked;
+            out_b[29][k] = out_F29_checked;
+            out_b[30][k] = out_F30_checked;
+            out_b[31][k] = out_F31_checked;
+            out_b[32][k] = out_F32_checked;
+            out_b[33][k] = out_F33_checked;
+            out_b[34][k] = out_F34_checked;
+            out_b[35][k] = out_F35_checked;
+            out_b[36][k] = out_F36_checked;
+            out_b[37][k] = out_F37_checked;
+            out_b[38][k] = out_F38_checked;
+            out_b[39][k] = out_F39_checked;
+            out_b[40][k] = out_F40_checked;
+            out_b[41][k] = out_F41_checked;
+            out_b[42][k] = out_F42_checked;
+            out_b[43][k] = out_F43_checked;
+            out_b[44][k] = out_F44_checked;
+            out_b[45][k] = out_F45_checked;
+            out_b[46][k] = out_F46_checked;
+            out_b[47][k] = out_F47_checked;
+            out_b[48][k] = out_F48_checked;
+            out_b[49][k] = out_F49_checked;
+            out_b[50][k] = out_F50_checked;
+            out_b[51][k] = out_F51_checked;
+            out_b[52][k] = out_F52_checked;
+            out_b[53][k] = out_F53_checked;
+            out_b[54][k] = out_F54_checked;
+            out_b[55][k] = out_F55_checked;
+            out_b[56][k] = out_F56_checked;
+            out_b[57][k] = out_F57_checked;
+            out_b[58][k] = out_F58_checked;
+            out_b[59][k] = out_F59_checked;
+            out_b[60][k] = out_F60_checked;
+            out_b[61][k] = out_F61_checked;
+            out_b[62][k] = out_F62_checked;
+            out_b[63][k] = out_F63_checked;
+            out_b[64][k] = out_F64_checked;
+            out_b[65][k] = out_F65_checked;
+            out_b[66][k] = out_F66_checked;
+            out_b[67][k] = out_F67_checked;
+            out_b[68][k] = out_F68_checked;
+            out_b[69][k] = out_F69_checked;
+            out_b[70][k] = out_F70_checked;
+            out_b[71][k] = out_F71_checked;
+            out_b[72][k] = out_F72_checked;
+            out_b[73][k] = out_F73_checked;
+            out_b[74][k] = out_F74_checked;
+            out_b[75][k] = out_F75_checked;
+            out_b[76][k] = out_F76_checked;
+            out_b[77][k] = out_F77_checked;
+            out_b[78][k] = out_F78_checked;
+            out_b[79][k] = out_F79_checked;
+            out_b[80][k] = out_F80_checked;
+            out_b[81][k] = out_F81_checked;
+            out_b[82][k] = out_F82_checked;
+            out_b[83][k] = out_F83_checked;
+            out_b[84][k] = out_F84_checked;
+            out_b[85][k] = out_F85_checked;
+            out_b[86][k] = out_F86_checked;
+            out_b[87][k] = out_F87_checked;
+            out_b[88][k] = out_F88_checked;
+            out_b[89][k] = out_F89_checked;
+            out_b[90][k] = out_F90_checked;
+            out_b[91][k] = out_F91_checked;
+            out_b[92][k] = out_F92_checked;
+            out_b[93][k] = out_F93_checked;
+            out_b[94][k] = out_F94_checked;
+            out_b[95][k] = out_F95_checked;
+            out_b[96][k] = out_F96_checked;
+            out_b[97][k] = out_F97_checked;
+            out_b[98][k] = out_F98_checked;
+            out_b[99][k] = out_F99_checked;
+            out_b[100][k] = out_F100_checked;
+            out_b[101][k] = out_F101_checked;
+            out_b[102][k] = out_F102_checked;
+            out_b[103][k] = out_F103_checked;
+            out_b[104][k] = out_F104_checked;
+            out_b[105][k] = out_F105_checked;
+            out_b[106][k] = out_F106_checked;
+            out_b[107][k] = out_F107_checked;
+            out_b[108][k] = out_F108_checked;
+            out_b[109][k] = out_F109_checked;
+            out_b[110][k] = out_F110_checked;
+            out_b[111][k] = out_F111_checked;
+            out_b[112][k] = out_F112_checked;
+            out_b[113][k] = out_F113_checked;
+            out_b[114][k] = out_F114_checked;
+            out_b[115][k] = out_F115_checked;
+            out_b[116][k] = out_F116_checked;
+            out_b[117][k] = out_F117_checked;
+            out_b[118][k] = out_F118_checked;
+            out_b[119][k] = out_F119_checked;
+            out_b[120][k] = out_F120_checked;
+            out_b[121][k] = out_F121_checked;
+            out_b[122][k] = out_F122_checked;
+            out_b[123][k] = out_F123_checked;
+            out_b[124][k] = out_F124_checked;
+            out_b[125][k] = out_F125_checked;
+            out_b[126][k] = out_F126_checked;
+            out_b[127][k] = out_F127_checked;
+            out_b[128][k] = out_F128_checked;
+            out_b[129][k] = out_F129_checked;
+            out_b[130][k] = out_F130_checked;
+            out_b[131][k] = out_F131_checked;
+            out_b[132][k] = out_F132_checked;
+            out_b[133][k] = out_F133_checked;
+            out_b[134][k] = out_F134_checked;
+            out_b[135][k] = out_F135_checked;
+            out_b[136][k] = out_F136_checked;
+            out_b[137][k] = out_F137_checked;
+            out_b[138][k] = out_F138_checked;
+            out_b[139][k] = out_F139_checked;
+            out_b[140][k] = out_F140_checked;
+            out_b[141][k] = out_F141_checked;
+            out_b[142][k] = out_F142_checked;
+            out_b[143][k] = out_F143_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1045,150 +763,150 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            F[(start + k) * 144 + 0] = out_F0_checked_b[k];
-            F[(start + k) * 144 + 1] = out_F1_checked_b[k];
-            F[(start + k) * 144 + 2] = out_F2_checked_b[k];
-            F[(start + k) * 144 + 3] = out_F3_checked_b[k];
-            F[(start + k) * 144 + 4] = out_F4_checked_b[k];
-            F[(start + k) * 144 + 5] = out_F5_checked_b[k];
-            F[(start + k) * 144 + 6] = out_F6_checked_b[k];
-            F[(start + k) * 144 + 7] = out_F7_checked_b[k];
-            F[(start + k) * 144 + 8] = out_F8_checked_b[k];
-            F[(start + k) * 144 + 9] = out_F9_checked_b[k];
-            F[(start + k) * 144 + 10] = out_F10_checked_b[k];
-            F[(start + k) * 144 + 11] = out_F11_checked_b[k];
-            F[(start + k) * 144 + 12] = out_F12_checked_b[k];
-            F[(start + k) * 144 + 13] = out_F13_checked_b[k];
-            F[(start + k) * 144 + 14] = out_F14_checked_b[k];
-            F[(start + k) * 144 + 15] = out_F15_checked_b[k];
-            F[(start + k) * 144 + 16] = out_F16_checked_b[k];
-            F[(start + k) * 144 + 17] = out_F17_checked_b[k];
-            F[(start + k) * 144 + 18] = out_F18_checked_b[k];
-            F[(start + k) * 144 + 19] = out_F19_checked_b[k];
-            F[(start + k) * 144 + 20] = out_F20_checked_b[k];
-            F[(start + k) * 144 + 21] = out_F21_checked_b[k];
-            F[(start + k) * 144 + 22] = out_F22_checked_b[k];
-            F[(start + k) * 144 + 23] = out_F23_checked_b[k];
-            F[(start + k) * 144 + 24] = out_F24_checked_b[k];
-            F[(start + k) * 144 + 25] = out_F25_checked_b[k];
-            F[(start + k) * 144 + 26] = out_F26_checked_b[k];
-            F[(start + k) * 144 + 27] = out_F27_checked_b[k];
-            F[(start + k) * 144 + 28] = out_F28_checked_b[k];
-            F[(start + k) * 144 + 29] = out_F29_checked_b[k];
-            F[(start + k) * 144 + 30] = out_F30_checked_b[k];
-            F[(start + k) * 144 + 31] = out_F31_checked_b[k];
-            F[(start + k) * 144 + 32] = out_F32_checked_b[k];
-            F[(start + k) * 144 + 33] = out_F33_checked_b[k];
-            F[(start + k) * 144 + 34] = out_F34_checked_b[k];
-            F[(start + k) * 144 + 35] = out_F35_checked_b[k];
-            F[(start + k) * 144 + 36] = out_F36_checked_b[k];
-            F[(start + k) * 144 + 37] = out_F37_checked_b[k];
-            F[(start + k) * 144 + 38] = out_F38_checked_b[k];
-            F[(start + k) * 144 + 39] = out_F39_checked_b[k];
-            F[(start + k) * 144 + 40] = out_F40_checked_b[k];
-            F[(start + k) * 144 + 41] = out_F41_checked_b[k];
-            F[(start + k) * 144 + 42] = out_F42_checked_b[k];
-            F[(start + k) * 144 + 43] = out_F43_checked_b[k];
-            F[(start + k) * 144 + 44] = out_F44_checked_b[k];
-            F[(start + k) * 144 + 45] = out_F45_checked_b[k];
-            F[(start + k) * 144 + 46] = out_F46_checked_b[k];
-            F[(start + k) * 144 + 47] = out_F47_checked_b[k];
-            F[(start + k) * 144 + 48] = out_F48_checked_b[k];
-            F[(start + k) * 144 + 49] = out_F49_checked_b[k];
-            F[(start + k) * 144 + 50] = out_F50_checked_b[k];
-            F[(start + k) * 144 + 51] = out_F51_checked_b[k];
-            F[(start + k) * 144 + 52] = out_F52_checked_b[k];
-            F[(start + k) * 144 + 53] = out_F53_checked_b[k];
-            F[(start + k) * 144 + 54] = out_F54_checked_b[k];
-            F[(start + k) * 144 + 55] = out_F55_checked_b[k];
-            F[(start + k) * 144 + 56] = out_F56_checked_b[k];
-            F[(start + k) * 144 + 57] = out_F57_checked_b[k];
-            F[(start + k) * 144 + 58] = out_F58_checked_b[k];
-            F[(start + k) * 144 + 59] = out_F59_checked_b[k];
-            F[(start + k) * 144 + 60] = out_F60_checked_b[k];
-            F[(start + k) * 144 + 61] = out_F61_checked_b[k];
-            F[(start + k) * 144 + 62] = out_F62_checked_b[k];
-            F[(start + k) * 144 + 63] = out_F63_checked_b[k];
-            F[(start + k) * 144 + 64] = out_F64_checked_b[k];
-            F[(start + k) * 144 + 65] = out_F65_checked_b[k];
-            F[(start + k) * 144 + 66] = out_F66_checked_b[k];
-            F[(start + k) * 144 + 67] = out_F67_checked_b[k];
-            F[(start + k) * 144 + 68] = out_F68_checked_b[k];
-            F[(start + k) * 144 + 69] = out_F69_checked_b[k];
-            F[(start + k) * 144 + 70] = out_F70_checked_b[k];
-            F[(start + k) * 144 + 71] = out_F71_checked_b[k];
-            F[(start + k) * 144 + 72] = out_F72_checked_b[k];
-            F[(start + k) * 144 + 73] = out_F73_checked_b[k];
-            F[(start + k) * 144 + 74] = out_F74_checked_b[k];
-            F[(start + k) * 144 + 75] = out_F75_checked_b[k];
-            F[(start + k) * 144 + 76] = out_F76_checked_b[k];
-            F[(start + k) * 144 + 77] = out_F77_checked_b[k];
-            F[(start + k) * 144 + 78] = out_F78_checked_b[k];
-            F[(start + k) * 144 + 79] = out_F79_checked_b[k];
-            F[(start + k) * 144 + 80] = out_F80_checked_b[k];
-            F[(start + k) * 144 + 81] = out_F81_checked_b[k];
-            F[(start + k) * 144 + 82] = out_F82_checked_b[k];
-            F[(start + k) * 144 + 83] = out_F83_checked_b[k];
-            F[(start + k) * 144 + 84] = out_F84_checked_b[k];
-            F[(start + k) * 144 + 85] = out_F85_checked_b[k];
-            F[(start + k) * 144 + 86] = out_F86_checked_b[k];
-            F[(start + k) * 144 + 87] = out_F87_checked_b[k];
-            F[(start + k) * 144 + 88] = out_F88_checked_b[k];
-            F[(start + k) * 144 + 89] = out_F89_checked_b[k];
-            F[(start + k) * 144 + 90] = out_F90_checked_b[k];
-            F[(start + k) * 144 + 91] = out_F91_checked_b[k];
-            F[(start + k) * 144 + 92] = out_F92_checked_b[k];
-            F[(start + k) * 144 + 93] = out_F93_checked_b[k];
-            F[(start + k) * 144 + 94] = out_F94_checked_b[k];
-            F[(start + k) * 144 + 95] = out_F95_checked_b[k];
-            F[(start + k) * 144 + 96] = out_F96_checked_b[k];
-            F[(start + k) * 144 + 97] = out_F97_checked_b[k];
-            F[(start + k) * 144 + 98] = out_F98_checked_b[k];
-            F[(start + k) * 144 + 99] = out_F99_checked_b[k];
-            F[(start + k) * 144 + 100] = out_F100_checked_b[k];
-            F[(start + k) * 144 + 101] = out_F101_checked_b[k];
-            F[(start + k) * 144 + 102] = out_F102_checked_b[k];
-            F[(start + k) * 144 + 103] = out_F103_checked_b[k];
-            F[(start + k) * 144 + 104] = out_F104_checked_b[k];
-            F[(start + k) * 144 + 105] = out_F105_checked_b[k];
-            F[(start + k) * 144 + 106] = out_F106_checked_b[k];
-            F[(start + k) * 144 + 107] = out_F107_checked_b[k];
-            F[(start + k) * 144 + 108] = out_F108_checked_b[k];
-            F[(start + k) * 144 + 109] = out_F109_checked_b[k];
-            F[(start + k) * 144 + 110] = out_F110_checked_b[k];
-            F[(start + k) * 144 + 111] = out_F111_checked_b[k];
-            F[(start + k) * 144 + 112] = out_F112_checked_b[k];
-            F[(start + k) * 144 + 113] = out_F113_checked_b[k];
-            F[(start + k) * 144 + 114] = out_F114_checked_b[k];
-            F[(start + k) * 144 + 115] = out_F115_checked_b[k];
-            F[(start + k) * 144 + 116] = out_F116_checked_b[k];
-            F[(start + k) * 144 + 117] = out_F117_checked_b[k];
-            F[(start + k) * 144 + 118] = out_F118_checked_b[k];
-            F[(start + k) * 144 + 119] = out_F119_checked_b[k];
-            F[(start + k) * 144 + 120] = out_F120_checked_b[k];
-            F[(start + k) * 144 + 121] = out_F121_checked_b[k];
-            F[(start + k) * 144 + 122] = out_F122_checked_b[k];
-            F[(start + k) * 144 + 123] = out_F123_checked_b[k];
-            F[(start + k) * 144 + 124] = out_F124_checked_b[k];
-            F[(start + k) * 144 + 125] = out_F125_checked_b[k];
-            F[(start + k) * 144 + 126] = out_F126_checked_b[k];
-            F[(start + k) * 144 + 127] = out_F127_checked_b[k];
-            F[(start + k) * 144 + 128] = out_F128_checked_b[k];
-            F[(start + k) * 144 + 129] = out_F129_checked_b[k];
-            F[(start + k) * 144 + 130] = out_F130_checked_b[k];
-            F[(start + k) * 144 + 131] = out_F131_checked_b[k];
-            F[(start + k) * 144 + 132] = out_F132_checked_b[k];
-            F[(start + k) * 144 + 133] = out_F133_checked_b[k];
-            F[(start + k) * 144 + 134] = out_F134_checked_b[k];
-            F[(start + k) * 144 + 135] = out_F135_checked_b[k];
-            F[(start + k) * 144 + 136] = out_F136_checked_b[k];
-            F[(start + k) * 144 + 137] = out_F137_checked_b[k];
-            F[(start + k) * 144 + 138] = out_F138_checked_b[k];
-            F[(start + k) * 144 + 139] = out_F139_checked_b[k];
-            F[(start + k) * 144 + 140] = out_F140_checked_b[k];
-            F[(start + k) * 144 + 141] = out_F141_checked_b[k];
-            F[(start + k) * 144 + 142] = out_F142_checked_b[k];
-            F[(start + k) * 144 + 143] = out_F143_checked_b[k];
+            F[(start + k) * 144 + 0] = out_b[0][k];
+            F[(start + k) * 144 + 1] = out_b[1][k];
+            F[(start + k) * 144 + 2] = out_b[2][k];
+            F[(start + k) * 144 + 3] = out_b[3][k];
+            F[(start + k) * 144 + 4] = out_b[4][k];
+            F[(start + k) * 144 + 5] = out_b[5][k];
+            F[(start + k) * 144 + 6] = out_b[6][k];
+            F[(start + k) * 144 + 7] = out_b[7][k];
+            F[(start + k) * 144 + 8] = out_b[8][k];
+            F[(start + k) * 144 + 9] = out_b[9][k];
+            F[(start + k) * 144 + 10] = out_b[10][k];
+            F[(start + k) * 144 + 11] = out_b[11][k];
+            F[(start + k) * 144 + 12] = out_b[12][k];
+            F[(start + k) * 144 + 13] = out_b[13][k];
+            F[(start + k) * 144 + 14] = out_b[14][k];
+            F[(start + k) * 144 + 15] = out_b[15][k];
+            F[(start + k) * 144 + 16] = out_b[16][k];
+            F[(start + k) * 144 + 17] = out_b[17][k];
+            F[(start + k) * 144 + 18] = out_b[18][k];
+            F[(start + k) * 144 + 19] = out_b[19][k];
+            F[(start + k) * 144 + 20] = out_b[20][k];
+            F[(start + k) * 144 + 21] = out_b[21][k];
+            F[(start + k) * 144 + 22] = out_b[22][k];
+            F[(start + k) * 144 + 23] = out_b[23][k];
+            F[(start + k) * 144 + 24] = out_b[24][k];
+            F[(start + k) * 144 + 25] = out_b[25][k];
+            F[(start + k) * 144 + 26] = out_b[26][k];
+            F[(start + k) * 144 + 27] = out_b[27][k];
+            F[(start + k) * 144 + 28] = out_b[28][k];
+            F[(start + k) * 144 + 29] = out_b[29][k];
+            F[(start + k) * 144 + 30] = out_b[30][k];
+            F[(start + k) * 144 + 31] = out_b[31][k];
+            F[(start + k) * 144 + 32] = out_b[32][k];
+            F[(start + k) * 144 + 33] = out_b[33][k];
+            F[(start + k) * 144 + 34] = out_b[34][k];
+            F[(start + k) * 144 + 35] = out_b[35][k];
+            F[(start + k) * 144 + 36] = out_b[36][k];
+            F[(start + k) * 144 + 37] = out_b[37][k];
+            F[(start + k) * 144 + 38] = out_b[38][k];
+            F[(start + k) * 144 + 39] = out_b[39][k];
+            F[(start + k) * 144 + 40] = out_b[40][k];
+            F[(start + k) * 144 + 41] = out_b[41][k];
+            F[(start + k) * 144 + 42] = out_b[42][k];
+            F[(start + k) * 144 + 43] = out_b[43][k];
+            F[(start + k) * 144 + 44] = out_b[44][k];
+            F[(start + k) * 144 + 45] = out_b[45][k];
+            F[(start + k) * 144 + 46] = out_b[46][k];
+            F[(start + k) * 144 + 47] = out_b[47][k];
+            F[(start + k) * 144 + 48] = out_b[48][k];
+            F[(start + k) * 144 + 49] = out_b[49][k];
+            F[(start + k) * 144 + 50] = out_b[50][k];
+            F[(start + k) * 144 + 51] = out_b[51][k];
+            F[(start + k) * 144 + 52] = out_b[52][k];
+            F[(start + k) * 144 + 53] = out_b[53][k];
+            F[(start + k) * 144 + 54] = out_b[54][k];
+            F[(start + k) * 144 + 55] = out_b[55][k];
+            F[(start + k) * 144 + 56] = out_b[56][k];
+            F[(start + k) * 144 + 57] = out_b[57][k];
+            F[(start + k) * 144 + 58] = out_b[58][k];
+            F[(start + k) * 144 + 59] = out_b[59][k];
+            F[(start + k) * 144 + 60] = out_b[60][k];
+            F[(start + k) * 144 + 61] = out_b[61][k];
+            F[(start + k) * 144 + 62] = out_b[62][k];
+            F[(start + k) * 144 + 63] = out_b[63][k];
+            F[(start + k) * 144 + 64] = out_b[64][k];
+            F[(start + k) * 144 + 65] = out_b[65][k];
+            F[(start + k) * 144 + 66] = out_b[66][k];
+            F[(start + k) * 144 + 67] = out_b[67][k];
+            F[(start + k) * 144 + 68] = out_b[68][k];
+            F[(start + k) * 144 + 69] = out_b[69][k];
+            F[(start + k) * 144 + 70] = out_b[70][k];
+            F[(start + k) * 144 + 71] = out_b[71][k];
+            F[(start + k) * 144 + 72] = out_b[72][k];
+            F[(start + k) * 144 + 73] = out_b[73][k];
+            F[(start + k) * 144 + 74] = out_b[74][k];
+            F[(start + k) * 144 + 75] = out_b[75][k];
+            F[(start + k) * 144 + 76] = out_b[76][k];
+            F[(start + k) * 144 + 77] = out_b[77][k];
+            F[(start + k) * 144 + 78] = out_b[78][k];
+            F[(start + k) * 144 + 79] = out_b[79][k];
+            F[(start + k) * 144 + 80] = out_b[80][k];
+            F[(start + k) * 144 + 81] = out_b[81][k];
+            F[(start + k) * 144 + 82] = out_b[82][k];
+            F[(start + k) * 144 + 83] = out_b[83][k];
+            F[(start + k) * 144 + 84] = out_b[84][k];
+            F[(start + k) * 144 + 85] = out_b[85][k];
+            F[(start + k) * 144 + 86] = out_b[86][k];
+            F[(start + k) * 144 + 87] = out_b[87][k];
+            F[(start + k) * 144 + 88] = out_b[88][k];
+            F[(start + k) * 144 + 89] = out_b[89][k];
+            F[(start + k) * 144 + 90] = out_b[90][k];
+            F[(start + k) * 144 + 91] = out_b[91][k];
+            F[(start + k) * 144 + 92] = out_b[92][k];
+            F[(start + k) * 144 + 93] = out_b[93][k];
+            F[(start + k) * 144 + 94] = out_b[94][k];
+            F[(start + k) * 144 + 95] = out_b[95][k];
+            F[(start + k) * 144 + 96] = out_b[96][k];
+            F[(start + k) * 144 + 97] = out_b[97][k];
+            F[(start + k) * 144 + 98] = out_b[98][k];
+            F[(start + k) * 144 + 99] = out_b[99][k];
+            F[(start + k) * 144 + 100] = out_b[100][k];
+            F[(start + k) * 144 + 101] = out_b[101][k];
+            F[(start + k) * 144 + 102] = out_b[102][k];
+            F[(start + k) * 144 + 103] = out_b[103][k];
+            F[(start + k) * 144 + 104] = out_b[104][k];
+            F[(start + k) * 144 + 105] = out_b[105][k];
+            F[(start + k) * 144 + 106] = out_b[106][k];
+            F[(start + k) * 144 + 107] = out_b[107][k];
+            F[(start + k) * 144 + 108] = out_b[108][k];
+            F[(start + k) * 144 + 109] = out_b[109][k];
+            F[(start + k) * 144 + 110] = out_b[110][k];
+            F[(start + k) * 144 + 111] = out_b[111][k];
+            F[(start + k) * 144 + 112] = out_b[112][k];
+            F[(start + k) * 144 + 113] = out_b[113][k];
+            F[(start + k) * 144 + 114] = out_b[114][k];
+            F[(start + k) * 144 + 115] = out_b[115][k];
+            F[(start + k) * 144 + 116] = out_b[116][k];
+            F[(start + k) * 144 + 117] = out_b[117][k];
+            F[(start + k) * 144 + 118] = out_b[118][k];
+            F[(start + k) * 144 + 119] = out_b[119][k];
+            F[(start + k) * 144 + 120] = out_b[120][k];
+            F[(start + k) * 144 + 121] = out_b[121][k];
+            F[(start + k) * 144 + 122] = out_b[122][k];
+            F[(start + k) * 144 + 123] = out_b[123][k];
+            F[(start + k) * 144 + 124] = out_b[124][k];
+            F[(start + k) * 144 + 125] = out_b[125][k];
+            F[(start + k) * 144 + 126] = out_b[126][k];
+            F[(start + k) * 144 + 127] = out_b[127][k];
+            F[(start + k) * 144 + 128] = out_b[128][k];
+            F[(start + k) * 144 + 129] = out_b[129][k];
+            F[(start + k) * 144 + 130] = out_b[130][k];
+            F[(start + k) * 144 + 131] = out_b[131][k];
+            F[(start + k) * 144 + 132] = out_b[132][k];
+            F[(start + k) * 144 + 133] = out_b[133][k];
+            F[(start + k) * 144 + 134] = out_b[134][k];
+            F[(start + k) * 144 + 135] = out_b[135][k];
+            F[(start + k) * 144 + 136] = out_b[136][k];
+            F[(start + k) * 144 + 137] = out_b[137][k];
+            F[(start + k) * 144 + 138] = out_b[138][k];
+            F[(start + k) * 144 + 139] = out_b[139][k];
+            F[(start + k) * 144 + 140] = out_b[140][k];
+            F[(start + k) * 144 + 141] = out_b[141][k];
+            F[(start + k) * 144 + 142] = out_b[142][k];
+            F[(start + k) * 144 + 143] = out_b[143][k];
         }
     }
     return 0;
@@ -1206,154 +924,61 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
     for (size_t start = 0; start < n; start += DELTAGEN_PANDA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
         double q7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 5];
             q7_b[k] = q[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_J0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J16_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J17_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J18_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J19_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J20_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J21_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J22_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J23_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J24_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J25_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J26_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J27_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J28_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J29_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J30_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J31_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J32_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J33_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J34_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J35_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J36_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J37_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J38_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J39_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J40_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J41_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[42][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double q3 = angle_b[2 * m + k];
+            const double q4 = angle_b[3 * m + k];
+            const double q5 = angle_b[4 * m + k];
+            const double q6 = angle_b[5 * m + k];
             const double q7 = q7_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q3 = cos_b[2 * m + k];
+            const double sin_q3 = sin_b[2 * m + k];
+            const double cos_q4 = cos_b[3 * m + k];
+            const double sin_q4 = sin_b[3 * m + k];
+            const double cos_q5 = cos_b[4 * m + k];
+            const double sin_q5 = sin_b[4 * m + k];
+            const double cos_q6 = cos_b[5 * m + k];
+            const double sin_q6 = sin_b[5 * m + k];
             /* frame 2: F_2 = F_1 A_2 (universal convention) */
             const double t0_0 = cos_q1*sin_q2;
             const double t0_1 = sin_q1*sin_q2;
@@ -1533,48 +1158,48 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
             const double out_J39_checked = ((t8_0) ? NAN : J6_5);
             const double out_J40_checked = ((t8_0) ? NAN : J6_6);
             const double out_J41_checked = ((t8_0) ? NAN : J6_7);
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
-            out_J12_checked_b[k] = out_J12_checked;
-            out_J13_checked_b[k] = out_J13_checked;
-            out_J14_checked_b[k] = out_J14_checked;
-            out_J15_checked_b[k] = out_J15_checked;
-            out_J16_checked_b[k] = out_J16_checked;
-            out_J17_checked_b[k] = out_J17_checked;
-            out_J18_checked_b[k] = out_J18_checked;
-            out_J19_checked_b[k] = out_J19_checked;
-            out_J20_checked_b[k] = out_J20_checked;
-            out_J21_checked_b[k] = out_J21_checked;
-            out_J22_checked_b[k] = out_J22_checked;
-            out_J23_checked_b[k] = out_J23_checked;
-            out_J24_checked_b[k] = out_J24_checked;
-            out_J25_checked_b[k] = out_J25_checked;
-            out_J26_checked_b[k] = out_J26_checked;
-            out_J27_checked_b[k] = out_J27_checked;
-            out_J28_checked_b[k] = out_J28_checked;
-            out_J29_checked_b[k] = out_J29_checked;
-            out_J30_checked_b[k] = out_J30_checked;
-            out_J31_checked_b[k] = out_J31_checked;
-            out_J32_checked_b[k] = out_J32_checked;
-            out_J33_checked_b[k] = out_J33_checked;
-            out_J34_checked_b[k] = out_J34_checked;
-            out_J35_checked_b[k] = out_J35_checked;
-            out_J36_checked_b[k] = out_J36_checked;
-            out_J37_checked_b[k] = out_J37_checked;
-            out_J38_checked_b[k] = out_J38_checked;
-            out_J39_checked_b[k] = out_J39_checked;
-            out_J40_checked_b[k] = out_J40_checked;
-            out_J41_checked_b[k] = out_J41_checked;
+            out_b[0][k] = out_J0_checked;
+            out_b[1][k] = out_J1_checked;
+            out_b[2][k] = out_J2_checked;
+            out_b[3][k] = out_J3_checked;
+            out_b[4][k] = out_J4_checked;
+            out_b[5][k] = out_J5_checked;
+            out_b[6][k] = out_J6_checked;
+            out_b[7][k] = out_J7_checked;
+            out_b[8][k] = out_J8_checked;
+            out_b[9][k] = out_J9_checked;
+            out_b[10][k] = out_J10_checked;
+            out_b[11][k] = out_J11_checked;
+            out_b[12][k] = out_J12_checked;
+            out_b[13][k] = out_J13_checked;
+            out_b[14][k] = out_J14_checked;
+            out_b[15][k] = out_J15_checked;
+            out_b[16][k] = out_J16_checked;
+            out_b[17][k] = out_J17_checked;
+            out_b[18][k] = out_J18_checked;
+            out_b[19][k] = out_J19_checked;
+            out_b[20][k] = out_J20_checked;
+            out_b[21][k] = out_J21_checked;
+            out_b[22][k] = out_J22_checked;
+            out_b[23][k] = out_J23_checked;
+            out_b[24][k] = out_J24_checked;
+            out_b[25][k] = out_J25_checked;
+            out_b[26][k] = out_J26_checked;
+            out_b[27][k] = out_J27_checked;
+            out_b[28][k] = out_J28_checked;
+            out_b[29][k] = out_J29_checked;
+            out_b[30][k] = out_J30_checked;
+            out_b[31][k] = out_J31_checked;
+            out_b[32][k] = out_J32_checked;
+            out_b[33][k] = out_J33_checked;
+            out_b[34][k] = out_J34_checked;
+            out_b[35][k] = out_J35_checked;
+            out_b[36][k] = out_J36_checked;
+            out_b[37][k] = out_J37_checked;
+            out_b[38][k] = out_J38_checked;
+            out_b[39][k] = out_J39_checked;
+            out_b[40][k] = out_J40_checked;
+            out_b[41][k] = out_J41_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -1584,48 +1209,48 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            J[(start + k) * 42 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 42 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 42 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 42 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 42 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 42 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 42 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 42 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 42 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 42 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 42 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 42 + 11] = out_J11_checked_b[k];
-            J[(start + k) * 42 + 12] = out_J12_checked_b[k];
-            J[(start + k) * 42 + 13] = out_J13_checked_b[k];
-            J[(start + k) * 42 + 14] = out_J14_checked_b[k];
-            J[(start + k) * 42 + 15] = out_J15_checked_b[k];
-            J[(start + k) * 42 + 16] = out_J16_checked_b[k];
-            J[(start + k) * 42 + 17] = out_J17_checked_b[k];
-            J[(start + k) * 42 + 18] = out_J18_checked_b[k];
-            J[(start + k) * 42 + 19] = out_J19_checked_b[k];
-            J[(start + k) * 42 + 20] = out_J20_checked_b[k];
-            J[(start + k) * 42 + 21] = out_J21_checked_b[k];
-            J[(start + k) * 42 + 22] = out_J22_checked_b[k];
-            J[(start + k) * 42 + 23] = out_J23_checked_b[k];
-            J[(start + k) * 42 + 24] = out_J24_checked_b[k];
-            J[(start + k) * 42 + 25] = out_J25_checked_b[k];
-            J[(start + k) * 42 + 26] = out_J26_checked_b[k];
-            J[(start + k) * 42 + 27] = out_J27_checked_b[k];
-            J[(start + k) * 42 + 28] = out_J28_checked_b[k];
-            J[(start + k) * 42 + 29] = out_J29_checked_b[k];
-            J[(start + k) * 42 + 30] = out_J30_checked_b[k];
-            J[(start + k) * 42 + 31] = out_J31_checked_b[k];
-            J[(start + k) * 42 + 32] = out_J32_checked_b[k];
-            J[(start + k) * 42 + 33] = out_J33_checked_b[k];
-            J[(start + k) * 42 + 34] = out_J34_checked_b[k];
-            J[(start + k) * 42 + 35] = out_J35_checked_b[k];
-            J[(start + k) * 42 + 36] = out_J36_checked_b[k];
-            J[(start + k) * 42 + 37] = out_J37_checked_b[k];
-            J[(start + k) * 42 + 38] = out_J38_checked_b[k];
-            J[(start + k) * 42 + 39] = out_J39_checked_b[k];
-            J[(start + k) * 42 + 40] = out_J40_checked_b[k];
-            J[(start + k) * 42 + 41] = out_J41_checked_b[k];
+            J[(start + k) * 42 + 0] = out_b[0][k];
+            J[(start + k) * 42 + 1] = out_b[1][k];
+            J[(start + k) * 42 + 2] = out_b[2][k];
+            J[(start + k) * 42 + 3] = out_b[3][k];
+            J[(start + k) * 42 + 4] = out_b[4][k];
+            J[(start + k) * 42 + 5] = out_b[5][k];
+            J[(start + k) * 42 + 6] = out_b[6][k];
+            J[(start + k) * 42 + 7] = out_b[7][k];
+            J[(start + k) * 42 + 8] = out_b[8][k];
+            J[(start + k) * 42 + 9] = out_b[9][k];
+            J[(start + k) * 42 + 10] = out_b[10][k];
+            J[(start + k) * 42 + 11] = out_b[11][k];
+            J[(start + k) * 42 + 12] = out_b[12][k];
+            J[(start + k) * 42 + 13] = out_b[13][k];
+            J[(start + k) * 42 + 14] = out_b[14][k];
+            J[(start + k) * 42 + 15] = out_b[15][k];
+            J[(start + k) * 42 + 16] = out_b[16][k];
+            J[(start + k) * 42 + 17] = out_b[17][k];
+            J[(start + k) * 42 + 18] = out_b[18][k];
+            J[(start + k) * 42 + 19] = out_b[19][k];
+            J[(start + k) * 42 + 20] = out_b[20][k];
+            J[(start + k) * 42 + 21] = out_b[21][k];
+            J[(start + k) * 42 + 22] = out_b[22][k];
+            J[(start + k) * 42 + 23] = out_b[23][k];
+            J[(start + k) * 42 + 24] = out_b[24][k];
+            J[(start + k) * 42 + 25] = out_b[25][k];
+            J[(start + k) * 42 + 26] = out_b[26][k];
+            J[(start + k) * 42 + 27] = out_b[27][k];
+            J[(start + k) * 42 + 28] = out_b[28][k];
+            J[(start + k) * 42 + 29] = out_b[29][k];
+            J[(start + k) * 42 + 30] = out_b[30][k];
+            J[(start + k) * 42 + 31] = out_b[31][k];
+            J[(start + k) * 42 + 32] = out_b[32][k];
+            J[(start + k) * 42 + 33] = out_b[33][k];
+            J[(start + k) * 42 + 34] = out_b[34][k];
+            J[(start + k) * 42 + 35] = out_b[35][k];
+            J[(start + k) * 42 + 36] = out_b[36][k];
+            J[(start + k) * 42 + 37] = out_b[37][k];
+            J[(start + k) * 42 + 38] = out_b[38][k];
+            J[(start + k) * 42 + 39] = out_b[39][k];
+            J[(start + k) * 42 + 40] = out_b[40][k];
+            J[(start + k) * 42 + 41] = out_b[41][k];
         }
     }
     return 0;
@@ -1644,181 +1269,62 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
     for (size_t start = 0; start < n; start += DELTAGEN_PANDA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[7 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[6 * m + k] = q[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 7 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 7 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[7 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[7 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_T0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_T15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J16_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J17_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J18_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J19_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J20_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J21_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J22_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J23_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J24_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J25_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J26_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J27_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J28_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J29_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J30_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J31_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J32_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J33_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J34_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J35_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J36_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J37_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J38_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J39_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J40_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_J41_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[58][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double q3 = angle_b[2 * m + k];
+            const double q4 = angle_b[3 * m + k];
+            const double q5 = angle_b[4 * m + k];
+            const double q6 = angle_b[5 * m + k];
+            const double q7 = angle_b[6 * m + k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q3 = cos_b[2 * m + k];
+            const double sin_q3 = sin_b[2 * m + k];
+            const double cos_q4 = cos_b[3 * m + k];
+            const double sin_q4 = sin_b[3 * m + k];
+            const double cos_q5 = cos_b[4 * m + k];
+            const double sin_q5 = sin_b[4 * m + k];
+            const double cos_q6 = cos_b[5 * m + k];
+            const double sin_q6 = sin_b[5 * m + k];
+            const double cos_q7 = cos_b[6 * m + k];
+            const double sin_q7 = sin_b[6 * m + k];
             /* frame 2: F_2 = F_1 A_2 (universal convention) */
             const double t0_0 = cos_q1*sin_q2;
             const double t0_1 = sin_q1*sin_q2;
@@ -2037,64 +1543,64 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
             const double out_J39_checked = ((t9_0) ? NAN : J6_5);
             const double out_J40_checked = ((t9_0) ? NAN : J6_6);
             const double out_J41_checked = ((t9_0) ? NAN : J6_7);
-            out_T0_checked_b[k] = out_T0_checked;
-            out_T1_checked_b[k] = out_T1_checked;
-            out_T2_checked_b[k] = out_T2_checked;
-            out_T3_checked_b[k] = out_T3_checked;
-            out_T4_checked_b[k] = out_T4_checked;
-            out_T5_checked_b[k] = out_T5_checked;
-            out_T6_checked_b[k] = out_T6_checked;
-            out_T7_checked_b[k] = out_T7_checked;
-            out_T8_checked_b[k] = out_T8_checked;
-            out_T9_checked_b[k] = out_T9_checked;
-            out_T10_checked_b[k] = out_T10_checked;
-            out_T11_checked_b[k] = out_T11_checked;
-            out_T12_checked_b[k] = out_T12_checked;
-            out_T13_checked_b[k] = out_T13_checked;
-            out_T14_checked_b[k] = out_T14_checked;
-            out_T15_checked_b[k] = out_T15_checked;
-            out_J0_checked_b[k] = out_J0_checked;
-            out_J1_checked_b[k] = out_J1_checked;
-            out_J2_checked_b[k] = out_J2_checked;
-            out_J3_checked_b[k] = out_J3_checked;
-            out_J4_checked_b[k] = out_J4_checked;
-            out_J5_checked_b[k] = out_J5_checked;
-            out_J6_checked_b[k] = out_J6_checked;
-            out_J7_checked_b[k] = out_J7_checked;
-            out_J8_checked_b[k] = out_J8_checked;
-            out_J9_checked_b[k] = out_J9_checked;
-            out_J10_checked_b[k] = out_J10_checked;
-            out_J11_checked_b[k] = out_J11_checked;
-            out_J12_checked_b[k] = out_J12_checked;
-            out_J13_checked_b[k] = out_J13_checked;
-            out_J14_checked_b[k] = out_J14_checked;
-            out_J15_checked_b[k] = out_J15_checked;
-            out_J16_checked_b[k] = out_J16_checked;
-            out_J17_checked_b[k] = out_J17_checked;
-            out_J18_checked_b[k] = out_J18_checked;
-            out_J19_checked_b[k] = out_J19_checked;
-            out_J20_checked_b[k] = out_J20_checked;
-            out_J21_checked_b[k] = out_J21_checked;
-            out_J22_checked_b[k] = out_J22_checked;
-            out_J23_checked_b[k] = out_J23_checked;
-            out_J24_checked_b[k] = out_J24_checked;
-            out_J25_checked_b[k] = out_J25_checked;
-            out_J26_checked_b[k] = out_J26_checked;
-            out_J27_checked_b[k] = out_J27_checked;
-            out_J28_checked_b[k] = out_J28_checked;
-            out_J29_checked_b[k] = out_J29_checked;
-            out_J30_checked_b[k] = out_J30_checked;
-            out_J31_checked_b[k] = out_J31_checked;
-            out_J32_checked_b[k] = out_J32_checked;
-            out_J33_checked_b[k] = out_J33_checked;
-            out_J34_checked_b[k] = out_J34_checked;
-            out_J35_checked_b[k] = out_J35_checked;
-            out_J36_checked_b[k] = out_J36_checked;
-            out_J37_checked_b[k] = out_J37_checked;
-            out_J38_checked_b[k] = out_J38_checked;
-            out_J39_checked_b[k] = out_J39_checked;
-            out_J40_checked_b[k] = out_J40_checked;
-            out_J41_checked_b[k] = out_J41_checked;
+            out_b[0][k] = out_T0_checked;
+            out_b[1][k] = out_T1_checked;
+            out_b[2][k] = out_T2_checked;
+            out_b[3][k] = out_T3_checked;
+            out_b[4][k] = out_T4_checked;
+            out_b[5][k] = out_T5_checked;
+            out_b[6][k] = out_T6_checked;
+            out_b[7][k] = out_T7_checked;
+            out_b[8][k] = out_T8_checked;
+            out_b[9][k] = out_T9_checked;
+            out_b[10][k] = out_T10_checked;
+            out_b[11][k] = out_T11_checked;
+            out_b[12][k] = out_T12_checked;
+            out_b[13][k] = out_T13_checked;
+            out_b[14][k] = out_T14_checked;
+            out_b[15][k] = out_T15_checked;
+            out_b[16][k] = out_J0_checked;
+            out_b[17][k] = out_J1_checked;
+            out_b[18][k] = out_J2_checked;
+            out_b[19][k] = out_J3_checked;
+            out_b[20][k] = out_J4_checked;
+            out_b[21][k] = out_J5_checked;
+            out_b[22][k] = out_J6_checked;
+            out_b[23][k] = out_J7_checked;
+            out_b[24][k] = out_J8_checked;
+            out_b[25][k] = out_J9_checked;
+            out_b[26][k] = out_J10_checked;
+            out_b[27][k] = out_J11_checked;
+            out_b[28][k] = out_J12_checked;
+            out_b[29][k] = out_J13_checked;
+            out_b[30][k] = out_J14_checked;
+            out_b[31][k] = out_J15_checked;
+            out_b[32][k] = out_J16_checked;
+            out_b[33][k] = out_J17_checked;
+            out_b[34][k] = out_J18_checked;
+            out_b[35][k] = out_J19_checked;
+            out_b[36][k] = out_J20_checked;
+            out_b[37][k] = out_J21_checked;
+            out_b[38][k] = out_J22_checked;
+            out_b[39][k] = out_J23_checked;
+            out_b[40][k] = out_J24_checked;
+            out_b[41][k] = out_J25_checked;
+            out_b[42][k] = out_J26_checked;
+            out_b[43][k] = out_J27_checked;
+            out_b[44][k] = out_J28_checked;
+            out_b[45][k] = out_J29_checked;
+            out_b[46][k] = out_J30_checked;
+            out_b[47][k] = out_J31_checked;
+            out_b[48][k] = out_J32_checked;
+            out_b[49][k] = out_J33_checked;
+            out_b[50][k] = out_J34_checked;
+            out_b[51][k] = out_J35_checked;
+            out_b[52][k] = out_J36_checked;
+            out_b[53][k] = out_J37_checked;
+            out_b[54][k] = out_J38_checked;
+            out_b[55][k] = out_J39_checked;
+            out_b[56][k] = out_J40_checked;
+            out_b[57][k] = out_J41_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -2104,64 +1610,64 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            T[(start + k) * 16 + 0] = out_T0_checked_b[k];
-            T[(start + k) * 16 + 1] = out_T1_checked_b[k];
-            T[(start + k) * 16 + 2] = out_T2_checked_b[k];
-            T[(start + k) * 16 + 3] = out_T3_checked_b[k];
-            T[(start + k) * 16 + 4] = out_T4_checked_b[k];
-            T[(start + k) * 16 + 5] = out_T5_checked_b[k];
-            T[(start + k) * 16 + 6] = out_T6_checked_b[k];
-            T[(start + k) * 16 + 7] = out_T7_checked_b[k];
-            T[(start + k) * 16 + 8] = out_T8_checked_b[k];
-            T[(start + k) * 16 + 9] = out_T9_checked_b[k];
-            T[(start + k) * 16 + 10] = out_T10_checked_b[k];
-            T[(start + k) * 16 + 11] = out_T11_checked_b[k];
-            T[(start + k) * 16 + 12] = out_T12_checked_b[k];
-            T[(start + k) * 16 + 13] = out_T13_checked_b[k];
-            T[(start + k) * 16 + 14] = out_T14_checked_b[k];
-            T[(start + k) * 16 + 15] = out_T15_checked_b[k];
-            J[(start + k) * 42 + 0] = out_J0_checked_b[k];
-            J[(start + k) * 42 + 1] = out_J1_checked_b[k];
-            J[(start + k) * 42 + 2] = out_J2_checked_b[k];
-            J[(start + k) * 42 + 3] = out_J3_checked_b[k];
-            J[(start + k) * 42 + 4] = out_J4_checked_b[k];
-            J[(start + k) * 42 + 5] = out_J5_checked_b[k];
-            J[(start + k) * 42 + 6] = out_J6_checked_b[k];
-            J[(start + k) * 42 + 7] = out_J7_checked_b[k];
-            J[(start + k) * 42 + 8] = out_J8_checked_b[k];
-            J[(start + k) * 42 + 9] = out_J9_checked_b[k];
-            J[(start + k) * 42 + 10] = out_J10_checked_b[k];
-            J[(start + k) * 42 + 11] = out_J11_checked_b[k];
-            J[(start + k) * 42 + 12] = out_J12_checked_b[k];
-            J[(start + k) * 42 + 13] = out_J13_checked_b[k];
-            J[(start + k) * 42 + 14] = out_J14_checked_b[k];
-            J[(start + k) * 42 + 15] = out_J15_checked_b[k];
-            J[(start + k) * 42 + 16] = out_J16_checked_b[k];
-            J[(start + k) * 42 + 17] = out_J17_checked_b[k];
-            J[(start + k) * 42 + 18] = out_J18_checked_b[k];
-            J[(start + k) * 42 + 19] = out_J19_checked_b[k];
-            J[(start + k) * 42 + 20] = out_J20_checked_b[k];
-            J[(start + k) * 42 + 21] = out_J21_checked_b[k];
-            J[(start + k) * 42 + 22] = out_J22_checked_b[k];
-            J[(start + k) * 42 + 23] = out_J23_checked_b[k];
-            J[(start + k) * 42 + 24] = out_J24_checked_b[k];
-            J[(start + k) * 42 + 25] = out_J25_checked_b[k];
-            J[(start + k) * 42 + 26] = out_J26_checked_b[k];
-            J[(start + k) * 42 + 27] = out_J27_checked_b[k];
-            J[(start + k) * 42 + 28] = out_J28_checked_b[k];
-            J[(start + k) * 42 + 29] = out_J29_checked_b[k];
-            J[(start + k) * 42 + 30] = out_J30_checked_b[k];
-            J[(start + k) * 42 + 31] = out_J31_checked_b[k];
-            J[(start + k) * 42 + 32] = out_J32_checked_b[k];
-            J[(start + k) * 42 + 33] = out_J33_checked_b[k];
-            J[(start + k) * 42 + 34] = out_J34_checked_b[k];
-            J[(start + k) * 42 + 35] = out_J35_checked_b[k];
-            J[(start + k) * 42 + 36] = out_J36_checked_b[k];
-            J[(start + k) * 42 + 37] = out_J37_checked_b[k];
-            J[(start + k) * 42 + 38] = out_J38_checked_b[k];
-            J[(start + k) * 42 + 39] = out_J39_checked_b[k];
-            J[(start + k) * 42 + 40] = out_J40_checked_b[k];
-            J[(start + k) * 42 + 41] = out_J41_checked_b[k];
+            T[(start + k) * 16 + 0] = out_b[0][k];
+            T[(start + k) * 16 + 1] = out_b[1][k];
+            T[(start + k) * 16 + 2] = out_b[2][k];
+            T[(start + k) * 16 + 3] = out_b[3][k];
+            T[(start + k) * 16 + 4] = out_b[4][k];
+            T[(start + k) * 16 + 5] = out_b[5][k];
+            T[(start + k) * 16 + 6] = out_b[6][k];
+            T[(start + k) * 16 + 7] = out_b[7][k];
+            T[(start + k) * 16 + 8] = out_b[8][k];
+            T[(start + k) * 16 + 9] = out_b[9][k];
+            T[(start + k) * 16 + 10] = out_b[10][k];
+            T[(start + k) * 16 + 11] = out_b[11][k];
+            T[(start + k) * 16 + 12] = out_b[12][k];
+            T[(start + k) * 16 + 13] = out_b[13][k];
+            T[(start + k) * 16 + 14] = out_b[14][k];
+            T[(start + k) * 16 + 15] = out_b[15][k];
+            J[(start + k) * 42 + 0] = out_b[16][k];
+            J[(start + k) * 42 + 1] = out_b[17][k];
+            J[(start + k) * 42 + 2] = out_b[18][k];
+            J[(start + k) * 42 + 3] = out_b[19][k];
+            J[(start + k) * 42 + 4] = out_b[20][k];
+            J[(start + k) * 42 + 5] = out_b[21][k];
+            J[(start + k) * 42 + 6] = out_b[22][k];
+            J[(start + k) * 42 + 7] = out_b[23][k];
+            J[(start + k) * 42 + 8] = out_b[24][k];
+            J[(start + k) * 42 + 9] = out_b[25][k];
+            J[(start + k) * 42 + 10] = out_b[26][k];
+            J[(start + k) * 42 + 11] = out_b[27][k];
+            J[(start + k) * 42 + 12] = out_b[28][k];
+            J[(start + k) * 42 + 13] = out_b[29][k];
+            J[(start + k) * 42 + 14] = out_b[30][k];
+            J[(start + k) * 42 + 15] = out_b[31][k];
+            J[(start + k) * 42 + 16] = out_b[32][k];
+            J[(start + k) * 42 + 17] = out_b[33][k];
+            J[(start + k) * 42 + 18] = out_b[34][k];
+            J[(start + k) * 42 + 19] = out_b[35][k];
+            J[(start + k) * 42 + 20] = out_b[36][k];
+            J[(start + k) * 42 + 21] = out_b[37][k];
+            J[(start + k) * 42 + 22] = out_b[38][k];
+            J[(start + k) * 42 + 23] = out_b[39][k];
+            J[(start + k) * 42 + 24] = out_b[40][k];
+            J[(start + k) * 42 + 25] = out_b[41][k];
+            J[(start + k) * 42 + 26] = out_b[42][k];
+            J[(start + k) * 42 + 27] = out_b[43][k];
+            J[(start + k) * 42 + 28] = out_b[44][k];
+            J[(start + k) * 42 + 29] = out_b[45][k];
+            J[(start + k) * 42 + 30] = out_b[46][k];
+            J[(start + k) * 42 + 31] = out_b[47][k];
+            J[(start + k) * 42 + 32] = out_b[48][k];
+            J[(start + k) * 42 + 33] = out_b[49][k];
+            J[(start + k) * 42 + 34] = out_b[50][k];
+            J[(start + k) * 42 + 35] = out_b[51][k];
+            J[(start + k) * 42 + 36] = out_b[52][k];
+            J[(start + k) * 42 + 37] = out_b[53][k];
+            J[(start + k) * 42 + 38] = out_b[54][k];
+            J[(start + k) * 42 + 39] = out_b[55][k];
+            J[(start + k) * 42 + 40] = out_b[56][k];
+            J[(start + k) * 42 + 41] = out_b[57][k];
         }
     }
     return 0;
@@ -2180,12 +1686,6 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
     for (size_t start = 0; start < n; start += DELTAGEN_PANDA_BLOCK) {
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
-        double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
         double q7_b[DELTAGEN_PANDA_BLOCK];
         double qd1_b[DELTAGEN_PANDA_BLOCK];
         double qd2_b[DELTAGEN_PANDA_BLOCK];
@@ -2194,13 +1694,14 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
         double qd5_b[DELTAGEN_PANDA_BLOCK];
         double qd6_b[DELTAGEN_PANDA_BLOCK];
         double qd7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
-            q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 0];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 5];
             q7_b[k] = q[(start + k) * 7 + 6];
             qd1_b[k] = qd[(start + k) * 7 + 0];
             qd2_b[k] = qd[(start + k) * 7 + 1];
@@ -2210,125 +1711,37 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
             qd6_b[k] = qd[(start + k) * 7 + 5];
             qd7_b[k] = qd[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q1_b[k] = q1_b[0];  /* not 0.0: gcc makes that a memset call */
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q1_b[k] = cos(q1_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q1_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q1_b[k] = sin(q1_b[k]);
-        }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
-        }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd16_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd17_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd18_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd19_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd20_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd21_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd22_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd23_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd24_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd25_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd26_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd27_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd28_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd29_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd30_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd31_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd32_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd33_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd34_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd35_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd36_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd37_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd38_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd39_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd40_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_Jd41_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[42][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
+            const double q1 = angle_b[0 * m + k];
+            const double q2 = angle_b[1 * m + k];
+            const double q3 = angle_b[2 * m + k];
+            const double q4 = angle_b[3 * m + k];
+            const double q5 = angle_b[4 * m + k];
+            const double q6 = angle_b[5 * m + k];
             const double q7 = q7_b[k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
@@ -2337,18 +1750,18 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
             const double qd5 = qd5_b[k];
             const double qd6 = qd6_b[k];
             const double qd7 = qd7_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
+            const double cos_q1 = cos_b[0 * m + k];
+            const double sin_q1 = sin_b[0 * m + k];
+            const double cos_q2 = cos_b[1 * m + k];
+            const double sin_q2 = sin_b[1 * m + k];
+            const double cos_q3 = cos_b[2 * m + k];
+            const double sin_q3 = sin_b[2 * m + k];
+            const double cos_q4 = cos_b[3 * m + k];
+            const double sin_q4 = sin_b[3 * m + k];
+            const double cos_q5 = cos_b[4 * m + k];
+            const double sin_q5 = sin_b[4 * m + k];
+            const double cos_q6 = cos_b[5 * m + k];
+            const double sin_q6 = sin_b[5 * m + k];
             /* frame 2: F_2 = F_1 A_2 (universal convention) */
             const double t0_0 = cos_q1*sin_q2;
             const double t0_1 = sin_q1*sin_q2;
@@ -2648,48 +2061,48 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
             const double out_Jd39_checked = ((t9_0) ? NAN : Jd6_5);
             const double out_Jd40_checked = ((t9_0) ? NAN : Jd6_6);
             const double out_Jd41_checked = ((t9_0) ? NAN : Jd6_7);
-            out_Jd0_checked_b[k] = out_Jd0_checked;
-            out_Jd1_checked_b[k] = out_Jd1_checked;
-            out_Jd2_checked_b[k] = out_Jd2_checked;
-            out_Jd3_checked_b[k] = out_Jd3_checked;
-            out_Jd4_checked_b[k] = out_Jd4_checked;
-            out_Jd5_checked_b[k] = out_Jd5_checked;
-            out_Jd6_checked_b[k] = out_Jd6_checked;
-            out_Jd7_checked_b[k] = out_Jd7_checked;
-            out_Jd8_checked_b[k] = out_Jd8_checked;
-            out_Jd9_checked_b[k] = out_Jd9_checked;
-            out_Jd10_checked_b[k] = out_Jd10_checked;
-            out_Jd11_checked_b[k] = out_Jd11_checked;
-            out_Jd12_checked_b[k] = out_Jd12_checked;
-            out_Jd13_checked_b[k] = out_Jd13_checked;
-            out_Jd14_checked_b[k] = out_Jd14_checked;
-            out_Jd15_checked_b[k] = out_Jd15_checked;
-            out_Jd16_checked_b[k] = out_Jd16_checked;
-            out_Jd17_checked_b[k] = out_Jd17_checked;
-            out_Jd18_checked_b[k] = out_Jd18_checked;
-            out_Jd19_checked_b[k] = out_Jd19_checked;
-            out_Jd20_checked_b[k] = out_Jd20_checked;
-            out_Jd21_checked_b[k] = out_Jd21_checked;
-            out_Jd22_checked_b[k] = out_Jd22_checked;
-            out_Jd23_checked_b[k] = out_Jd23_checked;
-            out_Jd24_checked_b[k] = out_Jd24_checked;
-            out_Jd25_checked_b[k] = out_Jd25_checked;
-            out_Jd26_checked_b[k] = out_Jd26_checked;
-            out_Jd27_checked_b[k] = out_Jd27_checked;
-            out_Jd28_checked_b[k] = out_Jd28_checked;
-            out_Jd29_checked_b[k] = out_Jd29_checked;
-            out_Jd30_checked_b[k] = out_Jd30_checked;
-            out_Jd31_checked_b[k] = out_Jd31_checked;
-            out_Jd32_checked_b[k] = out_Jd32_checked;
-            out_Jd33_checked_b[k] = out_Jd33_checked;
-            out_Jd34_checked_b[k] = out_Jd34_checked;
-            out_Jd35_checked_b[k] = out_Jd35_checked;
-            out_Jd36_checked_b[k] = out_Jd36_checked;
-            out_Jd37_checked_b[k] = out_Jd37_checked;
-            out_Jd38_checked_b[k] = out_Jd38_checked;
-            out_Jd39_checked_b[k] = out_Jd39_checked;
-            out_Jd40_checked_b[k] = out_Jd40_checked;
-            out_Jd41_checked_b[k] = out_Jd41_checked;
+            out_b[0][k] = out_Jd0_checked;
+            out_b[1][k] = out_Jd1_checked;
+            out_b[2][k] = out_Jd2_checked;
+            out_b[3][k] = out_Jd3_checked;
+            out_b[4][k] = out_Jd4_checked;
+            out_b[5][k] = out_Jd5_checked;
+            out_b[6][k] = out_Jd6_checked;
+            out_b[7][k] = out_Jd7_checked;
+            out_b[8][k] = out_Jd8_checked;
+            out_b[9][k] = out_Jd9_checked;
+            out_b[10][k] = out_Jd10_checked;
+            out_b[11][k] = out_Jd11_checked;
+            out_b[12][k] = out_Jd12_checked;
+            out_b[13][k] = out_Jd13_checked;
+            out_b[14][k] = out_Jd14_checked;
+            out_b[15][k] = out_Jd15_checked;
+            out_b[16][k] = out_Jd16_checked;
+            out_b[17][k] = out_Jd17_checked;
+            out_b[18][k] = out_Jd18_checked;
+            out_b[19][k] = out_Jd19_checked;
+            out_b[20][k] = out_Jd20_checked;
+            out_b[21][k] = out_Jd21_checked;
+            out_b[22][k] = out_Jd22_checked;
+            out_b[23][k] = out_Jd23_checked;
+            out_b[24][k] = out_Jd24_checked;
+            out_b[25][k] = out_Jd25_checked;
+            out_b[26][k] = out_Jd26_checked;
+            out_b[27][k] = out_Jd27_checked;
+            out_b[28][k] = out_Jd28_checked;
+            out_b[29][k] = out_Jd29_checked;
+            out_b[30][k] = out_Jd30_checked;
+            out_b[31][k] = out_Jd31_checked;
+            out_b[32][k] = out_Jd32_checked;
+            out_b[33][k] = out_Jd33_checked;
+            out_b[34][k] = out_Jd34_checked;
+            out_b[35][k] = out_Jd35_checked;
+            out_b[36][k] = out_Jd36_checked;
+            out_b[37][k] = out_Jd37_checked;
+            out_b[38][k] = out_Jd38_checked;
+            out_b[39][k] = out_Jd39_checked;
+            out_b[40][k] = out_Jd40_checked;
+            out_b[41][k] = out_Jd41_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -2699,48 +2112,48 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            Jd[(start + k) * 42 + 0] = out_Jd0_checked_b[k];
-            Jd[(start + k) * 42 + 1] = out_Jd1_checked_b[k];
-            Jd[(start + k) * 42 + 2] = out_Jd2_checked_b[k];
-            Jd[(start + k) * 42 + 3] = out_Jd3_checked_b[k];
-            Jd[(start + k) * 42 + 4] = out_Jd4_checked_b[k];
-            Jd[(start + k) * 42 + 5] = out_Jd5_checked_b[k];
-            Jd[(start + k) * 42 + 6] = out_Jd6_checked_b[k];
-            Jd[(start + k) * 42 + 7] = out_Jd7_checked_b[k];
-            Jd[(start + k) * 42 + 8] = out_Jd8_checked_b[k];
-            Jd[(start + k) * 42 + 9] = out_Jd9_checked_b[k];
-            Jd[(start + k) * 42 + 10] = out_Jd10_checked_b[k];
-            Jd[(start + k) * 42 + 11] = out_Jd11_checked_b[k];
-            Jd[(start + k) * 42 + 12] = out_Jd12_checked_b[k];
-            Jd[(start + k) * 42 + 13] = out_Jd13_checked_b[k];
-            Jd[(start + k) * 42 + 14] = out_Jd14_checked_b[k];
-            Jd[(start + k) * 42 + 15] = out_Jd15_checked_b[k];
-            Jd[(start + k) * 42 + 16] = out_Jd16_checked_b[k];
-            Jd[(start + k) * 42 + 17] = out_Jd17_checked_b[k];
-            Jd[(start + k) * 42 + 18] = out_Jd18_checked_b[k];
-            Jd[(start + k) * 42 + 19] = out_Jd19_checked_b[k];
-            Jd[(start + k) * 42 + 20] = out_Jd20_checked_b[k];
-            Jd[(start + k) * 42 + 21] = out_Jd21_checked_b[k];
-            Jd[(start + k) * 42 + 22] = out_Jd22_checked_b[k];
-            Jd[(start + k) * 42 + 23] = out_Jd23_checked_b[k];
-            Jd[(start + k) * 42 + 24] = out_Jd24_checked_b[k];
-            Jd[(start + k) * 42 + 25] = out_Jd25_checked_b[k];
-            Jd[(start + k) * 42 + 26] = out_Jd26_checked_b[k];
-            Jd[(start + k) * 42 + 27] = out_Jd27_checked_b[k];
-            Jd[(start + k) * 42 + 28] = out_Jd28_checked_b[k];
-            Jd[(start + k) * 42 + 29] = out_Jd29_checked_b[k];
-            Jd[(start + k) * 42 + 30] = out_Jd30_checked_b[k];
-            Jd[(start + k) * 42 + 31] = out_Jd31_checked_b[k];
-            Jd[(start + k) * 42 + 32] = out_Jd32_checked_b[k];
-            Jd[(start + k) * 42 + 33] = out_Jd33_checked_b[k];
-            Jd[(start + k) * 42 + 34] = out_Jd34_checked_b[k];
-            Jd[(start + k) * 42 + 35] = out_Jd35_checked_b[k];
-            Jd[(start + k) * 42 + 36] = out_Jd36_checked_b[k];
-            Jd[(start + k) * 42 + 37] = out_Jd37_checked_b[k];
-            Jd[(start + k) * 42 + 38] = out_Jd38_checked_b[k];
-            Jd[(start + k) * 42 + 39] = out_Jd39_checked_b[k];
-            Jd[(start + k) * 42 + 40] = out_Jd40_checked_b[k];
-            Jd[(start + k) * 42 + 41] = out_Jd41_checked_b[k];
+            Jd[(start + k) * 42 + 0] = out_b[0][k];
+            Jd[(start + k) * 42 + 1] = out_b[1][k];
+            Jd[(start + k) * 42 + 2] = out_b[2][k];
+            Jd[(start + k) * 42 + 3] = out_b[3][k];
+            Jd[(start + k) * 42 + 4] = out_b[4][k];
+            Jd[(start + k) * 42 + 5] = out_b[5][k];
+            Jd[(start + k) * 42 + 6] = out_b[6][k];
+            Jd[(start + k) * 42 + 7] = out_b[7][k];
+            Jd[(start + k) * 42 + 8] = out_b[8][k];
+            Jd[(start + k) * 42 + 9] = out_b[9][k];
+            Jd[(start + k) * 42 + 10] = out_b[10][k];
+            Jd[(start + k) * 42 + 11] = out_b[11][k];
+            Jd[(start + k) * 42 + 12] = out_b[12][k];
+            Jd[(start + k) * 42 + 13] = out_b[13][k];
+            Jd[(start + k) * 42 + 14] = out_b[14][k];
+            Jd[(start + k) * 42 + 15] = out_b[15][k];
+            Jd[(start + k) * 42 + 16] = out_b[16][k];
+            Jd[(start + k) * 42 + 17] = out_b[17][k];
+            Jd[(start + k) * 42 + 18] = out_b[18][k];
+            Jd[(start + k) * 42 + 19] = out_b[19][k];
+            Jd[(start + k) * 42 + 20] = out_b[20][k];
+            Jd[(start + k) * 42 + 21] = out_b[21][k];
+            Jd[(start + k) * 42 + 22] = out_b[22][k];
+            Jd[(start + k) * 42 + 23] = out_b[23][k];
+            Jd[(start + k) * 42 + 24] = out_b[24][k];
+            Jd[(start + k) * 42 + 25] = out_b[25][k];
+            Jd[(start + k) * 42 + 26] = out_b[26][k];
+            Jd[(start + k) * 42 + 27] = out_b[27][k];
+            Jd[(start + k) * 42 + 28] = out_b[28][k];
+            Jd[(start + k) * 42 + 29] = out_b[29][k];
+            Jd[(start + k) * 42 + 30] = out_b[30][k];
+            Jd[(start + k) * 42 + 31] = out_b[31][k];
+            Jd[(start + k) * 42 + 32] = out_b[32][k];
+            Jd[(start + k) * 42 + 33] = out_b[33][k];
+            Jd[(start + k) * 42 + 34] = out_b[34][k];
+            Jd[(start + k) * 42 + 35] = out_b[35][k];
+            Jd[(start + k) * 42 + 36] = out_b[36][k];
+            Jd[(start + k) * 42 + 37] = out_b[37][k];
+            Jd[(start + k) * 42 + 38] = out_b[38][k];
+            Jd[(start + k) * 42 + 39] = out_b[39][k];
+            Jd[(start + k) * 42 + 40] = out_b[40][k];
+            Jd[(start + k) * 42 + 41] = out_b[41][k];
         }
     }
     return 0;
@@ -2760,12 +2173,6 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
         double qd1_b[DELTAGEN_PANDA_BLOCK];
         double qd2_b[DELTAGEN_PANDA_BLOCK];
         double qd3_b[DELTAGEN_PANDA_BLOCK];
@@ -2780,14 +2187,15 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
         double qdd5_b[DELTAGEN_PANDA_BLOCK];
         double qdd6_b[DELTAGEN_PANDA_BLOCK];
         double qdd7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 6];
             qd1_b[k] = qd[(start + k) * 7 + 0];
             qd2_b[k] = qd[(start + k) * 7 + 1];
             qd3_b[k] = qd[(start + k) * 7 + 2];
@@ -2803,91 +2211,38 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
             qdd6_b[k] = qdd[(start + k) * 7 + 5];
             qdd7_b[k] = qdd[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_tau6_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[7][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
+            const double q2 = angle_b[0 * m + k];
+            const double q3 = angle_b[1 * m + k];
+            const double q4 = angle_b[2 * m + k];
+            const double q5 = angle_b[3 * m + k];
+            const double q6 = angle_b[4 * m + k];
+            const double q7 = angle_b[5 * m + k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
             const double qd3 = qd3_b[k];
@@ -2902,18 +2257,18 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
             const double qdd5 = qdd5_b[k];
             const double qdd6 = qdd6_b[k];
             const double qdd7 = qdd7_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double cos_q2 = cos_b[0 * m + k];
+            const double sin_q2 = sin_b[0 * m + k];
+            const double cos_q3 = cos_b[1 * m + k];
+            const double sin_q3 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
+            const double cos_q5 = cos_b[3 * m + k];
+            const double sin_q5 = sin_b[3 * m + k];
+            const double cos_q6 = cos_b[4 * m + k];
+            const double sin_q6 = sin_b[4 * m + k];
+            const double cos_q7 = cos_b[5 * m + k];
+            const double sin_q7 = sin_b[5 * m + k];
             /* recursive Newton-Euler passes (derive/serial/dynamics.py) */
             const double t0_0 = qd1*qd1;
             const double t0_1 = qd1*sin_q2;
@@ -3208,13 +2563,13 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
             const double out_tau4_checked = ((t3_0) ? NAN : tau_4);
             const double out_tau5_checked = ((t3_0) ? NAN : tau_5);
             const double out_tau6_checked = ((t3_0) ? NAN : tau_6);
-            out_tau0_checked_b[k] = out_tau0_checked;
-            out_tau1_checked_b[k] = out_tau1_checked;
-            out_tau2_checked_b[k] = out_tau2_checked;
-            out_tau3_checked_b[k] = out_tau3_checked;
-            out_tau4_checked_b[k] = out_tau4_checked;
-            out_tau5_checked_b[k] = out_tau5_checked;
-            out_tau6_checked_b[k] = out_tau6_checked;
+            out_b[0][k] = out_tau0_checked;
+            out_b[1][k] = out_tau1_checked;
+            out_b[2][k] = out_tau2_checked;
+            out_b[3][k] = out_tau3_checked;
+            out_b[4][k] = out_tau4_checked;
+            out_b[5][k] = out_tau5_checked;
+            out_b[6][k] = out_tau6_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -3224,13 +2579,13 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            tau[(start + k) * 7 + 0] = out_tau0_checked_b[k];
-            tau[(start + k) * 7 + 1] = out_tau1_checked_b[k];
-            tau[(start + k) * 7 + 2] = out_tau2_checked_b[k];
-            tau[(start + k) * 7 + 3] = out_tau3_checked_b[k];
-            tau[(start + k) * 7 + 4] = out_tau4_checked_b[k];
-            tau[(start + k) * 7 + 5] = out_tau5_checked_b[k];
-            tau[(start + k) * 7 + 6] = out_tau6_checked_b[k];
+            tau[(start + k) * 7 + 0] = out_b[0][k];
+            tau[(start + k) * 7 + 1] = out_b[1][k];
+            tau[(start + k) * 7 + 2] = out_b[2][k];
+            tau[(start + k) * 7 + 3] = out_b[3][k];
+            tau[(start + k) * 7 + 4] = out_b[4][k];
+            tau[(start + k) * 7 + 5] = out_b[5][k];
+            tau[(start + k) * 7 + 6] = out_b[6][k];
         }
     }
     return 0;
@@ -3249,160 +2604,60 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_M0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M16_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M17_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M18_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M19_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M20_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M21_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M22_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M23_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M24_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M25_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M26_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M27_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M28_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M29_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M30_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M31_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M32_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M33_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M34_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M35_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M36_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M37_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M38_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M39_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M40_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M41_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M42_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M43_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M44_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M45_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M46_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M47_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_M48_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[49][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double q2 = angle_b[0 * m + k];
+            const double q3 = angle_b[1 * m + k];
+            const double q4 = angle_b[2 * m + k];
+            const double q5 = angle_b[3 * m + k];
+            const double q6 = angle_b[4 * m + k];
+            const double q7 = angle_b[5 * m + k];
+            const double cos_q2 = cos_b[0 * m + k];
+            const double sin_q2 = sin_b[0 * m + k];
+            const double cos_q3 = cos_b[1 * m + k];
+            const double sin_q3 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
+            const double cos_q5 = cos_b[3 * m + k];
+            const double sin_q5 = sin_b[3 * m + k];
+            const double cos_q6 = cos_b[4 * m + k];
+            const double sin_q6 = sin_b[4 * m + k];
+            const double cos_q7 = cos_b[5 * m + k];
+            const double sin_q7 = sin_b[5 * m + k];
             /* recursive Newton-Euler passes (derive/serial/dynamics.py) */
             const double t0_0 = 0.316*sin_q2;
             const double t0_2 = 0.088*sin_q6;
@@ -3899,55 +3154,55 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
             const double out_M46_checked = t3_20;
             const double out_M47_checked = t3_21;
             const double out_M48_checked = ((t3_0) ? NAN : M_48);
-            out_M0_checked_b[k] = out_M0_checked;
-            out_M1_checked_b[k] = out_M1_checked;
-            out_M2_checked_b[k] = out_M2_checked;
-            out_M3_checked_b[k] = out_M3_checked;
-            out_M4_checked_b[k] = out_M4_checked;
-            out_M5_checked_b[k] = out_M5_checked;
-            out_M6_checked_b[k] = out_M6_checked;
-            out_M7_checked_b[k] = out_M7_checked;
-            out_M8_checked_b[k] = out_M8_checked;
-            out_M9_checked_b[k] = out_M9_checked;
-            out_M10_checked_b[k] = out_M10_checked;
-            out_M11_checked_b[k] = out_M11_checked;
-            out_M12_checked_b[k] = out_M12_checked;
-            out_M13_checked_b[k] = out_M13_checked;
-            out_M14_checked_b[k] = out_M14_checked;
-            out_M15_checked_b[k] = out_M15_checked;
-            out_M16_checked_b[k] = out_M16_checked;
-            out_M17_checked_b[k] = out_M17_checked;
-            out_M18_checked_b[k] = out_M18_checked;
-            out_M19_checked_b[k] = out_M19_checked;
-            out_M20_checked_b[k] = out_M20_checked;
-            out_M21_checked_b[k] = out_M21_checked;
-            out_M22_checked_b[k] = out_M22_checked;
-            out_M23_checked_b[k] = out_M23_checked;
-            out_M24_checked_b[k] = out_M24_checked;
-            out_M25_checked_b[k] = out_M25_checked;
-            out_M26_checked_b[k] = out_M26_checked;
-            out_M27_checked_b[k] = out_M27_checked;
-            out_M28_checked_b[k] = out_M28_checked;
-            out_M29_checked_b[k] = out_M29_checked;
-            out_M30_checked_b[k] = out_M30_checked;
-            out_M31_checked_b[k] = out_M31_checked;
-            out_M32_checked_b[k] = out_M32_checked;
-            out_M33_checked_b[k] = out_M33_checked;
-            out_M34_checked_b[k] = out_M34_checked;
-            out_M35_checked_b[k] = out_M35_checked;
-            out_M36_checked_b[k] = out_M36_checked;
-            out_M37_checked_b[k] = out_M37_checked;
-            out_M38_checked_b[k] = out_M38_checked;
-            out_M39_checked_b[k] = out_M39_checked;
-            out_M40_checked_b[k] = out_M40_checked;
-            out_M41_checked_b[k] = out_M41_checked;
-            out_M42_checked_b[k] = out_M42_checked;
-            out_M43_checked_b[k] = out_M43_checked;
-            out_M44_checked_b[k] = out_M44_checked;
-            out_M45_checked_b[k] = out_M45_checked;
-            out_M46_checked_b[k] = out_M46_checked;
-            out_M47_checked_b[k] = out_M47_checked;
-            out_M48_checked_b[k] = out_M48_checked;
+            out_b[0][k] = out_M0_checked;
+            out_b[1][k] = out_M1_checked;
+            out_b[2][k] = out_M2_checked;
+            out_b[3][k] = out_M3_checked;
+            out_b[4][k] = out_M4_checked;
+            out_b[5][k] = out_M5_checked;
+            out_b[6][k] = out_M6_checked;
+            out_b[7][k] = out_M7_checked;
+            out_b[8][k] = out_M8_checked;
+            out_b[9][k] = out_M9_checked;
+            out_b[10][k] = out_M10_checked;
+            out_b[11][k] = out_M11_checked;
+            out_b[12][k] = out_M12_checked;
+            out_b[13][k] = out_M13_checked;
+            out_b[14][k] = out_M14_checked;
+            out_b[15][k] = out_M15_checked;
+            out_b[16][k] = out_M16_checked;
+            out_b[17][k] = out_M17_checked;
+            out_b[18][k] = out_M18_checked;
+            out_b[19][k] = out_M19_checked;
+            out_b[20][k] = out_M20_checked;
+            out_b[21][k] = out_M21_checked;
+            out_b[22][k] = out_M22_checked;
+            out_b[23][k] = out_M23_checked;
+            out_b[24][k] = out_M24_checked;
+            out_b[25][k] = out_M25_checked;
+            out_b[26][k] = out_M26_checked;
+            out_b[27][k] = out_M27_checked;
+            out_b[28][k] = out_M28_checked;
+            out_b[29][k] = out_M29_checked;
+            out_b[30][k] = out_M30_checked;
+            out_b[31][k] = out_M31_checked;
+            out_b[32][k] = out_M32_checked;
+            out_b[33][k] = out_M33_checked;
+            out_b[34][k] = out_M34_checked;
+            out_b[35][k] = out_M35_checked;
+            out_b[36][k] = out_M36_checked;
+            out_b[37][k] = out_M37_checked;
+            out_b[38][k] = out_M38_checked;
+            out_b[39][k] = out_M39_checked;
+            out_b[40][k] = out_M40_checked;
+            out_b[41][k] = out_M41_checked;
+            out_b[42][k] = out_M42_checked;
+            out_b[43][k] = out_M43_checked;
+            out_b[44][k] = out_M44_checked;
+            out_b[45][k] = out_M45_checked;
+            out_b[46][k] = out_M46_checked;
+            out_b[47][k] = out_M47_checked;
+            out_b[48][k] = out_M48_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -3957,55 +3212,55 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            M[(start + k) * 49 + 0] = out_M0_checked_b[k];
-            M[(start + k) * 49 + 1] = out_M1_checked_b[k];
-            M[(start + k) * 49 + 2] = out_M2_checked_b[k];
-            M[(start + k) * 49 + 3] = out_M3_checked_b[k];
-            M[(start + k) * 49 + 4] = out_M4_checked_b[k];
-            M[(start + k) * 49 + 5] = out_M5_checked_b[k];
-            M[(start + k) * 49 + 6] = out_M6_checked_b[k];
-            M[(start + k) * 49 + 7] = out_M7_checked_b[k];
-            M[(start + k) * 49 + 8] = out_M8_checked_b[k];
-            M[(start + k) * 49 + 9] = out_M9_checked_b[k];
-            M[(start + k) * 49 + 10] = out_M10_checked_b[k];
-            M[(start + k) * 49 + 11] = out_M11_checked_b[k];
-            M[(start + k) * 49 + 12] = out_M12_checked_b[k];
-            M[(start + k) * 49 + 13] = out_M13_checked_b[k];
-            M[(start + k) * 49 + 14] = out_M14_checked_b[k];
-            M[(start + k) * 49 + 15] = out_M15_checked_b[k];
-            M[(start + k) * 49 + 16] = out_M16_checked_b[k];
-            M[(start + k) * 49 + 17] = out_M17_checked_b[k];
-            M[(start + k) * 49 + 18] = out_M18_checked_b[k];
-            M[(start + k) * 49 + 19] = out_M19_checked_b[k];
-            M[(start + k) * 49 + 20] = out_M20_checked_b[k];
-            M[(start + k) * 49 + 21] = out_M21_checked_b[k];
-            M[(start + k) * 49 + 22] = out_M22_checked_b[k];
-            M[(start + k) * 49 + 23] = out_M23_checked_b[k];
-            M[(start + k) * 49 + 24] = out_M24_checked_b[k];
-            M[(start + k) * 49 + 25] = out_M25_checked_b[k];
-            M[(start + k) * 49 + 26] = out_M26_checked_b[k];
-            M[(start + k) * 49 + 27] = out_M27_checked_b[k];
-            M[(start + k) * 49 + 28] = out_M28_checked_b[k];
-            M[(start + k) * 49 + 29] = out_M29_checked_b[k];
-            M[(start + k) * 49 + 30] = out_M30_checked_b[k];
-            M[(start + k) * 49 + 31] = out_M31_checked_b[k];
-            M[(start + k) * 49 + 32] = out_M32_checked_b[k];
-            M[(start + k) * 49 + 33] = out_M33_checked_b[k];
-            M[(start + k) * 49 + 34] = out_M34_checked_b[k];
-            M[(start + k) * 49 + 35] = out_M35_checked_b[k];
-            M[(start + k) * 49 + 36] = out_M36_checked_b[k];
-            M[(start + k) * 49 + 37] = out_M37_checked_b[k];
-            M[(start + k) * 49 + 38] = out_M38_checked_b[k];
-            M[(start + k) * 49 + 39] = out_M39_checked_b[k];
-            M[(start + k) * 49 + 40] = out_M40_checked_b[k];
-            M[(start + k) * 49 + 41] = out_M41_checked_b[k];
-            M[(start + k) * 49 + 42] = out_M42_checked_b[k];
-            M[(start + k) * 49 + 43] = out_M43_checked_b[k];
-            M[(start + k) * 49 + 44] = out_M44_checked_b[k];
-            M[(start + k) * 49 + 45] = out_M45_checked_b[k];
-            M[(start + k) * 49 + 46] = out_M46_checked_b[k];
-            M[(start + k) * 49 + 47] = out_M47_checked_b[k];
-            M[(start + k) * 49 + 48] = out_M48_checked_b[k];
+            M[(start + k) * 49 + 0] = out_b[0][k];
+            M[(start + k) * 49 + 1] = out_b[1][k];
+            M[(start + k) * 49 + 2] = out_b[2][k];
+            M[(start + k) * 49 + 3] = out_b[3][k];
+            M[(start + k) * 49 + 4] = out_b[4][k];
+            M[(start + k) * 49 + 5] = out_b[5][k];
+            M[(start + k) * 49 + 6] = out_b[6][k];
+            M[(start + k) * 49 + 7] = out_b[7][k];
+            M[(start + k) * 49 + 8] = out_b[8][k];
+            M[(start + k) * 49 + 9] = out_b[9][k];
+            M[(start + k) * 49 + 10] = out_b[10][k];
+            M[(start + k) * 49 + 11] = out_b[11][k];
+            M[(start + k) * 49 + 12] = out_b[12][k];
+            M[(start + k) * 49 + 13] = out_b[13][k];
+            M[(start + k) * 49 + 14] = out_b[14][k];
+            M[(start + k) * 49 + 15] = out_b[15][k];
+            M[(start + k) * 49 + 16] = out_b[16][k];
+            M[(start + k) * 49 + 17] = out_b[17][k];
+            M[(start + k) * 49 + 18] = out_b[18][k];
+            M[(start + k) * 49 + 19] = out_b[19][k];
+            M[(start + k) * 49 + 20] = out_b[20][k];
+            M[(start + k) * 49 + 21] = out_b[21][k];
+            M[(start + k) * 49 + 22] = out_b[22][k];
+            M[(start + k) * 49 + 23] = out_b[23][k];
+            M[(start + k) * 49 + 24] = out_b[24][k];
+            M[(start + k) * 49 + 25] = out_b[25][k];
+            M[(start + k) * 49 + 26] = out_b[26][k];
+            M[(start + k) * 49 + 27] = out_b[27][k];
+            M[(start + k) * 49 + 28] = out_b[28][k];
+            M[(start + k) * 49 + 29] = out_b[29][k];
+            M[(start + k) * 49 + 30] = out_b[30][k];
+            M[(start + k) * 49 + 31] = out_b[31][k];
+            M[(start + k) * 49 + 32] = out_b[32][k];
+            M[(start + k) * 49 + 33] = out_b[33][k];
+            M[(start + k) * 49 + 34] = out_b[34][k];
+            M[(start + k) * 49 + 35] = out_b[35][k];
+            M[(start + k) * 49 + 36] = out_b[36][k];
+            M[(start + k) * 49 + 37] = out_b[37][k];
+            M[(start + k) * 49 + 38] = out_b[38][k];
+            M[(start + k) * 49 + 39] = out_b[39][k];
+            M[(start + k) * 49 + 40] = out_b[40][k];
+            M[(start + k) * 49 + 41] = out_b[41][k];
+            M[(start + k) * 49 + 42] = out_b[42][k];
+            M[(start + k) * 49 + 43] = out_b[43][k];
+            M[(start + k) * 49 + 44] = out_b[44][k];
+            M[(start + k) * 49 + 45] = out_b[45][k];
+            M[(start + k) * 49 + 46] = out_b[46][k];
+            M[(start + k) * 49 + 47] = out_b[47][k];
+            M[(start + k) * 49 + 48] = out_b[48][k];
         }
     }
     return 0;
@@ -4024,118 +3279,60 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_g0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_g1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_g2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_g3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_g4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_g5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_g6_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[7][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double q2 = angle_b[0 * m + k];
+            const double q3 = angle_b[1 * m + k];
+            const double q4 = angle_b[2 * m + k];
+            const double q5 = angle_b[3 * m + k];
+            const double q6 = angle_b[4 * m + k];
+            const double q7 = angle_b[5 * m + k];
+            const double cos_q2 = cos_b[0 * m + k];
+            const double sin_q2 = sin_b[0 * m + k];
+            const double cos_q3 = cos_b[1 * m + k];
+            const double sin_q3 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
+            const double cos_q5 = cos_b[3 * m + k];
+            const double sin_q5 = sin_b[3 * m + k];
+            const double cos_q6 = cos_b[4 * m + k];
+            const double sin_q6 = sin_b[4 * m + k];
+            const double cos_q7 = cos_b[5 * m + k];
+            const double sin_q7 = sin_b[5 * m + k];
             /* recursive Newton-Euler passes (derive/serial/dynamics.py) */
             const double t0_3 = cos_q4*cos_q4;
             const double t0_6 = sin_q4*sin_q4;
@@ -4234,13 +3431,13 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
             const double out_g4_checked = ((t3_0) ? NAN : g_4);
             const double out_g5_checked = ((t3_0) ? NAN : g_5);
             const double out_g6_checked = ((t3_0) ? NAN : g_6);
-            out_g0_checked_b[k] = out_g0_checked;
-            out_g1_checked_b[k] = out_g1_checked;
-            out_g2_checked_b[k] = out_g2_checked;
-            out_g3_checked_b[k] = out_g3_checked;
-            out_g4_checked_b[k] = out_g4_checked;
-            out_g5_checked_b[k] = out_g5_checked;
-            out_g6_checked_b[k] = out_g6_checked;
+            out_b[0][k] = out_g0_checked;
+            out_b[1][k] = out_g1_checked;
+            out_b[2][k] = out_g2_checked;
+            out_b[3][k] = out_g3_checked;
+            out_b[4][k] = out_g4_checked;
+            out_b[5][k] = out_g5_checked;
+            out_b[6][k] = out_g6_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -4250,13 +3447,13 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            g[(start + k) * 7 + 0] = out_g0_checked_b[k];
-            g[(start + k) * 7 + 1] = out_g1_checked_b[k];
-            g[(start + k) * 7 + 2] = out_g2_checked_b[k];
-            g[(start + k) * 7 + 3] = out_g3_checked_b[k];
-            g[(start + k) * 7 + 4] = out_g4_checked_b[k];
-            g[(start + k) * 7 + 5] = out_g5_checked_b[k];
-            g[(start + k) * 7 + 6] = out_g6_checked_b[k];
+            g[(start + k) * 7 + 0] = out_b[0][k];
+            g[(start + k) * 7 + 1] = out_b[1][k];
+            g[(start + k) * 7 + 2] = out_b[2][k];
+            g[(start + k) * 7 + 3] = out_b[3][k];
+            g[(start + k) * 7 + 4] = out_b[4][k];
+            g[(start + k) * 7 + 5] = out_b[5][k];
+            g[(start + k) * 7 + 6] = out_b[6][k];
         }
     }
     return 0;
@@ -4276,12 +3473,6 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
         double qd1_b[DELTAGEN_PANDA_BLOCK];
         double qd2_b[DELTAGEN_PANDA_BLOCK];
         double qd3_b[DELTAGEN_PANDA_BLOCK];
@@ -4289,14 +3480,15 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
         double qd5_b[DELTAGEN_PANDA_BLOCK];
         double qd6_b[DELTAGEN_PANDA_BLOCK];
         double qd7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 6];
             qd1_b[k] = qd[(start + k) * 7 + 0];
             qd2_b[k] = qd[(start + k) * 7 + 1];
             qd3_b[k] = qd[(start + k) * 7 + 2];
@@ -4305,133 +3497,38 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
             qd6_b[k] = qd[(start + k) * 7 + 5];
             qd7_b[k] = qd[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_C0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C6_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C7_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C8_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C9_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C10_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C11_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C12_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C13_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C14_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C15_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C16_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C17_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C18_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C19_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C20_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C21_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C22_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C23_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C24_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C25_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C26_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C27_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C28_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C29_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C30_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C31_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C32_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C33_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C34_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C35_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C36_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C37_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C38_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C39_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C40_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C41_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C42_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C43_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C44_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C45_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C46_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C47_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_C48_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[49][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
+            const double q2 = angle_b[0 * m + k];
+            const double q3 = angle_b[1 * m + k];
+            const double q4 = angle_b[2 * m + k];
+            const double q5 = angle_b[3 * m + k];
+            const double q6 = angle_b[4 * m + k];
+            const double q7 = angle_b[5 * m + k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
             const double qd3 = qd3_b[k];
@@ -4439,18 +3536,18 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
             const double qd5 = qd5_b[k];
             const double qd6 = qd6_b[k];
             const double qd7 = qd7_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double cos_q2 = cos_b[0 * m + k];
+            const double sin_q2 = sin_b[0 * m + k];
+            const double cos_q3 = cos_b[1 * m + k];
+            const double sin_q3 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
+            const double cos_q5 = cos_b[3 * m + k];
+            const double sin_q5 = sin_b[3 * m + k];
+            const double cos_q6 = cos_b[4 * m + k];
+            const double sin_q6 = sin_b[4 * m + k];
+            const double cos_q7 = cos_b[5 * m + k];
+            const double sin_q7 = sin_b[5 * m + k];
             /* recursive Newton-Euler passes (derive/serial/dynamics.py) */
             const double t0_0 = qd1*sin_q2;
             const double t0_1 = -t0_0;
@@ -5920,55 +5017,55 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
             const double out_C46_checked = ((t3_0) ? NAN : C_46);
             const double out_C47_checked = ((t3_0) ? NAN : C_47);
             const double out_C48_checked = ((t3_0) ? NAN : C_48);
-            out_C0_checked_b[k] = out_C0_checked;
-            out_C1_checked_b[k] = out_C1_checked;
-            out_C2_checked_b[k] = out_C2_checked;
-            out_C3_checked_b[k] = out_C3_checked;
-            out_C4_checked_b[k] = out_C4_checked;
-            out_C5_checked_b[k] = out_C5_checked;
-            out_C6_checked_b[k] = out_C6_checked;
-            out_C7_checked_b[k] = out_C7_checked;
-            out_C8_checked_b[k] = out_C8_checked;
-            out_C9_checked_b[k] = out_C9_checked;
-            out_C10_checked_b[k] = out_C10_checked;
-            out_C11_checked_b[k] = out_C11_checked;
-            out_C12_checked_b[k] = out_C12_checked;
-            out_C13_checked_b[k] = out_C13_checked;
-            out_C14_checked_b[k] = out_C14_checked;
-            out_C15_checked_b[k] = out_C15_checked;
-            out_C16_checked_b[k] = out_C16_checked;
-            out_C17_checked_b[k] = out_C17_checked;
-            out_C18_checked_b[k] = out_C18_checked;
-            out_C19_checked_b[k] = out_C19_checked;
-            out_C20_checked_b[k] = out_C20_checked;
-            out_C21_checked_b[k] = out_C21_checked;
-            out_C22_checked_b[k] = out_C22_checked;
-            out_C23_checked_b[k] = out_C23_checked;
-            out_C24_checked_b[k] = out_C24_checked;
-            out_C25_checked_b[k] = out_C25_checked;
-            out_C26_checked_b[k] = out_C26_checked;
-            out_C27_checked_b[k] = out_C27_checked;
-            out_C28_checked_b[k] = out_C28_checked;
-            out_C29_checked_b[k] = out_C29_checked;
-            out_C30_checked_b[k] = out_C30_checked;
-            out_C31_checked_b[k] = out_C31_checked;
-            out_C32_checked_b[k] = out_C32_checked;
-            out_C33_checked_b[k] = out_C33_checked;
-            out_C34_checked_b[k] = out_C34_checked;
-            out_C35_checked_b[k] = out_C35_checked;
-            out_C36_checked_b[k] = out_C36_checked;
-            out_C37_checked_b[k] = out_C37_checked;
-            out_C38_checked_b[k] = out_C38_checked;
-            out_C39_checked_b[k] = out_C39_checked;
-            out_C40_checked_b[k] = out_C40_checked;
-            out_C41_checked_b[k] = out_C41_checked;
-            out_C42_checked_b[k] = out_C42_checked;
-            out_C43_checked_b[k] = out_C43_checked;
-            out_C44_checked_b[k] = out_C44_checked;
-            out_C45_checked_b[k] = out_C45_checked;
-            out_C46_checked_b[k] = out_C46_checked;
-            out_C47_checked_b[k] = out_C47_checked;
-            out_C48_checked_b[k] = out_C48_checked;
+            out_b[0][k] = out_C0_checked;
+            out_b[1][k] = out_C1_checked;
+            out_b[2][k] = out_C2_checked;
+            out_b[3][k] = out_C3_checked;
+            out_b[4][k] = out_C4_checked;
+            out_b[5][k] = out_C5_checked;
+            out_b[6][k] = out_C6_checked;
+            out_b[7][k] = out_C7_checked;
+            out_b[8][k] = out_C8_checked;
+            out_b[9][k] = out_C9_checked;
+            out_b[10][k] = out_C10_checked;
+            out_b[11][k] = out_C11_checked;
+            out_b[12][k] = out_C12_checked;
+            out_b[13][k] = out_C13_checked;
+            out_b[14][k] = out_C14_checked;
+            out_b[15][k] = out_C15_checked;
+            out_b[16][k] = out_C16_checked;
+            out_b[17][k] = out_C17_checked;
+            out_b[18][k] = out_C18_checked;
+            out_b[19][k] = out_C19_checked;
+            out_b[20][k] = out_C20_checked;
+            out_b[21][k] = out_C21_checked;
+            out_b[22][k] = out_C22_checked;
+            out_b[23][k] = out_C23_checked;
+            out_b[24][k] = out_C24_checked;
+            out_b[25][k] = out_C25_checked;
+            out_b[26][k] = out_C26_checked;
+            out_b[27][k] = out_C27_checked;
+            out_b[28][k] = out_C28_checked;
+            out_b[29][k] = out_C29_checked;
+            out_b[30][k] = out_C30_checked;
+            out_b[31][k] = out_C31_checked;
+            out_b[32][k] = out_C32_checked;
+            out_b[33][k] = out_C33_checked;
+            out_b[34][k] = out_C34_checked;
+            out_b[35][k] = out_C35_checked;
+            out_b[36][k] = out_C36_checked;
+            out_b[37][k] = out_C37_checked;
+            out_b[38][k] = out_C38_checked;
+            out_b[39][k] = out_C39_checked;
+            out_b[40][k] = out_C40_checked;
+            out_b[41][k] = out_C41_checked;
+            out_b[42][k] = out_C42_checked;
+            out_b[43][k] = out_C43_checked;
+            out_b[44][k] = out_C44_checked;
+            out_b[45][k] = out_C45_checked;
+            out_b[46][k] = out_C46_checked;
+            out_b[47][k] = out_C47_checked;
+            out_b[48][k] = out_C48_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -5978,55 +5075,55 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            C[(start + k) * 49 + 0] = out_C0_checked_b[k];
-            C[(start + k) * 49 + 1] = out_C1_checked_b[k];
-            C[(start + k) * 49 + 2] = out_C2_checked_b[k];
-            C[(start + k) * 49 + 3] = out_C3_checked_b[k];
-            C[(start + k) * 49 + 4] = out_C4_checked_b[k];
-            C[(start + k) * 49 + 5] = out_C5_checked_b[k];
-            C[(start + k) * 49 + 6] = out_C6_checked_b[k];
-            C[(start + k) * 49 + 7] = out_C7_checked_b[k];
-            C[(start + k) * 49 + 8] = out_C8_checked_b[k];
-            C[(start + k) * 49 + 9] = out_C9_checked_b[k];
-            C[(start + k) * 49 + 10] = out_C10_checked_b[k];
-            C[(start + k) * 49 + 11] = out_C11_checked_b[k];
-            C[(start + k) * 49 + 12] = out_C12_checked_b[k];
-            C[(start + k) * 49 + 13] = out_C13_checked_b[k];
-            C[(start + k) * 49 + 14] = out_C14_checked_b[k];
-            C[(start + k) * 49 + 15] = out_C15_checked_b[k];
-            C[(start + k) * 49 + 16] = out_C16_checked_b[k];
-            C[(start + k) * 49 + 17] = out_C17_checked_b[k];
-            C[(start + k) * 49 + 18] = out_C18_checked_b[k];
-            C[(start + k) * 49 + 19] = out_C19_checked_b[k];
-            C[(start + k) * 49 + 20] = out_C20_checked_b[k];
-            C[(start + k) * 49 + 21] = out_C21_checked_b[k];
-            C[(start + k) * 49 + 22] = out_C22_checked_b[k];
-            C[(start + k) * 49 + 23] = out_C23_checked_b[k];
-            C[(start + k) * 49 + 24] = out_C24_checked_b[k];
-            C[(start + k) * 49 + 25] = out_C25_checked_b[k];
-            C[(start + k) * 49 + 26] = out_C26_checked_b[k];
-            C[(start + k) * 49 + 27] = out_C27_checked_b[k];
-            C[(start + k) * 49 + 28] = out_C28_checked_b[k];
-            C[(start + k) * 49 + 29] = out_C29_checked_b[k];
-            C[(start + k) * 49 + 30] = out_C30_checked_b[k];
-            C[(start + k) * 49 + 31] = out_C31_checked_b[k];
-            C[(start + k) * 49 + 32] = out_C32_checked_b[k];
-            C[(start + k) * 49 + 33] = out_C33_checked_b[k];
-            C[(start + k) * 49 + 34] = out_C34_checked_b[k];
-            C[(start + k) * 49 + 35] = out_C35_checked_b[k];
-            C[(start + k) * 49 + 36] = out_C36_checked_b[k];
-            C[(start + k) * 49 + 37] = out_C37_checked_b[k];
-            C[(start + k) * 49 + 38] = out_C38_checked_b[k];
-            C[(start + k) * 49 + 39] = out_C39_checked_b[k];
-            C[(start + k) * 49 + 40] = out_C40_checked_b[k];
-            C[(start + k) * 49 + 41] = out_C41_checked_b[k];
-            C[(start + k) * 49 + 42] = out_C42_checked_b[k];
-            C[(start + k) * 49 + 43] = out_C43_checked_b[k];
-            C[(start + k) * 49 + 44] = out_C44_checked_b[k];
-            C[(start + k) * 49 + 45] = out_C45_checked_b[k];
-            C[(start + k) * 49 + 46] = out_C46_checked_b[k];
-            C[(start + k) * 49 + 47] = out_C47_checked_b[k];
-            C[(start + k) * 49 + 48] = out_C48_checked_b[k];
+            C[(start + k) * 49 + 0] = out_b[0][k];
+            C[(start + k) * 49 + 1] = out_b[1][k];
+            C[(start + k) * 49 + 2] = out_b[2][k];
+            C[(start + k) * 49 + 3] = out_b[3][k];
+            C[(start + k) * 49 + 4] = out_b[4][k];
+            C[(start + k) * 49 + 5] = out_b[5][k];
+            C[(start + k) * 49 + 6] = out_b[6][k];
+            C[(start + k) * 49 + 7] = out_b[7][k];
+            C[(start + k) * 49 + 8] = out_b[8][k];
+            C[(start + k) * 49 + 9] = out_b[9][k];
+            C[(start + k) * 49 + 10] = out_b[10][k];
+            C[(start + k) * 49 + 11] = out_b[11][k];
+            C[(start + k) * 49 + 12] = out_b[12][k];
+            C[(start + k) * 49 + 13] = out_b[13][k];
+            C[(start + k) * 49 + 14] = out_b[14][k];
+            C[(start + k) * 49 + 15] = out_b[15][k];
+            C[(start + k) * 49 + 16] = out_b[16][k];
+            C[(start + k) * 49 + 17] = out_b[17][k];
+            C[(start + k) * 49 + 18] = out_b[18][k];
+            C[(start + k) * 49 + 19] = out_b[19][k];
+            C[(start + k) * 49 + 20] = out_b[20][k];
+            C[(start + k) * 49 + 21] = out_b[21][k];
+            C[(start + k) * 49 + 22] = out_b[22][k];
+            C[(start + k) * 49 + 23] = out_b[23][k];
+            C[(start + k) * 49 + 24] = out_b[24][k];
+            C[(start + k) * 49 + 25] = out_b[25][k];
+            C[(start + k) * 49 + 26] = out_b[26][k];
+            C[(start + k) * 49 + 27] = out_b[27][k];
+            C[(start + k) * 49 + 28] = out_b[28][k];
+            C[(start + k) * 49 + 29] = out_b[29][k];
+            C[(start + k) * 49 + 30] = out_b[30][k];
+            C[(start + k) * 49 + 31] = out_b[31][k];
+            C[(start + k) * 49 + 32] = out_b[32][k];
+            C[(start + k) * 49 + 33] = out_b[33][k];
+            C[(start + k) * 49 + 34] = out_b[34][k];
+            C[(start + k) * 49 + 35] = out_b[35][k];
+            C[(start + k) * 49 + 36] = out_b[36][k];
+            C[(start + k) * 49 + 37] = out_b[37][k];
+            C[(start + k) * 49 + 38] = out_b[38][k];
+            C[(start + k) * 49 + 39] = out_b[39][k];
+            C[(start + k) * 49 + 40] = out_b[40][k];
+            C[(start + k) * 49 + 41] = out_b[41][k];
+            C[(start + k) * 49 + 42] = out_b[42][k];
+            C[(start + k) * 49 + 43] = out_b[43][k];
+            C[(start + k) * 49 + 44] = out_b[44][k];
+            C[(start + k) * 49 + 45] = out_b[45][k];
+            C[(start + k) * 49 + 46] = out_b[46][k];
+            C[(start + k) * 49 + 47] = out_b[47][k];
+            C[(start + k) * 49 + 48] = out_b[48][k];
         }
     }
     return 0;
@@ -6046,12 +5143,6 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
         const size_t m = (n - start < DELTAGEN_PANDA_BLOCK) ? n - start : DELTAGEN_PANDA_BLOCK;
         /* gather: inputs of this block into contiguous columns */
         double q1_b[DELTAGEN_PANDA_BLOCK];
-        double q2_b[DELTAGEN_PANDA_BLOCK];
-        double q3_b[DELTAGEN_PANDA_BLOCK];
-        double q4_b[DELTAGEN_PANDA_BLOCK];
-        double q5_b[DELTAGEN_PANDA_BLOCK];
-        double q6_b[DELTAGEN_PANDA_BLOCK];
-        double q7_b[DELTAGEN_PANDA_BLOCK];
         double qd1_b[DELTAGEN_PANDA_BLOCK];
         double qd2_b[DELTAGEN_PANDA_BLOCK];
         double qd3_b[DELTAGEN_PANDA_BLOCK];
@@ -6059,14 +5150,15 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
         double qd5_b[DELTAGEN_PANDA_BLOCK];
         double qd6_b[DELTAGEN_PANDA_BLOCK];
         double qd7_b[DELTAGEN_PANDA_BLOCK];
+        double angle_b[6 * DELTAGEN_PANDA_BLOCK];  /* angle i of point k at i * m + k */
         for (size_t k = 0; k < m; ++k) {
             q1_b[k] = q[(start + k) * 7 + 0];
-            q2_b[k] = q[(start + k) * 7 + 1];
-            q3_b[k] = q[(start + k) * 7 + 2];
-            q4_b[k] = q[(start + k) * 7 + 3];
-            q5_b[k] = q[(start + k) * 7 + 4];
-            q6_b[k] = q[(start + k) * 7 + 5];
-            q7_b[k] = q[(start + k) * 7 + 6];
+            angle_b[0 * m + k] = q[(start + k) * 7 + 1];
+            angle_b[1 * m + k] = q[(start + k) * 7 + 2];
+            angle_b[2 * m + k] = q[(start + k) * 7 + 3];
+            angle_b[3 * m + k] = q[(start + k) * 7 + 4];
+            angle_b[4 * m + k] = q[(start + k) * 7 + 5];
+            angle_b[5 * m + k] = q[(start + k) * 7 + 6];
             qd1_b[k] = qd[(start + k) * 7 + 0];
             qd2_b[k] = qd[(start + k) * 7 + 1];
             qd3_b[k] = qd[(start + k) * 7 + 2];
@@ -6075,91 +5167,38 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
             qd6_b[k] = qd[(start + k) * 7 + 5];
             qd7_b[k] = qd[(start + k) * 7 + 6];
         }
-        /* with vector math, rows m .. m_v - 1 (copies of the block's first point) pad the
-         * cos/sin loops to whole vectors of TRIG_LANES (8) lanes: every point gets its cosines and
-         * sines from the same vector code whatever its place in the batch, so a point alone
-         * gets the bits it gets in any batch. Without it every point takes the scalar libm
-         * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
-        const size_t m_v = ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <=
+        /* with vector math, entries a_n .. a_v - 1 (copies of the first angle) pad the one
+         * cos and one sin loop over all the block's angles to whole vectors of TRIG_LANES (8)
+         * lanes: every point gets its cosines and sines from the same vector code whatever
+         * its place in the batch, so a point alone gets the bits it gets in any batch, and
+         * its angles share one vector call of each. Without it every angle takes the scalar
+         * libm path anyway: no padding. */
+        const size_t a_n = 6 * m;
+        const size_t a_v = ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) <= 6 *
                 DELTAGEN_PANDA_BLOCK
-            ? ((m + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : m;
-        for (size_t k = m; k < m_v; ++k) {
-            q2_b[k] = q2_b[0];  /* not 0.0: gcc makes that a memset call */
-            q3_b[k] = q3_b[0];  /* not 0.0: gcc makes that a memset call */
-            q4_b[k] = q4_b[0];  /* not 0.0: gcc makes that a memset call */
-            q5_b[k] = q5_b[0];  /* not 0.0: gcc makes that a memset call */
-            q6_b[k] = q6_b[0];  /* not 0.0: gcc makes that a memset call */
-            q7_b[k] = q7_b[0];  /* not 0.0: gcc makes that a memset call */
+            ? ((a_n + DELTAGEN_PANDA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_PANDA_TRIG_LANES - 1)) : a_n;
+        for (size_t k = a_n; k < a_v; ++k) {
+            angle_b[k] = angle_b[0];  /* not 0.0: gcc makes that a memset call */
         }
-        double cos_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q2_b[k] = cos(q2_b[k]);
+        double cos_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: cos */
+            cos_b[k] = cos(angle_b[k]);
         }
-        double sin_q2_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q2_b[k] = sin(q2_b[k]);
-        }
-        double cos_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q3_b[k] = cos(q3_b[k]);
-        }
-        double sin_q3_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q3_b[k] = sin(q3_b[k]);
-        }
-        double cos_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q4_b[k] = cos(q4_b[k]);
-        }
-        double sin_q4_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q4_b[k] = sin(q4_b[k]);
-        }
-        double cos_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q5_b[k] = cos(q5_b[k]);
-        }
-        double sin_q5_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q5_b[k] = sin(q5_b[k]);
-        }
-        double cos_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q6_b[k] = cos(q6_b[k]);
-        }
-        double sin_q6_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q6_b[k] = sin(q6_b[k]);
-        }
-        double cos_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: cos */
-            cos_q7_b[k] = cos(q7_b[k]);
-        }
-        double sin_q7_b[DELTAGEN_PANDA_BLOCK];
-        for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
-            sin_q7_b[k] = sin(q7_b[k]);
+        double sin_b[6 * DELTAGEN_PANDA_BLOCK];
+        for (size_t k = 0; k < a_v; ++k) {  /* loop: sin */
+            sin_b[k] = sin(angle_b[k]);
         }
         /* kinematics, one point per iteration */
         int status_b[DELTAGEN_PANDA_BLOCK];
-        double out_h0_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_h1_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_h2_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_h3_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_h4_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_h5_checked_b[DELTAGEN_PANDA_BLOCK];
-        double out_h6_checked_b[DELTAGEN_PANDA_BLOCK];
+        double out_b[7][DELTAGEN_PANDA_BLOCK];  /* the outputs, one row each */
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double q5 = q5_b[k];
-            const double q6 = q6_b[k];
-            const double q7 = q7_b[k];
+            const double q2 = angle_b[0 * m + k];
+            const double q3 = angle_b[1 * m + k];
+            const double q4 = angle_b[2 * m + k];
+            const double q5 = angle_b[3 * m + k];
+            const double q6 = angle_b[4 * m + k];
+            const double q7 = angle_b[5 * m + k];
             const double qd1 = qd1_b[k];
             const double qd2 = qd2_b[k];
             const double qd3 = qd3_b[k];
@@ -6167,18 +5206,18 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
             const double qd5 = qd5_b[k];
             const double qd6 = qd6_b[k];
             const double qd7 = qd7_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            const double cos_q4 = cos_q4_b[k];
-            const double sin_q4 = sin_q4_b[k];
-            const double cos_q5 = cos_q5_b[k];
-            const double sin_q5 = sin_q5_b[k];
-            const double cos_q6 = cos_q6_b[k];
-            const double sin_q6 = sin_q6_b[k];
-            const double cos_q7 = cos_q7_b[k];
-            const double sin_q7 = sin_q7_b[k];
+            const double cos_q2 = cos_b[0 * m + k];
+            const double sin_q2 = sin_b[0 * m + k];
+            const double cos_q3 = cos_b[1 * m + k];
+            const double sin_q3 = sin_b[1 * m + k];
+            const double cos_q4 = cos_b[2 * m + k];
+            const double sin_q4 = sin_b[2 * m + k];
+            const double cos_q5 = cos_b[3 * m + k];
+            const double sin_q5 = sin_b[3 * m + k];
+            const double cos_q6 = cos_b[4 * m + k];
+            const double sin_q6 = sin_b[4 * m + k];
+            const double cos_q7 = cos_b[5 * m + k];
+            const double sin_q7 = sin_b[5 * m + k];
             /* recursive Newton-Euler passes (derive/serial/dynamics.py) */
             const double t0_0 = qd1*qd1;
             const double t0_1 = qd1*sin_q2;
@@ -6457,13 +5496,13 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
             const double out_h4_checked = ((t3_0) ? NAN : h_4);
             const double out_h5_checked = ((t3_0) ? NAN : h_5);
             const double out_h6_checked = ((t3_0) ? NAN : h_6);
-            out_h0_checked_b[k] = out_h0_checked;
-            out_h1_checked_b[k] = out_h1_checked;
-            out_h2_checked_b[k] = out_h2_checked;
-            out_h3_checked_b[k] = out_h3_checked;
-            out_h4_checked_b[k] = out_h4_checked;
-            out_h5_checked_b[k] = out_h5_checked;
-            out_h6_checked_b[k] = out_h6_checked;
+            out_b[0][k] = out_h0_checked;
+            out_b[1][k] = out_h1_checked;
+            out_b[2][k] = out_h2_checked;
+            out_b[3][k] = out_h3_checked;
+            out_b[4][k] = out_h4_checked;
+            out_b[5][k] = out_h5_checked;
+            out_b[6][k] = out_h6_checked;
             status_b[k] = (3*((invalid) | (nonfinite_output)));
         }
         /* statuses are narrowed in a loop of their own: mixing int8
@@ -6473,13 +5512,13 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
         }
         /* scatter: results of this block into the caller's rows */
         for (size_t k = 0; k < m; ++k) {
-            h[(start + k) * 7 + 0] = out_h0_checked_b[k];
-            h[(start + k) * 7 + 1] = out_h1_checked_b[k];
-            h[(start + k) * 7 + 2] = out_h2_checked_b[k];
-            h[(start + k) * 7 + 3] = out_h3_checked_b[k];
-            h[(start + k) * 7 + 4] = out_h4_checked_b[k];
-            h[(start + k) * 7 + 5] = out_h5_checked_b[k];
-            h[(start + k) * 7 + 6] = out_h6_checked_b[k];
+            h[(start + k) * 7 + 0] = out_b[0][k];
+            h[(start + k) * 7 + 1] = out_b[1][k];
+            h[(start + k) * 7 + 2] = out_b[2][k];
+            h[(start + k) * 7 + 3] = out_b[3][k];
+            h[(start + k) * 7 + 4] = out_b[4][k];
+            h[(start + k) * 7 + 5] = out_b[5][k];
+            h[(start + k) * 7 + 6] = out_b[6][k];
         }
     }
     return 0;

@@ -28,7 +28,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_PANDA_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_PANDA_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_PANDA_H
 #define DELTAGEN_SERIAL_PANDA_H
@@ -62,7 +62,7 @@ extern "C" {
  *
  * Cost: 190 operations per point.
  * Stack: 38 block arrays (37 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 19200 bytes (18.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4800 bytes (4.7 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -77,7 +77,7 @@ int deltagen_panda_fk(size_t n, const double *restrict q, double *restrict T, in
  *
  * Cost: 249 operations per point.
  * Stack: 166 block arrays (165 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 84736 bytes (82.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 21184 bytes (20.7 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -92,7 +92,7 @@ int deltagen_panda_frames(size_t n, const double *restrict q, double *restrict F
  *
  * Cost: 255 operations per point.
  * Stack: 62 block arrays (61 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 31488 bytes (30.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7872 bytes (7.7 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -109,7 +109,7 @@ int deltagen_panda_jacobian(size_t n, const double *restrict q, double *restrict
  *
  * Cost: 312 operations per point.
  * Stack: 80 block arrays (79 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 40704 bytes (39.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 10176 bytes (9.9 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -126,7 +126,7 @@ int deltagen_panda_fk_jacobian(size_t n, const double *restrict q, double *restr
  *
  * Cost: 722 operations per point.
  * Stack: 69 block arrays (68 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 35072 bytes (34.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 8768 bytes (8.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd,
         int8_t *restrict status);
@@ -145,7 +145,7 @@ int deltagen_panda_jacobian_dot(size_t n, const double *restrict q, const double
  *
  * Cost: 1037 operations per point.
  * Stack: 41 block arrays (40 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 20736 bytes (20.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 5184 bytes (5.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const double *restrict qd,
         const double *restrict qdd, double *restrict tau, int8_t *restrict status);
@@ -162,7 +162,7 @@ int deltagen_panda_inverse_dynamics(size_t n, const double *restrict q, const do
  *
  * Cost: 1496 operations per point.
  * Stack: 69 block arrays (68 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 35072 bytes (34.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 8768 bytes (8.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restrict M, int8_t *restrict status);
 
@@ -177,7 +177,7 @@ int deltagen_panda_mass_matrix(size_t n, const double *restrict q, double *restr
  *
  * Cost: 265 operations per point.
  * Stack: 27 block arrays (26 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 13568 bytes (13.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3392 bytes (3.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *restrict g, int8_t *restrict status);
 
@@ -194,7 +194,7 @@ int deltagen_panda_gravity_torque(size_t n, const double *restrict q, double *re
  *
  * Cost: 5094 operations per point.
  * Stack: 76 block arrays (75 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 38656 bytes (37.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 9664 bytes (9.4 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *restrict qd, double *restrict C,
         int8_t *restrict status);
@@ -211,7 +211,7 @@ int deltagen_panda_coriolis(size_t n, const double *restrict q, const double *re
  *
  * Cost: 1003 operations per point.
  * Stack: 34 block arrays (33 double, 1 int) of DELTAGEN_PANDA_BLOCK points,
- * 17152 bytes (16.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4288 bytes (4.2 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const double *restrict qd, double *restrict h,
         int8_t *restrict status);
@@ -236,7 +236,7 @@ int deltagen_panda_nonlinear_effects(size_t n, const double *restrict q, const d
  * n > 0 (then nothing is written).
  *
  * Stack: 3892 bytes of solver scratch memory in this frame (476 doubles, 21 ints),
- * plus fk_jacobian's 40704 bytes (39.8 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 10176 bytes (9.9 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_panda_ik_newton(size_t n, const deltagen_ik_options *restrict options,
@@ -258,8 +258,8 @@ int deltagen_panda_ik_newton(size_t n, const deltagen_ik_options *restrict optio
  *           a Cholesky pivot L_jj^2 <= 1e-12 max_j M_jj); qdd is NaN unless OK
  * Return value: 0, or -1 if a pointer is NULL while n > 0 (then nothing is written).
  *
- * Stack: 28800 bytes (28.1 KiB) at 64 points (M and h of a block), plus 112 bytes per point and the stack of
- *    mass_matrix and nonlinear_effects.
+ * Stack: 7200 bytes (7.0 KiB) at 16 points (M and h of a block), plus 112 bytes per point and the stack of mass_matrix
+ *    and nonlinear_effects.
  */
 int deltagen_panda_forward_dynamics(size_t n, const double *restrict q, const double *restrict qd,
     const double *restrict tau, double *restrict qdd, int8_t *restrict status);

@@ -28,7 +28,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_PUMA560_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_PUMA560_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_PUMA560_H
 #define DELTAGEN_SERIAL_PUMA560_H
@@ -62,7 +62,7 @@ extern "C" {
  *
  * Cost: 124 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -77,7 +77,7 @@ int deltagen_puma560_fk(size_t n, const double *restrict q, double *restrict T, 
  *
  * Cost: 164 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 75008 bytes (73.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 18752 bytes (18.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -92,7 +92,7 @@ int deltagen_puma560_frames(size_t n, const double *restrict q, double *restrict
  *
  * Cost: 156 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -109,7 +109,7 @@ int deltagen_puma560_jacobian(size_t n, const double *restrict q, double *restri
  *
  * Cost: 200 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 36096 bytes (35.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 9024 bytes (8.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -126,7 +126,7 @@ int deltagen_puma560_fk_jacobian(size_t n, const double *restrict q, double *res
  *
  * Cost: 402 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 29952 bytes (29.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7488 bytes (7.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd,
         int8_t *restrict status);
@@ -147,7 +147,7 @@ int deltagen_puma560_jacobian_dot(size_t n, const double *restrict q, const doub
  *
  * Cost: 2482 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_PUMA560_BLOCK points,
- * 33024 bytes (32.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 8256 bytes (8.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -166,7 +166,7 @@ int deltagen_puma560_ik_all(size_t n, const double *restrict T, double *restrict
  *
  * Cost: 544 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const double *restrict qd,
         const double *restrict qdd, double *restrict tau, int8_t *restrict status);
@@ -183,7 +183,7 @@ int deltagen_puma560_inverse_dynamics(size_t n, const double *restrict q, const 
  *
  * Cost: 554 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *restrict M, int8_t *restrict status);
 
@@ -198,7 +198,7 @@ int deltagen_puma560_mass_matrix(size_t n, const double *restrict q, double *res
  *
  * Cost: 167 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 11520 bytes (11.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2880 bytes (2.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *restrict g, int8_t *restrict status);
 
@@ -215,7 +215,7 @@ int deltagen_puma560_gravity_torque(size_t n, const double *restrict q, double *
  *
  * Cost: 1823 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 29952 bytes (29.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7488 bytes (7.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *restrict qd, double *restrict C,
         int8_t *restrict status);
@@ -232,7 +232,7 @@ int deltagen_puma560_coriolis(size_t n, const double *restrict q, const double *
  *
  * Cost: 503 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_PUMA560_BLOCK points,
- * 14592 bytes (14.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3648 bytes (3.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const double *restrict qd,
         double *restrict h, int8_t *restrict status);
@@ -257,7 +257,7 @@ int deltagen_puma560_nonlinear_effects(size_t n, const double *restrict q, const
  * n > 0 (then nothing is written).
  *
  * Stack: 3256 bytes of solver scratch memory in this frame (398 doubles, 18 ints),
- * plus fk_jacobian's 36096 bytes (35.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 9024 bytes (8.8 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_puma560_ik_newton(size_t n, const deltagen_ik_options *restrict options,
@@ -279,7 +279,7 @@ int deltagen_puma560_ik_newton(size_t n, const deltagen_ik_options *restrict opt
  *           a Cholesky pivot L_jj^2 <= 1e-12 max_j M_jj); qdd is NaN unless OK
  * Return value: 0, or -1 if a pointer is NULL while n > 0 (then nothing is written).
  *
- * Stack: 21632 bytes (21.1 KiB) at 64 points (M and h of a block), plus 96 bytes per point and the stack of mass_matrix
+ * Stack: 5408 bytes (5.3 KiB) at 16 points (M and h of a block), plus 96 bytes per point and the stack of mass_matrix
  *    and nonlinear_effects.
  */
 int deltagen_puma560_forward_dynamics(size_t n, const double *restrict q, const double *restrict qd,

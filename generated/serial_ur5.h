@@ -27,7 +27,7 @@
  * while n > 0 (then nothing is written).
  * Each function states its cost (operations per point after common-subexpression
  * elimination, as counted by SymPy's count_ops) and its stack use (the block arrays of
- * DELTAGEN_UR5_BLOCK points, 64 by default; 8-byte double, 4-byte int).
+ * DELTAGEN_UR5_BLOCK points, 16 by default; 8-byte double, 4-byte int).
  */
 #ifndef DELTAGEN_SERIAL_UR5_H
 #define DELTAGEN_SERIAL_UR5_H
@@ -61,7 +61,7 @@ extern "C" {
  *
  * Cost: 153 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8_t *restrict status);
 
@@ -76,7 +76,7 @@ int deltagen_ur5_fk(size_t n, const double *restrict q, double *restrict T, int8
  *
  * Cost: 208 operations per point.
  * Stack: 147 block arrays (146 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 75008 bytes (73.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 18752 bytes (18.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, int8_t *restrict status);
 
@@ -91,7 +91,7 @@ int deltagen_ur5_frames(size_t n, const double *restrict q, double *restrict F, 
  *
  * Cost: 208 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J, int8_t *restrict status);
 
@@ -108,7 +108,7 @@ int deltagen_ur5_jacobian(size_t n, const double *restrict q, double *restrict J
  *
  * Cost: 256 operations per point.
  * Stack: 71 block arrays (70 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 36096 bytes (35.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 9024 bytes (8.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restrict T, double *restrict J,
         int8_t *restrict status);
@@ -125,7 +125,7 @@ int deltagen_ur5_fk_jacobian(size_t n, const double *restrict q, double *restric
  *
  * Cost: 567 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 29952 bytes (29.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7488 bytes (7.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *restrict qd, double *restrict Jd,
         int8_t *restrict status);
@@ -148,7 +148,7 @@ int deltagen_ur5_jacobian_dot(size_t n, const double *restrict q, const double *
  *
  * Cost: 2531 operations per point.
  * Stack: 69 block arrays (60 double, 9 int) of DELTAGEN_UR5_BLOCK points,
- * 33024 bytes (32.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 8256 bytes (8.1 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, uint8_t *restrict valid,
         int8_t *restrict status);
@@ -167,7 +167,7 @@ int deltagen_ur5_ik_all(size_t n, const double *restrict T, double *restrict q, 
  *
  * Cost: 495 operations per point.
  * Stack: 35 block arrays (34 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 17664 bytes (17.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 4416 bytes (4.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const double *restrict qd,
         const double *restrict qdd, double *restrict tau, int8_t *restrict status);
@@ -184,7 +184,7 @@ int deltagen_ur5_inverse_dynamics(size_t n, const double *restrict q, const doub
  *
  * Cost: 496 operations per point.
  * Stack: 53 block arrays (52 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 26880 bytes (26.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 6720 bytes (6.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restrict M, int8_t *restrict status);
 
@@ -199,7 +199,7 @@ int deltagen_ur5_mass_matrix(size_t n, const double *restrict q, double *restric
  *
  * Cost: 163 operations per point.
  * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 11520 bytes (11.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 2880 bytes (2.8 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *restrict g, int8_t *restrict status);
 
@@ -216,7 +216,7 @@ int deltagen_ur5_gravity_torque(size_t n, const double *restrict q, double *rest
  *
  * Cost: 1669 operations per point.
  * Stack: 59 block arrays (58 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 29952 bytes (29.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 7488 bytes (7.3 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *restrict qd, double *restrict C,
         int8_t *restrict status);
@@ -233,7 +233,7 @@ int deltagen_ur5_coriolis(size_t n, const double *restrict q, const double *rest
  *
  * Cost: 457 operations per point.
  * Stack: 29 block arrays (28 double, 1 int) of DELTAGEN_UR5_BLOCK points,
- * 14592 bytes (14.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * 3648 bytes (3.6 KiB) at 16, plus scalars and spills: allow 40 % more.
  */
 int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const double *restrict qd, double *restrict h,
         int8_t *restrict status);
@@ -258,7 +258,7 @@ int deltagen_ur5_nonlinear_effects(size_t n, const double *restrict q, const dou
  * n > 0 (then nothing is written).
  *
  * Stack: 3256 bytes of solver scratch memory in this frame (398 doubles, 18 ints),
- * plus fk_jacobian's 36096 bytes (35.2 KiB) at 64 points and the runtime's frames
+ * plus fk_jacobian's 9024 bytes (8.8 KiB) at 16 points and the runtime's frames
  * (scalars and 3x3 blocks).
  */
 int deltagen_ur5_ik_newton(size_t n, const deltagen_ik_options *restrict options,
@@ -280,7 +280,7 @@ int deltagen_ur5_ik_newton(size_t n, const deltagen_ik_options *restrict options
  *           a Cholesky pivot L_jj^2 <= 1e-12 max_j M_jj); qdd is NaN unless OK
  * Return value: 0, or -1 if a pointer is NULL while n > 0 (then nothing is written).
  *
- * Stack: 21632 bytes (21.1 KiB) at 64 points (M and h of a block), plus 96 bytes per point and the stack of mass_matrix
+ * Stack: 5408 bytes (5.3 KiB) at 16 points (M and h of a block), plus 96 bytes per point and the stack of mass_matrix
  *    and nonlinear_effects.
  */
 int deltagen_ur5_forward_dynamics(size_t n, const double *restrict q, const double *restrict qd,

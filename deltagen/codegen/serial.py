@@ -119,6 +119,14 @@ def arm_unit(desc, part: str = "all") -> Unit:
             if desc.has_inertia and part in ("all", "mass")
             else None
         ),
+        packed_blocks=True,
+        # 16 points per block, not 64: a block's arrays (the Jacobian's 36 output columns,
+        # 6 angles, their cosines and sines: 28 KB at 64) then stay well inside L1 beside
+        # the rows being written. Measured on 100000 rows (Zen 4, in-process A/B, thread
+        # CPU time, min of 30): Puma fk 32.0 -> 19.6 ns per point, jacobian 44.9 -> 28.9,
+        # inverse dynamics 41.0 -> 28.7; on 1024 rows the same or 2-7 % less; 8 points
+        # was slower at 1024 rows (one vector per loop: the loop overheads show)
+        block=16,
     )
 
 
