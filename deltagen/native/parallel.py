@@ -12,7 +12,8 @@ really run in parallel. Every kernel treats each row on its own (per-point statu
 state between rows), so a chunk writes its own rows of the shared output buffers. For
 the result to be bit-for-bit the single-threaded one, every chunk but the last starts and
 ends on a multiple of :data:`ROW_ALIGN` rows: the kernels work in blocks of
-``<PREFIX>_BLOCK`` (64) rows, and within a block a row goes through the vector loop
+``<PREFIX>_BLOCK`` rows (64 for the parallel robots, 16 for the serial arms;
+both divide ROW_ALIGN), and within a block a row goes through the vector loop
 (libmvec's sin/cos/sqrt) or the scalar remainder (libm's), which may differ in the last
 bit; aligned chunks put every row at the same place of the same block as one call would.
 
