@@ -432,13 +432,12 @@ class SerialRobot(SerialDynamics, RobotFamily):
         "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
-        planner = self.ik_planner
-        one = planner.ik_all_checked  # one pose, the closed form's C path (else None)
+        one = self.ik_planner.ik_all_checked  # one pose, the closed form's C path (else None)
         if one is not None and (method == "auto" or method == "closed_form"):
             solutions = one(T)  # None: not one finite rigid (4, 4) float64 pose, or INVALID
             if solutions is not None:
                 return solutions
-        return planner.ik_all(T, method)
+        return self.ik_planner.ik_all(T, method)
 
     def _ik_request(self, config, q0, method, errors, singular, options):
         """The one check of ik's options, made on every call before any path is chosen

@@ -337,20 +337,22 @@ class _Limits:
 
 # ------------------------------------------------------------------------------- solve
 
-#: the keyword options of solve() (and of SerialRobot.ik(method="numeric"))
-OPTIONS = (
-    "tol",
-    "max_iter",
-    "mask",
-    "jacobian",
-    "damping",
-    "step_limit",
-    "respect_limits",
-    "restarts",
-    "seed",
-    "null_space",
-    "engine",
-)
+#: the keyword options of solve() (and of SerialRobot.ik(method="numeric")) and their
+#: defaults, written once: check_options() fills what a call leaves out from here
+DEFAULTS = {
+    "tol": 1e-10,
+    "max_iter": 100,
+    "mask": None,
+    "jacobian": "symbolic",
+    "damping": "auto",
+    "step_limit": 0.5,
+    "respect_limits": True,
+    "restarts": RESTARTS,
+    "seed": 0,
+    "null_space": 0.0,
+    "engine": "auto",
+}
+OPTIONS = tuple(DEFAULTS)
 
 
 def _is_count(x) -> bool:
@@ -363,27 +365,23 @@ def _finite_real(x) -> bool:
     return _is_real(x) and math.isfinite(x)
 
 
-def check_options(
-    arm,
-    *,
-    tol=1e-10,
-    max_iter=100,
-    mask=None,
-    jacobian="symbolic",
-    damping="auto",
-    step_limit=0.5,
-    respect_limits=True,
-    restarts=RESTARTS,
-    seed=0,
-    null_space=0.0,
-    engine="auto",
-    min_iter=1,
-) -> dict:
+def check_options(arm, *, min_iter=1, **options) -> dict:
     """The one check of solve()'s options (solve() and SerialRobot.ik call it on every
     call): raises InputError naming the first bad option, else returns them checked:
     tol as (position, rotation), damping as (K, c0, Levenberg-Marquardt on), mask as a
     (6,) bool array or None, and c_ok (the compiled engine applies). ``min_iter``: the
-    smallest max_iter accepted (solve(): 0, which only checks the start; ik: 1)."""
+    smallest max_iter accepted (solve(): 0, which only checks the start; ik: 1). The
+    returned dict also holds every option, the defaults (DEFAULTS) filled in."""
+    unknown = sorted(set(options) - set(DEFAULTS))
+    if unknown:
+        raise InputError(f"unknown option(s) {', '.join(unknown)}; the options are {OPTIONS}")
+    given = {**DEFAULTS, **options}
+    tol, max_iter, mask, jacobian, damping, step_limit = (
+        given[k] for k in ("tol", "max_iter", "mask", "jacobian", "damping", "step_limit")
+    )
+    respect_limits, restarts, seed, null_space, engine = (
+        given[k] for k in ("respect_limits", "restarts", "seed", "null_space", "engine")
+    )
     if jacobian not in JACOBIANS:
         raise InputError(f"jacobian must be one of {JACOBIANS}, got {jacobian!r}")
     tol_pr = _check_tol(tol)
@@ -429,6 +427,7 @@ def check_options(
             'damping "auto" or a number, and null_space=0'
         )
     return {
+        **given,
         "tol": tol_pr,
         "damping": damp,
         "mask": None if mask is None else _check_mask(mask),
@@ -436,29 +435,14 @@ def check_options(
     }
 
 
-def solve(
-    arm,
-    T,
-    q0=None,
-    *,
-    tol=1e-10,
-    max_iter=100,
-    mask=None,
-    jacobian="symbolic",
-    damping="auto",
-    step_limit=0.5,
-    respect_limits=True,
-    restarts=RESTARTS,
-    seed=0,
-    null_space=0.0,
-    engine="auto",
-) -> IKResult:
+def solve(arm, T, q0=None, **options) -> IKResult:
     """Joint values q with fk(q) = T for a batch of target poses (module docstring).
 
     arm: a SerialRobot (its raw batched backend ``arm._core`` is used).
     T: (..., 4, 4) targets (only the rotation block and the position column are used).
     q0: (n,) or (..., n) start, broadcast against T's leading shape; None: the arm's "qz"
     configuration if it has one, else zeros.
+    options (keywords; defaults in DEFAULTS, written once):
     tol: one value for both, or (position [m], rotation [rad]).
     max_iter: Newton steps per attempt.
     mask: 6 booleans vx vy vz wx wy wz (default: see the module docstring).
@@ -479,20 +463,12 @@ def solve(
     non-finite value in T or q0) come back NaN and unconverged, nothing raises or warns
     for them.
     """
-    opts = check_options(
-        arm,
-        tol=tol,
-        max_iter=max_iter,
-        mask=mask,
-        jacobian=jacobian,
-        damping=damping,
-        step_limit=step_limit,
-        respect_limits=respect_limits,
-        restarts=restarts,
-        seed=seed,
-        null_space=null_space,
-        engine=engine,
-        min_iter=0,
+    opts = check_options(arm, min_iter=0, **options)
+    max_iter, jacobian, step_limit, respect_limits = (
+        opts[k] for k in ("max_iter", "jacobian", "step_limit", "respect_limits")
+    )
+    restarts, seed, null_space, engine = (
+        opts[k] for k in ("restarts", "seed", "null_space", "engine")
     )
     tol_p, tol_r = opts["tol"]
     k_nh, c0, lm = opts["damping"]
@@ -514,7 +490,7 @@ def solve(
         raise InputError(
             f"q0 of shape {q0.shape} does not broadcast to the targets' {lead}"
         ) from None
-    mask = default_mask(arm, jacobian) if mask is None else opts["mask"]
+    mask = default_mask(arm, jacobian) if opts["mask"] is None else opts["mask"]
 
     Tt = np.ascontiguousarray(T.reshape(-1, 4, 4))
     Q0 = np.array(q0.reshape(-1, n), dtype=float)
@@ -938,19 +914,7 @@ def polisher(arm, tol=1e-10, max_iter=30):
     checks (the general 6R solver's Newton polish of its candidates calls it once per
     batch). None where the compiled engine does not apply."""
     opts = check_options(
-        arm,
-        tol=tol,
-        max_iter=max_iter,
-        mask=None,
-        jacobian="symbolic",
-        damping="auto",
-        step_limit=0.5,
-        respect_limits=False,
-        restarts=0,
-        seed=0,
-        null_space=0.0,
-        engine="auto",
-        min_iter=0,
+        arm, min_iter=0, tol=tol, max_iter=max_iter, respect_limits=False, restarts=0
     )
     if not opts["c_ok"]:
         return None
@@ -958,9 +922,9 @@ def polisher(arm, tol=1e-10, max_iter=30):
     k_nh, c0, _ = opts["damping"]
     core = arm._core
     mask = default_mask(arm, "symbolic")
-    packed = _c_options(core, tol_p, tol_r, int(max_iter), k_nh, c0, 0.5, False, mask)(
-        STALL_WINDOW, 0, _seed_offset(0)
-    )
+    packed = _c_options(
+        core, tol_p, tol_r, int(max_iter), k_nh, c0, opts["step_limit"], False, mask
+    )(STALL_WINDOW, 0, _seed_offset(0))
     qlim = np.ascontiguousarray(arm.qlim, dtype=float)
 
     def call(T, q0):

@@ -71,3 +71,22 @@ def test_restarts_run_in_c_and_give_up_on_unreachable_targets(arms):
     b = ikn.solve(arm, Tr, arm._start(None, (40,)), seed=7)
     assert a.converged.all() and np.array_equal(a.q, b.q)
     _check_solved(arm, Tr, a.q)
+
+
+def test_the_defaults_are_written_once_and_unknown_options_are_named(arms):
+    """solve() with no options equals solve() given every default of DEFAULTS spelled out
+    (so the table is the one the solver uses), ik(method="numeric") takes the same set,
+    and an unknown option is an InputError naming it (not Python's TypeError)."""
+    from deltagen.inputs import InputError
+
+    arm = arms["puma560"]
+    T, _ = numeric_targets(arm, 8, seed=5)
+    plain = ikn.solve(arm, T)
+    spelled = ikn.solve(arm, T, **ikn.DEFAULTS)
+    assert np.array_equal(plain.q, spelled.q, equal_nan=True)
+    assert np.array_equal(plain.converged, spelled.converged)
+    assert ikn.OPTIONS == tuple(ikn.DEFAULTS)
+    with pytest.raises(InputError, match="tolerance"):
+        ikn.solve(arm, T, tolerance=1e-9)
+    with pytest.raises(InputError, match="tolerance"):
+        ikn.check_options(arm, tolerance=1e-9)
