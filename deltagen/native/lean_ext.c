@@ -374,23 +374,32 @@ static int rigid_pose(const double *v, double tol, double bottom)
            && fabs(v[15] - 1.0) < bottom;
 }
 
-typedef int (*PoseFn)(size_t, const double *, double *, uint8_t *, int8_t *);
-
-static PyObject *pose_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* The 16 entries of a (4, 4) float64 ndarray in native byte order, row by row; 0 for any
+ * other argument. */
+static int read_pose(PyObject *x, double T[16])
 {
-    const PoseSpec *spec = (const PoseSpec *)self;
-    if (nargs != 1 || Py_TYPE(args[0]) != &PyArray_Type)
-        Py_RETURN_NONE;
-    PyArrayObject *a = (PyArrayObject *)args[0];
+    if (Py_TYPE(x) != &PyArray_Type)
+        return 0;
+    PyArrayObject *a = (PyArrayObject *)x;
     if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
         || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
-        Py_RETURN_NONE;
-    double T[16];
+        return 0;
     const char *data = PyArray_BYTES(a);
     const npy_intp s0 = PyArray_STRIDE(a, 0), s1 = PyArray_STRIDE(a, 1);
     for (int r = 0; r < 4; r++)
         for (int c = 0; c < 4; c++)
             memcpy(&T[4 * r + c], data + r * s0 + c * s1, sizeof(double));
+    return 1;
+}
+
+typedef int (*PoseFn)(size_t, const double *, double *, uint8_t *, int8_t *);
+
+static PyObject *pose_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const PoseSpec *spec = (const PoseSpec *)self;
+    double T[16];
+    if (nargs != 1 || !read_pose(args[0], T))
+        Py_RETURN_NONE;
     if (!rigid_pose(T, spec->rigid_tol, spec->bottom_tol))
         Py_RETURN_NONE; /* the general path: InputError, or NaN and invalid */
     npy_intp qdims[2] = {spec->k, spec->n};
@@ -484,18 +493,9 @@ static PyObject *rigid_pose_py(PyObject *module, PyObject *args)
     double tol, bottom;
     if (!PyArg_ParseTuple(args, "Odd", &x, &tol, &bottom))
         return NULL;
-    if (Py_TYPE(x) != &PyArray_Type)
-        Py_RETURN_NONE;
-    PyArrayObject *a = (PyArrayObject *)x;
-    if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
-        || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
-        Py_RETURN_NONE;
     double T[16];
-    const char *data = PyArray_BYTES(a);
-    for (int r = 0; r < 4; r++)
-        for (int c = 0; c < 4; c++)
-            memcpy(&T[4 * r + c], data + r * PyArray_STRIDE(a, 0) + c * PyArray_STRIDE(a, 1),
-                   sizeof(double));
+    if (!read_pose(x, T))
+        Py_RETURN_NONE;
     return PyBool_FromLong(rigid_pose(T, tol, bottom));
 }
 
@@ -544,24 +544,6 @@ static PyTypeObject NewtonSpecType = {
     .tp_flags = Py_TPFLAGS_DEFAULT,
     .tp_doc = "what a one-target numerical IK call needs (function, options, limits)",
 };
-
-/* The 16 entries of a (4, 4) float64 ndarray in native byte order, row by row; 0 for any
- * other argument. */
-static int read_pose(PyObject *x, double T[16])
-{
-    if (Py_TYPE(x) != &PyArray_Type)
-        return 0;
-    PyArrayObject *a = (PyArrayObject *)x;
-    if (PyArray_NDIM(a) != 2 || PyArray_DIM(a, 0) != 4 || PyArray_DIM(a, 1) != 4
-        || PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISNOTSWAPPED(a))
-        return 0;
-    const char *data = PyArray_BYTES(a);
-    const npy_intp s0 = PyArray_STRIDE(a, 0), s1 = PyArray_STRIDE(a, 1);
-    for (int r = 0; r < 4; r++)
-        for (int c = 0; c < 4; c++)
-            memcpy(&T[4 * r + c], data + r * s0 + c * s1, sizeof(double));
-    return 1;
-}
 
 static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
