@@ -432,11 +432,6 @@ class SerialRobot(SerialDynamics, RobotFamily):
         "complete" (solve/general6r.py: every solution, up to 16 slots, unnamed, valid ones
         first; for an arm whose elimination is singular the combined method's branches
         join its candidates) or "combined" (solve/combined.py: the named branches of analytic_configs())."""
-        one = self.ik_planner.ik_all_checked  # one pose, the closed form's C path (else None)
-        if one is not None and (method == "auto" or method == "closed_form"):
-            solutions = one(T)  # None: not one finite rigid (4, 4) float64 pose, or INVALID
-            if solutions is not None:
-                return solutions
         return self.ik_planner.ik_all(T, method)
 
     def _ik_request(self, config, q0, method, errors, singular, options):

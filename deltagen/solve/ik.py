@@ -291,6 +291,11 @@ class IKPlanner:
         """SerialRobot.ik_all (its docstring states the methods and ``complete``): the
         solutions, and the IncompleteSolutionsWarning once per method where the method
         used may miss solutions."""
+        one = self.ik_all_checked  # one pose, the closed form's whole call in C (else None)
+        if one is not None and (method == "auto" or method == "closed_form"):
+            solutions = one(T)  # None: not one finite rigid (4, 4) float64 pose, or INVALID
+            if solutions is not None:
+                return solutions
         q, valid = self.solve_all(T, method)
         complete = self.completeness.get(method)
         if complete is None:
@@ -425,7 +430,7 @@ class IKPlanner:
             if self.ik_all_single is None:
                 self.ik_all_single = self.core.single_ik_all(k)
                 # the whole one-pose call in C, check_one_pose's rule included (a closed
-                # form: complete); SerialRobot.ik_all calls it first
+                # form: complete); ik_all calls it first
                 self.ik_all_checked = self.core.checked_ik_all(
                     k, (_RIGID_TOL, _BOTTOM_TOL), _CompleteIKSolutions
                 )

@@ -151,7 +151,7 @@ def test_one_pose_is_the_batch_row_and_every_valid_branch_reaches_it(puma, monke
     def refuse(*args, **kwargs):
         raise AssertionError("the one-pose call went through the general path")
 
-    monkeypatch.setattr(puma.ik_planner, "ik_all", refuse)
+    monkeypatch.setattr(puma.ik_planner, "solve_all", refuse)  # the general path
     for i in range(T.shape[0]):
         result = puma.ik_all(T[i])
         assert result.complete is True
