@@ -70,7 +70,7 @@ from typing import Any
 
 import numpy as np
 
-from deltagen.apps.bench.timing import Stat, Style, interleaved, num
+from deltagen.apps.bench.timing import Stat, Style, batch_timer, interleaved, loop_timer, num
 
 FLOOR_N = 100_000  # rows of the delta ratios
 FLOOR_CALL_N = 1024  # configurations per call of the Puma kernels and the floor loop
@@ -166,32 +166,13 @@ CLOCK = time.thread_time_ns
 def cpu_timer(
     fn: Callable, args: tuple = (), points: int = 1, loops: int = 1
 ) -> Callable[[], float]:
-    """A timer: ``fn(*args)`` (one call on ``points`` points) called ``loops`` times -> CPU
-    ns per point (:data:`CLOCK`)."""
-
-    def timer() -> float:
-        t0 = CLOCK()
-        for _ in range(loops):
-            fn(*args)
-        return (CLOCK() - t0) / (points * loops)
-
-    return timer
+    """timing.batch_timer on :data:`CLOCK`: CPU ns per point."""
+    return batch_timer(fn, args, points, loops, CLOCK)
 
 
 def cpu_loop_timer(fn: Callable, repeat_ns: int = 10_000_000) -> Callable[[], float]:
-    """A timer: ``fn()`` looped for about ``repeat_ns`` of CPU time -> CPU ns per call (the
-    loop count calibrated here, after a warm-up call)."""
-    fn()
-    loops = 1
-    while True:
-        t0 = CLOCK()
-        for _ in range(loops):
-            fn()
-        elapsed = CLOCK() - t0
-        if elapsed >= repeat_ns // 10 or loops >= 1 << 20:
-            break
-        loops *= 4
-    return cpu_timer(fn, loops=max(1, round(loops * repeat_ns / max(elapsed, 1))))
+    """timing.loop_timer on :data:`CLOCK` for about ``repeat_ns``: CPU ns per call."""
+    return loop_timer(fn, repeat_ns, CLOCK)
 
 
 def _trig_call(module: Any, q: np.ndarray) -> Callable[[], int]:

@@ -12,38 +12,43 @@ from collections.abc import Callable, Sequence
 LATENCY_REPEAT_NS = 25_000_000  # target duration of one latency repeat
 
 
-def batch_timer(fn: Callable, args: Sequence, points: int) -> Callable[[], float]:
-    """A timer: one call of ``fn(*args)`` -> ns per point (the result is dropped)."""
+def batch_timer(
+    fn: Callable,
+    args: Sequence,
+    points: int,
+    loops: int = 1,
+    clock: Callable[[], int] = time.perf_counter_ns,
+) -> Callable[[], float]:
+    """A timer: ``fn(*args)`` (one call on ``points`` points, the result dropped) called
+    ``loops`` times -> ns per point on ``clock`` (wall time unless told)."""
 
     def timer():
-        t0 = time.perf_counter_ns()
-        fn(*args)
-        return (time.perf_counter_ns() - t0) / points
+        t0 = clock()
+        for _ in range(loops):
+            fn(*args)
+        return (clock() - t0) / (points * loops)
 
     return timer
 
 
-def loop_timer(fn):
-    """A timer: ``fn()`` looped for ~LATENCY_REPEAT_NS -> ns per call (calibrated here)."""
+def loop_timer(
+    fn,
+    repeat_ns: int = LATENCY_REPEAT_NS,
+    clock: Callable[[], int] = time.perf_counter_ns,
+) -> Callable[[], float]:
+    """A timer: ``fn()`` looped for ~``repeat_ns`` of ``clock`` -> ns per call (the loop
+    count calibrated here, after a warm-up call)."""
     fn()
     loops = 1
     while True:
-        t0 = time.perf_counter_ns()
+        t0 = clock()
         for _ in range(loops):
             fn()
-        elapsed = time.perf_counter_ns() - t0
-        if elapsed >= LATENCY_REPEAT_NS // 10 or loops >= 1 << 20:
+        elapsed = clock() - t0
+        if elapsed >= repeat_ns // 10 or loops >= 1 << 20:
             break
         loops *= 4
-    loops = max(1, round(loops * LATENCY_REPEAT_NS / max(elapsed, 1)))
-
-    def timer():
-        t0 = time.perf_counter_ns()
-        for _ in range(loops):
-            fn()
-        return (time.perf_counter_ns() - t0) / loops
-
-    return timer
+    return batch_timer(fn, (), 1, max(1, round(loops * repeat_ns / max(elapsed, 1))), clock)
 
 
 def interleaved(timers: list, repeats: int) -> list[Stat]:
