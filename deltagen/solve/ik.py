@@ -94,6 +94,27 @@ except Exception:  # pragma: no cover - a numpy without the module, or with anot
     _det = np.linalg.det
 
 
+def bound_clears(J):
+    """True where a cheap lower bound of sigma_min / sigma_max of J (..., r, c) already
+    clears J as not singular (IKPlanner.singular_rows and singular_one; the rows it does not
+    clear get the SVD). For square J, |det J| / |J|_F^n <= sigma_min / |J|_F <= sigma_min /
+    sigma_max (det J is the product of the singular values, each <= sigma_max <= |J|_F),
+    held against SINGULAR_TOL; for J that is not square, sqrt(det G) / |J|_F^m with G the
+    m x m Gram matrix (J J^T or J^T J, m = min(r, c)), held against GRAM_TOL. The strict >
+    leaves a zero J to the SVD. native/lean_ext.c regular_call is the C form of the square
+    case (det from the runtime's LU)."""
+    if J.ndim == 2:  # one pose: a quarter of the cost of the stacked forms below
+        (rows, cols), norm, Jt = J.shape, math.sqrt(float(np.vdot(J, J))), J.T
+    else:
+        rows, cols = J.shape[-2:]
+        norm, Jt = np.linalg.norm(J, axis=(-2, -1)), np.swapaxes(J, -1, -2)
+    if rows == cols:
+        return abs(_det(J)) > SINGULAR_TOL * norm**rows
+    # sqrt(det G) > GRAM_TOL |J|_F^m squared: no square root (nor its warning) of a det G
+    # that rounding made negative, which fails the test as it should
+    return _det(J @ Jt if rows < cols else Jt @ J) > (GRAM_TOL * norm ** min(rows, cols)) ** 2
+
+
 def check_one_pose(v):
     """(finite, rigid) of one pose given as its 16 entries (row by row, a Python list):
     check_poses' rule for a batch, in Python floats (a few us instead of ~20)."""
@@ -705,21 +726,10 @@ class IKPlanner:
 
     def singular_rows(self, q):
         """Rows of finite q (M, n) whose Jacobian is singular: sigma_min / sigma_max <
-        SINGULAR_TOL. Only rows failing a cheap lower bound of that ratio need the SVD: for
-        square J, |det J| / |J|_F^n (|J|_F >= sigma_max); for a k x n J that is not square,
-        sqrt(det G) / |J|_F^m with G the m x m Gram matrix (J J^T or J^T J, m = min(k, n)),
-        held against GRAM_TOL (see _gram_passes)."""
+        SINGULAR_TOL. Only rows that bound_clears does not clear need the SVD."""
         J, _ = self.core.jacobian(np.ascontiguousarray(q, dtype=float))
-        check = np.ones(J.shape[0], dtype=bool)
-        norm = np.linalg.norm(J, axis=(-2, -1))
-        rows, cols = J.shape[-2:]
         with np.errstate(all="ignore"):
-            if rows == cols:
-                check = ~(np.abs(np.linalg.det(J)) >= SINGULAR_TOL * norm**cols)
-            else:
-                Jt = np.swapaxes(J, -1, -2)
-                G = J @ Jt if rows < cols else Jt @ J
-                check = ~(np.sqrt(np.linalg.det(G)) >= GRAM_TOL * norm ** min(rows, cols))
+            check = ~bound_clears(J)
         singular = np.zeros(J.shape[0], dtype=bool)
         if np.any(check):
             sv = np.linalg.svd(J[check], compute_uv=False)
@@ -758,18 +768,8 @@ class IKPlanner:
             if cleared is False:
                 return bool(self.singular_rows(q[None])[0])
         J = self.jacobian_single(q)
-        if J is None:
-            return bool(self.singular_rows(q[None])[0])
-        rows, cols = J.shape
-        norm = math.sqrt(float(np.vdot(J, J)))  # |J|_F (vdot: half the time of ravel @)
-        if rows == cols:
-            if abs(float(_det(J))) >= SINGULAR_TOL * norm**rows:
-                return False
-        else:
-            G = J @ J.T if rows < cols else J.T @ J
-            det = float(_det(G))
-            if det >= 0.0 and math.sqrt(det) >= GRAM_TOL * norm ** min(rows, cols):
-                return False
+        if J is not None and bound_clears(J):
+            return False
         return bool(self.singular_rows(q[None])[0])
 
     def closed_form_one(self, T, config):

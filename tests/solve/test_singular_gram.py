@@ -131,3 +131,28 @@ def test_the_c_test_of_a_square_jacobian_is_sound():
     nan = base.copy()
     nan[0] = np.nan
     assert regular(nan) is None and regular(base[:5]) is None and regular("q") is None
+
+
+@pytest.mark.parametrize("shape", [(6, 6), (6, 7), (6, 4), (3, 3)])
+def test_one_bound_serves_the_stacked_and_the_one_pose_form(shape):
+    """bound_clears is one function for singular_rows' (M, r, c) stack and singular_one's
+    (r, c) pose: both forms give the same verdict row by row, and a row is cleared only
+    where numpy's SVD finds sigma_min / sigma_max >= SINGULAR_TOL (rows scaled towards
+    singular by shrinking one singular value on either side of the tolerance)."""
+    rng = np.random.default_rng(2405)
+    U = np.linalg.qr(rng.standard_normal((200, shape[0], shape[0])))[0]
+    V = np.linalg.qr(rng.standard_normal((200, shape[1], shape[1])))[0]
+    m = min(shape)
+    s = rng.uniform(0.5, 3.0, (200, m))
+    s[:, -1] *= 10.0 ** rng.uniform(-14, 0, 200)  # ratios across SINGULAR_TOL and GRAM_TOL
+    S = np.zeros((200,) + shape)
+    S[:, np.arange(m), np.arange(m)] = s
+    J = U @ S @ V
+    stacked = solve_ik.bound_clears(J)
+    one = np.array([bool(solve_ik.bound_clears(np.ascontiguousarray(Ji))) for Ji in J])
+    assert stacked.dtype == bool and stacked.shape == (200,)
+    assert (stacked == one).all()
+    sv = np.linalg.svd(J, compute_uv=False)
+    assert (sv[stacked, -1] >= SINGULAR_TOL * sv[stacked, 0]).all()
+    assert stacked.any() and not stacked.all()  # both verdicts were reached
+    assert not solve_ik.bound_clears(np.zeros(shape))  # a zero J is left to the SVD
