@@ -58,7 +58,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, read_toml, real
+from deltagen.model.robot_file import PathLike, degrees, family_table, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
 _LENGTHS = ("r_a", "r_b", "l_a", "l_b")
@@ -298,22 +298,7 @@ class DeltaGeometry:
 
     @classmethod
     def from_mapping(cls, data: dict[str, Any], source: str = "robot description") -> DeltaGeometry:
-        if not isinstance(data, dict):
-            raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
-        unknown = set(data) - _TOP_KEYS
-        if unknown:
-            raise GeometryError(f"{source}: unknown top-level keys {sorted(unknown)}")
-        if "delta" not in data:
-            raise GeometryError(f"{source}: missing [delta] table")
-        delta = data["delta"]
-        if not isinstance(delta, dict):
-            raise GeometryError(f"{source}: [delta] must be a table")
-        unknown = set(delta) - _DELTA_KEYS
-        if unknown:
-            raise GeometryError(f"{source}: unknown keys in [delta]: {sorted(unknown)}")
-        missing = [k for k in _LENGTHS if k not in delta]
-        if missing:
-            raise GeometryError(f"{source}: missing keys in [delta]: {missing}")
+        delta = family_table(data, "delta", _TOP_KEYS, _DELTA_KEYS, _LENGTHS, source)
         if "theta" in delta and "theta_deg" in delta:
             raise GeometryError(f"{source}: give theta (rad) or theta_deg (deg), not both")
         key = "theta_deg" if "theta_deg" in delta else "theta"
@@ -338,15 +323,7 @@ class DeltaGeometry:
         if "q_offset" in delta:
             kwargs["q_offset"] = delta["q_offset"]
         if "q_offset_deg" in delta:
-            raw_offset = delta["q_offset_deg"]
-            if not isinstance(raw_offset, list) or len(raw_offset) != 3:
-                raise GeometryError(f"{source}: q_offset_deg must be a list of 3 numbers")
-            try:
-                kwargs["q_offset"] = tuple(
-                    math.radians(real(v, f"q_offset_deg[{i}]")) for i, v in enumerate(raw_offset)
-                )
-            except GeometryError as exc:
-                raise GeometryError(f"{source}: {exc}") from None
+            kwargs["q_offset"] = degrees(delta, "q_offset_deg", 3, source)
         if "inertia" in data:
             kwargs["inertia"] = DeltaInertia.from_mapping(data["inertia"], source)
         try:

@@ -65,7 +65,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, read_toml, real
+from deltagen.model.robot_file import PathLike, degrees, family_table, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
 LAYOUTS = ("table-table", "head-head", "table-head")
@@ -173,32 +173,14 @@ class MachineDescription:
     def from_mapping(
         cls, data: dict[str, Any], source: str = "machine description"
     ) -> MachineDescription:
-        if not isinstance(data, dict):
-            raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
-        unknown = set(data) - _TOP_KEYS
-        if unknown:
-            raise GeometryError(f"{source}: unknown top-level keys {sorted(unknown)}")
-        machine = data.get("machine")
-        if not isinstance(machine, dict):
-            raise GeometryError(f"{source}: missing [machine] table")
-        unknown = set(machine) - _MACHINE_KEYS
-        if unknown:
-            raise GeometryError(f"{source}: unknown keys in [machine]: {sorted(unknown)}")
-        missing = [k for k in ("layout", "rotary") if k not in machine]
-        if missing:
-            raise GeometryError(f"{source}: missing keys in [machine]: {missing}")
+        required = ("layout", "rotary")
+        machine = family_table(data, "machine", _TOP_KEYS, _MACHINE_KEYS, required, source)
         kwargs = dict(machine)
         if "tilt_limits" in kwargs and "tilt_limits_deg" in kwargs:
             raise GeometryError(f"{source}: give tilt_limits (rad) or tilt_limits_deg, not both")
         if "tilt_limits_deg" in kwargs:
-            degrees = kwargs.pop("tilt_limits_deg")
-            if not isinstance(degrees, list) or len(degrees) != 2:
-                raise GeometryError(f"{source}: tilt_limits_deg must be a list of 2 numbers")
-            try:
-                values = [real(v, f"tilt_limits_deg[{i}]") for i, v in enumerate(degrees)]
-            except GeometryError as exc:
-                raise GeometryError(f"{source}: {exc}") from None
-            kwargs["tilt_limits"] = tuple(math.radians(v) for v in values)
+            kwargs["tilt_limits"] = degrees(kwargs, "tilt_limits_deg", 2, source)
+            del kwargs["tilt_limits_deg"]
         for key in ("name", "doc"):
             if key in data:
                 kwargs[key] = data[key]

@@ -27,7 +27,7 @@ import numpy as np
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, read_toml, real
+from deltagen.model.robot_file import PathLike, family_table, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
 LEGS = 6
@@ -180,22 +180,8 @@ class HexapodGeometry:
 
     @classmethod
     def from_mapping(cls, data: Any, source: str = "robot description") -> HexapodGeometry:
-        if not isinstance(data, dict):
-            raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
-        unknown = set(data) - _TOP_KEYS
-        if unknown:
-            raise GeometryError(f"{source}: unknown top-level keys {sorted(unknown)}")
-        if "hexapod" not in data:
-            raise GeometryError(f"{source}: missing [hexapod] table")
-        table = data["hexapod"]
-        if not isinstance(table, dict):
-            raise GeometryError(f"{source}: [hexapod] must be a table")
-        unknown = set(table) - _HEXAPOD_KEYS
-        if unknown:
-            raise GeometryError(f"{source}: unknown keys in [hexapod]: {sorted(unknown)}")
-        missing = [k for k in ("base_joints", "platform_joints") if k not in table]
-        if missing:
-            raise GeometryError(f"{source}: missing keys in [hexapod]: {missing}")
+        required = ("base_joints", "platform_joints")
+        table = family_table(data, "hexapod", _TOP_KEYS, _HEXAPOD_KEYS, required, source)
         kwargs: dict[str, Any] = {
             k: v for k, v in table.items() if not k.endswith("_deg") and k != "leg_limits"
         }

@@ -37,7 +37,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, read_toml, real
+from deltagen.model.robot_file import PathLike, family_table, read_toml, real
 from deltagen.status import SINGULAR_TOL
 
 #: Klipper's default tower angles of stepper_a, _b, _c [deg] (klippy/kinematics/delta.py).
@@ -69,12 +69,6 @@ def _range(value: Any, key: str) -> tuple[float, float]:
 def _check_tol(tol: float) -> None:
     if not (math.isfinite(tol) and 0.0 <= tol < 1.0):
         raise GeometryError(f"singular_tol must be in [0, 1), got {tol!r}")
-
-
-def _unknown(table: dict, allowed: set, where: str) -> None:
-    extra = sorted(set(table) - allowed)
-    if extra:
-        raise GeometryError(f"{where}: unknown keys {extra} (allowed: {sorted(allowed)})")
 
 
 @dataclass(frozen=True)
@@ -130,15 +124,9 @@ class LinearDeltaGeometry:
 
     @classmethod
     def from_mapping(cls, data: dict, where: str = "robot file") -> LinearDeltaGeometry:
-        _unknown(data, {"name", "linear_delta"}, where)
-        table = data.get("linear_delta")
-        if not isinstance(table, dict):
-            raise GeometryError(f"{where}: needs a [linear_delta] table")
         keys = {"radius", "angle", "angle_deg", "arm_length", "carriage_range", "singular_tol"}
-        _unknown(table, keys, f"{where} [linear_delta]")
-        for key in ("radius", "arm_length"):
-            if key not in table:
-                raise GeometryError(f"{where} [linear_delta]: {key} is missing")
+        required = ("radius", "arm_length")
+        table = family_table(data, "linear_delta", {"name", "linear_delta"}, keys, required, where)
         if "angle" in table and "angle_deg" in table:
             raise GeometryError(f"{where} [linear_delta]: give angle or angle_deg, not both")
         if "angle" in table:
@@ -206,15 +194,9 @@ class TripodGeometry:
 
     @classmethod
     def from_mapping(cls, data: dict, where: str = "robot file") -> TripodGeometry:
-        _unknown(data, {"name", "tripod"}, where)
-        table = data.get("tripod")
-        if not isinstance(table, dict):
-            raise GeometryError(f"{where}: needs a [tripod] table")
         keys = {"b_x", "c_x", "c_y", "side", "strut_range", "singular_tol"}
-        _unknown(table, keys, f"{where} [tripod]")
-        for key in ("b_x", "c_x", "c_y"):
-            if key not in table:
-                raise GeometryError(f"{where} [tripod]: {key} is missing")
+        required = ("b_x", "c_x", "c_y")
+        table = family_table(data, "tripod", {"name", "tripod"}, keys, required, where)
         return cls(
             b_x=table["b_x"],
             c_x=table["c_x"],

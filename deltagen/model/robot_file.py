@@ -6,6 +6,7 @@ import math
 import numbers
 import os
 import tomllib
+from collections.abc import Collection, Sequence
 from pathlib import Path
 from typing import Any, TypeAlias
 
@@ -40,3 +41,45 @@ def real(value: object, where: str) -> float:
     if not math.isfinite(value):
         raise GeometryError(f"{where} must be finite, got {value!r}")
     return value
+
+
+def family_table(
+    data: object,
+    section: str,
+    top_keys: Collection[str],
+    keys: Collection[str],
+    required: Sequence[str],
+    source: str,
+) -> dict[str, Any]:
+    """The ``[section]`` table of a parsed robot file, checked: ``data`` is a table whose keys
+    are among ``top_keys``, ``[section]`` is a table whose keys are among ``keys`` and that
+    holds every key of ``required``; else GeometryError naming ``source`` and the key."""
+    if not isinstance(data, dict):
+        raise GeometryError(f"{source}: expected a table, got {type(data).__name__}")
+    unknown = set(data) - set(top_keys)
+    if unknown:
+        raise GeometryError(f"{source}: unknown top-level keys {sorted(unknown)}")
+    if section not in data:
+        raise GeometryError(f"{source}: missing [{section}] table")
+    table = data[section]
+    if not isinstance(table, dict):
+        raise GeometryError(f"{source}: [{section}] must be a table")
+    unknown = set(table) - set(keys)
+    if unknown:
+        raise GeometryError(f"{source}: unknown keys in [{section}]: {sorted(unknown)}")
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise GeometryError(f"{source}: missing keys in [{section}]: {missing}")
+    return table
+
+
+def degrees(table: dict[str, Any], key: str, count: int, source: str) -> tuple[float, ...]:
+    """``table[key]``, a list of ``count`` angles in degrees, in radians (GeometryError naming
+    ``source`` and the key otherwise)."""
+    raw = table[key]
+    if not isinstance(raw, list) or len(raw) != count:
+        raise GeometryError(f"{source}: {key} must be a list of {count} numbers")
+    try:
+        return tuple(math.radians(real(v, f"{key}[{i}]")) for i, v in enumerate(raw))
+    except GeometryError as exc:
+        raise GeometryError(f"{source}: {exc}") from None
