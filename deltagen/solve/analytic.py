@@ -123,7 +123,7 @@ import numpy as np
 from deltagen.geometry.limits import fit_limits
 from deltagen.geometry.rotations import rotate as _rotv
 from deltagen.geometry.rotations import rotate2d as _rot2
-from deltagen.inputs import InputError, as_float_array
+from deltagen.inputs import InputError, as_float_array, check_real
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import (
     GantryArm,
@@ -233,13 +233,7 @@ class AnalyticSolver:
         T = as_float_array(T, "T", "(..., 4, 4)")
         if T.ndim < 2 or T.shape[-2:] != (4, 4):
             raise InputError(f"T must have shape (..., 4, 4), got {T.shape}")
-        if not (
-            isinstance(tol, (int, float, np.integer, np.floating))
-            and not isinstance(tol, (bool, np.bool_))
-            and np.isfinite(tol)
-            and tol > 0
-        ):
-            raise InputError(f"tol must be a number > 0, got {tol!r}")
+        tol = check_real(tol, "tol", low=0.0, low_open=True)
         if position_only and not self.detected.position_only_ok:
             raise InputError(
                 f"{self.axes.name}: position_only needs the tool point on the last "

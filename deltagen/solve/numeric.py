@@ -122,7 +122,7 @@ from deltagen import status as st
 from deltagen.geometry.limits import shift_into_limits
 from deltagen.geometry.rotations import rot_log as rotation_vector  # rotation_vector: public
 from deltagen.geometry.rotations import vee
-from deltagen.inputs import InputError, as_float_array
+from deltagen.inputs import InputError, as_float_array, is_real
 from deltagen.solve.least_squares import damped_step, kept
 
 __all__ = ["IKResult", "solve", "jacobian", "pose_error", "rotation_vector", "default_mask"]
@@ -292,12 +292,6 @@ def _check_mask(mask) -> np.ndarray:
     return m
 
 
-def _is_real(x) -> bool:
-    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(
-        x, (bool, np.bool_)
-    )
-
-
 def _check_tol(tol):
     if type(tol) is float or type(tol) is int:  # the common case, without numpy
         if math.isfinite(tol) and tol >= 0:
@@ -362,7 +356,7 @@ def _is_count(x) -> bool:
 
 
 def _finite_real(x) -> bool:
-    return _is_real(x) and math.isfinite(x)
+    return is_real(x) and math.isfinite(x)
 
 
 def check_options(arm, *, min_iter=1, **options) -> dict:
@@ -406,7 +400,7 @@ def check_options(arm, *, min_iter=1, **options) -> dict:
     else:
         raise InputError(f'damping must be "auto", a number >= 0 or None, got {damping!r}')
     if step_limit is not None and not (
-        _is_real(step_limit) and not math.isnan(step_limit) and step_limit > 0
+        is_real(step_limit) and not math.isnan(step_limit) and step_limit > 0
     ):
         raise InputError(f"step_limit must be a number > 0 or None, got {step_limit!r}")
     if respect_limits is not True and not isinstance(respect_limits, (bool, np.bool_)):

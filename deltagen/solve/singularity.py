@@ -64,7 +64,7 @@ from __future__ import annotations
 import numpy as np
 
 from deltagen.geometry.axes import common_points, unit
-from deltagen.inputs import InputError, as_float_array
+from deltagen.inputs import InputError, as_float_array, check_real
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import SphericalWrist6R, detect
 from deltagen.reference import serial as reference
@@ -137,13 +137,7 @@ def report(arm, q, tol: float = 1e-6) -> dict:
     q = as_float_array(q, "q", f"(..., {desc.n})")
     if q.ndim == 0 or q.shape[-1] != desc.n:
         raise InputError(f"q must have shape (..., {desc.n}) for {desc.name}, got {q.shape}")
-    if not (
-        isinstance(tol, (int, float, np.integer, np.floating))
-        and not isinstance(tol, (bool, np.bool_))
-        and np.isfinite(tol)
-        and tol > 0
-    ):
-        raise InputError(f"tol must be a positive number, got {tol!r}")
+    tol = check_real(tol, "tol", low=0.0, low_open=True)
     lead = q.shape[:-1]
     qf = np.ascontiguousarray(q.reshape(-1, desc.n))
     N = qf.shape[0]

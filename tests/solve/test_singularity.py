@@ -197,3 +197,19 @@ def test_aligned_axes_general_arm():
     assert rep["aligned_axes"][0] == [(1, 3)]
     assert rep["aligned_axes"][1] == []
     assert "collinear axes 1 and 3" in describe(row_of(rep, 0))
+
+
+@pytest.mark.parametrize("tol", [0, 0.0, -1e-6, float("nan"), float("inf"), True, "1e-6", None])
+def test_report_and_the_closed_form_refuse_the_same_tolerances(puma, tol):
+    """report's and AnalyticSolver.solve's tol are one check (deltagen.inputs.check_real,
+    > 0 and finite): each bad value is refused by both with the same message."""
+    from deltagen.inputs import InputError
+
+    q = np.zeros((1, 6))
+    with pytest.raises(InputError, match="^tol must be") as by_report:
+        report(puma, q, tol=tol)
+    solver = puma.ik_planner.analytic
+    with pytest.raises(InputError, match="^tol must be") as by_solver:
+        solver.solve(np.eye(4), tol=tol)
+    assert str(by_report.value) == str(by_solver.value)
+    assert report(puma, q, tol=np.float32(1e-6))["condition"].shape == (1,)
