@@ -195,6 +195,22 @@ static void fourteen(const double *p, const double *l, double *f)
     f[7] = pl;
 }
 
+/* The coefficients (points x 14) of the 14 functions' interpolation on the grid points:
+ * Binv (points x points, the inverse of the grid's basis matrix) times their values there
+ * (points x 14), row-major (general6r._left and _right). */
+static void coefficients(const double *Binv, int points, const double *values, double *out)
+{
+    for (int m = 0; m < points; ++m) {
+        for (int j = 0; j < 14; ++j) {
+            double s = 0.0;
+            for (int b = 0; b < points; ++b) {
+                s += Binv[m * points + b] * values[14 * b + j];
+            }
+            out[14 * m + j] = s;
+        }
+    }
+}
+
 static const double GRID[3] = {0.0, 2.0943951023931957, 4.1887902047863905}; /* 0, 2pi/3, 4pi/3 */
 
 /* Householder QR of the 14 x 8 Q (GVL Alg. 5.2.1) with U (14 x 14) accumulated: Q = U R;
@@ -368,15 +384,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
             turn(w + 6, t3, l, l);
             fourteen(p, l, values + 14 * m);
         }
-        for (int m = 0; m < 27; ++m) {
-            for (int j = 0; j < 14; ++j) {
-                double s = 0.0;
-                for (int b = 0; b < 27; ++b) {
-                    s += arm->B3inv[m * 27 + b] * values[14 * b + j];
-                }
-                C[14 * m + j] = s;
-            }
-        }
+        coefficients(arm->B3inv, 27, values, C);
     }
     /* the right side on the 9 grid points of theta 1, 2 (general6r._right) and its
      * coefficients D = B2^-1 values */
@@ -405,15 +413,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
             turn(w + 3, -t2, l, l);
             fourteen(z2, l, values2 + 14 * m);
         }
-        for (int m = 0; m < 9; ++m) {
-            for (int j = 0; j < 14; ++j) {
-                double s = 0.0;
-                for (int b = 0; b < 9; ++b) {
-                    s += arm->B2inv[m * 9 + b] * values2[14 * b + j];
-                }
-                D[14 * m + j] = s;
-            }
-        }
+        coefficients(arm->B2inv, 9, values2, D);
     }
     for (int j = 0; j < 14; ++j) {
         C[j] -= D[j];
