@@ -139,29 +139,37 @@ def sample_poses(n: int, cores: Sequence, rng: np.random.Generator) -> dict[str,
 # ------------------------------------------------------------------------- measurements
 
 
+def _c_call(
+    ffi, fn, lead: tuple, inputs: list[np.ndarray], widths, all_ok: bool
+) -> Callable | None:
+    """A no-argument call of the generated C function ``fn(*lead, inputs..., outputs...,
+    status)`` with preallocated outputs (``widths`` per point), or None where a first call
+    returns non-zero (or, with ``all_ok``, leaves a point not OK)."""
+    points = inputs[0].shape[0]
+    outs = [np.empty((points, width)) for width in widths]
+    status = np.empty(points, dtype=np.int8)
+    fb = ffi.from_buffer
+    cargs = (
+        *lead,
+        *(fb("double[]", a) for a in inputs),
+        *(fb("double[]", o, require_writable=True) for o in outs),
+        fb("int8_t[]", status, require_writable=True),
+    )
+    if fn(*cargs) != 0 or (all_ok and not (status == st.OK).all()):
+        return None
+    keep = (inputs, outs, status)  # the buffers must outlive the call object
+    return lambda: (fn(*cargs), keep)[0]
+
+
 def _kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable | None:
-    """A no-argument call of the generated C function with preallocated outputs, or None
-    if the core is not the cffi one or its ABI is not the expected one."""
+    """_c_call of the delta's generated C function, or None if the core is not the cffi one
+    or its ABI is not the expected one."""
     try:
-        ffi, lib, geometry = core._ffi, core._lib, core._geometry
         entry = _DELTA_KERNELS[name]
         n, axes = inputs[0].shape
-        outs = [np.empty((n, width)) for width in output_widths(entry, axes)]
-        status = np.empty(n, dtype=np.int8)
-        fb = ffi.from_buffer
-        cargs = (
-            geometry,
-            n,
-            axes,
-            *(fb("double[]", a) for a in inputs),
-            *(fb("double[]", o, require_writable=True) for o in outs),
-            fb("int8_t[]", status, require_writable=True),
-        )
-        fn = getattr(lib, entry["function"])
-        if fn(*cargs) != 0:
-            return None
-        keep = (inputs, outs, status)  # the buffers must outlive the call object
-        return lambda: (fn(*cargs), keep)[0]
+        fn = getattr(core._lib, entry["function"])
+        lead = (core._geometry, n, axes)
+        return _c_call(core._ffi, fn, lead, inputs, output_widths(entry, axes), False)
     except Exception:  # noqa: BLE001 - a diagnostic column; the others still run
         return None
 
@@ -266,25 +274,13 @@ def sample_serial(n: int, robot: Any, rng: np.random.Generator) -> dict[str, np.
 
 
 def _serial_kernel_callable(core: Any, name: str, inputs: list[np.ndarray]) -> Callable | None:
-    """A no-argument call of the arm's generated C function ``deltagen_<robot>_<name>`` with
-    preallocated outputs, or None if the core is not the cffi one."""
+    """_c_call of the arm's generated C function ``deltagen_<robot>_<name>`` (every point
+    OK), or None if the core is not the cffi one."""
     try:
         ffi, fn = core.c_function(name)
         points, axes = inputs[0].shape
         (width,) = output_widths(core.kernel(name), axes)  # generated/<arm>.kernels.json
-        out = np.empty((points, width))
-        status = np.empty(points, dtype=np.int8)
-        fb = ffi.from_buffer
-        cargs = (
-            points,
-            *(fb("double[]", a) for a in inputs),
-            fb("double[]", out, require_writable=True),
-            fb("int8_t[]", status, require_writable=True),
-        )
-        if fn(*cargs) != 0 or not (status == st.OK).all():
-            return None
-        keep = (inputs, out, status)  # the buffers must outlive the call object
-        return lambda: (fn(*cargs), keep)[0]
+        return _c_call(ffi, fn, (points,), inputs, (width,), True)
     except Exception:  # noqa: BLE001 - a diagnostic column; the others still run
         return None
 
