@@ -262,6 +262,40 @@ def _us(stat: Stat, scale: float = 1000.0) -> str:
     return f"{stat.median / scale:.3g} [{stat.min / scale:.3g}, {stat.max / scale:.3g}]"
 
 
+def _closed_form_batch_rows(a: dict, prefix: str, target: str) -> list[list[str]]:
+    """The batch rows of a closed-form measurement ``a`` (measure_analytic): the C kernel,
+    the API against TARGETS[target] (<= 2 us per pose), the numpy solver."""
+    return [
+        [
+            f"{prefix}all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, "
+            f"batch of {a['n']:,}",
+            _us(a["batch"]["kernel"]),
+            "-",
+        ],
+        [
+            f"{prefix}all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}",
+            _us(a["batch"]["api"]),
+            f"<= 2 {verdict(a['batch']['api'].median, TARGETS[target])}",
+        ],
+        [
+            f"{prefix}all {a['k']} branches, numpy solver (reference backend), "
+            f"batch of {a['ref_n']:,}",
+            _us(a["batch"]["numpy"]),
+            "-",
+        ],
+    ]
+
+
+def _closed_form_found(a: dict, bullet: str, what: str) -> str:
+    """The bullet saying how often the closed form found the original q."""
+    return (
+        f"{bullet}{what}: the original q is among the valid branches for "
+        f"{100 * a['found']:.3f} % of the poses ({a['valid_per_pose']:.2f} valid branches "
+        f"per pose on average); largest fk residual of a valid branch "
+        f"{a['max_residual']:.1e}"
+    )
+
+
 def render(result: dict, markdown: bool, name: str) -> list[str]:
     """Lines of the IK section."""
     style = Style(markdown)
@@ -269,22 +303,7 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
     a = result["analytic"]
     out = [h(f"{name}: inverse kinematics"), ""]
 
-    rows = [
-        [
-            f"all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, batch of {a['n']:,}",
-            _us(a["batch"]["kernel"]),
-            "-",
-        ],
-        [
-            f"all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}",
-            _us(a["batch"]["api"]),
-            f"<= 2 {verdict(a['batch']['api'].median, TARGETS['analytic_batch_ns'])}",
-        ],
-        [
-            f"all {a['k']} branches, numpy solver (reference backend), batch of {a['ref_n']:,}",
-            _us(a["batch"]["numpy"]),
-            "-",
-        ],
+    rows = _closed_form_batch_rows(a, "", "analytic_batch_ns") + [
         [
             "all branches, `arm.ik_all(T)`, one pose per call",
             _us(a["single"]["api"]),
@@ -304,12 +323,7 @@ def render(result: dict, markdown: bool, name: str) -> list[str]:
     ]
     out += table(["call", "us per pose, median [min, max]", "target"], rows, markdown)
     out.append("")
-    out.append(
-        f"{bullet}closed form: the original q is among the valid branches for "
-        f"{100 * a['found']:.3f} % of the poses ({a['valid_per_pose']:.2f} valid branches "
-        f"per pose on average); largest fk residual of a valid branch "
-        f"{a['max_residual']:.1e}"
-    )
+    out.append(_closed_form_found(a, bullet, "closed form"))
     out.append("")
     if result.get("analytic_ur"):
         out += render_ur(result["analytic_ur"], markdown)
@@ -324,32 +338,12 @@ def render_ur(a: dict, markdown: bool) -> list[str]:
     """Lines of the UR closed-form rows (the target: all 8 branches <= 2 us per pose,
     batched)."""
     bullet = Style(markdown).bullet
-    rows = [
-        [
-            f"{UR_ROBOT}: all {a['k']} closed-form branches, C kernel `_core.ik_all(T)`, "
-            f"batch of {a['n']:,}",
-            _us(a["batch"]["kernel"]),
-            "-",
-        ],
-        [
-            f"{UR_ROBOT}: all {a['k']} branches, `arm.ik_all(T)`, batch of {a['n']:,}",
-            _us(a["batch"]["api"]),
-            f"<= 2 {verdict(a['batch']['api'].median, TARGETS['ur5_batch_ns'])}",
-        ],
-        [
-            f"{UR_ROBOT}: numpy solver (reference backend), batch of {a['ref_n']:,}",
-            _us(a["batch"]["numpy"]),
-            "-",
-        ],
+    rows = _closed_form_batch_rows(a, f"{UR_ROBOT}: ", "ur5_batch_ns") + [
         [f"{UR_ROBOT}: `arm.ik_all(T)`, one pose per call", _us(a["single"]["api"]), "-"],
     ]
     out = table(["call", "us per pose, median [min, max]", "target"], rows, markdown)
     out.append("")
-    out.append(
-        f"{bullet}UR closed form: the original q among the valid branches for "
-        f"{100 * a['found']:.3f} % of the poses ({a['valid_per_pose']:.2f} valid branches per "
-        f"pose); largest fk residual of a valid branch {a['max_residual']:.1e}"
-    )
+    out.append(_closed_form_found(a, bullet, "UR closed form"))
     return out
 
 
