@@ -79,13 +79,7 @@ class SerialDynamics:
             tau = id_single(q, qd, qdd)
             if tau is not None:
                 return tau
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf, qddf) = self._broadcast(q=q, qd=qd, qdd=qdd)
-        tau, status = core.inverse_dynamics(qf, qdf, qddf)
-        return self._finish_dynamics(
-            errors, lead, status, [tau], ("q", "qd", "qdd"), [qf, qdf, qddf]
-        )
+        return self._dynamics_rows("inverse_dynamics", errors, q=q, qd=qd, qdd=qdd)
 
     def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
@@ -94,34 +88,20 @@ class SerialDynamics:
             M = mass_single(q)
             if M is not None:
                 return M
-        core = self._dynamics()
-        lead, qf = self._prepare(errors, q)
-        M, status = core.mass_matrix(qf)
-        return self._finish_dynamics(errors, lead, status, [M], ("q",), [qf])
+        return self._dynamics_rows("mass_matrix", errors, q=q)
 
     def gravity_torque(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """g(q) (..., n): the joint torques that hold the arm still against gravity."""
-        core = self._dynamics()
-        lead, qf = self._prepare(errors, q)
-        g, status = core.gravity_torque(qf)
-        return self._finish_dynamics(errors, lead, status, [g], ("q",), [qf])
+        return self._dynamics_rows("gravity_torque", errors, q=q)
 
     def coriolis(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """Coriolis matrix C (..., n, n) in the Christoffel form: C qd holds the Coriolis
         and centrifugal torques and Mdot - 2C is skew-symmetric."""
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
-        C, status = core.coriolis(qf, qdf)
-        return self._finish_dynamics(errors, lead, status, [C], ("q", "qd"), [qf, qdf])
+        return self._dynamics_rows("coriolis", errors, q=q, qd=qd)
 
     def nonlinear_effects(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """h (..., n) = C(q, qd) qd + g(q) + friction: the torques at qdd = 0."""
-        core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf) = self._broadcast(q=q, qd=qd)
-        h, status = core.nonlinear_effects(qf, qdf)
-        return self._finish_dynamics(errors, lead, status, [h], ("q", "qd"), [qf, qdf])
+        return self._dynamics_rows("nonlinear_effects", errors, q=q, qd=qd)
 
     def forward_dynamics(
         self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, errors: Errors = "raise"
@@ -133,11 +113,21 @@ class SerialDynamics:
             qdd = fd_single(q, qd, tau)
             if qdd is not None:
                 return qdd
+        return self._dynamics_rows("forward_dynamics", errors, q=q, qd=qd, tau=tau)
+
+    def _dynamics_rows(self, name: str, errors: Errors, **states: ArrayLike) -> Result:
+        """The general path of every dynamics quantity: the core's ``name`` on the rows of
+        the joint states (q alone, or q, qd, ... broadcast against each other), checked and
+        shaped by _finish_dynamics."""
         core = self._dynamics()
-        check_errors_mode(errors)
-        lead, (qf, qdf, tf) = self._broadcast(q=q, qd=qd, tau=tau)
-        qdd, status = core.forward_dynamics(qf, qdf, tf)
-        return self._finish_dynamics(errors, lead, status, [qdd], ("q", "qd", "tau"), [qf, qdf, tf])
+        if len(states) == 1:
+            lead, qf = self._prepare(errors, states["q"])
+            flat = [qf]
+        else:
+            check_errors_mode(errors)
+            lead, flat = self._broadcast(**states)
+        out, status = getattr(core, name)(*flat)
+        return self._finish_dynamics(errors, lead, status, [out], tuple(states), list(flat))
 
     def _finish_dynamics(self, errors, lead, status, outs, names, inputs):
         singular = status == st.SINGULAR
