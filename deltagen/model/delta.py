@@ -58,7 +58,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, degrees, family_table, read_toml, real
+from deltagen.model.robot_file import RobotFile, degrees, family_table, real
 from deltagen.status import SINGULAR_TOL
 
 _LENGTHS = ("r_a", "r_b", "l_a", "l_b")
@@ -161,7 +161,7 @@ class DeltaInertia:
 
 
 @dataclass(frozen=True)
-class DeltaGeometry:
+class DeltaGeometry(RobotFile):
     r_a: float
     r_b: float
     l_a: float
@@ -330,10 +330,6 @@ class DeltaGeometry:
             return cls(theta=theta, name=data.get("name", "delta"), **kwargs)
         except GeometryError as exc:
             raise GeometryError(f"{source}: {exc}") from None
-
-    @classmethod
-    def from_toml(cls, path: PathLike) -> DeltaGeometry:
-        return cls.from_mapping(read_toml(path), source=str(path))
 
 
 def _inertia(key: str) -> Callable[[DeltaGeometry], Any]:

@@ -65,7 +65,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, degrees, family_table, read_toml, real
+from deltagen.model.robot_file import RobotFile, degrees, family_table, real
 from deltagen.status import SINGULAR_TOL
 
 LAYOUTS = ("table-table", "head-head", "table-head")
@@ -103,7 +103,7 @@ def config_name(layout: str, rotary: str) -> str:
 
 
 @dataclass(frozen=True)
-class MachineDescription:
+class MachineDescription(RobotFile):
     layout: str
     rotary: str
     tool_length: float = 0.0
@@ -188,10 +188,6 @@ class MachineDescription:
             return cls(**kwargs)
         except GeometryError as exc:
             raise GeometryError(f"{source}: {exc}") from None
-
-    @classmethod
-    def from_toml(cls, path: PathLike) -> MachineDescription:
-        return cls.from_mapping(read_toml(path), source=str(path))
 
 
 #: The fields of the 5-axis core's parameter struct (deltagen_five_axis_geometry), in order

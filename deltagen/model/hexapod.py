@@ -27,7 +27,7 @@ import numpy as np
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, family_table, read_toml, real
+from deltagen.model.robot_file import RobotFile, family_table, real
 from deltagen.status import SINGULAR_TOL
 
 LEGS = 6
@@ -91,7 +91,7 @@ def _vector(value: Any, n: int, where: str) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True)
-class HexapodGeometry:
+class HexapodGeometry(RobotFile):
     """A hexapod as built; lengths in m, angles in rad.
 
     base_joints      6 points a_i in the base frame [m]
@@ -199,10 +199,6 @@ class HexapodGeometry:
             return cls(**kwargs)
         except GeometryError as exc:
             raise GeometryError(f"{source}: {exc}") from None
-
-    @classmethod
-    def from_toml(cls, path: PathLike) -> HexapodGeometry:
-        return cls.from_mapping(read_toml(path), source=str(path))
 
 
 def _leg_limits(value: Any) -> tuple[float, float]:

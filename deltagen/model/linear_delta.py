@@ -37,7 +37,7 @@ from typing import Any
 from deltagen.errors import GeometryError
 from deltagen.model.naming import check_identifier
 from deltagen.model.parameters import RobotParameter
-from deltagen.model.robot_file import PathLike, family_table, read_toml, real
+from deltagen.model.robot_file import RobotFile, family_table, real
 from deltagen.status import SINGULAR_TOL
 
 #: Klipper's default tower angles of stepper_a, _b, _c [deg] (klippy/kinematics/delta.py).
@@ -72,7 +72,7 @@ def _check_tol(tol: float) -> None:
 
 
 @dataclass(frozen=True)
-class LinearDeltaGeometry:
+class LinearDeltaGeometry(RobotFile):
     """A linear delta (module docstring): per-tower radius [m], angle [rad] and arm length
     [m], the carriage travel [m] and the relative singularity threshold."""
 
@@ -123,12 +123,12 @@ class LinearDeltaGeometry:
         )
 
     @classmethod
-    def from_mapping(cls, data: dict, where: str = "robot file") -> LinearDeltaGeometry:
+    def from_mapping(cls, data: dict, source: str = "robot file") -> LinearDeltaGeometry:
         keys = {"radius", "angle", "angle_deg", "arm_length", "carriage_range", "singular_tol"}
         required = ("radius", "arm_length")
-        table = family_table(data, "linear_delta", {"name", "linear_delta"}, keys, required, where)
+        table = family_table(data, "linear_delta", {"name", "linear_delta"}, keys, required, source)
         if "angle" in table and "angle_deg" in table:
-            raise GeometryError(f"{where} [linear_delta]: give angle or angle_deg, not both")
+            raise GeometryError(f"{source} [linear_delta]: give angle or angle_deg, not both")
         if "angle" in table:
             angle = _triple(table["angle"], "angle")
         else:
@@ -143,16 +143,12 @@ class LinearDeltaGeometry:
             name=data.get("name", "linear_delta"),
         )
 
-    @classmethod
-    def from_toml(cls, path: PathLike) -> LinearDeltaGeometry:
-        return cls.from_mapping(read_toml(path), str(path))
-
 
 _SIDES = {"above": 1.0, "below": -1.0}
 
 
 @dataclass(frozen=True)
-class TripodGeometry:
+class TripodGeometry(RobotFile):
     """LinuxCNC tripodkins' tripod (module docstring): B = (b_x, 0, 0), C = (c_x, c_y, 0)
     [m], the side of the base plane ("above" or "below"), the strut travel [m] and the
     relative singularity threshold."""
@@ -193,10 +189,10 @@ class TripodGeometry:
         return cls(b_x=1.0, c_x=0.5, c_y=0.8, side="above", strut_range=(0.2, 2.0))
 
     @classmethod
-    def from_mapping(cls, data: dict, where: str = "robot file") -> TripodGeometry:
+    def from_mapping(cls, data: dict, source: str = "robot file") -> TripodGeometry:
         keys = {"b_x", "c_x", "c_y", "side", "strut_range", "singular_tol"}
         required = ("b_x", "c_x", "c_y")
-        table = family_table(data, "tripod", {"name", "tripod"}, keys, required, where)
+        table = family_table(data, "tripod", {"name", "tripod"}, keys, required, source)
         return cls(
             b_x=table["b_x"],
             c_x=table["c_x"],
@@ -206,10 +202,6 @@ class TripodGeometry:
             singular_tol=table.get("singular_tol", SINGULAR_TOL),
             name=data.get("name", "tripod"),
         )
-
-    @classmethod
-    def from_toml(cls, path: PathLike) -> TripodGeometry:
-        return cls.from_mapping(read_toml(path), str(path))
 
 
 _TOL_DOC = "relative singularity threshold, e.g. 1e-9"

@@ -8,7 +8,7 @@ import os
 import tomllib
 from collections.abc import Collection, Sequence
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import Any, Self, TypeAlias
 
 from deltagen.errors import GeometryError
 from deltagen.inputs import InputError, read_regular_file
@@ -31,6 +31,17 @@ def read_toml(path: PathLike, what: str = "robot file") -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise GeometryError(f"{path}: malformed TOML: {exc}") from None
+
+
+class RobotFile:
+    """The ``from_toml`` of every description a TOML robot file holds (the delta, the
+    hexapod, the 5-axis machine, the linear delta, the tripod, the serial arm): the file read
+    by read_toml, then the class's own ``from_mapping`` with the file's path as the source
+    its errors name."""
+
+    @classmethod
+    def from_toml(cls, path: PathLike) -> Self:
+        return cls.from_mapping(read_toml(path), source=str(path))  # type: ignore[attr-defined]
 
 
 def real(value: object, where: str) -> float:

@@ -79,7 +79,7 @@ import numpy.typing as npt
 from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy, rot_axis
 from deltagen.model.naming import check_identifier
-from deltagen.model.robot_file import PathLike, read_toml, real
+from deltagen.model.robot_file import RobotFile, real
 
 CONVENTIONS = ("standard", "modified", "universal")
 JOINT_TYPES = ("revolute", "prismatic")
@@ -155,7 +155,7 @@ def transform(
 
 
 @dataclass(frozen=True)
-class SerialDescription:
+class SerialDescription(RobotFile):
     name: str
     convention: str
     joints: tuple[Joint, ...]
@@ -371,10 +371,6 @@ class SerialDescription:
             doc=str(data.get("doc", "")),
             gravity=data.get("gravity", DEFAULT_GRAVITY),
         )
-
-    @classmethod
-    def from_toml(cls, path: PathLike) -> SerialDescription:
-        return cls.from_mapping(read_toml(path), source=str(path))
 
 
 # ------------------------------------------------------------- numeric link transforms

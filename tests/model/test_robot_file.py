@@ -16,7 +16,8 @@ from deltagen.model.delta import DeltaGeometry
 from deltagen.model.five_axis import MachineDescription
 from deltagen.model.hexapod import HexapodGeometry
 from deltagen.model.linear_delta import LinearDeltaGeometry, TripodGeometry
-from deltagen.model.robot_file import degrees, family_table, read_toml
+from deltagen.model.robot_file import RobotFile, degrees, family_table, read_toml
+from deltagen.model.serial import SerialDescription
 from deltagen.paths import robots_dir
 
 # family -> (its bundled file, its table, a key the table must hold)
@@ -96,3 +97,17 @@ def test_the_angle_lists_in_degrees_of_two_families():
     machine["machine"]["tilt_limits_deg"] = [-120, 120, 5]
     with pytest.raises(GeometryError, match="tilt_limits_deg must be a list of 2 numbers"):
         MachineDescription.from_mapping(machine)
+
+
+@pytest.mark.parametrize("family", [*FAMILIES, SerialDescription], ids=lambda f: f.__name__)
+def test_each_family_reads_a_file_through_robot_file(family, tmp_path):
+    """from_toml is RobotFile's for every family: the file's mapping through the family's
+    own from_mapping, its errors naming the file's path."""
+    assert family.from_toml.__func__ is RobotFile.from_toml.__func__
+    name = FAMILIES[family][0] if family in FAMILIES else "puma560.toml"
+    path = robots_dir() / name
+    assert repr(family.from_toml(path)) == repr(family.from_mapping(read_toml(path), str(path)))
+    broken = tmp_path / "broken.toml"
+    broken.write_text('colour = "red"\n')
+    with pytest.raises(GeometryError, match=f"^{broken}: unknown top-level keys"):
+        family.from_toml(broken)
