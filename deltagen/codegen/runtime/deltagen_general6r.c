@@ -195,18 +195,17 @@ static void fourteen(const double *p, const double *l, double *f)
     f[7] = pl;
 }
 
-/* The coefficients (points x 14) of the 14 functions' interpolation on the grid points:
- * Binv (points x points, the inverse of the grid's basis matrix) times their values there
- * (points x 14), row-major (general6r._left and _right). */
-static void coefficients(const double *Binv, int points, const double *values, double *out)
+/* out (rows x cols) = A (rows x inner) B (inner x cols), row-major, each entry summed in
+ * the order of the inner index */
+static void matmul(const double *A, const double *B, int rows, int inner, int cols, double *out)
 {
-    for (int m = 0; m < points; ++m) {
-        for (int j = 0; j < 14; ++j) {
+    for (int i = 0; i < rows; ++i) {
+        for (int j = 0; j < cols; ++j) {
             double s = 0.0;
-            for (int b = 0; b < points; ++b) {
-                s += Binv[m * points + b] * values[14 * b + j];
+            for (int k = 0; k < inner; ++k) {
+                s += A[i * inner + k] * B[k * cols + j];
             }
-            out[14 * m + j] = s;
+            out[i * cols + j] = s;
         }
     }
 }
@@ -287,15 +286,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
 {
     /* G = T T0^-1, the arranged axes (carried by G^-1 for the shifted joints) */
     double G[16];
-    for (int i = 0; i < 4; ++i) {
-        for (int j = 0; j < 4; ++j) {
-            double s = 0.0;
-            for (int k = 0; k < 4; ++k) {
-                s += T[i * 4 + k] * arm->T0inv[k * 4 + j];
-            }
-            G[i * 4 + j] = s;
-        }
-    }
+    matmul(T, arm->T0inv, 4, 4, 4, G);
     double w0[18], o0[18], w[18], o[18];
     for (int j = 0; j < 6; ++j) {
         const double *wj = arm->w + 3 * j, *oj = arm->o + 3 * j;
@@ -384,7 +375,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
             turn(w + 6, t3, l, l);
             fourteen(p, l, values + 14 * m);
         }
-        coefficients(arm->B3inv, 27, values, C);
+        matmul(arm->B3inv, values, 27, 27, 14, C); /* the coefficients on the grid */
     }
     /* the right side on the 9 grid points of theta 1, 2 (general6r._right) and its
      * coefficients D = B2^-1 values */
@@ -413,7 +404,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
             turn(w + 3, -t2, l, l);
             fourteen(z2, l, values2 + 14 * m);
         }
-        coefficients(arm->B2inv, 9, values2, D);
+        matmul(arm->B2inv, values2, 9, 9, 14, D);
     }
     for (int j = 0; j < 14; ++j) {
         C[j] -= D[j];
@@ -457,15 +448,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
             A6[r * 27 + m] = s;
         }
     }
-    for (int r = 0; r < 6; ++r) {
-        for (int c = 0; c < 27; ++c) {
-            double s = 0.0;
-            for (int m = 0; m < 27; ++m) {
-                s += A6[r * 27 + m] * arm->half3[m * 27 + c];
-            }
-            E[r * 27 + c] = s;
-        }
-    }
+    matmul(A6, arm->half3, 6, 27, 27, E);
     double M[3 * 144];
     memset(M, 0, sizeof M);
     for (int p3 = 0; p3 < 3; ++p3) {
@@ -536,13 +519,7 @@ static int starts_pose(const double *T, const deltagen_general6r_arm *arm, doubl
             }
             rhs[j] = s;
         }
-        for (int i = 0; i < 8; ++i) {
-            double s = 0.0;
-            for (int j = 0; j < 14; ++j) {
-                s += pinv[i * 14 + j] * rhs[j];
-            }
-            sig2[i] = s;
-        }
+        matmul(pinv, rhs, 8, 14, 1, sig2);
         th[0] = atan2(sig2[5], sig2[2]);
         th[1] = atan2(sig2[1], sig2[0]);
         /* theta 6: Rot(w6, th6) = (R1 ... R5)^T R_G on a reference normal to w6
