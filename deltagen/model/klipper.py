@@ -51,7 +51,7 @@ from deltagen.errors import GeometryError
 from deltagen.inputs import InputError, read_regular_file
 from deltagen.model.delta import MAX_LENGTH, MIN_LENGTH, DeltaGeometry
 from deltagen.model.linear_delta import KLIPPER_TOWER_ANGLES, LinearDeltaGeometry
-from deltagen.model.robot_file import PathLike
+from deltagen.model.robot_file import PathLike, number_text
 
 #: Klipper's default arm positions of stepper_a, _b, _c [deg].
 KLIPPER_DEFAULT_ANGLES = (30.0, 150.0, 270.0)
@@ -149,14 +149,7 @@ def _number(config, section, key, source, default=None):
         if default is None:
             raise GeometryError(f"{source}: [{section}] needs {key}")
         return default
-    raw = config.get(section, key)
-    try:
-        value = float(raw)
-    except ValueError:
-        raise GeometryError(f"{source}: [{section}] {key}: {raw!r} is not a number") from None
-    if not math.isfinite(value):
-        raise GeometryError(f"{source}: [{section}] {key}: {raw!r} is not finite")
-    return value
+    return number_text(config.get(section, key), f"{source}: [{section}] {key}")
 
 
 def _delta_config(

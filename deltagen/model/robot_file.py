@@ -54,6 +54,18 @@ def real(value: object, where: str) -> float:
     return value
 
 
+def number_text(text: str, where: str, context: str = "") -> float:
+    """The finite number a text of a robot file spells (URDF attributes, Klipper options);
+    else GeometryError "<where>: '<text>' is not a number<context>" or "... is not finite"."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise GeometryError(f"{where}: {text!r} is not a number{context}") from None
+    if not math.isfinite(value):
+        raise GeometryError(f"{where}: {text!r} is not finite")
+    return value
+
+
 def family_table(
     data: object,
     section: str,

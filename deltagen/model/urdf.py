@@ -103,6 +103,7 @@ from deltagen.errors import GeometryError
 from deltagen.geometry.rotations import matrix_from_rpy, skew, xyz_angles
 from deltagen.inputs import InputError, read_regular_file
 from deltagen.model.coupling import Coupling
+from deltagen.model.robot_file import number_text
 from deltagen.model.serial import DEFAULT_GRAVITY, Inertial, Joint, SerialDescription
 
 Matrix = npt.NDArray[np.float64]
@@ -159,16 +160,7 @@ def _numbers(text: str | None, count: int, where: str, default: str | None = Non
     parts = text.split()
     if len(parts) != count:
         raise GeometryError(f"{where}: expected {count} numbers, got {text!r}")
-    values = []
-    for part in parts:
-        try:
-            v = float(part)
-        except ValueError:
-            raise GeometryError(f"{where}: {part!r} is not a number (in {text!r})") from None
-        if not math.isfinite(v):
-            raise GeometryError(f"{where}: {part!r} is not finite")
-        values.append(v)
-    return values
+    return [number_text(part, where, f" (in {text!r})") for part in parts]
 
 
 def _within(values: Sequence[float], bound: float, unit: str, where: str) -> None:

@@ -16,7 +16,7 @@ from deltagen.model.delta import DeltaGeometry
 from deltagen.model.five_axis import MachineDescription
 from deltagen.model.hexapod import HexapodGeometry
 from deltagen.model.linear_delta import LinearDeltaGeometry, TripodGeometry
-from deltagen.model.robot_file import RobotFile, degrees, family_table, read_toml
+from deltagen.model.robot_file import RobotFile, degrees, family_table, number_text, read_toml
 from deltagen.model.serial import SerialDescription
 from deltagen.paths import robots_dir
 
@@ -111,3 +111,28 @@ def test_each_family_reads_a_file_through_robot_file(family, tmp_path):
     broken.write_text('colour = "red"\n')
     with pytest.raises(GeometryError, match=f"^{broken}: unknown top-level keys"):
         family.from_toml(broken)
+
+
+def test_number_text_of_the_urdf_and_klipper_readers(tmp_path):
+    """number_text is the one reading of a number spelled in a file: a URDF attribute (with
+    the attribute's whole text named) and a Klipper option give the same words."""
+    import configparser
+
+    from deltagen.model.klipper import _number
+    from deltagen.model.urdf import _numbers
+
+    assert number_text(" -1.5e-3", "w") == -1.5e-3
+    with pytest.raises(GeometryError, match=r"^w: 'abc' is not a number \(in 'x'\)$"):
+        number_text("abc", "w", " (in 'x')")
+    with pytest.raises(GeometryError, match=r"^w: 'inf' is not finite$"):
+        number_text("inf", "w")
+    assert _numbers("1 2.5 -3", 3, "origin") == [1.0, 2.5, -3.0]
+    with pytest.raises(GeometryError, match=r"^origin: 'two' is not a number \(in '1 two 3'\)$"):
+        _numbers("1 two 3", 3, "origin")
+    with pytest.raises(GeometryError, match=r"^origin: 'nan' is not finite$"):
+        _numbers("1 nan 3", 3, "origin")
+    config = configparser.ConfigParser()
+    config.read_string("[printer]\ndelta_radius: wide\narm_length: 0.25\n")
+    assert _number(config, "printer", "arm_length", "p.cfg") == 0.25
+    with pytest.raises(GeometryError, match=r"^p.cfg: \[printer\] delta_radius: 'wide' is not a"):
+        _number(config, "printer", "delta_radius", "p.cfg")
