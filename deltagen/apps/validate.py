@@ -447,26 +447,40 @@ def plot(result: ValidationResult, path) -> Path:
                 label="failed samples",
             )
 
-    ax = fig.add_subplot(gs[2, 0])
-    ax.plot(t, result.speed, lw=0.5, color="tab:blue", label="|pd|")
-    ax.axhline(REPORT_SPEED, color="k", ls="--", lw=0.8, label=f"report: {REPORT_SPEED:g} m/s")
-    shade_failed(ax)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("speed [m/s]")
-    ax.set_title(f"platform speed (peak {result.peak_speed:.3g} m/s)")
-    ax.legend(loc="lower right", fontsize=8)
+    def rate_panel(row, quantity, series, color, name, report, unit, title, where):
+        """|pd| or |pdd| over t against the report's figure, failed samples shaded."""
+        ax = fig.add_subplot(gs[row, 0])
+        ax.plot(t, series, lw=0.5, color=color, label=name)
+        ax.axhline(report, color="k", ls="--", lw=0.8, label=f"report: {report:g} {unit}")
+        shade_failed(ax)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(f"{quantity} [{unit}]")
+        ax.set_title(title)
+        ax.legend(loc=where, fontsize=8)
 
-    ax = fig.add_subplot(gs[3, 0])
-    ax.plot(t, result.accel, lw=0.5, color="tab:orange", label="|pdd|")
-    ax.axhline(REPORT_ACCEL, color="k", ls="--", lw=0.8, label=f"report: {REPORT_ACCEL:g} m/s²")
-    shade_failed(ax)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("acceleration [m/s²]")
-    ax.set_title(
-        f"platform acceleration (peak {result.peak_accel:.3g} m/s²"
-        f" = {result.peak_accel / 9.80665:.3g} g)"
+    rate_panel(
+        2,
+        "speed",
+        result.speed,
+        "tab:blue",
+        "|pd|",
+        REPORT_SPEED,
+        "m/s",
+        f"platform speed (peak {result.peak_speed:.3g} m/s)",
+        "lower right",
     )
-    ax.legend(loc="upper center", fontsize=8)
+    rate_panel(
+        3,
+        "acceleration",
+        result.accel,
+        "tab:orange",
+        "|pdd|",
+        REPORT_ACCEL,
+        "m/s²",
+        f"platform acceleration (peak {result.peak_accel:.3g} m/s²"
+        f" = {result.peak_accel / 9.80665:.3g} g)",
+        "upper center",
+    )
 
     ax = fig.add_subplot(gs[0:2, 1])
     rel = result.relative_error_series()

@@ -294,3 +294,28 @@ def test_cli_validate_bad_arguments(tmp_path, capsys):
     assert "missing keys" in capsys.readouterr().err
     assert cli_main(["validate", "--rate", "0", "--out", str(tmp_path)]) == 2
     assert "rate" in capsys.readouterr().err
+
+
+def test_the_speed_and_acceleration_panels(tmp_path, monkeypatch):
+    """plot's two rate panels (one rate_panel each): |pd| and |pdd| of the run drawn over t
+    against the report's figures, each with its own label, unit and peak."""
+    from deltagen.apps import validate
+
+    result = validate.run_trajectory(DeltaRobot.default(), rate=50, duration=0.5)
+    seen = {}
+    from deltagen.apps.plotting import pyplot
+
+    plt = pyplot()
+    monkeypatch.setattr(plt, "close", lambda fig: seen.setdefault("fig", fig))
+    validate.plot(result, tmp_path / "v.png")
+    axes = {ax.get_ylabel(): ax for ax in seen["fig"].axes}
+    for label, series, report, peak in (
+        ("speed [m/s]", result.speed, validate.REPORT_SPEED, result.peak_speed),
+        ("acceleration [m/s²]", result.accel, validate.REPORT_ACCEL, result.peak_accel),
+    ):
+        ax = axes[label]
+        line, limit = ax.get_lines()[:2]
+        np.testing.assert_array_equal(line.get_ydata(), series)
+        np.testing.assert_array_equal(line.get_xdata(), result.t)
+        assert limit.get_ydata()[0] == report
+        assert f"(peak {peak:.3g} " in ax.get_title()
