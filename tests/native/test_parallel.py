@@ -169,18 +169,51 @@ def test_the_batch_is_really_split(small_chunks):
     assert parallel.run_rows(n, 3, lambda lo, hi: 4 if lo else 0) == 4  # a chunk's rc
 
 
-def test_large_batches_are_shared_out_in_aligned_pieces():
-    """A batch of many PIECE_ROWS is cut into pieces of about that size, covering the rows
-    once, in order, every inner bound on ROW_ALIGN; a smaller one keeps its chunks."""
-    n = 1_000_003
-    ranges = parallel.pieces(n, 2)
-    assert len(ranges) == -(-n // parallel.PIECE_ROWS)
+@pytest.mark.parametrize("threads", [2, 3, 8])
+@pytest.mark.parametrize("n", [1_000_003, 1_000_000, 140_000, 2 * 65536 + 1])
+def test_large_batches_are_shared_out_in_aligned_shrinking_pieces(n, threads):
+    """A batch of more than PIECE_ROWS rows per chunk is cut into pieces covering the rows
+    once, in order, every inner bound on ROW_ALIGN; the pieces never grow along the batch
+    (but for the last, which takes the remainder), none is above PIECE_ROWS or (but the
+    last) below MIN_PIECE_ROWS, and each is the rows left over the chunk count, rounded
+    down to ROW_ALIGN and clamped (guided self-scheduling, written out here as a
+    recursion on the rows left)."""
+    align, top, bottom = parallel.ROW_ALIGN, parallel.PIECE_ROWS, parallel.MIN_PIECE_ROWS
+    workers = len(parallel.chunks(n, threads))
+    ranges = parallel.pieces(n, threads)
+    if n <= workers * top:
+        assert ranges == parallel.chunks(n, threads)
+        return
     assert ranges[0][0] == 0 and ranges[-1][1] == n
     assert all(a[1] == b[0] for a, b in zip(ranges, ranges[1:]))
-    assert all(lo % parallel.ROW_ALIGN == 0 for lo, _ in ranges)
+    assert all(lo % align == 0 for lo, _ in ranges)
+    sizes = [hi - lo for lo, hi in ranges]
+    assert all(bottom <= s <= top for s in sizes[:-1])
+    assert all(a >= b for a, b in zip(sizes[:-2], sizes[1:-1]))  # shrinking
+    assert bottom <= sizes[-1] < 2 * bottom or len(sizes) == 1
+    for lo, hi in ranges[:-1]:
+        left = n - lo
+        assert hi - lo == min(top, max(bottom, left // workers // align * align))
+    # the tail: the last pieces are small, so a thread never waits for a whole big piece
+    assert sizes[-2] == bottom or sizes[-2] < 2 * bottom
+    assert sizes[0] == top
+
+
+def test_small_batches_keep_their_chunks():
     small = 2 * parallel.MIN_ROWS_PER_THREAD + 7
     assert parallel.pieces(small, 2) == parallel.chunks(small, 2)
-    assert parallel.pieces(n, 1) == [(0, n)]
+    assert parallel.pieces(1_000_003, 1) == [(0, 1_000_003)]
+    assert parallel.pieces(2 * parallel.PIECE_ROWS, 2) == parallel.chunks(
+        2 * parallel.PIECE_ROWS, 2
+    )
+
+
+def test_the_piece_sizes_are_aligned_constants():
+    """PIECE_ROWS and MIN_PIECE_ROWS are multiples of ROW_ALIGN (so are the bounds built on
+    them), and the smallest piece is well below the largest."""
+    assert parallel.PIECE_ROWS % parallel.ROW_ALIGN == 0
+    assert parallel.MIN_PIECE_ROWS % parallel.ROW_ALIGN == 0
+    assert parallel.ROW_ALIGN <= parallel.MIN_PIECE_ROWS < parallel.PIECE_ROWS
 
 
 def test_a_thread_that_waits_for_a_core_does_not_hold_up_the_batch(monkeypatch):
@@ -189,6 +222,7 @@ def test_a_thread_that_waits_for_a_core_does_not_hold_up_the_batch(monkeypatch):
     it would do half and wait."""
     monkeypatch.setattr(parallel, "MIN_ROWS_PER_THREAD", SMALL)
     monkeypatch.setattr(parallel, "PIECE_ROWS", SMALL)
+    monkeypatch.setattr(parallel, "MIN_PIECE_ROWS", SMALL)
     n = 8 * SMALL
     ranges = parallel.pieces(n, 2)
     assert len(ranges) == 8
@@ -328,3 +362,21 @@ def test_the_compiled_wrappers_release_the_gil():
     assert "Py_BEGIN_ALLOW_THREADS" in body and "Py_END_ALLOW_THREADS" in body
     begin, end = body.index("Py_BEGIN_ALLOW_THREADS"), body.index("Py_END_ALLOW_THREADS")
     assert "result = deltagen_delta_fk(" in body[begin:end]  # the C call runs without the GIL
+
+
+def test_the_all_ok_shortcut_after_the_threads(delta):
+    """_finish reads "every row OK" as "no status nonzero" (one pass, no (N,) temporary),
+    which holds because OK is 0; errors="nan" still gives the per-row flags of the lead
+    shape, all True when every row is OK and False exactly on the failing rows."""
+    from deltagen import status as st
+
+    assert st.OK == 0 and all(v != 0 for v in (st.UNREACHABLE, st.SINGULAR, st.INVALID))
+    q = np.tile(np.array([0.2, 0.3, 0.4]), (2, 3, 1))
+    p, ok = delta.fk(q, errors="nan")
+    assert ok.shape == (2, 3) and ok.dtype == bool and ok.all() and np.isfinite(p).all()
+    q[1, 2, 0] = np.nan
+    p, ok = delta.fk(q, errors="nan")
+    assert ok.tolist() == [[True] * 3, [True, True, False]]
+    assert np.isnan(p[1, 2]).all() and np.isfinite(p[ok]).all()
+    with pytest.raises(InputError, match=r"NaN or infinite values in rows \[5\]"):
+        delta.fk(q)
