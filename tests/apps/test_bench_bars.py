@@ -171,24 +171,29 @@ def test_a_missed_threads_bar_says_whether_the_host_or_the_api_missed(
     monkeypatch.setattr(parallel, "available_cores", lambda: 2)
     monkeypatch.setattr(os, "getloadavg", lambda: (load, load, load))
     monkeypatch.setattr(bars, "other_cores", lambda: lambda: busy)
-    walls = {0: 10.0, 1: 10.0, 2: solo, 3: 10.0}  # API threads=1, =2; machine one, two
+    # API threads=1, threads=2; machine on preallocated outputs one, two; on fresh one, two
+    walls = [10.0, 10.0, 2 * solo, 10.0, solo, 10.0]
 
     def fixed_wall_times(timers, repeats):  # each call runs once; the times are given
-        assert len(timers) == 4  # the API's two and the machine's two, round-robin
+        assert len(timers) == 6  # the API's two and the machine's four, round-robin
         for timer in timers:
             timer()
-        return [bars.Stat([walls[i]]) for i in range(len(timers))]
+        return [bars.Stat([wall]) for wall in walls]
 
     monkeypatch.setattr(bars, "interleaved", fixed_wall_times)
     rows, raw = bars.measure_threads(1000, 1)
     assert [r["verdict"] for r in rows] == [verdict, verdict]
     for r in rows:
-        assert "CPU time" in r["note"] and "machine ceiling" in r["note"]
-        assert f"{solo / 10.0:.2f}x, the API reaches {10.0 / solo:.0%}" in r["note"]
+        assert "CPU time" in r["note"]
+        assert f"machine ceiling on preallocated outputs {2 * solo / 10.0:.2f}x" in r["note"]
+        assert f"machine ceiling on fresh outputs {solo / 10.0:.2f}x" in r["note"]
+        assert f"the API reaches {10.0 / solo:.0%} of the fresh-output ceiling" in r["note"]
         assert why is None or why in r["note"]
-    assert len(raw) == 3 and all(len(entry) == 8 for entry in raw)
+    assert len(raw) == 3
+    for entry in raw:
+        assert entry["fresh_one"].min == solo and entry["preallocated_two"].min == 10.0
     text = "\n".join(bars.render({**_tiny_result(), "threads": raw}, markdown=False))
-    assert text.count("machine ceiling") == 3
+    assert text.count("machine ceiling on fresh outputs") == 3
 
 
 def _tiny_result():

@@ -582,44 +582,56 @@ def other_cores() -> Callable[[], float | None]:
     return stop
 
 
-def _raw_halves(robot: Any, kernel: str, q: np.ndarray) -> tuple[Callable, Callable] | None:
-    """The generated C kernel with preallocated outputs (touched once: no page faults left)
-    on each half of q (the halves split on a ROW_ALIGN row, as the threads split a batch),
-    or None when the core is not the cffi one."""
+def _kernel_halves(robot: Any, kernel: str, q: np.ndarray) -> dict[str, tuple[Callable, Callable]]:
+    """The machine's baselines of the threads bar: for each way of giving a kernel its
+    outputs, a call on each half of q (split on a ROW_ALIGN row, as the threads split a
+    batch): "preallocated", the generated C function with outputs allocated and touched
+    once (no allocation, no page faults); "fresh", ``robot._core.<kernel>`` of the
+    single-threaded robot (new numpy outputs per call and their first touch, as the API
+    has them, but one C call: no pieces, no pool, no Python after the kernel). A core that
+    is not the cffi one has neither."""
     from deltagen.apps.bench.sections import _kernel_callable, _serial_kernel_callable
     from deltagen.native.parallel import ROW_ALIGN
 
     half = q.shape[0] // 2 // ROW_ALIGN * ROW_ALIGN
-    make = _serial_kernel_callable if hasattr(robot._core, "c_function") else _kernel_callable
-    if half == 0:
-        return None
-    first = make(robot._core, kernel, [q[:half]])
-    second = make(robot._core, kernel, [q[half:]])
-    if first is None or second is None:
-        return None
-    return first, second
+    core = robot._core
+    if half == 0 or not hasattr(core, "_ffi"):
+        return {}
+    make = _serial_kernel_callable if hasattr(core, "c_function") else _kernel_callable
+    first, second = make(core, kernel, [q[:half]]), make(core, kernel, [q[half:]])
+    halves = {}
+    if first is not None and second is not None:
+        halves["preallocated"] = (first, second)
+    call, low, high = getattr(core, kernel), q[:half], q[half:]
+    halves["fresh"] = (lambda: call(low), lambda: call(high))
+    return halves
+
+
+#: the machine's baselines of the threads bar, in the order they are reported
+CEILINGS = ("preallocated", "fresh")
 
 
 def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
-    """threads=1 vs threads=2 through the API on n rows: the two bar rows and every
-    (label, Stat threads=1, Stat threads=2, CPU Stat threads=1, CPU Stat threads=2,
-    machine Stat one thread, machine Stat two threads or None, other processes' cores).
+    """threads=1 vs threads=2 through the API on n rows: the two bar rows and, for each
+    case, a dict of Stats: "one", "two" (API wall ns per row), "cpu_one", "cpu_two" (API
+    process CPU ns per row), for each of :data:`CEILINGS` "<name>_one", "<name>_two" (the
+    machine's wall ns per row), and "others" (other processes' cores, or None).
 
     Wall time is what the bar is about, and it needs the second core free. Beside the API,
-    in the same round-robin, the machine's ceiling: the same C kernel on preallocated
-    outputs (no allocation, no page faults, no Python after the kernel, no pool) run on
-    the two halves of the rows, one after the other in one thread and at once in two plain
-    threads (:class:`_Pair`). The API's ratio over that ceiling is what the API's own work
-    loses (allocation and first touch of fresh outputs, the pieces, the hand-off, the
-    checks after the kernel); the ceiling is what this host gives now (memory bandwidth, a
-    second core that other processes or the hypervisor hold). A ratio below the target is
-    "unsettled", not MISSED, when the second core was not free -- other processes used at
-    least half a core during the run (:func:`other_cores`), or without that measure, the
-    load average (1 min, taken before) was at least the usable cores less one half -- or
-    when the ceiling itself is below the target (the host, not the API); MISSED when the
-    host gave the target and the API did not. The process CPU time of the API calls (all
-    threads) is recorded too: CPU(threads=1) / (CPU(threads=2) / 2) is the speedup two free
-    cores would give at most."""
+    in the same round-robin, the machine's ceilings: the same C kernel run on the two
+    halves of the rows, one after the other in one thread and at once in two plain threads
+    (:class:`_Pair`), on preallocated outputs (what the host gives: cores, memory
+    bandwidth) and on fresh ones (plus the first touch of new pages, which the kernel's
+    writes fault in and the OS zeroes: what returning new arrays costs on this host;
+    :func:`_kernel_halves`). The API's ratio over the fresh ceiling is what the API's own
+    work loses (the pieces, the pool hand-off, the Python before and after the kernel).
+    A ratio below the target is "unsettled", not MISSED, when the second core was not free
+    -- other processes used at least half a core during the run (:func:`other_cores`), or
+    without that measure, the load average (1 min, taken before) was at least the usable
+    cores less one half -- or when the fresh ceiling itself is below the target (the host,
+    not the API); MISSED when the host gave the target and the API did not. The API's
+    process CPU time (all threads) is recorded too: CPU(threads=1) / (CPU(threads=2) / 2)
+    is the speedup two free cores would give at most."""
     from deltagen.api.delta import DeltaRobot
     from deltagen.api.serial import SerialRobot
     from deltagen.native.parallel import available_cores
@@ -649,24 +661,34 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
         for key, label, call, kernel in cases:
             for t in (1, 2):
                 call(t)  # warm-up (starts the pool's thread)
-            halves = _raw_halves(*kernel)
+            halves = _kernel_halves(*kernel)
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
-            cpu: list[list[float]] = [[], [], [], []]
-            timers = [_wall_and_cpu_timer(call, (t,), n, cpu[t - 1]) for t in (1, 2)]
-            if halves is not None:
-                first, second = halves
-                timers += [
-                    _wall_and_cpu_timer(_in_turn, (first, second), n, cpu[2]),
-                    _wall_and_cpu_timer(pair.run, (first, second), n, cpu[3]),
-                ]
+            names = ["one", "two"]
+            cpu: dict[str, list[float]] = {name: [] for name in names}
+            timers = [
+                _wall_and_cpu_timer(call, (t,), n, cpu[name])
+                for t, name in ((1, "one"), (2, "two"))
+            ]
+            for ceiling_name in CEILINGS:
+                if ceiling_name in halves:
+                    first, second = halves[ceiling_name]
+                    for side, fn in (("one", _in_turn), ("two", pair.run)):
+                        names.append(f"{ceiling_name}_{side}")
+                        timers.append(_wall_and_cpu_timer(fn, (first, second), n, []))
             others = other_cores()
-            one, two, *machine = interleaved(timers, repeats)
+            stats = dict(zip(names, interleaved(timers, repeats)))
             busy = others()
-            cpu_one, cpu_two = Stat(cpu[0]), Stat(cpu[1])
-            ceiling = machine[0].min / machine[1].min if machine else None
-            raw.append((label, one, two, cpu_one, cpu_two, *(machine or (None, None)), busy))
+            entry: dict[str, Any] = {"label": label, **stats, "others": busy}
+            entry["cpu_one"], entry["cpu_two"] = Stat(cpu["one"]), Stat(cpu["two"])
+            raw.append(entry)
             if key is None:
                 continue
+            one, two, cpu_one, cpu_two = (
+                stats["one"],
+                stats["two"],
+                entry["cpu_one"],
+                entry["cpu_two"],
+            )
             ratio = one.min / two.min
             bound = cpu_one.min / (cpu_two.min / 2)
             used = "not measured" if busy is None else f"{busy:.2f} cores"
@@ -674,14 +696,12 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
                 f"{n:,} rows; load average {load:.2f} on {cores} cores, other processes used "
                 f"{used} during the run; "
             )
-            if ceiling is None:
-                note += "machine ceiling n/a (the core is not the cffi one); "
-            else:
-                note += (
-                    f"machine ceiling (the C kernel on preallocated outputs, two plain threads "
-                    f"on halves / one thread, same run) {ceiling:.2f}x, the API reaches "
-                    f"{ratio / ceiling:.0%} of it; "
-                )
+            ceilings = _ceilings(entry)
+            for ceiling_name, value in ceilings.items():
+                note += f"machine ceiling on {ceiling_name} outputs {value:.2f}x; "
+            fresh = ceilings.get("fresh")
+            if fresh is not None:
+                note += f"the API reaches {ratio / fresh:.0%} of the fresh-output ceiling; "
             note += (
                 f"CPU time threads=2 / threads=1 {cpu_two.min / cpu_one.min:.2f}: two free cores "
                 f"would give about {bound:.2f}x at most (CPU time too is noisy on a loaded "
@@ -695,16 +715,26 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
                     row["note"] += (
                         ": the second core was not free, this wall-time ratio settles nothing"
                     )
-                elif ceiling is not None and ceiling < target:
+                elif fresh is not None and fresh < target:
                     row["verdict"] = "unsettled"
                     row["note"] += (
-                        f": this host's own two-thread ceiling ({ceiling:.2f}x) is below the "
-                        f"target: the host, not the API, misses it now"
+                        f": this host's own two-thread ceiling on fresh outputs ({fresh:.2f}x, "
+                        "the C kernel in two plain threads) is below the target: the host, not "
+                        "the API, misses it now"
                     )
             rows.append(row)
     finally:
         pair.close()
     return rows, raw
+
+
+def _ceilings(entry: dict) -> dict[str, float]:
+    """{ceiling name: one thread / two threads (wall, min)} of a measure_threads entry."""
+    return {
+        name: entry[f"{name}_one"].min / entry[f"{name}_two"].min
+        for name in CEILINGS
+        if f"{name}_one" in entry
+    }
 
 
 # ------------------------------------------------------------------------- entry points
@@ -773,19 +803,21 @@ def render(result: dict, markdown: bool) -> list[str]:
             f"rate {f['ops_per_ns']:.0f} ops/ns (2 per FMA; the kernels, built -std=c99, do not "
             "contract to FMA, so the floor is a lower bound)"
         )
-    for label, one, two, cpu_one, cpu_two, solo, paired, busy in result["threads"]:
-        machine = (
-            "machine ceiling n/a"
-            if solo is None
-            else f"machine ceiling (C kernel, preallocated outputs, plain threads on halves) "
-            f"one thread {_ns(solo)}/row, two {_ns(paired)}/row: {solo.min / paired.min:.2f}x"
+    for entry in result["threads"]:
+        one, two = entry["one"], entry["two"]
+        machine = "".join(
+            f"; machine ceiling on {name} outputs (the C kernel in plain threads on halves) "
+            f"one thread {_ns(entry[f'{name}_one'])}/row, two {_ns(entry[f'{name}_two'])}/row: "
+            f"{value:.2f}x"
+            for name, value in _ceilings(entry).items()
         )
+        busy = entry["others"]
         used = "" if busy is None else f"; other processes used {busy:.2f} cores meanwhile"
         out.append(
-            f"{bullet}threads, {label} through the API, {result['threads_n']:,} rows: wall "
-            f"threads=1 {_ns(one)}/row, threads=2 {_ns(two)}/row (min; medians "
-            f"{num(one.median)} / {num(two.median)}): {one.min / two.min:.2f}x; {machine}; "
-            f"process CPU {_ns(cpu_one)} / {_ns(cpu_two)} per row{used}"
+            f"{bullet}threads, {entry['label']} through the API, {result['threads_n']:,} rows: "
+            f"wall threads=1 {_ns(one)}/row, threads=2 {_ns(two)}/row (min; medians "
+            f"{num(one.median)} / {num(two.median)}): {one.min / two.min:.2f}x{machine}; "
+            f"process CPU {_ns(entry['cpu_one'])} / {_ns(entry['cpu_two'])} per row{used}"
         )
     out.append(
         f"{bullet}every ratio from the minimum of {result['repeats']} round-robin repeats "
