@@ -380,3 +380,46 @@ def test_the_all_ok_shortcut_after_the_threads(delta):
     assert np.isnan(p[1, 2]).all() and np.isfinite(p[ok]).all()
     with pytest.raises(InputError, match=r"NaN or infinite values in rows \[5\]"):
         delta.fk(q)
+
+
+@pytest.mark.skipif(not hasattr(__import__("resource"), "RUSAGE_THREAD"), reason="Linux only")
+def test_fresh_outputs_are_first_touched_by_the_threads_that_compute_them():
+    """run_batch allocates its outputs without touching them, so a fresh page is faulted
+    in (and zeroed by the OS) by the kernel's own write, in whichever thread computes those
+    rows: that work is shared by the threads, not done by the caller alone before them
+    (a fill or a zeroing pass in run_batch would do it in the caller). A fake kernel writes
+    its rows and counts the minor page faults of its own thread (getrusage RUSAGE_THREAD):
+    every piece faults pages in, in both threads, and the caller faults few outside its
+    pieces."""
+    import resource
+
+    from cffi import FFI
+
+    ffi = FFI()
+    n = 4 * parallel.PIECE_ROWS  # 32 MB of (n, 16) outputs: pieces of 8 MB
+    q = np.zeros((n, 1))
+    met = threading.Barrier(2, timeout=10)
+    first = threading.local()
+    faults: list[tuple[str, int]] = []
+
+    def fake_kernel(geometry, rows, q_rows, out, status):
+        if not getattr(first, "done", False):  # each thread's first piece waits for the
+            first.done = True  # other's: both threads take pieces
+            met.wait()
+        before = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+        np.frombuffer(ffi.buffer(out), dtype=np.float64)[:] = 1.0
+        np.frombuffer(ffi.buffer(status), dtype=np.int8)[:] = 0
+        after = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+        faults.append((threading.current_thread().name, after - before))
+        return 0
+
+    caller = threading.current_thread().name
+    start = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+    out, status = parallel.run_batch(ffi, fake_kernel, None, [q], [16], 2)
+    outside = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt - start
+    outside -= sum(f for name, f in faults if name == caller)
+    assert (out == 1.0).all() and (status == 0).all()
+    assert len(faults) == len(parallel.pieces(n, 2)) >= 4
+    assert all(f > 0 for _, f in faults), faults  # every piece met fresh pages
+    assert len({name for name, _ in faults}) == 2
+    assert outside < sum(f for _, f in faults) / 4, (outside, faults)
