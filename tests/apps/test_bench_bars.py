@@ -187,11 +187,13 @@ def test_a_missed_threads_bar_says_whether_the_host_or_the_api_missed(
         assert "CPU time" in r["note"]
         assert f"machine ceiling on preallocated outputs {2 * solo / 10.0:.2f}x" in r["note"]
         assert f"machine ceiling on fresh outputs {solo / 10.0:.2f}x" in r["note"]
-        assert f"the API reaches {10.0 / solo:.0%} of the fresh-output ceiling" in r["note"]
+        assert f"the API reaches {10.0 / solo:.0%} of the fresh-output ceiling, with " in r["note"]
+        assert "x its process CPU time on two threads" in r["note"]
         assert why is None or why in r["note"]
     assert len(raw) == 3
     for entry in raw:
         assert entry["fresh_one"].min == solo and entry["preallocated_two"].min == 10.0
+        assert {f"cpu_{k}" for k in ("one", "two", "fresh_one", "preallocated_two")} <= set(entry)
     text = "\n".join(bars.render({**_tiny_result(), "threads": raw}, markdown=False))
     assert text.count("machine ceiling on fresh outputs") == 3
 

@@ -613,9 +613,9 @@ CEILINGS = ("preallocated", "fresh")
 
 def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
     """threads=1 vs threads=2 through the API on n rows: the two bar rows and, for each
-    case, a dict of Stats: "one", "two" (API wall ns per row), "cpu_one", "cpu_two" (API
-    process CPU ns per row), for each of :data:`CEILINGS` "<name>_one", "<name>_two" (the
-    machine's wall ns per row), and "others" (other processes' cores, or None).
+    case, a dict of Stats: "one", "two" (API wall ns per row), for each of :data:`CEILINGS`
+    "<name>_one", "<name>_two" (the machine's wall ns per row), the process CPU ns per row
+    of each of those as "cpu_<key>", and "others" (other processes' cores, or None).
 
     Wall time is what the bar is about, and it needs the second core free. Beside the API,
     in the same round-robin, the machine's ceilings: the same C kernel run on the two
@@ -674,12 +674,17 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
                     first, second = halves[ceiling_name]
                     for side, fn in (("one", _in_turn), ("two", pair.run)):
                         names.append(f"{ceiling_name}_{side}")
-                        timers.append(_wall_and_cpu_timer(fn, (first, second), n, []))
+                        cpu[f"{ceiling_name}_{side}"] = []
+                        timers.append(
+                            _wall_and_cpu_timer(
+                                fn, (first, second), n, cpu[f"{ceiling_name}_{side}"]
+                            )
+                        )
             others = other_cores()
             stats = dict(zip(names, interleaved(timers, repeats)))
             busy = others()
             entry: dict[str, Any] = {"label": label, **stats, "others": busy}
-            entry["cpu_one"], entry["cpu_two"] = Stat(cpu["one"]), Stat(cpu["two"])
+            entry.update({f"cpu_{name}": Stat(values) for name, values in cpu.items()})
             raw.append(entry)
             if key is None:
                 continue
@@ -701,7 +706,11 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
                 note += f"machine ceiling on {ceiling_name} outputs {value:.2f}x; "
             fresh = ceilings.get("fresh")
             if fresh is not None:
-                note += f"the API reaches {ratio / fresh:.0%} of the fresh-output ceiling; "
+                extra = cpu_two.min / entry["cpu_fresh_two"].min
+                note += (
+                    f"the API reaches {ratio / fresh:.0%} of the fresh-output ceiling, with "
+                    f"{extra:.2f}x its process CPU time on two threads; "
+                )
             note += (
                 f"CPU time threads=2 / threads=1 {cpu_two.min / cpu_one.min:.2f}: two free cores "
                 f"would give about {bound:.2f}x at most (CPU time too is noisy on a loaded "
