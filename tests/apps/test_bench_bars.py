@@ -212,7 +212,8 @@ def _tiny_result():
 
 def test_the_machine_ceiling_runs_the_two_halves_at_once_in_two_threads():
     """_Pair: the two calls run at the same time (each waits for the other inside), in this
-    thread and in another one; close() ends the other thread."""
+    thread and in another one; the other's exception is raised here and the pair still
+    works; close() ends the other thread."""
     import threading
 
     pair = bars._Pair()
@@ -226,6 +227,13 @@ def test_the_machine_ceiling_runs_the_two_halves_at_once_in_two_threads():
     for _ in range(3):
         pair.run(call, call)
     assert names.count(threading.current_thread().name) == 3 and len(set(names)) == 2
+
+    def fails():
+        raise ArithmeticError("in the other thread")
+
+    with pytest.raises(ArithmeticError, match="other thread"):
+        pair.run(lambda: None, fails)
+    pair.run(call, call)  # the other thread is still there
     pair.close()
     assert not pair._thread.is_alive()
 

@@ -516,12 +516,15 @@ def _wall_and_cpu_timer(fn: Callable, args: tuple, points: int, cpu: list) -> Ca
 class _Pair:
     """A plain second thread (no pool, no pieces, no numpy): :meth:`run` calls ``theirs`` in
     it while this thread calls ``mine``, and returns when both are done -- the machine's own
-    two-thread speed, the baseline of the threads bar's ceiling."""
+    two-thread speed, the baseline of the threads bar's ceiling. An exception of
+    ``theirs`` is raised by :meth:`run` (the thread lives on, so no later call waits for
+    it forever)."""
 
     def __init__(self) -> None:
         self._start = threading.Barrier(2)
         self._done = threading.Barrier(2)
         self._job: Callable[[], Any] | None = None
+        self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._loop, name="deltagen-bench-pair", daemon=True)
         self._thread.start()
 
@@ -533,16 +536,21 @@ class _Pair:
                 return
             try:
                 job()
+            except BaseException as exc:  # noqa: BLE001 - handed to run()'s caller
+                self._error = exc
             finally:
                 self._done.wait()
 
     def run(self, mine: Callable[[], Any], theirs: Callable[[], Any]) -> None:
         self._job = theirs
+        self._error = None
         self._start.wait()
         try:
             mine()
         finally:
             self._done.wait()
+        if self._error is not None:
+            raise self._error
 
     def close(self) -> None:
         self._job = None
