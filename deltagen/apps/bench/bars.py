@@ -50,9 +50,14 @@ The bars and their baselines:
 * **Two threads >= 1.8x one on THREADS_N rows**, through the public API (``robot.fk(q)``,
   so the Python work after the kernel counts: Amdahl): delta fk and Puma fk (and the Puma
   jacobian, reported, no bar), robots made with threads=1 and threads=2, round-robin, in
-  wall time, with the process CPU time beside it (:func:`measure_threads`: a missed ratio
-  while the load average says the second core was taken is "unsettled"). A machine with
-  fewer than two usable cores cannot measure it: the row says so.
+  wall time, with the process CPU time beside it. In the same round-robin, the machine's
+  own ceiling: the same C kernel on the two halves of the rows in two plain threads vs
+  one, on preallocated outputs (the host's cores and memory) and on fresh ones (plus the
+  first touch of new pages), so a reader can tell what the host gives from what the API
+  loses (:func:`measure_threads`: a missed ratio is "unsettled" while other processes held
+  the second core -- measured from /proc/stat, else the load average -- or while the
+  host's own fresh-output ceiling is below the target). A machine with fewer than two
+  usable cores cannot measure it: the row says so.
 
 A peer that is not importable (pinocchio, roboticstoolbox-python) gives its row "n/a" with
 the reason; nothing raises. The default run (``deltagen bench --bars``) takes well under a
