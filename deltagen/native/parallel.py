@@ -31,9 +31,12 @@ rows left divided by the threads, here capped at PIECE_ROWS and floored at
 MIN_PIECE_ROWS). With pieces of one size, a thread that is a little slower than the other
 (another process on its core for a moment) is still inside its last full piece when the
 other runs out of work: the call waits for up to one whole piece (~0.6 ms of delta fk,
-~2 ms of Puma fk at 64 Ki rows), 5-10 % of a 10^6-row call on two threads. The shrinking
-tail bounds that wait by one MIN_PIECE_ROWS piece (~40-150 us) at the cost of a few more
-pieces (each ~5 us of Python: the counter, the cffi buffers).
+~2 ms of Puma fk at 64 Ki rows). Simulated as run_rows shares the pieces (the free thread
+takes the next; tests/native/test_parallel.py), 10^6 rows with one thread 5 % / 10 %
+slower end 2.6 % / 5.6 % after the ideal split with 16 equal pieces, 0.5 % / 0.2 % with
+the shrinking tail, which bounds the wait by one MIN_PIECE_ROWS piece (~40-150 us) at the
+cost of a few more pieces (19 instead of 16 at 10^6 rows; each ~5 us of Python: the
+counter, the cffi buffers).
 
 Threshold (:data:`MIN_ROWS_PER_THREAD`): a chunk must amortise the hand-off to a pool
 thread. Measured on the project's 2-core shared machine (load average 1.4): splitting a
