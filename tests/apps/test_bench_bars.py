@@ -170,7 +170,15 @@ def test_a_missed_threads_bar_says_whether_the_host_or_the_api_missed(
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 2)
     monkeypatch.setattr(os, "getloadavg", lambda: (load, load, load))
-    monkeypatch.setattr(bars, "other_cores", lambda: lambda: busy)
+
+    class Meter:  # other processes' cores during the two-thread calls: given
+        def __call__(self, timer):
+            return timer
+
+        def cores(self):
+            return busy
+
+    monkeypatch.setattr(bars, "other_cores", Meter)
     # API threads=1, threads=2; machine on preallocated outputs one, two; on fresh one, two
     walls = [10.0, 10.0, 2 * solo, 10.0, solo, 10.0]
 
@@ -239,17 +247,22 @@ def test_the_machine_ceiling_runs_the_two_halves_at_once_in_two_threads():
 
 
 def test_other_processes_cpu_is_measured_or_none(monkeypatch):
-    """other_cores: a share of the machine (0 .. cores) where /proc/stat is readable, None
-    where it is not (never an exception)."""
-    from deltagen.native.parallel import available_cores
-
-    used = bars.other_cores()()
-    assert used is None or 0.0 <= used <= (os.cpu_count() or 1) + 0.5
+    """OtherCores: over the calls it wraps, a share of the machine (0 .. cores) where
+    /proc/stat is readable, None where it is not or nothing was metered (never an
+    exception); the wrapped timer's value passes through."""
+    meter = bars.other_cores()
+    assert meter.cores() is None  # nothing metered yet
+    timer = meter(lambda: sum(range(200_000)) * 0.0 + 7.0)
+    assert [timer() for _ in range(3)] == [7.0] * 3
+    used = meter.cores()
     if os.path.exists("/proc/stat"):
-        assert used is not None and available_cores() >= 1
+        assert used is not None and 0.0 <= used <= (os.cpu_count() or 1) + 0.5
+    else:
+        assert used is None
 
     def unreadable(*args, **kwargs):
         raise OSError("no /proc here")
 
     monkeypatch.setattr(bars, "open", unreadable, raising=False)
-    assert bars.other_cores()() is None
+    blind = bars.other_cores()
+    assert blind(lambda: 1.0)() == 1.0 and blind.cores() is None

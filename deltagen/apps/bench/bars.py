@@ -569,30 +569,55 @@ def _in_turn(first: Callable[[], Any], second: Callable[[], Any]) -> None:
     second()
 
 
-def other_cores() -> Callable[[], float | None]:
-    """Start a meter of the CPU other processes use: the returned function gives the cores
-    (0 to the core count) that every process but this one kept busy since the start, from
-    the machine's busy time (/proc/stat: user, nice, system, irq, softirq) less this
-    process's CPU time; None where /proc/stat cannot be read (not Linux). A direct measure
-    of whether the second core was free, where the load average is a 1-minute mean."""
+def _busy_seconds() -> float | None:
+    """The machine's busy CPU time so far (/proc/stat: user, nice, system, irq, softirq of
+    every core), in s; None where /proc/stat cannot be read (not Linux)."""
+    try:
+        with open("/proc/stat") as f:
+            fields = [int(x) for x in f.readline().split()[1:8]]
+        return (sum(fields[:3]) + fields[5] + fields[6]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
 
-    def busy_seconds() -> float | None:
-        try:
-            with open("/proc/stat") as f:
-                fields = [int(x) for x in f.readline().split()[1:8]]
-            return (sum(fields[:3]) + fields[5] + fields[6]) / os.sysconf("SC_CLK_TCK")
-        except (OSError, ValueError, IndexError, AttributeError):
+
+class OtherCores:
+    """A meter of the CPU other processes use while this process's two-thread calls run:
+    wrap a timer (``meter(timer)``) and every call of it adds the machine's busy time
+    (:func:`_busy_seconds`) less this process's CPU time, over the call's wall time;
+    :meth:`cores` is then the cores other processes kept busy during those calls (0 to
+    the core count), None where /proc/stat cannot be read. A direct measure of whether the
+    second core was free when two threads needed it, where the load average is a
+    1-minute mean over everything (/proc/stat counts in clock ticks: summed over the
+    repeats, the error averages out)."""
+
+    def __init__(self) -> None:
+        self.busy = 0.0
+        self.wall = 0.0
+        self.readable = True
+
+    def __call__(self, timer: Callable[[], float]) -> Callable[[], float]:
+        def metered() -> float:
+            b0, c0, w0 = _busy_seconds(), time.process_time(), time.perf_counter()
+            value = timer()
+            b1, c1, w1 = _busy_seconds(), time.process_time(), time.perf_counter()
+            if b0 is None or b1 is None:
+                self.readable = False
+            else:
+                self.busy += b1 - b0 - (c1 - c0)
+                self.wall += w1 - w0
+            return value
+
+        return metered
+
+    def cores(self) -> float | None:
+        if not self.readable or self.wall <= 0.0:
             return None
+        return max(0.0, self.busy / self.wall)
 
-    b0, c0, w0 = busy_seconds(), time.process_time(), time.perf_counter()
 
-    def stop() -> float | None:
-        b1, c1, w1 = busy_seconds(), time.process_time(), time.perf_counter()
-        if b0 is None or b1 is None or w1 <= w0:
-            return None
-        return max(0.0, (b1 - b0 - (c1 - c0)) / (w1 - w0))
-
-    return stop
+def other_cores() -> OtherCores:
+    """A new :class:`OtherCores` meter (the tests replace this factory)."""
+    return OtherCores()
 
 
 def _kernel_halves(robot: Any, kernel: str, q: np.ndarray) -> dict[str, tuple[Callable, Callable]]:
@@ -639,10 +664,11 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
     :func:`_kernel_halves`). The API's ratio over the fresh ceiling is what the API's own
     work loses (the pieces, the pool hand-off, the Python before and after the kernel).
     A ratio below the target is "unsettled", not MISSED, when the second core was not free
-    -- other processes used at least half a core during the run (:func:`other_cores`), or
-    without that measure, the load average (1 min, taken before) was at least the usable
-    cores less one half -- or when the fresh ceiling itself is below the target (the host,
-    not the API); MISSED when the host gave the target and the API did not. The API's
+    -- other processes used at least half a core during the two-thread calls
+    (:class:`OtherCores`), or without that measure, the load average (1 min, taken
+    before) was at least the usable cores less one half -- or when the fresh ceiling
+    itself is below the target (the host, not the API); the note says which. MISSED when
+    the host gave the target and the API did not. The API's
     process CPU time (all threads) is recorded too: CPU(threads=1) / (CPU(threads=2) / 2)
     is the speedup two free cores would give at most."""
     from deltagen.api.delta import DeltaRobot
@@ -678,24 +704,22 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
             names = ["one", "two"]
             cpu: dict[str, list[float]] = {name: [] for name in names}
+            others = other_cores()  # metered over the two-thread calls only
             timers = [
-                _wall_and_cpu_timer(call, (t,), n, cpu[name])
-                for t, name in ((1, "one"), (2, "two"))
+                _wall_and_cpu_timer(call, (1,), n, cpu["one"]),
+                others(_wall_and_cpu_timer(call, (2,), n, cpu["two"])),
             ]
             for ceiling_name in CEILINGS:
                 if ceiling_name in halves:
                     first, second = halves[ceiling_name]
                     for side, fn in (("one", _in_turn), ("two", pair.run)):
-                        names.append(f"{ceiling_name}_{side}")
-                        cpu[f"{ceiling_name}_{side}"] = []
-                        timers.append(
-                            _wall_and_cpu_timer(
-                                fn, (first, second), n, cpu[f"{ceiling_name}_{side}"]
-                            )
-                        )
-            others = other_cores()
+                        key_name = f"{ceiling_name}_{side}"
+                        names.append(key_name)
+                        cpu[key_name] = []
+                        timer = _wall_and_cpu_timer(fn, (first, second), n, cpu[key_name])
+                        timers.append(others(timer) if side == "two" else timer)
             stats = dict(zip(names, interleaved(timers, repeats)))
-            busy = others()
+            busy = others.cores()
             entry: dict[str, Any] = {"label": label, **stats, "others": busy}
             entry.update({f"cpu_{name}": Stat(values) for name, values in cpu.items()})
             raw.append(entry)
@@ -712,7 +736,7 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
             used = "not measured" if busy is None else f"{busy:.2f} cores"
             note = (
                 f"{n:,} rows; load average {load:.2f} on {cores} cores, other processes used "
-                f"{used} during the run; "
+                f"{used} during the two-thread calls; "
             )
             ceilings = _ceilings(entry)
             for ceiling_name, value in ceilings.items():
@@ -731,19 +755,21 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
             )
             row = _row(key, f"threads=2 {_ns(two)}/row", f"threads=1 {_ns(one)}/row", ratio, note)
             if row["verdict"] == "MISSED":
+                reasons = []
                 taken = busy >= 0.5 if busy is not None else load >= cores - 0.5
                 if taken:
-                    row["verdict"] = "unsettled"
-                    row["note"] += (
-                        ": the second core was not free, this wall-time ratio settles nothing"
+                    reasons.append(
+                        "the second core was not free, this wall-time ratio settles nothing"
                     )
-                elif fresh is not None and fresh < target:
-                    row["verdict"] = "unsettled"
-                    row["note"] += (
-                        f": this host's own two-thread ceiling on fresh outputs ({fresh:.2f}x, "
-                        "the C kernel in two plain threads) is below the target: the host, not "
-                        "the API, misses it now"
+                if fresh is not None and fresh < target:
+                    reasons.append(
+                        f"this host's own two-thread ceiling on fresh outputs ({fresh:.2f}x, "
+                        "the C kernel in two plain threads) is below the target: the host, "
+                        "not the API, misses it now"
                     )
+                if reasons:
+                    row["verdict"] = "unsettled"
+                    row["note"] += ": " + "; ".join(reasons)
             rows.append(row)
     finally:
         pair.close()
