@@ -266,3 +266,44 @@ def test_other_processes_cpu_is_measured_or_none(monkeypatch):
     monkeypatch.setattr(bars, "open", unreadable, raising=False)
     blind = bars.other_cores()
     assert blind(lambda: 1.0)() == 1.0 and blind.cores() is None
+
+
+def test_the_machine_ceilings_run_the_kernels_on_both_halves(monkeypatch):
+    """_kernel_halves: for the delta (geometry-taking kernels) and the Puma (plain ones),
+    both ceilings run in one thread and in two; the halves split on a ROW_ALIGN row and
+    cover every row once (a recording kernel stands in for the C function's rows)."""
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.serial import SerialRobot
+    from deltagen.native.parallel import ROW_ALIGN
+
+    n = 3 * ROW_ALIGN + 17
+    q = np.random.default_rng(1).uniform(-0.3, 0.9, (n, 6))
+    pair = bars._Pair()
+    try:
+        for robot, width in ((DeltaRobot.default(threads=1), 3), (SerialRobot.load("puma560"), 6)):
+            halves = bars._kernel_halves(robot, "fk", np.ascontiguousarray(q[:, :width]))
+            assert set(halves) == set(bars.CEILINGS)
+            for one, two in halves.values():
+                one()
+                two(pair)
+        arm = SerialRobot.load("puma560")
+        ffi, _ = arm._core.c_function("fk")
+        calls = []
+
+        def recording(rows, *buffers):
+            calls.append(rows)
+            return 0
+
+        monkeypatch.setattr(arm._core, "c_function", lambda name: (ffi, recording))
+        halves = bars._kernel_halves(arm, "fk", np.ascontiguousarray(q))
+        assert calls == [n]  # the preallocated outputs touched once, every row
+        for one, two in halves.values():
+            calls.clear()
+            one()
+            assert calls == [ROW_ALIGN, n - ROW_ALIGN]  # half of n, down to ROW_ALIGN
+            calls.clear()
+            two(pair)
+            assert sorted(calls) == [ROW_ALIGN, n - ROW_ALIGN]
+    finally:
+        pair.close()
+    assert bars._kernel_halves(DeltaRobot.default(backend="reference"), "fk", q[:, :3]) == {}

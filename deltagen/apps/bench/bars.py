@@ -622,27 +622,68 @@ def other_cores() -> OtherCores:
 
 def _kernel_halves(robot: Any, kernel: str, q: np.ndarray) -> dict[str, tuple[Callable, Callable]]:
     """The machine's baselines of the threads bar: for each way of giving a kernel its
-    outputs, a call on each half of q (split on a ROW_ALIGN row, as the threads split a
-    batch): "preallocated", the generated C function with outputs allocated and touched
-    once (no allocation, no page faults); "fresh", ``robot._core.<kernel>`` of the
-    single-threaded robot (new numpy outputs per call and their first touch, as the API
-    has them, but one C call: no pieces, no pool, no Python after the kernel). A core that
-    is not the cffi one has neither."""
-    from deltagen.apps.bench.sections import _kernel_callable, _serial_kernel_callable
+    outputs, (one thread, two threads): calls of the generated C function on the two halves
+    of q (split on a ROW_ALIGN row, as the threads split a batch), one after the other in
+    this thread (``one()``) or at once in this thread and a plain second one (``two(pair)``,
+    pair a :class:`_Pair`). "preallocated":
+    outputs allocated and touched once (no allocation, no page faults in the calls);
+    "fresh": the outputs allocated anew in this thread before each call, untouched, as the
+    API allocates them (np.empty of the whole batch, then the kernel's writes fault the
+    pages in, in whichever thread computes the rows) -- but one C call per half: no
+    pieces, no pool, no Python around the kernel. Empty for a core that is not the cffi
+    one."""
+    from deltagen.native.manifest import output_widths
     from deltagen.native.parallel import ROW_ALIGN
 
-    half = q.shape[0] // 2 // ROW_ALIGN * ROW_ALIGN
     core = robot._core
+    n, axes = q.shape
+    half = n // 2 // ROW_ALIGN * ROW_ALIGN
     if half == 0 or not hasattr(core, "_ffi"):
         return {}
-    make = _serial_kernel_callable if hasattr(core, "c_function") else _kernel_callable
-    first, second = make(core, kernel, [q[:half]]), make(core, kernel, [q[half:]])
-    halves = {}
-    if first is not None and second is not None:
-        halves["preallocated"] = (first, second)
-    call, low, high = getattr(core, kernel), q[:half], q[half:]
-    halves["fresh"] = (lambda: call(low), lambda: call(high))
-    return halves
+    if hasattr(core, "c_function"):  # a serial arm: fn(rows, *inputs, *outputs, status)
+        ffi, fn = core.c_function(kernel)
+        entry, lead, middle = core.kernel(kernel), (), ()
+    else:  # a parallel robot: fn(geometry, rows, axes, *inputs, *outputs, status)
+        entry = core._kernels[kernel]
+        ffi, fn = core._ffi, getattr(core._lib, entry["function"])
+        lead, middle = (core._geometry,), (axes,)
+    kinds = [w if isinstance(w, tuple) else (w, "double") for w in output_widths(entry, axes)]
+    dtypes = {"double": np.float64, "uint8_t": np.uint8}
+    fb = ffi.from_buffer
+
+    def alloc() -> list[np.ndarray]:
+        outs = [np.empty((n, w), dtype=dtypes[c]) for w, c in kinds]
+        return [*outs, np.empty(n, dtype=np.int8)]
+
+    def rows(outs: list[np.ndarray], lo: int, hi: int) -> int:
+        *values, status = outs
+        return fn(
+            *lead,
+            hi - lo,
+            *middle,
+            fb("double[]", q[lo:hi]),
+            *(fb(f"{c}[]", o[lo:hi], require_writable=True) for o, (_, c) in zip(values, kinds)),
+            fb("int8_t[]", status[lo:hi], require_writable=True),
+        )
+
+    kept = alloc()
+    if rows(kept, 0, n) != 0:  # touches the preallocated outputs once
+        return {}
+
+    def halves(outs: list[np.ndarray]) -> tuple[Callable, Callable]:
+        return (lambda: rows(outs, 0, half), lambda: rows(outs, half, n))
+
+    def fresh_one() -> None:
+        _in_turn(*halves(alloc()))
+
+    def fresh_two(pair: _Pair) -> None:
+        pair.run(*halves(alloc()))
+
+    first, second = halves(kept)
+    return {
+        "preallocated": (lambda: _in_turn(first, second), lambda pair: pair.run(first, second)),
+        "fresh": (fresh_one, fresh_two),
+    }
 
 
 #: the machine's baselines of the threads bar, in the order they are reported
@@ -711,12 +752,12 @@ def measure_threads(n: int, repeats: int) -> tuple[list[dict], list]:
             ]
             for ceiling_name in CEILINGS:
                 if ceiling_name in halves:
-                    first, second = halves[ceiling_name]
-                    for side, fn in (("one", _in_turn), ("two", pair.run)):
+                    alone, together = halves[ceiling_name]
+                    for side, fn, args in (("one", alone, ()), ("two", together, (pair,))):
                         key_name = f"{ceiling_name}_{side}"
                         names.append(key_name)
                         cpu[key_name] = []
-                        timer = _wall_and_cpu_timer(fn, (first, second), n, cpu[key_name])
+                        timer = _wall_and_cpu_timer(fn, args, n, cpu[key_name])
                         timers.append(others(timer) if side == "two" else timer)
             stats = dict(zip(names, interleaved(timers, repeats)))
             busy = others.cores()
