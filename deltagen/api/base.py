@@ -98,9 +98,12 @@ class RobotFamily(ThreadsProperty):
         (``allow_singular``: a singular row with a finite value is an answer): a second
         pass over every row cost about as much as the kernel."""
         trailing = trailing or [o.shape[1:] for o in outs]
-        ok = status == st.OK
-        all_ok = bool(ok.all())
+        # st.OK is 0: "every row OK" is "no status nonzero", one pass over the (N,) int8
+        # status without a (N,) bool temporary (the call's serial tail after the threads)
+        all_ok = not status.any()
+        ok = None
         if not all_ok:
+            ok = status == st.OK
             if allow_singular:  # collinear sphere centres are SINGULAR too, with no value
                 singular = np.flatnonzero(status == st.SINGULAR)
                 ok[singular] = finite_rows(*(o[singular] for o in outs))
@@ -108,9 +111,10 @@ class RobotFamily(ThreadsProperty):
                 self._raise(status, ok, names, inputs)
         shaped = [o.reshape(lead + tuple(t)) for o, t in zip(outs, trailing)]
         if errors == "nan":
-            if not all_ok:
-                for o in outs:
-                    o[~ok] = np.nan
+            if ok is None:
+                return (*shaped, np.ones(lead, dtype=bool))
+            for o in outs:
+                o[~ok] = np.nan
             return (*shaped, ok.reshape(lead))
         return shaped[0] if len(shaped) == 1 else tuple(shaped)
 

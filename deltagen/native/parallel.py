@@ -18,12 +18,25 @@ both divide ROW_ALIGN), and within a block a row goes through the vector loop
 bit; aligned chunks put every row at the same place of the same block as one call would.
 
 Sharing (:func:`run_rows`): a batch of more than PIECE_ROWS rows per chunk is cut into
-pieces of about PIECE_ROWS rows that the threads take in turn from a shared counter, not
-into one fixed chunk per thread. On the project's 2-core shared machine a fixed half per
-thread made threads=2 0.5-0.8x threads=1 through the API at 10^5-10^6 rows whenever other
-processes held a core (load average 6-7; ``deltagen bench --bars``): the caller finished
-its half and then waited for a pool thread still waiting for a core. With pieces the
-thread that runs takes the work.
+pieces that the threads take in turn from a shared counter, not into one fixed chunk per
+thread. On the project's 2-core shared machine a fixed half per thread made threads=2
+0.5-0.8x threads=1 through the API at 10^5-10^6 rows whenever other processes held a core
+(load average 6-7; ``deltagen bench --bars``): the caller finished its half and then
+waited for a pool thread still waiting for a core. With pieces the thread that runs takes
+the work.
+
+The pieces shrink towards the end of the batch (guided self-scheduling, Polychronopoulos &
+Kuck, "Guided self-scheduling", IEEE Trans. Computers C-36(12), 1987: each piece is the
+rows left divided by the threads, here capped at PIECE_ROWS and floored at
+MIN_PIECE_ROWS). With pieces of one size, a thread that is a little slower than the other
+(another process on its core for a moment) is still inside its last full piece when the
+other runs out of work: the call waits for up to one whole piece (~0.6 ms of delta fk,
+~2 ms of Puma fk at 64 Ki rows). Simulated as run_rows shares the pieces (the free thread
+takes the next; tests/native/test_parallel.py), 10^6 rows with one thread 5 % / 10 %
+slower end 2.6 % / 5.6 % after the ideal split with 16 equal pieces, 0.5 % / 0.2 % with
+the shrinking tail, which bounds the wait by one MIN_PIECE_ROWS piece (~40-150 us) at the
+cost of a few more pieces (19 instead of 16 at 10^6 rows; each ~5 us of Python: the
+counter, the cffi buffers).
 
 Threshold (:data:`MIN_ROWS_PER_THREAD`): a chunk must amortise the hand-off to a pool
 thread. Measured on the project's 2-core shared machine (load average 1.4): splitting a
@@ -57,10 +70,13 @@ import numpy as np
 from deltagen.inputs import InputError, env_positive_int, is_integer
 
 MIN_ROWS_PER_THREAD = 20000
-#: rows per piece of a large batch (a multiple of ROW_ALIGN): the threads share the pieces
-#: out as they get to them (run_rows); 64 Ki rows of Puma fk are ~2 ms of work, ~1000x a
-#: cffi call
+#: the largest piece of a large batch (a multiple of ROW_ALIGN): the threads share the
+#: pieces out as they get to them (run_rows); 64 Ki rows of Puma fk are ~2 ms of work,
+#: ~1000x a cffi call
 PIECE_ROWS = 65536
+#: the smallest piece (a multiple of ROW_ALIGN) of the batch's shrinking tail: 4 Ki rows are
+#: 40-150 us of delta or Puma fk, ~10-30x the ~5 us a piece costs in Python
+MIN_PIECE_ROWS = 4096
 # a multiple of every generated module's <PREFIX>_BLOCK (codegen.render.Unit.block, 64);
 # tests/native/test_parallel.py checks it against generated/
 ROW_ALIGN = 256
@@ -136,16 +152,25 @@ def chunks(n: int, threads: int | None) -> list[tuple[int, int]]:
 
 
 def pieces(n: int, threads: int | None) -> list[tuple[int, int]]:
-    """The row ranges the threads of one batch share out (:func:`run_rows`): the
-    :func:`chunks` themselves, or -- for a batch of more than PIECE_ROWS rows per chunk --
-    finer ranges of about PIECE_ROWS rows, every inner bound on a multiple of ROW_ALIGN."""
+    """The row ranges the threads of one batch share out, in the order they are taken
+    (:func:`run_rows`): the :func:`chunks` themselves, or -- for a batch of more than
+    PIECE_ROWS rows per chunk -- guided pieces: each the rows left divided by the chunk
+    count, rounded down to ROW_ALIGN, at most PIECE_ROWS and at least MIN_PIECE_ROWS (the
+    last piece takes a remainder smaller than that), so every inner bound is a multiple of
+    ROW_ALIGN and the pieces shrink towards the end of the batch (module docstring)."""
     parts = chunks(n, threads)
-    count = max(len(parts), -(-n // PIECE_ROWS))
-    if len(parts) == 1 or count == len(parts):
+    workers = len(parts)
+    if workers == 1 or n <= workers * PIECE_ROWS:
         return parts
-    inner = {n * i // count // ROW_ALIGN * ROW_ALIGN for i in range(1, count)}
-    bounds = [0, *sorted(inner - {0, n}), n]
-    return list(zip(bounds[:-1], bounds[1:]))
+    ranges = []
+    lo = 0
+    while lo < n:
+        size = (n - lo) // workers // ROW_ALIGN * ROW_ALIGN
+        size = min(PIECE_ROWS, max(MIN_PIECE_ROWS, size))
+        hi = n if n - lo - size < MIN_PIECE_ROWS else lo + size
+        ranges.append((lo, hi))
+        lo = hi
+    return ranges
 
 
 def run_rows(n: int, threads: int | None, call: Callable[[int, int], int]) -> int:

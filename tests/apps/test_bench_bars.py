@@ -7,6 +7,7 @@ with the reason, never an exception. No timing assertions."""
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 import numpy as np
@@ -147,10 +148,22 @@ def test_oracles_off_skips_the_peer_rows():
     )
 
 
-@pytest.mark.parametrize(("load", "verdict"), [(9.0, "unsettled"), (0.0, "MISSED")])
-def test_a_missed_threads_bar_on_a_loaded_machine_is_unsettled(monkeypatch, load, verdict):
-    """A wall-time ratio of 1.0 (< 1.8): with the load average above the cores that is
-    'unsettled', on an idle machine MISSED."""
+@pytest.mark.parametrize(
+    ("busy", "load", "solo", "verdict", "why"),
+    [
+        (1.5, 0.0, 20.0, "unsettled", "second core was not free"),  # others held a core
+        (0.1, 9.0, 20.0, "MISSED", None),  # the measured use wins over the load average
+        (None, 9.0, 20.0, "unsettled", "second core was not free"),  # no /proc/stat: load
+        (None, 0.0, 20.0, "MISSED", None),
+        (0.0, 0.0, 12.0, "unsettled", "the host, not the API"),  # the machine gives 1.2x
+    ],
+)
+def test_a_missed_threads_bar_says_whether_the_host_or_the_api_missed(
+    monkeypatch, busy, load, solo, verdict, why
+):
+    """An API wall-time ratio of 1.0 (< 1.8) beside the machine's ceiling (the C kernel on
+    two plain threads, same run): MISSED only when the second core was free (other
+    processes' measured use, else the load average) and the ceiling reached the target."""
     import os
 
     from deltagen.native import parallel
@@ -158,12 +171,139 @@ def test_a_missed_threads_bar_on_a_loaded_machine_is_unsettled(monkeypatch, load
     monkeypatch.setattr(parallel, "available_cores", lambda: 2)
     monkeypatch.setattr(os, "getloadavg", lambda: (load, load, load))
 
-    def same_wall_time(timers, repeats):  # each call runs once; the wall ratio is 1.0
+    class Meter:  # other processes' cores during the two-thread calls: given
+        def __call__(self, timer):
+            return timer
+
+        def cores(self):
+            return busy
+
+    monkeypatch.setattr(bars, "other_cores", Meter)
+    # API threads=1, threads=2; machine on preallocated outputs one, two; on fresh one, two
+    walls = [10.0, 10.0, 2 * solo, 10.0, solo, 10.0]
+
+    def fixed_wall_times(timers, repeats):  # each call runs once; the times are given
+        assert len(timers) == 6  # the API's two and the machine's four, round-robin
         for timer in timers:
             timer()
-        return [bars.Stat([10.0]) for _ in timers]
+        return [bars.Stat([wall]) for wall in walls]
 
-    monkeypatch.setattr(bars, "interleaved", same_wall_time)
+    monkeypatch.setattr(bars, "interleaved", fixed_wall_times)
     rows, raw = bars.measure_threads(1000, 1)
     assert [r["verdict"] for r in rows] == [verdict, verdict]
-    assert all("CPU time" in r["note"] for r in rows) and len(raw) == 3
+    for r in rows:
+        assert "CPU time" in r["note"]
+        assert f"machine ceiling on preallocated outputs {2 * solo / 10.0:.2f}x" in r["note"]
+        assert f"machine ceiling on fresh outputs {solo / 10.0:.2f}x" in r["note"]
+        assert f"the API reaches {10.0 / solo:.0%} of the fresh-output ceiling, with " in r["note"]
+        assert "x its process CPU time on two threads" in r["note"]
+        assert why is None or why in r["note"]
+    assert len(raw) == 3
+    for entry in raw:
+        assert entry["fresh_one"].min == solo and entry["preallocated_two"].min == 10.0
+        assert {f"cpu_{k}" for k in ("one", "two", "fresh_one", "preallocated_two")} <= set(entry)
+    text = "\n".join(bars.render({**_tiny_result(), "threads": raw}, markdown=False))
+    assert text.count("machine ceiling on fresh outputs") == 3
+
+
+def _tiny_result():
+    return {
+        "rows": [],
+        "floor": {},
+        "threads_n": 1000,
+        "repeats": 1,
+        "load_before": "0",
+        "load_after": "0",
+        "elapsed_s": 0.0,
+    }
+
+
+def test_the_machine_ceiling_runs_the_two_halves_at_once_in_two_threads():
+    """_Pair: the two calls run at the same time (each waits for the other inside), in this
+    thread and in another one; the other's exception is raised here and the pair still
+    works; close() ends the other thread."""
+    import threading
+
+    pair = bars._Pair()
+    met = threading.Barrier(2, timeout=10)
+    names = []
+
+    def call():
+        names.append(threading.current_thread().name)
+        met.wait()  # fails (BrokenBarrierError) unless the other call runs at the same time
+
+    for _ in range(3):
+        pair.run(call, call)
+    assert names.count(threading.current_thread().name) == 3 and len(set(names)) == 2
+
+    def fails():
+        raise ArithmeticError("in the other thread")
+
+    with pytest.raises(ArithmeticError, match="other thread"):
+        pair.run(lambda: None, fails)
+    pair.run(call, call)  # the other thread is still there
+    pair.close()
+    assert not pair._thread.is_alive()
+
+
+def test_other_processes_cpu_is_measured_or_none(monkeypatch):
+    """OtherCores: over the calls it wraps, a share of the machine (0 .. cores) where
+    /proc/stat is readable, None where it is not or nothing was metered (never an
+    exception); the wrapped timer's value passes through."""
+    meter = bars.other_cores()
+    assert meter.cores() is None  # nothing metered yet
+    timer = meter(lambda: sum(range(200_000)) * 0.0 + 7.0)
+    assert [timer() for _ in range(3)] == [7.0] * 3
+    used = meter.cores()
+    if os.path.exists("/proc/stat"):
+        assert used is not None and 0.0 <= used <= (os.cpu_count() or 1) + 0.5
+    else:
+        assert used is None
+
+    def unreadable(*args, **kwargs):
+        raise OSError("no /proc here")
+
+    monkeypatch.setattr(bars, "open", unreadable, raising=False)
+    blind = bars.other_cores()
+    assert blind(lambda: 1.0)() == 1.0 and blind.cores() is None
+
+
+def test_the_machine_ceilings_run_the_kernels_on_both_halves(monkeypatch):
+    """_kernel_halves: for the delta (geometry-taking kernels) and the Puma (plain ones),
+    both ceilings run in one thread and in two; the halves split on a ROW_ALIGN row and
+    cover every row once (a recording kernel stands in for the C function's rows)."""
+    from deltagen.api.delta import DeltaRobot
+    from deltagen.api.serial import SerialRobot
+    from deltagen.native.parallel import ROW_ALIGN
+
+    n = 3 * ROW_ALIGN + 17
+    q = np.random.default_rng(1).uniform(-0.3, 0.9, (n, 6))
+    pair = bars._Pair()
+    try:
+        for robot, width in ((DeltaRobot.default(threads=1), 3), (SerialRobot.load("puma560"), 6)):
+            halves = bars._kernel_halves(robot, "fk", np.ascontiguousarray(q[:, :width]))
+            assert set(halves) == set(bars.CEILINGS)
+            for one, two in halves.values():
+                one()
+                two(pair)
+        arm = SerialRobot.load("puma560")
+        ffi, _ = arm._core.c_function("fk")
+        calls = []
+
+        def recording(rows, *buffers):
+            calls.append(rows)
+            return 0
+
+        monkeypatch.setattr(arm._core, "c_function", lambda name: (ffi, recording))
+        halves = bars._kernel_halves(arm, "fk", np.ascontiguousarray(q))
+        assert calls == [n]  # the preallocated outputs touched once, every row
+        for one, two in halves.values():
+            calls.clear()
+            one()
+            assert calls == [ROW_ALIGN, n - ROW_ALIGN]  # half of n, down to ROW_ALIGN
+            calls.clear()
+            two(pair)
+            assert sorted(calls) == [ROW_ALIGN, n - ROW_ALIGN]
+    finally:
+        pair.close()
+    assert bars._kernel_halves(DeltaRobot.default(backend="reference"), "fk", q[:, :3]) == {}

@@ -169,18 +169,51 @@ def test_the_batch_is_really_split(small_chunks):
     assert parallel.run_rows(n, 3, lambda lo, hi: 4 if lo else 0) == 4  # a chunk's rc
 
 
-def test_large_batches_are_shared_out_in_aligned_pieces():
-    """A batch of many PIECE_ROWS is cut into pieces of about that size, covering the rows
-    once, in order, every inner bound on ROW_ALIGN; a smaller one keeps its chunks."""
-    n = 1_000_003
-    ranges = parallel.pieces(n, 2)
-    assert len(ranges) == -(-n // parallel.PIECE_ROWS)
+@pytest.mark.parametrize("threads", [2, 3, 8])
+@pytest.mark.parametrize("n", [1_000_003, 1_000_000, 140_000, 2 * 65536 + 1])
+def test_large_batches_are_shared_out_in_aligned_shrinking_pieces(n, threads):
+    """A batch of more than PIECE_ROWS rows per chunk is cut into pieces covering the rows
+    once, in order, every inner bound on ROW_ALIGN; the pieces never grow along the batch
+    (but for the last, which takes the remainder), none is above PIECE_ROWS or (but the
+    last) below MIN_PIECE_ROWS, and each is the rows left over the chunk count, rounded
+    down to ROW_ALIGN and clamped (guided self-scheduling, written out here as a
+    recursion on the rows left)."""
+    align, top, bottom = parallel.ROW_ALIGN, parallel.PIECE_ROWS, parallel.MIN_PIECE_ROWS
+    workers = len(parallel.chunks(n, threads))
+    ranges = parallel.pieces(n, threads)
+    if n <= workers * top:
+        assert ranges == parallel.chunks(n, threads)
+        return
     assert ranges[0][0] == 0 and ranges[-1][1] == n
     assert all(a[1] == b[0] for a, b in zip(ranges, ranges[1:]))
-    assert all(lo % parallel.ROW_ALIGN == 0 for lo, _ in ranges)
+    assert all(lo % align == 0 for lo, _ in ranges)
+    sizes = [hi - lo for lo, hi in ranges]
+    assert all(bottom <= s <= top for s in sizes[:-1])
+    assert all(a >= b for a, b in zip(sizes[:-2], sizes[1:-1]))  # shrinking
+    assert bottom <= sizes[-1] < 2 * bottom or len(sizes) == 1
+    for lo, hi in ranges[:-1]:
+        left = n - lo
+        assert hi - lo == min(top, max(bottom, left // workers // align * align))
+    # the tail: the last pieces are small, so a thread never waits for a whole big piece
+    assert sizes[-2] == bottom or sizes[-2] < 2 * bottom
+    assert sizes[0] == top
+
+
+def test_small_batches_keep_their_chunks():
     small = 2 * parallel.MIN_ROWS_PER_THREAD + 7
     assert parallel.pieces(small, 2) == parallel.chunks(small, 2)
-    assert parallel.pieces(n, 1) == [(0, n)]
+    assert parallel.pieces(1_000_003, 1) == [(0, 1_000_003)]
+    assert parallel.pieces(2 * parallel.PIECE_ROWS, 2) == parallel.chunks(
+        2 * parallel.PIECE_ROWS, 2
+    )
+
+
+def test_the_piece_sizes_are_aligned_constants():
+    """PIECE_ROWS and MIN_PIECE_ROWS are multiples of ROW_ALIGN (so are the bounds built on
+    them), and the smallest piece is well below the largest."""
+    assert parallel.PIECE_ROWS % parallel.ROW_ALIGN == 0
+    assert parallel.MIN_PIECE_ROWS % parallel.ROW_ALIGN == 0
+    assert parallel.ROW_ALIGN <= parallel.MIN_PIECE_ROWS < parallel.PIECE_ROWS
 
 
 def test_a_thread_that_waits_for_a_core_does_not_hold_up_the_batch(monkeypatch):
@@ -189,6 +222,7 @@ def test_a_thread_that_waits_for_a_core_does_not_hold_up_the_batch(monkeypatch):
     it would do half and wait."""
     monkeypatch.setattr(parallel, "MIN_ROWS_PER_THREAD", SMALL)
     monkeypatch.setattr(parallel, "PIECE_ROWS", SMALL)
+    monkeypatch.setattr(parallel, "MIN_PIECE_ROWS", SMALL)
     n = 8 * SMALL
     ranges = parallel.pieces(n, 2)
     assert len(ranges) == 8
@@ -328,3 +362,95 @@ def test_the_compiled_wrappers_release_the_gil():
     assert "Py_BEGIN_ALLOW_THREADS" in body and "Py_END_ALLOW_THREADS" in body
     begin, end = body.index("Py_BEGIN_ALLOW_THREADS"), body.index("Py_END_ALLOW_THREADS")
     assert "result = deltagen_delta_fk(" in body[begin:end]  # the C call runs without the GIL
+
+
+def test_the_all_ok_shortcut_after_the_threads(delta):
+    """_finish reads "every row OK" as "no status nonzero" (one pass, no (N,) temporary),
+    which holds because OK is 0; errors="nan" still gives the per-row flags of the lead
+    shape, all True when every row is OK and False exactly on the failing rows."""
+    from deltagen import status as st
+
+    assert st.OK == 0 and all(v != 0 for v in (st.UNREACHABLE, st.SINGULAR, st.INVALID))
+    q = np.tile(np.array([0.2, 0.3, 0.4]), (2, 3, 1))
+    p, ok = delta.fk(q, errors="nan")
+    assert ok.shape == (2, 3) and ok.dtype == bool and ok.all() and np.isfinite(p).all()
+    q[1, 2, 0] = np.nan
+    p, ok = delta.fk(q, errors="nan")
+    assert ok.tolist() == [[True] * 3, [True, True, False]]
+    assert np.isnan(p[1, 2]).all() and np.isfinite(p[ok]).all()
+    with pytest.raises(InputError, match=r"NaN or infinite values in rows \[5\]"):
+        delta.fk(q)
+
+
+@pytest.mark.skipif(not hasattr(__import__("resource"), "RUSAGE_THREAD"), reason="Linux only")
+def test_fresh_outputs_are_first_touched_by_the_threads_that_compute_them():
+    """run_batch allocates its outputs without touching them, so a fresh page is faulted
+    in (and zeroed by the OS) by the kernel's own write, in whichever thread computes those
+    rows: that work is shared by the threads, not done by the caller alone before them
+    (a fill or a zeroing pass in run_batch would do it in the caller). A fake kernel writes
+    its rows and counts the minor page faults of its own thread (getrusage RUSAGE_THREAD):
+    every piece faults pages in, in both threads, and the caller faults few outside its
+    pieces."""
+    import resource
+
+    from cffi import FFI
+
+    ffi = FFI()
+    n = 4 * parallel.PIECE_ROWS  # 32 MB of (n, 16) outputs: pieces of 8 MB
+    q = np.zeros((n, 1))
+    met = threading.Barrier(2, timeout=10)
+    first = threading.local()
+    faults: list[tuple[str, int]] = []
+
+    def fake_kernel(geometry, rows, q_rows, out, status):
+        if not getattr(first, "done", False):  # each thread's first piece waits for the
+            first.done = True  # other's: both threads take pieces
+            met.wait()
+        before = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+        np.frombuffer(ffi.buffer(out), dtype=np.float64)[:] = 1.0
+        np.frombuffer(ffi.buffer(status), dtype=np.int8)[:] = 0
+        after = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+        faults.append((threading.current_thread().name, after - before))
+        return 0
+
+    caller = threading.current_thread().name
+    start = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+    out, status = parallel.run_batch(ffi, fake_kernel, None, [q], [16], 2)
+    outside = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt - start
+    outside -= sum(f for name, f in faults if name == caller)
+    assert (out == 1.0).all() and (status == 0).all()
+    assert len(faults) == len(parallel.pieces(n, 2)) >= 4
+    assert all(f > 0 for _, f in faults), faults  # every piece met fresh pages
+    assert len({name for name, _ in faults}) == 2
+    assert outside < sum(f for _, f in faults) / 4, (outside, faults)
+
+
+def _makespan(ranges, speeds, delays):
+    """When the last of the threads finishes, taking ``ranges`` in order as run_rows does
+    (whichever thread is free first takes the next piece): thread i starts at delays[i]
+    and computes speeds[i] rows per time unit."""
+    import heapq
+
+    free = [(delay, i) for i, delay in enumerate(delays)]
+    heapq.heapify(free)
+    end = list(delays)
+    for lo, hi in ranges:
+        t, i = heapq.heappop(free)
+        end[i] = t + (hi - lo) / speeds[i]
+        heapq.heappush(free, (end[i], i))
+    return max(end)
+
+
+@pytest.mark.parametrize("n", [1_000_000, 3_000_001])
+@pytest.mark.parametrize("slower", [1.0, 0.95, 0.9, 0.8, 0.6])
+@pytest.mark.parametrize("late", [0.0, 5000.0])
+def test_a_slightly_slower_thread_costs_at_most_one_small_piece(n, slower, late):
+    """The pieces' tail: with one thread slower than the other (another process on its
+    core for a while) or starting late (the pool's wake-up), the batch ends at most one
+    MIN_PIECE_ROWS piece of the slower thread after the ideal split (both threads busy to
+    the same end, n = (T - 0) * 1 + (T - late) * slower). Pieces of one size (64 Ki rows)
+    miss this by up to a whole piece: 1e6 rows with a 10 % slower thread end 5.6 % late."""
+    speeds, delays = [1.0, slower], [0.0, late]
+    ideal = (n + late * slower) / (1.0 + slower)
+    finish = _makespan(parallel.pieces(n, 2), speeds, delays)
+    assert finish <= ideal + parallel.MIN_PIECE_ROWS / slower
