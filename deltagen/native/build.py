@@ -20,14 +20,24 @@ How the cache stays sound (tests/native/test_build_cache.py puts each point unde
   text; a successful build's warnings never reach the user's terminal. A cache path that is
   not a directory or is not writable gets an error naming the path.
 * **Parallel translation units** (a new arm's cold load): a module's C is split at its
-  kernels (native/units.py, tests/native/test_build_split.py); the units, cffi's wrapper and the runtime .c files compile to
-  objects on every core the process may use (``os.sched_getaffinity``;
+  kernels (native/units.py, tests/native/test_build_split.py); the units and cffi's wrapper
+  compile to objects on every core the process may use (``os.sched_getaffinity``;
   ``DELTAGEN_BUILD_JOBS`` caps it), largest first, then link into one shared object.
+* **The runtime compiled once**: each runtime .c a module needs (codegen/runtime/, e.g. the
+  damped Newton IK, 2 s of gcc) is an object file of its own in the cache, keyed by its
+  text, the runtime headers it reads, its flags and the compiler, built under the same lock,
+  manifest and atomic rename as a module and linked into every module that needs it
+  (tests/native/test_build_runtime.py). Its flags are the modules' own at that level
+  (:func:`runtime_flags`); the one flag a module adds for itself, its ``-D<PREFIX>_VECTOR_MATH``,
+  names a macro the runtime never reads, so the object's bits are the ones a per-module
+  compile gave. A damaged object is rebuilt, never linked: the linked file is a copy
+  checked against the manifest.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import importlib.machinery
 import json
@@ -337,14 +347,99 @@ def _build(
         out.mkdir()
         module_c = work / files[".c"].name
         sources = [wrapper, *write_units(module_c, texts[".c"], work, split)]
-        sources += [work / f.name for f in runtime if f.suffix == ".c"]
         flags = [*extension_flags(), *args, f"-I{work}", f"-I{toolchain.python_include()}"]
+        opt = next(a for a in args if a in OPT_LEVELS)
+        objects = [
+            functools.partial(_runtime_object, f, opt, work) for f in runtime if f.suffix == ".c"
+        ]
         compiled, link = toolchain.compile_and_link(
-            sources, out / so_name, work, flags, libraries, files[".c"].name, _build_jobs()
+            sources,
+            out / so_name,
+            work,
+            flags,
+            libraries,
+            files[".c"].name,
+            _build_jobs(),
+            prebuilt=objects,
         )
         _publish(out / so_name, target, link, compiled)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def runtime_flags(opt: str = "-O3") -> list[str]:
+    """The compile flags of a runtime object at the level ``opt``: the generated modules'
+    (:func:`compile_flags` with the runtime's own prefix, ``deltagen``, and what an extension
+    build adds); the runtime's headers and Python's are added as ``-I``."""
+    return [*extension_flags(), *compile_flags("deltagen", opt)[0]]
+
+
+def _runtime_object(source: Path, opt: str, work: Path) -> Path:
+    """The object file of the runtime C file ``source`` (codegen/runtime/) compiled with
+    :func:`runtime_flags` at ``opt``, from the build cache (built first when missing or
+    damaged, one build per key across threads and processes), copied into ``work`` under
+    the name ``<stem>.o`` and checked against the manifest there (the module doc)."""
+    import shutil
+
+    text = source.read_text()
+    headers = {f: f.read_text() for f in runtime_files([text]) if f.suffix == ".h"}
+    flags = runtime_flags(opt)
+    include = toolchain.python_include()
+    key_material = "\0".join(
+        [
+            text,
+            " ".join(flags),
+            include,
+            sysconfig.get_platform(),
+            toolchain.compiler_identity(),
+        ]
+        + [f.name + "\0" + header for f, header in headers.items()]
+    )
+    key = hashlib.sha256(key_material.encode()).hexdigest()[:16]
+    entry = f"_deltagen_runtime_{source.stem}_{key}"
+    object_name = f"{source.stem}.o"
+
+    def build_object(target: Path) -> None:
+        import tempfile
+
+        scratch = Path(tempfile.mkdtemp(prefix=f"{entry}.", dir=target.parent))
+        try:
+            for f, content in [(source, text), *headers.items()]:
+                (scratch / f.name).write_text(content)  # the compiled text is the hashed text
+            out = scratch / "out"
+            out.mkdir()
+            command = [
+                *toolchain.host_command(),
+                *flags,
+                f"-I{scratch}",
+                f"-I{include}",
+                "-c",
+                str(scratch / source.name),
+                "-o",
+                str(out / object_name),
+            ]
+            proc = toolchain.run(command, scratch, source.name)
+            toolchain.require_success(proc, command, f"compiling {source.name}")
+            _publish(out / object_name, target, command)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+    copy = work / object_name
+    with _GUARD:
+        key_lock = _KEY_LOCKS.setdefault(entry, threading.Lock())
+    with key_lock:
+        root = usable_cache_dir()
+        target = root / entry
+        with _process_lock(root, entry):
+            for _attempt in range(2):
+                if not _verified(target, target / object_name):
+                    _discard(target)
+                    build_object(target)
+                shutil.copyfile(target / object_name, copy)
+                if _verified(target, copy):  # the linked bytes are the manifest's
+                    return copy
+                _discard(target)
+    raise BuildError(f"the runtime object {target / object_name} changed while it was copied")
 
 
 def _publish(built: Path, target: Path, command: list[str], compile_commands=()) -> None:

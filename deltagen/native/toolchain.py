@@ -31,7 +31,7 @@ import re
 import shlex
 import sys
 import sysconfig
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
@@ -226,24 +226,30 @@ def compile_and_link(
     libraries: list[str],
     what: str,
     jobs: int = 1,
+    prebuilt: Sequence[Callable[[], Path]] = (),
 ) -> tuple[list[list[str]], list[str]]:
     """Compile ``sources`` to objects in ``work`` (``jobs`` compilers at once, largest source
     first) and link them into the shared object ``so_path`` with the host command, ``flags``
     and ``-l<libraries>``; returns (the compile commands in source order, the link command).
-    BuildError with the compiler's text when a unit does not compile (each distinct message
-    once: an error in a shared preamble is every unit's) or the link fails."""
+    ``prebuilt``: calls that each return an object file made elsewhere (e.g. the build
+    cache's runtime objects, native/build.py), run in the same pool before the compiles and
+    linked after the sources' objects, in their order. BuildError with the compiler's text
+    when a unit does not compile (each distinct message once: an error in a shared preamble
+    is every unit's) or the link fails."""
     base = host_command() + flags
     objects = {src: work / f"{src.stem}.o" for src in sources}
     commands = {src: base + ["-c", str(src), "-o", str(objects[src])] for src in sources}
     # largest first: the longest compile starts at once, the small ones fill the gaps
     order = sorted(sources, key=lambda src: -src.stat().st_size)
-    if jobs > 1 and len(order) > 1:
+    tasks = [*prebuilt, *(functools.partial(run, commands[src], work, src.name) for src in order)]
+    if jobs > 1 and len(tasks) > 1:
         from concurrent.futures import ThreadPoolExecutor
 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
-            done = list(pool.map(lambda src: run(commands[src], work, src.name), order))
+            done = list(pool.map(lambda task: task(), tasks))
     else:
-        done = [run(commands[src], work, src.name) for src in order]
+        done = [task() for task in tasks]
+    made, done = done[: len(prebuilt)], done[len(prebuilt) :]
     procs = dict(zip(order, done))
     failed = [src for src in sources if procs[src].returncode != 0]
     if failed:
@@ -256,6 +262,7 @@ def compile_and_link(
     link = (
         base
         + [str(objects[src]) for src in sources]
+        + [str(obj) for obj in made]
         + ["-o", str(so_path)]
         + [f"-l{lib}" for lib in libraries]
     )

@@ -301,12 +301,43 @@ def test_compiled_core_of_a_urdf_arm_matches_the_reference():
     q = random_urdf_q(compiled, rng, 200)
     qd, qdd = rng.uniform(-2, 2, q.shape), rng.uniform(-2, 2, q.shape)
     np.testing.assert_allclose(compiled.fk(q), reference.fk(q), rtol=0, atol=1e-12)
-    from deltagen.apps.generate import generate_robot_file  # `deltagen generate arm.urdf`
-
-    assert (generate_robot_file(UR5) / "serial_ur5.c").is_file()
     np.testing.assert_allclose(compiled.jacobian(q), reference.jacobian(q), rtol=0, atol=1e-12)
     tau_c, tau_r = compiled.inverse_dynamics(q, qd, qdd), reference.inverse_dynamics(q, qd, qdd)
     assert np.abs(tau_c - tau_r).max() <= 1e-10 * np.abs(tau_r).max()
+
+
+# two revolute joints, no inertials: `deltagen generate` renders and compiles its whole module
+# in a few seconds (the UR5's is checked in: generating it compiled generated/serial_ur5.c,
+# 13 units at -O3, and rendered nothing)
+TWO_JOINTS = """<?xml version="1.0"?>
+<robot name="urdf_pair">
+  <link name="base"/><link name="upper"/><link name="tip"/>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+    <origin xyz="0 0 0.2"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="tip"/>
+    <origin xyz="0.3 0 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>
+"""
+
+
+def test_generate_renders_compiles_and_caches_a_urdf_arm(tmp_path, private_cache):
+    """`deltagen generate arm.urdf` (apps/generate.py generate_robot_file): the chain's C
+    rendered into the (empty) cache and its complete module compiled there, whose fk is the
+    reference's."""
+    from deltagen.apps.generate import generate_robot_file
+    from deltagen.native.serial import module_ready
+
+    path = tmp_path / "pair.urdf"
+    path.write_text(TWO_JOINTS)
+    desc = description_from_urdf(path)
+    assert not module_ready(desc)
+    folder = generate_robot_file(path)
+    assert (folder / "serial_urdf_pair.c").is_file() and module_ready(desc)
+    arm = SerialRobot.from_urdf(path)
+    q = np.random.default_rng(3).uniform(-3, 3, (50, 2))
+    np.testing.assert_allclose(arm.fk(q), arm.with_backend("reference").fk(q), rtol=0, atol=1e-14)
 
 
 def test_cli_reads_a_urdf(capsys):
