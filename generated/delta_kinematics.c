@@ -82,7 +82,6 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
-                q4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
@@ -133,113 +132,178 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
         for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
-            const double a_x = -S_x1 + S_x2;
-            const double a_y = -S_y1 + S_y2;
-            const double a_z = -S_z1 + S_z2;
-            const double b_x = -S_x1 + S_x3;
-            const double b_y = -S_y1 + S_y3;
-            const double b_z = -S_z1 + S_z3;
-            /* e = a x b, normal of the centre plane; its squared length */
-            const double e_x = a_y*b_z - a_z*b_y;
-            const double e_y = -a_x*b_z + a_z*b_x;
-            const double e_z = a_x*b_y - a_y*b_x;
-            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
-            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
-            const double inv_e_sq = 1.0/e_sq;
-            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
-            /* lower intersection with sphere 1, eqs. (22)-(26) */
-            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
-            /* platform position p, eq. (27) */
-            const double xi_x = e_x*lambda_ + x0_x;
-            const double xi_y = e_y*lambda_ + x0_y;
-            const double xi_z = e_z*lambda_ + x0_z;
-            const double x = S_x1 + xi_x;
-            const double y = S_y1 + xi_y;
-            const double z = S_z1 + xi_z;
-            const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
-            const int collinear = (e_sq <= collinear_limit);
-            const int unreachable = (h_sq < 0);
-            const int singular = (fabs(det_D) <= det_limit);
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
-                    (unreachable)))));
-            const int t8_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-            const double out_x_checked = ((t8_0) ? NAN : x);
-            const double out_y_checked = ((t8_0) ? NAN : y);
-            const double out_z_checked = ((t8_0) ? NAN : z);
-            const double out_phi_checked = ((t8_0) ? NAN : q4);
-            out_x_checked_b[k] = out_x_checked;
-            out_y_checked_b[k] = out_y_checked;
-            out_z_checked_b[k] = out_z_checked;
-            out_phi_checked_b[k] = out_phi_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1
-                    - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = 0.0;  /* no fourth axis */
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double x = S_x1 + xi_x;
+                const double y = S_y1 + xi_y;
+                const double z = S_z1 + xi_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid)
+                        | (unreachable)))));
+                const int t8_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const double out_x_checked = ((t8_0) ? NAN : x);
+                const double out_y_checked = ((t8_0) ? NAN : y);
+                const double out_z_checked = ((t8_0) ? NAN : z);
+                p[(start + k) * 3 + 0] = out_x_checked;
+                p[(start + k) * 3 + 1] = out_y_checked;
+                p[(start + k) * 3 + 2] = out_z_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = q4_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double x = S_x1 + xi_x;
+                const double y = S_y1 + xi_y;
+                const double z = S_z1 + xi_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid)
+                        | (unreachable)))));
+                const int t8_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const double out_x_checked = ((t8_0) ? NAN : x);
+                const double out_y_checked = ((t8_0) ? NAN : y);
+                const double out_z_checked = ((t8_0) ? NAN : z);
+                const double out_phi_checked = ((t8_0) ? NAN : q4);
+                p[(start + k) * 4 + 0] = out_x_checked;
+                p[(start + k) * 4 + 1] = out_y_checked;
+                p[(start + k) * 4 + 2] = out_z_checked;
+                p[(start + k) * 4 + 3] = out_phi_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 3 + 0] = out_x_checked_b[k];
-                p[(start + k) * 3 + 1] = out_y_checked_b[k];
-                p[(start + k) * 3 + 2] = out_z_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 4 + 0] = out_x_checked_b[k];
-                p[(start + k) * 4 + 1] = out_y_checked_b[k];
-                p[(start + k) * 4 + 2] = out_z_checked_b[k];
-                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
-            }
         }
     }
     return 0;
@@ -295,11 +359,9 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
-                q4_b[k] = 0.0;  /* no fourth axis */
                 qd1_b[k] = qd[(start + k) * 3 + 0];
                 qd2_b[k] = qd[(start + k) * 3 + 1];
                 qd3_b[k] = qd[(start + k) * 3 + 2];
-                qd4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
@@ -354,174 +416,276 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
         for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_xd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_yd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_zd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_phid_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double qd1 = qd1_b[k];
-            const double qd2 = qd2_b[k];
-            const double qd3 = qd3_b[k];
-            const double qd4 = qd4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
-            const double a_x = -S_x1 + S_x2;
-            const double a_y = -S_y1 + S_y2;
-            const double a_z = -S_z1 + S_z2;
-            const double b_x = -S_x1 + S_x3;
-            const double b_y = -S_y1 + S_y3;
-            const double b_z = -S_z1 + S_z3;
-            /* e = a x b, normal of the centre plane; its squared length */
-            const double e_x = a_y*b_z - a_z*b_y;
-            const double e_y = -a_x*b_z + a_z*b_x;
-            const double e_z = a_x*b_y - a_y*b_x;
-            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
-            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
-            const double inv_e_sq = 1.0/e_sq;
-            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
-            /* lower intersection with sphere 1, eqs. (22)-(26) */
-            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
-            /* platform position p, eq. (27) */
-            const double xi_x = e_x*lambda_ + x0_x;
-            const double xi_y = e_y*lambda_ + x0_y;
-            const double xi_z = e_z*lambda_ + x0_z;
-            const double x = S_x1 + xi_x;
-            const double y = S_y1 + xi_y;
-            const double z = S_z1 + xi_z;
-            const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
-                    isfinite(qd2) & isfinite(qd3) & isfinite(qd4));
-            const int collinear = (e_sq <= collinear_limit);
-            const int unreachable = (h_sq < 0);
-            const int singular = (fabs(det_D) <= det_limit);
-            /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-            const double t8_0 = -xi_x;
-            const double t8_1 = -xi_y;
-            const double t8_2 = -xi_z;
-            const double D11 = xi_x;
-            const double D12 = xi_y;
-            const double D13 = xi_z;
-            const double D21 = -a_x - t8_0;
-            const double D22 = -a_y - t8_1;
-            const double D23 = -a_z - t8_2;
-            const double D31 = -b_x - t8_0;
-            const double D32 = -b_y - t8_1;
-            const double D33 = -b_z - t8_2;
-            /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
-            const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
-            const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
-            const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
-            /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
-            const double adjD12 = -b_y*xi_z + b_z*xi_y;
-            const double adjD22 = b_x*xi_z - b_z*xi_x;
-            const double adjD32 = -b_x*xi_y + b_y*xi_x;
-            const double adjD13 = a_y*xi_z - a_z*xi_y;
-            const double adjD23 = -a_x*xi_z + a_z*xi_x;
-            const double adjD33 = a_x*xi_y - a_y*xi_x;
-            const double inv_det_D = 1.0/det_D;
-            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-            const double t11_0 = jq1*qd1;
-            const double t11_1 = jq2*qd2 - t11_0;
-            const double t11_2 = jq3*qd3 - t11_0;
-            const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-            const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-            const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
-                    (unreachable)))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd))) & (!(((collinear) | (invalid)
-                    | (singular) | (unreachable)))))));
-            const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-            const int t12_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_x_checked = ((t12_0) ? NAN : x);
-            const double out_y_checked = ((t12_0) ? NAN : y);
-            const double out_z_checked = ((t12_0) ? NAN : z);
-            const double out_phi_checked = ((t12_0) ? NAN : q4);
-            const double out_xd_checked = ((t12_1) ? NAN : xd);
-            const double out_yd_checked = ((t12_1) ? NAN : yd);
-            const double out_zd_checked = ((t12_1) ? NAN : zd);
-            const double out_phid_checked = ((t12_1) ? NAN : qd4);
-            out_x_checked_b[k] = out_x_checked;
-            out_y_checked_b[k] = out_y_checked;
-            out_z_checked_b[k] = out_z_checked;
-            out_phi_checked_b[k] = out_phi_checked;
-            out_xd_checked_b[k] = out_xd_checked;
-            out_yd_checked_b[k] = out_yd_checked;
-            out_zd_checked_b[k] = out_zd_checked;
-            out_phid_checked_b[k] = out_phid_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1
-                    - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = 0.0;  /* no fourth axis */
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = 0.0;  /* no fourth axis */
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double x = S_x1 + xi_x;
+                const double y = S_y1 + xi_y;
+                const double z = S_z1 + xi_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
+                        (invalid) | (unreachable)))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd))) &
+                        (!(((collinear) | (invalid) | (singular) | (unreachable)))))));
+                const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t12_0) ? NAN : x);
+                const double out_y_checked = ((t12_0) ? NAN : y);
+                const double out_z_checked = ((t12_0) ? NAN : z);
+                const double out_xd_checked = ((t12_1) ? NAN : xd);
+                const double out_yd_checked = ((t12_1) ? NAN : yd);
+                const double out_zd_checked = ((t12_1) ? NAN : zd);
+                p[(start + k) * 3 + 0] = out_x_checked;
+                p[(start + k) * 3 + 1] = out_y_checked;
+                p[(start + k) * 3 + 2] = out_z_checked;
+                pd[(start + k) * 3 + 0] = out_xd_checked;
+                pd[(start + k) * 3 + 1] = out_yd_checked;
+                pd[(start + k) * 3 + 2] = out_zd_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = q4_b[k];
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = qd4_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double x = S_x1 + xi_x;
+                const double y = S_y1 + xi_y;
+                const double z = S_z1 + xi_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
+                        (invalid) | (unreachable)))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd))) &
+                        (!(((collinear) | (invalid) | (singular) | (unreachable)))))));
+                const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t12_0) ? NAN : x);
+                const double out_y_checked = ((t12_0) ? NAN : y);
+                const double out_z_checked = ((t12_0) ? NAN : z);
+                const double out_phi_checked = ((t12_0) ? NAN : q4);
+                const double out_xd_checked = ((t12_1) ? NAN : xd);
+                const double out_yd_checked = ((t12_1) ? NAN : yd);
+                const double out_zd_checked = ((t12_1) ? NAN : zd);
+                const double out_phid_checked = ((t12_1) ? NAN : qd4);
+                p[(start + k) * 4 + 0] = out_x_checked;
+                p[(start + k) * 4 + 1] = out_y_checked;
+                p[(start + k) * 4 + 2] = out_z_checked;
+                p[(start + k) * 4 + 3] = out_phi_checked;
+                pd[(start + k) * 4 + 0] = out_xd_checked;
+                pd[(start + k) * 4 + 1] = out_yd_checked;
+                pd[(start + k) * 4 + 2] = out_zd_checked;
+                pd[(start + k) * 4 + 3] = out_phid_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 3 + 0] = out_x_checked_b[k];
-                p[(start + k) * 3 + 1] = out_y_checked_b[k];
-                p[(start + k) * 3 + 2] = out_z_checked_b[k];
-                pd[(start + k) * 3 + 0] = out_xd_checked_b[k];
-                pd[(start + k) * 3 + 1] = out_yd_checked_b[k];
-                pd[(start + k) * 3 + 2] = out_zd_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 4 + 0] = out_x_checked_b[k];
-                p[(start + k) * 4 + 1] = out_y_checked_b[k];
-                p[(start + k) * 4 + 2] = out_z_checked_b[k];
-                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
-                pd[(start + k) * 4 + 0] = out_xd_checked_b[k];
-                pd[(start + k) * 4 + 1] = out_yd_checked_b[k];
-                pd[(start + k) * 4 + 2] = out_zd_checked_b[k];
-                pd[(start + k) * 4 + 3] = out_phid_checked_b[k];
-            }
         }
     }
     return 0;
@@ -582,15 +746,12 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
-                q4_b[k] = 0.0;  /* no fourth axis */
                 qd1_b[k] = qd[(start + k) * 3 + 0];
                 qd2_b[k] = qd[(start + k) * 3 + 1];
                 qd3_b[k] = qd[(start + k) * 3 + 2];
-                qd4_b[k] = 0.0;  /* no fourth axis */
                 qdd1_b[k] = qdd[(start + k) * 3 + 0];
                 qdd2_b[k] = qdd[(start + k) * 3 + 1];
                 qdd3_b[k] = qdd[(start + k) * 3 + 2];
-                qdd4_b[k] = 0.0;  /* no fourth axis */
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
@@ -649,220 +810,346 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
         for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_x_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_y_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_z_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_phi_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_xd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_yd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_zd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_phid_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_xdd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_ydd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_zdd_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_phidd_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double qd1 = qd1_b[k];
-            const double qd2 = qd2_b[k];
-            const double qd3 = qd3_b[k];
-            const double qd4 = qd4_b[k];
-            const double qdd1 = qdd1_b[k];
-            const double qdd2 = qdd2_b[k];
-            const double qdd3 = qdd3_b[k];
-            const double qdd4 = qdd4_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
-            const double a_x = -S_x1 + S_x2;
-            const double a_y = -S_y1 + S_y2;
-            const double a_z = -S_z1 + S_z2;
-            const double b_x = -S_x1 + S_x3;
-            const double b_y = -S_y1 + S_y3;
-            const double b_z = -S_z1 + S_z3;
-            /* e = a x b, normal of the centre plane; its squared length */
-            const double e_x = a_y*b_z - a_z*b_y;
-            const double e_y = -a_x*b_z + a_z*b_x;
-            const double e_z = a_x*b_y - a_y*b_x;
-            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
-            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
-            const double inv_e_sq = 1.0/e_sq;
-            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
-            /* lower intersection with sphere 1, eqs. (22)-(26) */
-            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
-            /* platform position p, eq. (27) */
-            const double xi_x = e_x*lambda_ + x0_x;
-            const double xi_y = e_y*lambda_ + x0_y;
-            const double xi_z = e_z*lambda_ + x0_z;
-            const double x = S_x1 + xi_x;
-            const double y = S_y1 + xi_y;
-            const double z = S_z1 + xi_z;
-            const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
-                    isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) &
-                    isfinite(qdd4));
-            const int collinear = (e_sq <= collinear_limit);
-            const int unreachable = (h_sq < 0);
-            const int singular = (fabs(det_D) <= det_limit);
-            /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-            const double t8_0 = -xi_x;
-            const double t8_1 = -xi_y;
-            const double t8_2 = -xi_z;
-            const double D11 = xi_x;
-            const double D12 = xi_y;
-            const double D13 = xi_z;
-            const double D21 = -a_x - t8_0;
-            const double D22 = -a_y - t8_1;
-            const double D23 = -a_z - t8_2;
-            const double D31 = -b_x - t8_0;
-            const double D32 = -b_y - t8_1;
-            const double D33 = -b_z - t8_2;
-            /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
-            const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
-            const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
-            const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
-            /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
-            const double adjD12 = -b_y*xi_z + b_z*xi_y;
-            const double adjD22 = b_x*xi_z - b_z*xi_x;
-            const double adjD32 = -b_x*xi_y + b_y*xi_x;
-            const double adjD13 = a_y*xi_z - a_z*xi_y;
-            const double adjD23 = -a_x*xi_z + a_z*xi_x;
-            const double adjD33 = a_x*xi_y - a_y*xi_x;
-            const double inv_det_D = 1.0/det_D;
-            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-            const double t11_0 = jq1*qd1;
-            const double t11_1 = jq2*qd2 - t11_0;
-            const double t11_2 = jq3*qd3 - t11_0;
-            const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-            const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-            const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
-            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2 */
-            const double t12_0 = chain_l_a1*cos_q1;
-            const double t12_1 = chain_l_a1*sin_q1;
-            const double t12_2 = qd1*t12_1;
-            const double t12_3 = chain_l_a2*cos_q2;
-            const double t12_4 = chain_l_a2*sin_q2;
-            const double t12_5 = qd2*t12_4;
-            const double t12_6 = chain_l_a3*cos_q3;
-            const double t12_7 = chain_l_a3*sin_q3;
-            const double t12_8 = qd3*t12_7;
-            const double h1 = jq1*qdd1 + (D13*t12_1 - rho1*t12_0)*(qd1*qd1) - pow(cos_theta1*t12_2 + xd, 2) -
-                    pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-            const double h2 = jq2*qdd2 + (D23*t12_4 - rho2*t12_3)*(qd2*qd2) - pow(cos_theta2*t12_5 + xd, 2) -
-                    pow(qd2*t12_3 + zd, 2) - pow(sin_theta2*t12_5 + yd, 2);
-            const double h3 = jq3*qdd3 + (D33*t12_7 - rho3*t12_6)*(qd3*qd3) - pow(cos_theta3*t12_8 + xd, 2) -
-                    pow(qd3*t12_6 + zd, 2) - pow(sin_theta3*t12_8 + yd, 2);
-            /* platform acceleration pddot = J_p^-1 h, eq. (38) */
-            const double t13_0 = -h1 + h2;
-            const double t13_1 = -h1 + h3;
-            const double xdd = inv_det_D*(adjD12*t13_0 + adjD13*t13_1 + e_x*h1);
-            const double ydd = inv_det_D*(adjD22*t13_0 + adjD23*t13_1 + e_y*h1);
-            const double zdd = inv_det_D*(adjD32*t13_0 + adjD33*t13_1 + e_z*h1);
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
-                    (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) & (!(isfinite(xd)
-                    & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd))))));
-            const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-            const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_x_checked = ((t14_0) ? NAN : x);
-            const double out_y_checked = ((t14_0) ? NAN : y);
-            const double out_z_checked = ((t14_0) ? NAN : z);
-            const double out_phi_checked = ((t14_0) ? NAN : q4);
-            const double out_xd_checked = ((t14_1) ? NAN : xd);
-            const double out_yd_checked = ((t14_1) ? NAN : yd);
-            const double out_zd_checked = ((t14_1) ? NAN : zd);
-            const double out_phid_checked = ((t14_1) ? NAN : qd4);
-            const double out_xdd_checked = ((t14_1) ? NAN : xdd);
-            const double out_ydd_checked = ((t14_1) ? NAN : ydd);
-            const double out_zdd_checked = ((t14_1) ? NAN : zdd);
-            const double out_phidd_checked = ((t14_1) ? NAN : qdd4);
-            out_x_checked_b[k] = out_x_checked;
-            out_y_checked_b[k] = out_y_checked;
-            out_z_checked_b[k] = out_z_checked;
-            out_phi_checked_b[k] = out_phi_checked;
-            out_xd_checked_b[k] = out_xd_checked;
-            out_yd_checked_b[k] = out_yd_checked;
-            out_zd_checked_b[k] = out_zd_checked;
-            out_phid_checked_b[k] = out_phid_checked;
-            out_xdd_checked_b[k] = out_xdd_checked;
-            out_ydd_checked_b[k] = out_ydd_checked;
-            out_zdd_checked_b[k] = out_zdd_checked;
-            out_phidd_checked_b[k] = out_phidd_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1
-                    - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = 0.0;  /* no fourth axis */
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = 0.0;  /* no fourth axis */
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const double qdd4 = 0.0;  /* no fourth axis */
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double x = S_x1 + xi_x;
+                const double y = S_y1 + xi_y;
+                const double z = S_z1 + xi_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3)
+                        & isfinite(qdd4));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2 */
+                const double t12_0 = chain_l_a1*cos_q1;
+                const double t12_1 = chain_l_a1*sin_q1;
+                const double t12_2 = qd1*t12_1;
+                const double t12_3 = chain_l_a2*cos_q2;
+                const double t12_4 = chain_l_a2*sin_q2;
+                const double t12_5 = qd2*t12_4;
+                const double t12_6 = chain_l_a3*cos_q3;
+                const double t12_7 = chain_l_a3*sin_q3;
+                const double t12_8 = qd3*t12_7;
+                const double h1 = jq1*qdd1 + (D13*t12_1 - rho1*t12_0)*(qd1*qd1) - pow(cos_theta1*t12_2 + xd, 2) -
+                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
+                const double h2 = jq2*qdd2 + (D23*t12_4 - rho2*t12_3)*(qd2*qd2) - pow(cos_theta2*t12_5 + xd, 2) -
+                        pow(qd2*t12_3 + zd, 2) - pow(sin_theta2*t12_5 + yd, 2);
+                const double h3 = jq3*qdd3 + (D33*t12_7 - rho3*t12_6)*(qd3*qd3) - pow(cos_theta3*t12_8 + xd, 2) -
+                        pow(qd3*t12_6 + zd, 2) - pow(sin_theta3*t12_8 + yd, 2);
+                /* platform acceleration pddot = J_p^-1 h, eq. (38) */
+                const double t13_0 = -h1 + h2;
+                const double t13_1 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t13_0 + adjD13*t13_1 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t13_0 + adjD23*t13_1 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t13_0 + adjD33*t13_1 + e_z*h1);
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
+                        (invalid) | (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) &
+                        (!(isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) &
+                        isfinite(zdd))))));
+                const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t14_0) ? NAN : x);
+                const double out_y_checked = ((t14_0) ? NAN : y);
+                const double out_z_checked = ((t14_0) ? NAN : z);
+                const double out_xd_checked = ((t14_1) ? NAN : xd);
+                const double out_yd_checked = ((t14_1) ? NAN : yd);
+                const double out_zd_checked = ((t14_1) ? NAN : zd);
+                const double out_xdd_checked = ((t14_1) ? NAN : xdd);
+                const double out_ydd_checked = ((t14_1) ? NAN : ydd);
+                const double out_zdd_checked = ((t14_1) ? NAN : zdd);
+                p[(start + k) * 3 + 0] = out_x_checked;
+                p[(start + k) * 3 + 1] = out_y_checked;
+                p[(start + k) * 3 + 2] = out_z_checked;
+                pd[(start + k) * 3 + 0] = out_xd_checked;
+                pd[(start + k) * 3 + 1] = out_yd_checked;
+                pd[(start + k) * 3 + 2] = out_zd_checked;
+                pdd[(start + k) * 3 + 0] = out_xdd_checked;
+                pdd[(start + k) * 3 + 1] = out_ydd_checked;
+                pdd[(start + k) * 3 + 2] = out_zdd_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = q4_b[k];
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = qd4_b[k];
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const double qdd4 = qdd4_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double x = S_x1 + xi_x;
+                const double y = S_y1 + xi_y;
+                const double z = S_z1 + xi_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3)
+                        & isfinite(qdd4));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2 */
+                const double t12_0 = chain_l_a1*cos_q1;
+                const double t12_1 = chain_l_a1*sin_q1;
+                const double t12_2 = qd1*t12_1;
+                const double t12_3 = chain_l_a2*cos_q2;
+                const double t12_4 = chain_l_a2*sin_q2;
+                const double t12_5 = qd2*t12_4;
+                const double t12_6 = chain_l_a3*cos_q3;
+                const double t12_7 = chain_l_a3*sin_q3;
+                const double t12_8 = qd3*t12_7;
+                const double h1 = jq1*qdd1 + (D13*t12_1 - rho1*t12_0)*(qd1*qd1) - pow(cos_theta1*t12_2 + xd, 2) -
+                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
+                const double h2 = jq2*qdd2 + (D23*t12_4 - rho2*t12_3)*(qd2*qd2) - pow(cos_theta2*t12_5 + xd, 2) -
+                        pow(qd2*t12_3 + zd, 2) - pow(sin_theta2*t12_5 + yd, 2);
+                const double h3 = jq3*qdd3 + (D33*t12_7 - rho3*t12_6)*(qd3*qd3) - pow(cos_theta3*t12_8 + xd, 2) -
+                        pow(qd3*t12_6 + zd, 2) - pow(sin_theta3*t12_8 + yd, 2);
+                /* platform acceleration pddot = J_p^-1 h, eq. (38) */
+                const double t13_0 = -h1 + h2;
+                const double t13_1 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t13_0 + adjD13*t13_1 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t13_0 + adjD23*t13_1 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t13_0 + adjD33*t13_1 + e_z*h1);
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
+                        (invalid) | (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) &
+                        (!(isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) &
+                        isfinite(zdd))))));
+                const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t14_0) ? NAN : x);
+                const double out_y_checked = ((t14_0) ? NAN : y);
+                const double out_z_checked = ((t14_0) ? NAN : z);
+                const double out_phi_checked = ((t14_0) ? NAN : q4);
+                const double out_xd_checked = ((t14_1) ? NAN : xd);
+                const double out_yd_checked = ((t14_1) ? NAN : yd);
+                const double out_zd_checked = ((t14_1) ? NAN : zd);
+                const double out_phid_checked = ((t14_1) ? NAN : qd4);
+                const double out_xdd_checked = ((t14_1) ? NAN : xdd);
+                const double out_ydd_checked = ((t14_1) ? NAN : ydd);
+                const double out_zdd_checked = ((t14_1) ? NAN : zdd);
+                const double out_phidd_checked = ((t14_1) ? NAN : qdd4);
+                p[(start + k) * 4 + 0] = out_x_checked;
+                p[(start + k) * 4 + 1] = out_y_checked;
+                p[(start + k) * 4 + 2] = out_z_checked;
+                p[(start + k) * 4 + 3] = out_phi_checked;
+                pd[(start + k) * 4 + 0] = out_xd_checked;
+                pd[(start + k) * 4 + 1] = out_yd_checked;
+                pd[(start + k) * 4 + 2] = out_zd_checked;
+                pd[(start + k) * 4 + 3] = out_phid_checked;
+                pdd[(start + k) * 4 + 0] = out_xdd_checked;
+                pdd[(start + k) * 4 + 1] = out_ydd_checked;
+                pdd[(start + k) * 4 + 2] = out_zdd_checked;
+                pdd[(start + k) * 4 + 3] = out_phidd_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 3 + 0] = out_x_checked_b[k];
-                p[(start + k) * 3 + 1] = out_y_checked_b[k];
-                p[(start + k) * 3 + 2] = out_z_checked_b[k];
-                pd[(start + k) * 3 + 0] = out_xd_checked_b[k];
-                pd[(start + k) * 3 + 1] = out_yd_checked_b[k];
-                pd[(start + k) * 3 + 2] = out_zd_checked_b[k];
-                pdd[(start + k) * 3 + 0] = out_xdd_checked_b[k];
-                pdd[(start + k) * 3 + 1] = out_ydd_checked_b[k];
-                pdd[(start + k) * 3 + 2] = out_zdd_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                p[(start + k) * 4 + 0] = out_x_checked_b[k];
-                p[(start + k) * 4 + 1] = out_y_checked_b[k];
-                p[(start + k) * 4 + 2] = out_z_checked_b[k];
-                p[(start + k) * 4 + 3] = out_phi_checked_b[k];
-                pd[(start + k) * 4 + 0] = out_xd_checked_b[k];
-                pd[(start + k) * 4 + 1] = out_yd_checked_b[k];
-                pd[(start + k) * 4 + 2] = out_zd_checked_b[k];
-                pd[(start + k) * 4 + 3] = out_phid_checked_b[k];
-                pdd[(start + k) * 4 + 0] = out_xdd_checked_b[k];
-                pdd[(start + k) * 4 + 1] = out_ydd_checked_b[k];
-                pdd[(start + k) * 4 + 2] = out_zdd_checked_b[k];
-                pdd[(start + k) * 4 + 3] = out_phidd_checked_b[k];
-            }
         }
     }
     return 0;
@@ -1217,7 +1504,6 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                 x_b[k] = p[(start + k) * 3 + 0];
                 y_b[k] = p[(start + k) * 3 + 1];
                 z_b[k] = p[(start + k) * 3 + 2];
-                phi_b[k] = 0.0;  /* no fourth axis */
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
@@ -1227,120 +1513,192 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                 phi_b[k] = p[(start + k) * 4 + 3];
             }
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double x = x_b[k];
-            const double y = y_b[k];
-            const double z = z_b[k];
-            const double phi = phi_b[k];
-            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
-            const double t0_0 = x*x + y*y + z*z;
-            const double E1 = E0_1 + Ex_1*x + Ey_1*y;
-            const double F1 = Fz_1*z;
-            const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
-            const double E2 = E0_2 + Ex_2*x + Ey_2*y;
-            const double F2 = Fz_2*z;
-            const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
-            const double E3 = E0_3 + Ex_3*x + Ey_3*y;
-            const double F3 = Fz_3*z;
-            const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
-            /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
-            const double rho_sq1 = E1*E1 + F1*F1;
-            const double disc1 = rho_sq1 - (G1*G1);
-            const double rho_sq2 = E2*E2 + F2*F2;
-            const double disc2 = rho_sq2 - (G2*G2);
-            const double rho_sq3 = E3*E3 + F3*F3;
-            const double disc3 = rho_sq3 - (G3*G3);
-            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
-            const double t2_0 = sqrt(disc1);
-            const double t2_1 = sqrt(disc2);
-            const double t2_2 = sqrt(disc3);
-            const double ik_x1 = -E1*G1 - F1*t2_0;
-            const double ik_y1 = E1*t2_0 - F1*G1;
-            const double ik_x2 = -E2*G2 - F2*t2_1;
-            const double ik_y2 = E2*t2_1 - F2*G2;
-            const double ik_x3 = -E3*G3 - F3*t2_2;
-            const double ik_y3 = E3*t2_2 - F3*G3;
-            /* crank angles q = atan2(Y, X) in (-pi, pi] */
-            const double q1 = atan2(ik_y1, ik_x1);
-            const double q2 = atan2(ik_y2, ik_x2);
-            const double q3 = atan2(ik_y3, ik_x3);
-            /* assembly mode without divisions: rows rho_i^2 (p - S_i), P det_D and P e_z, P = prod rho_i^2 */
-            const double t4_0 = chain_l_a1*ik_x1 + chain_r1*rho_sq1;
-            const double t4_1 = chain_l_a2*ik_x2 + chain_r2*rho_sq2;
-            const double t4_2 = chain_l_a3*ik_x3 + chain_r3*rho_sq3;
-            const double St_x1 = cos_theta1*t4_0;
-            const double St_y1 = sin_theta1*t4_0;
-            const double St_z1 = -chain_l_a1*ik_y1;
-            const double St_x2 = cos_theta2*t4_1;
-            const double St_y2 = sin_theta2*t4_1;
-            const double St_z2 = -chain_l_a2*ik_y2;
-            const double St_x3 = cos_theta3*t4_2;
-            const double St_y3 = sin_theta3*t4_2;
-            const double St_z3 = -chain_l_a3*ik_y3;
-            const double Dt11 = -St_x1 + rho_sq1*x;
-            const double Dt12 = -St_y1 + rho_sq1*y;
-            const double Dt13 = -St_z1 + rho_sq1*z;
-            const double Dt21 = -St_x2 + rho_sq2*x;
-            const double Dt22 = -St_y2 + rho_sq2*y;
-            const double Dt23 = -St_z2 + rho_sq2*z;
-            const double Dt31 = -St_x3 + rho_sq3*x;
-            const double Dt32 = -St_y3 + rho_sq3*y;
-            const double Dt33 = -St_z3 + rho_sq3*z;
-            const double row_cross_z23 = Dt21*Dt32 - Dt22*Dt31;
-            const double row_cross_z31 = -Dt11*Dt32 + Dt12*Dt31;
-            const double row_cross_z12 = Dt11*Dt22 - Dt12*Dt21;
-            const double scaled_det_D = Dt13*row_cross_z23 + Dt23*row_cross_z31 + Dt33*row_cross_z12;
-            const double scaled_normal_z = rho_sq1*row_cross_z23 + rho_sq2*row_cross_z31 + rho_sq3*row_cross_z12;
-            const double rho_sq_product = rho_sq1*rho_sq2*rho_sq3;
-            /* status flags: non-finite input, a crank cannot reach or the target lies in the other assembly mode, a
-             *    crank at its reach limit */
-            const double t5_0 = fabs(scaled_det_D);
-            const double t5_1 = det_limit*rho_sq_product;
-            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t5_0 > t5_1)) &
-                    ((scaled_det_D*scaled_normal_z > 0)))));
-            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t5_0 <=
-                    t5_1)));
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                    isfinite(q3))));
-            const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
-            const double out_q1_checked = ((t6_0) ? NAN : q1);
-            const double out_q2_checked = ((t6_0) ? NAN : q2);
-            const double out_q3_checked = ((t6_0) ? NAN : q3);
-            const double out_q4_checked = ((t6_0) ? NAN : phi);
-            out_q1_checked_b[k] = out_q1_checked;
-            out_q2_checked_b[k] = out_q2_checked;
-            out_q3_checked_b[k] = out_q3_checked;
-            out_q4_checked_b[k] = out_q4_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1
-                    - unreachable)*(2*singular)));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double x = x_b[k];
+                const double y = y_b[k];
+                const double z = z_b[k];
+                const double phi = 0.0;  /* no fourth axis */
+                /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+                const double t0_0 = x*x + y*y + z*z;
+                const double E1 = E0_1 + Ex_1*x + Ey_1*y;
+                const double F1 = Fz_1*z;
+                const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
+                const double E2 = E0_2 + Ex_2*x + Ey_2*y;
+                const double F2 = Fz_2*z;
+                const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
+                const double E3 = E0_3 + Ex_3*x + Ey_3*y;
+                const double F3 = Fz_3*z;
+                const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
+                /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+                const double rho_sq1 = E1*E1 + F1*F1;
+                const double disc1 = rho_sq1 - (G1*G1);
+                const double rho_sq2 = E2*E2 + F2*F2;
+                const double disc2 = rho_sq2 - (G2*G2);
+                const double rho_sq3 = E3*E3 + F3*F3;
+                const double disc3 = rho_sq3 - (G3*G3);
+                /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+                const double t2_0 = sqrt(disc1);
+                const double t2_1 = sqrt(disc2);
+                const double t2_2 = sqrt(disc3);
+                const double ik_x1 = -E1*G1 - F1*t2_0;
+                const double ik_y1 = E1*t2_0 - F1*G1;
+                const double ik_x2 = -E2*G2 - F2*t2_1;
+                const double ik_y2 = E2*t2_1 - F2*G2;
+                const double ik_x3 = -E3*G3 - F3*t2_2;
+                const double ik_y3 = E3*t2_2 - F3*G3;
+                /* crank angles q = atan2(Y, X) in (-pi, pi] */
+                const double q1 = atan2(ik_y1, ik_x1);
+                const double q2 = atan2(ik_y2, ik_x2);
+                const double q3 = atan2(ik_y3, ik_x3);
+                /* assembly mode without divisions: rows rho_i^2 (p - S_i), P det_D and P e_z, P = prod rho_i^2 */
+                const double t4_0 = chain_l_a1*ik_x1 + chain_r1*rho_sq1;
+                const double t4_1 = chain_l_a2*ik_x2 + chain_r2*rho_sq2;
+                const double t4_2 = chain_l_a3*ik_x3 + chain_r3*rho_sq3;
+                const double St_x1 = cos_theta1*t4_0;
+                const double St_y1 = sin_theta1*t4_0;
+                const double St_z1 = -chain_l_a1*ik_y1;
+                const double St_x2 = cos_theta2*t4_1;
+                const double St_y2 = sin_theta2*t4_1;
+                const double St_z2 = -chain_l_a2*ik_y2;
+                const double St_x3 = cos_theta3*t4_2;
+                const double St_y3 = sin_theta3*t4_2;
+                const double St_z3 = -chain_l_a3*ik_y3;
+                const double Dt11 = -St_x1 + rho_sq1*x;
+                const double Dt12 = -St_y1 + rho_sq1*y;
+                const double Dt13 = -St_z1 + rho_sq1*z;
+                const double Dt21 = -St_x2 + rho_sq2*x;
+                const double Dt22 = -St_y2 + rho_sq2*y;
+                const double Dt23 = -St_z2 + rho_sq2*z;
+                const double Dt31 = -St_x3 + rho_sq3*x;
+                const double Dt32 = -St_y3 + rho_sq3*y;
+                const double Dt33 = -St_z3 + rho_sq3*z;
+                const double row_cross_z23 = Dt21*Dt32 - Dt22*Dt31;
+                const double row_cross_z31 = -Dt11*Dt32 + Dt12*Dt31;
+                const double row_cross_z12 = Dt11*Dt22 - Dt12*Dt21;
+                const double scaled_det_D = Dt13*row_cross_z23 + Dt23*row_cross_z31 + Dt33*row_cross_z12;
+                const double scaled_normal_z = rho_sq1*row_cross_z23 + rho_sq2*row_cross_z31 + rho_sq3*row_cross_z12;
+                const double rho_sq_product = rho_sq1*rho_sq2*rho_sq3;
+                /* status flags: non-finite input, a crank cannot reach or the target lies in the other assembly mode, a
+                 *    crank at its reach limit */
+                const double t5_0 = fabs(scaled_det_D);
+                const double t5_1 = det_limit*rho_sq_product;
+                const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t5_0 > t5_1)) &
+                        ((scaled_det_D*scaled_normal_z > 0)))));
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t5_0 <=
+                        t5_1)));
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))));
+                const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const double out_q1_checked = ((t6_0) ? NAN : q1);
+                const double out_q2_checked = ((t6_0) ? NAN : q2);
+                const double out_q3_checked = ((t6_0) ? NAN : q3);
+                q[(start + k) * 3 + 0] = out_q1_checked;
+                q[(start + k) * 3 + 1] = out_q2_checked;
+                q[(start + k) * 3 + 2] = out_q3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double x = x_b[k];
+                const double y = y_b[k];
+                const double z = z_b[k];
+                const double phi = phi_b[k];
+                /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+                const double t0_0 = x*x + y*y + z*z;
+                const double E1 = E0_1 + Ex_1*x + Ey_1*y;
+                const double F1 = Fz_1*z;
+                const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
+                const double E2 = E0_2 + Ex_2*x + Ey_2*y;
+                const double F2 = Fz_2*z;
+                const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
+                const double E3 = E0_3 + Ex_3*x + Ey_3*y;
+                const double F3 = Fz_3*z;
+                const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
+                /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+                const double rho_sq1 = E1*E1 + F1*F1;
+                const double disc1 = rho_sq1 - (G1*G1);
+                const double rho_sq2 = E2*E2 + F2*F2;
+                const double disc2 = rho_sq2 - (G2*G2);
+                const double rho_sq3 = E3*E3 + F3*F3;
+                const double disc3 = rho_sq3 - (G3*G3);
+                /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+                const double t2_0 = sqrt(disc1);
+                const double t2_1 = sqrt(disc2);
+                const double t2_2 = sqrt(disc3);
+                const double ik_x1 = -E1*G1 - F1*t2_0;
+                const double ik_y1 = E1*t2_0 - F1*G1;
+                const double ik_x2 = -E2*G2 - F2*t2_1;
+                const double ik_y2 = E2*t2_1 - F2*G2;
+                const double ik_x3 = -E3*G3 - F3*t2_2;
+                const double ik_y3 = E3*t2_2 - F3*G3;
+                /* crank angles q = atan2(Y, X) in (-pi, pi] */
+                const double q1 = atan2(ik_y1, ik_x1);
+                const double q2 = atan2(ik_y2, ik_x2);
+                const double q3 = atan2(ik_y3, ik_x3);
+                /* assembly mode without divisions: rows rho_i^2 (p - S_i), P det_D and P e_z, P = prod rho_i^2 */
+                const double t4_0 = chain_l_a1*ik_x1 + chain_r1*rho_sq1;
+                const double t4_1 = chain_l_a2*ik_x2 + chain_r2*rho_sq2;
+                const double t4_2 = chain_l_a3*ik_x3 + chain_r3*rho_sq3;
+                const double St_x1 = cos_theta1*t4_0;
+                const double St_y1 = sin_theta1*t4_0;
+                const double St_z1 = -chain_l_a1*ik_y1;
+                const double St_x2 = cos_theta2*t4_1;
+                const double St_y2 = sin_theta2*t4_1;
+                const double St_z2 = -chain_l_a2*ik_y2;
+                const double St_x3 = cos_theta3*t4_2;
+                const double St_y3 = sin_theta3*t4_2;
+                const double St_z3 = -chain_l_a3*ik_y3;
+                const double Dt11 = -St_x1 + rho_sq1*x;
+                const double Dt12 = -St_y1 + rho_sq1*y;
+                const double Dt13 = -St_z1 + rho_sq1*z;
+                const double Dt21 = -St_x2 + rho_sq2*x;
+                const double Dt22 = -St_y2 + rho_sq2*y;
+                const double Dt23 = -St_z2 + rho_sq2*z;
+                const double Dt31 = -St_x3 + rho_sq3*x;
+                const double Dt32 = -St_y3 + rho_sq3*y;
+                const double Dt33 = -St_z3 + rho_sq3*z;
+                const double row_cross_z23 = Dt21*Dt32 - Dt22*Dt31;
+                const double row_cross_z31 = -Dt11*Dt32 + Dt12*Dt31;
+                const double row_cross_z12 = Dt11*Dt22 - Dt12*Dt21;
+                const double scaled_det_D = Dt13*row_cross_z23 + Dt23*row_cross_z31 + Dt33*row_cross_z12;
+                const double scaled_normal_z = rho_sq1*row_cross_z23 + rho_sq2*row_cross_z31 + rho_sq3*row_cross_z12;
+                const double rho_sq_product = rho_sq1*rho_sq2*rho_sq3;
+                /* status flags: non-finite input, a crank cannot reach or the target lies in the other assembly mode, a
+                 *    crank at its reach limit */
+                const double t5_0 = fabs(scaled_det_D);
+                const double t5_1 = det_limit*rho_sq_product;
+                const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi));
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t5_0 > t5_1)) &
+                        ((scaled_det_D*scaled_normal_z > 0)))));
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t5_0 <=
+                        t5_1)));
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))));
+                const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const double out_q1_checked = ((t6_0) ? NAN : q1);
+                const double out_q2_checked = ((t6_0) ? NAN : q2);
+                const double out_q3_checked = ((t6_0) ? NAN : q3);
+                const double out_q4_checked = ((t6_0) ? NAN : phi);
+                q[(start + k) * 4 + 0] = out_q1_checked;
+                q[(start + k) * 4 + 1] = out_q2_checked;
+                q[(start + k) * 4 + 2] = out_q3_checked;
+                q[(start + k) * 4 + 3] = out_q4_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
-                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
-                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
-                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
-                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
-                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
-            }
         }
     }
     return 0;
@@ -1424,11 +1782,9 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 x_b[k] = p[(start + k) * 3 + 0];
                 y_b[k] = p[(start + k) * 3 + 1];
                 z_b[k] = p[(start + k) * 3 + 2];
-                phi_b[k] = 0.0;  /* no fourth axis */
                 xd_b[k] = pd[(start + k) * 3 + 0];
                 yd_b[k] = pd[(start + k) * 3 + 1];
                 zd_b[k] = pd[(start + k) * 3 + 2];
-                phid_b[k] = 0.0;  /* no fourth axis */
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
@@ -1442,169 +1798,266 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 phid_b[k] = pd[(start + k) * 4 + 3];
             }
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double x = x_b[k];
-            const double y = y_b[k];
-            const double z = z_b[k];
-            const double phi = phi_b[k];
-            const double xd = xd_b[k];
-            const double yd = yd_b[k];
-            const double zd = zd_b[k];
-            const double phid = phid_b[k];
-            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
-            const double t0_0 = x*x + y*y + z*z;
-            const double E1 = E0_1 + Ex_1*x + Ey_1*y;
-            const double F1 = Fz_1*z;
-            const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
-            const double E2 = E0_2 + Ex_2*x + Ey_2*y;
-            const double F2 = Fz_2*z;
-            const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
-            const double E3 = E0_3 + Ex_3*x + Ey_3*y;
-            const double F3 = Fz_3*z;
-            const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
-            /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
-            const double rho_sq1 = E1*E1 + F1*F1;
-            const double disc1 = rho_sq1 - (G1*G1);
-            const double rho_sq2 = E2*E2 + F2*F2;
-            const double disc2 = rho_sq2 - (G2*G2);
-            const double rho_sq3 = E3*E3 + F3*F3;
-            const double disc3 = rho_sq3 - (G3*G3);
-            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
-            const double t2_0 = sqrt(disc1);
-            const double t2_1 = sqrt(disc2);
-            const double t2_2 = sqrt(disc3);
-            const double ik_x1 = -E1*G1 - F1*t2_0;
-            const double ik_y1 = E1*t2_0 - F1*G1;
-            const double ik_x2 = -E2*G2 - F2*t2_1;
-            const double ik_y2 = E2*t2_1 - F2*G2;
-            const double ik_x3 = -E3*G3 - F3*t2_2;
-            const double ik_y3 = E3*t2_2 - F3*G3;
-            /* crank angles q = atan2(Y, X) in (-pi, pi] */
-            const double q1 = atan2(ik_y1, ik_x1);
-            const double q2 = atan2(ik_y2, ik_x2);
-            const double q3 = atan2(ik_y3, ik_x3);
-            /* cos q_i, sin q_i = (X, Y) / rho^2 */
-            const double inv_rho_sq1 = 1.0/rho_sq1;
-            const double inv_rho_sq2 = 1.0/rho_sq2;
-            const double inv_rho_sq3 = 1.0/rho_sq3;
-            const double cos_q1 = ik_x1*inv_rho_sq1;
-            const double sin_q1 = ik_y1*inv_rho_sq1;
-            const double cos_q2 = ik_x2*inv_rho_sq2;
-            const double sin_q2 = ik_y2*inv_rho_sq2;
-            const double cos_q3 = ik_x3*inv_rho_sq3;
-            const double sin_q3 = ik_y3*inv_rho_sq3;
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t5_0;
-            const double S_y1 = sin_theta1*t5_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t5_1;
-            const double S_y2 = sin_theta2*t5_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t5_2;
-            const double S_y3 = sin_theta3*t5_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-            const double t6_0 = -x;
-            const double t6_1 = -y;
-            const double t6_2 = -z;
-            const double D11 = -S_x1 - t6_0;
-            const double D12 = -S_y1 - t6_1;
-            const double D13 = -S_z1 - t6_2;
-            const double D21 = -S_x2 - t6_0;
-            const double D22 = -S_y2 - t6_1;
-            const double D23 = -S_z2 - t6_2;
-            const double D31 = -S_x3 - t6_0;
-            const double D32 = -S_y3 - t6_1;
-            const double D33 = -S_z3 - t6_2;
-            /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
-            const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
-            const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
-            const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
-            /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
-            const double inv_jq1 = 1.0/jq1;
-            const double inv_jq2 = 1.0/jq2;
-            const double inv_jq3 = 1.0/jq3;
-            const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
-            const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
-            const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
-            /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
-            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
-            const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
-            /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
-            const double t10_0 = fabs(det_D);
-            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd)
-                    & isfinite(zd) & isfinite(phid));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t10_0 > det_limit)) &
-                    ((centre_normal_z*det_D > 0)))));
-            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t10_0 <=
-                    det_limit)));
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                    isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) | (singular)
-                    | (unreachable)))))));
-            const int t11_0 = ((invalid) | (nonfinite_output) | (unreachable));
-            const int t11_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_q1_checked = ((t11_0) ? NAN : q1);
-            const double out_q2_checked = ((t11_0) ? NAN : q2);
-            const double out_q3_checked = ((t11_0) ? NAN : q3);
-            const double out_q4_checked = ((t11_0) ? NAN : phi);
-            const double out_qd1_checked = ((t11_1) ? NAN : qd1);
-            const double out_qd2_checked = ((t11_1) ? NAN : qd2);
-            const double out_qd3_checked = ((t11_1) ? NAN : qd3);
-            const double out_qd4_checked = ((t11_1) ? NAN : phid);
-            out_q1_checked_b[k] = out_q1_checked;
-            out_q2_checked_b[k] = out_q2_checked;
-            out_q3_checked_b[k] = out_q3_checked;
-            out_q4_checked_b[k] = out_q4_checked;
-            out_qd1_checked_b[k] = out_qd1_checked;
-            out_qd2_checked_b[k] = out_qd2_checked;
-            out_qd3_checked_b[k] = out_qd3_checked;
-            out_qd4_checked_b[k] = out_qd4_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1
-                    - unreachable)*(2*singular)));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double x = x_b[k];
+                const double y = y_b[k];
+                const double z = z_b[k];
+                const double phi = 0.0;  /* no fourth axis */
+                const double xd = xd_b[k];
+                const double yd = yd_b[k];
+                const double zd = zd_b[k];
+                const double phid = 0.0;  /* no fourth axis */
+                /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+                const double t0_0 = x*x + y*y + z*z;
+                const double E1 = E0_1 + Ex_1*x + Ey_1*y;
+                const double F1 = Fz_1*z;
+                const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
+                const double E2 = E0_2 + Ex_2*x + Ey_2*y;
+                const double F2 = Fz_2*z;
+                const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
+                const double E3 = E0_3 + Ex_3*x + Ey_3*y;
+                const double F3 = Fz_3*z;
+                const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
+                /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+                const double rho_sq1 = E1*E1 + F1*F1;
+                const double disc1 = rho_sq1 - (G1*G1);
+                const double rho_sq2 = E2*E2 + F2*F2;
+                const double disc2 = rho_sq2 - (G2*G2);
+                const double rho_sq3 = E3*E3 + F3*F3;
+                const double disc3 = rho_sq3 - (G3*G3);
+                /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+                const double t2_0 = sqrt(disc1);
+                const double t2_1 = sqrt(disc2);
+                const double t2_2 = sqrt(disc3);
+                const double ik_x1 = -E1*G1 - F1*t2_0;
+                const double ik_y1 = E1*t2_0 - F1*G1;
+                const double ik_x2 = -E2*G2 - F2*t2_1;
+                const double ik_y2 = E2*t2_1 - F2*G2;
+                const double ik_x3 = -E3*G3 - F3*t2_2;
+                const double ik_y3 = E3*t2_2 - F3*G3;
+                /* crank angles q = atan2(Y, X) in (-pi, pi] */
+                const double q1 = atan2(ik_y1, ik_x1);
+                const double q2 = atan2(ik_y2, ik_x2);
+                const double q3 = atan2(ik_y3, ik_x3);
+                /* cos q_i, sin q_i = (X, Y) / rho^2 */
+                const double inv_rho_sq1 = 1.0/rho_sq1;
+                const double inv_rho_sq2 = 1.0/rho_sq2;
+                const double inv_rho_sq3 = 1.0/rho_sq3;
+                const double cos_q1 = ik_x1*inv_rho_sq1;
+                const double sin_q1 = ik_y1*inv_rho_sq1;
+                const double cos_q2 = ik_x2*inv_rho_sq2;
+                const double sin_q2 = ik_y2*inv_rho_sq2;
+                const double cos_q3 = ik_x3*inv_rho_sq3;
+                const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t5_0;
+                const double S_y1 = sin_theta1*t5_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t5_1;
+                const double S_y2 = sin_theta2*t5_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t5_2;
+                const double S_y3 = sin_theta3*t5_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+                const double t6_0 = -x;
+                const double t6_1 = -y;
+                const double t6_2 = -z;
+                const double D11 = -S_x1 - t6_0;
+                const double D12 = -S_y1 - t6_1;
+                const double D13 = -S_z1 - t6_2;
+                const double D21 = -S_x2 - t6_0;
+                const double D22 = -S_y2 - t6_1;
+                const double D23 = -S_z2 - t6_2;
+                const double D31 = -S_x3 - t6_0;
+                const double D32 = -S_y3 - t6_1;
+                const double D33 = -S_z3 - t6_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+                const double inv_jq1 = 1.0/jq1;
+                const double inv_jq2 = 1.0/jq2;
+                const double inv_jq3 = 1.0/jq3;
+                const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+                const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+                const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+                /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+                const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+                const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
+                /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+                const double t10_0 = fabs(det_D);
+                const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
+                        isfinite(yd) & isfinite(zd) & isfinite(phid));
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t10_0 > det_limit)) &
+                        ((centre_normal_z*det_D > 0)))));
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t10_0 <=
+                        det_limit)));
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
+                        (singular) | (unreachable)))))));
+                const int t11_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t11_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t11_0) ? NAN : q1);
+                const double out_q2_checked = ((t11_0) ? NAN : q2);
+                const double out_q3_checked = ((t11_0) ? NAN : q3);
+                const double out_qd1_checked = ((t11_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t11_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t11_1) ? NAN : qd3);
+                q[(start + k) * 3 + 0] = out_q1_checked;
+                q[(start + k) * 3 + 1] = out_q2_checked;
+                q[(start + k) * 3 + 2] = out_q3_checked;
+                qd[(start + k) * 3 + 0] = out_qd1_checked;
+                qd[(start + k) * 3 + 1] = out_qd2_checked;
+                qd[(start + k) * 3 + 2] = out_qd3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double x = x_b[k];
+                const double y = y_b[k];
+                const double z = z_b[k];
+                const double phi = phi_b[k];
+                const double xd = xd_b[k];
+                const double yd = yd_b[k];
+                const double zd = zd_b[k];
+                const double phid = phid_b[k];
+                /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+                const double t0_0 = x*x + y*y + z*z;
+                const double E1 = E0_1 + Ex_1*x + Ey_1*y;
+                const double F1 = Fz_1*z;
+                const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
+                const double E2 = E0_2 + Ex_2*x + Ey_2*y;
+                const double F2 = Fz_2*z;
+                const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
+                const double E3 = E0_3 + Ex_3*x + Ey_3*y;
+                const double F3 = Fz_3*z;
+                const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
+                /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+                const double rho_sq1 = E1*E1 + F1*F1;
+                const double disc1 = rho_sq1 - (G1*G1);
+                const double rho_sq2 = E2*E2 + F2*F2;
+                const double disc2 = rho_sq2 - (G2*G2);
+                const double rho_sq3 = E3*E3 + F3*F3;
+                const double disc3 = rho_sq3 - (G3*G3);
+                /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+                const double t2_0 = sqrt(disc1);
+                const double t2_1 = sqrt(disc2);
+                const double t2_2 = sqrt(disc3);
+                const double ik_x1 = -E1*G1 - F1*t2_0;
+                const double ik_y1 = E1*t2_0 - F1*G1;
+                const double ik_x2 = -E2*G2 - F2*t2_1;
+                const double ik_y2 = E2*t2_1 - F2*G2;
+                const double ik_x3 = -E3*G3 - F3*t2_2;
+                const double ik_y3 = E3*t2_2 - F3*G3;
+                /* crank angles q = atan2(Y, X) in (-pi, pi] */
+                const double q1 = atan2(ik_y1, ik_x1);
+                const double q2 = atan2(ik_y2, ik_x2);
+                const double q3 = atan2(ik_y3, ik_x3);
+                /* cos q_i, sin q_i = (X, Y) / rho^2 */
+                const double inv_rho_sq1 = 1.0/rho_sq1;
+                const double inv_rho_sq2 = 1.0/rho_sq2;
+                const double inv_rho_sq3 = 1.0/rho_sq3;
+                const double cos_q1 = ik_x1*inv_rho_sq1;
+                const double sin_q1 = ik_y1*inv_rho_sq1;
+                const double cos_q2 = ik_x2*inv_rho_sq2;
+                const double sin_q2 = ik_y2*inv_rho_sq2;
+                const double cos_q3 = ik_x3*inv_rho_sq3;
+                const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t5_0;
+                const double S_y1 = sin_theta1*t5_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t5_1;
+                const double S_y2 = sin_theta2*t5_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t5_2;
+                const double S_y3 = sin_theta3*t5_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+                const double t6_0 = -x;
+                const double t6_1 = -y;
+                const double t6_2 = -z;
+                const double D11 = -S_x1 - t6_0;
+                const double D12 = -S_y1 - t6_1;
+                const double D13 = -S_z1 - t6_2;
+                const double D21 = -S_x2 - t6_0;
+                const double D22 = -S_y2 - t6_1;
+                const double D23 = -S_z2 - t6_2;
+                const double D31 = -S_x3 - t6_0;
+                const double D32 = -S_y3 - t6_1;
+                const double D33 = -S_z3 - t6_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+                const double inv_jq1 = 1.0/jq1;
+                const double inv_jq2 = 1.0/jq2;
+                const double inv_jq3 = 1.0/jq3;
+                const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+                const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+                const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+                /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+                const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+                const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
+                /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+                const double t10_0 = fabs(det_D);
+                const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
+                        isfinite(yd) & isfinite(zd) & isfinite(phid));
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t10_0 > det_limit)) &
+                        ((centre_normal_z*det_D > 0)))));
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t10_0 <=
+                        det_limit)));
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
+                        (singular) | (unreachable)))))));
+                const int t11_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t11_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t11_0) ? NAN : q1);
+                const double out_q2_checked = ((t11_0) ? NAN : q2);
+                const double out_q3_checked = ((t11_0) ? NAN : q3);
+                const double out_q4_checked = ((t11_0) ? NAN : phi);
+                const double out_qd1_checked = ((t11_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t11_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t11_1) ? NAN : qd3);
+                const double out_qd4_checked = ((t11_1) ? NAN : phid);
+                q[(start + k) * 4 + 0] = out_q1_checked;
+                q[(start + k) * 4 + 1] = out_q2_checked;
+                q[(start + k) * 4 + 2] = out_q3_checked;
+                q[(start + k) * 4 + 3] = out_q4_checked;
+                qd[(start + k) * 4 + 0] = out_qd1_checked;
+                qd[(start + k) * 4 + 1] = out_qd2_checked;
+                qd[(start + k) * 4 + 2] = out_qd3_checked;
+                qd[(start + k) * 4 + 3] = out_qd4_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
-                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
-                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
-                qd[(start + k) * 3 + 0] = out_qd1_checked_b[k];
-                qd[(start + k) * 3 + 1] = out_qd2_checked_b[k];
-                qd[(start + k) * 3 + 2] = out_qd3_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
-                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
-                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
-                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
-                qd[(start + k) * 4 + 0] = out_qd1_checked_b[k];
-                qd[(start + k) * 4 + 1] = out_qd2_checked_b[k];
-                qd[(start + k) * 4 + 2] = out_qd3_checked_b[k];
-                qd[(start + k) * 4 + 3] = out_qd4_checked_b[k];
-            }
         }
     }
     return 0;
@@ -1693,15 +2146,12 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 x_b[k] = p[(start + k) * 3 + 0];
                 y_b[k] = p[(start + k) * 3 + 1];
                 z_b[k] = p[(start + k) * 3 + 2];
-                phi_b[k] = 0.0;  /* no fourth axis */
                 xd_b[k] = pd[(start + k) * 3 + 0];
                 yd_b[k] = pd[(start + k) * 3 + 1];
                 zd_b[k] = pd[(start + k) * 3 + 2];
-                phid_b[k] = 0.0;  /* no fourth axis */
                 xdd_b[k] = pdd[(start + k) * 3 + 0];
                 ydd_b[k] = pdd[(start + k) * 3 + 1];
                 zdd_b[k] = pdd[(start + k) * 3 + 2];
-                phidd_b[k] = 0.0;  /* no fourth axis */
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {
@@ -1719,218 +2169,342 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 phidd_b[k] = pdd[(start + k) * 4 + 3];
             }
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_q1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_q4_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qd4_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qdd1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qdd2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qdd3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_qdd4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double x = x_b[k];
-            const double y = y_b[k];
-            const double z = z_b[k];
-            const double phi = phi_b[k];
-            const double xd = xd_b[k];
-            const double yd = yd_b[k];
-            const double zd = zd_b[k];
-            const double phid = phid_b[k];
-            const double xdd = xdd_b[k];
-            const double ydd = ydd_b[k];
-            const double zdd = zdd_b[k];
-            const double phidd = phidd_b[k];
-            /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
-            const double t0_0 = x*x + y*y + z*z;
-            const double E1 = E0_1 + Ex_1*x + Ey_1*y;
-            const double F1 = Fz_1*z;
-            const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
-            const double E2 = E0_2 + Ex_2*x + Ey_2*y;
-            const double F2 = Fz_2*z;
-            const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
-            const double E3 = E0_3 + Ex_3*x + Ey_3*y;
-            const double F3 = Fz_3*z;
-            const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
-            /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
-            const double rho_sq1 = E1*E1 + F1*F1;
-            const double disc1 = rho_sq1 - (G1*G1);
-            const double rho_sq2 = E2*E2 + F2*F2;
-            const double disc2 = rho_sq2 - (G2*G2);
-            const double rho_sq3 = E3*E3 + F3*F3;
-            const double disc3 = rho_sq3 - (G3*G3);
-            /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
-            const double t2_0 = sqrt(disc1);
-            const double t2_1 = sqrt(disc2);
-            const double t2_2 = sqrt(disc3);
-            const double ik_x1 = -E1*G1 - F1*t2_0;
-            const double ik_y1 = E1*t2_0 - F1*G1;
-            const double ik_x2 = -E2*G2 - F2*t2_1;
-            const double ik_y2 = E2*t2_1 - F2*G2;
-            const double ik_x3 = -E3*G3 - F3*t2_2;
-            const double ik_y3 = E3*t2_2 - F3*G3;
-            /* crank angles q = atan2(Y, X) in (-pi, pi] */
-            const double q1 = atan2(ik_y1, ik_x1);
-            const double q2 = atan2(ik_y2, ik_x2);
-            const double q3 = atan2(ik_y3, ik_x3);
-            /* cos q_i, sin q_i = (X, Y) / rho^2 */
-            const double inv_rho_sq1 = 1.0/rho_sq1;
-            const double inv_rho_sq2 = 1.0/rho_sq2;
-            const double inv_rho_sq3 = 1.0/rho_sq3;
-            const double cos_q1 = ik_x1*inv_rho_sq1;
-            const double sin_q1 = ik_y1*inv_rho_sq1;
-            const double cos_q2 = ik_x2*inv_rho_sq2;
-            const double sin_q2 = ik_y2*inv_rho_sq2;
-            const double cos_q3 = ik_x3*inv_rho_sq3;
-            const double sin_q3 = ik_y3*inv_rho_sq3;
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t5_0;
-            const double S_y1 = sin_theta1*t5_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t5_1;
-            const double S_y2 = sin_theta2*t5_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t5_2;
-            const double S_y3 = sin_theta3*t5_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-            const double t6_0 = -x;
-            const double t6_1 = -y;
-            const double t6_2 = -z;
-            const double D11 = -S_x1 - t6_0;
-            const double D12 = -S_y1 - t6_1;
-            const double D13 = -S_z1 - t6_2;
-            const double D21 = -S_x2 - t6_0;
-            const double D22 = -S_y2 - t6_1;
-            const double D23 = -S_z2 - t6_2;
-            const double D31 = -S_x3 - t6_0;
-            const double D32 = -S_y3 - t6_1;
-            const double D33 = -S_z3 - t6_2;
-            /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
-            const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
-            const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
-            const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
-            /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
-            const double inv_jq1 = 1.0/jq1;
-            const double inv_jq2 = 1.0/jq2;
-            const double inv_jq3 = 1.0/jq3;
-            const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
-            const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
-            const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
-            /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
-            const double t9_0 = chain_l_a1*(qd1*qd1);
-            const double t9_1 = cos_q1*t9_0;
-            const double t9_2 = 2*zd;
-            const double t9_3 = chain_l_a1*qd1;
-            const double t9_4 = 2*xd;
-            const double t9_5 = sin_q1*t9_3;
-            const double t9_6 = 2*yd;
-            const double t9_7 = xd*xd + yd*yd + zd*zd;
-            const double t9_8 = chain_l_a2*(qd2*qd2);
-            const double t9_9 = cos_q2*t9_8;
-            const double t9_10 = chain_l_a2*qd2;
-            const double t9_11 = sin_q2*t9_10;
-            const double t9_12 = chain_l_a3*(qd3*qd3);
-            const double t9_13 = cos_q3*t9_12;
-            const double t9_14 = chain_l_a3*qd3;
-            const double t9_15 = sin_q3*t9_14;
-            const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 +
-                    cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y + sin_theta1*t9_5*t9_6
-                    + t9_7);
-            const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 +
-                    cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 +
-                    sin_theta2*t9_9*y + t9_7);
-            const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 +
-                    cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y +
-                    sin_theta3*t9_15*t9_6 + t9_7);
-            /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
-            const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
-            const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
-            /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
-            const double t11_0 = fabs(det_D);
-            const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) & isfinite(yd)
-                    & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) & isfinite(phidd));
-            const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
-                    ((centre_normal_z*det_D > 0)))));
-            const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
-                    det_limit)));
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                    isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
-                    isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
-            const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
-            const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_q1_checked = ((t12_0) ? NAN : q1);
-            const double out_q2_checked = ((t12_0) ? NAN : q2);
-            const double out_q3_checked = ((t12_0) ? NAN : q3);
-            const double out_q4_checked = ((t12_0) ? NAN : phi);
-            const double out_qd1_checked = ((t12_1) ? NAN : qd1);
-            const double out_qd2_checked = ((t12_1) ? NAN : qd2);
-            const double out_qd3_checked = ((t12_1) ? NAN : qd3);
-            const double out_qd4_checked = ((t12_1) ? NAN : phid);
-            const double out_qdd1_checked = ((t12_1) ? NAN : qdd1);
-            const double out_qdd2_checked = ((t12_1) ? NAN : qdd2);
-            const double out_qdd3_checked = ((t12_1) ? NAN : qdd3);
-            const double out_qdd4_checked = ((t12_1) ? NAN : phidd);
-            out_q1_checked_b[k] = out_q1_checked;
-            out_q2_checked_b[k] = out_q2_checked;
-            out_q3_checked_b[k] = out_q3_checked;
-            out_q4_checked_b[k] = out_q4_checked;
-            out_qd1_checked_b[k] = out_qd1_checked;
-            out_qd2_checked_b[k] = out_qd2_checked;
-            out_qd3_checked_b[k] = out_qd3_checked;
-            out_qd4_checked_b[k] = out_qd4_checked;
-            out_qdd1_checked_b[k] = out_qdd1_checked;
-            out_qdd2_checked_b[k] = out_qdd2_checked;
-            out_qdd3_checked_b[k] = out_qdd3_checked;
-            out_qdd4_checked_b[k] = out_qdd4_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable + (1
-                    - unreachable)*(2*singular)));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double x = x_b[k];
+                const double y = y_b[k];
+                const double z = z_b[k];
+                const double phi = 0.0;  /* no fourth axis */
+                const double xd = xd_b[k];
+                const double yd = yd_b[k];
+                const double zd = zd_b[k];
+                const double phid = 0.0;  /* no fourth axis */
+                const double xdd = xdd_b[k];
+                const double ydd = ydd_b[k];
+                const double zdd = zdd_b[k];
+                const double phidd = 0.0;  /* no fourth axis */
+                /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+                const double t0_0 = x*x + y*y + z*z;
+                const double E1 = E0_1 + Ex_1*x + Ey_1*y;
+                const double F1 = Fz_1*z;
+                const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
+                const double E2 = E0_2 + Ex_2*x + Ey_2*y;
+                const double F2 = Fz_2*z;
+                const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
+                const double E3 = E0_3 + Ex_3*x + Ey_3*y;
+                const double F3 = Fz_3*z;
+                const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
+                /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+                const double rho_sq1 = E1*E1 + F1*F1;
+                const double disc1 = rho_sq1 - (G1*G1);
+                const double rho_sq2 = E2*E2 + F2*F2;
+                const double disc2 = rho_sq2 - (G2*G2);
+                const double rho_sq3 = E3*E3 + F3*F3;
+                const double disc3 = rho_sq3 - (G3*G3);
+                /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+                const double t2_0 = sqrt(disc1);
+                const double t2_1 = sqrt(disc2);
+                const double t2_2 = sqrt(disc3);
+                const double ik_x1 = -E1*G1 - F1*t2_0;
+                const double ik_y1 = E1*t2_0 - F1*G1;
+                const double ik_x2 = -E2*G2 - F2*t2_1;
+                const double ik_y2 = E2*t2_1 - F2*G2;
+                const double ik_x3 = -E3*G3 - F3*t2_2;
+                const double ik_y3 = E3*t2_2 - F3*G3;
+                /* crank angles q = atan2(Y, X) in (-pi, pi] */
+                const double q1 = atan2(ik_y1, ik_x1);
+                const double q2 = atan2(ik_y2, ik_x2);
+                const double q3 = atan2(ik_y3, ik_x3);
+                /* cos q_i, sin q_i = (X, Y) / rho^2 */
+                const double inv_rho_sq1 = 1.0/rho_sq1;
+                const double inv_rho_sq2 = 1.0/rho_sq2;
+                const double inv_rho_sq3 = 1.0/rho_sq3;
+                const double cos_q1 = ik_x1*inv_rho_sq1;
+                const double sin_q1 = ik_y1*inv_rho_sq1;
+                const double cos_q2 = ik_x2*inv_rho_sq2;
+                const double sin_q2 = ik_y2*inv_rho_sq2;
+                const double cos_q3 = ik_x3*inv_rho_sq3;
+                const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t5_0;
+                const double S_y1 = sin_theta1*t5_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t5_1;
+                const double S_y2 = sin_theta2*t5_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t5_2;
+                const double S_y3 = sin_theta3*t5_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+                const double t6_0 = -x;
+                const double t6_1 = -y;
+                const double t6_2 = -z;
+                const double D11 = -S_x1 - t6_0;
+                const double D12 = -S_y1 - t6_1;
+                const double D13 = -S_z1 - t6_2;
+                const double D21 = -S_x2 - t6_0;
+                const double D22 = -S_y2 - t6_1;
+                const double D23 = -S_z2 - t6_2;
+                const double D31 = -S_x3 - t6_0;
+                const double D32 = -S_y3 - t6_1;
+                const double D33 = -S_z3 - t6_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+                const double inv_jq1 = 1.0/jq1;
+                const double inv_jq2 = 1.0/jq2;
+                const double inv_jq3 = 1.0/jq3;
+                const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+                const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+                const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+                /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
+                const double t9_0 = chain_l_a1*(qd1*qd1);
+                const double t9_1 = cos_q1*t9_0;
+                const double t9_2 = 2*zd;
+                const double t9_3 = chain_l_a1*qd1;
+                const double t9_4 = 2*xd;
+                const double t9_5 = sin_q1*t9_3;
+                const double t9_6 = 2*yd;
+                const double t9_7 = xd*xd + yd*yd + zd*zd;
+                const double t9_8 = chain_l_a2*(qd2*qd2);
+                const double t9_9 = cos_q2*t9_8;
+                const double t9_10 = chain_l_a2*qd2;
+                const double t9_11 = sin_q2*t9_10;
+                const double t9_12 = chain_l_a3*(qd3*qd3);
+                const double t9_13 = cos_q3*t9_12;
+                const double t9_14 = chain_l_a3*qd3;
+                const double t9_15 = sin_q3*t9_14;
+                const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 +
+                        cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y +
+                        sin_theta1*t9_5*t9_6 + t9_7);
+                const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 +
+                        cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 +
+                        sin_theta2*t9_9*y + t9_7);
+                const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 +
+                        cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y +
+                        sin_theta3*t9_15*t9_6 + t9_7);
+                /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+                const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+                const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
+                /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+                const double t11_0 = fabs(det_D);
+                const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
+                        isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) &
+                        isfinite(phidd));
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
+                        ((centre_normal_z*det_D > 0)))));
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
+                        det_limit)));
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
+                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t12_0) ? NAN : q1);
+                const double out_q2_checked = ((t12_0) ? NAN : q2);
+                const double out_q3_checked = ((t12_0) ? NAN : q3);
+                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
+                const double out_qdd1_checked = ((t12_1) ? NAN : qdd1);
+                const double out_qdd2_checked = ((t12_1) ? NAN : qdd2);
+                const double out_qdd3_checked = ((t12_1) ? NAN : qdd3);
+                q[(start + k) * 3 + 0] = out_q1_checked;
+                q[(start + k) * 3 + 1] = out_q2_checked;
+                q[(start + k) * 3 + 2] = out_q3_checked;
+                qd[(start + k) * 3 + 0] = out_qd1_checked;
+                qd[(start + k) * 3 + 1] = out_qd2_checked;
+                qd[(start + k) * 3 + 2] = out_qd3_checked;
+                qdd[(start + k) * 3 + 0] = out_qdd1_checked;
+                qdd[(start + k) * 3 + 1] = out_qdd2_checked;
+                qdd[(start + k) * 3 + 2] = out_qdd3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double x = x_b[k];
+                const double y = y_b[k];
+                const double z = z_b[k];
+                const double phi = phi_b[k];
+                const double xd = xd_b[k];
+                const double yd = yd_b[k];
+                const double zd = zd_b[k];
+                const double phid = phid_b[k];
+                const double xdd = xdd_b[k];
+                const double ydd = ydd_b[k];
+                const double zdd = zdd_b[k];
+                const double phidd = phidd_b[k];
+                /* crank equation E cos q + F sin q + G = 0 from eq. (1), per chain */
+                const double t0_0 = x*x + y*y + z*z;
+                const double E1 = E0_1 + Ex_1*x + Ey_1*y;
+                const double F1 = Fz_1*z;
+                const double G1 = G0_1 + Gx_1*x + Gy_1*y + t0_0;
+                const double E2 = E0_2 + Ex_2*x + Ey_2*y;
+                const double F2 = Fz_2*z;
+                const double G2 = G0_2 + Gx_2*x + Gy_2*y + t0_0;
+                const double E3 = E0_3 + Ex_3*x + Ey_3*y;
+                const double F3 = Fz_3*z;
+                const double G3 = G0_3 + Gx_3*x + Gy_3*y + t0_0;
+                /* rho^2 = E^2 + F^2 and the discriminant rho^2 - G^2 (< 0: unreachable, ~0: J_q singular) */
+                const double rho_sq1 = E1*E1 + F1*F1;
+                const double disc1 = rho_sq1 - (G1*G1);
+                const double rho_sq2 = E2*E2 + F2*F2;
+                const double disc2 = rho_sq2 - (G2*G2);
+                const double rho_sq3 = E3*E3 + F3*F3;
+                const double disc3 = rho_sq3 - (G3*G3);
+                /* elbow-out atan2 arguments (X, Y) = rho^2 (cos q, sin q), eq. (1) */
+                const double t2_0 = sqrt(disc1);
+                const double t2_1 = sqrt(disc2);
+                const double t2_2 = sqrt(disc3);
+                const double ik_x1 = -E1*G1 - F1*t2_0;
+                const double ik_y1 = E1*t2_0 - F1*G1;
+                const double ik_x2 = -E2*G2 - F2*t2_1;
+                const double ik_y2 = E2*t2_1 - F2*G2;
+                const double ik_x3 = -E3*G3 - F3*t2_2;
+                const double ik_y3 = E3*t2_2 - F3*G3;
+                /* crank angles q = atan2(Y, X) in (-pi, pi] */
+                const double q1 = atan2(ik_y1, ik_x1);
+                const double q2 = atan2(ik_y2, ik_x2);
+                const double q3 = atan2(ik_y3, ik_x3);
+                /* cos q_i, sin q_i = (X, Y) / rho^2 */
+                const double inv_rho_sq1 = 1.0/rho_sq1;
+                const double inv_rho_sq2 = 1.0/rho_sq2;
+                const double inv_rho_sq3 = 1.0/rho_sq3;
+                const double cos_q1 = ik_x1*inv_rho_sq1;
+                const double sin_q1 = ik_y1*inv_rho_sq1;
+                const double cos_q2 = ik_x2*inv_rho_sq2;
+                const double sin_q2 = ik_y2*inv_rho_sq2;
+                const double cos_q3 = ik_x3*inv_rho_sq3;
+                const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t5_0;
+                const double S_y1 = sin_theta1*t5_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t5_1;
+                const double S_y2 = sin_theta2*t5_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t5_2;
+                const double S_y3 = sin_theta3*t5_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
+                const double t6_0 = -x;
+                const double t6_1 = -y;
+                const double t6_2 = -z;
+                const double D11 = -S_x1 - t6_0;
+                const double D12 = -S_y1 - t6_1;
+                const double D13 = -S_z1 - t6_2;
+                const double D21 = -S_x2 - t6_0;
+                const double D22 = -S_y2 - t6_1;
+                const double D23 = -S_z2 - t6_2;
+                const double D31 = -S_x3 - t6_0;
+                const double D32 = -S_y3 - t6_1;
+                const double D33 = -S_z3 - t6_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
+                const double inv_jq1 = 1.0/jq1;
+                const double inv_jq2 = 1.0/jq2;
+                const double inv_jq3 = 1.0/jq3;
+                const double qd1 = inv_jq1*(D11*xd + D12*yd + D13*zd);
+                const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
+                const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
+                /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
+                const double t9_0 = chain_l_a1*(qd1*qd1);
+                const double t9_1 = cos_q1*t9_0;
+                const double t9_2 = 2*zd;
+                const double t9_3 = chain_l_a1*qd1;
+                const double t9_4 = 2*xd;
+                const double t9_5 = sin_q1*t9_3;
+                const double t9_6 = 2*yd;
+                const double t9_7 = xd*xd + yd*yd + zd*zd;
+                const double t9_8 = chain_l_a2*(qd2*qd2);
+                const double t9_9 = cos_q2*t9_8;
+                const double t9_10 = chain_l_a2*qd2;
+                const double t9_11 = sin_q2*t9_10;
+                const double t9_12 = chain_l_a3*(qd3*qd3);
+                const double t9_13 = cos_q3*t9_12;
+                const double t9_14 = chain_l_a3*qd3;
+                const double t9_15 = sin_q3*t9_14;
+                const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 +
+                        cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y +
+                        sin_theta1*t9_5*t9_6 + t9_7);
+                const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 +
+                        cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 +
+                        sin_theta2*t9_9*y + t9_7);
+                const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 +
+                        cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y +
+                        sin_theta3*t9_15*t9_6 + t9_7);
+                /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
+                const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
+                const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
+                /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
+                const double t11_0 = fabs(det_D);
+                const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
+                        isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) &
+                        isfinite(phidd));
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
+                        ((centre_normal_z*det_D > 0)))));
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
+                        det_limit)));
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
+                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t12_0) ? NAN : q1);
+                const double out_q2_checked = ((t12_0) ? NAN : q2);
+                const double out_q3_checked = ((t12_0) ? NAN : q3);
+                const double out_q4_checked = ((t12_0) ? NAN : phi);
+                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
+                const double out_qd4_checked = ((t12_1) ? NAN : phid);
+                const double out_qdd1_checked = ((t12_1) ? NAN : qdd1);
+                const double out_qdd2_checked = ((t12_1) ? NAN : qdd2);
+                const double out_qdd3_checked = ((t12_1) ? NAN : qdd3);
+                const double out_qdd4_checked = ((t12_1) ? NAN : phidd);
+                q[(start + k) * 4 + 0] = out_q1_checked;
+                q[(start + k) * 4 + 1] = out_q2_checked;
+                q[(start + k) * 4 + 2] = out_q3_checked;
+                q[(start + k) * 4 + 3] = out_q4_checked;
+                qd[(start + k) * 4 + 0] = out_qd1_checked;
+                qd[(start + k) * 4 + 1] = out_qd2_checked;
+                qd[(start + k) * 4 + 2] = out_qd3_checked;
+                qd[(start + k) * 4 + 3] = out_qd4_checked;
+                qdd[(start + k) * 4 + 0] = out_qdd1_checked;
+                qdd[(start + k) * 4 + 1] = out_qdd2_checked;
+                qdd[(start + k) * 4 + 2] = out_qdd3_checked;
+                qdd[(start + k) * 4 + 3] = out_qdd4_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 3 + 0] = out_q1_checked_b[k];
-                q[(start + k) * 3 + 1] = out_q2_checked_b[k];
-                q[(start + k) * 3 + 2] = out_q3_checked_b[k];
-                qd[(start + k) * 3 + 0] = out_qd1_checked_b[k];
-                qd[(start + k) * 3 + 1] = out_qd2_checked_b[k];
-                qd[(start + k) * 3 + 2] = out_qd3_checked_b[k];
-                qdd[(start + k) * 3 + 0] = out_qdd1_checked_b[k];
-                qdd[(start + k) * 3 + 1] = out_qdd2_checked_b[k];
-                qdd[(start + k) * 3 + 2] = out_qdd3_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                q[(start + k) * 4 + 0] = out_q1_checked_b[k];
-                q[(start + k) * 4 + 1] = out_q2_checked_b[k];
-                q[(start + k) * 4 + 2] = out_q3_checked_b[k];
-                q[(start + k) * 4 + 3] = out_q4_checked_b[k];
-                qd[(start + k) * 4 + 0] = out_qd1_checked_b[k];
-                qd[(start + k) * 4 + 1] = out_qd2_checked_b[k];
-                qd[(start + k) * 4 + 2] = out_qd3_checked_b[k];
-                qd[(start + k) * 4 + 3] = out_qd4_checked_b[k];
-                qdd[(start + k) * 4 + 0] = out_qdd1_checked_b[k];
-                qdd[(start + k) * 4 + 1] = out_qdd2_checked_b[k];
-                qdd[(start + k) * 4 + 2] = out_qdd3_checked_b[k];
-                qdd[(start + k) * 4 + 3] = out_qdd4_checked_b[k];
-            }
         }
     }
     return 0;
@@ -2595,15 +3169,12 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
-                q4_b[k] = 0.0;  /* no fourth axis */
                 qd1_b[k] = qd[(start + k) * 3 + 0];
                 qd2_b[k] = qd[(start + k) * 3 + 1];
                 qd3_b[k] = qd[(start + k) * 3 + 2];
-                qd4_b[k] = 0.0;  /* no fourth axis */
                 qdd1_b[k] = qdd[(start + k) * 3 + 0];
                 qdd2_b[k] = qdd[(start + k) * 3 + 1];
                 qdd3_b[k] = qdd[(start + k) * 3 + 2];
-                qdd4_b[k] = 0.0;  /* no fourth axis */
                 payload_b[k] = payload[(start + k) * 1 + 0];
             }
         } else {  /* axes == 4 */
@@ -2664,254 +3235,460 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
         for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double qd1 = qd1_b[k];
-            const double qd2 = qd2_b[k];
-            const double qd3 = qd3_b[k];
-            const double qd4 = qd4_b[k];
-            const double qdd1 = qdd1_b[k];
-            const double qdd2 = qdd2_b[k];
-            const double qdd3 = qdd3_b[k];
-            const double qdd4 = qdd4_b[k];
-            const double payload = payload_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
-            const double a_x = -S_x1 + S_x2;
-            const double a_y = -S_y1 + S_y2;
-            const double a_z = -S_z1 + S_z2;
-            const double b_x = -S_x1 + S_x3;
-            const double b_y = -S_y1 + S_y3;
-            const double b_z = -S_z1 + S_z3;
-            /* e = a x b, normal of the centre plane; its squared length */
-            const double e_x = a_y*b_z - a_z*b_y;
-            const double e_y = -a_x*b_z + a_z*b_x;
-            const double e_z = a_x*b_y - a_y*b_x;
-            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
-            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
-            const double inv_e_sq = 1.0/e_sq;
-            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
-            /* lower intersection with sphere 1, eqs. (22)-(26) */
-            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
-            /* platform position p, eq. (27) */
-            const double xi_x = e_x*lambda_ + x0_x;
-            const double xi_y = e_y*lambda_ + x0_y;
-            const double xi_z = e_z*lambda_ + x0_z;
-            const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
-                    isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) &
-                    isfinite(qdd4) & isfinite(payload));
-            const int collinear = (e_sq <= collinear_limit);
-            const int unreachable = (h_sq < 0);
-            const int singular = (fabs(det_D) <= det_limit);
-            /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-            const double t8_0 = -xi_x;
-            const double t8_1 = -xi_y;
-            const double t8_2 = -xi_z;
-            const double D11 = xi_x;
-            const double D12 = xi_y;
-            const double D13 = xi_z;
-            const double D21 = -a_x - t8_0;
-            const double D22 = -a_y - t8_1;
-            const double D23 = -a_z - t8_2;
-            const double D31 = -b_x - t8_0;
-            const double D32 = -b_y - t8_1;
-            const double D33 = -b_z - t8_2;
-            /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
-            const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
-            const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
-            const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
-            /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
-            const double adjD12 = -b_y*xi_z + b_z*xi_y;
-            const double adjD22 = b_x*xi_z - b_z*xi_x;
-            const double adjD32 = -b_x*xi_y + b_y*xi_x;
-            const double adjD13 = a_y*xi_z - a_z*xi_y;
-            const double adjD23 = -a_x*xi_z + a_z*xi_x;
-            const double adjD33 = a_x*xi_y - a_y*xi_x;
-            const double adjD11 = -adjD12 - adjD13 + e_x;
-            const double adjD21 = -adjD22 - adjD23 + e_y;
-            const double adjD31 = -adjD32 - adjD33 + e_z;
-            const double inv_det_D = 1.0/det_D;
-            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-            const double t11_0 = jq1*qd1;
-            const double t11_1 = jq2*qd2 - t11_0;
-            const double t11_2 = jq3*qd3 - t11_0;
-            const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-            const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-            const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
-            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
-             *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i and
-             *    acceleration a_B_i */
-            const double t12_0 = chain_l_a1*cos_q1;
-            const double t12_1 = chain_l_a1*sin_q1;
-            const double t12_2 = qd1*t12_1;
-            const double t12_3 = qd1*qd1;
-            const double t12_4 = chain_l_a2*cos_q2;
-            const double t12_5 = chain_l_a2*sin_q2;
-            const double t12_6 = qd2*t12_5;
-            const double t12_7 = qd2*qd2;
-            const double t12_8 = chain_l_a3*cos_q3;
-            const double t12_9 = chain_l_a3*sin_q3;
-            const double t12_10 = qd3*t12_9;
-            const double t12_11 = qd3*qd3;
-            const double t12_14 = l_a*sin_q1;
-            const double t12_15 = cos_theta1*t12_14;
-            const double t12_16 = sin_theta1*t12_14;
-            const double t12_17 = cos_q1*l_a;
-            const double t12_18 = t12_17*t12_3;
-            const double t12_19 = l_a*sin_q2;
-            const double t12_20 = cos_theta2*t12_19;
-            const double t12_21 = sin_theta2*t12_19;
-            const double t12_22 = cos_q2*l_a;
-            const double t12_23 = t12_22*t12_7;
-            const double t12_24 = l_a*sin_q3;
-            const double t12_25 = cos_theta3*t12_24;
-            const double t12_26 = sin_theta3*t12_24;
-            const double t12_27 = cos_q3*l_a;
-            const double t12_28 = t12_11*t12_27;
-            const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) - pow(qd1*t12_0
-                    + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-            const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) - pow(qd2*t12_4
-                    + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
-            const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
-                    pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
-            const double dB_x1 = -t12_15;
-            const double dB_y1 = -t12_16;
-            const double dB_z1 = -t12_17;
-            const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
-            const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
-            const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
-            const double dB_x2 = -t12_20;
-            const double dB_y2 = -t12_21;
-            const double dB_z2 = -t12_22;
-            const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
-            const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
-            const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
-            const double dB_x3 = -t12_25;
-            const double dB_y3 = -t12_26;
-            const double dB_z3 = -t12_27;
-            const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
-            const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
-            const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
-            const double t12_12 = -h1 + h2;
-            const double t12_13 = -h1 + h3;
-            const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
-            const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
-            const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
-            /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips, from
-             *    sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
-            const double t13_0 = (1.0/6.0)*m_b;
-            const double t13_1 = m_b + m_p + payload;
-            const double t13_2 = (3.0/2.0)*m_b + m_p + payload;
-            const double t13_3 = (1.0/3.0)*m_b;
-            const double t13_4 = (1.0/2.0)*m_b;
-            const double t13_5 = -g_x*t13_4 + t13_0*xdd;
-            const double t13_6 = -g_y*t13_4 + t13_0*ydd;
-            const double t13_7 = -g_z*t13_4 + t13_0*zdd;
-            const double F_x = aB_x1*t13_0 + aB_x2*t13_0 + aB_x3*t13_0 - g_x*t13_2 + t13_1*xdd;
-            const double F_y = aB_y1*t13_0 + aB_y2*t13_0 + aB_y3*t13_0 - g_y*t13_2 + t13_1*ydd;
-            const double F_z = aB_z1*t13_0 + aB_z2*t13_0 + aB_z3*t13_0 - g_z*t13_2 + t13_1*zdd;
-            const double f_x1 = aB_x1*t13_3 + t13_5;
-            const double f_y1 = aB_y1*t13_3 + t13_6;
-            const double f_z1 = aB_z1*t13_3 + t13_7;
-            const double f_x2 = aB_x2*t13_3 + t13_5;
-            const double f_y2 = aB_y2*t13_3 + t13_6;
-            const double f_z2 = aB_z2*t13_3 + t13_7;
-            const double f_x3 = aB_x3*t13_3 + t13_5;
-            const double f_y3 = aB_y3*t13_3 + t13_6;
-            const double f_z3 = aB_z3*t13_3 + t13_7;
-            /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
-            const double t14_0 = m_a*r_ca;
-            const double t14_1 = g_z*t14_0;
-            const double t14_2 = sin_q1*t14_0;
-            const double t14_3 = sin_q2*t14_0;
-            const double t14_4 = sin_q3*t14_0;
-            const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 + dB_z1*f_z1 +
-                    g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
-            const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 + dB_z2*f_z2 +
-                    g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
-            const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 + dB_z3*f_z3 +
-                    g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
-            /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
-            const double tau4 = I_4*qdd4;
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
-                    (!(((collinear) | (invalid) | (singular) | (unreachable)))));
-            const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_tau1_checked = ((t16_0) ? NAN : tau1);
-            const double out_tau2_checked = ((t16_0) ? NAN : tau2);
-            const double out_tau3_checked = ((t16_0) ? NAN : tau3);
-            const double out_tau4_checked = ((t16_0) ? NAN : tau4);
-            out_tau1_checked_b[k] = out_tau1_checked;
-            out_tau2_checked_b[k] = out_tau2_checked;
-            out_tau3_checked_b[k] = out_tau3_checked;
-            out_tau4_checked_b[k] = out_tau4_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1
-                    - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = 0.0;  /* no fourth axis */
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = 0.0;  /* no fourth axis */
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const double qdd4 = 0.0;  /* no fourth axis */
+                const double payload = payload_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3)
+                        & isfinite(qdd4) & isfinite(payload));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double adjD11 = -adjD12 - adjD13 + e_x;
+                const double adjD21 = -adjD22 - adjD23 + e_y;
+                const double adjD31 = -adjD32 - adjD33 + e_z;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
+                 *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
+                 *    and acceleration a_B_i */
+                const double t12_0 = chain_l_a1*cos_q1;
+                const double t12_1 = chain_l_a1*sin_q1;
+                const double t12_2 = qd1*t12_1;
+                const double t12_3 = qd1*qd1;
+                const double t12_4 = chain_l_a2*cos_q2;
+                const double t12_5 = chain_l_a2*sin_q2;
+                const double t12_6 = qd2*t12_5;
+                const double t12_7 = qd2*qd2;
+                const double t12_8 = chain_l_a3*cos_q3;
+                const double t12_9 = chain_l_a3*sin_q3;
+                const double t12_10 = qd3*t12_9;
+                const double t12_11 = qd3*qd3;
+                const double t12_14 = l_a*sin_q1;
+                const double t12_15 = cos_theta1*t12_14;
+                const double t12_16 = sin_theta1*t12_14;
+                const double t12_17 = cos_q1*l_a;
+                const double t12_18 = t12_17*t12_3;
+                const double t12_19 = l_a*sin_q2;
+                const double t12_20 = cos_theta2*t12_19;
+                const double t12_21 = sin_theta2*t12_19;
+                const double t12_22 = cos_q2*l_a;
+                const double t12_23 = t12_22*t12_7;
+                const double t12_24 = l_a*sin_q3;
+                const double t12_25 = cos_theta3*t12_24;
+                const double t12_26 = sin_theta3*t12_24;
+                const double t12_27 = cos_q3*l_a;
+                const double t12_28 = t12_11*t12_27;
+                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
+                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
+                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
+                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
+                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
+                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
+                const double dB_x1 = -t12_15;
+                const double dB_y1 = -t12_16;
+                const double dB_z1 = -t12_17;
+                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
+                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
+                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
+                const double dB_x2 = -t12_20;
+                const double dB_y2 = -t12_21;
+                const double dB_z2 = -t12_22;
+                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
+                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
+                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
+                const double dB_x3 = -t12_25;
+                const double dB_y3 = -t12_26;
+                const double dB_z3 = -t12_27;
+                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
+                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
+                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
+                const double t12_12 = -h1 + h2;
+                const double t12_13 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips,
+                 *    from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+                const double t13_0 = (1.0/6.0)*m_b;
+                const double t13_1 = m_b + m_p + payload;
+                const double t13_2 = (3.0/2.0)*m_b + m_p + payload;
+                const double t13_3 = (1.0/3.0)*m_b;
+                const double t13_4 = (1.0/2.0)*m_b;
+                const double t13_5 = -g_x*t13_4 + t13_0*xdd;
+                const double t13_6 = -g_y*t13_4 + t13_0*ydd;
+                const double t13_7 = -g_z*t13_4 + t13_0*zdd;
+                const double F_x = aB_x1*t13_0 + aB_x2*t13_0 + aB_x3*t13_0 - g_x*t13_2 + t13_1*xdd;
+                const double F_y = aB_y1*t13_0 + aB_y2*t13_0 + aB_y3*t13_0 - g_y*t13_2 + t13_1*ydd;
+                const double F_z = aB_z1*t13_0 + aB_z2*t13_0 + aB_z3*t13_0 - g_z*t13_2 + t13_1*zdd;
+                const double f_x1 = aB_x1*t13_3 + t13_5;
+                const double f_y1 = aB_y1*t13_3 + t13_6;
+                const double f_z1 = aB_z1*t13_3 + t13_7;
+                const double f_x2 = aB_x2*t13_3 + t13_5;
+                const double f_y2 = aB_y2*t13_3 + t13_6;
+                const double f_z2 = aB_z2*t13_3 + t13_7;
+                const double f_x3 = aB_x3*t13_3 + t13_5;
+                const double f_y3 = aB_y3*t13_3 + t13_6;
+                const double f_z3 = aB_z3*t13_3 + t13_7;
+                /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
+                const double t14_0 = m_a*r_ca;
+                const double t14_1 = g_z*t14_0;
+                const double t14_2 = sin_q1*t14_0;
+                const double t14_3 = sin_q2*t14_0;
+                const double t14_4 = sin_q3*t14_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+                const double tau4 = I_4*qdd4;
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
+                        (!(((collinear) | (invalid) | (singular) | (unreachable)))));
+                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
+                tau[(start + k) * 3 + 0] = out_tau1_checked;
+                tau[(start + k) * 3 + 1] = out_tau2_checked;
+                tau[(start + k) * 3 + 2] = out_tau3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = q4_b[k];
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = qd4_b[k];
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const double qdd4 = qdd4_b[k];
+                const double payload = payload_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3)
+                        & isfinite(qdd4) & isfinite(payload));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double adjD11 = -adjD12 - adjD13 + e_x;
+                const double adjD21 = -adjD22 - adjD23 + e_y;
+                const double adjD31 = -adjD32 - adjD33 + e_z;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
+                 *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
+                 *    and acceleration a_B_i */
+                const double t12_0 = chain_l_a1*cos_q1;
+                const double t12_1 = chain_l_a1*sin_q1;
+                const double t12_2 = qd1*t12_1;
+                const double t12_3 = qd1*qd1;
+                const double t12_4 = chain_l_a2*cos_q2;
+                const double t12_5 = chain_l_a2*sin_q2;
+                const double t12_6 = qd2*t12_5;
+                const double t12_7 = qd2*qd2;
+                const double t12_8 = chain_l_a3*cos_q3;
+                const double t12_9 = chain_l_a3*sin_q3;
+                const double t12_10 = qd3*t12_9;
+                const double t12_11 = qd3*qd3;
+                const double t12_14 = l_a*sin_q1;
+                const double t12_15 = cos_theta1*t12_14;
+                const double t12_16 = sin_theta1*t12_14;
+                const double t12_17 = cos_q1*l_a;
+                const double t12_18 = t12_17*t12_3;
+                const double t12_19 = l_a*sin_q2;
+                const double t12_20 = cos_theta2*t12_19;
+                const double t12_21 = sin_theta2*t12_19;
+                const double t12_22 = cos_q2*l_a;
+                const double t12_23 = t12_22*t12_7;
+                const double t12_24 = l_a*sin_q3;
+                const double t12_25 = cos_theta3*t12_24;
+                const double t12_26 = sin_theta3*t12_24;
+                const double t12_27 = cos_q3*l_a;
+                const double t12_28 = t12_11*t12_27;
+                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
+                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
+                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
+                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
+                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
+                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
+                const double dB_x1 = -t12_15;
+                const double dB_y1 = -t12_16;
+                const double dB_z1 = -t12_17;
+                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
+                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
+                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
+                const double dB_x2 = -t12_20;
+                const double dB_y2 = -t12_21;
+                const double dB_z2 = -t12_22;
+                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
+                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
+                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
+                const double dB_x3 = -t12_25;
+                const double dB_y3 = -t12_26;
+                const double dB_z3 = -t12_27;
+                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
+                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
+                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
+                const double t12_12 = -h1 + h2;
+                const double t12_13 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips,
+                 *    from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+                const double t13_0 = (1.0/6.0)*m_b;
+                const double t13_1 = m_b + m_p + payload;
+                const double t13_2 = (3.0/2.0)*m_b + m_p + payload;
+                const double t13_3 = (1.0/3.0)*m_b;
+                const double t13_4 = (1.0/2.0)*m_b;
+                const double t13_5 = -g_x*t13_4 + t13_0*xdd;
+                const double t13_6 = -g_y*t13_4 + t13_0*ydd;
+                const double t13_7 = -g_z*t13_4 + t13_0*zdd;
+                const double F_x = aB_x1*t13_0 + aB_x2*t13_0 + aB_x3*t13_0 - g_x*t13_2 + t13_1*xdd;
+                const double F_y = aB_y1*t13_0 + aB_y2*t13_0 + aB_y3*t13_0 - g_y*t13_2 + t13_1*ydd;
+                const double F_z = aB_z1*t13_0 + aB_z2*t13_0 + aB_z3*t13_0 - g_z*t13_2 + t13_1*zdd;
+                const double f_x1 = aB_x1*t13_3 + t13_5;
+                const double f_y1 = aB_y1*t13_3 + t13_6;
+                const double f_z1 = aB_z1*t13_3 + t13_7;
+                const double f_x2 = aB_x2*t13_3 + t13_5;
+                const double f_y2 = aB_y2*t13_3 + t13_6;
+                const double f_z2 = aB_z2*t13_3 + t13_7;
+                const double f_x3 = aB_x3*t13_3 + t13_5;
+                const double f_y3 = aB_y3*t13_3 + t13_6;
+                const double f_z3 = aB_z3*t13_3 + t13_7;
+                /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
+                const double t14_0 = m_a*r_ca;
+                const double t14_1 = g_z*t14_0;
+                const double t14_2 = sin_q1*t14_0;
+                const double t14_3 = sin_q2*t14_0;
+                const double t14_4 = sin_q3*t14_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+                const double tau4 = I_4*qdd4;
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
+                        (!(((collinear) | (invalid) | (singular) | (unreachable)))));
+                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
+                const double out_tau4_checked = ((t16_0) ? NAN : tau4);
+                tau[(start + k) * 4 + 0] = out_tau1_checked;
+                tau[(start + k) * 4 + 1] = out_tau2_checked;
+                tau[(start + k) * 4 + 2] = out_tau3_checked;
+                tau[(start + k) * 4 + 3] = out_tau4_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                tau[(start + k) * 3 + 0] = out_tau1_checked_b[k];
-                tau[(start + k) * 3 + 1] = out_tau2_checked_b[k];
-                tau[(start + k) * 3 + 2] = out_tau3_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                tau[(start + k) * 4 + 0] = out_tau1_checked_b[k];
-                tau[(start + k) * 4 + 1] = out_tau2_checked_b[k];
-                tau[(start + k) * 4 + 2] = out_tau3_checked_b[k];
-                tau[(start + k) * 4 + 3] = out_tau4_checked_b[k];
-            }
         }
     }
     return 0;
@@ -2983,15 +3760,12 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 q1_b[k] = q[(start + k) * 3 + 0];
                 q2_b[k] = q[(start + k) * 3 + 1];
                 q3_b[k] = q[(start + k) * 3 + 2];
-                q4_b[k] = 0.0;  /* no fourth axis */
                 qd1_b[k] = qd[(start + k) * 3 + 0];
                 qd2_b[k] = qd[(start + k) * 3 + 1];
                 qd3_b[k] = qd[(start + k) * 3 + 2];
-                qd4_b[k] = 0.0;  /* no fourth axis */
                 qdd1_b[k] = qdd[(start + k) * 3 + 0];
                 qdd2_b[k] = qdd[(start + k) * 3 + 1];
                 qdd3_b[k] = qdd[(start + k) * 3 + 2];
-                qdd4_b[k] = 0.0;  /* no fourth axis */
                 payload_b[k] = payload[(start + k) * 1 + 0];
             }
         } else {  /* axes == 4 */
@@ -3052,252 +3826,456 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
         for (size_t k = 0; k < m_v; ++k) {  /* loop: sin */
             sin_q3_b[k] = sin(q3_b[k]);
         }
-        /* kinematics, one point per iteration */
+        /* kinematics, one point per iteration, the results straight into the caller's rows
+         * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau1_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau2_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau3_checked_b[DELTAGEN_DELTA_BLOCK];
-        double out_tau4_checked_b[DELTAGEN_DELTA_BLOCK];
-        for (size_t k = 0; k < m; ++k) {  /* loop: points */
-            const double q1 = q1_b[k];
-            const double q2 = q2_b[k];
-            const double q3 = q3_b[k];
-            const double q4 = q4_b[k];
-            const double qd1 = qd1_b[k];
-            const double qd2 = qd2_b[k];
-            const double qd3 = qd3_b[k];
-            const double qd4 = qd4_b[k];
-            const double qdd1 = qdd1_b[k];
-            const double qdd2 = qdd2_b[k];
-            const double qdd3 = qdd3_b[k];
-            const double qdd4 = qdd4_b[k];
-            const double payload = payload_b[k];
-            const double cos_q1 = cos_q1_b[k];
-            const double sin_q1 = sin_q1_b[k];
-            const double cos_q2 = cos_q2_b[k];
-            const double sin_q2 = sin_q2_b[k];
-            const double cos_q3 = cos_q3_b[k];
-            const double sin_q3 = sin_q3_b[k];
-            /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
-            const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
-            const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
-            const double S_z3 = -chain_l_a3*sin_q3;
-            /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
-            const double a_x = -S_x1 + S_x2;
-            const double a_y = -S_y1 + S_y2;
-            const double a_z = -S_z1 + S_z2;
-            const double b_x = -S_x1 + S_x3;
-            const double b_y = -S_y1 + S_y3;
-            const double b_z = -S_z1 + S_z3;
-            /* e = a x b, normal of the centre plane; its squared length */
-            const double e_x = a_y*b_z - a_z*b_y;
-            const double e_y = -a_x*b_z + a_z*b_x;
-            const double e_z = a_x*b_y - a_y*b_x;
-            const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
-            /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
-            const double inv_e_sq = 1.0/e_sq;
-            /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
-            /* lower intersection with sphere 1, eqs. (22)-(26) */
-            const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
-            /* platform position p, eq. (27) */
-            const double xi_x = e_x*lambda_ + x0_x;
-            const double xi_y = e_y*lambda_ + x0_y;
-            const double xi_z = e_z*lambda_ + x0_z;
-            const double det_D = e_sq*lambda_;
-            /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
-            const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
-                    isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3) &
-                    isfinite(qdd4) & isfinite(payload));
-            const int collinear = (e_sq <= collinear_limit);
-            const int unreachable = (h_sq < 0);
-            const int singular = (fabs(det_D) <= det_limit);
-            /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-            const double t8_0 = -xi_x;
-            const double t8_1 = -xi_y;
-            const double t8_2 = -xi_z;
-            const double D11 = xi_x;
-            const double D12 = xi_y;
-            const double D13 = xi_z;
-            const double D21 = -a_x - t8_0;
-            const double D22 = -a_y - t8_1;
-            const double D23 = -a_z - t8_2;
-            const double D31 = -b_x - t8_0;
-            const double D32 = -b_y - t8_1;
-            const double D33 = -b_z - t8_2;
-            /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
-            const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
-            const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
-            const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
-            /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
-            const double adjD12 = -b_y*xi_z + b_z*xi_y;
-            const double adjD22 = b_x*xi_z - b_z*xi_x;
-            const double adjD32 = -b_x*xi_y + b_y*xi_x;
-            const double adjD13 = a_y*xi_z - a_z*xi_y;
-            const double adjD23 = -a_x*xi_z + a_z*xi_x;
-            const double adjD33 = a_x*xi_y - a_y*xi_x;
-            const double adjD11 = -adjD12 - adjD13 + e_x;
-            const double adjD21 = -adjD22 - adjD23 + e_y;
-            const double adjD31 = -adjD32 - adjD33 + e_z;
-            const double inv_det_D = 1.0/det_D;
-            /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-            const double t11_0 = jq1*qd1;
-            const double t11_1 = jq2*qd2 - t11_0;
-            const double t11_2 = jq3*qd3 - t11_0;
-            const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-            const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-            const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
-            /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
-             *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i and
-             *    acceleration a_B_i */
-            const double t12_0 = chain_l_a1*cos_q1;
-            const double t12_1 = chain_l_a1*sin_q1;
-            const double t12_2 = qd1*t12_1;
-            const double t12_3 = qd1*qd1;
-            const double t12_4 = chain_l_a2*cos_q2;
-            const double t12_5 = chain_l_a2*sin_q2;
-            const double t12_6 = qd2*t12_5;
-            const double t12_7 = qd2*qd2;
-            const double t12_8 = chain_l_a3*cos_q3;
-            const double t12_9 = chain_l_a3*sin_q3;
-            const double t12_10 = qd3*t12_9;
-            const double t12_11 = qd3*qd3;
-            const double t12_14 = l_a*sin_q1;
-            const double t12_15 = cos_theta1*t12_14;
-            const double t12_16 = sin_theta1*t12_14;
-            const double t12_17 = cos_q1*l_a;
-            const double t12_18 = t12_17*t12_3;
-            const double t12_19 = l_a*sin_q2;
-            const double t12_20 = cos_theta2*t12_19;
-            const double t12_21 = sin_theta2*t12_19;
-            const double t12_22 = cos_q2*l_a;
-            const double t12_23 = t12_22*t12_7;
-            const double t12_24 = l_a*sin_q3;
-            const double t12_25 = cos_theta3*t12_24;
-            const double t12_26 = sin_theta3*t12_24;
-            const double t12_27 = cos_q3*l_a;
-            const double t12_28 = t12_11*t12_27;
-            const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) - pow(qd1*t12_0
-                    + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-            const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) - pow(qd2*t12_4
-                    + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
-            const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
-                    pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
-            const double dB_x1 = -t12_15;
-            const double dB_y1 = -t12_16;
-            const double dB_z1 = -t12_17;
-            const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
-            const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
-            const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
-            const double dB_x2 = -t12_20;
-            const double dB_y2 = -t12_21;
-            const double dB_z2 = -t12_22;
-            const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
-            const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
-            const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
-            const double dB_x3 = -t12_25;
-            const double dB_y3 = -t12_26;
-            const double dB_z3 = -t12_27;
-            const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
-            const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
-            const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
-            const double t12_12 = -h1 + h2;
-            const double t12_13 = -h1 + h3;
-            const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
-            const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
-            const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
-            /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i on
-             *    the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
-            const double t13_0 = 3*m_b + 2*m_p + 2*payload;
-            const double t13_1 = (1.0/2.0)*t13_0;
-            const double t13_2 = (1.0/2.0)*m_b;
-            const double t13_3 = -g_x*t13_2;
-            const double t13_4 = -g_y*t13_2;
-            const double t13_5 = -g_z*t13_2;
-            const double F_x = -g_x*t13_1 + (1.0/2.0)*t13_0*xdd;
-            const double F_y = -g_y*t13_1 + (1.0/2.0)*t13_0*ydd;
-            const double F_z = -g_z*t13_1 + (1.0/2.0)*t13_0*zdd;
-            const double f_x1 = aB_x1*t13_2 + t13_3;
-            const double f_y1 = aB_y1*t13_2 + t13_4;
-            const double f_z1 = aB_z1*t13_2 + t13_5;
-            const double f_x2 = aB_x2*t13_2 + t13_3;
-            const double f_y2 = aB_y2*t13_2 + t13_4;
-            const double f_z2 = aB_z2*t13_2 + t13_5;
-            const double f_x3 = aB_x3*t13_2 + t13_3;
-            const double f_y3 = aB_y3*t13_2 + t13_4;
-            const double f_z3 = aB_z3*t13_2 + t13_5;
-            /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
-            const double t14_0 = m_a*r_ca;
-            const double t14_1 = g_z*t14_0;
-            const double t14_2 = sin_q1*t14_0;
-            const double t14_3 = sin_q2*t14_0;
-            const double t14_4 = sin_q3*t14_0;
-            const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 + dB_z1*f_z1 +
-                    g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
-            const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 + dB_z2*f_z2 +
-                    g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
-            const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 + dB_z3*f_z3 +
-                    g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
-            /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
-            const double tau4 = I_4*qdd4;
-            /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-            const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
-                    (!(((collinear) | (invalid) | (singular) | (unreachable)))));
-            const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_tau1_checked = ((t16_0) ? NAN : tau1);
-            const double out_tau2_checked = ((t16_0) ? NAN : tau2);
-            const double out_tau3_checked = ((t16_0) ? NAN : tau3);
-            const double out_tau4_checked = ((t16_0) ? NAN : tau4);
-            out_tau1_checked_b[k] = out_tau1_checked;
-            out_tau2_checked_b[k] = out_tau2_checked;
-            out_tau3_checked_b[k] = out_tau3_checked;
-            out_tau4_checked_b[k] = out_tau4_checked;
-            status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear + (1
-                    - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = 0.0;  /* no fourth axis */
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = 0.0;  /* no fourth axis */
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const double qdd4 = 0.0;  /* no fourth axis */
+                const double payload = payload_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3)
+                        & isfinite(qdd4) & isfinite(payload));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double adjD11 = -adjD12 - adjD13 + e_x;
+                const double adjD21 = -adjD22 - adjD23 + e_y;
+                const double adjD31 = -adjD32 - adjD33 + e_z;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
+                 *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
+                 *    and acceleration a_B_i */
+                const double t12_0 = chain_l_a1*cos_q1;
+                const double t12_1 = chain_l_a1*sin_q1;
+                const double t12_2 = qd1*t12_1;
+                const double t12_3 = qd1*qd1;
+                const double t12_4 = chain_l_a2*cos_q2;
+                const double t12_5 = chain_l_a2*sin_q2;
+                const double t12_6 = qd2*t12_5;
+                const double t12_7 = qd2*qd2;
+                const double t12_8 = chain_l_a3*cos_q3;
+                const double t12_9 = chain_l_a3*sin_q3;
+                const double t12_10 = qd3*t12_9;
+                const double t12_11 = qd3*qd3;
+                const double t12_14 = l_a*sin_q1;
+                const double t12_15 = cos_theta1*t12_14;
+                const double t12_16 = sin_theta1*t12_14;
+                const double t12_17 = cos_q1*l_a;
+                const double t12_18 = t12_17*t12_3;
+                const double t12_19 = l_a*sin_q2;
+                const double t12_20 = cos_theta2*t12_19;
+                const double t12_21 = sin_theta2*t12_19;
+                const double t12_22 = cos_q2*l_a;
+                const double t12_23 = t12_22*t12_7;
+                const double t12_24 = l_a*sin_q3;
+                const double t12_25 = cos_theta3*t12_24;
+                const double t12_26 = sin_theta3*t12_24;
+                const double t12_27 = cos_q3*l_a;
+                const double t12_28 = t12_11*t12_27;
+                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
+                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
+                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
+                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
+                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
+                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
+                const double dB_x1 = -t12_15;
+                const double dB_y1 = -t12_16;
+                const double dB_z1 = -t12_17;
+                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
+                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
+                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
+                const double dB_x2 = -t12_20;
+                const double dB_y2 = -t12_21;
+                const double dB_z2 = -t12_22;
+                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
+                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
+                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
+                const double dB_x3 = -t12_25;
+                const double dB_y3 = -t12_26;
+                const double dB_z3 = -t12_27;
+                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
+                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
+                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
+                const double t12_12 = -h1 + h2;
+                const double t12_13 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i
+                 *    on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+                const double t13_0 = 3*m_b + 2*m_p + 2*payload;
+                const double t13_1 = (1.0/2.0)*t13_0;
+                const double t13_2 = (1.0/2.0)*m_b;
+                const double t13_3 = -g_x*t13_2;
+                const double t13_4 = -g_y*t13_2;
+                const double t13_5 = -g_z*t13_2;
+                const double F_x = -g_x*t13_1 + (1.0/2.0)*t13_0*xdd;
+                const double F_y = -g_y*t13_1 + (1.0/2.0)*t13_0*ydd;
+                const double F_z = -g_z*t13_1 + (1.0/2.0)*t13_0*zdd;
+                const double f_x1 = aB_x1*t13_2 + t13_3;
+                const double f_y1 = aB_y1*t13_2 + t13_4;
+                const double f_z1 = aB_z1*t13_2 + t13_5;
+                const double f_x2 = aB_x2*t13_2 + t13_3;
+                const double f_y2 = aB_y2*t13_2 + t13_4;
+                const double f_z2 = aB_z2*t13_2 + t13_5;
+                const double f_x3 = aB_x3*t13_2 + t13_3;
+                const double f_y3 = aB_y3*t13_2 + t13_4;
+                const double f_z3 = aB_z3*t13_2 + t13_5;
+                /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
+                const double t14_0 = m_a*r_ca;
+                const double t14_1 = g_z*t14_0;
+                const double t14_2 = sin_q1*t14_0;
+                const double t14_3 = sin_q2*t14_0;
+                const double t14_4 = sin_q3*t14_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+                const double tau4 = I_4*qdd4;
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
+                        (!(((collinear) | (invalid) | (singular) | (unreachable)))));
+                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
+                tau[(start + k) * 3 + 0] = out_tau1_checked;
+                tau[(start + k) * 3 + 1] = out_tau2_checked;
+                tau[(start + k) * 3 + 2] = out_tau3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                const double q4 = q4_b[k];
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qd4 = qd4_b[k];
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const double qdd4 = qdd4_b[k];
+                const double payload = payload_b[k];
+                const double cos_q1 = cos_q1_b[k];
+                const double sin_q1 = sin_q1_b[k];
+                const double cos_q2 = cos_q2_b[k];
+                const double sin_q2 = sin_q2_b[k];
+                const double cos_q3 = cos_q3_b[k];
+                const double sin_q3 = sin_q3_b[k];
+                /* sphere centres S_i, eqs. (3)-(5) */
+                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
+                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
+                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
+                const double S_x1 = cos_theta1*t0_0;
+                const double S_y1 = sin_theta1*t0_0;
+                const double S_z1 = -chain_l_a1*sin_q1;
+                const double S_x2 = cos_theta2*t0_1;
+                const double S_y2 = sin_theta2*t0_1;
+                const double S_z2 = -chain_l_a2*sin_q2;
+                const double S_x3 = cos_theta3*t0_2;
+                const double S_y3 = sin_theta3*t0_2;
+                const double S_z3 = -chain_l_a3*sin_q3;
+                /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
+                const double a_x = -S_x1 + S_x2;
+                const double a_y = -S_y1 + S_y2;
+                const double a_z = -S_z1 + S_z2;
+                const double b_x = -S_x1 + S_x3;
+                const double b_y = -S_y1 + S_y3;
+                const double b_z = -S_z1 + S_z3;
+                /* e = a x b, normal of the centre plane; its squared length */
+                const double e_x = a_y*b_z - a_z*b_y;
+                const double e_y = -a_x*b_z + a_z*b_x;
+                const double e_z = a_x*b_y - a_y*b_x;
+                const double e_sq = e_x*e_x + e_y*e_y + e_z*e_z;
+                /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
+                const double inv_e_sq = 1.0/e_sq;
+                /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
+                const double t4_0 = chain_l_b1*chain_l_b1;
+                const double t4_1 = 2*e_z;
+                const double t4_3 = 2*e_y;
+                const double t4_5 = (1.0/4.0)*inv_e_sq;
+                const double t4_6 = 2*e_x;
+                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
+                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
+                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
+                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
+                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                /* lower intersection with sphere 1, eqs. (22)-(26) */
+                const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
+                /* platform position p, eq. (27) */
+                const double xi_x = e_x*lambda_ + x0_x;
+                const double xi_y = e_y*lambda_ + x0_y;
+                const double xi_z = e_z*lambda_ + x0_z;
+                const double det_D = e_sq*lambda_;
+                /* status flags: non-finite input, collinear centres, spheres apart, det J_p ~ 0 */
+                const int invalid = !(isfinite(q1) & isfinite(q2) & isfinite(q3) & isfinite(q4) & isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qd4) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3)
+                        & isfinite(qdd4) & isfinite(payload));
+                const int collinear = (e_sq <= collinear_limit);
+                const int unreachable = (h_sq < 0);
+                const int singular = (fabs(det_D) <= det_limit);
+                /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
+                const double t8_0 = -xi_x;
+                const double t8_1 = -xi_y;
+                const double t8_2 = -xi_z;
+                const double D11 = xi_x;
+                const double D12 = xi_y;
+                const double D13 = xi_z;
+                const double D21 = -a_x - t8_0;
+                const double D22 = -a_y - t8_1;
+                const double D23 = -a_z - t8_2;
+                const double D31 = -b_x - t8_0;
+                const double D32 = -b_y - t8_1;
+                const double D33 = -b_z - t8_2;
+                /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
+                const double rho1 = D11*cos_theta1 + D12*sin_theta1;
+                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double rho2 = D21*cos_theta2 + D22*sin_theta2;
+                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double rho3 = D31*cos_theta3 + D32*sin_theta3;
+                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
+                const double adjD12 = -b_y*xi_z + b_z*xi_y;
+                const double adjD22 = b_x*xi_z - b_z*xi_x;
+                const double adjD32 = -b_x*xi_y + b_y*xi_x;
+                const double adjD13 = a_y*xi_z - a_z*xi_y;
+                const double adjD23 = -a_x*xi_z + a_z*xi_x;
+                const double adjD33 = a_x*xi_y - a_y*xi_x;
+                const double adjD11 = -adjD12 - adjD13 + e_x;
+                const double adjD21 = -adjD22 - adjD23 + e_y;
+                const double adjD31 = -adjD32 - adjD33 + e_z;
+                const double inv_det_D = 1.0/det_D;
+                /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
+                const double t11_0 = jq1*qd1;
+                const double t11_1 = jq2*qd2 - t11_0;
+                const double t11_2 = jq3*qd3 - t11_0;
+                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
+                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
+                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
+                 *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
+                 *    and acceleration a_B_i */
+                const double t12_0 = chain_l_a1*cos_q1;
+                const double t12_1 = chain_l_a1*sin_q1;
+                const double t12_2 = qd1*t12_1;
+                const double t12_3 = qd1*qd1;
+                const double t12_4 = chain_l_a2*cos_q2;
+                const double t12_5 = chain_l_a2*sin_q2;
+                const double t12_6 = qd2*t12_5;
+                const double t12_7 = qd2*qd2;
+                const double t12_8 = chain_l_a3*cos_q3;
+                const double t12_9 = chain_l_a3*sin_q3;
+                const double t12_10 = qd3*t12_9;
+                const double t12_11 = qd3*qd3;
+                const double t12_14 = l_a*sin_q1;
+                const double t12_15 = cos_theta1*t12_14;
+                const double t12_16 = sin_theta1*t12_14;
+                const double t12_17 = cos_q1*l_a;
+                const double t12_18 = t12_17*t12_3;
+                const double t12_19 = l_a*sin_q2;
+                const double t12_20 = cos_theta2*t12_19;
+                const double t12_21 = sin_theta2*t12_19;
+                const double t12_22 = cos_q2*l_a;
+                const double t12_23 = t12_22*t12_7;
+                const double t12_24 = l_a*sin_q3;
+                const double t12_25 = cos_theta3*t12_24;
+                const double t12_26 = sin_theta3*t12_24;
+                const double t12_27 = cos_q3*l_a;
+                const double t12_28 = t12_11*t12_27;
+                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
+                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
+                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
+                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
+                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
+                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
+                const double dB_x1 = -t12_15;
+                const double dB_y1 = -t12_16;
+                const double dB_z1 = -t12_17;
+                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
+                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
+                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
+                const double dB_x2 = -t12_20;
+                const double dB_y2 = -t12_21;
+                const double dB_z2 = -t12_22;
+                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
+                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
+                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
+                const double dB_x3 = -t12_25;
+                const double dB_y3 = -t12_26;
+                const double dB_z3 = -t12_27;
+                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
+                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
+                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
+                const double t12_12 = -h1 + h2;
+                const double t12_13 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i
+                 *    on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
+                const double t13_0 = 3*m_b + 2*m_p + 2*payload;
+                const double t13_1 = (1.0/2.0)*t13_0;
+                const double t13_2 = (1.0/2.0)*m_b;
+                const double t13_3 = -g_x*t13_2;
+                const double t13_4 = -g_y*t13_2;
+                const double t13_5 = -g_z*t13_2;
+                const double F_x = -g_x*t13_1 + (1.0/2.0)*t13_0*xdd;
+                const double F_y = -g_y*t13_1 + (1.0/2.0)*t13_0*ydd;
+                const double F_z = -g_z*t13_1 + (1.0/2.0)*t13_0*zdd;
+                const double f_x1 = aB_x1*t13_2 + t13_3;
+                const double f_y1 = aB_y1*t13_2 + t13_4;
+                const double f_z1 = aB_z1*t13_2 + t13_5;
+                const double f_x2 = aB_x2*t13_2 + t13_3;
+                const double f_y2 = aB_y2*t13_2 + t13_4;
+                const double f_z2 = aB_z2*t13_2 + t13_5;
+                const double f_x3 = aB_x3*t13_2 + t13_3;
+                const double f_y3 = aB_y3*t13_2 + t13_4;
+                const double f_z3 = aB_z3*t13_2 + t13_5;
+                /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
+                const double t14_0 = m_a*r_ca;
+                const double t14_1 = g_z*t14_0;
+                const double t14_2 = sin_q1*t14_0;
+                const double t14_3 = sin_q2*t14_0;
+                const double t14_4 = sin_q3*t14_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
+                const double tau4 = I_4*qdd4;
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
+                        (!(((collinear) | (invalid) | (singular) | (unreachable)))));
+                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
+                const double out_tau4_checked = ((t16_0) ? NAN : tau4);
+                tau[(start + k) * 4 + 0] = out_tau1_checked;
+                tau[(start + k) * 4 + 1] = out_tau2_checked;
+                tau[(start + k) * 4 + 2] = out_tau3_checked;
+                tau[(start + k) * 4 + 3] = out_tau4_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(2*collinear
+                        + (1 - collinear)*(unreachable + (1 - unreachable)*(2*singular))));
+            }
         }
         /* statuses are narrowed in a loop of their own: mixing int8
          * stores into the loop above costs gcc about 2 ns per point */
         for (size_t k = 0; k < m; ++k) {
             status[start + k] = (int8_t)status_b[k];
-        }
-        /* scatter: results of this block into the caller's rows */
-        if (axes == 3) {
-            for (size_t k = 0; k < m; ++k) {
-                tau[(start + k) * 3 + 0] = out_tau1_checked_b[k];
-                tau[(start + k) * 3 + 1] = out_tau2_checked_b[k];
-                tau[(start + k) * 3 + 2] = out_tau3_checked_b[k];
-            }
-        } else {  /* axes == 4 */
-            for (size_t k = 0; k < m; ++k) {
-                tau[(start + k) * 4 + 0] = out_tau1_checked_b[k];
-                tau[(start + k) * 4 + 1] = out_tau2_checked_b[k];
-                tau[(start + k) * 4 + 2] = out_tau3_checked_b[k];
-                tau[(start + k) * 4 + 3] = out_tau4_checked_b[k];
-            }
         }
     }
     return 0;

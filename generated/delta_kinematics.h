@@ -80,8 +80,8 @@ typedef struct deltagen_delta_geometry {
  *                   (they are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 130 operations per point.
- * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 7424 bytes (7.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 11 block arrays (10 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 5376 bytes (5.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict q, double *restrict p, int8_t *restrict status);
@@ -103,8 +103,8 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 225 operations per point.
- * Stack: 23 block arrays (22 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 11520 bytes (11.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 7424 bytes (7.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict q, const double *restrict qd, double *restrict p, double *restrict pd,
@@ -129,8 +129,8 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
  *                   large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 315 operations per point.
- * Stack: 31 block arrays (30 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 15616 bytes (15.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict q, const double *restrict qd, const double *restrict qdd, double *restrict p,
@@ -170,8 +170,8 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 167 operations per point.
- * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 4352 bytes (4.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 5 block arrays (4 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 2304 bytes (2.2 KiB) at 64, plus scalars and spills: allow 40 % more.
  */
 int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict p, double *restrict q, int8_t *restrict status);
@@ -192,8 +192,8 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 237 operations per point.
- * Stack: 17 block arrays (16 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 8448 bytes (8.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 4352 bytes (4.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict p, const double *restrict pd, double *restrict q, double *restrict qd,
@@ -218,8 +218,8 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 345 operations per point.
- * Stack: 25 block arrays (24 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 6400 bytes (6.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict q,
@@ -269,8 +269,8 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 501 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 9984 bytes (9.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict q, const double *restrict qd, const double *restrict qdd,
@@ -296,8 +296,8 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 481 operations per point.
- * Stack: 24 block arrays (23 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 12032 bytes (11.8 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
+ * 9984 bytes (9.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict q, const double *restrict qd, const double *restrict qdd,

@@ -23,6 +23,7 @@ UNIT = Unit(
         "(report eq. (43): phi = q_4 and its derivatives pass through unchanged).",
     ),
     axes_choices=(3, 4),
+    direct_stores=True,
     axes_doc="3, or 4 with the fourth axis in the last column",
     struct_fields=DELTA_PARAMETERS,
 )

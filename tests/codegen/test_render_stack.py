@@ -46,5 +46,5 @@ def test_each_frame_is_its_arrays_plus_at_most_the_stated_margin(module, tmp_pat
     source_text = (generated_dir() / f"{module}.c").read_text()
     for name, (nbytes, margin) in figures.items():
         block = int(re.search(r"#define \w+_BLOCK (\d+)", source_text).group(1))
-        assert margin == stack_margin_percent(block) >= STACK_MARGIN_PERCENT
+        assert margin == stack_margin_percent(block, nbytes) >= STACK_MARGIN_PERCENT
         assert nbytes <= frames[name] <= nbytes * (1 + margin / 100), (name, frames[name], nbytes)
