@@ -152,6 +152,21 @@ def test_batched_kernels_vectorise(name):
 
 
 @needs_gcc
+@pytest.mark.parametrize("opt", ["-O3", "-O2"])
+def test_the_report_without_the_late_rtl_passes_is_the_whole_compiles(opt):
+    """The reports above are read from compiles without the RTL passes that run after the
+    vectoriser (vectorisation.AFTER_VECTORISER, most of gcc's time); the remarks of the
+    whole compile, with every pass, are the same ones, line for line, in a module with
+    vectorised and scalar loops (the linear delta core) at both build levels."""
+    text, path = _module("linear_delta_kinematics.c")
+    cut = vectorisation.vector_report(text, path, opt=opt)
+    whole = vectorisation.vector_report(text, path, opt=opt, whole=True)
+    assert cut == whole
+    assert any(r.kind == "optimized" and vectorisation.VECTORISED in r.message for r in cut)
+    assert any(r.kind == "missed" for r in cut)
+
+
+@needs_gcc
 def test_a_run_time_arm_module_vectorises_at_its_level():
     """Arms rendered at run time (URDF, DH files) are built at -O2 (native/serial.py);
     gcc 12's -O2 cost model alone left all their per-point loops scalar. The smallest
