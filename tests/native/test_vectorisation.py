@@ -13,9 +13,11 @@ The negative tests inject into the delta module the constructs that stop the vec
 (a non-finite guard on values already selected to NaN -- the form gcc 12 rejected with
 "no vectype for stmt" -- and an early exit) and check the checker reports them; the
 injections keep every line number, so the unchanged kernels' reports come from the cache.
-The arms' modules take gcc 10-60 s of CPU each at -O3 (reports are cached in
-DELTAGEN_CACHE), so they are marked slow; the delta core and the linear delta and tripod
-cores (small modules) are not.
+The reports come from compiles without the RTL passes that run after the vectoriser
+(vectorisation.AFTER_VECTORISER: a sixth of the CPU on a large unit; a test checks they give the
+whole compile's remarks); the arms' modules still take gcc 2-10 s of CPU each at -O3
+(reports are cached in DELTAGEN_CACHE), so they are marked slow; the delta core and the
+linear delta and tripod cores (small modules) are not.
 """
 
 from __future__ import annotations
