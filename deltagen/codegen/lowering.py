@@ -5,6 +5,7 @@ data for the Jinja templates."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import sympy as sp
 from sympy.core.relational import Relational
@@ -73,17 +74,32 @@ def _dependency_order(assignments) -> list:
     return ordered
 
 
-def lower_stage(
-    index: int, stage, prefix: str, real_type: str = "double"
-) -> tuple[LoweredStage, int]:
-    names = [sym for sym, _ in stage.assignments]
-    exprs = [sp.sympify(e) for _, e in stage.assignments]
+def _reduce(index: int, assignments: tuple, prefix: str) -> tuple[tuple, int]:
+    """The stage's assignments after CSE, in dependency order, and their operation count."""
+    names = [sym for sym, _ in assignments]
+    exprs = [sp.sympify(e) for _, e in assignments]
     temporaries = sp.numbered_symbols(f"{prefix}{index}_")
     replacements, reduced = sp.cse(exprs, symbols=temporaries, order="canonical")
     ordered = _dependency_order(list(replacements) + list(zip(names, reduced)))
-    statements = [_statement(s, e, real_type) for s, e in ordered]
     ops = sum(sp.count_ops(e) for _, e in replacements) + sum(sp.count_ops(e) for e in reduced)
-    return LoweredStage(stage.comment, tuple(statements)), int(ops)
+    return tuple(ordered), int(ops)
+
+
+# the same stages lowered again for another real type (an export in double and in float):
+# one CSE, only the printing differs
+_reduce_cached = lru_cache(maxsize=512)(_reduce)
+
+
+def lower_stage(
+    index: int, stage, prefix: str, real_type: str = "double"
+) -> tuple[LoweredStage, int]:
+    assignments = tuple(stage.assignments)
+    try:
+        ordered, ops = _reduce_cached(index, assignments, prefix)
+    except TypeError:  # an unhashable expression: not cached
+        ordered, ops = _reduce(index, assignments, prefix)
+    statements = [_statement(s, e, real_type) for s, e in ordered]
+    return LoweredStage(stage.comment, tuple(statements)), ops
 
 
 def keep_needed(needed: set, assignments) -> list:

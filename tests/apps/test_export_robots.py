@@ -6,10 +6,13 @@ URDF arm written here (the path of a robot file that is not bundled), each in do
 float32: the package alone in a clean folder builds with its Makefile and with its
 CMakeLists.txt, its example runs, and the numbers it prints are the Python API's (the
 numpy reference backend: independent of the C). The derivations are shared by the whole
-session (codegen.export caches them per process); each package compiles once per build
-system, at -O0 to keep the compile time down: the numbers are
-compared at the example's print precision, and the bit-level agreement of the optimised
-builds is tests/apps/test_export.py's.
+session (codegen.export caches them per process); each package compiles once, at -O0 to
+keep the compile time down: the numbers are compared at the example's print precision, and
+the bit-level agreement of the optimised builds is tests/apps/test_export.py's. The CMake
+build of a package reuses the objects its make build compiled from the same files with the
+same code-shaping flags (REUSE_OBJECTS, a compiler launcher in the manner of ccache: CMake
+still configures, compiles every other file, archives, links and runs the example); on its
+own (the make cell not run) it compiles everything.
 
 Then the calibration workflow: `deltagen calibrate` on synthetic measurements of a robot
 with encoder offsets writes a robot file; `deltagen export` of that file, built with make,
@@ -18,6 +21,7 @@ gives the numbers of `deltagen fk` and DeltaRobot.ik on the written file to 1e-1
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -130,13 +134,74 @@ def packages(tmp_path_factory, urdf_arm_file):
     return get
 
 
+# CMAKE_C_COMPILER_LAUNCHER of the CMake cells: the object of a source is copied from the
+# folder the make cell of the same package built (DELTAGEN_MADE_PACKAGE) when every .c and .h
+# there is byte-identical to the CMake build's and the flags that shape code (all but -I,
+# -W, -M and -o/-c) are the ones recorded there (.flags); else the compiler runs.
+REUSE_OBJECTS = r"""#!/bin/sh
+LC_ALL=C
+export LC_ALL
+store="$DELTAGEN_MADE_PACKAGE"
+cc=$1
+shift
+out=
+src=
+flags=
+skip=
+for a in "$@"; do
+    if [ -n "$skip" ]; then
+        [ "$skip" = o ] && out=$a
+        skip=
+        continue
+    fi
+    case "$a" in
+        -o) skip=o ;;
+        -MT | -MF | -MQ) skip=m ;;
+        -c | -MD | -MMD | -I* | -W*) ;;
+        *.c) src=$a ;;
+        *) flags="$flags $a" ;;
+    esac
+done
+if [ -n "$store" ] && [ -n "$src" ] && [ -n "$out" ]; then
+    name=$(basename "$src" .c)
+    shaped=$(printf '%s\n' $flags | sort | tr '\n' ' ')
+    same=yes
+    [ -f "$store/$name.o" ] && [ "$shaped" = "$(cat "$store/.flags")" ] || same=
+    for f in "$(dirname "$src")"/*.[ch]; do
+        [ -n "$same" ] && cmp -s "$f" "$store/$(basename "$f")" || same=
+    done
+    if [ -n "$same" ]; then
+        cp "$store/$name.o" "$out" && exit 0
+    fi
+fi
+exec "$cc" "$@"
+"""
+
+
+def _shaping(flags: str) -> str:
+    """The flags of a compile that shape the object (REUSE_OBJECTS's .flags)."""
+    return "".join(f"{f} " for f in sorted(flags.split()) if not f.startswith(("-W", "-I")))
+
+
+@pytest.fixture(scope="session")
+def reuse_objects(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("launcher") / "reuse_objects.sh"
+    path.write_text(REUSE_OBJECTS)
+    path.chmod(0o755)
+    return path
+
+
+#: (robot, real) -> the folder its make cell built (objects for the CMake cell)
+MADE: dict = {}
+
+
 def _clean_copy(src: Path, dst: Path) -> Path:
     shutil.copytree(src, dst)
     return dst
 
 
-def _run(cmd, cwd):
-    result = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600)
+def _run(cmd, cwd, env=None):
+    result = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600, env=env)
     assert result.returncode == 0, f"{' '.join(map(str, cmd))} failed:\n{result.stderr[-3000:]}"
     return result.stdout
 
@@ -201,21 +266,27 @@ def test_every_robot_builds_with_make_and_prints_the_api_numbers(packages, case,
     flags = "-std=c99 -O0 -Wall -Wextra" + (" -Wdouble-promotion" if case[1] == "float" else "")
     _run([MAKE, "-j2", f"CC={CC}", f"CFLAGS={flags}"], folder)
     _check_example(robot, _run(["./example"], folder), case[1])
+    (folder / ".flags").write_text(_shaping(flags))
+    MADE[case] = folder
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(CMAKE is None, reason="cmake is not installed")
 @pytest.mark.parametrize("case", CASES, ids=_ids)
-def test_every_robot_builds_with_cmake_and_prints_the_api_numbers(packages, case, tmp_path):
+def test_every_robot_builds_with_cmake_and_prints_the_api_numbers(
+    packages, case, tmp_path, reuse_objects
+):
     robot, result = packages(*case)
     folder = _clean_copy(result.out, tmp_path / "pkg")
     build = folder / "build"
+    env = dict(os.environ, DELTAGEN_MADE_PACKAGE=str(MADE.get(case, "")))
     _run(
         [CMAKE, "-S", str(folder), "-B", str(build), f"-DCMAKE_C_COMPILER={CC}",
-         "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0"],
-        folder,
+         "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0",
+         f"-DCMAKE_C_COMPILER_LAUNCHER={reuse_objects}"],
+        folder, env,
     )  # fmt: skip
-    _run([CMAKE, "--build", str(build), "-j2"], folder)
+    _run([CMAKE, "--build", str(build), "-j2"], folder, env)
     example = build / f"{_library(result)}_example"
     _check_example(robot, _run([str(example)], folder), case[1])
 

@@ -13,9 +13,11 @@ The negative tests inject into the delta module the constructs that stop the vec
 (a non-finite guard on values already selected to NaN -- the form gcc 12 rejected with
 "no vectype for stmt" -- and an early exit) and check the checker reports them; the
 injections keep every line number, so the unchanged kernels' reports come from the cache.
-The arms' modules take gcc 10-60 s of CPU each at -O3 (reports are cached in
-DELTAGEN_CACHE), so they are marked slow; the delta core and the linear delta and tripod
-cores (small modules) are not.
+The reports come from compiles without the RTL passes that run after the vectoriser
+(vectorisation.AFTER_VECTORISER: a sixth of the CPU on a large unit; a test checks they give the
+whole compile's remarks); the arms' modules still take gcc 2-10 s of CPU each at -O3
+(reports are cached in DELTAGEN_CACHE), so they are marked slow; the delta core and the
+linear delta and tripod cores (small modules) are not.
 """
 
 from __future__ import annotations
@@ -153,6 +155,21 @@ def test_batched_kernels_vectorise(name):
     assert any(r.kind == "optimized" for r in remarks), "gcc wrote no report: flags not applied?"
     problems = vectorisation.check(text, remarks, exempt=EXEMPT)
     assert not problems, f"{name}: gcc does not vectorise where it must:\n" + "\n".join(problems)
+
+
+@needs_gcc
+@pytest.mark.parametrize("opt", ["-O3", "-O2"])
+def test_the_report_without_the_late_rtl_passes_is_the_whole_compiles(opt):
+    """The reports above are read from compiles without the RTL passes that run after the
+    vectoriser (vectorisation.AFTER_VECTORISER, most of gcc's time); the remarks of the
+    whole compile, with every pass, are the same ones, line for line, in a module with
+    vectorised and scalar loops (the linear delta core) at both build levels."""
+    text, path = _module("linear_delta_kinematics.c")
+    cut = vectorisation.vector_report(text, path, opt=opt)
+    whole = vectorisation.vector_report(text, path, opt=opt, whole=True)
+    assert cut == whole
+    assert any(r.kind == "optimized" and vectorisation.VECTORISED in r.message for r in cut)
+    assert any(r.kind == "missed" for r in cut)
 
 
 @needs_gcc
