@@ -382,6 +382,43 @@ def test_the_all_ok_shortcut_after_the_threads(delta):
         delta.fk(q)
 
 
+# The measurement runs in a fresh interpreter: in a long pytest worker the allocator may
+# hand back pages an earlier test already touched (another library's malloc settings, a
+# retained heap), and then no thread faults anything in and the claim cannot be observed.
+_FIRST_TOUCH = """
+import json, resource, threading
+import numpy as np
+from cffi import FFI
+from deltagen.native import parallel
+
+ffi = FFI()
+n = 4 * parallel.PIECE_ROWS  # 32 MB of (n, 16) outputs
+q = np.zeros((n, 1))
+met = threading.Barrier(2, timeout=10)
+first = threading.local()
+faults = []
+
+def fake_kernel(geometry, rows, q_rows, out, status):
+    if not getattr(first, "done", False):  # each thread's first piece waits for the
+        first.done = True  # other's: both threads take pieces
+        met.wait()
+    before = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+    np.frombuffer(ffi.buffer(out), dtype=np.float64)[:] = 1.0
+    np.frombuffer(ffi.buffer(status), dtype=np.int8)[:] = 0
+    after = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+    faults.append((threading.current_thread().name, after - before))
+    return 0
+
+caller = threading.current_thread().name
+start = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
+out, status = parallel.run_batch(ffi, fake_kernel, None, [q], [16], 2)
+outside = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt - start
+outside -= sum(f for name, f in faults if name == caller)
+print(json.dumps({"ok": bool((out == 1.0).all() and (status == 0).all()), "faults": faults,
+                  "outside": outside, "pieces": len(parallel.pieces(n, 2))}))
+"""
+
+
 @pytest.mark.skipif(not hasattr(__import__("resource"), "RUSAGE_THREAD"), reason="Linux only")
 def test_fresh_outputs_are_first_touched_by_the_threads_that_compute_them():
     """run_batch allocates its outputs without touching them, so a fresh page is faulted
@@ -390,36 +427,20 @@ def test_fresh_outputs_are_first_touched_by_the_threads_that_compute_them():
     (a fill or a zeroing pass in run_batch would do it in the caller). A fake kernel writes
     its rows and counts the minor page faults of its own thread (getrusage RUSAGE_THREAD):
     every piece faults pages in, in both threads, and the caller faults few outside its
-    pieces."""
-    import resource
+    pieces. Measured in a fresh interpreter (_FIRST_TOUCH)."""
+    import json
+    import subprocess
+    import sys
 
-    from cffi import FFI
-
-    ffi = FFI()
-    n = 4 * parallel.PIECE_ROWS  # 32 MB of (n, 16) outputs: pieces of 8 MB
-    q = np.zeros((n, 1))
-    met = threading.Barrier(2, timeout=10)
-    first = threading.local()
-    faults: list[tuple[str, int]] = []
-
-    def fake_kernel(geometry, rows, q_rows, out, status):
-        if not getattr(first, "done", False):  # each thread's first piece waits for the
-            first.done = True  # other's: both threads take pieces
-            met.wait()
-        before = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
-        np.frombuffer(ffi.buffer(out), dtype=np.float64)[:] = 1.0
-        np.frombuffer(ffi.buffer(status), dtype=np.int8)[:] = 0
-        after = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
-        faults.append((threading.current_thread().name, after - before))
-        return 0
-
-    caller = threading.current_thread().name
-    start = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt
-    out, status = parallel.run_batch(ffi, fake_kernel, None, [q], [16], 2)
-    outside = resource.getrusage(resource.RUSAGE_THREAD).ru_minflt - start
-    outside -= sum(f for name, f in faults if name == caller)
-    assert (out == 1.0).all() and (status == 0).all()
-    assert len(faults) == len(parallel.pieces(n, 2)) >= 4
+    run = subprocess.run(
+        [sys.executable, "-c", _FIRST_TOUCH], capture_output=True, text=True, timeout=120
+    )
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout)
+    faults = [tuple(f) for f in result["faults"]]
+    outside = result["outside"]
+    assert result["ok"]
+    assert len(faults) == result["pieces"] >= 4
     assert all(f > 0 for _, f in faults), faults  # every piece met fresh pages
     assert len({name for name, _ in faults}) == 2
     assert outside < sum(f for _, f in faults) / 4, (outside, faults)
