@@ -261,11 +261,13 @@ def test_cli_sweep_at_a_non_dask_address_ends_quickly_without_allocating(tmp_pat
 def test_ctrl_c_ends_a_sweep_with_130_and_no_traceback(tmp_path):
     spec = tmp_path / "long.toml"
     spec.write_text(SPEC.replace("n = 4", "n = 4096").replace("step = 0.12", "step = 0.05"))
-    # Ctrl-C's disposition as a terminal gives it: a child inherits an ignored SIGINT, and
-    # Python then never raises KeyboardInterrupt (a library run earlier in this pytest
-    # worker may have left SIGINT ignored)
+    # Ctrl-C's disposition and mask as a terminal gives them: a child inherits an ignored
+    # SIGINT, and Python then never raises KeyboardInterrupt, and it inherits a blocked
+    # SIGINT, which then stays pending (a library run earlier in this pytest worker may have
+    # left SIGINT ignored or blocked; the full suite's workers timed out both ways)
     code = (
         "import signal, sys\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
+        "signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})\n"
         "from deltagen.cli import main\nprint('ready', flush=True)\n"
         "sys.exit(main(sys.argv[1:]))"
     )
@@ -281,7 +283,14 @@ def test_ctrl_c_ends_a_sweep_with_130_and_no_traceback(tmp_path):
         assert proc.stdout.readline().strip() == "ready"
         time.sleep(1.0)  # let the sweep get under way (4096 designs take minutes)
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
+        try:
+            _, err = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:  # say what the child did with the signal
+            with open(f"/proc/{proc.pid}/status") as f:
+                masks = f.read().splitlines()
+            pytest.fail(
+                "no exit 60 s after SIGINT: " + "; ".join(m for m in masks if m[:3] == "Sig")
+            )
     finally:
         if proc.poll() is None:
             proc.kill()
