@@ -426,7 +426,7 @@ def test_fresh_outputs_are_first_touched_by_the_threads_that_compute_them():
     rows: that work is shared by the threads, not done by the caller alone before them
     (a fill or a zeroing pass in run_batch would do it in the caller). A fake kernel writes
     its rows and counts the minor page faults of its own thread (getrusage RUSAGE_THREAD):
-    every piece faults pages in, in both threads, and the caller faults few outside its
+    both threads fault pages in, and the caller faults few outside its
     pieces. Measured in a fresh interpreter (_FIRST_TOUCH)."""
     import json
     import subprocess
@@ -441,8 +441,12 @@ def test_fresh_outputs_are_first_touched_by_the_threads_that_compute_them():
     outside = result["outside"]
     assert result["ok"]
     assert len(faults) == result["pieces"] >= 4
-    assert all(f > 0 for _, f in faults), faults  # every piece met fresh pages
-    assert len({name for name, _ in faults}) == 2
+    # each thread faulted fresh pages in (not every piece: with transparent huge pages one
+    # 2 MiB fault may cover a small tail piece a neighbour's write already faulted in)
+    per_thread: dict[str, int] = {}
+    for name, f in faults:
+        per_thread[name] = per_thread.get(name, 0) + f
+    assert len(per_thread) == 2 and all(f > 0 for f in per_thread.values()), faults
     assert outside < sum(f for _, f in faults) / 4, (outside, faults)
 
 
