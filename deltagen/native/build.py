@@ -236,22 +236,39 @@ def _load_cached(module_name: str, build):
     with _GUARD:
         if module_name in _LOADED:
             return _LOADED[module_name]
-        key_lock = _KEY_LOCKS.setdefault(module_name, threading.Lock())
-    with key_lock:
-        with _GUARD:
+    with _locked_entry(module_name) as root:
+        with _GUARD:  # another thread of this process loaded it while this one waited
             if module_name in _LOADED:
                 return _LOADED[module_name]
-        root = usable_cache_dir()
         target = root / module_name
         shared_object = target / f"{module_name}{importlib.machinery.EXTENSION_SUFFIXES[0]}"
-        with _process_lock(root, module_name):
-            if not _verified(target, shared_object):
-                _discard(target)
-                build(target, shared_object.name)
-            module = _import(module_name, shared_object)
-        with _GUARD:
-            _LOADED[module_name] = module
-        return module
+        _ensure_built(target, shared_object, lambda t: build(t, shared_object.name))
+        module = _import(module_name, shared_object)
+    with _GUARD:
+        _LOADED[module_name] = module
+    return module
+
+
+@contextlib.contextmanager
+def _locked_entry(key: str):
+    """Hold both locks of the cache key ``key`` (this process's thread lock, then the lock
+    file across processes) and yield the cache root: the one place a cache entry is
+    checked, built or read (the module doc, "One build per key at a time")."""
+    with _GUARD:
+        key_lock = _KEY_LOCKS.setdefault(key, threading.Lock())
+    with key_lock:
+        root = usable_cache_dir()
+        with _process_lock(root, key):
+            yield root
+
+
+def _ensure_built(target: Path, artifact: Path, build) -> None:
+    """With the entry's locks held (:func:`_locked_entry`): leave ``target`` alone when its
+    manifest matches ``artifact``, else move it aside and ``build(target)`` it afresh -- a
+    damaged entry is rebuilt, never used."""
+    if not _verified(target, artifact):
+        _discard(target)
+        build(target)
 
 
 def _import(module_name: str, shared_object: Path):
@@ -425,20 +442,14 @@ def _runtime_object(source: Path, opt: str, work: Path) -> Path:
             shutil.rmtree(scratch, ignore_errors=True)
 
     copy = work / object_name
-    with _GUARD:
-        key_lock = _KEY_LOCKS.setdefault(entry, threading.Lock())
-    with key_lock:
-        root = usable_cache_dir()
+    with _locked_entry(entry) as root:
         target = root / entry
-        with _process_lock(root, entry):
-            for _attempt in range(2):
-                if not _verified(target, target / object_name):
-                    _discard(target)
-                    build_object(target)
-                shutil.copyfile(target / object_name, copy)
-                if _verified(target, copy):  # the linked bytes are the manifest's
-                    return copy
-                _discard(target)
+        for _attempt in range(2):
+            _ensure_built(target, target / object_name, build_object)
+            shutil.copyfile(target / object_name, copy)
+            if _verified(target, copy):  # the linked bytes are the manifest's
+                return copy
+            _discard(target)
     raise BuildError(f"the runtime object {target / object_name} changed while it was copied")
 
 

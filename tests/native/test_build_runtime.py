@@ -191,3 +191,71 @@ def test_a_runtime_object_that_does_not_compile_names_the_file(
         build.load("tiny", "tiny", _tiny(tmp_path / "a", "broken"), opt="-O2")
     assert "this is not C" in str(info.value) or "error" in str(info.value)
     assert _objects(private_cache) == []  # nothing half-written published
+
+
+def test_an_object_that_changes_while_copied_is_rebuilt_not_linked(
+    tmp_path, private_cache, monkeypatch
+):
+    """The entry verifies, then its bytes change before the copy the link reads is taken
+    (another process truncating it, say): the copy fails its manifest check, so the entry
+    is moved aside and rebuilt under the same locks, and the module links the rebuilt
+    object (native/build.py, "The runtime compiled once": the linked file is a copy
+    checked against the manifest)."""
+    build.load("tiny", "tiny", _tiny(tmp_path / "a", "copied a"), opt="-O2")
+    good = _object(private_cache).read_bytes()
+    copyfile = shutil.copyfile
+    damaged = []
+
+    def copy_after_damage(src, dst, *args, **kwargs):
+        if str(src).endswith("deltagen_linalg.o") and not damaged:
+            damaged.append(src)
+            with open(src, "r+b") as f:  # the entry's own file, after it verified
+                f.truncate(len(good) // 3)
+        return copyfile(src, dst, *args, **kwargs)
+
+    monkeypatch.setattr(shutil, "copyfile", copy_after_damage)
+    module = build.load("tiny", "tiny", _tiny(tmp_path / "b", "copied b"), opt="-O2")
+    assert len(damaged) == 1  # the damage happened, inside the build of module b
+    _solves(module)
+    rebuilt = _object(private_cache)
+    assert build._verified(rebuilt.parent, rebuilt)
+    assert rebuilt.read_bytes() == good
+
+
+# builds a tiny module over the runtime in a subprocess (the cache from DELTAGEN_CACHE)
+RUNTIME_LOADER = """
+import sys
+from deltagen.native import build
+module = build.load("tiny", "tiny", sys.argv[1], opt="-O2")
+print(module.lib.tiny_gauss)
+"""
+
+
+def test_processes_building_two_modules_at_once_share_one_object(tmp_path, private_cache):
+    """Two processes each cold-build their own module at once; both need the runtime
+    object: one builds it under the lock file, the other waits and links it (the module
+    doc, "One build per key at a time")."""
+    import os
+    import subprocess
+    import sys
+
+    folders = [_tiny(tmp_path / str(k), f"process {k}") for k in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", RUNTIME_LOADER, str(folder)],
+            env=dict(os.environ, DELTAGEN_CACHE=str(private_cache)),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for folder in folders
+    ]
+    for proc in procs:
+        out, err = proc.communicate(timeout=300)
+        assert proc.returncode == 0, err[-2000:]
+        assert "tiny_gauss" in out
+    (entry,) = _objects(private_cache)
+    assert build._verified(entry, entry / "deltagen_linalg.o")
+    assert not [p for p in private_cache.iterdir() if ".bad." in p.name]
+    for folder in folders:  # and each module solves, loaded here from the cache
+        _solves(build.load("tiny", "tiny", folder, opt="-O2"))
