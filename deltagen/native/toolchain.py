@@ -179,19 +179,23 @@ def python_include() -> str:
 # ---------------------------------------------------------------- running
 
 
-def run(command: list[str], cwd: Path | str, what: str) -> subprocess.CompletedProcess[str]:
-    """Run one compiler (or a program it built) in ``cwd`` with :data:`TIMEOUT_S`, output
-    captured, no standard input: the CompletedProcess. BuildError naming the program when it
-    is not found, or naming ``what`` when it took too long."""
+def run(
+    command: list[str], cwd: Path | str | None, what: str, timeout: float | None = None
+) -> subprocess.CompletedProcess[str]:
+    """Run one compiler (or a program it built) in ``cwd`` (None: this process's folder, for
+    a run that reads and writes no file) with ``timeout`` seconds (default
+    :data:`TIMEOUT_S`), output captured, no standard input: the CompletedProcess. BuildError
+    naming the program when it is not found, or naming ``what`` when it took too long."""
     import subprocess
 
+    limit = TIMEOUT_S if timeout is None else timeout
     try:
         return subprocess.run(
             command,
             cwd=cwd,
             capture_output=True,
             text=True,
-            timeout=TIMEOUT_S,
+            timeout=limit,
             stdin=subprocess.DEVNULL,
         )
     except FileNotFoundError as exc:
@@ -200,7 +204,7 @@ def run(command: list[str], cwd: Path | str, what: str) -> subprocess.CompletedP
             "backend='reference', which needs none)"
         ) from exc
     except subprocess.TimeoutExpired as exc:
-        raise BuildError(f"compiling {what} took over {TIMEOUT_S} s; gave up") from exc
+        raise BuildError(f"compiling {what} took over {limit} s; gave up") from exc
 
 
 def message(proc: subprocess.CompletedProcess[str]) -> str:

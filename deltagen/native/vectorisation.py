@@ -31,7 +31,6 @@ import hashlib
 import platform
 import re
 import shlex
-import subprocess
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -138,7 +137,7 @@ def unavailable() -> str | None:
         return f"the vectorisation check covers x86-64 builds; this machine is {platform.machine()}"
     try:
         version = _compiler_version()
-    except (OSError, subprocess.SubprocessError) as exc:
+    except (toolchain.BuildError, OSError) as exc:  # not found, failed, timed out, not runnable
         return f"no C compiler to ask ({exc})"
     if "gcc" not in version.lower() and "free software foundation" not in version.lower():
         return f"the compiler is not gcc ({version.splitlines()[0]!r}): no -fopt-info report"
@@ -148,10 +147,10 @@ def unavailable() -> str | None:
 
 
 def _compiler_version() -> str:
-    command = toolchain.host_command()
-    proc = subprocess.run(
-        [command[0], "--version"], capture_output=True, text=True, timeout=60, check=True
-    )
+    """The host compiler's ``--version`` text; BuildError when it cannot be run or fails."""
+    command = [toolchain.host_compiler(), "--version"]
+    proc = toolchain.run(command, None, shlex.join(command), timeout=60)
+    toolchain.require_success(proc, command, f"asking {command[0]} its version")
     return proc.stdout
 
 
@@ -198,21 +197,13 @@ def vector_report(
         with tempfile.TemporaryDirectory(prefix="deltagen-vec.") as work:
             path = Path(work) / f"{source.stem}.unit.c"
             path.write_text(unit)
+            what = f"{source.name} (line {piece[0]}) for its vectoriser report"
             for cut in ((),) if whole else (AFTER_VECTORISER, ()):
-                proc = subprocess.run(
-                    command + [*cut, "-c", str(path), "-o", str(Path(work) / "unit.o")],
-                    capture_output=True,
-                    text=True,
-                    timeout=toolchain.TIMEOUT_S,
-                    stdin=subprocess.DEVNULL,
-                )
+                unit_command = [*command, *cut, "-c", str(path), "-o", str(Path(work) / "unit.o")]
+                proc = toolchain.run(unit_command, work, what)
                 if proc.returncode == 0:
                     break
-        if proc.returncode != 0:
-            raise toolchain.BuildError(
-                f"compiling {source.name} (line {piece[0]}) for its vectoriser report "
-                f"failed (exit {proc.returncode}):\n{proc.stderr[-4000:]}"
-            )
+            toolchain.require_success(proc, unit_command, f"compiling {what}")
         partial = stored.with_suffix(f".{id(piece)}.tmp")
         partial.write_text(proc.stderr)
         partial.replace(stored)  # whole or absent: a reader never sees half a report

@@ -22,11 +22,14 @@ linear delta and tripod cores (small modules) are not.
 
 from __future__ import annotations
 
+import platform
 import re
+import shutil
+import stat
 
 import pytest
 
-from deltagen.native import vectorisation
+from deltagen.native import toolchain, vectorisation
 from deltagen.paths import generated_dir
 
 #: kernels (or "kernel/loop") gcc may leave scalar, and why
@@ -232,3 +235,85 @@ def test_an_early_exit_is_caught():
     assert len(problems) == 2, problems
     assert problems[0].startswith(f"deltagen_delta_fk_vel: the cos loop at line {cos_loop.line}")
     assert problems[1].startswith("deltagen_delta_ik: the points loop at line")
+
+
+def _fake_compiler(folder, body: str) -> str:
+    """An executable shell script in ``folder`` standing for the compiler (``$CC``)."""
+    script = folder / "fake-cc"
+    script.write_text("#!/bin/sh\n" + body)
+    script.chmod(script.stat().st_mode | stat.S_IXUSR)
+    return str(script)
+
+
+x86_64_only = pytest.mark.skipif(
+    platform.machine() not in ("x86_64", "AMD64"), reason="the check covers x86-64 builds only"
+)
+
+
+@x86_64_only
+@pytest.mark.parametrize("how", ["missing", "fails", "not_executable"])
+def test_unavailable_names_a_compiler_it_cannot_ask(tmp_path, monkeypatch, how):
+    """No compiler, one whose ``--version`` fails, one that cannot be run: a reason, never
+    an exception (the tests above are skipped with it)."""
+    if how == "missing":
+        cc = str(tmp_path / "no-such-cc")
+    elif how == "fails":
+        cc = _fake_compiler(tmp_path, "echo 'fake-cc: broken' >&2\nexit 3\n")
+    else:
+        cc = str(tmp_path / "plain-file")
+        (tmp_path / "plain-file").write_text("not a program\n")
+    monkeypatch.setenv("CC", cc)
+    reason = vectorisation.unavailable()
+    assert isinstance(reason, str) and reason.startswith("no C compiler to ask"), reason
+    if how == "fails":
+        assert "exit 3" in reason and "fake-cc: broken" in reason
+
+
+@x86_64_only
+def test_unavailable_names_a_compiler_that_is_not_gcc(tmp_path, monkeypatch):
+    monkeypatch.setenv("CC", _fake_compiler(tmp_path, "echo 'clang version 17.0.6'\n"))
+    reason = vectorisation.unavailable()
+    assert reason is not None and "not gcc" in reason and "clang version 17" in reason
+
+
+@needs_gcc
+def test_a_compiler_that_refuses_the_rtl_cut_is_asked_again_without_it(
+    tmp_path, monkeypatch, private_cache
+):
+    """A gcc that rejects the ``-fdisable-rtl-*`` options (AFTER_VECTORISER) gets the
+    unit again without them: the report is then the whole compile's, as the real gcc
+    gives it with ``whole=True``."""
+    text, path = _module("linear_delta_kinematics.c")
+    whole = vectorisation.vector_report(text, path, opt="-O2", whole=True)
+    real = shutil.which(toolchain.host_compiler())
+    assert real is not None
+    log = tmp_path / "calls.log"
+    body = (
+        f'case "$*" in *-fdisable-rtl-*) echo cut >> "{log}"; '
+        'echo "error: unrecognized option" >&2; exit 1;; esac\n'
+        f'case "$*" in *" -c "*) echo plain >> "{log}";; esac\n'
+        f'exec "{real}" "$@"\n'
+    )
+    monkeypatch.setenv("CC", _fake_compiler(tmp_path, body))
+    retried = vectorisation.vector_report(text, path, opt="-O2")
+    assert retried == whole
+    calls = log.read_text().split()
+    units = len(vectorisation.kernels(text, "deltagen_linear_delta"))
+    assert calls.count("cut") == units and calls.count("plain") == units
+
+
+@needs_gcc
+def test_a_unit_that_does_not_compile_names_the_module_and_line(
+    tmp_path, monkeypatch, private_cache
+):
+    """A unit gcc rejects with and without the RTL cut: BuildError naming the module, the
+    unit's first line and the compiler's own text."""
+    body = 'case "$*" in *" -c "*) echo "error: refused by the fake compiler" >&2; exit 1;; esac\n'
+    body += f'exec "{shutil.which(toolchain.host_compiler())}" "$@"\n'
+    monkeypatch.setenv("CC", _fake_compiler(tmp_path, body))
+    text, path = _module("linear_delta_kinematics.c")
+    with pytest.raises(toolchain.BuildError) as info:
+        vectorisation.vector_report(text, path)
+    message = str(info.value)
+    assert "linear_delta_kinematics.c (line " in message and "vectoriser report" in message
+    assert "refused by the fake compiler" in message
