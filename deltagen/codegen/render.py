@@ -36,9 +36,16 @@ class _CTemplate(jinja2.Template):
 def environment(real_type: str = "double") -> jinja2.Environment:
     """The template environment; its ``ctype`` filter maps a port's or statement's
     "double" to the real type of the build (uint8_t flags and ints stay). C output is
-    wrapped to ``layout.WIDTH`` columns (``_CTemplate``)."""
+    wrapped to ``layout.WIDTH`` columns (``_CTemplate``). One per real type and template
+    folder, shared: each parses a template once (Jinja's own cache; an edited file is
+    read again), where an environment per module parsed them for every module."""
+    return _environment(real_type, str(template_dir()))
+
+
+@functools.lru_cache(maxsize=4)  # double and float, and a test's own template folder
+def _environment(real_type: str, folder: str) -> jinja2.Environment:
     env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(template_dir())),
+        loader=jinja2.FileSystemLoader(folder),
         undefined=jinja2.StrictUndefined,
         keep_trailing_newline=True,
         trim_blocks=True,

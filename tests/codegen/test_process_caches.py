@@ -1,12 +1,17 @@
-"""What codegen keeps between the modules of one process (docs/architecture.md, section 3):
-a kernel lowered in double and then in float does its stage CSE once (only the printing
-differs), within a bounded cache."""
+"""What codegen keeps between the modules of one process (docs/architecture.md, sections 3
+and 4): a kernel lowered in double and then in float does its stage CSE once (only the
+printing differs), within a bounded cache; the Jinja environment is one per real type and
+template folder, and an edited template is still read again."""
 
 from __future__ import annotations
 
+import os
+import shutil
+
 import sympy as sp
 
-from deltagen.codegen import lowering
+from deltagen import paths
+from deltagen.codegen import lowering, render
 from deltagen.derive.kernel import Kernel, Port, Stage
 
 x, y, a, b, s = sp.symbols("x y a b s", real=True)
@@ -45,3 +50,31 @@ def test_double_then_float_lowers_each_stage_once():
     assert "sinf(" in printed and "sin(" in " ".join(
         st.expr for g in double.stages for st in g.statements
     )
+
+
+def test_one_environment_per_real_type_and_template_folder(tmp_path, monkeypatch):
+    double, single = render.environment("double"), render.environment("float")
+    assert render.environment("double") is double and render.environment("float") is single
+    assert double is not single
+    assert double.filters["ctype"]("double") == "double"
+    assert single.filters["ctype"]("double") == "float"
+    assert single.filters["ctype"]("uint8_t") == "uint8_t"
+    copy = tmp_path / "templates"
+    shutil.copytree(paths.template_dir(), copy)
+    monkeypatch.setattr(render, "template_dir", lambda: copy)
+    other = render.environment("double")
+    assert other is not double and other.loader.searchpath == [str(copy)]
+
+
+def test_an_edited_template_is_read_again(tmp_path, monkeypatch):
+    """The shared environment parses a template once, and again when its file changes."""
+    copy = tmp_path / "templates"
+    copy.mkdir()
+    page = copy / "page.txt.j2"
+    page.write_text("first {{ value }}\n")
+    monkeypatch.setattr(render, "template_dir", lambda: copy)
+    assert render.environment().get_template("page.txt.j2").render(value=1) == "first 1\n"
+    page.write_text("second {{ value }}\n")
+    stamp = page.stat().st_mtime + 10  # a later modification time, whatever the clock's grain
+    os.utime(page, (stamp, stamp))
+    assert render.environment().get_template("page.txt.j2").render(value=2) == "second 2\n"
