@@ -14,6 +14,7 @@ import os
 import re
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import delta_oracles
@@ -417,7 +418,10 @@ def shared_object(cwd: Path, name: str, flags) -> Path:
     whole test run and every pytest-xdist worker: kept in the suite's build cache under a
     key of the flags, the source and the headers it includes, built under a file lock (one
     worker compiles, the others wait and reuse it). For the big modules several drivers
-    link (the Puma 560's under the sanitizers)."""
+    link (the Puma 560's under the sanitizers), and the strict objects of tests/c/ that
+    tests/codegen/test_render_stack.py reads the frames of: every object is compiled with
+    -fstack-usage (an extra output, the code is the same), its frame sizes next to it
+    (``obj.with_suffix(".su")``)."""
     import fcntl
 
     digest = hashlib.sha256(repr((GCC, list(flags), name)).encode())
@@ -436,10 +440,28 @@ def shared_object(cwd: Path, name: str, flags) -> Path:
     with open(folder / f"{obj.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not obj.exists():
-            partial = folder / f"{obj.name}.{os.getpid()}.tmp"
-            compile_c([name], partial, flags=[*flags, "-c"], cwd=cwd, libs=())
-            os.replace(partial, obj)
+            work = Path(tempfile.mkdtemp(dir=folder, prefix=f".{obj.stem}."))
+            try:
+                partial = work / obj.name
+                flags = [*flags, "-fstack-usage", "-c"]
+                compile_c([name], partial, flags=flags, cwd=cwd, libs=())
+                os.replace(partial.with_suffix(".su"), obj.with_suffix(".su"))
+                os.replace(partial, obj)  # last: the object marks a complete entry
+            finally:
+                shutil.rmtree(work, ignore_errors=True)
     return obj
+
+
+def private_sources(folder: Path) -> Path:
+    """``folder`` filled with a copy of generated/ and of the runtime C (every .c and .h), so
+    a concurrent regeneration cannot race the compiles of a test."""
+    from deltagen import paths
+
+    for path in paths.generated_dir().glob("*.[ch]"):
+        shutil.copy(path, folder / path.name)
+    for path in paths.runtime_dir().glob("deltagen_*.[ch]"):
+        shutil.copy(path, folder / path.name)
+    return folder
 
 
 # ------------------------------------------- the C on its own (tests/c/test_standalone*.py)

@@ -220,8 +220,9 @@ window.addEventListener("load", function () { setTimeout(function () {
 
 
 def _chromium(page, tmp_path, screenshot=None):
-    """Load a page in headless Chromium with an error recorder injected first in <head>;
-    returns (errors list, number of plotly SVG layers, stderr)."""
+    """Load a page in headless Chromium with an error recorder injected first in <head>
+    (and take its screenshot in the same run when asked); returns (errors list, number of
+    plotly SVG layers, stderr)."""
     import json
     import re
     import subprocess
@@ -243,17 +244,14 @@ def _chromium(page, tmp_path, screenshot=None):
         "--virtual-time-budget=15000",
         "--window-size=1000,700",
     ]
+    # one browser start: the DOM (with the recorder's report) and the screenshot of the same
+    # load (the page as drawn, plus the report's one line of text)
+    shot = [] if screenshot is None else [f"--screenshot={screenshot}"]
     run = subprocess.run(
-        base + ["--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=180
+        base + ["--dump-dom", *shot, probe.as_uri()], capture_output=True, text=True, timeout=180
     )
     found = re.search(r"ERRORS=(\[.*?\]) PLOTS=(\d+)", run.stdout)
     assert found, f"no report from the page; chromium stderr:\n{run.stderr[-2000:]}"
-    if screenshot is not None:
-        subprocess.run(
-            base + [f"--screenshot={screenshot}", page.as_uri()],
-            capture_output=True,
-            timeout=180,
-        )
     return json.loads(found.group(1)), int(found.group(2)), run.stderr
 
 
@@ -302,7 +300,7 @@ def test_delta_skeleton_has_rods_of_length_l_b(robot):
         assert np.linalg.norm(C - B) == pytest.approx(g.l_b, rel=1e-9)
 
 
-@pytest.mark.slow  # two browser starts, ~30 s on 2 busy cores
+@pytest.mark.slow  # two browser starts (the page with its screenshot, the bad page)
 def test_the_page_loads_in_headless_chromium_without_errors(pictures, tmp_path):
     import os
 

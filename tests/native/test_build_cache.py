@@ -359,10 +359,12 @@ def test_optimisation_level_is_part_of_the_key_and_the_command(tiny, private_cac
 
 @pytest.mark.slow
 def test_o2_and_o3_give_the_same_bits(monkeypatch):
-    """The Puma 560's checked-in module (kinematics, closed-form and numerical IK, dynamics)
-    built at -O2 gives the same doubles as at -O3 (the level of modules rendered at run
-    time, native/serial.py: no level may change a floating-point result without
-    -ffast-math and with FMA contraction off under -std=c99)."""
+    """A checked-in module with every kind of kernel (kinematics with sin/cos loops,
+    closed-form IK, dynamics) built at -O2 gives the same doubles as at -O3 (the level of
+    modules rendered at run time, native/serial.py: no level may change a floating-point
+    result without -ffast-math and with FMA contraction off under -std=c99). The Miskolc
+    RRRR arm: the Puma 560's kernel set (fk, jacobian, jacobian_dot, ik_all, inverse
+    dynamics, mass matrix, ...) in half its C, so the -O2 build costs half a Puma's."""
     import numpy as np
 
     from deltagen import SerialRobot
@@ -370,16 +372,21 @@ def test_o2_and_o3_give_the_same_bits(monkeypatch):
 
     # the suite's cache: the -O3 module is the one the other tests load (built once per
     # run), only the -O2 one is this test's own
-    arm = SerialRobot.load("puma560", threads=1)
+    arm = SerialRobot.load("miskolc_rrrr", threads=1)
+    prefix, dof = "deltagen_miskolc_rrrr", arm.n
     # the checked-in module as a whole (on a cold cache the arm itself starts from its
     # parts, native/serial.py: load_dynamics would be the dynamics part, without fk)
     modules = [native_serial.complete_module(arm.description)]
     monkeypatch.setattr(native_serial, "_opt", lambda folder: "-O2")
     modules.append(native_serial._load(arm.description))
+    assert modules[0] is not modules[1]
     rng = np.random.default_rng(4)
-    n, k = 2000, 8
-    q = rng.uniform(-3, 3, (n, 6))
-    qd, qdd = rng.uniform(-2, 2, (2, n, 6))
+    n = 2000
+    k = len(arm.analytic_configs())
+    assert k == 4  # ik_all's branches: front/back x elbow up/down (model/structure.py)
+    # within the joint limits: ik_all's branches are valid only there (the pose's own one)
+    q = rng.uniform(arm.qlim[:, 0], arm.qlim[:, 1], (n, dof))
+    qd, qdd = rng.uniform(-2, 2, (2, n, dof))
     T = arm.fk(q)
 
     def call(module, name, inputs, widths, flags=()):
@@ -389,22 +396,29 @@ def test_o2_and_o3_give_the_same_bits(monkeypatch):
         args = [ffi.from_buffer("double[]", np.ascontiguousarray(x)) for x in inputs]
         args += [ffi.from_buffer("double[]", o) for o in outs[: len(widths)]]
         args += [ffi.from_buffer("uint8_t[]", o) for o in outs[len(widths) :]]
-        fn = getattr(module.lib, f"deltagen_puma560_{name}")
-        fn(n, *args, ffi.from_buffer("int8_t[]", status))
+        fn = getattr(module.lib, f"{prefix}_{name}")
+        assert fn(n, *args, ffi.from_buffer("int8_t[]", status)) == 0, name
         return [*outs, status]
 
     results = [
         {
             "fk": call(m, "fk", [q], [16]),
-            "jacobian": call(m, "jacobian", [q], [36]),
-            "jacobian_dot": call(m, "jacobian_dot", [q, qd], [36]),
-            "ik_all": call(m, "ik_all", [T.reshape(n, 16)], [k * 6], [k]),
-            "inverse_dynamics": call(m, "inverse_dynamics", [q, qd, qdd], [6]),
-            "mass_matrix": call(m, "mass_matrix", [q], [36]),
+            "jacobian": call(m, "jacobian", [q], [6 * dof]),
+            "fk_jacobian": call(m, "fk_jacobian", [q], [16, 6 * dof]),
+            "jacobian_dot": call(m, "jacobian_dot", [q, qd], [6 * dof]),
+            "ik_all": call(m, "ik_all", [T.reshape(n, 16)], [k * dof], [k]),
+            "inverse_dynamics": call(m, "inverse_dynamics", [q, qd, qdd], [dof]),
+            "mass_matrix": call(m, "mass_matrix", [q], [dof * dof]),
+            "gravity_torque": call(m, "gravity_torque", [q], [dof]),
+            "coriolis": call(m, "coriolis", [q, qd], [dof * dof]),
+            "nonlinear_effects": call(m, "nonlinear_effects", [q, qd], [dof]),
         }
         for m in modules
     ]
+    # not vacuous: the closed form solves most poses, and every value is a number
+    assert results[0]["ik_all"][1].any(axis=1).mean() > 0.5
     for name, values in results[0].items():
+        assert np.isfinite(values[0]).any(), name
         for a, b in zip(values, results[1][name]):
             assert np.array_equal(a, b, equal_nan=True), name
 
