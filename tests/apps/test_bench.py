@@ -183,15 +183,23 @@ def test_serial_poses_are_within_limits():
     assert data["q"].flags.c_contiguous and robot.within_limits(data["q"]).all()
 
 
+@pytest.fixture(scope="module")
+def tiny_oracle_run():
+    """The serial section with the rtb / pinocchio comparison at a tiny size, measured once
+    for both renderings below (each measurement built the libraries' models anew)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(timing, "LATENCY_REPEAT_NS", 1_000_000)
+        for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
+            mp.setattr(peers, name, 50)
+        return sections.run_serial(300, 1, oracles=True)
+
+
 @pytest.mark.skipif(not HAVE_ORACLE, reason="neither roboticstoolbox-python nor pinocchio")
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
-def test_oracle_section_at_tiny_size(monkeypatch, markdown):
+def test_oracle_section_at_tiny_size(tiny_oracle_run, markdown):
     """The rtb / pinocchio comparison runs, pairs every library call with a deltagen call
     and finds them in agreement (sizes shrunk: this checks the wiring, not the speed)."""
-    monkeypatch.setattr(timing, "LATENCY_REPEAT_NS", 1_000_000)
-    for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
-        monkeypatch.setattr(peers, name, 50)
-    serial = sections.run_serial(300, 1, oracles=True)
+    serial = tiny_oracle_run
     others = serial["oracles"]
     if not others["rows"]:
         pytest.skip("; ".join(others["absent"]))  # installed but not importable
