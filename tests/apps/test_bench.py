@@ -33,8 +33,29 @@ def _rows(text: str) -> dict[str, str]:
     return rows
 
 
+@pytest.fixture(scope="module")
+def measured_once():
+    """sections.measure run once per size for the module: the text and the markdown run
+    below render (and write) the same measurement (each measured the whole bench, 12 s
+    warm, before); {kwargs: result} of the runs."""
+    runs = {}
+    measure = sections.measure
+
+    def once(**kwargs):
+        key = tuple(sorted(kwargs.items()))
+        if key not in runs:
+            runs[key] = measure(**kwargs)
+        return runs[key]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sections, "measure", once)
+        yield runs
+
+
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
-def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_path):
+def test_bench_runs_and_names_every_quantity(
+    capsys, monkeypatch, markdown, tmp_path, measured_once
+):
     monkeypatch.setenv("DELTAGEN_BENCH_ORACLES", "0")
     argv = ["bench", "--n", "2000", "--repeats", "2"] + (["--markdown"] if markdown else [])
     files = {k: tmp_path / f"bench.{k}" for k in ("json", "png")}
@@ -43,6 +64,7 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_
     if markdown:  # the files: JSON, PNG, the README section
         argv += ["--json", str(files["json"]), "--png", str(files["png"]), "--readme", str(readme)]
     assert main(argv) == 0
+    assert len(measured_once) == 1  # the command measured through sections.measure
     out = capsys.readouterr().out
     if markdown:
         import json
