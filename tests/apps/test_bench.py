@@ -33,8 +33,29 @@ def _rows(text: str) -> dict[str, str]:
     return rows
 
 
+@pytest.fixture(scope="module")
+def measured_once():
+    """sections.measure run once per size for the module: the text and the markdown run
+    below render (and write) the same measurement (each measured the whole bench, 12 s
+    warm, before); {kwargs: result} of the runs."""
+    runs = {}
+    measure = sections.measure
+
+    def once(**kwargs):
+        key = tuple(sorted(kwargs.items()))
+        if key not in runs:
+            runs[key] = measure(**kwargs)
+        return runs[key]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sections, "measure", once)
+        yield runs
+
+
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
-def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_path):
+def test_bench_runs_and_names_every_quantity(
+    capsys, monkeypatch, markdown, tmp_path, measured_once
+):
     monkeypatch.setenv("DELTAGEN_BENCH_ORACLES", "0")
     argv = ["bench", "--n", "2000", "--repeats", "2"] + (["--markdown"] if markdown else [])
     files = {k: tmp_path / f"bench.{k}" for k in ("json", "png")}
@@ -43,6 +64,7 @@ def test_bench_runs_and_names_every_quantity(capsys, monkeypatch, markdown, tmp_
     if markdown:  # the files: JSON, PNG, the README section
         argv += ["--json", str(files["json"]), "--png", str(files["png"]), "--readme", str(readme)]
     assert main(argv) == 0
+    assert len(measured_once) == 1  # the command measured through sections.measure
     out = capsys.readouterr().out
     if markdown:
         import json
@@ -183,15 +205,23 @@ def test_serial_poses_are_within_limits():
     assert data["q"].flags.c_contiguous and robot.within_limits(data["q"]).all()
 
 
+@pytest.fixture(scope="module")
+def tiny_oracle_run():
+    """The serial section with the rtb / pinocchio comparison at a tiny size, measured once
+    for both renderings below (each measurement built the libraries' models anew)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(timing, "LATENCY_REPEAT_NS", 1_000_000)
+        for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
+            mp.setattr(peers, name, 50)
+        return sections.run_serial(300, 1, oracles=True)
+
+
 @pytest.mark.skipif(not HAVE_ORACLE, reason="neither roboticstoolbox-python nor pinocchio")
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
-def test_oracle_section_at_tiny_size(monkeypatch, markdown):
+def test_oracle_section_at_tiny_size(tiny_oracle_run, markdown):
     """The rtb / pinocchio comparison runs, pairs every library call with a deltagen call
     and finds them in agreement (sizes shrunk: this checks the wiring, not the speed)."""
-    monkeypatch.setattr(timing, "LATENCY_REPEAT_NS", 1_000_000)
-    for name in ("RTB_PY_BATCH_N", "RTB_C_BATCH_N", "RTB_SE3_BATCH_N"):
-        monkeypatch.setattr(peers, name, 50)
-    serial = sections.run_serial(300, 1, oracles=True)
+    serial = tiny_oracle_run
     others = serial["oracles"]
     if not others["rows"]:
         pytest.skip("; ".join(others["absent"]))  # installed but not importable

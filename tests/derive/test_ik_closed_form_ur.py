@@ -3,7 +3,8 @@ the bundled UR5's ``deltagen_ur5_ik_all``) against the numpy solver (solve.analy
 _ParallelTripleSolver, written on the product-of-exponentials model) on 20,000+ poses,
 a third of them near a singularity: the wrist (q5 near 0), the elbow (q3 near 0,
 stretched) and the shoulder (the shoulder factor of det J, found by root finding on the
-reference Jacobian along q2). Evidence besides the numpy solver: forward kinematics of the
+compiled Jacobian along q2, each root then confirmed on the reference Jacobian). Evidence
+besides the numpy solver: forward kinematics of the
 reference backend (DH-free universal coordinates, a product of matrices) for every valid
 branch, and the configuration each pose was made from among the valid branches.
 
@@ -29,15 +30,18 @@ def _wrapped(a):
     return np.abs(np.remainder(a + math.pi, 2 * math.pi) - math.pi)
 
 
-def _shoulder_singular(ref, q, rng):
+def _shoulder_singular(compiled, ref, q, rng):
     """Configurations with the shoulder factor of det J at zero: for each q, a root of
     det J along q2 (bisection, batched, on a sign change of a 64-point scan; rows without
-    one are left out)."""
+    one are left out). The scan and the bisection (145 Jacobians per row) call the compiled
+    Jacobian (the reference's numpy product took 15 s of the module's set-up); each root
+    is then checked on the reference Jacobian: det J there is as small as the rounding of
+    the Jacobian's entries allows, far below its size a step away on the scan."""
 
-    def det(q2, rows):
+    def det(q2, rows, arm=compiled):
         x = rows.copy()
         x[:, 1] = q2
-        return np.linalg.det(ref.jacobian(x))
+        return np.linalg.det(arm.jacobian(x))
 
     grid = np.linspace(-math.pi, math.pi, 65)
     d = np.stack([det(np.full(len(q), g), q) for g in grid], axis=1)
@@ -55,10 +59,15 @@ def _shoulder_singular(ref, q, rng):
         hi = np.where(same, hi, mid)
     q = q.copy()
     q[:, 1] = 0.5 * (lo + hi)
+    # independent evidence of the roots: the reference Jacobian's det at q2 and a scan
+    # step away (|det J| there is of the order of its typical size)
+    at_root = np.abs(det(q[:, 1], q, ref))
+    step = np.abs(det(q[:, 1] + grid[1] - grid[0], q, ref))
+    assert np.all(at_root < 1e-9 * np.median(step)), (at_root.max(), np.median(step))
     return q
 
 
-def poses(ref, n_random=16_000, n_each=1500, seed=2026):
+def poses(compiled, ref, n_random=16_000, n_each=1500, seed=2026):
     """(q, T, kind): random configurations, then wrist-, elbow- and shoulder-singular ones
     moved by OFFSETS (kind 0 random, 1 wrist, 2 elbow, 3 shoulder)."""
     rng = np.random.default_rng(seed)
@@ -69,7 +78,7 @@ def poses(ref, n_random=16_000, n_each=1500, seed=2026):
         base[:, joint] = np.asarray(OFFSETS)[rng.integers(len(OFFSETS), size=n_each)]
         q.append(base)
         kind.append(np.full(n_each, k))
-    base = _shoulder_singular(ref, rng.uniform(-math.pi, math.pi, (n_each, 6)), rng)
+    base = _shoulder_singular(compiled, ref, rng.uniform(-math.pi, math.pi, (n_each, 6)), rng)
     base[:, 1] += np.asarray(OFFSETS)[rng.integers(len(OFFSETS), size=len(base))]
     q.append(base)
     kind.append(np.full(len(base), 3))
@@ -82,7 +91,7 @@ def ur5_solutions():
     compiled = SerialRobot.load("ur5")
     ref = SerialRobot.load("ur5", backend="reference")
     assert compiled._core.has_ik_all
-    q, T, kind = poses(ref)
+    q, T, kind = poses(compiled, ref)
     Qc, Vc = compiled.ik_all(T)
     Qn, Vn = analytic_solver(ref.description).solve(T)
     return ref, q, T, kind, Qc, Vc, Qn, Vn

@@ -28,10 +28,16 @@ def _functions(sources: dict[str, str]) -> dict[str, list[str]]:
 
 
 def test_every_kernel_is_in_one_part_with_the_complete_modules_c():
+    """On two links with inertia: the same twelve kernels as the three-link arm (checked:
+    no closed form either way), half its SymPy time (17 s instead of 34 s)."""
     desc = SerialRobot.from_dh(
-        PARTS_ROWS, "standard", name="parts_arm", backend="reference"
+        PARTS_ROWS[:2], "standard", name="parts_arm", backend="reference"
     ).description
+    assert desc.n == 2 and desc.has_inertia
     complete = _functions(arm_sources(desc))
+    # every kernel of every part is there (ik_all only for arms with a closed form)
+    every = {f"deltagen_parts_arm_{k}" for ks in PARTS.values() for k in ks if k != "ik_all"}
+    assert every <= set(complete), every - set(complete)
     seen: dict[str, str] = {}
     for part, kernels in PARTS.items():
         part_desc = desc.without_inertia() if part in ("first", "later") else desc
