@@ -147,18 +147,22 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -175,19 +179,19 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -206,10 +210,10 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid)
                         | (unreachable)))));
-                const int t8_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-                const double out_x_checked = ((t8_0) ? NAN : x);
-                const double out_y_checked = ((t8_0) ? NAN : y);
-                const double out_z_checked = ((t8_0) ? NAN : z);
+                const int t9_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const double out_x_checked = ((t9_0) ? NAN : x);
+                const double out_y_checked = ((t9_0) ? NAN : y);
+                const double out_z_checked = ((t9_0) ? NAN : z);
                 p[(start + k) * 3 + 0] = out_x_checked;
                 p[(start + k) * 3 + 1] = out_y_checked;
                 p[(start + k) * 3 + 2] = out_z_checked;
@@ -228,18 +232,22 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -256,19 +264,19 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -287,11 +295,11 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid)
                         | (unreachable)))));
-                const int t8_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-                const double out_x_checked = ((t8_0) ? NAN : x);
-                const double out_y_checked = ((t8_0) ? NAN : y);
-                const double out_z_checked = ((t8_0) ? NAN : z);
-                const double out_phi_checked = ((t8_0) ? NAN : q4);
+                const int t9_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const double out_x_checked = ((t9_0) ? NAN : x);
+                const double out_y_checked = ((t9_0) ? NAN : y);
+                const double out_z_checked = ((t9_0) ? NAN : z);
+                const double out_phi_checked = ((t9_0) ? NAN : q4);
                 p[(start + k) * 4 + 0] = out_x_checked;
                 p[(start + k) * 4 + 1] = out_y_checked;
                 p[(start + k) * 4 + 2] = out_z_checked;
@@ -435,18 +443,22 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -463,19 +475,19 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -493,25 +505,25 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -521,24 +533,24 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double adjD33 = a_x*xi_y - a_y*xi_x;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
                         (invalid) | (unreachable)))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd))) &
                         (!(((collinear) | (invalid) | (singular) | (unreachable)))))));
-                const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-                const int t12_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_x_checked = ((t12_0) ? NAN : x);
-                const double out_y_checked = ((t12_0) ? NAN : y);
-                const double out_z_checked = ((t12_0) ? NAN : z);
-                const double out_xd_checked = ((t12_1) ? NAN : xd);
-                const double out_yd_checked = ((t12_1) ? NAN : yd);
-                const double out_zd_checked = ((t12_1) ? NAN : zd);
+                const int t13_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t13_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t13_0) ? NAN : x);
+                const double out_y_checked = ((t13_0) ? NAN : y);
+                const double out_z_checked = ((t13_0) ? NAN : z);
+                const double out_xd_checked = ((t13_1) ? NAN : xd);
+                const double out_yd_checked = ((t13_1) ? NAN : yd);
+                const double out_zd_checked = ((t13_1) ? NAN : zd);
                 p[(start + k) * 3 + 0] = out_x_checked;
                 p[(start + k) * 3 + 1] = out_y_checked;
                 p[(start + k) * 3 + 2] = out_z_checked;
@@ -564,18 +576,22 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -592,19 +608,19 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -622,25 +638,25 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -650,26 +666,26 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double adjD33 = a_x*xi_y - a_y*xi_x;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
                         (invalid) | (unreachable)))))) | (((!(isfinite(xd) & isfinite(yd) & isfinite(zd))) &
                         (!(((collinear) | (invalid) | (singular) | (unreachable)))))));
-                const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-                const int t12_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_x_checked = ((t12_0) ? NAN : x);
-                const double out_y_checked = ((t12_0) ? NAN : y);
-                const double out_z_checked = ((t12_0) ? NAN : z);
-                const double out_phi_checked = ((t12_0) ? NAN : q4);
-                const double out_xd_checked = ((t12_1) ? NAN : xd);
-                const double out_yd_checked = ((t12_1) ? NAN : yd);
-                const double out_zd_checked = ((t12_1) ? NAN : zd);
-                const double out_phid_checked = ((t12_1) ? NAN : qd4);
+                const int t13_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t13_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t13_0) ? NAN : x);
+                const double out_y_checked = ((t13_0) ? NAN : y);
+                const double out_z_checked = ((t13_0) ? NAN : z);
+                const double out_phi_checked = ((t13_0) ? NAN : q4);
+                const double out_xd_checked = ((t13_1) ? NAN : xd);
+                const double out_yd_checked = ((t13_1) ? NAN : yd);
+                const double out_zd_checked = ((t13_1) ? NAN : zd);
+                const double out_phid_checked = ((t13_1) ? NAN : qd4);
                 p[(start + k) * 4 + 0] = out_x_checked;
                 p[(start + k) * 4 + 1] = out_y_checked;
                 p[(start + k) * 4 + 2] = out_z_checked;
@@ -833,18 +849,22 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -861,19 +881,19 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -892,25 +912,25 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -920,50 +940,46 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double adjD33 = a_x*xi_y - a_y*xi_x;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2 */
-                const double t12_0 = chain_l_a1*cos_q1;
-                const double t12_1 = chain_l_a1*sin_q1;
-                const double t12_2 = qd1*t12_1;
-                const double t12_3 = chain_l_a2*cos_q2;
-                const double t12_4 = chain_l_a2*sin_q2;
-                const double t12_5 = qd2*t12_4;
-                const double t12_6 = chain_l_a3*cos_q3;
-                const double t12_7 = chain_l_a3*sin_q3;
-                const double t12_8 = qd3*t12_7;
-                const double h1 = jq1*qdd1 + (D13*t12_1 - rho1*t12_0)*(qd1*qd1) - pow(cos_theta1*t12_2 + xd, 2) -
-                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-                const double h2 = jq2*qdd2 + (D23*t12_4 - rho2*t12_3)*(qd2*qd2) - pow(cos_theta2*t12_5 + xd, 2) -
-                        pow(qd2*t12_3 + zd, 2) - pow(sin_theta2*t12_5 + yd, 2);
-                const double h3 = jq3*qdd3 + (D33*t12_7 - rho3*t12_6)*(qd3*qd3) - pow(cos_theta3*t12_8 + xd, 2) -
-                        pow(qd3*t12_6 + zd, 2) - pow(sin_theta3*t12_8 + yd, 2);
+                const double t13_0 = -xd;
+                const double t13_1 = S_z1*qd1;
+                const double t13_2 = -yd;
+                const double t13_3 = S_z2*qd2;
+                const double t13_4 = S_z3*qd3;
+                const double h1 = jq1*qdd1 - (D13*S_z1 + la_cos_q1*rho1)*qd1*qd1 - pow(-cos_theta1*t13_1 - t13_0, 2) -
+                        pow(la_cos_q1*qd1 + zd, 2) - pow(-sin_theta1*t13_1 - t13_2, 2);
+                const double h2 = jq2*qdd2 - (D23*S_z2 + la_cos_q2*rho2)*qd2*qd2 - pow(-cos_theta2*t13_3 - t13_0, 2) -
+                        pow(la_cos_q2*qd2 + zd, 2) - pow(-sin_theta2*t13_3 - t13_2, 2);
+                const double h3 = jq3*qdd3 - (D33*S_z3 + la_cos_q3*rho3)*qd3*qd3 - pow(-cos_theta3*t13_4 - t13_0, 2) -
+                        pow(la_cos_q3*qd3 + zd, 2) - pow(-sin_theta3*t13_4 - t13_2, 2);
                 /* platform acceleration pddot = J_p^-1 h, eq. (38) */
-                const double t13_0 = -h1 + h2;
-                const double t13_1 = -h1 + h3;
-                const double xdd = inv_det_D*(adjD12*t13_0 + adjD13*t13_1 + e_x*h1);
-                const double ydd = inv_det_D*(adjD22*t13_0 + adjD23*t13_1 + e_y*h1);
-                const double zdd = inv_det_D*(adjD32*t13_0 + adjD33*t13_1 + e_z*h1);
+                const double t14_0 = -h1 + h2;
+                const double t14_1 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t14_0 + adjD13*t14_1 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t14_0 + adjD23*t14_1 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t14_0 + adjD33*t14_1 + e_z*h1);
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
                         (invalid) | (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) &
                         (!(isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) &
                         isfinite(zdd))))));
-                const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-                const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_x_checked = ((t14_0) ? NAN : x);
-                const double out_y_checked = ((t14_0) ? NAN : y);
-                const double out_z_checked = ((t14_0) ? NAN : z);
-                const double out_xd_checked = ((t14_1) ? NAN : xd);
-                const double out_yd_checked = ((t14_1) ? NAN : yd);
-                const double out_zd_checked = ((t14_1) ? NAN : zd);
-                const double out_xdd_checked = ((t14_1) ? NAN : xdd);
-                const double out_ydd_checked = ((t14_1) ? NAN : ydd);
-                const double out_zdd_checked = ((t14_1) ? NAN : zdd);
+                const int t15_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t15_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t15_0) ? NAN : x);
+                const double out_y_checked = ((t15_0) ? NAN : y);
+                const double out_z_checked = ((t15_0) ? NAN : z);
+                const double out_xd_checked = ((t15_1) ? NAN : xd);
+                const double out_yd_checked = ((t15_1) ? NAN : yd);
+                const double out_zd_checked = ((t15_1) ? NAN : zd);
+                const double out_xdd_checked = ((t15_1) ? NAN : xdd);
+                const double out_ydd_checked = ((t15_1) ? NAN : ydd);
+                const double out_zdd_checked = ((t15_1) ? NAN : zdd);
                 p[(start + k) * 3 + 0] = out_x_checked;
                 p[(start + k) * 3 + 1] = out_y_checked;
                 p[(start + k) * 3 + 2] = out_z_checked;
@@ -996,18 +1012,22 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -1024,19 +1044,19 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -1055,25 +1075,25 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -1083,53 +1103,49 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double adjD33 = a_x*xi_y - a_y*xi_x;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2 */
-                const double t12_0 = chain_l_a1*cos_q1;
-                const double t12_1 = chain_l_a1*sin_q1;
-                const double t12_2 = qd1*t12_1;
-                const double t12_3 = chain_l_a2*cos_q2;
-                const double t12_4 = chain_l_a2*sin_q2;
-                const double t12_5 = qd2*t12_4;
-                const double t12_6 = chain_l_a3*cos_q3;
-                const double t12_7 = chain_l_a3*sin_q3;
-                const double t12_8 = qd3*t12_7;
-                const double h1 = jq1*qdd1 + (D13*t12_1 - rho1*t12_0)*(qd1*qd1) - pow(cos_theta1*t12_2 + xd, 2) -
-                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-                const double h2 = jq2*qdd2 + (D23*t12_4 - rho2*t12_3)*(qd2*qd2) - pow(cos_theta2*t12_5 + xd, 2) -
-                        pow(qd2*t12_3 + zd, 2) - pow(sin_theta2*t12_5 + yd, 2);
-                const double h3 = jq3*qdd3 + (D33*t12_7 - rho3*t12_6)*(qd3*qd3) - pow(cos_theta3*t12_8 + xd, 2) -
-                        pow(qd3*t12_6 + zd, 2) - pow(sin_theta3*t12_8 + yd, 2);
+                const double t13_0 = -xd;
+                const double t13_1 = S_z1*qd1;
+                const double t13_2 = -yd;
+                const double t13_3 = S_z2*qd2;
+                const double t13_4 = S_z3*qd3;
+                const double h1 = jq1*qdd1 - (D13*S_z1 + la_cos_q1*rho1)*qd1*qd1 - pow(-cos_theta1*t13_1 - t13_0, 2) -
+                        pow(la_cos_q1*qd1 + zd, 2) - pow(-sin_theta1*t13_1 - t13_2, 2);
+                const double h2 = jq2*qdd2 - (D23*S_z2 + la_cos_q2*rho2)*qd2*qd2 - pow(-cos_theta2*t13_3 - t13_0, 2) -
+                        pow(la_cos_q2*qd2 + zd, 2) - pow(-sin_theta2*t13_3 - t13_2, 2);
+                const double h3 = jq3*qdd3 - (D33*S_z3 + la_cos_q3*rho3)*qd3*qd3 - pow(-cos_theta3*t13_4 - t13_0, 2) -
+                        pow(la_cos_q3*qd3 + zd, 2) - pow(-sin_theta3*t13_4 - t13_2, 2);
                 /* platform acceleration pddot = J_p^-1 h, eq. (38) */
-                const double t13_0 = -h1 + h2;
-                const double t13_1 = -h1 + h3;
-                const double xdd = inv_det_D*(adjD12*t13_0 + adjD13*t13_1 + e_x*h1);
-                const double ydd = inv_det_D*(adjD22*t13_0 + adjD23*t13_1 + e_y*h1);
-                const double zdd = inv_det_D*(adjD32*t13_0 + adjD33*t13_1 + e_z*h1);
+                const double t14_0 = -h1 + h2;
+                const double t14_1 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t14_0 + adjD13*t14_1 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t14_0 + adjD23*t14_1 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t14_0 + adjD33*t14_1 + e_z*h1);
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) |
                         (invalid) | (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) &
                         (!(isfinite(xd) & isfinite(yd) & isfinite(zd) & isfinite(xdd) & isfinite(ydd) &
                         isfinite(zdd))))));
-                const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-                const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_x_checked = ((t14_0) ? NAN : x);
-                const double out_y_checked = ((t14_0) ? NAN : y);
-                const double out_z_checked = ((t14_0) ? NAN : z);
-                const double out_phi_checked = ((t14_0) ? NAN : q4);
-                const double out_xd_checked = ((t14_1) ? NAN : xd);
-                const double out_yd_checked = ((t14_1) ? NAN : yd);
-                const double out_zd_checked = ((t14_1) ? NAN : zd);
-                const double out_phid_checked = ((t14_1) ? NAN : qd4);
-                const double out_xdd_checked = ((t14_1) ? NAN : xdd);
-                const double out_ydd_checked = ((t14_1) ? NAN : ydd);
-                const double out_zdd_checked = ((t14_1) ? NAN : zdd);
-                const double out_phidd_checked = ((t14_1) ? NAN : qdd4);
+                const int t15_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+                const int t15_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_x_checked = ((t15_0) ? NAN : x);
+                const double out_y_checked = ((t15_0) ? NAN : y);
+                const double out_z_checked = ((t15_0) ? NAN : z);
+                const double out_phi_checked = ((t15_0) ? NAN : q4);
+                const double out_xd_checked = ((t15_1) ? NAN : xd);
+                const double out_yd_checked = ((t15_1) ? NAN : yd);
+                const double out_zd_checked = ((t15_1) ? NAN : zd);
+                const double out_phid_checked = ((t15_1) ? NAN : qd4);
+                const double out_xdd_checked = ((t15_1) ? NAN : xdd);
+                const double out_ydd_checked = ((t15_1) ? NAN : ydd);
+                const double out_zdd_checked = ((t15_1) ? NAN : zdd);
+                const double out_phidd_checked = ((t15_1) ? NAN : qdd4);
                 p[(start + k) * 4 + 0] = out_x_checked;
                 p[(start + k) * 4 + 1] = out_y_checked;
                 p[(start + k) * 4 + 2] = out_z_checked;
@@ -1273,18 +1289,22 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const double sin_q2 = sin_q2_b[k];
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
+            /* crank reach l_a,i cos q_i */
+            const double la_cos_q1 = chain_l_a1*cos_q1;
+            const double la_cos_q2 = chain_l_a2*cos_q2;
+            const double la_cos_q3 = chain_l_a3*cos_q3;
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
+            const double t1_0 = chain_r1 + la_cos_q1;
+            const double t1_1 = chain_r2 + la_cos_q2;
+            const double t1_2 = chain_r3 + la_cos_q3;
+            const double S_x1 = cos_theta1*t1_0;
+            const double S_y1 = sin_theta1*t1_0;
             const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
+            const double S_x2 = cos_theta2*t1_1;
+            const double S_y2 = sin_theta2*t1_1;
             const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
+            const double S_x3 = cos_theta3*t1_2;
+            const double S_y3 = sin_theta3*t1_2;
             const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
@@ -1301,19 +1321,19 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t5_0 = chain_l_b1*chain_l_b1;
+            const double t5_1 = 2*e_z;
+            const double t5_3 = 2*e_y;
+            const double t5_5 = (1.0/4.0)*inv_e_sq;
+            const double t5_6 = 2*e_x;
+            const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+            const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+            const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+            const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+            const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -1327,25 +1347,25 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
             /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-            const double t8_0 = -xi_x;
-            const double t8_1 = -xi_y;
-            const double t8_2 = -xi_z;
+            const double t9_0 = -xi_x;
+            const double t9_1 = -xi_y;
+            const double t9_2 = -xi_z;
             const double D11 = xi_x;
             const double D12 = xi_y;
             const double D13 = xi_z;
-            const double D21 = -a_x - t8_0;
-            const double D22 = -a_y - t8_1;
-            const double D23 = -a_z - t8_2;
-            const double D31 = -b_x - t8_0;
-            const double D32 = -b_y - t8_1;
-            const double D33 = -b_z - t8_2;
+            const double D21 = -a_x - t9_0;
+            const double D22 = -a_y - t9_1;
+            const double D23 = -a_z - t9_2;
+            const double D31 = -b_x - t9_0;
+            const double D32 = -b_y - t9_1;
+            const double D33 = -b_z - t9_2;
             /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
             const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+            const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
             const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+            const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
             const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+            const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
             /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
             const double adjD12 = -b_y*xi_z + b_z*xi_y;
             const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -1358,32 +1378,32 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
             const double adjD31 = -adjD32 - adjD33 + e_z;
             const double inv_det_D = 1.0/det_D;
             /* Jacobian J = J_p^-1 J_q, eq. (30) */
-            const double t11_0 = inv_det_D*jq1;
-            const double t11_1 = inv_det_D*jq2;
-            const double t11_2 = inv_det_D*jq3;
-            const double J11 = adjD11*t11_0;
-            const double J12 = adjD12*t11_1;
-            const double J13 = adjD13*t11_2;
-            const double J21 = adjD21*t11_0;
-            const double J22 = adjD22*t11_1;
-            const double J23 = adjD23*t11_2;
-            const double J31 = adjD31*t11_0;
-            const double J32 = adjD32*t11_1;
-            const double J33 = adjD33*t11_2;
+            const double t12_0 = inv_det_D*jq1;
+            const double t12_1 = inv_det_D*jq2;
+            const double t12_2 = inv_det_D*jq3;
+            const double J11 = adjD11*t12_0;
+            const double J12 = adjD12*t12_1;
+            const double J13 = adjD13*t12_2;
+            const double J21 = adjD21*t12_0;
+            const double J22 = adjD22*t12_1;
+            const double J23 = adjD23*t12_2;
+            const double J31 = adjD31*t12_0;
+            const double J32 = adjD32*t12_1;
+            const double J33 = adjD33*t12_2;
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((!(((collinear) | (invalid) | (singular) | (unreachable)))) & (!(isfinite(J11)
                     & isfinite(J12) & isfinite(J13) & isfinite(J21) & isfinite(J22) & isfinite(J23) & isfinite(J31) &
                     isfinite(J32) & isfinite(J33))));
-            const int t12_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_J11_checked = ((t12_0) ? NAN : J11);
-            const double out_J12_checked = ((t12_0) ? NAN : J12);
-            const double out_J13_checked = ((t12_0) ? NAN : J13);
-            const double out_J21_checked = ((t12_0) ? NAN : J21);
-            const double out_J22_checked = ((t12_0) ? NAN : J22);
-            const double out_J23_checked = ((t12_0) ? NAN : J23);
-            const double out_J31_checked = ((t12_0) ? NAN : J31);
-            const double out_J32_checked = ((t12_0) ? NAN : J32);
-            const double out_J33_checked = ((t12_0) ? NAN : J33);
+            const int t13_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+            const double out_J11_checked = ((t13_0) ? NAN : J11);
+            const double out_J12_checked = ((t13_0) ? NAN : J12);
+            const double out_J13_checked = ((t13_0) ? NAN : J13);
+            const double out_J21_checked = ((t13_0) ? NAN : J21);
+            const double out_J22_checked = ((t13_0) ? NAN : J22);
+            const double out_J23_checked = ((t13_0) ? NAN : J23);
+            const double out_J31_checked = ((t13_0) ? NAN : J31);
+            const double out_J32_checked = ((t13_0) ? NAN : J32);
+            const double out_J33_checked = ((t13_0) ? NAN : J33);
             out_J11_checked_b[k] = out_J11_checked;
             out_J12_checked_b[k] = out_J12_checked;
             out_J13_checked_b[k] = out_J13_checked;
@@ -1853,39 +1873,43 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = ik_y2*inv_rho_sq2;
                 const double cos_q3 = ik_x3*inv_rho_sq3;
                 const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t5_0;
-                const double S_y1 = sin_theta1*t5_0;
+                const double t6_0 = chain_r1 + la_cos_q1;
+                const double t6_1 = chain_r2 + la_cos_q2;
+                const double t6_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t6_0;
+                const double S_y1 = sin_theta1*t6_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t5_1;
-                const double S_y2 = sin_theta2*t5_1;
+                const double S_x2 = cos_theta2*t6_1;
+                const double S_y2 = sin_theta2*t6_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t5_2;
-                const double S_y3 = sin_theta3*t5_2;
+                const double S_x3 = cos_theta3*t6_2;
+                const double S_y3 = sin_theta3*t6_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-                const double t6_0 = -x;
-                const double t6_1 = -y;
-                const double t6_2 = -z;
-                const double D11 = -S_x1 - t6_0;
-                const double D12 = -S_y1 - t6_1;
-                const double D13 = -S_z1 - t6_2;
-                const double D21 = -S_x2 - t6_0;
-                const double D22 = -S_y2 - t6_1;
-                const double D23 = -S_z2 - t6_2;
-                const double D31 = -S_x3 - t6_0;
-                const double D32 = -S_y3 - t6_1;
-                const double D33 = -S_z3 - t6_2;
+                const double t7_0 = -x;
+                const double t7_1 = -y;
+                const double t7_2 = -z;
+                const double D11 = -S_x1 - t7_0;
+                const double D12 = -S_y1 - t7_1;
+                const double D13 = -S_z1 - t7_2;
+                const double D21 = -S_x2 - t7_0;
+                const double D22 = -S_y2 - t7_1;
+                const double D23 = -S_z2 - t7_2;
+                const double D31 = -S_x3 - t7_0;
+                const double D32 = -S_y3 - t7_1;
+                const double D33 = -S_z3 - t7_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
                 const double inv_jq1 = 1.0/jq1;
                 const double inv_jq2 = 1.0/jq2;
@@ -1897,25 +1921,25 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
                 const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
                 /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
-                const double t10_0 = fabs(det_D);
+                const double t11_0 = fabs(det_D);
                 const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
                         isfinite(yd) & isfinite(zd) & isfinite(phid));
-                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t10_0 > det_limit)) &
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
                         ((centre_normal_z*det_D > 0)))));
-                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t10_0 <=
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
                         det_limit)));
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
                         (singular) | (unreachable)))))));
-                const int t11_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const int t11_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_q1_checked = ((t11_0) ? NAN : q1);
-                const double out_q2_checked = ((t11_0) ? NAN : q2);
-                const double out_q3_checked = ((t11_0) ? NAN : q3);
-                const double out_qd1_checked = ((t11_1) ? NAN : qd1);
-                const double out_qd2_checked = ((t11_1) ? NAN : qd2);
-                const double out_qd3_checked = ((t11_1) ? NAN : qd3);
+                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t12_0) ? NAN : q1);
+                const double out_q2_checked = ((t12_0) ? NAN : q2);
+                const double out_q3_checked = ((t12_0) ? NAN : q3);
+                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
                 q[(start + k) * 3 + 0] = out_q1_checked;
                 q[(start + k) * 3 + 1] = out_q2_checked;
                 q[(start + k) * 3 + 2] = out_q3_checked;
@@ -1977,39 +2001,43 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = ik_y2*inv_rho_sq2;
                 const double cos_q3 = ik_x3*inv_rho_sq3;
                 const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t5_0;
-                const double S_y1 = sin_theta1*t5_0;
+                const double t6_0 = chain_r1 + la_cos_q1;
+                const double t6_1 = chain_r2 + la_cos_q2;
+                const double t6_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t6_0;
+                const double S_y1 = sin_theta1*t6_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t5_1;
-                const double S_y2 = sin_theta2*t5_1;
+                const double S_x2 = cos_theta2*t6_1;
+                const double S_y2 = sin_theta2*t6_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t5_2;
-                const double S_y3 = sin_theta3*t5_2;
+                const double S_x3 = cos_theta3*t6_2;
+                const double S_y3 = sin_theta3*t6_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-                const double t6_0 = -x;
-                const double t6_1 = -y;
-                const double t6_2 = -z;
-                const double D11 = -S_x1 - t6_0;
-                const double D12 = -S_y1 - t6_1;
-                const double D13 = -S_z1 - t6_2;
-                const double D21 = -S_x2 - t6_0;
-                const double D22 = -S_y2 - t6_1;
-                const double D23 = -S_z2 - t6_2;
-                const double D31 = -S_x3 - t6_0;
-                const double D32 = -S_y3 - t6_1;
-                const double D33 = -S_z3 - t6_2;
+                const double t7_0 = -x;
+                const double t7_1 = -y;
+                const double t7_2 = -z;
+                const double D11 = -S_x1 - t7_0;
+                const double D12 = -S_y1 - t7_1;
+                const double D13 = -S_z1 - t7_2;
+                const double D21 = -S_x2 - t7_0;
+                const double D22 = -S_y2 - t7_1;
+                const double D23 = -S_z2 - t7_2;
+                const double D31 = -S_x3 - t7_0;
+                const double D32 = -S_y3 - t7_1;
+                const double D33 = -S_z3 - t7_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
                 const double inv_jq1 = 1.0/jq1;
                 const double inv_jq2 = 1.0/jq2;
@@ -2021,27 +2049,27 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
                 const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
                 /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
-                const double t10_0 = fabs(det_D);
+                const double t11_0 = fabs(det_D);
                 const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
                         isfinite(yd) & isfinite(zd) & isfinite(phid));
-                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t10_0 > det_limit)) &
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
                         ((centre_normal_z*det_D > 0)))));
-                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t10_0 <=
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
                         det_limit)));
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
                         (singular) | (unreachable)))))));
-                const int t11_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const int t11_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_q1_checked = ((t11_0) ? NAN : q1);
-                const double out_q2_checked = ((t11_0) ? NAN : q2);
-                const double out_q3_checked = ((t11_0) ? NAN : q3);
-                const double out_q4_checked = ((t11_0) ? NAN : phi);
-                const double out_qd1_checked = ((t11_1) ? NAN : qd1);
-                const double out_qd2_checked = ((t11_1) ? NAN : qd2);
-                const double out_qd3_checked = ((t11_1) ? NAN : qd3);
-                const double out_qd4_checked = ((t11_1) ? NAN : phid);
+                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t12_0) ? NAN : q1);
+                const double out_q2_checked = ((t12_0) ? NAN : q2);
+                const double out_q3_checked = ((t12_0) ? NAN : q3);
+                const double out_q4_checked = ((t12_0) ? NAN : phi);
+                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
+                const double out_qd4_checked = ((t12_1) ? NAN : phid);
                 q[(start + k) * 4 + 0] = out_q1_checked;
                 q[(start + k) * 4 + 1] = out_q2_checked;
                 q[(start + k) * 4 + 2] = out_q3_checked;
@@ -2228,39 +2256,43 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = ik_y2*inv_rho_sq2;
                 const double cos_q3 = ik_x3*inv_rho_sq3;
                 const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t5_0;
-                const double S_y1 = sin_theta1*t5_0;
+                const double t6_0 = chain_r1 + la_cos_q1;
+                const double t6_1 = chain_r2 + la_cos_q2;
+                const double t6_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t6_0;
+                const double S_y1 = sin_theta1*t6_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t5_1;
-                const double S_y2 = sin_theta2*t5_1;
+                const double S_x2 = cos_theta2*t6_1;
+                const double S_y2 = sin_theta2*t6_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t5_2;
-                const double S_y3 = sin_theta3*t5_2;
+                const double S_x3 = cos_theta3*t6_2;
+                const double S_y3 = sin_theta3*t6_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-                const double t6_0 = -x;
-                const double t6_1 = -y;
-                const double t6_2 = -z;
-                const double D11 = -S_x1 - t6_0;
-                const double D12 = -S_y1 - t6_1;
-                const double D13 = -S_z1 - t6_2;
-                const double D21 = -S_x2 - t6_0;
-                const double D22 = -S_y2 - t6_1;
-                const double D23 = -S_z2 - t6_2;
-                const double D31 = -S_x3 - t6_0;
-                const double D32 = -S_y3 - t6_1;
-                const double D33 = -S_z3 - t6_2;
+                const double t7_0 = -x;
+                const double t7_1 = -y;
+                const double t7_2 = -z;
+                const double D11 = -S_x1 - t7_0;
+                const double D12 = -S_y1 - t7_1;
+                const double D13 = -S_z1 - t7_2;
+                const double D21 = -S_x2 - t7_0;
+                const double D22 = -S_y2 - t7_1;
+                const double D23 = -S_z2 - t7_2;
+                const double D31 = -S_x3 - t7_0;
+                const double D32 = -S_y3 - t7_1;
+                const double D33 = -S_z3 - t7_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
                 const double inv_jq1 = 1.0/jq1;
                 const double inv_jq2 = 1.0/jq2;
@@ -2269,58 +2301,58 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
                 const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
                 /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
-                const double t9_0 = chain_l_a1*(qd1*qd1);
-                const double t9_1 = cos_q1*t9_0;
-                const double t9_2 = 2*zd;
-                const double t9_3 = chain_l_a1*qd1;
-                const double t9_4 = 2*xd;
-                const double t9_5 = sin_q1*t9_3;
-                const double t9_6 = 2*yd;
-                const double t9_7 = xd*xd + yd*yd + zd*zd;
-                const double t9_8 = chain_l_a2*(qd2*qd2);
-                const double t9_9 = cos_q2*t9_8;
-                const double t9_10 = chain_l_a2*qd2;
-                const double t9_11 = sin_q2*t9_10;
-                const double t9_12 = chain_l_a3*(qd3*qd3);
-                const double t9_13 = cos_q3*t9_12;
-                const double t9_14 = chain_l_a3*qd3;
-                const double t9_15 = sin_q3*t9_14;
-                const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 +
-                        cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y +
-                        sin_theta1*t9_5*t9_6 + t9_7);
-                const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 +
-                        cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 +
-                        sin_theta2*t9_9*y + t9_7);
-                const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 +
-                        cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y +
-                        sin_theta3*t9_15*t9_6 + t9_7);
+                const double t10_0 = chain_l_a1*(qd1*qd1);
+                const double t10_1 = cos_q1*t10_0;
+                const double t10_2 = 2*zd;
+                const double t10_3 = chain_l_a1*qd1;
+                const double t10_4 = 2*xd;
+                const double t10_5 = sin_q1*t10_3;
+                const double t10_6 = 2*yd;
+                const double t10_7 = xd*xd + yd*yd + zd*zd;
+                const double t10_8 = chain_l_a2*(qd2*qd2);
+                const double t10_9 = cos_q2*t10_8;
+                const double t10_10 = chain_l_a2*qd2;
+                const double t10_11 = sin_q2*t10_10;
+                const double t10_12 = chain_l_a3*(qd3*qd3);
+                const double t10_13 = cos_q3*t10_12;
+                const double t10_14 = chain_l_a3*qd3;
+                const double t10_15 = sin_q3*t10_14;
+                const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t10_1 + cos_q1*t10_2*t10_3 +
+                        cos_theta1*t10_1*x + cos_theta1*t10_4*t10_5 - sin_q1*t10_0*z + sin_theta1*t10_1*y +
+                        sin_theta1*t10_5*t10_6 + t10_7);
+                const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t10_9 + cos_q2*t10_10*t10_2 +
+                        cos_theta2*t10_11*t10_4 + cos_theta2*t10_9*x - sin_q2*t10_8*z + sin_theta2*t10_11*t10_6 +
+                        sin_theta2*t10_9*y + t10_7);
+                const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t10_13 + cos_q3*t10_14*t10_2 +
+                        cos_theta3*t10_13*x + cos_theta3*t10_15*t10_4 - sin_q3*t10_12*z + sin_theta3*t10_13*y +
+                        sin_theta3*t10_15*t10_6 + t10_7);
                 /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
                 const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
                 const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
                 /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
-                const double t11_0 = fabs(det_D);
+                const double t12_0 = fabs(det_D);
                 const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
                         isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) &
                         isfinite(phidd));
-                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t12_0 > det_limit)) &
                         ((centre_normal_z*det_D > 0)))));
-                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t12_0 <=
                         det_limit)));
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
                         isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
-                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_q1_checked = ((t12_0) ? NAN : q1);
-                const double out_q2_checked = ((t12_0) ? NAN : q2);
-                const double out_q3_checked = ((t12_0) ? NAN : q3);
-                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
-                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
-                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
-                const double out_qdd1_checked = ((t12_1) ? NAN : qdd1);
-                const double out_qdd2_checked = ((t12_1) ? NAN : qdd2);
-                const double out_qdd3_checked = ((t12_1) ? NAN : qdd3);
+                const int t13_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t13_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t13_0) ? NAN : q1);
+                const double out_q2_checked = ((t13_0) ? NAN : q2);
+                const double out_q3_checked = ((t13_0) ? NAN : q3);
+                const double out_qd1_checked = ((t13_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t13_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t13_1) ? NAN : qd3);
+                const double out_qdd1_checked = ((t13_1) ? NAN : qdd1);
+                const double out_qdd2_checked = ((t13_1) ? NAN : qdd2);
+                const double out_qdd3_checked = ((t13_1) ? NAN : qdd3);
                 q[(start + k) * 3 + 0] = out_q1_checked;
                 q[(start + k) * 3 + 1] = out_q2_checked;
                 q[(start + k) * 3 + 2] = out_q3_checked;
@@ -2389,39 +2421,43 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double sin_q2 = ik_y2*inv_rho_sq2;
                 const double cos_q3 = ik_x3*inv_rho_sq3;
                 const double sin_q3 = ik_y3*inv_rho_sq3;
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t5_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t5_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t5_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t5_0;
-                const double S_y1 = sin_theta1*t5_0;
+                const double t6_0 = chain_r1 + la_cos_q1;
+                const double t6_1 = chain_r2 + la_cos_q2;
+                const double t6_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t6_0;
+                const double S_y1 = sin_theta1*t6_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t5_1;
-                const double S_y2 = sin_theta2*t5_1;
+                const double S_x2 = cos_theta2*t6_1;
+                const double S_y2 = sin_theta2*t6_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t5_2;
-                const double S_y3 = sin_theta3*t5_2;
+                const double S_x3 = cos_theta3*t6_2;
+                const double S_y3 = sin_theta3*t6_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* D = J_p / 2: rows p - S_i, eqs. (31)-(33) */
-                const double t6_0 = -x;
-                const double t6_1 = -y;
-                const double t6_2 = -z;
-                const double D11 = -S_x1 - t6_0;
-                const double D12 = -S_y1 - t6_1;
-                const double D13 = -S_z1 - t6_2;
-                const double D21 = -S_x2 - t6_0;
-                const double D22 = -S_y2 - t6_1;
-                const double D23 = -S_z2 - t6_2;
-                const double D31 = -S_x3 - t6_0;
-                const double D32 = -S_y3 - t6_1;
-                const double D33 = -S_z3 - t6_2;
+                const double t7_0 = -x;
+                const double t7_1 = -y;
+                const double t7_2 = -z;
+                const double D11 = -S_x1 - t7_0;
+                const double D12 = -S_y1 - t7_1;
+                const double D13 = -S_z1 - t7_2;
+                const double D21 = -S_x2 - t7_0;
+                const double D22 = -S_y2 - t7_1;
+                const double D23 = -S_z2 - t7_2;
+                const double D31 = -S_x3 - t7_0;
+                const double D32 = -S_y3 - t7_1;
+                const double D33 = -S_z3 - t7_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* crank rates qdot = J_q^-1 J_p pdot, eq. (30), J_q diagonal */
                 const double inv_jq1 = 1.0/jq1;
                 const double inv_jq2 = 1.0/jq2;
@@ -2430,61 +2466,61 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double qd2 = inv_jq2*(D21*xd + D22*yd + D23*zd);
                 const double qd3 = inv_jq3*(D31*xd + D32*yd + D33*zd);
                 /* crank accelerations qddot_i = (d^2 f_i / dt^2 at qddot_i = 0) / J_q,ii, eqs. (36)-(39) */
-                const double t9_0 = chain_l_a1*(qd1*qd1);
-                const double t9_1 = cos_q1*t9_0;
-                const double t9_2 = 2*zd;
-                const double t9_3 = chain_l_a1*qd1;
-                const double t9_4 = 2*xd;
-                const double t9_5 = sin_q1*t9_3;
-                const double t9_6 = 2*yd;
-                const double t9_7 = xd*xd + yd*yd + zd*zd;
-                const double t9_8 = chain_l_a2*(qd2*qd2);
-                const double t9_9 = cos_q2*t9_8;
-                const double t9_10 = chain_l_a2*qd2;
-                const double t9_11 = sin_q2*t9_10;
-                const double t9_12 = chain_l_a3*(qd3*qd3);
-                const double t9_13 = cos_q3*t9_12;
-                const double t9_14 = chain_l_a3*qd3;
-                const double t9_15 = sin_q3*t9_14;
-                const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t9_1 + cos_q1*t9_2*t9_3 +
-                        cos_theta1*t9_1*x + cos_theta1*t9_4*t9_5 - sin_q1*t9_0*z + sin_theta1*t9_1*y +
-                        sin_theta1*t9_5*t9_6 + t9_7);
-                const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t9_9 + cos_q2*t9_10*t9_2 +
-                        cos_theta2*t9_11*t9_4 + cos_theta2*t9_9*x - sin_q2*t9_8*z + sin_theta2*t9_11*t9_6 +
-                        sin_theta2*t9_9*y + t9_7);
-                const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t9_13 + cos_q3*t9_14*t9_2 +
-                        cos_theta3*t9_13*x + cos_theta3*t9_15*t9_4 - sin_q3*t9_12*z + sin_theta3*t9_13*y +
-                        sin_theta3*t9_15*t9_6 + t9_7);
+                const double t10_0 = chain_l_a1*(qd1*qd1);
+                const double t10_1 = cos_q1*t10_0;
+                const double t10_2 = 2*zd;
+                const double t10_3 = chain_l_a1*qd1;
+                const double t10_4 = 2*xd;
+                const double t10_5 = sin_q1*t10_3;
+                const double t10_6 = 2*yd;
+                const double t10_7 = xd*xd + yd*yd + zd*zd;
+                const double t10_8 = chain_l_a2*(qd2*qd2);
+                const double t10_9 = cos_q2*t10_8;
+                const double t10_10 = chain_l_a2*qd2;
+                const double t10_11 = sin_q2*t10_10;
+                const double t10_12 = chain_l_a3*(qd3*qd3);
+                const double t10_13 = cos_q3*t10_12;
+                const double t10_14 = chain_l_a3*qd3;
+                const double t10_15 = sin_q3*t10_14;
+                const double qdd1 = inv_jq1*(D11*xdd + D12*ydd + D13*zdd - chain_r1*t10_1 + cos_q1*t10_2*t10_3 +
+                        cos_theta1*t10_1*x + cos_theta1*t10_4*t10_5 - sin_q1*t10_0*z + sin_theta1*t10_1*y +
+                        sin_theta1*t10_5*t10_6 + t10_7);
+                const double qdd2 = inv_jq2*(D21*xdd + D22*ydd + D23*zdd - chain_r2*t10_9 + cos_q2*t10_10*t10_2 +
+                        cos_theta2*t10_11*t10_4 + cos_theta2*t10_9*x - sin_q2*t10_8*z + sin_theta2*t10_11*t10_6 +
+                        sin_theta2*t10_9*y + t10_7);
+                const double qdd3 = inv_jq3*(D31*xdd + D32*ydd + D33*zdd - chain_r3*t10_13 + cos_q3*t10_14*t10_2 +
+                        cos_theta3*t10_13*x + cos_theta3*t10_15*t10_4 - sin_q3*t10_12*z + sin_theta3*t10_13*y +
+                        sin_theta3*t10_15*t10_6 + t10_7);
                 /* assembly mode: det of the rows p - S_i and the centre plane's normal (z) */
                 const double det_D = D11*D22*D33 - D11*D23*D32 - D12*D21*D33 + D12*D23*D31 + D13*D21*D32 - D13*D22*D31;
                 const double centre_normal_z = (-S_x1 + S_x2)*(-S_y1 + S_y3) - (-S_x1 + S_x3)*(-S_y1 + S_y2);
                 /* status flags: non-finite input, a crank cannot reach, J_q singular (crank and rod in line) */
-                const double t11_0 = fabs(det_D);
+                const double t12_0 = fabs(det_D);
                 const int invalid = !(isfinite(x) & isfinite(y) & isfinite(z) & isfinite(phi) & isfinite(xd) &
                         isfinite(yd) & isfinite(zd) & isfinite(phid) & isfinite(xdd) & isfinite(ydd) & isfinite(zdd) &
                         isfinite(phidd));
-                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t11_0 > det_limit)) &
+                const int unreachable = (((disc1 < 0)) | ((disc2 < 0)) | ((disc3 < 0)) | ((((t12_0 > det_limit)) &
                         ((centre_normal_z*det_D > 0)))));
-                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
+                const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t12_0 <=
                         det_limit)));
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
                         isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
-                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_q1_checked = ((t12_0) ? NAN : q1);
-                const double out_q2_checked = ((t12_0) ? NAN : q2);
-                const double out_q3_checked = ((t12_0) ? NAN : q3);
-                const double out_q4_checked = ((t12_0) ? NAN : phi);
-                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
-                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
-                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
-                const double out_qd4_checked = ((t12_1) ? NAN : phid);
-                const double out_qdd1_checked = ((t12_1) ? NAN : qdd1);
-                const double out_qdd2_checked = ((t12_1) ? NAN : qdd2);
-                const double out_qdd3_checked = ((t12_1) ? NAN : qdd3);
-                const double out_qdd4_checked = ((t12_1) ? NAN : phidd);
+                const int t13_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t13_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t13_0) ? NAN : q1);
+                const double out_q2_checked = ((t13_0) ? NAN : q2);
+                const double out_q3_checked = ((t13_0) ? NAN : q3);
+                const double out_q4_checked = ((t13_0) ? NAN : phi);
+                const double out_qd1_checked = ((t13_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t13_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t13_1) ? NAN : qd3);
+                const double out_qd4_checked = ((t13_1) ? NAN : phid);
+                const double out_qdd1_checked = ((t13_1) ? NAN : qdd1);
+                const double out_qdd2_checked = ((t13_1) ? NAN : qdd2);
+                const double out_qdd3_checked = ((t13_1) ? NAN : qdd3);
+                const double out_qdd4_checked = ((t13_1) ? NAN : phidd);
                 q[(start + k) * 4 + 0] = out_q1_checked;
                 q[(start + k) * 4 + 1] = out_q2_checked;
                 q[(start + k) * 4 + 2] = out_q3_checked;
@@ -2668,18 +2704,22 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
             const double sin_q2 = sin_q2_b[k];
             const double cos_q3 = cos_q3_b[k];
             const double sin_q3 = sin_q3_b[k];
+            /* crank reach l_a,i cos q_i */
+            const double la_cos_q1 = chain_l_a1*cos_q1;
+            const double la_cos_q2 = chain_l_a2*cos_q2;
+            const double la_cos_q3 = chain_l_a3*cos_q3;
             /* sphere centres S_i, eqs. (3)-(5) */
-            const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-            const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-            const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-            const double S_x1 = cos_theta1*t0_0;
-            const double S_y1 = sin_theta1*t0_0;
+            const double t1_0 = chain_r1 + la_cos_q1;
+            const double t1_1 = chain_r2 + la_cos_q2;
+            const double t1_2 = chain_r3 + la_cos_q3;
+            const double S_x1 = cos_theta1*t1_0;
+            const double S_y1 = sin_theta1*t1_0;
             const double S_z1 = -chain_l_a1*sin_q1;
-            const double S_x2 = cos_theta2*t0_1;
-            const double S_y2 = sin_theta2*t0_1;
+            const double S_x2 = cos_theta2*t1_1;
+            const double S_y2 = sin_theta2*t1_1;
             const double S_z2 = -chain_l_a2*sin_q2;
-            const double S_x3 = cos_theta3*t0_2;
-            const double S_y3 = sin_theta3*t0_2;
+            const double S_x3 = cos_theta3*t1_2;
+            const double S_y3 = sin_theta3*t1_2;
             const double S_z3 = -chain_l_a3*sin_q3;
             /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
             const double a_x = -S_x1 + S_x2;
@@ -2696,19 +2736,19 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
             /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
             const double inv_e_sq = 1.0/e_sq;
             /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-            const double t4_0 = chain_l_b1*chain_l_b1;
-            const double t4_1 = 2*e_z;
-            const double t4_3 = 2*e_y;
-            const double t4_5 = (1.0/4.0)*inv_e_sq;
-            const double t4_6 = 2*e_x;
-            const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-            const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-            const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-            const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-            const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-            const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-            const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-            const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+            const double t5_0 = chain_l_b1*chain_l_b1;
+            const double t5_1 = 2*e_z;
+            const double t5_3 = 2*e_y;
+            const double t5_5 = (1.0/4.0)*inv_e_sq;
+            const double t5_6 = 2*e_x;
+            const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+            const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+            const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+            const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+            const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+            const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+            const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+            const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
             /* lower intersection with sphere 1, eqs. (22)-(26) */
             const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
             /* platform position p, eq. (27) */
@@ -2725,25 +2765,25 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
             const int unreachable = (h_sq < 0);
             const int singular = (fabs(det_D) <= det_limit);
             /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-            const double t8_0 = -xi_x;
-            const double t8_1 = -xi_y;
-            const double t8_2 = -xi_z;
+            const double t9_0 = -xi_x;
+            const double t9_1 = -xi_y;
+            const double t9_2 = -xi_z;
             const double D11 = xi_x;
             const double D12 = xi_y;
             const double D13 = xi_z;
-            const double D21 = -a_x - t8_0;
-            const double D22 = -a_y - t8_1;
-            const double D23 = -a_z - t8_2;
-            const double D31 = -b_x - t8_0;
-            const double D32 = -b_y - t8_1;
-            const double D33 = -b_z - t8_2;
+            const double D21 = -a_x - t9_0;
+            const double D22 = -a_y - t9_1;
+            const double D23 = -a_z - t9_2;
+            const double D31 = -b_x - t9_0;
+            const double D32 = -b_y - t9_1;
+            const double D33 = -b_z - t9_2;
             /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
             const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-            const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+            const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
             const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-            const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+            const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
             const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-            const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+            const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
             /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
             const double adjD12 = -b_y*xi_z + b_z*xi_y;
             const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -2756,122 +2796,122 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
             const double adjD31 = -adjD32 - adjD33 + e_z;
             const double inv_det_D = 1.0/det_D;
             /* closure partials df_i / d(r_i, l_a,i, l_b,i, theta_i) of eq. (1) */
-            const double t11_0 = 2*x;
-            const double t11_1 = cos_theta1*t11_0;
-            const double t11_2 = 2*y;
-            const double t11_3 = sin_theta1*t11_2;
-            const double t11_4 = cos_theta1*cos_theta1;
-            const double t11_5 = 2*chain_r1;
-            const double t11_6 = t11_4*t11_5;
-            const double t11_7 = sin_theta1*sin_theta1;
-            const double t11_8 = t11_5*t11_7;
-            const double t11_9 = 2*chain_l_a1;
-            const double t11_10 = cos_q1*t11_9;
-            const double t11_11 = 2*z;
-            const double t11_12 = t11_9*(cos_q1*cos_q1);
-            const double t11_13 = cos_theta1*t11_2;
-            const double t11_14 = cos_theta2*t11_0;
-            const double t11_15 = sin_theta2*t11_2;
-            const double t11_16 = cos_theta2*cos_theta2;
-            const double t11_17 = 2*chain_r2;
-            const double t11_18 = t11_16*t11_17;
-            const double t11_19 = sin_theta2*sin_theta2;
-            const double t11_20 = t11_17*t11_19;
-            const double t11_21 = 2*chain_l_a2;
-            const double t11_22 = cos_q2*t11_21;
-            const double t11_23 = t11_21*(cos_q2*cos_q2);
-            const double t11_24 = cos_theta2*t11_2;
-            const double t11_25 = cos_theta3*t11_0;
-            const double t11_26 = sin_theta3*t11_2;
-            const double t11_27 = cos_theta3*cos_theta3;
-            const double t11_28 = 2*chain_r3;
-            const double t11_29 = t11_27*t11_28;
-            const double t11_30 = sin_theta3*sin_theta3;
-            const double t11_31 = t11_28*t11_30;
-            const double t11_32 = 2*chain_l_a3;
-            const double t11_33 = cos_q3*t11_32;
-            const double t11_34 = t11_32*(cos_q3*cos_q3);
-            const double t11_35 = cos_theta3*t11_2;
-            const double df_r1 = -t11_1 + t11_10*t11_4 + t11_10*t11_7 - t11_3 + t11_6 + t11_8;
-            const double df_l_a1 = -cos_q1*t11_1 - cos_q1*t11_3 + cos_q1*t11_6 + cos_q1*t11_8 + sin_q1*t11_11 +
-                    t11_12*t11_4 + t11_12*t11_7 + t11_9*(sin_q1*sin_q1);
+            const double t12_0 = 2*x;
+            const double t12_1 = cos_theta1*t12_0;
+            const double t12_2 = 2*y;
+            const double t12_3 = sin_theta1*t12_2;
+            const double t12_4 = cos_theta1*cos_theta1;
+            const double t12_5 = 2*chain_r1;
+            const double t12_6 = t12_4*t12_5;
+            const double t12_7 = sin_theta1*sin_theta1;
+            const double t12_8 = t12_5*t12_7;
+            const double t12_9 = 2*chain_l_a1;
+            const double t12_10 = cos_q1*t12_9;
+            const double t12_11 = 2*z;
+            const double t12_12 = t12_9*(cos_q1*cos_q1);
+            const double t12_13 = cos_theta1*t12_2;
+            const double t12_14 = cos_theta2*t12_0;
+            const double t12_15 = sin_theta2*t12_2;
+            const double t12_16 = cos_theta2*cos_theta2;
+            const double t12_17 = 2*chain_r2;
+            const double t12_18 = t12_16*t12_17;
+            const double t12_19 = sin_theta2*sin_theta2;
+            const double t12_20 = t12_17*t12_19;
+            const double t12_21 = 2*chain_l_a2;
+            const double t12_22 = cos_q2*t12_21;
+            const double t12_23 = t12_21*(cos_q2*cos_q2);
+            const double t12_24 = cos_theta2*t12_2;
+            const double t12_25 = cos_theta3*t12_0;
+            const double t12_26 = sin_theta3*t12_2;
+            const double t12_27 = cos_theta3*cos_theta3;
+            const double t12_28 = 2*chain_r3;
+            const double t12_29 = t12_27*t12_28;
+            const double t12_30 = sin_theta3*sin_theta3;
+            const double t12_31 = t12_28*t12_30;
+            const double t12_32 = 2*chain_l_a3;
+            const double t12_33 = cos_q3*t12_32;
+            const double t12_34 = t12_32*(cos_q3*cos_q3);
+            const double t12_35 = cos_theta3*t12_2;
+            const double df_r1 = -t12_1 + t12_10*t12_4 + t12_10*t12_7 - t12_3 + t12_6 + t12_8;
+            const double df_l_a1 = -cos_q1*t12_1 - cos_q1*t12_3 + cos_q1*t12_6 + cos_q1*t12_8 + sin_q1*t12_11 +
+                    t12_12*t12_4 + t12_12*t12_7 + t12_9*(sin_q1*sin_q1);
             const double df_l_b1 = -2*chain_l_b1;
-            const double df_theta1 = 2*chain_l_a1*cos_q1*sin_theta1*x - chain_l_a1*cos_q1*t11_13 +
-                    2*chain_r1*sin_theta1*x - chain_r1*t11_13;
-            const double df_r2 = -t11_14 - t11_15 + t11_16*t11_22 + t11_18 + t11_19*t11_22 + t11_20;
-            const double df_l_a2 = -cos_q2*t11_14 - cos_q2*t11_15 + cos_q2*t11_18 + cos_q2*t11_20 + sin_q2*t11_11 +
-                    t11_16*t11_23 + t11_19*t11_23 + t11_21*(sin_q2*sin_q2);
+            const double df_theta1 = 2*chain_l_a1*cos_q1*sin_theta1*x - chain_l_a1*cos_q1*t12_13 +
+                    2*chain_r1*sin_theta1*x - chain_r1*t12_13;
+            const double df_r2 = -t12_14 - t12_15 + t12_16*t12_22 + t12_18 + t12_19*t12_22 + t12_20;
+            const double df_l_a2 = -cos_q2*t12_14 - cos_q2*t12_15 + cos_q2*t12_18 + cos_q2*t12_20 + sin_q2*t12_11 +
+                    t12_16*t12_23 + t12_19*t12_23 + t12_21*(sin_q2*sin_q2);
             const double df_l_b2 = -2*chain_l_b2;
-            const double df_theta2 = 2*chain_l_a2*cos_q2*sin_theta2*x - chain_l_a2*cos_q2*t11_24 +
-                    2*chain_r2*sin_theta2*x - chain_r2*t11_24;
-            const double df_r3 = -t11_25 - t11_26 + t11_27*t11_33 + t11_29 + t11_30*t11_33 + t11_31;
-            const double df_l_a3 = -cos_q3*t11_25 - cos_q3*t11_26 + cos_q3*t11_29 + cos_q3*t11_31 + sin_q3*t11_11 +
-                    t11_27*t11_34 + t11_30*t11_34 + t11_32*(sin_q3*sin_q3);
+            const double df_theta2 = 2*chain_l_a2*cos_q2*sin_theta2*x - chain_l_a2*cos_q2*t12_24 +
+                    2*chain_r2*sin_theta2*x - chain_r2*t12_24;
+            const double df_r3 = -t12_25 - t12_26 + t12_27*t12_33 + t12_29 + t12_30*t12_33 + t12_31;
+            const double df_l_a3 = -cos_q3*t12_25 - cos_q3*t12_26 + cos_q3*t12_29 + cos_q3*t12_31 + sin_q3*t12_11 +
+                    t12_27*t12_34 + t12_30*t12_34 + t12_32*(sin_q3*sin_q3);
             const double df_l_b3 = -2*chain_l_b3;
-            const double df_theta3 = 2*chain_l_a3*cos_q3*sin_theta3*x - chain_l_a3*cos_q3*t11_35 +
-                    2*chain_r3*sin_theta3*x - chain_r3*t11_35;
+            const double df_theta3 = 2*chain_l_a3*cos_q3*sin_theta3*x - chain_l_a3*cos_q3*t12_35 +
+                    2*chain_r3*sin_theta3*x - chain_r3*t12_35;
             /* dp / d(chain parameters) = -J_p^-1 e_i df_i/dpi (implicit function theorem) */
-            const double t12_0 = (1.0/2.0)*inv_det_D;
-            const double t12_1 = df_r1*t12_0;
-            const double t12_2 = df_r2*t12_0;
-            const double t12_3 = df_r3*t12_0;
-            const double t12_4 = df_l_a1*t12_0;
-            const double t12_5 = df_l_a2*t12_0;
-            const double t12_6 = df_l_a3*t12_0;
-            const double t12_7 = df_l_b1*t12_0;
-            const double t12_8 = df_l_b2*t12_0;
-            const double t12_9 = df_l_b3*t12_0;
-            const double t12_10 = df_theta1*t12_0;
-            const double t12_11 = df_theta2*t12_0;
-            const double t12_12 = df_theta3*t12_0;
-            const double t12_13 = inv_det_D*jq1;
-            const double t12_14 = inv_det_D*jq2;
-            const double t12_15 = inv_det_D*jq3;
-            const double dp_r1_x = -adjD11*t12_1;
-            const double dp_r1_y = -adjD21*t12_1;
-            const double dp_r1_z = -adjD31*t12_1;
-            const double dp_r2_x = -adjD12*t12_2;
-            const double dp_r2_y = -adjD22*t12_2;
-            const double dp_r2_z = -adjD32*t12_2;
-            const double dp_r3_x = -adjD13*t12_3;
-            const double dp_r3_y = -adjD23*t12_3;
-            const double dp_r3_z = -adjD33*t12_3;
-            const double dp_l_a1_x = -adjD11*t12_4;
-            const double dp_l_a1_y = -adjD21*t12_4;
-            const double dp_l_a1_z = -adjD31*t12_4;
-            const double dp_l_a2_x = -adjD12*t12_5;
-            const double dp_l_a2_y = -adjD22*t12_5;
-            const double dp_l_a2_z = -adjD32*t12_5;
-            const double dp_l_a3_x = -adjD13*t12_6;
-            const double dp_l_a3_y = -adjD23*t12_6;
-            const double dp_l_a3_z = -adjD33*t12_6;
-            const double dp_l_b1_x = -adjD11*t12_7;
-            const double dp_l_b1_y = -adjD21*t12_7;
-            const double dp_l_b1_z = -adjD31*t12_7;
-            const double dp_l_b2_x = -adjD12*t12_8;
-            const double dp_l_b2_y = -adjD22*t12_8;
-            const double dp_l_b2_z = -adjD32*t12_8;
-            const double dp_l_b3_x = -adjD13*t12_9;
-            const double dp_l_b3_y = -adjD23*t12_9;
-            const double dp_l_b3_z = -adjD33*t12_9;
-            const double dp_theta1_x = -adjD11*t12_10;
-            const double dp_theta1_y = -adjD21*t12_10;
-            const double dp_theta1_z = -adjD31*t12_10;
-            const double dp_theta2_x = -adjD12*t12_11;
-            const double dp_theta2_y = -adjD22*t12_11;
-            const double dp_theta2_z = -adjD32*t12_11;
-            const double dp_theta3_x = -adjD13*t12_12;
-            const double dp_theta3_y = -adjD23*t12_12;
-            const double dp_theta3_z = -adjD33*t12_12;
-            const double dp_q1_x = adjD11*t12_13;
-            const double dp_q1_y = adjD21*t12_13;
-            const double dp_q1_z = adjD31*t12_13;
-            const double dp_q2_x = adjD12*t12_14;
-            const double dp_q2_y = adjD22*t12_14;
-            const double dp_q2_z = adjD32*t12_14;
-            const double dp_q3_x = adjD13*t12_15;
-            const double dp_q3_y = adjD23*t12_15;
-            const double dp_q3_z = adjD33*t12_15;
+            const double t13_0 = (1.0/2.0)*inv_det_D;
+            const double t13_1 = df_r1*t13_0;
+            const double t13_2 = df_r2*t13_0;
+            const double t13_3 = df_r3*t13_0;
+            const double t13_4 = df_l_a1*t13_0;
+            const double t13_5 = df_l_a2*t13_0;
+            const double t13_6 = df_l_a3*t13_0;
+            const double t13_7 = df_l_b1*t13_0;
+            const double t13_8 = df_l_b2*t13_0;
+            const double t13_9 = df_l_b3*t13_0;
+            const double t13_10 = df_theta1*t13_0;
+            const double t13_11 = df_theta2*t13_0;
+            const double t13_12 = df_theta3*t13_0;
+            const double t13_13 = inv_det_D*jq1;
+            const double t13_14 = inv_det_D*jq2;
+            const double t13_15 = inv_det_D*jq3;
+            const double dp_r1_x = -adjD11*t13_1;
+            const double dp_r1_y = -adjD21*t13_1;
+            const double dp_r1_z = -adjD31*t13_1;
+            const double dp_r2_x = -adjD12*t13_2;
+            const double dp_r2_y = -adjD22*t13_2;
+            const double dp_r2_z = -adjD32*t13_2;
+            const double dp_r3_x = -adjD13*t13_3;
+            const double dp_r3_y = -adjD23*t13_3;
+            const double dp_r3_z = -adjD33*t13_3;
+            const double dp_l_a1_x = -adjD11*t13_4;
+            const double dp_l_a1_y = -adjD21*t13_4;
+            const double dp_l_a1_z = -adjD31*t13_4;
+            const double dp_l_a2_x = -adjD12*t13_5;
+            const double dp_l_a2_y = -adjD22*t13_5;
+            const double dp_l_a2_z = -adjD32*t13_5;
+            const double dp_l_a3_x = -adjD13*t13_6;
+            const double dp_l_a3_y = -adjD23*t13_6;
+            const double dp_l_a3_z = -adjD33*t13_6;
+            const double dp_l_b1_x = -adjD11*t13_7;
+            const double dp_l_b1_y = -adjD21*t13_7;
+            const double dp_l_b1_z = -adjD31*t13_7;
+            const double dp_l_b2_x = -adjD12*t13_8;
+            const double dp_l_b2_y = -adjD22*t13_8;
+            const double dp_l_b2_z = -adjD32*t13_8;
+            const double dp_l_b3_x = -adjD13*t13_9;
+            const double dp_l_b3_y = -adjD23*t13_9;
+            const double dp_l_b3_z = -adjD33*t13_9;
+            const double dp_theta1_x = -adjD11*t13_10;
+            const double dp_theta1_y = -adjD21*t13_10;
+            const double dp_theta1_z = -adjD31*t13_10;
+            const double dp_theta2_x = -adjD12*t13_11;
+            const double dp_theta2_y = -adjD22*t13_11;
+            const double dp_theta2_z = -adjD32*t13_11;
+            const double dp_theta3_x = -adjD13*t13_12;
+            const double dp_theta3_y = -adjD23*t13_12;
+            const double dp_theta3_z = -adjD33*t13_12;
+            const double dp_q1_x = adjD11*t13_13;
+            const double dp_q1_y = adjD21*t13_13;
+            const double dp_q1_z = adjD31*t13_13;
+            const double dp_q2_x = adjD12*t13_14;
+            const double dp_q2_y = adjD22*t13_14;
+            const double dp_q2_z = adjD32*t13_14;
+            const double dp_q3_x = adjD13*t13_15;
+            const double dp_q3_y = adjD23*t13_15;
+            const double dp_q3_z = adjD33*t13_15;
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
             const int nonfinite_output = ((((!(isfinite(x) & isfinite(y) & isfinite(z))) & (!(((collinear) | (invalid) |
                     (unreachable)))))) | (((!(((collinear) | (invalid) | (singular) | (unreachable)))) &
@@ -2886,57 +2926,57 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
                     isfinite(dp_theta3_x) & isfinite(dp_theta3_y) & isfinite(dp_theta3_z) & isfinite(dp_q1_x) &
                     isfinite(dp_q1_y) & isfinite(dp_q1_z) & isfinite(dp_q2_x) & isfinite(dp_q2_y) & isfinite(dp_q2_z) &
                     isfinite(dp_q3_x) & isfinite(dp_q3_y) & isfinite(dp_q3_z))))));
-            const int t13_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
-            const int t13_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-            const double out_x_checked = ((t13_0) ? NAN : x);
-            const double out_y_checked = ((t13_0) ? NAN : y);
-            const double out_z_checked = ((t13_0) ? NAN : z);
-            const double out_phi_checked = ((t13_0) ? NAN : q4);
-            const double out_dp_r1_x_checked = ((t13_1) ? NAN : dp_r1_x);
-            const double out_dp_r1_y_checked = ((t13_1) ? NAN : dp_r1_y);
-            const double out_dp_r1_z_checked = ((t13_1) ? NAN : dp_r1_z);
-            const double out_dp_r2_x_checked = ((t13_1) ? NAN : dp_r2_x);
-            const double out_dp_r2_y_checked = ((t13_1) ? NAN : dp_r2_y);
-            const double out_dp_r2_z_checked = ((t13_1) ? NAN : dp_r2_z);
-            const double out_dp_r3_x_checked = ((t13_1) ? NAN : dp_r3_x);
-            const double out_dp_r3_y_checked = ((t13_1) ? NAN : dp_r3_y);
-            const double out_dp_r3_z_checked = ((t13_1) ? NAN : dp_r3_z);
-            const double out_dp_l_a1_x_checked = ((t13_1) ? NAN : dp_l_a1_x);
-            const double out_dp_l_a1_y_checked = ((t13_1) ? NAN : dp_l_a1_y);
-            const double out_dp_l_a1_z_checked = ((t13_1) ? NAN : dp_l_a1_z);
-            const double out_dp_l_a2_x_checked = ((t13_1) ? NAN : dp_l_a2_x);
-            const double out_dp_l_a2_y_checked = ((t13_1) ? NAN : dp_l_a2_y);
-            const double out_dp_l_a2_z_checked = ((t13_1) ? NAN : dp_l_a2_z);
-            const double out_dp_l_a3_x_checked = ((t13_1) ? NAN : dp_l_a3_x);
-            const double out_dp_l_a3_y_checked = ((t13_1) ? NAN : dp_l_a3_y);
-            const double out_dp_l_a3_z_checked = ((t13_1) ? NAN : dp_l_a3_z);
-            const double out_dp_l_b1_x_checked = ((t13_1) ? NAN : dp_l_b1_x);
-            const double out_dp_l_b1_y_checked = ((t13_1) ? NAN : dp_l_b1_y);
-            const double out_dp_l_b1_z_checked = ((t13_1) ? NAN : dp_l_b1_z);
-            const double out_dp_l_b2_x_checked = ((t13_1) ? NAN : dp_l_b2_x);
-            const double out_dp_l_b2_y_checked = ((t13_1) ? NAN : dp_l_b2_y);
-            const double out_dp_l_b2_z_checked = ((t13_1) ? NAN : dp_l_b2_z);
-            const double out_dp_l_b3_x_checked = ((t13_1) ? NAN : dp_l_b3_x);
-            const double out_dp_l_b3_y_checked = ((t13_1) ? NAN : dp_l_b3_y);
-            const double out_dp_l_b3_z_checked = ((t13_1) ? NAN : dp_l_b3_z);
-            const double out_dp_theta1_x_checked = ((t13_1) ? NAN : dp_theta1_x);
-            const double out_dp_theta1_y_checked = ((t13_1) ? NAN : dp_theta1_y);
-            const double out_dp_theta1_z_checked = ((t13_1) ? NAN : dp_theta1_z);
-            const double out_dp_theta2_x_checked = ((t13_1) ? NAN : dp_theta2_x);
-            const double out_dp_theta2_y_checked = ((t13_1) ? NAN : dp_theta2_y);
-            const double out_dp_theta2_z_checked = ((t13_1) ? NAN : dp_theta2_z);
-            const double out_dp_theta3_x_checked = ((t13_1) ? NAN : dp_theta3_x);
-            const double out_dp_theta3_y_checked = ((t13_1) ? NAN : dp_theta3_y);
-            const double out_dp_theta3_z_checked = ((t13_1) ? NAN : dp_theta3_z);
-            const double out_dp_q1_x_checked = ((t13_1) ? NAN : dp_q1_x);
-            const double out_dp_q1_y_checked = ((t13_1) ? NAN : dp_q1_y);
-            const double out_dp_q1_z_checked = ((t13_1) ? NAN : dp_q1_z);
-            const double out_dp_q2_x_checked = ((t13_1) ? NAN : dp_q2_x);
-            const double out_dp_q2_y_checked = ((t13_1) ? NAN : dp_q2_y);
-            const double out_dp_q2_z_checked = ((t13_1) ? NAN : dp_q2_z);
-            const double out_dp_q3_x_checked = ((t13_1) ? NAN : dp_q3_x);
-            const double out_dp_q3_y_checked = ((t13_1) ? NAN : dp_q3_y);
-            const double out_dp_q3_z_checked = ((t13_1) ? NAN : dp_q3_z);
+            const int t14_0 = ((collinear) | (invalid) | (nonfinite_output) | (unreachable));
+            const int t14_1 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+            const double out_x_checked = ((t14_0) ? NAN : x);
+            const double out_y_checked = ((t14_0) ? NAN : y);
+            const double out_z_checked = ((t14_0) ? NAN : z);
+            const double out_phi_checked = ((t14_0) ? NAN : q4);
+            const double out_dp_r1_x_checked = ((t14_1) ? NAN : dp_r1_x);
+            const double out_dp_r1_y_checked = ((t14_1) ? NAN : dp_r1_y);
+            const double out_dp_r1_z_checked = ((t14_1) ? NAN : dp_r1_z);
+            const double out_dp_r2_x_checked = ((t14_1) ? NAN : dp_r2_x);
+            const double out_dp_r2_y_checked = ((t14_1) ? NAN : dp_r2_y);
+            const double out_dp_r2_z_checked = ((t14_1) ? NAN : dp_r2_z);
+            const double out_dp_r3_x_checked = ((t14_1) ? NAN : dp_r3_x);
+            const double out_dp_r3_y_checked = ((t14_1) ? NAN : dp_r3_y);
+            const double out_dp_r3_z_checked = ((t14_1) ? NAN : dp_r3_z);
+            const double out_dp_l_a1_x_checked = ((t14_1) ? NAN : dp_l_a1_x);
+            const double out_dp_l_a1_y_checked = ((t14_1) ? NAN : dp_l_a1_y);
+            const double out_dp_l_a1_z_checked = ((t14_1) ? NAN : dp_l_a1_z);
+            const double out_dp_l_a2_x_checked = ((t14_1) ? NAN : dp_l_a2_x);
+            const double out_dp_l_a2_y_checked = ((t14_1) ? NAN : dp_l_a2_y);
+            const double out_dp_l_a2_z_checked = ((t14_1) ? NAN : dp_l_a2_z);
+            const double out_dp_l_a3_x_checked = ((t14_1) ? NAN : dp_l_a3_x);
+            const double out_dp_l_a3_y_checked = ((t14_1) ? NAN : dp_l_a3_y);
+            const double out_dp_l_a3_z_checked = ((t14_1) ? NAN : dp_l_a3_z);
+            const double out_dp_l_b1_x_checked = ((t14_1) ? NAN : dp_l_b1_x);
+            const double out_dp_l_b1_y_checked = ((t14_1) ? NAN : dp_l_b1_y);
+            const double out_dp_l_b1_z_checked = ((t14_1) ? NAN : dp_l_b1_z);
+            const double out_dp_l_b2_x_checked = ((t14_1) ? NAN : dp_l_b2_x);
+            const double out_dp_l_b2_y_checked = ((t14_1) ? NAN : dp_l_b2_y);
+            const double out_dp_l_b2_z_checked = ((t14_1) ? NAN : dp_l_b2_z);
+            const double out_dp_l_b3_x_checked = ((t14_1) ? NAN : dp_l_b3_x);
+            const double out_dp_l_b3_y_checked = ((t14_1) ? NAN : dp_l_b3_y);
+            const double out_dp_l_b3_z_checked = ((t14_1) ? NAN : dp_l_b3_z);
+            const double out_dp_theta1_x_checked = ((t14_1) ? NAN : dp_theta1_x);
+            const double out_dp_theta1_y_checked = ((t14_1) ? NAN : dp_theta1_y);
+            const double out_dp_theta1_z_checked = ((t14_1) ? NAN : dp_theta1_z);
+            const double out_dp_theta2_x_checked = ((t14_1) ? NAN : dp_theta2_x);
+            const double out_dp_theta2_y_checked = ((t14_1) ? NAN : dp_theta2_y);
+            const double out_dp_theta2_z_checked = ((t14_1) ? NAN : dp_theta2_z);
+            const double out_dp_theta3_x_checked = ((t14_1) ? NAN : dp_theta3_x);
+            const double out_dp_theta3_y_checked = ((t14_1) ? NAN : dp_theta3_y);
+            const double out_dp_theta3_z_checked = ((t14_1) ? NAN : dp_theta3_z);
+            const double out_dp_q1_x_checked = ((t14_1) ? NAN : dp_q1_x);
+            const double out_dp_q1_y_checked = ((t14_1) ? NAN : dp_q1_y);
+            const double out_dp_q1_z_checked = ((t14_1) ? NAN : dp_q1_z);
+            const double out_dp_q2_x_checked = ((t14_1) ? NAN : dp_q2_x);
+            const double out_dp_q2_y_checked = ((t14_1) ? NAN : dp_q2_y);
+            const double out_dp_q2_z_checked = ((t14_1) ? NAN : dp_q2_z);
+            const double out_dp_q3_x_checked = ((t14_1) ? NAN : dp_q3_x);
+            const double out_dp_q3_y_checked = ((t14_1) ? NAN : dp_q3_y);
+            const double out_dp_q3_z_checked = ((t14_1) ? NAN : dp_q3_z);
             out_x_checked_b[k] = out_x_checked;
             out_y_checked_b[k] = out_y_checked;
             out_z_checked_b[k] = out_z_checked;
@@ -3259,18 +3299,22 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -3287,19 +3331,19 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -3315,25 +3359,25 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -3346,114 +3390,110 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 const double adjD31 = -adjD32 - adjD33 + e_z;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
                  *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
                  *    and acceleration a_B_i */
-                const double t12_0 = chain_l_a1*cos_q1;
-                const double t12_1 = chain_l_a1*sin_q1;
-                const double t12_2 = qd1*t12_1;
-                const double t12_3 = qd1*qd1;
-                const double t12_4 = chain_l_a2*cos_q2;
-                const double t12_5 = chain_l_a2*sin_q2;
-                const double t12_6 = qd2*t12_5;
-                const double t12_7 = qd2*qd2;
-                const double t12_8 = chain_l_a3*cos_q3;
-                const double t12_9 = chain_l_a3*sin_q3;
-                const double t12_10 = qd3*t12_9;
-                const double t12_11 = qd3*qd3;
-                const double t12_14 = l_a*sin_q1;
-                const double t12_15 = cos_theta1*t12_14;
-                const double t12_16 = sin_theta1*t12_14;
-                const double t12_17 = cos_q1*l_a;
-                const double t12_18 = t12_17*t12_3;
-                const double t12_19 = l_a*sin_q2;
-                const double t12_20 = cos_theta2*t12_19;
-                const double t12_21 = sin_theta2*t12_19;
-                const double t12_22 = cos_q2*l_a;
-                const double t12_23 = t12_22*t12_7;
-                const double t12_24 = l_a*sin_q3;
-                const double t12_25 = cos_theta3*t12_24;
-                const double t12_26 = sin_theta3*t12_24;
-                const double t12_27 = cos_q3*l_a;
-                const double t12_28 = t12_11*t12_27;
-                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
-                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
-                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
-                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
-                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
-                const double dB_x1 = -t12_15;
-                const double dB_y1 = -t12_16;
-                const double dB_z1 = -t12_17;
-                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
-                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
-                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
-                const double dB_x2 = -t12_20;
-                const double dB_y2 = -t12_21;
-                const double dB_z2 = -t12_22;
-                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
-                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
-                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
-                const double dB_x3 = -t12_25;
-                const double dB_y3 = -t12_26;
-                const double dB_z3 = -t12_27;
-                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
-                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
-                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
-                const double t12_12 = -h1 + h2;
-                const double t12_13 = -h1 + h3;
-                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
-                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
-                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                const double t13_0 = -xd;
+                const double t13_1 = S_z1*qd1;
+                const double t13_2 = -yd;
+                const double t13_3 = qd1*qd1;
+                const double t13_4 = S_z2*qd2;
+                const double t13_5 = qd2*qd2;
+                const double t13_6 = S_z3*qd3;
+                const double t13_7 = qd3*qd3;
+                const double t13_10 = l_a*sin_q1;
+                const double t13_11 = cos_theta1*t13_10;
+                const double t13_12 = sin_theta1*t13_10;
+                const double t13_13 = cos_q1*l_a;
+                const double t13_14 = t13_13*t13_3;
+                const double t13_15 = l_a*sin_q2;
+                const double t13_16 = cos_theta2*t13_15;
+                const double t13_17 = sin_theta2*t13_15;
+                const double t13_18 = cos_q2*l_a;
+                const double t13_19 = t13_18*t13_5;
+                const double t13_20 = l_a*sin_q3;
+                const double t13_21 = cos_theta3*t13_20;
+                const double t13_22 = sin_theta3*t13_20;
+                const double t13_23 = cos_q3*l_a;
+                const double t13_24 = t13_23*t13_7;
+                const double h1 = jq1*qdd1 - t13_3*(D13*S_z1 + la_cos_q1*rho1) - pow(-cos_theta1*t13_1 - t13_0, 2) -
+                        pow(la_cos_q1*qd1 + zd, 2) - pow(-sin_theta1*t13_1 - t13_2, 2);
+                const double h2 = jq2*qdd2 - t13_5*(D23*S_z2 + la_cos_q2*rho2) - pow(-cos_theta2*t13_4 - t13_0, 2) -
+                        pow(la_cos_q2*qd2 + zd, 2) - pow(-sin_theta2*t13_4 - t13_2, 2);
+                const double h3 = jq3*qdd3 - t13_7*(D33*S_z3 + la_cos_q3*rho3) - pow(-cos_theta3*t13_6 - t13_0, 2) -
+                        pow(la_cos_q3*qd3 + zd, 2) - pow(-sin_theta3*t13_6 - t13_2, 2);
+                const double dB_x1 = -t13_11;
+                const double dB_y1 = -t13_12;
+                const double dB_z1 = -t13_13;
+                const double aB_x1 = -cos_theta1*t13_14 - qdd1*t13_11;
+                const double aB_y1 = -qdd1*t13_12 - sin_theta1*t13_14;
+                const double aB_z1 = l_a*sin_q1*t13_3 - qdd1*t13_13;
+                const double dB_x2 = -t13_16;
+                const double dB_y2 = -t13_17;
+                const double dB_z2 = -t13_18;
+                const double aB_x2 = -cos_theta2*t13_19 - qdd2*t13_16;
+                const double aB_y2 = -qdd2*t13_17 - sin_theta2*t13_19;
+                const double aB_z2 = l_a*sin_q2*t13_5 - qdd2*t13_18;
+                const double dB_x3 = -t13_21;
+                const double dB_y3 = -t13_22;
+                const double dB_z3 = -t13_23;
+                const double aB_x3 = -cos_theta3*t13_24 - qdd3*t13_21;
+                const double aB_y3 = -qdd3*t13_22 - sin_theta3*t13_24;
+                const double aB_z3 = l_a*sin_q3*t13_7 - qdd3*t13_23;
+                const double t13_8 = -h1 + h2;
+                const double t13_9 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t13_8 + adjD13*t13_9 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t13_8 + adjD23*t13_9 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t13_8 + adjD33*t13_9 + e_z*h1);
                 /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips,
                  *    from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
-                const double t13_0 = (1.0/6.0)*m_b;
-                const double t13_1 = m_b + m_p + payload;
-                const double t13_2 = (3.0/2.0)*m_b + m_p + payload;
-                const double t13_3 = (1.0/3.0)*m_b;
-                const double t13_4 = (1.0/2.0)*m_b;
-                const double t13_5 = -g_x*t13_4 + t13_0*xdd;
-                const double t13_6 = -g_y*t13_4 + t13_0*ydd;
-                const double t13_7 = -g_z*t13_4 + t13_0*zdd;
-                const double F_x = aB_x1*t13_0 + aB_x2*t13_0 + aB_x3*t13_0 - g_x*t13_2 + t13_1*xdd;
-                const double F_y = aB_y1*t13_0 + aB_y2*t13_0 + aB_y3*t13_0 - g_y*t13_2 + t13_1*ydd;
-                const double F_z = aB_z1*t13_0 + aB_z2*t13_0 + aB_z3*t13_0 - g_z*t13_2 + t13_1*zdd;
-                const double f_x1 = aB_x1*t13_3 + t13_5;
-                const double f_y1 = aB_y1*t13_3 + t13_6;
-                const double f_z1 = aB_z1*t13_3 + t13_7;
-                const double f_x2 = aB_x2*t13_3 + t13_5;
-                const double f_y2 = aB_y2*t13_3 + t13_6;
-                const double f_z2 = aB_z2*t13_3 + t13_7;
-                const double f_x3 = aB_x3*t13_3 + t13_5;
-                const double f_y3 = aB_y3*t13_3 + t13_6;
-                const double f_z3 = aB_z3*t13_3 + t13_7;
+                const double t14_0 = (1.0/6.0)*m_b;
+                const double t14_1 = m_b + m_p + payload;
+                const double t14_2 = (3.0/2.0)*m_b + m_p + payload;
+                const double t14_3 = (1.0/3.0)*m_b;
+                const double t14_4 = (1.0/2.0)*m_b;
+                const double t14_5 = -g_x*t14_4 + t14_0*xdd;
+                const double t14_6 = -g_y*t14_4 + t14_0*ydd;
+                const double t14_7 = -g_z*t14_4 + t14_0*zdd;
+                const double F_x = aB_x1*t14_0 + aB_x2*t14_0 + aB_x3*t14_0 - g_x*t14_2 + t14_1*xdd;
+                const double F_y = aB_y1*t14_0 + aB_y2*t14_0 + aB_y3*t14_0 - g_y*t14_2 + t14_1*ydd;
+                const double F_z = aB_z1*t14_0 + aB_z2*t14_0 + aB_z3*t14_0 - g_z*t14_2 + t14_1*zdd;
+                const double f_x1 = aB_x1*t14_3 + t14_5;
+                const double f_y1 = aB_y1*t14_3 + t14_6;
+                const double f_z1 = aB_z1*t14_3 + t14_7;
+                const double f_x2 = aB_x2*t14_3 + t14_5;
+                const double f_y2 = aB_y2*t14_3 + t14_6;
+                const double f_z2 = aB_z2*t14_3 + t14_7;
+                const double f_x3 = aB_x3*t14_3 + t14_5;
+                const double f_y3 = aB_y3*t14_3 + t14_6;
+                const double f_z3 = aB_z3*t14_3 + t14_7;
                 /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
-                const double t14_0 = m_a*r_ca;
-                const double t14_1 = g_z*t14_0;
-                const double t14_2 = sin_q1*t14_0;
-                const double t14_3 = sin_q2*t14_0;
-                const double t14_4 = sin_q3*t14_0;
-                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
-                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
-                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
-                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
-                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
-                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                const double t15_0 = m_a*r_ca;
+                const double t15_1 = g_z*t15_0;
+                const double t15_2 = sin_q1*t15_0;
+                const double t15_3 = sin_q2*t15_0;
+                const double t15_4 = sin_q3*t15_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t15_1 + cos_theta1*g_x*t15_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t15_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t15_1 + cos_theta2*g_x*t15_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t15_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t15_1 + cos_theta3*g_x*t15_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t15_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
                 /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
                 const double tau4 = I_4*qdd4;
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
                         (!(((collinear) | (invalid) | (singular) | (unreachable)))));
-                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
-                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
-                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
+                const int t17_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t17_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t17_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t17_0) ? NAN : tau3);
                 tau[(start + k) * 3 + 0] = out_tau1_checked;
                 tau[(start + k) * 3 + 1] = out_tau2_checked;
                 tau[(start + k) * 3 + 2] = out_tau3_checked;
@@ -3481,18 +3521,22 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -3509,19 +3553,19 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -3537,25 +3581,25 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -3568,115 +3612,111 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
                 const double adjD31 = -adjD32 - adjD33 + e_z;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
                  *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
                  *    and acceleration a_B_i */
-                const double t12_0 = chain_l_a1*cos_q1;
-                const double t12_1 = chain_l_a1*sin_q1;
-                const double t12_2 = qd1*t12_1;
-                const double t12_3 = qd1*qd1;
-                const double t12_4 = chain_l_a2*cos_q2;
-                const double t12_5 = chain_l_a2*sin_q2;
-                const double t12_6 = qd2*t12_5;
-                const double t12_7 = qd2*qd2;
-                const double t12_8 = chain_l_a3*cos_q3;
-                const double t12_9 = chain_l_a3*sin_q3;
-                const double t12_10 = qd3*t12_9;
-                const double t12_11 = qd3*qd3;
-                const double t12_14 = l_a*sin_q1;
-                const double t12_15 = cos_theta1*t12_14;
-                const double t12_16 = sin_theta1*t12_14;
-                const double t12_17 = cos_q1*l_a;
-                const double t12_18 = t12_17*t12_3;
-                const double t12_19 = l_a*sin_q2;
-                const double t12_20 = cos_theta2*t12_19;
-                const double t12_21 = sin_theta2*t12_19;
-                const double t12_22 = cos_q2*l_a;
-                const double t12_23 = t12_22*t12_7;
-                const double t12_24 = l_a*sin_q3;
-                const double t12_25 = cos_theta3*t12_24;
-                const double t12_26 = sin_theta3*t12_24;
-                const double t12_27 = cos_q3*l_a;
-                const double t12_28 = t12_11*t12_27;
-                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
-                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
-                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
-                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
-                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
-                const double dB_x1 = -t12_15;
-                const double dB_y1 = -t12_16;
-                const double dB_z1 = -t12_17;
-                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
-                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
-                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
-                const double dB_x2 = -t12_20;
-                const double dB_y2 = -t12_21;
-                const double dB_z2 = -t12_22;
-                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
-                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
-                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
-                const double dB_x3 = -t12_25;
-                const double dB_y3 = -t12_26;
-                const double dB_z3 = -t12_27;
-                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
-                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
-                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
-                const double t12_12 = -h1 + h2;
-                const double t12_13 = -h1 + h3;
-                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
-                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
-                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                const double t13_0 = -xd;
+                const double t13_1 = S_z1*qd1;
+                const double t13_2 = -yd;
+                const double t13_3 = qd1*qd1;
+                const double t13_4 = S_z2*qd2;
+                const double t13_5 = qd2*qd2;
+                const double t13_6 = S_z3*qd3;
+                const double t13_7 = qd3*qd3;
+                const double t13_10 = l_a*sin_q1;
+                const double t13_11 = cos_theta1*t13_10;
+                const double t13_12 = sin_theta1*t13_10;
+                const double t13_13 = cos_q1*l_a;
+                const double t13_14 = t13_13*t13_3;
+                const double t13_15 = l_a*sin_q2;
+                const double t13_16 = cos_theta2*t13_15;
+                const double t13_17 = sin_theta2*t13_15;
+                const double t13_18 = cos_q2*l_a;
+                const double t13_19 = t13_18*t13_5;
+                const double t13_20 = l_a*sin_q3;
+                const double t13_21 = cos_theta3*t13_20;
+                const double t13_22 = sin_theta3*t13_20;
+                const double t13_23 = cos_q3*l_a;
+                const double t13_24 = t13_23*t13_7;
+                const double h1 = jq1*qdd1 - t13_3*(D13*S_z1 + la_cos_q1*rho1) - pow(-cos_theta1*t13_1 - t13_0, 2) -
+                        pow(la_cos_q1*qd1 + zd, 2) - pow(-sin_theta1*t13_1 - t13_2, 2);
+                const double h2 = jq2*qdd2 - t13_5*(D23*S_z2 + la_cos_q2*rho2) - pow(-cos_theta2*t13_4 - t13_0, 2) -
+                        pow(la_cos_q2*qd2 + zd, 2) - pow(-sin_theta2*t13_4 - t13_2, 2);
+                const double h3 = jq3*qdd3 - t13_7*(D33*S_z3 + la_cos_q3*rho3) - pow(-cos_theta3*t13_6 - t13_0, 2) -
+                        pow(la_cos_q3*qd3 + zd, 2) - pow(-sin_theta3*t13_6 - t13_2, 2);
+                const double dB_x1 = -t13_11;
+                const double dB_y1 = -t13_12;
+                const double dB_z1 = -t13_13;
+                const double aB_x1 = -cos_theta1*t13_14 - qdd1*t13_11;
+                const double aB_y1 = -qdd1*t13_12 - sin_theta1*t13_14;
+                const double aB_z1 = l_a*sin_q1*t13_3 - qdd1*t13_13;
+                const double dB_x2 = -t13_16;
+                const double dB_y2 = -t13_17;
+                const double dB_z2 = -t13_18;
+                const double aB_x2 = -cos_theta2*t13_19 - qdd2*t13_16;
+                const double aB_y2 = -qdd2*t13_17 - sin_theta2*t13_19;
+                const double aB_z2 = l_a*sin_q2*t13_5 - qdd2*t13_18;
+                const double dB_x3 = -t13_21;
+                const double dB_y3 = -t13_22;
+                const double dB_z3 = -t13_23;
+                const double aB_x3 = -cos_theta3*t13_24 - qdd3*t13_21;
+                const double aB_y3 = -qdd3*t13_22 - sin_theta3*t13_24;
+                const double aB_z3 = l_a*sin_q3*t13_7 - qdd3*t13_23;
+                const double t13_8 = -h1 + h2;
+                const double t13_9 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t13_8 + adjD13*t13_9 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t13_8 + adjD23*t13_9 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t13_8 + adjD33*t13_9 + e_z*h1);
                 /* forces by virtual work, exact model: F on the platform (tau = J^T F + ...), f_i on the crank tips,
                  *    from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
-                const double t13_0 = (1.0/6.0)*m_b;
-                const double t13_1 = m_b + m_p + payload;
-                const double t13_2 = (3.0/2.0)*m_b + m_p + payload;
-                const double t13_3 = (1.0/3.0)*m_b;
-                const double t13_4 = (1.0/2.0)*m_b;
-                const double t13_5 = -g_x*t13_4 + t13_0*xdd;
-                const double t13_6 = -g_y*t13_4 + t13_0*ydd;
-                const double t13_7 = -g_z*t13_4 + t13_0*zdd;
-                const double F_x = aB_x1*t13_0 + aB_x2*t13_0 + aB_x3*t13_0 - g_x*t13_2 + t13_1*xdd;
-                const double F_y = aB_y1*t13_0 + aB_y2*t13_0 + aB_y3*t13_0 - g_y*t13_2 + t13_1*ydd;
-                const double F_z = aB_z1*t13_0 + aB_z2*t13_0 + aB_z3*t13_0 - g_z*t13_2 + t13_1*zdd;
-                const double f_x1 = aB_x1*t13_3 + t13_5;
-                const double f_y1 = aB_y1*t13_3 + t13_6;
-                const double f_z1 = aB_z1*t13_3 + t13_7;
-                const double f_x2 = aB_x2*t13_3 + t13_5;
-                const double f_y2 = aB_y2*t13_3 + t13_6;
-                const double f_z2 = aB_z2*t13_3 + t13_7;
-                const double f_x3 = aB_x3*t13_3 + t13_5;
-                const double f_y3 = aB_y3*t13_3 + t13_6;
-                const double f_z3 = aB_z3*t13_3 + t13_7;
+                const double t14_0 = (1.0/6.0)*m_b;
+                const double t14_1 = m_b + m_p + payload;
+                const double t14_2 = (3.0/2.0)*m_b + m_p + payload;
+                const double t14_3 = (1.0/3.0)*m_b;
+                const double t14_4 = (1.0/2.0)*m_b;
+                const double t14_5 = -g_x*t14_4 + t14_0*xdd;
+                const double t14_6 = -g_y*t14_4 + t14_0*ydd;
+                const double t14_7 = -g_z*t14_4 + t14_0*zdd;
+                const double F_x = aB_x1*t14_0 + aB_x2*t14_0 + aB_x3*t14_0 - g_x*t14_2 + t14_1*xdd;
+                const double F_y = aB_y1*t14_0 + aB_y2*t14_0 + aB_y3*t14_0 - g_y*t14_2 + t14_1*ydd;
+                const double F_z = aB_z1*t14_0 + aB_z2*t14_0 + aB_z3*t14_0 - g_z*t14_2 + t14_1*zdd;
+                const double f_x1 = aB_x1*t14_3 + t14_5;
+                const double f_y1 = aB_y1*t14_3 + t14_6;
+                const double f_z1 = aB_z1*t14_3 + t14_7;
+                const double f_x2 = aB_x2*t14_3 + t14_5;
+                const double f_y2 = aB_y2*t14_3 + t14_6;
+                const double f_z2 = aB_z2*t14_3 + t14_7;
+                const double f_x3 = aB_x3*t14_3 + t14_5;
+                const double f_y3 = aB_y3*t14_3 + t14_6;
+                const double f_z3 = aB_z3*t14_3 + t14_7;
                 /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
-                const double t14_0 = m_a*r_ca;
-                const double t14_1 = g_z*t14_0;
-                const double t14_2 = sin_q1*t14_0;
-                const double t14_3 = sin_q2*t14_0;
-                const double t14_4 = sin_q3*t14_0;
-                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
-                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
-                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
-                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
-                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
-                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                const double t15_0 = m_a*r_ca;
+                const double t15_1 = g_z*t15_0;
+                const double t15_2 = sin_q1*t15_0;
+                const double t15_3 = sin_q2*t15_0;
+                const double t15_4 = sin_q3*t15_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t15_1 + cos_theta1*g_x*t15_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t15_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t15_1 + cos_theta2*g_x*t15_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t15_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t15_1 + cos_theta3*g_x*t15_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t15_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
                 /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
                 const double tau4 = I_4*qdd4;
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
                         (!(((collinear) | (invalid) | (singular) | (unreachable)))));
-                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
-                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
-                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
-                const double out_tau4_checked = ((t16_0) ? NAN : tau4);
+                const int t17_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t17_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t17_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t17_0) ? NAN : tau3);
+                const double out_tau4_checked = ((t17_0) ? NAN : tau4);
                 tau[(start + k) * 4 + 0] = out_tau1_checked;
                 tau[(start + k) * 4 + 1] = out_tau2_checked;
                 tau[(start + k) * 4 + 2] = out_tau3_checked;
@@ -3850,18 +3890,22 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -3878,19 +3922,19 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -3906,25 +3950,25 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -3937,112 +3981,108 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 const double adjD31 = -adjD32 - adjD33 + e_z;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
                  *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
                  *    and acceleration a_B_i */
-                const double t12_0 = chain_l_a1*cos_q1;
-                const double t12_1 = chain_l_a1*sin_q1;
-                const double t12_2 = qd1*t12_1;
-                const double t12_3 = qd1*qd1;
-                const double t12_4 = chain_l_a2*cos_q2;
-                const double t12_5 = chain_l_a2*sin_q2;
-                const double t12_6 = qd2*t12_5;
-                const double t12_7 = qd2*qd2;
-                const double t12_8 = chain_l_a3*cos_q3;
-                const double t12_9 = chain_l_a3*sin_q3;
-                const double t12_10 = qd3*t12_9;
-                const double t12_11 = qd3*qd3;
-                const double t12_14 = l_a*sin_q1;
-                const double t12_15 = cos_theta1*t12_14;
-                const double t12_16 = sin_theta1*t12_14;
-                const double t12_17 = cos_q1*l_a;
-                const double t12_18 = t12_17*t12_3;
-                const double t12_19 = l_a*sin_q2;
-                const double t12_20 = cos_theta2*t12_19;
-                const double t12_21 = sin_theta2*t12_19;
-                const double t12_22 = cos_q2*l_a;
-                const double t12_23 = t12_22*t12_7;
-                const double t12_24 = l_a*sin_q3;
-                const double t12_25 = cos_theta3*t12_24;
-                const double t12_26 = sin_theta3*t12_24;
-                const double t12_27 = cos_q3*l_a;
-                const double t12_28 = t12_11*t12_27;
-                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
-                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
-                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
-                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
-                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
-                const double dB_x1 = -t12_15;
-                const double dB_y1 = -t12_16;
-                const double dB_z1 = -t12_17;
-                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
-                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
-                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
-                const double dB_x2 = -t12_20;
-                const double dB_y2 = -t12_21;
-                const double dB_z2 = -t12_22;
-                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
-                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
-                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
-                const double dB_x3 = -t12_25;
-                const double dB_y3 = -t12_26;
-                const double dB_z3 = -t12_27;
-                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
-                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
-                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
-                const double t12_12 = -h1 + h2;
-                const double t12_13 = -h1 + h3;
-                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
-                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
-                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                const double t13_0 = -xd;
+                const double t13_1 = S_z1*qd1;
+                const double t13_2 = -yd;
+                const double t13_3 = qd1*qd1;
+                const double t13_4 = S_z2*qd2;
+                const double t13_5 = qd2*qd2;
+                const double t13_6 = S_z3*qd3;
+                const double t13_7 = qd3*qd3;
+                const double t13_10 = l_a*sin_q1;
+                const double t13_11 = cos_theta1*t13_10;
+                const double t13_12 = sin_theta1*t13_10;
+                const double t13_13 = cos_q1*l_a;
+                const double t13_14 = t13_13*t13_3;
+                const double t13_15 = l_a*sin_q2;
+                const double t13_16 = cos_theta2*t13_15;
+                const double t13_17 = sin_theta2*t13_15;
+                const double t13_18 = cos_q2*l_a;
+                const double t13_19 = t13_18*t13_5;
+                const double t13_20 = l_a*sin_q3;
+                const double t13_21 = cos_theta3*t13_20;
+                const double t13_22 = sin_theta3*t13_20;
+                const double t13_23 = cos_q3*l_a;
+                const double t13_24 = t13_23*t13_7;
+                const double h1 = jq1*qdd1 - t13_3*(D13*S_z1 + la_cos_q1*rho1) - pow(-cos_theta1*t13_1 - t13_0, 2) -
+                        pow(la_cos_q1*qd1 + zd, 2) - pow(-sin_theta1*t13_1 - t13_2, 2);
+                const double h2 = jq2*qdd2 - t13_5*(D23*S_z2 + la_cos_q2*rho2) - pow(-cos_theta2*t13_4 - t13_0, 2) -
+                        pow(la_cos_q2*qd2 + zd, 2) - pow(-sin_theta2*t13_4 - t13_2, 2);
+                const double h3 = jq3*qdd3 - t13_7*(D33*S_z3 + la_cos_q3*rho3) - pow(-cos_theta3*t13_6 - t13_0, 2) -
+                        pow(la_cos_q3*qd3 + zd, 2) - pow(-sin_theta3*t13_6 - t13_2, 2);
+                const double dB_x1 = -t13_11;
+                const double dB_y1 = -t13_12;
+                const double dB_z1 = -t13_13;
+                const double aB_x1 = -cos_theta1*t13_14 - qdd1*t13_11;
+                const double aB_y1 = -qdd1*t13_12 - sin_theta1*t13_14;
+                const double aB_z1 = l_a*sin_q1*t13_3 - qdd1*t13_13;
+                const double dB_x2 = -t13_16;
+                const double dB_y2 = -t13_17;
+                const double dB_z2 = -t13_18;
+                const double aB_x2 = -cos_theta2*t13_19 - qdd2*t13_16;
+                const double aB_y2 = -qdd2*t13_17 - sin_theta2*t13_19;
+                const double aB_z2 = l_a*sin_q2*t13_5 - qdd2*t13_18;
+                const double dB_x3 = -t13_21;
+                const double dB_y3 = -t13_22;
+                const double dB_z3 = -t13_23;
+                const double aB_x3 = -cos_theta3*t13_24 - qdd3*t13_21;
+                const double aB_y3 = -qdd3*t13_22 - sin_theta3*t13_24;
+                const double aB_z3 = l_a*sin_q3*t13_7 - qdd3*t13_23;
+                const double t13_8 = -h1 + h2;
+                const double t13_9 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t13_8 + adjD13*t13_9 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t13_8 + adjD23*t13_9 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t13_8 + adjD33*t13_9 + e_z*h1);
                 /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i
                  *    on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
-                const double t13_0 = 3*m_b + 2*m_p + 2*payload;
-                const double t13_1 = (1.0/2.0)*t13_0;
-                const double t13_2 = (1.0/2.0)*m_b;
-                const double t13_3 = -g_x*t13_2;
-                const double t13_4 = -g_y*t13_2;
-                const double t13_5 = -g_z*t13_2;
-                const double F_x = -g_x*t13_1 + (1.0/2.0)*t13_0*xdd;
-                const double F_y = -g_y*t13_1 + (1.0/2.0)*t13_0*ydd;
-                const double F_z = -g_z*t13_1 + (1.0/2.0)*t13_0*zdd;
-                const double f_x1 = aB_x1*t13_2 + t13_3;
-                const double f_y1 = aB_y1*t13_2 + t13_4;
-                const double f_z1 = aB_z1*t13_2 + t13_5;
-                const double f_x2 = aB_x2*t13_2 + t13_3;
-                const double f_y2 = aB_y2*t13_2 + t13_4;
-                const double f_z2 = aB_z2*t13_2 + t13_5;
-                const double f_x3 = aB_x3*t13_2 + t13_3;
-                const double f_y3 = aB_y3*t13_2 + t13_4;
-                const double f_z3 = aB_z3*t13_2 + t13_5;
+                const double t14_0 = 3*m_b + 2*m_p + 2*payload;
+                const double t14_1 = (1.0/2.0)*t14_0;
+                const double t14_2 = (1.0/2.0)*m_b;
+                const double t14_3 = -g_x*t14_2;
+                const double t14_4 = -g_y*t14_2;
+                const double t14_5 = -g_z*t14_2;
+                const double F_x = -g_x*t14_1 + (1.0/2.0)*t14_0*xdd;
+                const double F_y = -g_y*t14_1 + (1.0/2.0)*t14_0*ydd;
+                const double F_z = -g_z*t14_1 + (1.0/2.0)*t14_0*zdd;
+                const double f_x1 = aB_x1*t14_2 + t14_3;
+                const double f_y1 = aB_y1*t14_2 + t14_4;
+                const double f_z1 = aB_z1*t14_2 + t14_5;
+                const double f_x2 = aB_x2*t14_2 + t14_3;
+                const double f_y2 = aB_y2*t14_2 + t14_4;
+                const double f_z2 = aB_z2*t14_2 + t14_5;
+                const double f_x3 = aB_x3*t14_2 + t14_3;
+                const double f_y3 = aB_y3*t14_2 + t14_4;
+                const double f_z3 = aB_z3*t14_2 + t14_5;
                 /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
-                const double t14_0 = m_a*r_ca;
-                const double t14_1 = g_z*t14_0;
-                const double t14_2 = sin_q1*t14_0;
-                const double t14_3 = sin_q2*t14_0;
-                const double t14_4 = sin_q3*t14_0;
-                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
-                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
-                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
-                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
-                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
-                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                const double t15_0 = m_a*r_ca;
+                const double t15_1 = g_z*t15_0;
+                const double t15_2 = sin_q1*t15_0;
+                const double t15_3 = sin_q2*t15_0;
+                const double t15_4 = sin_q3*t15_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t15_1 + cos_theta1*g_x*t15_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t15_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t15_1 + cos_theta2*g_x*t15_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t15_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t15_1 + cos_theta3*g_x*t15_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t15_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
                 /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
                 const double tau4 = I_4*qdd4;
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
                         (!(((collinear) | (invalid) | (singular) | (unreachable)))));
-                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
-                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
-                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
+                const int t17_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t17_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t17_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t17_0) ? NAN : tau3);
                 tau[(start + k) * 3 + 0] = out_tau1_checked;
                 tau[(start + k) * 3 + 1] = out_tau2_checked;
                 tau[(start + k) * 3 + 2] = out_tau3_checked;
@@ -4070,18 +4110,22 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 const double sin_q2 = sin_q2_b[k];
                 const double cos_q3 = cos_q3_b[k];
                 const double sin_q3 = sin_q3_b[k];
+                /* crank reach l_a,i cos q_i */
+                const double la_cos_q1 = chain_l_a1*cos_q1;
+                const double la_cos_q2 = chain_l_a2*cos_q2;
+                const double la_cos_q3 = chain_l_a3*cos_q3;
                 /* sphere centres S_i, eqs. (3)-(5) */
-                const double t0_0 = chain_l_a1*cos_q1 + chain_r1;
-                const double t0_1 = chain_l_a2*cos_q2 + chain_r2;
-                const double t0_2 = chain_l_a3*cos_q3 + chain_r3;
-                const double S_x1 = cos_theta1*t0_0;
-                const double S_y1 = sin_theta1*t0_0;
+                const double t1_0 = chain_r1 + la_cos_q1;
+                const double t1_1 = chain_r2 + la_cos_q2;
+                const double t1_2 = chain_r3 + la_cos_q3;
+                const double S_x1 = cos_theta1*t1_0;
+                const double S_y1 = sin_theta1*t1_0;
                 const double S_z1 = -chain_l_a1*sin_q1;
-                const double S_x2 = cos_theta2*t0_1;
-                const double S_y2 = sin_theta2*t0_1;
+                const double S_x2 = cos_theta2*t1_1;
+                const double S_y2 = sin_theta2*t1_1;
                 const double S_z2 = -chain_l_a2*sin_q2;
-                const double S_x3 = cos_theta3*t0_2;
-                const double S_y3 = sin_theta3*t0_2;
+                const double S_x3 = cos_theta3*t1_2;
+                const double S_y3 = sin_theta3*t1_2;
                 const double S_z3 = -chain_l_a3*sin_q3;
                 /* edges a = S_2 - S_1, b = S_3 - S_1 of the centre triangle */
                 const double a_x = -S_x1 + S_x2;
@@ -4098,19 +4142,19 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 /* 1 / |e|^2 (|e| = 0 only for collinear centres) */
                 const double inv_e_sq = 1.0/e_sq;
                 /* foot point x0 of the planes' line, eqs. (6)-(7), by Cramer's rule */
-                const double t4_0 = chain_l_b1*chain_l_b1;
-                const double t4_1 = 2*e_z;
-                const double t4_3 = 2*e_y;
-                const double t4_5 = (1.0/4.0)*inv_e_sq;
-                const double t4_6 = 2*e_x;
-                const double radii_term2 = t4_0 - (chain_l_b2*chain_l_b2);
-                const double radii_term3 = t4_0 - (chain_l_b3*chain_l_b3);
-                const double t4_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
-                const double t4_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
-                const double x0_x = t4_5*(t4_2*(-a_y*t4_1 + 2*a_z*e_y) + t4_4*(b_y*t4_1 - b_z*t4_3));
-                const double x0_y = t4_5*(t4_2*(a_x*t4_1 - a_z*t4_6) + t4_4*(-b_x*t4_1 + 2*b_z*e_x));
-                const double x0_z = t4_5*(t4_2*(-a_x*t4_3 + 2*a_y*e_x) + t4_4*(b_x*t4_3 - b_y*t4_6));
-                const double h_sq = t4_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
+                const double t5_0 = chain_l_b1*chain_l_b1;
+                const double t5_1 = 2*e_z;
+                const double t5_3 = 2*e_y;
+                const double t5_5 = (1.0/4.0)*inv_e_sq;
+                const double t5_6 = 2*e_x;
+                const double radii_term2 = t5_0 - (chain_l_b2*chain_l_b2);
+                const double radii_term3 = t5_0 - (chain_l_b3*chain_l_b3);
+                const double t5_2 = radii_term3 + b_x*b_x + b_y*b_y + b_z*b_z;
+                const double t5_4 = radii_term2 + a_x*a_x + a_y*a_y + a_z*a_z;
+                const double x0_x = t5_5*(t5_2*(-a_y*t5_1 + 2*a_z*e_y) + t5_4*(b_y*t5_1 - b_z*t5_3));
+                const double x0_y = t5_5*(t5_2*(a_x*t5_1 - a_z*t5_6) + t5_4*(-b_x*t5_1 + 2*b_z*e_x));
+                const double x0_z = t5_5*(t5_2*(-a_x*t5_3 + 2*a_y*e_x) + t5_4*(b_x*t5_3 - b_y*t5_6));
+                const double h_sq = t5_0 - (x0_x*x0_x) - (x0_y*x0_y) - (x0_z*x0_z);
                 /* lower intersection with sphere 1, eqs. (22)-(26) */
                 const double lambda_ = -copysign(sqrt(h_sq*inv_e_sq), e_z);
                 /* platform position p, eq. (27) */
@@ -4126,25 +4170,25 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 const int unreachable = (h_sq < 0);
                 const int singular = (fabs(det_D) <= det_limit);
                 /* D = J_p / 2: rows p - S_i = xi, xi - a, xi - b, eqs. (31)-(33) */
-                const double t8_0 = -xi_x;
-                const double t8_1 = -xi_y;
-                const double t8_2 = -xi_z;
+                const double t9_0 = -xi_x;
+                const double t9_1 = -xi_y;
+                const double t9_2 = -xi_z;
                 const double D11 = xi_x;
                 const double D12 = xi_y;
                 const double D13 = xi_z;
-                const double D21 = -a_x - t8_0;
-                const double D22 = -a_y - t8_1;
-                const double D23 = -a_z - t8_2;
-                const double D31 = -b_x - t8_0;
-                const double D32 = -b_y - t8_1;
-                const double D33 = -b_z - t8_2;
+                const double D21 = -a_x - t9_0;
+                const double D22 = -a_y - t9_1;
+                const double D23 = -a_z - t9_2;
+                const double D31 = -b_x - t9_0;
+                const double D32 = -b_y - t9_1;
+                const double D33 = -b_z - t9_2;
                 /* J_q,ii / 2 = D_i . dS_i/dq_i, eq. (34) corrected (sign of the r term) */
                 const double rho1 = D11*cos_theta1 + D12*sin_theta1;
-                const double jq1 = -D13*chain_l_a1*cos_q1 - chain_l_a1*rho1*sin_q1;
+                const double jq1 = -D13*la_cos_q1 + S_z1*rho1;
                 const double rho2 = D21*cos_theta2 + D22*sin_theta2;
-                const double jq2 = -D23*chain_l_a2*cos_q2 - chain_l_a2*rho2*sin_q2;
+                const double jq2 = -D23*la_cos_q2 + S_z2*rho2;
                 const double rho3 = D31*cos_theta3 + D32*sin_theta3;
-                const double jq3 = -D33*chain_l_a3*cos_q3 - chain_l_a3*rho3*sin_q3;
+                const double jq3 = -D33*la_cos_q3 + S_z3*rho3;
                 /* adjugate of D (columns: cross products of the rows) and 1 / det D, Cramer's rule for eq. (30) */
                 const double adjD12 = -b_y*xi_z + b_z*xi_y;
                 const double adjD22 = b_x*xi_z - b_z*xi_x;
@@ -4157,113 +4201,109 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
                 const double adjD31 = -adjD32 - adjD33 + e_z;
                 const double inv_det_D = 1.0/det_D;
                 /* platform velocity pdot = J_p^-1 J_q qdot, eq. (30) */
-                const double t11_0 = jq1*qd1;
-                const double t11_1 = jq2*qd2 - t11_0;
-                const double t11_2 = jq3*qd3 - t11_0;
-                const double xd = inv_det_D*(adjD12*t11_1 + adjD13*t11_2 + e_x*t11_0);
-                const double yd = inv_det_D*(adjD22*t11_1 + adjD23*t11_2 + e_y*t11_0);
-                const double zd = inv_det_D*(adjD32*t11_1 + adjD33*t11_2 + e_z*t11_0);
+                const double t12_0 = jq1*qd1;
+                const double t12_1 = jq2*qd2 - t12_0;
+                const double t12_2 = jq3*qd3 - t12_0;
+                const double xd = inv_det_D*(adjD12*t12_1 + adjD13*t12_2 + e_x*t12_0);
+                const double yd = inv_det_D*(adjD22*t12_1 + adjD23*t12_2 + e_y*t12_0);
+                const double zd = inv_det_D*(adjD32*t12_1 + adjD33*t12_2 + e_z*t12_0);
                 /* right-hand side h / 2 of J_p pddot = h, eqs. (38)-(39): D_i . Sddot_i - |pdot - Sdot_i|^2; platform
                  *    acceleration pddot = J_p^-1 h, eq. (38); crank tips B_i: velocity per unit crank rate dB_i/dq_i
                  *    and acceleration a_B_i */
-                const double t12_0 = chain_l_a1*cos_q1;
-                const double t12_1 = chain_l_a1*sin_q1;
-                const double t12_2 = qd1*t12_1;
-                const double t12_3 = qd1*qd1;
-                const double t12_4 = chain_l_a2*cos_q2;
-                const double t12_5 = chain_l_a2*sin_q2;
-                const double t12_6 = qd2*t12_5;
-                const double t12_7 = qd2*qd2;
-                const double t12_8 = chain_l_a3*cos_q3;
-                const double t12_9 = chain_l_a3*sin_q3;
-                const double t12_10 = qd3*t12_9;
-                const double t12_11 = qd3*qd3;
-                const double t12_14 = l_a*sin_q1;
-                const double t12_15 = cos_theta1*t12_14;
-                const double t12_16 = sin_theta1*t12_14;
-                const double t12_17 = cos_q1*l_a;
-                const double t12_18 = t12_17*t12_3;
-                const double t12_19 = l_a*sin_q2;
-                const double t12_20 = cos_theta2*t12_19;
-                const double t12_21 = sin_theta2*t12_19;
-                const double t12_22 = cos_q2*l_a;
-                const double t12_23 = t12_22*t12_7;
-                const double t12_24 = l_a*sin_q3;
-                const double t12_25 = cos_theta3*t12_24;
-                const double t12_26 = sin_theta3*t12_24;
-                const double t12_27 = cos_q3*l_a;
-                const double t12_28 = t12_11*t12_27;
-                const double h1 = jq1*qdd1 + t12_3*(D13*t12_1 - rho1*t12_0) - pow(cos_theta1*t12_2 + xd, 2) -
-                        pow(qd1*t12_0 + zd, 2) - pow(sin_theta1*t12_2 + yd, 2);
-                const double h2 = jq2*qdd2 + t12_7*(D23*t12_5 - rho2*t12_4) - pow(cos_theta2*t12_6 + xd, 2) -
-                        pow(qd2*t12_4 + zd, 2) - pow(sin_theta2*t12_6 + yd, 2);
-                const double h3 = jq3*qdd3 + t12_11*(D33*t12_9 - rho3*t12_8) - pow(cos_theta3*t12_10 + xd, 2) -
-                        pow(qd3*t12_8 + zd, 2) - pow(sin_theta3*t12_10 + yd, 2);
-                const double dB_x1 = -t12_15;
-                const double dB_y1 = -t12_16;
-                const double dB_z1 = -t12_17;
-                const double aB_x1 = -cos_theta1*t12_18 - qdd1*t12_15;
-                const double aB_y1 = -qdd1*t12_16 - sin_theta1*t12_18;
-                const double aB_z1 = l_a*sin_q1*t12_3 - qdd1*t12_17;
-                const double dB_x2 = -t12_20;
-                const double dB_y2 = -t12_21;
-                const double dB_z2 = -t12_22;
-                const double aB_x2 = -cos_theta2*t12_23 - qdd2*t12_20;
-                const double aB_y2 = -qdd2*t12_21 - sin_theta2*t12_23;
-                const double aB_z2 = l_a*sin_q2*t12_7 - qdd2*t12_22;
-                const double dB_x3 = -t12_25;
-                const double dB_y3 = -t12_26;
-                const double dB_z3 = -t12_27;
-                const double aB_x3 = -cos_theta3*t12_28 - qdd3*t12_25;
-                const double aB_y3 = -qdd3*t12_26 - sin_theta3*t12_28;
-                const double aB_z3 = l_a*sin_q3*t12_11 - qdd3*t12_27;
-                const double t12_12 = -h1 + h2;
-                const double t12_13 = -h1 + h3;
-                const double xdd = inv_det_D*(adjD12*t12_12 + adjD13*t12_13 + e_x*h1);
-                const double ydd = inv_det_D*(adjD22*t12_12 + adjD23*t12_13 + e_y*h1);
-                const double zdd = inv_det_D*(adjD32*t12_12 + adjD33*t12_13 + e_z*h1);
+                const double t13_0 = -xd;
+                const double t13_1 = S_z1*qd1;
+                const double t13_2 = -yd;
+                const double t13_3 = qd1*qd1;
+                const double t13_4 = S_z2*qd2;
+                const double t13_5 = qd2*qd2;
+                const double t13_6 = S_z3*qd3;
+                const double t13_7 = qd3*qd3;
+                const double t13_10 = l_a*sin_q1;
+                const double t13_11 = cos_theta1*t13_10;
+                const double t13_12 = sin_theta1*t13_10;
+                const double t13_13 = cos_q1*l_a;
+                const double t13_14 = t13_13*t13_3;
+                const double t13_15 = l_a*sin_q2;
+                const double t13_16 = cos_theta2*t13_15;
+                const double t13_17 = sin_theta2*t13_15;
+                const double t13_18 = cos_q2*l_a;
+                const double t13_19 = t13_18*t13_5;
+                const double t13_20 = l_a*sin_q3;
+                const double t13_21 = cos_theta3*t13_20;
+                const double t13_22 = sin_theta3*t13_20;
+                const double t13_23 = cos_q3*l_a;
+                const double t13_24 = t13_23*t13_7;
+                const double h1 = jq1*qdd1 - t13_3*(D13*S_z1 + la_cos_q1*rho1) - pow(-cos_theta1*t13_1 - t13_0, 2) -
+                        pow(la_cos_q1*qd1 + zd, 2) - pow(-sin_theta1*t13_1 - t13_2, 2);
+                const double h2 = jq2*qdd2 - t13_5*(D23*S_z2 + la_cos_q2*rho2) - pow(-cos_theta2*t13_4 - t13_0, 2) -
+                        pow(la_cos_q2*qd2 + zd, 2) - pow(-sin_theta2*t13_4 - t13_2, 2);
+                const double h3 = jq3*qdd3 - t13_7*(D33*S_z3 + la_cos_q3*rho3) - pow(-cos_theta3*t13_6 - t13_0, 2) -
+                        pow(la_cos_q3*qd3 + zd, 2) - pow(-sin_theta3*t13_6 - t13_2, 2);
+                const double dB_x1 = -t13_11;
+                const double dB_y1 = -t13_12;
+                const double dB_z1 = -t13_13;
+                const double aB_x1 = -cos_theta1*t13_14 - qdd1*t13_11;
+                const double aB_y1 = -qdd1*t13_12 - sin_theta1*t13_14;
+                const double aB_z1 = l_a*sin_q1*t13_3 - qdd1*t13_13;
+                const double dB_x2 = -t13_16;
+                const double dB_y2 = -t13_17;
+                const double dB_z2 = -t13_18;
+                const double aB_x2 = -cos_theta2*t13_19 - qdd2*t13_16;
+                const double aB_y2 = -qdd2*t13_17 - sin_theta2*t13_19;
+                const double aB_z2 = l_a*sin_q2*t13_5 - qdd2*t13_18;
+                const double dB_x3 = -t13_21;
+                const double dB_y3 = -t13_22;
+                const double dB_z3 = -t13_23;
+                const double aB_x3 = -cos_theta3*t13_24 - qdd3*t13_21;
+                const double aB_y3 = -qdd3*t13_22 - sin_theta3*t13_24;
+                const double aB_z3 = l_a*sin_q3*t13_7 - qdd3*t13_23;
+                const double t13_8 = -h1 + h2;
+                const double t13_9 = -h1 + h3;
+                const double xdd = inv_det_D*(adjD12*t13_8 + adjD13*t13_9 + e_x*h1);
+                const double ydd = inv_det_D*(adjD22*t13_8 + adjD23*t13_9 + e_y*h1);
+                const double zdd = inv_det_D*(adjD32*t13_8 + adjD33*t13_9 + e_z*h1);
                 /* forces by virtual work, simplified model (rod mass split): F on the platform (tau = J^T F + ...), f_i
                  *    on the crank tips, from sum over bodies of (d v / d qdot)^T m (a - g) + rotation */
-                const double t13_0 = 3*m_b + 2*m_p + 2*payload;
-                const double t13_1 = (1.0/2.0)*t13_0;
-                const double t13_2 = (1.0/2.0)*m_b;
-                const double t13_3 = -g_x*t13_2;
-                const double t13_4 = -g_y*t13_2;
-                const double t13_5 = -g_z*t13_2;
-                const double F_x = -g_x*t13_1 + (1.0/2.0)*t13_0*xdd;
-                const double F_y = -g_y*t13_1 + (1.0/2.0)*t13_0*ydd;
-                const double F_z = -g_z*t13_1 + (1.0/2.0)*t13_0*zdd;
-                const double f_x1 = aB_x1*t13_2 + t13_3;
-                const double f_y1 = aB_y1*t13_2 + t13_4;
-                const double f_z1 = aB_z1*t13_2 + t13_5;
-                const double f_x2 = aB_x2*t13_2 + t13_3;
-                const double f_y2 = aB_y2*t13_2 + t13_4;
-                const double f_z2 = aB_z2*t13_2 + t13_5;
-                const double f_x3 = aB_x3*t13_2 + t13_3;
-                const double f_y3 = aB_y3*t13_2 + t13_4;
-                const double f_z3 = aB_z3*t13_2 + t13_5;
+                const double t14_0 = 3*m_b + 2*m_p + 2*payload;
+                const double t14_1 = (1.0/2.0)*t14_0;
+                const double t14_2 = (1.0/2.0)*m_b;
+                const double t14_3 = -g_x*t14_2;
+                const double t14_4 = -g_y*t14_2;
+                const double t14_5 = -g_z*t14_2;
+                const double F_x = -g_x*t14_1 + (1.0/2.0)*t14_0*xdd;
+                const double F_y = -g_y*t14_1 + (1.0/2.0)*t14_0*ydd;
+                const double F_z = -g_z*t14_1 + (1.0/2.0)*t14_0*zdd;
+                const double f_x1 = aB_x1*t14_2 + t14_3;
+                const double f_y1 = aB_y1*t14_2 + t14_4;
+                const double f_z1 = aB_z1*t14_2 + t14_5;
+                const double f_x2 = aB_x2*t14_2 + t14_3;
+                const double f_y2 = aB_y2*t14_2 + t14_4;
+                const double f_z2 = aB_z2*t14_2 + t14_5;
+                const double f_x3 = aB_x3*t14_2 + t14_3;
+                const double f_y3 = aB_y3*t14_2 + t14_4;
+                const double f_z3 = aB_z3*t14_2 + t14_5;
                 /* motor torques tau = J^T F + dB_i . f_i + crank terms, eq. (30) */
-                const double t14_0 = m_a*r_ca;
-                const double t14_1 = g_z*t14_0;
-                const double t14_2 = sin_q1*t14_0;
-                const double t14_3 = sin_q2*t14_0;
-                const double t14_4 = sin_q3*t14_0;
-                const double tau1 = I_a*qdd1 + cos_q1*t14_1 + cos_theta1*g_x*t14_2 + dB_x1*f_x1 + dB_y1*f_y1 +
-                        dB_z1*f_z1 + g_y*sin_theta1*t14_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
-                const double tau2 = I_a*qdd2 + cos_q2*t14_1 + cos_theta2*g_x*t14_3 + dB_x2*f_x2 + dB_y2*f_y2 +
-                        dB_z2*f_z2 + g_y*sin_theta2*t14_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
-                const double tau3 = I_a*qdd3 + cos_q3*t14_1 + cos_theta3*g_x*t14_4 + dB_x3*f_x3 + dB_y3*f_y3 +
-                        dB_z3*f_z3 + g_y*sin_theta3*t14_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
+                const double t15_0 = m_a*r_ca;
+                const double t15_1 = g_z*t15_0;
+                const double t15_2 = sin_q1*t15_0;
+                const double t15_3 = sin_q2*t15_0;
+                const double t15_4 = sin_q3*t15_0;
+                const double tau1 = I_a*qdd1 + cos_q1*t15_1 + cos_theta1*g_x*t15_2 + dB_x1*f_x1 + dB_y1*f_y1 +
+                        dB_z1*f_z1 + g_y*sin_theta1*t15_2 + inv_det_D*jq1*(F_x*adjD11 + F_y*adjD21 + F_z*adjD31);
+                const double tau2 = I_a*qdd2 + cos_q2*t15_1 + cos_theta2*g_x*t15_3 + dB_x2*f_x2 + dB_y2*f_y2 +
+                        dB_z2*f_z2 + g_y*sin_theta2*t15_3 + inv_det_D*jq2*(F_x*adjD12 + F_y*adjD22 + F_z*adjD32);
+                const double tau3 = I_a*qdd3 + cos_q3*t15_1 + cos_theta3*g_x*t15_4 + dB_x3*f_x3 + dB_y3*f_y3 +
+                        dB_z3*f_z3 + g_y*sin_theta3*t15_4 + inv_det_D*jq3*(F_x*adjD13 + F_y*adjD23 + F_z*adjD33);
                 /* fourth axis, eq. (43): decoupled, tau_4 = I_4 qddot_4 */
                 const double tau4 = I_4*qdd4;
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(isfinite(tau1) & isfinite(tau2) & isfinite(tau3) & isfinite(tau4))) &
                         (!(((collinear) | (invalid) | (singular) | (unreachable)))));
-                const int t16_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_tau1_checked = ((t16_0) ? NAN : tau1);
-                const double out_tau2_checked = ((t16_0) ? NAN : tau2);
-                const double out_tau3_checked = ((t16_0) ? NAN : tau3);
-                const double out_tau4_checked = ((t16_0) ? NAN : tau4);
+                const int t17_0 = ((collinear) | (invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_tau1_checked = ((t17_0) ? NAN : tau1);
+                const double out_tau2_checked = ((t17_0) ? NAN : tau2);
+                const double out_tau3_checked = ((t17_0) ? NAN : tau3);
+                const double out_tau4_checked = ((t17_0) ? NAN : tau4);
                 tau[(start + k) * 4 + 0] = out_tau1_checked;
                 tau[(start + k) * 4 + 1] = out_tau2_checked;
                 tau[(start + k) * 4 + 2] = out_tau3_checked;

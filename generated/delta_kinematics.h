@@ -102,7 +102,7 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
  *                   finite inputs give an output the status would return that is not finite (they are too large: the
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 225 operations per point.
+ * Cost: 216 operations per point.
  * Stack: 15 block arrays (14 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 7424 bytes (7.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -128,7 +128,7 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
  *                   also where finite inputs give an output the status would return that is not finite (they are too
  *                   large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 315 operations per point.
+ * Cost: 308 operations per point.
  * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -149,7 +149,7 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
  *                   finite inputs give an output the status would return that is not finite (they are too large: the
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 211 operations per point.
+ * Cost: 202 operations per point.
  * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9984 bytes (9.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -191,7 +191,7 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  *                   INVALID also where finite inputs give an output the status would return that is not finite (they
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 237 operations per point.
+ * Cost: 228 operations per point.
  * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 4352 bytes (4.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -217,7 +217,7 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
  *                   INVALID also where finite inputs give an output the status would return that is not finite (they
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 345 operations per point.
+ * Cost: 336 operations per point.
  * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 6400 bytes (6.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -242,7 +242,7 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
  *                   finite inputs give an output the status would return that is not finite (they are too large: the
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 499 operations per point.
+ * Cost: 490 operations per point.
  * Stack: 60 block arrays (59 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 30464 bytes (29.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -268,7 +268,7 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
  *                   finite inputs give an output the status would return that is not finite (they are too large: the
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 501 operations per point.
+ * Cost: 494 operations per point.
  * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9984 bytes (9.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
@@ -295,7 +295,7 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
  *                   finite inputs give an output the status would return that is not finite (they are too large: the
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
- * Cost: 481 operations per point.
+ * Cost: 474 operations per point.
  * Stack: 20 block arrays (19 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
  * 9984 bytes (9.8 KiB) at 64, plus scalars and spills: allow 25 % more.
  */

@@ -93,6 +93,51 @@ def test_the_column_wise_numpy_fk_is_the_delta_fk():
     np.testing.assert_allclose(bars.numpy_fk_columns(robot.geometry, q), p_ref, atol=1e-12)
 
 
+class _Tagged:
+    """A kernel call that says which kernel it is (the fake timer below reads it)."""
+
+    def __init__(self, call, kernel):
+        self.call, self.kernel = call, kernel
+
+    def __call__(self):
+        return self.call()
+
+
+def test_the_delta_rate_bars_judge_their_own_rows_and_show_the_in_cache_ratio(monkeypatch):
+    """fk_vel / fk and fk_acc / fk are judged on the bar's rows; the in-cache ratio (calls
+    of FLOOR_CALL_N rows) is in the note, labelled as information. The timers are replaced
+    so that the two measures disagree about each verdict."""
+    from deltagen.apps.bench import sections
+
+    real = sections._kernel_callable
+    monkeypatch.setattr(
+        sections, "_kernel_callable", lambda core, name, ins: _Tagged(real(core, name, ins), name)
+    )
+    n, small = 2000, bars.FLOOR_CALL_N
+    times = {
+        ("fk", n): 10.0,
+        ("fk_vel", n): 20.0,  # 2.0x: MISSED on the bar's rows
+        ("fk_acc", n): 15.0,  # 1.5x: met
+        ("fk", small): 10.0,
+        ("fk_vel", small): 12.0,  # 1.2x in cache: would be met
+        ("fk_acc", small): 30.0,  # 3.0x in cache: would be MISSED
+    }
+
+    def timer(fn, args=(), points=1, loops=1):
+        kernel = getattr(fn, "kernel", None)
+        return lambda: 1.0 if kernel is None else times[(kernel, points)]
+
+    monkeypatch.setattr(bars, "cpu_timer", timer)
+    rows = {r["key"]: r for r in bars.measure_delta(n, 2)}
+    vel, acc = rows["delta_fk_vel"], rows["delta_fk_acc"]
+    assert (vel["ratio"], vel["verdict"]) == (2.0, "MISSED")
+    assert (acc["ratio"], acc["verdict"]) == (1.5, "met")
+    label = f"for information, not the bar: in cache ({small:,} rows a call, looped)"
+    assert label in vel["note"] and vel["note"].endswith(": 1.20x")
+    assert label in acc["note"] and acc["note"].endswith(": 3.00x")
+    assert vel["note"].startswith(f"{n:,} rows a call")
+
+
 def _check(result):
     keys = [r["key"] for r in result["rows"]]
     assert keys == list(bars.TARGETS), keys

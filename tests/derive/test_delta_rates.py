@@ -55,6 +55,8 @@ def test_rate_terms_are_time_derivatives_of_the_rod_length(rng):
         **{s.sin_theta[i]: np.sin(2.0 + 2.1 * i) for i in range(3)},
     }
     jq_stage, h_stage = vel.jq_stage(), acc.h_stage()
+    # the position stages they read: l_a,i cos q_i and the centres S_i (S_z,i)
+    crank, centres = fkd.fk_stages()[:2]
     for _ in range(3):
         p0, p1, p2 = rng.normal(scale=0.3, size=(3, 3))
         q0, q1, q2 = rng.normal(size=(3, 3))
@@ -86,6 +88,7 @@ def test_rate_terms_are_time_derivatives_of_the_rod_length(rng):
             S = s.sphere_centre(i).subs(values)
             for k in range(3):
                 values[vel.D[i, k]] = float(p[k] - S[k])
+        values = _stage_values(centres, _stage_values(crank, values))
         values = _stage_values(jq_stage, values)
         values = _stage_values(h_stage, values)
         D = np.array([[values[vel.D[i, k]] for k in range(3)] for i in range(3)])

@@ -18,11 +18,12 @@ from deltagen.derive.delta import symbols as s
 from deltagen.derive.delta.fk import S
 from deltagen.derive.delta.velocity import (
     D,
-    centre_rates,
     constraint_rate,
     jq,
+    on_centres,
     rho,
     solve,
+    staged_centre_rates,
     time_functions,
 )
 from deltagen.derive.kernel import Stage
@@ -52,11 +53,13 @@ def constraint_acceleration(i: int):
 
 def half_h(i: int) -> sp.Expr:
     """h_i / 2 = D_i . Sddot_i - |pdot - Sdot_i|^2 in terms of the staged D_i, rho_i, jq_i."""
-    d_radius, d_height, dd_radius, dd_height = centre_rates(i)
+    d_radius, d_height, dd_radius, dd_height = staged_centre_rates(i)
     radial = sp.Matrix([s.cos_theta[i], s.sin_theta[i], 0])
     rel = s.pd - s.qd[i] * (d_radius * radial + d_height * sp.Matrix([0, 0, 1]))
     curvature = dd_radius * rho[i] + dd_height * D[i, 2]  # D_i . d^2 S_i / dq_i^2
-    return jq[i] * s.qdd[i] + s.qd[i] ** 2 * curvature - rel.dot(rel)
+    # -curvature as one product with its sign outside: no negation per point
+    bend = sp.expand(-curvature)
+    return jq[i] * s.qdd[i] - sp.Mul(s.qd[i] ** 2, bend, evaluate=False) - rel.dot(rel)
 
 
 def _check_half_h(i: int) -> None:
@@ -64,7 +67,7 @@ def _check_half_h(i: int) -> None:
     on_p = {D[i, k]: (s.x, s.y, s.z)[k] - S[i][k] for k in range(3)}
     rho_i = s.cos_theta[i] * D[i, 0] + s.sin_theta[i] * D[i, 1]
     expr = half_h(i).subs(jq[i], constraint_rate(i)[1] / 2).subs(rho[i], rho_i).subs(on_p)
-    expr = expr.subs(dict(zip(S[i], s.sphere_centre(i))))
+    expr = expr.subs(on_centres(i))
     assert s.on_unit_circle(expr - constraint_acceleration(i)[1] / 2) == 0, "h_i / 2"
 
 

@@ -80,6 +80,29 @@ x0 = sp.Matrix(sp.symbols("x0_x x0_y x0_z", real=True))  # foot point of the lin
 xi = sp.Matrix(sp.symbols("xi_x xi_y xi_z", real=True))  # p - S_1: rod 1 (row 1 of J_p / 2)
 e_sq, inv_e_sq, h_sq, lam = sp.symbols("e_sq inv_e_sq h_sq lambda_", real=True)
 det_D = sp.Symbol("det_D", real=True)  # det of the rows p - S_i (= det J_p / 8)
+# l_a,i cos q_i: crank i's reach along its drive's radial direction (the centre's height,
+# -l_a,i sin q_i, is S_z,i)
+la_cos_q = sp.symbols("la_cos_q1:4", real=True)
+
+
+def crank_stage() -> Stage:
+    """l_a,i cos q_i named: the sphere centres' radius r_i + l_a,i cos q_i uses it, and so
+    do the rate kernels' dS_i/dq_i and d^2S_i/dq_i^2 (derive/delta/velocity.py
+    ``staged_centre_rates``): the product is evaluated once per point, as a C compiler
+    without -ffast-math does not regroup (-D_i3 l_a,i) cos q_i into -D_i3 (l_a,i cos q_i)."""
+    return Stage(
+        "crank reach l_a,i cos q_i",
+        tuple((la_cos_q[i], s.chain_l_a[i] * s.cos_q[i]) for i in range(3)),
+    )
+
+
+def staged_centre(i: int) -> sp.Matrix:
+    """S_i of eqs. (3)-(5) (symbols.sphere_centre) with l_a,i cos q_i as its symbol."""
+    centre = s.sphere_centre(i).subs(s.chain_l_a[i] * s.cos_q[i], la_cos_q[i])
+    back = {la_cos_q[i]: s.chain_l_a[i] * s.cos_q[i]}
+    assert sp.expand(centre.subs(back) - s.sphere_centre(i)) == sp.zeros(3, 1)
+    assert s.cos_q[i] not in centre.free_symbols
+    return centre
 
 
 def _centred_planes(radii=s.chain_l_b):
@@ -99,9 +122,14 @@ def _centred_planes(radii=s.chain_l_b):
 
 def fk_stages():
     """Stages computing p = (x, y, z) from cos q_i, sin q_i; also e_sq, h_sq and det_D for
-    the status. The lower of the two intersections is chosen (z points up, eq. (26))."""
-    centres = [s.sphere_centre(i) for i in range(3)]
-    return intersection_stages(centres, s.chain_l_b, -1, "sphere centres S_i, eqs. (3)-(5)")
+    the status. The lower of the two intersections is chosen (z points up, eq. (26)). The
+    first two stages (:func:`crank_stage`, the centres S_i) are the crank geometry the
+    inverse rates reuse (derive/delta/inverse_rates.py)."""
+    centres = [staged_centre(i) for i in range(3)]
+    return [
+        crank_stage(),
+        *intersection_stages(centres, s.chain_l_b, -1, "sphere centres S_i, eqs. (3)-(5)"),
+    ]
 
 
 def intersection_stages(centres, radii, side, centre_comment):

@@ -54,9 +54,10 @@ def ik_stages_with_trig() -> list:
     ]
 
 
-def centres_stage() -> Stage:
-    """The sphere centres S_i of eqs. (3)-(5) (the first stage of the direct kinematics)."""
-    return fk_stages()[0]
+def centres_stages() -> list:
+    """l_a,i cos q_i and the sphere centres S_i of eqs. (3)-(5) (the first two stages of
+    the direct kinematics: jq_stage reads both)."""
+    return fk_stages()[:2]
 
 
 def qd_stage() -> Stage:
@@ -90,5 +91,5 @@ def qdd_stage() -> Stage:
 
 
 def rate_stages(with_acceleration: bool) -> list:
-    stages = [*ik_stages_with_trig(), centres_stage(), rows_stage(), jq_stage(), qd_stage()]
+    stages = [*ik_stages_with_trig(), *centres_stages(), rows_stage(), jq_stage(), qd_stage()]
     return stages + ([qdd_stage()] if with_acceleration else [])

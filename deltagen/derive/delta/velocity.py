@@ -14,8 +14,9 @@ so the rows are xi, xi - a, xi - b, and adj(D)'s columns, the cross products of 
 D_2 x D_3, D_3 x D_1, D_1 x D_2, are e - xi x b - a x xi, xi x b and a x xi (two cross
 products; det D = lambda |e|^2 comes from the position stage). J_q,ii / 2 is
 D_i . dS_i/dq_i (the rate of eq. (1) is 2 D_i . (pdot - dS_i/dq_i qdot_i)), evaluated
-through rho_i, the rod's radial component. Each identity is asserted symbolically where
-the stage is built.
+through rho_i, the rod's radial component, with dS_i/dq_i read off the position stage's
+S_z,i and l_a,i cos q_i (:func:`staged_centre_rates`: two products per chain, not four).
+Each identity is asserted symbolically where the stage is built.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from __future__ import annotations
 import sympy as sp
 
 from deltagen.derive.delta import symbols as s
-from deltagen.derive.delta.fk import S, a, b, det_D, e, xi
+from deltagen.derive.delta.fk import S, a, b, det_D, e, la_cos_q, xi
 from deltagen.derive.kernel import Stage
 
 
@@ -106,17 +107,36 @@ def centre_rates(i: int):
     return tuple(sp.diff(f, Q, n).subs(back) for n in (1, 2) for f in (radius, height))
 
 
+def staged_centre_rates(i: int):
+    """:func:`centre_rates` in the direct kinematics' staged symbols (derive/delta/fk.py):
+    d radius/d q_i = -l_a,i sin q_i = S_z,i (the centre's height), d height/d q_i =
+    d^2 radius/d q_i^2 = -l_a,i cos q_i, d^2 height/d q_i^2 = l_a,i sin q_i = -S_z,i. The
+    kernels already hold S_z,i and l_a,i cos q_i (the centres): J_q,ii / 2 and h_i / 2
+    then cost two products each, not four."""
+    height, reach = S[i][2], la_cos_q[i]
+    staged = (height, -reach, -reach, -height)
+    back = {height: -s.chain_l_a[i] * s.sin_q[i], reach: s.chain_l_a[i] * s.cos_q[i]}
+    for mine, derived in zip(staged, centre_rates(i)):
+        assert sp.expand(mine.subs(back) - derived) == 0
+    return staged
+
+
+def on_centres(i: int) -> dict:
+    """The staged centre S_i and l_a,i cos q_i -> their expressions in cos q_i, sin q_i."""
+    return {**dict(zip(S[i], s.sphere_centre(i))), la_cos_q[i]: s.chain_l_a[i] * s.cos_q[i]}
+
+
 def jq_stage() -> Stage:
-    """J_q,ii / 2 = D_i . dS_i/dq_i (corrected eq. (34)), through rho_i; checked against
-    the coefficient SymPy reads off the derivative of eq. (1) (:func:`constraint_rate`)."""
+    """J_q,ii / 2 = D_i . dS_i/dq_i (corrected eq. (34)), through rho_i and the staged
+    centre rates (:func:`staged_centre_rates`); checked against the coefficient SymPy reads
+    off the derivative of eq. (1) (:func:`constraint_rate`)."""
     pairs = []
     for i in range(3):
-        d_radius, d_height, _, _ = centre_rates(i)
+        d_radius, d_height, _, _ = staged_centre_rates(i)
         rho_i = s.cos_theta[i] * D[i, 0] + s.sin_theta[i] * D[i, 1]
         jq_i = d_radius * rho[i] + d_height * D[i, 2]
         on_p = {D[i, k]: (s.x, s.y, s.z)[k] - S[i][k] for k in range(3)}
-        centre = dict(zip(S[i], s.sphere_centre(i)))
-        derived = jq_i.subs(rho[i], rho_i).subs(on_p).subs(centre)
+        derived = jq_i.subs(rho[i], rho_i).subs(on_p).subs(on_centres(i))
         assert s.on_unit_circle(derived - constraint_rate(i)[1] / 2) == 0, "J_q,ii / 2"
         pairs += [(rho[i], rho_i), (jq[i], jq_i)]
     return Stage(
