@@ -317,12 +317,21 @@ def test_cli_batch_of_a_serial_arm(tmp_path):
 
 
 def test_analytic_jacobian_raises_at_the_euler_singularity():
+    """A two-joint pitch arm: standard DH, alpha_1 = -90 deg, so y_1 = -z_0 and the tool's
+    x axis is cos(q2) x_0 - sin(q2) z_0. At q2 = 90 deg it points along -z_0: a31 = -1,
+    theta = +90 deg, cos(theta) = 0, where E^-1 does not exist. One degree away the arm is
+    regular and the analytic Jacobian is finite and valid."""
     arm = SerialRobot.from_dh([dict(alpha_deg=-90), dict()], "standard", name="pitch_arm")
-    # q1 = 0, q2 = 0: the tool x axis points along -z of the base -> theta = 90 deg
-    q = np.array([0.0, 0.0])
-    if abs(np.cos(arm.euler(q)[1])) < 1e-12:
-        with pytest.raises(SingularityError):
-            arm.analytic_jacobian(q)
+    singular = np.array([0.3, np.pi / 2])
+    regular = np.array([0.3, np.radians(89.0)])
+    np.testing.assert_allclose(arm.euler(singular)[1], np.pi / 2, atol=1e-12)
+    with pytest.raises(SingularityError, match="Euler-angle singularity") as caught:
+        arm.analytic_jacobian(np.stack([regular, singular]))
+    assert list(caught.value.rows) == [1]
+    Ja, valid = arm.analytic_jacobian(np.stack([regular, singular]), errors="nan")
+    assert valid.tolist() == [True, False]
+    assert np.all(np.isfinite(Ja[0])) and np.all(np.isnan(Ja[1]))
+    assert np.all(np.isfinite(arm.analytic_jacobian(regular)))
 
 
 # -- an arm's first use waits for no dynamics --------------------------------------------------
