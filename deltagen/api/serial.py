@@ -385,7 +385,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         self, trajectory: Any, q0: Any = None, *, singularity: str = "stop", **options: Any
     ) -> Any:
         """Follow a Cartesian trajectory (position and orientation; built with
-        deltagen.plan.trajectory.PathBuilder) from the joints q0 (None: ``ik`` at the start
+        deltagen.plan.cartesian.PathBuilder) from the joints q0 (None: ``ik`` at the start
         pose), seeing singular regions ahead (lecture slides 112-114):
         ``singularity="stop"`` (default) raises SingularPathError naming the segment, times
         and kind; ``"joint"`` (or ``"wrist"``: SingArea/Wrist) interpolates the wrist joints

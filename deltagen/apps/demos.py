@@ -32,7 +32,7 @@
 * ``singular-path`` -- a path through a wrist singularity (lecture slides 112-114) on the
   Puma 560: a straight line of 0.3 m in 1 s with the tool orientation held, passing 3 mm
   beside the pose with q5 = 0 (axes 4 and 6 in line; :data:`SINGULAR_Q`). Followed as
-  programmed (6-D path following, plan.trajectory) the wrist turns half a revolution in
+  programmed (6-D path following, plan.following) the wrist turns half a revolution in
   a fraction of a second; with ``remedy="wrist"`` ("SingArea/Wrist") the wrist joints move by
   joint interpolation across the region, the TCP stays on the line, and the motion is
   slowed uniformly into the joint limits :data:`SINGULAR_QD_MAX`, :data:`SINGULAR_QDD_MAX`
@@ -63,7 +63,7 @@ LECTURE_STEPS = 10
 def lecture_table():
     """The lecture's path following on the bundled lecture_scara (L1 = 4, L2 = 3)."""
     from deltagen.api.serial import SerialRobot
-    from deltagen.plan.trajectory import Task, jacobian_path_following
+    from deltagen.plan.following import Task, jacobian_path_following
 
     arm = SerialRobot.load("lecture_scara")
     return jacobian_path_following(
@@ -185,7 +185,7 @@ DT = 0.005
 
 def miskolc_trajectory(arm):
     """The pick-and-place path (segments with durations [s]) from the ready pose."""
-    from deltagen.plan.trajectory import PathBuilder
+    from deltagen.plan.cartesian import PathBuilder
 
     S = STATIONS
     home = arm.fk(arm.configuration("ready"))[:3, 3]
@@ -222,7 +222,7 @@ def elbow_up(q):
 
 def miskolc_joint_trajectory(dt=DT, arm=None):
     from deltagen.api.serial import SerialRobot
-    from deltagen.plan.trajectory import Task, to_joint_trajectory
+    from deltagen.plan.following import Task, to_joint_trajectory
 
     arm = SerialRobot.load("miskolc_rrrr") if arm is None else arm
     traj = miskolc_trajectory(arm)
@@ -407,7 +407,7 @@ def _plot_arm_poses(jt, path, every=0.75):
 def _plot_rates(jt, jt_half, path):
     plt = pyplot()
 
-    from deltagen.plan.trajectory import numerical_rates
+    from deltagen.plan.following import numerical_rates
 
     colors = ("tab:blue", "tab:orange", "tab:green", "tab:red")
     fig, axes = plt.subplots(2, 2, figsize=(15, 9), layout="constrained", sharex=True)
@@ -615,7 +615,8 @@ SINGULAR_QD_MAX, SINGULAR_QDD_MAX = 1.0, 10.0
 def singular_line(arm, offset=SINGULAR_OFFSET):
     """The demo's line (module docstring) and its start joints on SINGULAR_Q's branch:
     across the forearm (axis 4), so that the wrist centre's motion turns axis 4 past axis 6."""
-    from deltagen.plan.trajectory import PathBuilder, Task, solve_ik, to_joint_trajectory
+    from deltagen.plan.cartesian import PathBuilder
+    from deltagen.plan.following import Task, solve_ik, to_joint_trajectory
     from deltagen.reference import serial as reference
 
     pose = Task("xyz", orientation=True)
@@ -675,8 +676,8 @@ def _plot_singular_speeds(naive, res, path: Path) -> Path:
 def run_singular(out=None, stream=None) -> int:
     pyplot()  # before the computation: without matplotlib, say so now
     from deltagen.api.serial import SerialRobot
+    from deltagen.plan.following import Task, to_joint_trajectory
     from deltagen.plan.singular_path import SingularPathError
-    from deltagen.plan.trajectory import Task, to_joint_trajectory
 
     stream, folder = _output(out, "singular_path", stream)
     arm = SerialRobot.load("puma560")

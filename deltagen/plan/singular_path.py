@@ -69,9 +69,8 @@ import numpy as np
 from deltagen.errors import SingularityError
 from deltagen.geometry.rotations import rot_log
 from deltagen.inputs import InputError
-from deltagen.plan.trajectory import (
-    CartesianSamples,
-    CartesianTrajectory,
+from deltagen.plan.cartesian import CartesianSamples, CartesianTrajectory
+from deltagen.plan.following import (
     Task,
     TrajectoryError,
     exact_rates,

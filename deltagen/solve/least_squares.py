@@ -1,6 +1,6 @@
 """The one damped least-squares core of the Newton and Levenberg-Marquardt loops: the
 numeric inverse kinematics (solve/numeric.py, the numpy engine), the delta calibration
-(solve/calibration.py), the path follower (plan/trajectory.py ``solve_ik``,
+(solve/calibration.py), the path follower (plan/following.py ``solve_ik``,
 ``newton_step``) and the nearest-arm polish (solve/nearest.py ``polish``). For a Jacobian
 J (m, n), a residual r (m,) and a damping lambda^2 >= 0 the step
 

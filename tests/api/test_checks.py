@@ -387,7 +387,7 @@ def test_singularities_of_nan_q_raise_or_report_nan(backend):
 def _all_error_classes():
     from deltagen.apps.plotting import PlottingUnavailable
     from deltagen.native.build import BuildError
-    from deltagen.plan.trajectory import TrajectoryError
+    from deltagen.plan.following import TrajectoryError
 
     return [
         DeltagenError,

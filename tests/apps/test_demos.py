@@ -53,7 +53,7 @@ def test_slide_table_reproduced_digit_for_digit(table):
 
 def test_slide_table_with_the_reference_backend():
     """The numpy reference kinematics give the same printed table."""
-    from deltagen.plan.trajectory import Task, jacobian_path_following
+    from deltagen.plan.following import Task, jacobian_path_following
 
     arm = SerialRobot.load("lecture_scara", backend="reference")
     t = jacobian_path_following(

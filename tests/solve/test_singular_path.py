@@ -7,7 +7,7 @@ the planner. The evidence for the returned motion is independent of it: the TCP 
 and orientation from the numpy reference kinematics (backend="reference") against the path
 written out here (the quintic s(tau) = 10 tau^3 - 15 tau^4 + 6 tau^5 on the straight line,
 constant orientation), joint speeds from central differences of the returned joints, and
-the naive 6-D path following (plan.trajectory.to_joint_trajectory), which needs joint speeds
+the naive 6-D path following (plan.following.to_joint_trajectory), which needs joint speeds
 far above the limits on the same path."""
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from scipy.optimize import brentq
 from deltagen import SerialRobot
 from deltagen.inputs import InputError
 from deltagen.plan import singular_path as sp
-from deltagen.plan.trajectory import PathBuilder, Task, solve_ik, to_joint_trajectory
+from deltagen.plan.cartesian import PathBuilder
+from deltagen.plan.following import Task, solve_ik, to_joint_trajectory
 from deltagen.reference import serial as reference
 
 POSE = Task("xyz", orientation=True)
