@@ -725,6 +725,187 @@ def _seed_offset(seed) -> int:
     return int(np.random.default_rng(seed).integers(2**32))
 
 
+class _Rows:
+    """The per-row state of the numpy engine's iteration (:func:`_iterate`): every row
+    carries its own q, error, Levenberg-Marquardt parameter, non-monotone reference,
+    attempt counters, phase and best in-limit q so far (module docstring)."""
+
+    def __init__(self, arm, Tt, q, mask, limits, respect):
+        N = q.shape[0]
+        self.arm, self.Tt, self.mask = arm, Tt, mask
+        self.limits, self.respect = limits, respect
+        self.free = np.full(N, respect and FREE_FIRST)  # phase 1: limits only checked at the end
+        self.q = q = np.where(self.free[:, None], limits.wrap_only(q), limits.apply(q))
+        self.e, self.ep, self.er = self.errors(q, np.arange(N))
+        self.err = np.hypot(self.ep, self.er)
+        self.mu = np.zeros(N)
+        self.it = np.zeros(N, dtype=np.int64)  # steps over all attempts
+        self.it_att = np.zeros(N, dtype=np.int64)  # steps in the current attempt
+        self.attempts = np.zeros(N, dtype=np.int64)
+        self.chk = self.err.copy()  # |dx| at the last stall checkpoint
+        self.cref = self.err.copy()  # non-monotone reference (Zhang-Hager)
+        self.qz = np.ones(N)
+        self.sig = np.zeros(N)  # sigma_min at the last SVD (0: unknown)
+        self.stuck = np.zeros(N, dtype=bool)
+        self.conv = np.zeros(N, dtype=bool)
+        self.active = np.ones(N, dtype=bool)
+        # the best in-limit q seen (start: q0 clamped into the limits)
+        self.best_q = limits.apply(q)
+        _, self.best_ep, self.best_er = self.errors(self.best_q, np.arange(N))
+        self.best_err = np.hypot(self.best_ep, self.best_er)
+        self.q_start = q.copy()  # start of the current attempt
+
+    def errors(self, qa, rows):
+        """Pose error (k, 6) at the joints qa of ``rows`` and its position and rotation
+        norms (k,)."""
+        Tc, _ = self.arm._core.fk(np.ascontiguousarray(qa))
+        e = pose_error(Tc, self.Tt[rows], self.mask)
+        return e, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1)
+
+    def inside(self, qa):
+        limits = self.limits
+        return (
+            np.all((qa >= limits.lo) & (qa <= limits.hi), axis=1)
+            if self.respect
+            else np.ones(qa.shape[0], dtype=bool)
+        )
+
+    def set_state(self, rows, qr):
+        """``rows`` start afresh at qr: error recomputed, LM parameter, stall checkpoint,
+        non-monotone reference and sigma_min reset."""
+        self.q[rows] = qr
+        self.e[rows], self.ep[rows], self.er[rows] = self.errors(qr, rows)
+        self.err[rows] = np.hypot(self.ep[rows], self.er[rows])
+        self.mu[rows] = 0.0
+        self.chk[rows] = self.err[rows]
+        self.cref[rows] = self.err[rows]
+        self.qz[rows] = 1.0
+        self.sig[rows] = 0.0
+        self.stuck[rows] = False
+
+    def record_best(self, rows):
+        """Keep the q of ``rows`` as their best where it is within the limits and better."""
+        err, q = self.err, self.q
+        rows = rows[(err[rows] < self.best_err[rows]) & self.inside(q[rows])]
+        self.best_q[rows], self.best_err[rows] = q[rows], err[rows]
+        self.best_ep[rows], self.best_er[rows] = self.ep[rows], self.er[rows]
+
+
+def _converge(s: _Rows, a, tol_p, tol_r):
+    """Rows of ``a`` within tol and the limits are done (converged); a free-phase row near
+    a solution outside the limits continues from its attempt's start, clamped, with the
+    limits enforced. Returns the rows of ``a`` that go on."""
+    ep, er, free, limits = s.ep, s.er, s.free, s.limits
+    met = (ep[a] <= tol_p) & (er[a] <= tol_r)
+    within = s.inside(s.q[a])
+    ok = met & within
+    s.conv[a[ok]] = True
+    s.active[a[ok]] = False
+    # a free-phase row near a solution outside the limits (checked at max(tol, 1e-9),
+    # so that a tol at or below rounding level cannot keep it there)
+    near = (ep[a] <= max(tol_p, FREE_CHECK)) & (er[a] <= max(tol_r, FREE_CHECK))
+    out = a[near & ~within & free[a]]
+    if out.size:
+        free[out] = False
+        s.set_state(out, limits.apply(s.q_start[out] if PHASE2_FROM_START else s.q[out]))
+    a = a[~ok]
+    return a[~np.isin(a, out)] if out.size else a
+
+
+def _end_attempts(s: _Rows, a, max_iter, restarts, box_lo, box_hi, rng):
+    """Rows of ``a`` whose attempt is over (step cap or stuck) restart from a random
+    in-limit q while restarts are left, else stop. Returns the rows of ``a`` that step."""
+    over = (s.it_att[a] >= max_iter) | s.stuck[a]
+    if np.any(over):
+        attempts = s.attempts
+        ended = a[over]
+        again = ended[attempts[ended] < restarts]
+        s.active[ended[attempts[ended] >= restarts]] = False
+        if again.size:
+            attempts[again] += 1
+            s.it_att[again] = 0
+            s.free[again] = s.respect and FREE_FIRST
+            n = s.q.shape[1]
+            s.set_state(again, box_lo + (box_hi - box_lo) * rng.random((again.size, n)))
+            s.q_start[again] = s.q[again]
+            s.record_best(again)
+        a = a[~over]
+    return a
+
+
+def _damped_step(s: _Rows, a, source, mrows, lm, c0, k_nh, mid, null_gain, step_limit):
+    """One damped Newton step on the rows ``a``, with the active-set pass for joints the
+    step pushes through a limit; returns the new q of those rows (wrapped, or clamped
+    outside the free phase)."""
+    limits, err, mu = s.limits, s.err, s.mu
+    qa = np.ascontiguousarray(s.q[a])
+    A = jacobian(s.arm, qa, source)[:, mrows, :]  # (k, m, n)
+    r = s.e[a][:, mrows]  # (k, m)
+    fa = s.free[a]
+    step = (err[a], mu[a], lm, c0, k_nh)
+    dq, s.sig[a] = _newton_step(A, r, *step, qa, mid, null_gain, step_limit, s.sig[a])
+    target = qa + dq
+    if s.respect and ACTIVE_SET:
+        # joints the step would push beyond a limit (no 2 pi shift helps) are set onto
+        # the limit and the others solve for the rest of dx (one active-set pass)
+        viol = (limits.apply(target) != limits.wrap_only(target)) & ~fa[:, None]
+        fix = np.flatnonzero(np.any(viol, axis=1))
+        if fix.size:
+            Af, vf = A[fix], viol[fix]
+            moved = np.where(vf, limits.apply(target[fix]) - qa[fix], 0.0)
+            rf = r[fix] - np.einsum("kmi,ki->km", Af, moved)
+            Af = np.where(vf[:, None, :], 0.0, Af)
+            dq2, _ = _newton_step(
+                Af,
+                rf,
+                err[a][fix],
+                mu[a][fix],
+                *step[2:],
+                qa[fix],
+                mid,
+                null_gain,
+                step_limit,
+                np.zeros(fix.size),
+            )
+            target[fix] = qa[fix] + np.where(vf, moved, dq2)
+    return np.where(fa[:, None], limits.wrap_only(target), limits.apply(target))
+
+
+def _accept(s: _Rows, a, q_new, lm):
+    """Count the step of the rows ``a`` and take it where the non-monotone rule (Zhang-Hager,
+    with damping) accepts it; lower the LM parameter of the accepted rows, raise that of
+    the rejected ones."""
+    q, e, ep, er, err, mu, qz, cref = s.q, s.e, s.ep, s.er, s.err, s.mu, s.qz, s.cref
+    e_new, ep_new, er_new = s.errors(q_new, a)
+    err_new = np.hypot(ep_new, er_new)
+    s.it[a] += 1
+    s.it_att[a] += 1
+    good = np.isfinite(err_new)
+    accept = good & (err_new < cref[a]) if lm else good
+    acc, rej = a[accept], a[~accept]
+    qz_new = ETA * qz[acc] + 1.0
+    cref[acc] = (ETA * qz[acc] * cref[acc] + err_new[accept]) / qz_new
+    qz[acc] = qz_new
+    q[acc], e[acc], ep[acc] = q_new[accept], e_new[accept], ep_new[accept]
+    er[acc], err[acc] = er_new[accept], err_new[accept]
+    mu[acc] = np.where(mu[acc] / 10.0 < MU_START, 0.0, mu[acc] / 10.0)
+    mu[rej] = np.maximum(mu[rej] * 10.0, MU_START)
+    s.record_best(acc)
+
+
+def _check_stall(s: _Rows, a, restarts):
+    """Mark rows of ``a`` stuck: the LM parameter ran away (no step is accepted any more),
+    or, with a restart left, |dx| did not halve over the last STALL_WINDOW steps (three
+    times that in the attempt from the caller's q0)."""
+    err, chk, attempts, it_att, stuck = s.err, s.chk, s.attempts, s.it_att, s.stuck
+    stuck[a] = s.mu[a] > MU_MAX
+    span = np.where(attempts[a] == 0, FIRST_WINDOW_FACTOR * STALL_WINDOW, STALL_WINDOW)
+    window = a[it_att[a] % span == 0]
+    slow = err[window] > 0.5 * chk[window]
+    stuck[window[slow & (attempts[window] < restarts)]] = True
+    chk[window] = err[window]
+
+
 def _iterate(
     arm,
     Tt,
@@ -743,7 +924,11 @@ def _iterate(
     seed,
     null_gain,
 ):
-    """The batched iteration; every row carries its own state (see the module docstring)."""
+    """The batched iteration; every row carries its own state (see the module docstring):
+    per pass, the rows still active are checked for convergence (:func:`_converge`), for
+    the end of their attempt (:func:`_end_attempts`: restart or stop), take one damped
+    step (:func:`_damped_step`), accept it or not (:func:`_accept`) and are checked for a
+    stall (:func:`_check_stall`)."""
     N, n = q.shape
     limits = _Limits(arm, respect)
     rng = np.random.default_rng(seed)
@@ -752,152 +937,23 @@ def _iterate(
         box_lo, box_hi = np.maximum(box_lo, limits.lo), np.minimum(box_hi, limits.hi)
     mid = limits.mid if null_gain > 0 else None
     mrows = np.flatnonzero(mask)
-
-    def errors(qa, rows):
-        Tc, _ = arm._core.fk(np.ascontiguousarray(qa))
-        e = pose_error(Tc, Tt[rows], mask)
-        return e, np.linalg.norm(e[:, :3], axis=1), np.linalg.norm(e[:, 3:], axis=1)
-
-    def inside(qa):
-        return (
-            np.all((qa >= limits.lo) & (qa <= limits.hi), axis=1)
-            if respect
-            else np.ones(qa.shape[0], dtype=bool)
-        )
-
-    # per-row state
-    free = np.full(N, respect and FREE_FIRST)  # phase 1: limits only checked at the end
-    q = np.where(free[:, None], limits.wrap_only(q), limits.apply(q))
-    e, ep, er = errors(q, np.arange(N))
-    err = np.hypot(ep, er)
-    mu = np.zeros(N)
-    it = np.zeros(N, dtype=np.int64)  # steps over all attempts
-    it_att = np.zeros(N, dtype=np.int64)  # steps in the current attempt
-    attempts = np.zeros(N, dtype=np.int64)
-    chk = err.copy()  # |dx| at the last stall checkpoint
-    cref = err.copy()  # non-monotone reference (Zhang-Hager)
-    qz = np.ones(N)
-    sig = np.zeros(N)  # sigma_min at the last SVD (0: unknown)
-    stuck = np.zeros(N, dtype=bool)
-    conv = np.zeros(N, dtype=bool)
-    active = np.ones(N, dtype=bool)
-    # the best in-limit q seen (start: q0 clamped into the limits)
-    best_q = limits.apply(q)
-    _, best_ep, best_er = errors(best_q, np.arange(N))
-    best_err = np.hypot(best_ep, best_er)
-
-    q_start = q.copy()  # start of the current attempt
-
-    def set_state(rows, qr):
-        q[rows] = qr
-        e[rows], ep[rows], er[rows] = errors(qr, rows)
-        err[rows] = np.hypot(ep[rows], er[rows])
-        mu[rows] = 0.0
-        chk[rows] = err[rows]
-        cref[rows] = err[rows]
-        qz[rows] = 1.0
-        sig[rows] = 0.0
-        stuck[rows] = False
-
-    def record_best(rows):
-        rows = rows[(err[rows] < best_err[rows]) & inside(q[rows])]
-        best_q[rows], best_err[rows] = q[rows], err[rows]
-        best_ep[rows], best_er[rows] = ep[rows], er[rows]
+    s = _Rows(arm, Tt, q, mask, limits, respect)
 
     for _ in range((restarts + 1) * (2 * max_iter + 3) + 2):
-        a = np.flatnonzero(active)
+        a = np.flatnonzero(s.active)
         if a.size == 0:
             break
-        # -- converged? (a free-phase row within tol but outside the limits continues from
-        # the clamped q with the limits enforced)
-        met = (ep[a] <= tol_p) & (er[a] <= tol_r)
-        within = inside(q[a])
-        ok = met & within
-        conv[a[ok]] = True
-        active[a[ok]] = False
-        # a free-phase row near a solution outside the limits (checked at max(tol, 1e-9),
-        # so that a tol at or below rounding level cannot keep it there)
-        near = (ep[a] <= max(tol_p, FREE_CHECK)) & (er[a] <= max(tol_r, FREE_CHECK))
-        out = a[near & ~within & free[a]]
-        if out.size:
-            free[out] = False
-            set_state(out, limits.apply(q_start[out] if PHASE2_FROM_START else q[out]))
-        a = a[~ok]
-        a = a[~np.isin(a, out)] if out.size else a
-        # -- attempt over (step cap or stuck)? restart from a random in-limit q or stop
-        over = (it_att[a] >= max_iter) | stuck[a]
-        if np.any(over):
-            ended = a[over]
-            again = ended[attempts[ended] < restarts]
-            active[ended[attempts[ended] >= restarts]] = False
-            if again.size:
-                attempts[again] += 1
-                it_att[again] = 0
-                free[again] = respect and FREE_FIRST
-                set_state(again, box_lo + (box_hi - box_lo) * rng.random((again.size, n)))
-                q_start[again] = q[again]
-                record_best(again)
-            a = a[~over]
+        a = _converge(s, a, tol_p, tol_r)
+        a = _end_attempts(s, a, max_iter, restarts, box_lo, box_hi, rng)
         if a.size == 0:
             continue
-        # -- one damped Newton step on the rows in a
-        qa = np.ascontiguousarray(q[a])
-        A = jacobian(arm, qa, source)[:, mrows, :]  # (k, m, n)
-        r = e[a][:, mrows]  # (k, m)
-        fa = free[a]
-        step = (err[a], mu[a], lm, c0, k_nh)
-        dq, sig[a] = _newton_step(A, r, *step, qa, mid, null_gain, step_limit, sig[a])
-        target = qa + dq
-        if respect and ACTIVE_SET:
-            # joints the step would push beyond a limit (no 2 pi shift helps) are set onto
-            # the limit and the others solve for the rest of dx (one active-set pass)
-            viol = (limits.apply(target) != limits.wrap_only(target)) & ~fa[:, None]
-            fix = np.flatnonzero(np.any(viol, axis=1))
-            if fix.size:
-                Af, vf = A[fix], viol[fix]
-                moved = np.where(vf, limits.apply(target[fix]) - qa[fix], 0.0)
-                rf = r[fix] - np.einsum("kmi,ki->km", Af, moved)
-                Af = np.where(vf[:, None, :], 0.0, Af)
-                dq2, _ = _newton_step(
-                    Af,
-                    rf,
-                    err[a][fix],
-                    mu[a][fix],
-                    *step[2:],
-                    qa[fix],
-                    mid,
-                    null_gain,
-                    step_limit,
-                    np.zeros(fix.size),
-                )
-                target[fix] = qa[fix] + np.where(vf, moved, dq2)
-        q_new = np.where(fa[:, None], limits.wrap_only(target), limits.apply(target))
-        e_new, ep_new, er_new = errors(q_new, a)
-        err_new = np.hypot(ep_new, er_new)
-        it[a] += 1
-        it_att[a] += 1
-        good = np.isfinite(err_new)
-        accept = good & (err_new < cref[a]) if lm else good
-        acc, rej = a[accept], a[~accept]
-        qz_new = ETA * qz[acc] + 1.0
-        cref[acc] = (ETA * qz[acc] * cref[acc] + err_new[accept]) / qz_new
-        qz[acc] = qz_new
-        q[acc], e[acc], ep[acc] = q_new[accept], e_new[accept], ep_new[accept]
-        er[acc], err[acc] = er_new[accept], err_new[accept]
-        mu[acc] = np.where(mu[acc] / 10.0 < MU_START, 0.0, mu[acc] / 10.0)
-        mu[rej] = np.maximum(mu[rej] * 10.0, MU_START)
-        record_best(acc)
-        # -- stuck? the LM parameter ran away (no step is accepted any more), or, with a
-        # restart left, |dx| did not halve over the last STALL_WINDOW steps
-        stuck[a] = mu[a] > MU_MAX
-        span = np.where(attempts[a] == 0, FIRST_WINDOW_FACTOR * STALL_WINDOW, STALL_WINDOW)
-        window = a[it_att[a] % span == 0]
-        slow = err[window] > 0.5 * chk[window]
-        stuck[window[slow & (attempts[window] < restarts)]] = True
-        chk[window] = err[window]
+        q_new = _damped_step(s, a, source, mrows, lm, c0, k_nh, mid, null_gain, step_limit)
+        _accept(s, a, q_new, lm)
+        _check_stall(s, a, restarts)
 
-    q_res = np.where(conv[:, None], q, best_q)
-    return q_res, conv, it, np.where(conv, ep, best_ep), np.where(conv, er, best_er)
+    conv = s.conv
+    q_res = np.where(conv[:, None], s.q, s.best_q)
+    return q_res, conv, s.it, np.where(conv, s.ep, s.best_ep), np.where(conv, s.er, s.best_er)
 
 
 def polisher(arm, tol=1e-10, max_iter=30):
