@@ -612,10 +612,10 @@ class IKPlanner:
             cause[(cause == "") & tilt & ~far] = "orientation not reachable: tilted"
             cause[(cause == "") & oriented & ~far] = "orientation not reachable"
         elif not analytic:
-            max_iter = options.get("max_iter", 100)
-            from deltagen.solve.numeric import RESTARTS
+            from deltagen.solve.numeric import DEFAULTS
 
-            restarts = options.get("restarts", RESTARTS)
+            max_iter = options.get("max_iter", DEFAULTS["max_iter"])
+            restarts = options.get("restarts", DEFAULTS["restarts"])
             fitted = np.isin(bad, unfit) if unfit is not None else np.zeros(bad.size, bool)
             cause[fitted & tilt] = "orientation not reachable: tilted"
             cause[fitted & ~tilt] = "pose not reachable: fitted"
@@ -715,7 +715,7 @@ class IKPlanner:
             and (q0a is None or (q0a.shape == (self.n,) and all(map(math.isfinite, q0a.tolist()))))
         ):
             return None
-        q = self.numeric_one(T, q0a, options.get("restarts"), options.get("seed", 0))
+        q = self.numeric_one(T, q0a, options)
         if q is None:
             return None
         if self.partial_mask and not self.reaches_fully(q[None], T[None])[0]:
@@ -736,10 +736,12 @@ class IKPlanner:
             singular[check] = ~(sv[:, -1] >= SINGULAR_TOL * sv[:, 0])
         return singular
 
-    def numeric_one(self, T, q0, restarts, seed):
+    def numeric_one(self, T, q0, options):
         """Fast path of the numerical ik for one checked target T (4, 4) and q0 None or a
-        finite (n,) array (ik_numeric.single_solver): q, or None when the general path must
-        answer (the first attempt did not converge: restarts and errors are its)."""
+        finite (n,) array (ik_numeric.single_solver), with the checked options (at most
+        ``restarts`` and ``seed``; the solver's defaults are numeric.DEFAULTS'): q, or None
+        when the general path must answer (the first attempt did not converge: restarts and
+        errors are its)."""
         solver = self.numeric_solver
         if solver is None:
             from deltagen.solve.numeric import single_solver
@@ -747,9 +749,12 @@ class IKPlanner:
             solver = self.numeric_solver = single_solver(self.arm)
             self.mid_range = np.ascontiguousarray(self.start(None, (1,))[0])
         start = self.mid_range if q0 is None else np.ascontiguousarray(q0)
-        if restarts is None:
-            return solver(T, start, seed=seed)
-        return solver(T, start, int(restarts), seed)
+        if not options:
+            return solver(T, start)
+        given = {"restarts": int(options["restarts"])} if "restarts" in options else {}
+        if "seed" in options:
+            given["seed"] = options["seed"]
+        return solver(T, start, **given)
 
     @cached_property
     def regular_single(self) -> Any:

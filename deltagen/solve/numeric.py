@@ -628,8 +628,13 @@ def single_solver(arm):
     as solve()'s: every attempt in C), else None (the caller then runs the general path)."""
     core = arm._core
     ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
-    # solve()'s defaults: tol 1e-10, max_iter 100, damping "auto", step_limit 0.5, limits
-    options = _c_options(core, 1e-10, 1e-10, 100, 1.0, BASE_DAMPING, 0.5, True, default_mask(arm))
+    # solve()'s defaults, read from DEFAULTS and checked as solve() checks them
+    d = check_options(arm)
+    (tol_p, tol_r), (k_nh, c0, _) = d["tol"], d["damping"]
+    max_iter, step_limit, respect = int(d["max_iter"]), d["step_limit"], bool(d["respect_limits"])
+    mask = default_mask(arm, d["jacobian"])
+    options = _c_options(core, tol_p, tol_r, max_iter, k_nh, c0, step_limit, respect, mask)
+    default_restarts, default_seed = d["restarts"], d["seed"]
     made: dict = {}  # (restarts, seed) -> (options struct, the extension's call or None)
     qlim = ffi.new("double[]", [float(x) for x in np.asarray(arm.qlim).reshape(-1)])
     scratch = _SingleBuffers(ffi, n)
@@ -654,10 +659,15 @@ def single_solver(arm):
             )
         return opts, fast
 
-    default = made_for(RESTARTS, 0)[1]  # the default call, without the lookups below
+    default = made_for(default_restarts, default_seed)[1]  # without the lookups below
 
-    def call(T, q0, restarts=RESTARTS, seed=0):
-        if default is not None and restarts is RESTARTS and type(seed) is int and seed == 0:
+    def call(T, q0, restarts=default_restarts, seed=default_seed):
+        if (
+            default is not None
+            and restarts is default_restarts
+            and type(seed) is int
+            and seed == default_seed
+        ):
             return default(T, q0)
         if not _is_count(seed):  # a Generator is consumed by its draw: the general path
             return None

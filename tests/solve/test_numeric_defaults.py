@@ -90,3 +90,22 @@ def test_the_defaults_are_written_once_and_unknown_options_are_named(arms):
         ikn.solve(arm, T, tolerance=1e-9)
     with pytest.raises(InputError, match="tolerance"):
         ikn.check_options(arm, tolerance=1e-9)
+
+
+def test_the_one_pose_solver_reads_the_defaults_table(arms, monkeypatch):
+    """single_solver (ik's one-pose path) takes solve()'s defaults from DEFAULTS, not from a
+    copy of its own: with the table changed (tol 1e-4, max_iter 3) a one-pose call gives
+    the batch's row bit for bit, and None where the batch did not converge."""
+    arm = arms["puma560"]
+    T, _ = numeric_targets(arm, 12, seed=8)
+    q0 = np.ascontiguousarray(arm._start(None, (1,))[0])
+    monkeypatch.setitem(ikn.DEFAULTS, "tol", 1e-4)
+    monkeypatch.setitem(ikn.DEFAULTS, "max_iter", 3)
+    batch = ikn.solve(arm, T, q0)
+    one = ikn.single_solver(arm)
+    for i in range(len(T)):
+        qi = one(np.ascontiguousarray(T[i]), q0)
+        if batch.converged[i]:
+            assert qi is not None and np.array_equal(qi, batch.q[i])
+        else:
+            assert qi is None
