@@ -307,40 +307,68 @@ scaled_det_D, scaled_normal_z, rho_sq_product = sp.symbols(
     "scaled_det_D scaled_normal_z rho_sq_product", real=True
 )
 row_cross_z = sp.symbols("row_cross_z23 row_cross_z31 row_cross_z12", real=True)
+# setup: the parts of the scaled rows free of p and q, r_i (cos, sin) theta_i and
+# l_a,i (cos, sin) theta_i
+centre_offset = [sp.symbols(f"centre_x0_{i + 1} centre_y0_{i + 1}", real=True) for i in range(3)]
+crank_axis = [sp.symbols(f"crank_x_{i + 1} crank_y_{i + 1}", real=True) for i in range(3)]
+
+
+def _scaled_assembly_constants() -> Stage:
+    """Setup of _scaled_assembly_stage: per chain r_i (cos, sin) theta_i and l_a,i (cos,
+    sin) theta_i (eqs. (3)-(5): S_i = (r_i + l_a,i cos q_i) (cos, sin) theta_i in x, y)."""
+    pairs = []
+    for i in range(3):
+        pairs += [
+            (centre_offset[i][0], s.chain_r[i] * s.cos_theta[i]),
+            (centre_offset[i][1], s.chain_r[i] * s.sin_theta[i]),
+            (crank_axis[i][0], s.chain_l_a[i] * s.cos_theta[i]),
+            (crank_axis[i][1], s.chain_l_a[i] * s.sin_theta[i]),
+        ]
+    return Stage(
+        "the scaled rows' constants: r_i (cos, sin) theta_i, l_a,i (cos, sin) theta_i "
+        "(eqs. (3)-(5))",
+        tuple(pairs),
+    )
 
 
 def _scaled_assembly_stage() -> Stage:
     """_assembly_stage without a division: the inverse's atan2 arguments are (X_i, Y_i) =
-    rho_i^2 (cos q_i, sin q_i) (derive/delta/inverse_rates.py), so the centres scaled by
-    rho_i^2 are polynomials in them, S~_i = rho_i^2 S_i, and so are the scaled rows
-    u~_i = rho_i^2 (p - S_i). With P = rho_1^2 rho_2^2 rho_3^2 (> 0, so signs are kept):
-    P det_D = det(u~_1; u~_2; u~_3), expanded along its z column, and, from
+    rho_i^2 (cos q_i, sin q_i) (derive/delta/inverse_rates.py), so the rows of D scaled
+    by rho_i^2, u~_i = rho_i^2 (p - S_i) with S_i of eqs. (3)-(5), are polynomials in them:
+        u~_i = (rho_i^2 (x - r_i cos theta_i) - l_a,i cos theta_i X_i,
+                rho_i^2 (y - r_i sin theta_i) - l_a,i sin theta_i X_i,
+                rho_i^2 z + l_a,i Y_i).
+    With P = rho_1^2 rho_2^2 rho_3^2 (> 0, so signs are kept) and C~_i the z component of
+    the cross product of the other two rows' x, y parts (row_cross_z[i] leaves row i out),
+    P det_D = sum_i u~_i,z C~_i (det_D expanded along its z column), and, from
     e = (S_2 - S_1) x (S_3 - S_1) = u_1 x u_2 + u_2 x u_3 + u_3 x u_1 (u_i = p - S_i),
-    P e_z = rho_1^2 (u~_2 x u~_3)_z + rho_2^2 (u~_3 x u~_1)_z + rho_3^2 (u~_1 x u~_2)_z:
-    both read the same three z components of the rows' cross products. det_D e_z > 0 and
-    |det_D| > det_limit read (P det_D)(P e_z) > 0 and |P det_D| > det_limit P (the batched
-    ik, which needs no cos q_i, sin q_i: three divisions fewer per point; the rate kernels
-    divide, they need them)."""
+    P e_z = sum_i rho_i^2 C~_i. The z column is rho_i^2 z + l_a,i Y_i, so
+    P det_D = z (P e_z) + sum_i l_a,i Y_i C~_i: the z column itself is never formed (one
+    multiplication instead of three rows' six operations), and the x, y entries take two
+    multiplications each with r_i, l_a,i times (cos, sin) theta_i from the setup
+    (_scaled_assembly_constants). det_D e_z > 0 and |det_D| > det_limit read
+    (P det_D)(P e_z) > 0 and |P det_D| > det_limit P (the batched ik, which needs no
+    cos q_i, sin q_i: three divisions fewer per point; the rate kernels divide, they need
+    them). 32 multiplications per point, against 40 when the rows' z column and the
+    scaled centres S~_i = rho_i^2 S_i were formed."""
     pairs = []
-    scaled, exprs = [], []
-    for i in range(3):
-        radius = s.chain_r[i] * rho_sq[i] + s.chain_l_a[i] * irs.ik_x[i]
-        exprs.append(
-            sp.Matrix(
-                [radius * s.cos_theta[i], radius * s.sin_theta[i], -s.chain_l_a[i] * irs.ik_y[i]]
-            )
-        )
-        scaled.append(sp.Matrix(sp.symbols(f"St_x{i + 1} St_y{i + 1} St_z{i + 1}", real=True)))
-        pairs += list(zip(scaled[i], exprs[i]))
-    for i in range(3):  # S~_i = rho_i^2 S_i (the radius r_i + l_a,i cos q_i scaled)
-        unscaled = s.sphere_centre(i).subs(
-            {s.cos_q[i]: irs.ik_x[i] / rho_sq[i], s.sin_q[i]: irs.ik_y[i] / rho_sq[i]}
-        )
-        assert sp.simplify(exprs[i] - rho_sq[i] * unscaled) == sp.zeros(3, 1)
     p = sp.Matrix([s.x, s.y, s.z])
-    rows = sp.Matrix(3, 3, lambda i, k: sp.Symbol(f"Dt{i + 1}{k + 1}", real=True))
+    rows = sp.Matrix(3, 2, lambda i, k: sp.Symbol(f"Dt{i + 1}{k + 1}", real=True))
+    coords = (s.x, s.y)
     for i in range(3):
-        pairs += [(rows[i, k], rho_sq[i] * p[k] - scaled[i][k]) for k in range(3)]
+        for k in range(2):
+            entry = rho_sq[i] * (coords[k] - centre_offset[i][k]) - crank_axis[i][k] * irs.ik_x[i]
+            pairs.append((rows[i, k], entry))
+    # each entry is rho_i^2 (p - S_i) with cos q_i, sin q_i = (X_i, Y_i) / rho_i^2
+    setup = {sym: value for sym, value in _scaled_assembly_constants().assignments}
+    trig = [
+        {s.cos_q[i]: irs.ik_x[i] / rho_sq[i], s.sin_q[i]: irs.ik_y[i] / rho_sq[i]} for i in range(3)
+    ]
+    z_column = [rho_sq[i] * s.z + s.chain_l_a[i] * irs.ik_y[i] for i in range(3)]
+    for i in range(3):
+        unscaled = p - s.sphere_centre(i).subs(trig[i])
+        scaled = [pairs[2 * i][1].subs(setup), pairs[2 * i + 1][1].subs(setup), z_column[i]]
+        assert sp.simplify(sp.Matrix(scaled) - rho_sq[i] * unscaled) == sp.zeros(3, 1)
 
     def cross_z(u, v):
         return u[0] * v[1] - u[1] * v[0]
@@ -348,22 +376,28 @@ def _scaled_assembly_stage() -> Stage:
     # (u~_2 x u~_3)_z, (u~_3 x u~_1)_z, (u~_1 x u~_2)_z: row_cross_z[i] leaves row i out
     crosses = [cross_z(rows[(i + 1) % 3, :], rows[(i + 2) % 3, :]) for i in range(3)]
     pairs += list(zip(row_cross_z, crosses))
-    det = sum(rows[i, 2] * row_cross_z[i] for i in range(3))
     normal = sum(rho_sq[i] * row_cross_z[i] for i in range(3))
-    # the identities the two sums rest on, checked on the unnamed expressions
-    assert sp.expand(det.subs(dict(zip(row_cross_z, crosses))) - rows.det()) == 0
+    det = s.z * scaled_normal_z + sum(
+        s.chain_l_a[i] * irs.ik_y[i] * row_cross_z[i] for i in range(3)
+    )
+    # the identities the sums rest on, checked on the unnamed expressions: the z-column
+    # expansion of det[u~_1; u~_2; u~_3], and P det_D read through P e_z
+    full = sp.Matrix(3, 3, lambda i, k: rows[i, k] if k < 2 else z_column[i])
+    by_cross = dict(zip(row_cross_z, crosses))
+    expanded = det.subs(scaled_normal_z, normal).subs(by_cross)
+    assert sp.expand(expanded - full.det()) == 0
     u = [p - s.sphere_centre(i) for i in range(3)]
     e = (u[1] - u[0]).cross(u[2] - u[0])  # (S_2 - S_1) x (S_3 - S_1), S_i = p - u_i
     e_from_rows = sum((u[i].cross(u[(i + 1) % 3]) for i in range(3)), sp.zeros(3, 1))
     assert sp.expand(e - e_from_rows) == sp.zeros(3, 1)
     pairs += [
-        (scaled_det_D, det),
         (scaled_normal_z, normal),
+        (scaled_det_D, det),
         (rho_sq_product, rho_sq[0] * rho_sq[1] * rho_sq[2]),
     ]
     return Stage(
-        "assembly mode without divisions: rows rho_i^2 (p - S_i), P det_D and P e_z, "
-        "P = prod rho_i^2",
+        "assembly mode without divisions: x, y of the rows rho_i^2 (p - S_i), P e_z and "
+        "P det_D = z P e_z + sum l_a,i Y_i C~_i, P = prod rho_i^2",
         tuple(pairs),
     )
 
@@ -435,7 +469,7 @@ def ik_kernel() -> Kernel:
         ),
         status=status,
         parameters=PARAMETERS,
-        setup=SETUP,
+        setup=SETUP + (_scaled_assembly_constants(),),
         status_doc=f"OK; INVALID (non-finite input); {_IK_UNREACHABLE_DOC}; "
         "SINGULAR (|J_q,ii| / (2 l_a l_b) <= singular_tol; q is still given)",
     )
