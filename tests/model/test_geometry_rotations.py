@@ -347,3 +347,60 @@ def test_public_names_elsewhere_are_the_geometry_ones():
         "slerp",
     ):
         assert getattr(trajectory, name) is getattr(rot, name)
+
+
+# ------------------------------------------------------------------ exp / log, quaternions, slerp
+
+
+def _rand_rot(rng):
+    return rot.rot_exp(rng.normal(size=3))
+
+
+def test_rot_exp_log_roundtrip_including_small_and_near_pi(rng):
+    axes = rng.normal(size=(40, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.r_[
+        np.geomspace(1e-12, 1e-3, 10),
+        rng.uniform(0, math.pi, 20),
+        math.pi - np.geomspace(1e-3, 1e-9, 10),
+    ]
+    v = axes * angles[:, None]
+    R = rot.rot_exp(v)
+    np.testing.assert_allclose(
+        R @ np.swapaxes(R, 1, 2), np.broadcast_to(np.eye(3), R.shape), atol=1e-14
+    )
+    np.testing.assert_allclose(rot.rot_log(R), v, atol=2e-8)  # near pi: sqrt(eps)-limited sign
+    np.testing.assert_allclose(rot.rot_log(R[:30]), v[:30], atol=1e-13)
+    for k in range(40):  # the single-matrix path agrees with the batch path
+        np.testing.assert_allclose(rot.rot_log(R[k]), rot.rot_log(R[k : k + 1])[0], atol=1e-12)
+    # Rodrigues typed in for one case: 90 deg about z
+    np.testing.assert_allclose(
+        rot.rot_exp([0, 0, math.pi / 2]), [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-15
+    )
+
+
+def test_quaternion_roundtrip(rng):
+    R = np.stack([_rand_rot(rng) for _ in range(50)])
+    q = rot.quat_from_matrix(R)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-15)
+    assert np.all(q[:, 0] >= 0)
+    np.testing.assert_allclose(rot.matrix_from_quat(q), R, atol=1e-14)
+    # 180 deg about x: (w, x, y, z) = (0, 1, 0, 0)
+    np.testing.assert_allclose(
+        np.abs(rot.quat_from_matrix(np.diag([1.0, -1, -1]))), [0, 1, 0, 0], atol=1e-15
+    )
+
+
+def test_slerp_endpoints_agrees_with_quaternion_slerp_and_constant_rate(rng):
+    for _ in range(10):
+        R0, R1 = _rand_rot(rng), _rand_rot(rng)
+        s = np.linspace(0, 1, 11)
+        Rs = rot.slerp(R0, R1, s)
+        np.testing.assert_allclose(Rs[0], R0, atol=1e-14)
+        np.testing.assert_allclose(Rs[-1], R1, atol=1e-12)
+        qs = rot.quat_slerp(rot.quat_from_matrix(R0), rot.quat_from_matrix(R1), s)
+        np.testing.assert_allclose(rot.matrix_from_quat(qs), Rs, atol=1e-12)
+        # equal angles between consecutive samples (constant angular velocity)
+        steps = np.linalg.norm(rot.rot_log(Rs[1:] @ np.swapaxes(Rs[:-1], 1, 2)), axis=1)
+        total = np.linalg.norm(rot.rot_log(R1 @ R0.T))
+        np.testing.assert_allclose(steps, total / 10, atol=1e-12)
