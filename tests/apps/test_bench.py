@@ -34,22 +34,27 @@ def _rows(text: str) -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def measured_once():
+def _measurements():
+    """{kwargs: sections.measure result} kept for the module (see measured_once)."""
+    return {}
+
+
+@pytest.fixture
+def measured_once(monkeypatch, _measurements):
     """sections.measure run once per size for the module: the text and the markdown run
     below render (and write) the same measurement (each measured the whole bench, 12 s
-    warm, before); {kwargs: result} of the runs."""
-    runs = {}
+    warm, before). Patched for the test that asks only, so no other test of the module
+    gets a memoised measurement; {kwargs: result} of the runs."""
     measure = sections.measure
 
     def once(**kwargs):
         key = tuple(sorted(kwargs.items()))
-        if key not in runs:
-            runs[key] = measure(**kwargs)
-        return runs[key]
+        if key not in _measurements:
+            _measurements[key] = measure(**kwargs)
+        return _measurements[key]
 
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(sections, "measure", once)
-        yield runs
+    monkeypatch.setattr(sections, "measure", once)
+    return _measurements
 
 
 @pytest.mark.parametrize("markdown", [False, True], ids=["text", "markdown"])
