@@ -96,10 +96,8 @@ int deltagen_delta_fk(const deltagen_delta_geometry *restrict geometry, size_t n
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
@@ -388,10 +386,8 @@ int deltagen_delta_fk_vel(const deltagen_delta_geometry *restrict geometry, size
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
@@ -790,10 +786,8 @@ int deltagen_delta_fk_acc(const deltagen_delta_geometry *restrict geometry, size
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
@@ -1231,10 +1225,8 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
@@ -1551,6 +1543,15 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
         /* kinematics, one point per iteration, the results straight into the caller's rows
          * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x1_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y1_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x2_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y2_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x3_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y3_b[DELTAGEN_DELTA_BLOCK];
+        int invalid_b[DELTAGEN_DELTA_BLOCK];
+        int unreachable_b[DELTAGEN_DELTA_BLOCK];
+        int singular_b[DELTAGEN_DELTA_BLOCK];
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {  /* loop: points */
                 const double x = x_b[k];
@@ -1585,10 +1586,6 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                 const double ik_y2 = E2*t2_1 - F2*G2;
                 const double ik_x3 = -E3*G3 - F3*t2_2;
                 const double ik_y3 = E3*t2_2 - F3*G3;
-                /* crank angles q = atan2(Y, X) in (-pi, pi] */
-                const double q1 = atan2(ik_y1, ik_x1);
-                const double q2 = atan2(ik_y2, ik_x2);
-                const double q3 = atan2(ik_y3, ik_x3);
                 /* assembly mode without divisions: x, y of the rows rho_i^2 (p - S_i), P e_z and P det_D = z P e_z +
                  *    sum l_a,i Y_i C~_i, P = prod rho_i^2 */
                 const double t4_0 = -x;
@@ -1615,18 +1612,15 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                         ((scaled_det_D*scaled_normal_z > 0)))));
                 const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t5_0 <=
                         t5_1)));
-                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-                const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                        isfinite(q3))));
-                const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const double out_q1_checked = ((t6_0) ? NAN : q1);
-                const double out_q2_checked = ((t6_0) ? NAN : q2);
-                const double out_q3_checked = ((t6_0) ? NAN : q3);
-                q[(start + k) * 3 + 0] = out_q1_checked;
-                q[(start + k) * 3 + 1] = out_q2_checked;
-                q[(start + k) * 3 + 2] = out_q3_checked;
-                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
-                        + (1 - unreachable)*(2*singular)));
+                ik_x1_b[k] = ik_x1;
+                ik_y1_b[k] = ik_y1;
+                ik_x2_b[k] = ik_x2;
+                ik_y2_b[k] = ik_y2;
+                ik_x3_b[k] = ik_x3;
+                ik_y3_b[k] = ik_y3;
+                invalid_b[k] = invalid;
+                unreachable_b[k] = unreachable;
+                singular_b[k] = singular;
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {  /* loop: points */
@@ -1662,10 +1656,6 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                 const double ik_y2 = E2*t2_1 - F2*G2;
                 const double ik_x3 = -E3*G3 - F3*t2_2;
                 const double ik_y3 = E3*t2_2 - F3*G3;
-                /* crank angles q = atan2(Y, X) in (-pi, pi] */
-                const double q1 = atan2(ik_y1, ik_x1);
-                const double q2 = atan2(ik_y2, ik_x2);
-                const double q3 = atan2(ik_y3, ik_x3);
                 /* assembly mode without divisions: x, y of the rows rho_i^2 (p - S_i), P e_z and P det_D = z P e_z +
                  *    sum l_a,i Y_i C~_i, P = prod rho_i^2 */
                 const double t4_0 = -x;
@@ -1692,6 +1682,73 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
                         ((scaled_det_D*scaled_normal_z > 0)))));
                 const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t5_0 <=
                         t5_1)));
+                ik_x1_b[k] = ik_x1;
+                ik_y1_b[k] = ik_y1;
+                ik_x2_b[k] = ik_x2;
+                ik_y2_b[k] = ik_y2;
+                ik_x3_b[k] = ik_x3;
+                ik_y3_b[k] = ik_y3;
+                invalid_b[k] = invalid;
+                unreachable_b[k] = unreachable;
+                singular_b[k] = singular;
+            }
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
+                DELTAGEN_DELTA_BLOCK
+            ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ik_x1_b[k] = ik_x1_b[0];
+            ik_y1_b[k] = ik_y1_b[0];
+            ik_x2_b[k] = ik_x2_b[0];
+            ik_y2_b[k] = ik_y2_b[0];
+            ik_x3_b[k] = ik_x3_b[0];
+            ik_y3_b[k] = ik_y3_b[0];
+        }
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q1_b[k] = atan2(ik_y1_b[k], ik_x1_b[k]);
+        }
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q2_b[k] = atan2(ik_y2_b[k], ik_x2_b[k]);
+        }
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q3_b[k] = atan2(ik_y3_b[k], ik_x3_b[k]);
+        }
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const int invalid = invalid_b[k];
+                const int unreachable = unreachable_b[k];
+                const int singular = singular_b[k];
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))));
+                const int t6_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const double out_q1_checked = ((t6_0) ? NAN : q1);
+                const double out_q2_checked = ((t6_0) ? NAN : q2);
+                const double out_q3_checked = ((t6_0) ? NAN : q3);
+                q[(start + k) * 3 + 0] = out_q1_checked;
+                q[(start + k) * 3 + 1] = out_q2_checked;
+                q[(start + k) * 3 + 2] = out_q3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double phi = phi_b[k];
+                const int invalid = invalid_b[k];
+                const int unreachable = unreachable_b[k];
+                const int singular = singular_b[k];
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))));
@@ -1814,6 +1871,18 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
         /* kinematics, one point per iteration, the results straight into the caller's rows
          * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x1_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y1_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x2_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y2_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x3_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y3_b[DELTAGEN_DELTA_BLOCK];
+        double qd1_b[DELTAGEN_DELTA_BLOCK];
+        double qd2_b[DELTAGEN_DELTA_BLOCK];
+        double qd3_b[DELTAGEN_DELTA_BLOCK];
+        int invalid_b[DELTAGEN_DELTA_BLOCK];
+        int unreachable_b[DELTAGEN_DELTA_BLOCK];
+        int singular_b[DELTAGEN_DELTA_BLOCK];
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {  /* loop: points */
                 const double x = x_b[k];
@@ -1852,10 +1921,6 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double ik_y2 = E2*t2_1 - F2*G2;
                 const double ik_x3 = -E3*G3 - F3*t2_2;
                 const double ik_y3 = E3*t2_2 - F3*G3;
-                /* crank angles q = atan2(Y, X) in (-pi, pi] */
-                const double q1 = atan2(ik_y1, ik_x1);
-                const double q2 = atan2(ik_y2, ik_x2);
-                const double q3 = atan2(ik_y3, ik_x3);
                 /* cos q_i, sin q_i = (X, Y) / rho^2 */
                 const double inv_rho_sq1 = 1.0/rho_sq1;
                 const double inv_rho_sq2 = 1.0/rho_sq2;
@@ -1921,26 +1986,18 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                         ((centre_normal_z*det_D > 0)))));
                 const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
                         det_limit)));
-                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                        isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
-                        (singular) | (unreachable)))))));
-                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_q1_checked = ((t12_0) ? NAN : q1);
-                const double out_q2_checked = ((t12_0) ? NAN : q2);
-                const double out_q3_checked = ((t12_0) ? NAN : q3);
-                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
-                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
-                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
-                q[(start + k) * 3 + 0] = out_q1_checked;
-                q[(start + k) * 3 + 1] = out_q2_checked;
-                q[(start + k) * 3 + 2] = out_q3_checked;
-                qd[(start + k) * 3 + 0] = out_qd1_checked;
-                qd[(start + k) * 3 + 1] = out_qd2_checked;
-                qd[(start + k) * 3 + 2] = out_qd3_checked;
-                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
-                        + (1 - unreachable)*(2*singular)));
+                ik_x1_b[k] = ik_x1;
+                ik_y1_b[k] = ik_y1;
+                ik_x2_b[k] = ik_x2;
+                ik_y2_b[k] = ik_y2;
+                ik_x3_b[k] = ik_x3;
+                ik_y3_b[k] = ik_y3;
+                qd1_b[k] = qd1;
+                qd2_b[k] = qd2;
+                qd3_b[k] = qd3;
+                invalid_b[k] = invalid;
+                unreachable_b[k] = unreachable;
+                singular_b[k] = singular;
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {  /* loop: points */
@@ -1980,10 +2037,6 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                 const double ik_y2 = E2*t2_1 - F2*G2;
                 const double ik_x3 = -E3*G3 - F3*t2_2;
                 const double ik_y3 = E3*t2_2 - F3*G3;
-                /* crank angles q = atan2(Y, X) in (-pi, pi] */
-                const double q1 = atan2(ik_y1, ik_x1);
-                const double q2 = atan2(ik_y2, ik_x2);
-                const double q3 = atan2(ik_y3, ik_x3);
                 /* cos q_i, sin q_i = (X, Y) / rho^2 */
                 const double inv_rho_sq1 = 1.0/rho_sq1;
                 const double inv_rho_sq2 = 1.0/rho_sq2;
@@ -2049,6 +2102,91 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
                         ((centre_normal_z*det_D > 0)))));
                 const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t11_0 <=
                         det_limit)));
+                ik_x1_b[k] = ik_x1;
+                ik_y1_b[k] = ik_y1;
+                ik_x2_b[k] = ik_x2;
+                ik_y2_b[k] = ik_y2;
+                ik_x3_b[k] = ik_x3;
+                ik_y3_b[k] = ik_y3;
+                qd1_b[k] = qd1;
+                qd2_b[k] = qd2;
+                qd3_b[k] = qd3;
+                invalid_b[k] = invalid;
+                unreachable_b[k] = unreachable;
+                singular_b[k] = singular;
+            }
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
+                DELTAGEN_DELTA_BLOCK
+            ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ik_x1_b[k] = ik_x1_b[0];
+            ik_y1_b[k] = ik_y1_b[0];
+            ik_x2_b[k] = ik_x2_b[0];
+            ik_y2_b[k] = ik_y2_b[0];
+            ik_x3_b[k] = ik_x3_b[0];
+            ik_y3_b[k] = ik_y3_b[0];
+        }
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q1_b[k] = atan2(ik_y1_b[k], ik_x1_b[k]);
+        }
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q2_b[k] = atan2(ik_y2_b[k], ik_x2_b[k]);
+        }
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q3_b[k] = atan2(ik_y3_b[k], ik_x3_b[k]);
+        }
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const int invalid = invalid_b[k];
+                const int unreachable = unreachable_b[k];
+                const int singular = singular_b[k];
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
+                        (singular) | (unreachable)))))));
+                const int t12_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t12_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t12_0) ? NAN : q1);
+                const double out_q2_checked = ((t12_0) ? NAN : q2);
+                const double out_q3_checked = ((t12_0) ? NAN : q3);
+                const double out_qd1_checked = ((t12_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t12_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t12_1) ? NAN : qd3);
+                q[(start + k) * 3 + 0] = out_q1_checked;
+                q[(start + k) * 3 + 1] = out_q2_checked;
+                q[(start + k) * 3 + 2] = out_q3_checked;
+                qd[(start + k) * 3 + 0] = out_qd1_checked;
+                qd[(start + k) * 3 + 1] = out_qd2_checked;
+                qd[(start + k) * 3 + 2] = out_qd3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double phi = phi_b[k];
+                const double phid = phid_b[k];
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const int invalid = invalid_b[k];
+                const int unreachable = unreachable_b[k];
+                const int singular = singular_b[k];
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))))) | (((!(isfinite(qd1) & isfinite(qd2) & isfinite(qd3))) & (!(((invalid) |
@@ -2193,6 +2331,21 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
         /* kinematics, one point per iteration, the results straight into the caller's rows
          * (a loop per row length: constant strides, and no fourth-axis work for 3 axes) */
         int status_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x1_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y1_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x2_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y2_b[DELTAGEN_DELTA_BLOCK];
+        double ik_x3_b[DELTAGEN_DELTA_BLOCK];
+        double ik_y3_b[DELTAGEN_DELTA_BLOCK];
+        double qd1_b[DELTAGEN_DELTA_BLOCK];
+        double qd2_b[DELTAGEN_DELTA_BLOCK];
+        double qd3_b[DELTAGEN_DELTA_BLOCK];
+        double qdd1_b[DELTAGEN_DELTA_BLOCK];
+        double qdd2_b[DELTAGEN_DELTA_BLOCK];
+        double qdd3_b[DELTAGEN_DELTA_BLOCK];
+        int invalid_b[DELTAGEN_DELTA_BLOCK];
+        int unreachable_b[DELTAGEN_DELTA_BLOCK];
+        int singular_b[DELTAGEN_DELTA_BLOCK];
         if (axes == 3) {
             for (size_t k = 0; k < m; ++k) {  /* loop: points */
                 const double x = x_b[k];
@@ -2235,10 +2388,6 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double ik_y2 = E2*t2_1 - F2*G2;
                 const double ik_x3 = -E3*G3 - F3*t2_2;
                 const double ik_y3 = E3*t2_2 - F3*G3;
-                /* crank angles q = atan2(Y, X) in (-pi, pi] */
-                const double q1 = atan2(ik_y1, ik_x1);
-                const double q2 = atan2(ik_y2, ik_x2);
-                const double q3 = atan2(ik_y3, ik_x3);
                 /* cos q_i, sin q_i = (X, Y) / rho^2 */
                 const double inv_rho_sq1 = 1.0/rho_sq1;
                 const double inv_rho_sq2 = 1.0/rho_sq2;
@@ -2331,32 +2480,21 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                         ((centre_normal_z*det_D > 0)))));
                 const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t12_0 <=
                         det_limit)));
-                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
-                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
-                        isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
-                        isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
-                const int t13_0 = ((invalid) | (nonfinite_output) | (unreachable));
-                const int t13_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
-                const double out_q1_checked = ((t13_0) ? NAN : q1);
-                const double out_q2_checked = ((t13_0) ? NAN : q2);
-                const double out_q3_checked = ((t13_0) ? NAN : q3);
-                const double out_qd1_checked = ((t13_1) ? NAN : qd1);
-                const double out_qd2_checked = ((t13_1) ? NAN : qd2);
-                const double out_qd3_checked = ((t13_1) ? NAN : qd3);
-                const double out_qdd1_checked = ((t13_1) ? NAN : qdd1);
-                const double out_qdd2_checked = ((t13_1) ? NAN : qdd2);
-                const double out_qdd3_checked = ((t13_1) ? NAN : qdd3);
-                q[(start + k) * 3 + 0] = out_q1_checked;
-                q[(start + k) * 3 + 1] = out_q2_checked;
-                q[(start + k) * 3 + 2] = out_q3_checked;
-                qd[(start + k) * 3 + 0] = out_qd1_checked;
-                qd[(start + k) * 3 + 1] = out_qd2_checked;
-                qd[(start + k) * 3 + 2] = out_qd3_checked;
-                qdd[(start + k) * 3 + 0] = out_qdd1_checked;
-                qdd[(start + k) * 3 + 1] = out_qdd2_checked;
-                qdd[(start + k) * 3 + 2] = out_qdd3_checked;
-                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
-                        + (1 - unreachable)*(2*singular)));
+                ik_x1_b[k] = ik_x1;
+                ik_y1_b[k] = ik_y1;
+                ik_x2_b[k] = ik_x2;
+                ik_y2_b[k] = ik_y2;
+                ik_x3_b[k] = ik_x3;
+                ik_y3_b[k] = ik_y3;
+                qd1_b[k] = qd1;
+                qd2_b[k] = qd2;
+                qd3_b[k] = qd3;
+                qdd1_b[k] = qdd1;
+                qdd2_b[k] = qdd2;
+                qdd3_b[k] = qdd3;
+                invalid_b[k] = invalid;
+                unreachable_b[k] = unreachable;
+                singular_b[k] = singular;
             }
         } else {  /* axes == 4 */
             for (size_t k = 0; k < m; ++k) {  /* loop: points */
@@ -2400,10 +2538,6 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                 const double ik_y2 = E2*t2_1 - F2*G2;
                 const double ik_x3 = -E3*G3 - F3*t2_2;
                 const double ik_y3 = E3*t2_2 - F3*G3;
-                /* crank angles q = atan2(Y, X) in (-pi, pi] */
-                const double q1 = atan2(ik_y1, ik_x1);
-                const double q2 = atan2(ik_y2, ik_x2);
-                const double q3 = atan2(ik_y3, ik_x3);
                 /* cos q_i, sin q_i = (X, Y) / rho^2 */
                 const double inv_rho_sq1 = 1.0/rho_sq1;
                 const double inv_rho_sq2 = 1.0/rho_sq2;
@@ -2496,6 +2630,107 @@ int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size
                         ((centre_normal_z*det_D > 0)))));
                 const int singular = (((disc1 <= jq_limit)) | ((disc2 <= jq_limit)) | ((disc3 <= jq_limit)) | ((t12_0 <=
                         det_limit)));
+                ik_x1_b[k] = ik_x1;
+                ik_y1_b[k] = ik_y1;
+                ik_x2_b[k] = ik_x2;
+                ik_y2_b[k] = ik_y2;
+                ik_x3_b[k] = ik_x3;
+                ik_y3_b[k] = ik_y3;
+                qd1_b[k] = qd1;
+                qd2_b[k] = qd2;
+                qd3_b[k] = qd3;
+                qdd1_b[k] = qdd1;
+                qdd2_b[k] = qdd2;
+                qdd3_b[k] = qdd3;
+                invalid_b[k] = invalid;
+                unreachable_b[k] = unreachable;
+                singular_b[k] = singular;
+            }
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
+                DELTAGEN_DELTA_BLOCK
+            ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ik_x1_b[k] = ik_x1_b[0];
+            ik_y1_b[k] = ik_y1_b[0];
+            ik_x2_b[k] = ik_x2_b[0];
+            ik_y2_b[k] = ik_y2_b[0];
+            ik_x3_b[k] = ik_x3_b[0];
+            ik_y3_b[k] = ik_y3_b[0];
+        }
+        double q1_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q1_b[k] = atan2(ik_y1_b[k], ik_x1_b[k]);
+        }
+        double q2_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q2_b[k] = atan2(ik_y2_b[k], ik_x2_b[k]);
+        }
+        double q3_b[DELTAGEN_DELTA_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            q3_b[k] = atan2(ik_y3_b[k], ik_x3_b[k]);
+        }
+        if (axes == 3) {
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const int invalid = invalid_b[k];
+                const int unreachable = unreachable_b[k];
+                const int singular = singular_b[k];
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
+                /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
+                const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
+                        isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
+                        isfinite(qd2) & isfinite(qd3) & isfinite(qdd1) & isfinite(qdd2) & isfinite(qdd3))))));
+                const int t13_0 = ((invalid) | (nonfinite_output) | (unreachable));
+                const int t13_1 = ((invalid) | (nonfinite_output) | (singular) | (unreachable));
+                const double out_q1_checked = ((t13_0) ? NAN : q1);
+                const double out_q2_checked = ((t13_0) ? NAN : q2);
+                const double out_q3_checked = ((t13_0) ? NAN : q3);
+                const double out_qd1_checked = ((t13_1) ? NAN : qd1);
+                const double out_qd2_checked = ((t13_1) ? NAN : qd2);
+                const double out_qd3_checked = ((t13_1) ? NAN : qd3);
+                const double out_qdd1_checked = ((t13_1) ? NAN : qdd1);
+                const double out_qdd2_checked = ((t13_1) ? NAN : qdd2);
+                const double out_qdd3_checked = ((t13_1) ? NAN : qdd3);
+                q[(start + k) * 3 + 0] = out_q1_checked;
+                q[(start + k) * 3 + 1] = out_q2_checked;
+                q[(start + k) * 3 + 2] = out_q3_checked;
+                qd[(start + k) * 3 + 0] = out_qd1_checked;
+                qd[(start + k) * 3 + 1] = out_qd2_checked;
+                qd[(start + k) * 3 + 2] = out_qd3_checked;
+                qdd[(start + k) * 3 + 0] = out_qdd1_checked;
+                qdd[(start + k) * 3 + 1] = out_qdd2_checked;
+                qdd[(start + k) * 3 + 2] = out_qdd3_checked;
+                status_b[k] = (3*((invalid) | (nonfinite_output)) + (1 - ((invalid) | (nonfinite_output)))*(unreachable
+                        + (1 - unreachable)*(2*singular)));
+            }
+        } else {  /* axes == 4 */
+            for (size_t k = 0; k < m; ++k) {  /* loop: points */
+                const double phi = phi_b[k];
+                const double phid = phid_b[k];
+                const double phidd = phidd_b[k];
+                const double qd1 = qd1_b[k];
+                const double qd2 = qd2_b[k];
+                const double qd3 = qd3_b[k];
+                const double qdd1 = qdd1_b[k];
+                const double qdd2 = qdd2_b[k];
+                const double qdd3 = qdd3_b[k];
+                const int invalid = invalid_b[k];
+                const int unreachable = unreachable_b[k];
+                const int singular = singular_b[k];
+                const double q1 = q1_b[k];
+                const double q2 = q2_b[k];
+                const double q3 = q3_b[k];
                 /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
                 const int nonfinite_output = ((((!(((invalid) | (unreachable)))) & (!(isfinite(q1) & isfinite(q2) &
                         isfinite(q3))))) | (((!(((invalid) | (singular) | (unreachable)))) & (!(isfinite(qd1) &
@@ -2599,10 +2834,8 @@ int deltagen_delta_fk_param_jacobian(const deltagen_delta_geometry *restrict geo
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
@@ -3232,10 +3465,8 @@ int deltagen_delta_inverse_dynamics(const deltagen_delta_geometry *restrict geom
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;
@@ -3823,10 +4054,8 @@ int deltagen_delta_inverse_dynamics_simplified(const deltagen_delta_geometry *re
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) <=
                 DELTAGEN_DELTA_BLOCK
             ? ((m + DELTAGEN_DELTA_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_DELTA_TRIG_LANES - 1)) : m;

@@ -170,8 +170,8 @@ int deltagen_delta_jacobian(const deltagen_delta_geometry *restrict geometry, si
  *                   arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 165 operations per point.
- * Stack: 5 block arrays (4 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 2304 bytes (2.2 KiB) at 64, plus scalars and spills: allow 40 % more.
+ * Stack: 17 block arrays (13 double, 4 int) of DELTAGEN_DELTA_BLOCK points,
+ * 7680 bytes (7.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict p, double *restrict q, int8_t *restrict status);
@@ -192,8 +192,8 @@ int deltagen_delta_ik(const deltagen_delta_geometry *restrict geometry, size_t n
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 228 operations per point.
- * Stack: 9 block arrays (8 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 4352 bytes (4.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 24 block arrays (20 double, 4 int) of DELTAGEN_DELTA_BLOCK points,
+ * 11264 bytes (11.0 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict p, const double *restrict pd, double *restrict q, double *restrict qd,
@@ -218,8 +218,8 @@ int deltagen_delta_ik_vel(const deltagen_delta_geometry *restrict geometry, size
  *                   are too large: the arithmetic overflows); all outputs of such a row are NaN (flags 0)
  *
  * Cost: 336 operations per point.
- * Stack: 13 block arrays (12 double, 1 int) of DELTAGEN_DELTA_BLOCK points,
- * 6400 bytes (6.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 31 block arrays (27 double, 4 int) of DELTAGEN_DELTA_BLOCK points,
+ * 14848 bytes (14.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_delta_ik_acc(const deltagen_delta_geometry *restrict geometry, size_t n, size_t axes,
         const double *restrict p, const double *restrict pd, const double *restrict pdd, double *restrict q,

@@ -24,6 +24,7 @@ UNIT = Unit(
     ),
     axes_choices=(3, 4),
     direct_stores=True,
+    atan2_loops=True,
     axes_doc="3, or 4 with the fourth axis in the last column",
     struct_fields=DELTA_PARAMETERS,
 )

@@ -5,8 +5,9 @@ change to the generated C (or to the compiler) that stops it costs a factor of s
 speed while every result stays the same. This module makes that visible:
 
 * The template (codegen/templates/source.c.j2) names the loops that must vectorise by a
-  comment on their ``for`` line: ``/* loop: cos */``, ``/* loop: sin */`` and
-  ``/* loop: points */`` (the kinematics, one point per iteration). :func:`marked_loops`
+  comment on their ``for`` line: ``/* loop: cos */``, ``/* loop: sin */``,
+  ``/* loop: atan2 */`` (codegen/render.py atan2_loops) and ``/* loop: points */`` (the
+  kinematics, one point per iteration). :func:`marked_loops`
   finds them and the kernel (top-level function) each belongs to.
 * :func:`vector_report` compiles the module as the build does (native/build.py: the same
   flags from :func:`~deltagen.native.build.compile_flags`, one translation unit per kernel
@@ -39,7 +40,7 @@ from deltagen.native import build, toolchain
 from deltagen.native import units as unit_split
 
 #: the comment that names a loop the vectoriser must handle, on the loop's ``for`` line
-MARKER = re.compile(r"^(?P<indent>\s*)for \(.*\{\s*/\* loop: (?P<role>[a-z_]+) \*/\s*$")
+MARKER = re.compile(r"^(?P<indent>\s*)for \(.*\{\s*/\* loop: (?P<role>[a-z0-9_]+) \*/\s*$")
 _REMARK = re.compile(
     r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<column>\d+): (?P<kind>optimized|missed|note): "
     r"(?P<message>.*)$",

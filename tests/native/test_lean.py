@@ -2,11 +2,13 @@
 
 Each quantity is evaluated for a batch of random states (the kernels' SIMD loop) and then
 row by row through the one-pose call, which must be taken (the batch machinery is made to
-fail while it runs) and must equal the batch's row exactly. The inverse kinematics (delta
-ik, serial ik_all / ik) call atan2 in their vectorised kinematics loop, which is not padded
-(codegen/templates/source.c.j2): a lone point may differ from a batch row in a vector lane
-by the last bits of atan2, so there the one-pose call equals a batch of one row exactly and
-the long batch's row to rounding (1e-14 rad; 1e-12 for the 8 branches of ik_all).
+fail while it runs) and must equal the batch's row exactly. The delta's inverse kinematics
+(ik, ik_vel, ik_acc) evaluate atan2 in padded loops of their own (codegen/render.py,
+atan2_loops), so they too equal the long batch's row bit for bit. The serial ik_all / ik
+call atan2 in their vectorised kinematics loop, which is not padded: a lone pose may differ
+from a batch row in a vector lane by the last bits of atan2, so there the one-pose call
+equals a batch of one row exactly and the long batch's row to rounding (1e-12 for the 8
+branches of ik_all).
 Inputs the lean path does not take (lists of numpy scalars, non-contiguous views,
 big-endian arrays) give the same numbers through the general path. Errors on bad single inputs are those of the batch path
 (tests/api/test_checks.py covers that for every method).
@@ -54,16 +56,24 @@ def test_delta_one_pose_equals_the_batch_row(delta, monkeypatch):
     q, qd, qdd = _states(rng, 3)
     p = delta.fk(q)
     payload = 0.25
+    pd = delta.fk_vel(q, qd)[1]
+    pdd = delta.fk_acc(q, qd, qdd)[2]
     batch = {
         "fk": (delta.fk(q),),
-        "ik": (np.array([delta.ik(p[i : i + 1])[0] for i in range(ROWS)]),),
+        "ik": (delta.ik(p),),
         "fk_vel": delta.fk_vel(q, qd),
         "fk_acc": delta.fk_acc(q, qd, qdd),
         "jacobian": (delta.jacobian(q),),
         "id": (delta.inverse_dynamics(q, qd, qdd, payload),),
         "id_s": (delta.inverse_dynamics(q, qd, qdd, payload, model="simplified"),),
     }
-    ik_long = delta.ik(p)
+    # the rates of the inverse kinematics have no lean path: one row through the kernel
+    rates = {"ik_vel": delta.ik_vel(p, pd), "ik_acc": delta.ik_acc(p, pd, pdd)}
+    for i in range(ROWS):
+        for one, many in zip(delta.ik_vel(p[i], pd[i]), rates["ik_vel"]):
+            assert np.array_equal(one, many[i]), ("ik_vel", i)
+        for one, many in zip(delta.ik_acc(p[i], pd[i], pdd[i]), rates["ik_acc"]):
+            assert np.array_equal(one, many[i]), ("ik_acc", i)
     _no_batch(monkeypatch, delta._core)
     for i in range(ROWS):
         single = {
@@ -80,7 +90,6 @@ def test_delta_one_pose_equals_the_batch_row(delta, monkeypatch):
             for one, many in zip(outs, batch[name]):
                 assert one.shape == many.shape[1:], name
                 assert np.array_equal(one, many[i]), (name, i)
-        assert np.abs(single["ik"][0] - ik_long[i]).max() <= 1e-14
     # lists of Python floats take the lean path as well
     assert np.array_equal(delta.fk(q[3].tolist()), batch["fk"][0][3])
 

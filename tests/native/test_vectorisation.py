@@ -95,14 +95,19 @@ def test_exemptions_name_real_kernels():
 
 def test_marked_loops_of_the_delta_core():
     """The markers the check relies on: every delta kernel has a points loop (one per row
-    length where it stores the caller's rows itself: codegen/render.py direct_stores), fk
-    has a cos and a sin loop per crank angle, and each loop's extent is its body."""
+    length where it stores the caller's rows itself: codegen/render.py direct_stores; the
+    inverse kinematics two, split at their three atan2 loops: atan2_loops), fk has a cos
+    and a sin loop per crank angle, and each loop's extent is its body."""
     text, _ = _module("delta_kinematics.c")
     loops = vectorisation.marked_loops(text, "deltagen_delta")
     kernels = [k for k, _, _ in vectorisation.kernels(text, "deltagen_delta")]
     assert "fk" in kernels and "ik" in kernels and "inverse_dynamics" in kernels
     for kernel in kernels:
-        assert [lp.role for lp in loops if lp.kernel == kernel].count("points") in (1, 2), kernel
+        roles = [lp.role for lp in loops if lp.kernel == kernel]
+        if kernel.startswith("ik"):
+            assert roles.count("points") == 4 and roles.count("atan2") == 3, kernel
+        else:
+            assert roles.count("points") in (1, 2) and "atan2" not in roles, kernel
     fk = [lp for lp in loops if lp.kernel == "fk"]
     assert sorted(lp.role for lp in fk) == ["cos"] * 3 + ["points"] * 2 + ["sin"] * 3
     lines = text.split("\n")
