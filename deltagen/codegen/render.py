@@ -346,13 +346,14 @@ def atan2_loops(fn: dict) -> None:
     per-point loop finishes the point (the output checks, the stores, the status).
 
     In a vectorised per-point loop a point in the batch's scalar remainder (and a point
-    alone) took the scalar atan2, a point in a vector lane the vector one: the delta's ik
-    of one point differed from the same point in a batch in the last bits (936 of 3072
-    angles of 1024 random poses). Split, every angle comes from a vector lane wherever the
-    point stands (0 of 3072), and the first loop has no calls, so nothing is spilled
-    around them: ik of 1024 points in cache 10.16 -> 10.22 ns per point, of 1021 points
-    (a remainder) 12.73 -> 12.57 (gcc 12, AVX-512, one process, the two builds called
-    alternately, thread CPU time, minimum of 21 repeats).
+    alone) took the scalar atan2, a point in a vector lane the vector one: the delta's
+    ik_acc of one point differed from the same point in a batch in the last bits (910 of
+    9216 values of 1024 random poses). Split, every angle comes from a vector lane wherever
+    the point stands (0 of 9216), rows in vector lanes keep their bits, and the first loop
+    has no calls to spill registers around: ik of 1024 points in cache 10.2 -> 10.3-10.5 ns
+    per point, of 1021 points (a remainder) 12.2 -> 10.6, of 10^5 rows 10.37 -> 10.48
+    (gcc 12, AVX-512, both builds in one process called alternately, thread CPU time,
+    minimum of 21 repeats, load ~3).
 
     Left whole (the function keeps :func:`whole_loop`): an atan2 whose argument depends on
     another atan2 (one split would not do), or is an input or not a plain name, and a
