@@ -40,11 +40,14 @@ extension serves every module: it takes the kernel's address. Where it cannot be
 (or false, no, off; any case) chooses it too, and a value that is no such flag is an
 InputError (deltagen.inputs.env_flag).
 
-Two more entries of the extension serve the one-pose inverse kinematics: ``pose_kernel``
+More entries of the extension serve the one-pose inverse kinematics: ``pose_kernel``
 (checked_pose_call: ik_all of one pose, the pose's finite/rigid check -- solve/ik.py's
-rule -- made in C, answered as the caller's IKSolutions) and ``newton_kernel`` (the numeric
-solver of one target, solve/numeric.py single_solver); ``rigid_pose`` is that check alone
-(solve/ik.py rigid_one).
+rule -- made in C, answered as the caller's IKSolutions), ``newton_kernel`` (the numeric
+solver of one target, solve/numeric.py single_solver), ``regular_kernel`` (the cheap test
+of ik's singularity check, solve/ik.py singular_one) and ``ik_one_kernel`` (the three in
+one call -- the pose's check, the solve, the test -- for ik's numeric requests of one pose,
+solve/ik.py IKPlanner.lean_numeric); ``rigid_pose`` is that check alone (solve/ik.py
+rigid_one).
 """
 
 from __future__ import annotations

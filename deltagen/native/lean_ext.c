@@ -545,17 +545,11 @@ static PyTypeObject NewtonSpecType = {
     .tp_doc = "what a one-target numerical IK call needs (function, options, limits)",
 };
 
-static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* The solve of newton_call on the pose T and the start in buf (n numbers, on the caller's
+ * stack): a fresh q when the solver converged, else None (new references), NULL with an
+ * exception set when q could not be made. */
+static PyObject *newton_solve(const NewtonSpec *spec, const double T[16], const double *buf)
 {
-    const NewtonSpec *spec = (const NewtonSpec *)self;
-    double T[16], buf[MAX_WIDTH];
-    if (nargs != 2 || !read_pose(args[0], T))
-        Py_RETURN_NONE;
-    const double *q0 = read_row(args[1], spec->n, buf);
-    if (q0 == NULL)
-        Py_RETURN_NONE;
-    if (q0 != buf) /* the caller's array: copied, other threads run during the solve */
-        memcpy(buf, q0, (size_t)spec->n * sizeof(double));
     npy_intp dims[1] = {(npy_intp)spec->n};
     PyObject *q = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
     if (q == NULL)
@@ -577,6 +571,20 @@ static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t n
         Py_RETURN_NONE;
     }
     return q;
+}
+
+static PyObject *newton_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const NewtonSpec *spec = (const NewtonSpec *)self;
+    double T[16], buf[MAX_WIDTH];
+    if (nargs != 2 || !read_pose(args[0], T))
+        Py_RETURN_NONE;
+    const double *q0 = read_row(args[1], spec->n, buf);
+    if (q0 == NULL)
+        Py_RETURN_NONE;
+    if (q0 != buf) /* the caller's array: copied, other threads run during the solve */
+        memcpy(buf, q0, (size_t)spec->n * sizeof(double));
+    return newton_solve(spec, T, buf);
 }
 
 static PyMethodDef newton_call_def = {
@@ -654,31 +662,40 @@ static PyTypeObject RegularSpecType = {
     .tp_doc = "what the cheap singularity test needs (Jacobian, LU, tolerance)",
 };
 
-static PyObject *regular_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* The cheap test on q (n numbers): 1 cleared (not singular), 0 not cleared (the caller's
+ * SVD decides), -1 the Jacobian's status was not ok. */
+static int regular_test(const RegularSpec *spec, const double *q)
 {
-    const RegularSpec *spec = (const RegularSpec *)self;
-    double buf[MAX_WIDTH], J[MAX_SQUARE * MAX_SQUARE];
-    if (nargs != 1)
-        Py_RETURN_NONE;
-    const double *q = read_row(args[0], spec->n, buf);
-    if (q == NULL)
-        Py_RETURN_NONE;
+    double J[MAX_SQUARE * MAX_SQUARE];
     int8_t status = -1;
     const size_t n = (size_t)spec->n;
     if (((JacobianFn)spec->jacobian)(1, q, J, &status) != 0 || status != spec->ok)
-        Py_RETURN_NONE;
+        return -1;
     double frobenius = 0.0;
     for (size_t i = 0; i < n * n; i++)
         frobenius += J[i] * J[i];
     frobenius = sqrt(frobenius);
     if (((LuFn)spec->lu)(J, n, NULL, NULL) != 0)
-        Py_RETURN_FALSE; /* a zero pivot: the SVD decides */
+        return 0; /* a zero pivot: the SVD decides */
     double det = 1.0;
     for (size_t i = 0; i < n; i++)
         det *= fabs(J[i * n + i]);
-    if (det >= spec->tol * pow(frobenius, (double)n))
-        Py_RETURN_TRUE;
-    Py_RETURN_FALSE;
+    return det >= spec->tol * pow(frobenius, (double)n);
+}
+
+static PyObject *regular_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const RegularSpec *spec = (const RegularSpec *)self;
+    double buf[MAX_WIDTH];
+    if (nargs != 1)
+        Py_RETURN_NONE;
+    const double *q = read_row(args[0], spec->n, buf);
+    if (q == NULL)
+        Py_RETURN_NONE;
+    const int cleared = regular_test(spec, q);
+    if (cleared < 0)
+        Py_RETURN_NONE;
+    return PyBool_FromLong(cleared);
 }
 
 static PyMethodDef regular_call_def = {
@@ -714,6 +731,122 @@ static PyObject *regular_kernel(PyObject *module, PyObject *args)
     return call;
 }
 
+/* ---- numeric ik of one pose in one call: the pose's check, the solve and the cheap
+ * singularity test (solve/ik.py IKPlanner.lean_numeric, SerialRobot.ik) ----
+ *
+ * ik_one_kernel(newton, regular, q0, rigid_tol, bottom_tol) -> callable(T)
+ *   newton    a callable made by newton_kernel (its function, options and limits serve)
+ *   regular   a callable made by regular_kernel for the same arm, or None (no test:
+ *             singular="allow")
+ *   q0        the start, an (n,) float64 array (its numbers are copied here)
+ *   rigid_tol, bottom_tol   check_poses' tolerances, as pose_kernel's
+ *
+ * The callable takes T as pose_call reads it and makes, in C, what the Python one-pose path
+ * makes in three calls, with the same functions on the same numbers (the same bits):
+ * rigid_pose (check_one_pose's rule), newton_call's solve from q0 and regular_call's test
+ * of the converged q. It returns q when the solver converged and the test cleared q (or
+ * there is no test); the tuple (q,) when it converged but the test did not clear q (the
+ * caller's singularity check decides); None for a pose that is not a finite rigid
+ * transform, or no convergence (the general path answers; the one-pose path need not be
+ * tried again); False for any other argument (not one pose it reads: the caller's other
+ * paths take it). */
+
+typedef struct {
+    PyObject_HEAD
+    PyObject *newton, *regular; /* the callables; their specs below */
+    const NewtonSpec *newton_spec;
+    const RegularSpec *regular_spec; /* NULL: no test */
+    double q0[MAX_WIDTH];
+    double rigid_tol, bottom_tol;
+} IkOneSpec;
+
+static void ik_one_spec_dealloc(IkOneSpec *self)
+{
+    Py_XDECREF(self->newton);
+    Py_XDECREF(self->regular);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject IkOneSpecType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "deltagen_lean_ext.IkOneSpec",
+    .tp_basicsize = sizeof(IkOneSpec),
+    .tp_dealloc = (destructor)ik_one_spec_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "what numeric ik of one pose needs (the solver's and the test's specs, q0)",
+};
+
+static PyObject *ik_one_call(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    const IkOneSpec *spec = (const IkOneSpec *)self;
+    double T[16], buf[MAX_WIDTH];
+    if (nargs != 1 || !read_pose(args[0], T))
+        Py_RETURN_FALSE;
+    if (!rigid_pose(T, spec->rigid_tol, spec->bottom_tol))
+        Py_RETURN_NONE;
+    memcpy(buf, spec->q0, (size_t)spec->newton_spec->n * sizeof(double));
+    PyObject *q = newton_solve(spec->newton_spec, T, buf);
+    if (q == NULL || q == Py_None || spec->regular_spec == NULL)
+        return q;
+    if (regular_test(spec->regular_spec, (const double *)PyArray_DATA((PyArrayObject *)q)) == 1)
+        return q;
+    PyObject *undecided = PyTuple_New(1);
+    if (undecided == NULL) {
+        Py_DECREF(q);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(undecided, 0, q); /* steals the reference */
+    return undecided;
+}
+
+static PyMethodDef ik_one_call_def = {
+    "ik_one_call", (PyCFunction)(void (*)(void))ik_one_call, METH_FASTCALL,
+    "numeric ik of one pose: check, solve, singularity test (deltagen/native/lean_ext.c)"};
+
+/* The spec behind a callable that `def` made, or NULL. */
+static PyObject *spec_of(PyObject *callable, const PyMethodDef *def)
+{
+    if (!PyCFunction_Check(callable)
+        || PyCFunction_GET_FUNCTION(callable) != def->ml_meth)
+        return NULL;
+    return PyCFunction_GET_SELF(callable);
+}
+
+static PyObject *ik_one_kernel(PyObject *module, PyObject *args)
+{
+    (void)module;
+    PyObject *newton, *regular, *q0;
+    double rigid_tol, bottom_tol;
+    if (!PyArg_ParseTuple(args, "OOOdd", &newton, &regular, &q0, &rigid_tol, &bottom_tol))
+        return NULL;
+    const NewtonSpec *newton_spec = (const NewtonSpec *)spec_of(newton, &newton_call_def);
+    const RegularSpec *regular_spec =
+        regular == Py_None ? NULL : (const RegularSpec *)spec_of(regular, &regular_call_def);
+    double buf[MAX_WIDTH];
+    const double *start = newton_spec == NULL ? NULL : read_row(q0, newton_spec->n, buf);
+    if (newton_spec == NULL || (regular != Py_None && regular_spec == NULL)
+        || (regular_spec != NULL && regular_spec->n != newton_spec->n) || start == NULL
+        || !(rigid_tol > 0.0) || !(bottom_tol > 0.0)) {
+        PyErr_SetString(PyExc_ValueError, "lean_ext.ik_one_kernel: a form it does not serve");
+        return NULL;
+    }
+    IkOneSpec *spec = PyObject_New(IkOneSpec, &IkOneSpecType);
+    if (spec == NULL)
+        return NULL;
+    Py_INCREF(newton);
+    spec->newton = newton;
+    Py_XINCREF(regular_spec == NULL ? NULL : regular);
+    spec->regular = regular_spec == NULL ? NULL : regular;
+    spec->newton_spec = newton_spec;
+    spec->regular_spec = regular_spec;
+    memcpy(spec->q0, start, (size_t)newton_spec->n * sizeof(double));
+    spec->rigid_tol = rigid_tol;
+    spec->bottom_tol = bottom_tol;
+    PyObject *call = PyCFunction_NewEx(&ik_one_call_def, (PyObject *)spec, NULL);
+    Py_DECREF(spec); /* the function holds it */
+    return call;
+}
+
 static PyMethodDef methods[] = {
     {"kernel", kernel, METH_VARARGS,
      "kernel(fn, lead, geometry, n, inputs, scalar, out_shapes, ok, keep) -> callable"},
@@ -723,6 +856,8 @@ static PyMethodDef methods[] = {
      "newton_kernel(fn, n, options, qlim, ok, keep) -> callable(T, q0)"},
     {"regular_kernel", regular_kernel, METH_VARARGS,
      "regular_kernel(jacobian, lu, n, tol, ok, keep) -> callable(q)"},
+    {"ik_one_kernel", ik_one_kernel, METH_VARARGS,
+     "ik_one_kernel(newton, regular, q0, rigid_tol, bottom_tol) -> callable(T)"},
     {"rigid_pose", rigid_pose_py, METH_VARARGS,
      "rigid_pose(T, rigid_tol, bottom_tol) -> the rigid flag of check_one_pose"},
     {NULL, NULL, 0, NULL},
@@ -739,7 +874,7 @@ PyMODINIT_FUNC DELTAGEN_LEAN_INIT(void)
     import_array();
     if (PyType_Ready(&SpecType) < 0 || PyType_Ready(&PoseSpecType) < 0
         || PyType_Ready(&NewtonSpecType) < 0
-        || PyType_Ready(&RegularSpecType) < 0)
+        || PyType_Ready(&RegularSpecType) < 0 || PyType_Ready(&IkOneSpecType) < 0)
         return NULL;
     return PyModule_Create(&module_def);
 }

@@ -228,7 +228,8 @@ class IKPlanner:
     ``partial_mask``; the one-pose paths made on the way are ``ik_all_single`` (the C
     closed form's), ``ik_all_checked`` (the same with the pose's check in C),
     ``general_single`` (the complete solver's: None not made yet, False
-    none) and ``numeric_solver``."""
+    none), ``numeric_solver`` and ``numeric_lean`` (the numeric solver's whole one-pose
+    path in one C call, for the requests in ``lean_requests``)."""
 
     def __init__(self, arm: Any) -> None:
         self.arm = arm
@@ -247,6 +248,12 @@ class IKPlanner:
         self.general_single: Any = None if compiled else False  # numpy engine: general path
         self.numeric_solver: Any = None  # the C numeric solver's one-pose path
         self.mid_range: Any = None  # the numeric solver's default start (n,)
+        # the numeric ik of one pose in one C call, per ``singular`` (lean_numeric; None:
+        # it does not serve this arm), and the requests (method, errors, singular) of ik,
+        # without config, q0 or options, that it answers: accepted once by SerialRobot.ik's
+        # checks (remember), so a later call with the same arguments goes straight to it
+        self.numeric_lean: dict[str, Any] = {}
+        self.lean_requests: dict[tuple[str, str, str], Any] = {}
         self.reversed: Any = None  # the reversed chain's arm (a closed form solved backwards)
         # ik_all: whether each method used so far is complete (warned once where it is not)
         self.completeness: dict[str, bool] = {}
@@ -742,12 +749,7 @@ class IKPlanner:
         ``restarts`` and ``seed``; the solver's defaults are numeric.DEFAULTS'): q, or None
         when the general path must answer (the first attempt did not converge: restarts and
         errors are its)."""
-        solver = self.numeric_solver
-        if solver is None:
-            from deltagen.solve.numeric import single_solver
-
-            solver = self.numeric_solver = single_solver(self.arm)
-            self.mid_range = np.ascontiguousarray(self.start(None, (1,))[0])
+        solver = self.single_numeric()
         start = self.mid_range if q0 is None else np.ascontiguousarray(q0)
         if not options:
             return solver(T, start)
@@ -755,6 +757,59 @@ class IKPlanner:
         if "seed" in options:
             given["seed"] = options["seed"]
         return solver(T, start, **given)
+
+    def single_numeric(self) -> Any:
+        """The C numeric solver's one-pose path (ik_numeric.single_solver; the compiled
+        backend) and its default start ``mid_range``, made on first use."""
+        solver = self.numeric_solver
+        if solver is None:
+            from deltagen.solve.numeric import single_solver
+
+            solver = self.numeric_solver = single_solver(self.arm)
+            self.mid_range = np.ascontiguousarray(self.start(None, (1,))[0])
+        return solver
+
+    def remember(self, method: Any, errors: Any, singular: Any) -> None:
+        """Note a request of ik that its checks accepted, made without config, q0 or options
+        and answered by the numeric method: for errors="raise" and plain str arguments
+        (their own hash and equality) lean_requests maps it to lean_numeric(singular), so
+        that SerialRobot.ik answers the same request for one plain pose in one C call
+        (None: the usual path)."""
+        if type(method) is str and type(errors) is str and type(singular) is str:
+            key = (method, errors, singular)
+            if key not in self.lean_requests:
+                lean = self.lean_numeric(singular) if errors == "raise" else None
+                self.lean_requests[key] = lean
+
+    def lean_numeric(self, singular: str) -> Any:
+        """one()'s numeric path for q0 None, no options and errors="raise" as one C call
+        (native/lean_ext.c ik_one_kernel): ``call(T)`` with T a (4, 4) float64 array makes
+        rigid_one's check, numeric_one's solve from mid_range and, for singular="raise",
+        singular_one's cheap C test, with the same functions on the same numbers (the same
+        bits), and returns q (solved, cleared), (q,) (solved, not cleared by the cheap test:
+        singular_one decides), None (not a finite rigid pose, or no convergence: the
+        general path answers) or False (T is not one (4, 4) float64 array: the other paths
+        take it). None instead of the callable where one() would not take that
+        path alone: the numpy backend, no extension, a default mask that leaves components
+        out (reaches_fully decides), no C test of a square Jacobian for singular="raise"."""
+        if singular in self.numeric_lean:
+            return self.numeric_lean[singular]
+        lean = None
+        regular = self.regular_single if singular == "raise" else None
+        if (
+            self.backend == "compiled"
+            and not self.partial_mask
+            and (singular == "allow" or regular is not None)
+        ):
+            solver = self.single_numeric()
+            if solver.lean is not None:  # made by the extension: it is there
+                from deltagen.native.lean import extension
+
+                lean = extension().ik_one_kernel(
+                    solver.lean, regular, self.mid_range, _RIGID_TOL, _BOTTOM_TOL
+                )
+        self.numeric_lean[singular] = lean
+        return lean
 
     @cached_property
     def regular_single(self) -> Any:

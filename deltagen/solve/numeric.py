@@ -625,7 +625,10 @@ def single_solver(arm):
     """Fast path of :func:`solve` for one target with default options but ``restarts`` and
     ``seed`` on the compiled backend: ``call(T, q0, restarts, seed)`` with T a (4, 4) and q0
     an (n,) C-contiguous float64 array returns q if the C routine converged (the same call
-    as solve()'s: every attempt in C), else None (the caller then runs the general path)."""
+    as solve()'s: every attempt in C), else None (the caller then runs the general path).
+    ``call.lean``: the extension's callable (native/lean_ext.c newton_kernel) of the
+    default options, ``lean(T, q0)``, or None where the extension does not build (the
+    planner's one-call numeric path, solve/ik.py IKPlanner.lean_numeric, is made from it)."""
     core = arm._core
     ffi, n, memmove = core._ffi, arm.n, core._ffi.memmove
     # solve()'s defaults, read from DEFAULTS and checked as solve() checks them
@@ -686,6 +689,7 @@ def single_solver(arm):
         fn(1, opts, Tb, q0b, qlim, qb, ep, er, it, status)
         return q_np.copy() if status[0] == OK else None
 
+    call.lean = default  # the extension's call with the default options, or None
     return call
 
 

@@ -14,7 +14,12 @@ or the same error, with the extension disabled as the second witness; (4) an unr
 pose is answered in C with the batch path's flags; (5) many calls leave no memory behind.
 The numeric solver of one target (``newton_kernel``): bit for bit the cffi path's answer
 (DELTAGEN_LEAN_EXT=0) and the batch row, for any restarts and seed; the API's answers
-checked with the numpy reference's fk.
+checked with the numpy reference's fk. Numeric ik of one pose in one call
+(``ik_one_kernel``): its answer is that of its three parts called one by one (the rigid
+check, the solver, the cheap singularity test), and through SerialRobot.ik the cffi arm's
+(q or the same error, the three-call path never taken) for every pose kind; only requests
+that ik's checks accepted, in plain str, are noted for it; a pose the one-pose path left
+unsolved is not solved again by it.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ import numpy as np
 import pytest
 
 from deltagen import SerialRobot
+from deltagen.errors import UnreachableError
 from deltagen.native import lean
 from deltagen.reference import serial as reference
 from deltagen.solve import ik as solve_ik
@@ -355,3 +361,203 @@ def test_numeric_one_target_in_threads_gets_its_own_answer(solvers):
     for i, a in enumerate(together):
         b = alone[i % len(alone)]
         assert (a is None and b is None) or np.array_equal(a, b)
+
+
+# ---- numeric ik of one pose in one call (lean_ext.c ik_one_kernel; SerialRobot.ik) ----
+
+WRIST_SINGULAR_Q = np.array([0.1, 0.3, -0.4, 0.2, 0.0, 0.5])  # q5 = 0: the Puma's wrist
+
+
+def _targets(arm, count, seed):
+    rng = np.random.default_rng(seed)
+    lim = arm.qlim
+    q = rng.uniform(np.maximum(lim[:, 0], -np.pi), np.minimum(lim[:, 1], np.pi), (count, 6))
+    return np.ascontiguousarray(arm.fk(q))
+
+
+def test_numeric_one_pose_in_one_call_is_the_three_calls(solvers):
+    """ik_one_kernel against its parts called one by one: rigid_pose, the solver from the
+    start and the cheap singularity test of the solution."""
+    arm, solver, _ = solvers
+    ext = lean.extension()
+    mid = np.ascontiguousarray(arm.qlim.mean(axis=1))
+    regular = arm.ik_planner.regular_single
+    assert solver.lean is not None and regular is not None
+    fused = ext.ik_one_kernel(solver.lean, regular, mid, *TOLS)
+    allow = ext.ik_one_kernel(solver.lean, None, mid, *TOLS)  # no test: singular="allow"
+    T = _targets(arm, 40, 2108)
+    for Ti in T:
+        q = solver(Ti, mid)
+        assert q is not None and regular(q) is True
+        for got in (fused(Ti), allow(Ti), fused(np.asfortranarray(Ti))):
+            assert type(got) is np.ndarray and np.array_equal(got, q)
+    # solved, not cleared by the cheap test: (q,), the caller's SVD decides
+    Ts = np.ascontiguousarray(arm.fk(WRIST_SINGULAR_Q))
+    q = solver(Ts, mid)
+    assert q is not None and regular(q) is False
+    got = fused(Ts)
+    assert type(got) is tuple and len(got) == 1 and np.array_equal(got[0], q)
+    assert np.array_equal(allow(Ts), q)
+    # not a finite rigid pose: None, though the solver alone answers (it reads no bottom row)
+    for i, j, value in ((3, 0, 1e-9), (0, 0, 1.0 + 1e-5), (1, 3, np.nan), (2, 2, np.inf)):
+        bad = T[0].copy()
+        bad[i, j] = value
+        assert fused(bad) is None and allow(bad) is None
+    off = T[0].copy()
+    off[3, 0] = 1e-9
+    assert solver(off, mid) is not None
+    # no convergence: None
+    far = T[0].copy()
+    far[:3, 3] = [5.0, 5.0, 5.0]
+    assert fused(far) is None
+    # not one (4, 4) float64 array in native byte order: False, the other paths take it
+    swapped = T[0].astype(T[0].dtype.newbyteorder())
+    for other in (T[0].tolist(), T[0].astype(np.float32), T[:1], T[0][:3], swapped, None):
+        assert fused(other) is False
+    assert fused() is False and fused(T[0], mid) is False
+
+
+def test_numeric_one_pose_kernel_refuses_what_it_does_not_serve(solvers):
+    arm, solver, _ = solvers
+    ext = lean.extension()
+    mid = np.ascontiguousarray(arm.qlim.mean(axis=1))
+    regular = arm.ik_planner.regular_single
+    for args in (
+        (regular, regular, mid, *TOLS),  # not the solver's callable
+        (solver.lean, solver.lean, mid, *TOLS),  # not the test's
+        (solver.lean, regular, mid[:5], *TOLS),  # a start of another length
+        (solver.lean, regular, mid, 0.0, TOLS[1]),
+        (solver.lean, regular, mid, TOLS[0], -1.0),
+        (len, None, mid, *TOLS),
+    ):
+        with pytest.raises(ValueError, match="ik_one_kernel"):
+            ext.ik_one_kernel(*args)
+
+
+@pytest.fixture(scope="module")
+def numeric_arms():
+    """The Puma with the extension, and with the cffi path (DELTAGEN_LEAN_EXT=0): there ik
+    takes the path of three calls (planner.one), the behaviour to keep."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("DELTAGEN_LEAN_EXT", "0")
+    try:
+        plain = SerialRobot.load("puma560", threads=1)
+    finally:
+        mp.undo()
+    return SerialRobot.load("puma560", threads=1), plain
+
+
+def _ik_outcome(fn, *args, **kwargs):
+    """q, or the error's (type, message)."""
+    try:
+        return fn(*args, **kwargs)
+    except Exception as exc:  # noqa: BLE001 - compared by type and message
+        return type(exc), str(exc)
+
+
+def _same_ik(a, b):
+    if isinstance(a, tuple) or isinstance(b, tuple):
+        return a == b
+    return np.array_equal(a, b) and a.dtype == b.dtype and a.shape == b.shape
+
+
+def test_ik_answers_an_accepted_request_in_one_call(numeric_arms, monkeypatch):
+    arm, plain = numeric_arms
+    planner = arm.ik_planner
+    T = _targets(arm, 12, 2109)
+    singular = np.ascontiguousarray(arm.fk(WRIST_SINGULAR_Q))
+    far = T[0].copy()
+    far[:3, 3] = [5.0, 0.0, 0.0]
+    off = T[0].copy()
+    off[3, 0] = 1e-9
+    poses = [*T, singular, far, off, np.asfortranarray(T[1])]
+    kinds = ({}, {"singular": "allow"})
+    expected = [[_ik_outcome(plain.ik, P, method="numeric", **kw) for P in poses] for kw in kinds]
+    assert planner.lean_requests == {}
+    for kw, want in zip(kinds, expected, strict=True):
+        first = _ik_outcome(arm.ik, T[0], method="numeric", **kw)  # accepted, noted
+        assert _same_ik(first, want[0])
+        key = ("numeric", "raise", kw.get("singular", "raise"))
+        assert planner.lean_requests[key] is planner.lean_numeric(key[2]) is not None
+    # from now on one C call answers: the three-call path is not taken for these poses
+    one = planner.one
+    monkeypatch.setattr(planner, "one", lambda *a: pytest.fail("planner.one was called"))
+    for kw, want in zip(kinds, expected, strict=True):
+        for P, w in zip(poses, want, strict=True):
+            assert _same_ik(_ik_outcome(arm.ik, P, method="numeric", **kw), w)
+    # the cases the poses were chosen for, as the three-call path answers them
+    assert expected[0][12][0].__name__ == "SingularityError"  # not cleared: the SVD's
+    assert type(expected[1][12]) is np.ndarray  # singular="allow"
+    assert expected[0][13][0].__name__ == "UnreachableError"
+    assert expected[0][14][0].__name__ == "InputError"
+    monkeypatch.setattr(planner, "one", one)
+    # other poses and arguments: the usual paths, the same answers
+    for P in (T[2].tolist(), T[2][None], T[2].astype(np.float32)):
+        assert _same_ik(
+            _ik_outcome(arm.ik, P, method="numeric"), _ik_outcome(plain.ik, P, method="numeric")
+        )
+
+
+def test_only_plain_accepted_requests_are_noted():
+    arm = SerialRobot.load("puma560", threads=1)
+    planner = arm.ik_planner
+    T = _targets(arm, 1, 2110)[0]
+    calls = (
+        dict(method="numerik"),  # refused by ik's checks
+        dict(method="numeric", errors="x"),
+        dict(method="numeric", singular="x"),
+        dict(method="numeric", foo=1),
+        dict(method="numeric", config="lefty"),
+        dict(method=np.str_("numeric")),  # accepted, not a plain str: not noted
+        dict(method="numeric", errors=np.str_("raise")),
+        dict(method="numeric", q0=np.zeros(6)),  # q0, options: not this request
+        dict(method="numeric", restarts=3),
+        dict(method="auto"),  # the Puma's closed form
+    )
+    for kw in calls:
+        _ik_outcome(arm.ik, T, **kw)
+    assert planner.lean_requests == {}
+    arm.ik(T, method="numeric", errors="nan")  # noted, answered by the usual path
+    assert planner.lean_requests == {("numeric", "nan", "raise"): None}
+    # where the one call does not serve: the numpy engine, a partial default mask (a
+    # SCARA), a 7-joint arm's singularity check (no square Jacobian for the C test)
+    assert SerialRobot.load("puma560", "reference").ik_planner.lean_numeric("raise") is None
+    assert SerialRobot.load("lecture_scara", threads=1).ik_planner.lean_numeric("allow") is None
+    panda = SerialRobot.load("panda", threads=1).ik_planner
+    assert panda.lean_numeric("raise") is None and panda.lean_numeric("allow") is not None
+
+
+def test_a_pose_the_one_pose_path_left_is_not_solved_again_by_it(monkeypatch):
+    """A pose within reach that no attempt solves (the identity: the Puma's tool point at
+    its base): the one-pose path once, then the general path's batch solve."""
+    from deltagen.solve import numeric as ikn
+
+    arm = SerialRobot.load("puma560", threads=1)
+    planner = arm.ik_planner
+    unsolved = np.eye(4)
+    counts = {"one": 0, "solve": 0, "lean": 0}
+    one, solve = planner.one, ikn.solve
+
+    def counted_one(*args):
+        counts["one"] += 1
+        return one(*args)
+
+    def counted_solve(*args, **kwargs):
+        counts["solve"] += 1
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(planner, "one", counted_one)
+    monkeypatch.setattr(ikn, "solve", counted_solve)
+    with pytest.raises(UnreachableError, match="no convergence"):
+        arm.ik(unsolved, method="numeric")  # the first call: the three-call path
+    assert counts == {"one": 1, "solve": 1, "lean": 0}
+    lean = planner.lean_requests[("numeric", "raise", "raise")]
+
+    def counted_lean(T):
+        counts["lean"] += 1
+        return lean(T)
+
+    planner.lean_requests[("numeric", "raise", "raise")] = counted_lean
+    with pytest.raises(UnreachableError, match="no convergence"):
+        arm.ik(unsolved, method="numeric")  # the one call
+    assert counts == {"one": 1, "solve": 2, "lean": 1}

@@ -229,10 +229,10 @@ static void ikn_limit_step(double *dq, size_t N, double step_limit)
     }
 }
 
-static int ikn_set(const deltagen_ik_arm *arm, const double *qv, const double *Tt,
+static int ikn_set(const deltagen_ik_arm *arm, size_t N, const double *qv, const double *Tt,
                    const int32_t *mask, ikn_point *pt)
 {
-    for (size_t i = 0; i < arm->joints; ++i) {
+    for (size_t i = 0; i < N; ++i) {
         pt->q[i] = qv[i];
     }
     const int rc = ikn_eval(arm, pt->q, Tt, mask, pt->T, pt->J, pt->e, &pt->ep, &pt->er);
@@ -288,12 +288,20 @@ static void ikn_sequence_point(size_t N, const double *alpha, uint32_t seed, int
     }
 }
 
-int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, size_t n,
-                       const deltagen_ik_options *restrict options,
-                       const double *restrict T_target, const double *restrict q0,
-                       const double *restrict qlim, double *restrict q,
-                       double *restrict err_p, double *restrict err_r,
-                       int32_t *restrict iterations, int8_t *restrict status)
+/* The body of deltagen_ik_newton for N = arm->joints joints (read there; the checks below
+ * make sure arm is there before N is used). A 6-joint arm takes it with N a constant, so
+ * the compiler unrolls the loops over the joints: the same operations in the same order
+ * (IEEE C99: no reassociation, no contraction), the same bits. */
+#if defined(__GNUC__)
+static inline __attribute__((always_inline))
+#else
+static inline
+#endif
+int ikn_newton(const deltagen_ik_arm *arm, const size_t N, double *work, int *iwork, size_t n,
+               const deltagen_ik_options *restrict options, const double *restrict T_target,
+               const double *restrict q0, const double *restrict qlim, double *restrict q,
+               double *restrict err_p, double *restrict err_r, int32_t *restrict iterations,
+               int8_t *restrict status)
 {
     const double S_WELL = 1e-2;       /* sigma_min below this: the damping grows */
     const double GAUSS_REL = 1e-3;    /* Gauss elimination when lambda <= this * sigma_min */
@@ -306,7 +314,6 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
         || q == NULL || err_p == NULL || err_r == NULL || iterations == NULL || status == NULL) {
         return -1;
     }
-    const size_t N = arm->joints;
     const deltagen_ik_options o = *options;
     int k = 0;
     for (int i = 0; i < 6; ++i) {
@@ -395,7 +402,7 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
             }
             int free_phase = respect && o.free_first;
             ikn_limit(start, N, lo, hi, wraps, !free_phase);
-            int stuck = ikn_set(arm, start, Tt, o.mask, cur) != 0;
+            int stuck = ikn_set(arm, N, start, Tt, o.mask, cur) != 0;
             /* the best in-limit q seen: the start clamped into the limits counts */
             for (size_t i = 0; i < N; ++i) {
                 moved[i] = start[i];
@@ -403,7 +410,7 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
             ikn_limit(moved, N, lo, hi, wraps, 1);
             const ikn_point *clamped = cur;
             if (!ikn_inside(start, N, lo, hi)) {
-                stuck |= ikn_set(arm, moved, Tt, o.mask, trial) != 0;
+                stuck |= ikn_set(arm, N, moved, Tt, o.mask, trial) != 0;
                 clamped = trial;
             }
             if (attempt == 0 || clamped->err < best_err) {
@@ -428,7 +435,7 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                     /* a solution outside the limits: again from the start, limits enforced */
                     free_phase = 0;
                     ikn_limit(start, N, lo, hi, wraps, 1);
-                    stuck = ikn_set(arm, start, Tt, o.mask, cur) != 0;
+                    stuck = ikn_set(arm, N, start, Tt, o.mask, cur) != 0;
                     mu = 0.0;
                     cref = chk = cur->err;
                     qz = 1.0;
@@ -556,7 +563,7 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
                     }
                 }
                 ikn_limit(target, N, lo, hi, wraps, !free_phase);
-                const int good = ikn_set(arm, target, Tt, o.mask, trial) == 0;
+                const int good = ikn_set(arm, N, target, Tt, o.mask, trial) == 0;
                 ++it;
                 ++it_att;
                 if (good && trial->err < cref) {  /* non-monotone acceptance (Zhang-Hager) */
@@ -605,4 +612,19 @@ int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, siz
         }
     }
     return 0;
+}
+
+int deltagen_ik_newton(const deltagen_ik_arm *arm, double *work, int *iwork, size_t n,
+                       const deltagen_ik_options *restrict options,
+                       const double *restrict T_target, const double *restrict q0,
+                       const double *restrict qlim, double *restrict q,
+                       double *restrict err_p, double *restrict err_r,
+                       int32_t *restrict iterations, int8_t *restrict status)
+{
+    if (arm != NULL && arm->joints == 6) {
+        return ikn_newton(arm, 6, work, iwork, n, options, T_target, q0, qlim, q, err_p,
+                          err_r, iterations, status);
+    }
+    return ikn_newton(arm, arm == NULL ? 0 : arm->joints, work, iwork, n, options, T_target,
+                      q0, qlim, q, err_p, err_r, iterations, status);
 }

@@ -8,6 +8,16 @@
 #error "deltagen's C needs IEEE arithmetic (NaN outputs, isfinite, per-point status): compile without -ffast-math"
 #endif
 
+/* The 6 x 6 systems of a 6-joint arm (the numerical IK's Gram matrices, the mass matrix)
+ * take the same bodies with the size a constant, so the compiler unrolls their loops: the
+ * same operations in the same order (no reassociation, no contraction: IEEE C99), the same
+ * bits, without the loop overhead of sizes known only at run time. */
+#if defined(__GNUC__)
+#define LINALG_BODY static inline __attribute__((always_inline))
+#else
+#define LINALG_BODY static inline
+#endif
+
 void deltagen_rotation_log(const double R[9], double w[3])
 {
     const double v[3] = {0.5 * (R[7] - R[5]), 0.5 * (R[2] - R[6]), 0.5 * (R[3] - R[1])};
@@ -44,7 +54,7 @@ void deltagen_rotation_log(const double R[9], double w[3])
     }
 }
 
-int deltagen_cholesky(double *A, size_t s, double *inv)
+LINALG_BODY int cholesky_body(double *A, size_t s, double *inv)
 {
     for (size_t j = 0; j < s; ++j) {
         double d = A[j * s + j];
@@ -68,6 +78,11 @@ int deltagen_cholesky(double *A, size_t s, double *inv)
     return 0;
 }
 
+int deltagen_cholesky(double *A, size_t s, double *inv)
+{
+    return s == 6 ? cholesky_body(A, 6, inv) : cholesky_body(A, s, inv);
+}
+
 int deltagen_cholesky_relative(double *A, size_t s, double *inv, double rtol)
 {
     double largest = 0.0;
@@ -85,8 +100,8 @@ int deltagen_cholesky_relative(double *A, size_t s, double *inv, double rtol)
     return 0;
 }
 
-void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const double *b,
-                             double *x)
+LINALG_BODY void cholesky_solve_body(const double *L, const double *inv, size_t s,
+                                     const double *b, double *x)
 {
     for (size_t i = 0; i < s; ++i) {
         double y = b[i];
@@ -101,6 +116,16 @@ void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const
             y -= L[k * s + i] * x[k];
         }
         x[i] = y * inv[i];
+    }
+}
+
+void deltagen_cholesky_solve(const double *L, const double *inv, size_t s, const double *b,
+                             double *x)
+{
+    if (s == 6) {
+        cholesky_solve_body(L, inv, 6, b, x);
+    } else {
+        cholesky_solve_body(L, inv, s, b, x);
     }
 }
 
@@ -184,7 +209,7 @@ int deltagen_gauss(double *A, size_t s, double *b)
     return 0;
 }
 
-size_t deltagen_gram(const double *A, size_t k, size_t N, const int *fixed, double *G)
+LINALG_BODY size_t gram_body(const double *A, size_t k, size_t N, const int *fixed, double *G)
 {
     int any_fixed = 0;
     for (size_t i = 0; i < N; ++i) {
@@ -233,7 +258,12 @@ size_t deltagen_gram(const double *A, size_t k, size_t N, const int *fixed, doub
     return k;
 }
 
-double deltagen_sigma_min_of(const double *G0, size_t s, double *work)
+size_t deltagen_gram(const double *A, size_t k, size_t N, const int *fixed, double *G)
+{
+    return k == 6 && N == 6 ? gram_body(A, 6, 6, fixed, G) : gram_body(A, k, N, fixed, G);
+}
+
+LINALG_BODY double sigma_min_body(const double *G0, size_t s, double *work)
 {
     double *G = work, *inv = work + s * s, *x = inv + s;
     for (size_t i = 0; i < s * s; ++i) {
@@ -249,7 +279,7 @@ double deltagen_sigma_min_of(const double *G0, size_t s, double *work)
     for (size_t i = 0; i < s; ++i) {
         G[i * s + i] += shift;
     }
-    if (deltagen_cholesky(G, s, inv) != 0) {
+    if (cholesky_body(G, s, inv) != 0) {
         return 0.0;
     }
     for (size_t i = 0; i < s; ++i) {
@@ -261,7 +291,7 @@ double deltagen_sigma_min_of(const double *G0, size_t s, double *work)
         for (size_t i = 0; i < s; ++i) {
             before += x[i] * x[i];
         }
-        deltagen_cholesky_solve(G, inv, s, x, x);
+        cholesky_solve_body(G, inv, s, x, x);
         for (size_t i = 0; i < s; ++i) {
             after += x[i] * x[i];
         }
@@ -274,4 +304,9 @@ double deltagen_sigma_min_of(const double *G0, size_t s, double *work)
     }
     lambda -= shift;
     return lambda > 0.0 ? sqrt(lambda) : 0.0;
+}
+
+double deltagen_sigma_min_of(const double *G0, size_t s, double *work)
+{
+    return s == 6 ? sigma_min_body(G0, 6, work) : sigma_min_body(G0, s, work);
 }
