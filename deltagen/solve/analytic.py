@@ -116,10 +116,12 @@ point on the last axis for the 3R SCARA and the 4R arm (raises InputError otherw
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from deltagen.derive.serial.ik_recipes import RECIPES, Angle
 from deltagen.geometry.limits import fit_limits
 from deltagen.geometry.rotations import rotate as _rotv
 from deltagen.geometry.rotations import rotate2d as _rot2
@@ -310,42 +312,82 @@ class AnalyticSolver:
         raise NotImplementedError
 
 
-class _PlanarSolver(AnalyticSolver):
-    """model.structure.PlanarArm (planar 2R arm for the point P, roll, lift)."""
+class _NumpyOps:
+    """The numpy back end of the recipes (derive/serial/ik_recipes.py): a value is an array
+    over the poses of a chunk (one per branch), names and stages are dropped, the
+    structure's constants are used as they are."""
+
+    true = True
+    slack = 1e-9
+    tiny = 1e-300
+    sqrt = staticmethod(np.sqrt)
+    atan2 = staticmethod(np.arctan2)
+    abs = staticmethod(np.abs)
+    fmax = staticmethod(np.fmax)
+    select = staticmethod(np.where)
+    ge, le, gt, lt = (
+        staticmethod(f) for f in (np.greater_equal, np.less_equal, np.greater, np.less)
+    )
+    not_ = staticmethod(np.logical_not)
+
+    def __init__(self, R_t, p_t):
+        self.R_t = [[R_t[:, r, c] for c in range(3)] for r in range(3)]
+        self.p_t = tuple(p_t[:, r] for r in range(3))
+
+    @staticmethod
+    def const(x):
+        return float(x)
+
+    @staticmethod
+    def vconst(v):
+        return tuple(float(x) for x in v)
+
+    def stage(self, comment):
+        pass
+
+    @staticmethod
+    def let(name, value):
+        return value
+
+    @staticmethod
+    def vec(name, v):
+        return tuple(v)
+
+    @staticmethod
+    def at_least(x, c):
+        return np.where(x > c, x, c)
+
+    @staticmethod
+    def at_most(x, c):
+        return np.where(x < c, x, c)
+
+    @staticmethod
+    def all(*conds):
+        return functools.reduce(np.logical_and, conds)
+
+    @staticmethod
+    def rigid_target():
+        return True  # the 2R head's rigidity is checked with its forward kinematics
+
+
+class _RecipeSolver(AnalyticSolver):
+    """A structure whose closed form is a recipe of derive/serial/ik_recipes.py (RECIPES),
+    run on numpy arrays, one branch after another."""
 
     def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        E, A, P = s.plane, s.first_xy, s.point
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        P_t = p_t if position_only else np.einsum("nij,j->ni", R_G, P) + p_G
-        h = (P_t - P) @ s.u  # travel along u
-        t = P_t @ E.T - A  # (N, 2)
-        g1 = R_G @ E[0]
-        yaw = np.arctan2(g1 @ E[1], g1 @ E[0])  # rotation about u
-        sigma = np.array(s.bend_signs)
-        th1, th2, ok = _two_link(s.upper, s.lower, t[:, None, :], sigma[None, :])
-        ok = np.broadcast_to(ok, th1.shape)
-        if s.roll is None and not position_only:
-            # Paul's method (slides 103-105): psi from the target rotation, the second axis
-            # from the target pose; the pose fixes the elbow, the other branch stays empty.
-            B_t = np.einsum("nij,j->ni", R_G, ax.points[s.second]) + p_G
-            tb = B_t @ E.T - A
-            p1 = _angle2(tb) - _angle2(s.upper)
-            p2 = yaw - p1
-            bend = np.sin(p2 + _angle2(s.lower) - _angle2(s.upper))
-            down = bend >= 0.0
-            th1 = np.stack([np.where(down, np.nan, p1), np.where(down, p1, np.nan)], axis=1)
-            th2 = np.stack([np.where(down, np.nan, p2), np.where(down, p2, np.nan)], axis=1)
-            ok = np.isfinite(th1)
-        q = np.zeros((N, 2, self.n))
-        sign = s.signs
-        q[:, :, s.first] = sign[s.first] * th1
-        q[:, :, s.second] = sign[s.second] * th2
-        if s.roll is not None:
-            q[:, :, s.roll] = sign[s.roll] * (yaw[:, None] - th1 - th2)
-        if s.lift is not None:
-            q[:, :, s.lift] = sign[s.lift] * h[:, None]
+        N, k, n = R_t.shape[0], len(self.configs), self.n
+        recipe = RECIPES[type(self.detected)]
+        with np.errstate(all="ignore"):
+            branches = recipe(_NumpyOps(R_t, p_t), self.detected, position_only)
+        q = np.empty((N, k, n))
+        ok = np.empty((N, k), dtype=bool)
+        for j, name in enumerate(self.configs):
+            branch = branches[name]
+            for i, value in enumerate(branch.values):
+                q[:, j, i] = value.theta if isinstance(value, Angle) else value
+            ok[:, j] = branch.ok
+            if branch.fixed:
+                q[~ok[:, j], j] = np.nan
         return q, ok
 
 
@@ -622,50 +664,10 @@ class _StanfordSolver(AnalyticSolver):
         return q, (ok[..., None] & np.ones(2, dtype=bool)).reshape(N, 8)
 
 
-class _GantrySolver(AnalyticSolver):
-    """model.structure.GantryArm: slides 1-3, then a 3R wrist, a 2R head or one rotary axis
-    (product of exponentials, G = T_target T(0)^-1 = Trans(q1 w1 + q2 w2 + q3 w3) e4 ... en):
-
-    1. the wrist from the rotation R_G alone (the slides turn nothing): 3R -- the central
-       wrist's q4, q5 (subproblem 2 for R_G w6) and q6 (subproblem 1), ``noflip`` / ``flip``;
-       2R head -- Rot(w4, q4) Rot(w5, q5) z(0) = R_G z(0) = z_t by subproblem 2 (the same
-       step with w6 replaced by the tool axis z(0)), ``noflip`` / ``flip``; 1R -- q4 by
-       subproblem 1 about w4 on a reference normal to it (``single``). Where the target
-       direction lies along w4 (wrist / head singularity) q4 is 0 and q6 (3R) takes the turn;
-    2. the tool point g at q = 0 carried by the wrist (e_n first, then ... e4: turns about
-       their axes' points), and the slides q1..q3 = slide_inverse (p_t - g).
-
-    ``valid`` checks the whole pose for the 3R wrist and the 1R (a tilted target is not
-    reachable by the palletiser), the tool point and the tool z axis for the 2R head."""
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w, o = ax.directions, ax.points
-        N, n = R_t.shape[0], self.n
-        R_G = R_t @ ax.R0.T
-        k = len(self.configs)
-        q = np.zeros((N, k, n))
-        if n == 4:
-            y = R_G @ s.wrist_ref
-            q[:, 0, 3] = _sp1(w[3], s.wrist_ref, y)
-            ok = np.ones((N, 1), dtype=bool)
-        else:
-            ww = [None, None, None, w[3], w[4], s.carried]  # the carried vector as 'w6'
-            qv = (R_G @ s.carried)[:, None, :]  # (N, 1, 3)
-            qx = (R_G @ s.wrist_ref)[:, None, :]
-            q4, q5, q6, okw = _central_wrist(s, ww, qv, qx)
-            q[:, :, 3], q[:, :, 4] = q4[:, 0], q5[:, 0]
-            if n == 6:
-                q[:, :, 5] = q6[:, 0]
-            ok = np.broadcast_to(okw, (N, k)).copy()
-            if position_only:
-                ok[:] = True  # the head's tool axis as near as it goes (gamma clipped to 0)
-        # the tool point carried by the wrist, then the slides
-        g = np.broadcast_to(ax.p0, (N, k, 3))
-        for i in range(n - 1, 2, -1):
-            g = _rotv(w[i], q[:, :, i], g - o[i]) + o[i]
-        q[:, :, :3] = (p_t[:, None, :] - g) @ s.slide_inverse.T
-        return q, ok
+class _GantrySolver(_RecipeSolver):
+    """model.structure.GantryArm (the recipe ik_recipes.gantry). ``valid`` checks the whole
+    pose for the 3R wrist and the 1R (a tilted target is not reachable by the palletiser),
+    the tool point and the tool z axis for the 2R head."""
 
     def _reproduces(self, T, q, ok, position_only, tol):
         if self.detected.full_pose or position_only:
@@ -746,7 +748,7 @@ def solver_for(
     if isinstance(detected, ReversedChain):
         return ReversedSolver(detected, description)
     if isinstance(detected, PlanarArm):
-        cls: type[AnalyticSolver] = _PlanarSolver
+        cls: type[AnalyticSolver] = _RecipeSolver
     elif isinstance(detected, ParallelTriple6R):
         cls = _ParallelTripleSolver
     elif isinstance(detected, StanfordArm):
