@@ -117,7 +117,6 @@ point on the last axis for the 3R SCARA and the 4R arm (raises InputError otherw
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 
@@ -130,9 +129,7 @@ from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import (
     GantryArm,
     ParallelTriple6R,
-    PlanarArm,
     ReversedChain,
-    StanfordArm,
     Structure,
     detect,
 )
@@ -321,6 +318,7 @@ class _NumpyOps:
     slack = 1e-9
     tiny = 1e-300
     sqrt = staticmethod(np.sqrt)
+    number = staticmethod(float)
     atan2 = staticmethod(np.arctan2)
     abs = staticmethod(np.abs)
     fmax = staticmethod(np.fmax)
@@ -386,119 +384,9 @@ class _RecipeSolver(AnalyticSolver):
             for i, value in enumerate(branch.values):
                 q[:, j, i] = value.theta if isinstance(value, Angle) else value
             ok[:, j] = branch.ok
-            if branch.fixed:
-                q[~ok[:, j], j] = np.nan
+            if branch.empty is not None:
+                q[branch.empty, j] = np.nan
         return q, ok
-
-
-class _ElbowSolver(AnalyticSolver):
-    """model.structure.Elbow4R and SphericalWrist6R (joints 1-3 place the wrist point)."""
-
-    def _arm(self, W_t, R_G=None, position_only=True):
-        """Joints 1-3 placing the point W at W_t (N, 3) for the 4 arm branches:
-        (q1, th2, th3 (rotation angles about w2), ok), each (N, 4)."""
-        s, ax = self.detected, self.axes
-        o1 = ax.points[0]
-        d = W_t - o1
-        px, py, pz = d @ s.ex, d @ s.ey, d @ s.ez
-        yV = (s.w2_offset - s.cos_12 * pz) / s.sin_12
-        rad = px * px + py * py - yV * yV
-        ok1 = rad >= -1e-9 * ax.scale**2
-        xV = s.front[None, :] * np.sqrt(np.maximum(rad, 0.0))[:, None]  # (N, 4)
-        yVb = np.broadcast_to(yV[:, None], xV.shape)
-        q1 = np.arctan2(py, px)[:, None] - np.arctan2(yVb, xV)
-        # wrist point on axis 1 (shoulder singularity, no shoulder offset): any q1 serves;
-        # take 0 for the front branches and -pi for the back ones
-        on_axis = px * px + py * py < (1e-12 * ax.scale) ** 2
-        q1 = np.where(on_axis[:, None], np.where(s.front > 0, 0.0, -math.pi), q1)
-        # wrist target in the arm frame (q1 undone), in plane coordinates
-        V = o1 + xV[..., None] * s.ex + yVb[..., None] * s.ey + pz[:, None, None] * s.ez
-        t = V @ s.plane.T - s.shoulder_xy
-        th2, th3, ok2 = _two_link(s.upper, s.lower, t, s.bend[None, :])
-        ok = ok1[:, None] & np.broadcast_to(ok2, th2.shape)
-        if R_G is not None and not position_only:
-            # 4R with the pose given: th2 + th3 from the direction of axis 4 (Paul's method).
-            w1, w2, w4 = ax.directions[0], ax.directions[1], ax.directions[3]
-            d4 = np.broadcast_to((R_G @ w4)[:, None, :], xV.shape + (3,))
-            d4 = _rotv(w1, -q1, d4)
-            tot = _sp1(w2, w4, d4)
-            p2 = _angle2(t - _rot2(tot, np.broadcast_to(s.lower, t.shape))) - _angle2(s.upper)
-            p3 = tot - p2
-            bend = np.sign(np.sin(p3 + _angle2(s.lower) - _angle2(s.upper)))
-            bend = np.where(bend == 0.0, 1.0, bend)
-            mine = bend == s.bend[None, :]
-            th2 = np.where(mine, p2, np.nan)
-            th3 = np.where(mine, p3, np.nan)
-            # a branch whose twin took the solution stays empty; keep the other shoulder
-            ok = ok1[:, None] & mine
-        return q1, th2, th3, ok
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w = ax.directions
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        if self.n == 4:
-            W_t = p_t if position_only else np.einsum("nij,j->ni", R_G, s.wrist) + p_G
-            q1, th2, th3, ok = self._arm(W_t, R_G, position_only)
-            tot = th2 + th3
-            # roll: (R1 R23)^T R_G x4 = Rot(w4, q4) x4
-            y = np.broadcast_to((R_G @ s.roll_ref)[:, None, :], q1.shape + (3,))
-            y = _rotv(w[1], -tot, _rotv(w[0], -q1, y))
-            q4 = _sp1(w[3], s.roll_ref, y)
-            q = np.stack([q1, th2, s.sign3 * th3, q4], axis=-1)
-            return q, ok
-        W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
-        q1, th2, th3, ok = self._arm(W_t)
-        tot = th2 + th3
-
-        # wrist rotation R_w = (R1 R23)^T R_G, applied to w6 and x6
-        def undo(v):
-            v = np.broadcast_to(v[:, None, :], q1.shape + (3,))
-            return _rotv(w[1], -tot, _rotv(w[0], -q1, v))
-
-        qv = undo(R_G @ w[5])  # R_w w6           (N, 4, 3)
-        qx = undo(R_G @ s.wrist_ref)  # R_w x6
-        q4, q5, q6, okw = _central_wrist(s, w, qv, qx)
-        rep = lambda a: np.broadcast_to(a[..., None], q5.shape)  # noqa: E731
-        q = np.stack([rep(q1), rep(th2), rep(s.sign3 * th3), q4, q5, q6], axis=-1)
-        q = q.reshape(N, 8, 6)
-        okk = (ok[..., None] & okw[..., None]) & np.ones(2, dtype=bool)
-        return q, okk.reshape(N, 8)
-
-
-def _central_wrist(s, w, qv, qx):
-    """q4, q5, q6 (..., 2: noflip, flip) and ok (...) of a central wrist whose rotation R_w
-    (the part of the target rotation left to joints 4-6) takes w6 to qv and the reference
-    s.wrist_ref to qx (both (..., 3)); Paden-Kahan subproblem 2 for q4, q5, subproblem 1
-    for q6 (module docstring, spherical_wrist_6r)."""
-    w4, w5, w6 = w[3], w[4], w[5]
-    c12 = s.cos_45
-    s2 = 1.0 - c12 * c12
-    a_q = qv @ w4
-    b_p = s.cos_56
-    alpha = (a_q - c12 * b_p) / s2
-    beta = (b_p - c12 * a_q) / s2
-    perp = _cross(qv, w4)
-    gam2 = np.sum(perp * perp, axis=-1) / s2 - beta * beta
-    okw = gam2 >= -1e-9
-    gam = np.sqrt(np.maximum(gam2, 0.0))
-    n45 = s.normal_45
-    sig = np.array([1.0, -1.0])  # noflip, flip: sin(q5 - q5s) has the sign of -sig
-    c = (
-        alpha[..., None, None] * w4
-        + beta[..., None, None] * w5
-        + (sig[:, None] * gam[..., None, None]) * n45
-    )  # (N, 4, 2, 3)
-    q5 = _sp1(w5, w6, c)
-    qv2 = np.broadcast_to(qv[:, :, None, :], c.shape)
-    q4 = _sp1(w4, c, qv2)
-    singular = np.linalg.norm(perp, axis=-1) < WRIST_SINGULAR
-    q4 = np.where(singular[..., None], 0.0, q4)
-    # q6: Rot(w6, q6) x6 = Rot(w5, -q5) Rot(w4, -q4) R_w x6
-    y = _rotv(w5, -q5, _rotv(w4, -q4, np.broadcast_to(qx[:, :, None, :], c.shape)))
-    q6 = _sp1(w6, s.wrist_ref, y)
-    return q4, q5, q6, okw
 
 
 def _cos_sin_eq(A, B, C, sigma):
@@ -603,67 +491,6 @@ class _ParallelTripleSolver(AnalyticSolver):
         return q, ok
 
 
-class _StanfordSolver(AnalyticSolver):
-    """model.structure.StanfordArm: R R P and a central wrist W (product of exponentials,
-    G = e1 e2 e3 e4 e5 e6). e4 e5 e6 fix W and e3 slides it by q3 w3, so G W = e1 e2 (W +
-    q3 w3); e1, e2 turn about axes through c and keep distances to c:
-
-    1. q3: |W + q3 w3 - c|^2 = |G W - c|^2, a quadratic (``reach{p|m}``: + / - root);
-    2. q1, q2: e1 e2 x = G W with x = W + q3 w3 (Paden-Kahan subproblem 2 about the
-       intersecting axes 1 and 2, two solutions ``shoulder{p|m}``);
-    3. q4, q5, q6: the central wrist of spherical_wrist_6r for R_w = (R1 R2)^T R_G
-       (``noflip`` / ``flip``).
-
-    2 x 2 x 2 = 8 branches, each checked by the forward kinematics (solve)."""
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w = ax.directions
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        c = s.shoulder
-        W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
-        pm = np.array([1.0, -1.0])
-        # 1. q3 (N, 2)
-        b = w[2] @ (s.wrist - c)
-        disc = b * b - (s.wrist - c) @ (s.wrist - c) + np.sum((W_t - c) ** 2, axis=-1)
-        ok3 = disc >= -1e-9 * ax.scale**2
-        q3 = -b + pm * np.sqrt(np.maximum(disc, 0.0))[:, None]
-        # 2. subproblem 2: e1(q1) e2(q2) u = v about c, u = x - c, v = W_t - c
-        w1, w2 = w[0], w[1]
-        u = (s.wrist - c) + q3[..., None] * w[2]  # (N, 2, 3)
-        v = np.broadcast_to((W_t - c)[:, None, :], u.shape)
-        c12 = w1 @ w2
-        den = c12 * c12 - 1.0
-        alpha = (c12 * (w2 @ u.transpose(0, 2, 1)) - (v @ w1)) / den
-        beta = (c12 * (v @ w1) - (w2 @ u.transpose(0, 2, 1))) / den
-        n12 = np.cross(w1, w2)
-        g2 = (np.sum(u * u, axis=-1) - alpha**2 - beta**2 - 2 * alpha * beta * c12) / (n12 @ n12)
-        ok2 = g2 >= -1e-9
-        g = np.sqrt(np.maximum(g2, 0.0))
-        z = (
-            alpha[..., None, None] * w1
-            + beta[..., None, None] * w2
-            + (pm[:, None] * g[..., None, None]) * n12
-        )  # (N, reach, shoulder, 3)
-        q2 = _sp1(w2, np.broadcast_to(u[:, :, None, :], z.shape), z)
-        q1 = _sp1(w1, z, np.broadcast_to(v[:, :, None, :], z.shape))
-        # 3. wrist: R_w = R2^T R1^T R_G applied to w6 and the reference
-        q1f, q2f = q1.reshape(N, 4), q2.reshape(N, 4)
-
-        def undo(vec):
-            vec = np.broadcast_to(vec[:, None, :], (N, 4, 3))
-            return _rotv(w2, -q2f, _rotv(w1, -q1f, vec))
-
-        qv, qx = undo(R_G @ w[5]), undo(R_G @ s.wrist_ref)
-        q4, q5, q6, okw = _central_wrist(s, w, qv, qx)
-        rep = lambda a: np.broadcast_to(a[..., None], q5.shape)  # noqa: E731
-        q3f = np.repeat(q3, 2, axis=1)  # (N, 4): reach outer, shoulder inner
-        q = np.stack([rep(q1f), rep(q2f), rep(q3f), q4, q5, q6], axis=-1).reshape(N, 8, 6)
-        ok = np.repeat(ok3[:, None], 4, axis=1) & np.repeat(ok2, 2, axis=1) & okw
-        return q, (ok[..., None] & np.ones(2, dtype=bool)).reshape(N, 8)
-
-
 class _GantrySolver(_RecipeSolver):
     """model.structure.GantryArm (the recipe ik_recipes.gantry). ``valid`` checks the whole
     pose for the 3R wrist and the 1R (a tilted target is not reachable by the palletiser),
@@ -747,16 +574,12 @@ def solver_for(
         return None
     if isinstance(detected, ReversedChain):
         return ReversedSolver(detected, description)
-    if isinstance(detected, PlanarArm):
-        cls: type[AnalyticSolver] = _RecipeSolver
+    if isinstance(detected, GantryArm):
+        cls: type[AnalyticSolver] = _GantrySolver
     elif isinstance(detected, ParallelTriple6R):
         cls = _ParallelTripleSolver
-    elif isinstance(detected, StanfordArm):
-        cls = _StanfordSolver
-    elif isinstance(detected, GantryArm):
-        cls = _GantrySolver
     else:
-        cls = _ElbowSolver
+        cls = _RecipeSolver
     return cls(detected, description)
 
 

@@ -73,7 +73,6 @@ from deltagen.derive.serial.ik_recipes import (
     atan2,
     cosine_law,
     cross,
-    direction,
     dot,
     elbow,
     move_point,
@@ -82,15 +81,11 @@ from deltagen.derive.serial.ik_recipes import (
     rotate_target,
     scale,
     sp1,
-    wrist_angles,
 )
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS  # noqa: F401 (SHIFTS: in deltagen_limits.h)
 from deltagen.model.structure import (
     GANTRY_KINDS,
-    Elbow4R,
     GantryArm,
-    ParallelTriple6R,
-    StanfordArm,
     detect,
 )
 
@@ -191,6 +186,7 @@ class _SymPyOps:
     slack = ik_slack
     tiny = ik_tiny
     sqrt = staticmethod(sp.sqrt)
+    number = staticmethod(sp.Float)
     atan2 = staticmethod(sp.atan2)
     abs = staticmethod(Fabs)
     fmax = staticmethod(Fmax)
@@ -309,115 +305,6 @@ class IKKernelBuilder:
 
     # -- shared steps --------------------------------------------------------------
 
-    def _arm(self, W_t):
-        """The numpy solver's _ElbowSolver._arm: joints 1-3 placing the wrist point at W_t
-        for the four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        tape.stage("arm: the wrist point in the arm frame (ex, ey along axis 1's normal plane)")
-        d = add(W_t, scale(-1, K.vec(ax.points[0])))
-        px = tape.let("px", dot(d, K.vec(s.ex)))
-        py = tape.let("py", dot(d, K.vec(s.ey)))
-        pz = tape.let("pz", dot(d, K.vec(s.ez)))
-        yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
-        rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", _ge(rad, -ik_slack * sp.Float(ax.scale**2)))
-        r = tape.let("xV", sp.sqrt(_max(rad, 0)))
-        on_axis = tape.let("on_axis", _lt(px * px + py * py, (1e-12 * ax.scale) ** 2))
-        a = Angle(0, *direction(self.ops, "phi_p", py, px))
-        uu, vv = s.upper, s.lower
-        branches = []
-        shoulders = {}
-        for f in sorted(set(s.front.tolist()), reverse=True):
-            tag = "front" if f > 0 else "back"
-            tape.stage(f"shoulder q1, {tag} branches")
-            xV = f * r
-            # q1 = atan2(py, px) - atan2(yV, xV), one atan2 of the difference's cos and sin
-            q1 = a - Angle(0, *direction(self.ops, f"phi_{tag}", yV, xV))
-            home = 0.0 if f > 0 else -math.pi
-            c1 = tape.let(f"q1_{tag}_c", sp.Piecewise((K(math.cos(home)), on_axis), (q1.c, True)))
-            s1 = tape.let(f"q1_{tag}_s", sp.Piecewise((0, on_axis), (q1.s, True)))
-            q1 = Angle(
-                tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis), (sp.atan2(s1, c1), True))),
-                c1,
-                s1,
-            )
-            V = add(
-                add(K.vec(ax.points[0]), scale(xV, K.vec(s.ex))),
-                add(scale(yV, K.vec(s.ey)), scale(pz, K.vec(s.ez))),
-            )
-            t = tuple(
-                tape.let(f"t{j + 1}_{tag}", dot(K.vec(s.plane[j]), V) - K(s.shoulder_xy[j]))
-                for j in range(2)
-            )
-            kc, ks, bend, ok2 = cosine_law(self.ops, tag, t, uu, vv)
-            shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
-        for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
-            f, sigma = float(s.front[index]), float(s.bend[index])
-            q1, t, kc, ks, bend, ok1, ok2 = shoulders[f]
-            tag = config.rsplit("_", 1)[0] if self.n == 6 else config
-            tape.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
-            th2, th3 = elbow(self.ops, tag, t, kc, ks, bend, sigma, uu, vv)
-            ok = tape.let(f"ok_arm_{tag}", sp.And(ok1, ok2))
-            branches.append((tag, q1, th2, th3, ok, t, ok1, sigma))
-        return branches
-
-    def _paul_4r(self, tag, q1, t, ok1, sigma):
-        """The numpy solver's _ElbowSolver._arm / _solve for the 4R arm with the pose given:
-        q2 + q3 from the direction of axis 4 (Paul's method), which fixes the elbow of the
-        shoulder branch (the other elbow branch stays empty), then the roll q4."""
-        s, tape, K = self.s, self.tape, self.const
-        w = [K.vec(x) for x in self.axes.directions]
-        uu, vv = s.upper, s.lower
-        tape.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
-        d4 = rotate(w[0], q1.c, -q1.s, rotate_target(self.ops, self.axes, self.axes.directions[3]))
-        tot = sp1(self.ops, f"tot_{tag}", w[1], w[3], d4)
-        z = (
-            t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
-            t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])),
-        )
-        a_uu = math.atan2(uu[1], uu[0])
-        th2 = named(
-            self.ops,
-            f"paul2_{tag}",
-            atan2(self.ops, f"phi2_{tag}", z[1], z[0])
-            - Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
-        )
-        th3 = named(self.ops, f"paul3_{tag}", tot - th2)
-        c = math.atan2(vv[1], vv[0]) - a_uu
-        sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
-        mine = tape.let(f"mine_{tag}", _ge(sin_bend, 0) if sigma > 0 else _lt(sin_bend, 0))
-        ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
-        tape.stage(f"roll, branch {tag}: q4 about axis 4")
-        y = tape.vec(
-            f"y4_{tag}", self._undo(q1, tot, rotate_target(self.ops, self.axes, s.roll_ref))
-        )
-        q4 = sp1(self.ops, f"q4_{tag}", w[3], K.vec(s.roll_ref), y)
-        return (q1, th2, th3.scaled(s.sign3), q4), ok
-
-    def _undo(self, q1, tot, v):
-        """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
-        w = [self.const.vec(x) for x in self.axes.directions]
-        v = rotate(w[0], q1.c, -q1.s, v)
-        return rotate(w[1], tot.c, -tot.s, v)
-
-    def _wrist(self, tag, q1, th2, th3=None):
-        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions,
-        for the rotation left after turning about axis 1 by q1 and about axis 2 by th2 +
-        th3 (the elbow arm's parallel axes 2 and 3) or, without th3, by th2 (the Stanford
-        arm's joint 2)."""
-        s, tape, K = self.s, self.tape, self.const
-        w = [K.vec(x) for x in self.axes.directions]
-        tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
-        tot = th2 if th3 is None else named(self.ops, f"tot_{tag}", th2 + th3)
-        qv = tape.vec(
-            f"qv_{tag}",
-            self._undo(q1, tot, rotate_target(self.ops, self.axes, self.axes.directions[5])),
-        )
-        qx = tape.vec(
-            f"qx_{tag}", self._undo(q1, tot, rotate_target(self.ops, self.axes, s.wrist_ref))
-        )
-        return wrist_angles(self.ops, self.s, tag, qv, qx, w[5])
-
     def _fit_limits(self, name, i, a):
         """geometry.limits.fit_limits for joint i: (value, inside). A revolute joint (a an
         Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of 2 pi (+-2 pi,
@@ -501,22 +388,6 @@ class IKKernelBuilder:
         return tape.let(f"hit_{name}", sp.And(*conds))
 
     # -- the kernel ----------------------------------------------------------------
-
-    def _elbow_arm(self):
-        """The 4R and 6R elbow arms: joints 1-3 from the wrist point, then the roll (4R) or
-        the central wrist (6R)."""
-        s, tape = self.s, self.tape
-        tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
-        W_t = tape.vec("W_t", move_point(self.ops, self.axes, s.wrist))
-        solutions = {}
-        for tag, q1, th2, th3, ok_arm, t, ok1, sigma in self._arm(W_t):
-            if isinstance(s, Elbow4R):
-                solutions[tag] = Branch(*self._paul_4r(tag, q1, t, ok1, sigma))
-                continue
-            q3 = th3.scaled(s.sign3)
-            for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
-                solutions[name] = Branch((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
-        return solutions
 
     # -- the UR family (solve.analytic._ParallelTripleSolver, same steps) ----------------
 
@@ -654,53 +525,6 @@ class IKKernelBuilder:
                     solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = Branch(angles, ok)
         return solutions
 
-    # -- the Stanford arm (solve.analytic._StanfordSolver, same steps) --------------
-
-    def _stanford(self):
-        """q3 from the distance of the wrist centre to the shoulder point c, q1 and q2 by
-        Paden-Kahan subproblem 2 about the meeting axes 1 and 2, then the central wrist."""
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        w = [K.vec(x) for x in ax.directions]
-        w1, w2, w3 = w[0], w[1], w[2]
-        c = K.vec(s.shoulder)
-        W0 = np.asarray(s.wrist, dtype=float) - np.asarray(s.shoulder, dtype=float)
-        tape.stage("Stanford: wrist centre W_t = G W, v = W_t - c; q3 from |W + q3 w3 - c| = |v|")
-        v = tape.vec("v_wc", add(move_point(self.ops, self.axes, s.wrist), scale(-1, c)))
-        b = float(ax.directions[2] @ W0)
-        disc = tape.let("disc3", K(b * b - W0 @ W0) + dot(v, v))
-        ok3 = tape.let("ok_reach", _ge(disc, -ik_slack * sp.Float(ax.scale**2)))
-        root = tape.let("root3", sp.sqrt(_max(disc, 0)))
-        c12 = float(ax.directions[0] @ ax.directions[1])
-        n12 = np.cross(ax.directions[0], ax.directions[1])
-        n12v, den, nn = K.vec(n12), K(c12 * c12 - 1.0), K(float(n12 @ n12))
-        vw1 = tape.let("v_w1", dot(v, w1))
-        solutions = {}
-        for sg3, a in ((1, "p"), (-1, "m")):
-            tape.stage(f"Stanford: reach{a}: q3, then subproblem 2 about axes 1 and 2")
-            q3 = tape.let(f"q3_reach{a}", K(-b) + sg3 * root)
-            u = tape.vec(f"u_reach{a}", add(K.vec(W0), scale(q3, w3)))
-            w2u = dot(w2, u)
-            alpha = tape.let(f"alpha12_reach{a}", (K(c12) * w2u - vw1) / den)
-            beta = tape.let(f"beta12_reach{a}", (K(c12) * vw1 - w2u) / den)
-            g2 = tape.let(
-                f"g2_reach{a}",
-                (dot(u, u) - alpha * alpha - beta * beta - 2 * K(c12) * alpha * beta) / nn,
-            )
-            ok2 = tape.let(f"ok_shoulder_reach{a}", _ge(g2, -ik_slack))
-            g = tape.let(f"g_reach{a}", sp.sqrt(_max(g2, 0)))
-            for sg2, e in ((1, "p"), (-1, "m")):
-                tag = f"reach{a}_shoulder{e}"
-                tape.stage(f"Stanford: {tag}: q2, q1 (Paden-Kahan 1 each)")
-                z = tape.vec(
-                    f"z_{tag}",
-                    add(add(scale(alpha, w1), scale(beta, w2)), scale(sg2 * g, n12v)),
-                )
-                q2 = sp1(self.ops, f"q2_{tag}", w2, u, z)
-                q1 = sp1(self.ops, f"q1_{tag}", w1, z, v)
-                for name, okw, q4, q5, q6 in self._wrist(tag, q1, q2):
-                    solutions[name] = Branch((q1, q2, q3, q4, q5, q6), sp.And(ok3, ok2, okw))
-        return solutions
-
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
         tape.stage("status flag: a non-finite pose")
@@ -708,12 +532,8 @@ class IKKernelBuilder:
         recipe = RECIPES.get(type(s))
         if recipe is not None:
             solutions = recipe(self.ops, s)
-        elif isinstance(s, ParallelTriple6R):
+        else:  # ParallelTriple6R
             solutions = self._parallel_triple()
-        elif isinstance(s, StanfordArm):
-            solutions = self._stanford()
-        else:
-            solutions = self._elbow_arm()
         q_out, valid_out, valid_flags = [], [], []
         for name in self.configs:
             angles, ok = solutions[name].values, solutions[name].ok

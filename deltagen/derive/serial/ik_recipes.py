@@ -16,6 +16,7 @@ A value is whatever the back end's arithmetic works on (a SymPy expression, a nu
 Python number); recipes combine values with ``+ - * /`` and call ``ops`` for the rest:
 
 * ``const(x)``, ``vconst(v)``: a constant of the structure (a float, a 3-vector);
+  ``number(x)``: a number taken as it is (a tolerance's scale);
 * ``R_t`` (3 x 3, row-major nested), ``p_t`` (3): the target rotation and point;
 * ``stage(comment)``, ``let(name, value)``, ``vec(name, v)``: name an intermediate value
   (``vec``: the three components ``name_x``, ``name_y``, ``name_z``);
@@ -53,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from deltagen.model.structure import GantryArm, PlanarArm
+from deltagen.model.structure import Elbow4R, GantryArm, PlanarArm, SphericalWrist6R, StanfordArm
 
 WRIST_SINGULAR = 1e-12  # wrist singular when |(R_w w6) x w4| is below this
 
@@ -88,13 +89,13 @@ class Angle:
 @dataclass(frozen=True)
 class Branch:
     """One configuration's joint values (joint order; Angle for a revolute joint) and the
-    condition that the closed form has a real solution. ``fixed``: the pose fixes this
-    branch (Paul's method), so where ``ok`` is false it has no value at all (the numpy
-    solver's closed_form gives NaN there, not the nearest real solution)."""
+    condition that the closed form has a real solution. ``empty``: where the pose fixes
+    the other branch (Paul's method), this one has no value at all (the numpy solver's
+    closed_form gives NaN there, not the nearest real solution; None: never)."""
 
     values: tuple
     ok: Any
-    fixed: bool = False
+    empty: Any = None
 
 
 # ------------------------------------------------------------------ vectors (3-tuples)
@@ -262,6 +263,29 @@ def wrist_angles(ops, s, tag, qv, qx, w6, with_q6=True):
     return out
 
 
+def undo(ops, axes, q1, tot, v):
+    """(R1 R2)^T v: turned about w1 by -q1, then about w2 by -tot (joint 2's angle; for
+    the elbow arms, whose axes 2 and 3 are parallel, q2 + q3)."""
+    w = [ops.vconst(x) for x in axes.directions]
+    v = rotate(w[0], q1.c, -q1.s, v)
+    return rotate(w[1], tot.c, -tot.s, v)
+
+
+def central_wrist(ops, s, tag, q1, th2, th3=None):
+    """q4, q5, q6 for both wrist solutions (wrist_angles) of the rotation left after
+    turning about axis 1 by q1 and about axis 2 by th2 + th3 (the elbow arm's parallel axes
+    2 and 3) or, without th3, by th2 (the Stanford arm's joint 2): R_w = (R1 R2)^T R_G
+    applied to w6 and the reference (eq. 13 of the EASY-ROB paper)."""
+    axes = s.axes
+    ops.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
+    tot = th2 if th3 is None else named(ops, f"tot_{tag}", th2 + th3)
+    qv = ops.vec(
+        f"qv_{tag}", undo(ops, axes, q1, tot, rotate_target(ops, axes, axes.directions[5]))
+    )
+    qx = ops.vec(f"qx_{tag}", undo(ops, axes, q1, tot, rotate_target(ops, axes, s.wrist_ref)))
+    return wrist_angles(ops, s, tag, qv, qx, ops.vconst(axes.directions[5]))
+
+
 # ------------------------------------------------------------------------ the recipes
 
 
@@ -294,7 +318,7 @@ def planar(ops, s: PlanarArm, position_only=False) -> dict:
         down = ops.let("elbow_down", ops.ge(p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)), 0))
         for config, sigma in zip(s.configs, s.bend_signs):
             mine = down if sigma > 0 else ops.not_(down)
-            branches[config] = (p1, p2, None, mine, True)
+            branches[config] = (p1, p2, None, mine, ops.not_(mine))
     else:
         ops.stage("planar arm: law of cosines")
         kc, ks, bend, ok2 = cosine_law(ops, "planar", t, uu, vv)
@@ -302,10 +326,10 @@ def planar(ops, s: PlanarArm, position_only=False) -> dict:
             ops.stage(f"planar arm, {config}")
             th1, th2 = elbow(ops, config, t, kc, ks, bend, sigma, uu, vv)
             roll = None if s.roll is None else named(ops, f"roll_{config}", yaw - th1 - th2)
-            branches[config] = (th1, th2, roll, ok2, False)
+            branches[config] = (th1, th2, roll, ok2, None)
     solutions = {}
     sign = s.signs
-    for config, (th1, th2, roll, ok, fixed) in branches.items():
+    for config, (th1, th2, roll, ok, empty) in branches.items():
         q: list = [None] * axes.n
         q[s.first] = th1.scaled(float(sign[s.first]))
         q[s.second] = th2.scaled(float(sign[s.second]))
@@ -313,7 +337,7 @@ def planar(ops, s: PlanarArm, position_only=False) -> dict:
             q[s.roll] = roll.scaled(float(sign[s.roll]))
         if s.lift is not None:
             q[s.lift] = K(float(sign[s.lift])) * h
-        solutions[config] = Branch(tuple(q), ok, fixed)
+        solutions[config] = Branch(tuple(q), ok, empty)
     return solutions
 
 
@@ -362,4 +386,180 @@ def gantry(ops, s: GantryArm, position_only=False) -> dict:
     return solutions
 
 
-RECIPES = {PlanarArm: planar, GantryArm: gantry}
+def stanford(ops, s: StanfordArm, position_only=False) -> dict:
+    """model.structure.StanfordArm: R R P and a central wrist W (G = e1 e2 e3 e4 e5 e6).
+    e4 e5 e6 fix W and e3 slides it by q3 w3, so G W = e1 e2 (W + q3 w3); e1, e2 turn about
+    axes through the shoulder point c and keep distances to c:
+
+    1. q3: |W + q3 w3 - c|^2 = |G W - c|^2, a quadratic (``reach{p|m}``: + / - root);
+    2. q1, q2: e1 e2 u = v, u = W + q3 w3 - c, v = G W - c (Paden-Kahan subproblem 2 about
+       the meeting axes 1 and 2: z = alpha w1 + beta w2 +- g (w1 x w2), ``shoulder{p|m}``;
+       q2 turns u into z, q1 z into v, subproblem 1 each);
+    3. q4, q5, q6: the central wrist for R_w = (R1 R2)^T R_G (``noflip`` / ``flip``).
+
+    2 x 2 x 2 = 8 branches. ``position_only`` does not apply (a 6R arm)."""
+    axes, K = s.axes, ops.const
+    w = [ops.vconst(x) for x in axes.directions]
+    w1, w2, w3 = w[0], w[1], w[2]
+    c = ops.vconst(s.shoulder)
+    W0 = np.asarray(s.wrist, dtype=float) - np.asarray(s.shoulder, dtype=float)
+    ops.stage("Stanford: wrist centre W_t = G W, v = W_t - c; q3 from |W + q3 w3 - c| = |v|")
+    v = ops.vec("v_wc", add(move_point(ops, axes, s.wrist), scale(-1, c)))
+    b = float(axes.directions[2] @ W0)
+    disc = ops.let("disc3", K(b * b - W0 @ W0) + dot(v, v))
+    ok3 = ops.let("ok_reach", ops.ge(disc, -ops.slack * ops.number(axes.scale**2)))
+    root = ops.let("root3", ops.sqrt(ops.fmax(disc, 0)))
+    c12 = float(axes.directions[0] @ axes.directions[1])
+    n12 = np.cross(axes.directions[0], axes.directions[1])
+    n12v, den, nn = ops.vconst(n12), K(c12 * c12 - 1.0), K(float(n12 @ n12))
+    vw1 = ops.let("v_w1", dot(v, w1))
+    solutions = {}
+    for sg3, a in ((1, "p"), (-1, "m")):
+        ops.stage(f"Stanford: reach{a}: q3, then subproblem 2 about axes 1 and 2")
+        q3 = ops.let(f"q3_reach{a}", K(-b) + sg3 * root)
+        u = ops.vec(f"u_reach{a}", add(ops.vconst(W0), scale(q3, w3)))
+        w2u = dot(w2, u)
+        alpha = ops.let(f"alpha12_reach{a}", (K(c12) * w2u - vw1) / den)
+        beta = ops.let(f"beta12_reach{a}", (K(c12) * vw1 - w2u) / den)
+        g2 = ops.let(
+            f"g2_reach{a}",
+            (dot(u, u) - alpha * alpha - beta * beta - 2 * K(c12) * alpha * beta) / nn,
+        )
+        ok2 = ops.let(f"ok_shoulder_reach{a}", ops.ge(g2, -ops.slack))
+        g = ops.let(f"g_reach{a}", ops.sqrt(ops.fmax(g2, 0)))
+        for sg2, e in ((1, "p"), (-1, "m")):
+            tag = f"reach{a}_shoulder{e}"
+            ops.stage(f"Stanford: {tag}: q2, q1 (Paden-Kahan 1 each)")
+            z = ops.vec(
+                f"z_{tag}", add(add(scale(alpha, w1), scale(beta, w2)), scale(sg2 * g, n12v))
+            )
+            q2 = sp1(ops, f"q2_{tag}", w2, u, z)
+            q1 = sp1(ops, f"q1_{tag}", w1, z, v)
+            for name, okw, q4, q5, q6 in central_wrist(ops, s, tag, q1, q2):
+                solutions[name] = Branch((q1, q2, q3, q4, q5, q6), ops.all(ok3, ok2, okw))
+    return solutions
+
+
+def _arm(ops, s, W_t):
+    """Joints 1-3 of an elbow arm placing the wrist point at W_t for the four arm branches
+    (Miskolc paper eqs. 4-9): in the arm frame (ex, ey normal to axis 1, ez along it) the
+    wrist point's height above axis 2's plane fixes yV, so xV = +-sqrt(px^2 + py^2 - yV^2)
+    (``front`` / ``back``) and q1 = atan2(py, px) - atan2(yV, xV) (0 for the front branches,
+    -pi for the back ones where the point lies on axis 1); then the planar 2R arm of axes 2
+    and 3 (law of cosines, the bend of each branch). A list of (tag, q1, th2, th3, ok, t,
+    ok1, sigma) per arm branch: th2, th3 the angles about axis 2, t the point in its plane,
+    ok1 the reach of q1, sigma the bend sign."""
+    axes, K = s.axes, ops.const
+    n, configs = axes.n, tuple(s.configs)
+    ops.stage("arm: the wrist point in the arm frame (ex, ey along axis 1's normal plane)")
+    d = add(W_t, scale(-1, ops.vconst(axes.points[0])))
+    px = ops.let("px", dot(d, ops.vconst(s.ex)))
+    py = ops.let("py", dot(d, ops.vconst(s.ey)))
+    pz = ops.let("pz", dot(d, ops.vconst(s.ez)))
+    yV = ops.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
+    rad = ops.let("rad", px * px + py * py - yV * yV)
+    ok1 = ops.let("ok_reach", ops.ge(rad, -ops.slack * ops.number(axes.scale**2)))
+    r = ops.let("xV", ops.sqrt(ops.fmax(rad, 0)))
+    on_axis = ops.let("on_axis", ops.lt(px * px + py * py, (1e-12 * axes.scale) ** 2))
+    a = Angle(0, *direction(ops, "phi_p", py, px))
+    uu, vv = s.upper, s.lower
+    shoulders = {}
+    for f in sorted(set(s.front.tolist()), reverse=True):
+        tag = "front" if f > 0 else "back"
+        ops.stage(f"shoulder q1, {tag} branches")
+        xV = f * r
+        # q1 = atan2(py, px) - atan2(yV, xV), one atan2 of the difference's cos and sin
+        q1 = a - Angle(0, *direction(ops, f"phi_{tag}", yV, xV))
+        home = 0.0 if f > 0 else -math.pi
+        c1 = ops.let(f"q1_{tag}_c", ops.select(on_axis, K(math.cos(home)), q1.c))
+        s1 = ops.let(f"q1_{tag}_s", ops.select(on_axis, 0, q1.s))
+        q1 = Angle(ops.let(f"q1_{tag}", ops.select(on_axis, K(home), ops.atan2(s1, c1))), c1, s1)
+        V = add(
+            add(ops.vconst(axes.points[0]), scale(xV, ops.vconst(s.ex))),
+            add(scale(yV, ops.vconst(s.ey)), scale(pz, ops.vconst(s.ez))),
+        )
+        t = tuple(
+            ops.let(f"t{j + 1}_{tag}", dot(ops.vconst(s.plane[j]), V) - K(s.shoulder_xy[j]))
+            for j in range(2)
+        )
+        kc, ks, bend, ok2 = cosine_law(ops, tag, t, uu, vv)
+        shoulders[f] = (q1, t, kc, ks, bend, ok2)
+    branches = []
+    for index, config in enumerate(configs[:: len(configs) // 4]):
+        f, sigma = float(s.front[index]), float(s.bend[index])
+        q1, t, kc, ks, bend, ok2 = shoulders[f]
+        tag = config.rsplit("_", 1)[0] if n == 6 else config
+        ops.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
+        th2, th3 = elbow(ops, tag, t, kc, ks, bend, sigma, uu, vv)
+        ok = ops.let(f"ok_arm_{tag}", ops.all(ok1, ok2))
+        branches.append((tag, q1, th2, th3, ok, t, ok1, sigma))
+    return branches
+
+
+def _roll(ops, s, tag, q1, tot):
+    """The 4R arm's roll q4 about axis 4: (R1 R23)^T R_G x4 = Rot(w4, q4) x4."""
+    ops.stage(f"roll, branch {tag}: q4 about axis 4")
+    y = ops.vec(f"y4_{tag}", undo(ops, s.axes, q1, tot, rotate_target(ops, s.axes, s.roll_ref)))
+    w4 = ops.vconst(s.axes.directions[3])
+    return sp1(ops, f"q4_{tag}", w4, ops.vconst(s.roll_ref), y)
+
+
+def _paul_4r(ops, s, tag, q1, t, ok1, sigma):
+    """The 4R arm with the pose given: q2 + q3 from the direction of axis 4 (Paul's method),
+    which fixes the elbow of the shoulder branch (the other elbow branch stays empty), then
+    the roll q4."""
+    K = ops.const
+    w = [ops.vconst(x) for x in s.axes.directions]
+    uu, vv = s.upper, s.lower
+    ops.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
+    d4 = rotate(w[0], q1.c, -q1.s, rotate_target(ops, s.axes, s.axes.directions[3]))
+    tot = sp1(ops, f"tot_{tag}", w[1], w[3], d4)
+    z = (
+        t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
+        t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])),
+    )
+    a_uu = math.atan2(uu[1], uu[0])
+    th2 = named(
+        ops, f"paul2_{tag}", atan2(ops, f"phi2_{tag}", z[1], z[0]) - constant_angle(ops, a_uu)
+    )
+    th3 = named(ops, f"paul3_{tag}", tot - th2)
+    c = math.atan2(vv[1], vv[0]) - a_uu
+    sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
+    mine = ops.let(f"mine_{tag}", ops.ge(sin_bend, 0) if sigma > 0 else ops.lt(sin_bend, 0))
+    ok = ops.let(f"ok_paul_{tag}", ops.all(ok1, mine))
+    q4 = _roll(ops, s, tag, q1, tot)
+    return Branch((q1, th2, th3.scaled(s.sign3), q4), ok, ops.not_(mine))
+
+
+def elbow_arm(ops, s: Elbow4R | SphericalWrist6R, position_only=False) -> dict:
+    """model.structure.Elbow4R and SphericalWrist6R: joints 1-3 place the wrist point W
+    (_arm), then the 6R arm's central wrist (central_wrist, ``noflip`` / ``flip``) or the 4R
+    arm's roll; for the 4R arm with the pose given, q2 + q3 from the direction of axis 4
+    (Paul's method, _paul_4r). ``position_only`` (4R): W is the target point, both elbows,
+    the roll as near to the target's rotation as the arm allows."""
+    axes = s.axes
+    point_only = position_only and axes.n == 4
+    ops.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
+    W_t = ops.vec("W_t", ops.p_t if point_only else move_point(ops, axes, s.wrist))
+    solutions = {}
+    for tag, q1, th2, th3, ok_arm, t, ok1, sigma in _arm(ops, s, W_t):
+        if isinstance(s, Elbow4R):
+            if point_only:
+                q4 = _roll(ops, s, tag, q1, named(ops, f"tot_{tag}", th2 + th3))
+                solutions[tag] = Branch((q1, th2, th3.scaled(s.sign3), q4), ok_arm)
+            else:
+                solutions[tag] = _paul_4r(ops, s, tag, q1, t, ok1, sigma)
+            continue
+        q3 = th3.scaled(s.sign3)
+        for name, okw, q4, q5, q6 in central_wrist(ops, s, tag, q1, th2, th3):
+            solutions[name] = Branch((q1, th2, q3, q4, q5, q6), ops.all(ok_arm, okw))
+    return solutions
+
+
+RECIPES = {
+    PlanarArm: planar,
+    GantryArm: gantry,
+    StanfordArm: stanford,
+    Elbow4R: elbow_arm,
+    SphericalWrist6R: elbow_arm,
+}
