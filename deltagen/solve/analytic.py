@@ -10,8 +10,10 @@ Method (geometric, product of exponentials). The structure and every constant of
 form come from :func:`deltagen.model.structure.detect` (the joint axes at q = 0 -- unit
 direction ``w_i`` and a point ``o_i`` in the world frame, composed from the description's own
 transforms; the joint offsets are part of the q = 0 pose -- and the frames, plane vectors and
-branch signs of each structure); the C kernel emitter
-(:mod:`deltagen.derive.serial.ik_closed_form`) reads the same object. Every arm satisfies
+branch signs of each structure). The steps are the structure's recipe in
+:mod:`deltagen.derive.serial.ik_recipes`, written once: run here on numpy arrays
+(``_NumpyOps``) and by the C kernel emitter (:mod:`deltagen.derive.serial.ik_closed_form`)
+as SymPy statements. Every arm satisfies
 
     T(q) = exp(xi_1 q_1) ... exp(xi_n q_n) T(0)
 
@@ -69,6 +71,15 @@ Supported structures
     slides then reach the tool point by a 3 x 3 linear solve. The 5-axis head's ``valid``
     checks the tool point and the tool z axis: the rotation about the tool axis is free.
 
+``parallel_triple_6r`` -- the UR family: axes 2, 3, 4 parallel, axes 5 and 6 meeting
+    (``ik_recipes.parallel_triple``: q1 and q5 from A cos x + B sin x = C, q6 and the sum
+    phi of joints 2-4 by subproblem 1, the elbow by the law of cosines); eight branches
+    ``shoulder{p|m}_elbow{p|m}_wrist{p|m}``.
+
+``stanford_rrp_6`` -- R R P and a central wrist (``ik_recipes.stanford``: q3 from a
+    quadratic, q1 and q2 by subproblem 2, the central wrist); eight branches
+    ``reach{p|m}_shoulder{p|m}_{noflip|flip}``.
+
 ``reversed_spherical_wrist_6r`` / ``reversed_parallel_triple_6r`` -- a 6R chain whose first
     three axes meet (a humanoid's hip) or whose first two meet and axes 3, 4, 5 are parallel:
     read backwards (model/structure.py ``reversed_description``: T'(q_6, ..., q_1) = T(q)^-1)
@@ -117,18 +128,16 @@ point on the last axis for the 3R SCARA and the 4R arm (raises InputError otherw
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
-from deltagen.derive.serial.ik_recipes import RECIPES, Angle
+from deltagen.derive.serial.ik_recipes import RECIPES, WRIST_SINGULAR, Angle
 from deltagen.geometry.limits import fit_limits
-from deltagen.geometry.rotations import rotate as _rotv
-from deltagen.geometry.rotations import rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array, check_real
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import (
     GantryArm,
-    ParallelTriple6R,
     ReversedChain,
     Structure,
     detect,
@@ -136,7 +145,6 @@ from deltagen.model.structure import (
 
 __all__ = ["AnalyticSolver", "ReversedSolver", "analytic_solver", "solver_for", "WRIST_SINGULAR"]
 
-WRIST_SINGULAR = 1e-12  # wrist singular when |(R_w w6) x w4| is below this
 _CHUNK = 8192  # poses per pass (keeps the temporaries in cache)
 
 
@@ -147,39 +155,6 @@ def _cross(a, b) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def _sp1(w, a, b) -> np.ndarray:
-    """Paden-Kahan subproblem 1: the angle about the unit axis w that turns the component
-    of a normal to w into the direction of that of b (atan2(0, 0) = 0 if either is 0)."""
-    a = a - (a @ w)[..., None] * w
-    b = b - (b @ w)[..., None] * w
-    return np.arctan2(_cross(a, b) @ w, np.sum(a * b, axis=-1))
-
-
-def _cross2(a, b) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def _angle2(v) -> np.ndarray:
-    return np.arctan2(v[..., 1], v[..., 0])
-
-
-def _two_link(uu, vv, t, sigma):
-    """Planar 2R arm: first axis at the origin, second at uu, the point at uu + vv (q = 0).
-    Find (th1, th2) with R(th1) (uu + R(th2) vv) = t; sigma = +-1 picks the branch
-    (sin of the bend angle th2 + angle(vv) - angle(uu) has the sign of sigma).
-    t (..., 2), sigma broadcastable to t[..., 0]. Returns th1, th2, ok (law of cosines met
-    to 1e-9; th values clipped onto the nearest real solution otherwise)."""
-    lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
-    kappa = (np.sum(t * t, axis=-1) - lu * lu - lv * lv) / (2.0 * lu * lv)
-    ok = np.abs(kappa) <= 1.0 + 1e-9
-    kc = np.clip(kappa, -1.0, 1.0)
-    bend = sigma * np.arctan2(np.sqrt(1.0 - kc * kc), kc)
-    th2 = _angle2(uu) - _angle2(vv) + bend
-    m = uu + _rot2(th2, np.broadcast_to(vv, th2.shape + (2,)))
-    th1 = np.arctan2(_cross2(m, t), np.sum(m * t, axis=-1))
-    return th1, th2, ok
 
 
 # ----------------------------------------------------------------------- the solvers
@@ -315,6 +290,7 @@ class _NumpyOps:
     structure's constants are used as they are."""
 
     true = True
+    pi = math.pi
     slack = 1e-9
     tiny = 1e-300
     sqrt = staticmethod(np.sqrt)
@@ -367,6 +343,10 @@ class _NumpyOps:
     def rigid_target():
         return True  # the 2R head's rigidity is checked with its forward kinematics
 
+    @staticmethod
+    def wrist_flip(*constants):
+        return False  # every wrist branch takes its own angles
+
 
 class _RecipeSolver(AnalyticSolver):
     """A structure whose closed form is a recipe of derive/serial/ik_recipes.py (RECIPES),
@@ -386,108 +366,6 @@ class _RecipeSolver(AnalyticSolver):
             ok[:, j] = branch.ok
             if branch.empty is not None:
                 q[branch.empty, j] = np.nan
-        return q, ok
-
-
-def _cos_sin_eq(A, B, C, sigma):
-    """The angles x with A cos x + B sin x = C, one per sign sigma (+-1, broadcast):
-    atan2(B, A) + sigma arccos(C / hypot(A, B)), and ok (a real solution within 1e-9;
-    clipped onto the nearest real one otherwise). A = B = 0 (any x, when C = 0) gives x = 0."""
-    r = np.hypot(A, B)
-    ratio = np.where(r > 0.0, C / np.where(r > 0.0, r, 1.0), 0.0)
-    ok = np.abs(ratio) <= 1.0 + 1e-9
-    x = np.arctan2(B, A)[..., None] + sigma * np.arccos(np.clip(ratio, -1.0, 1.0))[..., None]
-    return x, np.broadcast_to(ok[..., None], x.shape)
-
-
-class _ParallelTripleSolver(AnalyticSolver):
-    """model.structure.ParallelTriple6R: axes 2, 3, 4 parallel (direction u), axes 5 and 6
-    meeting in P5 (the UR family). Pieper's solvable class of three consecutive axes meeting
-    at infinity; written here in the product of exponentials (module docstring),
-    G = e1 e2 e3 e4 e5 e6, e_i = exp(xi_i q_i). Rotations about axes parallel to u keep
-    the u component of every point and vector, and turn directions by the sum phi of their
-    angles about u. Hence, with M = e1^-1 G:
-
-    1. q1: P5 is fixed by e5 and e6, so G P5 = e1 e2 e3 e4 P5 and
-       u . (Rot(w1, -q1) (G P5 - o1)) = u . (P5 - o1): A cos q1 + B sin q1 = C, two roots
-       (``shoulder{p|m}``: + / - arccos).
-    2. q5: R_M w6 = Rot(u, phi) R5 w6, so u . Rot(w5, q5) w6 = u . R_M w6: two roots
-       (``wrist{p|m}``).
-    3. q6: Rot(w6, -q6) Rot(w5, -q5) u = R_M^T u (Paden-Kahan subproblem 1; 0 where both
-       sides lie along w6: the wrist singularity, q4 + q6 ... take the whole turn).
-    4. phi = angle about u of R_M R6^T R5^T; N = M e6^-1 e5^-1 = e2 e3 e4.
-    5. elbow: e2 e3 carry the point o4 of axis 4 to N o4 (planar 2R arm normal to u, law of
-       cosines, two bends ``elbow{p|m}``); then the angle of joint 4 about u is phi minus
-       those of joints 2 and 3. Joint i's angle is its angle about u times signs[i].
-
-    2 x 2 x 2 = 8 branches; every one is checked by the forward kinematics (solve). The same
-    steps are emitted as C (derive/serial/ik_closed_form.py, IKKernelBuilder._parallel_triple)."""
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w, o = ax.directions, ax.points
-        u = s.u
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        pm = np.array([1.0, -1.0])
-        # 1. q1 (N, 2)
-        v = np.einsum("nij,j->ni", R_G, s.wrist) + p_G - o[0]
-        w1 = w[0]
-        v_par = (v @ w1)[:, None] * w1
-        A = (v - v_par) @ u
-        B = -(_cross(np.broadcast_to(w1, v.shape), v) @ u)
-        C = (s.wrist - o[0]) @ u - (u @ w1) * (v @ w1)
-        q1, ok1 = _cos_sin_eq(A, B, C, pm)
-        # M = e1^-1 G: rotation R_M, translation (a point x maps to R_M x + t_M)
-        R1i = _rot_mats(w1, -q1)  # (N, 2, 3, 3)
-        R_M = R1i @ R_G[:, None]
-        # (a point x: e1^-1 (R_G x + p_G) = Rot(-q1)(R_G x + p_G - o1) + o1)
-        t_M = np.einsum("nkij,nj->nki", R1i, p_G - o[0]) + o[0]
-        # 2. q5 (N, 2, 2)
-        w5, w6 = w[4], w[5]
-        h = np.einsum("nkij,j->nki", R_M, w6) @ u
-        w6p = w6 - (w6 @ w5) * w5
-        q5, ok5 = _cos_sin_eq(
-            np.full(h.shape, w6p @ u),
-            np.full(h.shape, np.cross(w5, w6) @ u),
-            h - (u @ w5) * (w5 @ w6),
-            pm,
-        )
-        # 3. q6: Rot(w6, -q6) a = b, a = Rot(w5, -q5) u, b = R_M^T u
-        a = _rotv(w5, -q5, np.broadcast_to(u, q5.shape + (3,)))
-        b = np.einsum("nkji,j->nki", R_M, u)
-        b = np.broadcast_to(b[:, :, None, :], a.shape)
-        q6 = -_sp1(w6, a, b)
-        # 4. phi, N = M e6^-1 e5^-1
-        x = _rotv(w6, -q6, _rotv(w5, -q5, np.broadcast_to(s.ref, a.shape)))
-        x = np.einsum("nkij,nkmj->nkmi", R_M, x)
-        phi = _sp1(u, s.ref, x)
-        # N o4 = M (e6^-1 e5^-1 o4); e^-1 x = Rot(w, -q)(x - o) + o
-        o4 = o[3]
-        y = _rotv(w5, -q5, np.broadcast_to(o4 - o[4], a.shape)) + o[4]
-        y = _rotv(w6, -q6, y - o[5]) + o[5]
-        y = np.einsum("nkij,nkmj->nkmi", R_M, y) + t_M[:, :, None, :]
-        # 5. elbow: planar 2R about axes 2, 3 taking o4 to y (N, 2, 2, 2)
-        t = (y - o[1]) @ s.plane.T
-        t = np.broadcast_to(t[..., None, :], t.shape[:-1] + (2, 2))
-        th2, th3, ok23 = _two_link(s.upper, s.lower, t, pm)
-        th4 = phi[..., None] - th2 - th3
-        rep = lambda z: np.broadcast_to(z, th2.shape)  # noqa: E731
-        q = np.stack(
-            [
-                rep(q1[:, :, None, None]),
-                s.signs[0] * th2,
-                s.signs[1] * th3,
-                s.signs[2] * th4,
-                rep(q5[..., None]),
-                rep(q6[..., None]),
-            ],
-            axis=-1,
-        )  # (N, shoulder, wrist, elbow, 6)
-        ok = ok1[:, :, None, None] & ok5[..., None] & np.broadcast_to(ok23, th2.shape)
-        # branch order: shoulder, elbow, wrist (configs)
-        q = q.transpose(0, 1, 3, 2, 4).reshape(N, 8, 6)
-        ok = np.broadcast_to(ok, th2.shape).transpose(0, 1, 3, 2).reshape(N, 8)
         return q, ok
 
 
@@ -559,13 +437,6 @@ def invert(T):
     return out
 
 
-def _rot_mats(w, angle):
-    """Rotation matrices (..., 3, 3) about the unit axis w by ``angle`` (...) (Rodrigues)."""
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
-
-
 def solver_for(
     detected: Structure | None, description: SerialDescription | None = None
 ) -> AnalyticSolver | None:
@@ -576,8 +447,6 @@ def solver_for(
         return ReversedSolver(detected, description)
     if isinstance(detected, GantryArm):
         cls: type[AnalyticSolver] = _GantrySolver
-    elif isinstance(detected, ParallelTriple6R):
-        cls = _ParallelTripleSolver
     else:
         cls = _RecipeSolver
     return cls(detected, description)

@@ -1,6 +1,6 @@
 """Closed-form IK of the Stanford arm (R R P + central wrist; model.structure.StanfordArm,
-derive.serial.ik_recipes.stanford, run by solve.analytic) on roboticstoolbox's Stanford DH model: our rows reproduce
-rtb's fkine, the original q is among the 8 branches for random in-limit poses, every valid
+derive.serial.ik_recipes.stanford, run by solve.analytic) on roboticstoolbox's Stanford DH
+model: our rows reproduce rtb's fkine, the original q is among the 8 branches for random in-limit poses, every valid
 branch reproduces T with the reference fk (DH matrices)."""
 
 from __future__ import annotations

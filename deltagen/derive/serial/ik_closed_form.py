@@ -8,11 +8,11 @@ arm's :class:`~deltagen.model.structure.StanfordArm`, or a gantry's
 :class:`~deltagen.model.structure.GantryArm`); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
-every branch of a batch of poses in one call, like the forward kinematics. Where the
-structure has a recipe (:mod:`deltagen.derive.serial.ik_recipes`: the gantries and the planar
-arms) its steps are written once there and this module is their SymPy back end
-(``_SymPyOps``); the other structures' steps are written here after the numpy solver's (its
-module docstring has the derivation). Here the point is how they become straight-line code:
+every branch of a batch of poses in one call, like the forward kinematics. The steps of
+each structure are its recipe in :mod:`deltagen.derive.serial.ik_recipes`, written once
+for this module (the SymPy back end ``_SymPyOps``: each step a named statement) and the
+numpy solver; that module and the numpy solver's docstring have the derivations. Here the
+point is how they become straight-line code:
 
 * every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
   ``y / h`` (h = hypot(x, y)) instead of calling cos and sin on the result, and sums and
@@ -21,7 +21,7 @@ module docstring has the derivation). Here the point is how they become straight
   Where x = y = 0 the angle is 0 with cosine 1 and sine 0 (not atan2's 0 or +-pi of
   signed zeros), so that the value returned is the one the branch and its check used;
 * each output angle takes one atan2 unless it is a sum, a negation or a turn by pi of
-  others: for the UR family, where IKKernelBuilder._wrist_flip shows it from the arm's
+  others: for the UR family, where _SymPyOps.wrist_flip shows it from the arm's
   constants, the second wrist branch's q6 and phi (q2 + q3 + q4) are the first's + pi,
   so the UR5 kernel calls atan2 20 times per pose (q1 2, q5 2, q6 2, phi 2, the elbow
   bend 4 and q2 8; q3 = +-bend, q4 = phi - q2 - q3 and q5 = +-acos need none);
@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import sympy as sp
 
 from deltagen import status as st
@@ -68,19 +67,11 @@ from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.derive.serial.ik_recipes import (
     RECIPES,
     Angle,
-    Branch,
     add,
-    atan2,
-    cosine_law,
     cross,
     dot,
-    elbow,
-    move_point,
-    named,
     rotate,
-    rotate_target,
     scale,
-    sp1,
 )
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS  # noqa: F401 (SHIFTS: in deltagen_limits.h)
 from deltagen.model.structure import (
@@ -177,12 +168,26 @@ class _Tape:
         return [Stage(comment, tuple(a)) for comment, a in self.stages if a]
 
 
+def _odd_under(vector, flip) -> bool:
+    """Whether every component e of ``vector`` (polynomials in cosines and sines) has
+    e(flip) = -e, coefficients equal to 1e-15 (the constants are rounded to 13 digits)."""
+    for e in vector:
+        total = sp.expand(e + sp.sympify(e).xreplace(flip))
+        if total == 0:
+            continue
+        gens = sorted(total.free_symbols, key=str)
+        if max(abs(float(c)) for c in sp.Poly(total, *gens).coeffs()) > 1e-15:
+            return False
+    return True
+
+
 class _SymPyOps:
     """The SymPy back end of the recipes (derive/serial/ik_recipes.py): every ``let`` a
     statement on the tape, the constants rounded (_Constants), the target the kernel's
     input symbols."""
 
     true = sp.true
+    pi = sp.Float(repr(math.pi), 17)
     slack = ik_slack
     tiny = ik_tiny
     sqrt = staticmethod(sp.sqrt)
@@ -203,6 +208,32 @@ class _SymPyOps:
     @staticmethod
     def select(cond, a, b):
         return sp.Piecewise((a, cond), (b, True))
+
+    @staticmethod
+    def wrist_flip(w5, w6, u, ref, B) -> bool:
+        """Whether the second wrist branch is the first turned by pi in q6 and phi, with
+        no atan2 of its own (UR arms: 2 of the 4 q6 and 2 of the 4 phi atan2 calls per
+        pose; ik_recipes.parallel_triple). Shown here, from the arm's constants, for every q5 and q6 at once:
+
+        * B = u . (w5 x w6) = 0: the q5 equation's base angle is 0 or pi, so the second
+          root has the cosine of the first and the sine negated (q5 -> -q5 about it);
+        * the part of a = Rot(w5, -q5) u normal to w6 is odd in sin q5: then both vectors
+          subproblem 1 turns into each other for q6 (a and b, b independent of q5) give
+          negated components, and atan2(-y, -x) = atan2(y, x) + pi;
+        * Rot(w6, -q6) Rot(w5, -q5) ref is odd under (sin q5, cos q6, sin q6) ->
+          (-sin q5, -cos q6, -sin q6), i.e. under q5 -> -q5 with q6 -> q6 + pi: phi's
+          subproblem 1 (about u, ref against that vector, rotated by constant and q1
+          rotations, linear) gets negated components too.
+        """
+        if B != 0:
+            return False
+        c5, s5, c6, s6 = sp.symbols("c5 s5 c6 s6", real=True)
+        a = rotate(w5, c5, -s5, u)
+        normal = add(a, scale(-dot(a, w6), w6))
+        if not _odd_under(normal, {s5: -s5}):
+            return False
+        x = rotate(w6, c6, -s6, rotate(w5, c5, -s5, ref))
+        return _odd_under(x, {s5: -s5, c6: -c6, s6: -s6})
 
     def rigid_target(self):
         """The target's rotation is orthonormal and right-handed within TOL (x . x = y . y =
@@ -230,34 +261,6 @@ def _branch_legend(configs) -> str:
         " Statement names carry short branch tags: s, e, w = shoulder, elbow, wrist, each"
         " followed by p (the + root) or m (the - root); spwmep is shoulderp_elbowp_wristm."
     )
-
-
-_PI = sp.Float(repr(math.pi), 17)
-
-
-def _turned_by_pi(tape, name, a: Angle, turned) -> Angle:
-    """a + pi where ``turned`` holds, else a: the angle, cosine and sine negated, with no
-    atan2, sqrt or division (the joint-limit fit wraps the angle). For a subproblem-1
-    angle whose two components the caller has shown to be negated, atan2(-y, -x) =
-    atan2(y, x) + pi."""
-    return Angle(
-        tape.let(f"{name}_pi", sp.Piecewise((a.theta + _PI, turned), (a.theta, True))),
-        tape.let(f"{name}_pi_c", sp.Piecewise((-a.c, turned), (a.c, True))),
-        tape.let(f"{name}_pi_s", sp.Piecewise((-a.s, turned), (a.s, True))),
-    )
-
-
-def _odd_under(vector, flip) -> bool:
-    """Whether every component e of ``vector`` (polynomials in cosines and sines) has
-    e(flip) = -e, coefficients equal to 1e-15 (the constants are rounded to 13 digits)."""
-    for e in vector:
-        total = sp.expand(e + sp.sympify(e).xreplace(flip))
-        if total == 0:
-            continue
-        gens = sorted(total.free_symbols, key=str)
-        if max(abs(float(c)) for c in sp.Poly(total, *gens).coeffs()) > 1e-15:
-            return False
-    return True
 
 
 class _Constants:
@@ -389,151 +392,11 @@ class IKKernelBuilder:
 
     # -- the kernel ----------------------------------------------------------------
 
-    # -- the UR family (solve.analytic._ParallelTripleSolver, same steps) ----------------
-
-    def _rotate_target_sym(self, v):
-        """R_G v = R_t R0^T v for a symbolic vector v."""
-        u = [sum(self.const(self.axes.R0[r, c]) * v[r] for r in range(3)) for c in range(3)]
-        return tuple(dot(self.R_t[r], u) for r in range(3))
-
-    def _unrotate_target_sym(self, v):
-        """R_G^T v = R0 R_t^T v for a symbolic vector v."""
-        y = [sum(self.R_t[r][c] * v[r] for r in range(3)) for c in range(3)]
-        return tuple(sum(self.const(self.axes.R0[r, c]) * y[c] for c in range(3)) for r in range(3))
-
-    def _cos_sin_eq(self, name, A, B, C):
-        """A cos x + B sin x = C: (atan2(B, A), arccos(C / hypot(A, B)) as _Angles, ok)."""
-        tape = self.tape
-        base = atan2(self.ops, f"{name}_base", B, A)
-        r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
-        ratio = tape.let(
-            f"{name}_ratio",
-            sp.Piecewise(
-                (C / tape.let(f"{name}_den", _at_least(r, ik_tiny)), _gt(r, 0)), (0, True)
-            ),
-        )
-        ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + ik_slack))
-        kc = tape.let(f"{name}_kc", _at_most(tape.let(f"{name}_kc0", _at_least(ratio, -1)), 1))
-        ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
-        return base, Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
-
-    def _wrist_flip(self, w5, w6, u, ref, B) -> bool:
-        """Whether the second wrist branch is the first turned by pi in q6 and phi, with
-        no atan2 of its own (UR arms: 2 of the 4 q6 and 2 of the 4 phi atan2 calls per
-        pose). Shown here, from the arm's constants, for every q5 and q6 at once:
-
-        * B = u . (w5 x w6) = 0: the q5 equation's base angle is 0 or pi, so the second
-          root has the cosine of the first and the sine negated (q5 -> -q5 about it);
-        * the part of a = Rot(w5, -q5) u normal to w6 is odd in sin q5: then both vectors
-          subproblem 1 turns into each other for q6 (a and b, b independent of q5) give
-          negated components, and atan2(-y, -x) = atan2(y, x) + pi;
-        * Rot(w6, -q6) Rot(w5, -q5) ref is odd under (sin q5, cos q6, sin q6) ->
-          (-sin q5, -cos q6, -sin q6), i.e. under q5 -> -q5 with q6 -> q6 + pi: phi's
-          subproblem 1 (about u, ref against that vector, rotated by constant and q1
-          rotations, linear) gets negated components too.
-        """
-        if B != 0:
-            return False
-        c5, s5, c6, s6 = sp.symbols("c5 s5 c6 s6", real=True)
-        a = rotate(w5, c5, -s5, u)
-        normal = add(a, scale(-dot(a, w6), w6))
-        if not _odd_under(normal, {s5: -s5}):
-            return False
-        x = rotate(w6, c6, -s6, rotate(w5, c5, -s5, ref))
-        return _odd_under(x, {s5: -s5, c6: -c6, s6: -s6})
-
-    def _parallel_triple(self):
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        w = [K.vec(x) for x in ax.directions]
-        o = [K.vec(x) for x in ax.points]
-        u, w1, w5, w6 = K.vec(s.u), w[0], w[4], w[5]
-        tape.stage("UR: q1 from u . Rot(w1, -q1) (G P5 - o1) = u . (P5 - o1)")
-        v = tape.vec("v_p5", add(move_point(self.ops, self.axes, s.wrist), scale(-1, o[0])))
-        w1v = tape.let("w1v", dot(w1, v))
-        A = dot(add(v, scale(-w1v, w1)), u)
-        B = -dot(cross(w1, v), u)
-        C = K(s.u @ (s.wrist - ax.points[0])) - K(s.u @ ax.directions[0]) * w1v
-        base1, acos1, ok1 = self._cos_sin_eq("q1eq", A, B, C)
-        w6n = ax.directions[5] - (ax.directions[5] @ ax.directions[4]) * ax.directions[4]
-        RGw6 = rotate_target(self.ops, self.axes, ax.directions[5])
-        flip = self._wrist_flip(
-            w5, w6, u, K.vec(s.ref), K(np.cross(ax.directions[4], ax.directions[5]) @ s.u)
-        )
-        solutions = {}
-        for sg1, a in ((1, "p"), (-1, "m")):
-            tag1 = f"s{a}"
-            tape.stage(f"UR: shoulder{a}: q1, and q5 from u . Rot(w5, q5) w6 = u . R_M w6")
-            q1 = named(self.ops, f"q1_{tag1}", base1 + acos1.scaled(sg1))
-            h = dot(u, rotate(w1, q1.c, -q1.s, RGw6))
-            base5, acos5, ok5 = self._cos_sin_eq(
-                f"q5eq_{tag1}",
-                K(w6n @ s.u),
-                K(np.cross(ax.directions[4], ax.directions[5]) @ s.u),
-                h - K((s.u @ ax.directions[4]) * (ax.directions[4] @ ax.directions[5])),
-            )
-            b = tape.vec(f"b_{tag1}", self._unrotate_target_sym(rotate(w1, q1.c, q1.s, u)))
-            ref = K.vec(s.ref)
-            first = None
-            for sg5, c5 in ((1, "p"), (-1, "m")):
-                tag = f"{tag1}w{c5}"
-                tape.stage(f"UR: shoulder{a} wrist{c5}: q5, q6 (Paden-Kahan 1), phi, N o4")
-                q5 = named(self.ops, f"q5_{tag}", base5 + acos5.scaled(sg5))
-                if first is not None and flip:
-                    # the wrist flip (q5 -> -q5) turns q6 and phi by pi (_wrist_flip);
-                    # where q6's two components vanish (the exact wrist singularity,
-                    # sin q5 = 0) _atan2 gives (0, 1, 0) for either sign and the vector
-                    # phi is taken from is the same for both q5: neither is turned, as
-                    # the second branch's own atan2 calls would have had it
-                    turned = _gt(sp.Symbol(f"mq6_{first[0]}_h", real=True), 0)
-                    mq6 = _turned_by_pi(tape, f"mq6_{first[0]}", first[1], turned)
-                    q6 = mq6.scaled(-1)
-                    phi = _turned_by_pi(tape, f"phi_{first[0]}", first[2], turned)
-                else:
-                    avec = tape.vec(f"a_{tag}", rotate(w5, q5.c, -q5.s, u))
-                    mq6 = sp1(self.ops, f"mq6_{tag}", w6, avec, b)
-                    q6 = mq6.scaled(-1)
-                    x = rotate(w6, q6.c, -q6.s, rotate(w5, q5.c, -q5.s, ref))
-                    x = tape.vec(f"x_{tag}", rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
-                    phi = sp1(self.ops, f"phi_{tag}", u, ref, x)
-                    first = (tag, mq6, phi)
-                y = add(rotate(w5, q5.c, -q5.s, add(o[3], scale(-1, o[4]))), o[4])
-                y = add(rotate(w6, q6.c, -q6.s, add(y, scale(-1, o[5]))), o[5])
-                y = tape.vec(f"y_{tag}", y)
-                Gy = add(self._rotate_target_sym(add(y, scale(-1, K.vec(ax.p0)))), self.p_t)
-                Ny = add(rotate(w1, q1.c, -q1.s, add(Gy, scale(-1, o[0]))), o[0])
-                d = add(Ny, scale(-1, o[1]))
-                t = (
-                    tape.let(f"t1_{tag}", dot(d, K.vec(s.plane[0]))),
-                    tape.let(f"t2_{tag}", dot(d, K.vec(s.plane[1]))),
-                )
-                kc, ks, bend, ok2 = cosine_law(self.ops, tag, t, s.upper, s.lower)
-                for sg2, e in ((1, "p"), (-1, "m")):
-                    etag = f"{tag}e{e}"
-                    tape.stage(f"UR: shoulder{a} elbow{e} wrist{c5}: joints 2, 3, 4")
-                    th2, th3 = elbow(self.ops, etag, t, kc, ks, bend, sg2, s.upper, s.lower)
-                    th4 = named(self.ops, f"th4_{etag}", phi - th2 - th3)
-                    sign = [float(x) for x in s.signs]
-                    angles = (
-                        q1,
-                        th2.scaled(sign[0]),
-                        th3.scaled(sign[1]),
-                        th4.scaled(sign[2]),
-                        q5,
-                        q6,
-                    )
-                    ok = sp.And(ok1, ok5, ok2)
-                    solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = Branch(angles, ok)
-        return solutions
-
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
         tape.stage("status flag: a non-finite pose")
         invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
-        recipe = RECIPES.get(type(s))
-        if recipe is not None:
-            solutions = recipe(self.ops, s)
-        else:  # ParallelTriple6R
-            solutions = self._parallel_triple()
+        solutions = RECIPES[type(s)](self.ops, s)
         q_out, valid_out, valid_flags = [], [], []
         for name in self.configs:
             angles, ok = solutions[name].values, solutions[name].ok

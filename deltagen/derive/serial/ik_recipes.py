@@ -40,10 +40,13 @@ the closed form has a real solution. The forward-kinematics check and the joint-
 are the back ends' own (the kernel evaluates the symbolic chain, the numpy solver the
 product of exponentials).
 
-Ported: ``gantry`` (model.structure.GantryArm) and ``planar`` (PlanarArm). The elbow arms,
-the UR family and the Stanford arm still have their steps written in both back-end modules
-(docs/architecture.md, "The closed-form inverse kinematics"); the helpers below
-(``cosine_law``, ``elbow``, ``wrist_angles``, ``sp1``) already serve the kernel's.
+Every structure of model.structure with a closed form has its recipe here (``RECIPES``):
+``planar``, ``gantry``, ``stanford``, ``elbow_arm`` (4R and 6R) and ``parallel_triple``
+(the UR family); docs/architecture.md, "The closed-form inverse kinematics". Two hooks let
+a back end differ where the other has no use for a step: ``rigid_target`` (above) and
+``wrist_flip(w5, w6, u, ref, B)``, whether the UR wrist's second branch may be taken as the
+first turned by pi (the SymPy back end proves it from the constants to save atan2 calls;
+the numpy back end computes every branch).
 """
 
 from __future__ import annotations
@@ -54,18 +57,27 @@ from typing import Any
 
 import numpy as np
 
-from deltagen.model.structure import Elbow4R, GantryArm, PlanarArm, SphericalWrist6R, StanfordArm
+from deltagen.model.structure import (
+    Elbow4R,
+    GantryArm,
+    ParallelTriple6R,
+    PlanarArm,
+    SphericalWrist6R,
+    StanfordArm,
+)
 
 WRIST_SINGULAR = 1e-12  # wrist singular when |(R_w w6) x w4| is below this
 
 
 @dataclass(frozen=True)
 class Angle:
-    """An angle with its cosine and sine (values of the back end)."""
+    """An angle with its cosine and sine (values of the back end); ``h``: for an angle
+    straight from atan2(y, x), hypot(x, y) (0 where the angle is undetermined)."""
 
     theta: Any
     c: Any
     s: Any
+    h: Any = None
 
     def __add__(self, other):
         return Angle(
@@ -146,7 +158,7 @@ def atan2(ops, name, y, x) -> Angle:
     the cosine and sine of 0 used by the rest of the branch and its check was returned
     as valid while missing the pose by up to 2 m."""
     c, s, h = direction(ops, name, y, x, with_h=True)
-    return Angle(ops.let(name, ops.select(ops.gt(h, 0), ops.atan2(y, x), 0)), c, s)
+    return Angle(ops.let(name, ops.select(ops.gt(h, 0), ops.atan2(y, x), 0)), c, s, h)
 
 
 def named(ops, name, a: Angle) -> Angle:
@@ -155,6 +167,34 @@ def named(ops, name, a: Angle) -> Angle:
 
 def constant_angle(ops, a: float) -> Angle:
     return Angle(ops.const(a), ops.const(math.cos(a)), ops.const(math.sin(a)))
+
+
+def cos_sin_eq(ops, name, A, B, C):
+    """A cos x + B sin x = C: the base angle atan2(B, A) and arccos(C / hypot(A, B)) as
+    Angles (the roots are base +- arccos), and whether a real root exists (to 1e-9; the
+    ratio clipped onto +-1 otherwise). A = B = 0 gives the ratio 0."""
+    base = atan2(ops, f"{name}_base", B, A)
+    r = ops.let(f"{name}_r", ops.sqrt(A * A + B * B))
+    ratio = ops.let(
+        f"{name}_ratio",
+        ops.select(ops.gt(r, 0), C / ops.let(f"{name}_den", ops.at_least(r, ops.tiny)), 0),
+    )
+    ok = ops.let(f"ok_{name}", ops.le(ops.abs(ratio), 1 + ops.slack))
+    kc = ops.let(f"{name}_kc", ops.at_most(ops.let(f"{name}_kc0", ops.at_least(ratio, -1)), 1))
+    ks = ops.let(f"{name}_ks", ops.sqrt(1 - kc * kc))
+    return base, Angle(ops.let(f"{name}_acos", ops.atan2(ks, kc)), kc, ks), ok
+
+
+def turned_by_pi(ops, name, a: Angle, turned) -> Angle:
+    """a + pi where ``turned`` holds, else a: the angle, cosine and sine negated, with no
+    atan2, sqrt or division (the joint-limit fit wraps the angle). For a subproblem-1
+    angle whose two components the caller has shown to be negated, atan2(-y, -x) =
+    atan2(y, x) + pi."""
+    return Angle(
+        ops.let(f"{name}_pi", ops.select(turned, a.theta + ops.pi, a.theta)),
+        ops.let(f"{name}_pi_c", ops.select(turned, -a.c, a.c)),
+        ops.let(f"{name}_pi_s", ops.select(turned, -a.s, a.s)),
+    )
 
 
 def sp1(ops, name, w, a, b) -> Angle:
@@ -173,6 +213,18 @@ def rotate_target(ops, axes, v):
     joints must produce)."""
     u = ops.vconst(axes.R0.T @ np.asarray(v, dtype=float))
     return tuple(dot(ops.R_t[r], u) for r in range(3))
+
+
+def rotate_target_values(ops, axes, v):
+    """R_G v = R_t R0^T v for a vector v of values."""
+    u = [sum(ops.const(axes.R0[r, c]) * v[r] for r in range(3)) for c in range(3)]
+    return tuple(dot(ops.R_t[r], u) for r in range(3))
+
+
+def unrotate_target_values(ops, axes, v):
+    """R_G^T v = R0 R_t^T v for a vector v of values."""
+    y = [sum(ops.R_t[r][c] * v[r] for r in range(3)) for c in range(3)]
+    return tuple(sum(ops.const(axes.R0[r, c]) * y[c] for c in range(3)) for r in range(3))
 
 
 def move_point(ops, axes, x):
@@ -556,10 +608,118 @@ def elbow_arm(ops, s: Elbow4R | SphericalWrist6R, position_only=False) -> dict:
     return solutions
 
 
+def parallel_triple(ops, s: ParallelTriple6R, position_only=False) -> dict:
+    """model.structure.ParallelTriple6R: axes 2, 3, 4 parallel (direction u), axes 5 and 6
+    meeting in P5 (the UR family; Pieper's class of three consecutive axes meeting at
+    infinity), G = e1 e2 e3 e4 e5 e6. Rotations about axes parallel to u keep the u
+    component of every point and vector and turn directions by the sum phi of their
+    angles about u. With M = e1^-1 G:
+
+    1. q1: P5 is fixed by e5 and e6, so u . (Rot(w1, -q1) (G P5 - o1)) = u . (P5 - o1):
+       A cos q1 + B sin q1 = C, two roots (``shoulder{p|m}``: + / - arccos);
+    2. q5: R_M w6 = Rot(u, phi) R5 w6, so u . Rot(w5, q5) w6 = u . R_M w6: two roots
+       (``wrist{p|m}``);
+    3. q6: Rot(w6, -q6) Rot(w5, -q5) u = R_M^T u (Paden-Kahan subproblem 1; 0 where both
+       sides lie along w6: the wrist singularity);
+    4. phi = angle about u of R_M R6^T R5^T; N = M e6^-1 e5^-1 = e2 e3 e4;
+    5. elbow: e2 e3 carry the point o4 of axis 4 to N o4 (planar 2R arm normal to u, law of
+       cosines, ``elbow{p|m}``); joint 4's angle about u is phi minus those of joints 2
+       and 3. Joint i's angle is its angle about u times signs[i].
+
+    2 x 2 x 2 = 8 branches. Where the back end shows the wrist flip from the constants
+    (``ops.wrist_flip``), the second wrist branch's q6 and phi are the first's turned by
+    pi, with no atan2 of their own. ``position_only`` does not apply (a 6R arm)."""
+    axes, K = s.axes, ops.const
+    d = axes.directions
+    w = [ops.vconst(x) for x in d]
+    o = [ops.vconst(x) for x in axes.points]
+    u, w1, w5, w6 = ops.vconst(s.u), w[0], w[4], w[5]
+    ops.stage("UR: q1 from u . Rot(w1, -q1) (G P5 - o1) = u . (P5 - o1)")
+    v = ops.vec("v_p5", add(move_point(ops, axes, s.wrist), scale(-1, o[0])))
+    w1v = ops.let("w1v", dot(w1, v))
+    A = dot(add(v, scale(-w1v, w1)), u)
+    B = -dot(cross(w1, v), u)
+    C = K(s.u @ (s.wrist - axes.points[0])) - K(s.u @ d[0]) * w1v
+    base1, acos1, ok1 = cos_sin_eq(ops, "q1eq", A, B, C)
+    w6n = d[5] - (d[5] @ d[4]) * d[4]
+    RGw6 = rotate_target(ops, axes, d[5])
+    flip = ops.wrist_flip(w5, w6, u, ops.vconst(s.ref), K(np.cross(d[4], d[5]) @ s.u))
+    sign = [float(x) for x in s.signs]
+    solutions = {}
+    for sg1, a in ((1, "p"), (-1, "m")):
+        tag1 = f"s{a}"
+        ops.stage(f"UR: shoulder{a}: q1, and q5 from u . Rot(w5, q5) w6 = u . R_M w6")
+        q1 = named(ops, f"q1_{tag1}", base1 + acos1.scaled(sg1))
+        h = dot(u, rotate(w1, q1.c, -q1.s, RGw6))
+        base5, acos5, ok5 = cos_sin_eq(
+            ops,
+            f"q5eq_{tag1}",
+            K(w6n @ s.u),
+            K(np.cross(d[4], d[5]) @ s.u),
+            h - K((s.u @ d[4]) * (d[4] @ d[5])),
+        )
+        b = ops.vec(f"b_{tag1}", unrotate_target_values(ops, axes, rotate(w1, q1.c, q1.s, u)))
+        ref = ops.vconst(s.ref)
+        first = None
+        for sg5, c5 in ((1, "p"), (-1, "m")):
+            tag = f"{tag1}w{c5}"
+            ops.stage(f"UR: shoulder{a} wrist{c5}: q5, q6 (Paden-Kahan 1), phi, N o4")
+            q5 = named(ops, f"q5_{tag}", base5 + acos5.scaled(sg5))
+            if first is not None and flip:
+                # the wrist flip (q5 -> -q5) turns q6 and phi by pi; where q6's two
+                # components vanish (the exact wrist singularity, sin q5 = 0) atan2 gives
+                # (0, 1, 0) for either sign and the vector phi is taken from is the same
+                # for both q5: neither is turned, as the second branch's own atan2 calls
+                # would have had it
+                first_tag, first_mq6, first_phi = first
+                turned = ops.gt(first_mq6.h, 0)
+                mq6 = turned_by_pi(ops, f"mq6_{first_tag}", first_mq6, turned)
+                q6 = mq6.scaled(-1)
+                phi = turned_by_pi(ops, f"phi_{first_tag}", first_phi, turned)
+            else:
+                avec = ops.vec(f"a_{tag}", rotate(w5, q5.c, -q5.s, u))
+                mq6 = sp1(ops, f"mq6_{tag}", w6, avec, b)
+                q6 = mq6.scaled(-1)
+                x = rotate(w6, q6.c, -q6.s, rotate(w5, q5.c, -q5.s, ref))
+                x = ops.vec(f"x_{tag}", rotate(w1, q1.c, -q1.s, rotate_target_values(ops, axes, x)))
+                phi = sp1(ops, f"phi_{tag}", u, ref, x)
+                first = (tag, mq6, phi)
+            y = add(rotate(w5, q5.c, -q5.s, add(o[3], scale(-1, o[4]))), o[4])
+            y = add(rotate(w6, q6.c, -q6.s, add(y, scale(-1, o[5]))), o[5])
+            y = ops.vec(f"y_{tag}", y)
+            Gy = add(
+                rotate_target_values(ops, axes, add(y, scale(-1, ops.vconst(axes.p0)))), ops.p_t
+            )
+            Ny = add(rotate(w1, q1.c, -q1.s, add(Gy, scale(-1, o[0]))), o[0])
+            dy = add(Ny, scale(-1, o[1]))
+            t = (
+                ops.let(f"t1_{tag}", dot(dy, ops.vconst(s.plane[0]))),
+                ops.let(f"t2_{tag}", dot(dy, ops.vconst(s.plane[1]))),
+            )
+            kc, ks, bend, ok2 = cosine_law(ops, tag, t, s.upper, s.lower)
+            for sg2, e in ((1, "p"), (-1, "m")):
+                etag = f"{tag}e{e}"
+                ops.stage(f"UR: shoulder{a} elbow{e} wrist{c5}: joints 2, 3, 4")
+                th2, th3 = elbow(ops, etag, t, kc, ks, bend, sg2, s.upper, s.lower)
+                th4 = named(ops, f"th4_{etag}", phi - th2 - th3)
+                angles = (
+                    q1,
+                    th2.scaled(sign[0]),
+                    th3.scaled(sign[1]),
+                    th4.scaled(sign[2]),
+                    q5,
+                    q6,
+                )
+                ok = ops.all(ok1, ok5, ok2)
+                solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = Branch(angles, ok)
+    return solutions
+
+
 RECIPES = {
     PlanarArm: planar,
     GantryArm: gantry,
     StanfordArm: stanford,
     Elbow4R: elbow_arm,
     SphericalWrist6R: elbow_arm,
+    ParallelTriple6R: parallel_triple,
 }
