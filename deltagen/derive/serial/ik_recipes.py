@@ -23,8 +23,8 @@ Python number); recipes combine values with ``+ - * /`` and call ``ops`` for the
 * ``sqrt``, ``atan2(y, x)``, ``abs``, ``fmax(x, 0)``, ``at_least(x, c)``, ``at_most(x, c)``
   (fmax / fmin against a nonzero constant), ``select(cond, a, b)`` (a where cond, else b);
 * conditions: ``ge``, ``le``, ``gt``, ``lt``, ``all(*conds)``, ``not_(c)``, ``true``;
-* the named constants ``slack`` (how far a cosine may pass +-1, a square 0: 1e-9) and
-  ``tiny`` (the floor of a divisor that may vanish);
+* the named constants ``pi``, ``slack`` (how far a cosine may pass +-1, a square 0: 1e-9)
+  and ``tiny`` (the floor of a divisor that may vanish);
 * ``rigid_target()``: whether the target rotation is orthonormal and right-handed (the 2R
   gantry head's check; the kernel tests it with the closed form, the numpy solver in its
   forward-kinematics check).
