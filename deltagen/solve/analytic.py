@@ -132,7 +132,7 @@ import math
 
 import numpy as np
 
-from deltagen.derive.serial.ik_recipes import RECIPES, WRIST_SINGULAR, Angle
+from deltagen.derive.serial.ik_recipes import RECIPES, SLACK, TINY, WRIST_SINGULAR, Angle
 from deltagen.geometry.limits import fit_limits
 from deltagen.inputs import InputError, as_float_array, check_real
 from deltagen.model.serial import SerialDescription
@@ -291,8 +291,8 @@ class _NumpyOps:
 
     true = True
     pi = math.pi
-    slack = 1e-9
-    tiny = 1e-300
+    slack = SLACK
+    tiny = TINY
     sqrt = staticmethod(np.sqrt)
     number = staticmethod(float)
     atan2 = staticmethod(np.arctan2)

@@ -66,6 +66,8 @@ from deltagen.derive.functions import AllFinite, Fabs, FitAngle, Floor, Fmax, Fm
 from deltagen.derive.kernel import Kernel, Port, Stage
 from deltagen.derive.serial.ik_recipes import (
     RECIPES,
+    SLACK,
+    TINY,
     Angle,
     add,
     cross,
@@ -100,7 +102,7 @@ _CONSTANTS = Stage(
     "named constants: ik_tol, the accepted forward-kinematics residual (relative to the "
     "arm's size for positions); ik_slack, how far a cosine may pass +-1 (or a square below "
     "0) and still count as met; ik_tiny, the floor of a divisor that may vanish",
-    ((ik_tol, sp.Float(TOL)), (ik_slack, sp.Float(1e-9)), (ik_tiny, sp.Float(1e-300))),
+    ((ik_tol, sp.Float(TOL)), (ik_slack, sp.Float(SLACK)), (ik_tiny, sp.Float(TINY))),
 )
 
 

@@ -67,6 +67,8 @@ from deltagen.model.structure import (
 )
 
 WRIST_SINGULAR = 1e-12  # wrist singular when |(R_w w6) x w4| is below this
+SLACK = 1e-9  # ops.slack: how far a cosine may pass +-1 (a square 0) and still count as met
+TINY = 1e-300  # ops.tiny: the floor of a divisor that may vanish
 
 
 @dataclass(frozen=True)
