@@ -10,8 +10,10 @@ Method (geometric, product of exponentials). The structure and every constant of
 form come from :func:`deltagen.model.structure.detect` (the joint axes at q = 0 -- unit
 direction ``w_i`` and a point ``o_i`` in the world frame, composed from the description's own
 transforms; the joint offsets are part of the q = 0 pose -- and the frames, plane vectors and
-branch signs of each structure); the C kernel emitter
-(:mod:`deltagen.derive.serial.ik_closed_form`) reads the same object. Every arm satisfies
+branch signs of each structure). The steps are the structure's recipe in
+:mod:`deltagen.derive.serial.ik_recipes`, written once: run here on numpy arrays
+(``_NumpyOps``) and by the C kernel emitter (:mod:`deltagen.derive.serial.ik_closed_form`)
+as SymPy statements. Every arm satisfies
 
     T(q) = exp(xi_1 q_1) ... exp(xi_n q_n) T(0)
 
@@ -69,6 +71,15 @@ Supported structures
     slides then reach the tool point by a 3 x 3 linear solve. The 5-axis head's ``valid``
     checks the tool point and the tool z axis: the rotation about the tool axis is free.
 
+``parallel_triple_6r`` -- the UR family: axes 2, 3, 4 parallel, axes 5 and 6 meeting
+    (``ik_recipes.parallel_triple``: q1 and q5 from A cos x + B sin x = C, q6 and the sum
+    phi of joints 2-4 by subproblem 1, the elbow by the law of cosines); eight branches
+    ``shoulder{p|m}_elbow{p|m}_wrist{p|m}``.
+
+``stanford_rrp_6`` -- R R P and a central wrist (``ik_recipes.stanford``: q3 from a
+    quadratic, q1 and q2 by subproblem 2, the central wrist); eight branches
+    ``reach{p|m}_shoulder{p|m}_{noflip|flip}``.
+
 ``reversed_spherical_wrist_6r`` / ``reversed_parallel_triple_6r`` -- a 6R chain whose first
     three axes meet (a humanoid's hip) or whose first two meet and axes 3, 4, 5 are parallel:
     read backwards (model/structure.py ``reversed_description``: T'(q_6, ..., q_1) = T(q)^-1)
@@ -116,28 +127,24 @@ point on the last axis for the 3R SCARA and the 4R arm (raises InputError otherw
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from deltagen.derive.serial.ik_recipes import RECIPES, SLACK, TINY, WRIST_SINGULAR, Angle
 from deltagen.geometry.limits import fit_limits
-from deltagen.geometry.rotations import rotate as _rotv
-from deltagen.geometry.rotations import rotate2d as _rot2
 from deltagen.inputs import InputError, as_float_array, check_real
 from deltagen.model.serial import SerialDescription
 from deltagen.model.structure import (
     GantryArm,
-    ParallelTriple6R,
-    PlanarArm,
     ReversedChain,
-    StanfordArm,
     Structure,
     detect,
 )
 
 __all__ = ["AnalyticSolver", "ReversedSolver", "analytic_solver", "solver_for", "WRIST_SINGULAR"]
 
-WRIST_SINGULAR = 1e-12  # wrist singular when |(R_w w6) x w4| is below this
 _CHUNK = 8192  # poses per pass (keeps the temporaries in cache)
 
 
@@ -148,39 +155,6 @@ def _cross(a, b) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-def _sp1(w, a, b) -> np.ndarray:
-    """Paden-Kahan subproblem 1: the angle about the unit axis w that turns the component
-    of a normal to w into the direction of that of b (atan2(0, 0) = 0 if either is 0)."""
-    a = a - (a @ w)[..., None] * w
-    b = b - (b @ w)[..., None] * w
-    return np.arctan2(_cross(a, b) @ w, np.sum(a * b, axis=-1))
-
-
-def _cross2(a, b) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-
-
-def _angle2(v) -> np.ndarray:
-    return np.arctan2(v[..., 1], v[..., 0])
-
-
-def _two_link(uu, vv, t, sigma):
-    """Planar 2R arm: first axis at the origin, second at uu, the point at uu + vv (q = 0).
-    Find (th1, th2) with R(th1) (uu + R(th2) vv) = t; sigma = +-1 picks the branch
-    (sin of the bend angle th2 + angle(vv) - angle(uu) has the sign of sigma).
-    t (..., 2), sigma broadcastable to t[..., 0]. Returns th1, th2, ok (law of cosines met
-    to 1e-9; th values clipped onto the nearest real solution otherwise)."""
-    lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
-    kappa = (np.sum(t * t, axis=-1) - lu * lu - lv * lv) / (2.0 * lu * lv)
-    ok = np.abs(kappa) <= 1.0 + 1e-9
-    kc = np.clip(kappa, -1.0, 1.0)
-    bend = sigma * np.arctan2(np.sqrt(1.0 - kc * kc), kc)
-    th2 = _angle2(uu) - _angle2(vv) + bend
-    m = uu + _rot2(th2, np.broadcast_to(vv, th2.shape + (2,)))
-    th1 = np.arctan2(_cross2(m, t), np.sum(m * t, axis=-1))
-    return th1, th2, ok
 
 
 # ----------------------------------------------------------------------- the solvers
@@ -310,362 +284,95 @@ class AnalyticSolver:
         raise NotImplementedError
 
 
-class _PlanarSolver(AnalyticSolver):
-    """model.structure.PlanarArm (planar 2R arm for the point P, roll, lift)."""
+class _NumpyOps:
+    """The numpy back end of the recipes (derive/serial/ik_recipes.py): a value is an array
+    over the poses of a chunk (one per branch), names and stages are dropped, the
+    structure's constants are used as they are."""
+
+    true = True
+    pi = math.pi
+    slack = SLACK
+    tiny = TINY
+    sqrt = staticmethod(np.sqrt)
+    number = staticmethod(float)
+    atan2 = staticmethod(np.arctan2)
+    abs = staticmethod(np.abs)
+    fmax = staticmethod(np.fmax)
+    select = staticmethod(np.where)
+    ge, le, gt, lt = (
+        staticmethod(f) for f in (np.greater_equal, np.less_equal, np.greater, np.less)
+    )
+    not_ = staticmethod(np.logical_not)
+
+    def __init__(self, R_t, p_t):
+        self.R_t = [[R_t[:, r, c] for c in range(3)] for r in range(3)]
+        self.p_t = tuple(p_t[:, r] for r in range(3))
+
+    @staticmethod
+    def const(x):
+        return float(x)
+
+    @staticmethod
+    def vconst(v):
+        return tuple(float(x) for x in v)
+
+    def stage(self, comment):
+        pass
+
+    @staticmethod
+    def let(name, value):
+        return value
+
+    @staticmethod
+    def vec(name, v):
+        return tuple(v)
+
+    @staticmethod
+    def at_least(x, c):
+        return np.where(x > c, x, c)
+
+    @staticmethod
+    def at_most(x, c):
+        return np.where(x < c, x, c)
+
+    @staticmethod
+    def all(*conds):
+        return functools.reduce(np.logical_and, conds)
+
+    @staticmethod
+    def rigid_target():
+        return True  # the 2R head's rigidity is checked with its forward kinematics
+
+    @staticmethod
+    def wrist_flip(*constants):
+        return False  # every wrist branch takes its own angles
+
+
+class _RecipeSolver(AnalyticSolver):
+    """A structure whose closed form is a recipe of derive/serial/ik_recipes.py (RECIPES),
+    run on numpy arrays, one branch after another."""
 
     def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        E, A, P = s.plane, s.first_xy, s.point
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        P_t = p_t if position_only else np.einsum("nij,j->ni", R_G, P) + p_G
-        h = (P_t - P) @ s.u  # travel along u
-        t = P_t @ E.T - A  # (N, 2)
-        g1 = R_G @ E[0]
-        yaw = np.arctan2(g1 @ E[1], g1 @ E[0])  # rotation about u
-        sigma = np.array(s.bend_signs)
-        th1, th2, ok = _two_link(s.upper, s.lower, t[:, None, :], sigma[None, :])
-        ok = np.broadcast_to(ok, th1.shape)
-        if s.roll is None and not position_only:
-            # Paul's method (slides 103-105): psi from the target rotation, the second axis
-            # from the target pose; the pose fixes the elbow, the other branch stays empty.
-            B_t = np.einsum("nij,j->ni", R_G, ax.points[s.second]) + p_G
-            tb = B_t @ E.T - A
-            p1 = _angle2(tb) - _angle2(s.upper)
-            p2 = yaw - p1
-            bend = np.sin(p2 + _angle2(s.lower) - _angle2(s.upper))
-            down = bend >= 0.0
-            th1 = np.stack([np.where(down, np.nan, p1), np.where(down, p1, np.nan)], axis=1)
-            th2 = np.stack([np.where(down, np.nan, p2), np.where(down, p2, np.nan)], axis=1)
-            ok = np.isfinite(th1)
-        q = np.zeros((N, 2, self.n))
-        sign = s.signs
-        q[:, :, s.first] = sign[s.first] * th1
-        q[:, :, s.second] = sign[s.second] * th2
-        if s.roll is not None:
-            q[:, :, s.roll] = sign[s.roll] * (yaw[:, None] - th1 - th2)
-        if s.lift is not None:
-            q[:, :, s.lift] = sign[s.lift] * h[:, None]
+        N, k, n = R_t.shape[0], len(self.configs), self.n
+        recipe = RECIPES[type(self.detected)]
+        with np.errstate(all="ignore"):
+            branches = recipe(_NumpyOps(R_t, p_t), self.detected, position_only)
+        q = np.empty((N, k, n))
+        ok = np.empty((N, k), dtype=bool)
+        for j, name in enumerate(self.configs):
+            branch = branches[name]
+            for i, value in enumerate(branch.values):
+                q[:, j, i] = value.theta if isinstance(value, Angle) else value
+            ok[:, j] = branch.ok
+            if branch.empty is not None:
+                q[branch.empty, j] = np.nan
         return q, ok
 
 
-class _ElbowSolver(AnalyticSolver):
-    """model.structure.Elbow4R and SphericalWrist6R (joints 1-3 place the wrist point)."""
-
-    def _arm(self, W_t, R_G=None, position_only=True):
-        """Joints 1-3 placing the point W at W_t (N, 3) for the 4 arm branches:
-        (q1, th2, th3 (rotation angles about w2), ok), each (N, 4)."""
-        s, ax = self.detected, self.axes
-        o1 = ax.points[0]
-        d = W_t - o1
-        px, py, pz = d @ s.ex, d @ s.ey, d @ s.ez
-        yV = (s.w2_offset - s.cos_12 * pz) / s.sin_12
-        rad = px * px + py * py - yV * yV
-        ok1 = rad >= -1e-9 * ax.scale**2
-        xV = s.front[None, :] * np.sqrt(np.maximum(rad, 0.0))[:, None]  # (N, 4)
-        yVb = np.broadcast_to(yV[:, None], xV.shape)
-        q1 = np.arctan2(py, px)[:, None] - np.arctan2(yVb, xV)
-        # wrist point on axis 1 (shoulder singularity, no shoulder offset): any q1 serves;
-        # take 0 for the front branches and -pi for the back ones
-        on_axis = px * px + py * py < (1e-12 * ax.scale) ** 2
-        q1 = np.where(on_axis[:, None], np.where(s.front > 0, 0.0, -math.pi), q1)
-        # wrist target in the arm frame (q1 undone), in plane coordinates
-        V = o1 + xV[..., None] * s.ex + yVb[..., None] * s.ey + pz[:, None, None] * s.ez
-        t = V @ s.plane.T - s.shoulder_xy
-        th2, th3, ok2 = _two_link(s.upper, s.lower, t, s.bend[None, :])
-        ok = ok1[:, None] & np.broadcast_to(ok2, th2.shape)
-        if R_G is not None and not position_only:
-            # 4R with the pose given: th2 + th3 from the direction of axis 4 (Paul's method).
-            w1, w2, w4 = ax.directions[0], ax.directions[1], ax.directions[3]
-            d4 = np.broadcast_to((R_G @ w4)[:, None, :], xV.shape + (3,))
-            d4 = _rotv(w1, -q1, d4)
-            tot = _sp1(w2, w4, d4)
-            p2 = _angle2(t - _rot2(tot, np.broadcast_to(s.lower, t.shape))) - _angle2(s.upper)
-            p3 = tot - p2
-            bend = np.sign(np.sin(p3 + _angle2(s.lower) - _angle2(s.upper)))
-            bend = np.where(bend == 0.0, 1.0, bend)
-            mine = bend == s.bend[None, :]
-            th2 = np.where(mine, p2, np.nan)
-            th3 = np.where(mine, p3, np.nan)
-            # a branch whose twin took the solution stays empty; keep the other shoulder
-            ok = ok1[:, None] & mine
-        return q1, th2, th3, ok
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w = ax.directions
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        if self.n == 4:
-            W_t = p_t if position_only else np.einsum("nij,j->ni", R_G, s.wrist) + p_G
-            q1, th2, th3, ok = self._arm(W_t, R_G, position_only)
-            tot = th2 + th3
-            # roll: (R1 R23)^T R_G x4 = Rot(w4, q4) x4
-            y = np.broadcast_to((R_G @ s.roll_ref)[:, None, :], q1.shape + (3,))
-            y = _rotv(w[1], -tot, _rotv(w[0], -q1, y))
-            q4 = _sp1(w[3], s.roll_ref, y)
-            q = np.stack([q1, th2, s.sign3 * th3, q4], axis=-1)
-            return q, ok
-        W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
-        q1, th2, th3, ok = self._arm(W_t)
-        tot = th2 + th3
-
-        # wrist rotation R_w = (R1 R23)^T R_G, applied to w6 and x6
-        def undo(v):
-            v = np.broadcast_to(v[:, None, :], q1.shape + (3,))
-            return _rotv(w[1], -tot, _rotv(w[0], -q1, v))
-
-        qv = undo(R_G @ w[5])  # R_w w6           (N, 4, 3)
-        qx = undo(R_G @ s.wrist_ref)  # R_w x6
-        q4, q5, q6, okw = _central_wrist(s, w, qv, qx)
-        rep = lambda a: np.broadcast_to(a[..., None], q5.shape)  # noqa: E731
-        q = np.stack([rep(q1), rep(th2), rep(s.sign3 * th3), q4, q5, q6], axis=-1)
-        q = q.reshape(N, 8, 6)
-        okk = (ok[..., None] & okw[..., None]) & np.ones(2, dtype=bool)
-        return q, okk.reshape(N, 8)
-
-
-def _central_wrist(s, w, qv, qx):
-    """q4, q5, q6 (..., 2: noflip, flip) and ok (...) of a central wrist whose rotation R_w
-    (the part of the target rotation left to joints 4-6) takes w6 to qv and the reference
-    s.wrist_ref to qx (both (..., 3)); Paden-Kahan subproblem 2 for q4, q5, subproblem 1
-    for q6 (module docstring, spherical_wrist_6r)."""
-    w4, w5, w6 = w[3], w[4], w[5]
-    c12 = s.cos_45
-    s2 = 1.0 - c12 * c12
-    a_q = qv @ w4
-    b_p = s.cos_56
-    alpha = (a_q - c12 * b_p) / s2
-    beta = (b_p - c12 * a_q) / s2
-    perp = _cross(qv, w4)
-    gam2 = np.sum(perp * perp, axis=-1) / s2 - beta * beta
-    okw = gam2 >= -1e-9
-    gam = np.sqrt(np.maximum(gam2, 0.0))
-    n45 = s.normal_45
-    sig = np.array([1.0, -1.0])  # noflip, flip: sin(q5 - q5s) has the sign of -sig
-    c = (
-        alpha[..., None, None] * w4
-        + beta[..., None, None] * w5
-        + (sig[:, None] * gam[..., None, None]) * n45
-    )  # (N, 4, 2, 3)
-    q5 = _sp1(w5, w6, c)
-    qv2 = np.broadcast_to(qv[:, :, None, :], c.shape)
-    q4 = _sp1(w4, c, qv2)
-    singular = np.linalg.norm(perp, axis=-1) < WRIST_SINGULAR
-    q4 = np.where(singular[..., None], 0.0, q4)
-    # q6: Rot(w6, q6) x6 = Rot(w5, -q5) Rot(w4, -q4) R_w x6
-    y = _rotv(w5, -q5, _rotv(w4, -q4, np.broadcast_to(qx[:, :, None, :], c.shape)))
-    q6 = _sp1(w6, s.wrist_ref, y)
-    return q4, q5, q6, okw
-
-
-def _cos_sin_eq(A, B, C, sigma):
-    """The angles x with A cos x + B sin x = C, one per sign sigma (+-1, broadcast):
-    atan2(B, A) + sigma arccos(C / hypot(A, B)), and ok (a real solution within 1e-9;
-    clipped onto the nearest real one otherwise). A = B = 0 (any x, when C = 0) gives x = 0."""
-    r = np.hypot(A, B)
-    ratio = np.where(r > 0.0, C / np.where(r > 0.0, r, 1.0), 0.0)
-    ok = np.abs(ratio) <= 1.0 + 1e-9
-    x = np.arctan2(B, A)[..., None] + sigma * np.arccos(np.clip(ratio, -1.0, 1.0))[..., None]
-    return x, np.broadcast_to(ok[..., None], x.shape)
-
-
-class _ParallelTripleSolver(AnalyticSolver):
-    """model.structure.ParallelTriple6R: axes 2, 3, 4 parallel (direction u), axes 5 and 6
-    meeting in P5 (the UR family). Pieper's solvable class of three consecutive axes meeting
-    at infinity; written here in the product of exponentials (module docstring),
-    G = e1 e2 e3 e4 e5 e6, e_i = exp(xi_i q_i). Rotations about axes parallel to u keep
-    the u component of every point and vector, and turn directions by the sum phi of their
-    angles about u. Hence, with M = e1^-1 G:
-
-    1. q1: P5 is fixed by e5 and e6, so G P5 = e1 e2 e3 e4 P5 and
-       u . (Rot(w1, -q1) (G P5 - o1)) = u . (P5 - o1): A cos q1 + B sin q1 = C, two roots
-       (``shoulder{p|m}``: + / - arccos).
-    2. q5: R_M w6 = Rot(u, phi) R5 w6, so u . Rot(w5, q5) w6 = u . R_M w6: two roots
-       (``wrist{p|m}``).
-    3. q6: Rot(w6, -q6) Rot(w5, -q5) u = R_M^T u (Paden-Kahan subproblem 1; 0 where both
-       sides lie along w6: the wrist singularity, q4 + q6 ... take the whole turn).
-    4. phi = angle about u of R_M R6^T R5^T; N = M e6^-1 e5^-1 = e2 e3 e4.
-    5. elbow: e2 e3 carry the point o4 of axis 4 to N o4 (planar 2R arm normal to u, law of
-       cosines, two bends ``elbow{p|m}``); then the angle of joint 4 about u is phi minus
-       those of joints 2 and 3. Joint i's angle is its angle about u times signs[i].
-
-    2 x 2 x 2 = 8 branches; every one is checked by the forward kinematics (solve). The same
-    steps are emitted as C (derive/serial/ik_closed_form.py, IKKernelBuilder._parallel_triple)."""
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w, o = ax.directions, ax.points
-        u = s.u
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        pm = np.array([1.0, -1.0])
-        # 1. q1 (N, 2)
-        v = np.einsum("nij,j->ni", R_G, s.wrist) + p_G - o[0]
-        w1 = w[0]
-        v_par = (v @ w1)[:, None] * w1
-        A = (v - v_par) @ u
-        B = -(_cross(np.broadcast_to(w1, v.shape), v) @ u)
-        C = (s.wrist - o[0]) @ u - (u @ w1) * (v @ w1)
-        q1, ok1 = _cos_sin_eq(A, B, C, pm)
-        # M = e1^-1 G: rotation R_M, translation (a point x maps to R_M x + t_M)
-        R1i = _rot_mats(w1, -q1)  # (N, 2, 3, 3)
-        R_M = R1i @ R_G[:, None]
-        # (a point x: e1^-1 (R_G x + p_G) = Rot(-q1)(R_G x + p_G - o1) + o1)
-        t_M = np.einsum("nkij,nj->nki", R1i, p_G - o[0]) + o[0]
-        # 2. q5 (N, 2, 2)
-        w5, w6 = w[4], w[5]
-        h = np.einsum("nkij,j->nki", R_M, w6) @ u
-        w6p = w6 - (w6 @ w5) * w5
-        q5, ok5 = _cos_sin_eq(
-            np.full(h.shape, w6p @ u),
-            np.full(h.shape, np.cross(w5, w6) @ u),
-            h - (u @ w5) * (w5 @ w6),
-            pm,
-        )
-        # 3. q6: Rot(w6, -q6) a = b, a = Rot(w5, -q5) u, b = R_M^T u
-        a = _rotv(w5, -q5, np.broadcast_to(u, q5.shape + (3,)))
-        b = np.einsum("nkji,j->nki", R_M, u)
-        b = np.broadcast_to(b[:, :, None, :], a.shape)
-        q6 = -_sp1(w6, a, b)
-        # 4. phi, N = M e6^-1 e5^-1
-        x = _rotv(w6, -q6, _rotv(w5, -q5, np.broadcast_to(s.ref, a.shape)))
-        x = np.einsum("nkij,nkmj->nkmi", R_M, x)
-        phi = _sp1(u, s.ref, x)
-        # N o4 = M (e6^-1 e5^-1 o4); e^-1 x = Rot(w, -q)(x - o) + o
-        o4 = o[3]
-        y = _rotv(w5, -q5, np.broadcast_to(o4 - o[4], a.shape)) + o[4]
-        y = _rotv(w6, -q6, y - o[5]) + o[5]
-        y = np.einsum("nkij,nkmj->nkmi", R_M, y) + t_M[:, :, None, :]
-        # 5. elbow: planar 2R about axes 2, 3 taking o4 to y (N, 2, 2, 2)
-        t = (y - o[1]) @ s.plane.T
-        t = np.broadcast_to(t[..., None, :], t.shape[:-1] + (2, 2))
-        th2, th3, ok23 = _two_link(s.upper, s.lower, t, pm)
-        th4 = phi[..., None] - th2 - th3
-        rep = lambda z: np.broadcast_to(z, th2.shape)  # noqa: E731
-        q = np.stack(
-            [
-                rep(q1[:, :, None, None]),
-                s.signs[0] * th2,
-                s.signs[1] * th3,
-                s.signs[2] * th4,
-                rep(q5[..., None]),
-                rep(q6[..., None]),
-            ],
-            axis=-1,
-        )  # (N, shoulder, wrist, elbow, 6)
-        ok = ok1[:, :, None, None] & ok5[..., None] & np.broadcast_to(ok23, th2.shape)
-        # branch order: shoulder, elbow, wrist (configs)
-        q = q.transpose(0, 1, 3, 2, 4).reshape(N, 8, 6)
-        ok = np.broadcast_to(ok, th2.shape).transpose(0, 1, 3, 2).reshape(N, 8)
-        return q, ok
-
-
-class _StanfordSolver(AnalyticSolver):
-    """model.structure.StanfordArm: R R P and a central wrist W (product of exponentials,
-    G = e1 e2 e3 e4 e5 e6). e4 e5 e6 fix W and e3 slides it by q3 w3, so G W = e1 e2 (W +
-    q3 w3); e1, e2 turn about axes through c and keep distances to c:
-
-    1. q3: |W + q3 w3 - c|^2 = |G W - c|^2, a quadratic (``reach{p|m}``: + / - root);
-    2. q1, q2: e1 e2 x = G W with x = W + q3 w3 (Paden-Kahan subproblem 2 about the
-       intersecting axes 1 and 2, two solutions ``shoulder{p|m}``);
-    3. q4, q5, q6: the central wrist of spherical_wrist_6r for R_w = (R1 R2)^T R_G
-       (``noflip`` / ``flip``).
-
-    2 x 2 x 2 = 8 branches, each checked by the forward kinematics (solve)."""
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w = ax.directions
-        N = R_t.shape[0]
-        R_G, p_G = self._goal(R_t, p_t)
-        c = s.shoulder
-        W_t = np.einsum("nij,j->ni", R_G, s.wrist) + p_G
-        pm = np.array([1.0, -1.0])
-        # 1. q3 (N, 2)
-        b = w[2] @ (s.wrist - c)
-        disc = b * b - (s.wrist - c) @ (s.wrist - c) + np.sum((W_t - c) ** 2, axis=-1)
-        ok3 = disc >= -1e-9 * ax.scale**2
-        q3 = -b + pm * np.sqrt(np.maximum(disc, 0.0))[:, None]
-        # 2. subproblem 2: e1(q1) e2(q2) u = v about c, u = x - c, v = W_t - c
-        w1, w2 = w[0], w[1]
-        u = (s.wrist - c) + q3[..., None] * w[2]  # (N, 2, 3)
-        v = np.broadcast_to((W_t - c)[:, None, :], u.shape)
-        c12 = w1 @ w2
-        den = c12 * c12 - 1.0
-        alpha = (c12 * (w2 @ u.transpose(0, 2, 1)) - (v @ w1)) / den
-        beta = (c12 * (v @ w1) - (w2 @ u.transpose(0, 2, 1))) / den
-        n12 = np.cross(w1, w2)
-        g2 = (np.sum(u * u, axis=-1) - alpha**2 - beta**2 - 2 * alpha * beta * c12) / (n12 @ n12)
-        ok2 = g2 >= -1e-9
-        g = np.sqrt(np.maximum(g2, 0.0))
-        z = (
-            alpha[..., None, None] * w1
-            + beta[..., None, None] * w2
-            + (pm[:, None] * g[..., None, None]) * n12
-        )  # (N, reach, shoulder, 3)
-        q2 = _sp1(w2, np.broadcast_to(u[:, :, None, :], z.shape), z)
-        q1 = _sp1(w1, z, np.broadcast_to(v[:, :, None, :], z.shape))
-        # 3. wrist: R_w = R2^T R1^T R_G applied to w6 and the reference
-        q1f, q2f = q1.reshape(N, 4), q2.reshape(N, 4)
-
-        def undo(vec):
-            vec = np.broadcast_to(vec[:, None, :], (N, 4, 3))
-            return _rotv(w2, -q2f, _rotv(w1, -q1f, vec))
-
-        qv, qx = undo(R_G @ w[5]), undo(R_G @ s.wrist_ref)
-        q4, q5, q6, okw = _central_wrist(s, w, qv, qx)
-        rep = lambda a: np.broadcast_to(a[..., None], q5.shape)  # noqa: E731
-        q3f = np.repeat(q3, 2, axis=1)  # (N, 4): reach outer, shoulder inner
-        q = np.stack([rep(q1f), rep(q2f), rep(q3f), q4, q5, q6], axis=-1).reshape(N, 8, 6)
-        ok = np.repeat(ok3[:, None], 4, axis=1) & np.repeat(ok2, 2, axis=1) & okw
-        return q, (ok[..., None] & np.ones(2, dtype=bool)).reshape(N, 8)
-
-
-class _GantrySolver(AnalyticSolver):
-    """model.structure.GantryArm: slides 1-3, then a 3R wrist, a 2R head or one rotary axis
-    (product of exponentials, G = T_target T(0)^-1 = Trans(q1 w1 + q2 w2 + q3 w3) e4 ... en):
-
-    1. the wrist from the rotation R_G alone (the slides turn nothing): 3R -- the central
-       wrist's q4, q5 (subproblem 2 for R_G w6) and q6 (subproblem 1), ``noflip`` / ``flip``;
-       2R head -- Rot(w4, q4) Rot(w5, q5) z(0) = R_G z(0) = z_t by subproblem 2 (the same
-       step with w6 replaced by the tool axis z(0)), ``noflip`` / ``flip``; 1R -- q4 by
-       subproblem 1 about w4 on a reference normal to it (``single``). Where the target
-       direction lies along w4 (wrist / head singularity) q4 is 0 and q6 (3R) takes the turn;
-    2. the tool point g at q = 0 carried by the wrist (e_n first, then ... e4: turns about
-       their axes' points), and the slides q1..q3 = slide_inverse (p_t - g).
-
-    ``valid`` checks the whole pose for the 3R wrist and the 1R (a tilted target is not
-    reachable by the palletiser), the tool point and the tool z axis for the 2R head."""
-
-    def _solve(self, R_t, p_t, position_only):
-        s, ax = self.detected, self.axes
-        w, o = ax.directions, ax.points
-        N, n = R_t.shape[0], self.n
-        R_G = R_t @ ax.R0.T
-        k = len(self.configs)
-        q = np.zeros((N, k, n))
-        if n == 4:
-            y = R_G @ s.wrist_ref
-            q[:, 0, 3] = _sp1(w[3], s.wrist_ref, y)
-            ok = np.ones((N, 1), dtype=bool)
-        else:
-            ww = [None, None, None, w[3], w[4], s.carried]  # the carried vector as 'w6'
-            qv = (R_G @ s.carried)[:, None, :]  # (N, 1, 3)
-            qx = (R_G @ s.wrist_ref)[:, None, :]
-            q4, q5, q6, okw = _central_wrist(s, ww, qv, qx)
-            q[:, :, 3], q[:, :, 4] = q4[:, 0], q5[:, 0]
-            if n == 6:
-                q[:, :, 5] = q6[:, 0]
-            ok = np.broadcast_to(okw, (N, k)).copy()
-            if position_only:
-                ok[:] = True  # the head's tool axis as near as it goes (gamma clipped to 0)
-        # the tool point carried by the wrist, then the slides
-        g = np.broadcast_to(ax.p0, (N, k, 3))
-        for i in range(n - 1, 2, -1):
-            g = _rotv(w[i], q[:, :, i], g - o[i]) + o[i]
-        q[:, :, :3] = (p_t[:, None, :] - g) @ s.slide_inverse.T
-        return q, ok
+class _GantrySolver(_RecipeSolver):
+    """model.structure.GantryArm (the recipe ik_recipes.gantry). ``valid`` checks the whole
+    pose for the 3R wrist and the 1R (a tilted target is not reachable by the palletiser),
+    the tool point and the tool z axis for the 2R head."""
 
     def _reproduces(self, T, q, ok, position_only, tol):
         if self.detected.full_pose or position_only:
@@ -730,13 +437,6 @@ def invert(T):
     return out
 
 
-def _rot_mats(w, angle):
-    """Rotation matrices (..., 3, 3) about the unit axis w by ``angle`` (...) (Rodrigues)."""
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    c, s = np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
-
-
 def solver_for(
     detected: Structure | None, description: SerialDescription | None = None
 ) -> AnalyticSolver | None:
@@ -745,16 +445,10 @@ def solver_for(
         return None
     if isinstance(detected, ReversedChain):
         return ReversedSolver(detected, description)
-    if isinstance(detected, PlanarArm):
-        cls: type[AnalyticSolver] = _PlanarSolver
-    elif isinstance(detected, ParallelTriple6R):
-        cls = _ParallelTripleSolver
-    elif isinstance(detected, StanfordArm):
-        cls = _StanfordSolver
-    elif isinstance(detected, GantryArm):
-        cls = _GantrySolver
+    if isinstance(detected, GantryArm):
+        cls: type[AnalyticSolver] = _GantrySolver
     else:
-        cls = _ElbowSolver
+        cls = _RecipeSolver
     return cls(detected, description)
 
 

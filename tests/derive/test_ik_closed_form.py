@@ -1,9 +1,12 @@
 """The closed-form IK emitted as C (deltagen/derive/serial/ik_closed_form.py, `deltagen_<arm>_ik_all`).
 
-Evidence: the numpy solver of ik_analytic (written independently, on the product-of-
-exponentials model) through the reference backend; forward kinematics of every valid
-branch; the configuration the pose was made from among the valid branches; the C alone
-under ASan/UBSan on poses with NaN, infinite, unreachable and non-rigid rows."""
+Evidence: the numpy solver of solve/analytic.py through the reference backend (the same
+recipe, derive/serial/ik_recipes.py, on numpy arrays, but its own forward-kinematics check
+on the product-of-exponentials model and its own limits fit: this compares the back ends,
+not the closed form); forward kinematics of every valid branch and the configuration the
+pose was made from among the valid branches (independent of the recipe: a wrong step in it
+fails here and in tests/solve); the C alone under ASan/UBSan on poses with NaN, infinite,
+unreachable and non-rigid rows."""
 
 from __future__ import annotations
 

@@ -205,7 +205,7 @@ def _flip_decision(desc):
     K, ax = b.const, s.axes
     w = [K.vec(x) for x in ax.directions]
     B = K(np.cross(ax.directions[4], ax.directions[5]) @ s.u)
-    return b._wrist_flip(w[4], w[5], K.vec(s.u), K.vec(s.ref), B)
+    return b.ops.wrist_flip(w[4], w[5], K.vec(s.u), K.vec(s.ref), B)
 
 
 def _flip_holds_in_numpy(arm):
@@ -226,9 +226,10 @@ def _flip_holds_in_numpy(arm):
 
 
 def test_wrist_flip_shortcut_is_taken_exactly_where_the_numpy_branches_show_it():
-    """IKKernelBuilder._wrist_flip (a symbolic identity on the arm's constants) against
-    the numpy solver's own wrist branches: the UR3 / UR5 / UR10 have the symmetry and the
-    shortcut; the same arms with a skewed wrist twist or a q5 offset have neither."""
+    """The SymPy back end's wrist_flip (ik_closed_form._SymPyOps: a symbolic identity on
+    the arm's constants) against the numpy solver's own wrist branches: the UR3 / UR5 /
+    UR10 have the symmetry and the shortcut; the same arms with a skewed wrist twist or a
+    q5 offset have neither."""
     rtb = pytest.importorskip("roboticstoolbox", reason="roboticstoolbox (test extra) is missing")
 
     for name in ("UR3", "UR5", "UR10"):

@@ -494,6 +494,7 @@ def test_the_c_kernel_fit_is_the_numpy_fit(tmp_path):
     the same values up to the rounding of the wrap (C: x - 2 pi floor((x + pi) / 2 pi),
     numpy: mod(x + pi, 2 pi) - pi; they differ by an ulp of pi at most)."""
     from deltagen.derive.serial import ik_closed_form as ikc
+    from deltagen.derive.serial.ik_recipes import Angle
 
     modules = [{"FitAngle": compiled_fit_angle(tmp_path)}, "numpy"]
 
@@ -504,7 +505,7 @@ def test_the_c_kernel_fit_is_the_numpy_fit(tmp_path):
     theta, d = sp.Symbol("theta", real=True), sp.Symbol("d", real=True)
     outs = []
     for i in range(found.axes.n):
-        a = ikc._Angle(theta, sp.cos(theta), sp.sin(theta)) if found.axes.revolute[i] else d
+        a = Angle(theta, sp.cos(theta), sp.sin(theta)) if found.axes.revolute[i] else d
         outs.append(builder._fit_limits(f"f{i}", i, a))
     rng = np.random.default_rng(1)
     values = np.concatenate(

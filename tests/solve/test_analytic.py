@@ -480,3 +480,26 @@ def test_solver_refuses_position_only_where_the_tool_point_moves_with_the_roll()
     assert valid.any(axis=1).all() and max(err_p[valid].max(), err_r[valid].max()) < 1e-10
     with pytest.raises(InputError):
         solver.solve(T, position_only=True)
+
+
+def test_the_numpy_solver_runs_the_recipes_without_sympy():
+    """solve/analytic.py runs the closed forms of derive/serial/ik_recipes.py (one recipe,
+    two back ends: docs/architecture.md): importing it and solving must not load SymPy,
+    which only the C kernel's back end (derive/serial/ik_closed_form.py) uses."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from deltagen.model.serial import SerialDescription\n"
+        "from deltagen.paths import robots_dir\n"
+        "from deltagen.solve.analytic import analytic_solver\n"
+        "s = analytic_solver(SerialDescription.from_toml(robots_dir() / 'puma560.toml'))\n"
+        "T = np.eye(4)\n"
+        "T[:3, 3] = 0.3, 0.2, 0.4\n"
+        "s.solve(T)\n"
+        "print('sympy' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -1,6 +1,6 @@
 """Closed-form IK of the Stanford arm (R R P + central wrist; model.structure.StanfordArm,
-solve.analytic._StanfordSolver) on roboticstoolbox's Stanford DH model: our rows reproduce
-rtb's fkine, the original q is among the 8 branches for random in-limit poses, every valid
+derive.serial.ik_recipes.stanford, run by solve.analytic) on roboticstoolbox's Stanford DH
+model: our rows reproduce rtb's fkine, the original q is among the 8 branches for random in-limit poses, every valid
 branch reproduces T with the reference fk (DH matrices)."""
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def test_stanford_detection_needs_meeting_axes():
 @pytest.fixture(scope="module")
 def stanford_c():
     """The Stanford arm with the compiled backend: its ik_all is generated C
-    (derive/serial/ik_closed_form.py, IKKernelBuilder._stanford)."""
+    (derive/serial/ik_recipes.py, stanford, run by ik_closed_form.py)."""
     model, arm = _stanford()
     return arm.with_backend("compiled")
 

@@ -8,8 +8,10 @@ arm's :class:`~deltagen.model.structure.StanfordArm`, or a gantry's
 :class:`~deltagen.model.structure.GantryArm`); the numpy solver of
 :mod:`deltagen.solve.analytic` is written on the same object. This module writes the same
 closed forms as SymPy statements with the arm's constants compiled in, so the C core returns
-every branch of a batch of poses in one call, like the forward kinematics. The steps and
-their names follow the numpy solver (its module docstring has the derivation); here the
+every branch of a batch of poses in one call, like the forward kinematics. The steps of
+each structure are its recipe in :mod:`deltagen.derive.serial.ik_recipes`, written once
+for this module (the SymPy back end ``_SymPyOps``: each step a named statement) and the
+numpy solver; that module and the numpy solver's docstring have the derivations. Here the
 point is how they become straight-line code:
 
 * every angle comes from ``atan2(y, x)``; its cosine and sine are taken as ``x / h`` and
@@ -19,7 +21,7 @@ point is how they become straight-line code:
   Where x = y = 0 the angle is 0 with cosine 1 and sine 0 (not atan2's 0 or +-pi of
   signed zeros), so that the value returned is the one the branch and its check used;
 * each output angle takes one atan2 unless it is a sum, a negation or a turn by pi of
-  others: for the UR family, where IKKernelBuilder._wrist_flip shows it from the arm's
+  others: for the UR family, where _SymPyOps.wrist_flip shows it from the arm's
   constants, the second wrist branch's q6 and phi (q2 + q3 + q4) are the first's + pi,
   so the UR5 kernel calls atan2 20 times per pose (q1 2, q5 2, q6 2, phi 2, the elbow
   bend 4 and q2 8; q3 = +-bend, q4 = phi - q2 - q3 and q5 = +-acos need none);
@@ -56,27 +58,31 @@ and the tool z axis are checked, with the target's rotation checked to be one) a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
-import numpy as np
 import sympy as sp
 
 from deltagen import status as st
 from deltagen.derive.functions import AllFinite, Fabs, FitAngle, Floor, Fmax, Fmin, Ge, Gt, Le, Lt
 from deltagen.derive.kernel import Kernel, Port, Stage
+from deltagen.derive.serial.ik_recipes import (
+    RECIPES,
+    SLACK,
+    TINY,
+    Angle,
+    add,
+    cross,
+    dot,
+    rotate,
+    scale,
+)
 from deltagen.geometry.limits import LIMIT_TOL, SHIFTS  # noqa: F401 (SHIFTS: in deltagen_limits.h)
 from deltagen.model.structure import (
     GANTRY_KINDS,
-    Elbow4R,
     GantryArm,
-    ParallelTriple6R,
-    PlanarArm,
-    StanfordArm,
     detect,
 )
 
 TOL = 1e-8  # accepted forward-kinematics residual (the numpy solver's default tol)
-WRIST_SINGULAR = 1e-12  # the numpy solver's WRIST_SINGULAR (solve/analytic.py)
 SUPPORTED = (
     "spherical_wrist_6r",
     "elbow_4r",
@@ -96,7 +102,7 @@ _CONSTANTS = Stage(
     "named constants: ik_tol, the accepted forward-kinematics residual (relative to the "
     "arm's size for positions); ik_slack, how far a cosine may pass +-1 (or a square below "
     "0) and still count as met; ik_tiny, the floor of a divisor that may vanish",
-    ((ik_tol, sp.Float(TOL)), (ik_slack, sp.Float(1e-9)), (ik_tiny, sp.Float(1e-300))),
+    ((ik_tol, sp.Float(TOL)), (ik_slack, sp.Float(SLACK)), (ik_tiny, sp.Float(TINY))),
 )
 
 
@@ -164,53 +170,87 @@ class _Tape:
         return [Stage(comment, tuple(a)) for comment, a in self.stages if a]
 
 
-@dataclass(frozen=True)
-class _Angle:
-    """An angle with its cosine and sine (expressions or symbols)."""
-
-    theta: object
-    c: object
-    s: object
-
-    def __add__(self, other):
-        return _Angle(
-            self.theta + other.theta,
-            self.c * other.c - self.s * other.s,
-            self.s * other.c + self.c * other.s,
-        )
-
-    def __sub__(self, other):
-        return _Angle(
-            self.theta - other.theta,
-            self.c * other.c + self.s * other.s,
-            self.s * other.c - self.c * other.s,
-        )
-
-    def scaled(self, sign):
-        """sign * angle for sign = +-1."""
-        return _Angle(sign * self.theta, self.c, sign * self.s)
+def _odd_under(vector, flip) -> bool:
+    """Whether every component e of ``vector`` (polynomials in cosines and sines) has
+    e(flip) = -e, coefficients equal to 1e-15 (the constants are rounded to 13 digits)."""
+    for e in vector:
+        total = sp.expand(e + sp.sympify(e).xreplace(flip))
+        if total == 0:
+            continue
+        gens = sorted(total.free_symbols, key=str)
+        if max(abs(float(c)) for c in sp.Poly(total, *gens).coeffs()) > 1e-15:
+            return False
+    return True
 
 
-def _direction(tape, name, y, x, with_h=False):
-    """cos and sin of atan2(y, x): x / h and y / h (1 and 0 where x = y = 0); with
-    ``with_h`` also h = hypot(x, y)."""
-    h = tape.let(f"{name}_h", sp.sqrt(x * x + y * y))
-    # the division is done whatever h is, so the selection below is a plain blend (a
-    # division inside a ternary would be a branch)
-    inv = tape.let(f"{name}_inv", 1 / tape.let(f"{name}_den", _at_least(h, ik_tiny)))
-    c = tape.let(f"{name}_c", sp.Piecewise((x * inv, _gt(h, 0)), (1, True)))
-    s = tape.let(f"{name}_s", sp.Piecewise((y * inv, _gt(h, 0)), (0, True)))
-    return (c, s, h) if with_h else (c, s)
+class _SymPyOps:
+    """The SymPy back end of the recipes (derive/serial/ik_recipes.py): every ``let`` a
+    statement on the tape, the constants rounded (_Constants), the target the kernel's
+    input symbols."""
 
+    true = sp.true
+    pi = sp.Float(repr(math.pi), 17)
+    slack = ik_slack
+    tiny = ik_tiny
+    sqrt = staticmethod(sp.sqrt)
+    number = staticmethod(sp.Float)
+    atan2 = staticmethod(sp.atan2)
+    abs = staticmethod(Fabs)
+    fmax = staticmethod(Fmax)
+    at_least = staticmethod(_at_least)
+    at_most = staticmethod(_at_most)
+    ge, le, gt, lt = (staticmethod(f) for f in (Ge, Le, Gt, Lt))
+    all = staticmethod(sp.And)
+    not_ = staticmethod(sp.Not)
 
-def _atan2(tape, name, y, x) -> _Angle:
-    """atan2(y, x) with its cosine and sine (_direction). Where x = y = 0 the angle is 0,
-    as its cosine and sine (1, 0) say: atan2 of signed zeros gives 0 or +-pi, and at
-    the UR's exact wrist singularity (q6 from two zero components) an output of pi with
-    the cosine and sine of 0 used by the rest of the branch and its check was returned
-    as valid while missing the pose by up to 2 m."""
-    c, s, h = _direction(tape, name, y, x, with_h=True)
-    return _Angle(tape.let(name, sp.Piecewise((sp.atan2(y, x), _gt(h, 0)), (0, True))), c, s)
+    def __init__(self, tape, const, R_t, p_t):
+        self.tape, self.const, self.R_t, self.p_t = tape, const, R_t, p_t
+        self.stage, self.let, self.vec, self.vconst = tape.stage, tape.let, tape.vec, const.vec
+
+    @staticmethod
+    def select(cond, a, b):
+        return sp.Piecewise((a, cond), (b, True))
+
+    @staticmethod
+    def wrist_flip(w5, w6, u, ref, B) -> bool:
+        """Whether the second wrist branch is the first turned by pi in q6 and phi, with
+        no atan2 of its own (UR arms: 2 of the 4 q6 and 2 of the 4 phi atan2 calls per
+        pose; ik_recipes.parallel_triple). Shown here, from the arm's constants, for every q5 and q6 at once:
+
+        * B = u . (w5 x w6) = 0: the q5 equation's base angle is 0 or pi, so the second
+          root has the cosine of the first and the sine negated (q5 -> -q5 about it);
+        * the part of a = Rot(w5, -q5) u normal to w6 is odd in sin q5: then both vectors
+          subproblem 1 turns into each other for q6 (a and b, b independent of q5) give
+          negated components, and atan2(-y, -x) = atan2(y, x) + pi;
+        * Rot(w6, -q6) Rot(w5, -q5) ref is odd under (sin q5, cos q6, sin q6) ->
+          (-sin q5, -cos q6, -sin q6), i.e. under q5 -> -q5 with q6 -> q6 + pi: phi's
+          subproblem 1 (about u, ref against that vector, rotated by constant and q1
+          rotations, linear) gets negated components too.
+        """
+        if B != 0:
+            return False
+        c5, s5, c6, s6 = sp.symbols("c5 s5 c6 s6", real=True)
+        a = rotate(w5, c5, -s5, u)
+        normal = add(a, scale(-dot(a, w6), w6))
+        if not _odd_under(normal, {s5: -s5}):
+            return False
+        x = rotate(w6, c6, -s6, rotate(w5, c5, -s5, ref))
+        return _odd_under(x, {s5: -s5, c6: -c6, s6: -s6})
+
+    def rigid_target(self):
+        """The target's rotation is orthonormal and right-handed within TOL (x . x = y . y =
+        z . z = 1, x . y = x . z = y . z = 0, x x y = z): the 2R head's check compares the
+        tool axis only, so a target whose other columns are not a rotation's is refused
+        here (solve.analytic._GantrySolver._reproduces)."""
+        cols = [tuple(self.R_t[r][c] for r in range(3)) for c in range(3)]
+        conds = []
+        for i in range(3):
+            for j in range(i, 3):
+                target = 1 if i == j else 0
+                conds.append(_le(Fabs(dot(cols[i], cols[j]) - target), ik_tol))
+        xy = cross(cols[0], cols[1])
+        conds.extend(_le(Fabs(xy[r] - cols[2][r]), ik_tol) for r in range(3))
+        return self.tape.let("rigid_target", sp.And(*conds))
 
 
 def _branch_legend(configs) -> str:
@@ -223,69 +263,6 @@ def _branch_legend(configs) -> str:
         " Statement names carry short branch tags: s, e, w = shoulder, elbow, wrist, each"
         " followed by p (the + root) or m (the - root); spwmep is shoulderp_elbowp_wristm."
     )
-
-
-def _named(tape, name, a: _Angle) -> _Angle:
-    return _Angle(tape.let(name, a.theta), tape.let(f"{name}_c", a.c), tape.let(f"{name}_s", a.s))
-
-
-def _dot(a, b):
-    return sum(x * y for x, y in zip(a, b))
-
-
-def _cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _add(a, b):
-    return tuple(x + y for x, y in zip(a, b))
-
-
-def _scale(k, a):
-    return tuple(k * x for x in a)
-
-
-def _rotate(w, c, s, v):
-    """Rodrigues: v turned about the unit axis w by the angle with cosine c and sine s."""
-    wv = _dot(w, v)
-    wxv = _cross(w, v)
-    return tuple(v[i] * c + wxv[i] * s + w[i] * wv * (1 - c) for i in range(3))
-
-
-def _sp1(tape, name, w, a, b) -> _Angle:
-    """Paden-Kahan subproblem 1 (solve.analytic._sp1): the angle about w turning the part of
-    a normal to w into the direction of that of b."""
-    a = _add(a, _scale(-_dot(a, w), w))
-    b = _add(b, _scale(-_dot(b, w), w))
-    return _atan2(tape, name, _dot(_cross(a, b), w), _dot(a, b))
-
-
-_PI = sp.Float(repr(math.pi), 17)
-
-
-def _turned_by_pi(tape, name, a: _Angle, turned) -> _Angle:
-    """a + pi where ``turned`` holds, else a: the angle, cosine and sine negated, with no
-    atan2, sqrt or division (the joint-limit fit wraps the angle). For a subproblem-1
-    angle whose two components the caller has shown to be negated, atan2(-y, -x) =
-    atan2(y, x) + pi."""
-    return _Angle(
-        tape.let(f"{name}_pi", sp.Piecewise((a.theta + _PI, turned), (a.theta, True))),
-        tape.let(f"{name}_pi_c", sp.Piecewise((-a.c, turned), (a.c, True))),
-        tape.let(f"{name}_pi_s", sp.Piecewise((-a.s, turned), (a.s, True))),
-    )
-
-
-def _odd_under(vector, flip) -> bool:
-    """Whether every component e of ``vector`` (polynomials in cosines and sines) has
-    e(flip) = -e, coefficients equal to 1e-15 (the constants are rounded to 13 digits)."""
-    for e in vector:
-        total = sp.expand(e + sp.sympify(e).xreplace(flip))
-        if total == 0:
-            continue
-        gens = sorted(total.free_symbols, key=str)
-        if max(abs(float(c)) for c in sp.Poly(total, *gens).coeffs()) > 1e-15:
-            return False
-    return True
 
 
 class _Constants:
@@ -326,268 +303,23 @@ class IKKernelBuilder:
             sp.Symbol(f"Tt{r + 1}{c + 1}", real=True) for r in range(4) for c in range(4)
         )
         self.invalid = sp.Symbol("invalid")
+        self.R_t = [[self.T[4 * r + c] for c in range(3)] for r in range(3)]
+        self.p_t = tuple(self.T[4 * r + 3] for r in range(3))
+        self.ops = _SymPyOps(self.tape, self.const, self.R_t, self.p_t)
         self._fits = {}  # (joint, value) -> _fit_limits' (value, inside)
 
     # -- shared steps --------------------------------------------------------------
 
-    def _target(self):
-        T = self.T
-        self.R_t = [[T[4 * r + c] for c in range(3)] for r in range(3)]
-        self.p_t = tuple(T[4 * r + 3] for r in range(3))
-
-    def _rotate_target(self, v):
-        """R_G v = R_t R0^T v for a constant vector v."""
-        u = self.const.vec(self.axes.R0.T @ np.asarray(v, dtype=float))
-        return tuple(_dot(self.R_t[r], u) for r in range(3))
-
-    def _move_point(self, x):
-        """G x = R_t R0^T (x - p0) + p_t for a constant point x: where the motion G =
-        T_target T(0)^-1 carries it."""
-        return _add(self._rotate_target(np.asarray(x, dtype=float) - self.axes.p0), self.p_t)
-
-    def _arm(self, W_t):
-        """The numpy solver's _ElbowSolver._arm: joints 1-3 placing the wrist point at W_t
-        for the four arm branches; a list of (q1, q2, q3 angles, ok) per branch."""
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        tape.stage("arm: the wrist point in the arm frame (ex, ey along axis 1's normal plane)")
-        d = _add(W_t, _scale(-1, K.vec(ax.points[0])))
-        px = tape.let("px", _dot(d, K.vec(s.ex)))
-        py = tape.let("py", _dot(d, K.vec(s.ey)))
-        pz = tape.let("pz", _dot(d, K.vec(s.ez)))
-        yV = tape.let("yV", (K(s.w2_offset) - K(s.cos_12) * pz) / K(s.sin_12))
-        rad = tape.let("rad", px * px + py * py - yV * yV)
-        ok1 = tape.let("ok_reach", _ge(rad, -ik_slack * sp.Float(ax.scale**2)))
-        r = tape.let("xV", sp.sqrt(_max(rad, 0)))
-        on_axis = tape.let("on_axis", _lt(px * px + py * py, (1e-12 * ax.scale) ** 2))
-        a = _Angle(0, *_direction(tape, "phi_p", py, px))
-        uu, vv = s.upper, s.lower
-        branches = []
-        shoulders = {}
-        for f in sorted(set(s.front.tolist()), reverse=True):
-            tag = "front" if f > 0 else "back"
-            tape.stage(f"shoulder q1, {tag} branches")
-            xV = f * r
-            # q1 = atan2(py, px) - atan2(yV, xV), one atan2 of the difference's cos and sin
-            q1 = a - _Angle(0, *_direction(tape, f"phi_{tag}", yV, xV))
-            home = 0.0 if f > 0 else -math.pi
-            c1 = tape.let(f"q1_{tag}_c", sp.Piecewise((K(math.cos(home)), on_axis), (q1.c, True)))
-            s1 = tape.let(f"q1_{tag}_s", sp.Piecewise((0, on_axis), (q1.s, True)))
-            q1 = _Angle(
-                tape.let(f"q1_{tag}", sp.Piecewise((K(home), on_axis), (sp.atan2(s1, c1), True))),
-                c1,
-                s1,
-            )
-            V = _add(
-                _add(K.vec(ax.points[0]), _scale(xV, K.vec(s.ex))),
-                _add(_scale(yV, K.vec(s.ey)), _scale(pz, K.vec(s.ez))),
-            )
-            t = tuple(
-                tape.let(f"t{j + 1}_{tag}", _dot(K.vec(s.plane[j]), V) - K(s.shoulder_xy[j]))
-                for j in range(2)
-            )
-            kc, ks, bend, ok2 = self._cosine_law(tag, t, uu, vv)
-            shoulders[f] = (q1, t, kc, ks, bend, ok1, ok2)
-        for index, config in enumerate(self.configs[:: len(self.configs) // 4]):
-            f, sigma = float(s.front[index]), float(s.bend[index])
-            q1, t, kc, ks, bend, ok1, ok2 = shoulders[f]
-            tag = config.rsplit("_", 1)[0] if self.n == 6 else config
-            tape.stage(f"elbow, branch {tag}: law of cosines, then q2 (ik_analytic._two_link)")
-            th2, th3 = self._elbow(tag, t, kc, ks, bend, sigma, uu, vv)
-            ok = tape.let(f"ok_arm_{tag}", sp.And(ok1, ok2))
-            branches.append((tag, q1, th2, th3, ok, t, ok1, sigma))
-        return branches
-
-    def _paul_4r(self, tag, q1, t, ok1, sigma):
-        """The numpy solver's _ElbowSolver._arm / _solve for the 4R arm with the pose given:
-        q2 + q3 from the direction of axis 4 (Paul's method), which fixes the elbow of the
-        shoulder branch (the other elbow branch stays empty), then the roll q4."""
-        s, tape, K = self.s, self.tape, self.const
-        w = [K.vec(x) for x in self.axes.directions]
-        uu, vv = s.upper, s.lower
-        tape.stage(f"arm, branch {tag}: q2 + q3 from the direction of axis 4 (Paul's method)")
-        d4 = _rotate(w[0], q1.c, -q1.s, self._rotate_target(self.axes.directions[3]))
-        tot = _sp1(tape, f"tot_{tag}", w[1], w[3], d4)
-        z = (
-            t[0] - (tot.c * K(vv[0]) - tot.s * K(vv[1])),
-            t[1] - (tot.s * K(vv[0]) + tot.c * K(vv[1])),
-        )
-        a_uu = math.atan2(uu[1], uu[0])
-        th2 = _named(
-            tape,
-            f"paul2_{tag}",
-            _atan2(tape, f"phi2_{tag}", z[1], z[0])
-            - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
-        )
-        th3 = _named(tape, f"paul3_{tag}", tot - th2)
-        c = math.atan2(vv[1], vv[0]) - a_uu
-        sin_bend = th3.s * K(math.cos(c)) + th3.c * K(math.sin(c))
-        mine = tape.let(f"mine_{tag}", _ge(sin_bend, 0) if sigma > 0 else _lt(sin_bend, 0))
-        ok = tape.let(f"ok_paul_{tag}", sp.And(ok1, mine))
-        tape.stage(f"roll, branch {tag}: q4 about axis 4")
-        y = tape.vec(f"y4_{tag}", self._undo(q1, tot, self._rotate_target(s.roll_ref)))
-        q4 = _sp1(tape, f"q4_{tag}", w[3], K.vec(s.roll_ref), y)
-        return (q1, th2, th3.scaled(s.sign3), q4), ok
-
-    def _planar(self):
-        """The numpy solver's _PlanarSolver._solve: a planar 2R arm for the point P in the
-        plane normal to u (law of cosines, both elbows), the roll of a third revolute joint
-        from the target yaw, a prismatic joint from the travel along u; with two revolute
-        joints and the pose given, Paul's method (the pose fixes the elbow)."""
-        s, tape, K = self.s, self.tape, self.const
-        u, E, A = s.u, s.plane, s.first_xy
-        uu, vv = s.upper, s.lower
-        tape.stage("planar arm: the point P, the travel along u and the yaw about u")
-        # P_t = R_G P + p_G = R_t R0^T (P - p0) + p_t
-        P_t = tape.vec("P_t", self._move_point(s.point))
-        h = tape.let("travel", _dot(_add(P_t, _scale(-1, K.vec(s.point))), K.vec(u)))
-        t = tuple(tape.let(f"t{j + 1}", _dot(K.vec(E[j]), P_t) - K(A[j])) for j in range(2))
-        g1 = self._rotate_target(E[0])
-        yaw = _atan2(tape, "yaw", _dot(g1, K.vec(E[1])), _dot(g1, K.vec(E[0])))
-        a_uu = math.atan2(uu[1], uu[0])
-        c_uv = math.atan2(vv[1], vv[0]) - a_uu
-        branches = {}
-        if s.roll is None:
-            tape.stage("Paul's method (slides 103-105): psi from the rotation, q1 from joint 2")
-            B_t = self._move_point(self.axes.points[s.second])
-            tb = [_dot(K.vec(E[j]), B_t) - K(A[j]) for j in range(2)]
-            p1 = _named(
-                tape,
-                "paul1",
-                _atan2(tape, "phi_b", tb[1], tb[0])
-                - _Angle(K(a_uu), K(math.cos(a_uu)), K(math.sin(a_uu))),
-            )
-            p2 = _named(tape, "paul2", yaw - p1)
-            down = tape.let(
-                "elbow_down", _ge(p2.s * K(math.cos(c_uv)) + p2.c * K(math.sin(c_uv)), 0)
-            )
-            for config, sigma in zip(s.configs, s.bend_signs):
-                mine = down if sigma > 0 else sp.Not(down)
-                branches[config] = (p1, p2, None, mine)
-        else:
-            tape.stage("planar arm: law of cosines")
-            kc, ks, bend, ok2 = self._cosine_law("planar", t, uu, vv)
-            for config, sigma in zip(s.configs, s.bend_signs):
-                tape.stage(f"planar arm, {config}")
-                th1, th2 = self._elbow(config, t, kc, ks, bend, sigma, uu, vv)
-                roll = _named(tape, f"roll_{config}", yaw - th1 - th2)
-                branches[config] = (th1, th2, roll, ok2)
-        solutions = {}
-        sign = s.signs
-        for config, (th1, th2, roll, ok) in branches.items():
-            q = [None] * self.n
-            q[s.first] = th1.scaled(float(sign[s.first]))
-            q[s.second] = th2.scaled(float(sign[s.second]))
-            if s.roll is not None:
-                q[s.roll] = roll.scaled(float(sign[s.roll]))
-            if s.lift is not None:
-                q[s.lift] = K(float(sign[s.lift])) * h
-            solutions[config] = (tuple(q), ok)
-        return solutions
-
-    def _cosine_law(self, tag, t, uu, vv):
-        """The elbow of a planar 2R arm reaching t (solve.analytic._two_link): cos and sin of
-        the bend, its angle, and whether the law of cosines is met (to 1e-9)."""
-        tape, K = self.tape, self.const
-        lu, lv = float(np.hypot(*uu)), float(np.hypot(*vv))
-        kappa = tape.let(
-            f"kappa_{tag}", (t[0] * t[0] + t[1] * t[1] - K(lu * lu) - K(lv * lv)) / K(2 * lu * lv)
-        )
-        ok2 = tape.let(f"ok_elbow_{tag}", _le(Fabs(kappa), 1 + ik_slack))
-        kc = tape.let(f"kc_{tag}", _at_most(tape.let(f"kc0_{tag}", _at_least(kappa, -1)), 1))
-        ks = tape.let(f"ks_{tag}", sp.sqrt(1 - kc * kc))
-        bend = tape.let(f"bend_{tag}", sp.atan2(ks, kc))
-        return kc, ks, bend, ok2
-
-    def _elbow(self, tag, t, kc, ks, bend, sigma, uu, vv):
-        """First-axis and elbow angles of the planar 2R arm for the bend sign sigma."""
-        tape, K = self.tape, self.const
-        a = math.atan2(uu[1], uu[0]) - math.atan2(vv[1], vv[0])
-        elbow = _Angle(K(a), K(math.cos(a)), K(math.sin(a))) + _Angle(sigma * bend, kc, sigma * ks)
-        th2 = _named(tape, f"th3_{tag}", elbow)
-        m = (
-            K(uu[0]) + th2.c * K(vv[0]) - th2.s * K(vv[1]),
-            K(uu[1]) + th2.s * K(vv[0]) + th2.c * K(vv[1]),
-        )
-        th1 = _atan2(tape, f"th2_{tag}", m[0] * t[1] - m[1] * t[0], m[0] * t[0] + m[1] * t[1])
-        return th1, th2
-
-    def _undo(self, q1, tot, v):
-        """(R1 R23)^T v: rotations about w1 by -q1, then about w2 by -(q2 + q3)."""
-        w = [self.const.vec(x) for x in self.axes.directions]
-        v = _rotate(w[0], q1.c, -q1.s, v)
-        return _rotate(w[1], tot.c, -tot.s, v)
-
-    def _wrist(self, tag, q1, th2, th3=None):
-        """The numpy solver's _ElbowSolver._solve (6R): q4, q5, q6 for both wrist solutions,
-        for the rotation left after turning about axis 1 by q1 and about axis 2 by th2 +
-        th3 (the elbow arm's parallel axes 2 and 3) or, without th3, by th2 (the Stanford
-        arm's joint 2)."""
-        s, tape, K = self.s, self.tape, self.const
-        w = [K.vec(x) for x in self.axes.directions]
-        tape.stage(f"wrist, branch {tag}: the rotation left for joints 4-6 (eq. 13)")
-        tot = th2 if th3 is None else _named(tape, f"tot_{tag}", th2 + th3)
-        qv = tape.vec(
-            f"qv_{tag}", self._undo(q1, tot, self._rotate_target(self.axes.directions[5]))
-        )
-        qx = tape.vec(f"qx_{tag}", self._undo(q1, tot, self._rotate_target(s.wrist_ref)))
-        return self._wrist_angles(tag, qv, qx, w[5])
-
-    def _wrist_angles(self, tag, qv, qx, w6, with_q6=True):
-        """q4, q5 (Paden-Kahan 2) and q6 (subproblem 1) of a wrist whose rotation takes the
-        vector w6 (the last axis; a 2R head's tool axis) to qv and s.wrist_ref to qx, for both
-        wrist solutions: a list of (name, ok, q4, q5, q6 or None)."""
-        s, tape, K = self.s, self.tape, self.const
-        w = [K.vec(x) for x in self.axes.directions]
-        w4, w5 = w[3], w[4]
-        c12 = s.cos_45
-        s2 = 1.0 - c12 * c12
-        b_p = s.cos_56
-        a_q = _dot(qv, w4)
-        alpha = tape.let(f"alpha_{tag}", (a_q - K(c12 * b_p)) / K(s2))
-        beta = tape.let(f"beta_{tag}", (K(b_p) - K(c12) * a_q) / K(s2))
-        perp = _cross(qv, w4)
-        perp2 = tape.let(f"perp2_{tag}", _dot(perp, perp))
-        gam2 = tape.let(f"gam2_{tag}", perp2 / K(s2) - beta * beta)
-        okw = tape.let(f"ok_wrist_{tag}", _ge(gam2, -ik_slack))
-        gam = tape.let(f"gam_{tag}", sp.sqrt(_max(gam2, 0)))
-        singular = tape.let(f"wrist_singular_{tag}", _lt(perp2, WRIST_SINGULAR**2))
-        n45 = K.vec(s.normal_45)
-        out = []
-        for sig, flip in ((1, "noflip"), (-1, "flip")):
-            name = f"{tag}_{flip}"
-            tape.stage(f"wrist, branch {name}: q5, q4 (Paden-Kahan 2), q6")
-            cvec = tape.vec(
-                f"cw_{name}",
-                _add(_add(_scale(alpha, w4), _scale(beta, w5)), _scale(sig * gam, n45)),
-            )
-            q5 = _sp1(tape, f"q5_{name}", w5, w6, cvec)
-            q4 = _sp1(tape, f"q4r_{name}", w4, cvec, qv)
-            q4 = _named(
-                tape,
-                f"q4_{name}",
-                _Angle(
-                    sp.Piecewise((0, singular), (q4.theta, True)),
-                    sp.Piecewise((1, singular), (q4.c, True)),
-                    sp.Piecewise((0, singular), (q4.s, True)),
-                ),
-            )
-            q6 = None
-            if with_q6:
-                y = _rotate(w5, q5.c, -q5.s, _rotate(w4, q4.c, -q4.s, qx))
-                q6 = _sp1(tape, f"q6_{name}", w6, K.vec(s.wrist_ref), y)
-            out.append((name, okw, q4, q5, q6))
-        return out
-
     def _fit_limits(self, name, i, a):
         """geometry.limits.fit_limits for joint i: (value, inside). A revolute joint (a an
-        _Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of 2 pi (+-2 pi,
+        Angle) is wrapped into [-pi, pi) and shifted by the multiples SHIFTS of 2 pi (+-2 pi,
         +-4 pi) where that fits its range: one call of the runtime's deltagen_fit_angle
         (codegen/runtime/deltagen_limits.h; 130 statements per branch of the UR5 when written
         out here, half of the kernel: its SymPy and compile time); a prismatic one (a its
         displacement) is only checked. Either is clipped onto a limit it passes by at most
         LIMIT_TOL."""
         lo, hi = (float(x) for x in self.s.qlim[i])
-        revolute = isinstance(a, _Angle)
+        revolute = isinstance(a, Angle)
         # branches sharing a joint value (the UR family's q1 in four branches, q5 and q6 in
         # two) share its fit: one deltagen_fit_angle call per distinct value
         key = (i, a.theta if revolute else sp.sympify(a))
@@ -640,7 +372,7 @@ class IKKernelBuilder:
         sym = chain.sym
         mapping = {}
         for i, a in enumerate(angles):
-            if isinstance(a, _Angle):
+            if isinstance(a, Angle):
                 mapping[sym.cos[i]] = a.c
                 mapping[sym.sin[i]] = a.s
             else:  # a prismatic joint's displacement
@@ -662,279 +394,14 @@ class IKKernelBuilder:
 
     # -- the kernel ----------------------------------------------------------------
 
-    def _elbow_arm(self):
-        """The 4R and 6R elbow arms: joints 1-3 from the wrist point, then the roll (4R) or
-        the central wrist (6R)."""
-        s, tape = self.s, self.tape
-        tape.stage("wrist centre W_t = R_t R0^T (W - p0) + p_t")
-        W_t = tape.vec("W_t", self._move_point(s.wrist))
-        solutions = {}
-        for tag, q1, th2, th3, ok_arm, t, ok1, sigma in self._arm(W_t):
-            if isinstance(s, Elbow4R):
-                solutions[tag] = self._paul_4r(tag, q1, t, ok1, sigma)
-                continue
-            q3 = th3.scaled(s.sign3)
-            for name, okw, q4, q5, q6 in self._wrist(tag, q1, th2, th3):
-                solutions[name] = ((q1, th2, q3, q4, q5, q6), sp.And(ok_arm, okw))
-        return solutions
-
-    # -- the UR family (solve.analytic._ParallelTripleSolver, same steps) ----------------
-
-    def _rotate_target_sym(self, v):
-        """R_G v = R_t R0^T v for a symbolic vector v."""
-        u = [sum(self.const(self.axes.R0[r, c]) * v[r] for r in range(3)) for c in range(3)]
-        return tuple(_dot(self.R_t[r], u) for r in range(3))
-
-    def _unrotate_target_sym(self, v):
-        """R_G^T v = R0 R_t^T v for a symbolic vector v."""
-        y = [sum(self.R_t[r][c] * v[r] for r in range(3)) for c in range(3)]
-        return tuple(sum(self.const(self.axes.R0[r, c]) * y[c] for c in range(3)) for r in range(3))
-
-    def _cos_sin_eq(self, name, A, B, C):
-        """A cos x + B sin x = C: (atan2(B, A), arccos(C / hypot(A, B)) as _Angles, ok)."""
-        tape = self.tape
-        base = _atan2(tape, f"{name}_base", B, A)
-        r = tape.let(f"{name}_r", sp.sqrt(A * A + B * B))
-        ratio = tape.let(
-            f"{name}_ratio",
-            sp.Piecewise(
-                (C / tape.let(f"{name}_den", _at_least(r, ik_tiny)), _gt(r, 0)), (0, True)
-            ),
-        )
-        ok = tape.let(f"ok_{name}", _le(Fabs(ratio), 1 + ik_slack))
-        kc = tape.let(f"{name}_kc", _at_most(tape.let(f"{name}_kc0", _at_least(ratio, -1)), 1))
-        ks = tape.let(f"{name}_ks", sp.sqrt(1 - kc * kc))
-        return base, _Angle(tape.let(f"{name}_acos", sp.atan2(ks, kc)), kc, ks), ok
-
-    def _wrist_flip(self, w5, w6, u, ref, B) -> bool:
-        """Whether the second wrist branch is the first turned by pi in q6 and phi, with
-        no atan2 of its own (UR arms: 2 of the 4 q6 and 2 of the 4 phi atan2 calls per
-        pose). Shown here, from the arm's constants, for every q5 and q6 at once:
-
-        * B = u . (w5 x w6) = 0: the q5 equation's base angle is 0 or pi, so the second
-          root has the cosine of the first and the sine negated (q5 -> -q5 about it);
-        * the part of a = Rot(w5, -q5) u normal to w6 is odd in sin q5: then both vectors
-          subproblem 1 turns into each other for q6 (a and b, b independent of q5) give
-          negated components, and atan2(-y, -x) = atan2(y, x) + pi;
-        * Rot(w6, -q6) Rot(w5, -q5) ref is odd under (sin q5, cos q6, sin q6) ->
-          (-sin q5, -cos q6, -sin q6), i.e. under q5 -> -q5 with q6 -> q6 + pi: phi's
-          subproblem 1 (about u, ref against that vector, rotated by constant and q1
-          rotations, linear) gets negated components too.
-        """
-        if B != 0:
-            return False
-        c5, s5, c6, s6 = sp.symbols("c5 s5 c6 s6", real=True)
-        a = _rotate(w5, c5, -s5, u)
-        normal = _add(a, _scale(-_dot(a, w6), w6))
-        if not _odd_under(normal, {s5: -s5}):
-            return False
-        x = _rotate(w6, c6, -s6, _rotate(w5, c5, -s5, ref))
-        return _odd_under(x, {s5: -s5, c6: -c6, s6: -s6})
-
-    def _parallel_triple(self):
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        w = [K.vec(x) for x in ax.directions]
-        o = [K.vec(x) for x in ax.points]
-        u, w1, w5, w6 = K.vec(s.u), w[0], w[4], w[5]
-        tape.stage("UR: q1 from u . Rot(w1, -q1) (G P5 - o1) = u . (P5 - o1)")
-        v = tape.vec("v_p5", _add(self._move_point(s.wrist), _scale(-1, o[0])))
-        w1v = tape.let("w1v", _dot(w1, v))
-        A = _dot(_add(v, _scale(-w1v, w1)), u)
-        B = -_dot(_cross(w1, v), u)
-        C = K(s.u @ (s.wrist - ax.points[0])) - K(s.u @ ax.directions[0]) * w1v
-        base1, acos1, ok1 = self._cos_sin_eq("q1eq", A, B, C)
-        w6n = ax.directions[5] - (ax.directions[5] @ ax.directions[4]) * ax.directions[4]
-        RGw6 = self._rotate_target(ax.directions[5])
-        flip = self._wrist_flip(
-            w5, w6, u, K.vec(s.ref), K(np.cross(ax.directions[4], ax.directions[5]) @ s.u)
-        )
-        solutions = {}
-        for sg1, a in ((1, "p"), (-1, "m")):
-            tag1 = f"s{a}"
-            tape.stage(f"UR: shoulder{a}: q1, and q5 from u . Rot(w5, q5) w6 = u . R_M w6")
-            q1 = _named(tape, f"q1_{tag1}", base1 + acos1.scaled(sg1))
-            h = _dot(u, _rotate(w1, q1.c, -q1.s, RGw6))
-            base5, acos5, ok5 = self._cos_sin_eq(
-                f"q5eq_{tag1}",
-                K(w6n @ s.u),
-                K(np.cross(ax.directions[4], ax.directions[5]) @ s.u),
-                h - K((s.u @ ax.directions[4]) * (ax.directions[4] @ ax.directions[5])),
-            )
-            b = tape.vec(f"b_{tag1}", self._unrotate_target_sym(_rotate(w1, q1.c, q1.s, u)))
-            ref = K.vec(s.ref)
-            first = None
-            for sg5, c5 in ((1, "p"), (-1, "m")):
-                tag = f"{tag1}w{c5}"
-                tape.stage(f"UR: shoulder{a} wrist{c5}: q5, q6 (Paden-Kahan 1), phi, N o4")
-                q5 = _named(tape, f"q5_{tag}", base5 + acos5.scaled(sg5))
-                if first is not None and flip:
-                    # the wrist flip (q5 -> -q5) turns q6 and phi by pi (_wrist_flip);
-                    # where q6's two components vanish (the exact wrist singularity,
-                    # sin q5 = 0) _atan2 gives (0, 1, 0) for either sign and the vector
-                    # phi is taken from is the same for both q5: neither is turned, as
-                    # the second branch's own atan2 calls would have had it
-                    turned = _gt(sp.Symbol(f"mq6_{first[0]}_h", real=True), 0)
-                    mq6 = _turned_by_pi(tape, f"mq6_{first[0]}", first[1], turned)
-                    q6 = mq6.scaled(-1)
-                    phi = _turned_by_pi(tape, f"phi_{first[0]}", first[2], turned)
-                else:
-                    avec = tape.vec(f"a_{tag}", _rotate(w5, q5.c, -q5.s, u))
-                    mq6 = _sp1(tape, f"mq6_{tag}", w6, avec, b)
-                    q6 = mq6.scaled(-1)
-                    x = _rotate(w6, q6.c, -q6.s, _rotate(w5, q5.c, -q5.s, ref))
-                    x = tape.vec(f"x_{tag}", _rotate(w1, q1.c, -q1.s, self._rotate_target_sym(x)))
-                    phi = _sp1(tape, f"phi_{tag}", u, ref, x)
-                    first = (tag, mq6, phi)
-                y = _add(_rotate(w5, q5.c, -q5.s, _add(o[3], _scale(-1, o[4]))), o[4])
-                y = _add(_rotate(w6, q6.c, -q6.s, _add(y, _scale(-1, o[5]))), o[5])
-                y = tape.vec(f"y_{tag}", y)
-                Gy = _add(self._rotate_target_sym(_add(y, _scale(-1, K.vec(ax.p0)))), self.p_t)
-                Ny = _add(_rotate(w1, q1.c, -q1.s, _add(Gy, _scale(-1, o[0]))), o[0])
-                d = _add(Ny, _scale(-1, o[1]))
-                t = (
-                    tape.let(f"t1_{tag}", _dot(d, K.vec(s.plane[0]))),
-                    tape.let(f"t2_{tag}", _dot(d, K.vec(s.plane[1]))),
-                )
-                kc, ks, bend, ok2 = self._cosine_law(tag, t, s.upper, s.lower)
-                for sg2, e in ((1, "p"), (-1, "m")):
-                    etag = f"{tag}e{e}"
-                    tape.stage(f"UR: shoulder{a} elbow{e} wrist{c5}: joints 2, 3, 4")
-                    th2, th3 = self._elbow(etag, t, kc, ks, bend, sg2, s.upper, s.lower)
-                    th4 = _named(tape, f"th4_{etag}", phi - th2 - th3)
-                    sign = [float(x) for x in s.signs]
-                    angles = (
-                        q1,
-                        th2.scaled(sign[0]),
-                        th3.scaled(sign[1]),
-                        th4.scaled(sign[2]),
-                        q5,
-                        q6,
-                    )
-                    ok = sp.And(ok1, ok5, ok2)
-                    solutions[f"shoulder{a}_elbow{e}_wrist{c5}"] = (angles, ok)
-        return solutions
-
-    # -- the Stanford arm (solve.analytic._StanfordSolver, same steps) --------------
-
-    def _stanford(self):
-        """q3 from the distance of the wrist centre to the shoulder point c, q1 and q2 by
-        Paden-Kahan subproblem 2 about the meeting axes 1 and 2, then the central wrist."""
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        w = [K.vec(x) for x in ax.directions]
-        w1, w2, w3 = w[0], w[1], w[2]
-        c = K.vec(s.shoulder)
-        W0 = np.asarray(s.wrist, dtype=float) - np.asarray(s.shoulder, dtype=float)
-        tape.stage("Stanford: wrist centre W_t = G W, v = W_t - c; q3 from |W + q3 w3 - c| = |v|")
-        v = tape.vec("v_wc", _add(self._move_point(s.wrist), _scale(-1, c)))
-        b = float(ax.directions[2] @ W0)
-        disc = tape.let("disc3", K(b * b - W0 @ W0) + _dot(v, v))
-        ok3 = tape.let("ok_reach", _ge(disc, -ik_slack * sp.Float(ax.scale**2)))
-        root = tape.let("root3", sp.sqrt(_max(disc, 0)))
-        c12 = float(ax.directions[0] @ ax.directions[1])
-        n12 = np.cross(ax.directions[0], ax.directions[1])
-        n12v, den, nn = K.vec(n12), K(c12 * c12 - 1.0), K(float(n12 @ n12))
-        vw1 = tape.let("v_w1", _dot(v, w1))
-        solutions = {}
-        for sg3, a in ((1, "p"), (-1, "m")):
-            tape.stage(f"Stanford: reach{a}: q3, then subproblem 2 about axes 1 and 2")
-            q3 = tape.let(f"q3_reach{a}", K(-b) + sg3 * root)
-            u = tape.vec(f"u_reach{a}", _add(K.vec(W0), _scale(q3, w3)))
-            w2u = _dot(w2, u)
-            alpha = tape.let(f"alpha12_reach{a}", (K(c12) * w2u - vw1) / den)
-            beta = tape.let(f"beta12_reach{a}", (K(c12) * vw1 - w2u) / den)
-            g2 = tape.let(
-                f"g2_reach{a}",
-                (_dot(u, u) - alpha * alpha - beta * beta - 2 * K(c12) * alpha * beta) / nn,
-            )
-            ok2 = tape.let(f"ok_shoulder_reach{a}", _ge(g2, -ik_slack))
-            g = tape.let(f"g_reach{a}", sp.sqrt(_max(g2, 0)))
-            for sg2, e in ((1, "p"), (-1, "m")):
-                tag = f"reach{a}_shoulder{e}"
-                tape.stage(f"Stanford: {tag}: q2, q1 (Paden-Kahan 1 each)")
-                z = tape.vec(
-                    f"z_{tag}",
-                    _add(_add(_scale(alpha, w1), _scale(beta, w2)), _scale(sg2 * g, n12v)),
-                )
-                q2 = _sp1(tape, f"q2_{tag}", w2, u, z)
-                q1 = _sp1(tape, f"q1_{tag}", w1, z, v)
-                for name, okw, q4, q5, q6 in self._wrist(tag, q1, q2):
-                    solutions[name] = ((q1, q2, q3, q4, q5, q6), sp.And(ok3, ok2, okw))
-        return solutions
-
-    # -- gantry robots (solve.analytic._GantrySolver, same steps) --------------------
-
-    def _gantry(self):
-        """The wrist from the target rotation alone (the slides turn nothing): the 3R
-        wrist's q4, q5, q6, the 2R head's q4, q5 for the tool axis, or the rotary's q4;
-        then the tool point carried by the wrist and the slides by the 3 x 3 inverse."""
-        s, ax, tape, K = self.s, self.axes, self.tape, self.const
-        w = [K.vec(x) for x in ax.directions]
-        o = [K.vec(x) for x in ax.points]
-        n = self.n
-        tape.stage("gantry: the wrist rotation R_G = R_t R0^T on the carried vectors")
-        branches = []
-        if n == 4:
-            y = tape.vec("qx_g", self._rotate_target(s.wrist_ref))
-            q4 = _sp1(tape, "q4_single", w[3], K.vec(s.wrist_ref), y)
-            branches.append(("single", sp.true, (q4,)))
-        else:
-            qv = tape.vec("qv_g", self._rotate_target(s.carried))
-            qx = tape.vec("qx_g", self._rotate_target(s.wrist_ref)) if n == 6 else None
-            found = self._wrist_angles("g", qv, qx, K.vec(s.carried), with_q6=n == 6)
-            rigid = sp.true if s.full_pose else self._rigid_target()
-            for name, okw, q4, q5, q6 in found:
-                angles = (q4, q5) if q6 is None else (q4, q5, q6)
-                branches.append((name[2:], sp.And(okw, rigid), angles))
-        solutions = {}
-        for name, ok, angles in branches:
-            tape.stage(f"gantry, branch {name}: the tool point carried by the wrist, the slides")
-            g = K.vec(ax.p0)
-            for i in range(n - 1, 2, -1):
-                a = angles[i - 3]
-                g = _add(_rotate(w[i], a.c, a.s, _add(g, _scale(-1, o[i]))), o[i])
-            g = tape.vec(f"g_{name}", g)
-            d = _add(self.p_t, _scale(-1, g))
-            slides = tuple(
-                tape.let(f"slide{j + 1}_{name}", _dot(K.vec(s.slide_inverse[j]), d))
-                for j in range(3)
-            )
-            solutions[name] = (slides + tuple(angles), ok)
-        return solutions
-
-    def _rigid_target(self):
-        """The target's rotation is orthonormal and right-handed within TOL (x . x = y . y =
-        z . z = 1, x . y = x . z = y . z = 0, x x y = z): the 2R head's check compares the
-        tool axis only, so a target whose other columns are not a rotation's is refused
-        here (solve.analytic._GantrySolver._reproduces)."""
-        tape = self.tape
-        cols = [tuple(self.R_t[r][c] for r in range(3)) for c in range(3)]
-        conds = []
-        for i in range(3):
-            for j in range(i, 3):
-                target = 1 if i == j else 0
-                conds.append(_le(Fabs(_dot(cols[i], cols[j]) - target), ik_tol))
-        xy = _cross(cols[0], cols[1])
-        conds.extend(_le(Fabs(xy[r] - cols[2][r]), ik_tol) for r in range(3))
-        return tape.let("rigid_target", sp.And(*conds))
-
     def build(self) -> Kernel:
         s, tape, n = self.s, self.tape, self.n
-        self._target()
         tape.stage("status flag: a non-finite pose")
         invalid = tape.let("invalid", sp.Not(AllFinite(*self.T[:12])))
-        if isinstance(s, PlanarArm):
-            solutions = self._planar()
-        elif isinstance(s, ParallelTriple6R):
-            solutions = self._parallel_triple()
-        elif isinstance(s, StanfordArm):
-            solutions = self._stanford()
-        elif isinstance(s, GantryArm):
-            solutions = self._gantry()
-        else:
-            solutions = self._elbow_arm()
+        solutions = RECIPES[type(s)](self.ops, s)
         q_out, valid_out, valid_flags = [], [], []
         for name in self.configs:
-            angles, ok = solutions[name]
+            angles, ok = solutions[name].values, solutions[name].ok
             hit = self._reproduces(name, angles)
             tape.stage(f"joint limits and outputs, branch {name}")
             values, inside = [], []
