@@ -356,13 +356,17 @@ def atan2_loops(fn: dict) -> None:
     minimum of 21 repeats, load ~3).
 
     Left whole (the function keeps :func:`whole_loop`): an atan2 whose argument depends on
-    another atan2 (one split would not do), or is an input or not a plain name, and a
-    fourth-axis output the finishing loop would need from the first."""
+    another atan2 (one split would not do), or is an input or not a plain name (the
+    five-axis ik's ``atan2(ex, -ey)``: its columns would have to hold expressions), an
+    atan2 inside a larger expression, and a fourth-axis output the finishing loop would
+    need from the first."""
     statements = [statement for stage in fn["stages"] for statement in stage.statements]
     calls = {statement.name: _ATAN2.fullmatch(statement.expr) for statement in statements}
     calls = {name: found for name, found in calls.items() if found}
-    if not calls:
-        return
+    if not calls or any(
+        "atan2" in statement.expr and statement.name not in calls for statement in statements
+    ):
+        return  # none, or one this split would leave in the first loop
     defined = {statement.name: statement for statement in statements}
     late = set(calls)  # the atan2 angles and what depends on them
     for statement in statements:

@@ -100,6 +100,23 @@ def test_a_function_whose_atan2_argument_is_an_expression_stays_whole():
     assert len(fn["parts"]) == 1
 
 
+def test_a_function_with_an_atan2_the_split_cannot_take_stays_whole():
+    """One atan2 of two names and one of an expression: splitting at the first would leave
+    the second in the first loop, scalar for a lone point."""
+    fn = _fn(
+        [
+            ("a", "x*x"),
+            ("b", "a - 1.0"),
+            ("q0", "atan2(a, b)"),
+            ("q1", "atan2(-a, a)"),
+            ("bad", "isnan(q0 + q1)"),
+        ],
+        stores=("q0", "q1"),
+    )
+    atan2_loops(fn)
+    assert len(fn["parts"]) == 1
+
+
 def test_a_split_carries_what_the_finishing_loop_reads():
     fn = _fn(
         [
