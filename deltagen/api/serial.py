@@ -44,7 +44,6 @@ from deltagen.solve.ik import (
     IKSolutions,
     check_poses,
     raise_bad_poses,
-    rigid_one,
 )
 from deltagen.solve.singularity import singular_values
 
@@ -52,7 +51,6 @@ __all__ = ["IKSolutions", "SerialRobot", "bundled_robots", "bundled_urdfs", "eul
 
 #: the reference functions a SerialRobot calls (reference/serial.py)
 _CALLS = ("fk", "frames", "jacobian", "jacobian_dot", *DYNAMICS)
-_F64 = np.dtype(np.float64)  # native byte order
 
 Frame = Literal["base", "tool"]  # the frame a Jacobian is expressed in
 
@@ -486,44 +484,16 @@ class SerialRobot(SerialDynamics, RobotFamily):
         UnreachableError naming the cause per row (out of reach, orientation not reachable
         by this structure, outside the joint limits, no convergence)."""
         planner = self.ik_planner
-        tried = False  # a lean path had this pose and answered None: not again below
-        if (
-            config is None
-            and q0 is None
-            and not options
-            and type(method) is str
-            and type(errors) is str
-            and type(singular) is str
-        ):
-            # a request these checks accepted before (planner.remember), answered for one
-            # (4, 4) float64 pose by one C call: the pose's check, the numeric solve, the
-            # cheap singularity test (IKPlanner.lean_numeric; the same bits as one() below)
-            lean = planner.lean_requests.get((method, errors, singular))
-            if lean is not None:
-                q = lean(T)  # False: not such a pose, the paths below take it
-                if type(q) is np.ndarray:
-                    return q
-                if q is not False:
-                    tried = True
-                    if q is not None and not planner.singular_one(q[0]):
-                        return q[0]  # solved; not cleared by the cheap test, by the SVD
+        q, tried = planner.remembered(T, config, q0, method, errors, singular, options)
+        if q is not None:
+            return q
         analytic, q0a, checked = self._ik_request(config, q0, method, errors, singular, options)
         if not analytic and config is None and q0 is None and not options:
             planner.remember(method, errors, singular)
-        if (
-            not tried
-            and type(T) is np.ndarray
-            and T.dtype is _F64
-            and T.shape == (4, 4)
-            and T.flags.c_contiguous
-        ):
-            # one pose as a plain array: check_poses' rule in Python floats, and the lean
-            # paths (None: the general path below answers, after its own check of T)
-            if rigid_one(T):
-                q = planner.one(T, config, q0a, analytic, errors, singular, options)
-                if q is not None:
-                    return q
-                tried = True
+        if not tried:
+            q, tried = planner.one_plain(T, config, q0a, analytic, errors, singular, options)
+            if q is not None:
+                return q
         lead, flat, finite, rigid = check_poses(T)
         if not tried and flat.shape[0] == 1 and not lead and rigid[0]:
             q = planner.one(flat[0], config, q0a, analytic, errors, singular, options)

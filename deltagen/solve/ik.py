@@ -769,6 +769,60 @@ class IKPlanner:
             self.mid_range = np.ascontiguousarray(self.start(None, (1,))[0])
         return solver
 
+    def one_plain(
+        self,
+        T: Any,
+        config: Any,
+        q0a: Any,
+        analytic: bool,
+        errors: str,
+        singular: str,
+        options: Any,
+    ) -> tuple[Any, bool]:
+        """:meth:`one` for one pose as a plain C-ordered (4, 4) float64 array that passes
+        check_poses' rule in Python floats (rigid_one). (q, True): answered; (None, True):
+        such a pose the lean paths left to the general one (which checks T itself and must
+        not try one() again); (None, False): not such a pose."""
+        if not (
+            type(T) is np.ndarray
+            and T.dtype is _F64
+            and T.shape == (4, 4)
+            and T.flags.c_contiguous
+            and rigid_one(T)
+        ):
+            return None, False
+        return self.one(T, config, q0a, analytic, errors, singular, options), True
+
+    def remembered(
+        self, T: Any, config: Any, q0: Any, method: Any, errors: Any, singular: Any, options: Any
+    ) -> tuple[Any, bool]:
+        """SerialRobot.ik's first try: a request its checks accepted before (:meth:`remember`)
+        answered for one (4, 4) float64 pose by one C call (:meth:`lean_numeric`: the
+        pose's check, the numeric solve, the cheap singularity test; the same bits as
+        :meth:`one`). (q, True): answered; (None, True): this path had the pose and did
+        not answer it (not rigid, no convergence: the general path must not try it
+        again); (None, False): not such a request or pose."""
+        if (
+            config is not None
+            or q0 is not None
+            or options
+            or type(method) is not str
+            or type(errors) is not str
+            or type(singular) is not str
+        ):
+            return None, False
+        lean = self.lean_requests.get((method, errors, singular))
+        if lean is None:
+            return None, False
+        q = lean(T)  # False: not such a pose, the other paths take it
+        if type(q) is np.ndarray:
+            return q, True
+        if q is False:
+            return None, False
+        if q is not None and not self.singular_one(q[0]):
+            return q[0], True  # solved; not cleared by the cheap test, by the SVD
+        return None, True
+
     def remember(self, method: Any, errors: Any, singular: Any) -> None:
         """Note a request of ik that its checks accepted, made without config, q0 or options
         and answered by the numeric method: for errors="raise" and plain str arguments
