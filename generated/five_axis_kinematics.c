@@ -32,7 +32,7 @@ extern double atan2(double, double);
 #endif
 
 /* Points per block: each function keeps its block's columns on the stack (table_table_ac_ik_all
- * the most, 12544 bytes at 64 points; each function's comment in
+ * the most, 22016 bytes at 64 points; each function's comment in
  * the header gives its own), so small stacks can ask for less. */
 #ifndef DELTAGEN_FIVE_AXIS_BLOCK
 #define DELTAGEN_FIVE_AXIS_BLOCK 64
@@ -80,10 +80,8 @@ int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *rest
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -231,10 +229,8 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -256,6 +252,23 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
         double out_z_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_1_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -298,10 +311,7 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double t2_1 = -c_pivot0 + px;
             const double t2_2 = -c_pivot1 + py;
             const double t2_3 = pz - tilt_pivot2;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            const double c_raw_1_x = -ey;
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
             const double cos_c_1 = ((singular) ? cos_c_prev : -ey*t2_0);
@@ -315,10 +325,8 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double t3_2 = -c_pivot1 + py;
             const double t3_3 = -tilt_pivot1;
             const double t3_4 = pz - tilt_pivot2;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
             const double cos_c_2 = ((singular) ? cos_c_prev : ey*t3_0);
@@ -327,13 +335,85 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
             const double t3_5 = c_pivot1 + cos_c_2*t3_2 - sin_c_2*t3_1 + t3_3;
             const double y_2 = ez*t3_5 - head_pivot1 - rho*t3_4 - spindle_offset1 - t3_3;
             const double z_2 = ez*t3_4 - head_pivot2 + rho*t3_5 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* the branch nearest the previous rotary angles */
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            c_raw_1_x_b[k] = c_raw_1_x;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            z_1_b[k] = z_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            z_2_b[k] = z_2;
+            t5_0_b[k] = t5_0;
+            t5_1_b[k] = t5_1;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            c_raw_1_x_b[k] = c_raw_1_x_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ex_b[k], c_raw_1_x_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], ey_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const double z_2 = z_2_b[k];
+            const double t5_0 = t5_0_b[k];
+            const double t5_1 = t5_1_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t5_0 = -c_prev;
-            const double t5_1 = -tilt_prev;
             const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
             const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
             const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
@@ -433,10 +513,8 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -465,6 +543,22 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_1_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -507,10 +601,7 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double t2_1 = -c_pivot0 + px;
             const double t2_2 = -c_pivot1 + py;
             const double t2_3 = pz - tilt_pivot2;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            const double c_raw_1_x = -ey;
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
             const double cos_c_1 = ((singular) ? cos_c_prev : -ey*t2_0);
@@ -524,10 +615,8 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double t3_2 = -c_pivot1 + py;
             const double t3_3 = -tilt_pivot1;
             const double t3_4 = pz - tilt_pivot2;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
             const double cos_c_2 = ((singular) ? cos_c_prev : ey*t3_0);
@@ -536,12 +625,82 @@ int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *
             const double t3_5 = c_pivot1 + cos_c_2*t3_2 - sin_c_2*t3_1 + t3_3;
             const double y_2 = ez*t3_5 - head_pivot1 - rho*t3_4 - spindle_offset1 - t3_3;
             const double z_2 = ez*t3_4 - head_pivot2 + rho*t3_5 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            c_raw_1_x_b[k] = c_raw_1_x;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            z_1_b[k] = z_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            z_2_b[k] = z_2;
+            t5_0_b[k] = t5_0;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            c_raw_1_x_b[k] = c_raw_1_x_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ex_b[k], c_raw_1_x_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], ey_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const double z_2 = z_2_b[k];
+            const int t5_0 = t5_0_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* outputs (NaN on invalid rows) */
-            const int t5_0 = !invalid;
             const int out_valid1 = (((t5_0) & (within1)));
             const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
@@ -642,10 +801,8 @@ int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *rest
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -792,10 +949,8 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -817,6 +972,23 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
         double out_z_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -860,10 +1032,6 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double t2_2 = pz - tilt_pivot2;
             const double t2_3 = -c_pivot0 + px;
             const double t2_4 = -c_pivot1 + py;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
             const double cos_c_1 = ((singular) ? cos_c_prev : ex*t2_0);
@@ -876,10 +1044,9 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double t3_1 = pz - tilt_pivot2;
             const double t3_2 = -c_pivot0 + px;
             const double t3_3 = -c_pivot1 + py;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ey;
+            const double c_raw_2_x = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
             const double cos_c_2 = ((singular) ? cos_c_prev : -ex*t3_0);
@@ -888,13 +1055,85 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
             const double t3_4 = c_pivot0 + cos_c_2*t3_2 + sin_c_2*t3_3 - tilt_pivot0;
             const double x_2 = ez*t3_4 - head_pivot0 + rho*t3_1 - spindle_offset0 + tilt_pivot0;
             const double z_2 = ez*t3_1 - head_pivot2 - rho*t3_4 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* the branch nearest the previous rotary angles */
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            y_1_b[k] = y_1;
+            x_1_b[k] = x_1;
+            z_1_b[k] = z_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            c_raw_2_x_b[k] = c_raw_2_x;
+            y_2_b[k] = y_2;
+            x_2_b[k] = x_2;
+            z_2_b[k] = z_2;
+            t5_0_b[k] = t5_0;
+            t5_1_b[k] = t5_1;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+            c_raw_2_x_b[k] = c_raw_2_x_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ey_b[k], ex_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], c_raw_2_x_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double y_1 = y_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double z_1 = z_1_b[k];
+            const double y_2 = y_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double z_2 = z_2_b[k];
+            const double t5_0 = t5_0_b[k];
+            const double t5_1 = t5_1_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t5_0 = -c_prev;
-            const double t5_1 = -tilt_prev;
             const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
             const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
             const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
@@ -994,10 +1233,8 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -1026,6 +1263,22 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -1069,10 +1322,6 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double t2_2 = pz - tilt_pivot2;
             const double t2_3 = -c_pivot0 + px;
             const double t2_4 = -c_pivot1 + py;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double t2_0 = 1.0/rho_safe_1;
             const double cos_c_1 = ((singular) ? cos_c_prev : ex*t2_0);
@@ -1085,10 +1334,9 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double t3_1 = pz - tilt_pivot2;
             const double t3_2 = -c_pivot0 + px;
             const double t3_3 = -c_pivot1 + py;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ey;
+            const double c_raw_2_x = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double t3_0 = 1.0/rho_safe_2;
             const double cos_c_2 = ((singular) ? cos_c_prev : -ex*t3_0);
@@ -1097,12 +1345,82 @@ int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *
             const double t3_4 = c_pivot0 + cos_c_2*t3_2 + sin_c_2*t3_3 - tilt_pivot0;
             const double x_2 = ez*t3_4 - head_pivot0 + rho*t3_1 - spindle_offset0 + tilt_pivot0;
             const double z_2 = ez*t3_1 - head_pivot2 - rho*t3_4 - spindle_offset2 + tilt_pivot2 + tool_length;
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            y_1_b[k] = y_1;
+            x_1_b[k] = x_1;
+            z_1_b[k] = z_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            c_raw_2_x_b[k] = c_raw_2_x;
+            y_2_b[k] = y_2;
+            x_2_b[k] = x_2;
+            z_2_b[k] = z_2;
+            t5_0_b[k] = t5_0;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+            c_raw_2_x_b[k] = c_raw_2_x_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ey_b[k], ex_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], c_raw_2_x_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double y_1 = y_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double z_1 = z_1_b[k];
+            const double y_2 = y_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double z_2 = z_2_b[k];
+            const int t5_0 = t5_0_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* outputs (NaN on invalid rows) */
-            const int t5_0 = !invalid;
             const int out_valid1 = (((t5_0) & (within1)));
             const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
@@ -1199,10 +1517,8 @@ int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *restri
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -1345,10 +1661,8 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -1370,6 +1684,23 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
         double out_z_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_1_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -1412,10 +1743,7 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double t2_1 = rho*tool_length;
             const double t2_2 = head_pivot0 + spindle_offset0;
             const double t2_3 = ez*spindle_offset1 + head_pivot1 - rho*spindle_offset2;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            const double c_raw_1_x = -ey;
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
             const double t2_0 = 1.0/rho_safe_1;
@@ -1427,10 +1755,8 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double t3_1 = rho*tool_length;
             const double t3_2 = head_pivot0 + spindle_offset0;
             const double t3_3 = ez*spindle_offset1 + head_pivot1 + rho*spindle_offset2;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
             const double t3_0 = 1.0/rho_safe_2;
@@ -1438,13 +1764,85 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
             const double sin_c_2 = ((singular) ? sin_c_prev : -ex*t3_0);
             const double x_2 = -cos_c_2*t3_2 + px - sin_c_2*t3_1 + sin_c_2*t3_3;
             const double y_2 = cos_c_2*t3_1 - cos_c_2*t3_3 + py - sin_c_2*t3_2;
+            /* the branch nearest the previous rotary angles */
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            c_raw_1_x_b[k] = c_raw_1_x;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+            t5_1_b[k] = t5_1;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            c_raw_1_x_b[k] = c_raw_1_x_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ex_b[k], c_raw_1_x_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], ey_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const double t5_0 = t5_0_b[k];
+            const double t5_1 = t5_1_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t5_0 = -c_prev;
-            const double t5_1 = -tilt_prev;
             const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
             const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
             const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
@@ -1540,10 +1938,8 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -1572,6 +1968,22 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_1_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -1614,10 +2026,7 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double t2_1 = rho*tool_length;
             const double t2_2 = head_pivot0 + spindle_offset0;
             const double t2_3 = ez*spindle_offset1 + head_pivot1 - rho*spindle_offset2;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            const double c_raw_1_x = -ey;
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
             const double t2_0 = 1.0/rho_safe_1;
@@ -1629,10 +2038,8 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double t3_1 = rho*tool_length;
             const double t3_2 = head_pivot0 + spindle_offset0;
             const double t3_3 = ez*spindle_offset1 + head_pivot1 + rho*spindle_offset2;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
             const double t3_0 = 1.0/rho_safe_2;
@@ -1640,12 +2047,82 @@ int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *re
             const double sin_c_2 = ((singular) ? sin_c_prev : -ex*t3_0);
             const double x_2 = -cos_c_2*t3_2 + px - sin_c_2*t3_1 + sin_c_2*t3_3;
             const double y_2 = cos_c_2*t3_1 - cos_c_2*t3_3 + py - sin_c_2*t3_2;
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            c_raw_1_x_b[k] = c_raw_1_x;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            c_raw_1_x_b[k] = c_raw_1_x_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ex_b[k], c_raw_1_x_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], ey_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const int t5_0 = t5_0_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* outputs (NaN on invalid rows) */
-            const int t5_0 = !invalid;
             const int out_valid1 = (((t5_0) & (within1)));
             const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
@@ -1742,10 +2219,8 @@ int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *restri
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -1887,10 +2362,8 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -1912,6 +2385,23 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
         double out_z_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -1953,10 +2443,6 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
             const double t2_1 = head_pivot1 + spindle_offset1;
             const double t2_2 = ez*spindle_offset0 + head_pivot0 + rho*spindle_offset2;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
             const double t2_0 = 1.0/rho_safe_1;
@@ -1968,10 +2454,9 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             const double t3_1 = rho*tool_length;
             const double t3_2 = head_pivot1 + spindle_offset1;
             const double t3_3 = ez*spindle_offset0 + head_pivot0 - rho*spindle_offset2;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ey;
+            const double c_raw_2_x = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
             const double t3_0 = 1.0/rho_safe_2;
@@ -1979,13 +2464,85 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
             const double sin_c_2 = ((singular) ? sin_c_prev : -ey*t3_0);
             const double x_2 = -cos_c_2*t3_1 - cos_c_2*t3_3 + px + sin_c_2*t3_2;
             const double y_2 = -cos_c_2*t3_2 + py - sin_c_2*t3_1 - sin_c_2*t3_3;
+            /* the branch nearest the previous rotary angles */
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            c_raw_2_x_b[k] = c_raw_2_x;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+            t5_1_b[k] = t5_1;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+            c_raw_2_x_b[k] = c_raw_2_x_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ey_b[k], ex_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], c_raw_2_x_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const double t5_0 = t5_0_b[k];
+            const double t5_1 = t5_1_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t5_0 = -c_prev;
-            const double t5_1 = -tilt_prev;
             const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
             const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
             const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
@@ -2081,10 +2638,8 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -2113,6 +2668,22 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -2154,10 +2725,6 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
             const double t2_1 = head_pivot1 + spindle_offset1;
             const double t2_2 = ez*spindle_offset0 + head_pivot0 + rho*spindle_offset2;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
             const double t2_0 = 1.0/rho_safe_1;
@@ -2169,10 +2736,9 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             const double t3_1 = rho*tool_length;
             const double t3_2 = head_pivot1 + spindle_offset1;
             const double t3_3 = ez*spindle_offset0 + head_pivot0 - rho*spindle_offset2;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ey;
+            const double c_raw_2_x = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
             const double t3_0 = 1.0/rho_safe_2;
@@ -2180,12 +2746,82 @@ int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *re
             const double sin_c_2 = ((singular) ? sin_c_prev : -ey*t3_0);
             const double x_2 = -cos_c_2*t3_1 - cos_c_2*t3_3 + px + sin_c_2*t3_2;
             const double y_2 = -cos_c_2*t3_2 + py - sin_c_2*t3_1 - sin_c_2*t3_3;
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            c_raw_2_x_b[k] = c_raw_2_x;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+            c_raw_2_x_b[k] = c_raw_2_x_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ey_b[k], ex_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], c_raw_2_x_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const int t5_0 = t5_0_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* outputs (NaN on invalid rows) */
-            const int t5_0 = !invalid;
             const int out_valid1 = (((t5_0) & (within1)));
             const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
@@ -2284,10 +2920,8 @@ int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *restr
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -2432,10 +3066,8 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -2457,6 +3089,23 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
         double out_z_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_1_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -2498,10 +3147,7 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
             const double t2_1 = -c_pivot0 + px;
             const double t2_2 = -c_pivot1 + py;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            const double c_raw_1_x = -ey;
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
             const double t2_0 = 1.0/rho_safe_1;
@@ -2513,10 +3159,8 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
             const double t3_1 = -c_pivot0 + px;
             const double t3_2 = -c_pivot1 + py;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
             const double t3_0 = 1.0/rho_safe_2;
@@ -2525,13 +3169,85 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - head_pivot0 + sin_c_2*t3_2 - spindle_offset0;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - ez*spindle_offset1 - head_pivot1 - rho*spindle_offset2 +
                     rho*tool_length - sin_c_2*t3_1;
+            /* the branch nearest the previous rotary angles */
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            c_raw_1_x_b[k] = c_raw_1_x;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+            t5_1_b[k] = t5_1;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            c_raw_1_x_b[k] = c_raw_1_x_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ex_b[k], c_raw_1_x_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], ey_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const double t5_0 = t5_0_b[k];
+            const double t5_1 = t5_1_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t5_0 = -c_prev;
-            const double t5_1 = -tilt_prev;
             const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
             const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
             const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
@@ -2629,10 +3345,8 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -2661,6 +3375,22 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_1_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -2702,10 +3432,7 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
             const double t2_1 = -c_pivot0 + px;
             const double t2_2 = -c_pivot1 + py;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ex, -ey);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            const double c_raw_1_x = -ey;
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset1;
             const double t2_0 = 1.0/rho_safe_1;
@@ -2717,10 +3444,8 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
             const double t3_1 = -c_pivot0 + px;
             const double t3_2 = -c_pivot1 + py;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ex, ey);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset1;
             const double t3_0 = 1.0/rho_safe_2;
@@ -2729,12 +3454,82 @@ int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *r
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - head_pivot0 + sin_c_2*t3_2 - spindle_offset0;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - ez*spindle_offset1 - head_pivot1 - rho*spindle_offset2 +
                     rho*tool_length - sin_c_2*t3_1;
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            c_raw_1_x_b[k] = c_raw_1_x;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            c_raw_1_x_b[k] = c_raw_1_x_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ex_b[k], c_raw_1_x_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], ey_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const int t5_0 = t5_0_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* outputs (NaN on invalid rows) */
-            const int t5_0 = !invalid;
             const int out_valid1 = (((t5_0) & (within1)));
             const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */
@@ -2833,10 +3628,8 @@ int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *restr
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -2981,10 +3774,8 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -3006,6 +3797,23 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
         double out_z_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_tilt_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         double out_c_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double t5_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -3047,10 +3855,6 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
             const double t2_1 = -c_pivot0 + px;
             const double t2_2 = -c_pivot1 + py;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
             const double t2_0 = 1.0/rho_safe_1;
@@ -3062,10 +3866,9 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
             const double t3_1 = -c_pivot0 + px;
             const double t3_2 = -c_pivot1 + py;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ey;
+            const double c_raw_2_x = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
             const double t3_0 = 1.0/rho_safe_2;
@@ -3074,13 +3877,85 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - ez*spindle_offset0 - head_pivot0 + rho*spindle_offset2 -
                     rho*tool_length + sin_c_2*t3_2;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - head_pivot1 - sin_c_2*t3_1 - spindle_offset1;
+            /* the branch nearest the previous rotary angles */
+            const double t5_0 = -c_prev;
+            const double t5_1 = -tilt_prev;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            c_raw_2_x_b[k] = c_raw_2_x;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+            t5_1_b[k] = t5_1;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+            c_raw_2_x_b[k] = c_raw_2_x_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ey_b[k], ex_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], c_raw_2_x_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const double t5_0 = t5_0_b[k];
+            const double t5_1 = t5_1_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* the branch nearest the previous rotary angles */
-            const double t5_0 = -c_prev;
-            const double t5_1 = -tilt_prev;
             const double cost1 = pow(c_1 + t5_0, 2) + pow(t5_1 + tilt_1, 2);
             const double cost2 = pow(c_2 + t5_0, 2) + pow(t5_1 + tilt_2, 2);
             const int take_first = ((within1) & (((!within2) | ((cost1 <= cost2)))));
@@ -3178,10 +4053,8 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
          * sines from the same vector code whatever its place in the batch, so a point alone
          * gets the bits it gets in any batch. Without it every point takes the scalar libm
          * path anyway, and padding would only multiply a single point's trig calls by 8.
-         * (The kinematics loop is not padded: where it calls atan2 -- the inverse
-         * kinematics -- padding would multiply a single point's cost by up to 8, so a point
-         * in a batch's scalar remainder may differ from one in a vector lane by the last
-         * bits of atan2.) */
+         * (atan2, where a kernel calls it, runs in padded loops of its own in the same
+         * way, between the kinematics loop and a second one that finishes the point.) */
         const size_t m_v = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
                 DELTAGEN_FIVE_AXIS_BLOCK
             ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
@@ -3210,6 +4083,22 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
         double out_c2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid1_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
         int out_valid2_checked_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ex_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ey_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double ez_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double rho_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int invalid_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int singular_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double tilt_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_y_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double c_raw_2_x_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double z_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double x_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        double y_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        int t5_0_b[DELTAGEN_FIVE_AXIS_BLOCK];
         for (size_t k = 0; k < m; ++k) {  /* loop: points */
             const double px = px_b[k];
             const double py = py_b[k];
@@ -3251,10 +4140,6 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
             const double t2_1 = -c_pivot0 + px;
             const double t2_2 = -c_pivot1 + py;
-            const double tilt_1 = atan2(rho, ez);
-            const double c_raw_1 = atan2(ey, ex);
-            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
-            const double c_1 = ((singular) ? c_prev : c_turn_1);
             const double rho_safe_1 = ((singular) ? 1 : rho);
             const double z_1 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz + rho*spindle_offset0;
             const double t2_0 = 1.0/rho_safe_1;
@@ -3266,10 +4151,9 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
             const double t3_1 = -c_pivot0 + px;
             const double t3_2 = -c_pivot1 + py;
-            const double tilt_2 = atan2(-rho, ez);
-            const double c_raw_2 = atan2(-ey, -ex);
-            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
-            const double c_2 = ((singular) ? c_prev : c_turn_2);
+            const double tilt_2_y = -rho;
+            const double c_raw_2_y = -ey;
+            const double c_raw_2_x = -ex;
             const double rho_safe_2 = ((singular) ? 1 : rho);
             const double z_2 = -ez*spindle_offset2 + ez*tool_length - head_pivot2 + pz - rho*spindle_offset0;
             const double t3_0 = 1.0/rho_safe_2;
@@ -3278,12 +4162,82 @@ int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *r
             const double x_2 = c_pivot0 + cos_c_2*t3_1 - ez*spindle_offset0 - head_pivot0 + rho*spindle_offset2 -
                     rho*tool_length + sin_c_2*t3_2;
             const double y_2 = c_pivot1 + cos_c_2*t3_2 - head_pivot1 - sin_c_2*t3_1 - spindle_offset1;
+            /* outputs (NaN on invalid rows) */
+            const int t5_0 = !invalid;
+            ex_b[k] = ex;
+            ey_b[k] = ey;
+            ez_b[k] = ez;
+            rho_b[k] = rho;
+            invalid_b[k] = invalid;
+            singular_b[k] = singular;
+            z_1_b[k] = z_1;
+            x_1_b[k] = x_1;
+            y_1_b[k] = y_1;
+            tilt_2_y_b[k] = tilt_2_y;
+            c_raw_2_y_b[k] = c_raw_2_y;
+            c_raw_2_x_b[k] = c_raw_2_x;
+            z_2_b[k] = z_2;
+            x_2_b[k] = x_2;
+            y_2_b[k] = y_2;
+            t5_0_b[k] = t5_0;
+        }
+        /* atan2 in loops of their own, rows m .. m_a - 1 (copies of the block's first point)
+         * padding them to whole vectors of TRIG_LANES lanes as the cos/sin loops are: every
+         * angle comes from a vector lane, a point alone gets the bits it gets in any batch */
+        const size_t m_a = ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) <=
+                DELTAGEN_FIVE_AXIS_BLOCK
+            ? ((m + DELTAGEN_FIVE_AXIS_TRIG_LANES - 1) & ~(size_t)(DELTAGEN_FIVE_AXIS_TRIG_LANES - 1)) : m;
+        for (size_t k = m; k < m_a; ++k) {
+            ex_b[k] = ex_b[0];
+            ey_b[k] = ey_b[0];
+            ez_b[k] = ez_b[0];
+            rho_b[k] = rho_b[0];
+            tilt_2_y_b[k] = tilt_2_y_b[0];
+            c_raw_2_y_b[k] = c_raw_2_y_b[0];
+            c_raw_2_x_b[k] = c_raw_2_x_b[0];
+        }
+        double tilt_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_1_b[k] = atan2(rho_b[k], ez_b[k]);
+        }
+        double c_raw_1_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_1_b[k] = atan2(ey_b[k], ex_b[k]);
+        }
+        double tilt_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            tilt_2_b[k] = atan2(tilt_2_y_b[k], ez_b[k]);
+        }
+        double c_raw_2_b[DELTAGEN_FIVE_AXIS_BLOCK];
+        for (size_t k = 0; k < m_a; ++k) {  /* loop: atan2 */
+            c_raw_2_b[k] = atan2(c_raw_2_y_b[k], c_raw_2_x_b[k]);
+        }
+        for (size_t k = 0; k < m; ++k) {  /* loop: points */
+            const double c_prev = c_prev_b[k];
+            const int invalid = invalid_b[k];
+            const int singular = singular_b[k];
+            const double z_1 = z_1_b[k];
+            const double x_1 = x_1_b[k];
+            const double y_1 = y_1_b[k];
+            const double z_2 = z_2_b[k];
+            const double x_2 = x_2_b[k];
+            const double y_2 = y_2_b[k];
+            const int t5_0 = t5_0_b[k];
+            const double tilt_1 = tilt_1_b[k];
+            const double c_raw_1 = c_raw_1_b[k];
+            const double tilt_2 = tilt_2_b[k];
+            const double c_raw_2 = c_raw_2_b[k];
+            /* branch 1: sin(tilt) >= 0; C at the turn nearest the previous C */
+            const double c_turn_1 = c_raw_1 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_1)/3.141592653589793);
+            const double c_1 = ((singular) ? c_prev : c_turn_1);
+            /* branch 2: sin(tilt) <= 0; C at the turn nearest the previous C */
+            const double c_turn_2 = c_raw_2 + 2*3.141592653589793*rint((1.0/2.0)*(c_prev - c_raw_2)/3.141592653589793);
+            const double c_2 = ((singular) ? c_prev : c_turn_2);
             /* each branch's tilt within its travel [tilt_min, tilt_max] */
             const int within1 = (((tilt_1 >= tilt_min)) & ((tilt_1 <= tilt_max)));
             const int within2 = (((tilt_2 >= tilt_min)) & ((tilt_2 <= tilt_max)));
             const int no_branch = ((!within1) & (!within2));
             /* outputs (NaN on invalid rows) */
-            const int t5_0 = !invalid;
             const int out_valid1 = (((t5_0) & (within1)));
             const int out_valid2 = (((t5_0) & (within2)));
             /* finite outputs: a non-finite value the status does not explain makes the row INVALID, all NaN */

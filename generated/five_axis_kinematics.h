@@ -95,8 +95,8 @@ int deltagen_five_axis_table_table_ac_fk(const deltagen_five_axis_geometry *rest
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 165 operations per point.
- * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 40 block arrays (37 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -120,8 +120,8 @@ int deltagen_five_axis_table_table_ac_ik(const deltagen_five_axis_geometry *rest
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 155 operations per point.
- * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 46 block arrays (40 double, 6 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 22016 bytes (21.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_table_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -165,8 +165,8 @@ int deltagen_five_axis_table_table_bc_fk(const deltagen_five_axis_geometry *rest
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 165 operations per point.
- * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 40 block arrays (37 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -190,8 +190,8 @@ int deltagen_five_axis_table_table_bc_ik(const deltagen_five_axis_geometry *rest
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 155 operations per point.
- * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 46 block arrays (40 double, 6 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 22016 bytes (21.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_table_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -235,8 +235,8 @@ int deltagen_five_axis_head_head_ac_fk(const deltagen_five_axis_geometry *restri
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 160 operations per point.
- * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 40 block arrays (37 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -260,8 +260,8 @@ int deltagen_five_axis_head_head_ac_ik(const deltagen_five_axis_geometry *restri
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 150 operations per point.
- * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 46 block arrays (40 double, 6 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 22016 bytes (21.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_head_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -305,8 +305,8 @@ int deltagen_five_axis_head_head_bc_fk(const deltagen_five_axis_geometry *restri
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 161 operations per point.
- * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 40 block arrays (37 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -330,8 +330,8 @@ int deltagen_five_axis_head_head_bc_ik(const deltagen_five_axis_geometry *restri
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 151 operations per point.
- * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 46 block arrays (40 double, 6 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 22016 bytes (21.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_head_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -375,8 +375,8 @@ int deltagen_five_axis_table_head_ac_fk(const deltagen_five_axis_geometry *restr
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 162 operations per point.
- * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 40 block arrays (37 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -400,8 +400,8 @@ int deltagen_five_axis_table_head_ac_ik(const deltagen_five_axis_geometry *restr
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 152 operations per point.
- * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 46 block arrays (40 double, 6 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 22016 bytes (21.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_head_ac_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -445,8 +445,8 @@ int deltagen_five_axis_table_head_bc_fk(const deltagen_five_axis_geometry *restr
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 162 operations per point.
- * Stack: 19 block arrays (18 double, 1 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 9472 bytes (9.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 40 block arrays (37 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 19712 bytes (19.2 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,
@@ -470,8 +470,8 @@ int deltagen_five_axis_table_head_bc_ik(const deltagen_five_axis_geometry *restr
  *                   of such a row are NaN (flags 0)
  *
  * Cost: 152 operations per point.
- * Stack: 26 block arrays (23 double, 3 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
- * 12544 bytes (12.2 KiB) at 64, plus scalars and spills: allow 25 % more.
+ * Stack: 46 block arrays (40 double, 6 int) of DELTAGEN_FIVE_AXIS_BLOCK points,
+ * 22016 bytes (21.5 KiB) at 64, plus scalars and spills: allow 25 % more.
  */
 int deltagen_five_axis_table_head_bc_ik_all(const deltagen_five_axis_geometry *restrict geometry, size_t n,
         const double *restrict p, const double *restrict d, const double *restrict j_prev, double *restrict j,

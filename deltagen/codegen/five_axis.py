@@ -29,6 +29,7 @@ UNIT = Unit(
         "points from the tool tip into the spindle.",
     ),
     struct_fields=FIVE_AXIS_PARAMETERS,
+    atan2_loops=True,
 )
 
 

@@ -16,7 +16,13 @@ import sympy as sp
 
 from deltagen import status as st
 from deltagen.codegen.layout import wrap_c
-from deltagen.codegen.lowering import LoweredKernel, LoweredStage, keep_needed, lower_stage
+from deltagen.codegen.lowering import (
+    LoweredKernel,
+    LoweredStage,
+    Statement,
+    keep_needed,
+    lower_stage,
+)
 from deltagen.derive.kernel import Stage
 from deltagen.paths import runtime_dir, template_dir
 
@@ -315,6 +321,60 @@ def pack_block_arrays(fn: dict) -> None:
 
 #: An atan2 statement of the per-point loop whose arguments are two named values.
 _ATAN2 = re.compile(r"(atan2f?)\((\w+), (\w+)\)")
+_ATAN2_CALL = re.compile(r"(atan2f?)\((.*)\)")
+
+
+def _call_arguments(expr: str) -> tuple[str, str, str] | None:
+    """(function, y, x) of ``expr`` when it is one atan2 call, its arguments split at the
+    comma outside their parentheses; None otherwise."""
+    found = _ATAN2_CALL.fullmatch(expr)
+    if not found:
+        return None
+    depth, cut = 0, None
+    for i, char in enumerate(found.group(2)):
+        depth += {"(": 1, ")": -1}.get(char, 0)
+        if depth < 0:
+            return None  # "atan2(a, b) + atan2(c, d)": not one call
+        if char == "," and depth == 0:
+            if cut is not None:
+                return None
+            cut = i
+    if depth != 0 or cut is None:
+        return None
+    args = found.group(2)
+    return found.group(1), args[:cut].strip(), args[cut + 1 :].strip()
+
+
+def _named_atan2_arguments(stages: list) -> list:
+    """The stages with each atan2 whose argument is not a value of the loop (an input, an
+    expression: the five-axis ik's ``atan2(ex, -ey)``) given a statement of its own for
+    that argument, ``<angle>_y`` / ``<angle>_x`` just before the call, so that every
+    atan2 reads two named values the first loop can keep in columns."""
+    defined = {st.name for stage in stages for st in stage.statements}
+    out = []
+    for stage in stages:
+        statements = []
+        for statement in stage.statements:
+            call = _call_arguments(statement.expr)
+            if call is not None:
+                function, y, x = call
+                named = []
+                for arg, suffix in ((y, "y"), (x, "x")):
+                    if arg in defined:
+                        named.append(arg)
+                        continue
+                    name = f"{statement.name}_{suffix}"
+                    if name in defined:
+                        return stages  # no free name: left as it is (then whole)
+                    defined.add(name)
+                    statements.append(Statement(name, arg, statement.ctype))
+                    named.append(name)
+                statement = Statement(
+                    statement.name, f"{function}({named[0]}, {named[1]})", statement.ctype
+                )
+            statements.append(statement)
+        out.append(LoweredStage(stage.comment, tuple(statements)))
+    return out
 
 
 def _names(expr: str) -> set:
@@ -355,12 +415,13 @@ def atan2_loops(fn: dict) -> None:
     (gcc 12, AVX-512, both builds in one process called alternately, thread CPU time,
     minimum of 21 repeats, load ~3).
 
-    Left whole (the function keeps :func:`whole_loop`): an atan2 whose argument depends on
-    another atan2 (one split would not do), or is an input or not a plain name (the
-    five-axis ik's ``atan2(ex, -ey)``: its columns would have to hold expressions), an
-    atan2 inside a larger expression, and a fourth-axis output the finishing loop would
-    need from the first."""
-    statements = [statement for stage in fn["stages"] for statement in stage.statements]
+    An argument that is not a value of the loop (an input, an expression) becomes one
+    first (:func:`_named_atan2_arguments`). Left whole (the function keeps
+    :func:`whole_loop`): an atan2 whose argument depends on another atan2 (one split would
+    not do), an atan2 inside a larger expression, and a fourth-axis output the finishing
+    loop would need from the first."""
+    stages = _named_atan2_arguments(fn["stages"])
+    statements = [statement for stage in stages for statement in stage.statements]
     calls = {statement.name: _ATAN2.fullmatch(statement.expr) for statement in statements}
     calls = {name: found for name, found in calls.items() if found}
     if not calls or any(
@@ -394,7 +455,7 @@ def atan2_loops(fn: dict) -> None:
             stage.comment,
             tuple(statement for statement in stage.statements if statement.name not in late),
         )
-        for stage in fn["stages"]
+        for stage in stages
     ]
     late_stages = [
         LoweredStage(
@@ -405,7 +466,7 @@ def atan2_loops(fn: dict) -> None:
                 if statement.name in late and statement.name not in calls
             ),
         )
-        for stage in fn["stages"]
+        for stage in stages
     ]
     early_stores = [store for store in fn["stores"] if store["name"] not in late]
 

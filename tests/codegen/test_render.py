@@ -94,25 +94,37 @@ def test_a_function_whose_atan2_reads_another_atan2_stays_whole():
     assert len(fn["parts"]) == 1 and "atan2" not in fn
 
 
-def test_a_function_whose_atan2_argument_is_an_expression_stays_whole():
-    fn = _fn([("a", "x*x"), ("q", "atan2(a + 1.0, a)"), ("bad", "isnan(q)")])
+def test_an_atan2_of_an_expression_or_an_input_gets_its_arguments_named():
+    """The five-axis ik's ``atan2(ex, -ey)``: the arguments become statements of the first
+    loop (``<angle>_y``, ``<angle>_x``), kept in columns for the atan2 loop."""
+    fn = _fn([("a", "x*x"), ("q", "atan2(a + 1.0, x)"), ("bad", "isnan(q)")])
     atan2_loops(fn)
-    assert len(fn["parts"]) == 1
+    first, second = fn["parts"]
+    assert fn["atan2"] == [dict(name="q", function="atan2", y="q_y", x="q_x")]
+    statements = {st.name: st.expr for stage in first["stages"] for st in stage.statements}
+    assert statements == {"a": "x*x", "q_y": "a + 1.0", "q_x": "x"}
+    assert [c.name for c in first["carry_out"]] == ["q_y", "q_x"]
 
 
 def test_a_function_with_an_atan2_the_split_cannot_take_stays_whole():
-    """One atan2 of two names and one of an expression: splitting at the first would leave
-    the second in the first loop, scalar for a lone point."""
+    """One atan2 alone and one inside a larger expression: splitting at the first would
+    leave the second in the first loop, scalar for a lone point."""
     fn = _fn(
         [
             ("a", "x*x"),
             ("b", "a - 1.0"),
             ("q0", "atan2(a, b)"),
-            ("q1", "atan2(-a, a)"),
+            ("q1", "2.0*atan2(b, a)"),
             ("bad", "isnan(q0 + q1)"),
         ],
         stores=("q0", "q1"),
     )
+    atan2_loops(fn)
+    assert len(fn["parts"]) == 1
+
+
+def test_two_calls_in_one_expression_are_not_one_call():
+    fn = _fn([("a", "x*x"), ("q", "atan2(a, x) + atan2(x, a)"), ("bad", "isnan(q)")])
     atan2_loops(fn)
     assert len(fn["parts"]) == 1
 

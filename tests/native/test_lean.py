@@ -142,6 +142,29 @@ def test_serial_one_configuration_equals_the_batch_row(puma, monkeypatch):
     assert np.array_equal(puma.inverse_dynamics(*lists), tau[4])
 
 
+@pytest.mark.parametrize("layout", ["table-table", "head-head", "table-head"])
+def test_five_axis_one_pose_equals_the_batch_row(layout):
+    """The 5-axis ik and ik_all evaluate atan2 in padded loops of their own (atan2_loops):
+    one pose gives the batch row's bits, wherever the row stands (1021 rows: a remainder).
+    Called in the per-point loop, about one value in eight differed in its last bits."""
+    from deltagen.api.five_axis import FiveAxisMachine
+
+    machine = FiveAxisMachine(layout, "AC", tool_length=0.1, tilt_limits=(-2.0, 2.0))
+    rng = np.random.default_rng(17)
+    n = 1021
+    j = np.column_stack(
+        [rng.uniform(-0.2, 0.2, (n, 3)), rng.uniform(-1.5, 1.5, n), rng.uniform(-3, 3, n)]
+    )
+    p, d = machine.fk(j)
+    previous = rng.uniform(-1, 1, (n, 5))
+    batch = machine.ik(p, d, previous)
+    both, valid = machine.ik_all(p, d, previous)
+    for i in range(0, n, 7):
+        assert np.array_equal(machine.ik(p[i], d[i], previous[i]), batch[i]), i
+        one, one_valid = machine.ik_all(p[i], d[i], previous[i])
+        assert np.array_equal(one, both[i], equal_nan=True) and np.array_equal(one_valid, valid[i])
+
+
 def test_lean_results_are_fresh_arrays(delta, puma):
     """The lean paths write into per-thread buffers and return copies: a result is not
     changed by the next call and shares no memory with it."""

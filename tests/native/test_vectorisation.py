@@ -53,17 +53,6 @@ EXEMPT = {
     ),
 }
 
-# the 5-axis machines' both-branch inverse (generated/five_axis_kinematics.c): gcc 12 with
-# -march=native finds no simd clone of atan2 for its 8-lane mode and then gives up on the
-# other modes ("no vectype for stmt"); the one-branch ik (same statements, one branch
-# stored) vectorises and is checked
-for _config in ("table_table", "head_head", "table_head"):
-    for _rotary in ("ac", "bc"):
-        EXEMPT[f"{_config}_{_rotary}_ik_all/points"] = (
-            "two branches of four atan2 and ten outputs: gcc 12 leaves the loop scalar (no "
-            "simd atan2 clone in its widest mode); the cos/sin loops and ik's loop vectorise"
-        )
-
 MODULES = sorted(p.name for p in generated_dir().glob("*.c"))
 SLOW_UNLESS = {"delta_kinematics.c", "linear_delta_kinematics.c", "tripod_kinematics.c"}
 REASON = vectorisation.unavailable()
