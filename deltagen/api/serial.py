@@ -488,8 +488,7 @@ class SerialRobot(SerialDynamics, RobotFamily):
         if q is not None:
             return q
         analytic, q0a, checked = self._ik_request(config, q0, method, errors, singular, options)
-        if not analytic and config is None and q0 is None and not options:
-            planner.remember(method, errors, singular)
+        planner.remember(config, q0, method, errors, singular, options, analytic)
         if not tried:
             q, tried = planner.one_plain(T, config, q0a, analytic, errors, singular, options)
             if q is not None:

@@ -149,9 +149,8 @@ def stack_use(fn: dict, block: int, block_macro: str, real_bytes: int = 8) -> tu
         doubles += sum(int(a["cos_used"]) + int(a["sin_used"]) for a in fn["angles"])
     ints = 1 + sum(1 for store in fn["stores"] if store["ctype"] != "double")
     for part in fn.get("parts", ()):  # atan2_loops: the columns between the loops
-        carried = [*part["carry_out"]]
-        doubles += len(part["atan2_in"]) + sum(1 for c in carried if c.ctype == "double")
-        ints += sum(1 for c in carried if c.ctype != "double")
+        doubles += len(part["atan2_in"]) + sum(1 for c in part["carry_out"] if c.ctype == "double")
+        ints += sum(1 for c in part["carry_out"] if c.ctype != "double")
     if not fn.get("direct"):  # direct stores: the outputs have no block arrays
         doubles += sum(1 for store in fn["stores"] if store["ctype"] == "double")
     nbytes = block * (real_bytes * doubles + 4 * ints)
@@ -319,8 +318,7 @@ def pack_block_arrays(fn: dict) -> None:
             load["ref"] = f"angle_b[{index[load['name']]} * m + k]"
 
 
-#: An atan2 statement of the per-point loop whose arguments are two named values.
-_ATAN2 = re.compile(r"(atan2f?)\((\w+), (\w+)\)")
+#: A statement that may be one atan2 call (:func:`_call_arguments` splits its arguments).
 _ATAN2_CALL = re.compile(r"(atan2f?)\((.*)\)")
 
 
@@ -422,8 +420,8 @@ def atan2_loops(fn: dict) -> None:
     loop would need from the first."""
     stages = _named_atan2_arguments(fn["stages"])
     statements = [statement for stage in stages for statement in stage.statements]
-    calls = {statement.name: _ATAN2.fullmatch(statement.expr) for statement in statements}
-    calls = {name: found for name, found in calls.items() if found}
+    calls = {statement.name: _call_arguments(statement.expr) for statement in statements}
+    calls = {name: call for name, call in calls.items() if call is not None}
     if not calls or any(
         "atan2" in statement.expr and statement.name not in calls for statement in statements
     ):
@@ -433,7 +431,7 @@ def atan2_loops(fn: dict) -> None:
     for statement in statements:
         if statement.name not in calls and _names(statement.expr) & late:
             late.add(statement.name)
-    arguments = {arg for found in calls.values() for arg in found.groups()[1:]}
+    arguments = {arg for _, y, x in calls.values() for arg in (y, x)}
     if arguments & late or not arguments <= set(defined):
         return
     late_stores = [store for store in fn["stores"] if store["name"] in late]
@@ -488,8 +486,7 @@ def atan2_loops(fn: dict) -> None:
     early = (early_stages, early_stores, not status_late)
     late_part = (late_stages, late_stores, status_late)
     fn["atan2"] = [
-        dict(name=name, function=found.group(1), y=found.group(2), x=found.group(3))
-        for name, found in calls.items()
+        dict(name=name, function=function, y=y, x=x) for name, (function, y, x) in calls.items()
     ]
     fn["atan2_arguments"] = sorted(arguments, key=list(defined).index)
     fn["parts"] = [
@@ -547,7 +544,7 @@ def direct_stores(fn: dict, axes_choices: tuple) -> None:
     }
     for stage in fn["stages"]:
         for statement in stage.statements:
-            if fourth & set(re.findall(r"\w+", statement.expr)):
+            if fourth & _names(statement.expr):
                 raise ValueError(f"{fn['name']}: {statement.name} reads a fourth-axis output")
     fn["fourth_outputs"] = sorted(fourth)
 

@@ -218,6 +218,22 @@ class IKResult(NamedTuple):
     complete: bool
 
 
+def _plain_request(
+    config: Any, q0: Any, method: Any, errors: Any, singular: Any, options: Any
+) -> bool:
+    """An ik request the one-call numeric path may serve (IKPlanner.remember / remembered):
+    no config, q0 or options, and method, errors, singular plain str (their own hash and
+    equality, so a remembered request cannot be matched by a look-alike)."""
+    return (
+        config is None
+        and q0 is None
+        and not options
+        and type(method) is str
+        and type(errors) is str
+        and type(singular) is str
+    )
+
+
 class IKPlanner:
     """The choice of inverse-kinematics method of one serial arm, made once per arm
     (SerialRobot builds it): ``ik_all`` and ``solve_all`` (ik_all's paths), ``solve`` (ik's
@@ -802,14 +818,7 @@ class IKPlanner:
         :meth:`one`). (q, True): answered; (None, True): this path had the pose and did
         not answer it (not rigid, no convergence: the general path must not try it
         again); (None, False): not such a request or pose."""
-        if (
-            config is not None
-            or q0 is not None
-            or options
-            or type(method) is not str
-            or type(errors) is not str
-            or type(singular) is not str
-        ):
+        if not _plain_request(config, q0, method, errors, singular, options):
             return None, False
         lean = self.lean_requests.get((method, errors, singular))
         if lean is None:
@@ -823,13 +832,22 @@ class IKPlanner:
             return q[0], True  # solved; not cleared by the cheap test, by the SVD
         return None, True
 
-    def remember(self, method: Any, errors: Any, singular: Any) -> None:
-        """Note a request of ik that its checks accepted, made without config, q0 or options
-        and answered by the numeric method: for errors="raise" and plain str arguments
-        (their own hash and equality) lean_requests maps it to lean_numeric(singular), so
-        that SerialRobot.ik answers the same request for one plain pose in one C call
-        (None: the usual path)."""
-        if type(method) is str and type(errors) is str and type(singular) is str:
+    def remember(
+        self,
+        config: Any,
+        q0: Any,
+        method: Any,
+        errors: Any,
+        singular: Any,
+        options: Any,
+        analytic: bool,
+    ) -> None:
+        """Note a request of ik that its checks accepted: where it is plain (no config, q0
+        or options, str arguments with their own hash and equality) and answered by the
+        numeric method, lean_requests maps it to lean_numeric(singular) for errors="raise"
+        (None otherwise: the usual path), so that SerialRobot.ik answers the same request
+        for one plain pose in one C call (:meth:`remembered`)."""
+        if not analytic and _plain_request(config, q0, method, errors, singular, options):
             key = (method, errors, singular)
             if key not in self.lean_requests:
                 lean = self.lean_numeric(singular) if errors == "raise" else None
