@@ -22,7 +22,11 @@ How the cache stays sound (tests/native/test_build_cache.py puts each point unde
 * **Parallel translation units** (a new arm's cold load): a module's C is split at its
   kernels (native/units.py, tests/native/test_build_split.py); the units and cffi's wrapper
   compile to objects on every core the process may use (``os.sched_getaffinity``;
-  ``DELTAGEN_BUILD_JOBS`` caps it), largest first, then link into one shared object.
+  ``DELTAGEN_BUILD_JOBS`` caps it), largest first, then link into one shared object. With
+  one compiler at a time there is nothing to run in parallel, and the file compiles as one
+  unit: the same bits (tests/native/test_build_split.py), 15-20 % less compiler CPU (the
+  units each parse the preamble and headers again; CONTRIBUTING.md, "Where the suite's
+  time goes").
 * **The runtime compiled once**: each runtime .c a module needs (codegen/runtime/, e.g. the
   damped Newton IK, 2 s of gcc) is an object file of its own in the cache, keyed by its
   text, the runtime headers it reads, its flags and the compiler, built under the same lock,
@@ -190,12 +194,20 @@ def is_built(
     prefix: str,
     directory: Path | None = None,
     opt: str = "-O3",
-    split: bool = True,
+    split: bool | None = None,
     part: str = "all",
 ) -> bool:
     """True when :func:`load` would find the module compiled (loaded in this process or a
-    verified artifact in the cache): loading it costs no compiler run."""
-    module_name = _module_inputs(base_name, prefix, directory, opt, split, part)[0]
+    verified artifact in the cache): loading it costs no compiler run. ``split`` None:
+    split or as one unit, whichever is there."""
+    if split is None:
+        return any(is_built(base_name, prefix, directory, opt, s, part) for s in (True, False))
+    return _available(_module_inputs(base_name, prefix, directory, opt, split, part)[0])
+
+
+def _available(module_name: str) -> bool:
+    """True when the module of a cache key is loaded in this process or a verified artifact
+    in the cache."""
     with _GUARD:
         if module_name in _LOADED:
             return True
@@ -209,18 +221,27 @@ def load(
     prefix: str,
     directory: Path | None = None,
     opt: str = "-O3",
-    split: bool = True,
+    split: bool | None = None,
     part: str = "all",
 ):
     """Return the compiled cffi module (``.ffi``, ``.lib``) of <directory>/<base_name>.c
     (generated/ by default) and the runtime C it includes (codegen/runtime/, compiled
     beside it), built with the optimisation level ``opt`` (OPT_LEVELS); ``split``: one
     translation unit per kernel, compiled in parallel (False: the file as one unit; the
-    same results bit for bit, two cache entries); ``part``: which part of a module built
-    in parts the folder holds ("all": the whole module), its own cache entry."""
-    module_name, texts, files, runtime, args, libraries = _module_inputs(
-        base_name, prefix, directory, opt, split, part
-    )
+    same results bit for bit, two cache entries; None: whichever of the two the cache
+    holds, else split when more than one compiler may run at once); ``part``: which part
+    of a module built in parts the folder holds ("all": the whole module), its own cache
+    entry."""
+    if split is None:  # either build serves: the one in the cache, else the one for the cores
+        split = _build_jobs() > 1
+        inputs = _module_inputs(base_name, prefix, directory, opt, split, part)
+        if not _available(inputs[0]):
+            other = _module_inputs(base_name, prefix, directory, opt, not split, part)
+            if _available(other[0]):
+                split, inputs = not split, other
+    else:
+        inputs = _module_inputs(base_name, prefix, directory, opt, split, part)
+    module_name, texts, files, runtime, args, libraries = inputs
     return _load_cached(
         module_name,
         lambda target, so_name: _build(

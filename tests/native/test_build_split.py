@@ -49,7 +49,7 @@ KERNELS_H = "int kern_a(int x);\nint kern_b(int x);\nint kern_c(int x);\n"
 LOADER = textwrap.dedent("""
     import sys
     from deltagen.native import build
-    module = build.load("kern", "kern", sys.argv[1])
+    module = build.load("kern", "kern", sys.argv[1], split=True)
     print(module.lib.kern_c(5))
 """)
 
@@ -97,7 +97,7 @@ def test_layouts_the_split_cannot_keep_exact_compile_as_one_unit(text):
 
 def test_split_module_computes_what_the_whole_file_does(tmp_path, private_cache):
     source = _write_kernels(tmp_path / "src")
-    split = build.load("kern", "kern", source)
+    split = build.load("kern", "kern", source, split=True)
     whole = build.load("kern", "kern", source, split=False)
     assert split is not whole
     for x in (-7, 0, 5, 11):
@@ -107,6 +107,39 @@ def test_split_module_computes_what_the_whole_file_does(tmp_path, private_cache)
     ]
     assert len(manifests) == 2
     assert sum(".unit" in m for m in manifests) == 1  # one built from units, one whole
+
+
+def test_a_build_splits_when_compilers_can_run_at_once_and_a_built_module_serves_either_way(
+    tmp_path, private_cache, monkeypatch
+):
+    """Unless told (``split``), a module is split when more than one compiler may run at
+    once (native/build.py _build_jobs) and compiled as one unit when one may: nothing runs
+    in parallel then, and one unit costs less compiler time. Either build, once in the
+    cache, is the one loaded, whatever the cores: the same bits, no second compile."""
+
+    def manifests():
+        return [
+            (p / "manifest.json").read_text()
+            for p in private_cache.iterdir()
+            if p.name.startswith("_deltagen_kern_") and (p / "manifest.json").is_file()
+        ]
+
+    one, many = _write_kernels(tmp_path / "one"), _write_kernels(tmp_path / "many")
+    monkeypatch.setattr(build, "_build_jobs", lambda: 1)
+    assert not build.is_built("kern", "kern", one)
+    build.load("kern", "kern", one)
+    assert [".unit" in m for m in manifests()] == [False]
+    monkeypatch.setattr(build, "_build_jobs", lambda: 2)
+    build.load("kern", "kern", many)
+    assert sorted(".unit" in m for m in manifests()) == [False, True]
+    assert build.is_built("kern", "kern", one) and build.is_built("kern", "kern", many)
+    assert build.is_built("kern", "kern", one, split=False)
+    assert not build.is_built("kern", "kern", one, split=True)
+    # the one-unit build serves a process with two cores, the split one a process with one
+    assert build.load("kern", "kern", one).lib.kern_c(5) == 21
+    monkeypatch.setattr(build, "_build_jobs", lambda: 1)
+    assert build.load("kern", "kern", many).lib.kern_c(5) == 21
+    assert len(manifests()) == 2
 
 
 @pytest.mark.parametrize("split", [True, False], ids=["split", "whole"])
