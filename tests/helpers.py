@@ -507,6 +507,18 @@ def strict_gcc(args, cwd):
     return proc
 
 
+def core_build_flags(prefix: str) -> list[str]:
+    """What native/build.py compiles a module of ``prefix`` with for the Python core (the
+    extension flags -fPIC -fwrapv -DNDEBUG, then compile_flags: -O3, -march=native, vector
+    math where libmvec is present), plus -pedantic -Werror: one object (helpers.shared_object)
+    that tests/c/test_standalone.py holds warning-free and tests/apps/test_export.py links
+    into the package built as the core is."""
+    from deltagen.native.build import compile_flags
+    from deltagen.native.toolchain import extension_flags
+
+    return [*extension_flags(), *compile_flags(prefix)[0], "-pedantic", "-Werror"]
+
+
 def vector_math_flags(prefix: str) -> list[str]:
     """The switches of a module's vector-math branch (native/toolchain.py compile_flags adds
     them where libmvec is present), for compiling that branch on any machine."""

@@ -12,7 +12,10 @@ the bit-level agreement of the optimised builds is tests/apps/test_export.py's. 
 build of a package reuses the objects its make build compiled from the same files with the
 same code-shaping flags (REUSE_OBJECTS, a compiler launcher in the manner of ccache: CMake
 still configures, compiles every other file, archives, links and runs the example); on its
-own (the make cell not run) it compiles everything.
+own (the make cell not run) it compiles everything. Its build folder starts with CMake's
+record of the compiler (cmake_platform: the compiler identification and ABI probes, made
+once per session), as a folder configured before has it; the configure of a clean folder
+from nothing is tests/apps/test_export.py's test_builds_and_runs_with_cmake.
 
 Then the calibration workflow: `deltagen calibrate` on synthetic measurements of a robot
 with encoder offsets writes a robot file; `deltagen export` of that file, built with make,
@@ -271,19 +274,35 @@ def test_every_robot_builds_with_make_and_prints_the_api_numbers(packages, case,
     MADE[case] = folder
 
 
+@pytest.fixture(scope="session")
+def cmake_platform(tmp_path_factory) -> Path:
+    """CMake's record of the compiler (build/CMakeFiles/<version>/: what `project(... C)`
+    determines by compiling and running CMakeCCompilerId.c and the ABI probe), made once per
+    session by configuring an empty C project with the cells' compiler."""
+    root = tmp_path_factory.mktemp("cmake_platform")
+    (root / "CMakeLists.txt").write_text("cmake_minimum_required(VERSION 3.10)\nproject(probe C)\n")
+    _run([CMAKE, "-S", str(root), "-B", str(root / "build"), f"-DCMAKE_C_COMPILER={CC}"], root)
+    found = [p.parent for p in (root / "build" / "CMakeFiles").glob("*/CMakeCCompiler.cmake")]
+    assert len(found) == 1, found
+    return found[0]
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(CMAKE is None, reason="cmake is not installed")
 @pytest.mark.parametrize("case", CASES, ids=_ids)
 def test_every_robot_builds_with_cmake_and_prints_the_api_numbers(
-    packages, case, tmp_path, reuse_objects
+    packages, case, tmp_path, reuse_objects, cmake_platform
 ):
     robot, result = packages(*case)
     folder = _clean_copy(result.out, tmp_path / "pkg")
     build = folder / "build"
+    # the compiler's record copied in, as CMake keeps it in a build folder configured before
+    # (CMAKE_PLATFORM_INFO_INITIALIZED: read it instead of probing the compiler again)
+    shutil.copytree(cmake_platform, build / "CMakeFiles" / cmake_platform.name)
     env = dict(os.environ, DELTAGEN_MADE_PACKAGE=str(MADE.get(case, "")))
     _run(
         [CMAKE, "-S", str(folder), "-B", str(build), f"-DCMAKE_C_COMPILER={CC}",
-         "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0",
+         "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0", "-DCMAKE_PLATFORM_INFO_INITIALIZED=1",
          f"-DCMAKE_C_COMPILER_LAUNCHER={reuse_objects}"],
         folder, env,
     )  # fmt: skip
