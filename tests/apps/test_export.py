@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import REPO
+from helpers import GCC, REPO, core_build_flags, shared_derivations, shared_object
 
 from deltagen import DeltaRobot, SerialRobot
 from deltagen import status as st
@@ -26,6 +26,15 @@ from deltagen.apps import export as ex
 from deltagen.codegen.export import arm_unit_kernels, delta_unit_kernels, package_sources
 from deltagen.native.build import compile_flags
 from deltagen.native.delta import geometry_struct
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _derivations_of_the_run():
+    """The robots' derivations shared with the test run's other processes
+    (helpers.shared_derivations): each robot is derived once per run."""
+    with shared_derivations():
+        yield
+
 
 CC = ex.compiler()
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (cc, gcc or clang) on PATH")
@@ -229,13 +238,44 @@ def delta_library(exports, tmp_path_factory):
 def delta_library_as_core(exports, tmp_path_factory):
     """The same package compiled with the Python core's flags (native.build.compile_flags:
     -O3 -march=native and, on x86-64 Linux, libmvec's vector cos/sin for the batched trig
-    loops): the build the Python API runs."""
+    loops; the extension flags): the build the Python API runs. Its batched module (the
+    checked-in one, byte for byte: test_package_contents) is the object of
+    helpers.core_build_flags (these flags plus -pedantic -Werror, which shape no code) that
+    tests/c/test_standalone.py compiles warning-free, built once per test run
+    (helpers.shared_object); the single-point C and the cffi wrapper are compiled here."""
+    from importlib.machinery import EXTENSION_SUFFIXES
+
+    import cffi
+
+    from deltagen.native import toolchain
+
     _, result = exports["delta"]
     unit, kernels = delta_unit_kernels()
     package = package_sources(unit, kernels)
     flags, libraries = compile_flags(unit.prefix)
     build = tmp_path_factory.mktemp("delta_cffi_core")
-    return ex.load_package(package, result.out, build, "_test_export_delta_core", flags, libraries)
+    name = "_test_export_delta_core"
+    batched = f"{unit.base_name}.c"
+    if GCC is None or shutil.which(toolchain.host_compiler()) != GCC:  # not the tests' gcc
+        return ex.load_package(package, result.out, build, name, flags, libraries)
+    assert batched in package.sources
+    obj = shared_object(result.out, batched, core_build_flags(unit.prefix))
+    ffi = cffi.FFI()
+    ffi.cdef(package.cdef)
+    headers = "".join(f'#include "{h}"\n' for h in package.files if h.endswith(".h"))
+    wrapper = toolchain.write_cffi_wrapper(ffi, name, headers, build / f"{name}.c")
+    library = build / f"{name}{EXTENSION_SUFFIXES[0]}"
+    include = [f"-I{result.out}", f"-I{toolchain.python_include()}"]
+    toolchain.compile_and_link(
+        [wrapper, *(result.out / s for s in package.sources if s != batched)],
+        library,
+        build,
+        [*toolchain.extension_flags(), *flags, *include],
+        libraries,
+        name,
+        prebuilt=[lambda: obj],
+    )
+    return toolchain.import_extension(name, library)
 
 
 def _bits(a):

@@ -6,13 +6,18 @@ URDF arm written here (the path of a robot file that is not bundled), each in do
 float32: the package alone in a clean folder builds with its Makefile and with its
 CMakeLists.txt, its example runs, and the numbers it prints are the Python API's (the
 numpy reference backend: independent of the C). The derivations are shared by the whole
-session (codegen.export caches them per process); each package compiles once, at -O0 to
-keep the compile time down: the numbers are compared at the example's print precision, and
+session (codegen.export caches them per process, helpers.shared_derivations shares them
+with the run's other processes); each package compiles once, at -O0 to keep the compile
+time down (the runtime C, the same files in every arm's package, once per session for each
+content: RUNTIME_OBJECTS): the numbers are compared at the example's print precision, and
 the bit-level agreement of the optimised builds is tests/apps/test_export.py's. The CMake
 build of a package reuses the objects its make build compiled from the same files with the
 same code-shaping flags (REUSE_OBJECTS, a compiler launcher in the manner of ccache: CMake
 still configures, compiles every other file, archives, links and runs the example); on its
-own (the make cell not run) it compiles everything.
+own (the make cell not run) it compiles everything. Its build folder starts with CMake's
+record of the compiler (cmake_platform: the compiler identification and ABI probes, made
+once per session), as a folder configured before has it; the configure of a clean folder
+from nothing is tests/apps/test_export.py's test_builds_and_runs_with_cmake.
 
 Then the calibration workflow: `deltagen calibrate` on synthetic measurements of a robot
 with encoder offsets writes a robot file; `deltagen export` of that file, built with make,
@@ -30,12 +35,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import shared_derivations
 
 from deltagen import DeltaRobot, SerialRobot
 from deltagen import status as st
 from deltagen.api.five_axis import FiveAxisMachine, bundled_machines
 from deltagen.api.serial import bundled_robots, bundled_urdfs
 from deltagen.apps import export as ex
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _derivations_of_the_run():
+    """The robots' derivations shared with the test run's other processes
+    (helpers.shared_derivations): each robot is derived once per run."""
+    with shared_derivations():
+        yield
+
 
 CC = ex.compiler()
 MAKE = shutil.which("make")
@@ -179,6 +194,80 @@ exec "$cc" "$@"
 """
 
 
+# $(CC) of the make cells: the runtime C (deltagen_*.c, copied into every package that needs
+# it) is compiled once per session for each content and flags, its object kept in
+# DELTAGEN_RUNTIME_OBJECTS under a digest of the compiler, the flags but -o/-c/-I, and the
+# names and texts of the source and the local headers it includes (transitively); every
+# other compile and the links run the compiler.
+RUNTIME_OBJECTS = r"""#!/bin/sh
+store="$DELTAGEN_RUNTIME_OBJECTS"
+cc=$1
+shift
+out=
+src=
+flags=
+skip=
+for a in "$@"; do
+    if [ -n "$skip" ]; then
+        out=$a
+        skip=
+        continue
+    fi
+    case "$a" in
+        -o) skip=o ;;
+        -c | -I*) ;;
+        *.c) src=$a ;;
+        *) flags="$flags $a" ;;
+    esac
+done
+case "$src" in
+    deltagen_*.c | */deltagen_*.c) ;;
+    *) exec "$cc" "$@" ;;
+esac
+if [ -z "$store" ] || [ -z "$out" ] || ! command -v md5sum >/dev/null; then
+    exec "$cc" "$@"
+fi
+dir=$(dirname "$src")
+deps=$src
+todo=$src
+while [ -n "$todo" ]; do
+    next=
+    for f in $todo; do
+        for h in $(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*"\([^"]*\)".*/\1/p' "$f"); do
+            case " $deps " in
+                *" $dir/$h "*) ;;
+                *) if [ -f "$dir/$h" ]; then deps="$deps $dir/$h"; next="$next $dir/$h"; fi ;;
+            esac
+        done
+    done
+    todo=$next
+done
+key=$({
+    printf '%s\n' "$cc" $flags
+    for f in $deps; do
+        basename "$f"
+        cat "$f"
+    done
+} | md5sum | cut -c1-32)
+if [ -f "$store/$key.o" ]; then
+    cp "$store/$key.o" "$out" && exit 0
+fi
+"$cc" "$@" || exit $?
+cp "$out" "$store/.$key.$$" && mv "$store/.$key.$$" "$store/$key.o"
+"""
+
+
+@pytest.fixture(scope="session")
+def runtime_objects(tmp_path_factory) -> tuple[Path, Path]:
+    """(RUNTIME_OBJECTS written out, its empty store)."""
+    folder = tmp_path_factory.mktemp("runtime_objects")
+    path = folder / "runtime_objects.sh"
+    path.write_text(RUNTIME_OBJECTS)
+    path.chmod(0o755)
+    (folder / "store").mkdir()
+    return path, folder / "store"
+
+
 def _shaping(flags: str) -> str:
     """The flags of a compile that shape the object (REUSE_OBJECTS's .flags)."""
     return "".join(f"{f} " for f in sorted(flags.split()) if not f.startswith(("-W", "-I")))
@@ -261,29 +350,49 @@ def _check_example(robot, output: str, real: str) -> None:
 @pytest.mark.slow  # every robot: about two minutes of derivation and compiling
 @pytest.mark.skipif(MAKE is None, reason="make is not installed")
 @pytest.mark.parametrize("case", CASES, ids=_ids)
-def test_every_robot_builds_with_make_and_prints_the_api_numbers(packages, case, tmp_path):
+def test_every_robot_builds_with_make_and_prints_the_api_numbers(
+    packages, case, tmp_path, runtime_objects
+):
     robot, result = packages(*case)
     folder = _clean_copy(result.out, tmp_path / "pkg")
     flags = "-std=c99 -O0 -Wall -Wextra" + (" -Wdouble-promotion" if case[1] == "float" else "")
-    _run([MAKE, "-j2", f"CC={CC}", f"CFLAGS={flags}"], folder)
+    launcher, store = runtime_objects
+    env = dict(os.environ, DELTAGEN_RUNTIME_OBJECTS=str(store))
+    _run([MAKE, "-j2", f"CC={launcher} {CC}", f"CFLAGS={flags}"], folder, env)
     _check_example(robot, _run(["./example"], folder), case[1])
     (folder / ".flags").write_text(_shaping(flags))
     MADE[case] = folder
+
+
+@pytest.fixture(scope="session")
+def cmake_platform(tmp_path_factory) -> Path:
+    """CMake's record of the compiler (build/CMakeFiles/<version>/: what `project(... C)`
+    determines by compiling and running CMakeCCompilerId.c and the ABI probe), made once per
+    session by configuring an empty C project with the cells' compiler."""
+    root = tmp_path_factory.mktemp("cmake_platform")
+    (root / "CMakeLists.txt").write_text("cmake_minimum_required(VERSION 3.10)\nproject(probe C)\n")
+    _run([CMAKE, "-S", str(root), "-B", str(root / "build"), f"-DCMAKE_C_COMPILER={CC}"], root)
+    found = [p.parent for p in (root / "build" / "CMakeFiles").glob("*/CMakeCCompiler.cmake")]
+    assert len(found) == 1, found
+    return found[0]
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(CMAKE is None, reason="cmake is not installed")
 @pytest.mark.parametrize("case", CASES, ids=_ids)
 def test_every_robot_builds_with_cmake_and_prints_the_api_numbers(
-    packages, case, tmp_path, reuse_objects
+    packages, case, tmp_path, reuse_objects, cmake_platform
 ):
     robot, result = packages(*case)
     folder = _clean_copy(result.out, tmp_path / "pkg")
     build = folder / "build"
+    # the compiler's record copied in, as CMake keeps it in a build folder configured before
+    # (CMAKE_PLATFORM_INFO_INITIALIZED: read it instead of probing the compiler again)
+    shutil.copytree(cmake_platform, build / "CMakeFiles" / cmake_platform.name)
     env = dict(os.environ, DELTAGEN_MADE_PACKAGE=str(MADE.get(case, "")))
     _run(
         [CMAKE, "-S", str(folder), "-B", str(build), f"-DCMAKE_C_COMPILER={CC}",
-         "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0",
+         "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0", "-DCMAKE_PLATFORM_INFO_INITIALIZED=1",
          f"-DCMAKE_C_COMPILER_LAUNCHER={reuse_objects}"],
         folder, env,
     )  # fmt: skip

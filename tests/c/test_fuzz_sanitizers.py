@@ -246,10 +246,12 @@ def driver(tmp_path_factory, sanitizers):
             branches=BRANCHES,
         )
     )
-    # the big modules' instrumented objects are built once per run (the Puma's is shared
-    # with tests/derive/test_ik_closed_form.py's driver)
+    # the instrumented objects of the modules and the runtime are built once per run (the
+    # Puma's is shared with tests/derive/test_ik_closed_form.py's driver, the delta core's
+    # and the runtime's with tests/c/test_standalone*.py's)
     modules = [shared_object(work, name, STRICT_SANITIZED) for name in MODULES]
-    sources = ["driver.c", *modules, *sorted(work.glob("deltagen_*.c"))]
+    runtime = [shared_object(work, p.name, STRICT_SANITIZED) for p in work.glob("deltagen_*.c")]
+    sources = ["driver.c", *modules, *sorted(runtime)]
     return compile_c(sources, work / "driver", flags=STRICT_SANITIZED, cwd=work, sanitize=True)
 
 

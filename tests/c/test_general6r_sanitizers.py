@@ -9,14 +9,13 @@ results equal those of the cffi module (the same C, other flags: to 1e-9)."""
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 
 import numpy as np
 import pytest
-from helpers import GCC, STRICT_SANITIZED, random_6r_arm
+from helpers import GCC, STRICT_SANITIZED, copy_runtime, random_6r_arm, shared_object
 
-from deltagen import SerialRobot, paths
+from deltagen import SerialRobot
 from deltagen.solve import general6r
 
 pytestmark = [pytest.mark.skipif(GCC is None, reason="gcc not installed"), pytest.mark.slow]
@@ -165,10 +164,7 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
     qs = _fuzz(rng, (6, 20, 6)) * 2.0
     conv = (rng.random((6, 20)) < 0.7).astype(float)
     qlim = np.array([[-2.5, 2.5], [-np.inf, np.inf]] + [[-np.pi, np.pi]] * 4)
-    for ext in ("c", "h"):
-        for name in ("deltagen_general6r", "deltagen_eigen", "deltagen_linalg"):
-            shutil.copy(paths.runtime_dir() / f"{name}.{ext}", tmp_path)
-    shutil.copy(paths.runtime_dir() / "deltagen_limits.h", tmp_path)
+    copy_runtime(tmp_path)  # all of it: the objects' keys are the other drivers' (below)
     results = []
     for A in mats:
         work = tmp_path / f"n{A.shape[1]}"
@@ -182,18 +178,14 @@ def test_general6r_c_under_sanitizers(which, tmp_path):
         (work / "in.bin").write_bytes(blob.astype("<f8").tobytes())
         results.append((A, work))
     (tmp_path / "driver.c").write_text(DRIVER)
+    # the runtime's instrumented objects: built once per test run, warning-free, for both
+    # arms and the other sanitized drivers of tests/c/ (helpers.shared_object)
+    runtime = [
+        str(shared_object(tmp_path, f"{name}.c", STRICT_SANITIZED))
+        for name in ("deltagen_general6r", "deltagen_eigen", "deltagen_linalg")
+    ]
     build = subprocess.run(
-        [
-            GCC,
-            *STRICT_SANITIZED,
-            "driver.c",
-            "deltagen_general6r.c",
-            "deltagen_eigen.c",
-            "deltagen_linalg.c",
-            "-o",
-            "driver",
-            "-lm",
-        ],
+        [GCC, *STRICT_SANITIZED, "driver.c", *runtime, "-o", "driver", "-lm"],
         cwd=tmp_path,
         capture_output=True,
         text=True,

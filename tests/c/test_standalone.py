@@ -20,9 +20,11 @@ from helpers import (
     GCC,
     LIBM,
     STRICT,
+    STRICT_SANITIZED,
     c_array,
     check_symbols,
     copy_runtime,
+    core_build_flags,
     runtime_sources,
     strict_gcc,
 )
@@ -49,11 +51,12 @@ def test_strict_c99_compiles_warning_free(objects, opt):
 
 
 def test_compiles_warning_free_with_the_build_flags(objects):
-    """The flags deltagen.native.build uses for the cffi core (vector math included where
-    available), plus -pedantic -Werror."""
-    args, _ = compile_flags("deltagen_delta")
-    objects("delta_kinematics.c", [*args, "-pedantic", "-Werror"])
-    if "-DDELTAGEN_DELTA_VECTOR_MATH" not in args:  # test the vector-math variant regardless
+    """The flags deltagen.native.build uses for the cffi core (its extension flags, vector
+    math included where available), plus -pedantic -Werror (helpers.core_build_flags: the
+    object tests/apps/test_export.py links into its package built as the core is)."""
+    flags = core_build_flags("deltagen_delta")
+    objects("delta_kinematics.c", flags)
+    if "-DDELTAGEN_DELTA_VECTOR_MATH" not in flags:  # test the vector-math variant regardless
         objects("delta_kinematics.c", VECTOR_MATH)
 
 
@@ -395,13 +398,15 @@ def test_driver_under_sanitizers(source_dir, objects, sanitizers, tmp_path, geom
     if variant == "plain":
         # -O0: the plain drivers check memory and UB faults and the numbers, which the
         # sanitizers see at any level (instrumented C compiles ~3x faster than at -O1); the
-        # optimised code under the sanitizers is the build-flags variant's (-O3, vector math)
+        # optimised code under the sanitizers is the build-flags variant's (-O3, vector math).
+        # The core's instrumented object is tests/c/test_fuzz_sanitizers.py's too
+        # (STRICT_SANITIZED: these flags and sanitizers without -g, which shapes no code)
         flags, libs = [*STRICT, "-O0"], ["-lm"]
+        core = objects("delta_kinematics.c", STRICT_SANITIZED)
     else:
         flags, libs = _build_flags()
         flags = [*flags, "-pedantic", "-Werror"]
-    # the core's instrumented object is shared by the drivers of the same flags
-    core = objects("delta_kinematics.c", [*flags, *sanitizers])
+        core = objects("delta_kinematics.c", [*flags, *sanitizers])
     strict_gcc(
         [*flags, *sanitizers, f"-I{source_dir}", str(driver), str(core), "-o", str(exe), *libs],
         cwd=tmp_path,

@@ -18,6 +18,7 @@ from helpers import (
     GCC_REQUIRED,
     LIBM,
     STRICT,
+    STRICT_SANITIZED,
     c_array,
     check_symbols,
     copy_runtime,
@@ -286,9 +287,13 @@ def test_ik_newton_driver_under_sanitizers(
         # (-g) costs minutes, so the runtime and the driver alone run under the sanitizers
         # (the module's object is the -O2 one of test_long_arms_compile_warning_free)
         module = str(objects(module, [*STRICT, "-O2", "-Warray-bounds=2"]))
+    # the runtime's instrumented objects, built once per test run for every driver that
+    # links them (tests/c/test_fuzz_sanitizers.py's too): STRICT_SANITIZED, the flags below
+    # but -g, which shapes no code
+    runtime = [str(objects(source, STRICT_SANITIZED)) for source in RUNTIME_SOURCES]
     strict_gcc(
         # -O0: an instrumented module compiles ~3x faster than at -O1 (same checks at run time)
-        [*STRICT, "-O0", *sanitizers, "driver.c", module, *RUNTIME_SOURCES, "-o", "driver", "-lm"],
+        [*STRICT, "-O0", *sanitizers, "driver.c", module, *runtime, "-o", "driver", "-lm"],
         cwd=tmp_path,
     )
     env = dict(
