@@ -41,6 +41,9 @@ def suite_cache_dir() -> Path:
 # Set before deltagen is imported, so nothing can resolve the user's cache first; every
 # subprocess a test starts inherits it.
 os.environ["DELTAGEN_CACHE"] = str(suite_cache_dir())
+# the builds of the checked-in modules keep gcc's vectoriser remarks beside them (the same
+# bits; tests/native/test_vectorisation.py reads them instead of compiling the module again)
+os.environ.setdefault("DELTAGEN_VECTOR_REPORTS", "1")
 if str(TESTS) not in sys.path:  # delta_oracles, helpers importable under any --import-mode
     sys.path.insert(0, str(TESTS))
 
