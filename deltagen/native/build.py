@@ -404,7 +404,7 @@ def _keeps_vector_reports(directory: Path, opt: str) -> bool:
     (generated/) at -O3, built by gcc, with the switch DELTAGEN_VECTOR_REPORTS on (the test
     suite's conftest turns it on: tests/native/test_vectorisation.py reads them instead of
     compiling the module again). Off by default: the remarks change no bit of the module
-    (tests/native/test_build_cache.py) but cost gcc about a tenth more CPU (CONTRIBUTING.md,
+    (tests/native/test_vectorisation.py) but cost gcc about a tenth more CPU (CONTRIBUTING.md,
     "Speed guards")."""
     if opt != "-O3" or Path(directory).resolve() != generated_dir().resolve():
         return False
