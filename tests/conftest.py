@@ -47,6 +47,9 @@ os.environ["DELTAGEN_CACHE"] = str(suite_cache_dir())
 _CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
 if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) >= (_CORES or 1):
     os.environ.setdefault("DELTAGEN_BUILD_JOBS", "1")
+# the builds of the checked-in modules keep gcc's vectoriser remarks beside them (the same
+# bits; tests/native/test_vectorisation.py reads them instead of compiling the module again)
+os.environ.setdefault("DELTAGEN_VECTOR_REPORTS", "1")
 if str(TESTS) not in sys.path:  # delta_oracles, helpers importable under any --import-mode
     sys.path.insert(0, str(TESTS))
 

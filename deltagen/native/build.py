@@ -53,7 +53,7 @@ import sysconfig
 import threading
 from pathlib import Path
 
-from deltagen.inputs import env_positive_int
+from deltagen.inputs import env_flag, env_positive_int
 from deltagen.native import toolchain
 from deltagen.native.toolchain import OPT_LEVELS as OPT_LEVELS
 from deltagen.native.toolchain import BuildError as BuildError
@@ -390,6 +390,12 @@ def _build(
         objects = [
             functools.partial(_runtime_object, f, opt, work) for f in runtime if f.suffix == ".c"
         ]
+        units = set(sources[1:])
+        keep = _keeps_vector_reports(files[".c"].parent, opt)
+
+        def report(src: Path) -> list[str]:  # gcc appends to the file: a fresh one per unit
+            return [f"{VECTOR_REPORT_FLAG}={out / (src.stem + VECTOR_REPORT_SUFFIX)}"]
+
         compiled, link = toolchain.compile_and_link(
             sources,
             out / so_name,
@@ -399,10 +405,48 @@ def _build(
             files[".c"].name,
             _build_jobs(),
             prebuilt=objects,
+            extra=(lambda src: report(src) if src in units else []) if keep else None,
         )
         _publish(out / so_name, target, link, compiled)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+#: gcc's option that writes its vectoriser remarks (loops vectorised, and why others were
+#: not) to a file (GCC manual, "Developer Options", -fopt-info); :data:`VECTOR_REPORT_SUFFIX`
+#: names each unit's file beside the module in its cache entry
+VECTOR_REPORT_FLAG = "-fopt-info-vec-optimized-missed"
+VECTOR_REPORT_SUFFIX = ".vec.txt"
+
+
+def _keeps_vector_reports(directory: Path, opt: str) -> bool:
+    """True when a build of a module in ``directory`` at ``opt`` keeps gcc's vectoriser
+    remarks of each of its units beside it (:func:`vector_reports`): a checked-in module
+    (generated/) at -O3, built by gcc, with the switch DELTAGEN_VECTOR_REPORTS on (the test
+    suite's conftest turns it on: tests/native/test_vectorisation.py reads them instead of
+    compiling the module again). Off by default: the remarks change no bit of the module
+    (tests/native/test_vectorisation.py) but cost gcc about a tenth more CPU (CONTRIBUTING.md,
+    "Speed guards")."""
+    if opt != "-O3" or Path(directory).resolve() != generated_dir().resolve():
+        return False
+    if not env_flag("DELTAGEN_VECTOR_REPORTS", False, "keep gcc's vectoriser remarks"):
+        return False
+    return toolchain.is_gcc()
+
+
+def vector_reports(
+    base_name: str, prefix: str, directory: Path | None = None, opt: str = "-O3"
+) -> dict[str, str] | None:
+    """{unit file name: gcc's vectoriser remarks} that the build of <directory>/<base_name>.c
+    kept beside the module (:func:`_keeps_vector_reports`), the module loaded first as
+    :func:`load` loads it (built when the cache has no verified entry); None when its cache
+    entry holds none (built with the switch off, or not by gcc)."""
+    load(base_name, prefix, directory, opt)
+    module_name = _module_inputs(base_name, prefix, directory, opt)[0]
+    found = sorted((usable_cache_dir() / module_name).glob(f"*{VECTOR_REPORT_SUFFIX}"))
+    if not found:
+        return None
+    return {f.name.removesuffix(VECTOR_REPORT_SUFFIX) + ".c": f.read_text() for f in found}
 
 
 def runtime_flags(opt: str = "-O3") -> list[str]:
@@ -412,16 +456,17 @@ def runtime_flags(opt: str = "-O3") -> list[str]:
     return [*extension_flags(), *compile_flags("deltagen", opt)[0]]
 
 
-def _runtime_object(source: Path, opt: str, work: Path) -> Path:
+def _runtime_object(source: Path, opt: str, work: Path, flags: list[str] | None = None) -> Path:
     """The object file of the runtime C file ``source`` (codegen/runtime/) compiled with
-    :func:`runtime_flags` at ``opt``, from the build cache (built first when missing or
+    :func:`runtime_flags` at ``opt`` (or with ``flags``: e.g. the instruction counts' fixed
+    -march, native/instructions.py), from the build cache (built first when missing or
     damaged, one build per key across threads and processes), copied into ``work`` under
     the name ``<stem>.o`` and checked against the manifest there (the module doc)."""
     import shutil
 
     text = source.read_text()
     headers = {f: f.read_text() for f in runtime_files([text]) if f.suffix == ".h"}
-    flags = runtime_flags(opt)
+    flags = runtime_flags(opt) if flags is None else list(flags)
     include = toolchain.python_include()
     key_material = "\0".join(
         [

@@ -23,6 +23,7 @@ glibc's libmvec and valgrind, whose versions :func:`toolchain` records.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import platform
 import re
@@ -93,6 +94,12 @@ def _flags(prefix: str) -> tuple[list[str], list[str]]:
     args, libraries = tools.compile_flags(prefix, "-O3")
     args = [a for a in args if not a.startswith("-march=")] + [MARCH]
     return tools.extension_flags() + args, libraries
+
+
+def runtime_flags() -> list[str]:
+    """The flags of the runtime's C files in a driver: the modules' (:func:`_flags`) with
+    the runtime's own prefix, ``deltagen`` (native/build.py adds the ``-I`` folders)."""
+    return _flags("deltagen")[0]
 
 
 def signatures(cdef: str, prefix: str) -> dict[str, list[tuple[str, str]]]:
@@ -251,29 +258,35 @@ def build_driver(source: Path, prefix: str, driver: str) -> Path:
     try:
         sources = build.write_units(source, text, work)
         (work / "driver.c").write_text(driver)
-        sources += [work / "driver.c"] + [f for f in runtime if f.suffix == ".c"]
+        sources += [work / "driver.c"]
         include = [f"-I{source.parent}", f"-I{build.runtime_dir()}"]
         objects = [work / f"{i:03d}.o" for i in range(len(sources))]
         order = sorted(range(len(sources)), key=lambda i: -sources[i].stat().st_size)
-        with ThreadPoolExecutor(max_workers=build._build_jobs()) as pool:
-            list(
-                pool.map(
-                    lambda i: _run(
-                        [
-                            _compiler(),
-                            *args,
-                            *include,
-                            "-c",
-                            str(sources[i]),
-                            "-o",
-                            str(objects[i]),
-                        ],
-                        work,
-                        f"compiling {sources[i].name}",
-                    ),
-                    order,
+        # the runtime's C (the damped Newton, the linear algebra) is one object per file
+        # and flags in the build cache, shared by every driver (the Puma's and the UR5's):
+        # its flags are the module's but for the module's own -D<PREFIX>_VECTOR_MATH, a
+        # macro the runtime never reads (native/build.py runtime_flags)
+        shared = runtime_flags()
+        runtime_objects = [
+            functools.partial(build._runtime_object, f, "-O3", work, shared)
+            for f in runtime
+            if f.suffix == ".c"
+        ]
+        tasks = [
+            *runtime_objects,
+            *(
+                functools.partial(
+                    _run,
+                    [_compiler(), *args, *include, "-c", str(sources[i]), "-o", str(objects[i])],
+                    work,
+                    f"compiling {sources[i].name}",
                 )
-            )
+                for i in order
+            ),
+        ]
+        with ThreadPoolExecutor(max_workers=build._build_jobs()) as pool:
+            done = list(pool.map(lambda task: task(), tasks))
+        objects += done[: len(runtime_objects)]
         _run(
             [_compiler(), *args, "-Wl,-z,now", *map(str, objects), "-o", str(work / "driver")]
             + [f"-l{lib}" for lib in libraries],

@@ -112,6 +112,24 @@ def cortex_m4_command() -> list[str] | None:
     return list(CORTEX_M4) if shutil.which(CORTEX_M4[0]) else None
 
 
+def is_gcc() -> bool:
+    """True when the host compiler (:func:`host_compiler`) says it is gcc (asked once per
+    program name); False when it is another or cannot be asked."""
+    return _says_gcc(host_compiler())
+
+
+@functools.lru_cache(maxsize=8)
+def _says_gcc(program: str) -> bool:
+    try:
+        proc = run([program, "--version"], None, f"{program} --version", timeout=60)
+    except BuildError:
+        return False
+    except OSError:  # not executable
+        return False
+    text = (proc.stdout or "").lower()
+    return proc.returncode == 0 and ("gcc" in text or "free software foundation" in text)
+
+
 # ---------------------------------------------------------------- flags
 
 
@@ -231,18 +249,23 @@ def compile_and_link(
     what: str,
     jobs: int = 1,
     prebuilt: Sequence[Callable[[], Path]] = (),
+    extra: Callable[[Path], list[str]] | None = None,
 ) -> tuple[list[list[str]], list[str]]:
     """Compile ``sources`` to objects in ``work`` (``jobs`` compilers at once, largest source
     first) and link them into the shared object ``so_path`` with the host command, ``flags``
     and ``-l<libraries>``; returns (the compile commands in source order, the link command).
     ``prebuilt``: calls that each return an object file made elsewhere (e.g. the build
     cache's runtime objects, native/build.py), run in the same pool before the compiles and
-    linked after the sources' objects, in their order. BuildError with the compiler's text
+    linked after the sources' objects, in their order. ``extra``: flags one source's compile
+    adds (e.g. the build's vectoriser report of a module's unit). BuildError with the compiler's text
     when a unit does not compile (each distinct message once: an error in a shared preamble
     is every unit's) or the link fails."""
     base = host_command() + flags
     objects = {src: work / f"{src.stem}.o" for src in sources}
-    commands = {src: base + ["-c", str(src), "-o", str(objects[src])] for src in sources}
+    commands = {
+        src: base + (extra(src) if extra else []) + ["-c", str(src), "-o", str(objects[src])]
+        for src in sources
+    }
     # largest first: the longest compile starts at once, the small ones fill the gaps
     order = sorted(sources, key=lambda src: -src.stat().st_size)
     tasks = [*prebuilt, *(functools.partial(run, commands[src], work, src.name) for src in order)]

@@ -18,6 +18,9 @@ speed while every result stays the same. This module makes that visible:
   vectors`` at the line of its ``for`` (GCC manual, "Developer Options", -fopt-info).
   Reports are cached under the build cache, keyed by the unit's text, the flags and the
   compiler's version.
+* :func:`build_report` reads the same remarks without a compile of its own where the
+  module's build kept them (native/build.py vector_reports, with DELTAGEN_VECTOR_REPORTS
+  on): the whole compile of each unit, every pass included.
 * :func:`check` compares the two: every marked loop must have a "loop vectorized" remark;
   a kernel with no marked loop, or a marked loop that is not vectorised, is a problem
   unless the caller exempts it by name (with a reason), and an exemption that is not
@@ -32,7 +35,7 @@ import hashlib
 import platform
 import re
 import shlex
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,7 +51,7 @@ _REMARK = re.compile(
 )
 _FUNCTION_NAME = re.compile(r"\b(\w+)\s*\(")
 _PREFIX = re.compile(r"defined\((\w+)_VECTOR_MATH\)")
-REPORT_FLAG = "-fopt-info-vec-optimized-missed"
+REPORT_FLAG = build.VECTOR_REPORT_FLAG
 VECTORISED = "loop vectorized"
 #: gcc's RTL passes that dominate the compile of a kernel (register allocation, combine,
 #: CSE, copy propagation: 80-85 % of the CPU of a large unit at -O3), switched off for the
@@ -168,12 +171,14 @@ def vector_report(
     prefix: str | None = None,
     opt: str = "-O3",
     whole: bool = False,
+    only: Collection[int] | None = None,
 ) -> list[Remark]:
     """gcc's vectoriser remarks (optimized and missed) on the lines of ``text``, the C of a
     generated module whose header and the files it includes are in ``source``'s folder
     (``source``: the module's path; only its folder and name are used), compiled one
     kernel per unit as native/build.py compiles it, without the RTL passes of
-    AFTER_VECTORISER unless ``whole``."""
+    AFTER_VECTORISER unless ``whole``; ``only``: the first lines of the kernels to compile
+    (None: every kernel)."""
     import tempfile
     from concurrent.futures import ThreadPoolExecutor
 
@@ -183,6 +188,8 @@ def vector_report(
     if units is None:
         raise ValueError(f"{source.name}: layout not recognised by build.split_units")
     preamble, pieces = units
+    if only is not None:
+        pieces = [piece for piece in pieces if piece[0] in only]
     command = _report_command(prefix, source.parent, opt)
     version = _compiler_version()
     cache = build.usable_cache_dir() / "vector-reports"
@@ -213,10 +220,35 @@ def vector_report(
     order = sorted(pieces, key=lambda piece: -sum(map(len, piece[1])))  # largest first
     with ThreadPoolExecutor(max_workers=build._build_jobs()) as pool:
         outputs = list(pool.map(one, order))
+    return parse(outputs, source.name)
+
+
+def build_report(text: str, source: str | Path, prefix: str | None = None) -> list[Remark] | None:
+    """gcc's vectoriser remarks on the lines of ``text``, the checked-in module
+    ``source`` (generated/<name>.c, read by the caller), as the module's own build kept them
+    (native/build.py :func:`~deltagen.native.build.vector_reports`: the module loaded through
+    the build cache at -O3, built first when it is not there): the whole compile of each unit
+    with the build's flags, no compile of its own. None when the cache entry holds no
+    report (built with DELTAGEN_VECTOR_REPORTS off) or not one per unit of ``text``."""
+    source = Path(source).resolve()
+    prefix = prefix or module_prefix(text)
+    units = unit_split.split_units(text)
+    if units is None:
+        raise ValueError(f"{source.name}: layout not recognised by build.split_units")
+    reports = build.vector_reports(source.stem, prefix, source.parent)
+    expected = {f"{source.stem}.unit{k:03d}.c" for k in range(len(units[1]))}
+    if reports is None or set(reports) != expected:
+        return None
+    return parse(list(reports.values()), source.name)
+
+
+def parse(outputs: list[str], name: str) -> list[Remark]:
+    """The remarks of gcc's -fopt-info texts ``outputs`` on the lines of the file ``name``
+    (the module: a unit names it in its ``#line`` directives), without duplicates, sorted."""
     remarks = set()
     for output in outputs:
         for found in _REMARK.finditer(output):
-            if Path(found.group("file")).name != source.name or found.group("kind") == "note":
+            if Path(found.group("file")).name != name or found.group("kind") == "note":
                 continue  # remarks on the runtime headers' inline functions
             remarks.add(
                 Remark(

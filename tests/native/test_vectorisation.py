@@ -9,19 +9,29 @@ marks the loops that must vectorise (``/* loop: points */``, ``/* loop: cos */``
 ``/* loop: sin */``); a kernel without a marked loop, or a marked loop gcc leaves scalar,
 fails here unless it is in EXEMPT with its reason.
 
+Where the remarks come from: the parallel machines' cores (FROM_BUILD: the delta, linear
+delta, tripod, hexapod and five-axis modules, which their robot classes load whole at -O3)
+are loaded through the build cache as the suite loads them, and their remarks are the ones
+that build kept beside each unit (build.vector_reports; tests/conftest.py turns
+DELTAGEN_VECTOR_REPORTS on): no compile of their own where the suite builds them anyway.
+The bundled arms' checked-in modules are compiled at -O3 by nothing else (an arm loads its
+kernels in parts at -O2, native/serial.py; the whole -O3 build costs gcc 2-4 times the
+report's compile), so their reports come from compiles of their own without the RTL passes
+that run after the vectoriser (vectorisation.AFTER_VECTORISER; a test checks that they give
+the whole compile's remarks, and at -O3 that the whole compile is the build's), cached in
+DELTAGEN_CACHE. Those take gcc 1-6 s of CPU per arm, so they are marked slow; the cores,
+read from their builds, are not.
+
 The negative tests inject into the delta module the constructs that stop the vectoriser
 (a non-finite guard on values already selected to NaN -- the form gcc 12 rejected with
-"no vectype for stmt" -- and an early exit) and check the checker reports them; the
-injections keep every line number, so the unchanged kernels' reports come from the cache.
-The reports come from compiles without the RTL passes that run after the vectoriser
-(vectorisation.AFTER_VECTORISER: a sixth of the CPU on a large unit; a test checks they give the
-whole compile's remarks); the arms' modules still take gcc 2-10 s of CPU each at -O3
-(reports are cached in DELTAGEN_CACHE), so they are marked slow; the delta core and the
-linear delta and tripod cores (small modules) are not.
+"no vectype for stmt" -- and an early exit) and check the checker reports them; they
+compile the changed text themselves, and the injections keep every line number, so the
+unchanged kernels' reports come from the cache.
 """
 
 from __future__ import annotations
 
+import json
 import platform
 import re
 import shutil
@@ -29,7 +39,7 @@ import stat
 
 import pytest
 
-from deltagen.native import toolchain, vectorisation
+from deltagen.native import build, toolchain, vectorisation
 from deltagen.paths import generated_dir
 
 #: kernels (or "kernel/loop") gcc may leave scalar, and why
@@ -54,7 +64,19 @@ EXEMPT = {
 }
 
 MODULES = sorted(p.name for p in generated_dir().glob("*.c"))
-SLOW_UNLESS = {"delta_kinematics.c", "linear_delta_kinematics.c", "tripod_kinematics.c"}
+#: the modules a robot class loads whole at -O3 (native/delta.py, linear_delta.py,
+#: hexapod.py, five_axis.py): their remarks are the ones the suite's own build of the
+#: module kept (build.vector_reports; conftest turns DELTAGEN_VECTOR_REPORTS on). A bundled
+#: arm loads its kernels in parts at -O2 (native/serial.py), so nothing else compiles its
+#: checked-in module at -O3: its report is a compile of its own, without the late RTL passes
+FROM_BUILD = {
+    "delta_kinematics.c",
+    "five_axis_kinematics.c",
+    "hexapod_kinematics.c",
+    "linear_delta_kinematics.c",
+    "tripod_kinematics.c",
+}
+SLOW_UNLESS = FROM_BUILD
 REASON = vectorisation.unavailable()
 needs_gcc = pytest.mark.skipif(REASON is not None, reason=str(REASON))
 
@@ -148,7 +170,9 @@ def test_a_stale_exemption_fails():
 )
 def test_batched_kernels_vectorise(name):
     text, path = _module(name)
-    remarks = vectorisation.vector_report(text, path)
+    remarks = vectorisation.build_report(text, path) if name in FROM_BUILD else None
+    if remarks is None:  # an arm, or a cache entry built with the switch off
+        remarks = vectorisation.vector_report(text, path)
     assert any(r.kind == "optimized" for r in remarks), "gcc wrote no report: flags not applied?"
     problems = vectorisation.check(text, remarks, exempt=EXEMPT)
     assert not problems, f"{name}: gcc does not vectorise where it must:\n" + "\n".join(problems)
@@ -157,13 +181,17 @@ def test_batched_kernels_vectorise(name):
 @needs_gcc
 @pytest.mark.parametrize("opt", ["-O3", "-O2"])
 def test_the_report_without_the_late_rtl_passes_is_the_whole_compiles(opt):
-    """The reports above are read from compiles without the RTL passes that run after the
-    vectoriser (vectorisation.AFTER_VECTORISER, most of gcc's time); the remarks of the
+    """The arms' reports above are read from compiles without the RTL passes that run after
+    the vectoriser (vectorisation.AFTER_VECTORISER, most of gcc's time); the remarks of the
     whole compile, with every pass, are the same ones, line for line, in a module with
-    vectorised and scalar loops (the linear delta core) at both build levels."""
+    vectorised and scalar loops (the linear delta core) at both build levels. At -O3 the
+    whole compile is the module's own build, whose remarks the other cores' checks read
+    (FROM_BUILD): the two kinds of report agree."""
     text, path = _module("linear_delta_kinematics.c")
     cut = vectorisation.vector_report(text, path, opt=opt)
-    whole = vectorisation.vector_report(text, path, opt=opt, whole=True)
+    whole = vectorisation.build_report(text, path) if opt == "-O3" else None
+    if whole is None:  # -O2 (no build of this module at that level), or the switch off
+        whole = vectorisation.vector_report(text, path, opt=opt, whole=True)
     assert cut == whole
     assert any(r.kind == "optimized" and vectorisation.VECTORISED in r.message for r in cut)
     assert any(r.kind == "missed" for r in cut)
@@ -191,6 +219,26 @@ def _inject(text: str, kernel: str, find: str, change) -> str:
     return "\n".join(lines)
 
 
+def _report(bad: str, path) -> list[vectorisation.Remark]:
+    """gcc's remarks on ``bad``, the delta module with lines changed in place (_inject):
+    the changed kernels compiled for the report, the others' remarks those of the module's
+    own build (their lines are the same), or every kernel compiled where the build kept
+    no report."""
+    built = vectorisation.build_report(path.read_text(), path)
+    if built is None:
+        return vectorisation.vector_report(bad, path)
+    old = dict(build.split_units(path.read_text())[1])
+    spans = vectorisation.kernels(bad, "deltagen_delta")
+    changed = [
+        (a, b)
+        for (_, a, b), (first, lines) in zip(spans, build.split_units(bad)[1])
+        if old.get(first) != lines
+    ]
+    fresh = vectorisation.vector_report(bad, path, only={a for a, _ in changed})
+    kept = [r for r in built if not any(a <= r.line <= b for a, b in changed)]
+    return sorted(set(kept) | set(fresh), key=lambda r: (r.line, r.column, r.kind, r.message))
+
+
 @needs_gcc
 def test_the_old_finite_guard_is_caught():
     """The guard form that stopped gcc 12 (isfinite of an output already selected to NaN:
@@ -206,7 +254,7 @@ def test_the_old_finite_guard_is_caught():
         lambda line: re.sub(r"isfinite\((x|y|z)\)", lambda m: old.format(m.group(1)), line),
     )
     assert bad != text and bad.count("\n") == text.count("\n")
-    problems = vectorisation.check(bad, vectorisation.vector_report(bad, path), exempt=EXEMPT)
+    problems = vectorisation.check(bad, _report(bad, path), exempt=EXEMPT)
     assert len(problems) == 1, problems
     assert problems[0].startswith("deltagen_delta_fk: the points loop at line")
     assert "not vectorised (gcc:" in problems[0]
@@ -225,7 +273,7 @@ def test_an_early_exit_is_caught():
     )
     lines[cos_loop.line] += " if (q1_b[k] > 1e300) break;"
     bad = "\n".join(lines)
-    problems = vectorisation.check(bad, vectorisation.vector_report(bad, path), exempt=EXEMPT)
+    problems = vectorisation.check(bad, _report(bad, path), exempt=EXEMPT)
     assert len(problems) == 2, problems
     assert problems[0].startswith(f"deltagen_delta_fk_vel: the cos loop at line {cos_loop.line}")
     assert problems[1].startswith("deltagen_delta_ik: the points loop at line")
@@ -271,14 +319,14 @@ def test_unavailable_names_a_compiler_that_is_not_gcc(tmp_path, monkeypatch):
 
 
 @needs_gcc
-def test_a_compiler_that_refuses_the_rtl_cut_is_asked_again_without_it(
-    tmp_path, monkeypatch, private_cache
-):
+def test_a_compiler_that_refuses_the_rtl_cut_is_asked_again_without_it(tmp_path, monkeypatch):
     """A gcc that rejects the ``-fdisable-rtl-*`` options (AFTER_VECTORISER) gets the
     unit again without them: the report is then the whole compile's, as the real gcc
-    gives it with ``whole=True``."""
+    gives it with ``whole=True`` (from the suite's cache: the -O2 case above asks for the
+    same one; the fake compiler's units compile in an empty cache of their own)."""
     text, path = _module("linear_delta_kinematics.c")
     whole = vectorisation.vector_report(text, path, opt="-O2", whole=True)
+    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
     real = shutil.which(toolchain.host_compiler())
     assert real is not None
     log = tmp_path / "calls.log"
@@ -311,3 +359,62 @@ def test_a_unit_that_does_not_compile_names_the_module_and_line(
     message = str(info.value)
     assert "linear_delta_kinematics.c (line " in message and "vectoriser report" in message
     assert "refused by the fake compiler" in message
+
+
+LOOPS_C = """#include "loops.h"
+
+int loops_scale(size_t n, const double *x, double *y)
+{
+    for (size_t k = 0; k < n; ++k) {  /* loop: points */
+        y[k] = 2.0 * x[k] + 1.0;
+    }
+    return 0;
+}
+
+int loops_first_big(size_t n, const double *x, double *y)
+{
+    for (size_t k = 0; k < n; ++k) {  /* loop: points */
+        y[k] = x[k] * x[k];
+        if (x[k] > 1e300) break;
+    }
+    return 0;
+}
+"""
+LOOPS_H = (
+    "#include <stddef.h>\n"
+    "int loops_scale(size_t n, const double *x, double *y);\n"
+    "int loops_first_big(size_t n, const double *x, double *y);\n"
+)
+
+
+@needs_gcc
+def test_the_build_keeps_a_report_per_unit_when_asked_and_the_same_bits(tmp_path, monkeypatch):
+    """With DELTAGEN_VECTOR_REPORTS on, the build of a checked-in module (generated/, here a
+    two-kernel stand-in) at -O3 keeps gcc's remarks of each unit beside the module: the
+    vectorised loop and the one with an early exit, each named at its line, as check()
+    reads them; the shared object is the one built with the switch off, bit for bit (so
+    the switch is not part of the cache key). Off, or at -O2, the entry holds none."""
+    folder = tmp_path / "generated"
+    folder.mkdir()
+    (folder / "loops.c").write_text(LOOPS_C)
+    (folder / "loops.h").write_text(LOOPS_H)
+    (folder / "loops.cdef.h").write_text(LOOPS_H.split("\n", 1)[1])
+    monkeypatch.setattr(build, "generated_dir", lambda: folder)
+    monkeypatch.setattr(build, "_build_jobs", lambda: 2)  # split into units (one job: one)
+    digests, reports = {}, {}
+    for switch, opt in (("0", "-O3"), ("1", "-O3"), ("1", "-O2")):
+        monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / f"cache{switch}{opt}"))
+        monkeypatch.setenv("DELTAGEN_VECTOR_REPORTS", switch)
+        monkeypatch.setattr(build, "_LOADED", {})  # a fresh build in each cache
+        reports[switch, opt] = build.vector_reports("loops", "loops", folder, opt)
+        (entry,) = (tmp_path / f"cache{switch}{opt}").glob("_deltagen_loops_*")
+        digests[switch, opt] = json.loads((entry / "manifest.json").read_text())["sha256"]
+    assert reports["0", "-O3"] is None and reports["1", "-O2"] is None
+    assert digests["0", "-O3"] == digests["1", "-O3"]
+    assert sorted(reports["1", "-O3"]) == ["loops.unit000.c", "loops.unit001.c"]
+    remarks = vectorisation.parse(list(reports["1", "-O3"].values()), "loops.c")
+    problems = vectorisation.check(LOOPS_C, remarks, prefix="loops")
+    assert len(problems) == 1, problems
+    assert problems[0].startswith("loops_first_big: the points loop at line 13 is not vectorised")
+    assert "not vectorized: control flow in loop" in problems[0]  # gcc's reason, kept too
+    assert any(r.line == 5 and vectorisation.VECTORISED in r.message for r in remarks)
