@@ -1,6 +1,10 @@
-"""The compiled backend of a serial arm: its generated C module via cffi. Bundled robots
-use the checked-in generated/serial_<name>.c; any other description is rendered into the
-build cache under a key of its content (a changed file never loads a stale module)."""
+"""The compiled backend of a serial arm: its generated C module via cffi. A bundled robot's
+module is the checked-in generated/serial_<name>.c (-O3), loaded once it is in the build
+cache (`deltagen generate <name>`, or any complete build of it, puts it there); any other
+description is rendered into the build cache under a key of its content (a changed file
+never loads a stale module). An arm whose complete module is not built yet, bundled or
+not, starts from the parts of it that its calls need (CompiledArm: the "first" part, then
+each other part on its first call), which a cold load compiles sooner."""
 
 from __future__ import annotations
 
