@@ -9,13 +9,13 @@ numpy reference backend: independent of the C). The derivations are shared by th
 session (codegen.export caches them per process, helpers.shared_derivations shares them
 with the run's other processes); each package compiles once, at -O0 to keep the compile
 time down (the runtime C, the same files in every arm's package, once per session for each
-content: RUNTIME_OBJECTS): the numbers are compared at the example's print precision, and
-the bit-level agreement of the optimised builds is tests/apps/test_export.py's. The CMake
-build of a package reuses the objects its make build compiled from the same files with the
-same code-shaping flags (REUSE_OBJECTS, a compiler launcher in the manner of ccache: CMake
-still configures, compiles every other file, archives, links and runs the example); on its
-own (the make cell not run) it compiles everything. Its build folder starts with CMake's
-record of the compiler (cmake_platform: the compiler identification and ABI probes, made
+content: LAUNCHER's runtime mode): the numbers are compared at the example's print
+precision, and the bit-level agreement of the optimised builds is
+tests/apps/test_export.py's. The CMake build of a package reuses the objects its make build
+compiled from the same files with the same code-shaping flags (LAUNCHER's reuse mode, in
+the manner of ccache: CMake still configures, compiles every other file, archives, links
+and runs the example); on its own (the make cell not run) it compiles everything. Its
+build folder starts with CMake's record of the compiler (cmake_platform: the compiler identification and ABI probes, made
 once per session), as a folder configured before has it; the configure of a clean folder
 from nothing is tests/apps/test_export.py's test_builds_and_runs_with_cmake.
 
@@ -150,16 +150,22 @@ def packages(tmp_path_factory, urdf_arm_file):
     return get
 
 
-# CMAKE_C_COMPILER_LAUNCHER of the CMake cells: the object of a source is copied from the
-# folder the make cell of the same package built (DELTAGEN_MADE_PACKAGE) when every .c and .h
-# there is byte-identical to the CMake build's and the flags that shape code (all but -I,
-# -W, -M and -o/-c) are the ones recorded there (.flags); else the compiler runs.
-REUSE_OBJECTS = r"""#!/bin/sh
+# A compiler launcher in the manner of ccache, `LAUNCHER MODE CC ARGS...`, in two modes:
+# - reuse (CMAKE_C_COMPILER_LAUNCHER of the CMake cells): the object of a source is copied
+#   from the folder the make cell of the same package built (DELTAGEN_MADE_PACKAGE) when
+#   every .c and .h there is byte-identical to the CMake build's and the flags that shape
+#   code (all but -I, -W, -M and -o/-c) are the ones recorded there (.flags);
+# - runtime ($(CC) of the make cells): the runtime C (deltagen_*.c, copied into every
+#   package that needs it) is compiled once per session for each content and flags, its
+#   object kept in DELTAGEN_RUNTIME_OBJECTS under a digest of the compiler, those flags and
+#   the names and texts of the source and the local headers it includes (transitively).
+# Everything else runs the compiler.
+LAUNCHER = r"""#!/bin/sh
 LC_ALL=C
 export LC_ALL
-store="$DELTAGEN_MADE_PACKAGE"
-cc=$1
-shift
+mode=$1
+cc=$2
+shift 2
 out=
 src=
 flags=
@@ -178,53 +184,29 @@ for a in "$@"; do
         *) flags="$flags $a" ;;
     esac
 done
-if [ -n "$store" ] && [ -n "$src" ] && [ -n "$out" ]; then
+if [ -z "$src" ] || [ -z "$out" ]; then
+    exec "$cc" "$@"
+fi
+if [ "$mode" = reuse ]; then
+    store="$DELTAGEN_MADE_PACKAGE"
     name=$(basename "$src" .c)
     shaped=$(printf '%s\n' $flags | sort | tr '\n' ' ')
     same=yes
-    [ -f "$store/$name.o" ] && [ "$shaped" = "$(cat "$store/.flags")" ] || same=
+    [ -n "$store" ] && [ -f "$store/$name.o" ] && [ "$shaped" = "$(cat "$store/.flags")" ] || same=
     for f in "$(dirname "$src")"/*.[ch]; do
         [ -n "$same" ] && cmp -s "$f" "$store/$(basename "$f")" || same=
     done
     if [ -n "$same" ]; then
         cp "$store/$name.o" "$out" && exit 0
     fi
+    exec "$cc" "$@"
 fi
-exec "$cc" "$@"
-"""
-
-
-# $(CC) of the make cells: the runtime C (deltagen_*.c, copied into every package that needs
-# it) is compiled once per session for each content and flags, its object kept in
-# DELTAGEN_RUNTIME_OBJECTS under a digest of the compiler, the flags but -o/-c/-I, and the
-# names and texts of the source and the local headers it includes (transitively); every
-# other compile and the links run the compiler.
-RUNTIME_OBJECTS = r"""#!/bin/sh
 store="$DELTAGEN_RUNTIME_OBJECTS"
-cc=$1
-shift
-out=
-src=
-flags=
-skip=
-for a in "$@"; do
-    if [ -n "$skip" ]; then
-        out=$a
-        skip=
-        continue
-    fi
-    case "$a" in
-        -o) skip=o ;;
-        -c | -I*) ;;
-        *.c) src=$a ;;
-        *) flags="$flags $a" ;;
-    esac
-done
 case "$src" in
     deltagen_*.c | */deltagen_*.c) ;;
     *) exec "$cc" "$@" ;;
 esac
-if [ -z "$store" ] || [ -z "$out" ] || ! command -v md5sum >/dev/null; then
+if [ -z "$store" ] || ! command -v md5sum >/dev/null; then
     exec "$cc" "$@"
 fi
 dir=$(dirname "$src")
@@ -258,27 +240,19 @@ cp "$out" "$store/.$key.$$" && mv "$store/.$key.$$" "$store/$key.o"
 
 
 @pytest.fixture(scope="session")
-def runtime_objects(tmp_path_factory) -> tuple[Path, Path]:
-    """(RUNTIME_OBJECTS written out, its empty store)."""
-    folder = tmp_path_factory.mktemp("runtime_objects")
-    path = folder / "runtime_objects.sh"
-    path.write_text(RUNTIME_OBJECTS)
+def launcher(tmp_path_factory) -> tuple[Path, Path]:
+    """(LAUNCHER written out, the empty store of its runtime mode)."""
+    folder = tmp_path_factory.mktemp("launcher")
+    path = folder / "launcher.sh"
+    path.write_text(LAUNCHER)
     path.chmod(0o755)
     (folder / "store").mkdir()
     return path, folder / "store"
 
 
 def _shaping(flags: str) -> str:
-    """The flags of a compile that shape the object (REUSE_OBJECTS's .flags)."""
+    """The flags of a compile that shape the object (LAUNCHER's .flags)."""
     return "".join(f"{f} " for f in sorted(flags.split()) if not f.startswith(("-W", "-I")))
-
-
-@pytest.fixture(scope="session")
-def reuse_objects(tmp_path_factory) -> Path:
-    path = tmp_path_factory.mktemp("launcher") / "reuse_objects.sh"
-    path.write_text(REUSE_OBJECTS)
-    path.chmod(0o755)
-    return path
 
 
 #: (robot, real) -> the folder its make cell built (objects for the CMake cell)
@@ -351,14 +325,14 @@ def _check_example(robot, output: str, real: str) -> None:
 @pytest.mark.skipif(MAKE is None, reason="make is not installed")
 @pytest.mark.parametrize("case", CASES, ids=_ids)
 def test_every_robot_builds_with_make_and_prints_the_api_numbers(
-    packages, case, tmp_path, runtime_objects
+    packages, case, tmp_path, launcher
 ):
     robot, result = packages(*case)
     folder = _clean_copy(result.out, tmp_path / "pkg")
     flags = "-std=c99 -O0 -Wall -Wextra" + (" -Wdouble-promotion" if case[1] == "float" else "")
-    launcher, store = runtime_objects
+    script, store = launcher
     env = dict(os.environ, DELTAGEN_RUNTIME_OBJECTS=str(store))
-    _run([MAKE, "-j2", f"CC={launcher} {CC}", f"CFLAGS={flags}"], folder, env)
+    _run([MAKE, "-j2", f"CC={script} runtime {CC}", f"CFLAGS={flags}"], folder, env)
     _check_example(robot, _run(["./example"], folder), case[1])
     (folder / ".flags").write_text(_shaping(flags))
     MADE[case] = folder
@@ -381,7 +355,7 @@ def cmake_platform(tmp_path_factory) -> Path:
 @pytest.mark.skipif(CMAKE is None, reason="cmake is not installed")
 @pytest.mark.parametrize("case", CASES, ids=_ids)
 def test_every_robot_builds_with_cmake_and_prints_the_api_numbers(
-    packages, case, tmp_path, reuse_objects, cmake_platform
+    packages, case, tmp_path, launcher, cmake_platform
 ):
     robot, result = packages(*case)
     folder = _clean_copy(result.out, tmp_path / "pkg")
@@ -393,7 +367,7 @@ def test_every_robot_builds_with_cmake_and_prints_the_api_numbers(
     _run(
         [CMAKE, "-S", str(folder), "-B", str(build), f"-DCMAKE_C_COMPILER={CC}",
          "-DCMAKE_BUILD_TYPE=", "-DCMAKE_C_FLAGS=-O0", "-DCMAKE_PLATFORM_INFO_INITIALIZED=1",
-         f"-DCMAKE_C_COMPILER_LAUNCHER={reuse_objects}"],
+         f"-DCMAKE_C_COMPILER_LAUNCHER={launcher[0]};reuse"],
         folder, env,
     )  # fmt: skip
     _run([CMAKE, "--build", str(build), "-j2"], folder, env)
