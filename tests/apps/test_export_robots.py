@@ -15,9 +15,10 @@ tests/apps/test_export.py's. The CMake build of a package reuses the objects its
 compiled from the same files with the same code-shaping flags (LAUNCHER's reuse mode, in
 the manner of ccache: CMake still configures, compiles every other file, archives, links
 and runs the example); on its own (the make cell not run) it compiles everything. Its
-build folder starts with CMake's record of the compiler (cmake_platform: the compiler identification and ABI probes, made
-once per session), as a folder configured before has it; the configure of a clean folder
-from nothing is tests/apps/test_export.py's test_builds_and_runs_with_cmake.
+build folder starts with CMake's record of the compiler (cmake_platform: the compiler
+identification and ABI probes, made once per session), as a folder configured before has
+it; the configure of a clean folder from nothing is tests/apps/test_export.py's
+test_builds_and_runs_with_cmake.
 
 Then the calibration workflow: `deltagen calibrate` on synthetic measurements of a robot
 with encoder offsets writes a robot file; `deltagen export` of that file, built with make,
