@@ -437,13 +437,13 @@ def _keeps_vector_reports(directory: Path, opt: str) -> bool:
 def vector_reports(
     base_name: str, prefix: str, directory: Path | None = None, opt: str = "-O3"
 ) -> dict[str, str] | None:
-    """{unit file name: gcc's vectoriser remarks} that the build of <directory>/<base_name>.c
-    kept beside the module (:func:`_keeps_vector_reports`), the module loaded first as
+    """{unit file name (<base_name>.unitNNN.c, or <base_name>.c built as one unit): gcc's
+    vectoriser remarks} that the build of <directory>/<base_name>.c kept beside the module (:func:`_keeps_vector_reports`), the module loaded first as
     :func:`load` loads it (built when the cache has no verified entry); None when its cache
     entry holds none (built with the switch off, or not by gcc)."""
-    load(base_name, prefix, directory, opt)
-    module_name = _module_inputs(base_name, prefix, directory, opt)[0]
-    found = sorted((usable_cache_dir() / module_name).glob(f"*{VECTOR_REPORT_SUFFIX}"))
+    module = load(base_name, prefix, directory, opt)
+    # the entry of the module load found or built: split or one unit (load's ``split``)
+    found = sorted(Path(module.__file__).parent.glob(f"*{VECTOR_REPORT_SUFFIX}"))
     if not found:
         return None
     return {f.name.removesuffix(VECTOR_REPORT_SUFFIX) + ".c": f.read_text() for f in found}

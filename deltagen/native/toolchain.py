@@ -112,22 +112,33 @@ def cortex_m4_command() -> list[str] | None:
     return list(CORTEX_M4) if shutil.which(CORTEX_M4[0]) else None
 
 
+def compiler_version(program: str | None = None) -> str:
+    """The ``--version`` text of ``program`` (default: the host compiler,
+    :func:`host_compiler`); BuildError when it cannot be run or fails."""
+    command = [program or host_compiler(), "--version"]
+    proc = run(command, None, shlex.join(command), timeout=60)
+    require_success(proc, command, f"asking {command[0]} its version")
+    return proc.stdout
+
+
+def says_gcc(version: str) -> bool:
+    """True when a compiler's ``--version`` text is gcc's."""
+    text = version.lower()
+    return "gcc" in text or "free software foundation" in text
+
+
 def is_gcc() -> bool:
     """True when the host compiler (:func:`host_compiler`) says it is gcc (asked once per
     program name); False when it is another or cannot be asked."""
-    return _says_gcc(host_compiler())
+    return _is_gcc(host_compiler())
 
 
 @functools.lru_cache(maxsize=8)
-def _says_gcc(program: str) -> bool:
+def _is_gcc(program: str) -> bool:
     try:
-        proc = run([program, "--version"], None, f"{program} --version", timeout=60)
-    except BuildError:
+        return says_gcc(compiler_version(program))
+    except (BuildError, OSError):  # not found, failed, timed out, not executable
         return False
-    except OSError:  # not executable
-        return False
-    text = (proc.stdout or "").lower()
-    return proc.returncode == 0 and ("gcc" in text or "free software foundation" in text)
 
 
 # ---------------------------------------------------------------- flags

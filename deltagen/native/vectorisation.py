@@ -140,22 +140,14 @@ def unavailable() -> str | None:
     if platform.machine() not in ("x86_64", "AMD64"):
         return f"the vectorisation check covers x86-64 builds; this machine is {platform.machine()}"
     try:
-        version = _compiler_version()
+        version = toolchain.compiler_version()
     except (toolchain.BuildError, OSError) as exc:  # not found, failed, timed out, not runnable
         return f"no C compiler to ask ({exc})"
-    if "gcc" not in version.lower() and "free software foundation" not in version.lower():
+    if not toolchain.says_gcc(version):
         return f"the compiler is not gcc ({version.splitlines()[0]!r}): no -fopt-info report"
     if not toolchain.vector_math_available():
         return "no libmvec here: the build compiles scalar cos/sin, which cannot vectorise"
     return None
-
-
-def _compiler_version() -> str:
-    """The host compiler's ``--version`` text; BuildError when it cannot be run or fails."""
-    command = [toolchain.host_compiler(), "--version"]
-    proc = toolchain.run(command, None, shlex.join(command), timeout=60)
-    toolchain.require_success(proc, command, f"asking {command[0]} its version")
-    return proc.stdout
 
 
 def _report_command(prefix: str, directory: Path, opt: str) -> list[str]:
@@ -191,7 +183,7 @@ def vector_report(
     if only is not None:
         pieces = [piece for piece in pieces if piece[0] in only]
     command = _report_command(prefix, source.parent, opt)
-    version = _compiler_version()
+    version = toolchain.compiler_version()
     cache = build.usable_cache_dir() / "vector-reports"
     cache.mkdir(exist_ok=True)
 
@@ -228,16 +220,17 @@ def build_report(text: str, source: str | Path, prefix: str | None = None) -> li
     ``source`` (generated/<name>.c, read by the caller), as the module's own build kept them
     (native/build.py :func:`~deltagen.native.build.vector_reports`: the module loaded through
     the build cache at -O3, built first when it is not there): the whole compile of each unit
-    with the build's flags, no compile of its own. None when the cache entry holds no
-    report (built with DELTAGEN_VECTOR_REPORTS off) or not one per unit of ``text``."""
+    with the build's flags (split per kernel or as one unit, as the build chose), no compile
+    of its own. None when the cache entry holds no report (built with
+    DELTAGEN_VECTOR_REPORTS off) or not one per unit of ``text``."""
     source = Path(source).resolve()
     prefix = prefix or module_prefix(text)
     units = unit_split.split_units(text)
     if units is None:
         raise ValueError(f"{source.name}: layout not recognised by build.split_units")
     reports = build.vector_reports(source.stem, prefix, source.parent)
-    expected = {f"{source.stem}.unit{k:03d}.c" for k in range(len(units[1]))}
-    if reports is None or set(reports) != expected:
+    split = {f"{source.stem}.unit{k:03d}.c" for k in range(len(units[1]))}
+    if reports is None or set(reports) not in (split, {source.name}):  # split, or one unit
         return None
     return parse(list(reports.values()), source.name)
 

@@ -39,6 +39,7 @@ import stat
 
 import pytest
 
+from deltagen.inputs import env_flag
 from deltagen.native import build, toolchain, vectorisation
 from deltagen.paths import generated_dir
 
@@ -171,6 +172,8 @@ def test_a_stale_exemption_fails():
 def test_batched_kernels_vectorise(name):
     text, path = _module(name)
     remarks = vectorisation.build_report(text, path) if name in FROM_BUILD else None
+    if name in FROM_BUILD and env_flag("DELTAGEN_VECTOR_REPORTS", False, "the build's remarks"):
+        assert remarks is not None, f"{name}: its build kept no remarks of its units"
     if remarks is None:  # an arm, or a cache entry built with the switch off
         remarks = vectorisation.vector_report(text, path)
     assert any(r.kind == "optimized" for r in remarks), "gcc wrote no report: flags not applied?"
