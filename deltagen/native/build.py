@@ -183,6 +183,9 @@ def _module_inputs(
         ]
         + [f.name + "\0" + text for f, text in runtime.items()]
         + ([] if part == "all" else [f"part: {part}"])
+        # an entry that keeps gcc's remarks is its own entry: one built with the switch off
+        # (the same bits) is never taken for it, in a cache kept between runs
+        + (["vector reports: kept"] if _keeps_vector_reports(directory, opt) else [])
     )
     key = hashlib.sha256(key_material.encode()).hexdigest()[:16]
     label = "" if part == "all" else f"{part}_"
@@ -426,7 +429,8 @@ def _keeps_vector_reports(directory: Path, opt: str) -> bool:
     suite's conftest turns it on: tests/native/test_vectorisation.py reads them instead of
     compiling the module again). Off by default: the remarks change no bit of the module
     (tests/native/test_vectorisation.py) but cost gcc about a tenth more CPU (CONTRIBUTING.md,
-    "Speed guards")."""
+    "Speed guards"). On, the module's cache key says so (:func:`_module_inputs`), so an entry
+    built with it off, in a cache kept between runs, is not read as one without remarks."""
     if opt != "-O3" or Path(directory).resolve() != generated_dir().resolve():
         return False
     if not env_flag("DELTAGEN_VECTOR_REPORTS", False, "keep gcc's vectoriser remarks"):

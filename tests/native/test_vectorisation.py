@@ -31,11 +31,11 @@ unchanged kernels' reports come from the cache.
 
 from __future__ import annotations
 
-import json
 import platform
 import re
 import shutil
 import stat
+import subprocess
 
 import pytest
 
@@ -390,13 +390,33 @@ LOOPS_H = (
 )
 
 
+def _machine_code(shared_object, functions: list[str]) -> str:
+    """The instructions of ``functions`` in ``shared_object`` with their bytes, without
+    addresses (objdump, binutils: installed with gcc)."""
+    objdump = shutil.which("objdump")
+    if objdump is None:
+        pytest.skip("objdump (binutils) is not installed")
+    out = [
+        subprocess.run(
+            [objdump, "-d", "--no-addresses", f"--disassemble={name}", str(shared_object)],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout.split(f"<{name}>:", 1)[1]
+        for name in functions
+    ]
+    assert all(len(text.splitlines()) > 3 for text in out), out
+    return "".join(out)
+
+
 @needs_gcc
 def test_the_build_keeps_a_report_per_unit_when_asked_and_the_same_bits(tmp_path, monkeypatch):
     """With DELTAGEN_VECTOR_REPORTS on, the build of a checked-in module (generated/, here a
     two-kernel stand-in) at -O3 keeps gcc's remarks of each unit beside the module: the
     vectorised loop and the one with an early exit, each named at its line, as check()
-    reads them; the shared object is the one built with the switch off, bit for bit (so
-    the switch is not part of the cache key). Off, or at -O2, the entry holds none."""
+    reads them; the shared object is the one built with the switch off, bit for bit. Off,
+    or at -O2, the entry holds none. In a cache kept between runs (the suite's), an entry
+    built with the switch off is not taken for one with remarks: the switch on keys its own."""
     folder = tmp_path / "generated"
     folder.mkdir()
     (folder / "loops.c").write_text(LOOPS_C)
@@ -404,16 +424,18 @@ def test_the_build_keeps_a_report_per_unit_when_asked_and_the_same_bits(tmp_path
     (folder / "loops.cdef.h").write_text(LOOPS_H.split("\n", 1)[1])
     monkeypatch.setattr(build, "generated_dir", lambda: folder)
     monkeypatch.setattr(build, "_build_jobs", lambda: 2)  # split into units (one job: one)
-    digests, reports = {}, {}
+    code, reports = {}, {}
     for switch, opt in (("0", "-O3"), ("1", "-O3"), ("1", "-O2")):
         monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / f"cache{switch}{opt}"))
         monkeypatch.setenv("DELTAGEN_VECTOR_REPORTS", switch)
         monkeypatch.setattr(build, "_LOADED", {})  # a fresh build in each cache
         reports[switch, opt] = build.vector_reports("loops", "loops", folder, opt)
         (entry,) = (tmp_path / f"cache{switch}{opt}").glob("_deltagen_loops_*")
-        digests[switch, opt] = json.loads((entry / "manifest.json").read_text())["sha256"]
+        (shared_object,) = entry.glob("*.so")
+        code[switch, opt] = _machine_code(shared_object, ["loops_scale", "loops_first_big"])
     assert reports["0", "-O3"] is None and reports["1", "-O2"] is None
-    assert digests["0", "-O3"] == digests["1", "-O3"]
+    # the kernels' instructions, byte for byte (the files differ in the module's name)
+    assert code["0", "-O3"] == code["1", "-O3"] != code["1", "-O2"]
     assert sorted(reports["1", "-O3"]) == ["loops.unit000.c", "loops.unit001.c"]
     remarks = vectorisation.parse(list(reports["1", "-O3"].values()), "loops.c")
     problems = vectorisation.check(LOOPS_C, remarks, prefix="loops")
@@ -421,3 +443,10 @@ def test_the_build_keeps_a_report_per_unit_when_asked_and_the_same_bits(tmp_path
     assert problems[0].startswith("loops_first_big: the points loop at line 13 is not vectorised")
     assert "not vectorized: control flow in loop" in problems[0]  # gcc's reason, kept too
     assert any(r.line == 5 and vectorisation.VECTORISED in r.message for r in remarks)
+    # one cache, first a run with the switch off, then one with it on
+    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "kept"))
+    for switch in ("0", "1"):
+        monkeypatch.setenv("DELTAGEN_VECTOR_REPORTS", switch)
+        monkeypatch.setattr(build, "_LOADED", {})  # a new process
+        kept = build.vector_reports("loops", "loops", folder)
+    assert kept is not None and vectorisation.parse(list(kept.values()), "loops.c") == remarks
