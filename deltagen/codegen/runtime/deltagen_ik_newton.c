@@ -289,15 +289,9 @@ static void ikn_sequence_point(size_t N, const double *alpha, uint32_t seed, int
 }
 
 /* The body of deltagen_ik_newton for N = arm->joints joints (read there; the checks below
- * make sure arm is there before N is used). A 6-joint arm takes it with N a constant, so
- * the compiler unrolls the loops over the joints: the same operations in the same order
- * (IEEE C99: no reassociation, no contraction), the same bits. */
-#if defined(__GNUC__)
-static inline __attribute__((always_inline))
-#else
-static inline
-#endif
-int ikn_newton(const deltagen_ik_arm *arm, const size_t N, double *work, int *iwork, size_t n,
+ * make sure arm is there before N is used). A 6-joint arm takes it with N a constant
+ * (DELTAGEN_SIZED_BODY, deltagen_linalg.h). */
+DELTAGEN_SIZED_BODY int ikn_newton(const deltagen_ik_arm *arm, const size_t N, double *work, int *iwork, size_t n,
                const deltagen_ik_options *restrict options, const double *restrict T_target,
                const double *restrict q0, const double *restrict qlim, double *restrict q,
                double *restrict err_p, double *restrict err_r, int32_t *restrict iterations,

@@ -9,14 +9,7 @@
 #endif
 
 /* The 6 x 6 systems of a 6-joint arm (the numerical IK's Gram matrices, the mass matrix)
- * take the same bodies with the size a constant, so the compiler unrolls their loops: the
- * same operations in the same order (no reassociation, no contraction: IEEE C99), the same
- * bits, without the loop overhead of sizes known only at run time. */
-#if defined(__GNUC__)
-#define LINALG_BODY static inline __attribute__((always_inline))
-#else
-#define LINALG_BODY static inline
-#endif
+ * take the same bodies with the size a constant (DELTAGEN_SIZED_BODY, the header). */
 
 void deltagen_rotation_log(const double R[9], double w[3])
 {
@@ -54,7 +47,7 @@ void deltagen_rotation_log(const double R[9], double w[3])
     }
 }
 
-LINALG_BODY int cholesky_body(double *A, size_t s, double *inv)
+DELTAGEN_SIZED_BODY int cholesky_body(double *A, size_t s, double *inv)
 {
     for (size_t j = 0; j < s; ++j) {
         double d = A[j * s + j];
@@ -100,7 +93,7 @@ int deltagen_cholesky_relative(double *A, size_t s, double *inv, double rtol)
     return 0;
 }
 
-LINALG_BODY void cholesky_solve_body(const double *L, const double *inv, size_t s,
+DELTAGEN_SIZED_BODY void cholesky_solve_body(const double *L, const double *inv, size_t s,
                                      const double *b, double *x)
 {
     for (size_t i = 0; i < s; ++i) {
@@ -209,7 +202,7 @@ int deltagen_gauss(double *A, size_t s, double *b)
     return 0;
 }
 
-LINALG_BODY size_t gram_body(const double *A, size_t k, size_t N, const int *fixed, double *G)
+DELTAGEN_SIZED_BODY size_t gram_body(const double *A, size_t k, size_t N, const int *fixed, double *G)
 {
     int any_fixed = 0;
     for (size_t i = 0; i < N; ++i) {
@@ -263,7 +256,7 @@ size_t deltagen_gram(const double *A, size_t k, size_t N, const int *fixed, doub
     return k == 6 && N == 6 ? gram_body(A, 6, 6, fixed, G) : gram_body(A, k, N, fixed, G);
 }
 
-LINALG_BODY double sigma_min_body(const double *G0, size_t s, double *work)
+DELTAGEN_SIZED_BODY double sigma_min_body(const double *G0, size_t s, double *work)
 {
     double *G = work, *inv = work + s * s, *x = inv + s;
     for (size_t i = 0; i < s * s; ++i) {

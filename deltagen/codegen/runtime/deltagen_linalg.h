@@ -9,6 +9,17 @@
 
 #include <stddef.h>
 
+/* The storage of a runtime body that its callers take with a size fixed at compile time
+ * (the 6 x 6 systems of a 6-joint arm, deltagen_linalg.c; the damped Newton of a 6-joint
+ * arm, deltagen_ik_newton.c): always inlined, so the compiler unrolls its loops over that
+ * size -- the same operations in the same order (no reassociation, no contraction: IEEE
+ * C99), the same bits, without the loop overhead of sizes known only at run time. */
+#if defined(__GNUC__)
+#define DELTAGEN_SIZED_BODY static inline __attribute__((always_inline))
+#else
+#define DELTAGEN_SIZED_BODY static inline
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
