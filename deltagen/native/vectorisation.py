@@ -184,12 +184,20 @@ def vector_report(
         pieces = [piece for piece in pieces if piece[0] in only]
     command = _report_command(prefix, source.parent, opt)
     version = toolchain.compiler_version()
+    # the headers a unit includes are compiled into it (the module's own; the runtime's,
+    # whose inline functions run inside the kernels' loops): a changed header is a new
+    # report, in a cache kept between runs as in a fresh one
+    own = source.with_suffix(".h")
+    headers = [own.name + "\0" + (own.read_text() if own.is_file() else "")]
+    headers += [
+        f.name + "\0" + f.read_text() for f in build.runtime_files([text]) if f.suffix == ".h"
+    ]
     cache = build.usable_cache_dir() / "vector-reports"
     cache.mkdir(exist_ok=True)
 
     def one(piece) -> str:
         unit = unit_split._unit_text(source, preamble, piece)
-        words = [unit, shlex.join(command), version, "whole" if whole else "cut"]
+        words = [unit, shlex.join(command), version, "whole" if whole else "cut", *headers]
         key = hashlib.sha256("\0".join(words).encode())
         stored = cache / f"{key.hexdigest()[:24]}.txt"
         if stored.is_file():

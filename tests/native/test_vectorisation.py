@@ -450,3 +450,37 @@ def test_the_build_keeps_a_report_per_unit_when_asked_and_the_same_bits(tmp_path
         monkeypatch.setattr(build, "_LOADED", {})  # a new process
         kept = build.vector_reports("loops", "loops", folder)
     assert kept is not None and vectorisation.parse(list(kept.values()), "loops.c") == remarks
+
+
+@needs_gcc
+def test_a_changed_runtime_header_is_a_new_report(tmp_path, monkeypatch):
+    """The reports of the bundled arms are cached between runs (vectorisation.vector_report)
+    under a key that covers the runtime headers the module includes: their inline functions
+    run inside the kernels' loops. A header whose function stops the vectoriser (a call of
+    an opaque function) gives the missed loop, not the cached report of the old header."""
+    runtime = tmp_path / "runtime"
+    runtime.mkdir()
+    monkeypatch.setattr(build, "runtime_dir", lambda: runtime)
+    monkeypatch.setenv("DELTAGEN_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "generated"
+    folder.mkdir()
+    text = LOOPS_C.replace('#include "loops.h"', '#include "loops.h"\n#include "deltagen_twice.h"')
+    text = text.replace("y[k] = 2.0 * x[k] + 1.0;", "y[k] = deltagen_twice(x[k]);")
+    (folder / "loops.c").write_text(text)
+    (folder / "loops.h").write_text(LOOPS_H)
+    header = runtime / "deltagen_twice.h"
+    scale = next(lp for lp in vectorisation.marked_loops(text, "loops") if lp.kernel == "scale")
+    vectorised = []
+    for body in (
+        "return 2.0 * x;",
+        "if (x > 1e300) { deltagen_note(); }\n    return 2.0 * x;",
+    ):
+        header.write_text(
+            "void deltagen_note(void);\n"
+            f"static inline double deltagen_twice(double x)\n{{\n    {body}\n}}\n"
+        )
+        remarks = vectorisation.vector_report(text, folder / "loops.c", prefix="loops")
+        vectorised.append(
+            any(r.line == scale.line and vectorisation.VECTORISED in r.message for r in remarks)
+        )
+    assert vectorised == [True, False]
