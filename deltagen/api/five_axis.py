@@ -93,13 +93,12 @@ class FiveAxisMachine(RobotFamily):
             from deltagen.native.five_axis import CompiledFiveAxis
 
             self._core = CompiledFiveAxis(self.description, self._threads)
-            self._fk_single = self._core.single("fk")
-            self._ik_single = self._core.single("ik")
+            self._single = {name: self._core.single(name) for name in ("fk", "ik")}
         else:
             from deltagen.reference import five_axis as reference
 
             self._core = ReferenceCore(reference, (self.description,), _CALLS)
-            self._fk_single = self._ik_single = None
+            self._single = {}  # the reference has no lean path
 
     @classmethod
     def from_description(
@@ -138,11 +137,9 @@ class FiveAxisMachine(RobotFamily):
     ) -> Result:
         """Tool tip p (..., 3) [m] and tool axis d (..., 3) (unit, from the tip into the
         spindle) in the workpiece frame, of joints (..., 5): x, y, z [m], tilt, C [rad]."""
-        if not return_status and type(errors) is str and errors == "raise":
-            if self._fk_single is not None:
-                out = self._fk_single(joints)
-                if out is not None:
-                    return out
+        out = None if return_status else self._lean("fk", errors, joints)
+        if out is not None:
+            return out
         check_errors_mode(errors)
         j = as_rows(joints, "joints", (5,))
         lead = j.shape[:-1]
@@ -164,11 +161,9 @@ class FiveAxisMachine(RobotFamily):
         the previous C. Where the tool axis is parallel to the C axis (SINGULAR) C keeps the
         previous value; where neither branch is within the travel the row is UNREACHABLE."""
         prev = np.zeros(5) if previous is None else previous
-        if not return_status and type(errors) is str and errors == "raise":
-            if self._ik_single is not None:
-                out = self._ik_single(p, d, prev)
-                if out is not None:
-                    return out
+        out = None if return_status else self._lean("ik", errors, p, d, prev)
+        if out is not None:
+            return out
         check_errors_mode(errors)
         lead, flat = self._inverse_inputs(p, d, prev)
         j, status = self._core.ik(*flat)
