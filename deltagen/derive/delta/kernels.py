@@ -180,21 +180,47 @@ def _outputs(no_p, no_rates, levels):
     return tuple(ports), Stage("outputs (NaN where the status says they do not exist)", assignments)
 
 
-@cache
-def fk_kernel() -> Kernel:
-    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
-    ports, outputs = _outputs(no_p, no_rates, 1)
+def _direct_kernel(
+    name: str,
+    doc: str,
+    inputs: tuple[Port, ...],
+    outputs: tuple[Port, ...],
+    flags: Stage,
+    status: sp.Basic,
+    stages: tuple[Stage, ...],
+    outputs_doc: str,
+) -> Kernel:
+    """A kernel that starts from the direct kinematics (fk, its rates, J, the parameter
+    Jacobian, the dynamics): the fk stages, the ``flags`` stage of _fk_level, then
+    ``stages``; its ``status`` is _fk_level's, whose doc _FK_STATUS_DOC is completed by
+    ``outputs_doc`` (what the outputs are where the status is not OK)."""
     return Kernel(
-        name="fk",
-        doc="Direct kinematics: crank angles q -> platform position p, eqs. (2)-(27).",
-        inputs=(_q_port(),),
-        outputs=ports,
-        stages=tuple(fkd.fk_stages()) + (flags, outputs),
+        name=name,
+        doc=doc,
+        inputs=inputs,
+        outputs=outputs,
+        stages=tuple(fkd.fk_stages()) + (flags,) + stages,
         status=status,
         parameters=PARAMETERS,
         setup=SETUP,
         angles=ANGLES,
-        status_doc=_FK_STATUS_DOC + "; p is still given where only det J_p is small",
+        status_doc=f"{_FK_STATUS_DOC}; {outputs_doc}",
+    )
+
+
+@cache
+def fk_kernel() -> Kernel:
+    flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4))
+    ports, outputs = _outputs(no_p, no_rates, 1)
+    return _direct_kernel(
+        name="fk",
+        doc="Direct kinematics: crank angles q -> platform position p, eqs. (2)-(27).",
+        inputs=(_q_port(),),
+        outputs=ports,
+        flags=flags,
+        status=status,
+        stages=(outputs,),
+        outputs_doc="p is still given where only det J_p is small",
     )
 
 
@@ -208,7 +234,7 @@ def jacobian_kernel() -> Kernel:
     flags, status, _, no_rates = _fk_level(AllFinite(*s.q, q4))
     names = [f"J{i + 1}{j + 1}" for i in range(3) for j in range(3)]
     J_out, J_stage = _masked(names, list(vel.J), no_rates)
-    return Kernel(
+    return _direct_kernel(
         name="jacobian",
         doc="Jacobian J = J_p^-1 J_q of eq. (30), row-major 3x3 per point: pdot = J qdot.",
         inputs=(_q_port(),),
@@ -222,15 +248,10 @@ def jacobian_kernel() -> Kernel:
                 matrix=(3, 3),
             ),
         ),
-        stages=tuple(fkd.fk_stages())
-        + (flags,)
-        + _rate_stages(with_jacobian=True)
-        + (Stage("outputs (NaN unless OK)", J_stage),),
+        flags=flags,
         status=status,
-        parameters=PARAMETERS,
-        setup=SETUP,
-        angles=ANGLES,
-        status_doc=_FK_STATUS_DOC + "; J is NaN unless OK",
+        stages=_rate_stages(with_jacobian=True) + (Stage("outputs (NaN unless OK)", J_stage),),
+        outputs_doc="J is NaN unless OK",
     )
 
 
@@ -238,17 +259,15 @@ def jacobian_kernel() -> Kernel:
 def fk_vel_kernel() -> Kernel:
     flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4))
     ports, outputs = _outputs(no_p, no_rates, 2)
-    return Kernel(
+    return _direct_kernel(
         name="fk_vel",
         doc="Direct kinematics at velocity level: (q, qdot) -> (p, pdot), eqs. (2)-(35).",
         inputs=(_q_port(), _qd_port()),
         outputs=ports,
-        stages=tuple(fkd.fk_stages()) + (flags,) + _rate_stages() + (vel.velocity_stage(), outputs),
+        flags=flags,
         status=status,
-        parameters=PARAMETERS,
-        setup=SETUP,
-        angles=ANGLES,
-        status_doc=_FK_STATUS_DOC + "; pd is NaN unless OK",
+        stages=_rate_stages() + (vel.velocity_stage(), outputs),
+        outputs_doc="pd is NaN unless OK",
     )
 
 
@@ -256,21 +275,17 @@ def fk_vel_kernel() -> Kernel:
 def fk_acc_kernel() -> Kernel:
     flags, status, no_p, no_rates = _fk_level(AllFinite(*s.q, q4, *s.qd, qd4, *s.qdd, qdd4))
     ports, outputs = _outputs(no_p, no_rates, 3)
-    return Kernel(
+    return _direct_kernel(
         name="fk_acc",
         doc="Direct kinematics at acceleration level: (q, qdot, qddot) -> (p, pdot, pddot), "
         "eqs. (2)-(39).",
         inputs=(_q_port(), _qd_port(), _qdd_port()),
         outputs=ports,
-        stages=tuple(fkd.fk_stages())
-        + (flags,)
-        + _rate_stages()
-        + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(), outputs),
+        flags=flags,
         status=status,
-        parameters=PARAMETERS,
-        setup=SETUP,
-        angles=ANGLES,
-        status_doc=_FK_STATUS_DOC + "; pd and pdd are NaN unless OK",
+        stages=_rate_stages()
+        + (vel.velocity_stage(), acc.h_stage(), acc.acceleration_stage(), outputs),
+        outputs_doc="pd and pdd are NaN unless OK",
     )
 
 
@@ -600,7 +615,7 @@ def fk_param_jacobian_kernel() -> Kernel:
     ports, outputs = _outputs(no_p, no_rates, 1)
     names = [str(sym) for sym in cal.dp]
     G_out, G_stage = _masked(names, list(cal.dp), no_rates)
-    return Kernel(
+    return _direct_kernel(
         name="fk_param_jacobian",
         doc="Direct kinematics and the sensitivity of p to the chain parameters (calibration): "
         "q -> p, dp/d(r_i, l_a,i, l_b,i, theta_i, q_i) by the implicit function theorem on "
@@ -617,19 +632,15 @@ def fk_param_jacobian_kernel() -> Kernel:
                 width=45,
             ),
         ),
-        stages=tuple(fkd.fk_stages())
-        + (flags,)
-        + _rate_stages()
+        flags=flags,
+        status=status,
+        stages=_rate_stages()
         + (
             cal.partials_stage(),
             cal.sensitivity_stage(),
             Stage("outputs (p as fk; G NaN unless OK)", outputs.assignments + G_stage),
         ),
-        status=status,
-        parameters=PARAMETERS,
-        setup=SETUP,
-        angles=ANGLES,
-        status_doc=_FK_STATUS_DOC + "; G is NaN unless OK",
+        outputs_doc="G is NaN unless OK",
     )
 
 
@@ -658,7 +669,7 @@ def _inverse_dynamics(model: str) -> Kernel:
         else "simplified model (each rod pair's mass half on the crank tip, half on the "
         "platform; no rod rotation)"
     )
-    return Kernel(
+    return _direct_kernel(
         name="inverse_dynamics" if model == "exact" else "inverse_dynamics_simplified",
         doc=f"Inverse dynamics, {what}: (q, qdot, qddot, payload) -> motor torques tau, by "
         "virtual work with J of eq. (30) and pddot of eq. (38) (deltagen/derive/delta/dynamics.py).",
@@ -673,9 +684,9 @@ def _inverse_dynamics(model: str) -> Kernel:
                 fourth=tau_out[3],
             ),
         ),
-        stages=tuple(fkd.fk_stages())
-        + (flags,)
-        + _rate_stages()
+        flags=flags,
+        status=status,
+        stages=_rate_stages()
         + (
             vel.velocity_stage(),
             _acceleration_and_crank_tips(),
@@ -684,11 +695,7 @@ def _inverse_dynamics(model: str) -> Kernel:
             tau_fourth,
             Stage("outputs (NaN unless OK)", tau_stage),
         ),
-        status=status,
-        parameters=PARAMETERS,
-        setup=SETUP,
-        angles=ANGLES,
-        status_doc=_FK_STATUS_DOC + "; tau is NaN unless OK",
+        outputs_doc="tau is NaN unless OK",
     )
 
 
