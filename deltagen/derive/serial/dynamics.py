@@ -272,12 +272,9 @@ class Dynamics:
         """(M (n x n) with M[r][c] for r >= c computed and mirrored, assignments)."""
         n = self.desc.n
         zeros = [sp.S.Zero] * n
+        columns, out = self._unit_columns("M", lambda e: (zeros, zeros, e))
         M = [[sp.S.Zero] * n for _ in range(n)]
-        out: list = []
-        for c in range(n):
-            e = [sp.S.One if k == c else sp.S.Zero for k in range(n)]
-            col, stage = self.rnea(f"M{c + 1}", zeros, zeros, e, gravity=False)
-            out += stage
+        for c, col in enumerate(columns):
             for r in range(c, n):
                 M[r][c] = col[r] + (self.armature(r) if r == c else 0)
         for r in range(n):
@@ -290,12 +287,19 @@ class Dynamics:
         n = self.desc.n
         qd = list(self.sym.qd)
         zeros = [sp.S.Zero] * n
-        C = [[sp.S.Zero] * n for _ in range(n)]
+        columns, out = self._unit_columns("C", lambda e: (qd, e, zeros))
+        return [[columns[c][r] for c in range(n)] for r in range(n)], out
+
+    def _unit_columns(self, tag: str, states):
+        """The columns of an n x n matrix of the RNEA (M, C): column c is one pass without
+        gravity on ``states(e_c)`` = (u, v, qdd), the unit vector e_c in the place that
+        selects it; the passes are tagged <tag>1 .. <tag>n. (columns, assignments)."""
+        n = self.desc.n
+        columns: list = []
         out: list = []
         for c in range(n):
             e = [sp.S.One if k == c else sp.S.Zero for k in range(n)]
-            col, stage = self.rnea(f"C{c + 1}", qd, e, zeros, gravity=False)
+            col, stage = self.rnea(f"{tag}{c + 1}", *states(e), gravity=False)
             out += stage
-            for r in range(n):
-                C[r][c] = col[r]
-        return C, out
+            columns.append(col)
+        return columns, out
