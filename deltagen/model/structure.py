@@ -304,7 +304,20 @@ class Elbow4R(ElbowArm):
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class SphericalWrist6R(ElbowArm):
+class _CentralWrist:
+    """The central wrist of a six-axis arm: axes 4, 5, 6 meeting in one point, 4 not
+    parallel to 5, 5 not parallel to 6 (the Puma's and the Stanford arm's), with the
+    constants its Paden-Kahan subproblems 2 and 1 read (solve/analytic.py,
+    derive/serial/ik_recipes.py); made by :func:`_central_wrist`."""
+
+    wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
+    cos_45: float  # w4 . w5
+    cos_56: float  # w5 . w6
+    normal_45: np.ndarray  # (3,) w4 x w5
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class SphericalWrist6R(ElbowArm, _CentralWrist):
     """An elbow arm with a central wrist: axes 4, 5, 6 through W (the wrist centre)."""
 
     kind: ClassVar[str] = "spherical_wrist_6r"
@@ -314,11 +327,6 @@ class SphericalWrist6R(ElbowArm):
         for e in ("up", "down")
         for f in ("noflip", "flip")
     )
-
-    wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
-    cos_45: float  # w4 . w5
-    cos_56: float  # w5 . w6
-    normal_45: np.ndarray  # (3,) w4 x w5
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -345,7 +353,7 @@ class ParallelTriple6R(_Structure):
 
 
 @dataclass(frozen=True, eq=False, repr=False)
-class StanfordArm(_Structure):
+class StanfordArm(_Structure, _CentralWrist):
     """6 joints R R P R R R: axes 1 and 2 meet in a point c (not parallel), joint 3 slides
     along w3, axes 4, 5, 6 meet in W (central wrist; 4 not parallel to 5, 5 not parallel to
     6): the Stanford arm (Scheinman). The closed form is in solve/analytic.py."""
@@ -359,10 +367,6 @@ class StanfordArm(_Structure):
     axes: JointAxes
     shoulder: np.ndarray  # (3,) [m] c, the common point of axes 1 and 2
     wrist: np.ndarray  # (3,) [m] W at q = 0
-    wrist_ref: np.ndarray  # (3,) unit vector normal to w6: q6's reference
-    cos_45: float  # w4 . w5
-    cos_56: float  # w5 . w6
-    normal_45: np.ndarray  # (3,) w4 x w5
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -486,6 +490,17 @@ def detect_planar(ax: JointAxes) -> PlanarArm | None:
     )
 
 
+def _central_wrist(w: np.ndarray, ex: Any, ey: Any) -> dict[str, Any]:
+    """The fields of :class:`_CentralWrist` from the joint directions ``w`` (n, 3) of a
+    six-axis arm; q6's reference is normal to w6, w6 x ex or w6 x ey (_reference_normal)."""
+    return dict(
+        wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
+        cos_45=float(w[3] @ w[4]),
+        cos_56=float(w[4] @ w[5]),
+        normal_45=_frozen(np.cross(w[3], w[4])),
+    )
+
+
 def _reference_normal(w: Any, ex: Any, ey: Any) -> np.ndarray:
     """A unit vector normal to w: w x ex, or w x ey where w is nearly along ex."""
     return geo.unit(np.cross(w, ex if np.linalg.norm(np.cross(w, ex)) > 0.1 else ey))
@@ -552,10 +567,7 @@ def detect_elbow(ax: JointAxes) -> Elbow4R | SphericalWrist6R | None:
     if n == 6:
         return SphericalWrist6R(
             **common,
-            wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
-            cos_45=float(w[3] @ w[4]),
-            cos_56=float(w[4] @ w[5]),
-            normal_45=_frozen(np.cross(w[3], w[4])),
+            **_central_wrist(w, ex, ey),
         )
     return Elbow4R(**common, roll_ref=_frozen(_reference_normal(w[3], ex, ey)))
 
@@ -612,10 +624,7 @@ def detect_stanford(ax: JointAxes) -> StanfordArm | None:
         axes=ax,
         shoulder=_frozen(c),
         wrist=_frozen(W),
-        wrist_ref=_frozen(_reference_normal(w[5], ex, ey)),
-        cos_45=float(w[3] @ w[4]),
-        cos_56=float(w[4] @ w[5]),
-        normal_45=_frozen(np.cross(w[3], w[4])),
+        **_central_wrist(w, ex, ey),
     )
 
 
