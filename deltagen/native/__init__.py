@@ -8,7 +8,10 @@ machines' module. The speed guards' measures:
 ``vectorisation`` (which loops gcc vectorises, from its own report) and ``instructions``
 (instructions per point under callgrind).
 
-``hexapod`` wraps the hexapod core (``CompiledHexapod``).
+``hexapod`` wraps the hexapod core (``CompiledHexapod``). ``core`` is what the delta's,
+the linear delta's and tripod's, the 5-axis machines' and the hexapod's wrappers share
+(``CompiledCore``: the module loaded, its struct filled, a batch across threads, the one-pose
+lean path of a kernel).
 ``manifest`` reads the kernel manifests (generated/<module>.kernels.json: each kernel's
 ports and widths) and fills the parameter structs, checked against their tables.
 

@@ -6,16 +6,7 @@ import numpy as np
 
 from deltagen.model.delta import DELTA_PARAMETERS
 from deltagen.model.parameters import struct_values
-from deltagen.native.build import load
-from deltagen.native.lean import single_call
-from deltagen.native.manifest import (
-    fill_struct,
-    kernels,
-    output_widths,
-    point_shape,
-    reshape_outputs,
-)
-from deltagen.native.parallel import run_batch
+from deltagen.native.core import CompiledCore
 
 MODULE = "delta_kinematics"  # generated/delta_kinematics.{c,h,cdef.h,kernels.json}
 STRUCT = "deltagen_delta_geometry"
@@ -29,15 +20,11 @@ def geometry_struct(g) -> dict:
     return struct_values(DELTA_PARAMETERS, g)
 
 
-class CompiledDelta:
+class CompiledDelta(CompiledCore):
     """Batched calls into the C core; arrays are (N, 3|4) C-contiguous float64."""
 
     def __init__(self, geometry, threads=None):
-        self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
-        module = load(MODULE, "deltagen_delta")
-        self._ffi, self._lib = module.ffi, module.lib
-        self._kernels = kernels(MODULE)  # ports and widths (generated/*.kernels.json)
-        self._geometry = fill_struct(self._ffi, STRUCT, DELTA_PARAMETERS, geometry)
+        super().__init__(MODULE, "deltagen_delta", STRUCT, DELTA_PARAMETERS, geometry, threads)
         # encoder offsets (an asymmetric robot as built): the kernels take geometric crank
         # angles q + q_offset; None when there are none (no copies)
         self._offset = np.array(geometry.q_offset) if any(geometry.q_offset) else None
@@ -81,31 +68,14 @@ class CompiledDelta:
             return None
         if name not in self._SINGLE:
             raise KeyError(name)
-        entry = self._kernels[name]
-        rows = [3 if port["width"] == "axes" else "scalar" for port in entry["inputs"]]
-        outputs = [(point_shape(port), port["ctype"]) for port in entry["outputs"]]
-        return single_call(
-            self._ffi, getattr(self._lib, entry["function"]), (self._geometry, 1, 3), rows, outputs
-        )
+        inputs = self._kernels[name]["inputs"]
+        rows = [3 if port["width"] == "axes" else "scalar" for port in inputs]
+        return self._single(name, rows, leading=(3,))
 
-    def _run(self, name, inputs):
-        """<prefix>_<name>(geometry, rows, axes, *inputs, *outputs, status) over the batch,
-        split into row chunks across threads (native.parallel); inputs are (N, ...)
-        C-contiguous; the outputs' widths are the manifest's (an "axes" port: the inputs'
-        row length), a matrix output reshaped to (N, rows, columns)."""
-        axes = inputs[0].shape[1]
-        entry = self._kernels[name]
-        fn = getattr(self._lib, entry["function"])
-        *outs, status = run_batch(
-            self._ffi,
-            fn,
-            self._geometry,
-            inputs,
-            output_widths(entry, axes),
-            self.threads,
-            leading=(axes,),
-        )
-        return (*reshape_outputs(entry, outs), status)
+    def _run(self, name, inputs, axes=None):
+        """<prefix>_<name>(geometry, rows, axes, *inputs, *outputs, status) over the batch
+        (CompiledCore._run), axes the inputs' row length (3 or 4)."""
+        return super()._run(name, inputs, inputs[0].shape[1])
 
     def fk(self, q):
         return self._run("fk", [self._to_crank(q)])

@@ -8,9 +8,8 @@ import numpy as np
 
 from deltagen.model.hexapod import HEXAPOD_PARAMETERS
 from deltagen.model.parameters import struct_values
-from deltagen.native.build import load
-from deltagen.native.manifest import fill_struct, kernels, output_widths, reshape_outputs
-from deltagen.native.parallel import check_rc, run_batch, run_rows
+from deltagen.native.core import CompiledCore
+from deltagen.native.parallel import check_rc, run_rows
 
 MODULE = "hexapod_kinematics"  # generated/hexapod_kinematics.{c,h,cdef.h,kernels.json}
 STRUCT = "deltagen_hexapod_geometry"
@@ -23,37 +22,23 @@ def geometry_struct(g) -> dict:
     return struct_values(HEXAPOD_PARAMETERS, g)
 
 
-class CompiledHexapod:
+class CompiledHexapod(CompiledCore):
     """Batched calls into the hexapod's C core."""
 
     def __init__(self, geometry, threads=None):
-        self.threads = threads  # None: DELTAGEN_THREADS or every core (native.parallel)
-        module = load(MODULE, "deltagen_hexapod")
-        self._ffi, self._lib = module.ffi, module.lib
-        self._kernels = kernels(MODULE)  # ports and widths (generated/*.kernels.json)
-        self._geometry = fill_struct(self._ffi, STRUCT, HEXAPOD_PARAMETERS, geometry)
-
-    def _run(self, name, pose):
-        """The kernel ``name`` over poses (N, 16), split across threads; the outputs' widths
-        are the manifest's, a matrix output reshaped to (N, rows, columns)."""
-        entry = self._kernels[name]
-        fn = getattr(self._lib, entry["function"])
-        *outs, status = run_batch(
-            self._ffi, fn, self._geometry, [pose], output_widths(entry), self.threads
-        )
-        return (*reshape_outputs(entry, outs), status)
+        super().__init__(MODULE, "deltagen_hexapod", STRUCT, HEXAPOD_PARAMETERS, geometry, threads)
 
     def ik(self, pose):
         """Leg lengths (N, 6) and status of poses (N, 16)."""
-        return self._run("ik", pose)
+        return self._run("ik", [pose])
 
     def jacobian(self, pose):
         """Leg lengths (N, 6), J (N, 6, 6) and status."""
-        return self._run("jacobian", pose)
+        return self._run("jacobian", [pose])
 
     def joint_angles(self, pose):
         """Base and platform joint angles (N, 12) [rad] and status."""
-        return self._run("joint_angles", pose)
+        return self._run("joint_angles", [pose])
 
     def fk(self, lengths, guess, tol, damping, max_step, max_iter, warm_start=False):
         """Poses (N, 16), residuals (N,), iterations (N,) and status of leg lengths (N, 6)

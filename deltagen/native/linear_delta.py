@@ -5,16 +5,7 @@ from __future__ import annotations
 
 from deltagen.model.linear_delta import LINEAR_DELTA_PARAMETERS, TRIPOD_PARAMETERS
 from deltagen.model.parameters import struct_values
-from deltagen.native.build import load
-from deltagen.native.lean import single_call
-from deltagen.native.manifest import (
-    fill_struct,
-    kernels,
-    output_widths,
-    point_shape,
-    reshape_outputs,
-)
-from deltagen.native.parallel import run_batch
+from deltagen.native.core import CompiledCore
 
 
 def linear_delta_struct(g) -> dict:
@@ -29,7 +20,7 @@ def tripod_struct(g) -> dict:
     return struct_values(TRIPOD_PARAMETERS, g)
 
 
-class CompiledTrilateration:
+class CompiledTrilateration(CompiledCore):
     """Batched calls into one of the two cores; arrays are (N, 3) C-contiguous float64."""
 
     #: per machine: module file stem, C prefix, parameter table
@@ -43,50 +34,31 @@ class CompiledTrilateration:
     }
 
     def __init__(self, kind: str, geometry, threads=None):
-        self.threads = threads
         base, prefix, table = self.MODULES[kind]
-        module = load(base, prefix)
-        self._ffi, self._lib, self._prefix = module.ffi, module.lib, prefix
-        self._kernels = kernels(base)  # ports and widths (generated/*.kernels.json)
-        self._geometry = fill_struct(self._ffi, f"{prefix}_geometry", table, geometry)
-
-    def _fn(self, name):
-        return getattr(self._lib, self._kernels[name]["function"])
+        super().__init__(base, prefix, f"{prefix}_geometry", table, geometry, threads)
 
     def single(self, name):
         """A lean function for one pose (native.lean), or None where the general path must
         answer (as CompiledDelta.single); every kernel of the module has one (rows of 3)."""
-        entry = self._kernels[name]
-        rows = [port["width"] for port in entry["inputs"]]
-        outputs = [(point_shape(port), port["ctype"]) for port in entry["outputs"]]
-        return single_call(self._ffi, self._fn(name), (self._geometry, 1), rows, outputs)
-
-    def run(self, name, inputs):
-        """fn(geometry, rows, *inputs, *outputs, status) split across threads; the outputs'
-        widths are the manifest's, a matrix output reshaped to (N, rows, columns)."""
-        entry = self._kernels[name]
-        *outs, status = run_batch(
-            self._ffi, self._fn(name), self._geometry, inputs, output_widths(entry), self.threads
-        )
-        return (*reshape_outputs(entry, outs), status)
+        return self._single(name, [port["width"] for port in self._kernels[name]["inputs"]])
 
     def fk(self, q):
-        return self.run("fk", [q])
+        return self._run("fk", [q])
 
     def fk_vel(self, q, qd):
-        return self.run("fk_vel", [q, qd])
+        return self._run("fk_vel", [q, qd])
 
     def fk_acc(self, q, qd, qdd):
-        return self.run("fk_acc", [q, qd, qdd])
+        return self._run("fk_acc", [q, qd, qdd])
 
     def jacobian(self, q):
-        return self.run("jacobian", [q])
+        return self._run("jacobian", [q])
 
     def ik(self, p):
-        return self.run("ik", [p])
+        return self._run("ik", [p])
 
     def ik_vel(self, p, pd):
-        return self.run("ik_vel", [p, pd])
+        return self._run("ik_vel", [p, pd])
 
     def ik_acc(self, p, pd, pdd):
-        return self.run("ik_acc", [p, pd, pdd])
+        return self._run("ik_acc", [p, pd, pdd])
