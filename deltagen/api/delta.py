@@ -82,18 +82,7 @@ class DeltaRobot(RobotFamilyWithDefault):
 
             self._core = CompiledDelta(self.geometry, threads)
             # lean paths for one pose (same C function, same results; native.delta.single)
-            self._single = {
-                name: self._core.single(name)
-                for name in (
-                    "fk",
-                    "ik",
-                    "fk_vel",
-                    "fk_acc",
-                    "jacobian",
-                    "inverse_dynamics",
-                    "inverse_dynamics_simplified",
-                )
-            }
+            self._single = self._core.lean_paths()
         else:
             from deltagen.reference import delta as reference
 
