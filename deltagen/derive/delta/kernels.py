@@ -99,6 +99,23 @@ def _q_port():
     )
 
 
+def _p_port():
+    return Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m", fourth=phi)
+
+
+def _ik_q_output(no_q):
+    """(port, assignments) of the inverse kinematics' crank angles q, NaN where ``no_q``."""
+    q_out, q_stage = _masked(("q1", "q2", "q3", "q4"), (*s.q, phi), no_q)
+    port = Port(
+        "q",
+        q_out[:3],
+        "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
+        "rad",
+        fourth=q_out[3],
+    )
+    return port, q_stage
+
+
 def _qd_port():
     return Port(
         "qd", s.qd, "crank rates qdot [rad/s]; column 4: qdot_4 [rad/s]", "rad/s", fourth=qd4
@@ -458,24 +475,12 @@ def ik_kernel() -> Kernel:
         (st.SINGULAR, singular),
         (st.OK, True),
     )
-    q_out, q_stage = _masked(("q1", "q2", "q3", "q4"), (*s.q, phi), sp.Or(invalid, unreachable))
+    q_port, q_stage = _ik_q_output(sp.Or(invalid, unreachable))
     return Kernel(
         name="ik",
         doc="Inverse kinematics (elbow-out): platform position p -> crank angles q in (-pi, pi].",
-        inputs=(
-            Port(
-                "p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m", fourth=phi
-            ),
-        ),
-        outputs=(
-            Port(
-                "q",
-                q_out[:3],
-                "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
-                "rad",
-                fourth=q_out[3],
-            ),
-        ),
+        inputs=(_p_port(),),
+        outputs=(q_port,),
         stages=(
             *irs.ik_stages_with_trig()[:-1],  # q needs no cos q_i, sin q_i: no divisions
             _scaled_assembly_stage(),
@@ -494,7 +499,7 @@ def _inverse_rates(with_acceleration: bool) -> Kernel:
     """ik_vel / ik_acc: (p, pdot[, pddot]) -> (q, qdot[, qddot]), eqs. (28)-(39)."""
     phid, phidd = sp.symbols("phid phidd", real=True)
     inputs = [
-        Port("p", (s.x, s.y, s.z), "platform position [m]; column 4: phi [rad]", "m", fourth=phi),
+        _p_port(),
         Port(
             "pd",
             (s.xd, s.yd, s.zd),
@@ -541,16 +546,10 @@ def _inverse_rates(with_acceleration: bool) -> Kernel:
     )
     no_q = sp.Or(invalid, unreachable)
     no_rates = sp.Or(no_q, singular)
-    q_out, q_stage = _masked(("q1", "q2", "q3", "q4"), (*s.q, phi), no_q)
+    q_port, q_stage = _ik_q_output(no_q)
     qd_out, qd_stage = _masked(("qd1", "qd2", "qd3", "qd4"), (*s.qd, phid), no_rates)
     outputs = [
-        Port(
-            "q",
-            q_out[:3],
-            "crank angles [rad]; column 4: q_4 = phi, eq. (43) [rad]",
-            "rad",
-            fourth=q_out[3],
-        ),
+        q_port,
         Port(
             "qd",
             qd_out[:3],
