@@ -82,7 +82,14 @@ class DeltaRobot(RobotFamilyWithDefault):
 
             self._core = CompiledDelta(self.geometry, threads)
             # lean paths for one pose (same C function, same results; native.delta.single)
-            self._single = self._core.lean_paths()
+            single = self._core.single
+            self._fk_single, self._ik_single = single("fk"), single("ik")
+            self._fk_vel_single, self._fk_acc_single = single("fk_vel"), single("fk_acc")
+            self._jacobian_single = single("jacobian")
+            self._id_single = {
+                "exact": single("inverse_dynamics"),
+                "simplified": single("inverse_dynamics_simplified"),
+            }
         else:
             from deltagen.reference import delta as reference
 
@@ -91,7 +98,9 @@ class DeltaRobot(RobotFamilyWithDefault):
             self._core.inverse_dynamics = lambda q, qd, qdd, payload, model="exact": (
                 reference.inverse_dynamics(g, g.inertia, q, qd, qdd, payload, model=model)
             )
-            self._single = {}  # the reference has no lean path
+            self._fk_single = self._ik_single = None
+            self._fk_vel_single = self._fk_acc_single = self._jacobian_single = None
+            self._id_single = None
 
     @classmethod
     def from_geometry(
@@ -132,18 +141,20 @@ class DeltaRobot(RobotFamilyWithDefault):
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Platform position p (..., 3|4) of crank angles q (..., 3|4), eqs. (2)-(27), (43)."""
-        p = self._lean("fk", errors, q)  # one pose: the lean path (None: the general path)
-        if p is not None:
-            return p
+        if type(errors) is str and errors == "raise" and self._fk_single is not None:
+            p = self._fk_single(q)  # one pose: the lean path (None: the general path)
+            if p is not None:
+                return p
         lead, _, (qf,) = self._prepare(errors, q=q)
         p, status = self._core.fk(qf)
         return self._finish(errors, lead, status, [p], ("q",), [qf], allow_singular=True)
 
     def fk_vel(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """(p, pdot) from (q, qdot), eq. (30)."""
-        out = self._lean("fk_vel", errors, q, qd)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._fk_vel_single is not None:
+            out = self._fk_vel_single(q, qd)
+            if out is not None:
+                return out
         lead, _, (qf, qdf) = self._prepare(errors, q=q, qd=qd)
         p, pd, status = self._core.fk_vel(qf, qdf)
         return self._finish(errors, lead, status, [p, pd], ("q", "qd"), [qf, qdf])
@@ -152,27 +163,30 @@ class DeltaRobot(RobotFamilyWithDefault):
         self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
     ) -> Result:
         """(p, pdot, pddot) from (q, qdot, qddot), eqs. (30), (38)."""
-        out = self._lean("fk_acc", errors, q, qd, qdd)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._fk_acc_single is not None:
+            out = self._fk_acc_single(q, qd, qdd)
+            if out is not None:
+                return out
         lead, _, (qf, qdf, qddf) = self._prepare(errors, q=q, qd=qd, qdd=qdd)
         p, pd, pdd, status = self._core.fk_acc(qf, qdf, qddf)
         return self._finish(errors, lead, status, [p, pd, pdd], ("q", "qd", "qdd"), [qf, qdf, qddf])
 
     def jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """J = J_p^-1 J_q (..., 3, 3) with pdot = J @ qdot (first three axes)."""
-        J = self._lean("jacobian", errors, q)
-        if J is not None:
-            return J
+        if type(errors) is str and errors == "raise" and self._jacobian_single is not None:
+            J = self._jacobian_single(q)
+            if J is not None:
+                return J
         lead, _, (qf,) = self._prepare(errors, q=q)
         J, status = self._core.jacobian(qf)
         return self._finish(errors, lead, status, [J], ("q",), [qf], trailing=[(3, 3)])
 
     def ik(self, p: ArrayLike, errors: Errors = "raise") -> Result:
         """Crank angles q (..., 3|4) in (-pi, pi] of platform positions p, elbow-out branch."""
-        q = self._lean("ik", errors, p)
-        if q is not None:
-            return q
+        if type(errors) is str and errors == "raise" and self._ik_single is not None:
+            q = self._ik_single(p)
+            if q is not None:
+                return q
         lead, _, (pf,) = self._prepare(errors, p=p)
         q, status = self._core.ik(pf)
         return self._finish(errors, lead, status, [q], ("p",), [pf], allow_singular=True)
@@ -245,10 +259,11 @@ class DeltaRobot(RobotFamilyWithDefault):
         platform). Column 4: the fourth axis, I_4 qddot_4. Singular poses (det J_p ~ 0)
         have no torques (SingularityError, or NaN with errors="nan")."""
         self._check_dynamics(model)
-        kernel = "inverse_dynamics" if model == "exact" else "inverse_dynamics_simplified"
-        tau = self._lean(kernel, errors, q, qd, qdd, payload)
-        if tau is not None:
-            return tau
+        lean = self._id_single[model] if self._id_single is not None else None
+        if type(errors) is str and errors == "raise" and lean is not None:
+            tau = lean(q, qd, qdd, payload)
+            if tau is not None:
+                return tau
         check_errors_mode(errors)
         lead, _, (qf, qdf, qddf) = broadcast_rows(dict(q=q, qd=qd, qdd=qdd))
         load = self._payload_column(payload, lead)

@@ -93,12 +93,13 @@ class FiveAxisMachine(RobotFamily):
             from deltagen.native.five_axis import CompiledFiveAxis
 
             self._core = CompiledFiveAxis(self.description, self._threads)
-            self._single = {name: self._core.single(name) for name in ("fk", "ik")}
+            self._fk_single = self._core.single("fk")
+            self._ik_single = self._core.single("ik")
         else:
             from deltagen.reference import five_axis as reference
 
             self._core = ReferenceCore(reference, (self.description,), _CALLS)
-            self._single = {}  # the reference has no lean path
+            self._fk_single = self._ik_single = None
 
     @classmethod
     def from_description(
@@ -137,9 +138,11 @@ class FiveAxisMachine(RobotFamily):
     ) -> Result:
         """Tool tip p (..., 3) [m] and tool axis d (..., 3) (unit, from the tip into the
         spindle) in the workpiece frame, of joints (..., 5): x, y, z [m], tilt, C [rad]."""
-        out = None if return_status else self._lean("fk", errors, joints)
-        if out is not None:
-            return out
+        if not return_status and type(errors) is str and errors == "raise":
+            if self._fk_single is not None:
+                out = self._fk_single(joints)
+                if out is not None:
+                    return out
         check_errors_mode(errors)
         j = as_rows(joints, "joints", (5,))
         lead = j.shape[:-1]
@@ -161,9 +164,11 @@ class FiveAxisMachine(RobotFamily):
         the previous C. Where the tool axis is parallel to the C axis (SINGULAR) C keeps the
         previous value; where neither branch is within the travel the row is UNREACHABLE."""
         prev = np.zeros(5) if previous is None else previous
-        out = None if return_status else self._lean("ik", errors, p, d, prev)
-        if out is not None:
-            return out
+        if not return_status and type(errors) is str and errors == "raise":
+            if self._ik_single is not None:
+                out = self._ik_single(p, d, prev)
+                if out is not None:
+                    return out
         check_errors_mode(errors)
         lead, flat = self._inverse_inputs(p, d, prev)
         j, status = self._core.ik(*flat)

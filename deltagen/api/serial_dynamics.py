@@ -59,15 +59,6 @@ class SerialDynamics:
             setattr(self, attr, single)
         return single
 
-    def _dynamics_lean(self, name: str, errors: Errors, *args: ArrayLike) -> Any:
-        """The one-state path of ``name`` on ``args`` when errors="raise"; None when the
-        general path must answer (no one-state path, errors="nan", or a state the lean
-        path hands back)."""
-        single = self._dynamics_single(name)
-        if single is not None and errors == "raise":
-            return single(*args)
-        return None
-
     def _dynamics(self):
         """The core, after checking that the arm has inertial parameters."""
         if not self.description.has_inertia:
@@ -83,16 +74,20 @@ class SerialDynamics:
     ) -> Result:
         """Joint torques tau (..., n) = M(q) qdd + C(q, qd) qd + g(q) + armature qdd +
         viscous qd + Coulomb friction; q, qd, qdd broadcast against each other."""
-        tau = self._dynamics_lean("inverse_dynamics", errors, q, qd, qdd)
-        if tau is not None:
-            return tau
+        id_single = self._dynamics_single("inverse_dynamics")
+        if id_single is not None and errors == "raise":
+            tau = id_single(q, qd, qdd)
+            if tau is not None:
+                return tau
         return self._dynamics_rows("inverse_dynamics", errors, q=q, qd=qd, qdd=qdd)
 
     def mass_matrix(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint-space inertia matrix M (..., n, n), armature on the diagonal."""
-        M = self._dynamics_lean("mass_matrix", errors, q)
-        if M is not None:
-            return M
+        mass_single = self._dynamics_single("mass_matrix")
+        if mass_single is not None and errors == "raise":
+            M = mass_single(q)
+            if M is not None:
+                return M
         return self._dynamics_rows("mass_matrix", errors, q=q)
 
     def gravity_torque(self, q: ArrayLike, errors: Errors = "raise") -> Result:
@@ -113,9 +108,11 @@ class SerialDynamics:
     ) -> Result:
         """Joint accelerations qdd (..., n) = M^-1 (tau - h(q, qd)) (a Cholesky solve);
         SingularityError (or NaN) where M is not positive definite (e.g. a massless arm)."""
-        qdd = self._dynamics_lean("forward_dynamics", errors, q, qd, tau)
-        if qdd is not None:
-            return qdd
+        fd_single = self._dynamics_single("forward_dynamics")
+        if fd_single is not None and errors == "raise":
+            qdd = fd_single(q, qd, tau)
+            if qdd is not None:
+                return qdd
         return self._dynamics_rows("forward_dynamics", errors, q=q, qd=qd, tau=tau)
 
     def _dynamics_rows(self, name: str, errors: Errors, **states: ArrayLike) -> Result:

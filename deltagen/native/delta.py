@@ -72,10 +72,6 @@ class CompiledDelta(CompiledCore):
         rows = [3 if port["width"] == "axes" else "scalar" for port in inputs]
         return self._single(name, rows, leading=(3,))
 
-    def lean_paths(self):
-        """The lean function of every kernel of _SINGLE, by name (:meth:`single`)."""
-        return {name: self.single(name) for name in self._SINGLE}
-
     def _run(self, name, inputs, axes=None):
         """<prefix>_<name>(geometry, rows, axes, *inputs, *outputs, status) over the batch
         (CompiledCore._run), axes the inputs' row length (3 or 4)."""
