@@ -16,6 +16,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import sympy as sp
 from sympy.codegen.ast import float32, real
 from sympy.codegen.rewriting import create_expand_pow_optimization
@@ -124,12 +126,25 @@ class KernelPrinter(C99CodePrinter):
 REAL_TYPES = ("double", "float")
 
 
+#: one printer per real type and thread: a printer keeps no state between statements (SymPy's
+#: doprint starts each with empty sets of what it could not print), and making one per
+#: statement cost ~5 % of the lowering of an export (SymPy builds its tables in __init__)
+_PRINTERS = threading.local()
+
+
+def _printer(real_type: str) -> KernelPrinter:
+    printers = _PRINTERS.__dict__
+    if real_type not in printers:
+        settings: dict = {}  # no math macros: KernelPrinter.math_macros
+        if real_type == "float":
+            settings["type_aliases"] = {real: float32}
+        printers[real_type] = KernelPrinter(settings)
+    return printers[real_type]
+
+
 def to_c(expr, real_type: str = "double") -> str:
     """C99 text of one SymPy expression (small powers expanded first). No math macros
     (M_SQRT2 and friends are POSIX, not C99): constants print as expressions gcc folds."""
     if real_type not in REAL_TYPES:
         raise ValueError(f"real_type must be one of {REAL_TYPES}, not {real_type!r}")
-    settings: dict = {}  # no math macros: KernelPrinter.math_macros
-    if real_type == "float":
-        settings["type_aliases"] = {real: float32}
-    return KernelPrinter(settings).doprint(expand_small_powers(sp.sympify(expr)))
+    return _printer(real_type).doprint(expand_small_powers(sp.sympify(expr)))
