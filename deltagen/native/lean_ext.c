@@ -12,7 +12,10 @@
  *   lead       0: an arm's  int fn(size_t rows, in..., out..., int8_t *status)
  *              1: the delta's int fn(const geometry *, size_t rows, size_t axes, in...,
  *                 out..., int8_t *status), called with axes = n
- *   geometry   the delta's geometry struct address (0 for an arm)
+ *              2: a parameter struct without an axes count (the linear delta, the
+ *                 tripod): int fn(const geometry *, size_t rows, in..., out...,
+ *                 int8_t *status)
+ *   geometry   the struct's address (the delta's geometry; 0 for an arm)
  *   n          the width of every input row (joints / drives)
  *   inputs     the number of (n,) rows (1..4)
  *   scalar     1: one more input, a Python float or int >= 0 (the delta's payload [kg]),
@@ -156,6 +159,7 @@ static int read_scalar(PyObject *x, double *value)
 /* fn(lead..., in[0..k), out[0..m), status) for the k inputs and m outputs a kernel has. */
 #define ARM_FN(...) ((int (*)(size_t, __VA_ARGS__, Status))spec->fn)
 #define DELTA_FN(...) ((int (*)(Geometry, size_t, size_t, __VA_ARGS__, Status))spec->fn)
+#define STRUCT_FN(...) ((int (*)(Geometry, size_t, __VA_ARGS__, Status))spec->fn)
 #define KM(k, m) ((k) * 8 + (m))
 
 static int call_arm(const Spec *spec, int k, In *in, Out *out, Status status)
@@ -187,6 +191,22 @@ static int call_delta(const Spec *spec, int k, In *in, Out *out, Status status)
     case KM(4, 1):
         return DELTA_FN(In, In, In, In, Out)(
             g, 1, axes, in[0], in[1], in[2], in[3], out[0], status);
+    default: return -1;
+    }
+}
+
+static int call_struct(const Spec *spec, int k, In *in, Out *out, Status status)
+{
+    Geometry g = spec->geometry;
+    switch (KM(k, spec->outputs)) {
+    case KM(1, 1): return STRUCT_FN(In, Out)(g, 1, in[0], out[0], status);
+    case KM(1, 2): return STRUCT_FN(In, Out, Out)(g, 1, in[0], out[0], out[1], status);
+    case KM(2, 2): return STRUCT_FN(In, In, Out, Out)(g, 1, in[0], in[1], out[0], out[1], status);
+    case KM(3, 3):
+        return STRUCT_FN(In, In, In, Out, Out, Out)(
+            g, 1, in[0], in[1], in[2], out[0], out[1], out[2], status);
+    case KM(4, 1):
+        return STRUCT_FN(In, In, In, In, Out)(g, 1, in[0], in[1], in[2], in[3], out[0], status);
     default: return -1;
     }
 }
@@ -229,8 +249,9 @@ static PyObject *lean_call(PyObject *self, PyObject *const *args, Py_ssize_t nar
         out[j] = (Out)PyArray_DATA((PyArrayObject *)result[j]);
     }
     int8_t status = -1;
-    int rc = spec->lead == 0 ? call_arm(spec, k, in, out, &status)
-                             : call_delta(spec, k, in, out, &status);
+    int rc = spec->lead == 0   ? call_arm(spec, k, in, out, &status)
+             : spec->lead == 1 ? call_delta(spec, k, in, out, &status)
+                               : call_struct(spec, k, in, out, &status);
     if (rc != 0 || status != spec->ok) { /* the general path reports it */
         for (int j = 0; j < spec->outputs; j++)
             Py_DECREF(result[j]);
@@ -264,7 +285,7 @@ static PyObject *kernel(PyObject *module, PyObject *args)
                           &PyTuple_Type, &shapes, &ok, &keep))
         return NULL;
     Py_ssize_t m = PyTuple_GET_SIZE(shapes);
-    if (fn == 0 || (lead != 0 && lead != 1) || (lead == 1 && geometry == 0) || n < 1
+    if (fn == 0 || lead < 0 || lead > 2 || (lead != 0 && geometry == 0) || n < 1
         || n > MAX_WIDTH || inputs < 1 || scalar < 0 || scalar > 1
         || inputs + scalar > MAX_INPUTS || m < 1 || m > MAX_OUTPUTS
         || !supported(lead, inputs + scalar, (int)m)) {

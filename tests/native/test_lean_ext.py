@@ -318,6 +318,89 @@ def test_kernel_refuses_forms_it_does_not_serve(puma):
         (*good[:6], ((4, 4),) * 4, *good[7:]),  # four outputs
         (*good[:6], ((0,),), *good[7:]),  # an empty output
         (good[0], 1, 0, *good[3:]),  # the delta's form without its geometry
+        (good[0], 2, 0, *good[3:]),  # a struct's form without its struct
+        (good[0], 3, 1, *good[3:]),  # no such form
     ):
         with pytest.raises(ValueError):
             module.kernel(*bad)
+
+
+def _struct_robots(lean_ext: bool) -> dict:
+    """The families whose kernels take a parameter struct and no axes count (native/core.py:
+    the linear delta, the tripod, the five-axis machine), made with the extension on or
+    off (DELTAGEN_LEAN_EXT), and one valid input row per one-pose kernel."""
+    from deltagen import FiveAxisMachine, LinearDelta, Tripod
+
+    mp = pytest.MonkeyPatch()
+    mp.setenv("DELTAGEN_LEAN_EXT", "1" if lean_ext else "0")
+    try:
+        robots = {
+            "linear_delta": LinearDelta.default(threads=1),
+            "tripod": Tripod.default(threads=1),
+            "five_axis": FiveAxisMachine.load("xyzac_trt", threads=1),
+        }
+    finally:
+        mp.undo()
+    return robots
+
+
+def _method(name: str):
+    """call(robot, *args): the public method ``name`` of ``robot``."""
+    return lambda robot, *args: getattr(robot, name)(*args)
+
+
+@needs_ext
+@pytest.mark.parametrize("kind", ["linear_delta", "tripod", "five_axis"])
+def test_struct_families_take_the_extension_with_the_same_outcomes(kind):
+    """The one-pose calls of a family whose kernels take (struct, rows, ...) go through the
+    extension (lean_ext.c's third form) and give what the Python lean path gives, bit for
+    bit, valid rows and refused ones alike; and a valid row equals the batch row."""
+    robot = _struct_robots(True)[kind]
+    python = _struct_robots(False)[kind]
+    rng = np.random.default_rng(115)
+    if kind == "five_axis":
+        singles = {"fk": robot._fk_single}
+        q = np.clip(rng.uniform(-0.2, 0.2, 5), -1, 1)
+        calls = {
+            "fk": [(q,), (q.tolist(),), (np.append(q, np.nan)[1:],), (q[:4],)],
+        }
+        api = {"fk": _method("fk")}
+    else:
+        singles = robot._single
+        # a reachable row: the first of random joint values whose fk is valid
+        trial = rng.uniform(0.0, 1.5, (500, 3))
+        points = robot.fk(trial, errors="nan")
+        points = points[0] if isinstance(points, tuple) else points
+        ok = np.isfinite(points).all(axis=1)
+        q = trial[np.argmax(ok)]
+        assert ok.any()
+        p = robot.fk(q)
+        qd, qdd = rng.uniform(-0.1, 0.1, 3), rng.uniform(-0.1, 0.1, 3)
+        nan = q.copy()
+        nan[2] = np.nan
+        calls = {
+            "fk": [(q,), (q.tolist(),), (nan,), (q[:2],), (np.full(3, 50.0),)],
+            "ik": [(p,), (np.full(3, 50.0),)],
+            "jacobian": [(q,)],
+            "fk_vel": [(q, qd)],
+            "fk_acc": [(q, qd, qdd)],
+            "ik_vel": [(p, qd)],
+            "ik_acc": [(p, qd, qdd)],
+        }
+        api = {name: _method(name) for name in calls}
+    for name in calls:
+        assert _is_ext(singles[name]), (kind, name)
+    for name, cases in calls.items():
+        for args in cases:
+            a, b = _outcome(api[name], robot, *args), _outcome(api[name], python, *args)
+            if a[0] == "ok" and isinstance(a[1], tuple):
+                assert b[0] == "ok" and len(a[1]) == len(b[1]), (name, args)
+                assert all(np.array_equal(x, y, equal_nan=True) for x, y in zip(a[1], b[1]))
+            else:
+                assert _same(a, b), (kind, name, args, a, b)
+    batch = api["fk"](robot, np.stack([q, q]))
+    one = api["fk"](robot, q)
+    for x, y in zip(
+        one if isinstance(one, tuple) else (one,), batch if isinstance(batch, tuple) else (batch,)
+    ):
+        assert np.array_equal(x, y[1])
