@@ -95,7 +95,6 @@ class Hexapod(RobotFamilyWithDefault):
 
     def _init_backend(self, backend: Any, threads: int | None = None) -> None:
         self._check_backend(backend, threads)
-        self._single = {}  # no one-pose lean path: every call takes the batched core
         if backend == "compiled":
             from deltagen.native.hexapod import CompiledHexapod
 

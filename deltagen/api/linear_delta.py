@@ -34,6 +34,11 @@ _KLIPPER_ANGLES = (math.radians(210.0), math.radians(330.0), math.radians(90.0))
 _CALLS = ("fk", "fk_vel", "fk_acc", "jacobian", "ik", "ik_vel", "ik_acc")
 
 
+def _no_lean(name: str) -> None:
+    """The reference backend's one-pose path of kernel ``name``: none (the general path)."""
+    return None
+
+
 class _ThreeSpheres(RobotFamilyWithDefault):
     """What the linear delta and the tripod share: the calls, the modes and the backends."""
 
@@ -47,17 +52,21 @@ class _ThreeSpheres(RobotFamilyWithDefault):
 
     def _init_backend(self, backend: Any, threads: int | None = None) -> None:
         self._check_backend(backend, threads)
-        self._single = {}
         if backend == "compiled":
             from deltagen.native.linear_delta import CompiledTrilateration
 
             self._core = CompiledTrilateration(self.kind, self.geometry, self._threads)
-            for name in ("fk", "ik", "fk_vel", "fk_acc", "jacobian", "ik_vel", "ik_acc"):
-                self._single[name] = self._core.single(name)
+            # lean paths for one pose (same C function, same results; native.lean)
+            single = self._core.single
         else:
             from deltagen.reference import linear_delta as reference
 
             self._core = ReferenceCore(reference, (self.kind, self.geometry), _CALLS)
+            single = _no_lean
+        self._fk_single, self._ik_single = single("fk"), single("ik")
+        self._jacobian_single = single("jacobian")
+        self._fk_vel_single, self._fk_acc_single = single("fk_vel"), single("fk_acc")
+        self._ik_vel_single, self._ik_acc_single = single("ik_vel"), single("ik_acc")
 
     @classmethod
     def from_geometry(
@@ -67,36 +76,40 @@ class _ThreeSpheres(RobotFamilyWithDefault):
 
     def fk(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """Point p (..., 3) [m] of joint values q (..., 3): the three-sphere intersection."""
-        out = self._lean("fk", errors, q)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._fk_single is not None:
+            out = self._fk_single(q)  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         lead, (qf,) = self._prepare(errors, {self.joint: q})
         p, status = self._core.fk(qf)
         return self._finish(errors, lead, status, [p], (self.joint,), [qf], allow_singular=True)
 
     def ik(self, p: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint values q (..., 3) of points p (..., 3) [m], in closed form."""
-        out = self._lean("ik", errors, p)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._ik_single is not None:
+            out = self._ik_single(p)  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         lead, (pf,) = self._prepare(errors, {"p": p})
         q, status = self._core.ik(pf)
         return self._finish(errors, lead, status, [q], ("p",), [pf], allow_singular=True)
 
     def jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """J (..., 3, 3) with pdot = J qdot: D^-1 diag(g), D's rows p - S_i."""
-        out = self._lean("jacobian", errors, q)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._jacobian_single is not None:
+            out = self._jacobian_single(q)  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         lead, (qf,) = self._prepare(errors, {self.joint: q})
         J, status = self._core.jacobian(qf)
         return self._finish(errors, lead, status, [J], (self.joint,), [qf], trailing=[(3, 3)])
 
     def fk_vel(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """(p, pdot) from (q, qdot)."""
-        out = self._lean("fk_vel", errors, q, qd)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._fk_vel_single is not None:
+            out = self._fk_vel_single(q, qd)  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         names = (self.joint, self.joint + "d")
         lead, flat = self._prepare(errors, dict(zip(names, (q, qd))))
         p, pd, status = self._core.fk_vel(*flat)
@@ -106,9 +119,12 @@ class _ThreeSpheres(RobotFamilyWithDefault):
         self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, errors: Errors = "raise"
     ) -> Result:
         """(p, pdot, pddot) from (q, qdot, qddot)."""
-        out = self._lean("fk_acc", errors, q, qd, qdd)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._fk_acc_single is not None:
+            out = self._fk_acc_single(
+                q, qd, qdd
+            )  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         names = (self.joint, self.joint + "d", self.joint + "dd")
         lead, flat = self._prepare(errors, dict(zip(names, (q, qd, qdd))))
         p, pd, pdd, status = self._core.fk_acc(*flat)
@@ -118,9 +134,10 @@ class _ThreeSpheres(RobotFamilyWithDefault):
         """(q, qdot) from (p, pdot): qdot_i = D_i . pdot / g_i (D rows p - S_i; g_i the
         arm's vertical component, or the strut length). A linear delta's arm lying
         horizontal has no finite carriage rate (SingularityError, or NaN)."""
-        out = self._lean("ik_vel", errors, p, pd)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._ik_vel_single is not None:
+            out = self._ik_vel_single(p, pd)  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         lead, flat = self._prepare(errors, {"p": p, "pd": pd})
         q, qd, status = self._core.ik_vel(*flat)
         return self._finish(errors, lead, status, [q, qd], ("p", "pd"), flat, allow_singular=True)
@@ -130,9 +147,12 @@ class _ThreeSpheres(RobotFamilyWithDefault):
     ) -> Result:
         """(q, qdot, qddot) from (p, pdot, pddot): the second time derivative of the sphere
         constraints solved for qddot (diag(g) is diagonal)."""
-        out = self._lean("ik_acc", errors, p, pd, pdd)
-        if out is not None:
-            return out
+        if type(errors) is str and errors == "raise" and self._ik_acc_single is not None:
+            out = self._ik_acc_single(
+                p, pd, pdd
+            )  # one pose: the lean path (None: the general path)
+            if out is not None:
+                return out
         names = ("p", "pd", "pdd")
         lead, flat = self._prepare(errors, dict(zip(names, (p, pd, pdd))))
         q, qd, qdd, status = self._core.ik_acc(*flat)

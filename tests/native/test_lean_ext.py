@@ -359,14 +359,12 @@ def test_struct_families_take_the_extension_with_the_same_outcomes(kind):
     python = _struct_robots(False)[kind]
     rng = np.random.default_rng(115)
     if kind == "five_axis":
-        singles = {"fk": robot._fk_single}
         q = np.clip(rng.uniform(-0.2, 0.2, 5), -1, 1)
         calls = {
             "fk": [(q,), (q.tolist(),), (np.append(q, np.nan)[1:],), (q[:4],)],
         }
         api = {"fk": _method("fk")}
     else:
-        singles = robot._single
         # a reachable row: the first of random joint values whose fk is valid
         trial = rng.uniform(0.0, 1.5, (500, 3))
         points = robot.fk(trial, errors="nan")
@@ -389,7 +387,7 @@ def test_struct_families_take_the_extension_with_the_same_outcomes(kind):
         }
         api = {name: _method(name) for name in calls}
     for name in calls:
-        assert _is_ext(singles[name]), (kind, name)
+        assert _is_ext(getattr(robot, f"_{name}_single")), (kind, name)
     for name, cases in calls.items():
         for args in cases:
             a, b = _outcome(api[name], robot, *args), _outcome(api[name], python, *args)
