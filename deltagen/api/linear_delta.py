@@ -87,7 +87,7 @@ class _ThreeSpheres(RobotFamilyWithDefault):
     def ik(self, p: ArrayLike, errors: Errors = "raise") -> Result:
         """Joint values q (..., 3) of points p (..., 3) [m], in closed form."""
         if type(errors) is str and errors == "raise" and self._ik_single is not None:
-            out = self._ik_single(p)  # one pose: the lean path (None: the general path)
+            out = self._ik_single(p)
             if out is not None:
                 return out
         lead, (pf,) = self._prepare(errors, {"p": p})
@@ -97,7 +97,7 @@ class _ThreeSpheres(RobotFamilyWithDefault):
     def jacobian(self, q: ArrayLike, errors: Errors = "raise") -> Result:
         """J (..., 3, 3) with pdot = J qdot: D^-1 diag(g), D's rows p - S_i."""
         if type(errors) is str and errors == "raise" and self._jacobian_single is not None:
-            out = self._jacobian_single(q)  # one pose: the lean path (None: the general path)
+            out = self._jacobian_single(q)
             if out is not None:
                 return out
         lead, (qf,) = self._prepare(errors, {self.joint: q})
@@ -107,7 +107,7 @@ class _ThreeSpheres(RobotFamilyWithDefault):
     def fk_vel(self, q: ArrayLike, qd: ArrayLike, errors: Errors = "raise") -> Result:
         """(p, pdot) from (q, qdot)."""
         if type(errors) is str and errors == "raise" and self._fk_vel_single is not None:
-            out = self._fk_vel_single(q, qd)  # one pose: the lean path (None: the general path)
+            out = self._fk_vel_single(q, qd)
             if out is not None:
                 return out
         names = (self.joint, self.joint + "d")
@@ -120,9 +120,7 @@ class _ThreeSpheres(RobotFamilyWithDefault):
     ) -> Result:
         """(p, pdot, pddot) from (q, qdot, qddot)."""
         if type(errors) is str and errors == "raise" and self._fk_acc_single is not None:
-            out = self._fk_acc_single(
-                q, qd, qdd
-            )  # one pose: the lean path (None: the general path)
+            out = self._fk_acc_single(q, qd, qdd)
             if out is not None:
                 return out
         names = (self.joint, self.joint + "d", self.joint + "dd")
@@ -135,7 +133,7 @@ class _ThreeSpheres(RobotFamilyWithDefault):
         arm's vertical component, or the strut length). A linear delta's arm lying
         horizontal has no finite carriage rate (SingularityError, or NaN)."""
         if type(errors) is str and errors == "raise" and self._ik_vel_single is not None:
-            out = self._ik_vel_single(p, pd)  # one pose: the lean path (None: the general path)
+            out = self._ik_vel_single(p, pd)
             if out is not None:
                 return out
         lead, flat = self._prepare(errors, {"p": p, "pd": pd})
@@ -148,9 +146,7 @@ class _ThreeSpheres(RobotFamilyWithDefault):
         """(q, qdot, qddot) from (p, pdot, pddot): the second time derivative of the sphere
         constraints solved for qddot (diag(g) is diagonal)."""
         if type(errors) is str and errors == "raise" and self._ik_acc_single is not None:
-            out = self._ik_acc_single(
-                p, pd, pdd
-            )  # one pose: the lean path (None: the general path)
+            out = self._ik_acc_single(p, pd, pdd)
             if out is not None:
                 return out
         names = ("p", "pd", "pdd")
