@@ -39,10 +39,14 @@ class CompiledCore:
     def _fn(self, name: str) -> Any:
         return getattr(self._lib, self._kernels[name]["function"])
 
-    def _single(self, name: str, rows: list, leading: tuple = ()) -> Any:
+    def _single(self, name: str, rows: list | None = None, leading: tuple = ()) -> Any:
         """The lean function for one pose of kernel ``name`` (native.lean.single_call: None
-        from it where the general path must answer); ``rows``: one entry per input."""
-        outputs = [(point_shape(port), port["ctype"]) for port in self._kernels[name]["outputs"]]
+        from it where the general path must answer); ``rows``: one entry per input (None:
+        each input port's width from the manifest)."""
+        entry = self._kernels[name]
+        if rows is None:
+            rows = [port["width"] for port in entry["inputs"]]
+        outputs = [(point_shape(port), port["ctype"]) for port in entry["outputs"]]
         return single_call(self._ffi, self._fn(name), (self._geometry, 1, *leading), rows, outputs)
 
     def _run(self, name: str, inputs: list, axes: int | None = None) -> tuple:

@@ -36,7 +36,7 @@ class CompiledFiveAxis(CompiledCore):
         """A lean function for one pose (native.lean): fk takes a joint row (5), ik the tool
         tip (3), the tool axis (3) and the previous joints (5); None from it when the general
         path must answer (other inputs, or a status other than OK)."""
-        return self._single(quantity, [port["width"] for port in self._kernels[quantity]["inputs"]])
+        return self._single(quantity)
 
     def fk(self, j):
         return self._run("fk", [j])

@@ -103,7 +103,7 @@ def _extension_call(ffi, fn, lead, rows, outputs):
         form, geometry, keep = 0, 0, (ffi, fn)
     elif len(lead) == 3 and lead[1] == 1 and lead[2] == widths[0]:
         form, geometry, keep = 1, int(ffi.cast("uintptr_t", lead[0])), (ffi, fn, lead[0])
-    elif len(lead) == 2 and lead[1] == 1:  # a struct without an axes count (linear delta)
+    elif len(lead) == 2 and lead[1] == 1:  # a struct without an axes count (native/core.py)
         form, geometry, keep = 2, int(ffi.cast("uintptr_t", lead[0])), (ffi, fn, lead[0])
     else:
         return None

@@ -13,8 +13,8 @@
  *              1: the delta's int fn(const geometry *, size_t rows, size_t axes, in...,
  *                 out..., int8_t *status), called with axes = n
  *              2: a parameter struct without an axes count (the linear delta, the
- *                 tripod): int fn(const geometry *, size_t rows, in..., out...,
- *                 int8_t *status)
+ *                 tripod, the five-axis machine): int fn(const geometry *, size_t rows,
+ *                 in..., out..., int8_t *status)
  *   geometry   the struct's address (the delta's geometry; 0 for an arm)
  *   n          the width of every input row (joints / drives)
  *   inputs     the number of (n,) rows (1..4)

@@ -40,7 +40,7 @@ class CompiledTrilateration(CompiledCore):
     def single(self, name):
         """A lean function for one pose (native.lean), or None where the general path must
         answer (as CompiledDelta.single); every kernel of the module has one (rows of 3)."""
-        return self._single(name, [port["width"] for port in self._kernels[name]["inputs"]])
+        return self._single(name)
 
     def fk(self, q):
         return self._run("fk", [q])
