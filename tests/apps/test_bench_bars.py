@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 
 import numpy as np
@@ -15,6 +16,7 @@ import pytest
 
 from deltagen.apps.bench import bars
 from deltagen.cli import main
+from deltagen.paths import generated_dir
 
 VERDICTS = {"met", "MISSED", "n/a", "unsettled"}
 
@@ -125,6 +127,8 @@ def test_the_delta_rate_bars_judge_their_own_rows_and_show_the_in_cache_ratio(mo
 
     def timer(fn, args=(), points=1, loops=1):
         kernel = getattr(fn, "kernel", None)
+        if fn is bars.numpy_fk_columns:
+            return lambda: 500.0
         return lambda: 1.0 if kernel is None else times[(kernel, points)]
 
     monkeypatch.setattr(bars, "cpu_timer", timer)
@@ -136,6 +140,28 @@ def test_the_delta_rate_bars_judge_their_own_rows_and_show_the_in_cache_ratio(mo
     assert label in vel["note"] and vel["note"].endswith(": 1.20x")
     assert label in acc["note"] and acc["note"].endswith(": 3.00x")
     assert vel["note"].startswith(f"{n:,} rows a call")
+    # the floors: every other timer (the trig loop, the FMA rate) reads 1 ns here, so a
+    # kernel's floor is 1 + its stated operations (generated/delta_kinematics.h: "Cost:");
+    # numpy 500 ns
+    header = (generated_dir() / "delta_kinematics.h").read_text()
+    stated = dict(
+        (name, int(cost))
+        for cost, name in re.findall(
+            r"Cost: (\d+) operations per point\.[^/]*?\*/\s*int (\w+)\(", header
+        )
+    )
+    fk_floor = 1 + stated["deltagen_delta_fk"]
+    assert "; the floors' ratio (trig + stated ops) " in vel["note"]
+    assert (
+        f"{(1 + stated['deltagen_delta_fk_vel']) / fk_floor:.2f}x; for information" in vel["note"]
+    )
+    assert (
+        f"{(1 + stated['deltagen_delta_fk_acc']) / fk_floor:.2f}x; for information" in acc["note"]
+    )
+    assert (
+        f"a kernel at the floor would reach {500 / fk_floor:.1f}x numpy"
+        in rows["delta_fk_numpy"]["note"]
+    )
 
 
 def _check(result):

@@ -33,7 +33,13 @@ The bars and their baselines:
 
 * **Delta fk >= 12x a column-wise numpy fk.** ``robot._core.fk`` (fresh outputs) beside
   :func:`numpy_fk_columns`: the same three-sphere intersection written on (N,) coordinate
-  columns (no per-row loop, no (N, 3, 3) stacks), on the same FLOOR_N rows.
+  columns (no per-row loop, no (N, 3, 3) stacks), on the same FLOOR_N rows. Beside it, the
+  delta fk's floor measured in the same round-robin as the Puma's (the floor loop on the
+  same rows: 3 sines and 3 cosines per point; the stated operations at the FMA rate), and
+  the ratio to numpy a kernel at that floor would reach: where that is below 12, no change
+  to the kernel's arithmetic or loops can meet the bar on this host, only cheaper
+  trigonometry (measured on the project's 2-core EPYC: trig 6.6 ns/point, floor ~8.8,
+  _core.fk 9.5, numpy 90-160 by the allocator's state).
 * **Delta fk_vel <= 1.35x fk, fk_acc <= 1.8x fk.** The C kernels with preallocated outputs
   on the same rows. Beside each, for information only (the verdict stays on the FLOOR_N
   rows), the same ratio in cache: calls of FLOOR_CALL_N rows looped to about
@@ -377,27 +383,52 @@ def measure_delta(n: int, repeats: int) -> list[dict]:
         for name in names
     }
     cached_names = [name for name in names if cached[name] is not None]
+    # the floor of each kernel on these rows (module docstring): the floor loop's 3 sines
+    # and 3 cosines per point, and the kernel's stated operations at the FMA rate
+    module = floor_module()
+    costs = kernel_costs("delta_kinematics")
     timers = [
         cpu_timer(robot._core.fk, (q,), n),
         cpu_timer(numpy_fk_columns, (robot.geometry, q), n),
+        cpu_timer(_trig_call(module, np.ascontiguousarray(q[:, :3])), (), n),
+        _fma_timer(module),
     ]
     timers += [cpu_timer(kernels[k], (), n) for k in names]
     timers += [cpu_timer(cached[k], (), small, loops) for k in cached_names]
-    core, numpy_fk, *kstats = interleaved(timers, repeats)
+    core, numpy_fk, trig, fma, *kstats = interleaved(timers, repeats)
     k = dict(zip(names, kstats[: len(names)]))
     in_cache = dict(zip(cached_names, kstats[len(names) :]))
+    rate = 1.0 / fma.min  # operations per ns
+    floors = {
+        name: trig.min + costs[f"deltagen_delta_{name}"] / rate
+        for name in ("fk", "fk_vel", "fk_acc")
+        if f"deltagen_delta_{name}" in costs
+    }
+    note = f"max |numpy - deltagen| {agreement:.1e} m"
+    if "fk" in floors:
+        note += (
+            f"; the fk's floor on these rows {num(floors['fk'])} ns/point = trig "
+            f"{num(trig.min)} (3 sin + 3 cos) + {costs['deltagen_delta_fk']} ops / {rate:.0f} "
+            f"ops/ns: _core.fk is {core.min / floors['fk']:.2f}x it, and a kernel at the floor "
+            f"would reach {numpy_fk.min / floors['fk']:.1f}x numpy"
+        )
     rows = [
         _row(
             "delta_fk_numpy",
             f"_core.fk {_ns(core)}/point",
             f"numpy columns {_ns(numpy_fk)}/point",
             numpy_fk.min / core.min,
-            f"max |numpy - deltagen| {agreement:.1e} m",
+            note,
         )
     ]
     for key, name in (("delta_fk_vel", "fk_vel"), ("delta_fk_acc", "fk_acc")):
         if name in k and "fk" in k:
             note = f"{n:,} rows a call"
+            if name in floors and "fk" in floors:
+                note += (
+                    f"; the floors' ratio (trig + stated ops) {num(floors[name])} / "
+                    f"{num(floors['fk'])} ns: {floors[name] / floors['fk']:.2f}x"
+                )
             if name in in_cache and "fk" in in_cache:
                 note += (
                     f"; for information, not the bar: in cache ({small:,} rows a call, "
