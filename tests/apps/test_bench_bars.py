@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import json
 import os
+import platform
 import re
+import subprocess
 import sys
 
 import numpy as np
@@ -103,6 +105,44 @@ class _Tagged:
 
     def __call__(self):
         return self.call()
+
+
+_FAULTS = """
+import resource, sys
+import numpy as np
+from deltagen.apps.bench import bars
+from deltagen.api.delta import DeltaRobot
+robot = DeltaRobot.default(backend="reference")
+q = np.tile([0.2, 0.4, 0.1], (bars.FLOOR_N, 1))
+if sys.argv[1] == "settled":
+    bars.settle_allocator()
+for _ in range(2):
+    bars.numpy_fk_columns(robot.geometry, q)
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+bars.numpy_fk_columns(robot.geometry, q)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+"""
+
+
+@pytest.mark.skipif(
+    not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc",
+    reason="glibc's dynamic mmap threshold is what settle_allocator sets",
+)
+def test_after_settle_allocator_the_numpy_baseline_reuses_its_memory():
+    """The numpy fk's baseline is measured in the allocator state it is fastest in: in a
+    fresh interpreter its third call on FLOOR_N rows first-touches thousands of fresh pages
+    (page faults, which a process's history decides: 93 vs 150 ns/point measured), after
+    settle_allocator none (its temporaries come from the heap, reused)."""
+    faults = {
+        how: int(
+            subprocess.run(
+                [sys.executable, "-c", _FAULTS, how], capture_output=True, text=True, check=True
+            ).stdout
+        )
+        for how in ("fresh", "settled")
+    }
+    assert faults["fresh"] > 1000, faults  # the state the bar must not be measured in
+    assert faults["settled"] < 50, faults
 
 
 def test_the_delta_rate_bars_judge_their_own_rows_and_show_the_in_cache_ratio(monkeypatch):

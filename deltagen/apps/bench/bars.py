@@ -33,13 +33,15 @@ The bars and their baselines:
 
 * **Delta fk >= 12x a column-wise numpy fk.** ``robot._core.fk`` (fresh outputs) beside
   :func:`numpy_fk_columns`: the same three-sphere intersection written on (N,) coordinate
-  columns (no per-row loop, no (N, 3, 3) stacks), on the same FLOOR_N rows. Beside it, the
+  columns (no per-row loop, no (N, 3, 3) stacks), on the same FLOOR_N rows, after
+  :func:`settle_allocator` (numpy's temporaries reused, not fresh pages: numpy at its
+  fastest, whatever ran before in the process). Beside it, the
   delta fk's floor measured in the same round-robin as the Puma's (the floor loop on the
   same rows: 3 sines and 3 cosines per point; the stated operations at the FMA rate), and
   the ratio to numpy a kernel at that floor would reach: where that is below 12, no change
   to the kernel's arithmetic or loops can meet the bar on this host, only cheaper
   trigonometry (measured on the project's 2-core EPYC: trig 6.6 ns/point, floor ~8.8,
-  _core.fk 9.5, numpy 90-160 by the allocator's state).
+  _core.fk 9.5, numpy 93 settled and 150 in a fresh process without it).
 * **Delta fk_vel <= 1.35x fk, fk_acc <= 1.8x fk.** The C kernels with preallocated outputs
   on the same rows. Beside each, for information only (the verdict stays on the FLOOR_N
   rows), the same ratio in cache: calls of FLOOR_CALL_N rows looped to about
@@ -215,6 +217,24 @@ def _fma_timer(module: Any) -> Callable[[], float]:
 # ------------------------------------------------------------------------- numpy baseline
 
 
+#: bytes of the block :func:`settle_allocator` frees: half of glibc's largest dynamic mmap
+#: threshold (32 MiB on 64-bit), above any one temporary of the numpy fk on FLOOR_N rows
+SETTLE_BYTES = 16 * 1024 * 1024
+
+
+def settle_allocator() -> None:
+    """Put glibc's malloc in the state the column-wise numpy fk is fastest in, whatever ran
+    before in this process. Each of its temporaries (0.8 MB on 10^5 rows) is above malloc's
+    initial mmap threshold (128 KiB): a fresh mapping, first-touched page by page, until the
+    process frees a mapped block, which raises the threshold to that block's size; the
+    temporaries then come from the heap and are reused. Which state a process is in depends
+    on its history: the same numpy fk measured 93 and 150 ns/point in two fresh processes on
+    the project's EPYC. Freeing one SETTLE_BYTES block first gives every run the fast
+    state: the stricter baseline. (Elsewhere than glibc, an allocation and a free.)"""
+    block = np.empty(SETTLE_BYTES // 8)
+    del block
+
+
 def numpy_fk_columns(geom: Any, q: np.ndarray) -> np.ndarray:
     """Delta fk in numpy on (N,) coordinate columns: the baseline of the ">= 12x" bar.
 
@@ -364,6 +384,7 @@ def measure_delta(n: int, repeats: int) -> list[dict]:
     robot = DeltaRobot.default(backend="compiled", threads=1)
     data = sample_poses(n, [robot._core], np.random.default_rng(SEED))
     q, qd, qdd = data["q"], data["qd"], data["qdd"]
+    settle_allocator()
     kernels = {
         name: _kernel_callable(robot._core, name, inputs)
         for name, inputs in (("fk", [q]), ("fk_vel", [q, qd]), ("fk_acc", [q, qd, qdd]))
