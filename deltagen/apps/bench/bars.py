@@ -35,13 +35,15 @@ The bars and their baselines:
   :func:`numpy_fk_columns`: the same three-sphere intersection written on (N,) coordinate
   columns (no per-row loop, no (N, 3, 3) stacks), on the same FLOOR_N rows, after
   :func:`settle_allocator` (numpy's temporaries reused, not fresh pages: numpy at its
-  fastest, whatever ran before in the process). Beside it, the
-  delta fk's floor measured in the same round-robin as the Puma's (the floor loop on the
-  same rows: 3 sines and 3 cosines per point; the stated operations at the FMA rate), and
-  the ratio to numpy a kernel at that floor would reach: where that is below 12, no change
-  to the kernel's arithmetic or loops can meet the bar on this host, only cheaper
-  trigonometry (measured on the project's 2-core EPYC: trig 6.6 ns/point, floor ~8.8,
-  _core.fk 9.5, numpy 93 settled and 150 in a fresh process without it).
+  fastest, whatever ran before in the process). Beside it, the delta fk's floor measured in
+  the same round-robin as the Puma's (the floor loop on the same rows: 3 sines and 3
+  cosines per point; the stated operations at the FMA rate), and the ratio to numpy a
+  kernel at that floor would reach: where that is well below 12, no change to the kernel's
+  arithmetic or loops can meet the bar on this host, only cheaper trigonometry. (For the
+  delta the stated operations include a few loop-invariant ones gcc hoists, l_b,1^2 and
+  the radii terms, so its floor is an estimate within a few percent, not a bound. Measured
+  on the project's 2-core EPYC: trig 6.7 ns/point, floor 9.1, the C kernel 8.8, _core.fk
+  9.7, numpy 94 settled and 150 in a fresh process without it: 10.3x at the floor.)
 * **Delta fk_vel <= 1.35x fk, fk_acc <= 1.8x fk.** The C kernels with preallocated outputs
   on the same rows. Beside each, for information only (the verdict stays on the FLOOR_N
   rows), the same ratio in cache: calls of FLOOR_CALL_N rows looped to about
