@@ -11,6 +11,7 @@ arm-none-eabi-gcc (each skipped with a reason when absent).
 from __future__ import annotations
 
 import math
+import os
 import re
 import shutil
 import subprocess
@@ -556,6 +557,30 @@ def test_out_with_the_users_files_needs_force(tmp_path, capsys):
     assert (out / "notes.txt").read_text() == "my notes\n"
     assert main(args) == 0  # its own earlier export: no --force needed
     capsys.readouterr()
+
+
+def test_a_failed_cortex_m4_compile_fails_the_export_as_the_host_one_does(
+    tmp_path, monkeypatch, capsys
+):
+    """The Cortex-M4F stack compiles run beside the host's (apps/export.py
+    _write_and_measure): one that fails there is the same clear exit 2, naming the
+    compiler, with no traceback and no folder left, while the host's build succeeds."""
+    from deltagen.cli import main
+
+    if ex.compiler() is None:
+        pytest.skip("no host C compiler: the export measures nothing")
+    fake = tmp_path / "bin" / "arm-none-eabi-gcc"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\necho 'arm-none-eabi-gcc: no such target' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake.parent}{os.pathsep}{os.environ['PATH']}")
+    out = tmp_path / "work" / "pkg"
+    assert main(["export", "lecture_prp", "--out", str(out), "--no-batch"]) == 2
+    err = capsys.readouterr().err
+    assert "arm-none-eabi-gcc could not compile" in err and "no such target" in err, err
+    assert "Traceback" not in err
+    assert not out.exists()
+    assert list(out.parent.iterdir()) == []
 
 
 def test_a_failed_export_leaves_no_folder(tmp_path, monkeypatch, capsys):
