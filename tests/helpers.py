@@ -7,16 +7,13 @@ Fixtures live in tests/conftest.py; plain functions and constants live here, imp
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import hashlib
 import math
 import os
-import pickle
 import re
 import shutil
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
@@ -453,68 +450,6 @@ def shared_object(cwd: Path, name: str, flags) -> Path:
             finally:
                 shutil.rmtree(work, ignore_errors=True)
     return obj
-
-
-class SharedDerivations(dict):
-    """codegen/export.py's memo of derivations (``_KERNELS``: one robot's kernels, seconds
-    of SymPy each) kept in files of the suite's build cache as well, so the processes of a
-    test run (pytest-xdist workers, each exporting the delta robot, the SCARA, ...) derive
-    each robot once: a key missing here is looked for there (a pickle), one derived here is
-    written there. The files' names carry a digest of deltagen's Python source and the
-    SymPy and Python versions, so a cache kept between runs never serves a derivation of
-    other code."""
-
-    def __init__(self, folder: Path):
-        super().__init__()
-        import sympy
-
-        digest = hashlib.sha256(repr((sympy.__version__, sys.version)).encode())
-        for path in sorted((REPO / "deltagen").rglob("*.py")):
-            digest.update(str(path.relative_to(REPO)).encode() + b"\0" + path.read_bytes())
-        self.folder, self.tag = folder, digest.hexdigest()[:16]
-        folder.mkdir(parents=True, exist_ok=True)
-
-    def _path(self, key) -> Path:
-        name = hashlib.sha256(repr((self.tag, key)).encode()).hexdigest()[:24]
-        return self.folder / f"{name}.pickle"
-
-    def __contains__(self, key) -> bool:
-        if super().__contains__(key):
-            return True
-        try:
-            data = self._path(key).read_bytes()
-        except FileNotFoundError:
-            return False
-        super().__setitem__(key, pickle.loads(data))
-        return True
-
-    def __setitem__(self, key, value) -> None:
-        super().__setitem__(key, value)
-        path = self._path(key)
-        partial = path.with_name(f".{path.name}.{os.getpid()}")
-        partial.write_bytes(pickle.dumps(value))
-        os.replace(partial, path)  # whole or absent for a reader in another process
-
-
-@contextlib.contextmanager
-def shared_derivations():
-    """codegen/export.py's derivations shared with the test run's other processes
-    (:class:`SharedDerivations`) while the block runs; afterwards the process keeps them in
-    its own memo."""
-    from deltagen.codegen import export
-
-    own = export._KERNELS
-    if isinstance(own, SharedDerivations):  # already shared (another module's fixture)
-        yield own
-        return
-    shared = SharedDerivations(Path(os.environ["DELTAGEN_CACHE"]) / "test-derivations")
-    shared.update(own)
-    export._KERNELS = shared
-    try:
-        yield shared
-    finally:
-        export._KERNELS = own
-        own.update(dict(shared))
 
 
 def private_sources(folder: Path) -> Path:

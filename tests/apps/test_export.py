@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import GCC, REPO, core_build_flags, shared_derivations, shared_object
+from helpers import GCC, REPO, core_build_flags, shared_object
 
 from deltagen import DeltaRobot, SerialRobot
 from deltagen import status as st
@@ -27,15 +27,6 @@ from deltagen.apps import export as ex
 from deltagen.codegen.export import arm_unit_kernels, delta_unit_kernels, package_sources
 from deltagen.native.build import compile_flags
 from deltagen.native.delta import geometry_struct
-
-
-@pytest.fixture(scope="session", autouse=True)
-def _derivations_of_the_run():
-    """The robots' derivations shared with the test run's other processes
-    (helpers.shared_derivations): each robot is derived once per run."""
-    with shared_derivations():
-        yield
-
 
 CC = ex.compiler()
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler (cc, gcc or clang) on PATH")

@@ -13,7 +13,6 @@ import subprocess
 
 import numpy as np
 import pytest
-from helpers import shared_derivations
 
 from deltagen import Hexapod, paths
 from deltagen import status as st
@@ -21,15 +20,6 @@ from deltagen.apps import export as ex
 from deltagen.apps.hexapod import EXAMPLE_POSITION, EXAMPLE_RPY
 from deltagen.cli import main
 from deltagen.codegen.export import package_sources
-
-
-@pytest.fixture(scope="session", autouse=True)
-def _derivations_of_the_run():
-    """The robots' derivations shared with the test run's other processes
-    (helpers.shared_derivations): each robot is derived once per run."""
-    with shared_derivations():
-        yield
-
 
 CC = ex.compiler()
 MAKE = shutil.which("make")

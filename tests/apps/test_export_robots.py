@@ -5,9 +5,9 @@ machine (robots/*.toml with a [machine] table), the delta robot and a
 URDF arm written here (the path of a robot file that is not bundled), each in double and in
 float32: the package alone in a clean folder builds with its Makefile and with its
 CMakeLists.txt, its example runs, and the numbers it prints are the Python API's (the
-numpy reference backend: independent of the C). The derivations are shared by the whole
-session (codegen.export caches them per process, helpers.shared_derivations shares them
-with the run's other processes); each package compiles once, at -O0 to keep the compile
+numpy reference backend: independent of the C). Each robot is derived and lowered once
+per run (codegen.export.DiskMemo keeps both in the suite's build cache, which every process
+of the run shares); each package compiles once, at -O0 to keep the compile
 time down (the runtime C, the same files in every arm's package, once per session for each
 content: LAUNCHER's runtime mode): the numbers are compared at the example's print
 precision, and the bit-level agreement of the optimised builds is
@@ -36,22 +36,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import shared_derivations
 
 from deltagen import DeltaRobot, SerialRobot
 from deltagen import status as st
 from deltagen.api.five_axis import FiveAxisMachine, bundled_machines
 from deltagen.api.serial import bundled_robots, bundled_urdfs
 from deltagen.apps import export as ex
-
-
-@pytest.fixture(scope="session", autouse=True)
-def _derivations_of_the_run():
-    """The robots' derivations shared with the test run's other processes
-    (helpers.shared_derivations): each robot is derived once per run."""
-    with shared_derivations():
-        yield
-
 
 CC = ex.compiler()
 MAKE = shutil.which("make")

@@ -12,17 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import KLIPPER_LINEAR_CFG, KLIPPER_ROTARY_CFG, shared_derivations
+from helpers import KLIPPER_LINEAR_CFG, KLIPPER_ROTARY_CFG
 
 from deltagen.cli import main
-
-
-@pytest.fixture(scope="session", autouse=True)
-def _derivations_of_the_run():
-    """The robots' derivations shared with the test run's other processes
-    (helpers.shared_derivations): each robot is derived once per run."""
-    with shared_derivations():
-        yield
 
 
 def _link(name, mass=1.0):
