@@ -78,16 +78,19 @@ class DiskMemo(dict):
 
 _KERNELS = DiskMemo("derivation")  # derivations (seconds each), by robot
 _LOWERED = DiskMemo("lowered")  # their lowered statements, by robot and real type
-_KEY_OF: dict = {}  # id(kernels) -> (its key, the tuple itself: kept alive, its id not reused)
 
 
 def _derived(key, derive) -> tuple:
     """The kernels of ``key`` from the memo, derived (``derive()``) when it has none."""
     if key not in _KERNELS:
         _KERNELS[key] = tuple(derive())
-    kernels = _KERNELS[key]
-    _KEY_OF[id(kernels)] = (key, kernels)
-    return kernels
+    return _KERNELS[key]
+
+
+def _derivation_key(kernels):
+    """The memo's key of ``kernels`` when they are one of its entries (the very tuple), else
+    None. The process holds a few robots' derivations: a scan, not a second index."""
+    return next((key for key, value in _KERNELS.items() if value is kernels), None)
 
 
 def delta_unit_kernels() -> tuple[Unit, tuple]:
@@ -221,8 +224,8 @@ def package_sources(
     (names) to wrap for a delta robot with encoder offsets (<prefix>_robot_<kernel>: readings
     in and out, templates/robot.{h,c}.j2), none by default."""
     unit = exported_unit(unit, prefix, real_type)
-    derivation, known = _KEY_OF.get(id(kernels), (None, None))
-    if known is not kernels:  # kernels not from the memo: lowered for this call only
+    derivation = _derivation_key(kernels)
+    if derivation is None:  # kernels not from the memo: lowered for this call only
         lowered = [lower(k, real_type) for k in kernels]
     else:
         key = (derivation, real_type)
